@@ -1,0 +1,234 @@
+//! Statistics and comparison measures: summary statistics, RMSE, PSNR over the elevation range,
+//! and the terrain-realism measures the method crates report (radial power-spectrum slope and
+//! slope-angle histogram distance).
+
+use rustfft::{FftPlanner, num_complex::Complex};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{HeightfieldError, Result};
+use crate::grid::Heightfield;
+use crate::terrain::slope_degrees;
+
+/// Summary statistics over valid cells.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Stats {
+    /// Smallest valid elevation.
+    pub min: f64,
+    /// Largest valid elevation.
+    pub max: f64,
+    /// Mean elevation.
+    pub mean: f64,
+    /// Standard deviation of the elevation.
+    pub std: f64,
+    /// Number of valid cells.
+    pub valid: usize,
+    /// Number of void cells.
+    pub voids: usize,
+}
+
+/// Summary statistics; an error if every cell is void.
+pub fn stats(hf: &Heightfield) -> Result<Stats> {
+    let (mut n, mut s, mut s2) = (0usize, 0.0f64, 0.0f64);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &v in hf.as_slice() {
+        if v.is_finite() {
+            let v = v as f64;
+            n += 1;
+            s += v;
+            s2 += v * v;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    if n == 0 {
+        return Err(HeightfieldError::AllVoid { count: hf.len() });
+    }
+    let mean = s / n as f64;
+    let var = (s2 / n as f64 - mean * mean).max(0.0);
+    Ok(Stats {
+        min: lo,
+        max: hi,
+        mean,
+        std: var.sqrt(),
+        valid: n,
+        voids: hf.len() - n,
+    })
+}
+
+fn same_size(a: &Heightfield, b: &Heightfield) -> Result<()> {
+    if a.width() != b.width() || a.height() != b.height() {
+        return Err(HeightfieldError::SizeMismatch {
+            a_w: a.width(),
+            a_h: a.height(),
+            b_w: b.width(),
+            b_h: b.height(),
+        });
+    }
+    Ok(())
+}
+
+/// Root-mean-square difference over cells valid in both grids.
+pub fn rmse(a: &Heightfield, b: &Heightfield) -> Result<f64> {
+    same_size(a, b)?;
+    let (mut n, mut s) = (0usize, 0.0f64);
+    for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
+        if x.is_finite() && y.is_finite() {
+            let d = (*x - *y) as f64;
+            s += d * d;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return Err(HeightfieldError::AllVoid { count: a.len() });
+    }
+    Ok((s / n as f64).sqrt())
+}
+
+/// Largest absolute difference over cells valid in both grids.
+pub fn max_abs_diff(a: &Heightfield, b: &Heightfield) -> Result<f64> {
+    same_size(a, b)?;
+    Ok(a.as_slice()
+        .iter()
+        .zip(b.as_slice())
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .map(|(x, y)| (*x as f64 - *y as f64).abs())
+        .fold(0.0, f64::max))
+}
+
+/// PSNR in dB of `test` against `reference`, with the reference's elevation range as the peak:
+/// `20 log10(range / rmse)` (guerin2016 uses this in table 1). Infinite for identical grids.
+pub fn psnr(reference: &Heightfield, test: &Heightfield) -> Result<f64> {
+    let e = rmse(reference, test)?;
+    let range = reference.relief() as f64;
+    Ok(if e == 0.0 {
+        f64::INFINITY
+    } else {
+        20.0 * (range.max(1e-12) / e).log10()
+    })
+}
+
+/// Radially averaged power spectrum of the (mean-removed, Hann-windowed) grid: pairs
+/// `(frequency in cycles per metre, power)`, one per integer radius in the centred spectrum.
+/// Needs a void-free grid of at least 8 x 8.
+pub fn radial_power_spectrum(hf: &Heightfield) -> Result<Vec<(f64, f64)>> {
+    hf.require_complete()?;
+    let (w, h) = (hf.width(), hf.height());
+    if w < 8 || h < 8 {
+        return Err(HeightfieldError::param(
+            "size",
+            format!("{w}x{h}"),
+            "spectrum needs >= 8x8",
+        ));
+    }
+    let mean = hf.as_slice().iter().map(|&v| v as f64).sum::<f64>() / hf.len() as f64;
+    let hann = |i: usize, n: usize| {
+        0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n - 1) as f64).cos()
+    };
+    let mut buf: Vec<Complex<f64>> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| Complex::new((hf.get(x, y) as f64 - mean) * hann(x, w) * hann(y, h), 0.0))
+        .collect();
+    let mut planner = FftPlanner::<f64>::new();
+    let fr = planner.plan_fft_forward(w);
+    for row in buf.chunks_exact_mut(w) {
+        fr.process(row);
+    }
+    let fc = planner.plan_fft_forward(h);
+    let mut col = vec![Complex::new(0.0, 0.0); h];
+    for x in 0..w {
+        for y in 0..h {
+            col[y] = buf[y * w + x];
+        }
+        fc.process(&mut col);
+        for y in 0..h {
+            buf[y * w + x] = col[y];
+        }
+    }
+    let (cx, cy) = hf.cell_size();
+    // Radius in units of the frequency step of the shorter side's physical length.
+    let (lx, ly) = (w as f64 * cx, h as f64 * cy);
+    let df = 1.0 / lx.max(ly);
+    let nbins = ((0.5 / cx.max(cy)) / df).floor() as usize + 1;
+    let mut power = vec![0.0f64; nbins];
+    let mut count = vec![0usize; nbins];
+    for y in 0..h {
+        let ky = if y <= h / 2 {
+            y as f64
+        } else {
+            y as f64 - h as f64
+        } / ly;
+        for x in 0..w {
+            let kx = if x <= w / 2 {
+                x as f64
+            } else {
+                x as f64 - w as f64
+            } / lx;
+            let r = ((kx * kx + ky * ky).sqrt() / df).round() as usize;
+            if r < nbins {
+                power[r] += buf[y * w + x].norm_sqr();
+                count[r] += 1;
+            }
+        }
+    }
+    Ok((1..nbins)
+        .filter(|&r| count[r] > 0)
+        .map(|r| (r as f64 * df, power[r] / count[r] as f64))
+        .collect())
+}
+
+/// Least-squares slope of `log10 power` against `log10 frequency` for frequencies in
+/// `[f_lo, f_hi]` (cycles per metre). Natural terrain gives about -2 to -3.5; white noise 0.
+pub fn spectral_slope(spectrum: &[(f64, f64)], f_lo: f64, f_hi: f64) -> Result<f64> {
+    let pts: Vec<(f64, f64)> = spectrum
+        .iter()
+        .filter(|(f, p)| *f >= f_lo && *f <= f_hi && *p > 0.0)
+        .map(|(f, p)| (f.log10(), p.log10()))
+        .collect();
+    if pts.len() < 2 {
+        return Err(HeightfieldError::param(
+            "band",
+            format!("[{f_lo}, {f_hi}]"),
+            "fewer than 2 spectrum points",
+        ));
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    Ok(if sxx > 0.0 { sxy / sxx } else { 0.0 })
+}
+
+/// Normalised histogram of slope angles in 1-degree bins over `[0, 90)`.
+pub fn slope_histogram(hf: &Heightfield) -> Vec<f64> {
+    let s = slope_degrees(hf);
+    let mut hist = vec![0.0f64; 90];
+    let mut n = 0usize;
+    for v in s.iter().filter(|v| v.is_finite()) {
+        hist[(*v as usize).min(89)] += 1.0;
+        n += 1;
+    }
+    if n > 0 {
+        hist.iter_mut().for_each(|h| *h /= n as f64);
+    }
+    hist
+}
+
+/// Earth mover's distance between two normalised 1-degree histograms, in degrees: how far, on
+/// average, slope angles must move to turn one distribution into the other.
+pub fn histogram_emd(a: &[f64], b: &[f64]) -> f64 {
+    let (mut ca, mut cb, mut d) = (0.0, 0.0, 0.0);
+    for i in 0..a.len().max(b.len()) {
+        ca += a.get(i).copied().unwrap_or(0.0);
+        cb += b.get(i).copied().unwrap_or(0.0);
+        d += (ca - cb).abs();
+    }
+    d
+}
+
+/// Slope-angle histogram distance (EMD in degrees) between two terrains.
+pub fn slope_histogram_distance(a: &Heightfield, b: &Heightfield) -> f64 {
+    histogram_emd(&slope_histogram(a), &slope_histogram(b))
+}

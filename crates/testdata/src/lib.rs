@@ -1,0 +1,97 @@
+//! Test support for the relief workspace (not published).
+//!
+//! Locates the real DEM set (`shared/data/dem` beside the checkout, or `$RELIEF_DEM_DIR`) and
+//! loads its `.f32` rasters with their sidecars. When the folder is absent, [`dem_dir`] prints
+//! a notice and returns `None` so a test can skip, unless the environment variable `CI` is
+//! set: then it panics, because CI must run every real-data test.
+//!
+//! Only test code depends on this crate; library crates never read files themselves.
+#![allow(clippy::print_stderr)]
+
+use std::path::{Path, PathBuf};
+
+use relief_heightfield::Heightfield;
+
+/// Directory of the workspace root (two levels above this crate).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("workspace root")
+}
+
+/// The real DEM folder, or `None` (with a notice on stderr) when absent outside CI.
+///
+/// # Panics
+/// Panics when the folder is absent and `CI` is set.
+pub fn dem_dir() -> Option<PathBuf> {
+    let candidates = [
+        std::env::var_os("RELIEF_DEM_DIR").map(PathBuf::from),
+        Some(workspace_root().join("../shared/data/dem")),
+    ];
+    for c in candidates.into_iter().flatten() {
+        if c.join("MANIFEST.md").is_file() {
+            return Some(c);
+        }
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!(
+            "the real DEM set (../shared/data/dem) is absent but CI is set: CI must run real-data tests"
+        );
+    }
+    eprintln!("notice: ../shared/data/dem not found; skipping a real-DEM test");
+    None
+}
+
+/// Loads `<id>.f32` with its sidecar (`cell_size_x_m`, `cell_size_y_m`); voids (`nodata`) become
+/// NaN. Returns `None` when the DEM folder is absent (see [`dem_dir`]).
+///
+/// # Panics
+/// Panics on a malformed file: the shared set is trusted test data.
+pub fn load_dem(id: &str) -> Option<Heightfield> {
+    let dir = dem_dir()?;
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join(format!("{id}.json"))).expect("sidecar"))
+            .expect("sidecar json");
+    let w = side["width"].as_u64().expect("width") as usize;
+    let h = side["height"].as_u64().expect("height") as usize;
+    let cx = side["cell_size_x_m"]
+        .as_f64()
+        .or(side["cell_size_m"].as_f64())
+        .expect("cell");
+    let cy = side["cell_size_y_m"]
+        .as_f64()
+        .or(side["cell_size_m"].as_f64())
+        .expect("cell");
+    let nodata = side["nodata"].as_f64();
+    let bytes = std::fs::read(dir.join(format!("{id}.f32"))).expect("f32 raster");
+    let data: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .map(|v| {
+            if nodata.is_some_and(|nd| v as f64 == nd) {
+                f32::NAN
+            } else {
+                v
+            }
+        })
+        .collect();
+    Some(Heightfield::new(w, h, data, cx, cy).expect("valid DEM"))
+}
+
+/// A crop of a real DEM: `load_dem(id)` then `crop(x, y, w, h)`.
+pub fn dem_crop(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
+    load_dem(id).map(|d| d.crop(x, y, w, h).expect("crop inside the DEM"))
+}
+
+/// The ids of the real DEM set.
+pub const DEM_IDS: [&str; 8] = [
+    "alps_dem",
+    "N47E011",
+    "grandcanyon",
+    "carrizo",
+    "maunga_whau",
+    "jacksboro_fault",
+    "topobathy",
+    "N57E011",
+];
