@@ -1,0 +1,272 @@
+//! Small vector helpers, axis-aligned boxes, counter-based hashing and value noise.
+//!
+//! Everything random in this crate is derived from [`hash`] of a seed and integer counters, so
+//! results never depend on thread scheduling.
+
+/// A point or vector in metres: `[x (east), y (north), z (up)]`.
+pub type V3 = [f32; 3];
+
+#[inline]
+pub(crate) fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+#[inline]
+pub(crate) fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+pub(crate) fn mul(a: V3, s: f32) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline]
+pub(crate) fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+pub(crate) fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+pub(crate) fn norm(a: V3) -> f32 {
+    dot(a, a).sqrt()
+}
+#[inline]
+pub(crate) fn normalize(a: V3) -> V3 {
+    let n = norm(a);
+    if n > 0.0 {
+        mul(a, 1.0 / n)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+#[inline]
+pub(crate) fn finite3(a: V3) -> bool {
+    a.iter().all(|v| v.is_finite())
+}
+
+/// An axis-aligned box `[min, max]` in metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: V3,
+    /// Upper corner.
+    pub max: V3,
+}
+
+impl Aabb {
+    /// Box from two corners (reordered per axis).
+    pub fn new(a: V3, b: V3) -> Self {
+        Self {
+            min: [a[0].min(b[0]), a[1].min(b[1]), a[2].min(b[2])],
+            max: [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2])],
+        }
+    }
+    /// The empty box (union identity).
+    pub fn empty() -> Self {
+        Self {
+            min: [f32::INFINITY; 3],
+            max: [f32::NEG_INFINITY; 3],
+        }
+    }
+    /// Box of a sphere.
+    pub fn sphere(c: V3, r: f32) -> Self {
+        Self {
+            min: [c[0] - r, c[1] - r, c[2] - r],
+            max: [c[0] + r, c[1] + r, c[2] + r],
+        }
+    }
+    /// Smallest box holding both.
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: [
+                self.min[0].min(o.min[0]),
+                self.min[1].min(o.min[1]),
+                self.min[2].min(o.min[2]),
+            ],
+            max: [
+                self.max[0].max(o.max[0]),
+                self.max[1].max(o.max[1]),
+                self.max[2].max(o.max[2]),
+            ],
+        }
+    }
+    /// Overlap of both (may be empty).
+    pub fn intersection(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: [
+                self.min[0].max(o.min[0]),
+                self.min[1].max(o.min[1]),
+                self.min[2].max(o.min[2]),
+            ],
+            max: [
+                self.max[0].min(o.max[0]),
+                self.max[1].min(o.max[1]),
+                self.max[2].min(o.max[2]),
+            ],
+        }
+    }
+    /// Box grown by `d` on every side.
+    pub fn inflate(&self, d: f32) -> Aabb {
+        Aabb {
+            min: [self.min[0] - d, self.min[1] - d, self.min[2] - d],
+            max: [self.max[0] + d, self.max[1] + d, self.max[2] + d],
+        }
+    }
+    /// Whether the box holds no point.
+    pub fn is_empty(&self) -> bool {
+        (0..3).any(|k| self.min[k] > self.max[k])
+    }
+    /// Whether `p` lies inside (boundary included).
+    #[inline]
+    pub fn contains(&self, p: V3) -> bool {
+        p[0] >= self.min[0]
+            && p[0] <= self.max[0]
+            && p[1] >= self.min[1]
+            && p[1] <= self.max[1]
+            && p[2] >= self.min[2]
+            && p[2] <= self.max[2]
+    }
+    /// Whether the two boxes overlap.
+    #[inline]
+    pub fn intersects(&self, o: &Aabb) -> bool {
+        (0..3).all(|k| self.min[k] <= o.max[k] && o.min[k] <= self.max[k])
+    }
+    /// Centre point.
+    pub fn center(&self) -> V3 {
+        mul(add(self.min, self.max), 0.5)
+    }
+    /// Edge lengths.
+    pub fn size(&self) -> V3 {
+        sub(self.max, self.min)
+    }
+    /// Squared distance from `p` to the box (0 inside).
+    #[inline]
+    pub fn dist_sq(&self, p: V3) -> f32 {
+        let mut d = 0.0;
+        for k in 0..3 {
+            let v = (self.min[k] - p[k]).max(0.0).max(p[k] - self.max[k]);
+            d += v * v;
+        }
+        d
+    }
+    pub(crate) fn is_finite(&self) -> bool {
+        finite3(self.min) && finite3(self.max)
+    }
+}
+
+/// SplitMix64 finaliser of `seed` mixed with three counters: a counter-based random source, so
+/// every work item gets its own independent stream whatever the thread count.
+#[inline]
+pub fn hash(seed: u64, a: u64, b: u64, c: u64) -> u64 {
+    let mut z = seed
+        ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ c.wrapping_mul(0x1656_67B1_9E37_79F9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Uniform value in `[0, 1)` from a hash.
+#[inline]
+pub fn unit(h: u64) -> f32 {
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+#[inline]
+fn lattice(seed: u64, x: i32, y: i32, z: i32) -> f32 {
+    unit(hash(
+        seed,
+        x as u32 as u64,
+        y as u32 as u64,
+        z as u32 as u64,
+    )) * 2.0
+        - 1.0
+}
+
+#[inline]
+fn fade(t: f32) -> f32 {
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Trilinear value noise with smoothstep fade, values in `[-1, 1]`, lattice spacing 1.
+pub fn value_noise(seed: u64, p: V3) -> f32 {
+    let (fx, fy, fz) = (p[0].floor(), p[1].floor(), p[2].floor());
+    let (x, y, z) = (fx as i32, fy as i32, fz as i32);
+    let (tx, ty, tz) = (fade(p[0] - fx), fade(p[1] - fy), fade(p[2] - fz));
+    let l = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let c00 = l(lattice(seed, x, y, z), lattice(seed, x + 1, y, z), tx);
+    let c10 = l(
+        lattice(seed, x, y + 1, z),
+        lattice(seed, x + 1, y + 1, z),
+        tx,
+    );
+    let c01 = l(
+        lattice(seed, x, y, z + 1),
+        lattice(seed, x + 1, y, z + 1),
+        tx,
+    );
+    let c11 = l(
+        lattice(seed, x, y + 1, z + 1),
+        lattice(seed, x + 1, y + 1, z + 1),
+        tx,
+    );
+    l(l(c00, c10, ty), l(c01, c11, ty), tz)
+}
+
+/// Lipschitz bound of [`value_noise`]: the smoothstep slope is at most 1.5 and lattice values
+/// differ by at most 2, so each partial derivative is at most 3 and the gradient norm 3 sqrt(3).
+pub const VALUE_NOISE_LIPSCHITZ: f32 = 5.2;
+
+/// Fractal sum of `octaves` value-noise octaves (gain 1/2, lacunarity 2), roughly in `[-1, 1]`.
+pub fn fbm(seed: u64, p: V3, octaves: u32) -> f32 {
+    let mut s = 0.0;
+    let mut a = 0.5;
+    let mut f = 1.0;
+    for o in 0..octaves.max(1) {
+        s += a * value_noise(seed.wrapping_add(o as u64 * 7919), mul(p, f));
+        a *= 0.5;
+        f *= 2.0;
+    }
+    s
+}
+
+/// Lipschitz bound of [`fbm`] at unit frequency: sum of 0.5^o * 2^o = octaves times 0.5.
+pub fn fbm_lipschitz(octaves: u32) -> f32 {
+    0.5 * octaves.max(1) as f32 * VALUE_NOISE_LIPSCHITZ
+}
+
+/// A 3-vector of independent [`fbm`] values (for warps).
+pub fn fbm3(seed: u64, p: V3, octaves: u32) -> V3 {
+    [
+        fbm(seed, p, octaves),
+        fbm(seed ^ 0x5555_5555, p, octaves),
+        fbm(seed ^ 0xAAAA_AAAA_0000, p, octaves),
+    ]
+}
+
+/// The compact-support cubic falloff of the paper's reference implementation:
+/// `g(d^2) = (1 - d^2 / R^2)^3` for `d < R`, 0 beyond. Takes `q = d^2 / R^2`.
+#[inline]
+pub fn falloff(q: f32) -> f32 {
+    if q >= 1.0 {
+        0.0
+    } else {
+        let t = 1.0 - q;
+        t * t * t
+    }
+}
+
+/// Maximum slope of `d -> (1 - d^2/R^2)^3` is `1.7173 / R` (at `d = R / sqrt(5)`).
+pub const FALLOFF_LIPSCHITZ: f32 = 1.7174;
+
+/// Odd cubic step `s(x) = 1.5 x - 0.5 x^3` on `[-1, 1]`, clamped to -1 / 1 outside; slope <= 1.5.
+#[inline]
+pub fn cubic_step(x: f32) -> f32 {
+    let x = x.clamp(-1.0, 1.0);
+    1.5 * x - 0.5 * x * x * x
+}

@@ -1,0 +1,493 @@
+//! Chunked polygonisation by marching tetrahedra (Kuhn triangulation of each grid cube into six
+//! tetrahedra around its main diagonal).
+//!
+//! The grid is processed in chunks of `chunk^3` cells: each chunk samples only its own
+//! `(chunk + 1)^3` nodes, so memory is bounded by the chunk plus the output mesh, never a dense
+//! grid of the whole scene. Chunks whose Lipschitz bound proves they hold no surface are skipped
+//! without sampling. Vertices lie on lattice edges and are welded across chunk borders by a
+//! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
+//! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
+//! (`inside <=> f > T`), the piecewise-linear iso-surface is a closed 2-manifold: every edge is
+//! shared by exactly two consistently oriented triangles (when `close_boundary` makes the grid
+//! border air).
+
+use std::collections::HashMap;
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::math::{Aabb, V3, add, cross, dot, mul, sub};
+use crate::scene::Scene;
+use crate::tree::THRESHOLD;
+
+/// A triangle mesh as plain arrays.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions (m).
+    pub positions: Vec<[f32; 3]>,
+    /// Outward unit vertex normals from the field gradient (empty for [`polygonize_grid`]).
+    pub normals: Vec<[f32; 3]>,
+    /// Counter-clockwise triangles seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Polygonisation settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshSettings {
+    /// Region to mesh; `None` = the scene's box grown by one cell.
+    pub bbox: Option<Aabb>,
+    /// Grid cells along x, y, z.
+    pub cells: [usize; 3],
+    /// Chunk edge in cells.
+    pub chunk: usize,
+    /// Treat the grid border as air so the mesh is closed even where matter touches it.
+    pub close_boundary: bool,
+    /// Compute vertex normals from the field gradient.
+    pub normals: bool,
+}
+impl Default for MeshSettings {
+    fn default() -> Self {
+        Self {
+            bbox: None,
+            cells: [128, 128, 64],
+            chunk: 32,
+            close_boundary: true,
+            normals: true,
+        }
+    }
+}
+
+/// Work done by [`polygonize`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MeshReport {
+    /// Chunks in the grid.
+    pub chunks: usize,
+    /// Chunks sampled (the others were proven empty).
+    pub chunks_sampled: usize,
+    /// Field evaluations for sampling (normals excluded).
+    pub evaluations: usize,
+}
+
+// The six Kuhn tetrahedra: corner offsets as bit masks (bit 0 = x, 1 = y, 2 = z).
+const TETS: [[u8; 4]; 6] = [
+    [0, 1, 3, 7],
+    [0, 1, 5, 7],
+    [0, 2, 3, 7],
+    [0, 2, 6, 7],
+    [0, 4, 5, 7],
+    [0, 4, 6, 7],
+];
+
+struct Grid {
+    origin: V3,
+    step: V3,
+    n: [usize; 3], // cells
+}
+impl Grid {
+    fn node_id(&self, i: usize, j: usize, k: usize) -> u64 {
+        ((k * (self.n[1] + 1) + j) * (self.n[0] + 1) + i) as u64
+    }
+    fn pos(&self, i: usize, j: usize, k: usize) -> V3 {
+        [
+            self.origin[0] + i as f32 * self.step[0],
+            self.origin[1] + j as f32 * self.step[1],
+            self.origin[2] + k as f32 * self.step[2],
+        ]
+    }
+}
+
+struct ChunkOut {
+    keys: Vec<u64>,
+    pos: Vec<V3>,
+    tris: Vec<[u32; 3]>,
+}
+
+/// Marching tetrahedra over the cells `lo..hi` with node values from `val(i, j, k)` (local
+/// buffer of `(hi - lo + 1)` nodes per axis).
+fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32) -> ChunkOut {
+    let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
+    let at = |i: usize, j: usize, k: usize| vals[(k * d[1] + j) * d[0] + i];
+    let mut out = ChunkOut {
+        keys: Vec::new(),
+        pos: Vec::new(),
+        tris: Vec::new(),
+    };
+    let mut local: HashMap<u64, u32> = HashMap::new();
+    for k in 0..d[2] - 1 {
+        for j in 0..d[1] - 1 {
+            for i in 0..d[0] - 1 {
+                let mut cv = [0f32; 8];
+                let mut any_in = false;
+                let mut any_out = false;
+                for (c, v) in cv.iter_mut().enumerate() {
+                    *v = at(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+                    if *v > iso {
+                        any_in = true
+                    } else {
+                        any_out = true
+                    }
+                }
+                if !(any_in && any_out) {
+                    continue;
+                }
+                let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
+                let corner = |c: u8| {
+                    [
+                        gi + (c & 1) as usize,
+                        gj + ((c >> 1) & 1) as usize,
+                        gk + ((c >> 2) & 1) as usize,
+                    ]
+                };
+                let mut vert = |a: u8, b: u8, out: &mut ChunkOut| -> u32 {
+                    // Edge from the lower corner to the upper one (Kuhn edges are monotone).
+                    let (a, b) = if a < b { (a, b) } else { (b, a) };
+                    let ca = corner(a);
+                    let key = g.node_id(ca[0], ca[1], ca[2]) * 8 + (a ^ b) as u64;
+                    if let Some(&v) = local.get(&key) {
+                        return v;
+                    }
+                    let (va, vb) = (cv[a as usize], cv[b as usize]);
+                    let t = ((iso - va) / (vb - va)).clamp(0.0, 1.0);
+                    let cb = corner(b);
+                    let pa = g.pos(ca[0], ca[1], ca[2]);
+                    let pb = g.pos(cb[0], cb[1], cb[2]);
+                    let p = add(pa, mul(sub(pb, pa), t));
+                    let id = out.pos.len() as u32;
+                    out.pos.push(p);
+                    out.keys.push(key);
+                    local.insert(key, id);
+                    id
+                };
+                for tet in TETS {
+                    let ins: Vec<u8> = tet
+                        .iter()
+                        .copied()
+                        .filter(|&c| cv[c as usize] > iso)
+                        .collect();
+                    let outs: Vec<u8> = tet
+                        .iter()
+                        .copied()
+                        .filter(|&c| cv[c as usize] <= iso)
+                        .collect();
+                    if ins.is_empty() || outs.is_empty() {
+                        continue;
+                    }
+                    let cen = |cs: &[u8]| {
+                        let mut s = [0.0; 3];
+                        for &c in cs {
+                            let q = corner(c);
+                            s = add(s, g.pos(q[0], q[1], q[2]));
+                        }
+                        mul(s, 1.0 / cs.len() as f32)
+                    };
+                    let outward = sub(cen(&outs), cen(&ins));
+                    let emit = |tri: [u32; 3], out: &mut ChunkOut| {
+                        let (p0, p1, p2) = (
+                            out.pos[tri[0] as usize],
+                            out.pos[tri[1] as usize],
+                            out.pos[tri[2] as usize],
+                        );
+                        let n = cross(sub(p1, p0), sub(p2, p0));
+                        if dot(n, outward) >= 0.0 {
+                            out.tris.push(tri);
+                        } else {
+                            out.tris.push([tri[0], tri[2], tri[1]]);
+                        }
+                    };
+                    match (ins.len(), outs.len()) {
+                        (1, 3) => {
+                            let t = [
+                                vert(ins[0], outs[0], &mut out),
+                                vert(ins[0], outs[1], &mut out),
+                                vert(ins[0], outs[2], &mut out),
+                            ];
+                            emit(t, &mut out);
+                        }
+                        (3, 1) => {
+                            let t = [
+                                vert(outs[0], ins[0], &mut out),
+                                vert(outs[0], ins[1], &mut out),
+                                vert(outs[0], ins[2], &mut out),
+                            ];
+                            emit(t, &mut out);
+                        }
+                        _ => {
+                            let (a, b, c, dd) = (ins[0], ins[1], outs[0], outs[1]);
+                            let q = [
+                                vert(a, c, &mut out),
+                                vert(a, dd, &mut out),
+                                vert(b, dd, &mut out),
+                                vert(b, c, &mut out),
+                            ];
+                            emit([q[0], q[1], q[2]], &mut out);
+                            emit([q[0], q[2], q[3]], &mut out);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+fn chunks_of(n: [usize; 3], c: usize) -> Vec<([usize; 3], [usize; 3])> {
+    let mut v = Vec::new();
+    for k in (0..n[2]).step_by(c) {
+        for j in (0..n[1]).step_by(c) {
+            for i in (0..n[0]).step_by(c) {
+                v.push((
+                    [i, j, k],
+                    [(i + c).min(n[0]), (j + c).min(n[1]), (k + c).min(n[2])],
+                ));
+            }
+        }
+    }
+    v
+}
+
+fn weld(chunks: Vec<ChunkOut>) -> Mesh {
+    let mut map: HashMap<u64, u32> = HashMap::new();
+    let mut mesh = Mesh::default();
+    for ch in chunks {
+        let remap: Vec<u32> = ch
+            .keys
+            .iter()
+            .zip(&ch.pos)
+            .map(|(k, p)| {
+                *map.entry(*k).or_insert_with(|| {
+                    mesh.positions.push(*p);
+                    mesh.positions.len() as u32 - 1
+                })
+            })
+            .collect();
+        mesh.triangles.extend(ch.tris.iter().map(|t| {
+            [
+                remap[t[0] as usize],
+                remap[t[1] as usize],
+                remap[t[2] as usize],
+            ]
+        }));
+    }
+    mesh
+}
+
+/// Polygonises the surface `f = T` of `scene` (see module docs).
+pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)> {
+    if s.cells.iter().any(|&c| c == 0 || c > 1 << 14) {
+        return Err(Error::param(
+            "cells",
+            format!("{:?}", s.cells),
+            "each must be in 1..=16384",
+        ));
+    }
+    if s.chunk < 2 || s.chunk > 256 {
+        return Err(Error::param("chunk", s.chunk, "must be in 2..=256"));
+    }
+    let bbox = match s.bbox {
+        Some(b) if b.is_finite() && !b.is_empty() => b,
+        Some(b) => {
+            return Err(Error::param(
+                "bbox",
+                format!("{b:?}"),
+                "must be finite and non-empty",
+            ));
+        }
+        None => {
+            let b = scene.bbox();
+            let sz = b.size();
+            let pad = (0..3)
+                .map(|k| sz[k] / s.cells[k] as f32)
+                .fold(0.0, f32::max);
+            b.inflate(pad)
+        }
+    };
+    let sz = bbox.size();
+    let g = Grid {
+        origin: bbox.min,
+        step: [
+            sz[0] / s.cells[0] as f32,
+            sz[1] / s.cells[1] as f32,
+            sz[2] / s.cells[2] as f32,
+        ],
+        n: s.cells,
+    };
+    let chunks = chunks_of(s.cells, s.chunk);
+    let results: Vec<(Option<ChunkOut>, usize)> = chunks
+        .par_iter()
+        .map(|&(lo, hi)| {
+            let cb = Aabb::new(g.pos(lo[0], lo[1], lo[2]), g.pos(hi[0], hi[1], hi[2]));
+            let touches = (0..3).any(|k| lo[k] == 0 || hi[k] == g.n[k]);
+            let c = cb.center();
+            let hd = 0.5 * crate::math::norm(cb.size());
+            let fc = scene.field(c);
+            let l = scene.lipschitz(&cb);
+            if (fc - THRESHOLD).abs() > l * hd && (fc < THRESHOLD || !(s.close_boundary && touches))
+            {
+                return (None, 1);
+            }
+            let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
+            let mut vals = vec![0f32; d[0] * d[1] * d[2]];
+            for k in 0..d[2] {
+                for j in 0..d[1] {
+                    for i in 0..d[0] {
+                        let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
+                        let border = gi == 0
+                            || gj == 0
+                            || gk == 0
+                            || gi == g.n[0]
+                            || gj == g.n[1]
+                            || gk == g.n[2];
+                        let mut v = scene.field(g.pos(gi, gj, gk));
+                        if s.close_boundary && border {
+                            v = v.min(THRESHOLD);
+                        }
+                        vals[(k * d[1] + j) * d[0] + i] = v;
+                    }
+                }
+            }
+            (
+                Some(march_chunk(&g, lo, hi, &vals, THRESHOLD)),
+                vals.len() + 1,
+            )
+        })
+        .collect();
+    let mut report = MeshReport {
+        chunks: chunks.len(),
+        ..Default::default()
+    };
+    let mut outs = Vec::new();
+    for (o, e) in results {
+        report.evaluations += e;
+        if let Some(o) = o {
+            report.chunks_sampled += 1;
+            outs.push(o);
+        }
+    }
+    let mut mesh = weld(outs);
+    if s.normals {
+        let h = 0.5 * g.step.iter().cloned().fold(f32::INFINITY, f32::min);
+        mesh.normals = mesh
+            .positions
+            .par_iter()
+            .map(|&p| scene.normal(p, h))
+            .collect();
+    }
+    Ok((mesh, report))
+}
+
+/// Samples the scene field on a grid of `dims` nodes spanning `bbox` (x fastest, then y, then
+/// z), in parallel. Meant for comparisons with other meshers; [`polygonize`] never builds it.
+pub fn sample_grid(scene: &Scene, bbox: &Aabb, dims: [usize; 3]) -> Result<Vec<f32>> {
+    if dims.iter().any(|&d| d < 2) {
+        return Err(Error::param(
+            "dims",
+            format!("{dims:?}"),
+            "each must be >= 2",
+        ));
+    }
+    let sz = bbox.size();
+    let st = [
+        sz[0] / (dims[0] - 1) as f32,
+        sz[1] / (dims[1] - 1) as f32,
+        sz[2] / (dims[2] - 1) as f32,
+    ];
+    let mut out = vec![0f32; dims[0] * dims[1] * dims[2]];
+    out.par_chunks_mut(dims[0])
+        .enumerate()
+        .for_each(|(r, row)| {
+            let (j, k) = (r % dims[1], r / dims[1]);
+            for (i, v) in row.iter_mut().enumerate() {
+                *v = scene.field([
+                    bbox.min[0] + i as f32 * st[0],
+                    bbox.min[1] + j as f32 * st[1],
+                    bbox.min[2] + k as f32 * st[2],
+                ]);
+            }
+        });
+    Ok(out)
+}
+
+/// Marching tetrahedra on a precomputed grid of `dims` nodes (x fastest), chunked and parallel
+/// like [`polygonize`]; no normals.
+pub fn polygonize_grid(
+    values: &[f32],
+    dims: [usize; 3],
+    origin: V3,
+    spacing: V3,
+    iso: f32,
+    chunk: usize,
+) -> Result<Mesh> {
+    if dims.iter().any(|&d| d < 2) || values.len() != dims[0] * dims[1] * dims[2] {
+        return Err(Error::param(
+            "dims",
+            format!("{dims:?} for {} values", values.len()),
+            "need >= 2 nodes per axis and a matching buffer",
+        ));
+    }
+    if chunk < 2 {
+        return Err(Error::param("chunk", chunk, "must be >= 2"));
+    }
+    let n = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
+    let g = Grid {
+        origin,
+        step: spacing,
+        n,
+    };
+    let outs: Vec<ChunkOut> = chunks_of(n, chunk)
+        .par_iter()
+        .map(|&(lo, hi)| {
+            let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
+            let mut vals = Vec::with_capacity(d[0] * d[1] * d[2]);
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    let r = (k * dims[1] + j) * dims[0];
+                    vals.extend_from_slice(&values[r + lo[0]..=r + hi[0]]);
+                }
+            }
+            march_chunk(&g, lo, hi, &vals, iso)
+        })
+        .collect();
+    Ok(weld(outs))
+}
+
+/// Topology summary of a triangle mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Topology {
+    /// Vertices referenced by triangles.
+    pub vertices: usize,
+    /// Distinct undirected edges.
+    pub edges: usize,
+    /// Triangles.
+    pub faces: usize,
+    /// Edges not shared by exactly two triangles.
+    pub bad_edges: usize,
+    /// Directed edges used twice (inconsistent orientation).
+    pub misoriented_edges: usize,
+    /// Euler characteristic `V - E + F`.
+    pub euler: i64,
+}
+
+/// Counts edges, checks that every edge is shared by exactly two triangles with opposite
+/// directions, and computes the Euler characteristic.
+pub fn topology(mesh: &Mesh) -> Topology {
+    let mut und: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut dir: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut used = vec![false; mesh.positions.len()];
+    for t in &mesh.triangles {
+        for e in 0..3 {
+            let (a, b) = (t[e], t[(e + 1) % 3]);
+            used[a as usize] = true;
+            *und.entry((a.min(b), a.max(b))).or_default() += 1;
+            *dir.entry((a, b)).or_default() += 1;
+        }
+    }
+    let vertices = used.iter().filter(|&&u| u).count();
+    Topology {
+        vertices,
+        edges: und.len(),
+        faces: mesh.triangles.len(),
+        bad_edges: und.values().filter(|&&c| c != 2).count(),
+        misoriented_edges: dir.values().filter(|&&c| c != 1).count(),
+        euler: vertices as i64 - und.len() as i64 + mesh.triangles.len() as i64,
+    }
+}

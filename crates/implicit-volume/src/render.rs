@@ -1,0 +1,304 @@
+//! Sphere-traced shaded rendering and vertical cut-away sections to RGB8 buffers (no file I/O).
+//!
+//! The tracer steps along each ray by `(T - f(p)) / L`, where `L` is a Lipschitz bound of the
+//! field over a ball around `p` ([`Scene::lipschitz`]), so it never steps over a surface thinner
+//! than the bound allows; the ball radius adapts (doubling after free steps).
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::math::{Aabb, V3, add, cross, dot, mul, norm, normalize, sub};
+use crate::scene::Scene;
+use crate::tree::THRESHOLD;
+
+/// An RGB8 image, row-major from the top-left.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// `width * height * 3` bytes.
+    pub rgb: Vec<u8>,
+}
+
+/// A pinhole camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: V3,
+    /// Point looked at.
+    pub target: V3,
+    /// Up vector.
+    pub up: V3,
+    /// Vertical field of view (degrees).
+    pub fov_deg: f32,
+}
+
+impl Camera {
+    /// A camera looking at the centre of `bbox` from the south-west, above.
+    pub fn overview(bbox: &Aabb) -> Self {
+        let c = bbox.center();
+        let s = bbox.size();
+        let d = s[0].max(s[1]);
+        Camera {
+            eye: add(c, [-0.55 * d, -0.75 * d, 0.6 * d + 0.5 * s[2]]),
+            target: c,
+            up: [0.0, 0.0, 1.0],
+            fov_deg: 45.0,
+        }
+    }
+}
+
+/// Render settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderSettings {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Direction towards the sun.
+    pub light: V3,
+    /// Maximum sphere-tracing steps per ray.
+    pub max_steps: u32,
+    /// Trace shadow rays.
+    pub shadows: bool,
+    /// Sea level drawn as a translucent water plane (`None`: no water).
+    pub sea_level: Option<f32>,
+}
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            width: 320,
+            height: 240,
+            light: [-0.5, 0.4, 0.75],
+            max_steps: 600,
+            shadows: true,
+            sea_level: None,
+        }
+    }
+}
+
+/// Sphere-traces a ray; returns the hit distance.
+fn trace(scene: &Scene, o: V3, d: V3, tmax_user: f32, max_steps: u32) -> Option<f32> {
+    let b = scene.bbox();
+    // Slab test.
+    let (mut t0, mut t1) = (0.0f32, tmax_user);
+    for k in 0..3 {
+        let inv = 1.0 / d[k];
+        let (mut a, mut c) = ((b.min[k] - o[k]) * inv, (b.max[k] - o[k]) * inv);
+        if a > c {
+            std::mem::swap(&mut a, &mut c);
+        }
+        t0 = t0.max(a);
+        t1 = t1.min(c);
+    }
+    if t0.is_nan() || t1.is_nan() || t0 > t1 {
+        return None;
+    }
+    let diag = norm(b.size());
+    let eps = 1e-4 * diag;
+    let mut t = t0;
+    let mut r = 0.02 * diag;
+    for _ in 0..max_steps {
+        if t > t1 {
+            return None;
+        }
+        let p = add(o, mul(d, t));
+        let f = scene.field(p);
+        if f > THRESHOLD {
+            return Some(t);
+        }
+        let l = scene.lipschitz(&Aabb::sphere(p, r)).max(1e-9);
+        let step = (THRESHOLD - f) / l;
+        if step >= r {
+            t += r;
+            r *= 2.0;
+        } else {
+            t += step.max(eps);
+            r = (2.0 * step).max(4.0 * eps);
+        }
+    }
+    None
+}
+
+/// Renders the scene (see module docs).
+pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> {
+    if s.width == 0 || s.height == 0 || s.width * s.height > 1 << 26 {
+        return Err(Error::param(
+            "image size",
+            format!("{}x{}", s.width, s.height),
+            "must be non-zero and at most 2^26 pixels",
+        ));
+    }
+    if !(cam.fov_deg > 0.0 && cam.fov_deg < 179.0) {
+        return Err(Error::param("fov_deg", cam.fov_deg, "must be in (0, 179)"));
+    }
+    let fwd = normalize(sub(cam.target, cam.eye));
+    let right = normalize(cross(fwd, cam.up));
+    let up = cross(right, fwd);
+    let light = normalize(s.light);
+    let th = (0.5 * cam.fov_deg.to_radians()).tan();
+    let aspect = s.width as f32 / s.height as f32;
+    let b = scene.bbox();
+    let diag = norm(b.size());
+    let h = 1e-3 * diag;
+    let (zlo, zhi) = (b.min[2], b.max[2]);
+    let mut rgb = vec![0u8; s.width * s.height * 3];
+    rgb.par_chunks_mut(s.width * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..s.width {
+                let u = ((x as f32 + 0.5) / s.width as f32 * 2.0 - 1.0) * th * aspect;
+                let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
+                let d = normalize(add(fwd, add(mul(right, u), mul(up, v))));
+                let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
+                let mut col = match trace(scene, cam.eye, d, 1e30, s.max_steps) {
+                    None => sky,
+                    Some(t) => {
+                        let p = add(cam.eye, mul(d, t));
+                        let n = scene.normal(p, h);
+                        let mut lam = dot(n, light).max(0.0);
+                        if s.shadows
+                            && lam > 0.0
+                            && trace(scene, add(p, mul(n, 4.0 * h)), light, 1e30, s.max_steps / 2)
+                                .is_some()
+                        {
+                            lam *= 0.15;
+                        }
+                        let rho = scene.resistance(p);
+                        let hgt = ((p[2] - zlo) / (zhi - zlo).max(1e-3)).clamp(0.0, 1.0);
+                        let steep = 1.0 - n[2].clamp(0.0, 1.0);
+                        let rock = [0.55 + 0.2 * rho, 0.45 + 0.15 * rho, 0.35 + 0.1 * rho];
+                        let grass = [0.35 + 0.3 * hgt, 0.45 + 0.2 * hgt, 0.25 + 0.3 * hgt];
+                        let k = (steep * 2.5).min(1.0);
+                        let base = add(mul(grass, 1.0 - k), mul(rock, k));
+                        let shade = 0.25 + 0.75 * lam;
+                        let fog = (t / (3.0 * diag)).min(0.6);
+                        add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog))
+                    }
+                };
+                if let Some(sea) = s.sea_level
+                    && d[2] < 0.0
+                {
+                    let ts = (sea - cam.eye[2]) / d[2];
+                    let hit = trace(scene, cam.eye, d, ts, s.max_steps);
+                    if ts > 0.0 && hit.is_none() {
+                        col = add(mul(col, 0.35), [0.05, 0.2, 0.4]);
+                    }
+                }
+                for c in 0..3 {
+                    row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+                }
+            }
+        });
+    Ok(Image {
+        width: s.width,
+        height: s.height,
+        rgb,
+    })
+}
+
+/// A vertical cut-away section along a horizontal segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SectionSettings {
+    /// Start of the segment (scene x, y).
+    pub start: [f32; 2],
+    /// End of the segment.
+    pub end: [f32; 2],
+    /// Vertical range; `None` = the scene's box.
+    pub z_range: Option<(f32, f32)>,
+    /// Width in pixels (along the segment).
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+}
+
+/// Pixel counts of a section.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SectionStats {
+    /// Matter (coloured by resistance: light = soft, dark = hard).
+    pub solid: usize,
+    /// Carved voids below the DEM surface (red): caves, karst tunnels, notches.
+    pub carved: usize,
+    /// Air above the DEM surface.
+    pub air: usize,
+    /// Carved pixels fully enclosed below the surface (matter above them in their column).
+    pub enclosed: usize,
+}
+
+/// Vertical section image: solid coloured by resistance, carved voids below the DEM surface in
+/// red, air in blue. Shows karst tunnels.
+pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStats)> {
+    if s.width == 0 || s.height == 0 || s.width * s.height > 1 << 26 {
+        return Err(Error::param(
+            "image size",
+            format!("{}x{}", s.width, s.height),
+            "must be non-zero and at most 2^26 pixels",
+        ));
+    }
+    let b = scene.bbox();
+    let (z0, z1) = s.z_range.unwrap_or((b.min[2], b.max[2]));
+    if z0.is_nan() || z1.is_nan() || z0 >= z1 {
+        return Err(Error::param(
+            "z_range",
+            format!("{z0}..{z1}"),
+            "must be increasing",
+        ));
+    }
+    let cols: Vec<(Vec<u8>, SectionStats)> = (0..s.width)
+        .into_par_iter()
+        .map(|x| {
+            let t = (x as f32 + 0.5) / s.width as f32;
+            let px = s.start[0] + t * (s.end[0] - s.start[0]);
+            let py = s.start[1] + t * (s.end[1] - s.start[1]);
+            let ground = scene.dem_height(px, py);
+            let mut col = vec![0u8; s.height * 3];
+            let mut st = SectionStats::default();
+            let mut matter_above = false;
+            for y in 0..s.height {
+                let z = z1 - (y as f32 + 0.5) / s.height as f32 * (z1 - z0);
+                let p = [px, py, z];
+                let c: V3 = if scene.inside(p) {
+                    matter_above = true;
+                    st.solid += 1;
+                    let r = scene.resistance(p);
+                    [0.85 - 0.5 * r, 0.75 - 0.45 * r, 0.55 - 0.35 * r]
+                } else if ground.is_some_and(|g| z < g) {
+                    st.carved += 1;
+                    if matter_above {
+                        st.enclosed += 1;
+                    }
+                    [0.85, 0.1, 0.1]
+                } else {
+                    st.air += 1;
+                    [0.6, 0.75, 0.95]
+                };
+                for k in 0..3 {
+                    col[y * 3 + k] = (c[k].clamp(0.0, 1.0) * 255.0).round() as u8;
+                }
+            }
+            (col, st)
+        })
+        .collect();
+    let mut rgb = vec![0u8; s.width * s.height * 3];
+    let mut st = SectionStats::default();
+    for (x, (col, cs)) in cols.iter().enumerate() {
+        for y in 0..s.height {
+            rgb[(y * s.width + x) * 3..(y * s.width + x) * 3 + 3]
+                .copy_from_slice(&col[y * 3..y * 3 + 3]);
+        }
+        st.solid += cs.solid;
+        st.carved += cs.carved;
+        st.air += cs.air;
+        st.enclosed += cs.enclosed;
+    }
+    Ok((
+        Image {
+            width: s.width,
+            height: s.height,
+            rgb,
+        },
+        st,
+    ))
+}

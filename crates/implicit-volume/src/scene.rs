@@ -1,0 +1,1290 @@
+//! Scenes: an implicitised DEM, a geology tree and the landform sub-trees attached to it by the
+//! generators of paper section 4 ([`SceneBuilder`]).
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+
+use crate::error::{Error, Result};
+use crate::geology::Geology;
+use crate::math::{Aabb, V3, add, hash, mul, norm, normalize, sub, unit};
+use crate::tree::{DemFrame, NodeId, THRESHOLD, TerrainTree, TreeStats};
+
+/// Paper section 4.1: erosion intensity `e(rho, sigma) = sigma (1 - rho)(1 - beta) + sigma beta`.
+#[inline]
+pub fn erosion_intensity(rho: f32, sigma: f32, beta: f32) -> f32 {
+    sigma * (1.0 - rho) * (1.0 - beta) + sigma * beta
+}
+
+/// Where an effect applies: a painted per-cell mask over the DEM and/or a 3D box. Both given:
+/// the weight is the mask's inside the box and 0 outside.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Region {
+    /// Per-cell weights in `[0, 1]`, row-major like the DEM (`width * height` values).
+    pub mask: Option<Vec<f32>>,
+    /// A 3D box in scene coordinates.
+    pub bbox: Option<Aabb>,
+}
+
+impl Region {
+    /// The whole scene with weight 1.
+    pub fn everywhere() -> Self {
+        Self::default()
+    }
+    /// Only inside `b`.
+    pub fn in_box(b: Aabb) -> Self {
+        Self {
+            mask: None,
+            bbox: Some(b),
+        }
+    }
+    fn check(&self, f: &DemFrame) -> Result<()> {
+        if let Some(m) = &self.mask {
+            if m.len() != f.width * f.height {
+                return Err(Error::param(
+                    "region.mask length",
+                    m.len(),
+                    "must equal DEM width * height",
+                ));
+            }
+            if let Some(v) = m.iter().find(|v| !(0.0..=1.0).contains(*v)) {
+                return Err(Error::param("region.mask value", v, "must be in [0, 1]"));
+            }
+        }
+        if let Some(b) = &self.bbox
+            && (!b.is_finite() || b.is_empty())
+        {
+            return Err(Error::param(
+                "region.bbox",
+                format!("{b:?}"),
+                "must be finite and non-empty",
+            ));
+        }
+        Ok(())
+    }
+    /// Weight of the effect at `p` (0 = no effect).
+    pub fn weight(&self, f: &DemFrame, p: V3) -> f32 {
+        if let Some(b) = &self.bbox
+            && !b.contains(p)
+        {
+            return 0.0;
+        }
+        match &self.mask {
+            Some(m) => match f.cell(p) {
+                Some((j, i)) => m[i * f.width + j],
+                None => 0.0,
+            },
+            None => 1.0,
+        }
+    }
+}
+
+/// How the DEM is implicitised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImplicitizeSettings {
+    /// Transition distance `r` of the heightfield primitive in metres; 0 = twice the larger
+    /// cell size.
+    pub transition: f32,
+    /// Depth of the closing floor below the lowest DEM sample (m).
+    pub depth: f32,
+}
+impl Default for ImplicitizeSettings {
+    fn default() -> Self {
+        Self {
+            transition: 0.0,
+            depth: 60.0,
+        }
+    }
+}
+
+/// Common parameters of the shallow (weathering) erosion of section 4.1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Weathering {
+    /// Poisson-sphere radius between samples (m).
+    pub spacing: f32,
+    /// Support radius of each negative sphere (m).
+    pub radius: f32,
+    /// Energy scale: a sample gets energy `-energy * e(rho, sigma)`.
+    pub energy: f32,
+    /// `beta` of `e(rho, sigma)`: erosion of the hardest rock under full stress.
+    pub beta: f32,
+    /// Samples with `e` below this are discarded.
+    pub threshold: f32,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for Weathering {
+    fn default() -> Self {
+        Self {
+            spacing: 8.0,
+            radius: 12.0,
+            energy: 2.0,
+            beta: 0.2,
+            threshold: 0.1,
+            seed: 1,
+        }
+    }
+}
+impl Weathering {
+    fn check(&self) -> Result<()> {
+        for (n, v) in [
+            ("spacing", self.spacing),
+            ("radius", self.radius),
+            ("energy", self.energy),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::param(n, v, "must be finite and > 0"));
+            }
+        }
+        for (n, v) in [("beta", self.beta), ("threshold", self.threshold)] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::param(n, v, "must be in [0, 1]"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Sea erosion (figure 5): the stress `sigma` depends on the height above sea level (a bump
+/// peaking at `peak` metres, zero below `-depth` and above `height`) times the accessibility
+/// from the sea (1 at the shore, 0 at `reach` metres inland).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeaErosion {
+    /// Sampling and energy parameters.
+    pub weathering: Weathering,
+    /// Sea level (m).
+    pub sea_level: f32,
+    /// Depth below sea level still eroded (m).
+    pub depth: f32,
+    /// Height above sea level still eroded (m).
+    pub height: f32,
+    /// Height above sea level of maximum stress (m), in `[-depth, height]`.
+    pub peak: f32,
+    /// Horizontal distance from the sea over which accessibility falls to 0 (m).
+    pub reach: f32,
+    /// Maximum number of sea caves dug inland from the most eroded samples.
+    pub caves: usize,
+    /// Length of each sea cave (m).
+    pub cave_length: f32,
+}
+impl Default for SeaErosion {
+    fn default() -> Self {
+        Self {
+            weathering: Weathering::default(),
+            sea_level: 0.0,
+            depth: 4.0,
+            height: 20.0,
+            peak: 3.0,
+            reach: 150.0,
+            caves: 8,
+            cave_length: 60.0,
+        }
+    }
+}
+
+/// Wind erosion: stress from exposure of the surface to a horizontal wind and from altitude.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindErosion {
+    /// Sampling and energy parameters.
+    pub weathering: Weathering,
+    /// Direction the wind blows towards (x east, y north); need not be normalised.
+    pub direction: [f32; 2],
+}
+impl Default for WindErosion {
+    fn default() -> Self {
+        Self {
+            weathering: Weathering::default(),
+            direction: [1.0, 0.0],
+        }
+    }
+}
+
+/// Rain erosion: stress grows with the slope (runoff), full at `full_slope_deg`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RainErosion {
+    /// Sampling and energy parameters.
+    pub weathering: Weathering,
+    /// Slope (degrees) of full stress.
+    pub full_slope_deg: f32,
+}
+impl Default for RainErosion {
+    fn default() -> Self {
+        Self {
+            weathering: Weathering::default(),
+            full_slope_deg: 40.0,
+        }
+    }
+}
+
+/// Karst by modified invasion percolation (paper section 4.2, figure 6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KarstSettings {
+    /// Carve only where `rho < rho0`.
+    pub rho0: f32,
+    /// Stop when the least resistant candidate has `rho` above this.
+    pub rho_stop: f32,
+    /// Range of the random perturbation of the resistance when ordering candidates.
+    pub epsilon: f32,
+    /// Support radius of carving spheres (m).
+    pub radius: f32,
+    /// Energy scale: spheres get `-energy * e(rho, sigma)`.
+    pub energy: f32,
+    /// `beta` of `e(rho, sigma)`.
+    pub beta: f32,
+    /// Stress of the dissolution (`sigma`, scaled by the region weight).
+    pub sigma: f32,
+    /// Distance from a carved point to its new candidates (m).
+    pub step: f32,
+    /// Poisson-sphere radius: a candidate closer than this to a queued one is rejected (m).
+    pub poisson_radius: f32,
+    /// New candidate directions sampled on the lower hemisphere per step.
+    pub directions: usize,
+    /// Extra smaller spheres scattered in each carved sphere (rougher tunnels).
+    pub sub_spheres: usize,
+    /// Budget: maximum number of carving steps.
+    pub budget: usize,
+    /// Maximum number of initial sinkholes (the lowest first).
+    pub max_sinkholes: usize,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for KarstSettings {
+    fn default() -> Self {
+        Self {
+            rho0: 0.5,
+            rho_stop: 0.95,
+            epsilon: 0.1,
+            radius: 8.0,
+            energy: 3.0,
+            beta: 0.3,
+            sigma: 1.0,
+            step: 6.0,
+            poisson_radius: 4.0,
+            directions: 3,
+            sub_spheres: 2,
+            budget: 5000,
+            max_sinkholes: 64,
+            seed: 7,
+        }
+    }
+}
+
+/// Hoodoos (figure 3): stacked perturbed spheres on a cone, creased by a warp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HoodooSettings {
+    /// Number of hoodoos (fewer if the region has no room).
+    pub count: usize,
+    /// Height (m).
+    pub height: f32,
+    /// Base radius (m).
+    pub radius: f32,
+    /// Minimum distance between hoodoos (m).
+    pub spacing: f32,
+    /// Maximum ground slope (degrees) where a hoodoo may stand.
+    pub max_slope_deg: f32,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for HoodooSettings {
+    fn default() -> Self {
+        Self {
+            count: 5,
+            height: 40.0,
+            radius: 8.0,
+            spacing: 40.0,
+            max_slope_deg: 20.0,
+            seed: 3,
+        }
+    }
+}
+
+/// Natural arches: capsules along an arc between two feet, warped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArchSettings {
+    /// Number of arches.
+    pub count: usize,
+    /// Distance between the feet (m).
+    pub span: f32,
+    /// Height of the arc above the higher foot (m).
+    pub height: f32,
+    /// Thickness (capsule radius, m).
+    pub thickness: f32,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for ArchSettings {
+    fn default() -> Self {
+        Self {
+            count: 2,
+            span: 80.0,
+            height: 35.0,
+            thickness: 10.0,
+            seed: 5,
+        }
+    }
+}
+
+/// Floating islands: an ellipsoidal top over an inverted cone, warped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IslandSettings {
+    /// Number of islands.
+    pub count: usize,
+    /// Radius (m).
+    pub radius: f32,
+    /// Height of the island top above the local ground (m).
+    pub altitude: f32,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for IslandSettings {
+    fn default() -> Self {
+        Self {
+            count: 2,
+            radius: 40.0,
+            altitude: 120.0,
+            seed: 11,
+        }
+    }
+}
+
+/// What an effect added.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EffectReport {
+    /// Candidate samples considered.
+    pub candidates: usize,
+    /// Primitives added to the tree.
+    pub primitives: usize,
+}
+
+/// Builds a [`Scene`]: implicitises a DEM, then runs effects that add sub-trees.
+#[derive(Debug, Clone)]
+pub struct SceneBuilder {
+    tree: TerrainTree,
+    hf: NodeId,
+    frame: DemFrame,
+    geology: Geology,
+    dem: Vec<f32>,
+    negatives: Vec<NodeId>,
+    positives: Vec<NodeId>,
+    /// Carving spheres' centres and radii, kept for reports and tests.
+    carved: Vec<(V3, f32, bool)>,
+}
+
+fn check_pos(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::param(name, v, "must be finite and > 0"))
+    }
+}
+
+/// Poisson elimination in order: keeps a point if no kept point is closer than `r`.
+fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) -> Vec<usize> {
+    let mut grid: HashMap<(i32, i32, i32), Vec<V3>> = HashMap::new();
+    let key = |p: V3| {
+        (
+            (p[0] / r).floor() as i32,
+            (p[1] / r).floor() as i32,
+            (p[2] / r).floor() as i32,
+        )
+    };
+    let mut out = Vec::new();
+    for (k, &p) in points.iter().enumerate() {
+        let (a, b, c) = key(p);
+        let mut ok = true;
+        'n: for da in -1..=1 {
+            for db in -1..=1 {
+                for dc in -1..=1 {
+                    if let Some(v) = grid.get(&(a + da, b + db, c + dc))
+                        && v.iter().any(|q| norm(sub(*q, p)) < r)
+                    {
+                        ok = false;
+                        break 'n;
+                    }
+                }
+            }
+        }
+        if ok && keep(k) {
+            grid.entry((a, b, c)).or_default().push(p);
+            out.push(k);
+        }
+    }
+    out
+}
+
+impl SceneBuilder {
+    /// Implicitises `hf` (complete, no voids) with the geology `geology`.
+    pub fn new(hf: &Heightfield, geology: Geology, settings: &ImplicitizeSettings) -> Result<Self> {
+        let mut tree = TerrainTree::new();
+        let (cx, cy) = hf.cell_size();
+        let transition = if settings.transition == 0.0 {
+            2.0 * cx.max(cy) as f32
+        } else {
+            settings.transition
+        };
+        let (node, frame) = tree.heightfield(hf, transition, settings.depth)?;
+        Ok(Self {
+            tree,
+            hf: node,
+            frame,
+            geology,
+            dem: hf.as_slice().to_vec(),
+            negatives: Vec::new(),
+            positives: Vec::new(),
+            carved: Vec::new(),
+        })
+    }
+
+    /// The DEM's frame in scene coordinates.
+    pub fn frame(&self) -> DemFrame {
+        self.frame
+    }
+    /// The geology tree.
+    pub fn geology(&self) -> &Geology {
+        &self.geology
+    }
+    /// Mutable access to the terrain tree, to add hand-made sub-trees with
+    /// [`SceneBuilder::add_matter`] / [`SceneBuilder::add_carving`].
+    pub fn tree_mut(&mut self) -> &mut TerrainTree {
+        &mut self.tree
+    }
+    /// Blends a hand-made sub-tree with negative energy into the terrain (carving).
+    pub fn add_carving(&mut self, id: NodeId) {
+        self.negatives.push(id);
+    }
+    /// Unions a hand-made sub-tree with the terrain (adding matter).
+    pub fn add_matter(&mut self, id: NodeId) {
+        self.positives.push(id);
+    }
+    /// Every carving sphere placed by the generators: (centre, support radius, is-karst).
+    pub fn carvings(&self) -> &[(V3, f32, bool)] {
+        &self.carved
+    }
+
+    /// Bilinear DEM elevation at scene `(x, y)`.
+    pub fn ground(&self, x: f32, y: f32) -> f32 {
+        self.tree.dem_height(self.hf, x, y).unwrap_or(0.0)
+    }
+
+    fn dem_at(&self, j: usize, i: usize) -> f32 {
+        self.dem[i * self.frame.width + j]
+    }
+
+    fn slope_normal(&self, j: usize, i: usize) -> V3 {
+        let f = self.frame;
+        let (j0, j1) = (j.saturating_sub(1), (j + 1).min(f.width - 1));
+        let (i0, i1) = (i.saturating_sub(1), (i + 1).min(f.height - 1));
+        let dzdx = (self.dem_at(j1, i) - self.dem_at(j0, i)) / ((j1 - j0).max(1) as f32 * f.cx);
+        // Rows grow southwards, y northwards.
+        let dzdy = (self.dem_at(j, i0) - self.dem_at(j, i1)) / ((i1 - i0).max(1) as f32 * f.cy);
+        normalize([-dzdx, -dzdy, 1.0])
+    }
+
+    /// Candidate points on (within one cell of) the DEM surface, `spacing` apart on average,
+    /// including points spread up steep cells so cliffs get samples too. Deterministic.
+    fn surface_candidates(&self, spacing: f32, seed: u64, zband: Option<(f32, f32)>) -> Vec<V3> {
+        let f = self.frame;
+        let per_xy = ((f.cx * f.cy) / (spacing * spacing)).ceil().max(1.0) as usize;
+        let rows: Vec<Vec<V3>> = (0..f.height - 1)
+            .into_par_iter()
+            .map(|i| {
+                let mut out = Vec::new();
+                for j in 0..f.width - 1 {
+                    let zs = [
+                        self.dem_at(j, i),
+                        self.dem_at(j + 1, i),
+                        self.dem_at(j, i + 1),
+                        self.dem_at(j + 1, i + 1),
+                    ];
+                    let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
+                    let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                    if let Some((a, b)) = zband
+                        && (hi < a || lo > b)
+                    {
+                        continue;
+                    }
+                    let steep = hi - lo > f.cx.min(f.cy);
+                    let n = per_xy * (1 + ((hi - lo) / spacing) as usize).min(32);
+                    for k in 0..n {
+                        let h = |s| unit(hash(seed, (i * f.width + j) as u64, k as u64, s));
+                        let base = f.node(j, i + 1, 0.0);
+                        let (x, y) = (base[0] + h(0) * f.cx, base[1] + h(1) * f.cy);
+                        let z = if steep {
+                            lo + h(2) * (hi - lo)
+                        } else {
+                            self.ground(x, y)
+                        };
+                        if let Some((a, b)) = zband
+                            && (z < a || z > b)
+                        {
+                            continue;
+                        }
+                        out.push([x, y, z]);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut pts: Vec<V3> = rows.into_iter().flatten().collect();
+        // Shuffle deterministically so the Poisson elimination has no directional bias.
+        let mut keyed: Vec<(u64, V3)> = pts
+            .drain(..)
+            .enumerate()
+            .map(|(k, p)| (hash(seed ^ 0xABCD, k as u64, 0, 0), p))
+            .collect();
+        keyed.sort_by_key(|x| x.0);
+        keyed.into_iter().map(|x| x.1).collect()
+    }
+
+    /// Places negative spheres at Poisson samples with energy from `e(rho, sigma)`.
+    fn weather(
+        &mut self,
+        w: &Weathering,
+        region: &Region,
+        zband: Option<(f32, f32)>,
+        stress: impl Fn(&Self, V3) -> f32 + Sync,
+    ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
+        w.check()?;
+        region.check(&self.frame)?;
+        let cand = self.surface_candidates(w.spacing, w.seed, zband);
+        let kept = poisson_filter(&cand, w.spacing, |_| true);
+        let me = &*self;
+        let energies: Vec<(V3, f32)> = kept
+            .par_iter()
+            .map(|&k| {
+                let p = cand[k];
+                let wgt = region.weight(&me.frame, p);
+                if wgt <= 0.0 {
+                    return (p, 0.0);
+                }
+                let sigma = (stress(me, p) * wgt).clamp(0.0, 1.0);
+                (
+                    p,
+                    erosion_intensity(me.geology.resistance(p), sigma, w.beta),
+                )
+            })
+            .collect();
+        let mut report = EffectReport {
+            candidates: kept.len(),
+            primitives: 0,
+        };
+        let mut placed = Vec::new();
+        for &(p, e) in &energies {
+            if e < w.threshold || e <= 0.0 {
+                continue;
+            }
+            let id = self.tree.sphere(p, w.radius, -w.energy * e)?;
+            self.negatives.push(id);
+            self.carved.push((p, w.radius, false));
+            report.primitives += 1;
+            placed.push((p, e));
+        }
+        Ok((report, placed))
+    }
+
+    /// Horizontal distance (m) from every DEM cell to the nearest cell below `level`
+    /// (two-pass chamfer transform).
+    fn distance_to_sea(&self, level: f32) -> Vec<f32> {
+        let f = self.frame;
+        let (w, h) = (f.width, f.height);
+        let mut d: Vec<f32> = self
+            .dem
+            .iter()
+            .map(|&z| if z < level { 0.0 } else { f32::INFINITY })
+            .collect();
+        let dd = (f.cx * f.cx + f.cy * f.cy).sqrt();
+        let steps_fwd = [
+            (-1i32, 0i32, f.cx),
+            (0, -1, f.cy),
+            (-1, -1, dd),
+            (1, -1, dd),
+        ];
+        for i in 0..h {
+            for j in 0..w {
+                for &(dj, di, c) in &steps_fwd {
+                    let (jj, ii) = (j as i32 + dj, i as i32 + di);
+                    if jj >= 0 && ii >= 0 && (jj as usize) < w {
+                        let v = d[ii as usize * w + jj as usize] + c;
+                        if v < d[i * w + j] {
+                            d[i * w + j] = v;
+                        }
+                    }
+                }
+            }
+        }
+        for i in (0..h).rev() {
+            for j in (0..w).rev() {
+                for &(dj, di, c) in &steps_fwd {
+                    let (jj, ii) = (j as i32 - dj, i as i32 - di);
+                    if jj >= 0 && (jj as usize) < w && (ii as usize) < h {
+                        let v = d[ii as usize * w + jj as usize] + c;
+                        if v < d[i * w + j] {
+                            d[i * w + j] = v;
+                        }
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// Sea erosion (section 4.1, figure 5), plus sea caves dug inland from the most eroded
+    /// samples near sea level.
+    pub fn sea_erosion(&mut self, s: &SeaErosion, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("depth", s.depth),
+            ("height", s.height),
+            ("reach", s.reach),
+            ("cave_length", s.cave_length),
+        ] {
+            check_pos(n, v)?;
+        }
+        if !s.sea_level.is_finite() {
+            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
+        }
+        if !(-s.depth..=s.height).contains(&s.peak) {
+            return Err(Error::param("peak", s.peak, "must be in [-depth, height]"));
+        }
+        let dist = self.distance_to_sea(s.sea_level);
+        let frame = self.frame;
+        let stress = |_: &Self, p: V3| {
+            let hgt = p[2] - s.sea_level;
+            let t = if hgt >= s.peak {
+                (hgt - s.peak) / (s.height - s.peak).max(1e-3)
+            } else {
+                (s.peak - hgt) / (s.peak + s.depth).max(1e-3)
+            };
+            let band = if t < 1.0 { (1.0 - t * t).powi(2) } else { 0.0 };
+            let acc = frame.cell(p).map_or(0.0, |(j, i)| {
+                (1.0 - dist[i * frame.width + j] / s.reach).max(0.0)
+            });
+            band * acc
+        };
+        let band = Some((s.sea_level - s.depth, s.sea_level + s.height));
+        let (mut report, placed) = self.weather(&s.weathering, region, band, stress)?;
+        // Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient),
+        // from the most eroded samples just above sea level.
+        let mut best: Vec<(f32, usize)> = placed
+            .iter()
+            .enumerate()
+            .filter(|(_, (p, _))| p[2] >= s.sea_level && p[2] <= s.sea_level + 0.5 * s.height)
+            .map(|(k, (_, e))| (*e, k))
+            .collect();
+        best.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let r = s.weathering.radius;
+        let mut mouths: Vec<V3> = Vec::new();
+        for &(e, k) in &best {
+            if mouths.len() >= s.caves {
+                break;
+            }
+            let p = placed[k].0;
+            if mouths.iter().any(|m| norm(sub(*m, p)) < s.cave_length) {
+                continue;
+            }
+            let Some((j, i)) = frame.cell(p) else {
+                continue;
+            };
+            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
+            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
+            let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
+            let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
+            let g = (gx * gx + gy * gy).sqrt();
+            if !(g.is_finite() && g > 0.0) {
+                continue;
+            }
+            let dir = [gx / g, gy / g, 0.0];
+            mouths.push(p);
+            let n = (s.cave_length / (0.5 * r)).ceil() as usize;
+            for m in 1..=n {
+                let t = m as f32 / n as f32;
+                let c = add(p, mul(dir, t * s.cave_length));
+                let rr = r * (1.0 - 0.5 * t);
+                let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
+                self.negatives.push(id);
+                self.carved.push((c, rr, false));
+                report.primitives += 1;
+            }
+        }
+        Ok(report)
+    }
+
+    /// Wind erosion: stress = exposure of the surface to the wind times relative altitude.
+    pub fn wind_erosion(&mut self, s: &WindErosion, region: &Region) -> Result<EffectReport> {
+        let n = (s.direction[0].powi(2) + s.direction[1].powi(2)).sqrt();
+        if !(n.is_finite() && n > 0.0) {
+            return Err(Error::param(
+                "direction",
+                format!("{:?}", s.direction),
+                "must be non-zero",
+            ));
+        }
+        let wind = [s.direction[0] / n, s.direction[1] / n, 0.0];
+        let (lo, hi) = self
+            .dem
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |a, &z| {
+                (a.0.min(z), a.1.max(z))
+            });
+        let stress = move |me: &Self, p: V3| {
+            let Some((j, i)) = me.frame.cell(p) else {
+                return 0.0;
+            };
+            let nrm = me.slope_normal(j, i);
+            let exposure =
+                (-crate::math::dot(nrm, wind)).max(0.0) / (1.0 - nrm[2] * nrm[2]).sqrt().max(1e-3);
+            exposure.min(1.0) * ((p[2] - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0).sqrt()
+        };
+        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+    }
+
+    /// Rain erosion: stress grows with the slope of the ground.
+    pub fn rain_erosion(&mut self, s: &RainErosion, region: &Region) -> Result<EffectReport> {
+        if !(s.full_slope_deg > 0.0 && s.full_slope_deg <= 90.0) {
+            return Err(Error::param(
+                "full_slope_deg",
+                s.full_slope_deg,
+                "must be in (0, 90]",
+            ));
+        }
+        let full = s.full_slope_deg;
+        let stress = move |me: &Self, p: V3| {
+            let Some((j, i)) = me.frame.cell(p) else {
+                return 0.0;
+            };
+            let slope = me.slope_normal(j, i)[2]
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            (slope / full).min(1.0)
+        };
+        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+    }
+
+    /// Sinkholes of the DEM: strict local minima over the 8-neighbourhood (ties broken by index),
+    /// lowest first.
+    pub fn sinkholes(&self) -> Vec<(usize, usize)> {
+        let f = self.frame;
+        let mut out = Vec::new();
+        for i in 1..f.height - 1 {
+            for j in 1..f.width - 1 {
+                let z = self.dem_at(j, i);
+                let k = i * f.width + j;
+                let mut min = true;
+                for di in -1i32..=1 {
+                    for dj in -1i32..=1 {
+                        if di == 0 && dj == 0 {
+                            continue;
+                        }
+                        let (jj, ii) = ((j as i32 + dj) as usize, (i as i32 + di) as usize);
+                        let zz = self.dem_at(jj, ii);
+                        let kk = ii * f.width + jj;
+                        if zz < z || (zz == z && kk < k) {
+                            min = false;
+                        }
+                    }
+                }
+                if min {
+                    out.push((j, i));
+                }
+            }
+        }
+        out.sort_by(|a, b| {
+            self.dem_at(a.0, a.1)
+                .total_cmp(&self.dem_at(b.0, b.1))
+                .then(a.1.cmp(&b.1))
+                .then(a.0.cmp(&b.0))
+        });
+        out
+    }
+
+    /// Karst network by modified invasion percolation (section 4.2).
+    pub fn karst(&mut self, s: &KarstSettings, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("rho0", s.rho0),
+            ("rho_stop", s.rho_stop),
+            ("epsilon", s.epsilon),
+            ("beta", s.beta),
+            ("sigma", s.sigma),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::param(n, v, "must be in [0, 1]"));
+            }
+        }
+        for (n, v) in [
+            ("radius", s.radius),
+            ("energy", s.energy),
+            ("step", s.step),
+            ("poisson_radius", s.poisson_radius),
+        ] {
+            check_pos(n, v)?;
+        }
+        if s.directions == 0 {
+            return Err(Error::param("directions", 0, "must be >= 1"));
+        }
+        region.check(&self.frame)?;
+        let frame = self.frame;
+        let floor = self.tree.bbox(self.hf).min[2];
+        let (xm, ym) = (
+            (frame.width - 1) as f32 * frame.cx,
+            (frame.height - 1) as f32 * frame.cy,
+        );
+        let mut cands: Vec<V3> = Vec::new();
+        let mut heap: BinaryHeap<Reverse<(u32, u32)>> = BinaryHeap::new();
+        let mut grid: HashMap<(i32, i32, i32), Vec<u32>> = HashMap::new();
+        let pr = s.poisson_radius;
+        let key = |p: V3| {
+            (
+                (p[0] / pr).floor() as i32,
+                (p[1] / pr).floor() as i32,
+                (p[2] / pr).floor() as i32,
+            )
+        };
+        let mut report = EffectReport::default();
+        let seed = s.seed;
+        let geo = self.geology.clone();
+        let push = |p: V3,
+                    cands: &mut Vec<V3>,
+                    heap: &mut BinaryHeap<Reverse<(u32, u32)>>,
+                    grid: &mut HashMap<(i32, i32, i32), Vec<u32>>|
+         -> bool {
+            let (a, b, c) = key(p);
+            for da in -1..=1 {
+                for db in -1..=1 {
+                    for dc in -1..=1 {
+                        if let Some(v) = grid.get(&(a + da, b + db, c + dc))
+                            && v.iter().any(|&q| norm(sub(cands[q as usize], p)) < pr)
+                        {
+                            return false;
+                        }
+                    }
+                }
+            }
+            let idx = cands.len() as u32;
+            let k = geo.resistance(p) + s.epsilon * unit(hash(seed, idx as u64, 1, 0));
+            cands.push(p);
+            grid.entry((a, b, c)).or_default().push(idx);
+            heap.push(Reverse((k.to_bits(), idx)));
+            true
+        };
+        let sinks = self.sinkholes();
+        let mut n_sinks = 0;
+        for (j, i) in sinks {
+            if n_sinks >= s.max_sinkholes {
+                break;
+            }
+            let p = frame.node(j, i, self.dem_at(j, i) - 0.25 * s.radius);
+            if region.weight(&frame, p) <= 0.0 {
+                continue;
+            }
+            if push(p, &mut cands, &mut heap, &mut grid) {
+                n_sinks += 1;
+            }
+        }
+        let mut steps = 0usize;
+        while let Some(Reverse((_, idx))) = heap.pop() {
+            if steps >= s.budget {
+                break;
+            }
+            let p = cands[idx as usize];
+            let rho = self.geology.resistance(p);
+            if rho > s.rho_stop {
+                break;
+            }
+            steps += 1;
+            report.candidates += 1;
+            let wgt = region.weight(&frame, p);
+            if rho < s.rho0 && wgt > 0.0 {
+                let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
+                if e > 0.0 {
+                    let id = self.tree.sphere(p, s.radius, -s.energy * e)?;
+                    self.negatives.push(id);
+                    self.carved.push((p, s.radius, true));
+                    report.primitives += 1;
+                    for m in 0..s.sub_spheres {
+                        let h =
+                            |c: u64| unit(hash(seed, idx as u64, 100 + m as u64, c)) * 2.0 - 1.0;
+                        let q = add(p, mul([h(0), h(1), h(2)], 0.5 * s.radius));
+                        let rq = self.geology.resistance(q);
+                        if rq < s.rho0 {
+                            let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
+                            let id = self.tree.sphere(q, 0.6 * s.radius, -s.energy * eq)?;
+                            self.negatives.push(id);
+                            self.carved.push((q, 0.6 * s.radius, true));
+                            report.primitives += 1;
+                        }
+                    }
+                }
+            }
+            // New candidates on the lower hemisphere.
+            for d in 0..s.directions {
+                let h = |c: u64| unit(hash(seed, idx as u64, d as u64, 10 + c));
+                let phi = h(0) * std::f32::consts::TAU;
+                let cz = -h(1); // uniform on the lower hemisphere
+                let sz = (1.0 - cz * cz).sqrt();
+                let q = add(p, mul([sz * phi.cos(), sz * phi.sin(), cz], s.step));
+                if q[0] < 0.0
+                    || q[1] < 0.0
+                    || q[0] > xm
+                    || q[1] > ym
+                    || q[2] < floor + 2.0 * s.radius
+                {
+                    continue;
+                }
+                if q[2] > self.ground(q[0], q[1]) {
+                    continue;
+                }
+                if region.weight(&frame, q) <= 0.0 {
+                    continue;
+                }
+                push(q, &mut cands, &mut heap, &mut grid);
+            }
+        }
+        Ok(report)
+    }
+
+    fn flat_sites(
+        &self,
+        spacing: f32,
+        max_slope_deg: f32,
+        seed: u64,
+        region: &Region,
+        margin: f32,
+    ) -> Vec<V3> {
+        let f = self.frame;
+        let cos_max = max_slope_deg.to_radians().cos();
+        let mut pts = Vec::new();
+        for i in 0..f.height {
+            for j in 0..f.width {
+                let p = f.node(j, i, self.dem_at(j, i));
+                let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+                if p[0] < margin || p[1] < margin || p[0] > xm - margin || p[1] > ym - margin {
+                    continue;
+                }
+                if self.slope_normal(j, i)[2] >= cos_max && region.weight(&f, p) > 0.0 {
+                    pts.push((hash(seed, (i * f.width + j) as u64, 0, 0), p));
+                }
+            }
+        }
+        pts.sort_by_key(|x| x.0);
+        let pts: Vec<V3> = pts.into_iter().map(|x| x.1).collect();
+        let kept = poisson_filter(&pts, spacing, |_| true);
+        kept.into_iter().map(|k| pts[k]).collect()
+    }
+
+    /// Hoodoos (figure 3): a cone base blended with stacked perturbed spheres and a caprock,
+    /// creased by a warp, unioned with the terrain on gentle ground.
+    pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("height", s.height),
+            ("radius", s.radius),
+            ("spacing", s.spacing),
+        ] {
+            check_pos(n, v)?;
+        }
+        region.check(&self.frame)?;
+        let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
+        let mut report = EffectReport {
+            candidates: sites.len(),
+            primitives: 0,
+        };
+        for (k, &p) in sites.iter().take(s.count).enumerate() {
+            let h = |c| unit(hash(s.seed, k as u64, c, 7));
+            let mut parts = Vec::new();
+            let base = [p[0], p[1], p[2] - 0.2 * s.height];
+            parts.push(self.tree.cone(
+                base,
+                add(base, [0.0, 0.0, 0.8 * s.height]),
+                1.6 * s.radius,
+                0.9 * s.radius,
+                1.0,
+            )?);
+            let n = 3 + (h(0) * 3.0) as usize;
+            for m in 0..n {
+                let t = (m as f32 + 1.0) / (n as f32 + 1.0);
+                let c = [
+                    p[0] + (h(10 + m as u64) - 0.5) * 0.2 * s.radius,
+                    p[1] + (h(20 + m as u64) - 0.5) * 0.2 * s.radius,
+                    p[2] + t * 0.9 * s.height,
+                ];
+                parts.push(
+                    self.tree
+                        .sphere(c, s.radius * (0.9 + 0.5 * h(30 + m as u64)), 0.9)?,
+                );
+            }
+            // Hard caprock: a flattened ellipsoid on top.
+            parts.push(self.tree.ellipsoid(
+                add(p, [0.0, 0.0, s.height]),
+                [1.5 * s.radius, 1.5 * s.radius, 0.6 * s.radius],
+                1.5,
+            )?);
+            report.primitives += parts.len();
+            let b = self.tree.blend(&parts)?;
+            let w = self.tree.warp(
+                b,
+                0.15 * s.radius,
+                1.0 / (0.6 * s.radius),
+                (s.seed as u32).wrapping_add(k as u32),
+            )?;
+            self.positives.push(w);
+        }
+        Ok(report)
+    }
+
+    /// One arch between two feet given in scene `(x, y)`: capsules along an arc rising `height`
+    /// above the higher foot, warped.
+    pub fn arch(
+        &mut self,
+        a: [f32; 2],
+        b: [f32; 2],
+        height: f32,
+        thickness: f32,
+        seed: u32,
+    ) -> Result<NodeId> {
+        check_pos("height", height)?;
+        check_pos("thickness", thickness)?;
+        let za = self.ground(a[0], a[1]);
+        let zb = self.ground(b[0], b[1]);
+        let (pa, pb) = ([a[0], a[1], za - thickness], [b[0], b[1], zb - thickness]);
+        let top = za.max(zb) + height;
+        let n = 12;
+        let pt = |t: f32| {
+            let q = add(pa, mul(sub(pb, pa), t));
+            let lift = (top - q[2]) * (std::f32::consts::PI * t).sin();
+            [q[0], q[1], q[2] + lift]
+        };
+        let mut parts = Vec::new();
+        for k in 0..n {
+            let (t0, t1) = (k as f32 / n as f32, (k + 1) as f32 / n as f32);
+            let r =
+                thickness * (1.0 + 0.6 * (1.0 - (std::f32::consts::PI * (t0 + t1) * 0.5).sin()));
+            parts.push(self.tree.capsule(pt(t0), pt(t1), r, 1.0)?);
+        }
+        let bl = self.tree.blend(&parts)?;
+        let w = self
+            .tree
+            .warp(bl, 0.12 * thickness, 1.0 / thickness, seed)?;
+        self.positives.push(w);
+        Ok(w)
+    }
+
+    /// Arches at sampled gentle sites of the region.
+    pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("span", s.span),
+            ("height", s.height),
+            ("thickness", s.thickness),
+        ] {
+            check_pos(n, v)?;
+        }
+        region.check(&self.frame)?;
+        let sites = self.flat_sites(2.0 * s.span, 30.0, s.seed, region, s.span);
+        let f = self.frame;
+        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        let mut report = EffectReport {
+            candidates: sites.len(),
+            primitives: 0,
+        };
+        for (k, &p) in sites.iter().enumerate() {
+            if report.primitives >= 12 * s.count {
+                break;
+            }
+            let ang = unit(hash(s.seed, k as u64, 3, 3)) * std::f32::consts::TAU;
+            let (dx, dy) = (0.5 * s.span * ang.cos(), 0.5 * s.span * ang.sin());
+            let (a, b) = ([p[0] - dx, p[1] - dy], [p[0] + dx, p[1] + dy]);
+            if [a, b]
+                .iter()
+                .any(|q| q[0] < 0.0 || q[1] < 0.0 || q[0] > xm || q[1] > ym)
+            {
+                continue;
+            }
+            self.arch(
+                a,
+                b,
+                s.height,
+                s.thickness,
+                (s.seed as u32).wrapping_add(k as u32),
+            )?;
+            report.primitives += 12;
+        }
+        Ok(report)
+    }
+
+    /// Floating islands: an ellipsoidal top blended with an inverted cone, warped, hovering
+    /// `altitude` metres above the ground.
+    pub fn floating_islands(
+        &mut self,
+        s: &IslandSettings,
+        region: &Region,
+    ) -> Result<EffectReport> {
+        check_pos("radius", s.radius)?;
+        check_pos("altitude", s.altitude)?;
+        region.check(&self.frame)?;
+        let sites = self.flat_sites(3.0 * s.radius, 90.0, s.seed, region, s.radius);
+        let mut report = EffectReport {
+            candidates: sites.len(),
+            primitives: 0,
+        };
+        for (k, &p) in sites.iter().take(s.count).enumerate() {
+            let c = add(p, [0.0, 0.0, s.altitude]);
+            let top =
+                self.tree
+                    .ellipsoid(c, [s.radius * 1.6, s.radius * 1.4, s.radius * 0.5], 1.0)?;
+            let cone = self.tree.cone(
+                add(c, [0.0, 0.0, -0.1 * s.radius]),
+                add(c, [0.0, 0.0, -1.6 * s.radius]),
+                1.2 * s.radius,
+                0.25 * s.radius,
+                1.0,
+            )?;
+            let b = self.tree.blend(&[top, cone])?;
+            let w = self.tree.warp(
+                b,
+                0.15 * s.radius,
+                1.0 / (0.5 * s.radius),
+                (s.seed as u32).wrapping_add(k as u32),
+            )?;
+            self.positives.push(w);
+            report.primitives += 2;
+        }
+        Ok(report)
+    }
+
+    /// Assembles the scene: `union(blend(heightfield, carvings), matter)`. With `use_bvh` the
+    /// carvings and the matter are organised in BVHs; without, in flat n-ary blends (every
+    /// primitive is visited by each query: for comparisons only).
+    pub fn build(mut self, use_bvh: bool) -> Result<Scene> {
+        let mut root = self.hf;
+        if !self.negatives.is_empty() {
+            if use_bvh {
+                let n = self.tree.bvh_blend(&self.negatives)?;
+                root = self.tree.blend(&[root, n])?;
+            } else {
+                let mut all = vec![root];
+                all.extend_from_slice(&self.negatives);
+                root = self.tree.blend(&all)?;
+            }
+        }
+        if !self.positives.is_empty() {
+            let p = if use_bvh {
+                self.tree.bvh_blend(&self.positives)?
+            } else {
+                self.tree.blend(&self.positives)?
+            };
+            root = self.tree.union(root, p)?;
+        }
+        Scene::new(self.tree, root, self.geology, Some((self.hf, self.frame)))
+    }
+}
+
+/// A terrain tree with its root and geology: the field to mesh, render and query.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    tree: TerrainTree,
+    root: NodeId,
+    geology: Geology,
+    dem: Option<(NodeId, DemFrame)>,
+    bbox: Aabb,
+}
+
+impl Scene {
+    /// A scene from any tree and root (e.g. hand-built shapes). `dem` names the heightfield
+    /// primitive and its frame when there is one.
+    pub fn new(
+        tree: TerrainTree,
+        root: NodeId,
+        geology: Geology,
+        dem: Option<(NodeId, DemFrame)>,
+    ) -> Result<Self> {
+        if root.0 as usize >= tree.stats().nodes {
+            return Err(Error::param("root", root.0, "not a node of the tree"));
+        }
+        let bbox = tree.bbox(root);
+        if !bbox.is_finite() || bbox.is_empty() {
+            return Err(Error::param(
+                "root bbox",
+                format!("{bbox:?}"),
+                "must be finite and non-empty",
+            ));
+        }
+        Ok(Self {
+            tree,
+            root,
+            geology,
+            dem,
+            bbox,
+        })
+    }
+    /// Field `f(p)`: matter where `f > T` ([`THRESHOLD`]).
+    #[inline]
+    pub fn field(&self, p: V3) -> f32 {
+        self.tree.eval(self.root, p)
+    }
+    /// Whether `p` is inside matter.
+    pub fn inside(&self, p: V3) -> bool {
+        self.field(p) > THRESHOLD
+    }
+    /// Central-difference gradient of `f` with step `h` (m).
+    pub fn gradient(&self, p: V3, h: f32) -> V3 {
+        let mut g = [0.0; 3];
+        for k in 0..3 {
+            let (mut a, mut b) = (p, p);
+            a[k] += h;
+            b[k] -= h;
+            g[k] = (self.field(a) - self.field(b)) / (2.0 * h);
+        }
+        g
+    }
+    /// Outward unit normal (`-grad f / |grad f|`).
+    pub fn normal(&self, p: V3, h: f32) -> V3 {
+        normalize(mul(self.gradient(p, h), -1.0))
+    }
+    /// Lipschitz bound of `f` over `region`.
+    pub fn lipschitz(&self, region: &Aabb) -> f32 {
+        self.tree.lipschitz(self.root, region)
+    }
+    /// Box outside which `f = 0` (air).
+    pub fn bbox(&self) -> Aabb {
+        self.bbox
+    }
+    /// Resistance `rho(p)` of the geology.
+    pub fn resistance(&self, p: V3) -> f32 {
+        self.geology.resistance(p)
+    }
+    /// The DEM's bilinear elevation at `(x, y)`, if the scene has a heightfield primitive.
+    pub fn dem_height(&self, x: f32, y: f32) -> Option<f32> {
+        let (id, _) = self.dem?;
+        self.tree.dem_height(id, x, y)
+    }
+    /// The DEM frame, if any.
+    pub fn dem_frame(&self) -> Option<DemFrame> {
+        self.dem.map(|d| d.1)
+    }
+    /// Node count and memory of the terrain tree.
+    pub fn stats(&self) -> TreeStats {
+        self.tree.stats()
+    }
+    /// The terrain tree and root.
+    pub fn tree(&self) -> (&TerrainTree, NodeId) {
+        (&self.tree, self.root)
+    }
+    /// The geology tree.
+    pub fn geology(&self) -> &Geology {
+        &self.geology
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn erosion_intensity_matches_paper_constraints() {
+        for beta in [0.0, 0.3, 1.0] {
+            assert_eq!(erosion_intensity(0.4, 0.0, beta), 0.0);
+            assert!((erosion_intensity(1.0, 1.0, beta) - beta).abs() < 1e-6);
+            assert!((erosion_intensity(0.0, 1.0, beta) - 1.0).abs() < 1e-6);
+        }
+        assert!(erosion_intensity(0.2, 0.8, 0.2) > erosion_intensity(0.8, 0.8, 0.2));
+    }
+}

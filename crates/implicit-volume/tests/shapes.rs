@@ -1,0 +1,92 @@
+//! Closed analytic shapes: watertightness, orientation and Euler characteristic of the mesher.
+use relief_implicit_volume::*;
+
+fn mesh_of(tree: TerrainTree, root: NodeId, cells: usize) -> Mesh {
+    let scene = Scene::new(tree, root, Geology::new(), None).unwrap();
+    let s = MeshSettings {
+        cells: [cells; 3],
+        chunk: 8,
+        ..Default::default()
+    };
+    polygonize(&scene, &s).unwrap().0
+}
+
+#[test]
+fn sphere_is_a_closed_genus_0_surface() {
+    let mut t = TerrainTree::new();
+    let r = t.sphere([1.0, 2.0, 3.0], 10.0, 1.0).unwrap();
+    let m = mesh_of(t, r, 30);
+    let topo = topology(&m);
+    assert_eq!(topo.bad_edges, 0, "{topo:?}");
+    assert_eq!(topo.misoriented_edges, 0, "{topo:?}");
+    assert_eq!(topo.euler, 2, "{topo:?}");
+    // Surface radius of e (1 - d^2/R^2)^3 = T: R sqrt(1 - (T/e)^(1/3)).
+    let want = 10.0 * (1.0f32 - 0.5f32.cbrt()).sqrt();
+    for (p, n) in m.positions.iter().zip(&m.normals) {
+        let d = [p[0] - 1.0, p[1] - 2.0, p[2] - 3.0];
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        assert!((r - want).abs() < 0.25, "{r} vs {want}");
+        // Normals point outwards.
+        assert!(n[0] * d[0] + n[1] * d[1] + n[2] * d[2] > 0.9 * r);
+    }
+}
+
+#[test]
+fn torus_of_blended_spheres_has_euler_0_and_chunks_weld() {
+    let mut t = TerrainTree::new();
+    let ids: Vec<NodeId> = (0..32)
+        .map(|k| {
+            let a = k as f32 / 32.0 * std::f32::consts::TAU;
+            t.sphere([20.0 * a.cos(), 20.0 * a.sin(), 0.0], 8.0, 1.0)
+                .unwrap()
+        })
+        .collect();
+    let root = t.bvh_blend(&ids).unwrap();
+    let m = mesh_of(t, root, 48);
+    let topo = topology(&m);
+    assert_eq!(topo.bad_edges, 0, "{topo:?}");
+    assert_eq!(topo.misoriented_edges, 0, "{topo:?}");
+    assert_eq!(topo.euler, 0, "{topo:?}");
+}
+
+#[test]
+fn csg_operators_keep_the_mesh_manifold() {
+    let mut t = TerrainTree::new();
+    let a = t.ellipsoid([0.0; 3], [20.0, 14.0, 10.0], 1.0).unwrap();
+    let b = t
+        .capsule([-30.0, 0.0, 0.0], [30.0, 0.0, 0.0], 7.0, 1.0)
+        .unwrap();
+    let c = t
+        .cone([0.0, 0.0, -10.0], [0.0, 0.0, 15.0], 9.0, 3.0, 1.0)
+        .unwrap();
+    let d = t.difference(a, b).unwrap(); // a tunnel through the ellipsoid
+    let u = t.union(d, c).unwrap();
+    let w = t.warp(u, 1.0, 0.1, 4).unwrap();
+    let m = mesh_of(t, w, 48);
+    let topo = topology(&m);
+    assert_eq!(topo.bad_edges, 0, "{topo:?}");
+    assert_eq!(topo.misoriented_edges, 0, "{topo:?}");
+    assert!(topo.faces > 100);
+}
+
+#[test]
+fn precomputed_grid_mesher_matches_and_rejects_bad_input() {
+    let mut t = TerrainTree::new();
+    let r = t.sphere([0.0; 3], 10.0, 1.0).unwrap();
+    let scene = Scene::new(t, r, Geology::new(), None).unwrap();
+    let b = Aabb::new([-11.0; 3], [11.0; 3]);
+    let g = sample_grid(&scene, &b, [23, 23, 23]).unwrap();
+    let m = polygonize_grid(&g, [23, 23, 23], b.min, [1.0; 3], THRESHOLD, 8).unwrap();
+    let topo = topology(&m);
+    assert_eq!((topo.bad_edges, topo.euler), (0, 2));
+    assert!(polygonize_grid(&g, [23, 23, 22], b.min, [1.0; 3], THRESHOLD, 8).is_err());
+    let e = polygonize(
+        &scene,
+        &MeshSettings {
+            chunk: 1,
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("chunk"));
+}
