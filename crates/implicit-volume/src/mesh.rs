@@ -4,7 +4,7 @@
 //! The grid is processed in chunks of `chunk^3` cells: each chunk samples only its own
 //! `(chunk + 1)^3` nodes, so memory is bounded by the chunk plus the output mesh, never a dense
 //! grid of the whole scene. Chunks whose Lipschitz bound proves they hold no surface are skipped
-//! without sampling. Vertices lie on lattice edges and are welded across chunk borders by a
+//! without sampling (interval bounds of the field over the chunk). Vertices lie on lattice edges and are welded across chunk borders by a
 //! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
 //! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
 //! (`inside <=> f > T`), the piecewise-linear iso-surface is a closed 2-manifold: every edge is
@@ -317,13 +317,9 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
         .map(|&(lo, hi)| {
             let cb = Aabb::new(g.pos(lo[0], lo[1], lo[2]), g.pos(hi[0], hi[1], hi[2]));
             let touches = (0..3).any(|k| lo[k] == 0 || hi[k] == g.n[k]);
-            let c = cb.center();
-            let hd = 0.5 * crate::math::norm(cb.size());
-            let fc = scene.field(c);
-            let l = scene.lipschitz(&cb);
-            if (fc - THRESHOLD).abs() > l * hd && (fc < THRESHOLD || !(s.close_boundary && touches))
-            {
-                return (None, 1);
+            let (flo, fhi) = scene.interval(&cb);
+            if fhi <= THRESHOLD || (flo > THRESHOLD && !(s.close_boundary && touches)) {
+                return (None, 0);
             }
             let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
             let mut vals = vec![0f32; d[0] * d[1] * d[2]];

@@ -1240,6 +1240,10 @@ impl Scene {
     pub fn normal(&self, p: V3, h: f32) -> V3 {
         normalize(mul(self.gradient(p, h), -1.0))
     }
+    /// Conservative range of `f` over `region` (interval arithmetic through the tree).
+    pub fn interval(&self, region: &Aabb) -> (f32, f32) {
+        self.tree.interval(self.root, region)
+    }
     /// Lipschitz bound of `f` over `region`.
     pub fn lipschitz(&self, region: &Aabb) -> f32 {
         self.tree.lipschitz(self.root, region)

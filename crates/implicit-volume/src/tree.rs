@@ -130,6 +130,22 @@ impl HfPrim {
         let dt = self.height(p[0], p[1]) - p[2];
         THRESHOLD + THRESHOLD * cubic_step(dt.min(db) / self.r)
     }
+    /// Range of the bilinear DEM over the xy footprint of `b` (clamped to the grid).
+    fn height_range(&self, b: &Aabb) -> (f32, f32) {
+        let u0 = ((b.min[0] / self.cx).floor().max(0.0) as usize).min(self.w - 1);
+        let u1 = ((b.max[0] / self.cx).ceil().max(0.0) as usize).min(self.w - 1);
+        let top = (self.h - 1) as f32;
+        let v0 = ((top - b.max[1] / self.cy).floor().max(0.0) as usize).min(self.h - 1);
+        let v1 = ((top - b.min[1] / self.cy).ceil().max(0.0) as usize).min(self.h - 1);
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in v0..=v1 {
+            for &z in &self.data[i * self.w + u0..=i * self.w + u1] {
+                lo = lo.min(z);
+                hi = hi.max(z);
+            }
+        }
+        (lo, hi)
+    }
     fn bbox(&self) -> Aabb {
         let (xm, ym) = self.extent();
         Aabb::new([0.0, 0.0, self.z_bottom], [xm, ym, self.z_max]).inflate(self.r)
@@ -591,6 +607,106 @@ impl TerrainTree {
         }
     }
 
+    /// Conservative range `[lo, hi]` of node `id`'s field over `region` (interval arithmetic
+    /// through the tree; exact bounds of the falloff from the box-to-skeleton distance and of
+    /// the DEM elevations under the box). Used to skip empty chunks when meshing.
+    pub fn interval(&self, id: NodeId, region: &Aabb) -> (f32, f32) {
+        self.iv(id.0, region)
+    }
+
+    fn iv(&self, id: u32, region: &Aabb) -> (f32, f32) {
+        let node = self.nodes[id as usize];
+        let span = |e: f32, gmax: f32| {
+            if e >= 0.0 {
+                (0.0, e * gmax)
+            } else {
+                (e * gmax, 0.0)
+            }
+        };
+        match node {
+            Node::Sphere { c, r, e } => span(e, falloff(region.dist_sq(c) / (r * r))),
+            Node::Ellipsoid { c, axes, e } => {
+                let mut q = 0.0;
+                for k in 0..3 {
+                    let d = (region.min[k] - c[k]).max(0.0).max(c[k] - region.max[k]) / axes[k];
+                    q += d * d;
+                }
+                span(e, falloff(q))
+            }
+            Node::Capsule { e, .. } | Node::Cone { e, .. } => {
+                if self.bbox_of(id).intersects(region) {
+                    span(e, 1.0)
+                } else {
+                    (0.0, 0.0)
+                }
+            }
+            Node::Heightfield(k) => {
+                let h = &self.hfs[k as usize];
+                if !h.bbox().intersects(region) {
+                    return (0.0, 0.0);
+                }
+                let (hl, hh) = h.height_range(region);
+                let (xm, ym) = h.extent();
+                let comps = [
+                    (region.min[0], region.max[0]),
+                    (xm - region.max[0], xm - region.min[0]),
+                    (region.min[1], region.max[1]),
+                    (ym - region.max[1], ym - region.min[1]),
+                    (region.min[2] - h.z_bottom, region.max[2] - h.z_bottom),
+                ];
+                let (mut dl, mut dh) = (hl - region.max[2], hh - region.min[2]);
+                for (a, b) in comps {
+                    dl = dl.min(a);
+                    dh = dh.min(b);
+                }
+                (
+                    THRESHOLD + THRESHOLD * cubic_step(dl / h.r),
+                    THRESHOLD + THRESHOLD * cubic_step(dh / h.r),
+                )
+            }
+            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+                .iter()
+                .fold((0.0, 0.0), |acc, &c| {
+                    let v = self.iv(c, region);
+                    (acc.0 + v.0, acc.1 + v.1)
+                }),
+            Node::Bvh { bbox, left, right } => {
+                if bbox.intersects(region) {
+                    let (a, b) = (self.iv(left, region), self.iv(right, region));
+                    (a.0 + b.0, a.1 + b.1)
+                } else {
+                    (0.0, 0.0)
+                }
+            }
+            Node::Union { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.max(b.0), a.1.max(b.1))
+            }
+            Node::Intersection { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.min(b.0), a.1.min(b.1))
+            }
+            Node::Difference { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                let (cl, ch) = (
+                    (2.0 * THRESHOLD - b.1).max(0.0),
+                    (2.0 * THRESHOLD - b.0).max(0.0),
+                );
+                (a.0.min(cl), a.1.min(ch))
+            }
+            Node::SmoothBlend { a, b, .. } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.max(b.0).max(0.0), a.1.max(0.0) + b.1.max(0.0))
+            }
+            Node::Warp { child, amp, .. } => {
+                if !self.bbox_of(id).intersects(region) {
+                    return (0.0, 0.0);
+                }
+                self.iv(child, &region.inflate(0.75 * amp))
+            }
+        }
+    }
+
     /// Node count and memory (see [`TreeStats`]).
     pub fn stats(&self) -> TreeStats {
         let primitives = self
@@ -624,6 +740,7 @@ impl TerrainTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use relief_heightfield::Heightfield;
 
     #[test]
     fn node_is_compact() {
@@ -663,6 +780,39 @@ mod tests {
             let lb = t.lipschitz(bvh, &small);
             let d = crate::math::norm(sub(q, p));
             assert!((t.eval(bvh, q) - b).abs() <= lb * d + 1e-5);
+        }
+    }
+
+    #[test]
+    fn intervals_contain_the_field() {
+        let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
+            50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
+        });
+        let mut t = TerrainTree::new();
+        let (h, _) = t.heightfield(&hf, 15.0, 30.0).unwrap();
+        let s1 = t.sphere([100.0, 100.0, 60.0], 30.0, -2.0).unwrap();
+        let e1 = t
+            .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+            .unwrap();
+        let bv = t.bvh_blend(&[s1, e1]).unwrap();
+        let bl = t.blend(&[h, bv]).unwrap();
+        let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
+        let root = t.union(bl, w).unwrap();
+        for k in 0..300u64 {
+            let r = |s| crate::math::unit(crate::math::hash(5, k, s, 0));
+            let c = [r(0) * 290.0, r(1) * 190.0, r(2) * 150.0];
+            let b = Aabb::new(c, add(c, [r(3) * 40.0, r(4) * 40.0, r(5) * 40.0]));
+            let (lo, hi) = t.interval(root, &b);
+            for m in 0..20u64 {
+                let q = |s| crate::math::unit(crate::math::hash(6, k, m, s));
+                let p = [
+                    b.min[0] + q(0) * (b.max[0] - b.min[0]),
+                    b.min[1] + q(1) * (b.max[1] - b.min[1]),
+                    b.min[2] + q(2) * (b.max[2] - b.min[2]),
+                ];
+                let v = t.eval(root, p);
+                assert!(v >= lo - 1e-5 && v <= hi + 1e-5, "{v} not in [{lo}, {hi}]");
+            }
         }
     }
 
