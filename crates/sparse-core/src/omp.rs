@@ -1,0 +1,628 @@
+//! Sparse decomposition (guerin2016 section 4.3): the reference OMP written exactly as the
+//! paper states it, and Batch-OMP (Rubinstein, Zibulevsky & Elad 2008) as the fast path.
+//!
+//! Conventions: the dictionary is an `(n_atoms, dim)` matrix with one unit-norm atom per **row**
+//! (the transpose of the paper's `K x N` matrix `D`); signals are `(n_signals, dim)`, one per row.
+//! Both solvers stop when `s` atoms are selected, when the squared residual drops to
+//! [`OmpSettings::tolerance`], when the residual vanishes, or when the next atom would be
+//! linearly dependent on the selected ones (the support then holds fewer than `s` atoms).
+//!
+//! Both solvers are deterministic: the result of a signal does not depend on the other signals
+//! or on the number of rayon threads (signals are processed in fixed-size blocks).
+
+use std::fmt::{Debug, Display};
+use std::ops::{AddAssign, Neg, SubAssign};
+
+use ndarray::{Array2, ArrayView2, LinalgScalar, s};
+use rayon::prelude::*;
+
+use crate::error::{Result, SparseError};
+
+/// Largest sparsity the solvers accept.
+pub const MAX_SPARSITY: usize = 64;
+
+/// Number of signals per Batch-OMP block (fixed so results do not depend on the thread count).
+const BLOCK: usize = 256;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// Floating-point types the solvers run in (`f32` and `f64`).
+pub trait OmpFloat:
+    LinalgScalar
+    + Send
+    + Sync
+    + Debug
+    + Display
+    + Default
+    + PartialOrd
+    + AddAssign
+    + SubAssign
+    + Neg<Output = Self>
+    + sealed::Sealed
+{
+    /// Conversion from `f64` (rounding).
+    fn from_f64(v: f64) -> Self;
+    /// Conversion to `f64`.
+    fn to_f64(self) -> f64;
+    /// Square root.
+    fn sqrt(self) -> Self;
+    /// Absolute value.
+    fn abs(self) -> Self;
+    /// True when neither NaN nor infinite.
+    fn is_finite(self) -> bool;
+    /// Relative floor under which a Cholesky pivot counts as zero (linear dependence).
+    const PIVOT_FLOOR: f64;
+    /// Relative floor (of `||x||^2`) under which a squared residual counts as zero.
+    const RESIDUAL_FLOOR: f64;
+}
+
+impl OmpFloat for f32 {
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    fn sqrt(self) -> Self {
+        f32::sqrt(self)
+    }
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+    const PIVOT_FLOOR: f64 = 1e-5;
+    const RESIDUAL_FLOOR: f64 = 1e-11;
+}
+
+impl OmpFloat for f64 {
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+    const PIVOT_FLOOR: f64 = 1e-10;
+    const RESIDUAL_FLOOR: f64 = 1e-24;
+}
+
+/// Settings of both OMP solvers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OmpSettings {
+    /// Target sparsity `s` (maximum number of atoms per signal), `1..=64` and `<= n_atoms`.
+    pub sparsity: usize,
+    /// Optional residual target: stop as soon as `||r||^2 <= tolerance` (squared L2 norm of the
+    /// residual, in signal units squared). Must be finite and `>= 0`.
+    pub tolerance: Option<f64>,
+}
+
+impl Default for OmpSettings {
+    fn default() -> Self {
+        Self {
+            sparsity: 4,
+            tolerance: None,
+        }
+    }
+}
+
+/// Sparse codes of a batch of signals in compressed-row form: for signal `i`, the atom indices
+/// in selection order and their coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparseCodes<T> {
+    offsets: Vec<usize>,
+    indices: Vec<u32>,
+    values: Vec<T>,
+    residuals: Vec<T>,
+}
+
+impl<T: OmpFloat> SparseCodes<T> {
+    /// Builds codes from per-signal lists (offsets has `n_signals + 1` entries).
+    pub fn from_parts(
+        offsets: Vec<usize>,
+        indices: Vec<u32>,
+        values: Vec<T>,
+        residuals: Vec<T>,
+    ) -> Result<Self> {
+        let n = offsets.len().saturating_sub(1);
+        if offsets.is_empty()
+            || offsets[0] != 0
+            || offsets.windows(2).any(|w| w[1] < w[0])
+            || *offsets.last().unwrap_or(&0) != indices.len()
+            || indices.len() != values.len()
+            || residuals.len() != n
+        {
+            return Err(SparseError::param(
+                "offsets",
+                offsets.len(),
+                "offsets must start at 0, be non-decreasing and end at indices.len()",
+            ));
+        }
+        Ok(Self {
+            offsets,
+            indices,
+            values,
+            residuals,
+        })
+    }
+
+    /// Number of signals.
+    pub fn n_signals(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// Atom indices (selection order) and coefficient values of signal `i`.
+    ///
+    /// # Panics
+    /// Panics if `i >= n_signals()`.
+    pub fn signal(&self, i: usize) -> (&[u32], &[T]) {
+        let (a, b) = (self.offsets[i], self.offsets[i + 1]);
+        (&self.indices[a..b], &self.values[a..b])
+    }
+
+    /// Squared L2 norm of the residual of signal `i` as tracked by the solver.
+    pub fn residual_sq(&self, i: usize) -> T {
+        self.residuals[i]
+    }
+
+    /// Total number of non-zero coefficients.
+    pub fn nnz(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// Dense `(n_signals, n_atoms)` coefficient matrix (`X^T` in the paper's notation).
+    ///
+    /// # Panics
+    /// Panics if an index is `>= n_atoms`.
+    pub fn to_dense(&self, n_atoms: usize) -> Array2<T> {
+        let mut out = Array2::from_elem((self.n_signals(), n_atoms), T::zero());
+        for i in 0..self.n_signals() {
+            let (idx, val) = self.signal(i);
+            for (&j, &v) in idx.iter().zip(val) {
+                out[(i, j as usize)] = v;
+            }
+        }
+        out
+    }
+
+    /// Reconstruction `codes . dict`, shape `(n_signals, dim)`.
+    pub fn reconstruct(&self, dict: ArrayView2<T>) -> Array2<T> {
+        let mut out = Array2::from_elem((self.n_signals(), dict.ncols()), T::zero());
+        for i in 0..self.n_signals() {
+            let (idx, val) = self.signal(i);
+            let mut row = out.row_mut(i);
+            for (&j, &v) in idx.iter().zip(val) {
+                row.scaled_add(v, &dict.row(j as usize));
+            }
+        }
+        out
+    }
+}
+
+/// Checks the inputs shared by both solvers.
+fn validate<T: OmpFloat>(
+    dict: &ArrayView2<T>,
+    signals: &ArrayView2<T>,
+    settings: &OmpSettings,
+) -> Result<()> {
+    let (n_atoms, dim) = dict.dim();
+    if n_atoms == 0 || dim == 0 {
+        return Err(SparseError::EmptyDictionary { n_atoms, dim });
+    }
+    if signals.ncols() != dim {
+        return Err(SparseError::DimensionMismatch {
+            what: "signal dimension vs atom dimension",
+            expected: dim,
+            got: signals.ncols(),
+        });
+    }
+    if settings.sparsity == 0 || settings.sparsity > MAX_SPARSITY {
+        return Err(SparseError::param(
+            "sparsity",
+            settings.sparsity,
+            "must be in 1..=64",
+        ));
+    }
+    if settings.sparsity > n_atoms {
+        return Err(SparseError::SparsityTooLarge {
+            sparsity: settings.sparsity,
+            n_atoms,
+        });
+    }
+    if let Some(t) = settings.tolerance
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return Err(SparseError::param(
+            "tolerance",
+            t,
+            "must be finite and >= 0",
+        ));
+    }
+    for (i, row) in dict.outer_iter().enumerate() {
+        let mut n2 = 0.0f64;
+        for &v in row.iter() {
+            if !v.is_finite() {
+                return Err(SparseError::NonFinite {
+                    what: "dictionary",
+                    row: i,
+                });
+            }
+            n2 += v.to_f64() * v.to_f64();
+        }
+        let norm = n2.sqrt();
+        if (norm - 1.0).abs() > 1e-3 {
+            return Err(SparseError::NotNormalised { atom: i, norm });
+        }
+    }
+    for (i, row) in signals.outer_iter().enumerate() {
+        if row.iter().any(|v| !v.is_finite()) {
+            return Err(SparseError::NonFinite {
+                what: "signals",
+                row: i,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Solves `A y = b` for a small symmetric positive definite `A` (row-major `m x m`) by Cholesky
+/// in `f64`; `None` when `A` is not numerically positive definite.
+fn spd_solve(a: &[f64], b: &[f64], m: usize) -> Option<Vec<f64>> {
+    let mut l = vec![0.0f64; m * m];
+    for i in 0..m {
+        for j in 0..=i {
+            let mut sum = a[i * m + j];
+            for k in 0..j {
+                sum -= l[i * m + k] * l[j * m + k];
+            }
+            if i == j {
+                if sum <= 1e-12 * a[i * m + i].abs().max(1e-300) {
+                    return None;
+                }
+                l[i * m + i] = sum.sqrt();
+            } else {
+                l[i * m + j] = sum / l[j * m + j];
+            }
+        }
+    }
+    let mut y = b.to_vec();
+    for i in 0..m {
+        for k in 0..i {
+            y[i] -= l[i * m + k] * y[k];
+        }
+        y[i] /= l[i * m + i];
+    }
+    for i in (0..m).rev() {
+        for k in i + 1..m {
+            y[i] -= l[k * m + i] * y[k];
+        }
+        y[i] /= l[i * m + i];
+    }
+    Some(y)
+}
+
+/// Reference OMP, exactly as guerin2016 section 4.3 writes it (readable; the test oracle).
+///
+/// For each signal `T_i` the active set `Gamma` starts empty; each iteration selects
+/// `(k^, beta^) = argmin_{k not in Gamma, beta} ||T_i - D_{Gamma u {k}} beta||_2^2` by solving the
+/// least-squares problem of **every** candidate `k` (normal equations, Cholesky in `f64`), then
+/// sets `Gamma = Gamma u {k^}`, `X_i^Gamma = beta^`. Ties go to the smallest index. It stops when
+/// `|Gamma| = s`, when the squared residual is `<= tolerance`, or when it vanishes.
+///
+/// This literal criterion (smallest residual after the joint refit) coincides with the usual
+/// "largest correlation with the residual" choice of [`batch_omp`] whenever the candidate atoms
+/// are equally well separated from the span of the active set (orthogonal or well-conditioned
+/// dictionaries; always at the first iteration); on coherent dictionaries the two may pick
+/// different atoms. Cost is `O(N s K)` per iteration per signal: use it for tests only.
+pub fn omp_reference<T: OmpFloat>(
+    dict: ArrayView2<T>,
+    signals: ArrayView2<T>,
+    settings: &OmpSettings,
+) -> Result<SparseCodes<T>> {
+    validate(&dict, &signals, settings)?;
+    let (n_atoms, dim) = dict.dim();
+    let d: Vec<f64> = dict.iter().map(|v| v.to_f64()).collect();
+    // Gram matrix in f64 (the normal equations of every candidate set are read from it).
+    let mut gram = vec![0.0f64; n_atoms * n_atoms];
+    for a in 0..n_atoms {
+        for b in 0..=a {
+            let g: f64 = (0..dim).map(|k| d[a * dim + k] * d[b * dim + k]).sum();
+            gram[a * n_atoms + b] = g;
+            gram[b * n_atoms + a] = g;
+        }
+    }
+    let per_signal: Vec<(Vec<u32>, Vec<T>, T)> = signals
+        .outer_iter()
+        .into_par_iter()
+        .map(|x| {
+            let x: Vec<f64> = x.iter().map(|v| v.to_f64()).collect();
+            let xx: f64 = x.iter().map(|v| v * v).sum();
+            let corr: Vec<f64> = (0..n_atoms)
+                .map(|a| (0..dim).map(|k| d[a * dim + k] * x[k]).sum())
+                .collect();
+            let mut gamma: Vec<usize> = Vec::new();
+            let mut beta: Vec<f64> = Vec::new();
+            let mut res = xx;
+            while gamma.len() < settings.sparsity {
+                if settings.tolerance.is_some_and(|t| res <= t) || res <= f64::RESIDUAL_FLOOR * xx {
+                    break;
+                }
+                let m = gamma.len() + 1;
+                let mut best: Option<(f64, usize, Vec<f64>)> = None;
+                for k in 0..n_atoms {
+                    if gamma.contains(&k) {
+                        continue;
+                    }
+                    let set: Vec<usize> = gamma.iter().copied().chain([k]).collect();
+                    let a: Vec<f64> = set
+                        .iter()
+                        .flat_map(|&p| set.iter().map(move |&q| (p, q)))
+                        .map(|(p, q)| gram[p * n_atoms + q])
+                        .collect();
+                    let b: Vec<f64> = set.iter().map(|&p| corr[p]).collect();
+                    let Some(y) = spd_solve(&a, &b, m) else {
+                        continue;
+                    };
+                    // ||x - D_S y||^2 = ||x||^2 - b.y at the least-squares optimum.
+                    let r = xx - b.iter().zip(&y).map(|(p, q)| p * q).sum::<f64>();
+                    if best.as_ref().is_none_or(|(br, _, _)| r < *br) {
+                        best = Some((r, k, y));
+                    }
+                }
+                let Some((r, k, y)) = best else { break };
+                gamma.push(k);
+                beta = y;
+                res = r.max(0.0);
+            }
+            let idx = gamma.iter().map(|&k| k as u32).collect();
+            let val = beta.iter().map(|&v| T::from_f64(v)).collect();
+            (idx, val, T::from_f64(res))
+        })
+        .collect();
+    Ok(assemble(per_signal))
+}
+
+fn assemble<T: OmpFloat>(per_signal: Vec<(Vec<u32>, Vec<T>, T)>) -> SparseCodes<T> {
+    let mut offsets = Vec::with_capacity(per_signal.len() + 1);
+    offsets.push(0);
+    let total: usize = per_signal.iter().map(|p| p.0.len()).sum();
+    let mut indices = Vec::with_capacity(total);
+    let mut values = Vec::with_capacity(total);
+    let mut residuals = Vec::with_capacity(per_signal.len());
+    for (i, v, r) in per_signal {
+        indices.extend_from_slice(&i);
+        values.extend_from_slice(&v);
+        residuals.push(r);
+        offsets.push(indices.len());
+    }
+    SparseCodes {
+        offsets,
+        indices,
+        values,
+        residuals,
+    }
+}
+
+/// Per-thread scratch of Batch-OMP.
+struct Scratch<T> {
+    alpha0: Array2<T>,
+    alpha: Vec<T>,
+    l: Vec<T>,
+    w: Vec<T>,
+    gamma: Vec<T>,
+    rhs: Vec<T>,
+    idx: Vec<usize>,
+    used: Vec<bool>,
+}
+
+impl<T: OmpFloat> Scratch<T> {
+    fn new(n_atoms: usize, s: usize) -> Self {
+        Self {
+            alpha0: Array2::from_elem((BLOCK, n_atoms), T::zero()),
+            alpha: vec![T::zero(); n_atoms],
+            l: vec![T::zero(); s * s],
+            w: vec![T::zero(); s],
+            gamma: vec![T::zero(); s],
+            rhs: vec![T::zero(); s],
+            idx: Vec::with_capacity(s),
+            used: vec![false; n_atoms],
+        }
+    }
+}
+
+/// Output of one Batch-OMP block.
+struct BlockOut<T> {
+    counts: Vec<usize>,
+    indices: Vec<u32>,
+    values: Vec<T>,
+    residuals: Vec<T>,
+}
+
+/// Batch-OMP (Rubinstein, Zibulevsky & Elad 2008, algorithm "Batch-OMP"): the Gram matrix
+/// `G = D D^T` is computed once, the correlations `alpha0 = D x` of a block of signals by one
+/// matrix product, and each iteration only updates a progressive Cholesky factor of `G_II`
+/// and `alpha = alpha0 - G_I gamma` (no residual vector is ever formed). Selection is the usual
+/// OMP rule `k = argmax |alpha_k|` (ties to the smallest index). The squared residual is tracked
+/// as `||x||^2 - alpha0_I . gamma_I`.
+///
+/// Runs in parallel over blocks of 256 signals with rayon, one scratch per worker; the result
+/// does not depend on the thread count.
+pub fn batch_omp<T: OmpFloat>(
+    dict: ArrayView2<T>,
+    signals: ArrayView2<T>,
+    settings: &OmpSettings,
+) -> Result<SparseCodes<T>> {
+    validate(&dict, &signals, settings)?;
+    let (n_atoms, _) = dict.dim();
+    let s = settings.sparsity;
+    let gram = dict.dot(&dict.t());
+    let gram = gram.as_standard_layout();
+    let gram = gram.as_slice().unwrap_or(&[]);
+    let n = signals.nrows();
+    let n_blocks = n.div_ceil(BLOCK);
+    let tol = settings.tolerance;
+    let outs: Vec<BlockOut<T>> = (0..n_blocks)
+        .into_par_iter()
+        .map_init(
+            || Scratch::<T>::new(n_atoms, s),
+            |sc, b| {
+                let lo = b * BLOCK;
+                let hi = (lo + BLOCK).min(n);
+                let x = signals.slice(s![lo..hi, ..]);
+                let mut a0 = sc.alpha0.slice_mut(s![..hi - lo, ..]);
+                ndarray::linalg::general_mat_mul(T::one(), &x, &dict.t(), T::zero(), &mut a0);
+                let mut out = BlockOut {
+                    counts: Vec::with_capacity(hi - lo),
+                    indices: Vec::with_capacity((hi - lo) * s),
+                    values: Vec::with_capacity((hi - lo) * s),
+                    residuals: Vec::with_capacity(hi - lo),
+                };
+                for r in 0..hi - lo {
+                    let xx = x.row(r).iter().fold(T::zero(), |acc, &v| acc + v * v);
+                    code_one(sc, r, xx, gram, n_atoms, s, tol, &mut out);
+                }
+                out
+            },
+        )
+        .collect();
+    let mut offsets = Vec::with_capacity(n + 1);
+    offsets.push(0usize);
+    let total: usize = outs.iter().map(|o| o.indices.len()).sum();
+    let mut indices = Vec::with_capacity(total);
+    let mut values = Vec::with_capacity(total);
+    let mut residuals = Vec::with_capacity(n);
+    for o in outs {
+        for c in o.counts {
+            let last = *offsets.last().unwrap_or(&0);
+            offsets.push(last + c);
+        }
+        indices.extend_from_slice(&o.indices);
+        values.extend_from_slice(&o.values);
+        residuals.extend_from_slice(&o.residuals);
+    }
+    Ok(SparseCodes {
+        offsets,
+        indices,
+        values,
+        residuals,
+    })
+}
+
+/// Codes row `r` of the block held in `sc.alpha0`.
+#[inline]
+fn code_one<T: OmpFloat>(
+    sc: &mut Scratch<T>,
+    r: usize,
+    xx: T,
+    gram: &[T],
+    n_atoms: usize,
+    s: usize,
+    tol: Option<f64>,
+    out: &mut BlockOut<T>,
+) {
+    let a0 = sc.alpha0.row(r);
+    let a0 = a0.as_slice().unwrap_or(&[]);
+    sc.alpha.copy_from_slice(a0);
+    sc.idx.clear();
+    let floor = T::from_f64(T::RESIDUAL_FLOOR) * xx;
+    let tol_t = tol.map(T::from_f64);
+    let mut res = xx;
+    let mut k = 0usize;
+    while k < s {
+        if res <= floor || tol_t.is_some_and(|t| res <= t) {
+            break;
+        }
+        // Selection: largest |alpha| among unused atoms (ties: smallest index).
+        let mut best = usize::MAX;
+        let mut best_v = T::zero();
+        for (j, &v) in sc.alpha.iter().enumerate() {
+            let av = v.abs();
+            if av > best_v && !sc.used[j] {
+                best_v = av;
+                best = j;
+            }
+        }
+        if best == usize::MAX {
+            break;
+        }
+        let gjj = gram[best * n_atoms + best];
+        // Progressive Cholesky: solve L w = G_{I, best}, new row [w^T, sqrt(gjj - w.w)].
+        if k == 0 {
+            sc.l[0] = gjj.sqrt();
+        } else {
+            let grow = &gram[best * n_atoms..(best + 1) * n_atoms];
+            let mut ww = T::zero();
+            for i in 0..k {
+                let mut v = grow[sc.idx[i]];
+                let li = &sc.l[i * s..i * s + i];
+                for (m, &lv) in li.iter().enumerate() {
+                    v -= lv * sc.w[m];
+                }
+                v = v / sc.l[i * s + i];
+                sc.w[i] = v;
+                ww += v * v;
+            }
+            let piv = gjj - ww;
+            if piv <= T::from_f64(T::PIVOT_FLOOR) * gjj {
+                break;
+            }
+            sc.l[k * s..k * s + k].copy_from_slice(&sc.w[..k]);
+            sc.l[k * s + k] = piv.sqrt();
+        }
+        sc.idx.push(best);
+        sc.used[best] = true;
+        k += 1;
+        // gamma = (L L^T)^{-1} alpha0_I.
+        for i in 0..k {
+            let mut v = a0[sc.idx[i]];
+            for m in 0..i {
+                v -= sc.l[i * s + m] * sc.rhs[m];
+            }
+            sc.rhs[i] = v / sc.l[i * s + i];
+        }
+        for i in (0..k).rev() {
+            let mut v = sc.rhs[i];
+            for m in i + 1..k {
+                v -= sc.l[m * s + i] * sc.gamma[m];
+            }
+            sc.gamma[i] = v / sc.l[i * s + i];
+        }
+        // alpha = alpha0 - G_I gamma (G symmetric: rows of G indexed by I).
+        sc.alpha.copy_from_slice(a0);
+        for i in 0..k {
+            let g = sc.gamma[i];
+            let grow = &gram[sc.idx[i] * n_atoms..(sc.idx[i] + 1) * n_atoms];
+            for (al, &gv) in sc.alpha.iter_mut().zip(grow) {
+                *al -= g * gv;
+            }
+        }
+        let mut explained = T::zero();
+        for i in 0..k {
+            explained += a0[sc.idx[i]] * sc.gamma[i];
+        }
+        res = xx - explained;
+        if res < T::zero() {
+            res = T::zero();
+        }
+    }
+    for &j in &sc.idx {
+        sc.used[j] = false;
+    }
+    out.counts.push(k);
+    out.indices.extend(sc.idx.iter().map(|&j| j as u32));
+    out.values.extend_from_slice(&sc.gamma[..k]);
+    out.residuals.push(res);
+}

@@ -1,0 +1,227 @@
+//! Patch geometry and extraction (guerin2016 section 4.2).
+//!
+//! Primitive centres lie on a regular grid of step `S` (default: half the patch width,
+//! `a delta / 2`); every primitive has the disk support of radius `R` (default `a delta / 2`, the
+//! disk inscribed in the patch). The first centre is placed at
+//! `(a - 1) delta / 2 - ceil((a - 1) delta / 2)` (so with `delta = 1` the patch samples fall
+//! on terrain samples) and the grid extends until the last centre reaches the far edge, so every
+//! point of the terrain is within `S / sqrt(2)` of a centre; `R > S / sqrt(2)` is required, which
+//! guarantees that `sum_i alpha_i(p) != 0` on the whole domain (section 4.2).
+//!
+//! Extraction samples the terrain at the `a x a` patch positions (exact samples when they fall
+//! on the grid, bicubic otherwise; edges replicated), takes `z_i` as the mean over the samples
+//! inside the support disk, and stores `T_i = samples - z_i` as row `i` of the patch matrix
+//! (the transpose of the paper's `K x n` matrix `F`).
+
+use ndarray::Array2;
+use relief_heightfield::Heightfield;
+
+use crate::dictionary::support_mask;
+use crate::error::{Result, SparseError};
+
+/// Geometry of the primitives of a layer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchGeometry {
+    /// Patch side `a` in samples (`K = a * a`).
+    pub patch_size: usize,
+    /// Sample spacing `delta` in terrain cells.
+    pub spacing: f64,
+    /// Grid step `S` between neighbouring centres, in terrain cells.
+    pub step: f64,
+    /// Support radius `R` of the weight `alpha_i(p) = g(|p - c_i| / R)`, in terrain cells.
+    pub support_radius: f64,
+}
+
+impl Default for PatchGeometry {
+    fn default() -> Self {
+        Self::with_patch_size(8)
+    }
+}
+
+impl PatchGeometry {
+    /// The default geometry for `a x a` patches at spacing 1: step and radius `a / 2`.
+    pub fn with_patch_size(patch_size: usize) -> Self {
+        Self {
+            patch_size,
+            spacing: 1.0,
+            step: patch_size as f64 / 2.0,
+            support_radius: patch_size as f64 / 2.0,
+        }
+    }
+
+    /// Validates the geometry (sizes positive, `R > S / sqrt(2)` so the weights cover the plane).
+    pub fn check(&self) -> Result<()> {
+        support_mask(self.patch_size, self.spacing, self.support_radius)?;
+        if !(self.step.is_finite() && self.step > 0.0) {
+            return Err(SparseError::param(
+                "step",
+                self.step,
+                "must be finite and > 0",
+            ));
+        }
+        if self.support_radius * self.support_radius <= self.step * self.step / 2.0 {
+            return Err(SparseError::param(
+                "support_radius",
+                self.support_radius,
+                "must exceed step / sqrt(2) so that the weights never vanish",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The centre grid covering a `width x height` terrain.
+    pub fn grid(&self, width: usize, height: usize) -> Result<CentreGrid> {
+        self.check()?;
+        if width == 0 || height == 0 {
+            return Err(SparseError::param(
+                "width x height",
+                format!("{width} x {height}"),
+                "terrain must not be empty",
+            ));
+        }
+        let h = (self.patch_size as f64 - 1.0) / 2.0 * self.spacing;
+        let origin = h - h.ceil();
+        let count = |len: usize| -> usize {
+            let span = (len as f64 - 1.0) - origin;
+            ((span / self.step) - 1e-9).ceil().max(0.0) as usize + 1
+        };
+        Ok(CentreGrid {
+            origin: [origin, origin],
+            step: self.step,
+            nx: count(width),
+            ny: count(height),
+        })
+    }
+}
+
+/// A regular grid of primitive centres: centre `(i, j)` (column i, row j) sits at
+/// `origin + (i step, j step)`; primitive index `j * nx + i`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CentreGrid {
+    /// Position of centre (0, 0) in terrain pixel coordinates.
+    pub origin: [f64; 2],
+    /// Step between centres.
+    pub step: f64,
+    /// Number of columns of centres.
+    pub nx: usize,
+    /// Number of rows of centres.
+    pub ny: usize,
+}
+
+impl CentreGrid {
+    /// Number of centres.
+    pub fn len(&self) -> usize {
+        self.nx * self.ny
+    }
+
+    /// True when the grid holds no centre.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Centre of primitive `k`.
+    pub fn centre(&self, k: usize) -> [f64; 2] {
+        let (i, j) = (k % self.nx, k / self.nx);
+        [
+            self.origin[0] + i as f64 * self.step,
+            self.origin[1] + j as f64 * self.step,
+        ]
+    }
+
+    /// All centres in primitive order.
+    pub fn centres(&self) -> Vec<[f64; 2]> {
+        (0..self.len()).map(|k| self.centre(k)).collect()
+    }
+}
+
+/// Patches `T_i` of a terrain: the patch matrix, the centres and the means `z_i`.
+#[derive(Debug, Clone)]
+pub struct Patches {
+    /// `n x K` matrix, row `i` = `T_i` (samples minus `z_i`), row-major `a x a`.
+    pub matrix: Array2<f32>,
+    /// Centres `c_i` in terrain pixel coordinates (x = column, y = row).
+    pub centres: Vec<[f64; 2]>,
+    /// Means `z_i` over the support.
+    pub means: Vec<f32>,
+    /// The geometry used.
+    pub geometry: PatchGeometry,
+    /// The centre grid (centres are `grid.centre(i)`).
+    pub grid: CentreGrid,
+}
+
+/// Keys cubic weights (Catmull-Rom), `f64`.
+#[inline]
+pub(crate) fn cubic_weights(t: f64) -> [f64; 4] {
+    let t2 = t * t;
+    let t3 = t2 * t;
+    [
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    ]
+}
+
+fn sample(hf: &Heightfield, x: f64, y: f64) -> f64 {
+    let (rx, ry) = (x.round(), y.round());
+    if (x - rx).abs() < 1e-9 && (y - ry).abs() < 1e-9 {
+        return hf.get_clamped(rx as isize, ry as isize) as f64;
+    }
+    let (xf, yf) = (x.floor(), y.floor());
+    let (wx, wy) = (cubic_weights(x - xf), cubic_weights(y - yf));
+    let (xi, yi) = (xf as isize, yf as isize);
+    let mut acc = 0.0;
+    for (dy, wyv) in wy.iter().enumerate() {
+        let mut row = 0.0;
+        for (dx, wxv) in wx.iter().enumerate() {
+            row += wxv * hf.get_clamped(xi + dx as isize - 1, yi + dy as isize - 1) as f64;
+        }
+        acc += wyv * row;
+    }
+    acc
+}
+
+/// Extracts the patches `T_i` of a void-free heightfield (section 4.2).
+pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Patches> {
+    hf.require_complete()?;
+    let grid = geometry.grid(hf.width(), hf.height())?;
+    let mask = support_mask(
+        geometry.patch_size,
+        geometry.spacing,
+        geometry.support_radius,
+    )?;
+    let a = geometry.patch_size;
+    let half = (a as f64 - 1.0) / 2.0;
+    let n = grid.len();
+    let mut matrix = Array2::<f32>::zeros((n, a * a));
+    let mut means = vec![0f32; n];
+    let mut buf = vec![0f64; a * a];
+    for k in 0..n {
+        let [cx, cy] = grid.centre(k);
+        for r in 0..a {
+            for c in 0..a {
+                let x = cx + (c as f64 - half) * geometry.spacing;
+                let y = cy + (r as f64 - half) * geometry.spacing;
+                buf[r * a + c] = sample(hf, x, y);
+            }
+        }
+        let (s, cnt) = buf
+            .iter()
+            .zip(&mask)
+            .filter(|(_, m)| **m)
+            .fold((0.0, 0usize), |(s, c), (v, _)| (s + v, c + 1));
+        let z = (s / cnt as f64) as f32;
+        means[k] = z;
+        let mut row = matrix.row_mut(k);
+        for (o, v) in row.iter_mut().zip(&buf) {
+            *o = (v - z as f64) as f32;
+        }
+    }
+    Ok(Patches {
+        matrix,
+        centres: grid.centres(),
+        means,
+        geometry: *geometry,
+        grid,
+    })
+}

@@ -1,0 +1,1219 @@
+//! The Sparse Construction Tree (guerin2016 sections 4.1 and 5.4): sparse layers of primitives
+//! blended by `f(p) = sum_i f_i(p) alpha_i(p) / sum_i alpha_i(p)`, operator nodes and procedural
+//! primitives, evaluation at any point and rasterisation of any window at any scale.
+//!
+//! # Value and weight
+//! Every node evaluates to a pair `(value, weight)`. A [`SparseLayer`] gives
+//! `(sum f_i alpha_i / sum alpha_i, sum alpha_i)` (value NaN where no support covers the point);
+//! [`Node::Blend`] normalises the weighted sum of its children the same way, so blending layers
+//! generalises the equation above to sub-trees. The other operators keep the weight of their
+//! first child (the base) and combine values: [`Node::Add`] sums, [`Node::Max`]/[`Node::Min`]
+//! take the extremum (carving: `Min(terrain, river bed)`), [`Node::Replace`] blends an overlay
+//! into the base inside a [`Region`] with a smooth fall-off.
+//!
+//! # Rasterisation
+//! [`Sct::rasterize`] splits the requested window into bands of rows processed in parallel.
+//! A layer is rasterised by *stamping*: each primitive whose support meets the band first sums
+//! its data atoms into one `a x a` patch `P_i = sum_j x_i^j d_j`, then adds
+//! `(z_i + bicubic(P_i) + function atoms) alpha_i` and `alpha_i` into numerator and denominator
+//! buffers, using a separable bicubic (one horizontal pass per patch row, then four taps per
+//! pixel). Primitives are always visited in increasing index order and every pixel's value is
+//! computed by the same arithmetic as [`Sct::eval`], so a window rasterised alone equals the
+//! same window of the full raster bit for bit, and both equal point evaluation, whatever the
+//! thread count.
+//!
+//! Pixel `(X, Y)` of the raster at scale factor `s` samples the terrain at pixel coordinates
+//! `(X / s, Y / s)` of the encoded grid; the full raster has `floor((w - 1) s) + 1` columns.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+
+use crate::dictionary::{Atom, Dictionary};
+use crate::error::{Result, SparseError};
+use crate::omp::SparseCodes;
+use crate::patches::{CentreGrid, cubic_weights};
+
+/// Where the primitives of a layer are.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Placement {
+    /// A regular grid (the compact representation stores no centre).
+    Grid(CentreGrid),
+    /// Explicit centres (authoring).
+    Explicit(Vec<[f64; 2]>),
+}
+
+impl Placement {
+    /// Number of centres.
+    pub fn len(&self) -> usize {
+        match self {
+            Placement::Grid(g) => g.len(),
+            Placement::Explicit(c) => c.len(),
+        }
+    }
+
+    /// True when there is no centre.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Centre of primitive `k`.
+    pub fn centre(&self, k: usize) -> [f64; 2] {
+        match self {
+            Placement::Grid(g) => g.centre(k),
+            Placement::Explicit(c) => c[k],
+        }
+    }
+}
+
+/// Uniform-grid spatial index: each cell lists (in increasing order) the primitives whose
+/// support bounding box meets it, so a point query visits only nearby primitives.
+#[derive(Debug, Clone)]
+struct SpatialIndex {
+    origin: [f64; 2],
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    starts: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl SpatialIndex {
+    fn build(centres: &[[f64; 2]], radius: f64) -> Self {
+        let cell = 2.0 * radius;
+        if centres.is_empty() {
+            return Self {
+                origin: [0.0, 0.0],
+                cell,
+                nx: 1,
+                ny: 1,
+                starts: vec![0, 0],
+                ids: Vec::new(),
+            };
+        }
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for c in centres {
+            x0 = x0.min(c[0] - radius);
+            y0 = y0.min(c[1] - radius);
+            x1 = x1.max(c[0] + radius);
+            y1 = y1.max(c[1] + radius);
+        }
+        let nx = (((x1 - x0) / cell).floor() as usize + 1).max(1);
+        let ny = (((y1 - y0) / cell).floor() as usize + 1).max(1);
+        let mut idx = Self {
+            origin: [x0, y0],
+            cell,
+            nx,
+            ny,
+            starts: Vec::new(),
+            ids: Vec::new(),
+        };
+        let mut counts = vec![0u32; nx * ny];
+        let ranges: Vec<(usize, usize, usize, usize)> = centres
+            .iter()
+            .map(|c| {
+                let (ia, ib) = idx.span(c[0] - radius, c[0] + radius, 0);
+                let (ja, jb) = idx.span(c[1] - radius, c[1] + radius, 1);
+                (ia, ib, ja, jb)
+            })
+            .collect();
+        for &(ia, ib, ja, jb) in &ranges {
+            for j in ja..=jb {
+                for i in ia..=ib {
+                    counts[j * nx + i] += 1;
+                }
+            }
+        }
+        let mut starts = vec![0u32; nx * ny + 1];
+        for k in 0..nx * ny {
+            starts[k + 1] = starts[k] + counts[k];
+        }
+        let mut fill = starts.clone();
+        let mut ids = vec![0u32; starts[nx * ny] as usize];
+        for (p, &(ia, ib, ja, jb)) in ranges.iter().enumerate() {
+            for j in ja..=jb {
+                for i in ia..=ib {
+                    let c = j * nx + i;
+                    ids[fill[c] as usize] = p as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
+        idx.starts = starts;
+        idx.ids = ids;
+        idx
+    }
+
+    /// Cell range (inclusive, clamped) covering `[lo, hi]` along `axis`.
+    fn span(&self, lo: f64, hi: f64, axis: usize) -> (usize, usize) {
+        let n = if axis == 0 { self.nx } else { self.ny };
+        let f = |v: f64| -> usize {
+            let c = ((v - self.origin[axis]) / self.cell).floor();
+            c.clamp(0.0, (n - 1) as f64) as usize
+        };
+        (f(lo), f(hi))
+    }
+
+    fn cell_ids(&self, x: f64, y: f64) -> &[u32] {
+        let i = ((x - self.origin[0]) / self.cell).floor();
+        let j = ((y - self.origin[1]) / self.cell).floor();
+        if i < 0.0 || j < 0.0 || i >= self.nx as f64 || j >= self.ny as f64 {
+            return &[];
+        }
+        let c = j as usize * self.nx + i as usize;
+        &self.ids[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+
+    /// Sorted, deduplicated primitives whose bounding box meets the rectangle.
+    fn query_rect(&self, x0: f64, y0: f64, x1: f64, y1: f64, out: &mut Vec<u32>) {
+        out.clear();
+        let gx1 = self.origin[0] + self.nx as f64 * self.cell;
+        let gy1 = self.origin[1] + self.ny as f64 * self.cell;
+        if x1 < self.origin[0] || y1 < self.origin[1] || x0 > gx1 || y0 > gy1 {
+            return;
+        }
+        let (ia, ib) = self.span(x0, x1, 0);
+        let (ja, jb) = self.span(y0, y1, 1);
+        for j in ja..=jb {
+            for i in ia..=ib {
+                let c = j * self.nx + i;
+                out.extend_from_slice(
+                    &self.ids[self.starts[c] as usize..self.starts[c + 1] as usize],
+                );
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+}
+
+/// A set of sparse primitives over one dictionary, blended by the normalised weighted sum
+/// (section 4.1). Primitive `i`: centre `c_i`, elevation `z_i`, coefficients `(j, x_i^j)`.
+#[derive(Debug, Clone)]
+pub struct SparseLayer {
+    dictionary: Arc<Dictionary>,
+    placement: Placement,
+    z: Vec<f32>,
+    offsets: Vec<u32>,
+    atoms: Vec<u32>,
+    coeffs: Vec<f32>,
+    centres: Vec<[f64; 2]>,
+    has_functions: Vec<bool>,
+    index: SpatialIndex,
+}
+
+impl SparseLayer {
+    /// Builds a layer from compressed-row coefficients (`offsets` has `n + 1` entries).
+    pub fn from_parts(
+        dictionary: Arc<Dictionary>,
+        placement: Placement,
+        z: Vec<f32>,
+        offsets: Vec<u32>,
+        atoms: Vec<u32>,
+        coeffs: Vec<f32>,
+    ) -> Result<Self> {
+        let n = placement.len();
+        if z.len() != n {
+            return Err(SparseError::DimensionMismatch {
+                what: "z values vs primitives",
+                expected: n,
+                got: z.len(),
+            });
+        }
+        if offsets.len() != n + 1
+            || offsets[0] != 0
+            || offsets.windows(2).any(|w| w[1] < w[0])
+            || offsets[n] as usize != atoms.len()
+            || atoms.len() != coeffs.len()
+        {
+            return Err(SparseError::param(
+                "offsets",
+                offsets.len(),
+                "need n + 1 non-decreasing offsets from 0 to the coefficient count",
+            ));
+        }
+        if let Some(&j) = atoms.iter().find(|&&j| j as usize >= dictionary.len()) {
+            return Err(SparseError::param(
+                "atom index",
+                j,
+                "exceeds the dictionary size",
+            ));
+        }
+        if let Some(i) = z.iter().position(|v| !v.is_finite()) {
+            return Err(SparseError::NonFinite { what: "z", row: i });
+        }
+        if let Some(i) = coeffs.iter().position(|v| !v.is_finite()) {
+            return Err(SparseError::NonFinite {
+                what: "coefficients",
+                row: i,
+            });
+        }
+        let centres: Vec<[f64; 2]> = (0..n).map(|k| placement.centre(k)).collect();
+        if let Some(i) = centres
+            .iter()
+            .position(|c| !(c[0].is_finite() && c[1].is_finite()))
+        {
+            return Err(SparseError::NonFinite {
+                what: "centres",
+                row: i,
+            });
+        }
+        let has_functions = (0..n)
+            .map(|k| {
+                atoms[offsets[k] as usize..offsets[k + 1] as usize]
+                    .iter()
+                    .any(|&j| matches!(dictionary.atoms()[j as usize], Atom::Function { .. }))
+            })
+            .collect();
+        let index = SpatialIndex::build(&centres, dictionary.support_radius());
+        Ok(Self {
+            dictionary,
+            placement,
+            z,
+            offsets,
+            atoms,
+            coeffs,
+            centres,
+            has_functions,
+            index,
+        })
+    }
+
+    /// Builds a layer from OMP codes (one signal per primitive).
+    pub fn from_codes(
+        dictionary: Arc<Dictionary>,
+        placement: Placement,
+        z: Vec<f32>,
+        codes: &SparseCodes<f32>,
+    ) -> Result<Self> {
+        let mut offsets = Vec::with_capacity(codes.n_signals() + 1);
+        offsets.push(0u32);
+        let mut atoms = Vec::with_capacity(codes.nnz());
+        let mut coeffs = Vec::with_capacity(codes.nnz());
+        for i in 0..codes.n_signals() {
+            let (idx, val) = codes.signal(i);
+            atoms.extend_from_slice(idx);
+            coeffs.extend_from_slice(val);
+            offsets.push(atoms.len() as u32);
+        }
+        Self::from_parts(dictionary, placement, z, offsets, atoms, coeffs)
+    }
+
+    /// The dictionary.
+    pub fn dictionary(&self) -> &Arc<Dictionary> {
+        &self.dictionary
+    }
+
+    /// The placement of the centres.
+    pub fn placement(&self) -> &Placement {
+        &self.placement
+    }
+
+    /// Number of primitives `n`.
+    pub fn len(&self) -> usize {
+        self.z.len()
+    }
+
+    /// True when the layer has no primitive.
+    pub fn is_empty(&self) -> bool {
+        self.z.is_empty()
+    }
+
+    /// Elevations `z_i`.
+    pub fn z(&self) -> &[f32] {
+        &self.z
+    }
+
+    /// Compressed-row offsets (`n + 1`).
+    pub fn offsets(&self) -> &[u32] {
+        &self.offsets
+    }
+
+    /// Atom indices of all primitives (see [`SparseLayer::offsets`]).
+    pub fn atom_indices(&self) -> &[u32] {
+        &self.atoms
+    }
+
+    /// Coefficients of all primitives (see [`SparseLayer::offsets`]).
+    pub fn coefficients(&self) -> &[f32] {
+        &self.coeffs
+    }
+
+    /// Atom indices and coefficients of primitive `i`.
+    pub fn primitive(&self, i: usize) -> (&[u32], &[f32]) {
+        let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+        (&self.atoms[a..b], &self.coeffs[a..b])
+    }
+
+    /// Centre of primitive `i`.
+    pub fn centre(&self, i: usize) -> [f64; 2] {
+        self.centres[i]
+    }
+
+    /// Largest number of coefficients of a primitive (the sparsity `s`).
+    pub fn max_sparsity(&self) -> usize {
+        self.offsets
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Sums the data atoms of primitive `i` into `p` (`a * a`).
+    fn patch(&self, i: usize, p: &mut [f64]) {
+        p.iter_mut().for_each(|v| *v = 0.0);
+        let (idx, val) = self.primitive(i);
+        for (&j, &x) in idx.iter().zip(val) {
+            if let Atom::Data(d) = &self.dictionary.atoms()[j as usize] {
+                let x = x as f64;
+                for (o, &dv) in p.iter_mut().zip(d) {
+                    *o += x * dv as f64;
+                }
+            }
+        }
+    }
+
+    /// Function-atom part of primitive `i` at offset `(dx, dy)`.
+    fn functions(&self, i: usize, dx: f64, dy: f64) -> f64 {
+        let (idx, val) = self.primitive(i);
+        let mut acc = 0.0;
+        for (&j, &x) in idx.iter().zip(val) {
+            if let Some(v) = self.dictionary.eval_function(j as usize, dx, dy) {
+                acc += x as f64 * v;
+            }
+        }
+        acc
+    }
+
+    /// `(numerator, denominator)` of the blend at `(x, y)`.
+    fn eval_parts(&self, x: f64, y: f64) -> (f64, f64) {
+        let a = self.dictionary.patch_size();
+        let delta = self.dictionary.spacing();
+        let rr = self.dictionary.support_radius() * self.dictionary.support_radius();
+        let mut p = vec![0.0; a * a];
+        let (mut num, mut den) = (0.0, 0.0);
+        for &id in self.index.cell_ids(x, y) {
+            let i = id as usize;
+            let [cx, cy] = self.centres[i];
+            let (dx, dy) = (x - cx, y - cy);
+            let Some(alpha) = weight(dx, dy, rr) else {
+                continue;
+            };
+            self.patch(i, &mut p);
+            let (cols, wx) = taps(dx, delta, a);
+            let (rows, wy) = taps(dy, delta, a);
+            let mut h = [0.0; 4];
+            for r in 0..4 {
+                h[r] = hpass(&p[rows[r] * a..rows[r] * a + a], &cols, &wx);
+            }
+            let mut v = vpass(&h, &wy);
+            if self.has_functions[i] {
+                v += self.functions(i, dx, dy);
+            }
+            let f = self.z[i] as f64 + v;
+            num += f * alpha;
+            den += alpha;
+        }
+        (num, den)
+    }
+
+    /// Stamps the layer into a band: `num`/`den` are `ncols x nrows` buffers for pixels
+    /// `(X0 + c, Y0 + r)` at scale `scale`.
+    fn stamp(&self, band: &Band, num: &mut [f64], den: &mut [f64], scratch: &mut StampScratch) {
+        let a = self.dictionary.patch_size();
+        let delta = self.dictionary.spacing();
+        let radius = self.dictionary.support_radius();
+        let rr = radius * radius;
+        let sc = band.scale;
+        let (wx0, wx1) = (band.x0 as f64 / sc, (band.x1 - 1) as f64 / sc);
+        let (wy0, wy1) = (band.y0 as f64 / sc, (band.y1 - 1) as f64 / sc);
+        self.index
+            .query_rect(wx0, wy0, wx1, wy1, &mut scratch.candidates);
+        scratch.p.resize(a * a, 0.0);
+        let ncols = band.x1 - band.x0;
+        let candidates = std::mem::take(&mut scratch.candidates);
+        for &id in &candidates {
+            let i = id as usize;
+            let [cx, cy] = self.centres[i];
+            // Conservative pixel ranges of the support (exact test per pixel below).
+            let xa = (((cx - radius) * sc).floor() as i64 - 1).max(band.x0 as i64);
+            let xb = (((cx + radius) * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
+            let ya = (((cy - radius) * sc).floor() as i64 - 1).max(band.y0 as i64);
+            let yb = (((cy + radius) * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+            if xa > xb || ya > yb {
+                continue;
+            }
+            self.patch(i, &mut scratch.p);
+            let w = (xb - xa + 1) as usize;
+            scratch.h.resize(a * w, 0.0);
+            scratch.ctaps.clear();
+            for xi in xa..=xb {
+                let dx = xi as f64 / sc - cx;
+                scratch.ctaps.push((dx, taps(dx, delta, a)));
+            }
+            for r in 0..a {
+                let prow = &scratch.p[r * a..r * a + a];
+                let hrow = &mut scratch.h[r * w..r * w + w];
+                for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps) {
+                    *o = hpass(prow, cols, wx);
+                }
+            }
+            let z = self.z[i] as f64;
+            for yi in ya..=yb {
+                let dy = yi as f64 / sc - cy;
+                let (rows, wy) = taps(dy, delta, a);
+                let row_off = (yi as usize - band.y0) * ncols;
+                for (k, (dx, _)) in scratch.ctaps.iter().enumerate() {
+                    let Some(alpha) = weight(*dx, dy, rr) else {
+                        continue;
+                    };
+                    let h = [
+                        scratch.h[rows[0] * w + k],
+                        scratch.h[rows[1] * w + k],
+                        scratch.h[rows[2] * w + k],
+                        scratch.h[rows[3] * w + k],
+                    ];
+                    let mut v = vpass(&h, &wy);
+                    if self.has_functions[i] {
+                        v += self.functions(i, *dx, dy);
+                    }
+                    let f = z + v;
+                    let o = row_off + (xa as usize - band.x0) + k;
+                    num[o] += f * alpha;
+                    den[o] += alpha;
+                }
+            }
+        }
+        scratch.candidates = candidates;
+    }
+}
+
+/// `g(r) = (1 - r^2)^3` for `r < 1` with `r^2 = (dx^2 + dy^2) / R^2`.
+#[inline]
+fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
+    let r2 = (dx * dx + dy * dy) / rr;
+    if r2 < 1.0 {
+        let q = 1.0 - r2;
+        Some(q * q * q)
+    } else {
+        None
+    }
+}
+
+/// Clamped sample indices and weights of a bicubic tap set.
+type Taps = ([usize; 4], [f64; 4]);
+
+/// Bicubic taps (clamped sample indices and weights) of offset `d` in a patch of side `a`.
+#[inline]
+fn taps(d: f64, delta: f64, a: usize) -> Taps {
+    let u = d / delta + (a as f64 - 1.0) / 2.0;
+    let f = u.floor();
+    let w = cubic_weights(u - f);
+    let base = f as i64 - 1;
+    let last = a as i64 - 1;
+    let idx = [
+        base.clamp(0, last) as usize,
+        (base + 1).clamp(0, last) as usize,
+        (base + 2).clamp(0, last) as usize,
+        (base + 3).clamp(0, last) as usize,
+    ];
+    (idx, w)
+}
+
+#[inline]
+fn hpass(row: &[f64], cols: &[usize; 4], wx: &[f64; 4]) -> f64 {
+    let mut acc = 0.0;
+    for c in 0..4 {
+        acc += wx[c] * row[cols[c]];
+    }
+    acc
+}
+
+#[inline]
+fn vpass(h: &[f64; 4], wy: &[f64; 4]) -> f64 {
+    let mut acc = 0.0;
+    for r in 0..4 {
+        acc += wy[r] * h[r];
+    }
+    acc
+}
+
+/// A rectangle of output pixels `[x0, x1) x [y0, y1)` at a scale factor.
+#[derive(Debug, Clone, Copy)]
+struct Band {
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+    scale: f64,
+}
+
+#[derive(Debug, Default)]
+struct StampScratch {
+    candidates: Vec<u32>,
+    p: Vec<f64>,
+    h: Vec<f64>,
+    ctaps: Vec<(f64, Taps)>,
+}
+
+/// A region of the plane for [`Node::Replace`] (terrain pixel coordinates).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Region {
+    /// Axis-aligned rectangle `[x0, x1] x [y0, y1]`.
+    Rect {
+        /// West edge.
+        x0: f64,
+        /// North edge.
+        y0: f64,
+        /// East edge.
+        x1: f64,
+        /// South edge.
+        y1: f64,
+    },
+    /// Disk of centre `(cx, cy)` and radius `r`.
+    Disk {
+        /// Centre x.
+        cx: f64,
+        /// Centre y.
+        cy: f64,
+        /// Radius.
+        r: f64,
+    },
+}
+
+impl Region {
+    /// Signed distance (negative inside).
+    fn signed_distance(&self, x: f64, y: f64) -> f64 {
+        match *self {
+            Region::Rect { x0, y0, x1, y1 } => {
+                let dx = (x0 - x).max(x - x1);
+                let dy = (y0 - y).max(y - y1);
+                if dx <= 0.0 && dy <= 0.0 {
+                    dx.max(dy)
+                } else {
+                    (dx.max(0.0).powi(2) + dy.max(0.0).powi(2)).sqrt()
+                }
+            }
+            Region::Disk { cx, cy, r } => ((x - cx).powi(2) + (y - cy).powi(2)).sqrt() - r,
+        }
+    }
+
+    /// Overlay weight: 1 inside, smooth (C1, `3t^2 - 2t^3`) decay to 0 at `falloff` outside.
+    fn weight(&self, x: f64, y: f64, falloff: f64) -> f64 {
+        let d = self.signed_distance(x, y);
+        if d <= 0.0 {
+            1.0
+        } else if d >= falloff {
+            0.0
+        } else {
+            let t = 1.0 - d / falloff;
+            t * t * (3.0 - 2.0 * t)
+        }
+    }
+
+    fn check(&self) -> Result<()> {
+        let ok = match *self {
+            Region::Rect { x0, y0, x1, y1 } => {
+                [x0, y0, x1, y1].iter().all(|v| v.is_finite()) && x0 <= x1 && y0 <= y1
+            }
+            Region::Disk { cx, cy, r } => {
+                cx.is_finite() && cy.is_finite() && r.is_finite() && r >= 0.0
+            }
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(SparseError::param(
+                "region",
+                format!("{self:?}"),
+                "coordinates must be finite, x0 <= x1, y0 <= y1, r >= 0",
+            ))
+        }
+    }
+}
+
+/// Cross-section of a [`River`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum RiverMode {
+    /// A relative carve, used under [`Node::Add`]: `-depth (1 - (d / w)^2)^2` for `d < w`,
+    /// 0 outside (`d` distance to the polyline, `w` half width).
+    Carve,
+    /// An absolute bed, used under [`Node::Min`]: `bed + depth (d / w)^2` (a parabolic valley
+    /// whose floor follows the per-vertex bed elevations), so `Min(terrain, river)` carves it.
+    Bed(Vec<f64>),
+}
+
+/// A procedural river along a polyline (guerin2016 figures 12-13) with half width and depth
+/// interpolated linearly along the path between vertices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct River {
+    path: Vec<[f64; 2]>,
+    half_width: Vec<f64>,
+    depth: Vec<f64>,
+    mode: RiverMode,
+    bbox: [f64; 4],
+}
+
+impl River {
+    /// A river through `path` (terrain pixel coordinates, >= 2 vertices) with per-vertex half
+    /// widths (> 0) and depths (>= 0).
+    pub fn new(
+        path: Vec<[f64; 2]>,
+        half_width: Vec<f64>,
+        depth: Vec<f64>,
+        mode: RiverMode,
+    ) -> Result<Self> {
+        if path.len() < 2 {
+            return Err(SparseError::param(
+                "path",
+                path.len(),
+                "a river needs at least 2 vertices",
+            ));
+        }
+        let n = path.len();
+        for (what, len) in [("half_width", half_width.len()), ("depth", depth.len())] {
+            if len != n {
+                return Err(SparseError::DimensionMismatch {
+                    what,
+                    expected: n,
+                    got: len,
+                });
+            }
+        }
+        if let RiverMode::Bed(b) = &mode {
+            if b.len() != n {
+                return Err(SparseError::DimensionMismatch {
+                    what: "bed elevations",
+                    expected: n,
+                    got: b.len(),
+                });
+            }
+            if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+                return Err(SparseError::NonFinite {
+                    what: "bed elevations",
+                    row: i,
+                });
+            }
+        }
+        if let Some(i) = path
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
+            return Err(SparseError::NonFinite {
+                what: "river path",
+                row: i,
+            });
+        }
+        if let Some(&w) = half_width.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
+            return Err(SparseError::param(
+                "half_width",
+                w,
+                "must be finite and > 0",
+            ));
+        }
+        if let Some(&d) = depth.iter().find(|d| !(d.is_finite() && **d >= 0.0)) {
+            return Err(SparseError::param("depth", d, "must be finite and >= 0"));
+        }
+        let wmax = half_width.iter().fold(0.0f64, |m, &w| m.max(w));
+        let mut bbox = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for p in &path {
+            bbox[0] = bbox[0].min(p[0] - wmax);
+            bbox[1] = bbox[1].min(p[1] - wmax);
+            bbox[2] = bbox[2].max(p[0] + wmax);
+            bbox[3] = bbox[3].max(p[1] + wmax);
+        }
+        Ok(Self {
+            path,
+            half_width,
+            depth,
+            mode,
+            bbox,
+        })
+    }
+
+    /// The polyline.
+    pub fn path(&self) -> &[[f64; 2]] {
+        &self.path
+    }
+
+    /// Per-vertex half widths.
+    pub fn half_width(&self) -> &[f64] {
+        &self.half_width
+    }
+
+    /// Per-vertex depths.
+    pub fn depth(&self) -> &[f64] {
+        &self.depth
+    }
+
+    /// The cross-section mode.
+    pub fn mode(&self) -> &RiverMode {
+        &self.mode
+    }
+
+    /// Distance to the polyline and the interpolation position `(segment, t)`.
+    fn nearest(&self, x: f64, y: f64) -> (f64, usize, f64) {
+        let mut best = (f64::MAX, 0usize, 0.0f64);
+        for s in 0..self.path.len() - 1 {
+            let [ax, ay] = self.path[s];
+            let [bx, by] = self.path[s + 1];
+            let (ux, uy) = (bx - ax, by - ay);
+            let l2 = ux * ux + uy * uy;
+            let t = if l2 > 0.0 {
+                (((x - ax) * ux + (y - ay) * uy) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (px, py) = (ax + t * ux - x, ay + t * uy - y);
+            let d2 = px * px + py * py;
+            if d2 < best.0 {
+                best = (d2, s, t);
+            }
+        }
+        (best.0.sqrt(), best.1, best.2)
+    }
+
+    /// Value of the river at `(x, y)`.
+    pub fn eval(&self, x: f64, y: f64) -> f64 {
+        let lerp = |v: &[f64], s: usize, t: f64| v[s] + (v[s + 1] - v[s]) * t;
+        match &self.mode {
+            RiverMode::Carve => {
+                if x < self.bbox[0] || y < self.bbox[1] || x > self.bbox[2] || y > self.bbox[3] {
+                    return 0.0;
+                }
+                let (d, s, t) = self.nearest(x, y);
+                let w = lerp(&self.half_width, s, t);
+                if d >= w {
+                    return 0.0;
+                }
+                let q = 1.0 - (d / w) * (d / w);
+                -lerp(&self.depth, s, t) * q * q
+            }
+            RiverMode::Bed(bed) => {
+                let (d, s, t) = self.nearest(x, y);
+                let w = lerp(&self.half_width, s, t);
+                lerp(bed, s, t) + lerp(&self.depth, s, t) * (d / w) * (d / w)
+            }
+        }
+    }
+}
+
+/// A node of the Sparse Construction Tree.
+#[derive(Debug, Clone)]
+pub enum Node {
+    /// Sparse primitives blended by the normalised weighted sum (section 4.1).
+    Layer(SparseLayer),
+    /// A constant elevation (weight 1).
+    Constant(f64),
+    /// A procedural river (weight 1).
+    River(River),
+    /// Normalised weighted sum of the children (value NaN where every weight is 0).
+    Blend(Vec<Node>),
+    /// Sum of the children's values; weight of the first child.
+    Add(Vec<Node>),
+    /// Maximum of the children's values; weight of the first child.
+    Max(Vec<Node>),
+    /// Minimum of the children's values (carving); weight of the first child.
+    Min(Vec<Node>),
+    /// `base` outside `region`, `overlay` inside, smooth over `falloff` cells; weight of `base`.
+    Replace {
+        /// The node kept outside the region.
+        base: Box<Node>,
+        /// The node used inside the region.
+        overlay: Box<Node>,
+        /// The region.
+        region: Region,
+        /// Width of the transition outside the region (>= 0, terrain pixels).
+        falloff: f64,
+    },
+}
+
+fn combine_many(kind: u8, vals: &[(f64, f64)]) -> (f64, f64) {
+    match kind {
+        // Blend.
+        0 => {
+            let (mut num, mut den) = (0.0, 0.0);
+            for &(v, w) in vals {
+                if w > 0.0 {
+                    num += v * w;
+                    den += w;
+                }
+            }
+            (if den > 0.0 { num / den } else { f64::NAN }, den)
+        }
+        // Add.
+        1 => (vals.iter().map(|p| p.0).sum(), vals[0].1),
+        // Max.
+        2 => (vals.iter().fold(f64::NAN, |m, p| m.max(p.0)), vals[0].1),
+        // Min.
+        _ => (vals.iter().fold(f64::NAN, |m, p| m.min(p.0)), vals[0].1),
+    }
+}
+
+fn replace_combine(base: (f64, f64), over: (f64, f64), t: f64) -> (f64, f64) {
+    let v = if t <= 0.0 {
+        base.0
+    } else if t >= 1.0 {
+        over.0
+    } else {
+        base.0 + (over.0 - base.0) * t
+    };
+    (v, base.1)
+}
+
+impl Node {
+    fn children_kind(&self) -> Option<(u8, &[Node])> {
+        match self {
+            Node::Blend(c) => Some((0, c)),
+            Node::Add(c) => Some((1, c)),
+            Node::Max(c) => Some((2, c)),
+            Node::Min(c) => Some((3, c)),
+            _ => None,
+        }
+    }
+
+    /// Checks operator arities and parameters.
+    pub fn check(&self) -> Result<()> {
+        if let Some((_, c)) = self.children_kind() {
+            if c.is_empty() {
+                return Err(SparseError::param(
+                    "children",
+                    0,
+                    "an operator node needs at least one child",
+                ));
+            }
+            return c.iter().try_for_each(Node::check);
+        }
+        match self {
+            Node::Constant(v) if !v.is_finite() => {
+                Err(SparseError::param("constant", v, "must be finite"))
+            }
+            Node::Replace {
+                base,
+                overlay,
+                region,
+                falloff,
+            } => {
+                region.check()?;
+                if !(falloff.is_finite() && *falloff >= 0.0) {
+                    return Err(SparseError::param(
+                        "falloff",
+                        falloff,
+                        "must be finite and >= 0",
+                    ));
+                }
+                base.check()?;
+                overlay.check()
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// `(value, weight)` at `(x, y)` (terrain pixel coordinates).
+    pub fn eval(&self, x: f64, y: f64) -> (f64, f64) {
+        if let Some((kind, c)) = self.children_kind() {
+            let vals: Vec<(f64, f64)> = c.iter().map(|n| n.eval(x, y)).collect();
+            return combine_many(kind, &vals);
+        }
+        match self {
+            Node::Layer(l) => {
+                let (num, den) = l.eval_parts(x, y);
+                (if den > 0.0 { num / den } else { f64::NAN }, den)
+            }
+            Node::Constant(v) => (*v, 1.0),
+            Node::River(r) => (r.eval(x, y), 1.0),
+            Node::Replace {
+                base,
+                overlay,
+                region,
+                falloff,
+            } => {
+                let t = region.weight(x, y, *falloff);
+                let b = base.eval(x, y);
+                let o = if t > 0.0 {
+                    overlay.eval(x, y)
+                } else {
+                    (f64::NAN, 0.0)
+                };
+                replace_combine(b, o, t)
+            }
+            _ => (f64::NAN, 0.0),
+        }
+    }
+
+    /// Rasterises the node into `val`/`wt` (band-sized, row-major).
+    fn raster(&self, band: &Band, val: &mut [f64], wt: &mut [f64], scratch: &mut StampScratch) {
+        let ncols = band.x1 - band.x0;
+        let world = |k: usize| {
+            (
+                (band.x0 + k % ncols) as f64 / band.scale,
+                (band.y0 + k / ncols) as f64 / band.scale,
+            )
+        };
+        if let Some((kind, c)) = self.children_kind() {
+            let n = val.len();
+            let mut bufs: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(c.len());
+            for child in c {
+                let mut v = vec![0.0; n];
+                let mut w = vec![0.0; n];
+                child.raster(band, &mut v, &mut w, scratch);
+                bufs.push((v, w));
+            }
+            let mut tmp = vec![(0.0, 0.0); c.len()];
+            for k in 0..n {
+                for (t, b) in tmp.iter_mut().zip(&bufs) {
+                    *t = (b.0[k], b.1[k]);
+                }
+                let (v, w) = combine_many(kind, &tmp);
+                val[k] = v;
+                wt[k] = w;
+            }
+            return;
+        }
+        match self {
+            Node::Layer(l) => {
+                val.iter_mut().for_each(|v| *v = 0.0);
+                wt.iter_mut().for_each(|v| *v = 0.0);
+                l.stamp(band, val, wt, scratch);
+                for (v, &w) in val.iter_mut().zip(wt.iter()) {
+                    *v = if w > 0.0 { *v / w } else { f64::NAN };
+                }
+            }
+            Node::Constant(c) => {
+                val.iter_mut().for_each(|v| *v = *c);
+                wt.iter_mut().for_each(|v| *v = 1.0);
+            }
+            Node::River(r) => {
+                for k in 0..val.len() {
+                    let (x, y) = world(k);
+                    val[k] = r.eval(x, y);
+                    wt[k] = 1.0;
+                }
+            }
+            Node::Replace {
+                base,
+                overlay,
+                region,
+                falloff,
+            } => {
+                base.raster(band, val, wt, scratch);
+                let n = val.len();
+                let mut ov = vec![0.0; n];
+                let mut ow = vec![0.0; n];
+                overlay.raster(band, &mut ov, &mut ow, scratch);
+                for k in 0..n {
+                    let (x, y) = world(k);
+                    let t = region.weight(x, y, *falloff);
+                    let (v, w) = replace_combine((val[k], wt[k]), (ov[k], ow[k]), t);
+                    val[k] = v;
+                    wt[k] = w;
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn collect_layers<'a>(&'a self, out: &mut Vec<&'a SparseLayer>) {
+        if let Some((_, c)) = self.children_kind() {
+            c.iter().for_each(|n| n.collect_layers(out));
+            return;
+        }
+        match self {
+            Node::Layer(l) => out.push(l),
+            Node::Replace { base, overlay, .. } => {
+                base.collect_layers(out);
+                overlay.collect_layers(out);
+            }
+            _ => {}
+        }
+    }
+}
+
+/// A window of the output raster, in output pixels at the requested scale.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+}
+
+/// Settings of [`Sct::rasterize`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RasterSettings {
+    /// Scale factor `s` (> 0): output pixel `(X, Y)` samples terrain pixel `(X / s, Y / s)`.
+    pub scale: f64,
+    /// Window of the output raster (`None` = the whole raster).
+    pub window: Option<Window>,
+}
+
+impl Default for RasterSettings {
+    fn default() -> Self {
+        Self {
+            scale: 1.0,
+            window: None,
+        }
+    }
+}
+
+/// Rows per parallel band.
+const BAND_ROWS: usize = 16;
+
+/// A Sparse Construction Tree over a `width x height` terrain domain.
+#[derive(Debug, Clone)]
+pub struct Sct {
+    root: Node,
+    width: usize,
+    height: usize,
+    cell_size: (f64, f64),
+}
+
+impl Sct {
+    /// A tree over a `width x height` domain with the given cell size (metres).
+    pub fn new(root: Node, width: usize, height: usize, cell_size: (f64, f64)) -> Result<Self> {
+        if width == 0 || height == 0 || width > 1 << 24 || height > 1 << 24 {
+            return Err(SparseError::param(
+                "width x height",
+                format!("{width} x {height}"),
+                "must be in 1..=2^24",
+            ));
+        }
+        let (cx, cy) = cell_size;
+        if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
+            return Err(SparseError::param(
+                "cell_size",
+                format!("{cx} x {cy}"),
+                "must be finite and > 0",
+            ));
+        }
+        root.check()?;
+        Ok(Self {
+            root,
+            width,
+            height,
+            cell_size,
+        })
+    }
+
+    /// The root node.
+    pub fn root(&self) -> &Node {
+        &self.root
+    }
+
+    /// Replaces the root (authoring: wrap the current root in operators), checked.
+    pub fn set_root(&mut self, root: Node) -> Result<()> {
+        root.check()?;
+        self.root = root;
+        Ok(())
+    }
+
+    /// Takes the root out, leaving a constant 0 in its place.
+    pub fn take_root(&mut self) -> Node {
+        std::mem::replace(&mut self.root, Node::Constant(0.0))
+    }
+
+    /// Domain width in terrain pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Domain height in terrain pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Cell size `(east-west, north-south)` in metres at scale 1.
+    pub fn cell_size(&self) -> (f64, f64) {
+        self.cell_size
+    }
+
+    /// Every sparse layer of the tree (depth-first order).
+    pub fn layers(&self) -> Vec<&SparseLayer> {
+        let mut v = Vec::new();
+        self.root.collect_layers(&mut v);
+        v
+    }
+
+    /// Elevation `f(p)` at terrain pixel coordinates `(x, y)` (NaN outside every support).
+    pub fn eval(&self, x: f64, y: f64) -> f64 {
+        self.root.eval(x, y).0
+    }
+
+    /// Size `(columns, rows)` of the full raster at scale `scale`.
+    pub fn raster_size(&self, scale: f64) -> Result<(usize, usize)> {
+        if !(scale.is_finite() && scale > 0.0 && scale <= 1024.0) {
+            return Err(SparseError::param(
+                "scale",
+                scale,
+                "must be finite and in (0, 1024]",
+            ));
+        }
+        let f = |n: usize| ((n as f64 - 1.0) * scale + 1e-9).floor() as usize + 1;
+        let (w, h) = (f(self.width), f(self.height));
+        if (w as u128) * (h as u128) > 1u128 << 34 {
+            return Err(SparseError::param(
+                "scale",
+                scale,
+                "the raster would exceed 2^34 cells",
+            ));
+        }
+        Ok((w, h))
+    }
+
+    /// Rasterises a window at a scale factor, in parallel (see the module docs).
+    pub fn rasterize(&self, settings: &RasterSettings) -> Result<Heightfield> {
+        let (fw, fh) = self.raster_size(settings.scale)?;
+        let win = settings.window.unwrap_or(Window {
+            x: 0,
+            y: 0,
+            width: fw,
+            height: fh,
+        });
+        if win.width == 0
+            || win.height == 0
+            || win.x.checked_add(win.width).is_none_or(|e| e > fw)
+            || win.y.checked_add(win.height).is_none_or(|e| e > fh)
+        {
+            return Err(SparseError::param(
+                "window",
+                format!(
+                    "{},{},{},{} (raster {fw} x {fh})",
+                    win.x, win.y, win.width, win.height
+                ),
+                "must be non-empty and inside the raster",
+            ));
+        }
+        let mut out = vec![0f32; win.width * win.height];
+        out.par_chunks_mut(win.width * BAND_ROWS)
+            .enumerate()
+            .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
+                let rows = chunk.len() / win.width;
+                let band = Band {
+                    x0: win.x,
+                    x1: win.x + win.width,
+                    y0: win.y + b * BAND_ROWS,
+                    y1: win.y + b * BAND_ROWS + rows,
+                    scale: settings.scale,
+                };
+                let mut val = vec![0.0; chunk.len()];
+                let mut wt = vec![0.0; chunk.len()];
+                self.root.raster(&band, &mut val, &mut wt, scratch);
+                for (o, v) in chunk.iter_mut().zip(&val) {
+                    *o = *v as f32;
+                }
+            });
+        let hf = Heightfield::new(
+            win.width,
+            win.height,
+            out,
+            self.cell_size.0 / settings.scale,
+            self.cell_size.1 / settings.scale,
+        )?;
+        Ok(hf)
+    }
+}
