@@ -360,6 +360,26 @@ impl SparseLayer {
             .unwrap_or(0)
     }
 
+    /// The primitives whose support holds `(x, y)`, in increasing order. The spatial index
+    /// limits the visit to the primitives listed in one grid cell.
+    pub fn primitives_at(&self, x: f64, y: f64) -> Vec<usize> {
+        let rr = self.dictionary.support_radius() * self.dictionary.support_radius();
+        self.index
+            .cell_ids(x, y)
+            .iter()
+            .map(|&i| i as usize)
+            .filter(|&i| {
+                let [cx, cy] = self.centres[i];
+                weight(x - cx, y - cy, rr).is_some()
+            })
+            .collect()
+    }
+
+    /// Number of primitives the index visits for a query at `(x, y)` (those listed in its cell).
+    pub fn candidates_at(&self, x: f64, y: f64) -> usize {
+        self.index.cell_ids(x, y).len()
+    }
+
     /// Sums the data atoms of primitive `i` into `p` (`a * a`).
     fn patch(&self, i: usize, p: &mut [f64]) {
         p.iter_mut().for_each(|v| *v = 0.0);

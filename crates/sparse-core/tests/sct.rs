@@ -1,0 +1,614 @@
+//! Sparse Construction Tree on real DEM crops: exact reconstruction, compression at
+//! s = 1, 2, 8, tiling / scale determinism, operators and rivers, the `.sct` format.
+
+use std::sync::Arc;
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use relief_heightfield::{Heightfield, metrics};
+use relief_sparse_core::dictionary::{AtomDescriptor, FunctionAtom};
+use relief_sparse_core::{
+    Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, Node, PatchGeometry,
+    Placement, RasterSettings, Region, River, RiverMode, Sct, SparseError, SparseLayer, Window,
+    compression_report, encode, extract_patches, storage_values,
+};
+
+fn crop(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
+    relief_testdata::dem_crop(id, x, y, w, h)
+}
+
+/// A dictionary of `n` patches of `hf` picked at random (seeded), as the paper's K-SVD starts.
+fn random_patch_dictionary(hf: &Heightfield, a: usize, n: usize, seed: u64) -> Dictionary {
+    let p = extract_patches(hf, &PatchGeometry::with_patch_size(a)).unwrap();
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut sel = Vec::new();
+    while sel.len() < n {
+        let i = rng.random_range(0..p.matrix.nrows());
+        if !sel.contains(&i) {
+            sel.push(i);
+        }
+    }
+    Dictionary::from_patches(&p, Some(&sel)).unwrap().0
+}
+
+#[test]
+fn complete_dictionary_s1_reconstructs_exactly() {
+    for (id, x, y) in [
+        ("grandcanyon", 200, 180),
+        ("alps_dem", 1200, 300),
+        ("carrizo", 100, 400),
+    ] {
+        let Some(hf) = crop(id, x, y, 72, 60) else {
+            return;
+        };
+        let p = extract_patches(&hf, &PatchGeometry::with_patch_size(8)).unwrap();
+        let (dict, _) = Dictionary::from_patches(&p, None).unwrap();
+        let sct = encode(
+            &hf,
+            &dict,
+            &EncodeSettings {
+                sparsity: 1,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let rec = sct.rasterize(&RasterSettings::default()).unwrap();
+        let err = metrics::max_abs_diff(&hf, &rec).unwrap();
+        let relief = hf.relief() as f64;
+        assert!(
+            err <= 2e-5 * relief.max(100.0) + 1e-3,
+            "{id}: max error {err} m"
+        );
+    }
+}
+
+#[test]
+fn compression_psnr_increases_with_sparsity() {
+    let Some(hf) = crop("grandcanyon", 128, 128, 128, 128) else {
+        return;
+    };
+    let dict = random_patch_dictionary(&hf, 8, 128, 5);
+    assert_eq!(dict.len(), 128);
+    let mut last = f64::NEG_INFINITY;
+    let mut last_rho = 0.0;
+    for s in [1usize, 2, 8] {
+        let sct = encode(
+            &hf,
+            &dict,
+            &EncodeSettings {
+                sparsity: s,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let r = compression_report(
+            &hf,
+            &sct,
+            &FormatOptions::default(),
+            &FunctionAtomRegistry::new(),
+        )
+        .unwrap();
+        let layer = sct.layers()[0];
+        assert_eq!(r.t, storage_values(64, 128, layer.len(), s));
+        assert_eq!(r.t0, 128 * 128);
+        assert!((r.rho - r.t as f64 / r.t0 as f64).abs() < 1e-12);
+        assert_eq!(r.bytes, sct.to_bytes().unwrap().len());
+        assert!(r.psnr > last + 0.5, "s = {s}: PSNR {} after {last}", r.psnr);
+        assert!(r.rho > last_rho);
+        assert!(r.psnr > 20.0, "s = {s}: PSNR {}", r.psnr);
+        last = r.psnr;
+        last_rho = r.rho;
+    }
+    // Quantised coefficients: smaller and almost as good.
+    let sct = encode(
+        &hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: 2,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let f = compression_report(
+        &hf,
+        &sct,
+        &FormatOptions::default(),
+        &FunctionAtomRegistry::new(),
+    )
+    .unwrap();
+    let q = compression_report(
+        &hf,
+        &sct,
+        &FormatOptions {
+            quantize_coefficients: true,
+        },
+        &FunctionAtomRegistry::new(),
+    )
+    .unwrap();
+    assert!(q.bytes < f.bytes);
+    assert!(q.psnr > f.psnr - 1.0, "{} vs {}", q.psnr, f.psnr);
+}
+
+fn alps_sct(s: usize) -> Option<(Heightfield, Sct)> {
+    let hf = crop("alps_dem", 600, 200, 90, 70)?;
+    let dict = random_patch_dictionary(&hf, 8, 64, 9);
+    let sct = encode(
+        &hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: s,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    Some((hf, sct))
+}
+
+#[test]
+fn window_alone_equals_full_raster_bit_for_bit() {
+    let Some((_, sct)) = alps_sct(4) else { return };
+    for scale in [1.0, 2.5, 0.5, 3.0] {
+        let full = sct
+            .rasterize(&RasterSettings {
+                scale,
+                window: None,
+            })
+            .unwrap();
+        let (w, h) = sct.raster_size(scale).unwrap();
+        assert_eq!((full.width(), full.height()), (w, h));
+        assert!(!full.has_voids(), "the weights cover the whole domain");
+        for (x, y, ww, wh) in [
+            (0, 0, 7, 5),
+            (w / 3, h / 4, w / 2, h / 3),
+            (w - 9, h - 17, 9, 17),
+        ] {
+            let win = Window {
+                x,
+                y,
+                width: ww,
+                height: wh,
+            };
+            let part = sct
+                .rasterize(&RasterSettings {
+                    scale,
+                    window: Some(win),
+                })
+                .unwrap();
+            for r in 0..wh {
+                for c in 0..ww {
+                    assert_eq!(
+                        part.get(c, r).to_bits(),
+                        full.get(x + c, y + r).to_bits(),
+                        "scale {scale} window {win:?} pixel ({c}, {r})"
+                    );
+                }
+            }
+        }
+        // Point evaluation is the same function.
+        for (c, r) in [(0, 0), (w - 1, h - 1), (w / 2, h / 3), (3, h - 2)] {
+            let v = sct.eval(c as f64 / scale, r as f64 / scale) as f32;
+            assert_eq!(v.to_bits(), full.get(c, r).to_bits(), "eval at ({c}, {r})");
+        }
+    }
+    // Independent of the number of threads.
+    let run = |t| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .unwrap()
+            .install(|| {
+                sct.rasterize(&RasterSettings {
+                    scale: 1.7,
+                    window: None,
+                })
+                .unwrap()
+            })
+    };
+    assert_eq!(run(1).as_slice(), run(2).as_slice());
+}
+
+#[test]
+fn upscaled_raster_is_continuous_and_consistent() {
+    let Some((hf, sct)) = alps_sct(8) else { return };
+    let big = sct
+        .rasterize(&RasterSettings {
+            scale: 4.0,
+            window: None,
+        })
+        .unwrap();
+    // Every 4th sample of the x4 raster is the scale-1 raster.
+    let one = sct.rasterize(&RasterSettings::default()).unwrap();
+    for r in 0..one.height() {
+        for c in 0..one.width() {
+            let d = (big.get(4 * c, 4 * r) - one.get(c, r)).abs();
+            assert!(d < 1e-3, "({c}, {r}): {d}");
+        }
+    }
+    // No jumps: neighbouring x4 samples differ by less than the steepest input step.
+    let (mut max_in, mut max_out) = (0f32, 0f32);
+    for r in 0..hf.height() {
+        for c in 1..hf.width() {
+            max_in = max_in.max((hf.get(c, r) - hf.get(c - 1, r)).abs());
+        }
+    }
+    for r in 0..big.height() {
+        for c in 1..big.width() {
+            max_out = max_out.max((big.get(c, r) - big.get(c - 1, r)).abs());
+        }
+    }
+    assert!(max_out < max_in, "x4 step {max_out} vs input step {max_in}");
+}
+
+#[test]
+fn spatial_index_visits_only_nearby_primitives() {
+    let Some((_, sct)) = alps_sct(2) else { return };
+    let layer = sct.layers()[0];
+    let r2 = layer.dictionary().support_radius().powi(2);
+    let mut rng = Pcg64::seed_from_u64(3);
+    for _ in 0..500 {
+        let (x, y) = (rng.random::<f64>() * 89.0, rng.random::<f64>() * 69.0);
+        let brute: Vec<usize> = (0..layer.len())
+            .filter(|&i| {
+                let c = layer.centre(i);
+                (x - c[0]).powi(2) + (y - c[1]).powi(2) < r2
+            })
+            .collect();
+        assert_eq!(layer.primitives_at(x, y), brute);
+        assert!(!brute.is_empty());
+        // The index visits a small constant number of candidates, not all primitives.
+        assert!(
+            layer.candidates_at(x, y) <= 16,
+            "{}",
+            layer.candidates_at(x, y)
+        );
+    }
+    assert!(layer.len() > 300);
+}
+
+#[test]
+fn operators_and_river() {
+    let Some((hf, sct)) = alps_sct(4) else { return };
+    let base = sct.root().clone();
+    let (w, h) = (hf.width(), hf.height());
+    let path = vec![[5.0, 10.0], [40.0, 35.0], [85.0, 30.0]];
+    let carve = River::new(
+        path.clone(),
+        vec![4.0, 6.0, 8.0],
+        vec![20.0, 25.0, 30.0],
+        RiverMode::Carve,
+    )
+    .unwrap();
+    let tree = Node::Add(vec![base.clone(), Node::River(carve)]);
+    let t = Sct::new(tree, w, h, hf.cell_size()).unwrap();
+    // On the path the carve is the full (interpolated) depth; far away nothing changes.
+    let on = t.eval(40.0, 35.0) - sct.eval(40.0, 35.0);
+    assert!((on + 25.0).abs() < 1e-9, "{on}");
+    let mid = t.eval(22.5, 22.5) - sct.eval(22.5, 22.5);
+    assert!((mid + 22.5).abs() < 1e-9, "{mid}");
+    assert_eq!(t.eval(80.0, 60.0), sct.eval(80.0, 60.0));
+    let ras = t.rasterize(&RasterSettings::default()).unwrap();
+    assert_eq!(
+        ras.get(40, 35).to_bits(),
+        (t.eval(40.0, 35.0) as f32).to_bits()
+    );
+
+    // Bed mode under Min: the terrain never rises above the bed surface.
+    let bed = River::new(
+        path,
+        vec![5.0; 3],
+        vec![50.0; 3],
+        RiverMode::Bed(vec![
+            hf.get(5, 10) as f64 - 30.0,
+            hf.get(40, 35) as f64 - 30.0,
+            hf.get(85, 30) as f64 - 30.0,
+        ]),
+    )
+    .unwrap();
+    let bed_node = Node::River(bed.clone());
+    let t = Sct::new(
+        Node::Min(vec![base.clone(), bed_node]),
+        w,
+        h,
+        hf.cell_size(),
+    )
+    .unwrap();
+    let v = t.eval(40.0, 35.0);
+    assert!((v - (hf.get(40, 35) as f64 - 30.0)).abs() < 1e-9);
+    for (x, y) in [(3.0, 60.0), (60.0, 5.0), (20.0, 20.0)] {
+        assert!(t.eval(x, y) <= bed.eval(x, y) + 1e-12 && t.eval(x, y) <= sct.eval(x, y) + 1e-12);
+    }
+    let t = Sct::new(
+        Node::Max(vec![base.clone(), Node::Constant(1e6)]),
+        w,
+        h,
+        hf.cell_size(),
+    )
+    .unwrap();
+    assert_eq!(t.eval(10.0, 10.0), 1e6);
+
+    // Replace in a disk: overlay inside, base outside, in between inside the fall-off.
+    let rep = Node::Replace {
+        base: Box::new(base.clone()),
+        overlay: Box::new(Node::Constant(0.0)),
+        region: Region::Disk {
+            cx: 45.0,
+            cy: 35.0,
+            r: 10.0,
+        },
+        falloff: 5.0,
+    };
+    let t = Sct::new(rep, w, h, hf.cell_size()).unwrap();
+    assert_eq!(t.eval(45.0, 38.0), 0.0);
+    assert_eq!(t.eval(45.0, 51.0), sct.eval(45.0, 51.0));
+    let mid = t.eval(45.0, 47.5);
+    assert!(mid > 0.0 && mid < sct.eval(45.0, 47.5));
+    // A rasterised window of the composite tree equals its point evaluation.
+    let win = t
+        .rasterize(&RasterSettings {
+            scale: 2.0,
+            window: Some(Window {
+                x: 60,
+                y: 50,
+                width: 50,
+                height: 40,
+            }),
+        })
+        .unwrap();
+    for (c, r) in [(0usize, 0usize), (30, 20), (49, 39)] {
+        let v = t.eval((60 + c) as f64 / 2.0, (50 + r) as f64 / 2.0) as f32;
+        assert_eq!(v.to_bits(), win.get(c, r).to_bits());
+    }
+
+    // Blend of two identical layers is the layer.
+    let t = Sct::new(Node::Blend(vec![base.clone(), base]), w, h, hf.cell_size()).unwrap();
+    assert!((t.eval(33.3, 44.4) - sct.eval(33.3, 44.4)).abs() < 1e-9);
+    assert!(Node::Add(vec![]).check().is_err());
+    assert!(River::new(vec![[0.0, 0.0]], vec![1.0], vec![1.0], RiverMode::Carve).is_err());
+    assert!(
+        River::new(
+            vec![[0.0, 0.0], [1.0, 1.0]],
+            vec![0.0, 1.0],
+            vec![1.0, 1.0],
+            RiverMode::Carve
+        )
+        .is_err()
+    );
+}
+
+#[derive(Debug)]
+struct Ridge {
+    freq: f64,
+    angle: f64,
+}
+
+impl FunctionAtom for Ridge {
+    fn eval(&self, u: f64, v: f64) -> f64 {
+        let t = u * self.angle.cos() + v * self.angle.sin();
+        1.0 - (self.freq * t).sin().abs()
+    }
+    fn descriptor(&self) -> AtomDescriptor {
+        AtomDescriptor {
+            kind: "ridge".into(),
+            params: vec![self.freq, self.angle],
+        }
+    }
+}
+
+fn registry() -> FunctionAtomRegistry {
+    let mut r = FunctionAtomRegistry::new();
+    r.register("ridge", |p: &[f64]| {
+        if p.len() != 2 {
+            return Err(SparseError::param("ridge params", p.len(), "need 2"));
+        }
+        Ok(Arc::new(Ridge {
+            freq: p[0],
+            angle: p[1],
+        }) as Arc<dyn FunctionAtom>)
+    });
+    r
+}
+
+#[test]
+fn mixed_dictionary_and_format_round_trip() {
+    let Some(hf) = crop("grandcanyon", 300, 300, 64, 48) else {
+        return;
+    };
+    let mut dict = random_patch_dictionary(&hf, 8, 4, 1);
+    for k in 0..16 {
+        dict.push_function(Arc::new(Ridge {
+            freq: 1.0 + k as f64 * 0.5,
+            angle: k as f64 * 0.4,
+        }))
+        .unwrap();
+    }
+    let d = dict.discretize();
+    for row in d.outer_iter() {
+        assert!((row.dot(&row) - 1.0).abs() < 1e-4);
+    }
+    let sct = encode(
+        &hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: 4,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let layer = sct.layers()[0];
+    assert!(
+        layer.atom_indices().iter().any(|&j| j >= 4),
+        "function atoms are used"
+    );
+    // Wrap in a tree to cover every node kind in the format.
+    let river = River::new(
+        vec![[2.0, 3.0], [60.0, 40.0]],
+        vec![3.0, 4.0],
+        vec![5.0, 6.0],
+        RiverMode::Carve,
+    )
+    .unwrap();
+    let tree = Node::Replace {
+        base: Box::new(Node::Add(vec![sct.root().clone(), Node::River(river)])),
+        overlay: Box::new(Node::Max(vec![
+            Node::Constant(1.0),
+            Node::Min(vec![Node::Blend(vec![sct.root().clone()])]),
+        ])),
+        region: Region::Rect {
+            x0: 10.0,
+            y0: 10.0,
+            x1: 20.0,
+            y1: 15.0,
+        },
+        falloff: 3.0,
+    };
+    let t = Sct::new(tree, hf.width(), hf.height(), hf.cell_size()).unwrap();
+    let bytes = t.to_bytes().unwrap();
+    let back = Sct::from_bytes(&bytes, &registry()).unwrap();
+    assert_eq!(back.to_bytes().unwrap(), bytes);
+    let a = t
+        .rasterize(&RasterSettings {
+            scale: 1.5,
+            window: None,
+        })
+        .unwrap();
+    let b = back
+        .rasterize(&RasterSettings {
+            scale: 1.5,
+            window: None,
+        })
+        .unwrap();
+    assert_eq!(a.as_slice(), b.as_slice());
+    // Without the registry the function atoms cannot be rebuilt.
+    assert!(matches!(
+        Sct::from_bytes(&bytes, &FunctionAtomRegistry::new()),
+        Err(SparseError::Format { .. })
+    ));
+    // Every truncation is an error, never a panic.
+    for n in (0..bytes.len()).step_by(7).chain([bytes.len() - 1]) {
+        assert!(
+            Sct::from_bytes(&bytes[..n], &registry()).is_err(),
+            "prefix {n}"
+        );
+    }
+    // Trailing garbage, bad magic, bad version.
+    let mut long = bytes.clone();
+    long.push(0);
+    assert!(Sct::from_bytes(&long, &registry()).is_err());
+    let mut bad = bytes.clone();
+    bad[0] = b'X';
+    assert!(Sct::from_bytes(&bad, &registry()).is_err());
+    let mut bad = bytes.clone();
+    bad[8] = 9;
+    assert!(Sct::from_bytes(&bad, &registry()).is_err());
+    // Random byte flips never panic.
+    let mut rng = Pcg64::seed_from_u64(77);
+    for _ in 0..300 {
+        let mut c = bytes.clone();
+        for _ in 0..3 {
+            let i = rng.random_range(0..c.len());
+            c[i] = rng.random();
+        }
+        let _ = Sct::from_bytes(&c, &registry());
+    }
+}
+
+#[test]
+fn hostile_declared_sizes_are_rejected_before_allocation() {
+    let Some((_, sct)) = alps_sct(1) else { return };
+    let bytes = sct.to_bytes().unwrap();
+    // Header: 8 magic + 2 version + 2 flags + 4 w + 4 h + 16 cell = 36; node tag at 36; then
+    // a u16, delta f64, R f64, N u32 at 37 + 2 + 16 = 55.
+    let mut c = bytes.clone();
+    c[55..59].copy_from_slice(&u32::MAX.to_le_bytes());
+    assert!(matches!(
+        Sct::from_bytes(&c, &registry()),
+        Err(SparseError::Format { .. })
+    ));
+    let mut c = bytes.clone();
+    c[37..39].copy_from_slice(&0u16.to_le_bytes());
+    assert!(Sct::from_bytes(&c, &registry()).is_err());
+}
+
+#[test]
+fn invalid_inputs_are_errors() {
+    let Some(hf) = crop("maunga_whau", 0, 0, 60, 40) else {
+        return;
+    };
+    let dict = random_patch_dictionary(&hf, 8, 16, 2);
+    let s = |sparsity| EncodeSettings {
+        sparsity,
+        ..Default::default()
+    };
+    assert!(matches!(
+        encode(&hf, &dict, &s(17)),
+        Err(SparseError::SparsityTooLarge { .. })
+    ));
+    assert!(encode(&hf, &dict, &s(0)).is_err());
+    let mut holes = hf.clone();
+    holes.set(3, 3, f32::NAN);
+    assert!(encode(&holes, &dict, &s(1)).is_err());
+    let empty = Dictionary::new(8, 1.0, 4.0).unwrap();
+    assert!(matches!(
+        encode(&hf, &empty, &s(1)),
+        Err(SparseError::EmptyDictionary { .. })
+    ));
+    let g = PatchGeometry {
+        step: 7.0,
+        ..PatchGeometry::with_patch_size(8)
+    };
+    assert!(matches!(
+        g.check(),
+        Err(SparseError::InvalidParameter {
+            name: "support_radius",
+            ..
+        })
+    ));
+    assert!(Dictionary::new(0, 1.0, 4.0).is_err());
+    assert!(Dictionary::new(8, -1.0, 4.0).is_err());
+    let mut d = Dictionary::new(4, 1.0, 2.0).unwrap();
+    assert!(matches!(
+        d.push_data(&[1.0; 16]),
+        Err(SparseError::DegenerateAtom { .. })
+    ));
+    assert!(d.push_data(&[1.0; 15]).is_err());
+    let sct = encode(&hf, &dict, &s(2)).unwrap();
+    let bad_win = Window {
+        x: 50,
+        y: 0,
+        width: 20,
+        height: 5,
+    };
+    assert!(
+        sct.rasterize(&RasterSettings {
+            scale: 1.0,
+            window: Some(bad_win)
+        })
+        .is_err()
+    );
+    assert!(
+        sct.rasterize(&RasterSettings {
+            scale: 0.0,
+            window: None
+        })
+        .is_err()
+    );
+    assert!(
+        sct.rasterize(&RasterSettings {
+            scale: f64::NAN,
+            window: None
+        })
+        .is_err()
+    );
+    let layer = sct.layers()[0].clone();
+    assert!(
+        SparseLayer::from_parts(
+            layer.dictionary().clone(),
+            Placement::Explicit(vec![[0.0, 0.0]]),
+            vec![1.0],
+            vec![0, 1],
+            vec![99],
+            vec![1.0],
+        )
+        .is_err()
+    );
+}
