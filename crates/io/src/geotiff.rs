@@ -1,0 +1,380 @@
+//! GeoTIFF reading (via the `tiff` crate, guarded by our own size checks) and float32 writing
+//! with the georeference kept verbatim.
+
+use std::io::Cursor;
+
+use relief_heightfield::{GeoRef, Heightfield};
+use tiff::ColorType;
+use tiff::decoder::{ChunkType, Decoder, DecodingResult, Limits};
+use tiff::encoder::{TiffEncoder, colortype};
+use tiff::tags::Tag;
+
+use crate::util::{check_dims, finish, flip_rows};
+use crate::{Format, IoError, Raster, ReadOptions, Result};
+
+const F: Format = Format::GeoTiff;
+
+fn terr(e: tiff::TiffError) -> IoError {
+    IoError::malformed(F, e.to_string())
+}
+
+// GeoKey ids (GeoTIFF 1.1, section 7).
+const GT_MODEL_TYPE: u16 = 1024;
+const GEOGRAPHIC_TYPE: u16 = 2048;
+const GEOG_ANGULAR_UNITS: u16 = 2054;
+const PROJECTED_CS_TYPE: u16 = 3072;
+
+fn geo_key(dir: &[u16], key: u16) -> Option<u16> {
+    // Header: version, revision, minor, count; then (key, location, count, value) quadruples.
+    if dir.len() < 4 {
+        return None;
+    }
+    let n = dir[3] as usize;
+    dir[4..]
+        .chunks_exact(4)
+        .take(n)
+        .find(|k| k[0] == key && k[1] == 0)
+        .map(|k| k[3])
+}
+
+/// WGS84 ground lengths (east-west, north-south) of one degree at latitude `lat_deg`.
+pub(crate) fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
+    let a = 6_378_137.0f64;
+    let e2 = 6.694_379_990_14e-3f64;
+    let phi = lat_deg.to_radians();
+    let s = 1.0 - e2 * phi.sin().powi(2);
+    let n = a / s.sqrt();
+    let m = a * (1.0 - e2) / s.powf(1.5);
+    let d = std::f64::consts::PI / 180.0;
+    (n * phi.cos() * d, m * d)
+}
+
+fn find_f64s(dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> Result<Option<Vec<f64>>> {
+    match dec.find_tag(tag).map_err(terr)? {
+        Some(v) => Ok(Some(v.into_f64_vec().map_err(terr)?)),
+        None => Ok(None),
+    }
+}
+
+pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let mut dec = Decoder::new(Cursor::new(bytes)).map_err(terr)?;
+    let mut limits = Limits::default();
+    limits.decoding_buffer_size = opts.max_cells.saturating_mul(8);
+    limits.ifd_value_size = 16 << 20;
+    dec = dec.with_limits(limits);
+
+    let (w, h) = dec.dimensions().map_err(terr)?;
+    let n = check_dims(F, w as u64, h as u64, opts)?;
+    let bits = match dec.colortype().map_err(terr)? {
+        ColorType::Gray(b) => b,
+        other => {
+            return Err(IoError::unsupported(
+                F,
+                format!("colour type {other:?}; only single-band rasters are read"),
+            ));
+        }
+    };
+    let sample_format = dec
+        .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
+        .map_err(terr)?
+        .and_then(|v| v.first().copied())
+        .unwrap_or(1);
+    let dtype = match (sample_format, bits) {
+        (1, 8) => "uint8",
+        (1, 16) => "uint16",
+        (1, 32) => "uint32",
+        (2, 8) => "int8",
+        (2, 16) => "int16",
+        (2, 32) => "int32",
+        (3, 32) => "float32",
+        (3, 64) => "float64",
+        (sf, b) => {
+            return Err(IoError::unsupported(
+                F,
+                format!("sample format {sf} with {b} bits per sample"),
+            ));
+        }
+    };
+
+    // Every chunk must lie inside the file before the decoder touches it.
+    let (off_tag, cnt_tag, kind) = match dec.get_chunk_type() {
+        ChunkType::Strip => (Tag::StripOffsets, Tag::StripByteCounts, "strip"),
+        ChunkType::Tile => (Tag::TileOffsets, Tag::TileByteCounts, "tile"),
+    };
+    let offsets = dec
+        .find_tag_unsigned_vec::<u64>(off_tag)
+        .map_err(terr)?
+        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} offsets")))?;
+    let counts = dec
+        .find_tag_unsigned_vec::<u64>(cnt_tag)
+        .map_err(terr)?
+        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} byte counts")))?;
+    if offsets.len() != counts.len() {
+        return Err(IoError::malformed(
+            F,
+            format!(
+                "{} {kind} offsets but {} byte counts",
+                offsets.len(),
+                counts.len()
+            ),
+        ));
+    }
+    for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
+        let end = o.saturating_add(c);
+        if end > bytes.len() as u64 {
+            return Err(IoError::truncated(
+                F,
+                format!("{kind} {i} (offset {o}, {c} bytes)"),
+                end,
+                bytes.len() as u64,
+            ));
+        }
+    }
+    let compression = dec
+        .find_tag_unsigned::<u16>(Tag::Compression)
+        .map_err(terr)?
+        .unwrap_or(1);
+    if compression == 1 {
+        let total: u64 = counts.iter().fold(0u64, |a, &c| a.saturating_add(c));
+        let needed = n as u64 * (bits as u64 / 8);
+        if total < needed {
+            return Err(IoError::truncated(
+                F,
+                format!("{w} x {h} uncompressed {dtype} samples"),
+                needed,
+                total,
+            ));
+        }
+    }
+
+    let nodata = match dec.find_tag(Tag::GdalNodata).map_err(terr)? {
+        Some(v) => {
+            let s = v.into_string().map_err(terr)?;
+            let s = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
+            Some(s.parse::<f64>().map_err(|_| {
+                IoError::malformed(F, format!("GDAL_NODATA tag {s:?} is not a number"))
+            })?)
+        }
+        None => None,
+    };
+    let mut geo = GeoRef {
+        pixel_scale: find_f64s(&mut dec, Tag::ModelPixelScaleTag)?,
+        tiepoints: find_f64s(&mut dec, Tag::ModelTiepointTag)?,
+        transformation: find_f64s(&mut dec, Tag::ModelTransformationTag)?,
+        geo_key_directory: match dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(terr)? {
+            Some(v) => Some(v.into_u16_vec().map_err(terr)?),
+            None => None,
+        },
+        geo_double_params: find_f64s(&mut dec, Tag::GeoDoubleParamsTag)?,
+        geo_ascii_params: match dec.find_tag(Tag::GeoAsciiParamsTag).map_err(terr)? {
+            Some(v) => Some(v.into_string().map_err(terr)?),
+            None => None,
+        },
+        crs: None,
+        geotransform: None,
+    };
+
+    let decoded = dec.read_image().map_err(terr)?;
+    let mut data: Vec<f32> = match decoded {
+        DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
+        DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
+        DecodingResult::U32(v) => v.into_iter().map(|x| x as f32).collect(),
+        DecodingResult::I8(v) => v.into_iter().map(f32::from).collect(),
+        DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
+        DecodingResult::I32(v) => v.into_iter().map(|x| x as f32).collect(),
+        DecodingResult::F32(v) => v,
+        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        _ => {
+            return Err(IoError::unsupported(
+                F,
+                format!("decoded sample type of {dtype}"),
+            ));
+        }
+    };
+    if data.len() != n {
+        return Err(IoError::malformed(
+            F,
+            format!("decoded {} samples, expected {w} x {h} = {n}", data.len()),
+        ));
+    }
+    let (w, h) = (w as usize, h as usize);
+    let flipped = complete_georef(&mut geo, w, h);
+    if flipped {
+        flip_rows(&mut data, w);
+    }
+    let cell = cell_size(&geo, h).unwrap_or((1.0, 1.0));
+    let georef = (geo != GeoRef::default()).then_some(geo);
+    let mut r = finish(F, w, h, data, cell, nodata, dtype)?;
+    r.heightfield.set_georef(georef);
+    r.rows_flipped = flipped;
+    Ok(r)
+}
+
+/// Fills `geotransform` and `crs` from the raw tags. If the grid is stored south-up (positive
+/// y pixel size), rewrites the tags for the row-flipped grid and returns `true`.
+fn complete_georef(g: &mut GeoRef, _w: usize, h: usize) -> bool {
+    let mut flipped = false;
+    if let Some(m) = g.transformation.as_mut().filter(|m| m.len() == 16) {
+        // y = m4 * i + m5 * j + m7.
+        if m[5] > 0.0 && m[1] == 0.0 && m[4] == 0.0 {
+            m[7] += m[5] * h as f64;
+            m[5] = -m[5];
+            flipped = true;
+        }
+        g.geotransform = Some([m[3], m[0], m[1], m[7], m[4], m[5]]);
+    } else if let (Some(s), Some(t)) = (g.pixel_scale.as_mut(), g.tiepoints.as_mut())
+        && s.len() >= 2
+        && t.len() >= 6
+    {
+        // Raster point (i, j) maps to (X, Y): X = Xt + (i - it) * sx, Y = Yt - (j - jt) * sy.
+        if s[1] < 0.0 {
+            // South-up: Y grows with j. After flipping, row j' = h - j; put the tiepoint
+            // at the new top-left corner.
+            let (x0, y_top) = (t[3] - t[0] * s[0], t[4] + (h as f64 - t[1]) * (-s[1]));
+            s[1] = -s[1];
+            t.truncate(6);
+            t[0] = 0.0;
+            t[1] = 0.0;
+            t[3] = x0;
+            t[4] = y_top;
+            flipped = true;
+        }
+        g.geotransform = Some([
+            t[3] - t[0] * s[0],
+            s[0],
+            0.0,
+            t[4] + t[1] * s[1],
+            0.0,
+            -s[1],
+        ]);
+    }
+    if let Some(dir) = g.geo_key_directory.as_deref() {
+        if let Some(code) = geo_key(dir, PROJECTED_CS_TYPE).filter(|&c| c != 0 && c != 32767) {
+            g.crs = Some(format!("EPSG:{code}"));
+        } else if let Some(code) = geo_key(dir, GEOGRAPHIC_TYPE).filter(|&c| c != 0 && c != 32767) {
+            g.crs = Some(format!("EPSG:{code}"));
+        } else if let Some(a) = g.geo_ascii_params.as_deref() {
+            let a = a.trim_end_matches(['|', '\0']);
+            if !a.is_empty() {
+                g.crs = Some(a.to_string());
+            }
+        }
+    }
+    flipped
+}
+
+/// Ground cell size in metres: geographic grids at the centre latitude (WGS84), Web Mercator
+/// scaled by cos(latitude), other projections taken as metres.
+fn cell_size(g: &GeoRef, h: usize) -> Option<(f64, f64)> {
+    let t = g.geotransform?;
+    let (sx, sy) = (
+        (t[1].powi(2) + t[4].powi(2)).sqrt(),
+        (t[2].powi(2) + t[5].powi(2)).sqrt(),
+    );
+    if !(sx > 0.0 && sy > 0.0 && sx.is_finite() && sy.is_finite()) {
+        return None;
+    }
+    let dir = g.geo_key_directory.as_deref().unwrap_or(&[]);
+    let model = geo_key(dir, GT_MODEL_TYPE);
+    let cy_coord = t[3] + t[5] * h as f64 / 2.0;
+    if model == Some(2) {
+        // GeogAngularUnitSizeGeoKey (2055): radians per unit, in GeoDoubleParams.
+        let unit_size = dir
+            .get(4..)
+            .unwrap_or(&[])
+            .chunks_exact(4)
+            .find(|k| k[0] == 2055 && k[1] == 34736)
+            .and_then(|k| g.geo_double_params.as_ref()?.get(k[3] as usize).copied())
+            .filter(|r| r.is_finite() && *r > 0.0);
+        let unit_deg = match geo_key(dir, GEOG_ANGULAR_UNITS) {
+            _ if unit_size.is_some() => unit_size.unwrap_or(1.0).to_degrees(),
+            Some(9101) => 180.0 / std::f64::consts::PI,
+            Some(9103) => 1.0 / 60.0,
+            Some(9104) => 1.0 / 3600.0,
+            Some(9105) => 0.9,
+            _ => 1.0,
+        };
+        let lat = cy_coord * unit_deg;
+        if !(-90.0..=90.0).contains(&lat) {
+            return None;
+        }
+        let (mx, my) = metres_per_degree(lat);
+        return Some((sx * unit_deg * mx, sy * unit_deg * my));
+    }
+    if matches!(geo_key(dir, PROJECTED_CS_TYPE), Some(3857 | 3785)) {
+        let lat = (cy_coord / 6_378_137.0).sinh().atan();
+        return Some((sx * lat.cos(), sy * lat.cos()));
+    }
+    Some((sx, sy))
+}
+
+/// Encodes `hf` as an uncompressed float32 GeoTIFF: the georeference tags verbatim (or a pixel
+/// scale from the cell size when there is none) and `GDAL_NODATA = nan` when it has voids.
+pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
+    let mut buf = Cursor::new(Vec::new());
+    let (w, h) = (hf.width(), hf.height());
+    let (w32, h32) = match (u32::try_from(w), u32::try_from(h)) {
+        (Ok(a), Ok(b)) => (a, b),
+        _ => {
+            return Err(IoError::unsupported(
+                F,
+                format!("{w} x {h} exceeds the classic TIFF size"),
+            ));
+        }
+    };
+    if (hf.len() as u64) * 4 > (u32::MAX as u64) - (1 << 20) {
+        return Err(IoError::unsupported(
+            F,
+            "raster larger than 4 GiB (BigTIFF writing is not supported)",
+        ));
+    }
+    {
+        let mut enc = TiffEncoder::new(&mut buf).map_err(terr)?;
+        let mut img = enc
+            .new_image::<colortype::Gray32Float>(w32, h32)
+            .map_err(terr)?;
+        let d = img.encoder();
+        let default_geo;
+        let g = match hf.georef() {
+            Some(g) => g,
+            None => {
+                let (cx, cy) = hf.cell_size();
+                default_geo = GeoRef {
+                    pixel_scale: Some(vec![cx, cy, 0.0]),
+                    tiepoints: Some(vec![0.0; 6]),
+                    ..GeoRef::default()
+                };
+                &default_geo
+            }
+        };
+        if let Some(v) = &g.pixel_scale {
+            d.write_tag(Tag::ModelPixelScaleTag, v.as_slice())
+                .map_err(terr)?;
+        }
+        if let Some(v) = &g.tiepoints {
+            d.write_tag(Tag::ModelTiepointTag, v.as_slice())
+                .map_err(terr)?;
+        }
+        if let Some(v) = &g.transformation {
+            d.write_tag(Tag::ModelTransformationTag, v.as_slice())
+                .map_err(terr)?;
+        }
+        if let Some(v) = &g.geo_key_directory {
+            d.write_tag(Tag::GeoKeyDirectoryTag, v.as_slice())
+                .map_err(terr)?;
+        }
+        if let Some(v) = &g.geo_double_params {
+            d.write_tag(Tag::GeoDoubleParamsTag, v.as_slice())
+                .map_err(terr)?;
+        }
+        if let Some(v) = &g.geo_ascii_params {
+            d.write_tag(Tag::GeoAsciiParamsTag, v.as_str())
+                .map_err(terr)?;
+        }
+        if hf.has_voids() {
+            d.write_tag(Tag::GdalNodata, "nan").map_err(terr)?;
+        }
+        img.write_data(hf.as_slice()).map_err(terr)?;
+    }
+    Ok(buf.into_inner())
+}

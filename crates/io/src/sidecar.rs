@@ -1,0 +1,270 @@
+//! The `.f32` + `.json` sidecar layout of `shared/data/dem` and the `{width, height, values}`
+//! JSON grid (`volcano.json`).
+
+use std::path::Path;
+
+use relief_heightfield::Heightfield;
+use serde_json::Value;
+
+use crate::util::{check_dims, finish};
+use crate::{Format, IoError, Raster, ReadOptions, Result};
+
+/// Size, cell and nodata taken from a sidecar.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sidecar {
+    width: u64,
+    height: u64,
+    cell: (f64, f64),
+    nodata: Option<f64>,
+}
+
+fn parse_sidecar(v: &Value) -> Result<Sidecar> {
+    let f = Format::F32Sidecar;
+    let dim = |key: &str| -> Result<u64> {
+        v.get(key).and_then(Value::as_u64).ok_or_else(|| {
+            IoError::malformed(
+                f,
+                format!("sidecar field `{key}` missing or not a non-negative integer"),
+            )
+        })
+    };
+    let width = dim("width")?;
+    let height = dim("height")?;
+    let num = |key: &str| v.get(key).and_then(Value::as_f64);
+    let cx = num("cell_size_x_m")
+        .or_else(|| num("cell_size_m"))
+        .unwrap_or(1.0);
+    let cy = num("cell_size_y_m")
+        .or_else(|| num("cell_size_m"))
+        .unwrap_or(1.0);
+    if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
+        return Err(IoError::malformed(
+            f,
+            format!("sidecar cell size {cx} x {cy} is not positive"),
+        ));
+    }
+    let nodata = match v.get("nodata") {
+        None | Some(Value::Null) => None,
+        Some(x) => Some(x.as_f64().ok_or_else(|| {
+            IoError::malformed(f, format!("sidecar `nodata` = {x} is not a number"))
+        })?),
+    };
+    Ok(Sidecar {
+        width,
+        height,
+        cell: (cx, cy),
+        nodata,
+    })
+}
+
+/// Decodes `.f32` bytes with an optional sidecar; without one `opts.width/height` (or a square)
+/// give the size.
+pub(crate) fn read_f32_bytes(
+    bytes: &[u8],
+    side: Option<Sidecar>,
+    opts: &ReadOptions,
+) -> Result<Raster> {
+    let f = Format::F32Sidecar;
+    let side = match side {
+        Some(s) => s,
+        None => {
+            let (w, h) = crate::raw::raw_dims(f, bytes.len(), 4, opts)?;
+            Sidecar {
+                width: w as u64,
+                height: h as u64,
+                cell: (1.0, 1.0),
+                nodata: None,
+            }
+        }
+    };
+    let n = check_dims(f, side.width, side.height, opts)?;
+    let needed = n as u64 * 4;
+    if needed != bytes.len() as u64 {
+        return Err(IoError::malformed(
+            f,
+            format!(
+                "sidecar declares {} x {} = {needed} bytes of f32 but the data file has {} bytes",
+                side.width,
+                side.height,
+                bytes.len()
+            ),
+        ));
+    }
+    let data = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    finish(
+        f,
+        side.width as usize,
+        side.height as usize,
+        data,
+        side.cell,
+        side.nodata,
+        "float32",
+    )
+}
+
+/// Reads `path` (`.f32`) with the sidecar `<stem>.json` next to it when present.
+pub(crate) fn read_f32_file(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let json_path = path.with_extension("json");
+    let side = if json_path.is_file() {
+        let text = read_limited(&json_path, 1 << 20)?;
+        let v: Value = serde_json::from_slice(&text).map_err(|e| {
+            IoError::malformed(
+                Format::F32Sidecar,
+                format!("sidecar {}: {e}", json_path.display()),
+            )
+        })?;
+        Some(parse_sidecar(&v)?)
+    } else {
+        None
+    };
+    read_f32_bytes(bytes, side, opts)
+}
+
+fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    let len = std::fs::metadata(path)
+        .map_err(|e| IoError::os(path, e))?
+        .len();
+    if len > limit {
+        return Err(IoError::malformed(
+            Format::F32Sidecar,
+            format!(
+                "sidecar {} is {len} bytes, more than the {limit} allowed",
+                path.display()
+            ),
+        ));
+    }
+    std::fs::read(path).map_err(|e| IoError::os(path, e))
+}
+
+/// A `.json` file: a `{width, height, values}` grid, or a sidecar whose `.f32` is read.
+pub(crate) fn read_json_any(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let v = parse_json(bytes)?;
+    if v.get("values").is_some() {
+        return grid_from_value(&v, opts);
+    }
+    let side = parse_sidecar(&v)?;
+    let data_name = v
+        .get("data_file")
+        .and_then(Value::as_str)
+        .map(str::to_owned)
+        .unwrap_or_else(|| {
+            path.with_extension("f32")
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        });
+    // Only a plain file name next to the sidecar is followed.
+    if data_name.contains('/') || data_name.contains('\\') || data_name.is_empty() {
+        return Err(IoError::malformed(
+            Format::F32Sidecar,
+            format!("sidecar `data_file` = {data_name:?} is not a plain file name"),
+        ));
+    }
+    let data_path = path.with_file_name(&data_name);
+    let len = std::fs::metadata(&data_path)
+        .map_err(|e| IoError::os(&data_path, e))?
+        .len();
+    let n = check_dims(Format::F32Sidecar, side.width, side.height, opts)?;
+    if len != n as u64 * 4 {
+        return Err(IoError::malformed(
+            Format::F32Sidecar,
+            format!(
+                "sidecar declares {} x {} = {} bytes but {} has {len} bytes",
+                side.width,
+                side.height,
+                n as u64 * 4,
+                data_path.display()
+            ),
+        ));
+    }
+    let data = std::fs::read(&data_path).map_err(|e| IoError::os(&data_path, e))?;
+    read_f32_bytes(&data, Some(side), opts)
+}
+
+fn parse_json(bytes: &[u8]) -> Result<Value> {
+    serde_json::from_slice(bytes)
+        .map_err(|e| IoError::malformed(Format::JsonGrid, format!("invalid JSON: {e}")))
+}
+
+/// Decodes a `{width, height, values}` JSON grid (row-major, row 0 first; `null` = void).
+pub(crate) fn read_json_grid(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let v = parse_json(bytes)?;
+    grid_from_value(&v, opts)
+}
+
+fn grid_from_value(v: &Value, opts: &ReadOptions) -> Result<Raster> {
+    let f = Format::JsonGrid;
+    let dim = |key: &str| -> Result<u64> {
+        v.get(key).and_then(Value::as_u64).ok_or_else(|| {
+            IoError::malformed(
+                f,
+                format!("field `{key}` missing or not a non-negative integer"),
+            )
+        })
+    };
+    let (w, h) = (dim("width")?, dim("height")?);
+    let n = check_dims(f, w, h, opts)?;
+    let values = v
+        .get("values")
+        .and_then(Value::as_array)
+        .ok_or_else(|| IoError::malformed(f, "field `values` is not an array"))?;
+    if values.len() != n {
+        return Err(IoError::malformed(
+            f,
+            format!(
+                "header says {w} x {h} = {n} values but `values` holds {}",
+                values.len()
+            ),
+        ));
+    }
+    let mut data = Vec::with_capacity(n);
+    for (i, x) in values.iter().enumerate() {
+        match x {
+            Value::Null => data.push(f32::NAN),
+            x => data.push(x.as_f64().ok_or_else(|| {
+                IoError::malformed(f, format!("values[{i}] = {x} is not a number"))
+            })? as f32),
+        }
+    }
+    let cell = (
+        v.get("cell_size_x_m")
+            .or(v.get("cell_size"))
+            .and_then(Value::as_f64)
+            .unwrap_or(1.0),
+        v.get("cell_size_y_m")
+            .or(v.get("cell_size"))
+            .and_then(Value::as_f64)
+            .unwrap_or(1.0),
+    );
+    let nodata = v.get("nodata").and_then(Value::as_f64);
+    finish(f, w as usize, h as usize, data, cell, nodata, "number")
+}
+
+/// The sidecar written next to a `.f32` file.
+pub(crate) fn sidecar_json(hf: &Heightfield) -> String {
+    let (cx, cy) = hf.cell_size();
+    let voids = hf.void_count();
+    let (min, max) = hf
+        .min_max()
+        .map_or((None, None), |(a, b)| (Some(a), Some(b)));
+    let v = serde_json::json!({
+        "width": hf.width(),
+        "height": hf.height(),
+        "cell_size_m": (cx * cy).sqrt(),
+        "cell_size_x_m": cx,
+        "cell_size_y_m": cy,
+        "nodata": if voids > 0 { Some(-9999.0) } else { None },
+        "nodata_count": voids,
+        "min": min,
+        "max": max,
+        "layout": "float32 little-endian, row-major, height rows of width values; row 0 = northern edge, column 0 = western edge",
+        "units": "metres",
+        "source": "written by relief-io",
+    });
+    let mut s = serde_json::to_string_pretty(&v).unwrap_or_default();
+    s.push('\n');
+    s
+}
