@@ -1,0 +1,537 @@
+//! Detail statistics and the power-law fit of section 5: equations (2)-(4).
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+use serde::{Deserialize, Serialize};
+
+use crate::dwt::{Band, Decomposition, Grid, max_levels, wavedec2};
+use crate::error::{Result, WaveletError};
+use crate::lift::Boundary;
+use crate::wavelet::Wavelet;
+
+/// Settings of the variance fit (equations (3) and (4)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitSettings {
+    /// First level index `j` taking part in the fit (the paper rejects the coarse levels and
+    /// fits "from level 3 and up"). Level `j` of an input whose larger side is `N` has about
+    /// `2^j` coefficients along that side: `j = ceil(log2 N) - depth`.
+    pub min_level: u32,
+    /// Number of analysed (decomposed) levels; 0 means "down to `min_level`", i.e.
+    /// `ceil(log2 N) - min_level`.
+    pub levels: usize,
+    /// Variances below this floor (m^2) are raised to it before the logarithm, so flat areas
+    /// (zero variance, e.g. sea at 0 m) give finite fits: `gamma = 0` and variance = floor.
+    pub variance_floor: f64,
+    /// Smallest `gamma` used for synthesis; a fit below it is clamped and `a` refitted with the
+    /// slope fixed. 0 forbids variance growing towards finer levels.
+    pub gamma_min: f64,
+    /// Largest `gamma` used for synthesis (clamped likewise).
+    pub gamma_max: f64,
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        Self {
+            min_level: 3,
+            levels: 0,
+            variance_floor: 1e-8,
+            gamma_min: 0.0,
+            gamma_max: 8.0,
+        }
+    }
+}
+
+impl FitSettings {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.variance_floor.is_finite() && self.variance_floor > 0.0) {
+            return Err(WaveletError::param(
+                "variance_floor",
+                self.variance_floor,
+                "must be finite and > 0",
+            ));
+        }
+        if !(self.gamma_min.is_finite() && self.gamma_max.is_finite())
+            || self.gamma_min > self.gamma_max
+        {
+            return Err(WaveletError::param(
+                "gamma_min",
+                format!("{}..{}", self.gamma_min, self.gamma_max),
+                "needs finite gamma_min <= gamma_max",
+            ));
+        }
+        if self.min_level > 40 {
+            return Err(WaveletError::param(
+                "min_level",
+                self.min_level,
+                "must be <= 40",
+            ));
+        }
+        Ok(())
+    }
+
+    /// `(J, analysed levels, levels used by the fit)` for an input size.
+    pub(crate) fn plan(&self, width: usize, height: usize) -> Result<(i64, usize, usize)> {
+        self.validate()?;
+        let top = max_levels(width, height);
+        let auto = top.saturating_sub(self.min_level as usize);
+        let levels = if self.levels == 0 {
+            auto
+        } else {
+            self.levels.min(top)
+        };
+        let used = levels.min(auto);
+        if used < 2 {
+            return Err(WaveletError::TooFewLevels {
+                min_level: self.min_level,
+                available: used,
+                levels,
+                width,
+                height,
+            });
+        }
+        Ok((top as i64, levels, used))
+    }
+}
+
+/// The fitted line `log2 Var = -j gamma + a` of one band (equation (3)).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BandFit {
+    /// Decay exponent `gamma` used for synthesis (after clamping).
+    pub gamma: f64,
+    /// Intercept `a` (log2 of m^2).
+    pub a: f64,
+    /// Slope of the unconstrained least-squares fit, negated.
+    pub gamma_fit: f64,
+    /// Coefficient of determination of the unconstrained fit (1 = the variances lie on a line).
+    pub r_squared: f64,
+    /// Whether `gamma` was clamped into `[gamma_min, gamma_max]`.
+    pub clamped: bool,
+    /// Number of levels in the fit.
+    pub levels_used: usize,
+}
+
+impl BandFit {
+    /// Hurst exponent `H = gamma / 2` implied by the fit. With the metric normalisation the
+    /// detail coefficients at depth `k` are elevation increments over `2^k` cells, whose
+    /// variance for a fractional Brownian surface grows as `(2^k)^(2H)` (section 4,
+    /// `Var(V_H) ~ dr^(2H)`), hence `gamma = 2H`.
+    pub fn hurst(&self) -> f64 {
+        self.gamma / 2.0
+    }
+
+    /// Fractal dimension of the surface implied by the fit, `D = 3 - H = 3 - gamma / 2`.
+    /// Meaningful for `0 < gamma < 2` (fBm-like terrain); outside, the terrain is not
+    /// self-similar over the fitted levels and the value is only a roughness index.
+    pub fn fractal_dimension(&self) -> f64 {
+        3.0 - self.gamma / 2.0
+    }
+
+    /// Variance the fit predicts at level `j` (equation (5) for a new level `n = j`).
+    pub fn variance_at(&self, j: f64) -> f64 {
+        (self.a - j * self.gamma).exp2()
+    }
+}
+
+/// Mean squares of the detail coefficients of one level (equation (2) with the zero-mean
+/// assumption of the paper: `sigma^2 = E[d^2]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LevelVariance {
+    /// Level index `j` (larger = finer).
+    pub level: i64,
+    /// Decomposition depth (1 = finest).
+    pub depth: usize,
+    /// Mean square per band, in [`Band::ALL`] order (m^2).
+    pub variance: [f64; 3],
+    /// Number of coefficients per band.
+    pub count: [usize; 3],
+    /// Whether this level takes part in the fit.
+    pub fitted: bool,
+}
+
+/// The global statistics of a terrain (GSA, section 5.1): variances per band and level and the
+/// fitted lines.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GlobalAnalysis {
+    /// Basis of the analysis.
+    pub wavelet: Wavelet,
+    /// Input width.
+    pub width: usize,
+    /// Input height.
+    pub height: usize,
+    /// `J = ceil(log2(max(width, height)))`: the input itself is level `J`, its finest details
+    /// are level `J - 1`, and the first synthesised level is `J`.
+    pub top_level: i64,
+    /// Per-level variances, coarsest first.
+    pub levels: Vec<LevelVariance>,
+    /// Fits per band in [`Band::ALL`] order.
+    pub fits: [BandFit; 3],
+    /// The fit settings used.
+    pub settings: FitSettings,
+}
+
+impl GlobalAnalysis {
+    /// The fit of a band.
+    pub fn fit(&self, band: Band) -> &BandFit {
+        &self.fits[band.index()]
+    }
+
+    /// Mean fractal dimension over the three bands.
+    pub fn fractal_dimension(&self) -> f64 {
+        self.fits.iter().map(|f| f.fractal_dimension()).sum::<f64>() / 3.0
+    }
+}
+
+fn mean_square(g: &Grid) -> f64 {
+    if g.is_empty() {
+        return 0.0;
+    }
+    g.data
+        .par_chunks(1 << 14)
+        .map(|c| c.iter().map(|&v| (v as f64) * (v as f64)).sum::<f64>())
+        .collect::<Vec<_>>()
+        .iter()
+        .sum::<f64>()
+        / g.len() as f64
+}
+
+/// Least-squares line through `(j, y)`: returns `(gamma_fit, a_fit, r2)` of
+/// `y = -gamma j + a`.
+pub(crate) fn line_fit(js: &[f64], ys: &[f64]) -> (f64, f64, f64) {
+    let n = js.len() as f64;
+    let mj = js.iter().sum::<f64>() / n;
+    let my = ys.iter().sum::<f64>() / n;
+    let sxx: f64 = js.iter().map(|j| (j - mj) * (j - mj)).sum();
+    let sxy: f64 = js.iter().zip(ys).map(|(j, y)| (j - mj) * (y - my)).sum();
+    let syy: f64 = ys.iter().map(|y| (y - my) * (y - my)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let r2 = if syy > 0.0 && sxx > 0.0 {
+        (sxy * sxy / (sxx * syy)).min(1.0)
+    } else {
+        1.0
+    };
+    (-slope, my - slope * mj, r2)
+}
+
+/// Applies the clamp of [`FitSettings`]: returns `(gamma, a, clamped)`.
+#[inline]
+pub(crate) fn clamp_fit(gamma: f64, a: f64, mj: f64, my: f64, s: &FitSettings) -> (f64, f64, bool) {
+    if gamma < s.gamma_min || gamma > s.gamma_max {
+        let g = gamma.clamp(s.gamma_min, s.gamma_max);
+        (g, my + g * mj, true)
+    } else {
+        (gamma, a, false)
+    }
+}
+
+pub(crate) fn decompose(
+    hf: &Heightfield,
+    wavelet: Wavelet,
+    levels: usize,
+) -> Result<Decomposition> {
+    hf.require_complete()?;
+    wavedec2(
+        &Grid::from_heightfield(hf),
+        wavelet,
+        levels,
+        Boundary::Symmetric,
+    )
+}
+
+pub(crate) fn global_from(
+    dec: &Decomposition,
+    top: i64,
+    settings: &FitSettings,
+) -> Result<GlobalAnalysis> {
+    let levels = dec.levels();
+    let mut out = Vec::with_capacity(levels);
+    for (i, lvl) in dec.details.iter().enumerate() {
+        let depth = levels - i;
+        let j = top - depth as i64;
+        let mut variance = [0.0; 3];
+        let mut count = [0; 3];
+        for b in Band::ALL {
+            let g = lvl.band(b);
+            variance[b.index()] = mean_square(g);
+            count[b.index()] = g.len();
+        }
+        out.push(LevelVariance {
+            level: j,
+            depth,
+            variance,
+            count,
+            fitted: j >= settings.min_level as i64 && count.iter().all(|&c| c > 0),
+        });
+    }
+    let mut fits = [BandFit {
+        gamma: 0.0,
+        a: 0.0,
+        gamma_fit: 0.0,
+        r_squared: 0.0,
+        clamped: false,
+        levels_used: 0,
+    }; 3];
+    let used: Vec<&LevelVariance> = out.iter().filter(|l| l.fitted).collect();
+    if used.len() < 2 {
+        return Err(WaveletError::TooFewLevels {
+            min_level: settings.min_level,
+            available: used.len(),
+            levels,
+            width: dec.width,
+            height: dec.height,
+        });
+    }
+    for b in Band::ALL {
+        let js: Vec<f64> = used.iter().map(|l| l.level as f64).collect();
+        let ys: Vec<f64> = used
+            .iter()
+            .map(|l| l.variance[b.index()].max(settings.variance_floor).log2())
+            .collect();
+        let (g, a, r2) = line_fit(&js, &ys);
+        let mj = js.iter().sum::<f64>() / js.len() as f64;
+        let my = ys.iter().sum::<f64>() / ys.len() as f64;
+        let (gamma, a, clamped) = clamp_fit(g, a, mj, my, settings);
+        fits[b.index()] = BandFit {
+            gamma,
+            a,
+            gamma_fit: g,
+            r_squared: r2,
+            clamped,
+            levels_used: js.len(),
+        };
+    }
+    Ok(GlobalAnalysis {
+        wavelet: dec.wavelet,
+        width: dec.width,
+        height: dec.height,
+        top_level: top,
+        levels: out,
+        fits,
+        settings: settings.clone(),
+    })
+}
+
+/// Global analysis (GSA statistics) of a void-free terrain: equations (2) and (3).
+pub fn analyze(
+    hf: &Heightfield,
+    wavelet: Wavelet,
+    settings: &FitSettings,
+) -> Result<GlobalAnalysis> {
+    let (top, levels, _) = settings.plan(hf.width(), hf.height())?;
+    let dec = decompose(hf, wavelet, levels)?;
+    global_from(&dec, top, settings)
+}
+
+/// Checks an LSA window size.
+pub(crate) fn check_window(window: usize) -> Result<()> {
+    if window.is_multiple_of(2) || window == 0 || window > 31 {
+        return Err(WaveletError::param(
+            "window",
+            window,
+            "must be odd in 1..=31 (the paper uses 1, 3, 5, 7)",
+        ));
+    }
+    Ok(())
+}
+
+/// Windowed sums along rows: each output sums `w` consecutive inputs of its row, the window
+/// centred on it and shifted inwards at the edges (so it always holds `min(w, width)` values).
+fn box_rows(src: &[f64], width: usize, w: usize) -> Vec<f64> {
+    let mut out = vec![0.0f64; src.len()];
+    let wl = w.min(width);
+    let r = w / 2;
+    out.par_chunks_mut(width)
+        .zip(src.par_chunks(width))
+        .for_each(|(o, s)| {
+            let mut pre = vec![0.0f64; width + 1];
+            for i in 0..width {
+                pre[i + 1] = pre[i] + s[i];
+            }
+            for (i, v) in o.iter_mut().enumerate() {
+                let start = i.saturating_sub(r).min(width - wl);
+                *v = pre[start + wl] - pre[start];
+            }
+        });
+    out
+}
+
+fn transpose(src: &[f64], width: usize, height: usize) -> Vec<f64> {
+    let mut out = vec![0.0f64; src.len()];
+    for y in 0..height {
+        for x in 0..width {
+            out[x * height + y] = src[y * width + x];
+        }
+    }
+    out
+}
+
+/// `log2` of the floored mean square over the `w x w` window around each coefficient
+/// (equation (4)'s local variance), at the band's resolution.
+pub(crate) fn windowed_log_variance(g: &Grid, w: usize, floor: f64) -> Grid {
+    if g.is_empty() {
+        return g.clone();
+    }
+    let sq: Vec<f64> = g.data.iter().map(|&v| (v as f64) * (v as f64)).collect();
+    let rows = box_rows(&sq, g.width, w);
+    let t = transpose(&rows, g.width, g.height);
+    let cols = box_rows(&t, g.height, w);
+    let back = transpose(&cols, g.height, g.width);
+    let count = (w.min(g.width) * w.min(g.height)) as f64;
+    Grid {
+        width: g.width,
+        height: g.height,
+        data: back
+            .iter()
+            .map(|s| (s / count).max(floor).log2() as f32)
+            .collect(),
+    }
+}
+
+/// Per-level windowed log-variance grids for the local fit (LSA, section 5.2).
+#[derive(Debug, Clone)]
+pub(crate) struct LocalStats {
+    pub(crate) window: usize,
+    /// `(j, depth, [H, V, D] log2 variance grids)` for the fitted levels, coarsest first.
+    pub(crate) levels: Vec<(i64, usize, [Grid; 3])>,
+    /// Least-squares weights: `slope = sum_k c_k y_k`.
+    pub(crate) weights: Vec<f64>,
+    pub(crate) mean_j: f64,
+    pub(crate) settings: FitSettings,
+}
+
+impl LocalStats {
+    pub(crate) fn new(
+        dec: &Decomposition,
+        top: i64,
+        window: usize,
+        settings: &FitSettings,
+    ) -> Result<Self> {
+        check_window(window)?;
+        let levels = dec.levels();
+        let mut out = Vec::new();
+        for (i, lvl) in dec.details.iter().enumerate() {
+            let depth = levels - i;
+            let j = top - depth as i64;
+            if j < settings.min_level as i64 || lvl.d.is_empty() {
+                continue;
+            }
+            let grids = [
+                windowed_log_variance(&lvl.h, window, settings.variance_floor),
+                windowed_log_variance(&lvl.v, window, settings.variance_floor),
+                windowed_log_variance(&lvl.d, window, settings.variance_floor),
+            ];
+            out.push((j, depth, grids));
+        }
+        if out.len() < 2 {
+            return Err(WaveletError::TooFewLevels {
+                min_level: settings.min_level,
+                available: out.len(),
+                levels,
+                width: dec.width,
+                height: dec.height,
+            });
+        }
+        let js: Vec<f64> = out.iter().map(|l| l.0 as f64).collect();
+        let mean_j = js.iter().sum::<f64>() / js.len() as f64;
+        let sxx: f64 = js.iter().map(|j| (j - mean_j).powi(2)).sum();
+        let weights = js.iter().map(|j| (j - mean_j) / sxx).collect();
+        Ok(Self {
+            window,
+            levels: out,
+            weights,
+            mean_j,
+            settings: settings.clone(),
+        })
+    }
+
+    /// `(gamma, a)` per band at input location `(x, y)` (equation (4)), clamped like the
+    /// global fit.
+    #[inline]
+    pub(crate) fn fit_at(&self, x: usize, y: usize) -> [(f64, f64); 3] {
+        let mut out = [(0.0, 0.0); 3];
+        for (b, o) in out.iter_mut().enumerate() {
+            let (mut slope, mut my) = (0.0f64, 0.0f64);
+            for ((_, depth, grids), c) in self.levels.iter().zip(&self.weights) {
+                let g = &grids[b];
+                let gx = (x >> depth).min(g.width - 1);
+                let gy = (y >> depth).min(g.height - 1);
+                let v = g.data[gy * g.width + gx] as f64;
+                slope += c * v;
+                my += v;
+            }
+            my /= self.levels.len() as f64;
+            let gamma = -slope;
+            let a = my - slope * self.mean_j;
+            let (g, a, _) = clamp_fit(gamma, a, self.mean_j, my, &self.settings);
+            *o = (g, a);
+        }
+        out
+    }
+}
+
+/// Local statistics as maps at the input resolution (LSA, equation (4)): one `(gamma, a)` per
+/// band and location, from the detail coefficients in a `window x window` neighbourhood at every
+/// fitted level.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocalMaps {
+    /// Window size used.
+    pub window: usize,
+    /// `gamma` per band ([`Band::ALL`] order), at input resolution.
+    pub gamma: [Grid; 3],
+    /// `a` per band, at input resolution.
+    pub a: [Grid; 3],
+}
+
+impl LocalMaps {
+    /// Map of the implied fractal dimension `3 - gamma / 2` of a band.
+    pub fn fractal_dimension(&self, band: Band) -> Grid {
+        let g = &self.gamma[band.index()];
+        Grid {
+            width: g.width,
+            height: g.height,
+            data: g.data.iter().map(|v| 3.0 - v / 2.0).collect(),
+        }
+    }
+}
+
+pub(crate) fn maps_from(local: &LocalStats, width: usize, height: usize) -> LocalMaps {
+    let n = width * height;
+    let mut gam = vec![[0.0f32; 3]; n];
+    let mut aa = vec![[0.0f32; 3]; n];
+    gam.par_chunks_mut(width)
+        .zip(aa.par_chunks_mut(width))
+        .enumerate()
+        .for_each(|(y, (g, a))| {
+            for x in 0..width {
+                let f = local.fit_at(x, y);
+                for b in 0..3 {
+                    g[x][b] = f[b].0 as f32;
+                    a[x][b] = f[b].1 as f32;
+                }
+            }
+        });
+    let split = |v: &[[f32; 3]], b: usize| Grid {
+        width,
+        height,
+        data: v.iter().map(|t| t[b]).collect(),
+    };
+    LocalMaps {
+        window: local.window,
+        gamma: [split(&gam, 0), split(&gam, 1), split(&gam, 2)],
+        a: [split(&aa, 0), split(&aa, 1), split(&aa, 2)],
+    }
+}
+
+/// Local analysis (LSA statistics) of a void-free terrain as maps: equation (4).
+pub fn analyze_local(
+    hf: &Heightfield,
+    wavelet: Wavelet,
+    window: usize,
+    settings: &FitSettings,
+) -> Result<LocalMaps> {
+    check_window(window)?;
+    let (top, levels, _) = settings.plan(hf.width(), hf.height())?;
+    let dec = decompose(hf, wavelet, levels)?;
+    let local = LocalStats::new(&dec, top, window, settings)?;
+    Ok(maps_from(&local, hf.width(), hf.height()))
+}

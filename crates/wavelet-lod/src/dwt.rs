@@ -1,0 +1,515 @@
+//! Multi-level 2-D separable DWT by lifting.
+//!
+//! One level transforms the rows (along x) and then the columns (along y). A length-`n` axis
+//! splits into `ceil(n/2)` low-pass samples (the even samples, index `2i`) and `floor(n/2)`
+//! high-pass samples (the odd samples, index `2i + 1`); a length-1 axis is left as it is (one
+//! low-pass sample, no high-pass). The detail bands follow PyWavelets' `dwt2` naming:
+//!
+//! | band | PyWavelets | along y (rows, axis 0) | along x (columns, axis 1) | shape (w x h) |
+//! |------|-----------|------------------------|---------------------------|---------------|
+//! | [`Band::H`] | `cH` (horizontal detail) | high-pass | low-pass | `ceil(w/2) x floor(h/2)` |
+//! | [`Band::V`] | `cV` (vertical detail)   | low-pass  | high-pass | `floor(w/2) x ceil(h/2)` |
+//! | [`Band::D`] | `cD` (diagonal detail)   | high-pass | high-pass | `floor(w/2) x floor(h/2)` |
+//!
+//! `H` responds to horizontal edges (elevation changing from row to row).
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, WaveletError};
+use crate::lift::{Boundary, forward_1d, forward_rows, inverse_1d, inverse_rows, lane_maps};
+use crate::wavelet::{Scheme, Wavelet};
+
+/// A row-major `f32` grid (`height` rows of `width` values); either side may be 0 for an empty
+/// detail band.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Grid {
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+    /// Row-major values, `width * height` of them.
+    pub data: Vec<f32>,
+}
+
+impl Grid {
+    /// A grid from row-major values; an error if the length does not match.
+    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self> {
+        if data.len() != width * height {
+            return Err(WaveletError::Shape {
+                width,
+                height,
+                expected: width * height,
+                got: data.len(),
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// A grid of zeros.
+    pub fn zeros(width: usize, height: usize) -> Self {
+        Self {
+            width,
+            height,
+            data: vec![0.0; width * height],
+        }
+    }
+
+    /// The samples of a heightfield.
+    pub fn from_heightfield(hf: &Heightfield) -> Self {
+        Self {
+            width: hf.width(),
+            height: hf.height(),
+            data: hf.as_slice().to_vec(),
+        }
+    }
+
+    /// Value at column `x`, row `y`.
+    ///
+    /// # Panics
+    /// Panics when out of bounds.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+
+    /// True when the grid holds no value.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+}
+
+/// A detail band of a 2-D level (see the module table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Band {
+    /// Horizontal detail, PyWavelets `cH`: high-pass along y, low-pass along x.
+    H,
+    /// Vertical detail, PyWavelets `cV`: low-pass along y, high-pass along x.
+    V,
+    /// Diagonal detail, PyWavelets `cD`: high-pass along both axes.
+    D,
+}
+
+impl Band {
+    /// The three bands in PyWavelets' order.
+    pub const ALL: [Band; 3] = [Band::H, Band::V, Band::D];
+
+    /// Position in [`Band::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// One-letter name (`h`, `v`, `d`).
+    pub fn name(self) -> &'static str {
+        ["h", "v", "d"][self as usize]
+    }
+}
+
+/// The three detail bands of one level.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct DetailLevel {
+    /// Horizontal detail (`cH`).
+    pub h: Grid,
+    /// Vertical detail (`cV`).
+    pub v: Grid,
+    /// Diagonal detail (`cD`).
+    pub d: Grid,
+}
+
+impl DetailLevel {
+    /// The grid of a band.
+    pub fn band(&self, band: Band) -> &Grid {
+        match band {
+            Band::H => &self.h,
+            Band::V => &self.v,
+            Band::D => &self.d,
+        }
+    }
+}
+
+/// A multi-level decomposition, ordered like PyWavelets' `wavedec2`: the coarsest
+/// approximation, then the detail levels from coarsest (`details[0]`, depth `levels`) to finest
+/// (`details[levels - 1]`, depth 1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Decomposition {
+    /// The basis.
+    pub wavelet: Wavelet,
+    /// The boundary rule.
+    pub boundary: Boundary,
+    /// Width of the decomposed signal.
+    pub width: usize,
+    /// Height of the decomposed signal.
+    pub height: usize,
+    /// Approximation at the coarsest depth.
+    pub approx: Grid,
+    /// Detail levels, coarsest first.
+    pub details: Vec<DetailLevel>,
+}
+
+impl Decomposition {
+    /// Number of levels.
+    pub fn levels(&self) -> usize {
+        self.details.len()
+    }
+
+    /// The detail level at `depth` (1 = finest, `levels()` = coarsest).
+    pub fn at_depth(&self, depth: usize) -> Option<&DetailLevel> {
+        let l = self.details.len();
+        (depth >= 1 && depth <= l).then(|| &self.details[l - depth])
+    }
+
+    /// Reconstructs the signal (inverse transform of every level).
+    pub fn reconstruct(&self) -> Grid {
+        waverec2(self)
+    }
+}
+
+/// Number of levels after which both sides are 1 (`ceil(log2(max(w, h)))`).
+pub fn max_levels(width: usize, height: usize) -> usize {
+    let n = width.max(height).max(1);
+    (usize::BITS - (n - 1).leading_zeros()) as usize
+}
+
+/// Size of an axis of length `n` after `depth` levels (`ceil(n / 2^depth)`).
+pub fn size_at_depth(n: usize, depth: usize) -> usize {
+    let mut n = n;
+    for _ in 0..depth {
+        n = n.div_ceil(2);
+    }
+    n
+}
+
+fn par_for(len: usize) -> bool {
+    len >= 1 << 15
+}
+
+/// One forward level of the 2-D transform: `(LL, H, V, D)`.
+pub(crate) fn forward_level(
+    x: &Grid,
+    scheme: &Scheme,
+    boundary: Boundary,
+    par: bool,
+) -> (Grid, Grid, Grid, Grid) {
+    let (w, h) = (x.width, x.height);
+    let (wl, wh) = (w.div_ceil(2), w / 2);
+    // Rows (along x).
+    let (tl, th) = if wh == 0 {
+        (x.data.clone(), Vec::new())
+    } else {
+        let mut tl = vec![0.0f32; wl * h];
+        let mut th = vec![0.0f32; wh * h];
+        let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
+        let body = |((e, o), r): ((&mut [f32], &mut [f32]), &[f32])| {
+            for (i, v) in e.iter_mut().enumerate() {
+                *v = r[2 * i];
+            }
+            for (i, v) in o.iter_mut().enumerate() {
+                *v = r[2 * i + 1];
+            }
+            forward_1d(scheme, e, o, &em, &om);
+        };
+        if par {
+            tl.par_chunks_mut(wl)
+                .zip(th.par_chunks_mut(wh))
+                .zip(x.data.par_chunks(w))
+                .for_each(body);
+        } else {
+            tl.chunks_mut(wl)
+                .zip(th.chunks_mut(wh))
+                .zip(x.data.chunks(w))
+                .for_each(body);
+        }
+        (tl, th)
+    };
+    // Columns (along y).
+    let cols = |t: &[f32], width: usize| -> (Grid, Grid) {
+        let (hl, hh) = (h.div_ceil(2), h / 2);
+        if hh == 0 || width == 0 {
+            return (
+                Grid {
+                    width,
+                    height: h,
+                    data: t.to_vec(),
+                },
+                Grid::zeros(width, hh),
+            );
+        }
+        let mut s = vec![0.0f32; hl * width];
+        let mut d = vec![0.0f32; hh * width];
+        for (i, row) in t.chunks(width).enumerate() {
+            let dst = if i % 2 == 0 {
+                &mut s[(i / 2) * width..(i / 2 + 1) * width]
+            } else {
+                &mut d[(i / 2) * width..(i / 2 + 1) * width]
+            };
+            dst.copy_from_slice(row);
+        }
+        let (em, om) = lane_maps(h, boundary, 0, hl, 0, hh);
+        forward_rows(scheme, &mut s, &mut d, &em, &om, width, par);
+        (
+            Grid {
+                width,
+                height: hl,
+                data: s,
+            },
+            Grid {
+                width,
+                height: hh,
+                data: d,
+            },
+        )
+    };
+    let (ll, hb) = cols(&tl, wl);
+    let (vb, db) = cols(&th, wh);
+    (ll, hb, vb, db)
+}
+
+/// The lane ranges one axis of a windowed inverse level needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct AxisPlan {
+    /// Full length of the axis at the finer level.
+    pub(crate) n: usize,
+    /// Requested output range `[a, b)`.
+    pub(crate) a: usize,
+    pub(crate) b: usize,
+    /// Even-lane (low-pass) range `[e0, e1)` and odd-lane (high-pass) range `[o0, o1)`.
+    pub(crate) e0: usize,
+    pub(crate) e1: usize,
+    pub(crate) o0: usize,
+    pub(crate) o1: usize,
+}
+
+impl AxisPlan {
+    pub(crate) fn new(n: usize, a: usize, b: usize, margin: usize) -> Self {
+        let p0 = a.saturating_sub(margin) & !1;
+        let p1 = (b + margin).min(n);
+        Self {
+            n,
+            a,
+            b,
+            e0: p0 / 2,
+            e1: p1.div_ceil(2),
+            o0: p0 / 2,
+            o1: p1 / 2,
+        }
+    }
+
+    pub(crate) fn elen(&self) -> usize {
+        self.e1 - self.e0
+    }
+
+    pub(crate) fn olen(&self) -> usize {
+        self.o1.max(self.o0) - self.o0
+    }
+}
+
+/// Inverse of one level on a window: returns the `(bx - ax) x (by - ay)` window of the finer
+/// level from the lane regions of the four inputs given by the plans (approximation
+/// `elen_x x elen_y`, `H` `elen_x x olen_y`, `V` `olen_x x elen_y`, `D` `olen_x x olen_y`).
+pub(crate) fn inverse_level_window(
+    scheme: &Scheme,
+    boundary: Boundary,
+    px: &AxisPlan,
+    py: &AxisPlan,
+    approx: &[f32],
+    hb: &[f32],
+    vb: &[f32],
+    db: &[f32],
+    par: bool,
+) -> Vec<f32> {
+    let (ex, ox, ey, oy) = (px.elen(), px.olen(), py.elen(), py.olen());
+    debug_assert_eq!(approx.len(), ex * ey);
+    debug_assert_eq!(hb.len(), ex * oy);
+    debug_assert_eq!(vb.len(), ox * ey);
+    debug_assert_eq!(db.len(), ox * oy);
+    let (emy, omy) = lane_maps(py.n, boundary, py.e0, ey, py.o0, oy);
+    let mut s1 = approx.to_vec();
+    let mut d1 = hb.to_vec();
+    inverse_rows(scheme, &mut s1, &mut d1, &emy, &omy, ex, par);
+    let mut s2 = vb.to_vec();
+    let mut d2 = db.to_vec();
+    if ox > 0 {
+        inverse_rows(scheme, &mut s2, &mut d2, &emy, &omy, ox, par);
+    }
+    let (emx, omx) = lane_maps(px.n, boundary, px.e0, ex, px.o0, ox);
+    let ow = px.b - px.a;
+    let mut out = vec![0.0f32; ow * (py.b - py.a)];
+    let lane_row = |y: usize, width: usize| -> std::ops::Range<usize> {
+        if y.is_multiple_of(2) {
+            let r = y / 2 - py.e0;
+            r * width..(r + 1) * width
+        } else {
+            let r = (y - 1) / 2 - py.o0;
+            r * width..(r + 1) * width
+        }
+    };
+    let body = |(e, o): &mut (Vec<f32>, Vec<f32>), (r, orow): (usize, &mut [f32])| {
+        let y = py.a + r;
+        let (lo_src, hi_src) = if y.is_multiple_of(2) {
+            (&s1, &s2)
+        } else {
+            (&d1, &d2)
+        };
+        e.clear();
+        e.extend_from_slice(&lo_src[lane_row(y, ex)]);
+        o.clear();
+        if ox > 0 {
+            o.extend_from_slice(&hi_src[lane_row(y, ox)]);
+        }
+        inverse_1d(scheme, e, o, &emx, &omx);
+        for (k, v) in orow.iter_mut().enumerate() {
+            let x = px.a + k;
+            *v = if x.is_multiple_of(2) {
+                e[x / 2 - px.e0]
+            } else {
+                o[(x - 1) / 2 - px.o0]
+            };
+        }
+    };
+    if par {
+        out.par_chunks_mut(ow)
+            .enumerate()
+            .for_each_init(|| (Vec::new(), Vec::new()), body);
+    } else {
+        let mut scratch = (Vec::new(), Vec::new());
+        out.chunks_mut(ow)
+            .enumerate()
+            .for_each(|item| body(&mut scratch, item));
+    }
+    out
+}
+
+/// Multi-level forward transform (PyWavelets `wavedec2`). `levels` may be 0 (no transform)
+/// up to [`max_levels`].
+pub fn wavedec2(
+    x: &Grid,
+    wavelet: Wavelet,
+    levels: usize,
+    boundary: Boundary,
+) -> Result<Decomposition> {
+    if x.data.len() != x.width * x.height || x.width == 0 || x.height == 0 {
+        return Err(WaveletError::Shape {
+            width: x.width,
+            height: x.height,
+            expected: x.width * x.height,
+            got: x.data.len(),
+        });
+    }
+    let maxl = max_levels(x.width, x.height);
+    if levels > maxl {
+        return Err(WaveletError::param(
+            "levels",
+            levels,
+            "more levels than ceil(log2(max(width, height)))",
+        ));
+    }
+    if boundary == Boundary::Periodic {
+        for k in 0..levels {
+            for n in [size_at_depth(x.width, k), size_at_depth(x.height, k)] {
+                if n % 2 == 1 && n > 1 {
+                    return Err(WaveletError::OddPeriodic {
+                        level: k + 1,
+                        len: n,
+                    });
+                }
+            }
+        }
+    }
+    let scheme = wavelet.scheme();
+    let mut approx = x.clone();
+    let mut details = Vec::with_capacity(levels);
+    for _ in 0..levels {
+        let (ll, h, v, d) = forward_level(&approx, scheme, boundary, par_for(approx.len()));
+        details.push(DetailLevel { h, v, d });
+        approx = ll;
+    }
+    details.reverse();
+    Ok(Decomposition {
+        wavelet,
+        boundary,
+        width: x.width,
+        height: x.height,
+        approx,
+        details,
+    })
+}
+
+/// Multi-level inverse transform (PyWavelets `waverec2`).
+pub fn waverec2(dec: &Decomposition) -> Grid {
+    let scheme = dec.wavelet.scheme();
+    let levels = dec.details.len();
+    let mut approx = dec.approx.clone();
+    for (i, lvl) in dec.details.iter().enumerate() {
+        let depth = levels - i - 1;
+        let (w, h) = (
+            size_at_depth(dec.width, depth),
+            size_at_depth(dec.height, depth),
+        );
+        let px = AxisPlan::new(w, 0, w, 0);
+        let py = AxisPlan::new(h, 0, h, 0);
+        let data = inverse_level_window(
+            scheme,
+            dec.boundary,
+            &px,
+            &py,
+            &approx.data,
+            &lvl.h.data,
+            &lvl.v.data,
+            &lvl.d.data,
+            par_for(w * h),
+        );
+        approx = Grid {
+            width: w,
+            height: h,
+            data,
+        };
+    }
+    approx
+}
+
+/// Single-level 1-D forward transform of a signal: `(low, high)` with `ceil(n/2)` and
+/// `floor(n/2)` values.
+pub fn dwt1(signal: &[f32], wavelet: Wavelet, boundary: Boundary) -> Result<(Vec<f32>, Vec<f32>)> {
+    let n = signal.len();
+    if n == 0 {
+        return Err(WaveletError::param("signal", "[]", "must not be empty"));
+    }
+    if boundary == Boundary::Periodic && n % 2 == 1 && n > 1 {
+        return Err(WaveletError::OddPeriodic { level: 1, len: n });
+    }
+    let mut e: Vec<f32> = signal.iter().step_by(2).copied().collect();
+    let mut o: Vec<f32> = signal.iter().skip(1).step_by(2).copied().collect();
+    let (em, om) = lane_maps(n, boundary, 0, e.len(), 0, o.len());
+    forward_1d(wavelet.scheme(), &mut e, &mut o, &em, &om);
+    Ok((e, o))
+}
+
+/// Single-level 1-D inverse of [`dwt1`].
+pub fn idwt1(low: &[f32], high: &[f32], wavelet: Wavelet, boundary: Boundary) -> Result<Vec<f32>> {
+    if low.len() != high.len() && low.len() != high.len() + 1 || low.is_empty() {
+        return Err(WaveletError::param(
+            "high",
+            high.len(),
+            "needs len(low) - 1 or len(low) values",
+        ));
+    }
+    let n = low.len() + high.len();
+    let (mut e, mut o) = (low.to_vec(), high.to_vec());
+    let (em, om) = lane_maps(n, boundary, 0, e.len(), 0, o.len());
+    inverse_1d(wavelet.scheme(), &mut e, &mut o, &em, &om);
+    let mut out = vec![0.0f32; n];
+    for (i, v) in out.iter_mut().enumerate() {
+        *v = if i % 2 == 0 { e[i / 2] } else { o[i / 2] };
+    }
+    Ok(out)
+}

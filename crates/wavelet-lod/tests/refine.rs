@@ -1,0 +1,298 @@
+//! Refinement on synthetic inputs: windows equal the full run bit for bit, results do not depend
+//! on the thread count, the synthesised levels follow equation (5), and bad settings are errors.
+
+use relief_heightfield::{Heightfield, NoProgress};
+use relief_wavelet_lod::{
+    Boundary, FitSettings, Grid, Method, RefineSettings, Refiner, Wavelet, WaveletError, analyze,
+    analyze_local, max_levels, refine, wavedec2,
+};
+
+/// A deterministic rough surface (sum of octaves of hashed values, bilinearly interpolated).
+fn rough(w: usize, h: usize, seed: u64) -> Heightfield {
+    let hash = |x: i64, y: i64, o: u64| -> f32 {
+        let mut z = (x as u64).wrapping_mul(0x9E3779B97F4A7C15)
+            ^ (y as u64).wrapping_mul(0xC2B2AE3D27D4EB4F)
+            ^ (o.wrapping_add(seed)).wrapping_mul(0x165667B19E3779F9);
+        z ^= z >> 29;
+        z = z.wrapping_mul(0xBF58476D1CE4E5B9);
+        z ^= z >> 32;
+        (z % 10_000) as f32 / 5_000.0 - 1.0
+    };
+    Heightfield::from_fn(w, h, 30.0, 30.0, |x, y| {
+        let mut v = 0.0;
+        for o in 0..6u64 {
+            let s = (1 << (6 - o)) as f32;
+            let (fx, fy) = (x as f32 / s, y as f32 / s);
+            let (x0, y0) = (fx.floor(), fy.floor());
+            let (tx, ty) = (fx - x0, fy - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let a = hash(x0, y0, o) * (1.0 - tx) + hash(x0 + 1, y0, o) * tx;
+            let b = hash(x0, y0 + 1, o) * (1.0 - tx) + hash(x0 + 1, y0 + 1, o) * tx;
+            v += (a * (1.0 - ty) + b * ty) * s * 8.0;
+        }
+        v + 500.0
+    })
+}
+
+fn bits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn windows_equal_the_full_run_bit_for_bit() {
+    let hf = rough(45, 37, 1);
+    for wavelet in Wavelet::ALL {
+        for (method, window) in [(Method::Gsa, 3), (Method::Lsa, 3), (Method::Lsa, 1)] {
+            for extra in [1u32, 2, 3] {
+                let s = RefineSettings {
+                    wavelet,
+                    method,
+                    window,
+                    extra_levels: extra,
+                    seed: 99,
+                    tile: 64,
+                    ..Default::default()
+                };
+                let r = Refiner::new(&hf, &s).unwrap();
+                let full = r.render(&NoProgress).unwrap();
+                let (ow, oh) = r.output_size();
+                assert_eq!((full.width(), full.height()), (45 << extra, 37 << extra));
+                for (x, y, w, h) in [
+                    (0, 0, 1, 1),
+                    (0, 0, ow, oh),
+                    (ow - 3, oh - 5, 3, 5),
+                    (7, 11, 33, 17),
+                    (ow / 2 + 1, 3, ow / 2 - 1, oh / 3),
+                    (13, oh - 1, 1, 1),
+                ] {
+                    let win = r.render_window(x, y, w, h).unwrap();
+                    let want = full.crop(x, y, w, h).unwrap();
+                    assert_eq!(
+                        bits(win.as_slice()),
+                        bits(want.as_slice()),
+                        "{wavelet} {method:?} w{window} +{extra} window {x},{y},{w},{h}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn tile_size_and_thread_count_do_not_change_the_result() {
+    let hf = rough(70, 50, 2);
+    let base = RefineSettings {
+        seed: 5,
+        ..Default::default()
+    };
+    let run = |threads: usize, tile: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            refine(
+                &hf,
+                &RefineSettings {
+                    tile,
+                    ..base.clone()
+                },
+            )
+            .unwrap()
+        })
+    };
+    let a = run(1, 512);
+    let b = run(2, 16);
+    let c = run(2, 100);
+    assert_eq!(bits(a.as_slice()), bits(b.as_slice()));
+    assert_eq!(bits(a.as_slice()), bits(c.as_slice()));
+    // A different seed changes the detail.
+    let d = refine(&hf, &RefineSettings { seed: 6, ..base }).unwrap();
+    assert_ne!(bits(a.as_slice()), bits(d.as_slice()));
+}
+
+#[test]
+fn refined_terrain_keeps_the_input_as_its_coarse_levels_and_follows_equation_5() {
+    let hf = rough(128, 96, 3);
+    let s = RefineSettings {
+        method: Method::Gsa,
+        extra_levels: 2,
+        seed: 11,
+        ..Default::default()
+    };
+    let r = Refiner::new(&hf, &s).unwrap();
+    let out = r.render(&NoProgress).unwrap();
+    // Cell size divided by 4.
+    assert_eq!(out.cell_size(), (7.5, 7.5));
+    // Two forward levels of the refined terrain give back the input (the refinement only adds
+    // detail levels) ...
+    let g = Grid::from_heightfield(&out);
+    let dec = wavedec2(&g, s.wavelet, 2, Boundary::Symmetric).unwrap();
+    let err = dec
+        .approx
+        .data
+        .iter()
+        .zip(hf.as_slice())
+        .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+    assert!(err < 2e-3, "coarse levels changed by {err} m");
+    // ... and the new detail levels have the variances of equation (5).
+    let an = r.analysis();
+    for (t, lvl) in dec.details.iter().enumerate() {
+        let j = an.top_level as f64 + t as f64;
+        for (b, band) in [&lvl.h, &lvl.v, &lvl.d].into_iter().enumerate() {
+            let ms =
+                band.data.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / band.data.len() as f64;
+            let want = an.fits[b].variance_at(j);
+            let ratio = ms / want;
+            assert!(
+                (0.9..1.1).contains(&ratio),
+                "level {j} band {b}: {ms} vs {want}"
+            );
+        }
+    }
+    // The analysis of the refined terrain continues the same lines.
+    let fit2 = analyze(&out, s.wavelet, &FitSettings::default()).unwrap();
+    assert_eq!(fit2.top_level, an.top_level + 2);
+}
+
+#[test]
+fn zero_detail_lsa_on_flat_input_is_finite_and_flat() {
+    // Flat "sea" on the left half, a rough coast on the right.
+    let rough_hf = rough(96, 64, 4);
+    let hf = Heightfield::from_fn(96, 64, 50.0, 90.0, |x, y| {
+        if x < 48 {
+            0.0
+        } else {
+            rough_hf.get(x, y) - 400.0
+        }
+    });
+    for window in [1, 3, 5, 7] {
+        let s = RefineSettings {
+            method: Method::Lsa,
+            window,
+            seed: 1,
+            ..Default::default()
+        };
+        let out = refine(&hf, &s).unwrap();
+        assert!(
+            out.as_slice().iter().all(|v| v.is_finite()),
+            "window {window}"
+        );
+        // Far from the coast the sea stays flat (variance floor 1e-8 m^2).
+        for y in 0..out.height() {
+            for x in 0..120 {
+                assert!(
+                    out.get(x, y).abs() < 1e-2,
+                    "sea at {x},{y}: {}",
+                    out.get(x, y)
+                );
+            }
+        }
+        let maps = analyze_local(&hf, Wavelet::Cdf53, window, &FitSettings::default()).unwrap();
+        for g in maps.gamma.iter().chain(maps.a.iter()) {
+            assert!(g.data.iter().all(|v| v.is_finite()));
+        }
+        // Sea: the predicted variance of the first new level (J = 7) is negligible.
+        let (g, a) = (maps.gamma[0].get(5, 30) as f64, maps.a[0].get(5, 30) as f64);
+        assert!(
+            (a - 7.0 * g).exp2() < 1e-6,
+            "window {window}: gamma {g}, a {a}"
+        );
+        if window == 1 {
+            // Every window at every level is pure sea: gamma 0 and the floor as variance.
+            assert_eq!(g, 0.0);
+            assert!((a - (1e-8f64).log2()).abs() < 1e-3);
+        }
+    }
+    // A completely flat input works too.
+    let flat = Heightfield::from_fn(64, 64, 10.0, 10.0, |_, _| 12.0);
+    let out = refine(&flat, &RefineSettings::default()).unwrap();
+    assert!(out.as_slice().iter().all(|v| (v - 12.0).abs() < 1e-2));
+}
+
+#[test]
+fn bad_settings_and_inputs_are_errors() {
+    let hf = rough(64, 64, 5);
+    let bad = [
+        RefineSettings {
+            window: 4,
+            ..Default::default()
+        },
+        RefineSettings {
+            window: 0,
+            ..Default::default()
+        },
+        RefineSettings {
+            extra_levels: 13,
+            ..Default::default()
+        },
+        RefineSettings {
+            tile: 2,
+            ..Default::default()
+        },
+        RefineSettings {
+            fit: FitSettings {
+                variance_floor: 0.0,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        RefineSettings {
+            fit: FitSettings {
+                gamma_min: 3.0,
+                gamma_max: 1.0,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        RefineSettings {
+            fit: FitSettings {
+                min_level: 5,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+    ];
+    for s in bad {
+        let e = Refiner::new(&hf, &s).unwrap_err();
+        assert!(!e.to_string().is_empty());
+    }
+    // Too small for a fit from level 3.
+    let tiny = rough(8, 8, 1);
+    assert!(matches!(
+        Refiner::new(&tiny, &RefineSettings::default()),
+        Err(WaveletError::TooFewLevels { .. })
+    ));
+    // Voids.
+    let mut holes = hf.clone();
+    holes.set(3, 3, f32::NAN);
+    assert!(matches!(
+        Refiner::new(&holes, &RefineSettings::default()),
+        Err(WaveletError::Heightfield(_))
+    ));
+    // Windows outside the output.
+    let r = Refiner::new(&hf, &RefineSettings::default()).unwrap();
+    assert!(r.render_window(250, 0, 10, 10).is_err());
+    assert!(r.render_window(0, 0, 0, 10).is_err());
+    assert!(
+        wavedec2(
+            &Grid::from_heightfield(&hf),
+            Wavelet::Haar,
+            max_levels(64, 64) + 1,
+            Boundary::Symmetric
+        )
+        .is_err()
+    );
+}
+
+#[test]
+fn fits_serialise() {
+    let hf = rough(64, 64, 6);
+    let a = analyze(&hf, Wavelet::Cdf97, &FitSettings::default()).unwrap();
+    let json = serde_json::to_string(&a).unwrap();
+    let back: relief_wavelet_lod::GlobalAnalysis = serde_json::from_str(&json).unwrap();
+    assert_eq!(back.fits.len(), 3);
+    assert_eq!(back.top_level, 6);
+    assert_eq!(back.levels.len(), 3);
+    assert!(json.contains("\"gamma\""));
+}
