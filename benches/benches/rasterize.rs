@@ -1,0 +1,56 @@
+//! Rasterisation of a Sparse Construction Tree (relief-sparse-core, guerin2016 sections 4.1 and
+//! 5.1) by stamping: the fixture DEM (512 x 512) encoded with a 128-atom dictionary of its own
+//! 8 x 8 patches at s = 4, then an 8192 x 8192 window rasterised at scale 16.1 (the goal is
+//! <= 2 s on 2 threads), plus the scale-1 full raster.
+//! Criterion ids: `rasterize/sct_window/8192_scale16.1`, `rasterize/sct_full/512_scale1`.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use relief_sparse_core::{
+    Dictionary, EncodeSettings, PatchGeometry, RasterSettings, Window, encode, extract_patches,
+};
+
+fn rasterize(c: &mut Criterion) {
+    let dem = relief_benches::fixture_dem()
+        .ok()
+        .or_else(|| relief_testdata::load_dem("grandcanyon"))
+        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM");
+    let patches = extract_patches(&dem, &PatchGeometry::with_patch_size(8)).expect("patches");
+    let n = patches.matrix.nrows();
+    let sel: Vec<usize> = (0..128).map(|k| k * n / 128 + 7).collect();
+    let (dict, _) = Dictionary::from_patches(&patches, Some(&sel)).expect("dictionary");
+    let sct = encode(
+        &dem,
+        &dict,
+        &EncodeSettings {
+            sparsity: 4,
+            ..Default::default()
+        },
+    )
+    .expect("encode");
+    let mut g = c.benchmark_group("rasterize");
+    g.sample_size(10);
+    let big = RasterSettings {
+        scale: 16.1,
+        window: Some(Window {
+            x: 0,
+            y: 0,
+            width: 8192,
+            height: 8192,
+        }),
+    };
+    g.throughput(Throughput::Elements(8192 * 8192));
+    g.bench_with_input(
+        BenchmarkId::new("sct_window", "8192_scale16.1"),
+        &big,
+        |b, st| b.iter(|| sct.rasterize(st).expect("rasterize")),
+    );
+    g.throughput(Throughput::Elements(512 * 512));
+    let one = RasterSettings::default();
+    g.bench_with_input(BenchmarkId::new("sct_full", "512_scale1"), &one, |b, st| {
+        b.iter(|| sct.rasterize(st).expect("rasterize"))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, rasterize);
+criterion_main!(benches);

@@ -1,0 +1,53 @@
+//! `relief convert IN OUT [--fill-voids]`: converts a raster; the output format comes from
+//! OUT's extension.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use relief_heightfield::Progress;
+use relief_heightfield::fill::{FillSettings, fill_voids};
+
+use crate::ctx::Ctx;
+
+/// Arguments of `relief convert`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Input raster (format detected from its content).
+    pub(crate) input: PathBuf,
+    /// Output raster: .tif/.tiff, .png (16-bit), .exr, .npy, .r16 or .r32.
+    pub(crate) output: PathBuf,
+    /// Fill voids (harmonic fill) before writing.
+    #[arg(long)]
+    pub(crate) fill_voids: bool,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// Reads, optionally fills, writes atomically.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let raster = super::read_raster(&args.input, &args.read, ctx)?;
+    let mut hf = raster.heightfield;
+    if args.fill_voids && hf.has_voids() {
+        let progress = ctx.progress();
+        progress.begin("filling voids", 0);
+        let rep = fill_voids(&mut hf, &FillSettings::default())
+            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
+        drop(progress);
+        ctx.note(format!(
+            "filled {} voids ({} CG iterations, relative residual {:.1e})",
+            rep.filled, rep.iterations, rep.relative_residual
+        ));
+    }
+    let progress = ctx.progress();
+    progress.begin("writing", 0);
+    relief_io::write(&args.output, &hf, &relief_io::WriteOptions::default())
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {})",
+        args.output.display(),
+        hf.width(),
+        hf.height()
+    ));
+    Ok(())
+}

@@ -1,0 +1,116 @@
+//! `relief info FILE`: format, size, cell size, elevation range, void count, georeference.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use relief_heightfield::metrics;
+
+use crate::ctx::Ctx;
+
+/// Arguments of `relief info`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Raster to describe (format detected from its content).
+    pub(crate) file: PathBuf,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// Prints the description on stdout.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let raster = super::read_raster(&args.file, &args.read, ctx)?;
+    let hf = &raster.heightfield;
+    let (cx, cy) = hf.cell_size();
+    let mut out = String::new();
+    out.push_str(&format!("file:        {}\n", args.file.display()));
+    let nodata = raster
+        .nodata
+        .map(|v| format!(", nodata {v}"))
+        .unwrap_or_default();
+    out.push_str(&format!(
+        "format:      {:?} ({}{nodata}{})\n",
+        raster.format,
+        raster.dtype,
+        if raster.rows_flipped {
+            ", stored south-up"
+        } else {
+            ""
+        }
+    ));
+    out.push_str(&format!(
+        "size:        {} x {} (width x height)\n",
+        hf.width(),
+        hf.height()
+    ));
+    out.push_str(&format!(
+        "cell size:   {cx:.3} x {cy:.3} m (east-west x north-south)\n"
+    ));
+    match metrics::stats(hf) {
+        Ok(s) => out.push_str(&format!(
+            "elevation:   {:.2} .. {:.2} m (mean {:.2}, std {:.2})\n",
+            s.min, s.max, s.mean, s.std
+        )),
+        Err(_) => out.push_str("elevation:   none (every cell is void)\n"),
+    }
+    out.push_str(&format!(
+        "voids:       {} of {} cells\n",
+        group_thousands(hf.void_count()),
+        group_thousands(hf.len())
+    ));
+    match hf.georef() {
+        Some(g) => {
+            out.push_str("georeference:\n");
+            if let Some(crs) = &g.crs {
+                out.push_str(&format!("  crs:           {crs}\n"));
+            }
+            if let Some(t) = &g.geotransform {
+                out.push_str(&format!(
+                    "  geotransform:  origin ({}, {}), pixel ({}, {})\n",
+                    t[0], t[3], t[1], t[5]
+                ));
+            }
+            if let Some(s) = &g.pixel_scale {
+                out.push_str(&format!("  pixel scale:   {s:?}\n"));
+            }
+            if let Some(t) = &g.tiepoints {
+                out.push_str(&format!("  tiepoints:     {t:?}\n"));
+            }
+            if let Some(k) = &g.geo_key_directory {
+                out.push_str(&format!(
+                    "  geokeys:       {} keys\n",
+                    k.get(3).copied().unwrap_or(0)
+                ));
+            }
+        }
+        None => out.push_str("georeference: none\n"),
+    }
+    let mut stdout = std::io::stdout().lock();
+    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
+    Ok(())
+}
+
+/// `54278` -> `54,278`.
+pub(crate) fn group_thousands(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::group_thousands;
+
+    #[test]
+    fn thousands() {
+        assert_eq!(group_thousands(0), "0");
+        assert_eq!(group_thousands(999), "999");
+        assert_eq!(group_thousands(54278), "54,278");
+        assert_eq!(group_thousands(1442401), "1,442,401");
+    }
+}

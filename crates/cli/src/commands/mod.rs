@@ -1,0 +1,75 @@
+//! One module per subcommand. Each exposes `pub(crate) struct Args` (clap `Args`) and
+//! `pub(crate) fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()>`; `main.rs` lists them in
+//! `enum Command` and dispatches in one `match`.
+
+pub(crate) mod convert;
+pub(crate) mod info;
+pub(crate) mod preview;
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use relief_heightfield::Progress;
+
+use crate::ctx::Ctx;
+
+/// Input options shared by every subcommand that reads a raster (`#[command(flatten)]`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub(crate) struct ReadArgs {
+    /// Width of a raw .r16/.r32 input (square assumed when neither size is given).
+    #[arg(long)]
+    pub(crate) width: Option<usize>,
+    /// Height of a raw .r16/.r32 input (derived from the file length when omitted).
+    #[arg(long)]
+    pub(crate) height: Option<usize>,
+    /// Cell size in metres, `X` or `X,Y`, for inputs that do not store one (PNG, EXR, raw,
+    /// NPY); overrides a stored one.
+    #[arg(long, value_parser = parse_cell_size)]
+    pub(crate) cell_size: Option<(f64, f64)>,
+}
+
+impl ReadArgs {
+    fn options(&self) -> relief_io::ReadOptions {
+        relief_io::ReadOptions {
+            width: self.width,
+            height: self.height,
+            cell_size: self.cell_size,
+            ..Default::default()
+        }
+    }
+}
+
+fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
+    let parse = |t: &str| {
+        t.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .ok_or_else(|| format!("`{t}` is not a positive number of metres"))
+    };
+    match s.split_once(',') {
+        Some((x, y)) => Ok((parse(x)?, parse(y)?)),
+        None => parse(s).map(|v| (v, v)),
+    }
+}
+
+/// Reads any raster relief-io knows, with a progress indicator, naming the file on error.
+pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {
+    let progress = ctx.progress();
+    progress.begin(&format!("reading {}", path.display()), 0);
+    relief_io::read(path, &read.options())
+        .with_context(|| format!("cannot read {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_cell_size;
+
+    #[test]
+    fn cell_size_argument() {
+        assert_eq!(parse_cell_size("30"), Ok((30.0, 30.0)));
+        assert_eq!(parse_cell_size("62.8,92.6"), Ok((62.8, 92.6)));
+        assert!(parse_cell_size("0").is_err());
+        assert!(parse_cell_size("x,1").is_err());
+    }
+}

@@ -1,0 +1,160 @@
+//! Run-wide context handed to every subcommand: verbosity flags, progress bars and error
+//! reporting.
+
+use std::io::IsTerminal;
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use relief_heightfield::Progress;
+
+/// Global options shared by every subcommand.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Ctx {
+    /// `--quiet`: no progress bars and no informational messages on stderr.
+    pub(crate) quiet: bool,
+    /// `--verbose`: the full error cause chain and extra detail.
+    pub(crate) verbose: bool,
+}
+
+impl Ctx {
+    /// A progress sink for library calls. It draws an indicatif bar on stderr, or nothing when
+    /// `--quiet` is given or stderr is not a terminal (pipes and CI logs stay clean).
+    pub(crate) fn progress(&self) -> CliProgress {
+        let visible = !self.quiet && std::io::stderr().is_terminal();
+        let bar = if visible {
+            let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+            bar.enable_steady_tick(Duration::from_millis(120));
+            bar
+        } else {
+            ProgressBar::hidden()
+        };
+        bar.set_style(spinner_style());
+        CliProgress { bar }
+    }
+
+    /// Prints an informational line on stderr unless `--quiet`.
+    pub(crate) fn note(&self, msg: impl std::fmt::Display) {
+        if !self.quiet {
+            #[allow(clippy::print_stderr)]
+            {
+                eprintln!("{msg}");
+            }
+        }
+    }
+
+    /// Prints `err` on stderr: one line `error: <what failed>: <root cause>`, or, under
+    /// `--verbose`, the outermost message followed by the whole cause chain, one per line.
+    pub(crate) fn report_error(&self, err: &anyhow::Error) {
+        #[allow(clippy::print_stderr)]
+        {
+            eprintln!("{}", format_error(err, self.verbose));
+        }
+    }
+}
+
+/// Formats an error for stderr (see [`Ctx::report_error`]).
+pub(crate) fn format_error(err: &anyhow::Error, verbose: bool) -> String {
+    let mut chain = err.chain();
+    let top = chain.next().map(|e| e.to_string()).unwrap_or_default();
+    let rest: Vec<String> = chain.map(|e| e.to_string()).collect();
+    if verbose {
+        let mut s = format!("error: {top}");
+        for cause in &rest {
+            s.push_str("\n  caused by: ");
+            s.push_str(cause);
+        }
+        s
+    } else {
+        match rest.last() {
+            // The root cause is usually the concrete reason (e.g. "permission denied"); the
+            // intermediate layers stay hidden unless asked for.
+            Some(root) if !top.contains(root.as_str()) => format!("error: {top}: {root}"),
+            _ => format!("error: {top}"),
+        }
+    }
+}
+
+fn spinner_style() -> ProgressStyle {
+    ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid progress template")
+}
+
+fn bar_style() -> ProgressStyle {
+    ProgressStyle::with_template("{msg:>14} [{bar:40}] {percent:>3}% {elapsed}/{eta}")
+        .expect("valid progress template")
+        .progress_chars("=> ")
+}
+
+/// indicatif-backed [`Progress`]: each `begin` starts a new phase on the same line (a bar when
+/// the total is known, a spinner otherwise). The bar is cleared when dropped.
+#[derive(Debug)]
+pub(crate) struct CliProgress {
+    bar: ProgressBar,
+}
+
+impl CliProgress {
+    /// Whether anything is drawn (false under `--quiet` or when stderr is not a terminal).
+    #[allow(dead_code)]
+    pub(crate) fn is_visible(&self) -> bool {
+        !self.bar.is_hidden()
+    }
+}
+
+impl Progress for CliProgress {
+    fn begin(&self, phase: &str, total: u64) {
+        self.bar.set_message(phase.to_string());
+        self.bar.reset();
+        if total > 0 {
+            self.bar.set_style(bar_style());
+            self.bar.set_length(total);
+        } else {
+            self.bar.set_style(spinner_style());
+            self.bar.unset_length();
+        }
+    }
+
+    fn advance(&self, n: u64) {
+        self.bar.inc(n);
+    }
+}
+
+impl Drop for CliProgress {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_line_error_names_root_cause() {
+        let err = anyhow::anyhow!("permission denied").context("cannot write out.tif");
+        assert_eq!(
+            format_error(&err, false),
+            "error: cannot write out.tif: permission denied"
+        );
+        let verbose = format_error(&err, true);
+        assert_eq!(verbose.lines().count(), 2);
+        assert!(verbose.contains("caused by: permission denied"));
+    }
+
+    #[test]
+    fn root_cause_not_repeated() {
+        let err = anyhow::anyhow!("bad magic").context("cannot read x: bad magic");
+        assert_eq!(format_error(&err, false), "error: cannot read x: bad magic");
+    }
+
+    #[test]
+    fn quiet_progress_is_hidden() {
+        let ctx = Ctx {
+            quiet: true,
+            verbose: false,
+        };
+        let p = ctx.progress();
+        assert!(!p.is_visible());
+        p.begin("phase", 10);
+        p.advance(3);
+        assert_eq!(p.bar.position(), 3);
+    }
+}

@@ -1,0 +1,77 @@
+//! `relief`: inspect, convert and preview terrain rasters (DEMs).
+//!
+//! Every subcommand lives in `src/commands/<name>.rs` with a `pub(crate) struct Args`
+//! (clap `Args`) and `pub(crate) fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()>`; this
+//! file only parses the command line, dispatches in one `match` and turns an error into one line
+//! on stderr and a non-zero exit code. Output files are written atomically by `relief-io`, so a
+//! failing command never leaves a partial file behind.
+//!
+//! ```text
+//! relief info N47E011.hgt
+//! relief convert alps_dem.tiff alps.exr --fill-voids
+//! relief preview grandcanyon.tif grandcanyon.png
+//! ```
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+mod ctx;
+
+use ctx::Ctx;
+
+/// Terrain rasters on the command line: inspect, convert between formats, preview.
+#[derive(Debug, Parser)]
+#[command(name = "relief", version, about, long_about = None)]
+struct Cli {
+    /// No progress bars and no informational messages.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// On error, print the whole cause chain.
+    #[arg(short, long, global = true)]
+    verbose: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print format, size, cell size, elevation range, void count and georeference of a raster.
+    Info(commands::info::Args),
+    /// Convert a raster to another format (chosen from OUT's extension).
+    Convert(commands::convert::Args),
+    /// Write a shaded-relief preview PNG (hillshade blended with an elevation colour ramp).
+    Preview(commands::preview::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let ctx = Ctx {
+        quiet: cli.quiet,
+        verbose: cli.verbose,
+    };
+    let result = match cli.command {
+        Command::Info(args) => commands::info::run(args, &ctx),
+        Command::Convert(args) => commands::convert::run(args, &ctx),
+        Command::Preview(args) => commands::preview::run(args, &ctx),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            ctx.report_error(&err);
+            ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+}

@@ -1,0 +1,213 @@
+//! End-to-end tests of the `relief` binary on the real DEM set (skipped with a notice when
+//! `../shared/data/dem` is absent, failing under `CI`).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relief_heightfield::Heightfield;
+
+fn relief(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+fn dem(name: &str) -> Option<PathBuf> {
+    relief_testdata::dem_dir().map(|d| d.join(name))
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+#[test]
+fn info_reports_srtm_size_and_voids() {
+    let Some(hgt) = dem("N47E011.hgt") else {
+        return;
+    };
+    let out = relief(&[os("info"), hgt.as_os_str()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("1201 x 1201"), "{stdout}");
+    assert!(
+        stdout.contains("voids:       54,278 of 1,442,401 cells"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("format:"), "{stdout}");
+    assert!(stdout.contains("elevation:"), "{stdout}");
+    assert!(stdout.contains("georeference"), "{stdout}");
+}
+
+/// alps_dem.tiff (int16 metres) to every writable format and back; each format within its
+/// stated precision: lossless f32 formats exactly, 16-bit ones within one quantisation step.
+#[test]
+fn convert_round_trips_alps() {
+    let Some(tiff) = dem("alps_dem.tiff") else {
+        return;
+    };
+    let original = read(&tiff);
+    let (lo, hi) = original.min_max().expect("valid cells");
+    let tmp = tempfile::tempdir().unwrap();
+    // (extension, max-abs tolerance in metres)
+    let quantum = (hi - lo) as f64 / 65535.0;
+    let cases = [
+        ("tif", 0.0),
+        ("exr", 0.0),
+        ("npy", 0.0),
+        ("r32", 0.0),
+        ("png", quantum * 0.5 + 1e-3),
+    ];
+    for (ext, tol) in cases {
+        let out = tmp.path().join(format!("alps.{ext}"));
+        let res = relief(&[os("convert"), tiff.as_os_str(), out.as_os_str()]);
+        assert!(
+            res.status.success(),
+            "{ext}: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        // And back to GeoTIFF through the CLI, then compare.
+        let back = tmp.path().join(format!("alps_from_{ext}.tif"));
+        let mut args = vec![os("convert"), out.as_os_str(), back.as_os_str()];
+        let size_arg;
+        if ext == "r32" {
+            size_arg = original.width().to_string();
+            args.extend([os("--width"), os(&size_arg)]);
+        }
+        let res = relief(&args);
+        assert!(
+            res.status.success(),
+            "{ext} back: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let got = read(&back);
+        assert_eq!(
+            (got.width(), got.height()),
+            (original.width(), original.height()),
+            "{ext}"
+        );
+        let max_abs = relief_heightfield::metrics::max_abs_diff(&original, &got).unwrap();
+        assert!(max_abs <= tol, "{ext}: max-abs {max_abs} > {tol}");
+    }
+}
+
+#[test]
+fn convert_fill_voids_leaves_no_voids() {
+    let Some(hgt) = dem("N47E011.hgt") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("filled.npy");
+    let res = relief(&[
+        os("convert"),
+        hgt.as_os_str(),
+        out.as_os_str(),
+        os("--fill-voids"),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let filled = read(&out);
+    assert_eq!(filled.void_count(), 0);
+    let original = read(&hgt);
+    // Valid cells are untouched.
+    for (a, b) in original.as_slice().iter().zip(filled.as_slice()) {
+        if a.is_finite() {
+            assert_eq!(a, b);
+        }
+    }
+}
+
+#[test]
+fn preview_writes_png() {
+    let Some(tif) = dem("grandcanyon.tif") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("gc.png");
+    let res = relief(&[os("preview"), tif.as_os_str(), out.as_os_str()]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn corrupt_input_fails_cleanly_without_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let bad = tmp.path().join("bad.tif");
+    // A TIFF header whose first IFD offset points past the end of the file.
+    std::fs::write(&bad, b"II*\0\xff\xff\xff\x00garbage").unwrap();
+    let out = tmp.path().join("out.exr");
+    let res = relief(&[os("convert"), bad.as_os_str(), out.as_os_str()]);
+    assert!(!res.status.success());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(stderr.starts_with("error: cannot read"), "{stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(tmp.path()).unwrap().count(),
+        1,
+        "stray files left"
+    );
+}
+
+#[test]
+fn unwritable_output_fails_cleanly_without_output() {
+    let Some(tif) = dem("grandcanyon.tif") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    // The output folder does not exist: the temporary file cannot be created.
+    let out = tmp.path().join("missing/dir/gc.tif");
+    let res = relief(&[os("convert"), tif.as_os_str(), out.as_os_str()]);
+    assert!(!res.status.success());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(stderr.starts_with("error: cannot write"), "{stderr}");
+    assert!(!out.exists());
+    // An unknown extension is refused before anything is written.
+    let out = tmp.path().join("gc.xyz");
+    let res = relief(&[os("convert"), tif.as_os_str(), out.as_os_str()]);
+    assert!(!res.status.success());
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(tmp.path()).unwrap().count(),
+        0,
+        "stray files left"
+    );
+}
+
+#[test]
+fn verbose_error_shows_cause_chain() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("nope.tif");
+    let out = tmp.path().join("o.tif");
+    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([
+            os("--verbose"),
+            os("convert"),
+            missing.as_os_str(),
+            out.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(stderr.contains("caused by:"), "{stderr}");
+}

@@ -1,0 +1,51 @@
+//! Stage `load`: reads the input DEM through relief-io, crops it when asked, records its
+//! statistics and writes it with a shaded preview.
+
+use anyhow::{Context, Result};
+use relief_heightfield::metrics;
+
+use super::{Stage, StageCx, Tolerance};
+
+/// Reads `config.input` (any format relief-io detects) and makes it the current terrain.
+#[derive(Debug)]
+pub(crate) struct Load;
+
+impl Stage for Load {
+    fn name(&self) -> &'static str {
+        "load"
+    }
+
+    fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
+        let input = &cx.config.input;
+        let raster = relief_io::read(input, &relief_io::ReadOptions::default())
+            .with_context(|| format!("cannot read {}", input.display()))?;
+        cx.section
+            .figure("format", format!("{:?} ({})", raster.format, raster.dtype));
+        let mut hf = raster.heightfield;
+        if let Some((x, y, w, h)) = cx.config.crop {
+            hf = hf.crop(x, y, w, h)?;
+            cx.section.figure("crop", [x, y, w, h]);
+        }
+        let s = metrics::stats(&hf)?;
+        let (cx_m, cy_m) = hf.cell_size();
+        cx.section.figure("width", hf.width());
+        cx.section.figure("height", hf.height());
+        cx.section.figure("cell_x_m", cx_m);
+        cx.section.figure("cell_y_m", cy_m);
+        cx.section.figure("min_m", s.min);
+        cx.section.figure("max_m", s.max);
+        cx.section.figure("mean_m", s.mean);
+        cx.section.figure("std_m", s.std);
+        cx.section.figure("voids", s.voids);
+        cx.section.figure("georeferenced", hf.georef().is_some());
+        cx.save_raster(
+            "dem",
+            "input DEM (hillshade over elevation ramp)",
+            &hf,
+            Some(Tolerance::EXACT),
+        )?;
+        cx.state.source = Some(hf.clone());
+        cx.state.set_terrain(hf);
+        Ok(())
+    }
+}

@@ -1,0 +1,277 @@
+//! The pipeline: an ordered list of [`Stage`]s run on one DEM, each writing its rasters,
+//! previews, figures and tables into a shared [`Report`].
+//!
+//! # Adding a stage
+//! 1. Create `src/pipeline/<name>.rs` with a unit struct implementing [`Stage`]: `name()` and
+//!    `run(&self, cx: &mut StageCx)`. Read the current terrain with [`State::terrain`], replace
+//!    it with [`State::set_terrain`] when the stage produces the next terrain (stages compose:
+//!    the output of one is the input of the next), save every raster with
+//!    [`StageCx::save_raster`] (GeoTIFF f32 + preview PNG, and a golden candidate with its
+//!    tolerance), and put numbers into `cx.section` (`figure`, `table`, `image`).
+//! 2. Add `mod <name>;` below and `Box::new(<name>::YourStage)` to [`default_stages`].
+//! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
+//!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use relief_heightfield::{Heightfield, Progress};
+
+mod convert;
+mod fill;
+mod load;
+pub(crate) mod report;
+
+pub(crate) use report::{Report, Section};
+
+/// What to run on and where to write.
+#[derive(Debug, Clone)]
+pub(crate) struct PipelineConfig {
+    /// Input DEM (any format relief-io reads).
+    pub(crate) input: PathBuf,
+    /// Optional crop `(x, y, w, h)` applied right after loading.
+    pub(crate) crop: Option<(usize, usize, usize, usize)>,
+    /// Output directory (created if missing).
+    pub(crate) out_dir: PathBuf,
+    /// Seed handed to every stochastic stage (each stage derives its own stream from it).
+    pub(crate) seed: u64,
+    /// Write preview PNGs (the golden run skips them).
+    pub(crate) previews: bool,
+    /// Print per-stage progress on stderr.
+    pub(crate) verbose: bool,
+}
+
+impl PipelineConfig {
+    /// The default run: the whole bundled fixture into `target/pipeline/`.
+    pub(crate) fn full(root: &Path) -> Self {
+        Self {
+            input: root.join("fixtures/grandcanyon.tif"),
+            crop: None,
+            out_dir: crate::target_dir(root).join("pipeline"),
+            seed: 0x5eed_2024,
+            previews: true,
+            verbose: true,
+        }
+    }
+
+    /// The golden run: a 128 x 128 crop of the fixture (fast; goldens stay small).
+    pub(crate) fn golden(root: &Path, out_dir: PathBuf) -> Self {
+        Self {
+            crop: Some((200, 160, 128, 128)),
+            out_dir,
+            previews: false,
+            verbose: false,
+            ..Self::full(root)
+        }
+    }
+}
+
+/// Tolerance of a golden comparison, in metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Tolerance {
+    /// Largest allowed absolute difference of any cell.
+    pub(crate) max_abs_m: f64,
+    /// Largest allowed root-mean-square difference.
+    pub(crate) rmse_m: f64,
+}
+
+impl Tolerance {
+    /// Bit-exact within f32 rounding noise of deterministic float code.
+    pub(crate) const EXACT: Tolerance = Tolerance {
+        max_abs_m: 1e-4,
+        rmse_m: 1e-5,
+    };
+}
+
+/// A raster a stage produced, kept for the golden comparison.
+#[derive(Debug, Clone)]
+pub(crate) struct RasterOutput {
+    /// File stem (`<out>/<name>.tif`, `fixtures/golden/<name>.tif`).
+    pub(crate) name: String,
+    /// The raster.
+    pub(crate) raster: Heightfield,
+    /// Golden tolerance, or `None` for rasters that are not compared.
+    pub(crate) tolerance: Option<Tolerance>,
+}
+
+/// Data flowing between stages.
+#[derive(Debug, Default)]
+pub(crate) struct State {
+    terrain: Option<Heightfield>,
+    /// The terrain as loaded (before any stage changed it), for before/after comparisons.
+    pub(crate) source: Option<Heightfield>,
+    /// Every raster saved so far, in order.
+    pub(crate) outputs: Vec<RasterOutput>,
+}
+
+impl State {
+    /// The current terrain (the previous stage's output).
+    pub(crate) fn terrain(&self) -> Result<&Heightfield> {
+        self.terrain
+            .as_ref()
+            .context("no terrain yet: the `load` stage must come first")
+    }
+
+    /// Replaces the current terrain; the next stage starts from it.
+    pub(crate) fn set_terrain(&mut self, hf: Heightfield) {
+        self.terrain = Some(hf);
+    }
+}
+
+/// Everything a stage may touch while it runs.
+#[derive(Debug)]
+pub(crate) struct StageCx<'a> {
+    /// The run's configuration.
+    pub(crate) config: &'a PipelineConfig,
+    /// Terrain and outputs flowing between stages.
+    pub(crate) state: &'a mut State,
+    /// This stage's part of the report.
+    pub(crate) section: &'a mut Section,
+}
+
+impl StageCx<'_> {
+    /// Writes `hf` as `<out>/<name>.tif` (GeoTIFF f32) and, unless previews are off, a shaded
+    /// preview `<out>/<name>.png` shown in the report; records it for the golden check when
+    /// `tolerance` is given.
+    pub(crate) fn save_raster(
+        &mut self,
+        name: &str,
+        caption: &str,
+        hf: &Heightfield,
+        tolerance: Option<Tolerance>,
+    ) -> Result<()> {
+        let tif = self.config.out_dir.join(format!("{name}.tif"));
+        relief_io::write(&tif, hf, &relief_io::WriteOptions::default())
+            .with_context(|| format!("cannot write {}", tif.display()))?;
+        self.section.file(&format!("{name}.tif"));
+        if self.config.previews {
+            self.save_preview(name, caption, hf)?;
+        }
+        self.state.outputs.push(RasterOutput {
+            name: name.to_string(),
+            raster: hf.clone(),
+            tolerance,
+        });
+        Ok(())
+    }
+
+    /// Writes a preview PNG `<out>/<name>.png` and shows it in the report.
+    pub(crate) fn save_preview(
+        &mut self,
+        name: &str,
+        caption: &str,
+        hf: &Heightfield,
+    ) -> Result<()> {
+        let png = self.config.out_dir.join(format!("{name}.png"));
+        relief_io::write_preview_png(&png, hf)
+            .with_context(|| format!("cannot write {}", png.display()))?;
+        self.section.image(&format!("{name}.png"), caption);
+        Ok(())
+    }
+
+    /// A progress sink for library calls that prints phase names under `verbose`.
+    pub(crate) fn progress(&self) -> StageProgress {
+        StageProgress {
+            verbose: self.config.verbose,
+        }
+    }
+}
+
+/// Prints each phase a library call announces (`    <phase> (<total>)`) on stderr.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StageProgress {
+    verbose: bool,
+}
+
+impl Progress for StageProgress {
+    fn begin(&self, phase: &str, total: u64) {
+        if self.verbose {
+            eprintln!("    {phase} ({total})");
+        }
+    }
+}
+
+/// One step of the pipeline.
+pub(crate) trait Stage {
+    /// Short identifier (`load`, `fill_voids`, ...): the report section and the progress line.
+    fn name(&self) -> &'static str;
+    /// Runs the stage: reads `cx.state`, writes files under `cx.config.out_dir`, fills
+    /// `cx.section`.
+    fn run(&self, cx: &mut StageCx<'_>) -> Result<()>;
+}
+
+/// The stages of the default run, in order.
+pub(crate) fn default_stages() -> Vec<Box<dyn Stage>> {
+    vec![
+        Box::new(load::Load),
+        Box::new(fill::FillVoids),
+        Box::new(convert::ConvertRoundTrips),
+    ]
+}
+
+/// What a finished run returns.
+#[derive(Debug)]
+pub(crate) struct PipelineRun {
+    /// The final state (terrain and saved rasters).
+    pub(crate) state: State,
+    /// Number of stages run.
+    pub(crate) stage_count: usize,
+    /// Wall time of the whole run.
+    pub(crate) seconds: f64,
+}
+
+/// Runs `stages` in order, then writes `summary.json` and `report.html` into the output folder.
+pub(crate) fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<PipelineRun> {
+    std::fs::create_dir_all(&config.out_dir)
+        .with_context(|| format!("cannot create {}", config.out_dir.display()))?;
+    let mut report = Report::new("relief pipeline", &config.input, config.seed);
+    let mut state = State::default();
+    let t_all = Instant::now();
+    let n = stages.len();
+    for (i, stage) in stages.iter().enumerate() {
+        if config.verbose {
+            eprintln!("[{}/{n}] {} ...", i + 1, stage.name());
+        }
+        let t = Instant::now();
+        let mut section = Section::new(stage.name());
+        let mut cx = StageCx {
+            config,
+            state: &mut state,
+            section: &mut section,
+        };
+        stage
+            .run(&mut cx)
+            .with_context(|| format!("pipeline stage `{}` failed", stage.name()))?;
+        section.seconds = t.elapsed().as_secs_f64();
+        if config.verbose {
+            eprintln!(
+                "[{}/{n}] {} done in {:.2} s",
+                i + 1,
+                stage.name(),
+                section.seconds
+            );
+        }
+        report.push(section);
+    }
+    let seconds = t_all.elapsed().as_secs_f64();
+    report.total_seconds = seconds;
+    report.peak_memory_bytes = peak_memory_bytes();
+    report.write(&config.out_dir)?;
+    if state.terrain.is_none() {
+        bail!("the pipeline ran no stage that produced a terrain");
+    }
+    Ok(PipelineRun {
+        state,
+        stage_count: n,
+        seconds,
+    })
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`), when known.
+fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
