@@ -64,8 +64,8 @@ use std::path::Path;
 use relief_heightfield::Heightfield;
 
 pub use error::{IoError, Result};
-pub use mesh::{MeshFormat, write_mesh, write_mesh_as};
-pub use preview::{write_gray_png, write_preview_png, write_rgb_png};
+pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as};
+pub use preview::{preview_rgb, write_gray_png, write_preview_png, write_rgb_png};
 
 /// A raster or mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

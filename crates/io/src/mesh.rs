@@ -1,22 +1,24 @@
-//! Triangle mesh writers: OBJ, binary PLY, GLB.
+//! Triangle mesh writers: Wavefront OBJ, binary little-endian PLY and glTF 2.0 binary (GLB),
+//! all written atomically.
 
+use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::{IoError, Result};
+use crate::{IoError, Result, atomic};
 
 /// A mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MeshFormat {
-    /// Wavefront OBJ (text).
+    /// Wavefront OBJ (text, 1-based indices, `vn` when normals are given).
     Obj,
-    /// Binary little-endian PLY.
+    /// Binary little-endian PLY (`float x y z [nx ny nz]`, `list uchar uint vertex_indices`).
     Ply,
-    /// glTF 2.0 binary.
+    /// glTF 2.0 binary: one JSON chunk and one BIN chunk, 4-byte aligned.
     Glb,
 }
 
 impl MeshFormat {
-    /// From a file extension (`obj`, `ply`, `glb`).
+    /// From a file extension (`obj`, `ply`, `glb`, case-insensitive).
     pub fn from_extension(path: &Path) -> Option<MeshFormat> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
@@ -28,7 +30,8 @@ impl MeshFormat {
     }
 }
 
-/// Writes a mesh, format from the extension.
+/// Writes a triangle mesh to `path`; the format comes from the extension (`.obj`, `.ply`,
+/// `.glb`). `normals`, when given, has one entry per position.
 pub fn write_mesh(
     path: &Path,
     positions: &[[f32; 3]],
@@ -44,16 +47,225 @@ pub fn write_mesh(
     write_mesh_as(path, f, positions, triangles, normals)
 }
 
-/// Writes a mesh in format `f`.
+/// Writes a triangle mesh to `path` in format `f` (atomically).
 pub fn write_mesh_as(
     path: &Path,
-    _f: MeshFormat,
-    _positions: &[[f32; 3]],
-    _triangles: &[[u32; 3]],
-    _normals: Option<&[[f32; 3]]>,
+    f: MeshFormat,
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    normals: Option<&[[f32; 3]]>,
 ) -> Result<()> {
-    Err(IoError::UnknownFormat(format!(
-        "{}: not yet implemented",
-        path.display()
-    )))
+    let bytes = encode_mesh(f, positions, triangles, normals).map_err(|e| e.in_file(path))?;
+    atomic::write_atomic(path, &bytes)
+}
+
+fn validate(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    normals: Option<&[[f32; 3]]>,
+) -> Result<()> {
+    if positions.is_empty() || triangles.is_empty() {
+        return Err(IoError::param(
+            "mesh",
+            format!(
+                "{} positions, {} triangles",
+                positions.len(),
+                triangles.len()
+            ),
+            "a mesh needs at least one position and one triangle",
+        ));
+    }
+    if positions.len() > u32::MAX as usize {
+        return Err(IoError::param(
+            "positions",
+            positions.len(),
+            "more than 2^32 - 1 vertices",
+        ));
+    }
+    if let Some(i) = positions
+        .iter()
+        .position(|p| p.iter().any(|c| !c.is_finite()))
+    {
+        return Err(IoError::param(
+            "positions",
+            format!("{:?} at {i}", positions[i]),
+            "must be finite",
+        ));
+    }
+    if let Some(n) = normals {
+        if n.len() != positions.len() {
+            return Err(IoError::param(
+                "normals",
+                n.len(),
+                format!("need one per position ({})", positions.len()),
+            ));
+        }
+        if let Some(i) = n.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+            return Err(IoError::param(
+                "normals",
+                format!("{:?} at {i}", n[i]),
+                "must be finite",
+            ));
+        }
+    }
+    let nv = positions.len() as u64;
+    if let Some((i, t)) = triangles
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&v| v as u64 >= nv))
+    {
+        return Err(IoError::param(
+            "triangles",
+            format!("{t:?} at {i}"),
+            format!("index out of range for {nv} positions"),
+        ));
+    }
+    Ok(())
+}
+
+/// Encodes a mesh as the bytes of format `f`.
+pub fn encode_mesh(
+    f: MeshFormat,
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    normals: Option<&[[f32; 3]]>,
+) -> Result<Vec<u8>> {
+    validate(positions, triangles, normals)?;
+    Ok(match f {
+        MeshFormat::Obj => obj(positions, triangles, normals),
+        MeshFormat::Ply => ply(positions, triangles, normals),
+        MeshFormat::Glb => glb(positions, triangles, normals),
+    })
+}
+
+fn obj(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+    let mut s = String::with_capacity(p.len() * 40 + t.len() * 30);
+    s.push_str("# written by relief-io\n");
+    for v in p {
+        let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
+    }
+    if let Some(n) = n {
+        for v in n {
+            let _ = writeln!(s, "vn {} {} {}", v[0], v[1], v[2]);
+        }
+    }
+    for tri in t {
+        let [a, b, c] = tri.map(|i| i as u64 + 1);
+        if n.is_some() {
+            let _ = writeln!(s, "f {a}//{a} {b}//{b} {c}//{c}");
+        } else {
+            let _ = writeln!(s, "f {a} {b} {c}");
+        }
+    }
+    s.into_bytes()
+}
+
+fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+    let mut h = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment written by relief-io\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        p.len()
+    );
+    if n.is_some() {
+        h.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+    }
+    let _ = write!(
+        h,
+        "element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        t.len()
+    );
+    let mut out = h.into_bytes();
+    out.reserve(p.len() * 24 + t.len() * 13);
+    for (i, v) in p.iter().enumerate() {
+        for c in v {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+        if let Some(n) = n {
+            for c in &n[i] {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    for tri in t {
+        out.push(3);
+        for i in tri {
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    out
+}
+
+fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+    // BIN layout: positions, [normals], indices; every view starts 4-byte aligned (all
+    // components are 4 bytes wide, so the views are contiguous).
+    let mut bin = Vec::with_capacity(p.len() * 24 + t.len() * 12);
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    for v in p {
+        for k in 0..3 {
+            min[k] = min[k].min(v[k]);
+            max[k] = max[k].max(v[k]);
+            bin.extend_from_slice(&v[k].to_le_bytes());
+        }
+    }
+    let pos_len = bin.len();
+    if let Some(n) = n {
+        for v in n {
+            for c in v {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    let nrm_len = bin.len() - pos_len;
+    for tri in t {
+        for i in tri {
+            bin.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    let idx_len = bin.len() - pos_len - nrm_len;
+    let mut views = vec![
+        serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "target": 34962}),
+    ];
+    let mut accessors = vec![serde_json::json!({
+        "bufferView": 0, "componentType": 5126, "count": p.len(), "type": "VEC3",
+        "min": min, "max": max
+    })];
+    let mut attributes = serde_json::json!({"POSITION": 0});
+    if n.is_some() {
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": pos_len, "byteLength": nrm_len, "target": 34962}));
+        accessors.push(serde_json::json!({"bufferView": 1, "componentType": 5126, "count": p.len(), "type": "VEC3"}));
+        attributes["NORMAL"] = serde_json::json!(1);
+    }
+    let iv = views.len();
+    views.push(serde_json::json!({"buffer": 0, "byteOffset": pos_len + nrm_len, "byteLength": idx_len, "target": 34963}));
+    accessors.push(serde_json::json!({"bufferView": iv, "componentType": 5125, "count": t.len() * 3, "type": "SCALAR"}));
+    let ia = accessors.len() - 1;
+    let json = serde_json::json!({
+        "asset": {"version": "2.0", "generator": "relief-io"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": attributes, "indices": ia, "mode": 4}]}],
+        "buffers": [{"byteLength": bin.len()}],
+        "bufferViews": views,
+        "accessors": accessors,
+    });
+    let mut js = serde_json::to_vec(&json).unwrap_or_default();
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + js.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(js.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0x4E4F_534Au32.to_le_bytes());
+    out.extend_from_slice(&js);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
+    out.extend_from_slice(&bin);
+    out
 }

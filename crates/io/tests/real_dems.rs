@@ -88,5 +88,45 @@ fn geotiffs_equal_their_f32() {
             .as_deref(),
         Some("EPSG:3857")
     );
-    let _ = original;
+}
+
+#[test]
+fn hgt_json_and_npz_equal_their_f32() {
+    let Some(dir) = relief_testdata::dem_dir() else {
+        return;
+    };
+    let o = ReadOptions::default();
+    for (id, file, format, cell_tol) in [
+        ("N47E011", "N47E011.hgt", Format::Hgt, 0.005),
+        ("N57E011", "N57E011.hgt", Format::Hgt, 0.005),
+        (
+            "jacksboro_fault",
+            "jacksboro_fault_dem.npz",
+            Format::Npz,
+            0.005,
+        ),
+        ("topobathy", "topobathy.npz", Format::Npz, 0.02),
+        (
+            "maunga_whau",
+            "volcano.json",
+            Format::JsonGrid,
+            f64::INFINITY,
+        ),
+    ] {
+        let want = relief_testdata::load_dem(id).expect("dem");
+        let r = read(&dir.join(file), &o).unwrap_or_else(|e| panic!("{id}: {e}"));
+        assert_eq!(r.format, format, "{id}");
+        assert_same(id, &r.heightfield, &want);
+        if cell_tol.is_finite() {
+            check_cell(id, &r.heightfield, &want, cell_tol);
+        }
+    }
+    let n47 = original(&dir, "N47E011", "N47E011.hgt", &o);
+    assert_eq!(n47.void_count(), 54_278);
+    assert_eq!((n47.width(), n47.height()), (1201, 1201));
+    let topo = read(&dir.join("topobathy.npz"), &o).unwrap();
+    assert!(topo.rows_flipped, "topobathy latitude ascends");
+    let jb = read(&dir.join("jacksboro_fault_dem.npz"), &o).unwrap();
+    assert!(!jb.rows_flipped);
+    assert_eq!(jb.dtype, "int16");
 }
