@@ -211,3 +211,39 @@ fn verbose_error_shows_cause_chain() {
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert!(stderr.contains("caused by:"), "{stderr}");
 }
+
+/// Every malformed file of `fixtures/bad/` fails with one `error:` line, a non-zero exit code
+/// and no output file.
+#[test]
+fn every_bad_fixture_fails_cleanly() {
+    let bad = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/bad");
+    let Ok(entries) = std::fs::read_dir(&bad) else {
+        panic!("{} is missing", bad.display());
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let mut n = 0;
+    for e in entries {
+        let input = e.unwrap().path();
+        if input.extension().is_some_and(|x| x == "py" || x == "md") {
+            continue; // the generator script and its notes
+        }
+        let out = tmp.path().join("out.tif");
+        let res = relief(&[os("convert"), input.as_os_str(), out.as_os_str()]);
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert!(!res.status.success(), "{} was accepted", input.display());
+        assert!(
+            stderr.starts_with("error: cannot read"),
+            "{}: {stderr}",
+            input.display()
+        );
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(!out.exists());
+        n += 1;
+    }
+    assert!(n >= 10, "only {n} bad fixtures");
+    assert_eq!(
+        std::fs::read_dir(tmp.path()).unwrap().count(),
+        0,
+        "stray files left"
+    );
+}
