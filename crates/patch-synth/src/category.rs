@@ -1,0 +1,140 @@
+//! Exemplar categories and the categorisation map (sections 3.1 and 4).
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+
+use crate::error::{PatchSynthError, Result};
+use crate::index::{Sat, check_exemplars, grid_rects};
+use crate::kmeans::kmeans;
+use crate::settings::Settings;
+
+/// Map value that allows every category.
+pub const ANY_CATEGORY: u16 = u16::MAX;
+
+/// Per-cell category ids at the target resolution: a synthesis block accepts the exemplar
+/// categories that occur inside its window ([`ANY_CATEGORY`] accepts all).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CategoryMap {
+    /// Width in cells.
+    pub width: usize,
+    /// Height in cells.
+    pub height: usize,
+    /// Row-major category ids.
+    pub ids: Vec<u16>,
+}
+
+impl CategoryMap {
+    /// A map from a user raster (e.g. a painted image decoded to ids).
+    pub fn from_raster(width: usize, height: usize, ids: Vec<u16>) -> Result<Self> {
+        if width == 0 || height == 0 || ids.len() != width * height {
+            return Err(PatchSynthError::InvalidControl {
+                name: "categories",
+                reason: format!("{} ids for a {width} x {height} map", ids.len()),
+            });
+        }
+        Ok(Self { width, height, ids })
+    }
+
+    /// A map with one category everywhere.
+    pub fn uniform(width: usize, height: usize, id: u16) -> Self {
+        Self {
+            width,
+            height,
+            ids: vec![id; width * height],
+        }
+    }
+
+    /// Clusters the guide's heights into `k` classes by k-means (section 3.1); class 0 is the
+    /// lowest. Returns the map and the class centres (metres, ascending).
+    pub fn from_guide_heights(
+        guide: &Heightfield,
+        k: usize,
+        seed: u64,
+    ) -> Result<(Self, Vec<f32>)> {
+        guide.require_complete()?;
+        if k == 0 || k > 1024 {
+            return Err(PatchSynthError::setting("k", k, "must be in 1..=1024"));
+        }
+        let km = kmeans(guide.as_slice(), 1, k, 50, seed);
+        let ids = km.labels.iter().map(|&l| l as u16).collect();
+        Ok((
+            Self {
+                width: guide.width(),
+                height: guide.height(),
+                ids,
+            },
+            km.centroids,
+        ))
+    }
+
+    /// Replaces every occurrence of `from` by `to` (e.g. to associate a height class with an
+    /// exemplar category).
+    pub fn relabel(&mut self, from: u16, to: u16) {
+        self.ids
+            .iter_mut()
+            .filter(|v| **v == from)
+            .for_each(|v| *v = to);
+    }
+}
+
+/// Automatic exemplar categories (section 4): the patches of all exemplars are clustered into
+/// `k` classes by their `N x N` block averages (k-means), classes ordered by mean height; each
+/// exemplar takes the class most of its patches fall in. Returns one category per exemplar.
+pub fn categorize_exemplars(
+    exemplars: &[Heightfield],
+    k: usize,
+    settings: &Settings,
+) -> Result<Vec<u16>> {
+    settings.check()?;
+    if k == 0 || k > 1024 {
+        return Err(PatchSynthError::setting("k", k, "must be in 1..=1024"));
+    }
+    let ex: Vec<crate::index::Exemplar> = exemplars
+        .iter()
+        .map(|h| crate::index::Exemplar::new(h.clone(), 0))
+        .collect();
+    check_exemplars(&ex, settings.patch_size)?;
+    let p = settings.patch_size;
+    let rects = grid_rects(p, settings.blocks);
+    // Patches on a grid of step `overlap` keep the cost bounded on large exemplars.
+    let step = settings.overlap.max(settings.exemplar_stride);
+    let per: Vec<Vec<f32>> = exemplars
+        .par_iter()
+        .map(|hf| {
+            let sat = Sat::new(hf);
+            let mut d = Vec::new();
+            for y in (0..=hf.height() - p).step_by(step) {
+                for x in (0..=hf.width() - p).step_by(step) {
+                    d.extend(
+                        rects
+                            .iter()
+                            .map(|r| sat.mean(x + r[0], y + r[1], r[2], r[3])),
+                    );
+                }
+            }
+            d
+        })
+        .collect();
+    let all: Vec<f32> = per.iter().flatten().copied().collect();
+    let dim = rects.len();
+    let km = kmeans(
+        &all,
+        dim,
+        k,
+        settings.kmeans_iterations.max(10),
+        settings.seed,
+    );
+    let mut out = Vec::with_capacity(exemplars.len());
+    let mut start = 0;
+    for d in &per {
+        let n = d.len() / dim;
+        let mut votes = vec![0usize; km.k()];
+        for &l in &km.labels[start..start + n] {
+            votes[l as usize] += 1;
+        }
+        start += n;
+        let best = (0..votes.len()).max_by(|&a, &b| votes[a].cmp(&votes[b]).then(b.cmp(&a)));
+        out.push(best.unwrap_or(0) as u16);
+    }
+    Ok(out)
+}

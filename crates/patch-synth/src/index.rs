@@ -1,0 +1,511 @@
+//! Preprocessing (section 3.5): every exemplar patch gets its `N x N` block-average descriptor
+//! (section 3.2), the descriptors are clustered by k-means into the keys of a hash table whose
+//! buckets are further split by exemplar category, and the overlap regions (left strip, top
+//! strip and the L-shaped corner) are reduced by PCA and stored per bucket in kd-trees.
+
+use std::num::NonZero;
+
+use kiddo::SquaredEuclidean;
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+use relief_heightfield::{Heightfield, Progress};
+
+use crate::error::{PatchSynthError, Result};
+use crate::kmeans::{KMeans, kmeans};
+use crate::pca::Pca;
+use crate::settings::Settings;
+
+/// An exemplar DEM with its category (section 3.1).
+#[derive(Debug, Clone)]
+pub struct Exemplar {
+    /// The exemplar terrain (void-free).
+    pub heightfield: Heightfield,
+    /// Category id; the categorisation map names which categories each target region accepts.
+    pub category: u16,
+}
+
+impl Exemplar {
+    /// An exemplar with a category.
+    pub fn new(heightfield: Heightfield, category: u16) -> Self {
+        Self {
+            heightfield,
+            category,
+        }
+    }
+}
+
+/// Summed-area table for O(1) box sums.
+#[derive(Debug, Clone)]
+pub(crate) struct Sat {
+    w: usize,
+    data: Vec<f64>,
+}
+
+impl Sat {
+    pub(crate) fn new(hf: &Heightfield) -> Self {
+        let (w, h) = (hf.width(), hf.height());
+        let s = hf.as_slice();
+        let mut data = vec![0.0f64; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0.0f64;
+            for x in 0..w {
+                row += s[y * w + x] as f64;
+                data[(y + 1) * (w + 1) + x + 1] = data[y * (w + 1) + x + 1] + row;
+            }
+        }
+        Self { w, data }
+    }
+    #[inline]
+    pub(crate) fn mean(&self, x: usize, y: usize, w: usize, h: usize) -> f32 {
+        let s = self.w + 1;
+        let (x1, y1) = (x + w, y + h);
+        let v = self.data[y1 * s + x1] - self.data[y * s + x1] - self.data[y1 * s + x]
+            + self.data[y * s + x];
+        (v / (w * h) as f64) as f32
+    }
+}
+
+/// Cell boundaries splitting `len` into `n` nearly equal parts.
+pub(crate) fn bounds(len: usize, n: usize) -> Vec<(usize, usize)> {
+    (0..n)
+        .map(|i| (i * len / n, (i + 1) * len / n - i * len / n))
+        .collect()
+}
+
+/// Rectangles `(x, y, w, h)` (patch coordinates) of an `n x n` grid of cells.
+pub(crate) fn grid_rects(size: usize, n: usize) -> Vec<[usize; 4]> {
+    let b = bounds(size, n);
+    let mut r = Vec::with_capacity(n * n);
+    for &(y, h) in &b {
+        for &(x, w) in &b {
+            r.push([x, y, w, h]);
+        }
+    }
+    r
+}
+
+/// Which already-synthesized neighbours a grid block overlaps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OverlapShape {
+    /// Only the left strip (first row of the grid).
+    Left = 0,
+    /// Only the top strip (first column).
+    Top = 1,
+    /// Both strips (the L-shaped region).
+    Both = 2,
+}
+
+/// Cell layout of the reduced overlap features of each shape: box means over `f x f` cells.
+#[derive(Debug, Clone)]
+pub(crate) struct Layouts {
+    pub(crate) rects: [Vec<[usize; 4]>; 3],
+}
+
+impl Layouts {
+    pub(crate) fn new(p: usize, o: usize) -> Self {
+        let f = (((p * o) as f64 / 256.0).sqrt().ceil() as usize).max(1);
+        let cells = |len: usize| len.div_ceil(f).max(1);
+        let rect_grid = |x0: usize, y0: usize, w: usize, h: usize| {
+            let mut r = Vec::new();
+            for (y, hh) in bounds(h, cells(h)) {
+                for (x, ww) in bounds(w, cells(w)) {
+                    r.push([x0 + x, y0 + y, ww, hh]);
+                }
+            }
+            r
+        };
+        let left = rect_grid(0, 0, o, p);
+        let top = rect_grid(0, 0, p, o);
+        let mut both = left.clone();
+        both.extend(rect_grid(o, 0, p - o, o));
+        Self {
+            rects: [left, top, both],
+        }
+    }
+}
+
+/// Mean-removed box-mean features of one shape, from a box-mean function in patch coordinates.
+pub(crate) fn features(
+    rects: &[[usize; 4]],
+    mean: impl Fn(usize, usize, usize, usize) -> f32,
+) -> Vec<f32> {
+    let mut f: Vec<f32> = rects.iter().map(|r| mean(r[0], r[1], r[2], r[3])).collect();
+    let m = f.iter().sum::<f32>() / f.len() as f32;
+    f.iter_mut().for_each(|v| *v -= m);
+    f
+}
+
+macro_rules! trees {
+    ($($v:ident = $k:literal),*) => {
+        /// A kd-tree over PCA coordinates, monomorphised for the supported dimensions.
+        pub(crate) enum Tree { $($v(ImmutableKdTree<f32, u32, $k, 32>)),* }
+        impl Tree {
+            fn build(points: &[f32], k: usize) -> Tree {
+                match k {
+                    $($k => {
+                        let pts: Vec<[f32; $k]> = points
+                            .chunks_exact($k)
+                            .map(|c| c.try_into().expect("chunk of k values"))
+                            .collect();
+                        Tree::$v(ImmutableKdTree::new_from_slice(&pts))
+                    })*
+                    _ => unreachable!("pca_dims is checked by Settings::check"),
+                }
+            }
+            /// The `n` nearest items `(squared distance, item)`.
+            pub(crate) fn nearest(&self, q: &[f32], n: usize) -> Vec<(f32, u32)> {
+                let n = NonZero::new(n.max(1)).expect("n >= 1");
+                match self {
+                    $(Tree::$v(t) => {
+                        let q: [f32; $k] = q.try_into().expect("query of k values");
+                        t.nearest_n::<SquaredEuclidean>(&q, n)
+                            .into_iter()
+                            .map(|nn| (nn.distance, nn.item))
+                            .collect()
+                    })*
+                }
+            }
+        }
+    };
+}
+trees!(D4 = 4, D6 = 6, D8 = 8, D12 = 12, D16 = 16);
+
+/// One hash-table bucket: the patches of one k-means cluster and one category, with a kd-tree
+/// of their PCA-reduced overlap features for every overlap shape.
+pub(crate) struct Bucket {
+    pub(crate) patches: Vec<u32>,
+    pub(crate) trees: Vec<Tree>,
+}
+
+/// A patch of an exemplar: exemplar index and top-left corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PatchRef {
+    /// Index of the exemplar.
+    pub exemplar: u32,
+    /// Column of the top-left cell.
+    pub x: u32,
+    /// Row of the top-left cell.
+    pub y: u32,
+}
+
+/// Settings the index was built with (checked against the synthesis settings).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct IndexParams {
+    pub(crate) patch: usize,
+    pub(crate) overlap: usize,
+    pub(crate) blocks: usize,
+    pub(crate) stride: usize,
+    pub(crate) clusters: usize,
+    pub(crate) pca_dims: usize,
+    pub(crate) seed: u64,
+}
+
+/// The preprocessed exemplar set: descriptors, hash table, PCA bases and kd-trees (built once,
+/// reusable for many syntheses with the same patch geometry).
+pub struct ExemplarIndex {
+    pub(crate) params: IndexParams,
+    pub(crate) exemplars: Vec<Exemplar>,
+    pub(crate) sats: Vec<Sat>,
+    pub(crate) patches: Vec<PatchRef>,
+    /// `N * N` block means per patch.
+    pub(crate) descriptors: Vec<f32>,
+    pub(crate) clusters: KMeans,
+    /// Distinct categories, sorted.
+    pub(crate) categories: Vec<u16>,
+    /// `cluster * categories.len() + category index`.
+    pub(crate) buckets: Vec<Bucket>,
+    pub(crate) layouts: Layouts,
+    pub(crate) pcas: Vec<Pca>,
+    /// Patch ids sorted by the mean of their descriptor, and those means.
+    pub(crate) by_mean: Vec<(f32, u32)>,
+}
+
+impl std::fmt::Debug for ExemplarIndex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ExemplarIndex")
+            .field("exemplars", &self.exemplars.len())
+            .field("patches", &self.patches.len())
+            .field("clusters", &self.clusters.k())
+            .field("categories", &self.categories)
+            .field(
+                "buckets",
+                &self
+                    .buckets
+                    .iter()
+                    .filter(|b| !b.patches.is_empty())
+                    .count(),
+            )
+            .finish()
+    }
+}
+
+pub(crate) fn check_exemplars(exemplars: &[Exemplar], patch: usize) -> Result<()> {
+    if exemplars.is_empty() {
+        return Err(PatchSynthError::NoExemplars);
+    }
+    for (i, e) in exemplars.iter().enumerate() {
+        let hf = &e.heightfield;
+        let bad = |reason: String| PatchSynthError::BadExemplar {
+            index: i,
+            width: hf.width(),
+            height: hf.height(),
+            reason,
+        };
+        if hf.width() < patch || hf.height() < patch {
+            return Err(bad(format!("smaller than patch_size = {patch}")));
+        }
+        if hf.has_voids() {
+            return Err(bad(format!(
+                "{} void cells; fill them first",
+                hf.void_count()
+            )));
+        }
+        if hf.as_slice().iter().any(|v| !v.is_finite()) {
+            return Err(bad("non-finite heights".into()));
+        }
+    }
+    Ok(())
+}
+
+impl ExemplarIndex {
+    /// Preprocesses `exemplars` for `settings` (checked here).
+    pub fn build(
+        exemplars: Vec<Exemplar>,
+        settings: &Settings,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
+        settings.check()?;
+        let p = settings.patch_size;
+        check_exemplars(&exemplars, p)?;
+        let stride = settings.exemplar_stride;
+        let sats: Vec<Sat> = exemplars
+            .par_iter()
+            .map(|e| Sat::new(&e.heightfield))
+            .collect();
+        let mut patches = Vec::new();
+        for (i, e) in exemplars.iter().enumerate() {
+            let (w, h) = (e.heightfield.width(), e.heightfield.height());
+            for y in (0..=h - p).step_by(stride) {
+                for x in (0..=w - p).step_by(stride) {
+                    patches.push(PatchRef {
+                        exemplar: i as u32,
+                        x: x as u32,
+                        y: y as u32,
+                    });
+                }
+            }
+        }
+        if patches.len() > u32::MAX as usize {
+            return Err(PatchSynthError::setting(
+                "exemplar_stride",
+                stride,
+                "too many patches; increase the stride",
+            ));
+        }
+        progress.begin("patch-synth: descriptors", patches.len() as u64);
+        let n = settings.blocks;
+        let block_rects = grid_rects(p, n);
+        let descriptors: Vec<f32> = patches
+            .par_iter()
+            .flat_map_iter(|pr| {
+                let sat = &sats[pr.exemplar as usize];
+                let (px, py) = (pr.x as usize, pr.y as usize);
+                block_rects
+                    .iter()
+                    .map(move |r| sat.mean(px + r[0], py + r[1], r[2], r[3]))
+            })
+            .collect();
+        progress.advance(patches.len() as u64);
+        progress.begin("patch-synth: k-means", settings.kmeans_iterations as u64);
+        let clusters = kmeans(
+            &descriptors,
+            n * n,
+            settings.kmeans_clusters,
+            settings.kmeans_iterations,
+            settings.seed,
+        );
+        progress.advance(settings.kmeans_iterations as u64);
+
+        let mut categories: Vec<u16> = exemplars.iter().map(|e| e.category).collect();
+        categories.sort_unstable();
+        categories.dedup();
+        let ncat = categories.len();
+        let cat_index: Vec<usize> = exemplars
+            .iter()
+            .map(|e| {
+                categories
+                    .binary_search(&e.category)
+                    .expect("listed category")
+            })
+            .collect();
+
+        // PCA bases of the three overlap shapes, fitted on seeded random patches.
+        progress.begin("patch-synth: pca", 3);
+        let layouts = Layouts::new(p, settings.overlap);
+        let mut rng = Pcg64Mcg::seed_from_u64(settings.seed ^ 0x7063_6121);
+        let ns = settings.pca_samples.min(patches.len()).max(2);
+        let sample: Vec<usize> = (0..ns)
+            .map(|_| rng.random_range(0..patches.len()))
+            .collect();
+        let feat = |pid: usize, shape: usize| {
+            let pr = patches[pid];
+            let sat = &sats[pr.exemplar as usize];
+            let (px, py) = (pr.x as usize, pr.y as usize);
+            features(&layouts.rects[shape], |x, y, w, h| {
+                sat.mean(px + x, py + y, w, h)
+            })
+        };
+        let mut pcas = Vec::with_capacity(3);
+        for shape in 0..3 {
+            let dim = layouts.rects[shape].len();
+            let k = settings.pca_dims;
+            if k > dim {
+                return Err(PatchSynthError::setting(
+                    "pca_dims",
+                    k,
+                    format!("exceeds the {dim} overlap features of this patch geometry"),
+                ));
+            }
+            let data: Vec<f32> = sample.iter().flat_map(|&s| feat(s, shape)).collect();
+            pcas.push(Pca::fit(&data, dim, k)?);
+            progress.advance(1);
+        }
+
+        // Buckets: cluster x category.
+        let k = clusters.k();
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); k * ncat];
+        for (pid, pr) in patches.iter().enumerate() {
+            let c = clusters.labels[pid] as usize;
+            members[c * ncat + cat_index[pr.exemplar as usize]].push(pid as u32);
+        }
+        progress.begin("patch-synth: kd-trees", members.len() as u64);
+        let kd = settings.pca_dims;
+        let buckets: Vec<Bucket> = members
+            .into_par_iter()
+            .map(|ids| {
+                let trees = if ids.is_empty() {
+                    Vec::new()
+                } else {
+                    (0..3)
+                        .map(|shape| {
+                            let mut pts = vec![0.0f32; ids.len() * kd];
+                            for (j, &pid) in ids.iter().enumerate() {
+                                let f = feat(pid as usize, shape);
+                                pcas[shape].project(&f, &mut pts[j * kd..(j + 1) * kd]);
+                            }
+                            Tree::build(&pts, kd)
+                        })
+                        .collect()
+                };
+                progress.advance(1);
+                Bucket {
+                    patches: ids,
+                    trees,
+                }
+            })
+            .collect();
+        let nn = n * n;
+        let mut by_mean: Vec<(f32, u32)> = (0..patches.len())
+            .map(|i| {
+                let d = &descriptors[i * nn..(i + 1) * nn];
+                (d.iter().sum::<f32>() / nn as f32, i as u32)
+            })
+            .collect();
+        by_mean.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        Ok(Self {
+            params: IndexParams {
+                patch: p,
+                overlap: settings.overlap,
+                blocks: n,
+                stride,
+                clusters: settings.kmeans_clusters,
+                pca_dims: settings.pca_dims,
+                seed: settings.seed,
+            },
+            exemplars,
+            sats,
+            patches,
+            descriptors,
+            clusters,
+            categories,
+            buckets,
+            layouts,
+            pcas,
+            by_mean,
+        })
+    }
+
+    /// Checks that `settings` use the patch geometry this index was built with.
+    pub(crate) fn check_settings(&self, s: &Settings) -> Result<()> {
+        let p = &self.params;
+        let pairs = [
+            ("patch_size", s.patch_size, p.patch),
+            ("overlap", s.overlap, p.overlap),
+            ("blocks", s.blocks, p.blocks),
+            ("exemplar_stride", s.exemplar_stride, p.stride),
+            ("kmeans_clusters", s.kmeans_clusters, p.clusters),
+            ("pca_dims", s.pca_dims, p.pca_dims),
+        ];
+        for (name, v, iv) in pairs {
+            if v != iv {
+                return Err(PatchSynthError::IndexMismatch {
+                    name,
+                    value: v.to_string(),
+                    index_value: iv.to_string(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The exemplars.
+    pub fn exemplars(&self) -> &[Exemplar] {
+        &self.exemplars
+    }
+    /// Every indexed patch.
+    pub fn patches(&self) -> &[PatchRef] {
+        &self.patches
+    }
+    /// Block-average descriptor (`N * N` values) of patch `id`.
+    pub fn descriptor(&self, id: usize) -> &[f32] {
+        let nn = self.params.blocks * self.params.blocks;
+        &self.descriptors[id * nn..(id + 1) * nn]
+    }
+    /// The k-means clustering of the descriptors (the hash-table keys).
+    pub fn clusters(&self) -> &KMeans {
+        &self.clusters
+    }
+    /// Distinct exemplar categories.
+    pub fn categories(&self) -> &[u16] {
+        &self.categories
+    }
+    /// Fraction of the overlap-feature variance kept by each PCA (left, top, L-shape).
+    pub fn pca_explained(&self) -> [f32; 3] {
+        [
+            self.pcas[0].explained,
+            self.pcas[1].explained,
+            self.pcas[2].explained,
+        ]
+    }
+    /// Category of patch `id`.
+    pub(crate) fn patch_category(&self, id: usize) -> u16 {
+        self.exemplars[self.patches[id].exemplar as usize].category
+    }
+    /// Row `y` of patch `id` (patch-local, `patch_size` values).
+    #[inline]
+    pub(crate) fn row(&self, id: usize, y: usize) -> &[f32] {
+        let pr = self.patches[id];
+        let hf = &self.exemplars[pr.exemplar as usize].heightfield;
+        let w = hf.width();
+        let start = (pr.y as usize + y) * w + pr.x as usize;
+        &hf.as_slice()[start..start + self.params.patch]
+    }
+    /// Box mean over a rectangle of patch `id` (patch-local).
+    #[inline]
+    pub(crate) fn box_mean(&self, id: usize, x: usize, y: usize, w: usize, h: usize) -> f32 {
+        let pr = self.patches[id];
+        self.sats[pr.exemplar as usize].mean(pr.x as usize + x, pr.y as usize + y, w, h)
+    }
+}

@@ -1,0 +1,88 @@
+//! Guided patch-based terrain synthesis after Cruz, Velho, Galin, Peytavie and Guérin,
+//! "Patch-based Terrain Synthesis" (GRAPP 2015), `cruz2015` in the shared papers.
+//!
+//! A new terrain is quilted from square patches of real exemplar DEMs, placed in raster order
+//! on an overlapping grid and controlled by
+//! * a **guide** (section 3.1): a low-frequency DEM at the target resolution, made by low-pass
+//!   filtering an existing DEM ([`guide::lowpass_resample`], [`guide::gaussian_blur`]) or by
+//!   interpolating painted seeds and sketch strokes ([`guide::guide_from_sketch`]);
+//! * exemplar **categories** and a **categorisation map** (sections 3.1 and 4): user-given per
+//!   exemplar or clustered ([`categorize_exemplars`]); the map comes from a user raster or from
+//!   k-means of the guide's heights ([`CategoryMap::from_guide_heights`]).
+//!
+//! # Method
+//! * Preprocessing ([`ExemplarIndex::build`], section 3.5): every patch gets the `N x N`
+//!   block-average descriptor of section 3.2 (`N = 3`); k-means of the descriptors gives the
+//!   keys of a hash table whose buckets are split by category. The overlap regions (left strip,
+//!   top strip, L-shaped corner; reduced to box means of a few cells and mean-removed, so the
+//!   match is invariant to the vertical translation) are projected on a PCA basis (faer
+//!   symmetric eigen-decomposition of the covariance) and stored per bucket in kd-trees (kiddo).
+//! * Candidates (section 3.2): the categories present in the map window filter the buckets;
+//!   clusters are probed in order of closeness to the guide's block descriptor until
+//!   `probe_candidates` patches are gathered; the `knn` nearest overlaps of each probed bucket
+//!   are the candidates.
+//! * Choice (section 3.3, equation 1): `M = alpha G + beta O + gamma P` with `G` the RMS
+//!   distance between `guide_cells x guide_cells` cell means of the patch and the guide, `O`
+//!   the RMS overlap difference and `P` the RMS error along the cut; in two steps (the best
+//!   `survivors` by `alpha G + beta O`, then the cut for those only). The final pick is uniform
+//!   among survivors within `choice_tolerance` of the best.
+//! * Vertical translation (section 3.4, equations 2-3): the patch is shifted by the mean
+//!   difference `h` over the overlap (over the whole block against the guide for the first
+//!   patch); when `|h| > lambda` the translation is not applied.
+//! * Insertion: minimum-error boundary cut by dynamic programming ([`min_error_cut`]; the
+//!   greedy variant is kept for comparison), then feathering or Poisson blending over the
+//!   overlap ([`Blend`]).
+//! * Validation (section 4, [`validate`]): every guide block needs `min_candidates` (default
+//!   500) matching patches; the report names failing blocks and the missing height ranges and
+//!   proposes a small exemplar subset by greedy set cover. Without a guide, the exemplars'
+//!   mutual compatibility is checked.
+//!
+//! # Guarantees and limits
+//! * Same inputs and seed give identical output bytes whatever the rayon thread count: scoring
+//!   is parallel but order-preserving, reductions use fixed chunks, and each block's random
+//!   choice is seeded from `(seed, block)`.
+//! * Errors name the offending setting and value; library code never prints (progress goes to
+//!   the [`Progress`] callback).
+//! * Not guaranteed: that every block finds a well-matching patch (validation tells when the
+//!   exemplars are too poor); the kd-tree search is exact in PCA space, not in the full overlap
+//!   space; the guide fidelity is limited by the exemplars' detail.
+//!
+//! ```
+//! use relief_heightfield::{Heightfield, NoProgress};
+//! use relief_patch_synth::{Control, Exemplar, ExemplarIndex, Settings, guide, synthesize};
+//! let ex = Heightfield::from_fn(96, 96, 30.0, 30.0, |x, y| {
+//!     ((x as f32 * 0.21).sin() * (y as f32 * 0.17).cos()) * 40.0 + x as f32 * 2.0
+//! });
+//! let settings = Settings {
+//!     patch_size: 24, overlap: 6, min_candidates: 20, kmeans_clusters: 4, pca_samples: 400,
+//!     ..Default::default()
+//! };
+//! let target = ex.crop(8, 8, 64, 64).unwrap();
+//! let g = guide::lowpass_resample(&target, 8).unwrap();
+//! let index = ExemplarIndex::build(vec![Exemplar::new(ex, 0)], &settings, &NoProgress).unwrap();
+//! let out = synthesize(&index, &Control::guided(g), &settings, &NoProgress).unwrap();
+//! assert_eq!((out.heightfield.width(), out.heightfield.height()), (64, 64));
+//! assert_eq!(out.seam_map.source.len(), 64 * 64);
+//! ```
+#![warn(missing_docs)]
+
+mod category;
+mod cut;
+mod error;
+pub mod guide;
+mod index;
+pub mod kmeans;
+pub mod pca;
+pub mod quality;
+mod settings;
+mod synth;
+mod validate;
+
+pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
+pub use cut::{Cut, min_error_cut};
+pub use error::{PatchSynthError, Result};
+pub use index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef};
+pub use relief_heightfield::{NoProgress, Progress};
+pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};
+pub use synth::{Control, Placement, SeamMap, Synthesis, SynthesisStats, quilt, synthesize};
+pub use validate::{BlockReport, ExemplarCompatibility, ValidationReport, validate};

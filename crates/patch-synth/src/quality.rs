@@ -1,0 +1,99 @@
+//! Quality measures of a synthesis: guide fidelity, seam visibility and slope statistics.
+
+use relief_heightfield::Heightfield;
+use relief_heightfield::metrics::{histogram_emd, rmse, slope_histogram, stats};
+use relief_heightfield::terrain::gradient;
+
+use crate::error::{PatchSynthError, Result};
+use crate::guide::lowpass_resample;
+use crate::synth::SeamMap;
+
+/// The three figures of the quality protocol.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QualityReport {
+    /// RMSE (m) between the low-pass of the output and the guide.
+    pub guide_rmse: f64,
+    /// Standard deviation (m) of the guide, the scale `guide_rmse` is judged against.
+    pub guide_std: f64,
+    /// Mean gradient magnitude on seam cells divided by the mean elsewhere (1 = invisible).
+    pub seam_ratio: f64,
+    /// Slope-angle histogram distance (EMD, degrees) of the output to the pooled exemplars.
+    pub slope_distance: f64,
+    /// The same distance between the guide's source and the exemplars, when known (else NaN):
+    /// a baseline for `slope_distance`.
+    pub slope_distance_baseline: f64,
+}
+
+/// RMSE of `lowpass_resample(output, factor)` against `guide`.
+pub fn guide_fidelity(output: &Heightfield, guide: &Heightfield, factor: usize) -> Result<f64> {
+    let low = lowpass_resample(output, factor)?;
+    Ok(rmse(&low, guide)?)
+}
+
+/// Mean gradient magnitude on seam cells over the mean on the other cells (the outer one-cell
+/// border excluded).
+pub fn seam_visibility(output: &Heightfield, seams: &SeamMap) -> Result<f64> {
+    if (seams.width, seams.height) != (output.width(), output.height()) {
+        return Err(PatchSynthError::InvalidControl {
+            name: "seam_map",
+            reason: "size differs from the output".into(),
+        });
+    }
+    let (gx, gy) = gradient(output);
+    let (w, h) = (output.width(), output.height());
+    let (mut s1, mut n1, mut s0, mut n0) = (0.0f64, 0usize, 0.0f64, 0usize);
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let g = (gx[(y, x)] as f64).hypot(gy[(y, x)] as f64);
+            if seams.seam[y * w + x] {
+                s1 += g;
+                n1 += 1;
+            } else {
+                s0 += g;
+                n0 += 1;
+            }
+        }
+    }
+    if n1 == 0 || n0 == 0 || s0 == 0.0 {
+        return Ok(1.0);
+    }
+    Ok((s1 / n1 as f64) / (s0 / n0 as f64))
+}
+
+/// Slope-histogram distance (EMD, degrees) between `output` and the pooled histogram of the
+/// exemplars (each weighted by its cell count).
+pub fn slope_distance(output: &Heightfield, exemplars: &[&Heightfield]) -> f64 {
+    let mut pooled = vec![0.0f64; 90];
+    let mut total = 0.0;
+    for e in exemplars {
+        let n = e.len() as f64;
+        for (p, v) in pooled.iter_mut().zip(slope_histogram(e)) {
+            *p += v * n;
+        }
+        total += n;
+    }
+    if total > 0.0 {
+        pooled.iter_mut().for_each(|v| *v /= total);
+    }
+    histogram_emd(&slope_histogram(output), &pooled)
+}
+
+/// Runs the quality protocol: guide fidelity with the low-pass `factor` the guide was made
+/// with, seam visibility and slope-histogram distance (plus the baseline distance of `source`,
+/// the DEM the guide came from, when given).
+pub fn assess(
+    output: &Heightfield,
+    seams: &SeamMap,
+    guide: &Heightfield,
+    factor: usize,
+    exemplars: &[&Heightfield],
+    source: Option<&Heightfield>,
+) -> Result<QualityReport> {
+    Ok(QualityReport {
+        guide_rmse: guide_fidelity(output, guide, factor)?,
+        guide_std: stats(guide)?.std,
+        seam_ratio: seam_visibility(output, seams)?,
+        slope_distance: slope_distance(output, exemplars),
+        slope_distance_baseline: source.map_or(f64::NAN, |s| slope_distance(s, exemplars)),
+    })
+}

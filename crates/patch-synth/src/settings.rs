@@ -1,0 +1,260 @@
+//! Settings of the synthesis, validated once by [`Settings::check`].
+
+use crate::error::{PatchSynthError, Result};
+
+/// How the seam through an overlap region is found (section 3.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CutMethod {
+    /// Minimum-error boundary cut by dynamic programming (globally optimal path; the default).
+    DynamicProgramming,
+    /// Greedy path of local decisions (Efros and Freeman 2001), kept for comparison.
+    Greedy,
+}
+
+/// How the transition across the seam is blended after the cut (section 3.3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Blend {
+    /// Plain cut and paste.
+    None,
+    /// Smooth feathering: a smoothstep weight across the seam over `radius` cells each side.
+    Feather {
+        /// Half-width of the transition in cells (> 0).
+        radius: f32,
+    },
+    /// Poisson blending over the overlap region (Zhou et al. 2007): the overlap is re-solved so
+    /// that its gradients follow the old terrain on the old side of the cut, the new patch on
+    /// the new side and their average across the cut, with the surrounding terrain as boundary.
+    Poisson {
+        /// Maximum conjugate-gradient iterations per patch.
+        max_iterations: usize,
+    },
+}
+
+/// Parameters of the guided patch-based synthesis. Use as
+/// `Settings { patch_size: 48, ..Default::default() }`; [`Settings::check`] validates them once.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Side of the square patches in cells.
+    pub patch_size: usize,
+    /// Width of the overlap between neighbouring patches in cells (< `patch_size` / 2).
+    pub overlap: usize,
+    /// Weight `alpha` of the guide distance `G` in equation (1).
+    pub alpha: f32,
+    /// Weight `beta` of the overlap distance `O` in equation (1).
+    pub beta: f32,
+    /// Weight `gamma` of the cut cost `P` in equation (1).
+    pub gamma: f32,
+    /// Largest vertical translation `lambda` in metres (section 3.4): a translation from
+    /// equation (3) with `|h| > lambda` is not applied. 0 disables translations.
+    pub lambda: f32,
+    /// `N` of the `N x N` block-average descriptor (section 3.2; the paper uses 3).
+    pub blocks: usize,
+    /// The guide distance `G` compares `guide_cells x guide_cells` cell means of patch and guide.
+    pub guide_cells: usize,
+    /// Number of k-means clusters keying the block-descriptor hash table (section 3.5).
+    pub kmeans_clusters: usize,
+    /// Lloyd iterations of every k-means run.
+    pub kmeans_iterations: usize,
+    /// Dimensions kept by the PCA of the overlap regions: one of 4, 6, 8, 12, 16.
+    pub pca_dims: usize,
+    /// Number of exemplar overlap strips sampled to fit each PCA basis.
+    pub pca_samples: usize,
+    /// Nearest neighbours taken from each probed bucket's kd-tree.
+    pub knn: usize,
+    /// Clusters are probed in order of closeness to the guide descriptor until this many
+    /// candidate patches are gathered (at least one cluster is always probed).
+    pub probe_candidates: usize,
+    /// Candidates kept after the first step (`alpha G + beta O`) for the cut computation.
+    pub survivors: usize,
+    /// Final choice: uniformly among survivors whose energy is within `(1 + tolerance)` of the
+    /// best (seeded, so deterministic).
+    pub choice_tolerance: f32,
+    /// Minimum number of candidate patches per guide block (section 4; the paper asks 500).
+    pub min_candidates: usize,
+    /// RMS tolerance in metres of the block-descriptor match counted by the validation; `None`
+    /// uses 50 % of the guide's (or, without a guide, the exemplars') standard deviation.
+    pub validation_tolerance: Option<f32>,
+    /// When true, [`crate::synthesize`] refuses to run on inputs that fail the validation.
+    pub enforce_validation: bool,
+    /// Exemplar patch positions are taken every `exemplar_stride` cells (1 = every patch).
+    pub exemplar_stride: usize,
+    /// Seam search method.
+    pub cut: CutMethod,
+    /// Seam blending.
+    pub blend: Blend,
+    /// Seed of every random choice (k-means initialisation, PCA sampling, patch choice).
+    pub seed: u64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            patch_size: 64,
+            overlap: 16,
+            alpha: 1.0,
+            beta: 1.0,
+            gamma: 0.5,
+            lambda: 50.0,
+            blocks: 3,
+            guide_cells: 8,
+            kmeans_clusters: 16,
+            kmeans_iterations: 12,
+            pca_dims: 8,
+            pca_samples: 3000,
+            knn: 24,
+            probe_candidates: 1500,
+            survivors: 8,
+            choice_tolerance: 0.05,
+            min_candidates: 500,
+            validation_tolerance: None,
+            enforce_validation: true,
+            exemplar_stride: 1,
+            cut: CutMethod::DynamicProgramming,
+            blend: Blend::Poisson {
+                max_iterations: 300,
+            },
+            seed: 0,
+        }
+    }
+}
+
+/// PCA dimensions the kd-trees are compiled for.
+pub const SUPPORTED_PCA_DIMS: [usize; 5] = [4, 6, 8, 12, 16];
+
+impl Settings {
+    /// Validates every field; the error names the first offending field and its value.
+    pub fn check(&self) -> Result<()> {
+        if self.patch_size < 8 || self.patch_size > 1024 {
+            return Err(PatchSynthError::setting(
+                "patch_size",
+                self.patch_size,
+                "must be in 8..=1024",
+            ));
+        }
+        if self.overlap == 0 || 2 * self.overlap >= self.patch_size {
+            return Err(PatchSynthError::setting(
+                "overlap",
+                self.overlap,
+                format!(
+                    "must be >= 1 and < patch_size / 2 = {}",
+                    self.patch_size / 2
+                ),
+            ));
+        }
+        for (name, v) in [
+            ("alpha", self.alpha),
+            ("beta", self.beta),
+            ("gamma", self.gamma),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(PatchSynthError::setting(name, v, "must be finite and >= 0"));
+            }
+        }
+        if self.alpha + self.beta + self.gamma <= 0.0 {
+            return Err(PatchSynthError::setting(
+                "alpha",
+                self.alpha,
+                "alpha, beta and gamma are all zero",
+            ));
+        }
+        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
+            return Err(PatchSynthError::setting(
+                "lambda",
+                self.lambda,
+                "must be finite and >= 0",
+            ));
+        }
+        if self.blocks == 0 || self.blocks > self.patch_size {
+            return Err(PatchSynthError::setting(
+                "blocks",
+                self.blocks,
+                "must be in 1..=patch_size",
+            ));
+        }
+        if self.guide_cells == 0 || self.guide_cells > self.patch_size {
+            return Err(PatchSynthError::setting(
+                "guide_cells",
+                self.guide_cells,
+                "must be in 1..=patch_size",
+            ));
+        }
+        if self.kmeans_clusters == 0 || self.kmeans_clusters > 4096 {
+            return Err(PatchSynthError::setting(
+                "kmeans_clusters",
+                self.kmeans_clusters,
+                "must be in 1..=4096",
+            ));
+        }
+        if self.kmeans_iterations == 0 {
+            return Err(PatchSynthError::setting(
+                "kmeans_iterations",
+                0,
+                "must be >= 1",
+            ));
+        }
+        if !SUPPORTED_PCA_DIMS.contains(&self.pca_dims) {
+            return Err(PatchSynthError::setting(
+                "pca_dims",
+                self.pca_dims,
+                "must be one of 4, 6, 8, 12, 16",
+            ));
+        }
+        if self.pca_samples < 2 * self.pca_dims {
+            return Err(PatchSynthError::setting(
+                "pca_samples",
+                self.pca_samples,
+                "must be >= 2 * pca_dims",
+            ));
+        }
+        for (name, v) in [
+            ("knn", self.knn),
+            ("probe_candidates", self.probe_candidates),
+            ("survivors", self.survivors),
+            ("min_candidates", self.min_candidates),
+            ("exemplar_stride", self.exemplar_stride),
+        ] {
+            if v == 0 {
+                return Err(PatchSynthError::setting(name, v, "must be >= 1"));
+            }
+        }
+        if !(self.choice_tolerance.is_finite() && self.choice_tolerance >= 0.0) {
+            return Err(PatchSynthError::setting(
+                "choice_tolerance",
+                self.choice_tolerance,
+                "must be finite and >= 0",
+            ));
+        }
+        if let Some(t) = self.validation_tolerance
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(PatchSynthError::setting(
+                "validation_tolerance",
+                t,
+                "must be finite and > 0",
+            ));
+        }
+        match self.blend {
+            Blend::Feather { radius } if !(radius.is_finite() && radius > 0.0) => {
+                return Err(PatchSynthError::setting(
+                    "blend.radius",
+                    radius,
+                    "must be finite and > 0",
+                ));
+            }
+            Blend::Poisson { max_iterations: 0 } => {
+                return Err(PatchSynthError::setting(
+                    "blend.max_iterations",
+                    0,
+                    "must be >= 1",
+                ));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Step between patch origins on the synthesis grid (`patch_size - overlap`).
+    pub fn step(&self) -> usize {
+        self.patch_size - self.overlap
+    }
+}

@@ -1,0 +1,894 @@
+//! Raster-order synthesis over an overlapping grid (sections 3.2 to 3.4).
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+use relief_heightfield::{Heightfield, Progress};
+
+use crate::category::{ANY_CATEGORY, CategoryMap};
+use crate::cut::min_error_cut;
+use crate::error::{PatchSynthError, Result};
+use crate::index::{Exemplar, ExemplarIndex, PatchRef, features, grid_rects};
+use crate::kmeans::dist2;
+use crate::settings::{Blend, Settings};
+use crate::validate::validate;
+
+/// The control structures of section 3.1: output size, optional guide and optional
+/// categorisation map (both at the target resolution).
+#[derive(Debug, Clone)]
+pub struct Control {
+    /// Output width in cells.
+    pub width: usize,
+    /// Output height in cells.
+    pub height: usize,
+    /// Low-frequency guide, `width x height` (see [`crate::guide`]); `None` = unguided.
+    pub guide: Option<Heightfield>,
+    /// Categorisation map, `width x height`; `None` = every category everywhere.
+    pub categories: Option<CategoryMap>,
+}
+
+impl Control {
+    /// Guided synthesis at the guide's size, every category allowed.
+    pub fn guided(guide: Heightfield) -> Self {
+        Self {
+            width: guide.width(),
+            height: guide.height(),
+            guide: Some(guide),
+            categories: None,
+        }
+    }
+    /// Unguided synthesis of `width x height` cells.
+    pub fn unguided(width: usize, height: usize) -> Self {
+        Self {
+            width,
+            height,
+            guide: None,
+            categories: None,
+        }
+    }
+    /// The same control with a categorisation map.
+    pub fn with_categories(mut self, map: CategoryMap) -> Self {
+        self.categories = Some(map);
+        self
+    }
+
+    pub(crate) fn check(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(PatchSynthError::InvalidControl {
+                name: "size",
+                reason: format!("{} x {} is empty", self.width, self.height),
+            });
+        }
+        if let Some(g) = &self.guide {
+            if (g.width(), g.height()) != (self.width, self.height) {
+                return Err(PatchSynthError::InvalidControl {
+                    name: "guide",
+                    reason: format!(
+                        "guide is {} x {} but the output is {} x {}",
+                        g.width(),
+                        g.height(),
+                        self.width,
+                        self.height
+                    ),
+                });
+            }
+            if g.as_slice().iter().any(|v| !v.is_finite()) {
+                return Err(PatchSynthError::InvalidControl {
+                    name: "guide",
+                    reason: format!("{} void/non-finite cells; fill them first", g.void_count()),
+                });
+            }
+        }
+        if let Some(m) = &self.categories
+            && (m.width, m.height) != (self.width, self.height)
+        {
+            {
+                return Err(PatchSynthError::InvalidControl {
+                    name: "categories",
+                    reason: format!(
+                        "map is {} x {} but the output is {} x {}",
+                        m.width, m.height, self.width, self.height
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Where each output cell came from and where the seams run (for visualisation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SeamMap {
+    /// Width in cells (the output's).
+    pub width: usize,
+    /// Height in cells.
+    pub height: usize,
+    /// True on the cells of a cut path.
+    pub seam: Vec<bool>,
+    /// Index into [`Synthesis::placements`] of the patch that supplied each cell (new side of
+    /// the cut).
+    pub source: Vec<u32>,
+}
+
+/// One inserted patch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placement {
+    /// Grid column.
+    pub gx: usize,
+    /// Grid row.
+    pub gy: usize,
+    /// Output column of the patch's top-left cell.
+    pub x: usize,
+    /// Output row of the patch's top-left cell.
+    pub y: usize,
+    /// The exemplar patch.
+    pub patch: PatchRef,
+    /// Vertical translation applied (equation 3), 0 when rejected.
+    pub translation: f32,
+    /// True when equation (3) gave `|h| > lambda` and the translation was not applied.
+    pub translation_rejected: bool,
+    /// Guide distance `G` (RMS, metres).
+    pub guide_distance: f32,
+    /// Overlap distance `O` (RMS, metres).
+    pub overlap_distance: f32,
+    /// Cut cost `P` (RMS error along the seam, metres).
+    pub cut_cost: f32,
+    /// Energy `M` of equation (1).
+    pub energy: f32,
+    /// Number of candidates scored exactly.
+    pub candidates: usize,
+}
+
+/// Summary of a synthesis run.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SynthesisStats {
+    /// Grid size (columns, rows).
+    pub grid: (usize, usize),
+    /// Patches inserted.
+    pub patches: usize,
+    /// Mean number of candidates scored per block.
+    pub mean_candidates: f64,
+    /// Mean number of hash-table buckets probed per block.
+    pub mean_buckets_probed: f64,
+    /// Translations applied (|h| <= lambda and h != 0).
+    pub translations_applied: usize,
+    /// Translations rejected (|h| > lambda).
+    pub translations_rejected: usize,
+    /// Largest applied |h|.
+    pub max_translation: f32,
+    /// Mean `G`, `O`, `P` of the chosen patches.
+    pub mean_guide_distance: f64,
+    /// Mean overlap distance of the chosen patches.
+    pub mean_overlap_distance: f64,
+    /// Mean cut cost of the chosen patches.
+    pub mean_cut_cost: f64,
+    /// Mean conjugate-gradient iterations of the Poisson blending (0 if unused).
+    pub mean_poisson_iterations: f64,
+}
+
+/// Result of [`synthesize`].
+#[derive(Debug, Clone)]
+pub struct Synthesis {
+    /// The synthesized terrain (`width x height`, cell size of the guide or first exemplar).
+    pub heightfield: Heightfield,
+    /// Seam and source maps.
+    pub seam_map: SeamMap,
+    /// Every inserted patch, in insertion order.
+    pub placements: Vec<Placement>,
+    /// Summary figures.
+    pub stats: SynthesisStats,
+}
+
+fn smoothstep(t: f32) -> f32 {
+    let t = t.clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Counter-based seed of a grid block: the choice at a block never depends on other blocks'
+/// random draws or on the thread count.
+pub(crate) fn block_seed(seed: u64, a: u64, b: u64) -> u64 {
+    let mut z =
+        seed ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Padded working canvas of the synthesis.
+pub(crate) struct Grid {
+    pub(crate) nx: usize,
+    pub(crate) ny: usize,
+    pub(crate) cw: usize,
+    pub(crate) ch: usize,
+}
+
+pub(crate) fn grid_for(width: usize, height: usize, p: usize, o: usize) -> Grid {
+    let s = p - o;
+    let n = |len: usize| if len <= p { 1 } else { (len - o).div_ceil(s) };
+    let (nx, ny) = (n(width), n(height));
+    Grid {
+        nx,
+        ny,
+        cw: o + nx * s,
+        ch: o + ny * s,
+    }
+}
+
+/// Clamp-pads a `w x h` raster to `cw x ch`.
+pub(crate) fn pad<T: Copy>(src: &[T], w: usize, h: usize, cw: usize, ch: usize) -> Vec<T> {
+    let mut out = Vec::with_capacity(cw * ch);
+    for y in 0..ch {
+        let sy = y.min(h - 1);
+        for x in 0..cw {
+            out.push(src[sy * w + x.min(w - 1)]);
+        }
+    }
+    out
+}
+
+/// Allowed category flags (indexed like `index.categories`) over a window of the padded map.
+pub(crate) fn allowed_categories(
+    index: &ExemplarIndex,
+    map: Option<&[u16]>,
+    cw: usize,
+    x0: usize,
+    y0: usize,
+    p: usize,
+) -> Vec<bool> {
+    let cats = &index.categories;
+    let Some(map) = map else {
+        return vec![true; cats.len()];
+    };
+    let mut allowed = vec![false; cats.len()];
+    for y in y0..y0 + p {
+        for &id in &map[y * cw + x0..y * cw + x0 + p] {
+            if id == ANY_CATEGORY {
+                return vec![true; cats.len()];
+            }
+            if let Ok(i) = cats.binary_search(&id) {
+                allowed[i] = true;
+            }
+        }
+    }
+    allowed
+}
+
+struct Scored {
+    id: u32,
+    h: f32,
+    rejected: bool,
+    g: f32,
+    o: f32,
+    s1: f32,
+}
+
+/// Synthesizes a terrain from the preprocessed exemplars under `control` (sections 3.2-3.4).
+///
+/// Blocks are visited in raster order; at each block the candidates are scored in parallel and
+/// the choice uses a random generator seeded from `(settings.seed, block)`, so the output bytes
+/// are the same for a seed whatever the rayon thread count. When a guide is given and
+/// `settings.enforce_validation` is set, the input validation of section 4 runs first and a
+/// failure is returned as [`PatchSynthError::Validation`].
+pub fn synthesize(
+    index: &ExemplarIndex,
+    control: &Control,
+    settings: &Settings,
+    progress: &dyn Progress,
+) -> Result<Synthesis> {
+    settings.check()?;
+    index.check_settings(settings)?;
+    control.check()?;
+    if settings.enforce_validation && control.guide.is_some() {
+        let report = validate(index, control, settings)?;
+        if !report.ok {
+            return Err(PatchSynthError::Validation(Box::new(report)));
+        }
+    }
+    let (p, o) = (settings.patch_size, settings.overlap);
+    let s = p - o;
+    let (w, h) = (control.width, control.height);
+    let Grid { nx, ny, cw, ch } = grid_for(w, h, p, o);
+    let guide: Option<Vec<f32>> = control
+        .guide
+        .as_ref()
+        .map(|g| pad(g.as_slice(), w, h, cw, ch));
+    let cmap: Option<Vec<u16>> = control
+        .categories
+        .as_ref()
+        .map(|m| pad(&m.ids, w, h, cw, ch));
+    let ncat = index.categories.len();
+    let nblocks = settings.blocks;
+    let block_rects = grid_rects(p, nblocks);
+    let guide_rects = grid_rects(p, settings.guide_cells);
+    let margin = o / 4;
+    let (alpha, beta, gamma) = (settings.alpha, settings.beta, settings.gamma);
+
+    let mut canvas = vec![0.0f32; cw * ch];
+    let mut filled = vec![false; cw * ch];
+    let mut seam = vec![false; cw * ch];
+    let mut source = vec![u32::MAX; cw * ch];
+    let mut placements = Vec::with_capacity(nx * ny);
+    let mut stats = SynthesisStats {
+        grid: (nx, ny),
+        ..Default::default()
+    };
+    let mut poisson_iters = 0usize;
+    let mut buckets_probed = 0usize;
+    progress.begin("patch-synth: synthesis", (nx * ny) as u64);
+
+    for gy in 0..ny {
+        for gx in 0..nx {
+            let (x0, y0) = (gx * s, gy * s);
+            let (has_left, has_top) = (gx > 0, gy > 0);
+            let mut rng = Pcg64Mcg::seed_from_u64(block_seed(settings.seed, gx as u64, gy as u64));
+            let allowed = allowed_categories(index, cmap.as_deref(), cw, x0, y0, p);
+            if !allowed.iter().any(|&a| a) {
+                return Err(PatchSynthError::NoCandidates {
+                    gx,
+                    gy,
+                    reason: "the categorisation map names no category of the exemplar set".into(),
+                });
+            }
+            // Overlap cells: rows < o take the whole width when a top neighbour exists, the
+            // other rows the first o columns when a left neighbour exists.
+            let ov_cols = |r: usize| -> usize {
+                if has_top && r < o {
+                    p
+                } else if has_left {
+                    o
+                } else {
+                    0
+                }
+            };
+            let n_overlap: usize = (0..p).map(ov_cols).sum();
+            let target = |r: usize, c: usize| canvas[(y0 + r) * cw + x0 + c];
+
+            // Cluster order by closeness of the target descriptor (section 3.2).
+            let k = index.clusters.k();
+            let dim = nblocks * nblocks;
+            let target_desc: Option<Vec<f32>> = guide.as_ref().map(|g| {
+                block_rects
+                    .iter()
+                    .map(|r| window_mean(g, cw, x0 + r[0], y0 + r[1], r[2], r[3]))
+                    .collect()
+            });
+            let mut order: Vec<(f32, usize)> = if let Some(d) = &target_desc {
+                (0..k)
+                    .map(|c| (dist2(d, index.clusters.centroid(c)), c))
+                    .collect()
+            } else if n_overlap > 0 {
+                // Unguided: compare on the blocks that hold synthesized cells only.
+                let mut d = Vec::with_capacity(dim);
+                for r in &block_rects {
+                    let (mut sum, mut n) = (0.0f64, 0usize);
+                    for y in r[1]..r[1] + r[3] {
+                        for x in r[0]..r[0] + r[2] {
+                            if filled[(y0 + y) * cw + x0 + x] {
+                                sum += canvas[(y0 + y) * cw + x0 + x] as f64;
+                                n += 1;
+                            }
+                        }
+                    }
+                    d.push((n > 0).then(|| (sum / n as f64) as f32));
+                }
+                (0..k)
+                    .map(|c| {
+                        let cen = index.clusters.centroid(c);
+                        let e: f32 = d
+                            .iter()
+                            .zip(cen)
+                            .filter_map(|(a, b)| a.map(|a| (a - b) * (a - b)))
+                            .sum();
+                        (e, c)
+                    })
+                    .collect()
+            } else {
+                (0..k).map(|c| (rng.random::<f32>(), c)).collect()
+            };
+            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let mut probed = Vec::new();
+            let mut gathered = 0usize;
+            for &(_, c) in &order {
+                for (ci, &ok) in allowed.iter().enumerate() {
+                    let b = c * ncat + ci;
+                    if ok && !index.buckets[b].patches.is_empty() {
+                        gathered += index.buckets[b].patches.len();
+                        probed.push(b);
+                    }
+                }
+                if gathered >= settings.probe_candidates {
+                    break;
+                }
+            }
+            if probed.is_empty() {
+                return Err(PatchSynthError::NoCandidates {
+                    gx,
+                    gy,
+                    reason: "no exemplar patch of an allowed category".into(),
+                });
+            }
+            buckets_probed += probed.len();
+
+            // Candidates: kd-tree nearest neighbours of the PCA-reduced overlap (section 3.5),
+            // or every probed patch for the first block.
+            let shape = match (has_left, has_top) {
+                (true, false) => Some(0),
+                (false, true) => Some(1),
+                (true, true) => Some(2),
+                (false, false) => None,
+            };
+            let mut cands: Vec<u32> = match shape {
+                Some(sh) => {
+                    let f = features(&index.layouts.rects[sh], |x, y, ww, hh| {
+                        window_mean(&canvas, cw, x0 + x, y0 + y, ww, hh)
+                    });
+                    let mut q = vec![0.0f32; settings.pca_dims];
+                    index.pcas[sh].project(&f, &mut q);
+                    probed
+                        .par_iter()
+                        .flat_map_iter(|&b| {
+                            let bucket = &index.buckets[b];
+                            bucket.trees[sh]
+                                .nearest(&q, settings.knn)
+                                .into_iter()
+                                .map(|(_, item)| bucket.patches[item as usize])
+                        })
+                        .collect()
+                }
+                None => probed
+                    .iter()
+                    .flat_map(|&b| index.buckets[b].patches.iter().copied())
+                    .collect(),
+            };
+            // With a guide and an overlap, the patches of the probed buckets whose block
+            // descriptors are closest to the guide's (after the translation of equation 3)
+            // join the overlap neighbours, so that G and O both have good candidates.
+            if let (Some(dg), Some(_)) = (&target_desc, shape) {
+                let lambda = settings.lambda;
+                let mut by_guide: Vec<(f32, u32)> = probed
+                    .iter()
+                    .flat_map(|&b| index.buckets[b].patches.iter().copied())
+                    .map(|id| {
+                        let d = index.descriptor(id as usize);
+                        let mut hh = dg.iter().zip(d).map(|(a, b)| a - b).sum::<f32>() / dim as f32;
+                        if hh.abs() > lambda {
+                            hh = 0.0;
+                        }
+                        let e: f32 = dg.iter().zip(d).map(|(a, b)| (b + hh - a).powi(2)).sum();
+                        (e, id)
+                    })
+                    .collect();
+                let keep = (settings.knn * probed.len()).min(by_guide.len());
+                if keep > 0 && keep < by_guide.len() {
+                    by_guide.select_nth_unstable_by(keep - 1, |a, b| {
+                        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+                    });
+                }
+                cands.extend(by_guide[..keep].iter().map(|v| v.1));
+            }
+            cands.sort_unstable();
+            cands.dedup();
+
+            // Guide cell means of the block (for G) and its mean (for h without overlap).
+            let gcells: Option<Vec<f32>> = guide.as_ref().map(|g| {
+                guide_rects
+                    .iter()
+                    .map(|r| window_mean(g, cw, x0 + r[0], y0 + r[1], r[2], r[3]))
+                    .collect()
+            });
+            let gmean = guide.as_ref().map(|g| window_mean(g, cw, x0, y0, p, p));
+
+            // Step 1: alpha G + beta O for every candidate (parallel, order-preserving).
+            let mut scored: Vec<Scored> = cands
+                .par_iter()
+                .map(|&id| {
+                    let idu = id as usize;
+                    let mut hsum = 0.0f64;
+                    if n_overlap > 0 {
+                        for r in 0..p {
+                            let nc = ov_cols(r);
+                            if nc == 0 {
+                                continue;
+                            }
+                            let row = index.row(idu, r);
+                            for c in 0..nc {
+                                hsum += (target(r, c) - row[c]) as f64;
+                            }
+                        }
+                    }
+                    // Equation (3): mean difference over the compared block.
+                    let mut hv = if n_overlap > 0 {
+                        (hsum / n_overlap as f64) as f32
+                    } else if let Some(gm) = gmean {
+                        gm - index.box_mean(idu, 0, 0, p, p)
+                    } else {
+                        0.0
+                    };
+                    let rejected = hv.abs() > settings.lambda;
+                    if rejected {
+                        hv = 0.0;
+                    }
+                    let ov = if n_overlap > 0 {
+                        let mut e = 0.0f64;
+                        for r in 0..p {
+                            let nc = ov_cols(r);
+                            let row = index.row(idu, r);
+                            for c in 0..nc {
+                                let d = (row[c] + hv - target(r, c)) as f64;
+                                e += d * d;
+                            }
+                        }
+                        (e / n_overlap as f64).sqrt() as f32
+                    } else {
+                        0.0
+                    };
+                    let g = gcells.as_ref().map_or(0.0, |gc| {
+                        let e: f64 = guide_rects
+                            .iter()
+                            .zip(gc)
+                            .map(|(r, &gv)| {
+                                let d =
+                                    (index.box_mean(idu, r[0], r[1], r[2], r[3]) + hv - gv) as f64;
+                                d * d
+                            })
+                            .sum();
+                        (e / guide_rects.len() as f64).sqrt() as f32
+                    });
+                    Scored {
+                        id,
+                        h: hv,
+                        rejected,
+                        g,
+                        o: ov,
+                        s1: alpha * g + beta * ov,
+                    }
+                })
+                .collect();
+            scored.sort_by(|a, b| a.s1.total_cmp(&b.s1).then(a.id.cmp(&b.id)));
+            let ncand = scored.len();
+            scored.truncate(settings.survivors);
+
+            // Step 2: the cut for the survivors only, then M = alpha G + beta O + gamma P.
+            let cuts: Vec<(Vec<usize>, Vec<usize>, f32)> = scored
+                .par_iter()
+                .map(|sc| {
+                    let idu = sc.id as usize;
+                    let err = |r: usize, c: usize| {
+                        let d = index.row(idu, r)[c] + sc.h - target(r, c);
+                        d * d
+                    };
+                    let (mut cost, mut len) = (0.0f64, 0usize);
+                    let left = if has_left {
+                        let e: Vec<f32> = (0..p)
+                            .flat_map(|r| (0..o).map(move |c| (r, c)))
+                            .map(|(r, c)| err(r, c))
+                            .collect();
+                        let cut = min_error_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
+                        cost += cut.cost;
+                        len += p;
+                        cut.path
+                    } else {
+                        Vec::new()
+                    };
+                    let top = if has_top {
+                        // Transposed: rows are patch columns, columns are strip rows.
+                        let e: Vec<f32> = (0..p)
+                            .flat_map(|c| (0..o).map(move |r| (r, c)))
+                            .map(|(r, c)| err(r, c))
+                            .collect();
+                        let cut = min_error_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
+                        cost += cut.cost;
+                        len += p;
+                        cut.path
+                    } else {
+                        Vec::new()
+                    };
+                    let pc = if len > 0 {
+                        (cost / len as f64).sqrt() as f32
+                    } else {
+                        0.0
+                    };
+                    (left, top, pc)
+                })
+                .collect();
+            let energies: Vec<f32> = scored
+                .iter()
+                .zip(&cuts)
+                .map(|(sc, cut)| sc.s1 + gamma * cut.2)
+                .collect();
+            let best = energies.iter().copied().fold(f32::INFINITY, f32::min);
+            let limit = best * (1.0 + settings.choice_tolerance) + 1e-6;
+            let near: Vec<usize> = (0..energies.len())
+                .filter(|&i| energies[i] <= limit)
+                .collect();
+            let pick = near[rng.random_range(0..near.len())];
+            let sc = &scored[pick];
+            let (left, top, pcost) = &cuts[pick];
+            let idu = sc.id as usize;
+
+            // Insertion: cut mask, composite, blending.
+            let is_new =
+                |r: usize, c: usize| (!has_left || c >= left[r]) && (!has_top || r >= top[c]);
+            let nv = |r: usize, c: usize| index.row(idu, r)[c] + sc.h;
+            let mut out = vec![0.0f32; p * p];
+            for r in 0..p {
+                let nc = ov_cols(r);
+                for c in 0..p {
+                    out[r * p + c] = if c < nc && !is_new(r, c) {
+                        target(r, c)
+                    } else {
+                        nv(r, c)
+                    };
+                }
+            }
+            match settings.blend {
+                Blend::None => {}
+                Blend::Feather { radius } => {
+                    for r in 0..p {
+                        for c in 0..ov_cols(r) {
+                            let wl = if has_left {
+                                smoothstep(
+                                    (c as f32 + 0.5 - left[r] as f32 + radius) / (2.0 * radius),
+                                )
+                            } else {
+                                1.0
+                            };
+                            let wt = if has_top {
+                                smoothstep(
+                                    (r as f32 + 0.5 - top[c] as f32 + radius) / (2.0 * radius),
+                                )
+                            } else {
+                                1.0
+                            };
+                            let wgt = wl * wt;
+                            out[r * p + c] = wgt * nv(r, c) + (1.0 - wgt) * target(r, c);
+                        }
+                    }
+                }
+                Blend::Poisson { max_iterations } => {
+                    if n_overlap > 0 {
+                        poisson_iters += poisson_blend(
+                            &mut out,
+                            PoissonInput {
+                                p,
+                                ov_cols: &ov_cols,
+                                is_new: &is_new,
+                                nv: &nv,
+                                old: &target,
+                                outside: &|x: isize, y: isize| {
+                                    let (ax, ay) = (x0 as isize + x, y0 as isize + y);
+                                    if ax < 0 || ay < 0 || ax >= cw as isize || ay >= ch as isize {
+                                        return None;
+                                    }
+                                    let i = ay as usize * cw + ax as usize;
+                                    filled[i].then_some(canvas[i])
+                                },
+                            },
+                            max_iterations,
+                        );
+                    }
+                }
+            }
+            let pi = placements.len() as u32;
+            for r in 0..p {
+                let nc = ov_cols(r);
+                for c in 0..p {
+                    let i = (y0 + r) * cw + x0 + c;
+                    canvas[i] = out[r * p + c];
+                    filled[i] = true;
+                    if c >= nc || is_new(r, c) {
+                        source[i] = pi;
+                    }
+                }
+            }
+            for (r, &c) in left.iter().enumerate() {
+                seam[(y0 + r) * cw + x0 + c] = true;
+            }
+            for (c, &r) in top.iter().enumerate() {
+                seam[(y0 + r) * cw + x0 + c] = true;
+            }
+            if sc.rejected {
+                stats.translations_rejected += 1;
+            } else if sc.h != 0.0 {
+                stats.translations_applied += 1;
+                stats.max_translation = stats.max_translation.max(sc.h.abs());
+            }
+            stats.mean_candidates += ncand as f64;
+            stats.mean_guide_distance += sc.g as f64;
+            stats.mean_overlap_distance += sc.o as f64;
+            stats.mean_cut_cost += *pcost as f64;
+            placements.push(Placement {
+                gx,
+                gy,
+                x: x0,
+                y: y0,
+                patch: index.patches[idu],
+                translation: sc.h,
+                translation_rejected: sc.rejected,
+                guide_distance: sc.g,
+                overlap_distance: sc.o,
+                cut_cost: *pcost,
+                energy: energies[pick],
+                candidates: ncand,
+            });
+            progress.advance(1);
+        }
+    }
+    let np = placements.len().max(1) as f64;
+    stats.patches = placements.len();
+    stats.mean_candidates /= np;
+    stats.mean_guide_distance /= np;
+    stats.mean_overlap_distance /= np;
+    stats.mean_cut_cost /= np;
+    stats.mean_buckets_probed = buckets_probed as f64 / np;
+    stats.mean_poisson_iterations = poisson_iters as f64 / np;
+
+    let crop = |v: &[f32]| -> Vec<f32> {
+        (0..h)
+            .flat_map(|y| v[y * cw..y * cw + w].iter().copied())
+            .collect()
+    };
+    let (cx, cy) = control.guide.as_ref().map_or_else(
+        || index.exemplars[0].heightfield.cell_size(),
+        |g| g.cell_size(),
+    );
+    let mut hf = Heightfield::new(w, h, crop(&canvas), cx, cy)?;
+    if let Some(g) = &control.guide {
+        hf.set_georef(g.georef().cloned());
+    }
+    let seam_map = SeamMap {
+        width: w,
+        height: h,
+        seam: (0..h)
+            .flat_map(|y| seam[y * cw..y * cw + w].iter().copied())
+            .collect(),
+        source: (0..h)
+            .flat_map(|y| source[y * cw..y * cw + w].iter().copied())
+            .collect(),
+    };
+    Ok(Synthesis {
+        heightfield: hf,
+        seam_map,
+        placements,
+        stats,
+    })
+}
+
+/// Builds the index, then synthesizes: the one-call entry point.
+pub fn quilt(
+    exemplars: Vec<Exemplar>,
+    control: &Control,
+    settings: &Settings,
+    progress: &dyn Progress,
+) -> Result<Synthesis> {
+    control.check()?;
+    let index = ExemplarIndex::build(exemplars, settings, progress)?;
+    synthesize(&index, control, settings, progress)
+}
+
+/// Mean of a window of a row-major raster of width `cw`.
+pub(crate) fn window_mean(v: &[f32], cw: usize, x: usize, y: usize, w: usize, h: usize) -> f32 {
+    let mut s = 0.0f64;
+    for yy in y..y + h {
+        s += v[yy * cw + x..yy * cw + x + w]
+            .iter()
+            .map(|&a| a as f64)
+            .sum::<f64>();
+    }
+    (s / (w * h) as f64) as f32
+}
+
+struct PoissonInput<'a> {
+    p: usize,
+    ov_cols: &'a dyn Fn(usize) -> usize,
+    is_new: &'a dyn Fn(usize, usize) -> bool,
+    nv: &'a dyn Fn(usize, usize) -> f32,
+    old: &'a dyn Fn(usize, usize) -> f32,
+    /// Value of an already synthesized cell outside the patch (patch-local coordinates).
+    outside: &'a dyn Fn(isize, isize) -> Option<f32>,
+}
+
+/// Poisson blending of the overlap region (Zhou et al. 2007, as cited in section 3.3): solves
+/// the discrete Poisson equation on the overlap cells with the guidance gradient of the old
+/// terrain on the old side, of the new patch on the new side and their average across the cut;
+/// the patch interior and the surrounding synthesized terrain are Dirichlet boundaries, cells
+/// not yet synthesized are Neumann. Conjugate gradients, started from the cut-and-paste values.
+/// Returns the iterations used.
+fn poisson_blend(out: &mut [f32], inp: PoissonInput<'_>, max_iterations: usize) -> usize {
+    let p = inp.p;
+    let mut idx = vec![usize::MAX; p * p];
+    let mut cells = Vec::new();
+    for r in 0..p {
+        for c in 0..(inp.ov_cols)(r) {
+            idx[r * p + c] = cells.len();
+            cells.push((r, c));
+        }
+    }
+    let n = cells.len();
+    if n == 0 {
+        return 0;
+    }
+    // Neighbour lists: unknown neighbours and the right-hand side.
+    let mut nbrs: Vec<[usize; 4]> = vec![[usize::MAX; 4]; n];
+    let mut diag = vec![0.0f64; n];
+    let mut rhs = vec![0.0f64; n];
+    for (a, &(r, c)) in cells.iter().enumerate() {
+        let new_a = (inp.is_new)(r, c);
+        let (nva, olda) = ((inp.nv)(r, c) as f64, (inp.old)(r, c) as f64);
+        for (k, (dr, dc)) in [(-1isize, 0isize), (1, 0), (0, -1), (0, 1)]
+            .into_iter()
+            .enumerate()
+        {
+            let (rr, cc) = (r as isize + dr, c as isize + dc);
+            let inside = rr >= 0 && cc >= 0 && rr < p as isize && cc < p as isize;
+            if inside {
+                let (rr, cc) = (rr as usize, cc as usize);
+                let b = idx[rr * p + cc];
+                let nvb = (inp.nv)(rr, cc) as f64;
+                if b != usize::MAX {
+                    let oldb = (inp.old)(rr, cc) as f64;
+                    let new_b = (inp.is_new)(rr, cc);
+                    let g = match (new_a, new_b) {
+                        (true, true) => nva - nvb,
+                        (false, false) => olda - oldb,
+                        _ => 0.5 * ((nva - nvb) + (olda - oldb)),
+                    };
+                    nbrs[a][k] = b;
+                    diag[a] += 1.0;
+                    rhs[a] += g;
+                } else {
+                    // Patch interior: Dirichlet with the new values.
+                    diag[a] += 1.0;
+                    rhs[a] += (nva - nvb) + nvb;
+                }
+            } else if let Some(v) = (inp.outside)(cc, rr) {
+                let v = v as f64;
+                diag[a] += 1.0;
+                rhs[a] += (olda - v) + v;
+            }
+        }
+    }
+    let apply = |x: &[f64], y: &mut [f64]| {
+        for a in 0..n {
+            let mut s = diag[a] * x[a];
+            for &b in &nbrs[a] {
+                if b != usize::MAX {
+                    s -= x[b];
+                }
+            }
+            y[a] = s;
+        }
+    };
+    let mut x: Vec<f64> = cells.iter().map(|&(r, c)| out[r * p + c] as f64).collect();
+    let mut ax = vec![0.0f64; n];
+    apply(&x, &mut ax);
+    let mut res: Vec<f64> = rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut dir = res.clone();
+    let mut rr: f64 = res.iter().map(|v| v * v).sum();
+    let bnorm: f64 = rhs.iter().map(|v| v * v).sum::<f64>().max(1e-30);
+    let mut it = 0;
+    let mut ad = vec![0.0f64; n];
+    while it < max_iterations && rr > 1e-14 * bnorm {
+        apply(&dir, &mut ad);
+        let dad: f64 = dir.iter().zip(&ad).map(|(a, b)| a * b).sum();
+        if dad <= 0.0 {
+            break;
+        }
+        let step = rr / dad;
+        for i in 0..n {
+            x[i] += step * dir[i];
+            res[i] -= step * ad[i];
+        }
+        let rr_new: f64 = res.iter().map(|v| v * v).sum();
+        let beta = rr_new / rr;
+        rr = rr_new;
+        for i in 0..n {
+            dir[i] = res[i] + beta * dir[i];
+        }
+        it += 1;
+    }
+    for (a, &(r, c)) in cells.iter().enumerate() {
+        out[r * p + c] = x[a] as f32;
+    }
+    it
+}

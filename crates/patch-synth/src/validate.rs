@@ -1,0 +1,384 @@
+//! Input validation and exemplar selection (section 4).
+
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::index::{ExemplarIndex, grid_rects};
+use crate::settings::Settings;
+use crate::synth::{Control, allowed_categories, grid_for, pad, window_mean};
+
+/// Candidate count of one guide block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockReport {
+    /// Grid column.
+    pub gx: usize,
+    /// Grid row.
+    pub gy: usize,
+    /// Output column of the block's top-left cell.
+    pub x: usize,
+    /// Output row of the block's top-left cell.
+    pub y: usize,
+    /// Matching patches over all exemplars.
+    pub candidates: usize,
+    /// Matching patches per exemplar.
+    pub per_exemplar: Vec<usize>,
+    /// Smallest and largest `N x N` block mean of the guide over this block (metres): the
+    /// height range the block needs.
+    pub guide_range: (f32, f32),
+}
+
+/// Compatibility of one exemplar with the others (synthesis without a guide).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExemplarCompatibility {
+    /// Exemplar index.
+    pub exemplar: usize,
+    /// Patches checked (a grid of step `overlap`).
+    pub checked: usize,
+    /// Of those, patches with at least one matching patch in another exemplar.
+    pub compatible: usize,
+    /// `compatible / checked` times the exemplar's patch count.
+    pub estimated_compatible: usize,
+    /// `estimated_compatible >= min_candidates`.
+    pub ok: bool,
+}
+
+/// Outcome of [`validate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidationReport {
+    /// True when every block has enough candidates (guided) or every exemplar is compatible
+    /// (unguided).
+    pub ok: bool,
+    /// Required candidates per block.
+    pub min_candidates: usize,
+    /// RMS tolerance (metres) of the block-descriptor match.
+    pub tolerance: f32,
+    /// Synthesis grid (columns, rows).
+    pub grid: (usize, usize),
+    /// One report per guide block, raster order (empty without a guide).
+    pub blocks: Vec<BlockReport>,
+    /// Indices into `blocks` of the blocks with fewer than `min_candidates` candidates.
+    pub failing: Vec<usize>,
+    /// Merged guide height ranges (metres) of the failing blocks: heights the exemplars miss.
+    pub missing_ranges: Vec<(f32, f32)>,
+    /// Range of the patch descriptor means of every exemplar (metres).
+    pub exemplar_ranges: Vec<(f32, f32)>,
+    /// Greedy set cover: a small subset of exemplars (in pick order) that together give every
+    /// coverable block `min_candidates` candidates.
+    pub cover: Vec<usize>,
+    /// Blocks `(gx, gy)` the whole set cannot cover.
+    pub uncovered: Vec<(usize, usize)>,
+    /// Exemplar compatibility (unguided validation only).
+    pub compatibility: Vec<ExemplarCompatibility>,
+}
+
+impl std::fmt::Display for ValidationReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if !self.blocks.is_empty() {
+            write!(
+                f,
+                "{} of {} guide blocks have fewer than {} candidate patches (tolerance {:.1} m)",
+                self.failing.len(),
+                self.blocks.len(),
+                self.min_candidates,
+                self.tolerance
+            )?;
+            for &i in self.failing.iter().take(12) {
+                let b = &self.blocks[i];
+                write!(
+                    f,
+                    "; block ({}, {}) at x={} y={}: {} candidates, needs heights {:.0}..{:.0} m",
+                    b.gx, b.gy, b.x, b.y, b.candidates, b.guide_range.0, b.guide_range.1
+                )?;
+            }
+            if self.failing.len() > 12 {
+                write!(f, "; ... {} more", self.failing.len() - 12)?;
+            }
+            if !self.missing_ranges.is_empty() {
+                let r: Vec<String> = self
+                    .missing_ranges
+                    .iter()
+                    .map(|(a, b)| format!("{a:.0}..{b:.0} m"))
+                    .collect();
+                write!(f, "; missing height ranges: {}", r.join(", "))?;
+            }
+            let e: Vec<String> = self
+                .exemplar_ranges
+                .iter()
+                .enumerate()
+                .map(|(i, (a, b))| format!("#{i} {a:.0}..{b:.0} m"))
+                .collect();
+            write!(f, "; exemplars cover {}", e.join(", "))?;
+        } else {
+            let bad: Vec<String> = self
+                .compatibility
+                .iter()
+                .filter(|c| !c.ok)
+                .map(|c| {
+                    format!(
+                        "exemplar {} has ~{} compatible patches",
+                        c.exemplar, c.estimated_compatible
+                    )
+                })
+                .collect();
+            write!(
+                f,
+                "exemplar compatibility (need {} patches matching other exemplars): {}",
+                self.min_candidates,
+                if bad.is_empty() {
+                    "ok".to_string()
+                } else {
+                    bad.join("; ")
+                }
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Does descriptor `dp` match `dg` within `tol` (RMS) after the vertical translation of
+/// equation (3), dropped when larger than `lambda`?
+fn matches(dp: &[f32], dg: &[f32], lambda: f32, tol: f32) -> bool {
+    let n = dp.len() as f32;
+    let mut h = dg.iter().zip(dp).map(|(g, p)| g - p).sum::<f32>() / n;
+    if h.abs() > lambda {
+        h = 0.0;
+    }
+    let e: f32 = dg
+        .iter()
+        .zip(dp)
+        .map(|(g, p)| (p + h - g) * (p + h - g))
+        .sum();
+    (e / n).sqrt() <= tol
+}
+
+/// Patch ids whose descriptor mean lies in `[lo, hi]`.
+fn mean_range(index: &ExemplarIndex, lo: f32, hi: f32) -> &[(f32, u32)] {
+    let a = index.by_mean.partition_point(|v| v.0 < lo);
+    let b = index.by_mean.partition_point(|v| v.0 <= hi);
+    &index.by_mean[a..b.max(a)]
+}
+
+fn std_of(values: impl Iterator<Item = f32>) -> f32 {
+    let (mut n, mut s, mut s2) = (0usize, 0.0f64, 0.0f64);
+    for v in values {
+        n += 1;
+        s += v as f64;
+        s2 += (v as f64).powi(2);
+    }
+    if n == 0 {
+        return 0.0;
+    }
+    let m = s / n as f64;
+    ((s2 / n as f64 - m * m).max(0.0)).sqrt() as f32
+}
+
+/// Validates the input before synthesis (section 4).
+///
+/// With a guide: every grid block of the guide must be matched by at least
+/// `settings.min_candidates` exemplar patches of an allowed category (block descriptors within
+/// the RMS tolerance after the vertical translation); the report names the failing blocks and
+/// the height ranges they need, and a greedy set cover picks a small subset of exemplars that
+/// covers the guide. Without a guide: every exemplar must have enough patches that match
+/// patches of other exemplars.
+pub fn validate(
+    index: &ExemplarIndex,
+    control: &Control,
+    settings: &Settings,
+) -> Result<ValidationReport> {
+    settings.check()?;
+    index.check_settings(settings)?;
+    control.check()?;
+    let (p, o) = (settings.patch_size, settings.overlap);
+    let grid = grid_for(control.width, control.height, p, o);
+    let ne = index.exemplars.len();
+    let nn = settings.blocks * settings.blocks;
+    let exemplar_ranges: Vec<(f32, f32)> = (0..ne)
+        .map(|e| {
+            let mut r = (f32::INFINITY, f32::NEG_INFINITY);
+            for (i, pr) in index.patches.iter().enumerate() {
+                if pr.exemplar as usize == e {
+                    let m = index.descriptor(i).iter().sum::<f32>() / nn as f32;
+                    r = (r.0.min(m), r.1.max(m));
+                }
+            }
+            r
+        })
+        .collect();
+    let lambda = settings.lambda;
+    let Some(guide) = &control.guide else {
+        // Exemplar compatibility.
+        let tol = settings.validation_tolerance.unwrap_or_else(|| {
+            0.5 * std_of(
+                index
+                    .exemplars
+                    .iter()
+                    .flat_map(|e| e.heightfield.as_slice().iter().copied()),
+            )
+        });
+        let step = o.max(1);
+        let compatibility: Vec<ExemplarCompatibility> = (0..ne)
+            .into_par_iter()
+            .map(|e| {
+                let own: Vec<usize> = index
+                    .patches
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, pr)| {
+                        pr.exemplar as usize == e
+                            && (pr.x as usize).is_multiple_of(step)
+                            && (pr.y as usize).is_multiple_of(step)
+                    })
+                    .map(|(i, _)| i)
+                    .collect();
+                let total = index
+                    .patches
+                    .iter()
+                    .filter(|pr| pr.exemplar as usize == e)
+                    .count();
+                let compatible = if ne < 2 {
+                    own.len()
+                } else {
+                    own.iter()
+                        .filter(|&&i| {
+                            let d = index.descriptor(i);
+                            let m = d.iter().sum::<f32>() / nn as f32;
+                            mean_range(index, m - lambda - tol, m + lambda + tol)
+                                .iter()
+                                .any(|&(_, j)| {
+                                    index.patches[j as usize].exemplar as usize != e
+                                        && matches(index.descriptor(j as usize), d, lambda, tol)
+                                })
+                        })
+                        .count()
+                };
+                let est = if own.is_empty() {
+                    0
+                } else {
+                    (compatible as f64 / own.len() as f64 * total as f64).round() as usize
+                };
+                ExemplarCompatibility {
+                    exemplar: e,
+                    checked: own.len(),
+                    compatible,
+                    estimated_compatible: est,
+                    ok: est >= settings.min_candidates,
+                }
+            })
+            .collect();
+        return Ok(ValidationReport {
+            ok: compatibility.iter().all(|c| c.ok),
+            min_candidates: settings.min_candidates,
+            tolerance: tol,
+            grid: (grid.nx, grid.ny),
+            blocks: Vec::new(),
+            failing: Vec::new(),
+            missing_ranges: Vec::new(),
+            exemplar_ranges,
+            cover: (0..ne).collect(),
+            uncovered: Vec::new(),
+            compatibility,
+        });
+    };
+    let tol = settings
+        .validation_tolerance
+        .unwrap_or_else(|| (0.5 * std_of(guide.as_slice().iter().copied())).max(1e-3));
+    let (w, h) = (control.width, control.height);
+    let g = pad(guide.as_slice(), w, h, grid.cw, grid.ch);
+    let cmap = control
+        .categories
+        .as_ref()
+        .map(|m| pad(&m.ids, w, h, grid.cw, grid.ch));
+    let rects = grid_rects(p, settings.blocks);
+    let s = p - o;
+    let blocks: Vec<BlockReport> = (0..grid.nx * grid.ny)
+        .into_par_iter()
+        .map(|bi| {
+            let (gx, gy) = (bi % grid.nx, bi / grid.nx);
+            let (x0, y0) = (gx * s, gy * s);
+            let dg: Vec<f32> = rects
+                .iter()
+                .map(|r| window_mean(&g, grid.cw, x0 + r[0], y0 + r[1], r[2], r[3]))
+                .collect();
+            let allowed = allowed_categories(index, cmap.as_deref(), grid.cw, x0, y0, p);
+            let m = dg.iter().sum::<f32>() / nn as f32;
+            let mut per = vec![0usize; ne];
+            for &(_, j) in mean_range(index, m - lambda - tol, m + lambda + tol) {
+                let j = j as usize;
+                let cat = index.patch_category(j);
+                let ci = index.categories.binary_search(&cat).unwrap_or(0);
+                if allowed[ci] && matches(index.descriptor(j), &dg, lambda, tol) {
+                    per[index.patches[j].exemplar as usize] += 1;
+                }
+            }
+            let lo = dg.iter().copied().fold(f32::INFINITY, f32::min);
+            let hi = dg.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            BlockReport {
+                gx,
+                gy,
+                x: x0,
+                y: y0,
+                candidates: per.iter().sum(),
+                per_exemplar: per,
+                guide_range: (lo, hi),
+            }
+        })
+        .collect();
+    let min = settings.min_candidates;
+    let failing: Vec<usize> = (0..blocks.len())
+        .filter(|&i| blocks[i].candidates < min)
+        .collect();
+    let mut ranges: Vec<(f32, f32)> = failing.iter().map(|&i| blocks[i].guide_range).collect();
+    ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut missing_ranges: Vec<(f32, f32)> = Vec::new();
+    for r in ranges {
+        match missing_ranges.last_mut() {
+            Some(last) if r.0 <= last.1 => last.1 = last.1.max(r.1),
+            _ => missing_ranges.push(r),
+        }
+    }
+    // Greedy multi-cover: repeatedly take the exemplar that removes the most missing
+    // candidates from the blocks' deficits.
+    let mut deficit: Vec<usize> = blocks.iter().map(|b| min.min(b.candidates)).collect();
+    let mut cover = Vec::new();
+    let mut used = vec![false; ne];
+    loop {
+        let best = (0..ne)
+            .filter(|&e| !used[e])
+            .map(|e| {
+                let gain: usize = blocks
+                    .iter()
+                    .zip(&deficit)
+                    .map(|(b, &d)| d.min(b.per_exemplar[e]))
+                    .sum();
+                (gain, e)
+            })
+            .max_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)));
+        match best {
+            Some((gain, e)) if gain > 0 => {
+                used[e] = true;
+                cover.push(e);
+                for (b, d) in blocks.iter().zip(deficit.iter_mut()) {
+                    *d -= (*d).min(b.per_exemplar[e]);
+                }
+            }
+            _ => break,
+        }
+    }
+    let uncovered = failing
+        .iter()
+        .map(|&i| (blocks[i].gx, blocks[i].gy))
+        .collect();
+    Ok(ValidationReport {
+        ok: failing.is_empty(),
+        min_candidates: min,
+        tolerance: tol,
+        grid: (grid.nx, grid.ny),
+        blocks,
+        failing,
+        missing_ranges,
+        exemplar_ranges,
+        cover,
+        uncovered,
+        compatibility: Vec::new(),
+    })
+}
