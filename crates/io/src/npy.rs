@@ -156,15 +156,27 @@ fn decode(a: &Npy<'_>, n: usize) -> Vec<f64> {
 /// The 2-D grid of an array: `(width, height, row-major values)`; a trailing or leading axis of
 /// length 1 is ignored.
 fn grid(a: &Npy<'_>, f: Format, opts: &ReadOptions) -> Result<(usize, usize, Vec<f32>)> {
-    let dims: Vec<u64> = a.shape.iter().copied().filter(|&d| d != 1).collect();
-    let (h, w) = match (dims.as_slice(), a.shape.as_slice()) {
-        ([h, w], _) => (*h, *w),
-        ([w], [1, _]) => (1, *w),
-        ([h], [_, 1]) => (*h, 1),
-        _ => {
+    let (h, w) = match a.shape.as_slice() {
+        [h, w] => (*h, *w),
+        shape if shape.len() > 2 => {
+            // Extra axes of length 1 (e.g. (1, h, w) or (h, w, 1)) are squeezed.
+            let dims: Vec<u64> = shape.iter().copied().filter(|&d| d != 1).collect();
+            match dims.as_slice() {
+                [h, w] => (*h, *w),
+                [w] => (1, *w),
+                [] => (1, 1),
+                _ => {
+                    return Err(IoError::unsupported(
+                        f,
+                        format!("array of shape {shape:?} is not a 2-D grid"),
+                    ));
+                }
+            }
+        }
+        shape => {
             return Err(IoError::unsupported(
                 f,
-                format!("array of shape {:?} is not a 2-D grid", a.shape),
+                format!("array of shape {shape:?} is not a 2-D grid"),
             ));
         }
     };

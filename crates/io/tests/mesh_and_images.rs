@@ -1,0 +1,210 @@
+//! Mesh writers (OBJ, binary PLY, GLB) parsed back, and the preview / helper PNGs.
+
+use relief_heightfield::Heightfield;
+use relief_io::{MeshFormat, write_gray_png, write_mesh, write_preview_png, write_rgb_png};
+
+/// A closed tetrahedron with outward normals.
+type Mesh = (Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<[f32; 3]>);
+
+fn tetra() -> Mesh {
+    let p: Vec<[f32; 3]> = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let t = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let n = p
+        .iter()
+        .map(|v| {
+            let c = [v[0] - 0.25, v[1] - 0.25, v[2] - 0.25];
+            let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            [c[0] / l, c[1] / l, c[2] / l]
+        })
+        .collect();
+    (p, t, n)
+}
+
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+
+#[test]
+fn obj_parses_back() {
+    let (p, t, n) = tetra();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.obj");
+    write_mesh(&path, &p, &t, Some(&n)).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let verts: Vec<Vec<f32>> = text
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| l[2..].split(' ').map(|s| s.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(verts.len(), 4);
+    assert_eq!(verts[3], vec![0.0, 0.0, 1.0]);
+    assert_eq!(text.lines().filter(|l| l.starts_with("vn ")).count(), 4);
+    let faces: Vec<Vec<u32>> = text
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(|l| {
+            l[2..]
+                .split(' ')
+                .map(|s| s.split("//").next().unwrap().parse().unwrap())
+                .collect()
+        })
+        .collect();
+    assert_eq!(faces.len(), 4);
+    for (f, tri) in faces.iter().zip(&t) {
+        assert_eq!(f, &tri.iter().map(|i| i + 1).collect::<Vec<_>>());
+    }
+    // Closed: every edge is used exactly twice, once in each direction.
+    let mut edges = std::collections::HashMap::new();
+    for f in &faces {
+        for k in 0..3 {
+            *edges.entry((f[k], f[(k + 1) % 3])).or_insert(0) += 1;
+        }
+    }
+    assert!(edges.keys().all(|&(a, b)| edges.get(&(b, a)) == Some(&1)));
+}
+
+#[test]
+fn ply_parses_back() {
+    let (p, t, n) = tetra();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.ply");
+    write_mesh(&path, &p, &t, Some(&n)).unwrap();
+    let b = std::fs::read(&path).unwrap();
+    let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let header = std::str::from_utf8(&b[..end]).unwrap();
+    assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
+    assert!(header.contains("element vertex 4\n") && header.contains("element face 4\n"));
+    assert!(header.contains("property float nz\n"));
+    assert_eq!(b.len(), end + 4 * 24 + 4 * 13, "vertex + face payload size");
+    let body = &b[end..];
+    let z3 = f32::from_le_bytes(body[3 * 24 + 8..3 * 24 + 12].try_into().unwrap());
+    assert_eq!(z3, 1.0);
+    let f = &body[4 * 24..];
+    for (k, tri) in t.iter().enumerate() {
+        let o = k * 13;
+        assert_eq!(f[o], 3);
+        assert_eq!([u32_at(f, o + 1), u32_at(f, o + 5), u32_at(f, o + 9)], *tri);
+    }
+}
+
+#[test]
+fn glb_chunks_and_accessors_are_valid() {
+    let (p, t, n) = tetra();
+    let dir = tempfile::tempdir().unwrap();
+    for normals in [None, Some(n.as_slice())] {
+        let path = dir.path().join("m.glb");
+        write_mesh(&path, &p, &t, normals).unwrap();
+        let b = std::fs::read(&path).unwrap();
+        assert_eq!(&b[0..4], b"glTF");
+        assert_eq!(u32_at(&b, 4), 2);
+        assert_eq!(u32_at(&b, 8) as usize, b.len());
+        let jl = u32_at(&b, 12) as usize;
+        assert_eq!(u32_at(&b, 16), 0x4E4F_534A);
+        assert_eq!(jl % 4, 0);
+        let json: serde_json::Value = serde_json::from_slice(&b[20..20 + jl]).unwrap();
+        let bo = 20 + jl;
+        let bl = u32_at(&b, bo) as usize;
+        assert_eq!(u32_at(&b, bo + 4), 0x004E_4942);
+        assert_eq!(bl % 4, 0);
+        assert_eq!(bo + 8 + bl, b.len());
+        let bin = &b[bo + 8..];
+        assert_eq!(json["asset"]["version"], "2.0");
+        assert_eq!(
+            json["buffers"][0]["byteLength"].as_u64().unwrap() as usize,
+            bl
+        );
+        let prim = &json["meshes"][0]["primitives"][0];
+        let acc = |i: &serde_json::Value| &json["accessors"][i.as_u64().unwrap() as usize];
+        let pos = acc(&prim["attributes"]["POSITION"]);
+        assert_eq!(pos["count"], 4);
+        assert_eq!(pos["type"], "VEC3");
+        assert_eq!(pos["max"], serde_json::json!([1.0, 1.0, 1.0]));
+        assert_eq!(
+            prim["attributes"].get("NORMAL").is_some(),
+            normals.is_some()
+        );
+        let idx = acc(&prim["indices"]);
+        assert_eq!(idx["count"], 12);
+        assert_eq!(idx["componentType"], 5125);
+        // Every buffer view lies inside the BIN chunk and the indices read back.
+        for v in json["bufferViews"].as_array().unwrap() {
+            let (o, l) = (
+                v["byteOffset"].as_u64().unwrap() as usize,
+                v["byteLength"].as_u64().unwrap() as usize,
+            );
+            assert!(o % 4 == 0 && o + l <= bl);
+        }
+        let iv = &json["bufferViews"][idx["bufferView"].as_u64().unwrap() as usize];
+        let io = iv["byteOffset"].as_u64().unwrap() as usize;
+        let got: Vec<u32> = (0..12).map(|k| u32_at(bin, io + 4 * k)).collect();
+        assert_eq!(got, t.concat());
+    }
+}
+
+#[test]
+fn mesh_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, _, _) = tetra();
+    assert!(write_mesh(&dir.path().join("m.obj"), &p, &[[0, 1, 9]], None).is_err());
+    assert!(write_mesh(&dir.path().join("m.stl"), &p, &[[0, 1, 2]], None).is_err());
+    assert!(
+        write_mesh(
+            &dir.path().join("m.ply"),
+            &p,
+            &[[0, 1, 2]],
+            Some(&[[0.0; 3]])
+        )
+        .is_err()
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    assert_eq!(
+        MeshFormat::from_extension(std::path::Path::new("a.GLB")),
+        Some(MeshFormat::Glb)
+    );
+}
+
+fn png_header(path: &std::path::Path) -> (u32, u32, u8, u8) {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+    let be = |o: usize| u32::from_be_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+    (be(16), be(20), b[24], b[25])
+}
+
+#[test]
+fn preview_and_helper_pngs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut hf = Heightfield::from_fn(40, 30, 10.0, 10.0, |x, y| {
+        ((x as f32 * 0.3).sin() + y as f32 * 0.1) * 50.0
+    });
+    hf.set(3, 4, f32::NAN);
+    let p = dir.path().join("prev.png");
+    write_preview_png(&p, &hf).unwrap();
+    assert_eq!(png_header(&p), (40, 30, 8, 2));
+    let rgb = relief_io::preview_rgb(&hf).unwrap();
+    assert_eq!(
+        &rgb[(4 * 40 + 3) * 3..(4 * 40 + 3) * 3 + 3],
+        &[220, 30, 30],
+        "voids are red"
+    );
+    // Shading varies with the terrain.
+    assert!(
+        rgb.chunks(3)
+            .map(|c| c[0])
+            .collect::<std::collections::HashSet<_>>()
+            .len()
+            > 20
+    );
+    let g = dir.path().join("g.png");
+    write_gray_png(&g, 4, 2, &[0, 50, 100, 150, 200, 250, 255, 1]).unwrap();
+    assert_eq!(png_header(&g), (4, 2, 8, 0));
+    let c = dir.path().join("c.png");
+    write_rgb_png(&c, 2, 1, &[1, 2, 3, 4, 5, 6]).unwrap();
+    assert_eq!(png_header(&c), (2, 1, 8, 2));
+    assert!(write_rgb_png(&dir.path().join("bad.png"), 2, 2, &[0; 5]).is_err());
+    assert!(!dir.path().join("bad.png").exists());
+}
