@@ -1,0 +1,62 @@
+use relief_heightfield::HeightfieldError;
+use relief_sparse_core::SparseError;
+use thiserror::Error;
+
+/// Errors of dictionary learning, amplification, synthesis and inverse procedural modelling.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum LearnError {
+    /// A parameter is out of its valid range.
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Offending value, formatted.
+        value: String,
+        /// What is expected.
+        reason: &'static str,
+    },
+    /// Not enough training signals or candidate patches for the requested dictionary.
+    #[error("not enough {what}: need {needed}, got {got}")]
+    NotEnough {
+        /// What is short.
+        what: &'static str,
+        /// How many are needed.
+        needed: usize,
+        /// How many there are.
+        got: usize,
+    },
+    /// A NaN or infinite value where finite values are required.
+    #[error("non-finite value in {what} (row {row})")]
+    NonFinite {
+        /// Which input.
+        what: &'static str,
+        /// Row index.
+        row: usize,
+    },
+    /// The SVD of a restricted error matrix failed to converge.
+    #[error("svd failed for atom {atom}")]
+    Svd {
+        /// Atom being updated.
+        atom: usize,
+    },
+    /// An error of the sparse-coding layer.
+    #[error(transparent)]
+    Sparse(#[from] SparseError),
+    /// An error of the heightfield layer.
+    #[error(transparent)]
+    Heightfield(#[from] HeightfieldError),
+}
+
+impl LearnError {
+    /// Shorthand for [`LearnError::InvalidParameter`].
+    pub fn param(name: &'static str, value: impl std::fmt::Display, reason: &'static str) -> Self {
+        Self::InvalidParameter {
+            name,
+            value: value.to_string(),
+            reason,
+        }
+    }
+}
+
+/// Result alias of this crate.
+pub type Result<T, E = LearnError> = std::result::Result<T, E>;

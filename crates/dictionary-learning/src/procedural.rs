@@ -1,0 +1,133 @@
+//! Inverse procedural modelling (guerin2016 section 5.2, figures 7-8).
+//!
+//! An analytic dictionary `D~` of function atoms (sums of ridged noise, Perlin fBm or ridged
+//! multifractal, see [`crate::noise`]) is discretised into `D` (one-to-one: atom `j` of `D` is
+//! `D~_j` sampled on the patch grid), the terrain's patches are coded on `D` by Batch-OMP, and
+//! the terrain is rebuilt analytically with `D~` (`F~ = D~ X`), so it can be evaluated at any
+//! resolution. Optionally constrained learning (problem (2)) first reduces `D~` to a few of its
+//! own atoms, keeping every atom an exact noise function (only parameters need storing).
+
+use std::sync::Arc;
+
+use relief_heightfield::{Heightfield, Progress, metrics};
+use relief_sparse_core::{
+    Dictionary, EncodeSettings, PatchGeometry, RasterSettings, Sct, encode, extract_patches,
+};
+
+use crate::constrained::{ConstrainedSettings, constrained_learning};
+use crate::error::{LearnError, Result};
+use crate::noise::{NoiseFamily, random_function_atoms};
+
+/// Settings of [`fit_procedural`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProceduralSettings {
+    /// Noise family of the analytic atoms.
+    pub family: NoiseFamily,
+    /// Size of the analytic dictionary `D~` (random parameters).
+    pub n_candidates: usize,
+    /// `Some(N)`: keep only `N` atoms chosen by constrained learning (problem (2)).
+    pub learned_atoms: Option<usize>,
+    /// Learning iterations (when `learned_atoms` is set).
+    pub iterations: usize,
+    /// Patch side `a` (the paper uses `K ~ 10^2`, so about 10).
+    pub patch_size: usize,
+    /// Sparsity `s` (figure 8 uses 1).
+    pub sparsity: usize,
+    /// Seed of the atom parameters.
+    pub seed: u64,
+}
+
+impl Default for ProceduralSettings {
+    fn default() -> Self {
+        Self {
+            family: NoiseFamily::RidgedSum,
+            n_candidates: 2048,
+            learned_atoms: None,
+            iterations: 3,
+            patch_size: 10,
+            sparsity: 1,
+            seed: 0,
+        }
+    }
+}
+
+/// Result of [`fit_procedural`].
+#[derive(Debug, Clone)]
+pub struct ProceduralFit {
+    /// The analytic model (rasterise at any scale / window).
+    pub sct: Sct,
+    /// PSNR (dB, relief-based) of the scale-1 raster against the input.
+    pub psnr: f64,
+    /// Number of atoms of the final dictionary.
+    pub n_atoms: usize,
+}
+
+/// Fits a procedural (function-atom) Sparse Construction Tree to `hf` (section 5.2).
+pub fn fit_procedural(
+    hf: &Heightfield,
+    settings: &ProceduralSettings,
+    progress: &dyn Progress,
+) -> Result<ProceduralFit> {
+    hf.require_complete()?;
+    if settings.n_candidates == 0 || settings.n_candidates > 1 << 16 {
+        return Err(LearnError::param(
+            "n_candidates",
+            settings.n_candidates,
+            "must be in 1..=65536",
+        ));
+    }
+    if settings.patch_size < 2 || settings.patch_size > 64 {
+        return Err(LearnError::param(
+            "patch_size",
+            settings.patch_size,
+            "must be in 2..=64",
+        ));
+    }
+    let geom = PatchGeometry::with_patch_size(settings.patch_size);
+    let mut full = Dictionary::new(geom.patch_size, geom.spacing, geom.support_radius)?;
+    for atom in random_function_atoms(settings.family, settings.n_candidates, settings.seed) {
+        match full.push_function(atom) {
+            Ok(_) | Err(relief_sparse_core::SparseError::DegenerateAtom { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+    let dict = match settings.learned_atoms {
+        None => full,
+        Some(n) => {
+            let patches = extract_patches(hf, &geom)?;
+            let d = full.discretize();
+            let learned = constrained_learning(
+                patches.matrix.view(),
+                d.view(),
+                &ConstrainedSettings {
+                    n_atoms: n,
+                    sparsity: settings.sparsity,
+                    iterations: settings.iterations,
+                    seed: settings.seed,
+                },
+                progress,
+            )?;
+            let mut small = Dictionary::new(geom.patch_size, geom.spacing, geom.support_radius)?;
+            for &j in &learned.sources {
+                if let relief_sparse_core::dictionary::Atom::Function { func, .. } =
+                    &full.atoms()[j]
+                {
+                    small.push_function(Arc::clone(func))?;
+                }
+            }
+            small
+        }
+    };
+    let n_atoms = dict.len();
+    let sct = encode(
+        hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: settings.sparsity,
+            ..Default::default()
+        },
+    )?;
+    let rec = sct.rasterize(&RasterSettings::default())?;
+    let psnr = metrics::psnr(hf, &rec)?;
+    Ok(ProceduralFit { sct, psnr, n_atoms })
+}
