@@ -275,3 +275,70 @@ fn peak_memory_bytes() -> Option<u64> {
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default stages on a crop write rasters, previews, summary.json and report.html, and
+    /// the summary holds every stage's figures.
+    #[test]
+    fn pipeline_writes_report_on_crop() {
+        let root = crate::project_root();
+        let tmp = tempfile::tempdir().unwrap();
+        let config = PipelineConfig {
+            crop: Some((64, 64, 96, 80)),
+            out_dir: tmp.path().to_path_buf(),
+            verbose: false,
+            ..PipelineConfig::full(&root)
+        };
+        let run = run(&config, &default_stages()).unwrap();
+        assert_eq!(run.stage_count, default_stages().len());
+        let terrain = run.state.terrain().unwrap();
+        assert_eq!((terrain.width(), terrain.height()), (96, 80));
+        for f in [
+            "summary.json",
+            "report.html",
+            "dem.tif",
+            "dem.png",
+            "fill_check.png",
+        ] {
+            assert!(tmp.path().join(f).is_file(), "{f} missing");
+        }
+        let summary: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(tmp.path().join("summary.json")).unwrap())
+                .unwrap();
+        let stages = summary["stages"].as_array().unwrap();
+        let names: Vec<&str> = stages
+            .iter()
+            .map(|s| s["stage"].as_str().unwrap())
+            .collect();
+        assert_eq!(names, ["load", "fill_voids", "convert"]);
+        assert_eq!(stages[0]["figures"]["width"], 96);
+        assert_eq!(stages[2]["figures"]["tif_max_abs_m"], 0.0);
+        let rmse = stages[1]["figures"]["check_rmse_in_hole_m"]
+            .as_f64()
+            .unwrap();
+        assert!(rmse > 0.0 && rmse < 500.0, "{rmse}");
+        let html = std::fs::read_to_string(tmp.path().join("report.html")).unwrap();
+        assert!(html.contains("<img src=\"dem.png\""));
+        assert!(html.contains("write -&gt; read round trips"));
+    }
+
+    #[test]
+    fn a_stage_before_load_is_an_error() {
+        let root = crate::project_root();
+        let tmp = tempfile::tempdir().unwrap();
+        let config = PipelineConfig {
+            out_dir: tmp.path().to_path_buf(),
+            verbose: false,
+            ..PipelineConfig::full(&root)
+        };
+        let stages: Vec<Box<dyn Stage>> = vec![Box::new(fill::FillVoids)];
+        let err = run(&config, &stages).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("`load` stage must come first"),
+            "{err:#}"
+        );
+    }
+}
