@@ -612,3 +612,56 @@ fn invalid_inputs_are_errors() {
         .is_err()
     );
 }
+
+#[test]
+fn non_unit_spacing_and_tolerance() {
+    let Some(hf) = crop("jacksboro_fault", 40, 40, 96, 80) else {
+        return;
+    };
+    // Atoms of 8 x 8 samples every 1.5 cells: the patch samples fall between terrain samples
+    // (bicubic extraction) and the reconstruction interpolates the atoms.
+    let g = PatchGeometry {
+        patch_size: 8,
+        spacing: 1.5,
+        step: 6.0,
+        support_radius: 6.0,
+    };
+    let p = extract_patches(&hf, &g).unwrap();
+    let (dict, _) = Dictionary::from_patches(&p, None).unwrap();
+    let settings = EncodeSettings {
+        sparsity: 1,
+        step: Some(6.0),
+        ..Default::default()
+    };
+    let sct = encode(&hf, &dict, &settings).unwrap();
+    let rec = sct.rasterize(&RasterSettings::default()).unwrap();
+    let psnr = metrics::psnr(&hf, &rec).unwrap();
+    assert!(psnr > 35.0, "PSNR {psnr}");
+    // A residual tolerance uses fewer coefficients than the sparsity cap, at a bounded error.
+    let dict = random_patch_dictionary(&hf, 8, 96, 4);
+    let capped = encode(
+        &hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: 12,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let tol = 8.0 * 64.0; // mean squared error of 8 m^2 per sample over a patch
+    let tolerant = encode(
+        &hf,
+        &dict,
+        &EncodeSettings {
+            sparsity: 12,
+            tolerance: Some(tol),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (a, b) = (capped.layers()[0], tolerant.layers()[0]);
+    assert!(b.atom_indices().len() < a.atom_indices().len());
+    let rb = tolerant.rasterize(&RasterSettings::default()).unwrap();
+    let rmse = metrics::rmse(&hf, &rb).unwrap();
+    assert!(rmse < 8f64.sqrt() * 1.5, "rmse {rmse}");
+}
