@@ -238,6 +238,37 @@ mod tests {
         }
     }
 
+    /// Outputs must not depend on the rayon thread count (the design's determinism invariant).
+    #[test]
+    fn outputs_independent_of_thread_count() {
+        let root = crate::project_root();
+        let tmp = tempfile::tempdir().unwrap();
+        let run_with = |threads: usize| {
+            let config = PipelineConfig::golden(&root, tmp.path().join(threads.to_string()));
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| pipeline::run(&config, &pipeline::default_stages()))
+                .unwrap()
+                .state
+                .outputs
+        };
+        let (one, two) = (run_with(1), run_with(GOLDEN_THREADS));
+        assert_eq!(one.len(), two.len());
+        for (a, b) in one.iter().zip(&two) {
+            let bits = |o: &RasterOutput| -> Vec<u32> {
+                o.raster.as_slice().iter().map(|v| v.to_bits()).collect()
+            };
+            assert_eq!(
+                bits(a),
+                bits(b),
+                "{} differs between 1 and 2 threads",
+                a.name
+            );
+        }
+    }
+
     #[test]
     fn compare_detects_changes() {
         let a = Heightfield::from_fn(8, 8, 1.0, 1.0, |x, y| (x + y) as f32);
