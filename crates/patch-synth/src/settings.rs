@@ -91,7 +91,7 @@ impl Default for Settings {
         Self {
             patch_size: 64,
             overlap: 16,
-            alpha: 1.0,
+            alpha: 3.0,
             beta: 1.0,
             gamma: 0.5,
             lambda: 50.0,

@@ -468,6 +468,10 @@ pub fn synthesize(
             }
             cands.sort_unstable();
             cands.dedup();
+            if guide.is_none() && shape.is_none() && !cands.is_empty() {
+                // Unguided first block: nothing to compare with, so a seeded random patch.
+                cands = vec![cands[rng.random_range(0..cands.len())]];
+            }
 
             // Guide cell means of the block (for G) and its mean (for h without overlap).
             let gcells: Option<Vec<f32>> = guide.as_ref().map(|g| {

@@ -1,0 +1,52 @@
+//! Release timing harness: a 1024 x 1024 guided synthesis from one 512 x 512 exemplar on 2
+//! threads (goal <= 10 s). The exemplar is the Grand Canyon DEM; the guide is the low-pass
+//! (factor 16) of a 512 x 512 alps crop enlarged to 1024 x 1024.
+//!
+//! `cargo run --release -p relief-patch-synth --example bench_quilt`
+#![allow(clippy::print_stdout)]
+
+use std::time::Instant;
+
+use relief_heightfield::NoProgress;
+use relief_patch_synth::{Control, Exemplar, ExemplarIndex, Settings, guide, synthesize};
+use relief_testdata::{dem_crop, load_dem};
+
+fn main() {
+    let Some(ex) = load_dem("grandcanyon") else {
+        return;
+    };
+    let src = dem_crop("alps_dem", 900, 200, 512, 512).expect("alps crop");
+    // Bring the guide to the exemplar's height range, as a user's sketch would.
+    let src = src.map(|v| 479.0 + (v - 640.0) * (2347.0 - 479.0) / (4115.0 - 640.0));
+    let g = guide::lowpass_resample(&src.resample(1024, 1024).unwrap(), 16).unwrap();
+    let settings = Settings {
+        enforce_validation: false,
+        ..Default::default()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let t0 = Instant::now();
+        let index = ExemplarIndex::build(vec![Exemplar::new(ex, 0)], &settings, &NoProgress)
+            .expect("index");
+        let t1 = Instant::now();
+        let out = synthesize(&index, &Control::guided(g.clone()), &settings, &NoProgress)
+            .expect("synthesis");
+        let t2 = Instant::now();
+        println!(
+            "patch-synth 1024x1024 from 512x512, 2 threads: index {:.2} s + synthesis {:.2} s = {:.2} s total ({} patches, {:.0} candidates/block, PCA explained {:?})",
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+            (t2 - t0).as_secs_f64(),
+            out.stats.patches,
+            out.stats.mean_candidates,
+            index.pca_explained()
+        );
+        let fid = relief_patch_synth::quality::guide_fidelity(&out.heightfield, &g, 16).unwrap();
+        let seam = relief_patch_synth::quality::seam_visibility(&out.heightfield, &out.seam_map)
+            .unwrap();
+        println!("guide rmse {fid:.1} m, seam ratio {seam:.3}");
+    });
+}

@@ -1,0 +1,192 @@
+//! Control structures and unguided synthesis on real DEM crops: guides from a DEM and from a
+//! sketch, exemplar categories by clustering, the categorisation map from guide heights, the
+//! compatibility check and greedy exemplar selection.
+
+use relief_heightfield::NoProgress;
+use relief_heightfield::metrics::{rmse, stats};
+use relief_patch_synth::guide::{Seed, Stroke, gaussian_blur, guide_from_sketch, lowpass_resample};
+use relief_patch_synth::quality::seam_visibility;
+use relief_patch_synth::{
+    CategoryMap, Control, Exemplar, ExemplarIndex, Settings, categorize_exemplars, synthesize,
+    validate,
+};
+use relief_testdata::dem_crop;
+
+fn small() -> Settings {
+    Settings {
+        patch_size: 32,
+        overlap: 8,
+        kmeans_clusters: 8,
+        pca_samples: 1500,
+        exemplar_stride: 2,
+        min_candidates: 150,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn lowpass_guides_keep_the_coarse_shape_and_drop_detail() {
+    let Some(dem) = dem_crop("jacksboro_fault", 100, 100, 128, 128) else {
+        return;
+    };
+    let a = lowpass_resample(&dem, 8).unwrap();
+    let b = gaussian_blur(&dem, 4.0).unwrap();
+    let s = stats(&dem).unwrap().std;
+    for g in [&a, &b] {
+        assert_eq!((g.width(), g.height()), (128, 128));
+        let e = rmse(g, &dem).unwrap();
+        // The low-pass stays close to the DEM but removes its detail (smaller slopes).
+        assert!(e < 0.5 * s && e > 1.0, "rmse {e} std {s}");
+        let (gs, ds) = (
+            relief_heightfield::terrain::slope_degrees(g)
+                .mean()
+                .unwrap(),
+            relief_heightfield::terrain::slope_degrees(&dem)
+                .mean()
+                .unwrap(),
+        );
+        assert!(gs < 0.7 * ds, "guide slope {gs} vs dem {ds}");
+    }
+    assert!(
+        lowpass_resample(&dem, 0)
+            .unwrap_err()
+            .to_string()
+            .contains("`factor` = 0")
+    );
+    assert!(
+        gaussian_blur(&dem, -1.0)
+            .unwrap_err()
+            .to_string()
+            .contains("`sigma` = -1")
+    );
+}
+
+#[test]
+fn sketch_guide_interpolates_seeds_and_strokes() {
+    let seeds = [
+        Seed {
+            x: 10.0,
+            y: 10.0,
+            height: 500.0,
+            radius: 2.0,
+        },
+        Seed {
+            x: 100.0,
+            y: 90.0,
+            height: 1500.0,
+            radius: 3.0,
+        },
+    ];
+    let ridge = Stroke {
+        points: vec![(20.0, 100.0, 800.0), (110.0, 20.0, 1200.0)],
+    };
+    let g = guide_from_sketch(128, 128, (30.0, 30.0), &seeds, &[ridge], 0.0).unwrap();
+    assert_eq!(g.get(10, 10), 500.0);
+    assert_eq!(g.get(100, 90), 1500.0);
+    // Midpoint of the stroke carries the interpolated stroke height.
+    assert!((g.get(65, 60) - 1000.0).abs() < 15.0, "{}", g.get(65, 60));
+    let (lo, hi) = g.min_max().unwrap();
+    assert!(
+        lo >= 499.0 && hi <= 1501.0,
+        "harmonic interpolation stays within the seeds"
+    );
+    assert!(guide_from_sketch(8, 8, (1.0, 1.0), &[], &[], 0.0).is_err());
+}
+
+#[test]
+fn exemplar_categories_by_clustering_separate_low_and_high_terrain() {
+    let (Some(coast), Some(canyon), Some(alps)) = (
+        dem_crop("N57E011", 900, 100, 160, 160),
+        dem_crop("grandcanyon", 0, 0, 160, 160),
+        dem_crop("alps_dem", 1200, 250, 160, 160),
+    ) else {
+        return;
+    };
+    let cats = categorize_exemplars(&[coast, canyon, alps], 3, &small()).unwrap();
+    // Classes are ordered by height: the low coast first, the alps last.
+    assert!(cats[0] < cats[1] && cats[1] <= cats[2], "{cats:?}");
+    assert!(cats[0] != cats[2]);
+}
+
+#[test]
+fn category_map_from_guide_heights_is_ordered() {
+    let Some(dem) = dem_crop("alps_dem", 2100, 250, 128, 128) else {
+        return;
+    };
+    let g = lowpass_resample(&dem, 8).unwrap();
+    let (map, centres) = CategoryMap::from_guide_heights(&g, 3, 1).unwrap();
+    assert_eq!(centres.len(), 3);
+    assert!(centres[0] < centres[1] && centres[1] < centres[2]);
+    for (i, &id) in map.ids.iter().enumerate() {
+        let v = g.as_slice()[i];
+        let nearest = (0..3)
+            .min_by(|&a, &b| (v - centres[a]).abs().total_cmp(&(v - centres[b]).abs()))
+            .unwrap();
+        assert_eq!(id as usize, nearest);
+    }
+}
+
+#[test]
+fn unguided_synthesis_with_compatibility_check_and_exemplar_cover() {
+    let (Some(a), Some(b)) = (
+        dem_crop("jacksboro_fault", 0, 0, 192, 192),
+        dem_crop("jacksboro_fault", 200, 140, 192, 192),
+    ) else {
+        return;
+    };
+    let s = small();
+    let index = ExemplarIndex::build(
+        vec![Exemplar::new(a, 0), Exemplar::new(b, 0)],
+        &s,
+        &NoProgress,
+    )
+    .unwrap();
+    let control = Control::unguided(128, 96);
+    let report = validate(&index, &control, &s).unwrap();
+    assert_eq!(report.compatibility.len(), 2);
+    assert!(report.ok, "two parts of one DEM are compatible: {report}");
+    let out = synthesize(&index, &control, &s, &NoProgress).unwrap();
+    assert_eq!(
+        (out.heightfield.width(), out.heightfield.height()),
+        (128, 96)
+    );
+    let r = seam_visibility(&out.heightfield, &out.seam_map).unwrap();
+    assert!((0.75..1.3).contains(&r), "seam ratio {r}");
+    // Both exemplars are used somewhere.
+    let used: std::collections::BTreeSet<u32> =
+        out.placements.iter().map(|p| p.patch.exemplar).collect();
+    assert!(!used.is_empty());
+}
+
+#[test]
+fn greedy_cover_picks_the_exemplar_that_matches_the_guide() {
+    let (Some(coast), Some(alps), Some(src)) = (
+        dem_crop("N57E011", 900, 100, 160, 160),
+        dem_crop("alps_dem", 450, 250, 256, 256),
+        dem_crop("alps_dem", 2150, 300, 128, 128),
+    ) else {
+        return;
+    };
+    let g = lowpass_resample(&src, 8).unwrap();
+    let s = Settings {
+        lambda: 60.0,
+        ..small()
+    };
+    let index = ExemplarIndex::build(
+        vec![Exemplar::new(coast, 0), Exemplar::new(alps, 0)],
+        &s,
+        &NoProgress,
+    )
+    .unwrap();
+    let report = validate(&index, &Control::guided(g), &s).unwrap();
+    assert_eq!(
+        report.cover.first(),
+        Some(&1),
+        "the alps exemplar covers the alpine guide"
+    );
+    assert!(
+        !report.cover.contains(&0),
+        "the flat coast adds nothing: {:?}",
+        report.cover
+    );
+}
