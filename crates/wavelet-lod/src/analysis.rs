@@ -334,35 +334,11 @@ pub(crate) fn check_window(window: usize) -> Result<()> {
     Ok(())
 }
 
-/// Windowed sums along rows: each output sums `w` consecutive inputs of its row, the window
-/// centred on it and shifted inwards at the edges (so it always holds `min(w, width)` values).
-fn box_rows(src: &[f64], width: usize, w: usize) -> Vec<f64> {
-    let mut out = vec![0.0f64; src.len()];
-    let wl = w.min(width);
-    let r = w / 2;
-    out.par_chunks_mut(width)
-        .zip(src.par_chunks(width))
-        .for_each(|(o, s)| {
-            let mut pre = vec![0.0f64; width + 1];
-            for i in 0..width {
-                pre[i + 1] = pre[i] + s[i];
-            }
-            for (i, v) in o.iter_mut().enumerate() {
-                let start = i.saturating_sub(r).min(width - wl);
-                *v = pre[start + wl] - pre[start];
-            }
-        });
-    out
-}
-
-fn transpose(src: &[f64], width: usize, height: usize) -> Vec<f64> {
-    let mut out = vec![0.0f64; src.len()];
-    for y in 0..height {
-        for x in 0..width {
-            out[x * height + y] = src[y * width + x];
-        }
-    }
-    out
+/// Start of the `w`-wide window around `i` on an axis of length `n`, shifted inwards at the edges
+/// so that it always holds `min(w, n)` samples.
+#[inline]
+fn window_start(i: usize, n: usize, w: usize) -> usize {
+    i.saturating_sub(w / 2).min(n - w.min(n))
 }
 
 /// `log2` of the floored mean square over the `w x w` window around each coefficient
@@ -371,19 +347,36 @@ pub(crate) fn windowed_log_variance(g: &Grid, w: usize, floor: f64) -> Grid {
     if g.is_empty() {
         return g.clone();
     }
-    let sq: Vec<f64> = g.data.iter().map(|&v| (v as f64) * (v as f64)).collect();
-    let rows = box_rows(&sq, g.width, w);
-    let t = transpose(&rows, g.width, g.height);
-    let cols = box_rows(&t, g.height, w);
-    let back = transpose(&cols, g.height, g.width);
-    let count = (w.min(g.width) * w.min(g.height)) as f64;
+    let (gw, gh) = (g.width, g.height);
+    let (wx, wy) = (w.min(gw), w.min(gh));
+    // Horizontal sums of squares.
+    let mut rows = vec![0.0f32; gw * gh];
+    rows.par_chunks_mut(gw)
+        .zip(g.data.par_chunks(gw))
+        .for_each(|(o, s)| {
+            for (i, v) in o.iter_mut().enumerate() {
+                let st = window_start(i, gw, w);
+                *v = s[st..st + wx].iter().map(|x| x * x).sum();
+            }
+        });
+    // Vertical sums, then the floored log2 mean.
+    let inv = 1.0 / (wx * wy) as f32;
+    let floor = floor as f32;
+    let mut data = vec![0.0f32; gw * gh];
+    data.par_chunks_mut(gw).enumerate().for_each(|(y, o)| {
+        let st = window_start(y, gh, w);
+        o.copy_from_slice(&rows[st * gw..(st + 1) * gw]);
+        for r in st + 1..st + wy {
+            o.iter_mut()
+                .zip(&rows[r * gw..(r + 1) * gw])
+                .for_each(|(a, b)| *a += b);
+        }
+        o.iter_mut().for_each(|v| *v = (*v * inv).max(floor).log2());
+    });
     Grid {
-        width: g.width,
-        height: g.height,
-        data: back
-            .iter()
-            .map(|s| (s / count).max(floor).log2() as f32)
-            .collect(),
+        width: gw,
+        height: gh,
+        data,
     }
 }
 
@@ -444,28 +437,68 @@ impl LocalStats {
         })
     }
 
-    /// `(gamma, a)` per band at input location `(x, y)` (equation (4)), clamped like the
-    /// global fit.
-    #[inline]
-    pub(crate) fn fit_at(&self, x: usize, y: usize) -> [(f64, f64); 3] {
-        let mut out = [(0.0, 0.0); 3];
-        for (b, o) in out.iter_mut().enumerate() {
-            let (mut slope, mut my) = (0.0f64, 0.0f64);
-            for ((_, depth, grids), c) in self.levels.iter().zip(&self.weights) {
+    /// `(gamma, a)` per band ([`Band::ALL`] order) for the input locations
+    /// `[x0, x0 + w) x [y0, y0 + h)` (equation (4)), clamped like the global fit. The
+    /// least-squares sums are accumulated down a pyramid (a coefficient at depth `k` serves
+    /// `2^k x 2^k` locations), in the same order for every location whatever the region, so the
+    /// values do not depend on how the terrain is tiled.
+    pub(crate) fn fit_region(
+        &self,
+        x0: usize,
+        y0: usize,
+        w: usize,
+        h: usize,
+    ) -> [(Vec<f32>, Vec<f32>); 3] {
+        let nl = self.levels.len() as f64;
+        Band::ALL.map(|band| {
+            let b = band.index();
+            let (mut acc_s, mut acc_m) = (Vec::<f64>::new(), Vec::<f64>::new());
+            let (mut prx0, mut pry0, mut pw) = (0usize, 0usize, 0usize);
+            for (li, ((_, depth, grids), c)) in self.levels.iter().zip(&self.weights).enumerate() {
                 let g = &grids[b];
-                let gx = (x >> depth).min(g.width - 1);
-                let gy = (y >> depth).min(g.height - 1);
-                let v = g.data[gy * g.width + gx] as f64;
-                slope += c * v;
-                my += v;
+                let (rx0, rx1) = (x0 >> depth, (x0 + w - 1) >> depth);
+                let (ry0, ry1) = (y0 >> depth, (y0 + h - 1) >> depth);
+                let (rw, rh) = (rx1 - rx0 + 1, ry1 - ry0 + 1);
+                let mut ns = vec![0.0f64; rw * rh];
+                let mut nm = vec![0.0f64; rw * rh];
+                for yy in 0..rh {
+                    let gy = (ry0 + yy).min(g.height - 1);
+                    let grow = &g.data[gy * g.width..(gy + 1) * g.width];
+                    for xx in 0..rw {
+                        let v = grow[(rx0 + xx).min(g.width - 1)] as f64;
+                        let (ps, pm) = if li == 0 {
+                            (0.0, 0.0)
+                        } else {
+                            let k = (((ry0 + yy) >> 1) - pry0) * pw + ((rx0 + xx) >> 1) - prx0;
+                            (acc_s[k], acc_m[k])
+                        };
+                        ns[yy * rw + xx] = ps + c * v;
+                        nm[yy * rw + xx] = pm + v;
+                    }
+                }
+                (acc_s, acc_m, prx0, pry0, pw) = (ns, nm, rx0, ry0, rw);
             }
-            my /= self.levels.len() as f64;
-            let gamma = -slope;
-            let a = my - slope * self.mean_j;
-            let (g, a, _) = clamp_fit(gamma, a, self.mean_j, my, &self.settings);
-            *o = (g, a);
-        }
-        out
+            // The finest fitted level is depth 1: location (x, y) reads (x >> 1, y >> 1).
+            let mut gam = vec![0.0f32; w * h];
+            let mut aa = vec![0.0f32; w * h];
+            for y in 0..h {
+                for x in 0..w {
+                    let k = (((y0 + y) >> 1) - pry0) * pw + ((x0 + x) >> 1) - prx0;
+                    let slope = acc_s[k];
+                    let my = acc_m[k] / nl;
+                    let (g, a, _) = clamp_fit(
+                        -slope,
+                        my - slope * self.mean_j,
+                        self.mean_j,
+                        my,
+                        &self.settings,
+                    );
+                    gam[y * w + x] = g as f32;
+                    aa[y * w + x] = a as f32;
+                }
+            }
+            (gam, aa)
+        })
     }
 }
 
@@ -495,30 +528,27 @@ impl LocalMaps {
 }
 
 pub(crate) fn maps_from(local: &LocalStats, width: usize, height: usize) -> LocalMaps {
-    let n = width * height;
-    let mut gam = vec![[0.0f32; 3]; n];
-    let mut aa = vec![[0.0f32; 3]; n];
-    gam.par_chunks_mut(width)
-        .zip(aa.par_chunks_mut(width))
-        .enumerate()
-        .for_each(|(y, (g, a))| {
-            for x in 0..width {
-                let f = local.fit_at(x, y);
-                for b in 0..3 {
-                    g[x][b] = f[b].0 as f32;
-                    a[x][b] = f[b].1 as f32;
-                }
-            }
-        });
-    let split = |v: &[[f32; 3]], b: usize| Grid {
+    const STRIP: usize = 64;
+    let strips: Vec<[(Vec<f32>, Vec<f32>); 3]> = (0..height.div_ceil(STRIP))
+        .into_par_iter()
+        .map(|s| {
+            let y0 = s * STRIP;
+            local.fit_region(0, y0, width, STRIP.min(height - y0))
+        })
+        .collect();
+    let join = |b: usize, gamma: bool| Grid {
         width,
         height,
-        data: v.iter().map(|t| t[b]).collect(),
+        data: strips
+            .iter()
+            .flat_map(|s| if gamma { s[b].0.iter() } else { s[b].1.iter() })
+            .copied()
+            .collect(),
     };
     LocalMaps {
         window: local.window,
-        gamma: [split(&gam, 0), split(&gam, 1), split(&gam, 2)],
-        a: [split(&aa, 0), split(&aa, 1), split(&aa, 2)],
+        gamma: [join(0, true), join(1, true), join(2, true)],
+        a: [join(0, false), join(1, false), join(2, false)],
     }
 }
 

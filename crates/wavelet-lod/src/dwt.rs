@@ -246,13 +246,16 @@ pub(crate) fn forward_level(
         }
         let mut s = vec![0.0f32; hl * width];
         let mut d = vec![0.0f32; hh * width];
-        for (i, row) in t.chunks(width).enumerate() {
-            let dst = if i % 2 == 0 {
-                &mut s[(i / 2) * width..(i / 2 + 1) * width]
-            } else {
-                &mut d[(i / 2) * width..(i / 2 + 1) * width]
-            };
-            dst.copy_from_slice(row);
+        let copy = |(i, dst): (usize, &mut [f32]), parity: usize| {
+            let r = 2 * i + parity;
+            dst.copy_from_slice(&t[r * width..(r + 1) * width]);
+        };
+        if par {
+            s.par_chunks_mut(width).enumerate().for_each(|x| copy(x, 0));
+            d.par_chunks_mut(width).enumerate().for_each(|x| copy(x, 1));
+        } else {
+            s.chunks_mut(width).enumerate().for_each(|x| copy(x, 0));
+            d.chunks_mut(width).enumerate().for_each(|x| copy(x, 1));
         }
         let (em, om) = lane_maps(h, boundary, 0, hl, 0, hh);
         forward_rows(scheme, &mut s, &mut d, &em, &om, width, par);
@@ -321,10 +324,10 @@ pub(crate) fn inverse_level_window(
     boundary: Boundary,
     px: &AxisPlan,
     py: &AxisPlan,
-    approx: &[f32],
-    hb: &[f32],
-    vb: &[f32],
-    db: &[f32],
+    approx: Vec<f32>,
+    hb: Vec<f32>,
+    vb: Vec<f32>,
+    db: Vec<f32>,
     par: bool,
 ) -> Vec<f32> {
     let (ex, ox, ey, oy) = (px.elen(), px.olen(), py.elen(), py.olen());
@@ -333,11 +336,9 @@ pub(crate) fn inverse_level_window(
     debug_assert_eq!(vb.len(), ox * ey);
     debug_assert_eq!(db.len(), ox * oy);
     let (emy, omy) = lane_maps(py.n, boundary, py.e0, ey, py.o0, oy);
-    let mut s1 = approx.to_vec();
-    let mut d1 = hb.to_vec();
+    let (mut s1, mut d1) = (approx, hb);
     inverse_rows(scheme, &mut s1, &mut d1, &emy, &omy, ex, par);
-    let mut s2 = vb.to_vec();
-    let mut d2 = db.to_vec();
+    let (mut s2, mut d2) = (vb, db);
     if ox > 0 {
         inverse_rows(scheme, &mut s2, &mut d2, &emy, &omy, ox, par);
     }
@@ -462,10 +463,10 @@ pub fn waverec2(dec: &Decomposition) -> Grid {
             dec.boundary,
             &px,
             &py,
-            &approx.data,
-            &lvl.h.data,
-            &lvl.v.data,
-            &lvl.d.data,
+            approx.data,
+            lvl.h.data.clone(),
+            lvl.v.data.clone(),
+            lvl.d.data.clone(),
             par_for(w * h),
         );
         approx = Grid {

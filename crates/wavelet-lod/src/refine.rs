@@ -169,27 +169,19 @@ impl Refiner {
                 })
                 .collect(),
             Some(local) => {
-                let mut out: Vec<[Vec<f32>; 3]> = js
-                    .iter()
-                    .map(|_| {
-                        [
-                            vec![0.0f32; w * h],
-                            vec![0.0f32; w * h],
-                            vec![0.0f32; w * h],
-                        ]
+                let fits = local.fit_region(x0, y0, w, h);
+                js.iter()
+                    .map(|&j| {
+                        let j = j as f32;
+                        [0, 1, 2].map(|b| {
+                            let (g, a) = &fits[b];
+                            g.iter()
+                                .zip(a)
+                                .map(|(g, a)| (0.5 * (a - j * g)).exp2())
+                                .collect()
+                        })
                     })
-                    .collect();
-                for y in 0..h {
-                    for x in 0..w {
-                        let f = local.fit_at(x0 + x, y0 + y);
-                        for (t, &j) in js.iter().enumerate() {
-                            for b in 0..3 {
-                                out[t][b][y * w + x] = (0.5 * (f[b].1 - j * f[b].0)).exp2() as f32;
-                            }
-                        }
-                    }
-                }
-                out
+                    .collect()
             }
         }
     }
@@ -314,17 +306,7 @@ impl Refiner {
             let hb = make_band(Band::H, (px.e0, px.e1), (py.o0, py.o1));
             let vb = make_band(Band::V, (px.o0, px.o1), (py.e0, py.e1));
             let db = make_band(Band::D, (px.o0, px.o1), (py.o0, py.o1));
-            cur = inverse_level_window(
-                scheme,
-                Boundary::Symmetric,
-                px,
-                py,
-                &cur,
-                &hb,
-                &vb,
-                &db,
-                false,
-            );
+            cur = inverse_level_window(scheme, Boundary::Symmetric, px, py, cur, hb, vb, db, false);
         }
         cur
     }
