@@ -217,6 +217,7 @@ fn encode_png(
         let mut enc = png::Encoder::new(&mut out, w32, h32);
         enc.set_color(color);
         enc.set_depth(depth);
+        enc.set_compression(png::Compression::Fast);
         for (k, v) in texts {
             enc.add_text_chunk(k.to_string(), v.clone())
                 .map_err(|e| IoError::malformed(f, e.to_string()))?;

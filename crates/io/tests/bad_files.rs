@@ -133,3 +133,32 @@ fn bad_bytes_fail_in_memory_too() {
         }
     }
 }
+
+#[test]
+fn exr_with_a_huge_data_window_is_rejected_before_decoding() {
+    let hf = relief_heightfield::Heightfield::from_fn(4, 4, 1.0, 1.0, |x, y| (x + y) as f32);
+    let mut bytes = relief_io::encode(
+        &hf,
+        relief_io::Format::Exr,
+        &relief_io::WriteOptions::default(),
+    )
+    .unwrap();
+    for key in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("window attribute")
+            + key.len()
+            + 4;
+        // box2i = xMin, yMin, xMax, yMax (i32 LE).
+        bytes[at + 8..at + 12].copy_from_slice(&999_999i32.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&999_999i32.to_le_bytes());
+    }
+    let res = std::panic::catch_unwind(|| {
+        relief_io::read_bytes(&bytes, None, &ReadOptions::default()).map(|_| ())
+    });
+    let err = res
+        .expect("no panic")
+        .expect_err("huge EXR must be rejected");
+    assert!(err.to_string().to_lowercase().contains("exr"), "{err}");
+}
