@@ -6,7 +6,9 @@
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use relief_heightfield::Heightfield;
 use relief_wavelet_lod::rng::{fill_normals, row_key};
-use relief_wavelet_lod::{Boundary, Grid, Method, RefineSettings, Refiner, Wavelet, wavedec2, waverec2};
+use relief_wavelet_lod::{
+    Boundary, Grid, Method, RefineSettings, Refiner, Wavelet, wavedec2, waverec2,
+};
 
 /// A random-walk surface (the same construction as the PyWavelets peer's input).
 fn surface(size: usize) -> Grid {
@@ -31,9 +33,11 @@ fn dwt(c: &mut Criterion) {
     g.sample_size(10);
     let small = surface(1024);
     for w in Wavelet::ALL {
-        g.bench_with_input(BenchmarkId::new(format!("dwt_fwd_inv_{w}"), 1024), &small, |b, x| {
-            b.iter(|| waverec2(&wavedec2(x, w, 6, Boundary::Symmetric).expect("dwt")))
-        });
+        g.bench_with_input(
+            BenchmarkId::new(format!("dwt_fwd_inv_{w}"), 1024),
+            &small,
+            |b, x| b.iter(|| waverec2(&wavedec2(x, w, 6, Boundary::Symmetric).expect("dwt"))),
+        );
     }
     let big = surface(4096);
     g.bench_with_input(BenchmarkId::new("dwt_fwd_inv_cdf53", 4096), &big, |b, x| {
