@@ -422,7 +422,6 @@ fn assemble<T: OmpFloat>(per_signal: Vec<(Vec<u32>, Vec<T>, T)>) -> SparseCodes<
 /// Per-thread scratch of Batch-OMP.
 struct Scratch<T> {
     alpha0: Array2<T>,
-    alpha: Vec<T>,
     l: Vec<T>,
     u: Vec<T>,
     c: Vec<T>,
@@ -434,7 +433,6 @@ impl<T: OmpFloat> Scratch<T> {
     fn new(n_atoms: usize, s: usize) -> Self {
         Self {
             alpha0: Array2::from_elem((BLOCK, n_atoms), T::zero()),
-            alpha: vec![T::zero(); n_atoms],
             l: vec![T::zero(); s * s],
             u: vec![T::zero(); s * n_atoms],
             c: vec![T::zero(); s],
@@ -637,10 +635,21 @@ fn code_one<T: OmpFloat>(
     tol: Option<f64>,
     out: &mut BlockOut<T>,
 ) {
-    let a0 = sc.alpha0.row(r);
-    let a0 = a0.as_slice().unwrap_or(&[]);
-    sc.alpha.copy_from_slice(a0);
-    sc.idx.clear();
+    let Scratch {
+        alpha0,
+        l,
+        u,
+        c,
+        gamma,
+        idx,
+    } = sc;
+    // The correlations are updated in place: after k selections the row holds
+    // `alpha = alpha0 - sum_m c_m u_m`, and `c_k = alpha[best] / l_kk`.
+    let mut row = alpha0.row_mut(r);
+    let Some(alpha) = row.as_slice_mut() else {
+        return;
+    };
+    idx.clear();
     let floor = T::from_f64(T::RESIDUAL_FLOOR) * xx;
     let tol_t = tol.map(T::from_f64);
     let mut res = xx;
@@ -651,14 +660,14 @@ fn code_one<T: OmpFloat>(
         }
         // Selection: largest |alpha| (ties: smallest index). Selected atoms have alpha set to
         // exactly 0 after each update, so they are never picked again.
-        let Some(best) = argmax_abs(&sc.alpha) else {
+        let Some(best) = argmax_abs(alpha) else {
             break;
         };
         let gjj = gram[best * n + best];
         let mut ww = T::zero();
         for m in 0..k {
-            let w = sc.u[m * n + best];
-            sc.l[k * s + m] = w;
+            let w = u[m * n + best];
+            l[k * s + m] = w;
             ww += w * w;
         }
         let piv = gjj - ww;
@@ -667,14 +676,11 @@ fn code_one<T: OmpFloat>(
             break;
         }
         let lkk = piv.sqrt();
-        sc.l[k * s + k] = lkk;
-        let mut cv = a0[best];
-        for m in 0..k {
-            cv -= sc.l[k * s + m] * sc.c[m];
-        }
-        cv = cv / lkk;
-        sc.c[k] = cv;
-        sc.idx.push(best);
+        l[k * s + k] = lkk;
+        // c_k = (alpha0[best] - sum_m w_m c_m) / l_kk, and the bracket is alpha[best].
+        let cv = alpha[best] / lkk;
+        c[k] = cv;
+        idx.push(best);
         res -= cv * cv;
         if res < T::zero() {
             res = T::zero();
@@ -682,35 +688,48 @@ fn code_one<T: OmpFloat>(
         k += 1;
         if k < s {
             // u_k = (G_{best,:} - sum_m w_m u_m) / l_kk, then alpha -= c_k u_k.
-            let (done, rest) = sc.u.split_at_mut((k - 1) * n);
+            let (done, rest) = u.split_at_mut((k - 1) * n);
             let uk = &mut rest[..n];
-            uk.copy_from_slice(&gram[best * n..(best + 1) * n]);
-            for m in 0..k - 1 {
-                let w = sc.l[(k - 1) * s + m];
-                for (o, &x) in uk.iter_mut().zip(&done[m * n..(m + 1) * n]) {
-                    *o -= w * x;
+            let grow = &gram[best * n..(best + 1) * n];
+            let inv = T::one() / lkk;
+            if k == 1 {
+                for ((o, al), &g) in uk.iter_mut().zip(alpha.iter_mut()).zip(grow) {
+                    let v = g * inv;
+                    *o = v;
+                    *al -= cv * v;
+                }
+            } else {
+                let w0 = l[(k - 1) * s];
+                for ((o, &g), &x) in uk.iter_mut().zip(grow).zip(&done[..n]) {
+                    *o = g - w0 * x;
+                }
+                for m in 1..k - 1 {
+                    let w = l[(k - 1) * s + m];
+                    for (o, &x) in uk.iter_mut().zip(&done[m * n..(m + 1) * n]) {
+                        *o -= w * x;
+                    }
+                }
+                for (o, al) in uk.iter_mut().zip(alpha.iter_mut()) {
+                    let v = *o * inv;
+                    *o = v;
+                    *al -= cv * v;
                 }
             }
-            let inv = T::one() / lkk;
-            for (o, al) in uk.iter_mut().zip(sc.alpha.iter_mut()) {
-                *o = *o * inv;
-                *al -= cv * *o;
-            }
-            for &j in &sc.idx {
-                sc.alpha[j] = T::zero();
+            for &j in idx.iter() {
+                alpha[j] = T::zero();
             }
         }
     }
     // gamma = L^{-T} c.
     for i in (0..k).rev() {
-        let mut v = sc.c[i];
+        let mut v = c[i];
         for m in i + 1..k {
-            v -= sc.l[m * s + i] * sc.gamma[m];
+            v -= l[m * s + i] * gamma[m];
         }
-        sc.gamma[i] = v / sc.l[i * s + i];
+        gamma[i] = v / l[i * s + i];
     }
     out.counts.push(k);
-    out.indices.extend(sc.idx.iter().map(|&j| j as u32));
-    out.values.extend_from_slice(&sc.gamma[..k]);
+    out.indices.extend(idx.iter().map(|&j| j as u32));
+    out.values.extend_from_slice(&gamma[..k]);
     out.residuals.push(res);
 }
