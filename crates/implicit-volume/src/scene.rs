@@ -649,7 +649,23 @@ impl SceneBuilder {
         }
         let dist = self.distance_to_sea(s.sea_level);
         let frame = self.frame;
-        let stress = |_: &Self, p: V3| {
+        let stress = |me: &Self, p: V3| {
+            // A flat floor under water is not attacked by waves: only ground reaching up to the
+            // sea level around the sample (shores, cliffs, skerries) is.
+            let (u, v) = frame.to_grid(p);
+            let (j, i) = (u.floor().max(0.0) as usize, v.floor().max(0.0) as usize);
+            let (j1, i1) = ((j + 1).min(frame.width - 1), (i + 1).min(frame.height - 1));
+            let top = [
+                me.dem_at(j, i),
+                me.dem_at(j1, i),
+                me.dem_at(j, i1),
+                me.dem_at(j1, i1),
+            ]
+            .into_iter()
+            .fold(f32::NEG_INFINITY, f32::max);
+            if top <= s.sea_level {
+                return 0.0;
+            }
             let hgt = p[2] - s.sea_level;
             let t = if hgt >= s.peak {
                 (hgt - s.peak) / (s.height - s.peak).max(1e-3)
