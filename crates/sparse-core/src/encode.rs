@@ -7,12 +7,12 @@
 
 use std::sync::Arc;
 
-use relief_heightfield::{Heightfield, metrics};
+use relief_heightfield::{Heightfield, NoProgress, Progress, metrics};
 
 use crate::dictionary::{Dictionary, FunctionAtomRegistry};
 use crate::error::{Result, SparseError};
 use crate::format::FormatOptions;
-use crate::omp::{OmpSettings, batch_omp};
+use crate::omp::{OmpSettings, batch_omp_with_progress};
 use crate::patches::{PatchGeometry, extract_patches};
 use crate::sct::{Node, Placement, RasterSettings, Sct, SparseLayer};
 
@@ -65,6 +65,16 @@ pub fn encode_shared(
     dict: Arc<Dictionary>,
     settings: &EncodeSettings,
 ) -> Result<Sct> {
+    encode_with_progress(hf, dict, settings, &NoProgress)
+}
+
+/// [`encode_shared`] reporting progress (phases `"extract patches"`, `"batch-omp"`).
+pub fn encode_with_progress(
+    hf: &Heightfield,
+    dict: Arc<Dictionary>,
+    settings: &EncodeSettings,
+    progress: &dyn Progress,
+) -> Result<Sct> {
     if dict.is_empty() {
         return Err(SparseError::EmptyDictionary {
             n_atoms: 0,
@@ -72,15 +82,18 @@ pub fn encode_shared(
         });
     }
     let geometry = settings.geometry(&dict);
+    progress.begin("extract patches", 1);
     let patches = extract_patches(hf, &geometry)?;
+    progress.advance(1);
     let d = dict.discretize();
-    let codes = batch_omp(
+    let codes = batch_omp_with_progress(
         d.view(),
         patches.matrix.view(),
         &OmpSettings {
             sparsity: settings.sparsity,
             tolerance: settings.tolerance,
         },
+        progress,
     )?;
     let layer = SparseLayer::from_codes(
         dict,

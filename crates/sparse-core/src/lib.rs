@@ -61,10 +61,15 @@ pub mod patches;
 pub mod sct;
 
 pub use dictionary::{AtomDescriptor, Dictionary, FunctionAtom, FunctionAtomRegistry};
-pub use encode::{CompressionReport, EncodeSettings, compression_report, encode, storage_values};
+pub use encode::{
+    CompressionReport, EncodeSettings, compression_report, encode, encode_shared,
+    encode_with_progress, storage_values,
+};
 pub use error::{Result, SparseError};
 pub use format::FormatOptions;
-pub use omp::{OmpFloat, OmpSettings, SparseCodes, batch_omp, omp_reference};
+pub use omp::{
+    OmpFloat, OmpSettings, SparseCodes, batch_omp, batch_omp_with_progress, omp_reference,
+};
 pub use patches::{CentreGrid, PatchGeometry, Patches, extract_patches};
 pub use sct::{
     Node, Placement, RasterSettings, Region, River, RiverMode, Sct, SparseLayer, Window,

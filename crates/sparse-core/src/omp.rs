@@ -16,6 +16,8 @@ use std::ops::{AddAssign, Neg, SubAssign};
 use ndarray::{Array2, ArrayView2, LinalgScalar, s};
 use rayon::prelude::*;
 
+use relief_heightfield::{NoProgress, Progress};
+
 use crate::error::{Result, SparseError};
 
 /// Largest sparsity the solvers accept.
@@ -465,7 +467,18 @@ pub fn batch_omp<T: OmpFloat>(
     signals: ArrayView2<T>,
     settings: &OmpSettings,
 ) -> Result<SparseCodes<T>> {
+    batch_omp_with_progress(dict, signals, settings, &NoProgress)
+}
+
+/// [`batch_omp`] reporting the number of coded signals to `progress` (phase `"batch-omp"`).
+pub fn batch_omp_with_progress<T: OmpFloat>(
+    dict: ArrayView2<T>,
+    signals: ArrayView2<T>,
+    settings: &OmpSettings,
+    progress: &dyn Progress,
+) -> Result<SparseCodes<T>> {
     validate(&dict, &signals, settings)?;
+    progress.begin("batch-omp", signals.nrows() as u64);
     let (n_atoms, _) = dict.dim();
     let s = settings.sparsity;
     let gram = dict.dot(&dict.t());
@@ -491,6 +504,7 @@ pub fn batch_omp<T: OmpFloat>(
                     residuals: Vec::with_capacity(hi - lo),
                 };
                 code_block_dispatch(sc, x, gram, n_atoms, s, tol, &mut out);
+                progress.advance((hi - lo) as u64);
                 out
             },
         )

@@ -28,7 +28,7 @@
 use std::sync::Arc;
 
 use rayon::prelude::*;
-use relief_heightfield::Heightfield;
+use relief_heightfield::{Heightfield, NoProgress, Progress};
 
 use crate::dictionary::{Atom, Dictionary};
 use crate::error::{Result, SparseError};
@@ -1187,6 +1187,15 @@ impl Sct {
 
     /// Rasterises a window at a scale factor, in parallel (see the module docs).
     pub fn rasterize(&self, settings: &RasterSettings) -> Result<Heightfield> {
+        self.rasterize_with_progress(settings, &NoProgress)
+    }
+
+    /// [`Sct::rasterize`] reporting rows done to `progress` (phase `"rasterize"`).
+    pub fn rasterize_with_progress(
+        &self,
+        settings: &RasterSettings,
+        progress: &dyn Progress,
+    ) -> Result<Heightfield> {
         let (fw, fh) = self.raster_size(settings.scale)?;
         let win = settings.window.unwrap_or(Window {
             x: 0,
@@ -1209,6 +1218,7 @@ impl Sct {
             ));
         }
         let mut out = vec![0f32; win.width * win.height];
+        progress.begin("rasterize", win.height as u64);
         out.par_chunks_mut(win.width * BAND_ROWS)
             .enumerate()
             .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
@@ -1226,6 +1236,7 @@ impl Sct {
                 for (o, v) in chunk.iter_mut().zip(&val) {
                     *o = *v as f32;
                 }
+                progress.advance(rows as u64);
             });
         let hf = Heightfield::new(
             win.width,

@@ -665,3 +665,50 @@ fn non_unit_spacing_and_tolerance() {
     let rmse = metrics::rmse(&hf, &rb).unwrap();
     assert!(rmse < 8f64.sqrt() * 1.5, "rmse {rmse}");
 }
+
+#[derive(Default)]
+struct Counter(
+    std::sync::atomic::AtomicU64,
+    std::sync::Mutex<Vec<(String, u64)>>,
+);
+
+impl relief_heightfield::Progress for Counter {
+    fn begin(&self, phase: &str, total: u64) {
+        self.1.lock().unwrap().push((phase.to_string(), total));
+        self.0.store(0, std::sync::atomic::Ordering::SeqCst);
+    }
+    fn advance(&self, n: u64) {
+        self.0.fetch_add(n, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+#[test]
+fn progress_is_reported() {
+    let Some(hf) = crop("carrizo", 50, 50, 64, 64) else {
+        return;
+    };
+    let dict = Arc::new(random_patch_dictionary(&hf, 8, 32, 6));
+    let c = Counter::default();
+    let sct = relief_sparse_core::encode_with_progress(&hf, dict, &EncodeSettings::default(), &c)
+        .unwrap();
+    let n = sct.layers()[0].len() as u64;
+    assert_eq!(c.0.load(std::sync::atomic::Ordering::SeqCst), n);
+    assert_eq!(
+        c.1.lock().unwrap().last().unwrap(),
+        &("batch-omp".to_string(), n)
+    );
+    let c = Counter::default();
+    let r = sct
+        .rasterize_with_progress(
+            &RasterSettings {
+                scale: 2.0,
+                window: None,
+            },
+            &c,
+        )
+        .unwrap();
+    assert_eq!(
+        c.0.load(std::sync::atomic::Ordering::SeqCst),
+        r.height() as u64
+    );
+}
