@@ -10,8 +10,8 @@
 //! | 4.2 regular grid of disks, `z_i` = mean over the support, patches `T_i`, matrix `F` | [`PatchGeometry`], [`extract_patches`], [`Patches`] |
 //! | 4.3 OMP (literal argmin of the residual) | [`omp_reference`] |
 //! | 4.3 fast OMP: Batch-OMP (Rubinstein, Zibulevsky & Elad 2008) | [`batch_omp`] |
-//! | 4.3 exact reconstruction with `s = 1` and the complete dictionary | `Dictionary::from_patches(&p, None)` + [`encode`] (tested) |
-//! | 5.1 compact representation, `t(s, N) = KN + n(2s + 2) + 1`, `rho = t / t0`, PSNR | [`encode()`], [`encode::compression_report`], [`format`] (`.sct` bytes) |
+//! | 4.3 exact reconstruction with `s = 1` and the complete dictionary | `Dictionary::from_patches(&p, None)` + [`encode()`] (tested) |
+//! | 5.1 compact representation, `t(s, N) = KN + n(2s + 2) + 1`, `rho = t / t0`, PSNR | [`encode()`], [`encode::compression_report`], [`format`](mod@format) (`.sct` bytes) |
 //! | 5.4 authoring: operators (blend, add, max/min carve, replace in region), rivers (fig. 12-13) | [`sct::Node`], [`sct::River`], [`sct::Region`] |
 //!
 //! # Coordinates
