@@ -334,16 +334,37 @@ pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
             .new_image::<colortype::Gray32Float>(w32, h32)
             .map_err(terr)?;
         let d = img.encoder();
+        // Tags come verbatim from the georeference; a georeference without raw tags (e.g. from
+        // an ASCII grid) is written from its affine transform, and none at all from the cell size.
         let default_geo;
         let g = match hf.georef() {
-            Some(g) => g,
-            None => {
+            Some(g)
+                if g.pixel_scale.is_some()
+                    || g.tiepoints.is_some()
+                    || g.transformation.is_some() =>
+            {
+                g
+            }
+            other => {
                 let (cx, cy) = hf.cell_size();
-                default_geo = GeoRef {
-                    pixel_scale: Some(vec![cx, cy, 0.0]),
-                    tiepoints: Some(vec![0.0; 6]),
-                    ..GeoRef::default()
-                };
+                let mut d = other.cloned().unwrap_or_default();
+                match d.geotransform {
+                    Some(t) if t[2] == 0.0 && t[4] == 0.0 && t[5] < 0.0 => {
+                        d.pixel_scale = Some(vec![t[1], -t[5], 0.0]);
+                        d.tiepoints = Some(vec![0.0, 0.0, 0.0, t[0], t[3], 0.0]);
+                    }
+                    Some(t) => {
+                        d.transformation = Some(vec![
+                            t[1], t[2], 0.0, t[0], t[4], t[5], 0.0, t[3], 0.0, 0.0, 0.0, 0.0, 0.0,
+                            0.0, 0.0, 1.0,
+                        ]);
+                    }
+                    None => {
+                        d.pixel_scale = Some(vec![cx, cy, 0.0]);
+                        d.tiepoints = Some(vec![0.0; 6]);
+                    }
+                }
+                default_geo = d;
                 &default_geo
             }
         };

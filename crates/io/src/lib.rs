@@ -27,9 +27,19 @@
 //! * Writes are atomic: a temporary file in the destination directory is renamed over the
 //!   target only once everything was written; on error nothing is left behind.
 //!
+//! Cell size and georeference: GeoTIFF stores both (cell sizes of geographic grids are
+//! computed in metres at the centre latitude, Web Mercator pixels are scaled by cos(latitude));
+//! ASCII grids and `.f32` sidecars store the cell size (ASCII also the corner); SRTM tiles take
+//! it from the tile name (`N47E011.hgt`); NPZ from `latitude`/`longitude` or `dx`/`dy` arrays
+//! in degrees. PNG, EXR, raw and NPY store neither: they read with a 1 m cell unless
+//! [`ReadOptions::cell_size`] says otherwise. Rows stored south-up (GeoTIFF with a positive y
+//! pixel size, NPZ with an ascending latitude array) are flipped to put north first
+//! ([`Raster::rows_flipped`]) and the GeoTIFF tags are rewritten for the flipped grid.
+//!
 //! Not guaranteed: reprojection (cell sizes of geographic grids are computed at the centre
 //! latitude on the WGS84 ellipsoid), multi-band rasters (only the first band of a single-sample
-//! image is read), BigTIFF writing.
+//! image is read), BigTIFF writing, the GeoTIFF raster-space convention (PixelIsPoint vs
+//! PixelIsArea is carried verbatim in the GeoKey directory but not applied to `geotransform`).
 //!
 //! # Example
 //! ```
@@ -224,7 +234,7 @@ impl Default for ReadOptions {
     }
 }
 
-/// Options of [`write`].
+/// Options of [`write()`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct WriteOptions {
     /// Output format; `None` = from the extension.

@@ -134,7 +134,7 @@ pub fn encode_mesh(
     Ok(match f {
         MeshFormat::Obj => obj(positions, triangles, normals),
         MeshFormat::Ply => ply(positions, triangles, normals),
-        MeshFormat::Glb => glb(positions, triangles, normals),
+        MeshFormat::Glb => glb(positions, triangles, normals)?,
     })
 }
 
@@ -194,7 +194,7 @@ fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
     out
 }
 
-fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Result<Vec<u8>> {
     // BIN layout: positions, [normals], indices; every view starts 4-byte aligned (all
     // components are 4 bytes wide, so the views are contiguous).
     let mut bin = Vec::with_capacity(p.len() * 24 + t.len() * 12);
@@ -257,6 +257,13 @@ fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
         bin.push(0);
     }
     let total = 12 + 8 + js.len() + 8 + bin.len();
+    if total > u32::MAX as usize {
+        return Err(IoError::param(
+            "mesh",
+            total,
+            "a GLB file is limited to 4 GiB",
+        ));
+    }
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -267,5 +274,5 @@ fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
     out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
     out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
     out.extend_from_slice(&bin);
-    out
+    Ok(out)
 }

@@ -253,3 +253,29 @@ fn alps_converts_to_every_format_and_back() {
         assert!(e <= tol, "{ext}: max error {e} > {tol}");
     }
 }
+
+#[test]
+fn ascii_georeference_survives_a_geotiff_round_trip() {
+    let hf = Heightfield::from_fn(5, 4, 25.0, 25.0, |x, y| (x * 3 + y) as f32);
+    let asc = encode(&hf, Format::AsciiGrid, &WriteOptions::default()).unwrap();
+    let a = read_bytes(&asc, Some(Path::new("x.asc")), &ReadOptions::default()).unwrap();
+    let mut g = a.heightfield.georef().cloned().unwrap();
+    g.geotransform = Some([1000.0, 25.0, 0.0, 5100.0, 0.0, -25.0]);
+    let hf2 = a.heightfield.clone().with_georef(Some(g));
+    let tif = encode(&hf2, Format::GeoTiff, &WriteOptions::default()).unwrap();
+    let t = read_bytes(&tif, None, &ReadOptions::default()).unwrap();
+    assert_eq!(t.heightfield.cell_size(), (25.0, 25.0));
+    assert_eq!(
+        t.heightfield.georef().unwrap().geotransform,
+        Some([1000.0, 25.0, 0.0, 5100.0, 0.0, -25.0])
+    );
+    // And back to ASCII: the corner is kept.
+    let asc2 = String::from_utf8(
+        encode(&t.heightfield, Format::AsciiGrid, &WriteOptions::default()).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        asc2.contains("xllcorner 1000\n") && asc2.contains("yllcorner 5000\n"),
+        "{asc2}"
+    );
+}
