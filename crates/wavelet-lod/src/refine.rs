@@ -214,8 +214,9 @@ impl Refiner {
     fn wrap(&self, x: usize, y: usize, w: usize, h: usize, data: Vec<f32>) -> Result<Heightfield> {
         let s = 1.0 / (1u64 << self.settings.extra_levels) as f64;
         let hf = Heightfield::new(w, h, data, self.cell.0 * s, self.cell.1 * s)?;
-        // Refined sample k sits at input pixel coordinate k * s (vertex-aligned lattice).
-        let shift = 0.5 * s - 0.5;
+        // Refined sample k is centred on input pixel coordinate k * s (vertex-aligned lattice:
+        // sample 2^n i lies on input sample i), so its corner is at k * s + (1 - s) / 2.
+        let shift = 0.5 - 0.5 * s;
         Ok(hf.with_georef(
             self.georef
                 .as_ref()

@@ -296,3 +296,22 @@ fn fits_serialise() {
     assert_eq!(back.levels.len(), 3);
     assert!(json.contains("\"gamma\""));
 }
+
+#[test]
+fn georeference_follows_the_vertex_aligned_lattice() {
+    let mut hf = rough(64, 64, 7);
+    hf.set_georef(Some(relief_heightfield::GeoRef {
+        geotransform: Some([1000.0, 30.0, 0.0, 5000.0, 0.0, -30.0]),
+        ..Default::default()
+    }));
+    let r = Refiner::new(&hf, &RefineSettings::default()).unwrap();
+    let out = r.render_window(8, 12, 16, 16).unwrap();
+    let t = out.georef().unwrap().geotransform.unwrap();
+    assert_eq!((t[1], t[5]), (7.5, -7.5));
+    // Refined sample (8, 12) is input sample (2, 3): same cell centre.
+    let (cx, cy) = (t[0] + 0.5 * t[1], t[3] + 0.5 * t[5]);
+    assert!((cx - (1000.0 + 2.5 * 30.0)).abs() < 1e-9, "{cx}");
+    assert!((cy - (5000.0 - 3.5 * 30.0)).abs() < 1e-9, "{cy}");
+    // And it keeps the input value there.
+    assert!((out.get(0, 0) - hf.get(2, 3)).abs() < 50.0);
+}
