@@ -162,3 +162,38 @@ fn exr_with_a_huge_data_window_is_rejected_before_decoding() {
         .expect_err("huge EXR must be rejected");
     assert!(err.to_string().to_lowercase().contains("exr"), "{err}");
 }
+
+mod mutations {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn valid(ext: &str) -> Vec<u8> {
+        let hf = relief_heightfield::Heightfield::from_fn(9, 7, 10.0, 10.0, |x, y| {
+            (x * 7 + y * 3) as f32
+        });
+        let fmt = relief_io::Format::from_extension(Path::new(&format!("a.{ext}"))).unwrap();
+        relief_io::encode(&hf, fmt, &relief_io::WriteOptions::default()).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+        /// Random byte edits of valid files: every reader returns (Ok or Err) without panicking.
+        #[test]
+        fn corrupted_files_never_panic(
+            which in 0usize..6,
+            edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
+        ) {
+            let ext = ["tif", "png", "exr", "npy", "asc", "hgt"][which];
+            let mut bytes = if ext == "hgt" { vec![0u8; 1201 * 1201 * 2] } else { valid(ext) };
+            for (i, b) in &edits {
+                let k = i.index(bytes.len());
+                bytes[k] = *b;
+            }
+            let hint = PathBuf::from(format!("x.{ext}"));
+            let res = std::panic::catch_unwind(move || {
+                relief_io::read_bytes(&bytes, Some(&hint), &ReadOptions::default()).map(|_| ())
+            });
+            prop_assert!(res.is_ok(), "{} reader panicked after edits {:?}", ext, edits);
+        }
+    }
+}
