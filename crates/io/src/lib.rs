@@ -155,12 +155,17 @@ impl Format {
         if bytes.starts_with(b"PK\x03\x04") || bytes.starts_with(b"PK\x05\x06") {
             return Ok(Format::Npz);
         }
+        // Raw formats have no magic: their samples may look like text, so a raw hint wins over
+        // the text heuristics below.
+        if let Some(f @ (Format::Hgt | Format::R16 | Format::R32 | Format::F32Sidecar)) = hint {
+            return Ok(f);
+        }
         let head = String::from_utf8_lossy(&bytes[..bytes.len().min(64)]).to_ascii_lowercase();
         let trimmed = head.trim_start();
         if trimmed.starts_with("ncols") || trimmed.starts_with("nrows") {
             return Ok(Format::AsciiGrid);
         }
-        if trimmed.starts_with('{') && hint != Some(Format::F32Sidecar) {
+        if trimmed.starts_with('{') {
             return Ok(Format::JsonGrid);
         }
         match hint {

@@ -279,3 +279,22 @@ fn ascii_georeference_survives_a_geotiff_round_trip() {
         "{asc2}"
     );
 }
+
+#[test]
+fn raw_samples_that_look_like_text_keep_their_hinted_format() {
+    // 0x7b = '{', 0x20 = ' ': a raw file may begin like JSON or ASCII text.
+    let v = f32::from_le_bytes([0x7b, 0x20, 0x22, 0x41]);
+    let hf = Heightfield::new(2, 1, vec![v, 1.0], 1.0, 1.0).unwrap();
+    let bytes = encode(&hf, Format::R32, &WriteOptions::default()).unwrap();
+    let r = read_bytes(
+        &bytes,
+        Some(Path::new("a.r32")),
+        &ReadOptions {
+            width: Some(2),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(r.format, Format::R32);
+    assert_eq!(r.heightfield.as_slice(), hf.as_slice());
+}
