@@ -268,6 +268,24 @@ pub struct Raster {
 ///
 /// `.f32` files take their size and cell size from the `.json` sidecar with the same stem.
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    // No format needs more than 32 bytes per cell (ASCII text), so a larger file is refused
+    // before it is read into memory.
+    let len = std::fs::metadata(path)
+        .map_err(|e| IoError::os(path, e))?
+        .len();
+    let cap = (opts.max_cells as u64)
+        .saturating_mul(32)
+        .saturating_add(1 << 20);
+    if len > cap {
+        return Err(IoError::param(
+            "max_cells",
+            opts.max_cells,
+            format!(
+                "the file has {len} bytes, more than any raster within the cell limit ({cap} bytes)"
+            ),
+        )
+        .in_file(path));
+    }
     let bytes = std::fs::read(path).map_err(|e| IoError::os(path, e))?;
     let format = Format::detect(&bytes, Some(path)).map_err(|e| e.in_file(path))?;
     let res = match format {

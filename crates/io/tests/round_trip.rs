@@ -298,3 +298,30 @@ fn raw_samples_that_look_like_text_keep_their_hinted_format() {
     assert_eq!(r.format, Format::R32);
     assert_eq!(r.heightfield.as_slice(), hf.as_slice());
 }
+
+#[test]
+fn files_larger_than_the_cell_limit_allows_are_refused_unread() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("big.r32");
+    std::fs::write(&p, vec![0u8; 4 * 64 * 64]).unwrap();
+    let small = ReadOptions {
+        max_cells: 16,
+        ..Default::default()
+    };
+    let e = read(&p, &small).unwrap_err().to_string();
+    assert!(e.contains("max_cells") && e.contains("big.r32"), "{e}");
+    // Within the byte cap but over the cell limit: the dimension check names the limit.
+    let mid = ReadOptions {
+        max_cells: 2048,
+        ..Default::default()
+    };
+    let e = read(&p, &mid).unwrap_err().to_string();
+    assert!(e.contains("exceed the limit"), "{e}");
+    assert_eq!(
+        read(&p, &ReadOptions::default())
+            .unwrap()
+            .heightfield
+            .width(),
+        64
+    );
+}
