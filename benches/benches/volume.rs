@@ -1,0 +1,118 @@
+//! Benchmarks of relief-implicit-volume on a karst + sea scene over a ~5 km^2 crop of N57E011
+//! (34x34 cells resampled to 136x136): tree build on 2 threads, field evaluation with and
+//! without the BVH, chunked meshing of a 256^3 sampling (field evaluation included) and marching
+//! tetrahedra on the same grid precomputed (compare `xtask/peers/skimage_mc.py`, which times
+//! scikit-image `marching_cubes` on the grid written by the crate's `bench_volume` example).
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use relief_heightfield::Heightfield;
+use relief_implicit_volume::*;
+
+fn dem() -> Option<Heightfield> {
+    let crop = relief_testdata::dem_crop("N57E011", 888, 72, 34, 34)?;
+    Some(crop.resample(136, 136).expect("resample"))
+}
+
+fn build(hf: &Heightfield, bvh: bool) -> Scene {
+    let (cx, cy) = hf.cell_size();
+    let (lo, hi) = hf.min_max().expect("range");
+    let c = [
+        hf.width() as f32 * cx as f32 * 0.5,
+        hf.height() as f32 * cy as f32 * 0.5,
+        0.5 * (lo + hi),
+    ];
+    let geo = Geology::layered_default(c, 12.0, 42).expect("geology");
+    let mut b = SceneBuilder::new(hf, geo, &ImplicitizeSettings::default()).expect("implicitise");
+    let sea = SeaErosion {
+        weathering: Weathering {
+            spacing: 4.0,
+            radius: 10.0,
+            energy: 3.0,
+            ..Default::default()
+        },
+        height: 25.0,
+        reach: 200.0,
+        caves: 30,
+        cave_length: 120.0,
+        ..Default::default()
+    };
+    b.sea_erosion(&sea, &Region::everywhere()).expect("sea");
+    let ks = KarstSettings {
+        budget: 30_000,
+        radius: 6.0,
+        step: 4.0,
+        poisson_radius: 3.0,
+        max_sinkholes: 400,
+        rho0: 0.55,
+        ..Default::default()
+    };
+    b.karst(&ks, &Region::everywhere()).expect("karst");
+    b.build(bvh).expect("scene")
+}
+
+fn points(scene: &Scene, n: usize) -> Vec<[f32; 3]> {
+    let b = scene.bbox();
+    let s = b.size();
+    (0..n)
+        .map(|k| {
+            let r = |c| math::unit(math::hash(77, k as u64, c, 0));
+            [
+                b.min[0] + r(0) * s[0],
+                b.min[1] + r(1) * s[1],
+                b.min[2] + r(2) * s[2] * 0.5,
+            ]
+        })
+        .collect()
+}
+
+fn volume(c: &mut Criterion) {
+    let Some(hf) = dem() else { return };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    let mut g = c.benchmark_group("implicit_volume");
+    g.sample_size(10);
+    g.bench_function(
+        BenchmarkId::new("tree_build_karst_sea_2threads", "5km2"),
+        |b| b.iter(|| pool.install(|| build(&hf, true))),
+    );
+    let scene = pool.install(|| build(&hf, true));
+    let flat = pool.install(|| build(&hf, false));
+    let pts = points(&scene, 10_000);
+    g.bench_function(BenchmarkId::new("field_10k_points", "bvh"), |b| {
+        b.iter(|| pts.iter().map(|&p| scene.field(p)).sum::<f32>())
+    });
+    let few = &pts[..100];
+    g.bench_function(BenchmarkId::new("field_100_points", "no_bvh"), |b| {
+        b.iter(|| few.iter().map(|&p| flat.field(p)).sum::<f32>())
+    });
+    let bbox = scene.bbox();
+    let ms = MeshSettings {
+        bbox: Some(bbox),
+        cells: [255, 255, 255],
+        chunk: 32,
+        close_boundary: true,
+        normals: false,
+    };
+    g.bench_function(BenchmarkId::new("polygonize_2threads", 256), |b| {
+        b.iter(|| pool.install(|| polygonize(&scene, &ms).expect("mesh")))
+    });
+    let grid = pool.install(|| sample_grid(&scene, &bbox, [256, 256, 256]).expect("grid"));
+    let s = bbox.size();
+    let sp = [s[0] / 255.0, s[1] / 255.0, s[2] / 255.0];
+    g.bench_function(
+        BenchmarkId::new("marching_tetrahedra_precomputed_2threads", 256),
+        |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    polygonize_grid(&grid, [256; 3], bbox.min, sp, THRESHOLD, 32).expect("mesh")
+                })
+            })
+        },
+    );
+    g.finish();
+}
+
+criterion_group!(benches, volume);
+criterion_main!(benches);
