@@ -13,7 +13,11 @@ fn main() {
     };
     println!("alps_dem 256x256 crop, s = 1");
     for patch_size in [10usize, 16] {
-        for family in [NoiseFamily::Perlin, NoiseFamily::RidgedMultifractal, NoiseFamily::RidgedSum] {
+        for family in [
+            NoiseFamily::Perlin,
+            NoiseFamily::RidgedMultifractal,
+            NoiseFamily::RidgedSum,
+        ] {
             for learned in [None, Some(64)] {
                 let s = ProceduralSettings {
                     family,

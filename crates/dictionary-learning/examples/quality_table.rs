@@ -31,26 +31,18 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
             r.consistency, r.added_slope, r.truth_slope, r.slope_hist_distance, r.truth_rmse
         );
     };
-    for (name, dict, s) in [
-        (
-            "sparse learned N=256 s=1",
-            DictionaryChoice::Learned {
-                n_atoms: 256,
-                iterations: 3,
-            },
-            1,
-        ),
-        (
-            "sparse learned N=256 s=4",
-            DictionaryChoice::Learned {
-                n_atoms: 256,
-                iterations: 3,
-            },
-            4,
-        ),
-        ("sparse complete s=1", DictionaryChoice::Complete, 1),
+    let learned = DictionaryChoice::Learned {
+        n_atoms: 256,
+        iterations: 3,
+    };
+    for (name, dict, s, rc) in [
+        ("sparse learned N=256 s=1", learned, 1, false),
+        ("sparse learned N=256 s=4", learned, 4, false),
+        ("sparse complete s=1", DictionaryChoice::Complete, 1, false),
+        ("sparse N=256 s=1 + residual", learned, 1, true),
     ] {
         let st = AmplifySettings {
+            residual_correction: rc,
             steps,
             dictionary: dict,
             sparsity: s,

@@ -78,6 +78,10 @@ pub struct AmplifySettings {
     pub max_training: usize,
     /// Seed (candidate subsampling, learning initialisation).
     pub seed: u64,
+    /// Not in the paper: also add the coarse coding residual (input minus its reconstruction
+    /// on `L`), interpolated by a second sparse layer (its complete dictionary, atoms sampled
+    /// every 4 fine pixels, bicubic), so the output stays consistent with the input.
+    pub residual_correction: bool,
 }
 
 impl Default for AmplifySettings {
@@ -95,6 +99,7 @@ impl Default for AmplifySettings {
             max_candidates: 4096,
             max_training: 8192,
             seed: 0,
+            residual_correction: false,
         }
     }
 }
@@ -446,11 +451,86 @@ impl MultiResDictionary {
             coeffs,
         )?;
         let (cx, cy) = coarse.cell_size();
+        let root = if settings.residual_correction {
+            let res = self.residual_layer(coarse, &patches, &codes, settings, fine)?;
+            Node::Add(vec![Node::Layer(layer), Node::Layer(res)])
+        } else {
+            Node::Layer(layer)
+        };
         Ok(Sct::new(
-            Node::Layer(layer),
+            root,
             coarse.width() * STEP_FACTOR,
             coarse.height() * STEP_FACTOR,
             (cx / f, cy / f),
+        )?)
+    }
+}
+
+impl MultiResDictionary {
+    /// The coding residual of `coarse` on `L` as a fine-grid layer (see
+    /// [`AmplifySettings::residual_correction`]).
+    fn residual_layer(
+        &self,
+        coarse: &Heightfield,
+        patches: &relief_sparse_core::Patches,
+        codes: &relief_sparse_core::SparseCodes<f32>,
+        settings: &AmplifySettings,
+        fine: CentreGrid,
+    ) -> Result<SparseLayer> {
+        let geom = settings.coarse_geometry();
+        let low =
+            Dictionary::from_matrix(self.low.view(), geom.patch_size, 1.0, geom.support_radius)?;
+        let layer = SparseLayer::from_codes(
+            Arc::new(low),
+            Placement::Grid(patches.grid),
+            patches.means.clone(),
+            codes,
+        )?;
+        let rec = Sct::new(
+            Node::Layer(layer),
+            coarse.width(),
+            coarse.height(),
+            coarse.cell_size(),
+        )?
+        .rasterize(&RasterSettings::default())?;
+        let res: Vec<f32> = coarse
+            .as_slice()
+            .iter()
+            .zip(rec.as_slice())
+            .map(|(a, b)| a - b)
+            .collect();
+        let res = coarse.with_data(res)?;
+        let rp = extract_patches(&res, &geom)?;
+        let f = STEP_FACTOR as f64;
+        let mut dict = Dictionary::new(geom.patch_size, f, geom.support_radius * f)?;
+        let mut offsets = vec![0u32];
+        let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
+        for row in rp.matrix.outer_iter() {
+            let v: Vec<f32> = row.iter().copied().collect();
+            let norm = v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
+            match dict.push_data(&v) {
+                Ok(j) => {
+                    atoms.push(j as u32);
+                    coeffs.push(norm as f32);
+                }
+                Err(relief_sparse_core::SparseError::DegenerateAtom { .. }) => {}
+                Err(e) => return Err(e.into()),
+            }
+            offsets.push(atoms.len() as u32);
+        }
+        if dict.is_empty() {
+            // A residual without relief: one harmless atom, used by nobody.
+            let mut v = vec![0f32; geom.patch_size * geom.patch_size];
+            v[0] = 1.0;
+            dict.push_data(&v)?;
+        }
+        Ok(SparseLayer::from_parts(
+            Arc::new(dict),
+            Placement::Grid(fine),
+            rp.means.clone(),
+            offsets,
+            atoms,
+            coeffs,
         )?)
     }
 }

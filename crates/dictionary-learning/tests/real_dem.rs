@@ -286,3 +286,34 @@ fn inverse_procedural_fits_every_family() {
     assert_eq!(small.n_atoms, 32);
     eprintln!("learned 32 ridged atoms: {:.2} dB", small.psnr);
 }
+
+#[test]
+fn residual_correction_restores_consistency_on_alps() {
+    let (Some(truth), Some(ex)) = (alps(100, 200, 256, 256), alps(1400, 300, 512, 400)) else {
+        return;
+    };
+    let coarse = truth.resample(64, 64).unwrap();
+    let settings = AmplifySettings {
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 128,
+            iterations: 2,
+        },
+        max_candidates: 2048,
+        residual_correction: true,
+        ..Default::default()
+    };
+    let out = amplify(&coarse, &ex, &settings, &NoProgress)
+        .unwrap()
+        .rasterize(&RasterSettings::default())
+        .unwrap();
+    let bicubic = coarse.resample(256, 256).unwrap();
+    let r = evaluate(&truth, &coarse, &out).unwrap();
+    let b = evaluate(&truth, &coarse, &bicubic).unwrap();
+    eprintln!("residual-corrected {r:?}\nbicubic {b:?}");
+    assert!(r.consistency < 0.01, "{r:?}");
+    assert!(
+        r.slope_hist_distance < b.slope_hist_distance,
+        "{r:?} vs {b:?}"
+    );
+    assert!((r.added_slope - r.truth_slope).abs() < 0.5 * (b.added_slope - b.truth_slope).abs());
+}
