@@ -190,3 +190,48 @@ fn greedy_cover_picks_the_exemplar_that_matches_the_guide() {
         report.cover
     );
 }
+
+#[derive(Default)]
+struct Counting {
+    phases: std::sync::Mutex<Vec<(String, u64)>>,
+    done: std::sync::atomic::AtomicU64,
+}
+
+impl relief_heightfield::Progress for Counting {
+    fn begin(&self, phase: &str, total: u64) {
+        self.phases.lock().unwrap().push((phase.to_string(), total));
+    }
+    fn advance(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+#[test]
+fn quilt_reports_progress_for_every_phase() {
+    let (Some(a), Some(src)) = (
+        dem_crop("grandcanyon", 100, 100, 160, 160),
+        dem_crop("grandcanyon", 300, 300, 80, 80),
+    ) else {
+        return;
+    };
+    let g = gaussian_blur(&src, 4.0).unwrap();
+    let s = Settings {
+        enforce_validation: false,
+        ..small()
+    };
+    let p = Counting::default();
+    let out =
+        relief_patch_synth::quilt(vec![Exemplar::new(a, 0)], &Control::guided(g), &s, &p).unwrap();
+    let phases = p.phases.lock().unwrap().clone();
+    let names: Vec<&str> = phases.iter().map(|(n, _)| n.as_str()).collect();
+    assert!(
+        names.iter().any(|n| n.contains("k-means")) && names.iter().any(|n| n.contains("kd-trees"))
+    );
+    let (_, total) = phases
+        .iter()
+        .find(|(n, _)| n.contains("synthesis"))
+        .unwrap();
+    assert_eq!(*total as usize, out.placements.len());
+    let expected: u64 = phases.iter().map(|(_, t)| t).sum();
+    assert_eq!(p.done.load(std::sync::atomic::Ordering::Relaxed), expected);
+}
