@@ -13,7 +13,7 @@
 //! | 5.3 / 5.4 synthesis from a painted sketch, 3 incremental steps (figure 12) | [`synthesize`] |
 //! | figure 15 noise amplification baseline | [`noise_amplify`] |
 //! | 5.2 inverse procedural modelling, figure 4 atoms, figure 7-8 | [`noise`] atoms, [`fit_procedural`] |
-//! | several exemplars / mixed data + analytic atoms | stack the patch matrices; [`ksvd_with_fixed`] |
+//! | several exemplars / mixed data + analytic atoms | [`MultiResDictionary::from_exemplars`], [`training_patches`]; [`ksvd_with_fixed`] |
 //! | quality protocol (consistency, spectral slope, slope histogram) | [`quality::evaluate`] |
 //!
 //! # Guarantees
@@ -26,8 +26,10 @@
 //! * Invalid parameters and NaN input are [`LearnError`]s naming the field, never panics.
 //!
 //! Not guaranteed: amplification is consistent with its input only up to the sparse coding
-//! error on `L` (with `s = 1` a few per cent of the relief on Alpine DEMs); repeated steps use
-//! the exemplar at the closest available resolution (self-similarity assumption).
+//! error on `L` (with `s = 1` a few per cent of the relief on Alpine DEMs) unless
+//! [`AmplifySettings::residual_correction`] (not in the paper) adds the coding residual back;
+//! repeated steps use the exemplar at the closest available resolution (self-similarity
+//! assumption).
 //!
 //! # Example
 //! ```
@@ -66,3 +68,25 @@ pub use multires::{
 pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};
 pub use quality::{QualityRow, evaluate};
+
+/// Stacks the patch matrices of several terrains (same geometry) into one training matrix, for
+/// learning one dictionary from several exemplars at once.
+pub fn training_patches(
+    terrains: &[&relief_heightfield::Heightfield],
+    geometry: &relief_sparse_core::PatchGeometry,
+) -> Result<ndarray::Array2<f32>> {
+    let mut mats = Vec::with_capacity(terrains.len());
+    for t in terrains {
+        mats.push(relief_sparse_core::extract_patches(t, geometry)?.matrix);
+    }
+    if mats.is_empty() {
+        return Err(LearnError::NotEnough {
+            what: "terrains",
+            needed: 1,
+            got: 0,
+        });
+    }
+    let views: Vec<_> = mats.iter().map(|m| m.view()).collect();
+    ndarray::concatenate(ndarray::Axis(0), &views)
+        .map_err(|_| LearnError::param("terrains", terrains.len(), "patch dimensions differ"))
+}

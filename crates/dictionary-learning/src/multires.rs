@@ -291,9 +291,52 @@ impl MultiResDictionary {
         settings: &AmplifySettings,
         progress: &dyn Progress,
     ) -> Result<Self> {
+        Self::from_exemplars(std::slice::from_ref(exemplar), training, settings, progress)
+    }
+
+    /// [`Self::from_exemplar`] over several exemplars at once (all at the target resolution):
+    /// their candidate pairs are pooled (each exemplar capped at `max_candidates`).
+    pub fn from_exemplars(
+        exemplars: &[Heightfield],
+        training: Option<ndarray::ArrayView2<f32>>,
+        settings: &AmplifySettings,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
         settings.check()?;
-        exemplar.require_complete()?;
-        let cand = candidates(exemplar, settings)?;
+        if exemplars.is_empty() {
+            return Err(LearnError::NotEnough {
+                what: "exemplars",
+                needed: 1,
+                got: 0,
+            });
+        }
+        let mut parts = Vec::with_capacity(exemplars.len());
+        for (i, e) in exemplars.iter().enumerate() {
+            e.require_complete()?;
+            let st = AmplifySettings {
+                seed: item_seed(settings.seed, 0xe7, i as u64),
+                ..*settings
+            };
+            parts.push(candidates(e, &st)?);
+        }
+        let cand = if parts.len() == 1 {
+            parts.pop().ok_or(LearnError::NotEnough {
+                what: "exemplars",
+                needed: 1,
+                got: 0,
+            })?
+        } else {
+            let views: Vec<_> = parts.iter().map(|p| p.low.view()).collect();
+            let low = ndarray::concatenate(ndarray::Axis(0), &views)
+                .map_err(|_| LearnError::param("exemplars", parts.len(), "internal shape error"))?;
+            let mut high = Vec::new();
+            let mut origins = Vec::new();
+            for p in parts {
+                high.extend(p.high);
+                origins.extend(p.origins);
+            }
+            Candidates { low, high, origins }
+        };
         let norms: Vec<f64> = cand
             .low
             .outer_iter()

@@ -317,3 +317,44 @@ fn residual_correction_restores_consistency_on_alps() {
     );
     assert!((r.added_slope - r.truth_slope).abs() < 0.5 * (b.added_slope - b.truth_slope).abs());
 }
+
+#[test]
+fn several_exemplars_at_once() {
+    let (Some(a), Some(b), Some(t)) = (
+        alps(0, 0, 200, 200),
+        alps(1800, 400, 200, 200),
+        alps(700, 300, 128, 128),
+    ) else {
+        return;
+    };
+    let geom = PatchGeometry::with_patch_size(8);
+    let train = training_patches(&[&a, &b], &geom).unwrap();
+    let na = extract_patches(&a, &geom).unwrap().matrix.nrows();
+    assert_eq!(train.nrows(), 2 * na);
+    let s = KsvdSettings {
+        n_atoms: 32,
+        sparsity: 2,
+        iterations: 3,
+        ..Default::default()
+    };
+    let r = ksvd(train.view(), &s, &NoProgress).unwrap();
+    assert!(r.trace.last().unwrap().rmse < r.trace[0].rmse);
+    let st = AmplifySettings {
+        radius: 3.0,
+        dictionary: DictionaryChoice::Complete,
+        ..Default::default()
+    };
+    let one = MultiResDictionary::from_exemplar(&a, None, &st, &NoProgress).unwrap();
+    let two = MultiResDictionary::from_exemplars(&[a, b], None, &st, &NoProgress).unwrap();
+    assert!(two.len() > one.len());
+    let coarse = t.resample(32, 32).unwrap();
+    let out = two
+        .amplify_once(&coarse, &st)
+        .unwrap()
+        .rasterize(&RasterSettings::default())
+        .unwrap();
+    assert_eq!(out.width(), 128);
+    let rel =
+        metrics::rmse(&out.resample(32, 32).unwrap(), &coarse).unwrap() / coarse.relief() as f64;
+    assert!(rel < 0.05, "{rel}");
+}
