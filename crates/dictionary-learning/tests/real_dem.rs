@@ -358,3 +358,33 @@ fn several_exemplars_at_once() {
         metrics::rmse(&out.resample(32, 32).unwrap(), &coarse).unwrap() / coarse.relief() as f64;
     assert!(rel < 0.05, "{rel}");
 }
+
+#[test]
+fn larger_radius_follows_the_input_less() {
+    // Figure 11: as R grows, the input's influence decreases and the exemplar's increases.
+    let (Some(truth), Some(ex)) = (alps(300, 250, 256, 256), alps(1400, 300, 512, 400)) else {
+        return;
+    };
+    let coarse = truth.resample(64, 64).unwrap();
+    let dev = |radius: f64| {
+        let s = AmplifySettings {
+            radius,
+            dictionary: DictionaryChoice::Learned {
+                n_atoms: 64,
+                iterations: 1,
+            },
+            max_candidates: 1024,
+            ..Default::default()
+        };
+        let out = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
+        let back = out
+            .rasterize(&RasterSettings::default())
+            .unwrap()
+            .resample(64, 64)
+            .unwrap();
+        metrics::rmse(&back, &coarse).unwrap()
+    };
+    let (small, large) = (dev(2.0), dev(6.0));
+    eprintln!("deviation from input: R=2 {small:.2} m, R=6 {large:.2} m");
+    assert!(large > 1.3 * small, "{small} {large}");
+}
