@@ -202,79 +202,64 @@ pub(crate) fn forward_level(
 ) -> (Grid, Grid, Grid, Grid) {
     let (w, h) = (x.width, x.height);
     let (wl, wh) = (w.div_ceil(2), w / 2);
-    // Rows (along x).
-    let (tl, th) = if wh == 0 {
-        (x.data.clone(), Vec::new())
-    } else {
-        let mut tl = vec![0.0f32; wl * h];
-        let mut th = vec![0.0f32; wh * h];
-        let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
-        let body = |((e, o), r): ((&mut [f32], &mut [f32]), &[f32])| {
-            for (i, v) in e.iter_mut().enumerate() {
-                *v = r[2 * i];
+    let (hl, hh) = (h.div_ceil(2), h / 2);
+    // The row pass (along x) writes even rows straight into the low-y lanes and odd rows into
+    // the high-y lanes, so the column pass lifts in place without a copy.
+    let mut sl = vec![0.0f32; hl * wl];
+    let mut dl = vec![0.0f32; hh * wl];
+    let mut sh = vec![0.0f32; hl * wh];
+    let mut dh = vec![0.0f32; hh * wh];
+    let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
+    let row_pass = |lo: &mut [f32], hi: &mut [f32], parity: usize| {
+        let one = |(i, (e, o)): (usize, (&mut [f32], &mut [f32]))| {
+            let y = 2 * i + parity;
+            let r = &x.data[y * w..(y + 1) * w];
+            for (k, v) in e.iter_mut().enumerate() {
+                *v = r[2 * k];
             }
-            for (i, v) in o.iter_mut().enumerate() {
-                *v = r[2 * i + 1];
+            for (k, v) in o.iter_mut().enumerate() {
+                *v = r[2 * k + 1];
             }
             forward_1d(scheme, e, o, &em, &om);
         };
-        if par {
-            tl.par_chunks_mut(wl)
-                .zip(th.par_chunks_mut(wh))
-                .zip(x.data.par_chunks(w))
-                .for_each(body);
+        if wh == 0 {
+            // A single column: nothing to transform along x.
+            for (i, e) in lo.chunks_mut(wl).enumerate() {
+                e[0] = x.data[(2 * i + parity) * w];
+            }
+        } else if par {
+            lo.par_chunks_mut(wl)
+                .zip(hi.par_chunks_mut(wh))
+                .enumerate()
+                .for_each(one);
         } else {
-            tl.chunks_mut(wl)
-                .zip(th.chunks_mut(wh))
-                .zip(x.data.chunks(w))
-                .for_each(body);
+            lo.chunks_mut(wl)
+                .zip(hi.chunks_mut(wh))
+                .enumerate()
+                .for_each(one);
         }
-        (tl, th)
     };
-    // Columns (along y).
-    let cols = |t: &[f32], width: usize| -> (Grid, Grid) {
-        let (hl, hh) = (h.div_ceil(2), h / 2);
-        if hh == 0 || width == 0 {
-            return (
-                Grid {
-                    width,
-                    height: h,
-                    data: t.to_vec(),
-                },
-                Grid::zeros(width, hh),
-            );
-        }
-        let mut s = vec![0.0f32; hl * width];
-        let mut d = vec![0.0f32; hh * width];
-        let copy = |(i, dst): (usize, &mut [f32]), parity: usize| {
-            let r = 2 * i + parity;
-            dst.copy_from_slice(&t[r * width..(r + 1) * width]);
-        };
-        if par {
-            s.par_chunks_mut(width).enumerate().for_each(|x| copy(x, 0));
-            d.par_chunks_mut(width).enumerate().for_each(|x| copy(x, 1));
-        } else {
-            s.chunks_mut(width).enumerate().for_each(|x| copy(x, 0));
-            d.chunks_mut(width).enumerate().for_each(|x| copy(x, 1));
-        }
-        let (em, om) = lane_maps(h, boundary, 0, hl, 0, hh);
-        forward_rows(scheme, &mut s, &mut d, &em, &om, width, par);
-        (
-            Grid {
-                width,
-                height: hl,
-                data: s,
-            },
-            Grid {
-                width,
-                height: hh,
-                data: d,
-            },
-        )
+    row_pass(&mut sl, &mut sh, 0);
+    if hh > 0 {
+        row_pass(&mut dl, &mut dh, 1);
+    }
+    // Column pass (along y).
+    let (emy, omy) = lane_maps(h, boundary, 0, hl, 0, hh);
+    forward_rows(scheme, &mut sl, &mut dl, &emy, &omy, wl, par);
+    if wh > 0 {
+        forward_rows(scheme, &mut sh, &mut dh, &emy, &omy, wh, par);
+    }
+    let grid = |width: usize, height: usize, data: Vec<f32>| Grid {
+        width,
+        height,
+        data,
     };
-    let (ll, hb) = cols(&tl, wl);
-    let (vb, db) = cols(&th, wh);
-    (ll, hb, vb, db)
+    (
+        grid(wl, hl, sl),
+        grid(wl, hh, dl),
+        grid(wh, hl, sh),
+        grid(wh, hh, dh),
+    )
 }
 
 /// The lane ranges one axis of a windowed inverse level needs.
