@@ -388,3 +388,64 @@ fn larger_radius_follows_the_input_less() {
     eprintln!("deviation from input: R=2 {small:.2} m, R=6 {large:.2} m");
     assert!(large > 1.3 * small, "{small} {large}");
 }
+
+#[test]
+fn results_do_not_depend_on_thread_count() {
+    let (Some(hf), Some(ex)) = (alps(500, 100, 96, 96), alps(1500, 350, 256, 256)) else {
+        return;
+    };
+    let p = extract_patches(
+        &hf,
+        &PatchGeometry {
+            step: 2.0,
+            ..PatchGeometry::with_patch_size(8)
+        },
+    )
+    .unwrap();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let k = ksvd(
+                p.matrix.view(),
+                &KsvdSettings {
+                    n_atoms: 24,
+                    sparsity: 2,
+                    iterations: 3,
+                    ..Default::default()
+                },
+                &NoProgress,
+            )
+            .unwrap();
+            let c = constrained_learning(
+                p.matrix.view(),
+                p.matrix.view(),
+                &ConstrainedSettings {
+                    n_atoms: 16,
+                    sparsity: 1,
+                    iterations: 2,
+                    seed: 1,
+                },
+                &NoProgress,
+            )
+            .unwrap();
+            let coarse = hf.resample(24, 24).unwrap();
+            let s = AmplifySettings {
+                radius: 3.0,
+                dictionary: DictionaryChoice::Learned {
+                    n_atoms: 32,
+                    iterations: 1,
+                },
+                ..Default::default()
+            };
+            let a = amplify(&coarse, &ex, &s, &NoProgress)
+                .unwrap()
+                .rasterize(&RasterSettings::default())
+                .unwrap();
+            (k.atoms, c.sources, a)
+        })
+    };
+    assert!(run(1) == run(3));
+}
