@@ -109,6 +109,9 @@ pub struct BandFit {
     pub clamped: bool,
     /// Number of levels in the fit.
     pub levels_used: usize,
+    /// Implied fractal dimension `3 - gamma / 2` (a copy of
+    /// [`BandFit::fractal_dimension`] for serialised reports).
+    pub fractal_dimension: f64,
 }
 
 impl BandFit {
@@ -270,6 +273,7 @@ pub(crate) fn global_from(
         r_squared: 0.0,
         clamped: false,
         levels_used: 0,
+        fractal_dimension: 3.0,
     }; 3];
     let used: Vec<&LevelVariance> = out.iter().filter(|l| l.fitted).collect();
     if used.len() < 2 {
@@ -298,6 +302,7 @@ pub(crate) fn global_from(
             r_squared: r2,
             clamped,
             levels_used: js.len(),
+            fractal_dimension: 3.0 - gamma / 2.0,
         };
     }
     Ok(GlobalAnalysis {

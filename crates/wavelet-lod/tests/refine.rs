@@ -295,6 +295,11 @@ fn fits_serialise() {
     assert_eq!(back.top_level, 6);
     assert_eq!(back.levels.len(), 3);
     assert!(json.contains("\"gamma\""));
+    assert!(json.contains("\"fractal_dimension\""));
+    assert_eq!(
+        back.fits[0].fractal_dimension,
+        a.fits[0].fractal_dimension()
+    );
 }
 
 #[test]
