@@ -65,7 +65,10 @@ fn texture_synthesis(img: &ts::image::DynamicImage) -> ts::image::DynamicImage {
 
 fn bench(c: &mut Criterion) {
     let Some((ex, g)) = inputs() else { return };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
     let img = to_gray8(&ex);
     // One timed run of each first, so a single `cargo bench` prints both side by side.
     let t = Instant::now();
