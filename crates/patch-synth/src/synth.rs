@@ -562,31 +562,25 @@ pub fn synthesize(
                         d * d
                     };
                     let (mut cost, mut len) = (0.0f64, 0usize);
-                    let left = if has_left {
+                    // One strip's cut: `transposed` walks the top strip with patch columns as
+                    // rows, so both strips share the same DP over a p x o error table.
+                    let mut strip_cut = |present: bool, transposed: bool| {
+                        if !present {
+                            return Vec::new();
+                        }
                         let e: Vec<f32> = (0..p)
-                            .flat_map(|r| (0..o).map(move |c| (r, c)))
+                            .flat_map(|i| {
+                                (0..o).map(move |j| if transposed { (j, i) } else { (i, j) })
+                            })
                             .map(|(r, c)| err(r, c))
                             .collect();
                         let cut = min_error_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
                         cost += cut.cost;
                         len += p;
                         cut.path
-                    } else {
-                        Vec::new()
                     };
-                    let top = if has_top {
-                        // Transposed: rows are patch columns, columns are strip rows.
-                        let e: Vec<f32> = (0..p)
-                            .flat_map(|c| (0..o).map(move |r| (r, c)))
-                            .map(|(r, c)| err(r, c))
-                            .collect();
-                        let cut = min_error_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
-                        cost += cut.cost;
-                        len += p;
-                        cut.path
-                    } else {
-                        Vec::new()
-                    };
+                    let left = strip_cut(has_left, false);
+                    let top = strip_cut(has_top, true);
                     let pc = if len > 0 {
                         (cost / len as f64).sqrt() as f32
                     } else {
