@@ -1,6 +1,6 @@
 //! `cargo xtask <command>`: workspace automation (matklad's cargo-xtask pattern).
 //!
-//! * `cargo xtask pipeline [--out DIR]`: runs every pipeline stage on the bundled fixture DEM and
+//! * `cargo xtask pipeline [SPEC.json] [--out DIR]`: runs every pipeline stage (or a spec's) on the bundled fixture DEM and
 //!   writes rasters, previews, `summary.json` and `report.html` (default `target/pipeline/`).
 //! * `cargo xtask golden [--bless]`: runs the pipeline on a small crop with a fixed thread count
 //!   and compares its raster outputs with `fixtures/golden/` (max-abs and RMSE in metres).
@@ -27,8 +27,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run every stage on the bundled fixture DEM and write the report.
+    /// Run every stage on the bundled fixture DEM (or the stages of SPEC) and write the report.
     Pipeline {
+        /// A JSON pipeline spec (see docs/pipeline-spec.example.json); default: every stage.
+        spec: Option<PathBuf>,
         /// Output directory (default: target/pipeline).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -59,15 +61,24 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Pipeline { out, input } => {
-            let mut config = pipeline::PipelineConfig::full(&project_root());
+        Command::Pipeline { spec, out, input } => {
+            let root = project_root();
+            let mut config = pipeline::PipelineConfig::full(&root);
+            let stages = match spec {
+                Some(path) => {
+                    let spec = pipeline::spec::PipelineSpec::read(&path, &root)?;
+                    spec.apply(&mut config);
+                    pipeline::spec::build_stages(&spec.stages)?
+                }
+                None => pipeline::default_stages(),
+            };
             if let Some(out) = out {
                 config.out_dir = out;
             }
             if let Some(input) = input {
                 config.input = input;
             }
-            let run = pipeline::run(&config, &pipeline::default_stages())?;
+            let run = pipeline::run(&config, &stages)?;
             eprintln!(
                 "pipeline: {} stages in {:.1} s; report: {}",
                 run.stage_count,

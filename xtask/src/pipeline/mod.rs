@@ -8,7 +8,10 @@
 //!    the output of one is the input of the next), save every raster with
 //!    [`StageCx::save_raster`] (GeoTIFF f32 + preview PNG, and a golden candidate with its
 //!    tolerance), and put numbers into `cx.section` (`figure`, `table`, `image`).
-//! 2. Add `mod <name>;` below and `Box::new(<name>::YourStage)` to [`default_stages`].
+//! 2. Add `mod <name>;` below and register it in `spec.rs` (one arm of `build_stage`, its name
+//!    in `STAGE_NAMES`, and in `default_spec` if it belongs in the default run). A stage with
+//!    parameters derives `Deserialize + Default` (`#[serde(default, deny_unknown_fields)]`) so a
+//!    user's JSON spec can set them.
 //! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
 //!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
 
@@ -22,6 +25,7 @@ mod convert;
 mod fill;
 mod load;
 pub(crate) mod report;
+pub(crate) mod spec;
 
 pub(crate) use report::{Report, Section};
 
@@ -201,13 +205,10 @@ pub(crate) trait Stage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()>;
 }
 
-/// The stages of the default run, in order.
+/// The stages of the default run, in order (see [`spec::default_spec`]).
 pub(crate) fn default_stages() -> Vec<Box<dyn Stage>> {
-    vec![
-        Box::new(load::Load),
-        Box::new(fill::FillVoids),
-        Box::new(convert::ConvertRoundTrips),
-    ]
+    spec::build_stages(&spec::default_spec())
+        .expect("the default spec names registered stages with valid parameters (tested)")
 }
 
 /// What a finished run returns.

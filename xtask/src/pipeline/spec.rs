@@ -1,0 +1,225 @@
+//! Pipeline specs: which stages run, in which order, with which parameters.
+//!
+//! A spec is a JSON file (`cargo xtask pipeline SPEC.json`; an annotated example is
+//! `docs/pipeline-spec.example.json`):
+//!
+//! ```json
+//! {
+//!   "input": "fixtures/grandcanyon.tif",
+//!   "crop": [0, 0, 256, 256],
+//!   "seed": 7,
+//!   "stages": [
+//!     { "stage": "load" },
+//!     { "stage": "fill_voids" },
+//!     { "stage": "convert" }
+//!   ]
+//! }
+//! ```
+//!
+//! Every field but `stages` is optional (command-line flags and the default run fill them).
+//! `params` is a JSON object whose fields are the stage's parameter struct (serde, missing
+//! fields take the stage's defaults, unknown fields are an error). Stages compose: each starts
+//! from the terrain the previous one produced.
+//!
+//! # Registering a stage
+//! Add one arm to [`build_stage`] (`"name" => boxed(params::<YourStage>(p)?)` for a stage with
+//! parameters, which must implement `Deserialize + Default`; `Box::new(YourStage)` for one
+//! without), its name to [`STAGE_NAMES`], and, if it belongs in the default run, its name to
+//! [`default_spec`]. The test below checks that every listed name builds and reports that name.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+
+use super::{PipelineConfig, Stage, convert, fill, load};
+
+/// One entry of a spec's `stages` list.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct StageSpec {
+    /// Stage name (one of [`STAGE_NAMES`]).
+    pub(crate) stage: String,
+    /// The stage's parameters (an object; `null` or absent = defaults).
+    #[serde(default)]
+    pub(crate) params: serde_json::Value,
+}
+
+impl StageSpec {
+    /// A stage with default parameters.
+    pub(crate) fn named(stage: &str) -> Self {
+        Self {
+            stage: stage.to_string(),
+            params: serde_json::Value::Null,
+        }
+    }
+}
+
+/// A whole pipeline spec file.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PipelineSpec {
+    /// Input DEM; relative paths are resolved against the spec file's folder, then the
+    /// workspace root.
+    #[serde(default)]
+    pub(crate) input: Option<PathBuf>,
+    /// Crop `[x, y, w, h]` applied by `load`.
+    #[serde(default)]
+    pub(crate) crop: Option<[usize; 4]>,
+    /// Seed of every stochastic stage.
+    #[serde(default)]
+    pub(crate) seed: Option<u64>,
+    /// The stages, in order (the first is normally `load`).
+    pub(crate) stages: Vec<StageSpec>,
+}
+
+impl PipelineSpec {
+    /// Reads and checks a spec file: JSON syntax, field names, and that every stage builds.
+    pub(crate) fn read(path: &Path, root: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path)
+            .with_context(|| format!("cannot read pipeline spec {}", path.display()))?;
+        let mut spec: PipelineSpec = serde_json::from_slice(&bytes)
+            .with_context(|| format!("{} is not a valid pipeline spec", path.display()))?;
+        if spec.stages.is_empty() {
+            bail!("{}: `stages` is empty", path.display());
+        }
+        build_stages(&spec.stages).with_context(|| format!("in {}", path.display()))?;
+        if let Some(input) = &spec.input {
+            if input.is_relative() {
+                let beside = path.parent().unwrap_or(Path::new(".")).join(input);
+                spec.input = Some(if beside.exists() {
+                    beside
+                } else {
+                    root.join(input)
+                });
+            }
+        }
+        Ok(spec)
+    }
+
+    /// Applies the spec's optional fields to `config`.
+    pub(crate) fn apply(&self, config: &mut PipelineConfig) {
+        if let Some(input) = &self.input {
+            config.input = input.clone();
+        }
+        if let Some([x, y, w, h]) = self.crop {
+            config.crop = Some((x, y, w, h));
+        }
+        if let Some(seed) = self.seed {
+            config.seed = seed;
+        }
+    }
+}
+
+/// Every stage name a spec may use.
+pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert"];
+
+/// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
+pub(crate) fn default_spec() -> Vec<StageSpec> {
+    ["load", "fill_voids", "convert"]
+        .iter()
+        .map(|s| StageSpec::named(s))
+        .collect()
+}
+
+/// Builds one stage from its spec entry.
+pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
+    let p = &spec.params;
+    let stage: Box<dyn Stage> = match spec.stage.as_str() {
+        "load" => no_params(p, "load", Box::new(load::Load))?,
+        "fill_voids" => no_params(p, "fill_voids", Box::new(fill::FillVoids))?,
+        "convert" => no_params(p, "convert", Box::new(convert::ConvertRoundTrips))?,
+        other => bail!(
+            "unknown stage `{other}`; known stages: {}",
+            STAGE_NAMES.join(", ")
+        ),
+    };
+    Ok(stage)
+}
+
+/// Builds every stage of a list, naming the first one that fails.
+pub(crate) fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
+    specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| build_stage(s).with_context(|| format!("stage #{} (`{}`)", i + 1, s.stage)))
+        .collect()
+}
+
+/// Deserialises a stage's parameter struct; `null` gives its defaults.
+#[allow(dead_code)] // used by the method stages' arms
+pub(crate) fn params<T: DeserializeOwned + Default>(value: &serde_json::Value) -> Result<T> {
+    if value.is_null() {
+        return Ok(T::default());
+    }
+    serde_json::from_value(value.clone()).context("invalid `params`")
+}
+
+fn no_params(
+    value: &serde_json::Value,
+    name: &str,
+    stage: Box<dyn Stage>,
+) -> Result<Box<dyn Stage>> {
+    match value {
+        serde_json::Value::Null => Ok(stage),
+        serde_json::Value::Object(m) if m.is_empty() => Ok(stage),
+        _ => bail!("stage `{name}` takes no parameters"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_listed_stage_builds_and_reports_its_name() {
+        for name in STAGE_NAMES {
+            let stage = build_stage(&StageSpec::named(name)).unwrap();
+            assert_eq!(stage.name(), *name);
+        }
+        for s in default_spec() {
+            assert!(STAGE_NAMES.contains(&s.stage.as_str()), "{}", s.stage);
+        }
+    }
+
+    #[test]
+    fn unknown_stage_and_bad_params_are_named() {
+        let err = build_stage(&StageSpec::named("nope")).err().unwrap();
+        assert!(
+            format!("{err:#}").contains("unknown stage `nope`"),
+            "{err:#}"
+        );
+        let bad = StageSpec {
+            stage: "load".into(),
+            params: serde_json::json!({"x": 1}),
+        };
+        let err = build_stage(&bad).err().unwrap();
+        assert!(
+            format!("{err:#}").contains("takes no parameters"),
+            "{err:#}"
+        );
+    }
+
+    #[test]
+    fn example_spec_in_docs_is_valid() {
+        let root = crate::project_root();
+        let path = root.join("docs/pipeline-spec.example.json");
+        let spec = PipelineSpec::read(&path, &root).unwrap();
+        assert!(spec.input.as_ref().is_some_and(|p| p.is_file()));
+        assert_eq!(spec.stages[0].stage, "load");
+    }
+
+    #[test]
+    fn malformed_spec_is_an_error_naming_the_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = tmp.path().join("s.json");
+        std::fs::write(&p, r#"{"stages": [{"stage": "load"}], "sede": 1}"#).unwrap();
+        let err = PipelineSpec::read(&p, &crate::project_root()).unwrap_err();
+        let msg = format!("{err:#}");
+        assert!(msg.contains("s.json") && msg.contains("sede"), "{msg}");
+        std::fs::write(&p, r#"{"stages": []}"#).unwrap();
+        let err = PipelineSpec::read(&p, &crate::project_root()).unwrap_err();
+        assert!(format!("{err:#}").contains("empty"), "{err:#}");
+    }
+}
