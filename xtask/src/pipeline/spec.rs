@@ -85,15 +85,15 @@ impl PipelineSpec {
             bail!("{}: `stages` is empty", path.display());
         }
         build_stages(&spec.stages).with_context(|| format!("in {}", path.display()))?;
-        if let Some(input) = &spec.input {
-            if input.is_relative() {
-                let beside = path.parent().unwrap_or(Path::new(".")).join(input);
-                spec.input = Some(if beside.exists() {
-                    beside
-                } else {
-                    root.join(input)
-                });
-            }
+        if let Some(input) = &spec.input
+            && input.is_relative()
+        {
+            let beside = path.parent().unwrap_or(Path::new(".")).join(input);
+            spec.input = Some(if beside.exists() {
+                beside
+            } else {
+                root.join(input)
+            });
         }
         Ok(spec)
     }
