@@ -314,7 +314,9 @@ mod tests {
             .iter()
             .map(|s| s["stage"].as_str().unwrap())
             .collect();
-        assert_eq!(names, ["load", "fill_voids", "convert"]);
+        let expected: Vec<String> = spec::default_spec().into_iter().map(|s| s.stage).collect();
+        assert_eq!(names, expected);
+        assert_eq!(names[..3], ["load", "fill_voids", "convert"]);
         assert_eq!(stages[0]["figures"]["width"], 96);
         assert_eq!(stages[2]["figures"]["tif_max_abs_m"], 0.0);
         let rmse = stages[1]["figures"]["check_rmse_in_hole_m"]
