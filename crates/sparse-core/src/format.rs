@@ -17,6 +17,13 @@
 //!   blend/add/max/min: count u32, children
 //!   replace:  region u8 (0 rect: 4 f64 | 1 disk: 3 f64), falloff f64, base, overlay
 //! ```
+//!
+//! A dictionary alone (`.dict` files of `relief learn`, [`Dictionary::to_bytes`]) is
+//! ```text
+//! magic  "RLFDIC\r\n" (8 bytes)   version u16 (= 1)   flags u16 (= 0)   dictionary (as above)
+//! ```
+//! and its reader also checks that every data atom has unit L2 norm (OMP relies on it).
+//!
 //! The reader checks every declared count against the bytes that remain **before** allocating,
 //! limits the tree depth, and validates the decoded objects through the same constructors as the
 //! API, so corrupt, truncated or hostile input is an `Err`, never a panic or a huge allocation.
@@ -32,6 +39,10 @@ use crate::sct::{Node, Placement, Region, River, RiverMode, Sct, SparseLayer};
 pub const MAGIC: &[u8; 8] = b"RLFSCT\r\n";
 /// Current format version.
 pub const VERSION: u16 = 1;
+/// Magic of a dictionary stream ([`Dictionary::to_bytes`]).
+pub const DICTIONARY_MAGIC: &[u8; 8] = b"RLFDIC\r\n";
+/// Current version of the dictionary stream.
+pub const DICTIONARY_VERSION: u16 = 1;
 const FLAG_QUANTIZED: u16 = 1;
 const MAX_DEPTH: usize = 64;
 
@@ -135,6 +146,11 @@ impl Writer {
 
     fn layer(&mut self, l: &SparseLayer) -> Result<()> {
         let d = l.dictionary();
+        self.dictionary(d)?;
+        self.placement_and_codes(l)
+    }
+
+    fn dictionary(&mut self, d: &Dictionary) -> Result<()> {
         self.u16(d.patch_size() as u16);
         self.f64(d.spacing());
         self.f64(d.support_radius());
@@ -160,6 +176,11 @@ impl Writer {
                 }
             }
         }
+        Ok(())
+    }
+
+    fn placement_and_codes(&mut self, l: &SparseLayer) -> Result<()> {
+        let d = l.dictionary();
         match l.placement() {
             Placement::Grid(g) => {
                 self.u8(0);
@@ -363,6 +384,11 @@ impl<'a> Reader<'a> {
     }
 
     fn layer(&mut self) -> Result<SparseLayer> {
+        let dict = self.dictionary()?;
+        self.placement_and_codes(dict)
+    }
+
+    fn dictionary(&mut self) -> Result<Dictionary> {
         let a = self.u16()? as usize;
         let spacing = self.f64()?;
         let radius = self.f64()?;
@@ -408,6 +434,10 @@ impl<'a> Reader<'a> {
                 t => return Err(self.err(format!("unknown atom kind {t}"))),
             }
         }
+        Ok(dict)
+    }
+
+    fn placement_and_codes(&mut self, dict: Dictionary) -> Result<SparseLayer> {
         let placement = match self.u8()? {
             0 => {
                 let origin = [self.f64()?, self.f64()?];
@@ -551,5 +581,69 @@ impl Sct {
         }
         let s = Sct::new(root, width, height, cell);
         r.wrap(s)
+    }
+}
+
+impl Dictionary {
+    /// Serialises the dictionary alone (atoms, patch size, spacing, support radius): the
+    /// versioned little-endian stream described in the [module docs](self).
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        let mut w = Writer {
+            buf: Vec::new(),
+            quantize: false,
+        };
+        w.buf.extend_from_slice(DICTIONARY_MAGIC);
+        w.u16(DICTIONARY_VERSION);
+        w.u16(0);
+        w.dictionary(self)?;
+        Ok(w.buf)
+    }
+
+    /// Reads a dictionary written by [`Dictionary::to_bytes`]; function atoms are rebuilt
+    /// through `registry`. Truncated, corrupt or hostile bytes, unknown versions, trailing
+    /// bytes and data atoms that are not unit-norm are errors.
+    pub fn from_bytes(bytes: &[u8], registry: &FunctionAtomRegistry) -> Result<Dictionary> {
+        let mut r = Reader {
+            b: bytes,
+            pos: 0,
+            quantized: false,
+            registry,
+        };
+        if r.take(8)? != DICTIONARY_MAGIC {
+            return Err(SparseError::Format {
+                offset: 0,
+                reason: "bad magic (not a relief dictionary stream)".into(),
+            });
+        }
+        let version = r.u16()?;
+        if version != DICTIONARY_VERSION {
+            return Err(r.err(format!(
+                "unsupported dictionary version {version} (expected {DICTIONARY_VERSION})"
+            )));
+        }
+        let flags = r.u16()?;
+        if flags != 0 {
+            return Err(r.err(format!("unknown flags {flags:#x}")));
+        }
+        let dict = r.dictionary()?;
+        if r.remaining() != 0 {
+            return Err(r.err(format!("{} trailing bytes", r.remaining())));
+        }
+        for (i, atom) in dict.atoms().iter().enumerate() {
+            let norm = match atom {
+                Atom::Data(v) => v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt(),
+                Atom::Function { scale, .. } => {
+                    if *scale > 0.0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                }
+            };
+            if (norm - 1.0).abs() > 1e-3 {
+                return Err(r.err(SparseError::NotNormalised { atom: i, norm }.to_string()));
+            }
+        }
+        Ok(dict)
     }
 }
