@@ -258,6 +258,7 @@ pub(crate) fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<
     let seconds = t_all.elapsed().as_secs_f64();
     report.total_seconds = seconds;
     report.peak_memory_bytes = peak_memory_bytes();
+    report.overview(config, &mut state)?;
     report.write(&config.out_dir)?;
     if state.terrain.is_none() {
         bail!("the pipeline ran no stage that produced a terrain");
