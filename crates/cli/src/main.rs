@@ -43,6 +43,10 @@ enum Command {
     Convert(commands::convert::Args),
     /// Write a shaded-relief preview PNG (hillshade blended with an elevation colour ramp).
     Preview(commands::preview::Args),
+    /// Add levels of detail by wavelet synthesis (GSA/LSA, Perez et al.); any window on demand.
+    Refine(commands::refine::Args),
+    /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.
+    Analyze(commands::analyze::Args),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +59,8 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),
         Command::Preview(args) => commands::preview::run(args, &ctx),
+        Command::Refine(args) => commands::refine::run(args, &ctx),
+        Command::Analyze(args) => commands::analyze::run(args, &ctx),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,9 +2,11 @@
 //! `pub(crate) fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()>`; `main.rs` lists them in
 //! `enum Command` and dispatches in one `match`.
 
+pub(crate) mod analyze;
 pub(crate) mod convert;
 pub(crate) mod info;
 pub(crate) mod preview;
+pub(crate) mod refine;
 
 use std::path::Path;
 

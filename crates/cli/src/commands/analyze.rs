@@ -1,0 +1,268 @@
+//! `relief analyze IN`: the wavelet detail statistics of Perez et al. (relief-wavelet-lod):
+//! per band (h, v, d) the variance of the detail coefficients at every level (equation (2)),
+//! the fitted line `log2 Var = -j gamma + a` (equation (3)) and the implied fractal dimension
+//! `3 - gamma / 2`; optionally the local fits of equation (4) summarised over the terrain
+//! (`--local W`), JSON output (`--json`) and the log-variance plot as a PNG (`--plot`).
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use relief_heightfield::Progress;
+use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_wavelet_lod::{
+    Band, FitSettings, GlobalAnalysis, Wavelet, analyze, analyze_local, render_log_variance_plot,
+};
+use serde::Serialize;
+
+use crate::ctx::Ctx;
+
+/// Arguments of `relief analyze`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Input raster (format detected from its content; must be void-free or use --fill-voids).
+    pub(crate) input: PathBuf,
+    /// Wavelet basis: haar, cdf53 (linear spline, default), cdf97, db4 (PyWavelets names too).
+    #[arg(long, default_value = "cdf53")]
+    pub(crate) wavelet: String,
+    /// First level taking part in the fit of equation (3) (the paper uses 3).
+    #[arg(long, default_value_t = 3)]
+    pub(crate) min_level: u32,
+    /// Also fit the local statistics (LSA, equation (4)) in a W x W window (odd) and summarise
+    /// their maps (mean and 5/50/95th percentiles of gamma and of the fractal dimension).
+    #[arg(long, value_name = "W")]
+    pub(crate) local: Option<usize>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
+    /// Write the log-variance plot (measured levels, fitted lines, synthesised levels) as PNG.
+    #[arg(long, value_name = "OUT.png")]
+    pub(crate) plot: Option<PathBuf>,
+    /// Number of synthesised levels drawn on the plot (model values of equation (5)).
+    #[arg(long, default_value_t = 2)]
+    pub(crate) plot_levels: u32,
+    /// Fill voids (harmonic fill) before the analysis; without it an input with voids is an
+    /// error.
+    #[arg(long)]
+    pub(crate) fill_voids: bool,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// Summary of one local map.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct MapSummary {
+    mean: f64,
+    p5: f64,
+    p50: f64,
+    p95: f64,
+}
+
+impl MapSummary {
+    fn of(values: &[f32]) -> Self {
+        let mut v: Vec<f32> = values.to_vec();
+        v.sort_by(f32::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize] as f64;
+        Self {
+            mean: v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64,
+            p5: q(0.05),
+            p50: q(0.5),
+            p95: q(0.95),
+        }
+    }
+}
+
+/// Local statistics of one band, summarised.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct LocalBand {
+    band: Band,
+    gamma: MapSummary,
+    fractal_dimension: MapSummary,
+}
+
+/// Everything `--json` prints.
+#[derive(Debug, Serialize)]
+pub(crate) struct Report {
+    file: String,
+    width: usize,
+    height: usize,
+    cell_size: (f64, f64),
+    /// Mean fractal dimension over the three bands.
+    fractal_dimension: f64,
+    analysis: GlobalAnalysis,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    local_window: Option<usize>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    local: Vec<LocalBand>,
+}
+
+fn text(r: &Report) -> String {
+    let a = &r.analysis;
+    let mut s = String::new();
+    let _ = writeln!(s, "file:        {}", r.file);
+    let _ = writeln!(
+        s,
+        "size:        {} x {} (cell {:.3} x {:.3} m)",
+        r.width, r.height, r.cell_size.0, r.cell_size.1
+    );
+    let used = a.levels.iter().filter(|l| l.fitted).count();
+    let _ = writeln!(
+        s,
+        "wavelet:     {} (input = level {}, {} levels analysed, {} fitted from level {})",
+        a.wavelet,
+        a.top_level,
+        a.levels.len(),
+        used,
+        a.settings.min_level
+    );
+    let _ = writeln!(s, "fit log2 Var = -j gamma + a (equation 3):");
+    let _ = writeln!(s, "  band  gamma     a         r2      D (3 - gamma/2)");
+    for (b, f) in Band::ALL.iter().zip(&a.fits) {
+        let _ = writeln!(
+            s,
+            "  {:<4}  {:<8.4}  {:<8.3}  {:<6.4}  {:.4}{}",
+            b.name(),
+            f.gamma,
+            f.a,
+            f.r_squared,
+            f.fractal_dimension(),
+            if f.clamped {
+                format!("  (clamped; unconstrained gamma {:.4})", f.gamma_fit)
+            } else {
+                String::new()
+            }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "fractal dimension (mean of bands): {:.4}",
+        r.fractal_dimension
+    );
+    let _ = writeln!(s, "log2 variance per level (equation 2):");
+    let _ = writeln!(s, "  level  depth  h         v         d         fitted");
+    for l in &a.levels {
+        let lg = |v: f64| {
+            if v > 0.0 {
+                format!("{:<8.3}", v.log2())
+            } else {
+                "-inf    ".to_string()
+            }
+        };
+        let _ = writeln!(
+            s,
+            "  {:<5}  {:<5}  {}  {}  {}  {}",
+            l.level,
+            l.depth,
+            lg(l.variance[0]),
+            lg(l.variance[1]),
+            lg(l.variance[2]),
+            if l.fitted { "yes" } else { "no" }
+        );
+    }
+    if let Some(w) = r.local_window {
+        let _ = writeln!(
+            s,
+            "local fit (equation 4), {w}x{w} window, over all locations:"
+        );
+        let _ = writeln!(
+            s,
+            "  band  gamma mean/p5/p50/p95          D mean/p5/p50/p95"
+        );
+        for l in &r.local {
+            let _ = writeln!(
+                s,
+                "  {:<4}  {:.3}/{:.3}/{:.3}/{:.3}  {:.3}/{:.3}/{:.3}/{:.3}",
+                l.band.name(),
+                l.gamma.mean,
+                l.gamma.p5,
+                l.gamma.p50,
+                l.gamma.p95,
+                l.fractal_dimension.mean,
+                l.fractal_dimension.p5,
+                l.fractal_dimension.p50,
+                l.fractal_dimension.p95
+            );
+        }
+    }
+    s
+}
+
+/// Prints the analysis on stdout; writes the plot when asked.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let wavelet = Wavelet::from_name(&args.wavelet).context("invalid --wavelet")?;
+    let fit = FitSettings {
+        min_level: args.min_level,
+        ..Default::default()
+    };
+    fit.validate().context("invalid fit settings")?;
+    if args.plot_levels > 12 {
+        bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
+    }
+    let raster = super::read_raster(&args.input, &args.read, ctx)?;
+    let mut hf = raster.heightfield;
+    if hf.has_voids() {
+        if !args.fill_voids {
+            bail!(
+                "{} has {} void cells; fill them first (--fill-voids)",
+                args.input.display(),
+                hf.void_count()
+            );
+        }
+        let progress = ctx.progress();
+        progress.begin("filling voids", 0);
+        fill_voids(&mut hf, &FillSettings::default())
+            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
+    }
+    let progress = ctx.progress();
+    progress.begin("wavelet analysis", 0);
+    let analysis = analyze(&hf, wavelet, &fit)
+        .with_context(|| format!("cannot analyse {}", args.input.display()))?;
+    let mut local = Vec::new();
+    if let Some(w) = args.local {
+        progress.begin("local fits", 0);
+        let maps = analyze_local(&hf, wavelet, w, &fit).with_context(|| {
+            format!(
+                "cannot fit the local statistics of {}",
+                args.input.display()
+            )
+        })?;
+        for b in Band::ALL {
+            local.push(LocalBand {
+                band: b,
+                gamma: MapSummary::of(&maps.gamma[b.index()].data),
+                fractal_dimension: MapSummary::of(&maps.fractal_dimension(b).data),
+            });
+        }
+    }
+    if let Some(plot) = &args.plot {
+        progress.begin("plotting", 0);
+        let (w, h) = (720, 440);
+        let rgb = render_log_variance_plot(&analysis, args.plot_levels, None, w, h);
+        relief_io::write_rgb_png(plot, w, h, &rgb)
+            .with_context(|| format!("cannot write {}", plot.display()))?;
+    }
+    drop(progress);
+    let report = Report {
+        file: args.input.display().to_string(),
+        width: hf.width(),
+        height: hf.height(),
+        cell_size: hf.cell_size(),
+        fractal_dimension: analysis.fractal_dimension(),
+        analysis,
+        local_window: args.local,
+        local,
+    };
+    let out = if args.json {
+        let mut s = serde_json::to_string_pretty(&report).context("cannot encode JSON")?;
+        s.push('\n');
+        s
+    } else {
+        text(&report)
+    };
+    let mut stdout = std::io::stdout().lock();
+    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
+    if let Some(plot) = &args.plot {
+        ctx.note(format!("wrote {}", plot.display()));
+    }
+    Ok(())
+}

@@ -1,0 +1,169 @@
+//! `relief refine IN OUT`: adds levels of detail with the wavelet synthesis of Perez et al.
+//! (relief-wavelet-lod): GSA (one statistics fit per band) or LSA (one per band and location,
+//! from a `W x W` window), any basis, a seed, and optionally only one window of the refined
+//! terrain (`--window-of x,y,w,h`, in output cells; equal bit for bit to the same window of a
+//! full run, and costing memory proportional to the window).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use relief_heightfield::Progress;
+use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_wavelet_lod::{FitSettings, Method, RefineSettings, Refiner, Wavelet};
+
+use crate::ctx::Ctx;
+
+/// Statistics scope of the synthesis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum MethodArg {
+    /// Global scope approach (section 5.1): one (gamma, a) per band.
+    Gsa,
+    /// Local scope approach (section 5.2): one (gamma, a) per band and location.
+    Lsa,
+}
+
+/// Arguments of `relief refine`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Input raster (format detected from its content; must be void-free or use --fill-voids).
+    pub(crate) input: PathBuf,
+    /// Output raster (format from the extension: .tif, .exr, .png, .npy, .r16, .r32).
+    pub(crate) output: PathBuf,
+    /// Number of synthesised levels: the output is 2^N times larger per side (1..=12).
+    #[arg(long, default_value_t = 2)]
+    pub(crate) levels: u32,
+    /// Statistics scope: gsa (global) or lsa (local, the paper's recommendation).
+    #[arg(long, value_enum, default_value_t = MethodArg::Lsa)]
+    pub(crate) method: MethodArg,
+    /// LSA window side (odd; the paper uses 1, 3, 5 or 7 and recommends 3).
+    #[arg(long, default_value_t = 3)]
+    pub(crate) window: usize,
+    /// Wavelet basis: haar, cdf53 (linear spline, default), cdf97, db4 (PyWavelets names too).
+    #[arg(long, default_value = "cdf53")]
+    pub(crate) wavelet: String,
+    /// Seed of the coefficient hash (same seed = same output bytes).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    /// First level taking part in the fit of equation (3) (the paper uses 3).
+    #[arg(long, default_value_t = 3)]
+    pub(crate) min_level: u32,
+    /// Write only this window `x,y,w,h` of the refined terrain (output cells).
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub(crate) window_of: Option<String>,
+    /// Fill voids (harmonic fill) before the analysis; without it an input with voids is an
+    /// error.
+    #[arg(long)]
+    pub(crate) fill_voids: bool,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// Parses `x,y,w,h` (four non-negative integers, w and h > 0).
+pub(crate) fn parse_window(s: &str) -> Result<(usize, usize, usize, usize)> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let nums: Option<Vec<usize>> = parts.iter().map(|p| p.parse().ok()).collect();
+    match nums.as_deref() {
+        Some(&[x, y, w, h]) if w > 0 && h > 0 => Ok((x, y, w, h)),
+        _ => bail!("invalid --window-of `{s}`: expected x,y,w,h (integers, w and h > 0)"),
+    }
+}
+
+impl Args {
+    /// The library settings (checked by the library itself when the refiner is built).
+    fn settings(&self) -> Result<RefineSettings> {
+        if self.levels == 0 {
+            bail!("invalid --levels 0: at least one level must be synthesised");
+        }
+        let wavelet = Wavelet::from_name(&self.wavelet).context("invalid --wavelet")?;
+        let settings = RefineSettings {
+            wavelet,
+            method: match self.method {
+                MethodArg::Gsa => Method::Gsa,
+                MethodArg::Lsa => Method::Lsa,
+            },
+            window: self.window,
+            extra_levels: self.levels,
+            seed: self.seed,
+            fit: FitSettings {
+                min_level: self.min_level,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        settings.validate().context("invalid refine settings")?;
+        Ok(settings)
+    }
+}
+
+/// Reads, analyses, synthesises (all or one window), writes atomically.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    // Every argument is checked before the input is read, so a typo fails fast.
+    let settings = args.settings()?;
+    let window = args.window_of.as_deref().map(parse_window).transpose()?;
+    let raster = super::read_raster(&args.input, &args.read, ctx)?;
+    let mut hf = raster.heightfield;
+    if hf.has_voids() {
+        if !args.fill_voids {
+            bail!(
+                "{} has {} void cells; fill them first (--fill-voids)",
+                args.input.display(),
+                hf.void_count()
+            );
+        }
+        let progress = ctx.progress();
+        progress.begin("filling voids", 0);
+        let rep = fill_voids(&mut hf, &FillSettings::default())
+            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
+        drop(progress);
+        ctx.note(format!("filled {} voids", rep.filled));
+    }
+    let progress = ctx.progress();
+    progress.begin("wavelet analysis", 0);
+    let refiner = Refiner::new(&hf, &settings)
+        .with_context(|| format!("cannot analyse {}", args.input.display()))?;
+    let (ow, oh) = refiner.output_size();
+    let out = match window {
+        Some((x, y, w, h)) => {
+            progress.begin("synthesising the window", 0);
+            refiner
+                .render_window(x, y, w, h)
+                .with_context(|| format!("invalid --window-of (the refined grid is {ow} x {oh})"))?
+        }
+        None => refiner.render(&progress).context("cannot synthesise")?,
+    };
+    progress.begin("writing", 0);
+    relief_io::write(&args.output, &out, &relief_io::WriteOptions::default())
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    drop(progress);
+    let fits = &refiner.analysis().fits;
+    ctx.note(format!(
+        "wrote {} ({} x {} of the {ow} x {oh} refined grid; {} {}, gamma h/v/d {:.3}/{:.3}/{:.3})",
+        args.output.display(),
+        out.width(),
+        out.height(),
+        match settings.method {
+            Method::Gsa => "gsa".to_string(),
+            Method::Lsa => format!("lsa {0}x{0}", settings.window),
+        },
+        settings.wavelet,
+        fits[0].gamma,
+        fits[1].gamma,
+        fits[2].gamma
+    ));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_window;
+
+    #[test]
+    fn window_argument() {
+        assert_eq!(parse_window("1,2,3,4").unwrap(), (1, 2, 3, 4));
+        assert_eq!(parse_window(" 0, 0 ,8,8").unwrap(), (0, 0, 8, 8));
+        assert!(parse_window("1,2,3").is_err());
+        assert!(parse_window("1,2,0,4").is_err());
+        assert!(parse_window("a,2,3,4").is_err());
+        assert!(parse_window("-1,2,3,4").is_err());
+    }
+}

@@ -1,0 +1,316 @@
+//! End-to-end tests of `relief refine` and `relief analyze` (wavelet detail synthesis) on crops
+//! of the bundled real DEM `fixtures/grandcanyon.tif`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relief_heightfield::Heightfield;
+
+fn relief(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+fn fixture() -> Heightfield {
+    read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif"))
+}
+
+/// Writes a crop of the fixture as GeoTIFF into `dir`.
+fn crop_file(dir: &Path, name: &str, x: usize, y: usize, w: usize, h: usize) -> PathBuf {
+    let hf = fixture().crop(x, y, w, h).unwrap();
+    let p = dir.join(name);
+    relief_io::write(&p, &hf, &relief_io::WriteOptions::default()).unwrap();
+    p
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "exit {:?}, stderr: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn bits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn a_refined_window_equals_the_same_window_of_the_full_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 200, 160, 64, 48);
+    let src = read(&input);
+    for (method, wavelet) in [("lsa", "cdf53"), ("gsa", "cdf97"), ("lsa", "db4")] {
+        let full = tmp.path().join(format!("full-{method}-{wavelet}.tif"));
+        let win = tmp.path().join(format!("win-{method}-{wavelet}.tif"));
+        let common = [
+            "--levels",
+            "2",
+            "--method",
+            method,
+            "--window",
+            "3",
+            "--wavelet",
+            wavelet,
+            "--seed",
+            "11",
+        ];
+        let mut a = vec![os("refine"), input.as_os_str(), full.as_os_str()];
+        a.extend(common.iter().map(os));
+        ok(&relief(&a));
+        let mut b = vec![os("refine"), input.as_os_str(), win.as_os_str()];
+        b.extend(common.iter().map(os));
+        b.extend([os("--window-of"), os("37,101,50,60")]);
+        ok(&relief(&b));
+        let full = read(&full);
+        let win = read(&win);
+        assert_eq!((full.width(), full.height()), (256, 192));
+        assert_eq!((win.width(), win.height()), (50, 60));
+        let (cx, cy) = src.cell_size();
+        let (fx, fy) = full.cell_size();
+        // Geographic grids get their metric cell size at the grid's centre latitude, hence the
+        // relative tolerance.
+        assert!(
+            (fx * 4.0 / cx - 1.0).abs() < 1e-3 && (fy * 4.0 / cy - 1.0).abs() < 1e-3,
+            "{:?} {:?}",
+            src.cell_size(),
+            full.cell_size()
+        );
+        assert_eq!(
+            bits(win.as_slice()),
+            bits(full.crop(37, 101, 50, 60).unwrap().as_slice()),
+            "{method} {wavelet}"
+        );
+        // The refinement keeps the input's relief: mean and range within a few metres, and
+        // new detail was added (it is not an interpolation).
+        let (lo, hi) = src.min_max().unwrap();
+        let (flo, fhi) = full.min_max().unwrap();
+        assert!(flo > lo - 0.2 * (hi - lo) && fhi < hi + 0.2 * (hi - lo));
+        let mean =
+            |h: &Heightfield| h.as_slice().iter().map(|&v| v as f64).sum::<f64>() / h.len() as f64;
+        assert!(
+            (mean(&src) - mean(&full)).abs() < 0.01 * (hi - lo) as f64,
+            "{} {}",
+            mean(&src),
+            mean(&full)
+        );
+        // Refined sample (4i, 4j) lies on input sample (i, j) (vertex-aligned lattice): the
+        // coarse shape is kept up to the synthesised detail.
+        let mut se = 0.0f64;
+        for y in 0..src.height() {
+            for x in 0..src.width() {
+                se += ((full.get(4 * x, 4 * y) - src.get(x, y)) as f64).powi(2);
+            }
+        }
+        let rmse = (se / src.len() as f64).sqrt();
+        assert!(
+            rmse < 0.05 * (hi - lo) as f64,
+            "{method}: rmse on the input lattice {rmse} m"
+        );
+        let bicubic = src.resample(256, 192).unwrap();
+        let diff = full
+            .as_slice()
+            .iter()
+            .zip(bicubic.as_slice())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(diff > 0.5, "{method}: no detail added ({diff} m)");
+    }
+    // Another seed gives other detail.
+    let other = tmp.path().join("other.tif");
+    ok(&relief(&[
+        os("refine"),
+        input.as_os_str(),
+        other.as_os_str(),
+        os("--seed"),
+        os("12"),
+        os("--levels"),
+        os("2"),
+    ]));
+    let full = read(&tmp.path().join("full-lsa-cdf53.tif"));
+    assert_ne!(bits(read(&other).as_slice()), bits(full.as_slice()));
+}
+
+#[test]
+fn analyze_prints_fits_json_and_plot() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 0, 0, 256, 256);
+    let text = ok(&relief(&[
+        os("analyze"),
+        input.as_os_str(),
+        os("--local"),
+        os("3"),
+    ]));
+    for needle in ["gamma", "fractal dimension", "local fit", "level"] {
+        assert!(text.contains(needle), "{needle}: {text}");
+    }
+    let plot = tmp.path().join("plot.png");
+    let json = ok(&relief(&[
+        os("analyze"),
+        input.as_os_str(),
+        os("--json"),
+        os("--plot"),
+        plot.as_os_str(),
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let fits = v["analysis"]["fits"].as_array().unwrap();
+    assert_eq!(fits.len(), 3);
+    for f in fits {
+        let g = f["gamma"].as_f64().unwrap();
+        // Real terrain: variance decays towards finer levels (gamma > 0), and the fit is good.
+        assert!(g > 0.5 && g < 4.0, "gamma {g}");
+        assert!(f["r_squared"].as_f64().unwrap() > 0.8, "{f}");
+        let d = f["fractal_dimension"].as_f64().unwrap();
+        assert!((d - (3.0 - g / 2.0)).abs() < 1e-12);
+    }
+    // 256 -> J = 8, fitted levels 3..=7.
+    assert_eq!(v["analysis"]["top_level"], 8);
+    let levels = v["analysis"]["levels"].as_array().unwrap();
+    assert_eq!(levels.iter().filter(|l| l["fitted"] == true).count(), 5);
+    let bytes = std::fs::read(&plot).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    assert_eq!((w, h), (720, 440));
+    // The text and JSON agree on gamma.
+    let g_h = fits[0]["gamma"].as_f64().unwrap();
+    assert!(text.contains(&format!("{g_h:.4}")), "{text}");
+}
+
+#[test]
+fn voids_need_fill_voids() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut hf = fixture().crop(100, 100, 64, 64).unwrap();
+    for y in 20..26 {
+        for x in 30..37 {
+            hf.set(x, y, f32::NAN);
+        }
+    }
+    let input = tmp.path().join("holes.tif");
+    relief_io::write(&input, &hf, &relief_io::WriteOptions::default()).unwrap();
+    assert!(read(&input).has_voids());
+    let out = tmp.path().join("out.tif");
+    ok(&relief(&[
+        os("refine"),
+        input.as_os_str(),
+        out.as_os_str(),
+        os("--levels"),
+        os("1"),
+        os("--fill-voids"),
+    ]));
+    let r = read(&out);
+    assert_eq!((r.width(), r.height()), (128, 128));
+    assert!(!r.has_voids());
+    ok(&relief(&[
+        os("analyze"),
+        input.as_os_str(),
+        os("--fill-voids"),
+    ]));
+}
+
+/// Each bad invocation exits non-zero with exactly one line on stderr naming the problem and
+/// leaves no output file.
+#[test]
+fn bad_input_fails_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 300, 300, 64, 64);
+    let mut holes = read(&input);
+    holes.set(5, 5, f32::NAN);
+    let holed = tmp.path().join("holes.tif");
+    relief_io::write(&holed, &holes, &relief_io::WriteOptions::default()).unwrap();
+    let tiny = crop_file(tmp.path(), "tiny.tif", 0, 0, 8, 8);
+    let out = tmp.path().join("out.tif");
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (vec![os("--window"), os("4")], "window"),
+        (vec![os("--window"), os("0")], "window"),
+        (vec![os("--levels"), os("0")], "levels"),
+        (vec![os("--levels"), os("13")], "extra_levels"),
+        (vec![os("--wavelet"), os("sym9")], "sym9"),
+        (vec![os("--window-of"), os("0,0,300,10")], "window"),
+        (vec![os("--window-of"), os("1,2,3")], "window-of"),
+        (vec![os("--min-level"), os("6")], "level"),
+    ];
+    let check = |args: Vec<&std::ffi::OsStr>, needle: &str, out: &Path| {
+        let res = relief(&args);
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert!(!res.status.success(), "{args:?} succeeded");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.starts_with("error: "), "{stderr}");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: `{needle}` not in {stderr}"
+        );
+        assert!(!out.exists(), "{args:?} left {}", out.display());
+    };
+    for (extra, needle) in cases {
+        let mut args = vec![os("refine"), input.as_os_str(), out.as_os_str()];
+        args.extend(extra);
+        check(args, needle, &out);
+    }
+    check(
+        vec![os("refine"), holed.as_os_str(), out.as_os_str()],
+        "void",
+        &out,
+    );
+    check(
+        vec![os("refine"), tiny.as_os_str(), out.as_os_str()],
+        "levels",
+        &out,
+    );
+    let missing = tmp.path().join("missing.tif");
+    check(
+        vec![os("refine"), missing.as_os_str(), out.as_os_str()],
+        "missing.tif",
+        &out,
+    );
+    let plot = tmp.path().join("plot.png");
+    check(
+        vec![
+            os("analyze"),
+            holed.as_os_str(),
+            os("--plot"),
+            plot.as_os_str(),
+        ],
+        "void",
+        &plot,
+    );
+    check(
+        vec![
+            os("analyze"),
+            input.as_os_str(),
+            os("--wavelet"),
+            os("coif3"),
+            os("--plot"),
+            plot.as_os_str(),
+        ],
+        "coif3",
+        &plot,
+    );
+    check(
+        vec![
+            os("analyze"),
+            input.as_os_str(),
+            os("--local"),
+            os("2"),
+            os("--plot"),
+            plot.as_os_str(),
+        ],
+        "window",
+        &plot,
+    );
+}
