@@ -43,6 +43,10 @@ enum Command {
     Convert(commands::convert::Args),
     /// Write a shaded-relief preview PNG (hillshade blended with an elevation colour ramp).
     Preview(commands::preview::Args),
+    /// Compress a terrain into a sparse construction tree (.sct): dictionary + Batch-OMP.
+    Compress(commands::compress::Args),
+    /// Rasterise a .sct at any scale or window into any raster format.
+    Decompress(commands::decompress::Args),
     /// Add levels of detail by wavelet synthesis (GSA/LSA, Perez et al.); any window on demand.
     Refine(commands::refine::Args),
     /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.
@@ -59,6 +63,8 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),
         Command::Preview(args) => commands::preview::run(args, &ctx),
+        Command::Compress(args) => commands::compress::run(args, &ctx),
+        Command::Decompress(args) => commands::decompress::run(args, &ctx),
         Command::Refine(args) => commands::refine::run(args, &ctx),
         Command::Analyze(args) => commands::analyze::run(args, &ctx),
     };

@@ -3,7 +3,9 @@
 //! `enum Command` and dispatches in one `match`.
 
 pub(crate) mod analyze;
+pub(crate) mod compress;
 pub(crate) mod convert;
+pub(crate) mod decompress;
 pub(crate) mod info;
 pub(crate) mod preview;
 pub(crate) mod refine;

@@ -1,0 +1,470 @@
+//! `relief compress` / `relief decompress` end to end on crops of the bundled Grand Canyon
+//! fixture (real SRTM-derived data): exact reconstruction with the complete dictionary, PSNR
+//! rising with the sparsity, windows and scales, dictionary files, and bad input (truncated
+//! or corrupt `.sct`, s > N, absurd sizes): non-zero exit, one line on stderr, no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relief_heightfield::{Heightfield, metrics};
+use relief_sparse_core::{Dictionary, PatchGeometry, Sct, extract_patches};
+
+fn relief(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+/// A crop of `fixtures/grandcanyon.tif` written as a GeoTIFF into `dir`.
+fn fixture_crop(dir: &Path, x: usize, y: usize, w: usize, h: usize) -> (PathBuf, Heightfield) {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let hf = read(&src).crop(x, y, w, h).unwrap();
+    let path = dir.join(format!("gc_{x}_{y}_{w}x{h}.tif"));
+    relief_io::write(&path, &hf, &relief_io::WriteOptions::default()).unwrap();
+    (path, hf)
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The number after `key` in the report (e.g. `"PSNR:"`).
+fn figure(stdout: &str, key: &str) -> f64 {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with(key))
+        .unwrap_or_else(|| panic!("no `{key}` in {stdout}"));
+    line[key.len()..]
+        .split_whitespace()
+        .next()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no number in {line}"))
+}
+
+fn rho(stdout: &str) -> f64 {
+    let line = stdout.lines().find(|l| l.starts_with("storage:")).unwrap();
+    let t = line.split("rho = ").nth(1).unwrap();
+    t.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+/// A failing run: non-zero exit, exactly one line on stderr, no output file.
+fn fails(args: &[&std::ffi::OsStr], output: &Path, what: &str) -> String {
+    let out = relief(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "{what}: should fail");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{what}: {stderr}");
+    assert!(stderr.starts_with("error: "), "{what}: {stderr}");
+    assert!(!output.exists(), "{what}: output file left behind");
+    let dir = output.parent().unwrap();
+    let stray: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(stray.is_empty(), "{what}: temporary files left: {stray:?}");
+    stderr
+}
+
+#[test]
+fn complete_dictionary_s1_round_trip_is_exact() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, hf) = fixture_crop(tmp.path(), 200, 150, 72, 64);
+    let sct = tmp.path().join("c.sct");
+    let stdout = ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        sct.as_os_str(),
+        os("--dict"),
+        os("complete"),
+        os("--sparsity"),
+        os("1"),
+    ]));
+    // The complete dictionary stores every patch: rho > 1 (no compression), exact terrain.
+    assert!(rho(&stdout) > 100.0, "{stdout}");
+    assert!(figure(&stdout, "PSNR:") > 90.0, "{stdout}");
+    let bytes = std::fs::read(&sct).unwrap();
+    assert_eq!(figure(&stdout, "bytes:") as usize, bytes.len());
+    let out = tmp.path().join("c.tif");
+    let d = ok(&relief(&[
+        os("decompress"),
+        sct.as_os_str(),
+        out.as_os_str(),
+        os("--reference"),
+        input.as_os_str(),
+    ]));
+    assert_eq!(figure(&d, "bytes:") as usize, bytes.len());
+    assert!(figure(&d, "PSNR:") > 90.0, "{d}");
+    let rec = read(&out);
+    assert_eq!((rec.width(), rec.height()), (72, 64));
+    let err = metrics::max_abs_diff(&hf, &rec).unwrap();
+    assert!(err < 1e-5 * hf.relief() as f64 + 1e-3, "max error {err} m");
+}
+
+#[test]
+fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, hf) = fixture_crop(tmp.path(), 100, 240, 96, 80);
+    let mut psnr = Vec::new();
+    let mut sizes = Vec::new();
+    for s in ["1", "2", "8"] {
+        let sct = tmp.path().join(format!("s{s}.sct"));
+        let stdout = ok(&relief(&[
+            os("compress"),
+            input.as_os_str(),
+            sct.as_os_str(),
+            os("-s"),
+            os(s),
+            os("--atoms"),
+            os("48"),
+            os("--iterations"),
+            os("4"),
+        ]));
+        assert!(stdout.contains("K-SVD"), "{stdout}");
+        // t(s, N) = KN + n(2s + 2) + 1 with K = 64, N = 48 and the printed n.
+        let s: u64 = s.parse().unwrap();
+        let n: u64 = stdout
+            .lines()
+            .find(|l| l.starts_with("primitives:"))
+            .and_then(|l| l.split("n = ").nth(1))
+            .and_then(|t| t.split(',').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap();
+        let t = 64 * 48 + n * (2 * s + 2) + 1;
+        assert!(stdout.contains(&format!("= {t} values")), "{stdout}");
+        psnr.push(figure(&stdout, "PSNR:"));
+        sizes.push(std::fs::metadata(&sct).unwrap().len());
+    }
+    assert!(psnr[0] < psnr[1] && psnr[1] < psnr[2], "{psnr:?}");
+    assert!(sizes[0] < sizes[1] && sizes[1] < sizes[2], "{sizes:?}");
+    // The s = 8 model reconstructs the crop well (paper table 1: > 40 dB at s = 8).
+    assert!(psnr[2] > 40.0, "{psnr:?}");
+
+    // A window at scale 2.5 equals the same window of the full scale-2.5 raster, bit for bit.
+    let sct = tmp.path().join("s8.sct");
+    let full = tmp.path().join("full.tif");
+    ok(&relief(&[
+        os("decompress"),
+        sct.as_os_str(),
+        full.as_os_str(),
+        os("--scale"),
+        os("2.5"),
+    ]));
+    let part = tmp.path().join("part.r32");
+    ok(&relief(&[
+        os("decompress"),
+        sct.as_os_str(),
+        part.as_os_str(),
+        os("--scale"),
+        os("2.5"),
+        os("--window"),
+        os("31,17,60,45"),
+    ]));
+    let full = read(&full);
+    assert_eq!(
+        (full.width(), full.height()),
+        ((95.0f64 * 2.5) as usize + 1, (79.0f64 * 2.5) as usize + 1)
+    );
+    let part = relief_io::read(
+        &part,
+        &relief_io::ReadOptions {
+            width: Some(60),
+            height: Some(45),
+            ..Default::default()
+        },
+    )
+    .unwrap()
+    .heightfield;
+    for r in 0..45 {
+        for c in 0..60 {
+            assert_eq!(part.get(c, r).to_bits(), full.get(31 + c, 17 + r).to_bits());
+        }
+    }
+    // Every 5th sample of the x2.5 raster (every 2nd terrain sample) is close to the input.
+    let mut worst = 0f32;
+    for r in (0..80).step_by(2) {
+        for c in (0..96).step_by(2) {
+            let v = full.get(c * 5 / 2, r * 5 / 2);
+            worst = worst.max((v - hf.get(c, r)).abs());
+        }
+    }
+    assert!(
+        worst < 0.1 * hf.relief(),
+        "worst {worst} of {}",
+        hf.relief()
+    );
+
+    // The quantised file is smaller and still close.
+    let q = tmp.path().join("q.sct");
+    let stdout = ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        q.as_os_str(),
+        os("-s"),
+        os("8"),
+        os("--atoms"),
+        os("48"),
+        os("--iterations"),
+        os("4"),
+        os("--quantize"),
+    ]));
+    assert!(std::fs::metadata(&q).unwrap().len() < sizes[2]);
+    assert!((figure(&stdout, "PSNR:") - psnr[2]).abs() < 1.0, "{stdout}");
+}
+
+#[test]
+fn dictionary_file_is_used() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, hf) = fixture_crop(tmp.path(), 300, 300, 64, 64);
+    // A dictionary of 6 x 6 patches from another part of the canyon.
+    let (_, other) = fixture_crop(tmp.path(), 20, 20, 64, 64);
+    let p = extract_patches(&other, &PatchGeometry::with_patch_size(6)).unwrap();
+    let sel: Vec<usize> = (0..32).map(|k| k * 7 + 3).collect();
+    let (dict, _) = Dictionary::from_patches(&p, Some(&sel)).unwrap();
+    let dict_path = tmp.path().join("canyon.dict");
+    std::fs::write(&dict_path, dict.to_bytes().unwrap()).unwrap();
+    let sct = tmp.path().join("d.sct");
+    let stdout = ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        sct.as_os_str(),
+        os("--dictionary"),
+        dict_path.as_os_str(),
+        os("-s"),
+        os("4"),
+    ]));
+    assert!(
+        stdout.contains(&format!("N = {} atoms of 6 x 6", dict.len())),
+        "{stdout}"
+    );
+    let model = Sct::from_bytes(&std::fs::read(&sct).unwrap(), &Default::default()).unwrap();
+    assert_eq!(
+        model.layers()[0].dictionary().discretize(),
+        dict.discretize()
+    );
+    assert_eq!((model.width(), model.height()), (hf.width(), hf.height()));
+    // Geometry options conflict with a dictionary file.
+    let out = tmp.path().join("x.sct");
+    fails(
+        &[
+            os("compress"),
+            input.as_os_str(),
+            out.as_os_str(),
+            os("--dictionary"),
+            dict_path.as_os_str(),
+            os("--patch-size"),
+            os("4"),
+        ],
+        &out,
+        "dictionary + patch size",
+    );
+    // A corrupt dictionary file.
+    let bad = tmp.path().join("bad.dict");
+    let mut b = dict.to_bytes().unwrap();
+    b.truncate(b.len() - 3);
+    std::fs::write(&bad, b).unwrap();
+    let e = fails(
+        &[
+            os("compress"),
+            input.as_os_str(),
+            out.as_os_str(),
+            os("--dictionary"),
+            bad.as_os_str(),
+        ],
+        &out,
+        "truncated dictionary",
+    );
+    assert!(e.contains("bad.dict"), "{e}");
+}
+
+#[test]
+fn bad_input_fails_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, _) = fixture_crop(tmp.path(), 0, 0, 48, 40);
+    let good = tmp.path().join("good.sct");
+    ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        good.as_os_str(),
+        os("--dict"),
+        os("sample"),
+        os("--atoms"),
+        os("20"),
+    ]));
+    let bytes = std::fs::read(&good).unwrap();
+    let out = tmp.path().join("out.sct");
+    let raster = tmp.path().join("out.tif");
+
+    // s > N.
+    let e = fails(
+        &[
+            os("compress"),
+            input.as_os_str(),
+            out.as_os_str(),
+            os("--dict"),
+            os("sample"),
+            os("--atoms"),
+            os("20"),
+            os("-s"),
+            os("21"),
+        ],
+        &out,
+        "s > N",
+    );
+    assert!(e.contains("21") && e.contains("20"), "{e}");
+    // s = 0 and s > 64.
+    for s in ["0", "65"] {
+        let e = fails(
+            &[
+                os("compress"),
+                input.as_os_str(),
+                out.as_os_str(),
+                os("-s"),
+                os(s),
+            ],
+            &out,
+            "bad sparsity",
+        );
+        assert!(e.contains("sparsity"), "{e}");
+    }
+    // Absurd geometry and dictionary sizes.
+    for args in [
+        vec!["--patch-size", "0"],
+        vec!["--patch-size", "100000"],
+        vec!["--spacing=-1"],
+        vec!["--tolerance=-1"],
+        vec!["--step", "1e300"],
+        vec!["--radius", "0.1"],
+        vec!["--dict", "sample", "--atoms", "100000000"],
+        vec!["--atoms", "0"],
+    ] {
+        let mut a = vec![os("compress"), input.as_os_str(), out.as_os_str()];
+        a.extend(args.iter().map(os));
+        fails(&a, &out, &format!("{args:?}"));
+    }
+    // Missing input and an input that is not a raster.
+    fails(
+        &[
+            os("compress"),
+            tmp.path().join("nope.tif").as_os_str(),
+            out.as_os_str(),
+        ],
+        &out,
+        "missing input",
+    );
+    fails(
+        &[os("compress"), good.as_os_str(), out.as_os_str()],
+        &out,
+        ".sct as raster input",
+    );
+    // An input with voids needs --fill-voids.
+    let holes = tmp.path().join("holes.tif");
+    let mut h = read(&input);
+    h.set(10, 10, f32::NAN);
+    relief_io::write(&holes, &h, &relief_io::WriteOptions::default()).unwrap();
+    let e = fails(
+        &[os("compress"), holes.as_os_str(), out.as_os_str()],
+        &out,
+        "voids",
+    );
+    assert!(e.contains("--fill-voids"), "{e}");
+    ok(&relief(&[
+        os("compress"),
+        holes.as_os_str(),
+        out.as_os_str(),
+        os("--fill-voids"),
+        os("--dict"),
+        os("sample"),
+    ]));
+    std::fs::remove_file(&out).unwrap();
+
+    // Truncated and corrupt .sct files.
+    for (name, data) in [
+        ("trunc.sct", bytes[..bytes.len() / 2].to_vec()),
+        ("short.sct", bytes[..5].to_vec()),
+        ("empty.sct", Vec::new()),
+        ("magic.sct", {
+            let mut b = bytes.clone();
+            b[0] = b'X';
+            b
+        }),
+        ("version.sct", {
+            let mut b = bytes.clone();
+            b[8] = 99;
+            b
+        }),
+        ("huge.sct", {
+            // Atom count (u32 at byte 55) claims 4 billion atoms.
+            let mut b = bytes.clone();
+            b[55..59].copy_from_slice(&u32::MAX.to_le_bytes());
+            b
+        }),
+        ("trailing.sct", {
+            let mut b = bytes.clone();
+            b.extend_from_slice(b"junk");
+            b
+        }),
+    ] {
+        let p = tmp.path().join(name);
+        std::fs::write(&p, data).unwrap();
+        let e = fails(
+            &[os("decompress"), p.as_os_str(), raster.as_os_str()],
+            &raster,
+            name,
+        );
+        assert!(e.contains(name), "{e}");
+    }
+    // Absurd output sizes, bad windows and scales.
+    for args in [
+        vec!["--scale", "1000"],
+        vec!["--scale", "0"],
+        vec!["--scale", "nan"],
+        vec!["--scale=-2"],
+        vec!["--window", "0,0,49,10"],
+        vec!["--window", "40,0,10,10"],
+        vec!["--window", "0,0,0,10"],
+        vec!["--window", "18446744073709551615,0,2,2"],
+        vec!["--window", "1,2,3"],
+        vec!["--scale", "200", "--max-cells", "1000"],
+    ] {
+        let mut a = vec![os("decompress"), good.as_os_str(), raster.as_os_str()];
+        a.extend(args.iter().map(os));
+        fails(&a, &raster, &format!("{args:?}"));
+    }
+    // A reference of the wrong size.
+    let (other, _) = fixture_crop(tmp.path(), 5, 5, 30, 30);
+    fails(
+        &[
+            os("decompress"),
+            good.as_os_str(),
+            raster.as_os_str(),
+            os("--reference"),
+            other.as_os_str(),
+        ],
+        &raster,
+        "reference size",
+    );
+    // Unknown output format.
+    let weird = tmp.path().join("out.xyz");
+    fails(
+        &[os("decompress"), good.as_os_str(), weird.as_os_str()],
+        &weird,
+        "unknown output extension",
+    );
+}
