@@ -51,6 +51,10 @@ enum Command {
     Refine(commands::refine::Args),
     /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.
     Analyze(commands::analyze::Args),
+    /// Quilt a terrain from exemplar patches under a guide and categorisation map (cruz2015).
+    Quilt(commands::quilt::Args),
+    /// Check that the exemplars can synthesize a guide (cruz2015 section 4); non-zero if not.
+    Validate(commands::validate::Args),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +71,8 @@ fn main() -> ExitCode {
         Command::Decompress(args) => commands::decompress::run(args, &ctx),
         Command::Refine(args) => commands::refine::run(args, &ctx),
         Command::Analyze(args) => commands::analyze::run(args, &ctx),
+        Command::Quilt(args) => commands::quilt::run(args, &ctx),
+        Command::Validate(args) => commands::validate::run(args, &ctx),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,7 +8,9 @@ pub(crate) mod convert;
 pub(crate) mod decompress;
 pub(crate) mod info;
 pub(crate) mod preview;
+pub(crate) mod quilt;
 pub(crate) mod refine;
+pub(crate) mod validate;
 
 use std::path::Path;
 

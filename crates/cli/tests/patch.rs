@@ -1,0 +1,382 @@
+//! End-to-end tests of `relief quilt` and `relief validate` (guided patch-based synthesis,
+//! cruz2015) on crops of the bundled Grand Canyon fixture (`fixtures/grandcanyon.tif`, 512 x 512,
+//! ~62 m cells, 479..2347 m): one crop is the exemplar, another (low-passed) the guide.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relief_heightfield::Heightfield;
+use relief_heightfield::metrics::{rmse, stats};
+
+fn relief(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+fn fixture() -> Heightfield {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    relief_io::read(&path, &relief_io::ReadOptions::default())
+        .expect("fixtures/grandcanyon.tif")
+        .heightfield
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+fn write(dir: &Path, name: &str, hf: &Heightfield) -> PathBuf {
+    let p = dir.join(name);
+    relief_io::write(&p, hf, &relief_io::WriteOptions::default()).unwrap();
+    p
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn mean(hf: &Heightfield, x0: usize, x1: usize) -> f64 {
+    let mut s = 0.0;
+    for y in 0..hf.height() {
+        for x in x0..x1 {
+            s += hf.get(x, y) as f64;
+        }
+    }
+    s / ((x1 - x0) * hf.height()) as f64
+}
+
+/// Exemplar: the north-west 256 x 256 quarter; guide: the Gaussian low-pass (sigma 4 cells) of
+/// the south-east 128 x 128 crop. The output follows the guide (its low-pass is closer to the
+/// guide than the exemplar's own mean level), keeps the exemplar's relief, the seam map has the
+/// output's size, validation passes, and the same seed reproduces the same bytes.
+#[test]
+fn quilt_follows_a_guide_made_from_another_crop() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 256, 256).unwrap());
+    let target = gc.crop(300, 300, 128, 128).unwrap();
+    let src = write(tmp.path(), "src.tif", &target);
+    let out = tmp.path().join("out.tif");
+    let seams = tmp.path().join("seams.png");
+    let common = |out: &Path| -> Vec<std::ffi::OsString> {
+        [
+            "--exemplar",
+            ex.to_str().unwrap(),
+            "--guide-from",
+            src.to_str().unwrap(),
+            "--blur",
+            "4",
+            "--size",
+            "128x128",
+            "--patch",
+            "32",
+            "--overlap",
+            "8",
+            "--seed",
+            "11",
+            "--min-candidates",
+            "100",
+        ]
+        .iter()
+        .map(|s| s.into())
+        .chain([out.as_os_str().to_owned()])
+        .collect()
+    };
+    let args = |cmd: &str, out: &Path, extra: &[&Path]| -> Output {
+        let mut v: Vec<std::ffi::OsString> = vec![cmd.into()];
+        v.extend(common(out));
+        for e in extra {
+            v.push("--seam-map".into());
+            v.push(e.as_os_str().to_owned());
+        }
+        let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
+        relief(&refs)
+    };
+    let res = args("quilt", &out, &[&seams]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let hf = read(&out);
+    assert_eq!((hf.width(), hf.height()), (128, 128));
+    assert!(!hf.has_voids());
+    assert!(
+        // Web-Mercator ground cells vary slightly with the crop's latitude.
+        (hf.cell_size().0 / gc.cell_size().0 - 1.0).abs() < 0.01,
+        "{:?} vs {:?}",
+        hf.cell_size(),
+        gc.cell_size()
+    );
+    // Guide fidelity: the same low-pass of the output against the guide.
+    let guide = relief_patch_synth::guide::gaussian_blur(&target, 4.0).unwrap();
+    let low = relief_patch_synth::guide::gaussian_blur(&hf, 4.0).unwrap();
+    let g_std = stats(&guide).unwrap().std as f64;
+    let fid = rmse(&low, &guide).unwrap();
+    let g_mean = stats(&guide).unwrap().mean as f32;
+    let flat = rmse(&guide.map(|_| g_mean), &guide).unwrap();
+    assert!(
+        fid < 0.6 * flat,
+        "guide rmse {fid:.1} m vs flat {flat:.1} m (guide std {g_std:.1})"
+    );
+    // Real relief, not a blurred copy of the guide: the detail left after the low-pass is
+    // comparable to the target's own.
+    let detail = rmse(&hf, &low).unwrap();
+    let target_detail = rmse(&target, &guide).unwrap();
+    assert!(
+        detail > 0.4 * target_detail,
+        "detail {detail:.1} vs {target_detail:.1}"
+    );
+    // Seam map PNG at the output size.
+    let png = relief_io::read(
+        &seams,
+        &relief_io::ReadOptions {
+            png: relief_io::PngMode::TerrainRgb,
+            ..Default::default()
+        },
+    )
+    .expect("seam map png")
+    .heightfield;
+    assert_eq!((png.width(), png.height()), (128, 128));
+    // Same seed, same bytes.
+    let out2 = tmp.path().join("out2.tif");
+    let res = args("quilt", &out2, &[]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&out2).unwrap());
+    // The input check alone passes and says so.
+    let mut v: Vec<std::ffi::OsString> = vec!["validate".into()];
+    v.extend(common(&out).into_iter().take(16));
+    let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
+    let res = relief(&refs);
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(res.status.success(), "{}\n{stdout}", stderr(&res));
+    assert!(stdout.contains("result:          ok"), "{stdout}");
+    assert!(stdout.contains("0 of 25 fail"), "{stdout}");
+}
+
+/// A guide 3000 m above every exemplar height: `validate` lists failing blocks and the missing
+/// height range and exits non-zero with one stderr line; `quilt` refuses and writes nothing.
+#[test]
+fn validation_names_missing_heights_and_quilt_refuses() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 192, 192).unwrap());
+    let mut guide = gc.crop(256, 256, 96, 96).unwrap().map(|v| v + 3000.0);
+    // Left third at the exemplar's heights: only the other blocks fail.
+    for y in 0..96 {
+        for x in 0..32 {
+            guide.set(x, y, gc.get(x, y));
+        }
+    }
+    let g = write(tmp.path(), "guide.tif", &guide);
+    let base = [
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--guide"),
+        g.as_os_str(),
+        os("--patch"),
+        os("32"),
+        os("--overlap"),
+        os("8"),
+    ];
+    let mut v = vec![os("validate")];
+    v.extend(base);
+    let res = relief(&v);
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    let err = stderr(&res);
+    assert!(!res.status.success(), "{stdout}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: validation failed"), "{err}");
+    assert!(stdout.contains("failing block:   (3, 0)"), "{stdout}");
+    assert!(stdout.contains("result:          FAILED"), "{stdout}");
+    let missing: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("missing heights:"))
+        .collect();
+    assert!(!missing.is_empty(), "{stdout}");
+    // The missing range lies above the exemplar's maximum.
+    let ex_max = gc.crop(0, 0, 192, 192).unwrap().min_max().unwrap().1;
+    let hi: f32 = missing[0]
+        .split_whitespace()
+        .rev()
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(hi > ex_max + 1000.0, "{} vs {ex_max}", missing[0]);
+
+    let out = tmp.path().join("out.tif");
+    let mut v = vec![os("quilt"), out.as_os_str()];
+    v.extend(base);
+    let res = relief(&v);
+    let err = stderr(&res);
+    assert!(!res.status.success());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("validation failed"), "{err}");
+    assert!(!out.exists());
+}
+
+/// Categorisation map: left half category 0 (exemplar from the low canyon floor), right half
+/// category 1 (exemplar from the high plateau); unguided, no vertical translations. Each half
+/// of the output takes its heights from its own exemplar.
+#[test]
+fn categorisation_map_picks_the_exemplar_per_region() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    // Find a low and a high 96 x 96 crop of the fixture.
+    let mut crops: Vec<(f64, usize, usize)> = Vec::new();
+    for y in (0..=416).step_by(32) {
+        for x in (0..=416).step_by(32) {
+            let c = gc.crop(x, y, 96, 96).unwrap();
+            crops.push((stats(&c).unwrap().mean as f64, x, y));
+        }
+    }
+    crops.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (lo, hi) = (crops[0], crops[crops.len() - 1]);
+    let low = gc.crop(lo.1, lo.2, 96, 96).unwrap();
+    let high = gc.crop(hi.1, hi.2, 96, 96).unwrap();
+    let (lo_max, hi_min) = (low.min_max().unwrap().1, high.min_max().unwrap().0);
+    let a = write(tmp.path(), "low.tif", &low);
+    let b = write(tmp.path(), "high.tif", &high);
+    let (w, h) = (112usize, 64usize);
+    let map: Vec<u8> = (0..w * h)
+        .map(|i| if i % w < w / 2 { 0 } else { 1 })
+        .collect();
+    let map_png = tmp.path().join("map.png");
+    relief_io::write_gray_png(&map_png, w, h, &map).unwrap();
+    let out = tmp.path().join("out.tif");
+    let res = relief(&[
+        os("quilt"),
+        out.as_os_str(),
+        os("--exemplar"),
+        a.as_os_str(),
+        os("--exemplar"),
+        b.as_os_str(),
+        os("--exemplar-categories"),
+        os("0,1"),
+        os("--categories"),
+        map_png.as_os_str(),
+        os("--size"),
+        os("112x64"),
+        os("--patch"),
+        os("24"),
+        os("--overlap"),
+        os("6"),
+        os("--lambda"),
+        os("0"),
+        os("--min-candidates"),
+        os("10"),
+    ]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let hf = read(&out);
+    assert_eq!((hf.width(), hf.height()), (112, 64));
+    // Columns well inside each half (away from the patches straddling the border).
+    let (ml, mr) = (mean(&hf, 0, 30), mean(&hf, 82, 112));
+    let (el, er) = (
+        stats(&low).unwrap().mean as f64,
+        stats(&high).unwrap().mean as f64,
+    );
+    assert!(
+        (ml - el).abs() < 0.25 * (er - el) && (mr - er).abs() < 0.25 * (er - el),
+        "left {ml:.0} (low exemplar {el:.0}), right {mr:.0} (high exemplar {er:.0}); ranges ..{lo_max}, {hi_min}.."
+    );
+}
+
+/// Bad inputs fail with one stderr line naming the problem, and leave no output file.
+#[test]
+fn bad_inputs_exit_non_zero_with_one_line() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 48, 48).unwrap());
+    let out = tmp.path().join("out.tif");
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        // patch larger than the exemplar
+        (
+            vec![
+                os("--exemplar"),
+                ex.as_os_str(),
+                os("--size"),
+                os("64x64"),
+                os("--patch"),
+                os("64"),
+                os("--overlap"),
+                os("8"),
+            ],
+            "smaller than --patch 64",
+        ),
+        // overlap >= patch
+        (
+            vec![
+                os("--exemplar"),
+                ex.as_os_str(),
+                os("--size"),
+                os("64x64"),
+                os("--patch"),
+                os("16"),
+                os("--overlap"),
+                os("16"),
+            ],
+            "`overlap` = 16",
+        ),
+        // empty exemplar list
+        (
+            vec![
+                os("--size"),
+                os("64x64"),
+                os("--patch"),
+                os("16"),
+                os("--overlap"),
+                os("4"),
+            ],
+            "no exemplar",
+        ),
+        // unreadable exemplar
+        (
+            vec![
+                os("--exemplar"),
+                os("/nonexistent/dem.tif"),
+                os("--size"),
+                os("64x64"),
+            ],
+            "/nonexistent/dem.tif",
+        ),
+        // guide-from without blur
+        (
+            vec![
+                os("--exemplar"),
+                ex.as_os_str(),
+                os("--guide-from"),
+                ex.as_os_str(),
+                os("--patch"),
+                os("16"),
+                os("--overlap"),
+                os("4"),
+            ],
+            "--blur",
+        ),
+        // bad size
+        (
+            vec![os("--exemplar"), ex.as_os_str(), os("--size"), os("64y")],
+            "--size `64y`",
+        ),
+    ];
+    for (args, expect) in cases {
+        for cmd in ["quilt", "validate"] {
+            let mut v = vec![os(cmd)];
+            if cmd == "quilt" {
+                v.push(out.as_os_str());
+            }
+            v.extend(args.iter().copied());
+            let res = relief(&v);
+            let err = stderr(&res);
+            assert!(!res.status.success(), "{cmd} {args:?} succeeded");
+            assert_eq!(err.lines().count(), 1, "{cmd} {args:?}: {err}");
+            assert!(err.contains(expect), "{cmd} {args:?}: {err}");
+            assert!(!out.exists(), "{cmd} {args:?} left {}", out.display());
+        }
+    }
+}
