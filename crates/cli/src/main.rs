@@ -47,6 +47,13 @@ enum Command {
     Compress(commands::compress::Args),
     /// Rasterise a .sct at any scale or window into any raster format.
     Decompress(commands::decompress::Args),
+    /// Amplify a coarse terrain x4^k with the details of a high-resolution exemplar (sparse
+    /// multi-resolution dictionary, guerin2016 5.3); writes a raster or a .sct model.
+    Amplify(commands::amplify::Args),
+    /// Synthesise a terrain from a painted sketch and an exemplar (x4 steps, figure 12).
+    Synthesize(commands::synthesize::Args),
+    /// Fit an analytic (noise-atom) model to a terrain, write it as .sct and print its PSNR.
+    FitProcedural(commands::fit_procedural::Args),
     /// Add levels of detail by wavelet synthesis (GSA/LSA, Perez et al.); any window on demand.
     Refine(commands::refine::Args),
     /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.
@@ -69,6 +76,9 @@ fn main() -> ExitCode {
         Command::Preview(args) => commands::preview::run(args, &ctx),
         Command::Compress(args) => commands::compress::run(args, &ctx),
         Command::Decompress(args) => commands::decompress::run(args, &ctx),
+        Command::Amplify(args) => commands::amplify::run(args, &ctx),
+        Command::Synthesize(args) => commands::synthesize::run(args, &ctx),
+        Command::FitProcedural(args) => commands::fit_procedural::run(args, &ctx),
         Command::Refine(args) => commands::refine::run(args, &ctx),
         Command::Analyze(args) => commands::analyze::run(args, &ctx),
         Command::Quilt(args) => commands::quilt::run(args, &ctx),

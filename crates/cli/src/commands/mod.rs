@@ -2,14 +2,17 @@
 //! `pub(crate) fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()>`; `main.rs` lists them in
 //! `enum Command` and dispatches in one `match`.
 
+pub(crate) mod amplify;
 pub(crate) mod analyze;
 pub(crate) mod compress;
 pub(crate) mod convert;
 pub(crate) mod decompress;
+pub(crate) mod fit_procedural;
 pub(crate) mod info;
 pub(crate) mod preview;
 pub(crate) mod quilt;
 pub(crate) mod refine;
+pub(crate) mod synthesize;
 pub(crate) mod validate;
 
 use std::path::Path;

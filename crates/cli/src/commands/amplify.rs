@@ -1,0 +1,247 @@
+//! `relief amplify IN OUT --exemplar EX --factor F`: adds detail to a coarse terrain with the
+//! details of a high-resolution exemplar (guerin2016 section 5.3, x4 per step). OUT is a raster
+//! (any format relief-io writes, optionally one `--window` of it) or a `.sct` model that can be
+//! rasterised later at any resolution.
+//!
+//! The helpers at the bottom (`.sct` output, window parsing) are shared with `synthesize` and
+//! `fit-procedural`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use relief_dictionary_learning::{AmplifySettings, DictionaryChoice, amplify};
+use relief_heightfield::Progress;
+use relief_sparse_core::{RasterSettings, Sct, Window};
+
+use crate::ctx::Ctx;
+
+/// Arguments of `relief amplify`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Coarse input raster (no voids: fill them first with `relief convert --fill-voids`).
+    pub(crate) input: PathBuf,
+    /// Output: a raster (.tif, .png, .exr, .npy, .r16, .r32) or a `.sct` model.
+    pub(crate) output: PathBuf,
+    /// High-resolution exemplar whose details are transferred (its cell size should be about
+    /// the input's divided by the factor).
+    #[arg(long)]
+    pub(crate) exemplar: PathBuf,
+    /// Amplification factor per axis: a power of 4 (4, 16, 64, 256, ...; 4 per step).
+    #[arg(long)]
+    pub(crate) factor: usize,
+    /// Seed (candidate sampling and dictionary learning).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    /// Support radius R in coarse pixels (figure 11): small follows the input, large imposes
+    /// more of the exemplar.
+    #[arg(long, default_value_t = 4.0)]
+    pub(crate) radius: f64,
+    /// Number of learned atoms N (constrained learning); 0 = the complete dictionary (every
+    /// exemplar patch).
+    #[arg(long, default_value_t = 256)]
+    pub(crate) atoms: usize,
+    /// Sparsity s of the coding (the paper uses 1).
+    #[arg(long, default_value_t = 1)]
+    pub(crate) sparsity: usize,
+    /// Also add the coarse coding residual back (keeps the output consistent with the input;
+    /// not in the paper).
+    #[arg(long)]
+    pub(crate) residual_correction: bool,
+    /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
+    #[arg(long)]
+    pub(crate) window: Option<String>,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// Number of x4 steps of a factor, or an error naming it.
+pub(crate) fn steps_of_factor(factor: usize) -> Result<usize> {
+    let mut f = factor;
+    let mut steps = 0;
+    while f > 1 && f.is_multiple_of(4) {
+        f /= 4;
+        steps += 1;
+    }
+    if f != 1 || steps == 0 || steps > 6 {
+        bail!("invalid --factor {factor}: must be a power of 4 between 4 and 4096");
+    }
+    Ok(steps)
+}
+
+/// Reads, amplifies, writes.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let steps = steps_of_factor(args.factor)?;
+    let settings = AmplifySettings {
+        radius: args.radius,
+        steps,
+        sparsity: args.sparsity,
+        dictionary: if args.atoms == 0 {
+            DictionaryChoice::Complete
+        } else {
+            DictionaryChoice::Learned {
+                n_atoms: args.atoms,
+                iterations: 3,
+            }
+        },
+        seed: args.seed,
+        residual_correction: args.residual_correction,
+        ..Default::default()
+    };
+    settings.check().context("invalid amplification settings")?;
+    let window = args.window.as_deref().map(parse_window).transpose()?;
+    check_output_path(&args.output, window)?;
+    let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
+    let exemplar =
+        super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
+    coarse
+        .require_complete()
+        .with_context(|| format!("cannot amplify {}", args.input.display()))?;
+    exemplar
+        .require_complete()
+        .with_context(|| format!("cannot use {} as exemplar", args.exemplar.display()))?;
+    let sct = {
+        let progress = ctx.progress();
+        amplify(&coarse, &exemplar, &settings, &progress).with_context(|| {
+            format!(
+                "cannot amplify {} x{} with {}",
+                args.input.display(),
+                args.factor,
+                args.exemplar.display()
+            )
+        })?
+    };
+    write_model(&sct, &args.output, window, ctx)
+}
+
+/// Parses `--window X,Y,W,H` (output pixels).
+pub(crate) fn parse_window(s: &str) -> Result<Window> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| t.trim().parse::<usize>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("invalid --window `{s}`: must be X,Y,W,H in whole pixels"))?;
+    match v[..] {
+        [x, y, width, height] if width > 0 && height > 0 => Ok(Window {
+            x,
+            y,
+            width,
+            height,
+        }),
+        _ => bail!("invalid --window `{s}`: must be X,Y,W,H with W, H > 0"),
+    }
+}
+
+/// Whether `path` names a `.sct` model (by extension).
+pub(crate) fn is_sct(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("sct"))
+}
+
+/// Refuses an output path we could not write before any work is done: a window with a `.sct`
+/// output, or a raster extension relief-io does not know.
+pub(crate) fn check_output_path(path: &Path, window: Option<Window>) -> Result<()> {
+    if is_sct(path) {
+        if window.is_some() {
+            bail!(
+                "--window applies to raster outputs, not to the .sct model {}",
+                path.display()
+            );
+        }
+    } else if relief_io::Format::from_extension(path).is_none() {
+        bail!(
+            "cannot tell the output format of {} (use .sct or a raster extension: .tif, .png, \
+             .exr, .npy, .r16, .r32)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes `sct` as a `.sct` model or rasterises it (whole, or one window) to a raster file.
+pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &Ctx) -> Result<()> {
+    if is_sct(path) {
+        let bytes = sct.to_bytes().context("cannot serialise the model")?;
+        write_bytes_atomic(path, &bytes)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        ctx.note(format!(
+            "wrote {} ({} x {} model, {} bytes)",
+            path.display(),
+            sct.width(),
+            sct.height(),
+            bytes.len()
+        ));
+        return Ok(());
+    }
+    let hf = {
+        let progress = ctx.progress();
+        sct.rasterize_with_progress(&RasterSettings { scale: 1.0, window }, &progress)
+            .context("cannot rasterise the result")?
+    };
+    let progress = ctx.progress();
+    progress.begin("writing", 0);
+    relief_io::write(path, &hf, &relief_io::WriteOptions::default())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {})",
+        path.display(),
+        hf.width(),
+        hf.height()
+    ));
+    Ok(())
+}
+
+/// Writes bytes atomically: a temporary sibling, synced, renamed over `path` (removed on
+/// error, so a failure never leaves a partial file).
+pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::other("the path has no file name"))?
+        .to_string_lossy()
+        .into_owned();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let res = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn factors() {
+        assert_eq!(steps_of_factor(4).unwrap(), 1);
+        assert_eq!(steps_of_factor(16).unwrap(), 2);
+        assert_eq!(steps_of_factor(256).unwrap(), 4);
+        for bad in [0, 1, 2, 8, 12, 32, 4usize.pow(7)] {
+            let e = steps_of_factor(bad).unwrap_err().to_string();
+            assert!(e.contains("--factor"), "{e}");
+        }
+    }
+
+    #[test]
+    fn windows() {
+        assert_eq!(
+            parse_window("1,2,30,40").unwrap(),
+            Window {
+                x: 1,
+                y: 2,
+                width: 30,
+                height: 40
+            }
+        );
+        assert!(parse_window("1,2,0,4").is_err());
+        assert!(parse_window("1,2,3").is_err());
+        assert!(parse_window("a,2,3,4").is_err());
+    }
+}

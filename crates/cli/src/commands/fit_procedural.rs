@@ -1,0 +1,101 @@
+//! `relief fit-procedural IN OUT.sct`: inverse procedural modelling (guerin2016 section 5.2):
+//! the terrain's patches are coded on a dictionary of analytic noise atoms and the model is
+//! written as a `.sct` whose atoms are functions (rebuild at any resolution). Prints the PSNR
+//! of the fit on stdout.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use relief_dictionary_learning::{NoiseFamily, ProceduralSettings, fit_procedural};
+
+use super::amplify::{check_output_path, is_sct, write_model};
+use crate::ctx::Ctx;
+
+/// Arguments of `relief fit-procedural`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Terrain to fit (no voids).
+    pub(crate) input: PathBuf,
+    /// Output model (`.sct`; a raster extension writes the fitted terrain instead).
+    pub(crate) output: PathBuf,
+    /// Atom family: `ridged` (sums of ridged noise, figure 4), `perlin` (fBm) or
+    /// `ridged-multifractal`.
+    #[arg(long, default_value = "ridged")]
+    pub(crate) atoms: String,
+    /// Size of the analytic dictionary (random atom parameters).
+    #[arg(long, default_value_t = 2048)]
+    pub(crate) candidates: usize,
+    /// Keep only N atoms chosen by constrained learning (problem (2)); 0 = keep all.
+    #[arg(long, default_value_t = 0)]
+    pub(crate) learned: usize,
+    /// Patch side a in pixels.
+    #[arg(long, default_value_t = 10)]
+    pub(crate) patch_size: usize,
+    /// Sparsity s.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) sparsity: usize,
+    /// Seed of the atom parameters.
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// The atom family a name denotes.
+pub(crate) fn family(name: &str) -> Result<NoiseFamily> {
+    Ok(match name.to_ascii_lowercase().as_str() {
+        "ridged" | "ridged-sum" => NoiseFamily::RidgedSum,
+        "perlin" => NoiseFamily::Perlin,
+        "ridged-multifractal" | "multifractal" => NoiseFamily::RidgedMultifractal,
+        _ => bail!("invalid --atoms `{name}`: must be ridged, perlin or ridged-multifractal"),
+    })
+}
+
+/// Reads, fits, prints the PSNR, writes.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let settings = ProceduralSettings {
+        family: family(&args.atoms)?,
+        n_candidates: args.candidates,
+        learned_atoms: (args.learned > 0).then_some(args.learned),
+        patch_size: args.patch_size,
+        sparsity: args.sparsity,
+        seed: args.seed,
+        ..Default::default()
+    };
+    check_output_path(&args.output, None)?;
+    let hf = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
+    let fit = {
+        let progress = ctx.progress();
+        fit_procedural(&hf, &settings, &progress)
+            .with_context(|| format!("cannot fit {}", args.input.display()))?
+    };
+    write_model(&fit.sct, &args.output, None, ctx)?;
+    let mut stdout = std::io::stdout().lock();
+    let line = format!(
+        "psnr: {:.2} dB ({} atoms `{}`, sparsity {}, {})\n",
+        fit.psnr,
+        fit.n_atoms,
+        args.atoms,
+        args.sparsity,
+        if is_sct(&args.output) {
+            "function atoms in the .sct"
+        } else {
+            "raster written"
+        }
+    );
+    std::io::Write::write_all(&mut stdout, line.as_bytes()).context("cannot write to stdout")?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn families() {
+        assert_eq!(family("perlin").unwrap(), NoiseFamily::Perlin);
+        assert_eq!(family("Ridged").unwrap(), NoiseFamily::RidgedSum);
+        let e = family("simplex").unwrap_err().to_string();
+        assert!(e.contains("--atoms") && e.contains("simplex"), "{e}");
+    }
+}

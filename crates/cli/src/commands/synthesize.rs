@@ -1,0 +1,107 @@
+//! `relief synthesize SKETCH OUT --exemplar EX`: a terrain from a painted coarse sketch (any
+//! raster, typically a grey PNG) and an exemplar DEM, by incremental x4 amplification steps
+//! (guerin2016 section 5.3, figure 12: three steps, x64).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use relief_dictionary_learning::{
+    AmplifySettings, DictionaryChoice, SynthesisSettings, synthesize,
+};
+
+use super::amplify::{check_output_path, parse_window, write_model};
+use crate::ctx::Ctx;
+
+/// Arguments of `relief synthesize`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Painted sketch (bright = high); its values are mapped linearly to the elevation range.
+    pub(crate) sketch: PathBuf,
+    /// Output: a raster (.tif, .png, .exr, .npy, .r16, .r32) or a `.sct` model.
+    pub(crate) output: PathBuf,
+    /// Exemplar DEM whose details (and, by default, elevation range and cell size) are used.
+    #[arg(long)]
+    pub(crate) exemplar: PathBuf,
+    /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
+    #[arg(long, default_value_t = 3)]
+    pub(crate) steps: usize,
+    /// Seed (candidate sampling and dictionary learning).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    /// Support radius R in coarse pixels.
+    #[arg(long, default_value_t = 4.0)]
+    pub(crate) radius: f64,
+    /// Number of learned atoms N; 0 = the complete dictionary.
+    #[arg(long, default_value_t = 64)]
+    pub(crate) atoms: usize,
+    /// Elevation range `LO,HI` in metres the sketch is mapped to (default: the exemplar's).
+    #[arg(long)]
+    pub(crate) height_range: Option<String>,
+    /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
+    #[arg(long)]
+    pub(crate) window: Option<String>,
+}
+
+fn parse_range(s: &str) -> Result<(f32, f32)> {
+    let parsed = s
+        .split_once(',')
+        .and_then(|(a, b)| Some((a.trim().parse::<f32>().ok()?, b.trim().parse::<f32>().ok()?)));
+    match parsed {
+        Some((lo, hi)) if lo.is_finite() && hi.is_finite() && hi > lo => Ok((lo, hi)),
+        _ => bail!("invalid --height-range `{s}`: must be LO,HI metres with HI > LO"),
+    }
+}
+
+/// Reads the sketch and exemplar, synthesises, writes.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let settings = SynthesisSettings {
+        amplify: AmplifySettings {
+            radius: args.radius,
+            steps: args.steps,
+            dictionary: if args.atoms == 0 {
+                DictionaryChoice::Complete
+            } else {
+                DictionaryChoice::Learned {
+                    n_atoms: args.atoms,
+                    iterations: 3,
+                }
+            },
+            seed: args.seed,
+            ..SynthesisSettings::default().amplify
+        },
+        height_range: args.height_range.as_deref().map(parse_range).transpose()?,
+    };
+    settings
+        .amplify
+        .check()
+        .context("invalid synthesis settings")?;
+    let window = args.window.as_deref().map(parse_window).transpose()?;
+    check_output_path(&args.output, window)?;
+    let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
+    let exemplar =
+        super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
+    let sct = {
+        let progress = ctx.progress();
+        synthesize(&sketch, &exemplar, &settings, &progress).with_context(|| {
+            format!(
+                "cannot synthesise from {} with {}",
+                args.sketch.display(),
+                args.exemplar.display()
+            )
+        })?
+    };
+    write_model(&sct, &args.output, window, ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_range;
+
+    #[test]
+    fn ranges() {
+        assert_eq!(parse_range("100,2500").unwrap(), (100.0, 2500.0));
+        assert!(parse_range("5,5").is_err());
+        assert!(parse_range("x,5").is_err());
+        assert!(parse_range("5").is_err());
+    }
+}

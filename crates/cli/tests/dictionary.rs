@@ -1,0 +1,392 @@
+//! End-to-end tests of `relief amplify`, `relief synthesize`, `relief fit-procedural` and
+//! `relief learn` on crops of the bundled real DEM `fixtures/grandcanyon.tif` (512 x 512,
+//! 76.4 m Web-Mercator pixels), plus bad input: non-zero exit, one line on stderr, no output.
+
+#![allow(clippy::print_stderr)] // the tests report their measured figures
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relief_heightfield::{Heightfield, metrics};
+use relief_sparse_core::{FunctionAtomRegistry, RasterSettings, Sct};
+
+fn relief(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+fn fixture() -> Heightfield {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    read(&p)
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+fn write(dir: &Path, name: &str, hf: &Heightfield) -> PathBuf {
+    let p = dir.join(name);
+    relief_io::write(&p, hf, &relief_io::WriteOptions::default()).unwrap();
+    p
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Asserts a failure with exactly one stderr line containing every `needle`, and no `output`.
+fn fails(out: &Output, output: &Path, needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "unexpected success");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "stderr: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "`{n}` not in: {stderr}");
+    }
+    assert!(!output.exists(), "{} was written", output.display());
+    let dir = output.parent().unwrap();
+    let stray: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(stray.is_empty(), "temporary files left: {stray:?}");
+}
+
+fn pearson(a: &[f32], b: &[f32]) -> f64 {
+    let n = a.len() as f64;
+    let ma = a.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let mb = b.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// x4: a 128^2 crop reduced to 32^2, amplified back with an exemplar from another part of the
+/// DEM. The output has the right size and cell size, stays consistent with its input, is
+/// closer to the truth than the input's relief, and the `.sct` and `--window` outputs agree
+/// with the raster.
+#[test]
+fn amplify_x4_on_grand_canyon() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = dem.crop(64, 64, 128, 128).unwrap();
+    let coarse = truth.resample(32, 32).unwrap();
+    let exemplar = dem.crop(256, 256, 256, 256).unwrap();
+    let cin = write(tmp.path(), "coarse.tif", &coarse);
+    let ex = write(tmp.path(), "ex.tif", &exemplar);
+    let out_tif = tmp.path().join("out.tif");
+    let common = |out: &Path, extra: &[&str]| {
+        let mut a: Vec<&std::ffi::OsStr> = vec![
+            os("amplify"),
+            cin.as_os_str(),
+            out.as_os_str(),
+            os("--exemplar"),
+            ex.as_os_str(),
+            os("--factor"),
+            os("4"),
+            os("--seed"),
+            os("3"),
+            os("--atoms"),
+            os("64"),
+        ];
+        a.extend(extra.iter().map(os));
+        relief(&a)
+    };
+    ok(&common(&out_tif, &[]));
+    let out = read(&out_tif);
+    assert_eq!((out.width(), out.height()), (128, 128));
+    let (cx, _) = out.cell_size();
+    let coarse_cx = read(&cin).cell_size().0;
+    assert!(
+        (cx / (coarse_cx / 4.0) - 1.0).abs() < 1e-6,
+        "{cx} vs {coarse_cx} / 4"
+    );
+    let relief_m = truth.relief() as f64;
+    let back = out.resample(32, 32).unwrap();
+    let consistency = metrics::rmse(&back, &coarse).unwrap() / relief_m;
+    let vs_truth = metrics::rmse(&out, &truth).unwrap() / relief_m;
+    eprintln!("amplify x4: consistency {consistency:.4}, rmse vs truth {vs_truth:.4} of relief");
+    assert!(consistency < 0.06, "{consistency}");
+    assert!(vs_truth < 0.08, "{vs_truth}");
+    // It added detail beyond the input's band: the part of the output a x4 low-pass removes
+    // is several times that of the bicubic up-sampling and of the order of the truth's.
+    let hf_energy = |h: &Heightfield| {
+        let smooth = h.resample(32, 32).unwrap().resample(128, 128).unwrap();
+        metrics::rmse(h, &smooth).unwrap()
+    };
+    let bicubic = coarse.resample(128, 128).unwrap();
+    let (e_out, e_bic, e_truth) = (hf_energy(&out), hf_energy(&bicubic), hf_energy(&truth));
+    eprintln!(
+        "detail above the input band: out {e_out:.1} m, bicubic {e_bic:.1} m, truth {e_truth:.1} m"
+    );
+    assert!(e_out > 2.0 * e_bic, "{e_out} {e_bic}");
+    assert!(
+        e_out > 0.3 * e_truth && e_out < 3.0 * e_truth,
+        "{e_out} {e_truth}"
+    );
+
+    // Same seed: the same bytes.
+    let again = tmp.path().join("again.tif");
+    ok(&common(&again, &[]));
+    assert_eq!(
+        std::fs::read(&again).unwrap(),
+        std::fs::read(&out_tif).unwrap()
+    );
+
+    // The .sct model rasterises to the same terrain.
+    let sct_path = tmp.path().join("out.sct");
+    ok(&common(&sct_path, &[]));
+    let sct = Sct::from_bytes(
+        &std::fs::read(&sct_path).unwrap(),
+        &FunctionAtomRegistry::new(),
+    )
+    .unwrap();
+    assert_eq!((sct.width(), sct.height()), (128, 128));
+    let r = sct.rasterize(&RasterSettings::default()).unwrap();
+    assert!(metrics::rmse(&r, &out).unwrap() < 1e-3);
+
+    // A window is the matching crop of the whole raster.
+    let win = tmp.path().join("win.tif");
+    ok(&common(&win, &["--window", "40,8,50,60"]));
+    let w = read(&win);
+    assert_eq!((w.width(), w.height()), (50, 60));
+    let crop = out.crop(40, 8, 50, 60).unwrap();
+    let max = w
+        .as_slice()
+        .iter()
+        .zip(crop.as_slice())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0f32, f32::max);
+    assert!(max < 1e-3, "{max}");
+}
+
+/// x16 in two steps from 16^2 to 256^2 with a small radius.
+#[test]
+fn amplify_x16_two_steps() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = dem.crop(0, 0, 256, 256).unwrap();
+    let coarse = truth.resample(16, 16).unwrap();
+    let cin = write(tmp.path(), "coarse.tif", &coarse);
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 0, 256, 256).unwrap());
+    let out_path = tmp.path().join("out.exr");
+    ok(&relief(&[
+        os("amplify"),
+        cin.as_os_str(),
+        out_path.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--factor"),
+        os("16"),
+        os("--radius"),
+        os("2"),
+        os("--atoms"),
+        os("0"),
+    ]));
+    let out = read(&out_path);
+    assert_eq!((out.width(), out.height()), (256, 256));
+    let back = out.resample(16, 16).unwrap();
+    let c = pearson(back.as_slice(), coarse.as_slice());
+    assert!(c > 0.95, "correlation with the input {c}");
+}
+
+/// Figure 12: a painted sketch (a ridge and a basin) becomes a terrain with the exemplar's
+/// elevation range whose large-scale shape follows the sketch.
+#[test]
+fn synthesize_from_painted_sketch() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let sketch = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
+        let (x, y) = (x as f32 - 7.5, y as f32 - 7.5);
+        let ridge = (-(x - 0.5 * y).powi(2) / 8.0).exp();
+        let basin = (-((x - 5.0).powi(2) + (y + 5.0).powi(2)) / 6.0).exp();
+        60_000.0 * (0.3 + 0.6 * ridge - 0.3 * basin)
+    });
+    let sk = write(tmp.path(), "sketch.png", &sketch);
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 384, 384).unwrap());
+    let out_path = tmp.path().join("terrain.tif");
+    ok(&relief(&[
+        os("synthesize"),
+        sk.as_os_str(),
+        out_path.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--steps"),
+        os("2"),
+        os("--height-range"),
+        os("500,2300"),
+    ]));
+    let out = read(&out_path);
+    assert_eq!((out.width(), out.height()), (256, 256));
+    let (lo, hi) = out.min_max().unwrap();
+    assert!(lo > 300.0 && hi < 2500.0 && hi - lo > 1200.0, "{lo}..{hi}");
+    let back = out.resample(16, 16).unwrap();
+    let c = pearson(back.as_slice(), read(&sk).as_slice());
+    assert!(c > 0.95, "correlation with the sketch {c}");
+}
+
+fn psnr_of(stdout: &str) -> f64 {
+    let rest = stdout
+        .split("psnr: ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no psnr in {stdout}"));
+    rest.split(" dB").next().unwrap().parse().unwrap()
+}
+
+/// Perlin vs ridged atoms on a canyon crop: both fits are written as function-atom `.sct`
+/// models that rebuild to the printed PSNR.
+#[test]
+fn fit_procedural_prints_psnr_and_writes_function_atoms() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let hf = dem.crop(300, 100, 80, 80).unwrap();
+    let input = write(tmp.path(), "in.tif", &hf);
+    let mut registry = FunctionAtomRegistry::new();
+    relief_dictionary_learning::register_function_atoms(&mut registry);
+    let mut psnrs = Vec::new();
+    for family in ["perlin", "ridged"] {
+        let out_path = tmp.path().join(format!("{family}.sct"));
+        let stdout = ok(&relief(&[
+            os("fit-procedural"),
+            input.as_os_str(),
+            out_path.as_os_str(),
+            os("--atoms"),
+            os(family),
+            os("--candidates"),
+            os("256"),
+        ]));
+        let printed = psnr_of(&stdout);
+        let sct = Sct::from_bytes(&std::fs::read(&out_path).unwrap(), &registry).unwrap();
+        assert!(
+            sct.layers()[0]
+                .dictionary()
+                .atoms()
+                .iter()
+                .all(|a| matches!(a, relief_sparse_core::dictionary::Atom::Function { .. }))
+        );
+        let rebuilt = sct.rasterize(&RasterSettings::default()).unwrap();
+        let psnr = metrics::psnr(&hf, &rebuilt).unwrap();
+        assert!((psnr - printed).abs() < 0.01, "{psnr} vs printed {printed}");
+        assert!(psnr > 15.0, "{family}: {psnr}");
+        psnrs.push(psnr);
+        // Analytic atoms: the model rasterises at twice the resolution too.
+        let big = sct
+            .rasterize(&RasterSettings {
+                scale: 2.0,
+                window: None,
+            })
+            .unwrap();
+        assert_eq!((big.width(), big.height()), sct.raster_size(2.0).unwrap());
+        assert!(big.width() >= 159, "{}", big.width());
+    }
+    eprintln!(
+        "fit-procedural PSNR: perlin {:.2} dB, ridged {:.2} dB",
+        psnrs[0], psnrs[1]
+    );
+}
+
+#[test]
+fn bad_input_fails_cleanly() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let coarse = write(tmp.path(), "coarse.tif", &dem.crop(0, 0, 32, 32).unwrap());
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 256, 256).unwrap());
+    let out = tmp.path().join("out.tif");
+    let amp = |input: &Path, ex: &Path, factor: &str, out: &Path| {
+        relief(&[
+            os("amplify"),
+            input.as_os_str(),
+            out.as_os_str(),
+            os("--exemplar"),
+            ex.as_os_str(),
+            os("--factor"),
+            os(factor),
+        ])
+    };
+    // Factor not a power of 4.
+    for f in ["8", "2", "1", "0"] {
+        fails(&amp(&coarse, &ex, f, &out), &out, &["--factor", f]);
+    }
+    // Empty exemplar file.
+    let empty = tmp.path().join("empty.tif");
+    std::fs::write(&empty, b"").unwrap();
+    fails(&amp(&coarse, &empty, "4", &out), &out, &["empty.tif"]);
+    // An exemplar too small for the patches.
+    let tiny = write(tmp.path(), "tiny.tif", &dem.crop(0, 0, 20, 20).unwrap());
+    fails(&amp(&coarse, &tiny, "4", &out), &out, &["exemplar"]);
+    // NaN (void) cells in the input.
+    let mut holes = dem.crop(0, 0, 32, 32).unwrap();
+    holes.set(5, 7, f32::NAN);
+    let holes = write(tmp.path(), "holes.tif", &holes);
+    fails(&amp(&holes, &ex, "4", &out), &out, &["holes.tif", "void"]);
+    // Unknown output extension, and a window on a .sct output.
+    let odd = tmp.path().join("out.xyz");
+    fails(&amp(&coarse, &ex, "4", &odd), &odd, &["out.xyz"]);
+    let sct = tmp.path().join("out.sct");
+    let o = relief(&[
+        os("amplify"),
+        coarse.as_os_str(),
+        sct.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--factor"),
+        os("4"),
+        os("--window"),
+        os("0,0,4,4"),
+    ]);
+    fails(&o, &sct, &["--window"]);
+    // Invalid radius names the field.
+    let o = relief(&[
+        os("amplify"),
+        coarse.as_os_str(),
+        out.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--factor"),
+        os("4"),
+        os("--radius"),
+        os("NaN"),
+    ]);
+    fails(&o, &out, &["radius"]);
+    // synthesize: zero steps; fit-procedural: unknown family and NaN input.
+    let o = relief(&[
+        os("synthesize"),
+        coarse.as_os_str(),
+        out.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--steps"),
+        os("0"),
+    ]);
+    fails(&o, &out, &["steps"]);
+    let sct = tmp.path().join("fit.sct");
+    let o = relief(&[
+        os("fit-procedural"),
+        coarse.as_os_str(),
+        sct.as_os_str(),
+        os("--atoms"),
+        os("simplex"),
+    ]);
+    fails(&o, &sct, &["--atoms", "simplex"]);
+    let o = relief(&[os("fit-procedural"), holes.as_os_str(), sct.as_os_str()]);
+    fails(&o, &sct, &["holes.tif", "void"]);
+}
