@@ -54,6 +54,9 @@ enum Command {
     Synthesize(commands::synthesize::Args),
     /// Fit an analytic (noise-atom) model to a terrain, write it as .sct and print its PSNR.
     FitProcedural(commands::fit_procedural::Args),
+    /// Learn a dictionary (K-SVD or constrained) from exemplar DEMs; `compress --dictionary`
+    /// reads it.
+    Learn(commands::learn::Args),
     /// Add levels of detail by wavelet synthesis (GSA/LSA, Perez et al.); any window on demand.
     Refine(commands::refine::Args),
     /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.

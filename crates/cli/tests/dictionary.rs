@@ -390,3 +390,126 @@ fn bad_input_fails_cleanly() {
     let o = relief(&[os("fit-procedural"), holes.as_os_str(), sct.as_os_str()]);
     fails(&o, &sct, &["holes.tif", "void"]);
 }
+
+/// `relief learn` from two canyon crops: a K-SVD dictionary file of the asked size whose
+/// printed error trace decreases, a constrained variant, and `relief compress --dictionary`
+/// using it on a third, unseen crop with a good PSNR.
+#[test]
+fn learn_writes_a_dictionary_compress_can_use() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let a = write(tmp.path(), "a.tif", &dem.crop(0, 0, 128, 128).unwrap());
+    let b = write(tmp.path(), "b.tif", &dem.crop(256, 0, 128, 128).unwrap());
+    let dict_path = tmp.path().join("canyon.dict");
+    let stdout = ok(&relief(&[
+        os("learn"),
+        a.as_os_str(),
+        b.as_os_str(),
+        dict_path.as_os_str(),
+        os("--atoms"),
+        os("48"),
+        os("--iterations"),
+        os("6"),
+    ]));
+    assert!(stdout.contains("N = 48 atoms of 8 x 8"), "{stdout}");
+    let err = stdout.split("rmse ").nth(1).unwrap();
+    let first: f64 = err.split(" m").next().unwrap().parse().unwrap();
+    let last: f64 = err
+        .split("-> ")
+        .nth(1)
+        .unwrap()
+        .split(" m")
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(last < first, "{stdout}");
+    let dict = relief_sparse_core::Dictionary::from_bytes(
+        &std::fs::read(&dict_path).unwrap(),
+        &FunctionAtomRegistry::new(),
+    )
+    .unwrap();
+    assert_eq!((dict.len(), dict.patch_size()), (48, 8));
+
+    // Constrained learning: every atom is an exemplar patch (unit norm, data atoms).
+    let cdict = tmp.path().join("constrained.dict");
+    ok(&relief(&[
+        os("learn"),
+        a.as_os_str(),
+        cdict.as_os_str(),
+        os("--atoms"),
+        os("32"),
+        os("--sparsity"),
+        os("1"),
+        os("--iterations"),
+        os("2"),
+        os("--constrained"),
+    ]));
+    let d = relief_sparse_core::Dictionary::from_bytes(
+        &std::fs::read(&cdict).unwrap(),
+        &FunctionAtomRegistry::new(),
+    )
+    .unwrap();
+    assert_eq!(d.len(), 32);
+
+    // The dictionary compresses unseen ground (another part of the canyon) well.
+    let c = write(tmp.path(), "c.tif", &dem.crop(128, 300, 128, 128).unwrap());
+    let sct = tmp.path().join("c.sct");
+    let stdout = ok(&relief(&[
+        os("compress"),
+        c.as_os_str(),
+        sct.as_os_str(),
+        os("--dictionary"),
+        dict_path.as_os_str(),
+        os("--sparsity"),
+        os("4"),
+    ]));
+    let model =
+        Sct::from_bytes(&std::fs::read(&sct).unwrap(), &FunctionAtomRegistry::new()).unwrap();
+    let psnr = metrics::psnr(
+        &read(&c),
+        &model.rasterize(&RasterSettings::default()).unwrap(),
+    )
+    .unwrap();
+    assert!(psnr > 35.0, "{psnr} dB; compress said: {stdout}");
+
+    // Bad input.
+    let empty = tmp.path().join("empty.tif");
+    std::fs::write(&empty, b"").unwrap();
+    let out = tmp.path().join("bad.dict");
+    fails(
+        &relief(&[os("learn"), empty.as_os_str(), out.as_os_str()]),
+        &out,
+        &["empty.tif"],
+    );
+    let mut holes = dem.crop(0, 0, 64, 64).unwrap();
+    holes.set(1, 1, f32::NAN);
+    let holes = write(tmp.path(), "holes.tif", &holes);
+    fails(
+        &relief(&[os("learn"), holes.as_os_str(), out.as_os_str()]),
+        &out,
+        &["holes.tif", "void"],
+    );
+    fails(
+        &relief(&[
+            os("learn"),
+            a.as_os_str(),
+            out.as_os_str(),
+            os("--atoms"),
+            os("0"),
+        ]),
+        &out,
+        &["n_atoms"],
+    );
+    fails(
+        &relief(&[
+            os("learn"),
+            a.as_os_str(),
+            out.as_os_str(),
+            os("--variant"),
+            os("fast"),
+        ]),
+        &out,
+        &["--variant"],
+    );
+}

@@ -90,3 +90,21 @@ pub fn training_patches(
     ndarray::concatenate(ndarray::Axis(0), &views)
         .map_err(|_| LearnError::param("terrains", terrains.len(), "patch dimensions differ"))
 }
+
+/// At most `max` rows of `matrix`, picked evenly (row `i * n / max`; deterministic, spread over
+/// the whole matrix, so over every exemplar of [`training_patches`]). Returns a copy of all
+/// rows when there are no more than `max`.
+pub fn subsample_rows(
+    matrix: ndarray::ArrayView2<f32>,
+    max: usize,
+) -> Result<ndarray::Array2<f32>> {
+    if max == 0 {
+        return Err(LearnError::param("max", max, "must be >= 1"));
+    }
+    let n = matrix.nrows();
+    if n <= max {
+        return Ok(matrix.to_owned());
+    }
+    let pick: Vec<usize> = (0..max).map(|i| i * n / max).collect();
+    Ok(matrix.select(ndarray::Axis(0), &pick))
+}

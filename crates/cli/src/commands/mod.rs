@@ -9,6 +9,7 @@ pub(crate) mod convert;
 pub(crate) mod decompress;
 pub(crate) mod fit_procedural;
 pub(crate) mod info;
+pub(crate) mod learn;
 pub(crate) mod preview;
 pub(crate) mod quilt;
 pub(crate) mod refine;
