@@ -3,7 +3,7 @@
 Usage: python foundation.py DATA_DIR
 Reads DATA_DIR/grandcanyon_512.npy and grandcanyon_512_holes.npy (written by `cargo xtask
 bench` from the same data the criterion benches use) and prints one JSON object
-{"key": median seconds, ...} on stdout.
+{"<key>_s": median seconds, ...} on stdout.
 """
 
 import json
@@ -32,13 +32,13 @@ def main():
     mask = np.isnan(holes)
     filled_in = np.where(mask, 0.0, holes).astype(np.float64)
     out = {
-        "resize_aa_512_to_128": median_time(
+        "resize_aa_512_to_128_s": median_time(
             lambda: resize(dem, (128, 128), order=3, anti_aliasing=True, preserve_range=True), 7
         ),
-        "resize_128_to_512": median_time(
+        "resize_128_to_512_s": median_time(
             lambda: resize(small, (512, 512), order=3, preserve_range=True), 7
         ),
-        "inpaint_biharmonic_512": median_time(lambda: inpaint_biharmonic(filled_in, mask), 3),
+        "inpaint_biharmonic_512_s": median_time(lambda: inpaint_biharmonic(filled_in, mask), 3),
     }
     json.dump(out, sys.stdout)
 

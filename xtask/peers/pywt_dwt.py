@@ -1,12 +1,15 @@
-#!/usr/bin/env python3
-"""Times PyWavelets' 2-D multi-level DWT (wavedec2 + waverec2) as the peer of relief-wavelet-lod's
-lifting transform.
+"""PyWavelets peer of the DWT benchmark (relief-wavelet-lod, `benches/benches/dwt.rs`,
+criterion id `wavelet_lod/dwt_fwd_inv_cdf53/4096`).
 
-Usage: pywt_dwt.py [SIZE] [LEVELS] [WAVELET] [REPEATS]
-(defaults 4096 6 bior2.2 3). Data: float32 random walk surface (the dtype relief uses); mode
-'symmetric' (PyWavelets' default). Prints one JSON line with the best-of-REPEATS seconds of
-wavedec2, waverec2 and their sum, and the max reconstruction error.
+Usage: python pywt_dwt.py DATA_DIR [REPEATS]
+Reads DATA_DIR/dwt_surface_4096.npy: the float32 random-walk surface the criterion bench
+transforms, written by `cargo xtask bench` with the same construction and generator. Times
+`pywt.wavedec2` + `pywt.waverec2` with `bior2.2` (the CDF 5/3 biorthogonal pair), mode
+'symmetric', 6 levels, on it (one warm-up, then the median of REPEATS runs, default 3).
+Prints one JSON object on stdout: "dwt_fwd_inv_bior22_4096_s" (the dashboard's peer time),
+"wavedec2_4096_s", "waverec2_4096_s" and "max_error" (reconstruction, metres).
 """
+
 import json
 import sys
 import time
@@ -14,25 +17,40 @@ import time
 import numpy as np
 import pywt
 
-size = int(sys.argv[1]) if len(sys.argv) > 1 else 4096
-levels = int(sys.argv[2]) if len(sys.argv) > 2 else 6
-wavelet = sys.argv[3] if len(sys.argv) > 3 else "bior2.2"
-repeats = int(sys.argv[4]) if len(sys.argv) > 4 else 3
+LEVELS = 6
+WAVELET = "bior2.2"
 
-rng = np.random.default_rng(1)
-x = np.cumsum(np.cumsum(rng.standard_normal((size, size), dtype=np.float32), axis=0), axis=1)
-x = x.astype(np.float32)
 
-best_dec, best_rec, err = float("inf"), float("inf"), 0.0
-for _ in range(repeats):
-    t0 = time.perf_counter()
-    coeffs = pywt.wavedec2(x, wavelet, mode="symmetric", level=levels)
-    t1 = time.perf_counter()
-    y = pywt.waverec2(coeffs, wavelet, mode="symmetric")
-    t2 = time.perf_counter()
-    best_dec = min(best_dec, t1 - t0)
-    best_rec = min(best_rec, t2 - t1)
-    err = float(np.abs(y[:size, :size] - x).max())
-print(json.dumps(dict(peer="pywt", pywt_version=pywt.__version__, size=size, levels=levels,
-                      wavelet=wavelet, dtype=str(x.dtype), wavedec2_s=best_dec,
-                      waverec2_s=best_rec, total_s=best_dec + best_rec, max_error=err)))
+def main():
+    data = sys.argv[1]
+    repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+    x = np.load(f"{data}/dwt_surface_4096.npy").astype(np.float32)
+    size = x.shape[0]
+    coeffs = pywt.wavedec2(x, WAVELET, mode="symmetric", level=LEVELS)
+    pywt.waverec2(coeffs, WAVELET, mode="symmetric")
+    dec, rec, total = [], [], []
+    err = 0.0
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        coeffs = pywt.wavedec2(x, WAVELET, mode="symmetric", level=LEVELS)
+        t1 = time.perf_counter()
+        y = pywt.waverec2(coeffs, WAVELET, mode="symmetric")
+        t2 = time.perf_counter()
+        dec.append(t1 - t0)
+        rec.append(t2 - t1)
+        total.append(t2 - t0)
+        err = float(np.abs(y[:size, :size] - x).max())
+    out = {
+        f"dwt_fwd_inv_bior22_{size}_s": float(np.median(total)),
+        f"wavedec2_{size}_s": float(np.median(dec)),
+        f"waverec2_{size}_s": float(np.median(rec)),
+        "max_error": err,
+        "dtype": str(coeffs[0].dtype),
+        "pywt_version": pywt.__version__,
+    }
+    json.dump(out, sys.stdout)
+    sys.stdout.write("\n")
+
+
+if __name__ == "__main__":
+    main()

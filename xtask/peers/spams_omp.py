@@ -4,9 +4,10 @@ Usage: python spams_omp.py DATA_DIR [THREADS]
 Reads DATA_DIR/omp_k{K}_n{N}_{dict,signals}.npy (written by `cargo bench -p relief-benches
 --bench omp` from the same real terrain patches the criterion bench codes: one unit-norm atom /
 one signal per row, float32) and codes them with `spams.omp` (L = s, numThreads = THREADS,
-default 2). Prints one JSON object {"k64_n256_s1": signals per second, ...} on stdout (median of
-3 valid runs after one warm-up; see the float32 note in the code), plus "cpu_k64_n256_s1": signals per CPU-second of the process (a
-figure that stays comparable when the machine is shared).
+default 2). Prints one JSON object on stdout: "k64_n256_s1_s": median seconds of 3 valid runs
+after one warm-up (the dashboard's peer time; see the float32 note in the code),
+"k64_n256_s1": signals per second, "cpu_k64_n256_s1": signals per CPU-second of the process (a
+figure that stays comparable when the machine is shared), "dtype_k64_n256_s1": the dtype timed.
 """
 
 import json
@@ -53,6 +54,7 @@ def main():
                 cpu.append(dc)
         key = f"k{k}_n{n}_s{s}"
         if times:
+            out[f"{key}_s"] = float(np.median(times))
             out[key] = x.shape[0] / float(np.median(times))
             out[f"cpu_{key}"] = x.shape[0] / float(np.median(cpu))
         out[f"dtype_{key}"] = dtype if times else "failed"

@@ -1,46 +1,186 @@
-//! The dashboard's work items: one row each. To add a row, append a [`WorkItem`] here whose
-//! `criterion_id` is the path of your criterion benchmark under `target/criterion/`
-//! (`<group>/<function>/<parameter>`), and, when a peer exists, the peer script in
-//! `xtask/peers/` and the key it prints.
+//! The dashboard's work items: one row each, with the goal of the issue that asks for it (the
+//! "Speed" sections of issues 3 to 7; issue 2 for the foundation rows). To add a row, append a
+//! [`WorkItem`] here whose `criterion_id` is the path of your criterion benchmark under
+//! `target/criterion/` (`<group>/<function>/<parameter>`), and, when a peer exists, either the
+//! peer script in `xtask/peers/` and the key (seconds, `*_s`) it prints, or the criterion id of
+//! a Rust peer timed in the same `cargo bench`.
 
-use super::{Goal, Peer, WorkItem};
+use super::{Goal, Peer, PeerSource, WorkItem};
+
+const fn script(script: &'static str, key: &'static str, label: &'static str) -> Option<Peer> {
+    Some(Peer {
+        source: PeerSource::Script { script, key },
+        label,
+    })
+}
+
+const SPAMS_OMP: &str = "SPAMS omp (spams-bin, numThreads=2, same patches)";
 
 /// Every dashboard row, in display order.
 pub(crate) const WORK_ITEMS: &[WorkItem] = &[
+    // Issue 2: foundation (relief-heightfield).
     WorkItem {
         name: "resample 512^2 -> 128^2 (low-pass), grandcanyon",
         criterion_id: "heightfield/resample_down/512",
-        peer: Some(Peer {
-            script: "foundation.py",
-            key: "resize_aa_512_to_128",
-            label: "skimage.transform.resize(anti_aliasing=True, order=3)",
-        }),
+        peer: script(
+            "foundation.py",
+            "resize_aa_512_to_128_s",
+            "skimage.transform.resize(anti_aliasing=True, order=3)",
+        ),
         goal: Goal::RatioAtMost(2.0),
+        units: None,
+        note: "",
     },
     WorkItem {
         name: "resample 128^2 -> 512^2 (bicubic), grandcanyon",
         criterion_id: "heightfield/resample_up/128",
-        peer: Some(Peer {
-            script: "foundation.py",
-            key: "resize_128_to_512",
-            label: "skimage.transform.resize(order=3)",
-        }),
+        peer: script(
+            "foundation.py",
+            "resize_128_to_512_s",
+            "skimage.transform.resize(order=3)",
+        ),
         goal: Goal::RatioAtMost(2.0),
+        units: None,
+        note: "",
     },
     WorkItem {
         name: "void fill 512^2, 4 holes (~7% voids), grandcanyon",
         criterion_id: "heightfield/fill_voids/512",
-        peer: Some(Peer {
-            script: "foundation.py",
-            key: "inpaint_biharmonic_512",
-            label: "skimage.restoration.inpaint_biharmonic",
-        }),
+        peer: script(
+            "foundation.py",
+            "inpaint_biharmonic_512_s",
+            "skimage.restoration.inpaint_biharmonic",
+        ),
         goal: Goal::RatioAtMost(1.0),
+        units: None,
+        note: "",
     },
     WorkItem {
         name: "void fill N47E011 1201^2 (54,278 SRTM voids)",
         criterion_id: "heightfield/fill_voids_srtm/1201",
         peer: None,
         goal: Goal::SecondsAtMost(2.0),
+        units: None,
+        note: "",
+    },
+    // Issue 3: sparse-core (guerin2016).
+    WorkItem {
+        name: "Batch-OMP K=64 N=256 s=1, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f32/k64_n256_s1",
+        peer: script("spams_omp.py", "k64_n256_s1_s", SPAMS_OMP),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP K=64 N=256 s=4, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f32/k64_n256_s4",
+        peer: script("spams_omp.py", "k64_n256_s4_s", SPAMS_OMP),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP K=64 N=256 s=8, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f32/k64_n256_s8",
+        peer: script("spams_omp.py", "k64_n256_s8_s", SPAMS_OMP),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP K=256 N=1024 s=8, 16,384 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f32/k256_n1024_s8",
+        peer: script("spams_omp.py", "k256_n1024_s8_s", SPAMS_OMP),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((16_384.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "SCT rasterisation, 8192^2 window at scale 16.1 (grandcanyon, 128 atoms, s=4)",
+        criterion_id: "rasterize/sct_window/8192_scale16.1",
+        peer: None,
+        goal: Goal::SecondsAtMost(2.0),
+        units: Some((8192.0 * 8192.0, "cells")),
+        note: "",
+    },
+    // Issue 5: wavelet-lod (brosz2006).
+    WorkItem {
+        name: "DWT forward + inverse 4096^2 f32, 6 levels, CDF 5/3",
+        criterion_id: "wavelet_lod/dwt_fwd_inv_cdf53/4096",
+        peer: script(
+            "pywt_dwt.py",
+            "dwt_fwd_inv_bior22_4096_s",
+            "PyWavelets wavedec2 + waverec2, bior2.2, symmetric",
+        ),
+        goal: Goal::SpeedupAtLeast(5.0),
+        units: Some((4096.0 * 4096.0, "cells")),
+        note: "same random-walk surface on both sides (target/bench-data/dwt_surface_4096.npy)",
+    },
+    WorkItem {
+        name: "LSA 3x3: a 512^2 window of a 1024^2 terrain refined by 2 levels (x4)",
+        criterion_id: "wavelet_lod/lsa3_window_x4/512",
+        peer: None,
+        goal: Goal::None,
+        units: Some((512.0 * 512.0, "output cells")),
+        note: "reported only: the goal (4096^2 -> 16384^2 <= 5 s) needs its own bench",
+    },
+    // Issue 6: patch-synth (cruz2015).
+    WorkItem {
+        name: "guided patch synthesis 1024^2 from a 512^2 exemplar (grandcanyon), 2 threads",
+        criterion_id: "quilt/relief_patch_synth_1024_from_512_2threads",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("quilt/texture_synthesis_512_from_512_8bit_2threads"),
+            label: "Embark texture-synthesis 0.8, 512^2 output, 2 threads",
+        }),
+        goal: Goal::SecondsAtMost(10.0),
+        units: Some((1024.0 * 1024.0, "cells")),
+        note: "peer gets an 8-bit copy of the exemplar (7.3 m steps) and makes a 4x smaller \
+               output: ratio is of running time only",
+    },
+    // Issue 7: implicit-volume (paris2019/2021).
+    WorkItem {
+        name: "tree build, karst + sea scene on ~5 km^2 of N57E011, 2 threads",
+        criterion_id: "implicit_volume/tree_build_karst_sea_2threads/5km2",
+        peer: None,
+        goal: Goal::SecondsAtMost(3.0),
+        units: None,
+        note: "tree memory (<= 10 MB) is reported by the crate's bench_volume example",
+    },
+    WorkItem {
+        name: "field evaluation with BVH, 10k points",
+        criterion_id: "implicit_volume/field_10k_points/bvh",
+        peer: None,
+        goal: Goal::None,
+        units: Some((10_000.0, "points")),
+        note: "",
+    },
+    WorkItem {
+        name: "field evaluation without BVH, 100 points",
+        criterion_id: "implicit_volume/field_100_points/no_bvh",
+        peer: None,
+        goal: Goal::None,
+        units: Some((100.0, "points")),
+        note: "",
+    },
+    WorkItem {
+        name: "mesh a 256^3 sampling, field evaluation included, 2 threads",
+        criterion_id: "implicit_volume/polygonize_2threads/256",
+        peer: None,
+        goal: Goal::SecondsAtMost(1.0),
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "marching tetrahedra on the precomputed 256^3 grid, 2 threads",
+        criterion_id: "implicit_volume/marching_tetrahedra_precomputed_2threads/256",
+        peer: script(
+            "skimage_mc.py",
+            "marching_cubes_256_s",
+            "scikit-image marching_cubes (1 thread), same grid",
+        ),
+        goal: Goal::None,
+        units: None,
+        note: "",
     },
 ];

@@ -3,10 +3,17 @@
 //! per [`WorkItem`] (see `items.rs`): our time, the peer's time, the ratio, the goal and a
 //! pass/short mark.
 //!
-//! Peers are Python scripts in `xtask/peers/`. Each is run as
+//! Peers are either Python scripts in `xtask/peers/` or another criterion benchmark (a Rust peer
+//! such as `texture-synthesis`, timed inside the same `cargo bench`). Each script is run as
 //! `<venv>/bin/python xtask/peers/<script> <data dir>` and prints one JSON object
-//! `{"<key>": seconds, ...}` (median of its repeats) on stdout. The venv
+//! `{"<key>": seconds, ...}` (median of its repeats) on stdout; non-numeric values are ignored.
+//! The data dir is `target/bench-data/`: the criterion benches write the inputs their peers read
+//! there (`omp_*.npy`), and [`write_peer_data`] adds the rest before the peers run. The venv
 //! `target/peers-venv` is created with the packages of [`PEER_PACKAGES`] when missing.
+//!
+//! `cargo bench` runs with `RAYON_NUM_THREADS=2` (the issues' goals are for 2 threads); the
+//! load average before and after the run is recorded in the dashboard because the machine is
+//! shared and the numbers are noisy.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -41,24 +48,53 @@ pub(crate) struct WorkItem {
     pub(crate) peer: Option<Peer>,
     /// The goal this row is judged against.
     pub(crate) goal: Goal,
+    /// Work units per run (`(65536.0, "signals")`): the dashboard also shows our rate.
+    pub(crate) units: Option<(f64, &'static str)>,
+    /// Caveat shown with the row (different output sizes, 8-bit input, ...); may be empty.
+    pub(crate) note: &'static str,
 }
 
-/// A peer measurement: a key printed by a script in `xtask/peers/`.
+/// A peer measurement.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Peer {
-    /// Script file name in `xtask/peers/`.
-    pub(crate) script: &'static str,
-    /// Key of the timing in the script's JSON output.
-    pub(crate) key: &'static str,
+    /// Where the peer's time comes from.
+    pub(crate) source: PeerSource,
     /// Human-readable peer name.
     pub(crate) label: &'static str,
+}
+
+/// Where a peer's time comes from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum PeerSource {
+    /// `key` (seconds) of the JSON object printed by `script` in `xtask/peers/`.
+    Script {
+        /// Script file name in `xtask/peers/`.
+        script: &'static str,
+        /// Key of the timing in the script's JSON output.
+        key: &'static str,
+    },
+    /// Another criterion benchmark of the same `cargo bench` run (a Rust peer).
+    Criterion(&'static str),
+}
+
+impl Peer {
+    /// The peer script, when the peer is a script.
+    fn script(&self) -> Option<&'static str> {
+        match self.source {
+            PeerSource::Script { script, .. } => Some(script),
+            PeerSource::Criterion(_) => None,
+        }
+    }
 }
 
 /// Goal of a row.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub(crate) enum Goal {
     /// Our time / peer time must be at most this.
+    #[allow(dead_code)]
     RatioAtMost(f64),
+    /// We must be at least this many times faster than the peer (ratio <= 1 / x).
+    SpeedupAtLeast(f64),
     /// Our time must be at most this many seconds.
     SecondsAtMost(f64),
     /// Reported only (for rows whose issue states no goal).
@@ -70,6 +106,7 @@ impl Goal {
     fn describe(self) -> String {
         match self {
             Goal::RatioAtMost(r) => format!("ratio <= {r}"),
+            Goal::SpeedupAtLeast(x) => format!(">= {x}x peer speed (ratio <= {:.3})", 1.0 / x),
             Goal::SecondsAtMost(s) => format!("<= {s} s"),
             Goal::None => "-".to_string(),
         }
@@ -79,6 +116,7 @@ impl Goal {
     fn judge(self, ours: Option<f64>, ratio: Option<f64>) -> Option<bool> {
         match self {
             Goal::RatioAtMost(r) => ratio.map(|x| x <= r),
+            Goal::SpeedupAtLeast(x) => ratio.map(|q| q * x <= 1.0),
             Goal::SecondsAtMost(s) => ours.map(|t| t <= s),
             Goal::None => None,
         }
@@ -102,23 +140,36 @@ pub(crate) struct Row {
     pub(crate) peer: Option<String>,
     pub(crate) peer_s: Option<f64>,
     pub(crate) ratio: Option<f64>,
+    /// Our rate in work units per second (`"1.23e6 signals/s"`), when the item has units.
+    pub(crate) rate: Option<String>,
     pub(crate) goal: String,
     pub(crate) status: String,
+    pub(crate) note: String,
 }
 
 /// Runs everything and writes the dashboard; returns the HTML path.
 pub(crate) fn run(root: &Path, opts: &BenchOptions) -> Result<PathBuf> {
     let target = crate::target_dir(root);
     let out = target.join("bench");
-    let data = out.join("data");
+    let data = target.join("bench-data");
+    std::fs::create_dir_all(&out)?;
     std::fs::create_dir_all(&data)?;
-    write_peer_data(&data)?;
+    let selected: Vec<&WorkItem> = items::WORK_ITEMS
+        .iter()
+        .filter(|w| matches_filter(opts.filter.as_deref(), w))
+        .collect();
+    let load_before = load_average();
+    let started = std::time::SystemTime::now();
 
     if opts.run_cargo {
-        eprintln!("bench: cargo bench -p relief-benches");
+        eprintln!("bench: cargo bench -p relief-benches (RAYON_NUM_THREADS=2)");
         let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-        cmd.current_dir(root)
-            .args(["bench", "-p", "relief-benches", "--"]);
+        cmd.current_dir(root).env("RAYON_NUM_THREADS", "2").args([
+            "bench",
+            "-p",
+            "relief-benches",
+            "--",
+        ]);
         if let Some(f) = &opts.filter {
             cmd.arg(f);
         }
@@ -130,15 +181,16 @@ pub(crate) fn run(root: &Path, opts: &BenchOptions) -> Result<PathBuf> {
 
     let mut notes = Vec::new();
     let mut peer_times: BTreeMap<&str, BTreeMap<String, f64>> = BTreeMap::new();
-    if opts.run_peers {
+    let mut scripts: Vec<&str> = selected
+        .iter()
+        .filter_map(|w| w.peer.and_then(|p| p.script()))
+        .collect();
+    scripts.sort_unstable();
+    scripts.dedup();
+    if opts.run_peers && !scripts.is_empty() {
+        write_peer_data(&data)?;
         match ensure_venv(&target) {
             Ok(python) => {
-                let mut scripts: Vec<&str> = items::WORK_ITEMS
-                    .iter()
-                    .filter_map(|w| w.peer.map(|p| p.script))
-                    .collect();
-                scripts.sort_unstable();
-                scripts.dedup();
                 for script in scripts {
                     eprintln!("bench: peer {script}");
                     match run_peer(root, &python, script, &data) {
@@ -152,49 +204,108 @@ pub(crate) fn run(root: &Path, opts: &BenchOptions) -> Result<PathBuf> {
             Err(e) => notes.push(format!("peers skipped: {e:#}")),
         }
     }
+    let load_after = load_average();
+    notes.push(format!(
+        "load average (1, 5, 15 min) before: {}; after: {} (2-core machine shared with other \
+         jobs: timings are noisy)",
+        load_before.as_deref().unwrap_or("?"),
+        load_after.as_deref().unwrap_or("?")
+    ));
 
-    let rows: Vec<Row> = items::WORK_ITEMS
+    let rows: Vec<Row> = selected
         .iter()
         .map(|w| {
             let ours = criterion_seconds(&target, w.criterion_id);
-            let peer_s = w
-                .peer
-                .and_then(|p| peer_times.get(p.script).and_then(|m| m.get(p.key)).copied());
-            let ratio = match (ours, peer_s) {
-                (Some(a), Some(b)) if b > 0.0 => Some(a / b),
-                _ => None,
-            };
-            let status = match w.goal.judge(ours, ratio) {
-                Some(true) => "pass",
-                Some(false) => "short",
-                None if ours.is_none() => "not run",
-                None => "-",
-            };
-            Row {
-                item: w.name.to_string(),
-                criterion_id: w.criterion_id.to_string(),
-                ours_s: ours,
-                peer: w.peer.map(|p| p.label.to_string()),
-                peer_s,
-                ratio,
-                goal: w.goal.describe(),
-                status: status.to_string(),
-            }
+            let peer_s = w.peer.and_then(|p| match p.source {
+                PeerSource::Script { script, key } => {
+                    peer_times.get(script).and_then(|m| m.get(key)).copied()
+                }
+                PeerSource::Criterion(id) => criterion_seconds(&target, id),
+            });
+            row(w, ours, peer_s)
         })
         .collect();
 
-    let json = serde_json::json!({ "rows": rows, "notes": notes });
+    let json = serde_json::json!({
+        "rows": rows,
+        "notes": notes,
+        "load_average_before": load_before,
+        "load_average_after": load_after,
+        "started_unix_s": started
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0),
+        "filter": opts.filter,
+        "rayon_threads": 2,
+    });
     std::fs::write(
         out.join("dashboard.json"),
         serde_json::to_string_pretty(&json)?,
     )?;
     let html_path = out.join("dashboard.html");
     std::fs::write(&html_path, dashboard_html(&rows, &notes))?;
+    std::fs::write(out.join("dashboard.md"), dashboard_text(&rows))?;
     eprintln!("{}", dashboard_text(&rows));
+    for n in &notes {
+        eprintln!("{n}");
+    }
     Ok(html_path)
 }
 
-/// Inputs the peers read (the same data the criterion benches use), as `.npy`.
+/// Whether a work item is selected by `--filter` (criterion's filter is a regex over the
+/// benchmark id; here `|`-separated alternatives are matched as substrings of the row's and
+/// the Rust peer's ids, which covers the usual `omp|dwt` filters).
+fn matches_filter(filter: Option<&str>, w: &WorkItem) -> bool {
+    let Some(f) = filter else { return true };
+    let peer_id = match w.peer.map(|p| p.source) {
+        Some(PeerSource::Criterion(id)) => id,
+        _ => "",
+    };
+    f.split('|')
+        .map(|a| a.trim_matches(|c| c == '^' || c == '$'))
+        .any(|a| w.criterion_id.contains(a) || (!peer_id.is_empty() && peer_id.contains(a)))
+}
+
+/// One dashboard row from our and the peer's time.
+fn row(w: &WorkItem, ours: Option<f64>, peer_s: Option<f64>) -> Row {
+    let ratio = match (ours, peer_s) {
+        (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+        _ => None,
+    };
+    let status = match w.goal.judge(ours, ratio) {
+        Some(true) => "pass",
+        Some(false) => "short",
+        None if ours.is_none() => "not run",
+        None if matches!(w.goal, Goal::None) => "-",
+        None => "no peer time",
+    };
+    let rate = match (w.units, ours) {
+        (Some((n, unit)), Some(t)) if t > 0.0 => Some(format!("{:.3e} {unit}/s", n / t)),
+        _ => None,
+    };
+    Row {
+        item: w.name.to_string(),
+        criterion_id: w.criterion_id.to_string(),
+        ours_s: ours,
+        peer: w.peer.map(|p| p.label.to_string()),
+        peer_s,
+        ratio,
+        rate,
+        goal: w.goal.describe(),
+        status: status.to_string(),
+        note: w.note.to_string(),
+    }
+}
+
+/// `/proc/loadavg`'s first three fields, when readable.
+fn load_average() -> Option<String> {
+    let s = std::fs::read_to_string("/proc/loadavg").ok()?;
+    Some(s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+}
+
+/// Inputs the Python peers read that no criterion bench writes, as `.npy` in `dir`: the fixture
+/// DEM and its holed copy (the heightfield benches' data) and the DWT bench's 4096^2 surface
+/// (built with the same construction and counter-based generator as `benches/benches/dwt.rs`).
 fn write_peer_data(dir: &Path) -> Result<()> {
     let dem = relief_benches::fixture_dem()?;
     let holes = relief_benches::with_holes(&dem);
@@ -203,7 +314,34 @@ fn write_peer_data(dir: &Path) -> Result<()> {
         relief_io::write(&p, hf, &relief_io::WriteOptions::default())
             .with_context(|| format!("cannot write {}", p.display()))?;
     }
+    let size = 4096;
+    let surface = dwt_surface(size);
+    let hf = relief_heightfield::Heightfield::new(size, size, surface, 1.0, 1.0)?;
+    let p = dir.join(format!("dwt_surface_{size}.npy"));
+    relief_io::write(&p, &hf, &relief_io::WriteOptions::default())
+        .with_context(|| format!("cannot write {}", p.display()))?;
     Ok(())
+}
+
+/// The random-walk surface of `benches/benches/dwt.rs` (`surface(size)`): per row, normals from
+/// the wavelet crate's counter-based generator (`row_key(1, 0, 0, y)`), summed along x, then the
+/// rows summed along y.
+fn dwt_surface(size: usize) -> Vec<f32> {
+    use relief_wavelet_lod::rng::{fill_normals, row_key};
+    let mut data = vec![0.0f32; size * size];
+    for y in 0..size {
+        let row = &mut data[y * size..(y + 1) * size];
+        fill_normals(row_key(1, 0, 0, y), 0, row);
+        for x in 1..size {
+            row[x] += row[x - 1];
+        }
+    }
+    for y in 1..size {
+        for x in 0..size {
+            data[y * size + x] += data[(y - 1) * size + x];
+        }
+    }
+    data
 }
 
 /// The venv's python, creating the venv when missing.
@@ -247,9 +385,11 @@ fn run_peer(
     if !out.status.success() {
         bail!("{}", String::from_utf8_lossy(&out.stderr).trim());
     }
-    let v: BTreeMap<String, f64> = serde_json::from_slice(&out.stdout)
+    let v: BTreeMap<String, serde_json::Value> = serde_json::from_slice(&out.stdout)
         .with_context(|| format!("{script} did not print a JSON object of seconds"))?;
-    Ok(v)
+    Ok(v.into_iter()
+        .filter_map(|(k, v)| v.as_f64().map(|t| (k, t)))
+        .collect())
 }
 
 /// Median time in seconds of a criterion benchmark, from its `new/estimates.json`.
@@ -268,10 +408,11 @@ fn fmt_s(t: Option<f64>) -> String {
     }
 }
 
-fn cells(r: &Row) -> [String; 7] {
+fn cells(r: &Row) -> [String; 9] {
     [
         r.item.clone(),
         fmt_s(r.ours_s),
+        r.rate.clone().unwrap_or_else(|| "-".into()),
         r.peer.clone().unwrap_or_else(|| "-".into()),
         fmt_s(r.peer_s),
         r.ratio
@@ -279,17 +420,20 @@ fn cells(r: &Row) -> [String; 7] {
             .unwrap_or_else(|| "-".into()),
         r.goal.clone(),
         r.status.clone(),
+        r.note.clone(),
     ]
 }
 
-const COLUMNS: [&str; 7] = [
+const COLUMNS: [&str; 9] = [
     "work item",
     "ours",
+    "our rate",
     "peer",
     "peer time",
     "ratio",
     "goal",
     "status",
+    "note",
 ];
 
 /// The dashboard as a Markdown table (printed, and pasted into issue notes).
@@ -300,7 +444,8 @@ pub(crate) fn dashboard_text(rows: &[Row]) -> String {
         "---|".repeat(COLUMNS.len())
     );
     for r in rows {
-        let _ = writeln!(s, "| {} |", cells(r).join(" | "));
+        let c: Vec<String> = cells(r).iter().map(|c| c.replace('|', "\\|")).collect();
+        let _ = writeln!(s, "| {} |", c.join(" | "));
     }
     s
 }
@@ -330,7 +475,8 @@ fn dashboard_html(rows: &[Row], notes: &[String]) -> String {
     }
     h.push_str(
         "<p>ours = criterion median (relief-benches); peer = median of repeats \
-                (xtask/peers); ratio = ours / peer.</p></body></html>\n",
+                (xtask/peers/*.py) or criterion median (Rust peers); ratio = ours / peer (below 1: we are faster); goals from the method \
+                issues' speed sections, on 2 threads.</p></body></html>\n",
     );
     h
 }
@@ -352,12 +498,19 @@ mod tests {
         );
         let root = crate::project_root();
         for w in items::WORK_ITEMS {
-            if let Some(p) = w.peer {
-                assert!(
-                    root.join("xtask/peers").join(p.script).is_file(),
-                    "{}",
-                    p.script
-                );
+            match w.peer.map(|p| p.source) {
+                Some(PeerSource::Script { script, key }) => {
+                    assert!(root.join("xtask/peers").join(script).is_file(), "{script}");
+                    assert!(key.ends_with("_s"), "{key}: peer keys are seconds, `*_s`");
+                }
+                Some(PeerSource::Criterion(id)) => {
+                    assert!(id.split('/').count() >= 2, "{id}");
+                    assert_ne!(id, w.criterion_id);
+                }
+                None => {}
+            }
+            if matches!(w.goal, Goal::RatioAtMost(_) | Goal::SpeedupAtLeast(_)) {
+                assert!(w.peer.is_some(), "{}: a ratio goal needs a peer", w.name);
             }
         }
     }
@@ -374,16 +527,68 @@ mod tests {
         );
         assert_eq!(Goal::RatioAtMost(2.0).judge(Some(1.0), None), None);
         assert_eq!(Goal::SecondsAtMost(0.5).judge(Some(0.7), None), Some(false));
-        let row = Row {
-            item: "x".into(),
-            criterion_id: "g/f/1".into(),
-            ours_s: Some(0.002),
-            peer: None,
-            peer_s: None,
-            ratio: None,
-            goal: "-".into(),
-            status: "-".into(),
+        // 1.5x faster than the peer: ratio 0.6 passes, 0.7 is short.
+        assert_eq!(Goal::SpeedupAtLeast(1.5).judge(None, Some(0.6)), Some(true));
+        assert_eq!(
+            Goal::SpeedupAtLeast(1.5).judge(None, Some(0.7)),
+            Some(false)
+        );
+        assert_eq!(Goal::None.judge(Some(1.0), Some(1.0)), None);
+    }
+
+    const ITEM: WorkItem = WorkItem {
+        name: "omp | x",
+        criterion_id: "omp/batch_omp_f32/k64_n256_s1",
+        peer: Some(Peer {
+            source: PeerSource::Script {
+                script: "spams_omp.py",
+                key: "k64_n256_s1_s",
+            },
+            label: "SPAMS",
+        }),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65536.0, "signals")),
+        note: "",
+    };
+
+    #[test]
+    fn rows_compute_ratio_rate_and_status() {
+        let r = row(&ITEM, Some(0.05), Some(0.1));
+        assert_eq!(r.ratio, Some(0.5));
+        assert_eq!(r.status, "pass");
+        assert_eq!(r.rate.as_deref(), Some("1.311e6 signals/s"));
+        assert_eq!(row(&ITEM, Some(0.2), Some(0.1)).status, "short");
+        assert_eq!(row(&ITEM, Some(0.2), None).status, "no peer time");
+        assert_eq!(row(&ITEM, None, Some(0.1)).status, "not run");
+        let md = dashboard_text(&[r]);
+        assert!(
+            md.contains("| omp \\| x | 50.00 ms | 1.311e6 signals/s | SPAMS | 100.00 ms | 0.50 |"),
+            "{md}"
+        );
+        let quilt = WorkItem {
+            criterion_id: "quilt/relief_patch_synth_1024_from_512_2threads",
+            peer: Some(Peer {
+                source: PeerSource::Criterion("quilt/texture_synthesis_512_from_512_8bit_2threads"),
+                label: "texture-synthesis",
+            }),
+            ..ITEM
         };
-        assert!(dashboard_text(&[row]).contains("| x | 2.00 ms | - |"));
+        assert!(matches_filter(None, &ITEM));
+        assert!(matches_filter(Some("dwt|omp"), &ITEM));
+        assert!(matches_filter(Some("^omp/batch"), &ITEM));
+        assert!(!matches_filter(Some("dwt"), &ITEM));
+        assert!(matches_filter(Some("texture_synthesis"), &quilt));
+    }
+
+    #[test]
+    fn dwt_surface_is_a_deterministic_random_walk() {
+        let a = dwt_surface(64);
+        assert_eq!(a, dwt_surface(64));
+        // Cumulative sums in both directions: the first cell is the first normal, and the
+        // surface wanders far further than one step.
+        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
+            - a.iter().cloned().fold(f32::INFINITY, f32::min);
+        assert!(spread > 20.0, "{spread}");
+        assert!(a.iter().all(|v| v.is_finite()));
     }
 }

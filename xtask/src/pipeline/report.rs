@@ -197,19 +197,25 @@ impl Section {
         self.table_captioned(title, "", columns, rows);
     }
 
-    /// Adds a table with a caption under it; every row must have as many cells as `columns`.
+    /// Adds a table with a caption under it. Rows should have as many cells as `columns`;
+    /// a mismatch never panics: short rows and the header are padded with empty cells.
     pub(crate) fn table_captioned(
         &mut self,
         title: &str,
         caption: &str,
         columns: &[&str],
-        rows: Vec<Vec<String>>,
+        mut rows: Vec<Vec<String>>,
     ) {
-        debug_assert!(rows.iter().all(|r| r.len() == columns.len()));
+        let width = rows.iter().map(Vec::len).fold(columns.len(), usize::max);
+        let mut columns: Vec<String> = columns.iter().map(|c| c.to_string()).collect();
+        columns.resize(width, String::new());
+        for r in &mut rows {
+            r.resize(width, String::new());
+        }
         self.tables.push(Table {
             title: title.to_string(),
             caption: caption.to_string(),
-            columns: columns.iter().map(|c| c.to_string()).collect(),
+            columns,
             rows,
         });
     }
@@ -994,6 +1000,16 @@ mod tests {
             10.0
         );
         assert_eq!(json["stages"][0]["tables"][0]["caption"], "lower is better");
+    }
+
+    #[test]
+    fn mismatched_tables_are_padded_not_fatal() {
+        let mut s = Section::new("x");
+        s.numbers("t", "", &["m", "a"], &[("r", vec![1.0, 2.0, 3.0])]);
+        s.table("u", &["a", "b", "c"], vec![vec!["1".into()]]);
+        assert_eq!(s.tables[0].columns, ["m", "a", "", ""]);
+        assert_eq!(s.tables[0].rows[0], ["r", "1", "2", "3"]);
+        assert_eq!(s.tables[1].rows[0], ["1", "", ""]);
     }
 
     #[test]
