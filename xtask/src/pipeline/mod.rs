@@ -24,6 +24,7 @@ use relief_heightfield::{Heightfield, Progress};
 mod convert;
 mod fill;
 mod load;
+mod quilt;
 pub(crate) mod report;
 pub(crate) mod spec;
 

@@ -33,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{PipelineConfig, Stage, convert, fill, load};
+use super::{PipelineConfig, Stage, convert, fill, load, quilt};
 
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,11 +113,11 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert"];
+pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "quilt"];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
 pub(crate) fn default_spec() -> Vec<StageSpec> {
-    ["load", "fill_voids", "convert"]
+    ["load", "fill_voids", "convert", "quilt"]
         .iter()
         .map(|s| StageSpec::named(s))
         .collect()
@@ -130,6 +130,7 @@ pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "load" => no_params(p, "load", Box::new(load::Load))?,
         "fill_voids" => no_params(p, "fill_voids", Box::new(fill::FillVoids))?,
         "convert" => no_params(p, "convert", Box::new(convert::ConvertRoundTrips))?,
+        "quilt" => Box::new(quilt::Quilt(params(p)?)),
         other => bail!(
             "unknown stage `{other}`; known stages: {}",
             STAGE_NAMES.join(", ")
