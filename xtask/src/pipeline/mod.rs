@@ -27,6 +27,8 @@ mod load;
 mod quilt;
 pub(crate) mod report;
 pub(crate) mod spec;
+mod sparse;
+mod wavelet;
 
 pub(crate) use report::{Report, Section};
 

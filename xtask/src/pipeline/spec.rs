@@ -33,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{PipelineConfig, Stage, convert, fill, load, quilt};
+use super::{PipelineConfig, Stage, convert, fill, load, quilt, sparse, wavelet};
 
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,11 +113,11 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "quilt"];
+pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet"];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
 pub(crate) fn default_spec() -> Vec<StageSpec> {
-    ["load", "fill_voids", "convert", "quilt"]
+    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet"]
         .iter()
         .map(|s| StageSpec::named(s))
         .collect()
@@ -130,7 +130,9 @@ pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "load" => no_params(p, "load", Box::new(load::Load))?,
         "fill_voids" => no_params(p, "fill_voids", Box::new(fill::FillVoids))?,
         "convert" => no_params(p, "convert", Box::new(convert::ConvertRoundTrips))?,
+        "sparse" => Box::new(sparse::SparseStage(params(p)?)),
         "quilt" => Box::new(quilt::Quilt(params(p)?)),
+        "wavelet" => Box::new(wavelet::WaveletStage::new(params(p)?)?),
         other => bail!(
             "unknown stage `{other}`; known stages: {}",
             STAGE_NAMES.join(", ")
