@@ -1070,3 +1070,46 @@ mod tests {
         assert!(html.contains("<svg class=\"plot\""));
     }
 }
+
+/// The pipeline documentation stays in step with the code: every spec shown in
+/// `docs/PIPELINE.md` or kept in `docs/*.json` parses and builds (unknown stages, fields and
+/// invalid parameter values are errors).
+#[cfg(test)]
+mod docs_tests {
+    use super::super::spec::{PipelineSpec, build_stages};
+
+    fn doc() -> String {
+        std::fs::read_to_string(crate::project_root().join("docs/PIPELINE.md")).unwrap()
+    }
+
+    #[test]
+    fn specs_in_the_docs_are_valid() {
+        let root = crate::project_root();
+        let doc = doc();
+        let mut n = 0;
+        for block in doc.split("```json\n").skip(1) {
+            let json = block.split("```").next().unwrap();
+            let spec: PipelineSpec = serde_json::from_str(json)
+                .unwrap_or_else(|e| panic!("spec in docs/PIPELINE.md: {e}\n{json}"));
+            build_stages(&spec.stages).unwrap_or_else(|e| panic!("{e:#}\n{json}"));
+            n += 1;
+        }
+        assert!(n >= 1);
+        let mut files = 0;
+        for entry in std::fs::read_dir(root.join("docs")).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "json") {
+                let spec = PipelineSpec::read(&path, &root)
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+                assert!(
+                    spec.input.as_ref().is_none_or(|p| p.is_file()),
+                    "{}",
+                    path.display()
+                );
+                assert_eq!(spec.stages[0].stage, "load", "{}", path.display());
+                files += 1;
+            }
+        }
+        assert!(files >= 1);
+    }
+}
