@@ -9,6 +9,16 @@ use crate::error::{Result, WaveletError};
 use crate::lift::Boundary;
 use crate::wavelet::Wavelet;
 
+/// Largest accepted [`FitSettings::variance_floor`] (m^2).
+const MAX_VARIANCE_FLOOR: f64 = 1e12;
+/// Smallest accepted [`FitSettings::gamma_min`].
+const GAMMA_MIN_LOWEST: f64 = -2.0;
+/// Largest accepted [`FitSettings::gamma_max`].
+const GAMMA_MAX_HIGHEST: f64 = 16.0;
+/// Largest accepted input elevation magnitude (m): squares of detail coefficients summed over
+/// the largest LSA window stay far below the `f32` range.
+pub(crate) const MAX_ELEVATION: f32 = 1e12;
+
 /// Settings of the variance fit (equations (3) and (4)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FitSettings {
@@ -21,11 +31,12 @@ pub struct FitSettings {
     pub levels: usize,
     /// Variances below this floor (m^2) are raised to it before the logarithm, so flat areas
     /// (zero variance, e.g. sea at 0 m) give finite fits: `gamma = 0` and variance = floor.
+    /// Must be in `(0, 1e12]`.
     pub variance_floor: f64,
     /// Smallest `gamma` used for synthesis; a fit below it is clamped and `a` refitted with the
-    /// slope fixed. 0 forbids variance growing towards finer levels.
+    /// slope fixed. 0 forbids variance growing towards finer levels. Must be in `[-2, 16]`.
     pub gamma_min: f64,
-    /// Largest `gamma` used for synthesis (clamped likewise).
+    /// Largest `gamma` used for synthesis (clamped likewise). Must be in `[gamma_min, 16]`.
     pub gamma_max: f64,
 }
 
@@ -44,20 +55,27 @@ impl Default for FitSettings {
 impl FitSettings {
     /// Checks the settings.
     pub fn validate(&self) -> Result<()> {
-        if !(self.variance_floor.is_finite() && self.variance_floor > 0.0) {
+        if !(self.variance_floor > 0.0 && self.variance_floor <= MAX_VARIANCE_FLOOR) {
             return Err(WaveletError::param(
                 "variance_floor",
                 self.variance_floor,
-                "must be finite and > 0",
+                "must be in (0, 1e12] m^2",
             ));
         }
-        if !(self.gamma_min.is_finite() && self.gamma_max.is_finite())
-            || self.gamma_min > self.gamma_max
-        {
+        // Bounded so that the variances of equation (5) stay finite in f32 for every level the
+        // refinement can add (12 levels of growth at gamma = -2 multiply a variance by 2^24).
+        if !(self.gamma_min >= GAMMA_MIN_LOWEST && self.gamma_min <= GAMMA_MAX_HIGHEST) {
             return Err(WaveletError::param(
                 "gamma_min",
-                format!("{}..{}", self.gamma_min, self.gamma_max),
-                "needs finite gamma_min <= gamma_max",
+                self.gamma_min,
+                "must be in [-2, 16]",
+            ));
+        }
+        if !(self.gamma_max >= self.gamma_min && self.gamma_max <= GAMMA_MAX_HIGHEST) {
+            return Err(WaveletError::param(
+                "gamma_max",
+                self.gamma_max,
+                "must be in [gamma_min, 16]",
             ));
         }
         if self.min_level > 40 {
@@ -233,6 +251,14 @@ pub(crate) fn decompose(
     levels: usize,
 ) -> Result<Decomposition> {
     hf.require_complete()?;
+    let max = hf.as_slice().iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    if max > MAX_ELEVATION {
+        return Err(WaveletError::param(
+            "input",
+            format!("max |elevation| {max:e} m"),
+            "elevations must be within +-1e12 m",
+        ));
+    }
     wavedec2(
         &Grid::from_heightfield(hf),
         wavelet,

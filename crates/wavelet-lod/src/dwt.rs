@@ -36,11 +36,12 @@ pub struct Grid {
 impl Grid {
     /// A grid from row-major values; an error if the length does not match.
     pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self> {
-        if data.len() != width * height {
+        let expected = width.saturating_mul(height);
+        if data.len() != expected {
             return Err(WaveletError::Shape {
                 width,
                 height,
-                expected: width * height,
+                expected,
                 got: data.len(),
             });
         }
@@ -171,6 +172,72 @@ impl Decomposition {
     /// Reconstructs the signal (inverse transform of every level).
     pub fn reconstruct(&self) -> Grid {
         waverec2(self)
+    }
+
+    /// Checks that the shapes are those [`wavedec2`] produces for `width x height` and
+    /// `levels()` levels (always true for its output; a decomposition edited by hand or
+    /// deserialised from a file may not be).
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: String| {
+            Err(WaveletError::param(
+                "decomposition",
+                what,
+                "inconsistent shapes",
+            ))
+        };
+        let levels = self.details.len();
+        if self.width == 0 || self.height == 0 || levels > max_levels(self.width, self.height) {
+            return bad(format!(
+                "{} x {} with {levels} levels",
+                self.width, self.height
+            ));
+        }
+        let grid_ok =
+            |g: &Grid, w: usize, h: usize| g.width == w && g.height == h && g.data.len() == w * h;
+        let (aw, ah) = (
+            size_at_depth(self.width, levels),
+            size_at_depth(self.height, levels),
+        );
+        if !grid_ok(&self.approx, aw, ah) {
+            return bad(format!(
+                "approximation {} x {} ({} values), expected {aw} x {ah}",
+                self.approx.width,
+                self.approx.height,
+                self.approx.data.len()
+            ));
+        }
+        for (i, lvl) in self.details.iter().enumerate() {
+            let depth = levels - i;
+            let (pw, ph) = (
+                size_at_depth(self.width, depth - 1),
+                size_at_depth(self.height, depth - 1),
+            );
+            if self.boundary == Boundary::Periodic
+                && ((pw % 2 == 1 && pw > 1) || (ph % 2 == 1 && ph > 1))
+            {
+                return Err(WaveletError::OddPeriodic {
+                    level: depth,
+                    len: if pw % 2 == 1 { pw } else { ph },
+                });
+            }
+            let (lw, hw, lh, hh) = (pw.div_ceil(2), pw / 2, ph.div_ceil(2), ph / 2);
+            for (band, g, w, h) in [
+                (Band::H, &lvl.h, lw, hh),
+                (Band::V, &lvl.v, hw, lh),
+                (Band::D, &lvl.d, hw, hh),
+            ] {
+                if !grid_ok(g, w, h) {
+                    return bad(format!(
+                        "band {} at depth {depth}: {} x {} ({} values), expected {w} x {h}",
+                        band.name(),
+                        g.width,
+                        g.height,
+                        g.data.len()
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -430,7 +497,19 @@ pub fn wavedec2(
     })
 }
 
+/// Multi-level inverse transform of a decomposition whose shapes are first checked
+/// ([`Decomposition::validate`]): use it for decompositions that did not come straight from
+/// [`wavedec2`].
+pub fn try_waverec2(dec: &Decomposition) -> Result<Grid> {
+    dec.validate()?;
+    Ok(waverec2(dec))
+}
+
 /// Multi-level inverse transform (PyWavelets `waverec2`).
+///
+/// # Panics
+/// If the shapes of `dec` are inconsistent, which cannot happen for the output of
+/// [`wavedec2`]; see [`try_waverec2`] for decompositions edited or read from elsewhere.
 pub fn waverec2(dec: &Decomposition) -> Grid {
     let scheme = dec.wavelet.scheme();
     let levels = dec.details.len();
@@ -490,6 +569,9 @@ pub fn idwt1(low: &[f32], high: &[f32], wavelet: Wavelet, boundary: Boundary) ->
         ));
     }
     let n = low.len() + high.len();
+    if boundary == Boundary::Periodic && n % 2 == 1 && n > 1 {
+        return Err(WaveletError::OddPeriodic { level: 1, len: n });
+    }
     let (mut e, mut o) = (low.to_vec(), high.to_vec());
     let (em, om) = lane_maps(n, boundary, 0, e.len(), 0, o.len());
     inverse_1d(wavelet.scheme(), &mut e, &mut o, &em, &om);

@@ -85,8 +85,8 @@ pub use analysis::{
     BandFit, FitSettings, GlobalAnalysis, LevelVariance, LocalMaps, analyze, analyze_local,
 };
 pub use dwt::{
-    Band, Decomposition, DetailLevel, Grid, dwt1, idwt1, max_levels, size_at_depth, wavedec2,
-    waverec2,
+    Band, Decomposition, DetailLevel, Grid, dwt1, idwt1, max_levels, size_at_depth, try_waverec2,
+    wavedec2, waverec2,
 };
 pub use error::{Result, WaveletError};
 pub use lift::Boundary;

@@ -94,9 +94,9 @@ impl LogVariancePlot {
     /// first): axes with integer ticks and labels, filled squares for measured levels (grey
     /// outline when outside the fit), hollow squares for synthesised levels, the fitted lines
     /// (solid over the data, dashed over the new levels) and a dotted vertical line at the first
-    /// synthesised level. Colours: H red, V green, D blue. Sizes are clamped to at least 64.
+    /// synthesised level. Colours: H red, V green, D blue. Sizes are clamped into `64..=8192`.
     pub fn render_rgb(&self, width: usize, height: usize) -> Vec<u8> {
-        let (w, h) = (width.max(64), height.max(64));
+        let (w, h) = (width.clamp(64, 8192), height.clamp(64, 8192));
         let mut c = Canvas {
             w,
             h,
@@ -267,7 +267,8 @@ impl Canvas {
 }
 
 /// Renders the log-variance plot of `input` (and, when given, the measured synthesised levels
-/// of `refined`) as an RGB8 buffer of `width * height * 3` bytes; see
+/// of `refined`) as an RGB8 buffer of `width * height * 3` bytes (sizes clamped into
+/// `64..=8192`); see
 /// [`LogVariancePlot::render_rgb`].
 pub fn render_log_variance_plot(
     input: &GlobalAnalysis,

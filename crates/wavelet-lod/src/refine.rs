@@ -41,8 +41,8 @@ pub struct RefineSettings {
     pub seed: u64,
     /// Fit settings.
     pub fit: FitSettings,
-    /// Tile side (output cells) of [`Refiner::render`]; only affects speed and memory, never the
-    /// values.
+    /// Tile side (output cells, 16..=65536) of [`Refiner::render`]; only affects speed and
+    /// memory, never the values.
     pub tile: usize,
 }
 
@@ -74,8 +74,12 @@ impl RefineSettings {
                 "must be <= 12",
             ));
         }
-        if self.tile < 16 {
-            return Err(WaveletError::param("tile", self.tile, "must be >= 16"));
+        if !(16..=65_536).contains(&self.tile) {
+            return Err(WaveletError::param(
+                "tile",
+                self.tile,
+                "must be in 16..=65536",
+            ));
         }
         Ok(())
     }

@@ -83,12 +83,19 @@ pub fn normal_at(row_key: u64, x: usize) -> f32 {
     if x.is_multiple_of(2) { a } else { b }
 }
 
-/// Fills `out[k]` with the normal numbers of columns `x0 + k` (equal, bit for bit, to
-/// [`normal_at`]).
+/// Fills `out[k]` with the normal numbers of columns `x0 + k` (wrapping at `usize::MAX`),
+/// equal bit for bit to [`normal_at`].
 pub fn fill_normals(row_key: u64, x0: usize, out: &mut [f32]) {
     const BLOCK: usize = 64;
     let n = out.len();
     if n == 0 {
+        return;
+    }
+    if x0.checked_add(n).is_none() {
+        // The window wraps around usize::MAX: positions are taken modulo 2^64, pointwise.
+        for (k, v) in out.iter_mut().enumerate() {
+            *v = normal_at(row_key, x0.wrapping_add(k));
+        }
         return;
     }
     let p0 = x0 / 2;
