@@ -669,8 +669,9 @@ fn section_body(h: &mut String, s: &Section) {
 }
 
 /// Colours of plot series, in order.
-const PALETTE: [&str; 6] = [
-    "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#555555",
+const PALETTE: [&str; 10] = [
+    "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf",
 ];
 
 /// A plot as inline SVG (560 x 340): axes with ticks (decades on log axes), one polyline per
@@ -769,25 +770,22 @@ fn svg_plot(p: &Plot) -> String {
         t + (H - t - b) / 2.0,
         esc(&p.y_label)
     );
+    let dash_of = |d: bool| if d { " stroke-dasharray=\"6 4\"" } else { "" };
     for (i, (series, pts)) in p.series.iter().zip(&pts).enumerate() {
         let colour = PALETTE[i % PALETTE.len()];
-        let dash = if series.dashed {
-            " stroke-dasharray=\"6 4\""
-        } else {
-            ""
-        };
-        let path: Vec<String> = pts
-            .iter()
-            .map(|&(x, y)| format!("{:.1},{:.1}", sx(x), sy(y)))
-            .collect();
-        if path.len() == 1 {
+        let dash = dash_of(series.dashed);
+        if pts.len() == 1 {
             let _ = write!(
                 s,
                 "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{colour}\"/>",
                 sx(pts[0].0),
                 sy(pts[0].1)
             );
-        } else {
+        } else if pts.len() > 1 {
+            let path: Vec<String> = pts
+                .iter()
+                .map(|&(x, y)| format!("{:.1},{:.1}", sx(x), sy(y)))
+                .collect();
             let _ = write!(
                 s,
                 "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\"{dash} \
@@ -795,6 +793,21 @@ fn svg_plot(p: &Plot) -> String {
                 path.join(" ")
             );
         }
+    }
+    // The legend last, on a translucent box over the lines.
+    if !p.series.is_empty() {
+        let _ = write!(
+            s,
+            "<rect x=\"{}\" y=\"{}\" width=\"152\" height=\"{}\" fill=\"#fff\" \
+             fill-opacity=\"0.85\" stroke=\"#ddd\"/>",
+            W - r - 156.0,
+            t + 4.0,
+            15.0 * p.series.len() as f64 + 4.0
+        );
+    }
+    for (i, series) in p.series.iter().enumerate() {
+        let colour = PALETTE[i % PALETTE.len()];
+        let dash = dash_of(series.dashed);
         let ly = t + 14.0 + 15.0 * i as f64;
         let _ = write!(
             s,
