@@ -1,6 +1,7 @@
 //! Minimum-error boundary cut through an overlap region (section 3.3): the globally optimal
 //! path by dynamic programming, and the greedy path of local decisions for comparison.
 
+use crate::error::{PatchSynthError, Result};
 use crate::settings::CutMethod;
 
 /// A vertical seam: for every row, the first column that takes the new patch.
@@ -17,6 +18,8 @@ pub struct Cut {
 ///
 /// Dynamic programming returns the path of least total error; the greedy variant starts at the
 /// cheapest cell of the first row and then takes the cheapest of the three cells below.
+/// Errors when `errors.len() != rows * cols`. NaN errors do not panic (the path stays a valid
+/// seam; its cost is then NaN).
 pub fn min_error_cut(
     errors: &[f32],
     rows: usize,
@@ -24,8 +27,26 @@ pub fn min_error_cut(
     lo: usize,
     hi: usize,
     method: CutMethod,
+) -> Result<Cut> {
+    if rows.checked_mul(cols) != Some(errors.len()) {
+        return Err(PatchSynthError::InvalidControl {
+            name: "errors",
+            reason: format!("{} error values for a {rows} x {cols} grid", errors.len()),
+        });
+    }
+    Ok(cut(errors, rows, cols, lo, hi, method))
+}
+
+/// [`min_error_cut`] for a grid whose size is known to match.
+pub(crate) fn cut(
+    errors: &[f32],
+    rows: usize,
+    cols: usize,
+    lo: usize,
+    hi: usize,
+    method: CutMethod,
 ) -> Cut {
-    assert_eq!(errors.len(), rows * cols, "error grid size");
+    debug_assert_eq!(errors.len(), rows * cols);
     if rows == 0 || cols == 0 {
         return Cut {
             path: Vec::new(),
@@ -103,8 +124,8 @@ mod tests {
         for (r, &c) in valley.iter().enumerate() {
             e[r * cols + c] = 1.0;
         }
-        let dp = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::DynamicProgramming);
-        let gr = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::Greedy);
+        let dp = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::DynamicProgramming).unwrap();
+        let gr = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::Greedy).unwrap();
         assert_eq!(dp.path, valley);
         assert!((dp.cost - 6.0).abs() < 1e-9);
         assert!(gr.cost > dp.cost);

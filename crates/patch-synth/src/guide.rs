@@ -67,6 +67,9 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
     Ok(dem.with_data(out)?)
 }
 
+/// Largest stroke vertex coordinate (cells) accepted by [`guide_from_sketch`].
+const MAX_COORD: f32 = 1e7;
+
 /// A painted seed: a height at a point (pixel coordinates of the target).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Seed {
@@ -99,6 +102,17 @@ pub fn guide_from_sketch(
     strokes: &[Stroke],
     smoothing: f32,
 ) -> Result<Heightfield> {
+    if width == 0
+        || height == 0
+        || width
+            .checked_mul(height)
+            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
+    {
+        return Err(PatchSynthError::InvalidControl {
+            name: "size",
+            reason: format!("a {width} x {height} guide is empty or too large"),
+        });
+    }
     if seeds.is_empty() && strokes.iter().all(|s| s.points.is_empty()) {
         return Err(PatchSynthError::InvalidControl {
             name: "seeds",
@@ -141,6 +155,18 @@ pub fn guide_from_sketch(
         }
         for seg in st.points.windows(2) {
             let (a, b) = (seg[0], seg[1]);
+            if [a.0, a.1, b.0, b.1]
+                .iter()
+                .any(|v| !v.is_finite() || v.abs() > MAX_COORD)
+            {
+                return Err(PatchSynthError::InvalidControl {
+                    name: "strokes",
+                    reason: format!(
+                        "stroke segment ({}, {}) - ({}, {}) is non-finite or beyond +-{MAX_COORD} cells",
+                        a.0, a.1, b.0, b.1
+                    ),
+                });
+            }
             let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
             let n = (len.ceil() as usize).max(1) * 2;
             for i in 0..=n {

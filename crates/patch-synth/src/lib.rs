@@ -89,5 +89,7 @@ pub use error::{PatchSynthError, Result};
 pub use index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef};
 pub use relief_heightfield::{NoProgress, Progress};
 pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};
-pub use synth::{Control, Placement, SeamMap, Synthesis, SynthesisStats, quilt, synthesize};
+pub use synth::{
+    Control, MAX_OUTPUT_CELLS, Placement, SeamMap, Synthesis, SynthesisStats, quilt, synthesize,
+};
 pub use validate::{BlockReport, ExemplarCompatibility, ValidationReport, validate};

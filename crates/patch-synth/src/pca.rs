@@ -30,8 +30,8 @@ pub struct Pca {
 impl Pca {
     /// Fits `k` components to `samples` (`n * dim` values, `n >= 2`).
     pub fn fit(samples: &[f32], dim: usize, k: usize) -> Result<Self> {
-        let n = samples.len() / dim;
-        if n < 2 || k == 0 || k > dim {
+        let n = samples.len() / dim.max(1);
+        if dim == 0 || n < 2 || k == 0 || k > dim {
             return Err(PatchSynthError::Numerical(format!(
                 "pca with {n} samples of dimension {dim} and {k} components"
             )));

@@ -199,6 +199,22 @@ impl Settings {
                 "must be one of 4, 6, 8, 12, 16",
             ));
         }
+        let features = crate::index::Layouts::new(self.patch_size, self.overlap)
+            .rects
+            .iter()
+            .map(Vec::len)
+            .min()
+            .unwrap_or(0);
+        if self.pca_dims > features {
+            return Err(PatchSynthError::setting(
+                "pca_dims",
+                self.pca_dims,
+                format!(
+                    "exceeds the {features} overlap features of a {} x {} overlap",
+                    self.patch_size, self.overlap
+                ),
+            ));
+        }
         if self.pca_samples < 2 * self.pca_dims {
             return Err(PatchSynthError::setting(
                 "pca_samples",

@@ -6,12 +6,16 @@ use rayon::prelude::*;
 use relief_heightfield::{Heightfield, Progress};
 
 use crate::category::{ANY_CATEGORY, CategoryMap};
-use crate::cut::min_error_cut;
+use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
 use crate::index::{Exemplar, ExemplarIndex, PatchRef, features, grid_rects};
 use crate::kmeans::dist2;
 use crate::settings::{Blend, Settings};
 use crate::validate::validate;
+
+/// Largest output a synthesis accepts (`width * height`, 2^28 cells: the working canvases then
+/// take a few GiB).
+pub const MAX_OUTPUT_CELLS: usize = 1 << 28;
 
 /// The control structures of section 3.1: output size, optional guide and optional
 /// categorisation map (both at the target resolution).
@@ -57,6 +61,19 @@ impl Control {
             return Err(PatchSynthError::InvalidControl {
                 name: "size",
                 reason: format!("{} x {} is empty", self.width, self.height),
+            });
+        }
+        if self
+            .width
+            .checked_mul(self.height)
+            .is_none_or(|n| n > MAX_OUTPUT_CELLS)
+        {
+            return Err(PatchSynthError::InvalidControl {
+                name: "size",
+                reason: format!(
+                    "{} x {} exceeds the {MAX_OUTPUT_CELLS} cells a synthesis may produce",
+                    self.width, self.height
+                ),
             });
         }
         if let Some(g) = &self.guide {
@@ -574,7 +591,7 @@ pub fn synthesize(
                             })
                             .map(|(r, c)| err(r, c))
                             .collect();
-                        let cut = min_error_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
+                        let cut = seam_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
                         cost += cut.cost;
                         len += p;
                         cut.path

@@ -100,8 +100,8 @@ fn dp_cut_beats_greedy_cut_on_real_overlaps() {
             .flat_map(|r| (0..cols).map(move |c| (r, c)))
             .map(|(r, c)| (a.get(x1 + c, y1 + r) - a.get(x2 + c, y2 + r)).powi(2))
             .collect();
-        let dp = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::DynamicProgramming);
-        let gr = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::Greedy);
+        let dp = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::DynamicProgramming).unwrap();
+        let gr = min_error_cut(&e, rows, cols, 0, cols - 1, CutMethod::Greedy).unwrap();
         assert!(
             dp.cost <= gr.cost + 1e-6,
             "dp {} > greedy {}",
