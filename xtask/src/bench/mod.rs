@@ -222,7 +222,21 @@ pub(crate) fn run(root: &Path, opts: &BenchOptions) -> Result<PathBuf> {
                 }
                 PeerSource::Criterion(id) => criterion_seconds(&target, id),
             });
-            row(w, ours, peer_s)
+            let mut r = row(w, ours, peer_s);
+            if let Some(PeerSource::Script { script, key }) = w.peer.map(|p| p.source)
+                && let Some(m) = peer_times.get(script)
+            {
+                let extras = peer_extras(m, key);
+                if !extras.is_empty() {
+                    r.note = [r.note.as_str(), extras.as_str()]
+                        .iter()
+                        .filter(|s| !s.is_empty())
+                        .copied()
+                        .collect::<Vec<_>>()
+                        .join("; ");
+                }
+            }
+            r
         })
         .collect();
 
@@ -264,6 +278,20 @@ fn matches_filter(filter: Option<&str>, w: &WorkItem) -> bool {
     f.split('|')
         .map(|a| a.trim_matches(|c| c == '^' || c == '$'))
         .any(|a| w.criterion_id.contains(a) || (!peer_id.is_empty() && peer_id.contains(a)))
+}
+
+/// The peer's other figures about the same item: the keys sharing the timing key's stem
+/// (`traindl_3ep_rmse` for `traindl_3ep_s`), as `peer key = value` (error vs time).
+fn peer_extras(m: &BTreeMap<String, f64>, key: &str) -> String {
+    let Some(stem) = key.strip_suffix("_s") else {
+        return String::new();
+    };
+    let prefix = format!("{stem}_");
+    m.iter()
+        .filter(|(k, _)| k.starts_with(&prefix) && k.as_str() != key)
+        .map(|(k, v)| format!("peer {k} = {}", crate::pipeline::report::fmt_num(*v)))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// One dashboard row from our and the peer's time.
@@ -578,6 +606,23 @@ mod tests {
         assert!(matches_filter(Some("^omp/batch"), &ITEM));
         assert!(!matches_filter(Some("dwt"), &ITEM));
         assert!(matches_filter(Some("texture_synthesis"), &quilt));
+    }
+
+    #[test]
+    fn peer_extras_share_the_timing_key_stem() {
+        let m: BTreeMap<String, f64> = [
+            ("traindl_3ep_s", 2.4),
+            ("traindl_3ep_rmse", 3.25),
+            ("traindl_1ep_rmse", 4.0),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+        assert_eq!(
+            peer_extras(&m, "traindl_3ep_s"),
+            "peer traindl_3ep_rmse = 3.250"
+        );
+        assert_eq!(peer_extras(&m, "other_s"), "");
     }
 
     #[test]
