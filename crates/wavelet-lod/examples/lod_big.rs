@@ -2,27 +2,32 @@
 //! 16384^2 with LSA 3x3 (CDF 5/3).
 //!
 //! ```text
-//! RAYON_NUM_THREADS=2 /usr/bin/time -v cargo run --release -p relief-wavelet-lod --example lod_big
+//! RAYON_NUM_THREADS=2 /usr/bin/time -v target/release/examples/lod_big [SIZE] [full|strips] [STRIP]
 //! ```
-//! The input is the real `alps_dem` enlarged to 4096^2 plus a fractal perturbation (the harness
-//! needs the shared DEM set); prints the analysis and synthesis times, the checksum of the output
-//! and the fitted statistics. Peak memory is what `/usr/bin/time -v` reports as "Maximum
-//! resident set size".
+//! (build it first with `cargo build --release -p relief-wavelet-lod --example lod_big`).
+//! `full` (default) renders the whole refined grid into one buffer with `Refiner::render`;
+//! `strips` renders it with `Refiner::render_strips` (STRIP rows at a time, default 256) and
+//! hands every strip to a sink that only folds a checksum, i.e. what a streaming writer would
+//! receive: memory is the input, its analysis and one strip. The input is the real `alps_dem`
+//! enlarged to SIZE^2 (the harness needs the shared DEM set); prints the analysis and synthesis
+//! times, the checksum (equal in both modes) and the fitted statistics. Peak memory is what
+//! `/usr/bin/time -v` reports as "Maximum resident set size".
 #![allow(clippy::print_stdout)]
 
 use std::time::Instant;
 
 use relief_heightfield::NoProgress;
-use relief_wavelet_lod::{Method, RefineSettings, Refiner, Wavelet};
+use relief_wavelet_lod::{Method, RefineSettings, Refiner, Wavelet, WaveletError};
 
 fn main() {
-    let size: usize = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(4096);
+    let args: Vec<String> = std::env::args().collect();
+    let size: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(4096);
+    let mode = args.get(2).map(String::as_str).unwrap_or("full");
+    let strip: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(256);
     let alps = relief_testdata::load_dem("alps_dem").expect("shared DEM set (alps_dem)");
     let t = Instant::now();
     let input = alps.resample(size, size).expect("resample");
+    drop(alps);
     println!(
         "input {size}^2 prepared in {:.2} s (not part of the timing)",
         t.elapsed().as_secs_f64()
@@ -38,19 +43,43 @@ fn main() {
     let t0 = Instant::now();
     let refiner = Refiner::new(&input, &settings).expect("analysis");
     let t1 = Instant::now();
-    let out = refiner.render(&NoProgress).expect("render");
+    let (ow, oh) = refiner.output_size();
+    // Order-independent checksum: sum of the values in f64 per row, rows in order.
+    let mut sum = 0.0f64;
+    match mode {
+        "full" => {
+            let out = refiner.render(&NoProgress).expect("render");
+            for row in out.as_slice().chunks(ow) {
+                sum += row.iter().map(|&v| v as f64).sum::<f64>();
+            }
+        }
+        "strips" => {
+            refiner
+                .render_strips::<WaveletError>(strip, &NoProgress, |_, rows: &[f32]| {
+                    for row in rows.chunks(ow) {
+                        sum += row.iter().map(|&v| v as f64).sum::<f64>();
+                    }
+                    Ok(())
+                })
+                .expect("render strips");
+        }
+        other => panic!("unknown mode {other} (full or strips)"),
+    }
     let t2 = Instant::now();
-    let sum: f64 = out.as_slice().iter().map(|&v| v as f64).sum();
     println!(
-        "LOD {size}^2 -> {}x{} LSA 3x3 cdf53, {} threads: analysis {:.3} s, synthesis {:.3} s, total {:.3} s",
-        out.width(),
-        out.height(),
+        "LOD {size}^2 -> {ow}x{oh} LSA 3x3 cdf53, mode {mode}{}, {} threads: analysis {:.3} s, \
+         synthesis {:.3} s, total {:.3} s",
+        if mode == "strips" {
+            format!(" ({strip} rows)")
+        } else {
+            String::new()
+        },
         rayon::current_num_threads(),
         (t1 - t0).as_secs_f64(),
         (t2 - t1).as_secs_f64(),
         (t2 - t0).as_secs_f64()
     );
-    println!("mean elevation {:.3} m", sum / out.len() as f64);
+    println!("mean elevation {:.6} m", sum / (ow * oh) as f64);
     for (b, f) in ["h", "v", "d"].iter().zip(&refiner.analysis().fits) {
         println!(
             "band {b}: gamma {:.3}, a {:.3}, D {:.3}",

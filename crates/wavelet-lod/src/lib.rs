@@ -39,7 +39,9 @@
 //! [`Wavelet::synthesis_margin`] samples per level). A window therefore equals the same window
 //! of the full [`Refiner::render`] bit for bit, whatever the thread count, and costs memory
 //! proportional to the window (the analysis, done once in [`Refiner::new`], is proportional to
-//! the input).
+//! the input). [`Refiner::render_strips`] streams the whole refined terrain strip by strip
+//! (tiles in parallel) to a sink such as a file writer, so a refined grid larger than memory
+//! never has to be held at once.
 //!
 //! # Guarantees and limits
 //! * Perfect reconstruction up to `f32` rounding for every basis and size.

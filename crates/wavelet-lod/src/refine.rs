@@ -254,6 +254,56 @@ impl Refiner {
         self.wrap(0, 0, ow, oh, data)
     }
 
+    /// Renders the whole refined terrain as horizontal strips of `strip` rows (the last one may
+    /// be shorter), top to bottom, and hands each to `sink` as `(first row, row-major values of
+    /// full width)`, in order. The tiles of a strip ([`RefineSettings::tile`] wide) are rendered
+    /// in parallel. Memory is proportional to `strip * width` (plus the analysis), never to the
+    /// whole refined terrain, so a terrain larger than memory can be streamed to a writer; the
+    /// values are bit-identical to [`Refiner::render`]. The first error of `sink` stops the
+    /// rendering and is returned.
+    pub fn render_strips<E: From<WaveletError>>(
+        &self,
+        strip: usize,
+        progress: &dyn Progress,
+        mut sink: impl FnMut(usize, &[f32]) -> std::result::Result<(), E>,
+    ) -> std::result::Result<(), E> {
+        let (ow, oh) = self.output_size();
+        if strip == 0 || strip.checked_mul(ow).is_none_or(|c| c > MAX_CELLS) {
+            return Err(WaveletError::param(
+                "strip",
+                strip,
+                "must be >= 1 and strip * width must stay within the cell limit",
+            )
+            .into());
+        }
+        let t = self.settings.tile;
+        let tiles_x = ow.div_ceil(t);
+        let strips = oh.div_ceil(strip);
+        progress.begin("wavelet-lod: synthesise strips", strips as u64);
+        let mut buf = vec![0.0f32; strip.min(oh) * ow];
+        for s in 0..strips {
+            let y0 = s * strip;
+            let sh = strip.min(oh - y0);
+            let tiles: Vec<Vec<f32>> = (0..tiles_x)
+                .into_par_iter()
+                .map(|tx| {
+                    let x0 = tx * t;
+                    self.render_region(x0, y0, t.min(ow - x0), sh)
+                })
+                .collect();
+            for (tx, tile) in tiles.iter().enumerate() {
+                let x0 = tx * t;
+                let tw = t.min(ow - x0);
+                for (r, row) in tile.chunks(tw).enumerate() {
+                    buf[r * ow + x0..r * ow + x0 + tw].copy_from_slice(row);
+                }
+            }
+            sink(y0, &buf[..sh * ow])?;
+            progress.advance(1);
+        }
+        Ok(())
+    }
+
     /// The window at the finest level, computed from the input through every new level with
     /// only the lanes each inverse step needs (section 5, "generated when needed").
     fn render_region(&self, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {

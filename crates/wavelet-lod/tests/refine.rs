@@ -320,3 +320,62 @@ fn georeference_follows_the_vertex_aligned_lattice() {
     // And it keeps the input value there.
     assert!((out.get(0, 0) - hf.get(2, 3)).abs() < 50.0);
 }
+
+#[test]
+fn strips_equal_the_full_run_and_sink_errors_stop_it() {
+    let hf = rough(45, 38, 8);
+    for method in [Method::Gsa, Method::Lsa] {
+        let s = RefineSettings {
+            method,
+            tile: 40,
+            seed: 3,
+            ..Default::default()
+        };
+        let r = Refiner::new(&hf, &s).unwrap();
+        let full = r.render(&NoProgress).unwrap();
+        let (ow, oh) = r.output_size();
+        for strip in [1, 7, 64, 1000] {
+            let mut got = Vec::with_capacity(ow * oh);
+            let mut next = 0;
+            r.render_strips::<WaveletError>(strip, &NoProgress, |y0, rows: &[f32]| {
+                assert_eq!(y0, next);
+                assert_eq!(rows.len() % ow, 0);
+                next += rows.len() / ow;
+                got.extend_from_slice(rows);
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(next, oh);
+            assert_eq!(
+                bits(&got),
+                bits(full.as_slice()),
+                "{method:?} strip {strip}"
+            );
+        }
+        assert!(
+            r.render_strips::<WaveletError>(0, &NoProgress, |_, _: &[f32]| Ok(()))
+                .is_err()
+        );
+        let mut calls = 0;
+        let err = r
+            .render_strips::<SinkError>(16, &NoProgress, |_, _: &[f32]| {
+                calls += 1;
+                Err(SinkError::DiskFull)
+            })
+            .unwrap_err();
+        assert!(matches!(err, SinkError::DiskFull) && calls == 1);
+    }
+}
+
+#[derive(Debug)]
+enum SinkError {
+    #[allow(dead_code)]
+    Wavelet(WaveletError),
+    DiskFull,
+}
+
+impl From<WaveletError> for SinkError {
+    fn from(e: WaveletError) -> Self {
+        Self::Wavelet(e)
+    }
+}

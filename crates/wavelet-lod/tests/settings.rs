@@ -121,6 +121,7 @@ const FIELDS: &[&str] = &[
     "high",
     "input",
     "decomposition",
+    "strip",
 ];
 
 /// Every error names what is wrong: the field and its value for parameter errors.
@@ -151,6 +152,14 @@ proptest! {
                 if ow * oh <= 1 << 18 {
                     let out = r.render(&NoProgress).unwrap();
                     prop_assert!(finite(out.as_slice()), "non-finite output for {s:?}");
+                    let mut rows = 0;
+                    match r.render_strips::<WaveletError>(win.2, &NoProgress, |_, v: &[f32]| {
+                        rows += v.len() / ow;
+                        Ok(())
+                    }) {
+                        Err(e) => check_error(&e),
+                        Ok(()) => prop_assert_eq!(rows, oh),
+                    }
                 }
                 match r.render_window(win.0, win.1, win.2, win.3) {
                     Err(e) => check_error(&e),
