@@ -22,6 +22,17 @@
 //! same window of the full raster bit for bit, and both equal point evaluation, whatever the
 //! thread count.
 //!
+//! The other nodes are stamped too: a [`River`] stamps each segment over the pixels of its box
+//! grown by the largest half width (carve) or over the band (bed profile, defined everywhere),
+//! keeping per pixel the nearest segment in increasing segment order; [`Node::Replace`] stamps
+//! its overlay only on the part of the band where the region's weight is non-zero; operators
+//! combine their children's band buffers pixel by pixel with the same function as
+//! [`Node::eval`]. Every node kind therefore rasterises bit for bit like point evaluation
+//! (tested for each kind and for random trees).
+//!
+//! Point queries visit only nearby primitives: each layer and each carving river keeps a
+//! uniform-grid index of its supports (disks, segment boxes).
+//!
 //! Pixel `(X, Y)` of the raster at scale factor `s` samples the terrain at pixel coordinates
 //! `(X / s, Y / s)` of the encoded grid; the full raster has `floor((w - 1) s) + 1` columns.
 
@@ -69,7 +80,7 @@ impl Placement {
 
 /// Uniform-grid spatial index: each cell lists (in increasing order) the primitives whose
 /// support bounding box meets it, so a point query visits only nearby primitives.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 struct SpatialIndex {
     origin: [f64; 2],
     cell: f64,
@@ -79,13 +90,26 @@ struct SpatialIndex {
     ids: Vec<u32>,
 }
 
+/// Largest number of cells per axis of a [`SpatialIndex`] (the cell grows beyond the preferred
+/// size when the boxes are spread far apart, so the index never takes more than ~1M cells).
+const INDEX_MAX_CELLS_PER_AXIS: f64 = 1024.0;
+
 impl SpatialIndex {
+    /// Index of disks of radius `radius` around `centres`.
     fn build(centres: &[[f64; 2]], radius: f64) -> Self {
-        let cell = 2.0 * radius;
-        if centres.is_empty() {
+        let boxes: Vec<[f64; 4]> = centres
+            .iter()
+            .map(|c| [c[0] - radius, c[1] - radius, c[0] + radius, c[1] + radius])
+            .collect();
+        Self::from_boxes(&boxes, 2.0 * radius)
+    }
+
+    /// Index of axis-aligned boxes `[x0, y0, x1, y1]` (finite) with preferred cell side `cell`.
+    fn from_boxes(boxes: &[[f64; 4]], cell: f64) -> Self {
+        if boxes.is_empty() {
             return Self {
                 origin: [0.0, 0.0],
-                cell,
+                cell: 1.0,
                 nx: 1,
                 ny: 1,
                 starts: vec![0, 0],
@@ -93,14 +117,29 @@ impl SpatialIndex {
             };
         }
         let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-        for c in centres {
-            x0 = x0.min(c[0] - radius);
-            y0 = y0.min(c[1] - radius);
-            x1 = x1.max(c[0] + radius);
-            y1 = y1.max(c[1] + radius);
+        for b in boxes {
+            x0 = x0.min(b[0]);
+            y0 = y0.min(b[1]);
+            x1 = x1.max(b[2]);
+            y1 = y1.max(b[3]);
         }
-        let nx = (((x1 - x0) / cell).floor() as usize + 1).max(1);
-        let ny = (((y1 - y0) / cell).floor() as usize + 1).max(1);
+        let extent = (x1 - x0).max(y1 - y0);
+        let cell = cell.max(extent / INDEX_MAX_CELLS_PER_AXIS);
+        let cell = if cell.is_finite() && cell > 0.0 {
+            cell
+        } else {
+            f64::MAX
+        };
+        let count = |span: f64| -> usize {
+            let n = (span / cell).floor();
+            if n.is_finite() && n >= 0.0 {
+                (n as usize).min(INDEX_MAX_CELLS_PER_AXIS as usize) + 1
+            } else {
+                1
+            }
+        };
+        let nx = count(x1 - x0);
+        let ny = count(y1 - y0);
         let mut idx = Self {
             origin: [x0, y0],
             cell,
@@ -110,11 +149,11 @@ impl SpatialIndex {
             ids: Vec::new(),
         };
         let mut counts = vec![0u32; nx * ny];
-        let ranges: Vec<(usize, usize, usize, usize)> = centres
+        let ranges: Vec<(usize, usize, usize, usize)> = boxes
             .iter()
-            .map(|c| {
-                let (ia, ib) = idx.span(c[0] - radius, c[0] + radius, 0);
-                let (ja, jb) = idx.span(c[1] - radius, c[1] + radius, 1);
+            .map(|b| {
+                let (ia, ib) = idx.span(b[0], b[2], 0);
+                let (ja, jb) = idx.span(b[1], b[3], 1);
                 (ia, ib, ja, jb)
             })
             .collect();
@@ -619,6 +658,21 @@ impl Region {
         }
     }
 
+    /// Box `[x0, y0, x1, y1]` outside which the overlay weight with `falloff` is 0.
+    fn bounds(&self, falloff: f64) -> [f64; 4] {
+        match *self {
+            Region::Rect { x0, y0, x1, y1 } => {
+                [x0 - falloff, y0 - falloff, x1 + falloff, y1 + falloff]
+            }
+            Region::Disk { cx, cy, r } => [
+                cx - r - falloff,
+                cy - r - falloff,
+                cx + r + falloff,
+                cy + r + falloff,
+            ],
+        }
+    }
+
     /// Overlay weight: 1 inside, smooth (C1, `3t^2 - 2t^3`) decay to 0 at `falloff` outside.
     fn weight(&self, x: f64, y: f64, falloff: f64) -> f64 {
         let d = self.signed_distance(x, y);
@@ -673,6 +727,12 @@ pub struct River {
     depth: Vec<f64>,
     mode: RiverMode,
     bbox: [f64; 4],
+    /// Largest half width.
+    wmax: f64,
+    /// Segment boxes expanded by `wmax` (and a relative margin), for the carve's stamps.
+    seg_boxes: Vec<[f64; 4]>,
+    /// Index of `seg_boxes`: a point query visits only the segments near it.
+    index: SpatialIndex,
 }
 
 impl River {
@@ -743,12 +803,45 @@ impl River {
             bbox[2] = bbox[2].max(p[0] + wmax);
             bbox[3] = bbox[3].max(p[1] + wmax);
         }
+        if !bbox.iter().all(|v| v.is_finite()) {
+            return Err(SparseError::param(
+                "path",
+                format!("{bbox:?}"),
+                "the river's extent (path +- half width) must be finite",
+            ));
+        }
+        // Every segment within `wmax` of a point has the point inside its expanded box (the
+        // margin absorbs rounding), so the index and the stamps see every segment that can
+        // carve the point (see `River::eval`).
+        let m =
+            wmax * (1.0 + 1e-9) + 1e-9 * (1.0 + bbox.iter().fold(0.0f64, |a, v| a.max(v.abs())));
+        let seg_boxes: Vec<[f64; 4]> = path
+            .windows(2)
+            .map(|w| {
+                [
+                    w[0][0].min(w[1][0]) - m,
+                    w[0][1].min(w[1][1]) - m,
+                    w[0][0].max(w[1][0]) + m,
+                    w[0][1].max(w[1][1]) + m,
+                ]
+            })
+            .collect();
+        // Cell of about two half widths, grown so that the boxes cover at most ~4M cells.
+        let area: f64 = seg_boxes
+            .iter()
+            .map(|b| (b[2] - b[0]) * (b[3] - b[1]))
+            .sum();
+        let cell = (2.0 * m).max((area / f64::from(1u32 << 22)).sqrt());
+        let index = SpatialIndex::from_boxes(&seg_boxes, cell);
         Ok(Self {
             path,
             half_width,
             depth,
             mode,
             bbox,
+            wmax,
+            seg_boxes,
+            index,
         })
     }
 
@@ -772,37 +865,49 @@ impl River {
         &self.mode
     }
 
-    /// Distance to the polyline and the interpolation position `(segment, t)`.
-    fn nearest(&self, x: f64, y: f64) -> (f64, usize, f64) {
-        let mut best = (f64::MAX, 0usize, 0.0f64);
-        for s in 0..self.path.len() - 1 {
-            let [ax, ay] = self.path[s];
-            let [bx, by] = self.path[s + 1];
-            let (ux, uy) = (bx - ax, by - ay);
-            let l2 = ux * ux + uy * uy;
-            let t = if l2 > 0.0 {
-                (((x - ax) * ux + (y - ay) * uy) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let (px, py) = (ax + t * ux - x, ay + t * uy - y);
-            let d2 = px * px + py * py;
-            if d2 < best.0 {
-                best = (d2, s, t);
-            }
-        }
-        (best.0.sqrt(), best.1, best.2)
+    /// Squared distance from `(x, y)` to segment `s` and the position `t` of the nearest point.
+    #[inline]
+    fn segment_d2(&self, s: usize, x: f64, y: f64) -> (f64, f64) {
+        let [ax, ay] = self.path[s];
+        let [bx, by] = self.path[s + 1];
+        let (ux, uy) = (bx - ax, by - ay);
+        let l2 = ux * ux + uy * uy;
+        let t = if l2 > 0.0 {
+            (((x - ax) * ux + (y - ay) * uy) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (px, py) = (ax + t * ux - x, ay + t * uy - y);
+        (px * px + py * py, t)
     }
 
-    /// Value of the river at `(x, y)`.
-    pub fn eval(&self, x: f64, y: f64) -> f64 {
+    /// Nearest of the segments `segs` (increasing order; the first of equal distances wins):
+    /// `(squared distance, segment, t)`, or `None` when `segs` is empty.
+    fn nearest_of(
+        &self,
+        segs: impl Iterator<Item = usize>,
+        x: f64,
+        y: f64,
+    ) -> Option<(f64, usize, f64)> {
+        let mut best: Option<(f64, usize, f64)> = None;
+        for s in segs {
+            let (d2, t) = self.segment_d2(s, x, y);
+            if best.is_none_or(|b| d2 < b.0) {
+                best = Some((d2, s, t));
+            }
+        }
+        best
+    }
+
+    /// Value of the river for the nearest point `(segment s, t)` at squared distance `d2`;
+    /// `None` (no nearest point) is only possible in carve mode and gives 0.
+    #[inline]
+    fn profile(&self, nearest: Option<(f64, usize, f64)>) -> f64 {
         let lerp = |v: &[f64], s: usize, t: f64| v[s] + (v[s + 1] - v[s]) * t;
-        match &self.mode {
-            RiverMode::Carve => {
-                if x < self.bbox[0] || y < self.bbox[1] || x > self.bbox[2] || y > self.bbox[3] {
-                    return 0.0;
-                }
-                let (d, s, t) = self.nearest(x, y);
+        match (&self.mode, nearest) {
+            (RiverMode::Carve, None) => 0.0,
+            (RiverMode::Carve, Some((d2, s, t))) => {
+                let d = d2.sqrt();
                 let w = lerp(&self.half_width, s, t);
                 if d >= w {
                     return 0.0;
@@ -810,12 +915,106 @@ impl River {
                 let q = 1.0 - (d / w) * (d / w);
                 -lerp(&self.depth, s, t) * q * q
             }
-            RiverMode::Bed(bed) => {
-                let (d, s, t) = self.nearest(x, y);
+            (RiverMode::Bed(bed), Some((d2, s, t))) => {
+                let d = d2.sqrt();
                 let w = lerp(&self.half_width, s, t);
                 lerp(bed, s, t) + lerp(&self.depth, s, t) * (d / w) * (d / w)
             }
+            (RiverMode::Bed(_), None) => f64::NAN,
         }
+    }
+
+    fn outside_bbox(&self, x: f64, y: f64) -> bool {
+        x < self.bbox[0] || y < self.bbox[1] || x > self.bbox[2] || y > self.bbox[3]
+    }
+
+    /// Value of the river at `(x, y)`.
+    ///
+    /// The carve is 0 farther than the largest half width `wmax` from the path, so it only
+    /// looks at the segments the spatial index lists for the point's cell: those include every
+    /// segment within `wmax`, hence the nearest segment whenever the value is not 0, and the
+    /// first-of-equals rule picks the same segment as a scan of all segments. The bed profile
+    /// is defined everywhere and scans every segment.
+    pub fn eval(&self, x: f64, y: f64) -> f64 {
+        match &self.mode {
+            RiverMode::Carve => {
+                if self.outside_bbox(x, y) {
+                    return 0.0;
+                }
+                let segs = self.index.cell_ids(x, y).iter().map(|&s| s as usize);
+                self.profile(self.nearest_of(segs, x, y))
+            }
+            RiverMode::Bed(_) => self.profile(self.nearest_of(0..self.path.len() - 1, x, y)),
+        }
+    }
+
+    /// Number of segments a carve point query at `(x, y)` visits (all of them in bed mode).
+    pub fn candidates_at(&self, x: f64, y: f64) -> usize {
+        match self.mode {
+            RiverMode::Carve if self.outside_bbox(x, y) => 0,
+            RiverMode::Carve => self.index.cell_ids(x, y).len(),
+            RiverMode::Bed(_) => self.path.len() - 1,
+        }
+    }
+
+    /// Rasterises the river into `val` (band-sized) by stamping segments: each segment updates
+    /// the running nearest `(d2, segment, t)` of the pixels of its expanded box (carve) or of
+    /// the whole band (bed), in increasing segment order, then every pixel takes
+    /// [`River::profile`]. Same arithmetic and tie rule as [`River::eval`], so equal bit for
+    /// bit.
+    fn stamp(&self, band: &Band, val: &mut [f64]) {
+        let ncols = band.x1 - band.x0;
+        let sc = band.scale;
+        let n = val.len();
+        let mut best: Vec<Option<(f64, usize, f64)>> = vec![None; n];
+        let carve = matches!(self.mode, RiverMode::Carve);
+        for (s, b) in self.seg_boxes.iter().enumerate() {
+            let (xa, xb, ya, yb) = if carve {
+                let xa = ((b[0] * sc).floor() as i64 - 1).max(band.x0 as i64);
+                let xb = ((b[2] * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
+                let ya = ((b[1] * sc).floor() as i64 - 1).max(band.y0 as i64);
+                let yb = ((b[3] * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+                (xa, xb, ya, yb)
+            } else {
+                (
+                    band.x0 as i64,
+                    band.x1 as i64 - 1,
+                    band.y0 as i64,
+                    band.y1 as i64 - 1,
+                )
+            };
+            if xa > xb || ya > yb {
+                continue;
+            }
+            for yi in ya..=yb {
+                let y = yi as f64 / sc;
+                let row = (yi as usize - band.y0) * ncols;
+                for xi in xa..=xb {
+                    let x = xi as f64 / sc;
+                    let o = row + (xi as usize - band.x0);
+                    let (d2, t) = self.segment_d2(s, x, y);
+                    if best[o].is_none_or(|p| d2 < p.0) {
+                        best[o] = Some((d2, s, t));
+                    }
+                }
+            }
+        }
+        for (k, (v, b)) in val.iter_mut().zip(&best).enumerate() {
+            if carve {
+                let x = (band.x0 + k % ncols) as f64 / sc;
+                let y = (band.y0 + k / ncols) as f64 / sc;
+                if self.outside_bbox(x, y) {
+                    *v = 0.0;
+                    continue;
+                }
+            }
+            *v = self.profile(*b);
+        }
+    }
+
+    /// Largest half width.
+    pub fn max_half_width(&self) -> f64 {
+        self.wmax
     }
 }
 
@@ -965,12 +1164,6 @@ impl Node {
     /// Rasterises the node into `val`/`wt` (band-sized, row-major).
     fn raster(&self, band: &Band, val: &mut [f64], wt: &mut [f64], scratch: &mut StampScratch) {
         let ncols = band.x1 - band.x0;
-        let world = |k: usize| {
-            (
-                (band.x0 + k % ncols) as f64 / band.scale,
-                (band.y0 + k / ncols) as f64 / band.scale,
-            )
-        };
         if let Some((kind, c)) = self.children_kind() {
             let n = val.len();
             let mut bufs: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(c.len());
@@ -1005,11 +1198,8 @@ impl Node {
                 wt.iter_mut().for_each(|v| *v = 1.0);
             }
             Node::River(r) => {
-                for k in 0..val.len() {
-                    let (x, y) = world(k);
-                    val[k] = r.eval(x, y);
-                    wt[k] = 1.0;
-                }
+                r.stamp(band, val);
+                wt.iter_mut().for_each(|v| *v = 1.0);
             }
             Node::Replace {
                 base,
@@ -1018,14 +1208,36 @@ impl Node {
                 falloff,
             } => {
                 base.raster(band, val, wt, scratch);
-                let n = val.len();
-                let mut ov = vec![0.0; n];
-                let mut ow = vec![0.0; n];
-                overlay.raster(band, &mut ov, &mut ow, scratch);
-                for k in 0..n {
-                    let (x, y) = world(k);
+                // The overlay is only rasterised (stamped) on the part of the band where the
+                // region's weight can be > 0: its box grown by the fall-off (and a pixel).
+                // Elsewhere the weight is 0 and the base value is kept, as in `eval`.
+                let [bx0, by0, bx1, by1] = region.bounds(*falloff);
+                let sc = band.scale;
+                let xa = ((bx0 * sc).floor() as i64 - 1).max(band.x0 as i64);
+                let xb = ((bx1 * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
+                let ya = ((by0 * sc).floor() as i64 - 1).max(band.y0 as i64);
+                let yb = ((by1 * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+                if xa > xb || ya > yb {
+                    return;
+                }
+                let sub = Band {
+                    x0: xa as usize,
+                    x1: xb as usize + 1,
+                    y0: ya as usize,
+                    y1: yb as usize + 1,
+                    scale: sc,
+                };
+                let sw = sub.x1 - sub.x0;
+                let sn = sw * (sub.y1 - sub.y0);
+                let mut ov = vec![0.0; sn];
+                let mut ow = vec![0.0; sn];
+                overlay.raster(&sub, &mut ov, &mut ow, scratch);
+                for j in 0..sn {
+                    let (xi, yi) = (sub.x0 + j % sw, sub.y0 + j / sw);
+                    let (x, y) = (xi as f64 / sc, yi as f64 / sc);
                     let t = region.weight(x, y, *falloff);
-                    let (v, w) = replace_combine((val[k], wt[k]), (ov[k], ow[k]), t);
+                    let k = (yi - band.y0) * ncols + (xi - band.x0);
+                    let (v, w) = replace_combine((val[k], wt[k]), (ov[j], ow[j]), t);
                     val[k] = v;
                     wt[k] = w;
                 }
