@@ -268,6 +268,7 @@ pub struct Raster {
 ///
 /// `.f32` files take their size and cell size from the `.json` sidecar with the same stem.
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    check_max_cells(opts)?;
     // No format needs more than 32 bytes per cell (ASCII text), so a larger file is refused
     // before it is read into memory.
     let len = std::fs::metadata(path)
@@ -291,20 +292,21 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let res = match format {
         Format::F32Sidecar => sidecar::read_f32_file(path, &bytes, opts),
         Format::JsonGrid => sidecar::read_json_any(path, &bytes, opts),
-        _ => read_bytes(&bytes, Some(path), opts),
+        _ => return read_bytes(&bytes, Some(path), opts).map_err(|e| e.in_file(path)),
     };
-    res.map_err(|e| e.in_file(path))
+    let mut raster = res.map_err(|e| e.in_file(path))?;
+    if let Some((cx, cy)) = opts.cell_size {
+        raster
+            .heightfield
+            .set_cell_size(cx, cy)
+            .map_err(|e| IoError::from(e).in_file(path))?;
+    }
+    Ok(raster)
 }
 
 /// Reads a raster from memory; `hint` is a file name used for formats without magic bytes.
 pub fn read_bytes(bytes: &[u8], hint: Option<&Path>, opts: &ReadOptions) -> Result<Raster> {
-    if opts.max_cells == 0 || opts.max_cells > relief_heightfield::MAX_CELLS {
-        return Err(IoError::param(
-            "max_cells",
-            opts.max_cells,
-            format!("must be in 1..={}", relief_heightfield::MAX_CELLS),
-        ));
-    }
+    check_max_cells(opts)?;
     let format = Format::detect(bytes, hint)?;
     let mut raster = match format {
         Format::GeoTiff => geotiff::read(bytes, opts),
@@ -331,6 +333,43 @@ pub fn read_bytes(bytes: &[u8], hint: Option<&Path>, opts: &ReadOptions) -> Resu
         raster.heightfield.set_cell_size(cx, cy)?;
     }
     Ok(raster)
+}
+
+/// Reads `.f32` data from memory with the text of its `.json` sidecar (`None`: the size comes
+/// from `opts.width/height`, or a square), as [`read`] does for a `.f32` file on disk.
+pub fn read_f32_sidecar_bytes(
+    data: &[u8],
+    sidecar_json: Option<&[u8]>,
+    opts: &ReadOptions,
+) -> Result<Raster> {
+    check_max_cells(opts)?;
+    let side = sidecar_json
+        .map(|t| sidecar::parse_sidecar_text(t, "json"))
+        .transpose()?;
+    let mut raster = sidecar::read_f32_bytes(data, side, opts)?;
+    if let Some((cx, cy)) = opts.cell_size {
+        raster.heightfield.set_cell_size(cx, cy)?;
+    }
+    Ok(raster)
+}
+
+fn check_max_cells(opts: &ReadOptions) -> Result<()> {
+    if opts.max_cells == 0 || opts.max_cells > relief_heightfield::MAX_CELLS {
+        return Err(IoError::param(
+            "max_cells",
+            opts.max_cells,
+            format!("must be in 1..={}", relief_heightfield::MAX_CELLS),
+        ));
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same directory (hidden name
+/// `.<name>.tmp-<pid>-<n>`) is written, synced and renamed over `path`. On error the temporary
+/// file is removed and `path` is untouched (an existing file keeps its old content). For
+/// non-raster outputs (`.sct`, dictionaries, reports).
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    atomic::write_atomic(path, bytes)
 }
 
 /// Writes `hf` to `path` atomically; the format comes from `opts.format` or the extension

@@ -105,18 +105,31 @@ pub(crate) fn read_f32_bytes(
     )
 }
 
+/// Largest sidecar JSON accepted (bytes).
+const SIDECAR_LIMIT: usize = 1 << 20;
+
+/// Parses sidecar JSON text; `name` names it in errors.
+pub(crate) fn parse_sidecar_text(text: &[u8], name: &str) -> Result<Sidecar> {
+    if text.len() > SIDECAR_LIMIT {
+        return Err(IoError::malformed(
+            Format::F32Sidecar,
+            format!(
+                "sidecar {name} is {} bytes, more than the {SIDECAR_LIMIT} allowed",
+                text.len()
+            ),
+        ));
+    }
+    let v: Value = serde_json::from_slice(text)
+        .map_err(|e| IoError::malformed(Format::F32Sidecar, format!("sidecar {name}: {e}")))?;
+    parse_sidecar(&v)
+}
+
 /// Reads `path` (`.f32`) with the sidecar `<stem>.json` next to it when present.
 pub(crate) fn read_f32_file(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let json_path = path.with_extension("json");
     let side = if json_path.is_file() {
-        let text = read_limited(&json_path, 1 << 20)?;
-        let v: Value = serde_json::from_slice(&text).map_err(|e| {
-            IoError::malformed(
-                Format::F32Sidecar,
-                format!("sidecar {}: {e}", json_path.display()),
-            )
-        })?;
-        Some(parse_sidecar(&v)?)
+        let text = read_limited(&json_path, SIDECAR_LIMIT as u64)?;
+        Some(parse_sidecar_text(&text, &json_path.display().to_string())?)
     } else {
         None
     };
