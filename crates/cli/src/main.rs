@@ -43,6 +43,9 @@ enum Command {
     Convert(commands::convert::Args),
     /// Write a shaded-relief preview PNG (hillshade blended with an elevation colour ramp).
     Preview(commands::preview::Args),
+    /// 3D landforms (sea caves, karst, hoodoos, arches, floating islands) on an implicit tree
+    /// built from the DEM (paris2018); writes a mesh, a render and a vertical section.
+    Volume(commands::volume::Args),
     /// Compress a terrain into a sparse construction tree (.sct): dictionary + Batch-OMP.
     Compress(commands::compress::Args),
     /// Rasterise a .sct at any scale or window into any raster format.
@@ -77,6 +80,7 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),
         Command::Preview(args) => commands::preview::run(args, &ctx),
+        Command::Volume(args) => commands::volume::run(args, &ctx),
         Command::Compress(args) => commands::compress::run(args, &ctx),
         Command::Decompress(args) => commands::decompress::run(args, &ctx),
         Command::Amplify(args) => commands::amplify::run(args, &ctx),

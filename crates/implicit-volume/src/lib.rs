@@ -47,6 +47,7 @@ mod error;
 pub mod geology;
 pub mod math;
 pub mod mesh;
+pub mod recipe;
 pub mod render;
 pub mod scene;
 pub mod tree;
@@ -57,6 +58,7 @@ pub use math::{Aabb, V3};
 pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, polygonize, polygonize_grid, sample_grid, topology,
 };
+pub use recipe::{Deviation, Feature, Recipe, RecipeReport, build_recipe};
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,

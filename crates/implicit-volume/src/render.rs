@@ -80,7 +80,17 @@ impl Default for RenderSettings {
 }
 
 /// Sphere-traces a ray; returns the hit distance.
-fn trace(scene: &Scene, o: V3, d: V3, tmax_user: f32, max_steps: u32) -> Option<f32> {
+/// `cone`: smallest step per unit distance (a pixel's angle; 0 = exact sphere tracing), the
+/// distance counted from `bias` before the ray's origin (a shadow ray starts at the hit).
+fn trace(
+    scene: &Scene,
+    o: V3,
+    d: V3,
+    tmax_user: f32,
+    max_steps: u32,
+    cone: f32,
+    bias: f32,
+) -> Option<f32> {
     let b = scene.bbox();
     // Slab test.
     let (mut t0, mut t1) = (0.0f32, tmax_user);
@@ -99,24 +109,59 @@ fn trace(scene: &Scene, o: V3, d: V3, tmax_user: f32, max_steps: u32) -> Option<
     let diag = norm(b.size());
     let eps = 1e-4 * diag;
     let mut t = t0;
+    let mut t_prev = t0;
     let mut r = 0.02 * diag;
+    // Hit found between `a` (air) and `b` (matter): refine by bisection.
+    let refine = |mut a: f32, mut b: f32| {
+        for _ in 0..10 {
+            let m = 0.5 * (a + b);
+            if scene.field(add(o, mul(d, m))) > THRESHOLD {
+                b = m;
+            } else {
+                a = m;
+            }
+        }
+        b
+    };
     for _ in 0..max_steps {
         if t > t1 {
             return None;
         }
         let p = add(o, mul(d, t));
-        let f = scene.field(p);
-        if f > THRESHOLD {
-            return Some(t);
+        // A ball proven empty by interval arithmetic: jump across it and try a larger one.
+        if scene.max_over(&Aabb::sphere(p, r)) <= THRESHOLD {
+            t_prev = t;
+            t += r;
+            r *= 2.0;
+            continue;
         }
-        let l = scene.lipschitz(&Aabb::sphere(p, r)).max(1e-9);
-        let step = (THRESHOLD - f) / l;
+        // In air of the carving-free tree (upper >= f), its cheaper bound gives a safe step.
+        let step = match scene.upper_field(p) {
+            Some(u) if u < THRESHOLD => {
+                let l = scene
+                    .upper_bound(p, &Aabb::sphere(p, r))
+                    .map_or(1e-9, |x| x.1);
+                (THRESHOLD - u) / l.max(1e-9)
+            }
+            _ => {
+                let f = scene.field(p);
+                if f > THRESHOLD {
+                    return Some(if t > t_prev { refine(t_prev, t) } else { t });
+                }
+                let l = scene.lipschitz(&Aabb::sphere(p, r)).max(1e-9);
+                (THRESHOLD - f) / l
+            }
+        };
+        t_prev = t;
         if step >= r {
             t += r;
             r *= 2.0;
         } else {
-            t += step.max(eps);
-            r = (2.0 * step).max(4.0 * eps);
+            // Cone marching: never step less than the pixel footprint (features thinner than
+            // a pixel may be skipped, a hit is then refined by bisection).
+            let s = step.max(eps).max(cone * (t + bias));
+            t += s;
+            r = (2.0 * s).max(4.0 * eps);
         }
     }
     None
@@ -140,6 +185,7 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
     let light = normalize(s.light);
     let th = (0.5 * cam.fov_deg.to_radians()).tan();
     let aspect = s.width as f32 / s.height as f32;
+    let cone = th / s.height as f32;
     let b = scene.bbox();
     let diag = norm(b.size());
     let h = 1e-3 * diag;
@@ -153,7 +199,8 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                 let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
                 let d = normalize(add(fwd, add(mul(right, u), mul(up, v))));
                 let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
-                let mut col = match trace(scene, cam.eye, d, 1e30, s.max_steps) {
+                let hit = trace(scene, cam.eye, d, 1e30, s.max_steps, cone, 0.0);
+                let mut col = match hit {
                     None => sky,
                     Some(t) => {
                         let p = add(cam.eye, mul(d, t));
@@ -161,8 +208,16 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                         let mut lam = dot(n, light).max(0.0);
                         if s.shadows
                             && lam > 0.0
-                            && trace(scene, add(p, mul(n, 4.0 * h)), light, 1e30, s.max_steps / 2)
-                                .is_some()
+                            && trace(
+                                scene,
+                                add(p, mul(n, 4.0 * h)),
+                                light,
+                                1e30,
+                                s.max_steps / 2,
+                                cone,
+                                t,
+                            )
+                            .is_some()
                         {
                             lam *= 0.15;
                         }
@@ -182,8 +237,7 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                     && d[2] < 0.0
                 {
                     let ts = (sea - cam.eye[2]) / d[2];
-                    let hit = trace(scene, cam.eye, d, ts, s.max_steps);
-                    if ts > 0.0 && hit.is_none() {
+                    if ts > 0.0 && hit.is_none_or(|t| t > ts) {
                         col = add(mul(col, 0.35), [0.05, 0.2, 0.4]);
                     }
                 }
@@ -253,6 +307,7 @@ pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStat
             let px = s.start[0] + t * (s.end[0] - s.start[0]);
             let py = s.start[1] + t * (s.end[1] - s.start[1]);
             let ground = scene.dem_height(px, py);
+            let floor = scene.dem_floor().unwrap_or(f32::NEG_INFINITY);
             let mut col = vec![0u8; s.height * 3];
             let mut st = SectionStats::default();
             let mut matter_above = false;
@@ -264,7 +319,7 @@ pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStat
                     st.solid += 1;
                     let r = scene.resistance(p);
                     [0.85 - 0.5 * r, 0.75 - 0.45 * r, 0.55 - 0.35 * r]
-                } else if ground.is_some_and(|g| z < g) {
+                } else if z > floor && ground.is_some_and(|g| z < g) {
                     st.carved += 1;
                     if matter_above {
                         st.enclosed += 1;

@@ -40,7 +40,7 @@ impl Region {
             bbox: Some(b),
         }
     }
-    fn check(&self, f: &DemFrame) -> Result<()> {
+    pub(crate) fn check(&self, f: &DemFrame) -> Result<()> {
         if let Some(m) = &self.mask {
             if m.len() != f.width * f.height {
                 return Err(Error::param(
@@ -461,6 +461,51 @@ impl SceneBuilder {
     /// Every carving sphere placed by the generators: (centre, support radius, is-karst).
     pub fn carvings(&self) -> &[(V3, f32, bool)] {
         &self.carved
+    }
+
+    /// Implicitisation deviation: at up to `max_samples` interior DEM nodes (a regular
+    /// stride), the root of `f = T` of the heightfield primitive alone is found by bisection
+    /// along the vertical and compared with the DEM sample.
+    pub fn implicitization_deviation(&self, max_samples: usize) -> crate::recipe::Deviation {
+        let f = self.frame;
+        let interior = (f.width.saturating_sub(2)) * (f.height.saturating_sub(2));
+        if interior == 0 || max_samples == 0 {
+            return crate::recipe::Deviation::default();
+        }
+        let stride = ((interior as f64 / max_samples as f64).sqrt().ceil() as usize).max(1);
+        let mut pts = Vec::new();
+        for i in (1..f.height - 1).step_by(stride) {
+            for j in (1..f.width - 1).step_by(stride) {
+                pts.push((j, i));
+            }
+        }
+        let floor = self.tree.dem_floor(self.hf).unwrap_or(f32::NEG_INFINITY);
+        let devs: Vec<f32> = pts
+            .par_iter()
+            .map(|&(j, i)| {
+                let z = self.dem_at(j, i);
+                let p = f.node(j, i, z);
+                // Inside half-way to the floor, air above the DEM's top.
+                let d = 0.5 * (z - floor).min(1e4);
+                let (mut lo, mut hi) = (z - d, z + d);
+                for _ in 0..48 {
+                    let m = 0.5 * (lo + hi);
+                    if self.tree.eval(self.hf, [p[0], p[1], m]) > THRESHOLD {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                (0.5 * (lo + hi) - z).abs()
+            })
+            .collect();
+        let max = devs.iter().cloned().fold(0.0, f32::max);
+        let mean = (devs.iter().map(|&d| d as f64).sum::<f64>() / devs.len() as f64) as f32;
+        crate::recipe::Deviation {
+            max,
+            mean,
+            samples: devs.len(),
+        }
     }
 
     /// Bilinear DEM elevation at scene `(x, y)`.
@@ -1172,6 +1217,7 @@ impl SceneBuilder {
     /// primitive is visited by each query: for comparisons only).
     pub fn build(mut self, use_bvh: bool) -> Result<Scene> {
         let mut root = self.hf;
+        let mut upper = self.hf;
         if !self.negatives.is_empty() {
             if use_bvh {
                 let n = self.tree.bvh_blend(&self.negatives)?;
@@ -1189,8 +1235,11 @@ impl SceneBuilder {
                 self.tree.blend(&self.positives)?
             };
             root = self.tree.union(root, p)?;
+            upper = self.tree.union(self.hf, p)?;
         }
-        Scene::new(self.tree, root, self.geology, Some((self.hf, self.frame)))
+        let mut scene = Scene::new(self.tree, root, self.geology, Some((self.hf, self.frame)))?;
+        scene.upper = Some(upper);
+        Ok(scene)
     }
 }
 
@@ -1202,6 +1251,9 @@ pub struct Scene {
     geology: Geology,
     dem: Option<(NodeId, DemFrame)>,
     bbox: Aabb,
+    /// The tree without its carvings: `f <= upper` everywhere (carvings only lower the field),
+    /// so `{f > T}` lies inside `{upper > T}`; the tracer steps by this cheaper bound in air.
+    upper: Option<NodeId>,
 }
 
 impl Scene {
@@ -1230,7 +1282,25 @@ impl Scene {
             geology,
             dem,
             bbox,
+            upper: None,
         })
+    }
+    /// Upper bound `u >= f` from the tree without carvings, with its Lipschitz bound over
+    /// `region`, when the scene was built by [`SceneBuilder::build`].
+    pub fn upper_bound(&self, p: V3, region: &Aabb) -> Option<(f32, f32)> {
+        let u = self.upper?;
+        Some((self.tree.eval(u, p), self.tree.lipschitz(u, region)))
+    }
+    /// Upper end of a conservative range of `f` over `region`, from the carving-free tree when
+    /// there is one (cheaper) or the whole tree: `<= T` proves `region` is air.
+    pub fn max_over(&self, region: &Aabb) -> f32 {
+        self.tree
+            .interval(self.upper.unwrap_or(self.root), region)
+            .1
+    }
+    /// Value of the carving-free upper bound at `p` (see [`Scene::upper_bound`]).
+    pub fn upper_field(&self, p: V3) -> Option<f32> {
+        self.upper.map(|u| self.tree.eval(u, p))
     }
     /// Field `f(p)`: matter where `f > T` ([`THRESHOLD`]).
     #[inline]
@@ -1276,6 +1346,11 @@ impl Scene {
     pub fn dem_height(&self, x: f32, y: f32) -> Option<f32> {
         let (id, _) = self.dem?;
         self.tree.dem_height(id, x, y)
+    }
+    /// Elevation of the implicitised DEM's closing floor, if the scene has one.
+    pub fn dem_floor(&self) -> Option<f32> {
+        let (id, _) = self.dem?;
+        self.tree.dem_floor(id)
     }
     /// The DEM frame, if any.
     pub fn dem_frame(&self) -> Option<DemFrame> {

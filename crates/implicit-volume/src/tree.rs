@@ -353,6 +353,14 @@ impl TerrainTree {
         }
     }
 
+    /// Elevation of the closing floor of heightfield primitive `id`.
+    pub fn dem_floor(&self, id: NodeId) -> Option<f32> {
+        match self.nodes.get(id.0 as usize)? {
+            Node::Heightfield(k) => Some(self.hfs[*k as usize].z_bottom),
+            _ => None,
+        }
+    }
+
     /// N-ary blend (sum of the children's fields), evaluated by visiting every child.
     pub fn blend(&mut self, items: &[NodeId]) -> Result<NodeId> {
         let first = self.children.len() as u32;

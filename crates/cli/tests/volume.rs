@@ -1,0 +1,199 @@
+//! `relief volume` end to end on crops of the bundled fixture `fixtures/grandcanyon.tif`
+//! (western Grand Canyon, 61.7 m cells): outputs, printed counts, masks and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn relief(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn fixture() -> PathBuf {
+    relief_testdata::workspace_root().join("fixtures/grandcanyon.tif")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Width and height from a PNG's IHDR chunk.
+fn png_size(p: &Path) -> (u32, u32) {
+    let b = std::fs::read(p).unwrap();
+    assert_eq!(&b[1..4], b"PNG", "{} is not a PNG", p.display());
+    let be = |o: usize| u32::from_be_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+    (be(16), be(20))
+}
+
+fn assert_failed_cleanly(out: &Output, needle: &str, files: &[&Path]) {
+    assert!(!out.status.success(), "should fail");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "one stderr line: {err}");
+    assert!(err.contains(needle), "`{needle}` not in: {err}");
+    for f in files {
+        assert!(!f.exists(), "{} was written", f.display());
+    }
+}
+
+#[test]
+fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb, png, sec) = (
+        dir.path().join("scene.glb"),
+        dir.path().join("render.png"),
+        dir.path().join("section.png"),
+    );
+    let input = fixture();
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--crop",
+        "200,160,32,32",
+        "--features",
+        "sea,caves,karst,hoodoos,arches,islands,overhangs",
+        "--mesh",
+        s(&glb),
+        "--render",
+        s(&png),
+        "--section",
+        s(&sec),
+        "--image-size",
+        "64x48",
+        "--resolution",
+        "1",
+        "--seed",
+        "3",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\nstderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for key in [
+        "tree:",
+        "nodes",
+        "karst:",
+        "hoodoos:",
+        "watertight, manifold",
+        "implicitise:",
+    ] {
+        assert!(stdout.contains(key), "`{key}` missing:\n{stdout}");
+    }
+    // Every requested feature added primitives to the tree.
+    for f in ["sea", "karst", "overhangs", "hoodoos", "arches", "islands"] {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{f}:")))
+            .unwrap_or_else(|| panic!("no `{f}` line:\n{stdout}"));
+        let n: usize = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert!(n > 0, "{line}");
+    }
+    let g = std::fs::read(&glb).unwrap();
+    assert_eq!(&g[..4], b"glTF");
+    assert!(g.len() > 10_000, "{} bytes", g.len());
+    assert_eq!(png_size(&png), (64, 48));
+    assert_eq!(png_size(&sec), (64, 48));
+}
+
+#[test]
+fn volume_mesh_formats_and_mask_limit_the_effects() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture();
+    // A mask of zeros switches the karst off; PLY and OBJ are written too.
+    let mask = dir.path().join("mask.png");
+    relief_io::write_gray_png(&mask, 24, 24, &[0u8; 24 * 24]).unwrap();
+    for ext in ["ply", "obj"] {
+        let mesh = dir.path().join(format!("m.{ext}"));
+        let out = relief(&[
+            "volume",
+            s(&input),
+            "--crop",
+            "100,100,24,24",
+            "--features",
+            "karst",
+            "--mask",
+            s(&mask),
+            "--mesh",
+            s(&mesh),
+            "--resolution",
+            "1",
+        ]);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains("karst:        0 primitives"), "{stdout}");
+        let head = std::fs::read(&mesh).unwrap();
+        match ext {
+            "ply" => assert!(head.starts_with(b"ply\n")),
+            _ => assert!(head.starts_with(b"v ") || head.starts_with(b"#")),
+        }
+    }
+    // A full mask lets it carve.
+    let full = dir.path().join("full.png");
+    relief_io::write_gray_png(&full, 24, 24, &[255u8; 24 * 24]).unwrap();
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--crop",
+        "100,100,24,24",
+        "--features",
+        "karst",
+        "--mask",
+        s(&full),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(!stdout.contains("karst:        0 primitives"), "{stdout}");
+}
+
+#[test]
+fn volume_rejects_bad_input_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture();
+    let glb = dir.path().join("o.glb");
+    let png = dir.path().join("o.png");
+    let base = |extra: &[&str]| {
+        let mut v = vec![
+            "volume",
+            s(&input),
+            "--crop",
+            "0,0,16,16",
+            "--mesh",
+            s(&glb),
+            "--render",
+            s(&png),
+        ];
+        v.extend_from_slice(extra);
+        relief(&v)
+    };
+    let out = base(&["--features", "sea,volcano"]);
+    assert_failed_cleanly(&out, "volcano", &[&glb, &png]);
+
+    let small = dir.path().join("small.png");
+    relief_io::write_gray_png(&small, 8, 8, &[255u8; 64]).unwrap();
+    let out = base(&["--mask", s(&small)]);
+    assert_failed_cleanly(&out, "8x8", &[&glb, &png]);
+
+    let out = base(&["--sea-level", "NaN"]);
+    assert_failed_cleanly(&out, "sea_level", &[&glb, &png]);
+
+    // A DEM with a void (NaN) cannot be implicitised.
+    let raster = relief_io::read(&input, &relief_io::ReadOptions::default()).unwrap();
+    let mut hf = raster.heightfield.crop(0, 0, 16, 16).unwrap();
+    hf.set(5, 5, f32::NAN);
+    let holed = dir.path().join("holed.tif");
+    relief_io::write(&holed, &hf, &relief_io::WriteOptions::default()).unwrap();
+    let out = relief(&["volume", s(&holed), "--mesh", s(&glb), "--render", s(&png)]);
+    assert_failed_cleanly(&out, "void", &[&glb, &png]);
+
+    let bad_ext = dir.path().join("o.stl");
+    let out = relief(&["volume", s(&input), "--mesh", s(&bad_ext)]);
+    assert_failed_cleanly(&out, ".glb", &[&bad_ext]);
+}
