@@ -134,6 +134,9 @@ pub(crate) struct Section {
     pub(crate) seconds: f64,
     /// Peak resident memory while the stage ran (Linux `VmHWM`, reset between stages), bytes.
     pub(crate) peak_memory_bytes: Option<u64>,
+    /// How far the peak rose above the resident memory when the stage started (memory the
+    /// stage itself needed at its peak), bytes.
+    pub(crate) peak_rise_bytes: Option<u64>,
     /// Named figures (numbers, strings, small objects), in insertion order of their names.
     pub(crate) figures: BTreeMap<String, Value>,
     /// Names of the figures also shown in the summary table at the top of the report.
@@ -159,6 +162,7 @@ impl Section {
             stage: stage.to_string(),
             seconds: 0.0,
             peak_memory_bytes: None,
+            peak_rise_bytes: None,
             figures: BTreeMap::new(),
             headlines: Vec::new(),
             notes: Vec::new(),
@@ -378,6 +382,9 @@ pub(crate) struct Report {
     /// Input versus final terrain (hillshades, spectra, statistics), shown first.
     pub(crate) overview: Option<Section>,
     pub(crate) stages: Vec<Section>,
+    /// Resident memory when the current stage started (after the high-water mark was reset).
+    #[serde(skip)]
+    stage_start_rss: Option<u64>,
 }
 
 impl Report {
@@ -385,6 +392,7 @@ impl Report {
     pub(crate) fn new(title: &str, input: &Path, seed: u64) -> Self {
         reset_peak_memory();
         Self {
+            stage_start_rss: resident_memory_bytes(),
             title: title.to_string(),
             input: input.to_path_buf(),
             total_seconds: 0.0,
@@ -401,8 +409,13 @@ impl Report {
     pub(crate) fn push(&mut self, mut section: Section) {
         if section.peak_memory_bytes.is_none() {
             section.peak_memory_bytes = peak_memory_bytes();
+            section.peak_rise_bytes = section
+                .peak_memory_bytes
+                .zip(self.stage_start_rss)
+                .map(|(p, s)| p.saturating_sub(s));
         }
         reset_peak_memory();
+        self.stage_start_rss = resident_memory_bytes();
         self.stages.push(section);
     }
 
@@ -515,7 +528,7 @@ impl Report {
         // Summary table.
         h.push_str(
             "<h2 id=\"summary\">Summary</h2>\n<table class=\"summary\"><tr><th>stage</th>\
-             <th>seconds</th><th>share</th><th>peak memory</th><th>key figures</th></tr>\n",
+             <th>seconds</th><th>share</th><th>peak memory (rise)</th><th>key figures</th></tr>\n",
         );
         for s in &self.stages {
             let share = if self.total_seconds > 0.0 {
@@ -539,9 +552,11 @@ impl Report {
                 esc(&s.stage),
                 s.seconds,
                 share,
-                s.peak_memory_bytes
-                    .map(fmt_mib)
-                    .unwrap_or_else(|| "-".into()),
+                match (s.peak_memory_bytes, s.peak_rise_bytes) {
+                    (Some(p), Some(r)) => format!("{} (+{})", fmt_mib(p), fmt_mib(r)),
+                    (Some(p), None) => fmt_mib(p),
+                    _ => "-".into(),
+                },
                 keys.join("<br>")
             );
         }
@@ -889,8 +904,17 @@ fn fmt_mib(b: u64) -> String {
 
 /// Peak resident memory of this process since the last reset (Linux `VmHWM`), when known.
 pub(crate) fn peak_memory_bytes() -> Option<u64> {
+    proc_status_bytes("VmHWM:")
+}
+
+/// Resident memory of this process now (Linux `VmRSS`), when known.
+fn resident_memory_bytes() -> Option<u64> {
+    proc_status_bytes("VmRSS:")
+}
+
+fn proc_status_bytes(field: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }
@@ -959,6 +983,7 @@ mod tests {
         let mut s = Section::new("sparse_amplify");
         s.seconds = 3.0;
         s.peak_memory_bytes = Some(3 * 1024 * 1024);
+        s.peak_rise_bytes = Some(1024 * 1024);
         s.headline("psnr_db", 41.25);
         s.headline("psnr_db", 41.25);
         s.figure("not_headline", 1);
@@ -986,7 +1011,7 @@ mod tests {
         assert!(h.contains("<li><a href=\"#stage-sparse_amplify\">sparse_amplify</a></li>"));
         assert!(h.contains("<h2 id=\"stage-sparse_amplify\">"));
         assert!(
-            h.contains("<td>3.00</td><td>75 %</td><td>3.0 MiB</td>"),
+            h.contains("<td>3.00</td><td>75 %</td><td>3.0 MiB (+1.0 MiB)</td>"),
             "{h}"
         );
         assert!(
@@ -1075,7 +1100,9 @@ mod tests {
         );
         assert_eq!(o["plots"][0]["series"].as_array().unwrap().len(), 2);
         for s in summary["stages"].as_array().unwrap() {
-            assert!(s["peak_memory_bytes"].as_u64().unwrap() > 1 << 20, "{s}");
+            let peak = s["peak_memory_bytes"].as_u64().unwrap();
+            assert!(peak > 1 << 20, "{s}");
+            assert!(s["peak_rise_bytes"].as_u64().unwrap() <= peak, "{s}");
         }
         let html = std::fs::read_to_string(tmp.path().join("report.html")).unwrap();
         assert!(html.contains("<a href=\"#overview\">"));
