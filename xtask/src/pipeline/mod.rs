@@ -22,6 +22,7 @@ use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, Progress};
 
 mod convert;
+mod dictionary;
 mod fill;
 mod load;
 mod quilt;

@@ -33,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{PipelineConfig, Stage, convert, fill, load, quilt, sparse, wavelet};
+use super::{PipelineConfig, Stage, convert, dictionary, fill, load, quilt, sparse, wavelet};
 
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,11 +113,11 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet"];
+pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural"];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
 pub(crate) fn default_spec() -> Vec<StageSpec> {
-    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet"]
+    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural"]
         .iter()
         .map(|s| StageSpec::named(s))
         .collect()
@@ -133,6 +133,9 @@ pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "sparse" => Box::new(sparse::SparseStage(params(p)?)),
         "quilt" => Box::new(quilt::Quilt(params(p)?)),
         "wavelet" => Box::new(wavelet::WaveletStage::new(params(p)?)?),
+        "amplify" => Box::new(dictionary::AmplifyStage(params(p)?)),
+        "sketch" => Box::new(dictionary::SketchStage(params(p)?)),
+        "procedural" => Box::new(dictionary::ProceduralStage(params(p)?)),
         other => bail!(
             "unknown stage `{other}`; known stages: {}",
             STAGE_NAMES.join(", ")
