@@ -1,13 +1,15 @@
 //! Benchmarks of relief-wavelet-lod: the 2-D lifting DWT (forward + inverse, 6 levels, `f32`)
 //! for every basis at 1024^2 and CDF 5/3 at 4096^2 (the speed goal, against PyWavelets
 //! `wavedec2` + `waverec2` with `bior2.2`, timed by `xtask/peers/pywt_dwt.py`), and on-demand
-//! LSA 3x3 refinement of a 512^2 window by two levels from a 1024^2 terrain.
+//! LSA 3x3 refinement of a 512^2 window by two levels from a 1024^2 terrain (and GSA), whole
+//! refinements 1024^2 -> 4096^2 (GSA, LSA 3x3), and the level-of-detail goal 4096^2 -> 16384^2
+//! with LSA 3x3 streamed in strips.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use relief_heightfield::Heightfield;
+use relief_heightfield::{Heightfield, NoProgress};
 use relief_wavelet_lod::rng::{fill_normals, row_key};
 use relief_wavelet_lod::{
-    Boundary, Grid, Method, RefineSettings, Refiner, Wavelet, wavedec2, waverec2,
+    Boundary, Grid, Method, RefineSettings, Refiner, Wavelet, WaveletError, wavedec2, waverec2,
 };
 
 /// A random-walk surface (the same construction as the PyWavelets peer's input).
@@ -65,8 +67,61 @@ fn lod(c: &mut Criterion) {
     g.bench_function(BenchmarkId::new("lsa3_analysis", 1024), |b| {
         b.iter(|| Refiner::new(&hf, &settings).expect("analysis"))
     });
+    let gsa_settings = RefineSettings {
+        method: Method::Gsa,
+        ..settings.clone()
+    };
+    let gsa = Refiner::new(&hf, &gsa_settings).expect("analysis");
+    g.bench_function(BenchmarkId::new("gsa_window_x4", 512), |b| {
+        b.iter(|| gsa.render_window(1000, 2000, 512, 512).expect("window"))
+    });
+    // Whole refinements (analysis + synthesis of every tile), 1024^2 -> 4096^2.
+    for (name, s) in [
+        ("refine_lsa3_x4", &settings),
+        ("refine_gsa_x4", &gsa_settings),
+    ] {
+        g.bench_function(BenchmarkId::new(name, 1024), |b| {
+            b.iter(|| {
+                Refiner::new(&hf, s)
+                    .expect("analysis")
+                    .render(&NoProgress)
+                    .expect("render")
+            })
+        });
+    }
     g.finish();
 }
 
-criterion_group!(benches, dwt, lod);
+/// The level-of-detail goal: 4096^2 -> 16384^2 with LSA 3x3 (analysis + synthesis),
+/// streamed in strips of 256 rows to a sink that folds a checksum (what a streaming writer
+/// receives), so the 1 GiB output is never held at once. Run with `RAYON_NUM_THREADS=2` for the
+/// goal's 2 threads.
+fn lod_big(c: &mut Criterion) {
+    let grid = surface(4096);
+    let hf = Heightfield::new(4096, 4096, grid.data, 30.0, 30.0).expect("heightfield");
+    let settings = RefineSettings {
+        method: Method::Lsa,
+        window: 3,
+        extra_levels: 2,
+        seed: 1,
+        ..Default::default()
+    };
+    let mut g = c.benchmark_group("wavelet_lod");
+    g.sample_size(10);
+    g.bench_function(BenchmarkId::new("lod_lsa3_x4_strips", 4096), |b| {
+        b.iter(|| {
+            let r = Refiner::new(&hf, &settings).expect("analysis");
+            let mut sum = 0.0f64;
+            r.render_strips::<WaveletError>(256, &NoProgress, |_, rows: &[f32]| {
+                sum += rows.iter().map(|&v| v as f64).sum::<f64>();
+                Ok(())
+            })
+            .expect("render");
+            sum
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, dwt, lod, lod_big);
 criterion_main!(benches);
