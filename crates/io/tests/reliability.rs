@@ -80,3 +80,23 @@ fn f32_sidecar_from_memory() {
     let r = read_f32_sidecar_bytes(&data, None, &o).unwrap();
     assert_eq!((r.heightfield.width(), r.heightfield.height()), (2, 3));
 }
+
+#[cfg(target_os = "linux")]
+#[test]
+fn stale_temporaries_of_dead_runs_are_removed_by_the_next_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("model.sct");
+    // pid_max is at most 2^22 on Linux: this process cannot exist.
+    let dead = dir.path().join(".model.sct.tmp-999999999-0");
+    let alive = dir
+        .path()
+        .join(format!(".model.sct.tmp-{}-77", std::process::id()));
+    let other = dir.path().join(".other.tif.tmp-999999999-0");
+    for f in [&dead, &alive, &other] {
+        std::fs::write(f, b"partial").unwrap();
+    }
+    write_bytes_atomic(&p, b"done").unwrap();
+    assert!(!dead.exists(), "stale temporary of a dead process kept");
+    assert!(alive.exists(), "temporary of a live process removed");
+    assert!(other.exists(), "temporary of another target removed");
+}

@@ -1,0 +1,453 @@
+//! Failure behaviour of the `relief` binary (issue 9): every failing run exits non-zero with one
+//! `error:` line on stderr (the cause chain under `--verbose`), and no failed, interrupted or
+//! killed run leaves a partial output file: outputs are written to a hidden temporary in the
+//! target directory and renamed into place (relief-io), so a reader sees either no file or a
+//! complete one.
+//!
+//! Covered: a missing or corrupt input for every subcommand (discovered from `relief help`, so
+//! new subcommands are checked too), outputs into a read-only directory (chmod 555, or
+//! `chattr +i` when running as root, who ignores permissions), a file-size limit that stops the
+//! write half-way (RLIMIT_FSIZE via `ulimit -f`: the process is killed by SIGXFSZ, or gets
+//! EFBIG when the signal is ignored), and SIGKILL at many instants of a large `convert`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Instant;
+
+use relief_heightfield::Heightfield;
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_relief")
+}
+
+fn relief<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
+    Command::new(bin())
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("run relief")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts a clean failure: exit code 1, exactly one non-empty line starting with `error:`.
+fn assert_one_line_failure(o: &Output, what: &str) {
+    let e = stderr(o);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{what}: status {:?}, stderr {e}",
+        o.status
+    );
+    assert!(e.starts_with("error: "), "{what}: {e}");
+    assert_eq!(
+        e.trim_end().lines().count(),
+        1,
+        "{what}: more than one line: {e}"
+    );
+    assert!(
+        e.trim_end().len() > "error: ".len() + 10,
+        "{what}: uninformative: {e}"
+    );
+}
+
+/// Names of the files in `dir` (sorted).
+fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A smooth synthetic terrain (no voids) written as a float32 GeoTIFF.
+fn synthetic_tif(path: &Path, w: usize, h: usize) -> Heightfield {
+    let hf = Heightfield::from_fn(w, h, 10.0, 10.0, |x, y| {
+        let (x, y) = (x as f32, y as f32);
+        500.0 + 80.0 * (x * 0.05).sin() * (y * 0.037).cos() + 0.3 * x + 0.01 * x * y
+    });
+    relief_io::write(path, &hf, &relief_io::WriteOptions::default()).unwrap();
+    hf
+}
+
+/// The subcommands and the argument placeholders of their usage line, from `relief help`.
+fn subcommands() -> Vec<(String, Vec<String>)> {
+    let help = Command::new(bin()).arg("help").output().unwrap();
+    let text = String::from_utf8_lossy(&help.stdout).into_owned();
+    let names: Vec<String> = text
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
+        .filter(|n| n != "help")
+        .collect();
+    assert!(names.len() >= 3, "no subcommands parsed from {text}");
+    names
+        .into_iter()
+        .map(|n| {
+            let h = Command::new(bin()).args([&n, "--help"]).output().unwrap();
+            let h = String::from_utf8_lossy(&h.stdout).into_owned();
+            let usage = h
+                .lines()
+                .find(|l| l.starts_with("Usage:"))
+                .unwrap_or_default()
+                .to_owned();
+            let toks = usage
+                .split_whitespace()
+                .skip(3)
+                .map(str::to_owned)
+                .collect();
+            (n, toks)
+        })
+        .collect()
+}
+
+/// Arguments for `cmd` from its usage tokens: every input-like value is `input`, outputs go to
+/// `out_dir`, numbers get `4`.
+fn fill_args(cmd: &str, usage: &[String], input: &Path, out_dir: &Path) -> Vec<String> {
+    let mut args = vec![cmd.to_owned()];
+    let mut k = 0;
+    let mut it = usage.iter().peekable();
+    while let Some(t) = it.next() {
+        if t == "[OPTIONS]" || t.starts_with('[') {
+            continue;
+        }
+        if t.starts_with("--") {
+            args.push(t.clone());
+            let v = it.next().map(String::as_str).unwrap_or_default();
+            let v = v.to_ascii_uppercase();
+            if ["FACTOR", "SIZE", "STEPS", "LEVELS", "N"]
+                .iter()
+                .any(|n| v.contains(n))
+            {
+                args.push("4".into());
+            } else {
+                args.push(input.display().to_string());
+            }
+            continue;
+        }
+        let upper = t.to_ascii_uppercase();
+        if upper.contains("OUT") {
+            k += 1;
+            args.push(out_dir.join(format!("out{k}.tif")).display().to_string());
+        } else {
+            args.push(input.display().to_string());
+        }
+    }
+    args
+}
+
+#[test]
+fn every_subcommand_fails_cleanly_on_missing_and_corrupt_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let missing = tmp.path().join("missing.tif");
+    let corrupt = tmp.path().join("corrupt.tif");
+    // A TIFF header whose first IFD lies past the end.
+    std::fs::write(&corrupt, b"II*\0\xff\xff\xff\x00garbage").unwrap();
+    let cmds = subcommands();
+    let mut checked = 0;
+    for (cmd, usage) in &cmds {
+        for (input, expect) in [(&missing, "missing.tif"), (&corrupt, "corrupt.tif")] {
+            let args = fill_args(cmd, usage, input, &out_dir);
+            let o = relief(&args);
+            let e = stderr(&o);
+            if !args.iter().any(|a| a.ends_with(expect)) {
+                // A subcommand without any input in its usage (e.g. all inputs optional): it
+                // must still fail with one line.
+                assert_one_line_failure(&o, &format!("{args:?}"));
+                continue;
+            }
+            assert_one_line_failure(&o, &format!("{args:?}"));
+            assert!(
+                e.contains(expect) || e.contains("exemplar") || e.contains("guide"),
+                "{args:?}: the error does not name the input: {e}"
+            );
+            // --verbose: the same first line, then the cause chain.
+            let v = Command::new(bin())
+                .arg("--verbose")
+                .args(&args)
+                .output()
+                .unwrap();
+            let ve = stderr(&v);
+            assert_eq!(v.status.code(), Some(1), "{args:?} --verbose: {ve}");
+            assert!(ve.starts_with("error: "), "{args:?} --verbose: {ve}");
+            if e.contains(expect) {
+                assert!(
+                    ve.contains("caused by:"),
+                    "{args:?}: --verbose shows no cause chain: {ve}"
+                );
+            }
+            assert!(
+                files(&out_dir).is_empty(),
+                "{args:?} left {:?}",
+                files(&out_dir)
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 10, "only {checked} subcommand runs checked");
+}
+
+#[test]
+fn usage_errors_exit_2_and_start_with_error() {
+    for args in [
+        vec!["convert"],
+        vec!["no-such-command"],
+        vec!["info", "x.tif", "--no-such-flag"],
+        vec!["convert", "a.tif", "b.tif", "--cell-size", "-3"],
+    ] {
+        let o = Command::new(bin()).args(&args).output().unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.starts_with("error: "), "{args:?}: {e}");
+    }
+}
+
+/// A read-only directory; as root (permissions ignored) it is made immutable with `chattr +i`.
+/// Restored on drop so the temporary directory can be removed.
+struct ReadOnlyDir {
+    path: PathBuf,
+    immutable: bool,
+}
+
+impl ReadOnlyDir {
+    fn new(path: PathBuf) -> Option<Self> {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::create_dir_all(&path).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o555)).unwrap();
+        let mut d = ReadOnlyDir {
+            path,
+            immutable: false,
+        };
+        if d.writable() {
+            d.immutable = Command::new("chattr")
+                .arg("+i")
+                .arg(&d.path)
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success());
+            if !d.immutable || d.writable() {
+                return None;
+            }
+        }
+        Some(d)
+    }
+
+    fn writable(&self) -> bool {
+        let probe = self.path.join("probe");
+        let ok = std::fs::write(&probe, b"x").is_ok();
+        let _ = std::fs::remove_file(&probe);
+        ok
+    }
+}
+
+impl Drop for ReadOnlyDir {
+    fn drop(&mut self) {
+        use std::os::unix::fs::PermissionsExt;
+        if self.immutable {
+            let _ = Command::new("chattr").arg("-i").arg(&self.path).status();
+        }
+        let _ = std::fs::set_permissions(&self.path, std::fs::Permissions::from_mode(0o755));
+    }
+}
+
+#[test]
+fn read_only_output_directory_fails_without_partial_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    synthetic_tif(&input, 64, 64);
+    let Some(ro) = ReadOnlyDir::new(tmp.path().join("ro")) else {
+        // Neither permissions nor chattr can make a directory read-only here.
+        return;
+    };
+    let out = |name: &str| ro.path.join(name).display().to_string();
+    let inp = input.display().to_string();
+    let runs: Vec<Vec<String>> = vec![
+        vec!["convert".into(), inp.clone(), out("o.tif")],
+        vec!["convert".into(), inp.clone(), out("o.f32")],
+        vec!["convert".into(), inp.clone(), out("o.exr")],
+        vec!["preview".into(), inp.clone(), out("o.png")],
+        vec![
+            "compress".into(),
+            inp.clone(),
+            out("o.sct"),
+            "--atoms".into(),
+            "16".into(),
+            "--dict".into(),
+            "sample".into(),
+        ],
+        vec!["refine".into(), inp.clone(), out("o.tif")],
+    ];
+    for args in &runs {
+        let o = relief(args);
+        assert_one_line_failure(&o, &format!("{args:?}"));
+        let e = stderr(&o);
+        assert!(
+            e.contains("cannot write") || e.contains("ro/o."),
+            "{args:?}: {e}"
+        );
+        assert!(
+            files(&ro.path).is_empty(),
+            "{args:?} left {:?}",
+            files(&ro.path)
+        );
+    }
+    // An existing output in a read-only directory keeps its content.
+    drop(ro);
+    let dir = tmp.path().join("ro2");
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::write(dir.join("o.tif"), b"previous").unwrap();
+    let Some(ro) = ReadOnlyDir::new(dir) else {
+        return;
+    };
+    let o = relief(&[
+        "convert".into(),
+        inp,
+        ro.path.join("o.tif").display().to_string(),
+    ]);
+    assert_one_line_failure(&o, "convert over an existing file in a read-only directory");
+    assert_eq!(std::fs::read(ro.path.join("o.tif")).unwrap(), b"previous");
+    assert_eq!(files(&ro.path), ["o.tif"]);
+}
+
+#[test]
+fn output_path_through_a_file_fails_without_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    synthetic_tif(&input, 32, 32);
+    std::fs::write(tmp.path().join("file"), b"").unwrap();
+    let out = tmp.path().join("file/o.tif");
+    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+    assert_one_line_failure(&o, "output below a regular file");
+    assert!(stderr(&o).contains("file/o.tif"), "{}", stderr(&o));
+    assert_eq!(files(tmp.path()), ["file", "in.tif"]);
+}
+
+/// Runs `relief convert` under `ulimit -f` (512-byte blocks) so the write of the output stops
+/// half-way; `ignore_signal` makes the write fail with EFBIG instead of SIGXFSZ killing it.
+fn convert_with_file_limit(input: &Path, out: &Path, blocks: u32, ignore_signal: bool) -> Output {
+    let trap = if ignore_signal { "trap '' XFSZ; " } else { "" };
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("{trap}ulimit -f {blocks} && exec \"$0\" \"$@\""))
+        .arg(bin())
+        .args([
+            "--quiet".as_ref(),
+            "convert".as_ref(),
+            input.as_os_str(),
+            out.as_os_str(),
+        ])
+        .output()
+        .unwrap()
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_write_stopped_by_the_file_size_limit_leaves_no_partial_output() {
+    use std::os::unix::process::ExitStatusExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    let hf = synthetic_tif(&input, 512, 512); // 1 MiB of f32 per output
+    let out_dir = tmp.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = out_dir.join("o.tif");
+
+    // EFBIG: an error, the temporary removed, one line naming the output.
+    let o = convert_with_file_limit(&input, &out, 512, true);
+    assert_one_line_failure(&o, "EFBIG");
+    assert!(stderr(&o).contains("o.tif"), "{}", stderr(&o));
+    assert!(files(&out_dir).is_empty(), "left {:?}", files(&out_dir));
+
+    // SIGXFSZ kills the process in the middle of the write: no `o.tif`; at most a hidden
+    // temporary, which the next write of the same output removes.
+    let o = convert_with_file_limit(&input, &out, 512, false);
+    assert_eq!(
+        o.status.signal(),
+        Some(25),
+        "not killed by SIGXFSZ: {:?}",
+        o.status
+    );
+    assert!(!out.exists(), "partial output after SIGXFSZ");
+    let left = files(&out_dir);
+    assert!(
+        left.iter().all(|f| f.starts_with(".o.tif.tmp-")),
+        "visible leftovers {left:?}"
+    );
+    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files(&out_dir), ["o.tif"], "stale temporary not cleaned");
+    let back = relief_io::read(&out, &relief_io::ReadOptions::default()).unwrap();
+    assert_eq!(back.heightfield.as_slice(), hf.as_slice());
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn sigkill_at_any_instant_leaves_no_partial_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    let hf = synthetic_tif(&input, 2048, 2048); // 16 MiB
+    let out_dir = tmp.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    // Time of a complete run, then kills spread over it.
+    let t0 = Instant::now();
+    let out = out_dir.join("full.exr");
+    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let full = t0.elapsed();
+    std::fs::remove_file(&out).unwrap();
+    let mut killed = 0;
+    for i in 0..12u32 {
+        let out = out_dir.join(format!("o{i}.exr"));
+        let at = full.mul_f64(0.15 + 0.08 * i as f64);
+        let mut child = Command::new(bin())
+            .args([
+                "--quiet".as_ref(),
+                "convert".as_ref(),
+                input.as_os_str(),
+                out.as_os_str(),
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(at);
+        let finished = child.try_wait().unwrap().is_some();
+        let _ = child.kill(); // SIGKILL
+        let status = child.wait().unwrap();
+        if !finished && !status.success() {
+            killed += 1;
+        }
+        // Either no output or a complete one.
+        if out.exists() {
+            let back = relief_io::read(&out, &relief_io::ReadOptions::default())
+                .unwrap_or_else(|e| panic!("kill at {at:?} left a broken {}: {e}", out.display()));
+            assert_eq!(back.heightfield.as_slice(), hf.as_slice());
+        }
+        for f in files(&out_dir) {
+            assert!(
+                f.starts_with('.') || f.starts_with('o') && f.ends_with(".exr"),
+                "visible leftover {f}"
+            );
+        }
+    }
+    assert!(
+        killed >= 3,
+        "only {killed} runs were killed before finishing"
+    );
+    // A later write of an output removes the hidden temporaries its killed runs left.
+    for i in 0..12u32 {
+        let out = out_dir.join(format!("o{i}.exr"));
+        let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let left: Vec<String> = files(&out_dir)
+        .into_iter()
+        .filter(|f| f.starts_with('.'))
+        .collect();
+    assert!(left.is_empty(), "stale temporaries kept: {left:?}");
+}
