@@ -3,10 +3,12 @@
 //! ```text
 //! cargo run --release -p relief-wavelet-lod --example bench_dwt -- [SIZE] [LEVELS] [PYTHON]
 //! ```
-//! Defaults: 4096, 6, `target/peers-venv/bin/python` (the PyWavelets peer,
-//! `xtask/peers/pywt_dwt.py`, is skipped when that interpreter is absent). Times forward +
-//! inverse after one untimed warm-up run, CDF 5/3 (PyWavelets `bior2.2`), `f32`, best of 3, on the rayon pool (set
-//! `RAYON_NUM_THREADS`).
+//! Defaults: 4096, 6, `target/peers-venv/bin/python`. The PyWavelets peer
+//! (`xtask/peers/pywt_dwt.py`, 6 levels, median of 3) runs on the same surface, read from
+//! `target/bench-data/dwt_surface_SIZE.npy` (written by `cargo xtask bench`); it is skipped when
+//! the interpreter or that file is absent. Times forward + inverse after one untimed warm-up
+//! run, `f32`, best of 3, on the rayon pool (set `RAYON_NUM_THREADS`); the peer reports its
+//! median of 3 (single-threaded, as PyWavelets is).
 #![allow(clippy::print_stdout)]
 
 use std::time::Instant;
@@ -63,25 +65,34 @@ fn main() {
             "relief {wavelet}: {size}^2 f32, {levels} levels, {threads} threads: forward {fwd:.3} s, inverse {inv:.3} s, total {:.3} s (max error {err})",
             fwd + inv
         );
-        if wavelet == Wavelet::Cdf53 && python.exists() {
+        let data = root.join("target/bench-data");
+        let npy = data.join(format!("dwt_surface_{size}.npy"));
+        if wavelet == Wavelet::Cdf53 && python.exists() && npy.exists() {
             let out = std::process::Command::new(&python)
                 .arg(root.join("xtask/peers/pywt_dwt.py"))
-                .args([size.to_string(), levels.to_string(), "bior2.2".into()])
+                .arg(&data)
                 .output()
                 .expect("run the PyWavelets peer");
             let text = String::from_utf8_lossy(&out.stdout);
             println!("pywt: {}", text.trim());
+            let key = format!("\"dwt_fwd_inv_bior22_{size}_s\": ");
             if let Some(total) = text
-                .split("\"total_s\": ")
+                .split(key.as_str())
                 .nth(1)
-                .and_then(|s| s.split(',').next())
-                .and_then(|s| s.parse::<f64>().ok())
+                .and_then(|s| s.split([',', '}']).next())
+                .and_then(|s| s.trim().parse::<f64>().ok())
             {
                 println!(
                     "ratio pywt / relief (cdf53 forward + inverse): {:.2}x",
                     total / (fwd + inv)
                 );
             }
+        } else if wavelet == Wavelet::Cdf53 {
+            println!(
+                "pywt peer skipped: needs {} and {} (written by `cargo xtask bench`)",
+                python.display(),
+                npy.display()
+            );
         }
     }
 }
