@@ -8,14 +8,27 @@
 //!   images, so its input has lost the precision of the DEM. Its output is not a terrain of
 //!   comparable fidelity; the comparison is of running time only.
 //!
+//! Parts of the method, same inputs, 2 threads:
+//! * `quilt_search/pca_kdtree/<shape>_knn24`: the patch search of section 3.5 for one overlap
+//!   region (box-mean features, PCA projection, kd-tree query of every bucket, merge) against
+//!   the 201,601 patches of the 512 x 512 exemplar (patch 64, overlap 16, default settings);
+//! * `quilt_search/bruteforce/L_full`: the same query by exhaustive mean-removed SSD over the
+//!   full-resolution L-shaped overlap of every patch (the search the PCA + kd-tree replaces);
+//! * `quilt_seam/{dp,greedy}/<rows>x<cols>`: the minimum-error boundary cut through a real
+//!   overlap error table (squared difference of two Grand Canyon strips).
+//!
 //! `cargo bench -p relief-benches --bench quilt`
 #![allow(clippy::print_stderr)]
 
 use std::time::Instant;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use rayon::prelude::*;
 use relief_heightfield::{Heightfield, NoProgress};
-use relief_patch_synth::{Control, Exemplar, ExemplarIndex, Settings, guide, synthesize};
+use relief_patch_synth::{
+    Control, CutMethod, Exemplar, ExemplarIndex, OverlapShape, Settings, guide, min_error_cut,
+    synthesize,
+};
 use relief_testdata::{dem_crop, load_dem};
 use texture_synthesis as ts;
 
@@ -91,5 +104,123 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// Exhaustive search: mean-removed SSD over the L-shaped overlap (top `o` rows, left `o`
+/// columns) of every indexed patch; returns the best `knn` patch ids.
+fn bruteforce(index: &ExemplarIndex, region: &[f32], p: usize, o: usize, knn: usize) -> Vec<usize> {
+    let cells: Vec<(usize, usize)> = (0..p)
+        .flat_map(|r| (0..p).map(move |c| (r, c)))
+        .filter(|&(r, c)| r < o || c < o)
+        .collect();
+    let n = cells.len() as f32;
+    let qm = cells.iter().map(|&(r, c)| region[r * p + c]).sum::<f32>() / n;
+    let mut scored: Vec<(f32, usize)> = index
+        .patches()
+        .par_iter()
+        .enumerate()
+        .map(|(id, pr)| {
+            let hf = &index.exemplars()[pr.exemplar as usize].heightfield;
+            let (w, s) = (hf.width(), hf.as_slice());
+            let at = |r: usize, c: usize| s[(pr.y as usize + r) * w + pr.x as usize + c];
+            let pm = cells.iter().map(|&(r, c)| at(r, c)).sum::<f32>() / n;
+            let e: f32 = cells
+                .iter()
+                .map(|&(r, c)| {
+                    let d = (at(r, c) - pm) - (region[r * p + c] - qm);
+                    d * d
+                })
+                .sum();
+            (e, id)
+        })
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    scored.truncate(knn);
+    scored.into_iter().map(|(_, id)| id).collect()
+}
+
+fn bench_parts(c: &mut Criterion) {
+    let Some((ex, _)) = inputs() else { return };
+    let Some(src) = dem_crop("alps_dem", 900, 200, 512, 512) else {
+        return;
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    let settings = Settings {
+        enforce_validation: false,
+        ..Default::default()
+    };
+    let (p, o) = (settings.patch_size, settings.overlap);
+    let index = pool.install(|| {
+        ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &settings, &NoProgress)
+            .expect("index")
+    });
+    // Query: a patch-sized window of the alps, brought to the canyon's height range.
+    let region: Vec<f32> = (0..p)
+        .flat_map(|r| (0..p).map(move |c| (r, c)))
+        .map(|(r, c)| {
+            479.0 + (src.get(200 + c, 300 + r) - 640.0) * (2347.0 - 479.0) / (4115.0 - 640.0)
+        })
+        .collect();
+    // How many of the exhaustive search's best 24 the PCA + kd-tree search also returns.
+    let exact = pool.install(|| bruteforce(&index, &region, p, o, settings.knn));
+    let fast = pool.install(|| {
+        index
+            .nearest_overlaps(OverlapShape::Both, &region, settings.knn)
+            .expect("search")
+    });
+    let hits = fast.iter().filter(|(_, id)| exact.contains(id)).count();
+    eprintln!(
+        "patch search: {} patches; PCA + kd-tree returns {hits} of the exhaustive best {} (L-shaped overlap)",
+        index.patches().len(),
+        settings.knn
+    );
+    let mut group = c.benchmark_group("quilt_search");
+    group.sample_size(20);
+    for (shape, name) in [
+        (OverlapShape::Left, "left_knn24"),
+        (OverlapShape::Both, "L_knn24"),
+    ] {
+        group.bench_function(BenchmarkId::new("pca_kdtree", name), |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    index
+                        .nearest_overlaps(shape, &region, settings.knn)
+                        .expect("search")
+                })
+            })
+        });
+    }
+    group.sample_size(10);
+    group.bench_function(BenchmarkId::new("bruteforce", "L_full"), |b| {
+        b.iter(|| pool.install(|| bruteforce(&index, &region, p, o, settings.knn)))
+    });
+    group.finish();
+
+    // Seam: squared difference of two overlapping real strips (rows x cols), margins as in the
+    // synthesis (a quarter of the overlap on each side is excluded).
+    let mut group = c.benchmark_group("quilt_seam");
+    for (rows, cols) in [(64usize, 16usize), (256, 64)] {
+        let e: Vec<f32> = (0..rows)
+            .flat_map(|r| (0..cols).map(move |c| (r, c)))
+            .map(|(r, c)| {
+                let d = ex.get(10 + c, 20 + r) - ex.get(200 + c, 240 + r);
+                d * d
+            })
+            .collect();
+        let (lo, hi) = (cols / 4, cols - 1 - cols / 4);
+        let id = format!("{rows}x{cols}");
+        for (m, name) in [
+            (CutMethod::DynamicProgramming, "dp"),
+            (CutMethod::Greedy, "greedy"),
+        ] {
+            group.bench_function(BenchmarkId::new(name, &id), |b| {
+                b.iter(|| min_error_cut(&e, rows, cols, lo, hi, m).expect("cut"))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, bench_parts);
 criterion_main!(benches);

@@ -489,6 +489,70 @@ impl ExemplarIndex {
             self.pcas[2].explained,
         ]
     }
+    /// The patch search of section 3.5 for one overlap region, as the synthesis runs it: the
+    /// overlap cells of `region` (a `patch_size x patch_size` row-major raster in patch-local
+    /// coordinates; only the cells of `shape`'s overlap are read) are reduced to box-mean
+    /// features, projected on the shape's PCA basis, and the `knn` nearest patches of every
+    /// non-empty bucket's kd-tree are merged. Returns `(squared PCA distance, patch id)` for
+    /// the `knn` nearest overall, ascending (ties by id). Exact in PCA space only.
+    pub fn nearest_overlaps(
+        &self,
+        shape: OverlapShape,
+        region: &[f32],
+        knn: usize,
+    ) -> Result<Vec<(f32, usize)>> {
+        let p = self.params.patch;
+        if region.len() != p * p {
+            return Err(PatchSynthError::InvalidControl {
+                name: "region",
+                reason: format!("{} values for a {p} x {p} patch", region.len()),
+            });
+        }
+        if knn == 0 {
+            return Err(PatchSynthError::setting("knn", knn, "must be >= 1"));
+        }
+        let sh = shape as usize;
+        let rects = &self.layouts.rects[sh];
+        if rects.iter().any(|r| {
+            (r[1]..r[1] + r[3]).any(|y| {
+                region[y * p + r[0]..y * p + r[0] + r[2]]
+                    .iter()
+                    .any(|v| !v.is_finite())
+            })
+        }) {
+            return Err(PatchSynthError::InvalidControl {
+                name: "region",
+                reason: "non-finite heights in the overlap".into(),
+            });
+        }
+        let f = features(rects, |x, y, w, h| {
+            let mut sum = 0.0f64;
+            for yy in y..y + h {
+                sum += region[yy * p + x..yy * p + x + w]
+                    .iter()
+                    .map(|&v| v as f64)
+                    .sum::<f64>();
+            }
+            (sum / (w * h) as f64) as f32
+        });
+        let mut q = vec![0.0f32; self.params.pca_dims];
+        self.pcas[sh].project(&f, &mut q);
+        let mut out: Vec<(f32, usize)> = self
+            .buckets
+            .par_iter()
+            .filter(|b| !b.patches.is_empty())
+            .flat_map_iter(|b| {
+                b.trees[sh]
+                    .nearest(&q, knn)
+                    .into_iter()
+                    .map(|(d, item)| (d, b.patches[item as usize] as usize))
+            })
+            .collect();
+        out.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        out.truncate(knn);
+        Ok(out)
+    }
+
     /// Category of patch `id`.
     pub(crate) fn patch_category(&self, id: usize) -> u16 {
         self.exemplars[self.patches[id].exemplar as usize].category

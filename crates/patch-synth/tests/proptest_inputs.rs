@@ -11,8 +11,8 @@ use relief_patch_synth::kmeans::kmeans;
 use relief_patch_synth::pca::Pca;
 use relief_patch_synth::quality::{assess, guide_fidelity, seam_visibility, slope_distance};
 use relief_patch_synth::{
-    Blend, CategoryMap, Control, CutMethod, Exemplar, ExemplarIndex, PatchSynthError, SeamMap,
-    Settings, categorize_exemplars, min_error_cut, quilt, synthesize, validate,
+    Blend, CategoryMap, Control, CutMethod, Exemplar, ExemplarIndex, OverlapShape, PatchSynthError,
+    SeamMap, Settings, categorize_exemplars, min_error_cut, quilt, synthesize, validate,
 };
 use relief_testdata::dem_crop;
 
@@ -324,6 +324,18 @@ proptest! {
             control = control.with_categories(CategoryMap::uniform(w.min(72), h.min(72), c));
         }
         if let Ok(index) = &built {
+            // Patch search with a region that may not fit the patch.
+            let p = s.patch_size;
+            let region: Vec<f32> = g.as_slice().iter().copied().cycle().take(p * p + (w % 3) / 2).collect();
+            for shape in [OverlapShape::Left, OverlapShape::Top, OverlapShape::Both] {
+                match index.nearest_overlaps(shape, &region, s.knn) {
+                    Ok(near) => {
+                        prop_assert_eq!(region.len(), p * p);
+                        prop_assert!(!near.is_empty() && near.len() <= s.knn);
+                    }
+                    Err(e) => check_names_field(&e)?,
+                }
+            }
             match validate(index, &control, &s) {
                 Ok(rep) => {
                     prop_assert_eq!(rep.failing.len(), rep.blocks.iter().filter(|b| b.candidates < s.min_candidates).count());
