@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 use relief_wavelet_lod::rng::{fill_normals, row_key};
-use relief_wavelet_lod::{Boundary, Grid, Wavelet, wavedec2, waverec2};
+use relief_wavelet_lod::{Boundary, Grid, Wavelet, wavedec2, waverec2_owned};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -43,7 +43,7 @@ fn main() {
     let threads = rayon::current_num_threads();
     // Warm-up (untimed), like criterion's: the first large allocations of a process pay page
     // faults that a steady-state run (e.g. a server refining tiles) does not.
-    let _ = waverec2(&wavedec2(&g, Wavelet::Cdf53, levels, Boundary::Symmetric).expect("dwt"));
+    let _ = waverec2_owned(wavedec2(&g, Wavelet::Cdf53, levels, Boundary::Symmetric).expect("dwt"));
     for wavelet in Wavelet::ALL {
         let (mut fwd, mut inv) = (f64::MAX, f64::MAX);
         let mut err = 0.0f32;
@@ -51,7 +51,7 @@ fn main() {
             let t0 = Instant::now();
             let dec = wavedec2(&g, wavelet, levels, Boundary::Symmetric).expect("dwt");
             let t1 = Instant::now();
-            let back = waverec2(&dec);
+            let back = waverec2_owned(dec);
             let t2 = Instant::now();
             fwd = fwd.min((t1 - t0).as_secs_f64());
             inv = inv.min((t2 - t1).as_secs_f64());

@@ -88,7 +88,7 @@ pub use analysis::{
 };
 pub use dwt::{
     Band, Decomposition, DetailLevel, Grid, dwt1, idwt1, max_levels, size_at_depth, try_waverec2,
-    wavedec2, waverec2,
+    wavedec2, waverec2, waverec2_owned,
 };
 pub use error::{Result, WaveletError};
 pub use lift::Boundary;
