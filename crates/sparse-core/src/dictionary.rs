@@ -124,18 +124,18 @@ pub(crate) fn support_mask(patch_size: usize, spacing: f64, radius: f64) -> Resu
             "must be in 1..=256",
         ));
     }
-    if !(spacing.is_finite() && spacing > 0.0) {
+    if !(spacing.is_finite() && spacing > 0.0 && spacing <= 1e6) {
         return Err(SparseError::param(
             "spacing",
             spacing,
-            "must be finite and > 0",
+            "must be finite and in (0, 1e6] cells",
         ));
     }
-    if !(radius.is_finite() && radius > 0.0) {
+    if !(radius.is_finite() && radius > 0.0 && radius <= 1e9) {
         return Err(SparseError::param(
             "support_radius",
             radius,
-            "must be finite and > 0",
+            "must be finite and in (0, 1e9] cells",
         ));
     }
     let a = patch_size;

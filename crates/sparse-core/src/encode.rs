@@ -52,6 +52,31 @@ impl EncodeSettings {
     }
 }
 
+impl EncodeSettings {
+    /// Validates the settings against `dict`: a non-empty dictionary, the sparsity and
+    /// tolerance of [`OmpSettings::check`], and the patch geometry (step finite and > 0, the
+    /// support radius larger than `step / sqrt(2)`, a bounded number of primitives per cell).
+    pub fn check(&self, dict: &Dictionary) -> Result<()> {
+        if dict.is_empty() {
+            return Err(SparseError::EmptyDictionary {
+                n_atoms: 0,
+                dim: dict.dim(),
+            });
+        }
+        OmpSettings {
+            sparsity: self.sparsity,
+            tolerance: self.tolerance,
+        }
+        .check(dict.len())?;
+        if let Some(step) = self.step
+            && !(step.is_finite() && step > 0.0)
+        {
+            return Err(SparseError::param("step", step, "must be finite and > 0"));
+        }
+        self.geometry(dict).check()
+    }
+}
+
 /// Encodes a void-free heightfield: extract the patches `T_i` and `z_i` on the regular centre
 /// grid (section 4.2), code them with Batch-OMP over `dict` (section 4.3) and build a one-layer
 /// tree whose terrain is `f(p) = sum f_i alpha_i / sum alpha_i` (section 4.1).
@@ -75,12 +100,7 @@ pub fn encode_with_progress(
     settings: &EncodeSettings,
     progress: &dyn Progress,
 ) -> Result<Sct> {
-    if dict.is_empty() {
-        return Err(SparseError::EmptyDictionary {
-            n_atoms: 0,
-            dim: dict.dim(),
-        });
-    }
+    settings.check(&dict)?;
     let geometry = settings.geometry(&dict);
     progress.begin("extract patches", 1);
     let patches = extract_patches(hf, &geometry)?;

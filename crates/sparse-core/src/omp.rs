@@ -23,6 +23,9 @@ use crate::error::{Result, SparseError};
 /// Largest sparsity the solvers accept.
 pub const MAX_SPARSITY: usize = 64;
 
+/// Largest number of atoms the solvers accept (both keep an `N x N` Gram matrix).
+pub const MAX_ATOMS: usize = 1 << 15;
+
 /// Number of signals per Batch-OMP block (fixed so results do not depend on the thread count).
 const BLOCK: usize = 256;
 
@@ -118,6 +121,36 @@ impl Default for OmpSettings {
             sparsity: 4,
             tolerance: None,
         }
+    }
+}
+
+impl OmpSettings {
+    /// Validates the settings for a dictionary of `n_atoms` atoms: `sparsity` in `1..=64` and
+    /// `<= n_atoms` ([`SparseError::SparsityTooLarge`]), `tolerance` finite and `>= 0`.
+    pub fn check(&self, n_atoms: usize) -> Result<()> {
+        if self.sparsity == 0 || self.sparsity > MAX_SPARSITY {
+            return Err(SparseError::param(
+                "sparsity",
+                self.sparsity,
+                "must be in 1..=64",
+            ));
+        }
+        if self.sparsity > n_atoms {
+            return Err(SparseError::SparsityTooLarge {
+                sparsity: self.sparsity,
+                n_atoms,
+            });
+        }
+        if let Some(t) = self.tolerance
+            && !(t.is_finite() && t >= 0.0)
+        {
+            return Err(SparseError::param(
+                "tolerance",
+                t,
+                "must be finite and >= 0",
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -231,31 +264,14 @@ fn validate<T: OmpFloat>(
             got: signals.ncols(),
         });
     }
-    if n_atoms > 1 << 24 {
-        return Err(SparseError::param("n_atoms", n_atoms, "at most 2^24 atoms"));
-    }
-    if settings.sparsity == 0 || settings.sparsity > MAX_SPARSITY {
+    if n_atoms > MAX_ATOMS {
         return Err(SparseError::param(
-            "sparsity",
-            settings.sparsity,
-            "must be in 1..=64",
-        ));
-    }
-    if settings.sparsity > n_atoms {
-        return Err(SparseError::SparsityTooLarge {
-            sparsity: settings.sparsity,
+            "n_atoms",
             n_atoms,
-        });
-    }
-    if let Some(t) = settings.tolerance
-        && !(t.is_finite() && t >= 0.0)
-    {
-        return Err(SparseError::param(
-            "tolerance",
-            t,
-            "must be finite and >= 0",
+            "at most 2^15 atoms (the N x N Gram matrix must fit in memory)",
         ));
     }
+    settings.check(n_atoms)?;
     for (i, row) in dict.outer_iter().enumerate() {
         let mut n2 = 0.0f64;
         for &v in row.iter() {

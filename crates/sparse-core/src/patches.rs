@@ -19,6 +19,11 @@ use relief_heightfield::Heightfield;
 use crate::dictionary::support_mask;
 use crate::error::{Result, SparseError};
 
+/// Largest number of primitives of a centre grid.
+pub const MAX_PRIMITIVES: usize = 1 << 24;
+/// Largest number of samples of a patch matrix (`n K`, 1 GiB of `f32`).
+pub const MAX_PATCH_SAMPLES: usize = 1 << 28;
+
 /// Geometry of the primitives of a layer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PatchGeometry {
@@ -52,11 +57,11 @@ impl PatchGeometry {
     /// Validates the geometry (sizes positive, `R > S / sqrt(2)` so the weights cover the plane).
     pub fn check(&self) -> Result<()> {
         support_mask(self.patch_size, self.spacing, self.support_radius)?;
-        if !(self.step.is_finite() && self.step > 0.0) {
+        if !(self.step.is_finite() && self.step > 0.0 && self.step <= 1e9) {
             return Err(SparseError::param(
                 "step",
                 self.step,
-                "must be finite and > 0",
+                "must be finite and in (0, 1e9] cells",
             ));
         }
         if self.support_radius * self.support_radius <= self.step * self.step / 2.0 {
@@ -81,15 +86,26 @@ impl PatchGeometry {
         }
         let h = (self.patch_size as f64 - 1.0) / 2.0 * self.spacing;
         let origin = h - h.ceil();
-        let count = |len: usize| -> usize {
+        // Counts stay in f64 until they are known to be small (a tiny step must not overflow).
+        let count = |len: usize| -> f64 {
             let span = (len as f64 - 1.0) - origin;
-            ((span / self.step) - 1e-9).ceil().max(0.0) as usize + 1
+            ((span / self.step) - 1e-9).ceil().max(0.0) + 1.0
         };
+        let (fx, fy) = (count(width), count(height));
+        let cells = fx * fy;
+        let k = (self.patch_size * self.patch_size) as f64;
+        if !(cells <= MAX_PRIMITIVES as f64 && cells * k <= MAX_PATCH_SAMPLES as f64) {
+            return Err(SparseError::param(
+                "step",
+                self.step,
+                "gives too many primitives for the terrain (at most 2^24 primitives and 2^28 patch samples)",
+            ));
+        }
         Ok(CentreGrid {
             origin: [origin, origin],
             step: self.step,
-            nx: count(width),
-            ny: count(height),
+            nx: fx as usize,
+            ny: fy as usize,
         })
     }
 }

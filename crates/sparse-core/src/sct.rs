@@ -496,10 +496,10 @@ impl SparseLayer {
             let i = id as usize;
             let [cx, cy] = self.centres[i];
             // Conservative pixel ranges of the support (exact test per pixel below).
-            let xa = (((cx - radius) * sc).floor() as i64 - 1).max(band.x0 as i64);
-            let xb = (((cx + radius) * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
-            let ya = (((cy - radius) * sc).floor() as i64 - 1).max(band.y0 as i64);
-            let yb = (((cy + radius) * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+            let xa = lo_pixel(cx - radius, sc, band.x0);
+            let xb = hi_pixel(cx + radius, sc, band.x1);
+            let ya = lo_pixel(cy - radius, sc, band.y0);
+            let yb = hi_pixel(cy + radius, sc, band.y1);
             if xa > xb || ya > yb {
                 continue;
             }
@@ -558,6 +558,22 @@ fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
     } else {
         None
     }
+}
+
+/// First pixel (conservative: one before, clamped to the band start `b0`) whose coordinate at
+/// scale `sc` may be `>= v`. Saturating, so huge or infinite extents cannot overflow.
+#[inline]
+fn lo_pixel(v: f64, sc: f64, b0: usize) -> i64 {
+    ((v * sc).floor() as i64).saturating_sub(1).max(b0 as i64)
+}
+
+/// Last pixel (conservative: one after, clamped to the band end `b1 - 1`) whose coordinate at
+/// scale `sc` may be `<= v`.
+#[inline]
+fn hi_pixel(v: f64, sc: f64, b1: usize) -> i64 {
+    ((v * sc).ceil() as i64)
+        .saturating_add(1)
+        .min(b1 as i64 - 1)
 }
 
 /// Clamped sample indices and weights of a bicubic tap set.
@@ -970,10 +986,10 @@ impl River {
         let carve = matches!(self.mode, RiverMode::Carve);
         for (s, b) in self.seg_boxes.iter().enumerate() {
             let (xa, xb, ya, yb) = if carve {
-                let xa = ((b[0] * sc).floor() as i64 - 1).max(band.x0 as i64);
-                let xb = ((b[2] * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
-                let ya = ((b[1] * sc).floor() as i64 - 1).max(band.y0 as i64);
-                let yb = ((b[3] * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+                let xa = lo_pixel(b[0], sc, band.x0);
+                let xb = hi_pixel(b[2], sc, band.x1);
+                let ya = lo_pixel(b[1], sc, band.y0);
+                let yb = hi_pixel(b[3], sc, band.y1);
                 (xa, xb, ya, yb)
             } else {
                 (
@@ -1213,10 +1229,10 @@ impl Node {
                 // Elsewhere the weight is 0 and the base value is kept, as in `eval`.
                 let [bx0, by0, bx1, by1] = region.bounds(*falloff);
                 let sc = band.scale;
-                let xa = ((bx0 * sc).floor() as i64 - 1).max(band.x0 as i64);
-                let xb = ((bx1 * sc).ceil() as i64 + 1).min(band.x1 as i64 - 1);
-                let ya = ((by0 * sc).floor() as i64 - 1).max(band.y0 as i64);
-                let yb = ((by1 * sc).ceil() as i64 + 1).min(band.y1 as i64 - 1);
+                let xa = lo_pixel(bx0, sc, band.x0);
+                let xb = hi_pixel(bx1, sc, band.x1);
+                let ya = lo_pixel(by0, sc, band.y0);
+                let yb = hi_pixel(by1, sc, band.y1);
                 if xa > xb || ya > yb {
                     return;
                 }
@@ -1290,6 +1306,32 @@ impl Default for RasterSettings {
             scale: 1.0,
             window: None,
         }
+    }
+}
+
+impl RasterSettings {
+    /// Validates the settings on their own: `scale` finite and in `(0, 1024]`, a window (if
+    /// any) non-empty and of at most `relief_heightfield::MAX_CELLS` cells. Whether the window
+    /// lies inside the raster is checked by [`Sct::rasterize`].
+    pub fn check(&self) -> Result<()> {
+        if !(self.scale.is_finite() && self.scale > 0.0 && self.scale <= 1024.0) {
+            return Err(SparseError::param(
+                "scale",
+                self.scale,
+                "must be finite and in (0, 1024]",
+            ));
+        }
+        if let Some(w) = self.window {
+            let cells = (w.width as u128) * (w.height as u128);
+            if cells == 0 || cells > relief_heightfield::MAX_CELLS as u128 {
+                return Err(SparseError::param(
+                    "window",
+                    format!("{},{},{},{}", w.x, w.y, w.width, w.height),
+                    "must be non-empty and hold at most MAX_CELLS cells",
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1408,6 +1450,7 @@ impl Sct {
         settings: &RasterSettings,
         progress: &dyn Progress,
     ) -> Result<Heightfield> {
+        settings.check()?;
         let (fw, fh) = self.raster_size(settings.scale)?;
         let win = settings.window.unwrap_or(Window {
             x: 0,
@@ -1427,6 +1470,13 @@ impl Sct {
                     win.x, win.y, win.width, win.height
                 ),
                 "must be non-empty and inside the raster",
+            ));
+        }
+        if (win.width as u128) * (win.height as u128) > relief_heightfield::MAX_CELLS as u128 {
+            return Err(SparseError::param(
+                "scale",
+                settings.scale,
+                "the raster would exceed MAX_CELLS cells (ask for a window)",
             ));
         }
         let mut out = vec![0f32; win.width * win.height];
