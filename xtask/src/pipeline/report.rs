@@ -277,11 +277,15 @@ impl Section {
     }
 }
 
+/// Largest side of a hillshade image written by [`StageCx::save_hillshade`].
+const MAX_HILLSHADE_SIDE: usize = 4096;
+
 /// Report helpers that write image files (hillshades, spectra, renders) from a stage.
 impl StageCx<'_> {
     /// Writes a grey hillshade PNG `<out>/<name>.png` (light from the north-west, 45 degrees,
     /// slopes in metres so grids of any cell size shade alike; voids black) and returns its
-    /// path relative to the output folder, or `None` when previews are off (golden run).
+    /// path relative to the output folder, or `None` when previews are off (golden run). Grids
+    /// larger than 4096 cells on a side are box-averaged down to at most that first.
     pub(crate) fn save_hillshade(
         &mut self,
         name: &str,
@@ -292,6 +296,16 @@ impl StageCx<'_> {
         }
         let rel = format!("{name}.png");
         let path = self.config.out_dir.join(&rel);
+        // Very large grids (a 16384^2 refinement) are box-averaged to at most
+        // MAX_HILLSHADE_SIDE per side first: the page shows them at 480 px anyway.
+        let k = hf.width().max(hf.height()).div_ceil(MAX_HILLSHADE_SIDE);
+        let small;
+        let hf = if k > 1 {
+            small = hf.downsample_box(k)?;
+            &small
+        } else {
+            hf
+        };
         let shade = hillshade(hf, 315.0, 45.0, 1.0);
         let grey: Vec<u8> = shade
             .iter()
@@ -1048,6 +1062,32 @@ mod tests {
         assert_eq!(s.tables[0].columns, ["m", "a", "", ""]);
         assert_eq!(s.tables[0].rows[0], ["r", "1", "2", "3"]);
         assert_eq!(s.tables[1].rows[0], ["1", "", ""]);
+    }
+
+    #[test]
+    fn huge_hillshades_are_reduced_and_pairs_recorded() {
+        let tmp = tempfile::tempdir().unwrap();
+        let config = PipelineConfig {
+            out_dir: tmp.path().to_path_buf(),
+            verbose: false,
+            ..PipelineConfig::full(&crate::project_root())
+        };
+        let mut state = State::default();
+        let mut section = Section::new("x");
+        let mut cx = StageCx {
+            config: &config,
+            state: &mut state,
+            section: &mut section,
+        };
+        let big = Heightfield::from_fn(4100, 6, 1.0, 1.0, |x, y| (x * y) as f32 * 0.01);
+        let small = big.crop(0, 0, 64, 6).unwrap();
+        cx.before_after("t", "c", &small, &big).unwrap();
+        let png = std::fs::read(tmp.path().join("t_after.png")).unwrap();
+        // PNG IHDR: width and height as big-endian u32 at bytes 16..24.
+        let w = u32::from_be_bytes(png[16..20].try_into().unwrap());
+        assert_eq!(w, 2050, "4100 wide, box-averaged by 2");
+        assert_eq!(section.pairs.len(), 1);
+        assert_eq!(section.pairs[0].right.caption, "after (4100 x 6)");
     }
 
     #[test]
