@@ -51,6 +51,44 @@ impl Default for ProceduralSettings {
     }
 }
 
+impl ProceduralSettings {
+    /// Validates the settings (each error names its field).
+    pub fn check(&self) -> Result<()> {
+        if self.n_candidates == 0 || self.n_candidates > 1 << 16 {
+            return Err(LearnError::param(
+                "n_candidates",
+                self.n_candidates,
+                "must be in 1..=65536",
+            ));
+        }
+        if self.patch_size < 2 || self.patch_size > 64 {
+            return Err(LearnError::param(
+                "patch_size",
+                self.patch_size,
+                "must be in 2..=64",
+            ));
+        }
+        if let Some(n) = self.learned_atoms
+            && (n == 0 || n > self.n_candidates)
+        {
+            return Err(LearnError::param(
+                "learned_atoms",
+                n,
+                "must be in 1..=n_candidates",
+            ));
+        }
+        let n_dict = self.learned_atoms.unwrap_or(self.n_candidates);
+        if self.sparsity == 0 || self.sparsity > 64 || self.sparsity > n_dict {
+            return Err(LearnError::param(
+                "sparsity",
+                self.sparsity,
+                "must be in 1..=min(64, number of atoms)",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Result of [`fit_procedural`].
 #[derive(Debug, Clone)]
 pub struct ProceduralFit {
@@ -68,21 +106,8 @@ pub fn fit_procedural(
     settings: &ProceduralSettings,
     progress: &dyn Progress,
 ) -> Result<ProceduralFit> {
+    settings.check()?;
     hf.require_complete()?;
-    if settings.n_candidates == 0 || settings.n_candidates > 1 << 16 {
-        return Err(LearnError::param(
-            "n_candidates",
-            settings.n_candidates,
-            "must be in 1..=65536",
-        ));
-    }
-    if settings.patch_size < 2 || settings.patch_size > 64 {
-        return Err(LearnError::param(
-            "patch_size",
-            settings.patch_size,
-            "must be in 2..=64",
-        ));
-    }
     let geom = PatchGeometry::with_patch_size(settings.patch_size);
     let mut full = Dictionary::new(geom.patch_size, geom.spacing, geom.support_radius)?;
     for atom in random_function_atoms(settings.family, settings.n_candidates, settings.seed) {

@@ -449,3 +449,79 @@ fn results_do_not_depend_on_thread_count() {
     };
     assert!(run(1) == run(3));
 }
+
+/// 1 vs 2 threads: residual-corrected amplification, sketch synthesis, the noise baseline and
+/// the procedural fit give identical bytes.
+#[test]
+fn synthesis_noise_and_procedural_do_not_depend_on_thread_count() {
+    let (Some(hf), Some(ex)) = (alps(700, 300, 64, 64), alps(1400, 300, 160, 160)) else {
+        return;
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let coarse = hf.resample(16, 16).unwrap();
+            let s = AmplifySettings {
+                radius: 2.0,
+                steps: 1,
+                residual_correction: true,
+                dictionary: DictionaryChoice::Learned {
+                    n_atoms: 24,
+                    iterations: 2,
+                },
+                seed: 9,
+                ..Default::default()
+            };
+            let a = amplify(&coarse, &ex, &s, &NoProgress)
+                .unwrap()
+                .rasterize(&RasterSettings::default())
+                .unwrap();
+            let sketch = hf.resample(6, 6).unwrap();
+            let syn = synthesize(
+                &sketch,
+                &ex,
+                &SynthesisSettings {
+                    amplify: AmplifySettings {
+                        radius: 1.0,
+                        steps: 2,
+                        residual_correction: false,
+                        ..s
+                    },
+                    height_range: None,
+                },
+                &NoProgress,
+            )
+            .unwrap()
+            .rasterize(&RasterSettings::default())
+            .unwrap();
+            let n = noise_amplify(
+                &coarse,
+                &NoiseBaselineSettings {
+                    factor: 4,
+                    seed: 5,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let p = fit_procedural(
+                &hf,
+                &ProceduralSettings {
+                    n_candidates: 128,
+                    learned_atoms: Some(16),
+                    ..Default::default()
+                },
+                &NoProgress,
+            )
+            .unwrap();
+            (a, syn, n, p.sct.to_bytes().unwrap(), p.psnr.to_bits())
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(one.0 == two.0, "amplify + residual");
+    assert!(one.1 == two.1, "synthesize");
+    assert!(one.2 == two.2, "noise baseline");
+    assert!(one.3 == two.3 && one.4 == two.4, "procedural fit");
+}
