@@ -178,6 +178,48 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "peer gets an 8-bit copy of the exemplar (7.3 m steps) and makes a 4x smaller \
                output: ratio is of running time only",
     },
+    WorkItem {
+        name: "patch search (PCA + kd-tree, section 3.5), L-shaped overlap, 24-NN among 201,601 \
+               patches, 2 threads",
+        criterion_id: "quilt_search/pca_kdtree/L_knn24",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("quilt_search/bruteforce/L_full"),
+            label: "exhaustive mean-removed SSD over the full L overlap (same index, 2 threads)",
+        }),
+        goal: Goal::None,
+        units: None,
+        note: "the bench prints how many of the exhaustive best 24 the fast search returns",
+    },
+    WorkItem {
+        name: "patch search (PCA + kd-tree), left overlap, 24-NN, 2 threads",
+        criterion_id: "quilt_search/pca_kdtree/left_knn24",
+        peer: None,
+        goal: Goal::None,
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "seam: minimum-error boundary cut (DP) through a 64 x 16 real overlap",
+        criterion_id: "quilt_seam/dp/64x16",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("quilt_seam/greedy/64x16"),
+            label: "greedy cut (same table)",
+        }),
+        goal: Goal::None,
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "seam: minimum-error boundary cut (DP) through a 256 x 64 real overlap",
+        criterion_id: "quilt_seam/dp/256x64",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("quilt_seam/greedy/256x64"),
+            label: "greedy cut (same table)",
+        }),
+        goal: Goal::None,
+        units: None,
+        note: "",
+    },
     // Issue 7: implicit-volume (paris2019/2021).
     WorkItem {
         name: "tree build, karst + sea scene on ~5 km^2 of N57E011, 2 threads",
