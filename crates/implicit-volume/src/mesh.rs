@@ -181,12 +181,17 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                         mul(s, 1.0 / cs.len() as f32)
                     };
                     let outward = sub(cen(&outs), cen(&ins));
-                    let emit = |tri: [u32; 3], out: &mut ChunkOut| {
-                        let (p0, p1, p2) = (
-                            out.pos[tri[0] as usize],
-                            out.pos[tri[1] as usize],
-                            out.pos[tri[2] as usize],
-                        );
+                    // The winding is decided on the lattice-edge midpoints, never degenerate
+                    // (interpolated vertices may coincide when a value equals the iso-level).
+                    let mid = |e: (u8, u8)| {
+                        let (qa, qb) = (corner(e.0), corner(e.1));
+                        mul(
+                            add(g.pos(qa[0], qa[1], qa[2]), g.pos(qb[0], qb[1], qb[2])),
+                            0.5,
+                        )
+                    };
+                    let emit = |tri: [u32; 3], e: [(u8, u8); 3], out: &mut ChunkOut| {
+                        let (p0, p1, p2) = (mid(e[0]), mid(e[1]), mid(e[2]));
                         let n = cross(sub(p1, p0), sub(p2, p0));
                         if dot(n, outward) >= 0.0 {
                             out.tris.push(tri);
@@ -196,31 +201,21 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                     };
                     match (ins.len(), outs.len()) {
                         (1, 3) => {
-                            let t = [
-                                vert(ins[0], outs[0], &mut out),
-                                vert(ins[0], outs[1], &mut out),
-                                vert(ins[0], outs[2], &mut out),
-                            ];
-                            emit(t, &mut out);
+                            let e = [(ins[0], outs[0]), (ins[0], outs[1]), (ins[0], outs[2])];
+                            let t = e.map(|(a, b)| vert(a, b, &mut out));
+                            emit(t, e, &mut out);
                         }
                         (3, 1) => {
-                            let t = [
-                                vert(outs[0], ins[0], &mut out),
-                                vert(outs[0], ins[1], &mut out),
-                                vert(outs[0], ins[2], &mut out),
-                            ];
-                            emit(t, &mut out);
+                            let e = [(outs[0], ins[0]), (outs[0], ins[1]), (outs[0], ins[2])];
+                            let t = e.map(|(a, b)| vert(a, b, &mut out));
+                            emit(t, e, &mut out);
                         }
                         _ => {
                             let (a, b, c, dd) = (ins[0], ins[1], outs[0], outs[1]);
-                            let q = [
-                                vert(a, c, &mut out),
-                                vert(a, dd, &mut out),
-                                vert(b, dd, &mut out),
-                                vert(b, c, &mut out),
-                            ];
-                            emit([q[0], q[1], q[2]], &mut out);
-                            emit([q[0], q[2], q[3]], &mut out);
+                            let e = [(a, c), (a, dd), (b, dd), (b, c)];
+                            let q = e.map(|(x, y)| vert(x, y, &mut out));
+                            emit([q[0], q[1], q[2]], [e[0], e[1], e[2]], &mut out);
+                            emit([q[0], q[2], q[3]], [e[0], e[2], e[3]], &mut out);
                         }
                     }
                 }

@@ -90,3 +90,41 @@ fn precomputed_grid_mesher_matches_and_rejects_bad_input() {
     .unwrap_err();
     assert!(e.to_string().contains("chunk"));
 }
+
+/// Grid nodes exactly on the iso-surface (a flat DEM on a lattice plane) give coincident
+/// vertices and zero-area triangles; their winding must still be consistent.
+#[test]
+fn iso_values_on_grid_nodes_keep_the_orientation_consistent() {
+    let hf = relief_heightfield::Heightfield::from_fn(12, 12, 1.0, 1.0, |x, y| {
+        if (3..8).contains(&x) && (4..9).contains(&y) {
+            12.0
+        } else {
+            10.0
+        }
+    });
+    let mut b = SceneBuilder::new(
+        &hf,
+        Geology::layered_default([5.0, 5.0, 10.0], 4.0, 1).unwrap(),
+        &ImplicitizeSettings {
+            transition: 1.0,
+            depth: 4.0,
+        },
+    )
+    .unwrap();
+    let s = b.tree_mut().sphere([6.0, 6.0, 10.0], 3.0, -1.0).unwrap();
+    b.add_carving(s);
+    let scene = b.build(true).unwrap();
+    let (m, _) = polygonize(
+        &scene,
+        &MeshSettings {
+            bbox: Some(Aabb::new([-1.0, -1.0, 0.0], [12.0, 12.0, 20.0])),
+            cells: [13, 13, 20],
+            chunk: 4,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let topo = topology(&m);
+    assert!(topo.faces > 100);
+    assert_eq!((topo.bad_edges, topo.misoriented_edges), (0, 0), "{topo:?}");
+}

@@ -30,6 +30,7 @@ pub(crate) mod report;
 pub(crate) mod spec;
 mod sparse;
 mod wavelet;
+mod volume;
 
 pub(crate) use report::{Report, Section};
 

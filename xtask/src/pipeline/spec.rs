@@ -33,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{PipelineConfig, Stage, convert, dictionary, fill, load, quilt, sparse, wavelet};
+use super::{PipelineConfig, Stage, convert, dictionary, fill, load, quilt, sparse, wavelet, volume};
 
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,11 +113,11 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural"];
+pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural", "volume"];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
 pub(crate) fn default_spec() -> Vec<StageSpec> {
-    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural"]
+    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural", "volume"]
         .iter()
         .map(|s| StageSpec::named(s))
         .collect()
@@ -136,6 +136,7 @@ pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "amplify" => Box::new(dictionary::AmplifyStage(params(p)?)),
         "sketch" => Box::new(dictionary::SketchStage(params(p)?)),
         "procedural" => Box::new(dictionary::ProceduralStage(params(p)?)),
+        "volume" => Box::new(volume::VolumeStage::new(params(p)?)?),
         other => bail!(
             "unknown stage `{other}`; known stages: {}",
             STAGE_NAMES.join(", ")
