@@ -291,13 +291,17 @@ impl Refiner {
                     self.render_region(x0, y0, t.min(ow - x0), sh)
                 })
                 .collect();
-            for (tx, tile) in tiles.iter().enumerate() {
-                let x0 = tx * t;
-                let tw = t.min(ow - x0);
-                for (r, row) in tile.chunks(tw).enumerate() {
-                    buf[r * ow + x0..r * ow + x0 + tw].copy_from_slice(row);
-                }
-            }
+            // Row by row in parallel (a serial copy would leave the other threads idle).
+            buf[..sh * ow]
+                .par_chunks_mut(ow)
+                .enumerate()
+                .for_each(|(r, row)| {
+                    for (tx, tile) in tiles.iter().enumerate() {
+                        let x0 = tx * t;
+                        let tw = t.min(ow - x0);
+                        row[x0..x0 + tw].copy_from_slice(&tile[r * tw..(r + 1) * tw]);
+                    }
+                });
             sink(y0, &buf[..sh * ow])?;
             progress.advance(1);
         }
