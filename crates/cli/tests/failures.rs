@@ -451,3 +451,31 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
         .collect();
     assert!(left.is_empty(), "stale temporaries kept: {left:?}");
 }
+
+#[test]
+fn max_input_cells_flag_limits_and_raises_the_input_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    synthetic_tif(&input, 64, 64);
+    let out = tmp.path().join("o.exr");
+    let o = relief(&[
+        "convert".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--max-input-cells".as_ref(),
+        "4095".as_ref(),
+    ]);
+    assert_one_line_failure(&o, "--max-input-cells 4095");
+    let e = stderr(&o);
+    assert!(e.contains("max_cells") && e.contains("4096"), "{e}");
+    assert!(!out.exists());
+    let o = relief(&[
+        "convert".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--max-input-cells".as_ref(),
+        "4096".as_ref(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.exists());
+}

@@ -27,6 +27,25 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> IoResult<Raster> {
     if header.deep {
         return Err(IoError::unsupported(F, "deep data"));
     }
+    // Every part's declared size counts: the decoder reads the offset tables of all of them.
+    let mut total = 0u64;
+    for h in &meta.headers {
+        let (w, hh) = (h.layer_size.0 as u64, h.layer_size.1 as u64);
+        let cells = check_dims(F, w, hh, opts)? as u64;
+        total = total.saturating_add(cells.saturating_mul(h.channels.list.len().max(1) as u64));
+        if total > opts.max_cells as u64 {
+            return Err(IoError::Dimensions {
+                format: F,
+                width: w,
+                height: hh,
+                reason: format!(
+                    "the {} parts declare more than {} samples in total (ReadOptions::max_cells)",
+                    meta.headers.len(),
+                    opts.max_cells
+                ),
+            });
+        }
+    }
     let size = header.layer_size;
     let n = check_dims(F, size.0 as u64, size.1 as u64, opts)?;
     let channels = header.channels.list.len() as u64;

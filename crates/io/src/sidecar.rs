@@ -154,10 +154,11 @@ fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
 
 /// A `.json` file: a `{width, height, values}` grid, or a sidecar whose `.f32` is read.
 pub(crate) fn read_json_any(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    let v = parse_json(bytes)?;
-    if v.get("values").is_some() {
-        return grid_from_value(&v, opts);
+    let shape = grid_shape(bytes)?;
+    if shape.values.is_some() {
+        return read_json_grid(bytes, opts);
     }
+    let v = parse_json(bytes)?;
     let side = parse_sidecar(&v)?;
     let data_name = v
         .get("data_file")
@@ -202,57 +203,163 @@ fn parse_json(bytes: &[u8]) -> Result<Value> {
         .map_err(|e| IoError::malformed(Format::JsonGrid, format!("invalid JSON: {e}")))
 }
 
-/// Decodes a `{width, height, values}` JSON grid (row-major, row 0 first; `null` = void).
-pub(crate) fn read_json_grid(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    let v = parse_json(bytes)?;
-    grid_from_value(&v, opts)
+/// First pass over a JSON grid: the declared size and the number of `values`, counted without
+/// storing them, so the size is checked against the cell limit before anything is allocated.
+#[derive(serde::Deserialize)]
+struct GridShape {
+    width: Option<Value>,
+    height: Option<Value>,
+    values: Option<ValueCount>,
 }
 
-fn grid_from_value(v: &Value, opts: &ReadOptions) -> Result<Raster> {
+/// The length of a JSON array (`None` when `values` is not an array), elements skipped.
+struct ValueCount(Option<u64>);
+
+impl<'de> serde::Deserialize<'de> for ValueCount {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = ValueCount;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("any JSON value")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<ValueCount, A::Error> {
+                let mut n = 0u64;
+                while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+                    n += 1;
+                }
+                Ok(ValueCount(Some(n)))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> std::result::Result<ValueCount, A::Error> {
+                while map
+                    .next_entry::<serde::de::IgnoredAny, serde::de::IgnoredAny>()?
+                    .is_some()
+                {}
+                Ok(ValueCount(None))
+            }
+            fn visit_bool<E>(self, _: bool) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+            fn visit_i64<E>(self, _: i64) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+            fn visit_u64<E>(self, _: u64) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+            fn visit_f64<E>(self, _: f64) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+            fn visit_str<E>(self, _: &str) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+            fn visit_unit<E>(self) -> std::result::Result<ValueCount, E> {
+                Ok(ValueCount(None))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+fn grid_shape(bytes: &[u8]) -> Result<GridShape> {
+    serde_json::from_slice(bytes)
+        .map_err(|e| IoError::malformed(Format::JsonGrid, format!("invalid JSON: {e}")))
+}
+
+/// Second pass: the grid with its values decoded straight to f32 (`null` = NaN).
+#[derive(serde::Deserialize)]
+struct GridBody {
+    values: GridValues,
+    cell_size_x_m: Option<Value>,
+    cell_size_y_m: Option<Value>,
+    cell_size: Option<Value>,
+    nodata: Option<Value>,
+}
+
+struct GridValues(Vec<f32>);
+
+impl<'de> serde::Deserialize<'de> for GridValues {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = GridValues;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("an array of numbers or nulls")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<GridValues, A::Error> {
+                // The first pass counted the elements and checked them against the limit.
+                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 20));
+                while let Some(x) = seq.next_element::<Value>()? {
+                    match x {
+                        Value::Null => out.push(f32::NAN),
+                        x => out.push(x.as_f64().ok_or_else(|| {
+                            serde::de::Error::custom(format!(
+                                "values[{}] = {x:.40} is not a number",
+                                out.len()
+                            ))
+                        })? as f32),
+                    }
+                }
+                Ok(GridValues(out))
+            }
+        }
+        d.deserialize_seq(V)
+    }
+}
+
+/// Decodes a `{width, height, values}` JSON grid (row-major, row 0 first; `null` = void). The
+/// declared size is checked against `opts.max_cells` and the number of values before the
+/// values are stored.
+pub(crate) fn read_json_grid(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let f = Format::JsonGrid;
-    let dim = |key: &str| -> Result<u64> {
-        v.get(key).and_then(Value::as_u64).ok_or_else(|| {
+    let shape = grid_shape(bytes)?;
+    let dim = |v: &Option<Value>, key: &str| -> Result<u64> {
+        v.as_ref().and_then(Value::as_u64).ok_or_else(|| {
             IoError::malformed(
                 f,
                 format!("field `{key}` missing or not a non-negative integer"),
             )
         })
     };
-    let (w, h) = (dim("width")?, dim("height")?);
+    let (w, h) = (dim(&shape.width, "width")?, dim(&shape.height, "height")?);
     let n = check_dims(f, w, h, opts)?;
-    let values = v
-        .get("values")
-        .and_then(Value::as_array)
+    let count = shape
+        .values
+        .and_then(|c| c.0)
         .ok_or_else(|| IoError::malformed(f, "field `values` is not an array"))?;
-    if values.len() != n {
+    if count != n as u64 {
         return Err(IoError::malformed(
             f,
-            format!(
-                "header says {w} x {h} = {n} values but `values` holds {}",
-                values.len()
-            ),
+            format!("header says {w} x {h} = {n} values but `values` holds {count}"),
         ));
     }
-    let mut data = Vec::with_capacity(n);
-    for (i, x) in values.iter().enumerate() {
-        match x {
-            Value::Null => data.push(f32::NAN),
-            x => data.push(x.as_f64().ok_or_else(|| {
-                IoError::malformed(f, format!("values[{i}] = {x} is not a number"))
-            })? as f32),
-        }
+    let body: GridBody = serde_json::from_slice(bytes)
+        .map_err(|e| IoError::malformed(f, format!("invalid JSON grid: {e}")))?;
+    let data = body.values.0;
+    if data.len() != n {
+        return Err(IoError::malformed(
+            f,
+            format!("`values` holds {} values, expected {n}", data.len()),
+        ));
     }
+    let num = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
     let cell = (
-        v.get("cell_size_x_m")
-            .or(v.get("cell_size"))
-            .and_then(Value::as_f64)
+        num(&body.cell_size_x_m)
+            .or(num(&body.cell_size))
             .unwrap_or(1.0),
-        v.get("cell_size_y_m")
-            .or(v.get("cell_size"))
-            .and_then(Value::as_f64)
+        num(&body.cell_size_y_m)
+            .or(num(&body.cell_size))
             .unwrap_or(1.0),
     );
-    let nodata = v.get("nodata").and_then(Value::as_f64);
+    let nodata = num(&body.nodata);
     finish(f, w as usize, h as usize, data, cell, nodata, "number")
 }
 

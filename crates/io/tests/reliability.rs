@@ -100,3 +100,253 @@ fn stale_temporaries_of_dead_runs_are_removed_by_the_next_write() {
     assert!(alive.exists(), "temporary of a live process removed");
     assert!(other.exists(), "temporary of another target removed");
 }
+
+mod limits {
+    //! The cell limit protects every reader: a file declaring an absurd size is refused before
+    //! allocation, and a real file of `n` cells needs `max_cells >= n` (raising it is explicit).
+
+    use std::io::Write;
+    use std::path::Path;
+
+    use relief_heightfield::Heightfield;
+    use relief_io::{
+        Format, IoError, PngMode, ReadOptions, WriteOptions, encode, read_bytes,
+        read_f32_sidecar_bytes,
+    };
+
+    fn root(e: &IoError) -> &IoError {
+        match e {
+            IoError::InFile { source, .. } => root(source),
+            e => e,
+        }
+    }
+
+    /// Asserts that `res` failed because of the declared size (a dimensions error).
+    fn assert_size_refused(res: relief_io::Result<relief_io::Raster>, what: &str) {
+        let e = res.err().unwrap_or_else(|| panic!("{what}: accepted"));
+        assert!(
+            matches!(root(&e), IoError::Dimensions { .. }),
+            "{what}: not a size error: {e}"
+        );
+    }
+
+    fn terrain(w: usize, h: usize) -> Heightfield {
+        Heightfield::from_fn(w, h, 30.0, 30.0, |x, y| {
+            (100.0 + 3.0 * x as f64 + 2.0 * (y as f64 * 0.3).sin()) as f32
+        })
+    }
+
+    fn opts(max_cells: usize) -> ReadOptions {
+        ReadOptions {
+            max_cells,
+            ..Default::default()
+        }
+    }
+
+    /// Reads `bytes` (named `name`) with the limit one below and at its cell count `n`.
+    fn check_limit(bytes: &[u8], name: &str, n: usize, base: ReadOptions) {
+        let hint = Some(Path::new(name));
+        let below = ReadOptions {
+            max_cells: n - 1,
+            ..base.clone()
+        };
+        let e = read_bytes(bytes, hint, &below).unwrap_err();
+        assert!(
+            matches!(root(&e), IoError::Dimensions { .. }),
+            "{name}: {e}"
+        );
+        assert!(e.to_string().contains("max_cells"), "{name}: {e}");
+        let at = ReadOptions {
+            max_cells: n,
+            ..base
+        };
+        let r = read_bytes(bytes, hint, &at).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(r.heightfield.len(), n, "{name}");
+    }
+
+    #[test]
+    fn every_writable_format_obeys_the_limit_and_raising_it_reads() {
+        let hf = terrain(37, 23);
+        let n = hf.len();
+        for (format, name) in [
+            (Format::GeoTiff, "a.tif"),
+            (Format::AsciiGrid, "a.asc"),
+            (Format::Png, "a.png"),
+            (Format::Exr, "a.exr"),
+            (Format::R32, "a.r32"),
+            (Format::R16, "a.r16"),
+            (Format::Npy, "a.npy"),
+        ] {
+            let bytes = encode(&hf, format, &WriteOptions::default()).unwrap();
+            let base = ReadOptions {
+                width: Some(37),
+                ..Default::default()
+            };
+            check_limit(&bytes, name, n, base);
+        }
+        let bytes = encode(&hf, Format::TerrainRgb, &WriteOptions::default()).unwrap();
+        let base = ReadOptions {
+            png: PngMode::TerrainRgb,
+            ..Default::default()
+        };
+        check_limit(&bytes, "a.png", n, base);
+        // SRTM tiles have a fixed size: 1201^2 cells.
+        let tile = terrain(1201, 1201);
+        let bytes = encode(&tile, Format::Hgt, &WriteOptions::default()).unwrap();
+        check_limit(&bytes, "N47E011.hgt", 1201 * 1201, ReadOptions::default());
+        // .f32 + sidecar.
+        let data = encode(&hf, Format::F32Sidecar, &WriteOptions::default()).unwrap();
+        let side = br#"{"width": 37, "height": 23, "cell_size_m": 30}"#;
+        let e = read_f32_sidecar_bytes(&data, Some(side), &opts(n - 1)).unwrap_err();
+        assert!(matches!(root(&e), IoError::Dimensions { .. }), "{e}");
+        assert!(read_f32_sidecar_bytes(&data, Some(side), &opts(n)).is_ok());
+        // JSON grid.
+        let values: Vec<String> = hf.as_slice().iter().map(|v| v.to_string()).collect();
+        let json = format!(
+            r#"{{"width": 37, "height": 23, "values": [{}]}}"#,
+            values.join(",")
+        );
+        check_limit(json.as_bytes(), "a.json", n, ReadOptions::default());
+        // NPZ.
+        let npy = encode(&hf, Format::Npy, &WriteOptions::default()).unwrap();
+        let mut z = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+        z.start_file("elevation.npy", zip::write::SimpleFileOptions::default())
+            .unwrap();
+        z.write_all(&npy).unwrap();
+        let npz = z.finish().unwrap().into_inner();
+        check_limit(&npz, "a.npz", n, ReadOptions::default());
+    }
+
+    #[test]
+    fn absurd_declared_sizes_are_refused_for_every_format() {
+        let o = ReadOptions::default();
+        let huge = 1u64 << 31;
+        // GeoTIFF: fixtures/bad holds 1e6 x 1e6 and u32::MAX^2 headers (bad_files.rs); here a
+        // real file with its width patched.
+        let hf = terrain(8, 8);
+        let mut tif = encode(&hf, Format::GeoTiff, &WriteOptions::default()).unwrap();
+        let ifd = u32::from_le_bytes(tif[4..8].try_into().unwrap()) as usize;
+        let count = u16::from_le_bytes([tif[ifd], tif[ifd + 1]]) as usize;
+        for k in 0..count {
+            let e = ifd + 2 + 12 * k;
+            let tag = u16::from_le_bytes([tif[e], tif[e + 1]]);
+            if tag == 256 || tag == 257 {
+                // Force LONG type so the value holds 4e9.
+                tif[e + 2..e + 4].copy_from_slice(&4u16.to_le_bytes());
+                tif[e + 8..e + 12].copy_from_slice(&4_000_000_000u32.to_le_bytes());
+            }
+        }
+        // The tiff crate itself notices that the strips cannot hold 4e9^2 samples.
+        let e = read_bytes(&tif, Some(Path::new("a.tif")), &o).unwrap_err();
+        assert!(
+            matches!(root(&e), IoError::Dimensions { .. } | IoError::Malformed { .. }),
+            "tif: {e}"
+        );
+        // PNG: IHDR width/height (checked before decoding, the CRC is not even looked at).
+        let mut png = encode(&hf, Format::Png, &WriteOptions::default()).unwrap();
+        png[16..20].copy_from_slice(&0x7fff_ffffu32.to_be_bytes());
+        png[20..24].copy_from_slice(&0x7fff_ffffu32.to_be_bytes());
+        assert_size_refused(read_bytes(&png, Some(Path::new("a.png")), &o), "png");
+        let tro = ReadOptions {
+            png: PngMode::TerrainRgb,
+            ..Default::default()
+        };
+        assert_size_refused(
+            read_bytes(&png, Some(Path::new("a.png")), &tro),
+            "terrain-rgb",
+        );
+        // EXR: the dataWindow attribute.
+        let mut exr = encode(&hf, Format::Exr, &WriteOptions::default()).unwrap();
+        let at = exr
+            .windows(10)
+            .position(|w| w == b"dataWindow")
+            .expect("dataWindow attribute")
+            + b"dataWindow\0box2i\0".len()
+            + 4;
+        exr[at + 8..at + 12].copy_from_slice(&(1i32 << 30).to_le_bytes());
+        exr[at + 12..at + 16].copy_from_slice(&(1i32 << 30).to_le_bytes());
+        let e = read_bytes(&exr, Some(Path::new("a.exr")), &o).unwrap_err();
+        assert!(
+            matches!(
+                root(&e),
+                IoError::Dimensions { .. } | IoError::Malformed { .. }
+            ),
+            "exr: {e}"
+        );
+        // ASCII grid.
+        let asc = format!("ncols {huge}\nnrows {huge}\ncellsize 1\n1 2 3\n");
+        assert_size_refused(read_bytes(asc.as_bytes(), None, &o), "asc");
+        // NPY (and the same array inside an NPZ).
+        let hdr =
+            format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({huge}, {huge}), }}");
+        let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+        npy.extend_from_slice(&(hdr.len() as u16 + 1).to_le_bytes());
+        npy.extend_from_slice(hdr.as_bytes());
+        npy.push(b'\n');
+        npy.extend_from_slice(&[0u8; 64]);
+        assert_size_refused(read_bytes(&npy, None, &o), "npy");
+        let mut z = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+        z.start_file("z.npy", zip::write::SimpleFileOptions::default())
+            .unwrap();
+        z.write_all(&npy).unwrap();
+        let npz = z.finish().unwrap().into_inner();
+        assert_size_refused(read_bytes(&npz, None, &o), "npz");
+        // Raw: the size comes from the options; absurd options are refused.
+        let raw = vec![0u8; 64];
+        for name in ["a.r16", "a.r32", "a.f32"] {
+            let ro = ReadOptions {
+                width: Some(huge as usize),
+                height: Some(huge as usize),
+                ..Default::default()
+            };
+            assert!(
+                read_bytes(&raw, Some(Path::new(name)), &ro).is_err(),
+                "{name}"
+            );
+        }
+        // .f32 sidecar and JSON grid declaring 2^62 cells.
+        let side = format!(r#"{{"width": {huge}, "height": {huge}}}"#);
+        assert_size_refused(
+            read_f32_sidecar_bytes(&raw, Some(side.as_bytes()), &o),
+            "sidecar",
+        );
+        let grid = format!(r#"{{"width": {huge}, "height": {huge}, "values": [1, 2]}}"#);
+        assert_size_refused(read_bytes(grid.as_bytes(), None, &o), "json grid");
+        // The limit itself must be sane.
+        for bad in [0, usize::MAX] {
+            let e = read_bytes(&npy, None, &opts(bad)).unwrap_err().to_string();
+            assert!(e.contains("max_cells"), "{e}");
+        }
+    }
+
+    #[test]
+    fn json_grid_counts_values_before_storing_them() {
+        // Declares 2 x 2 but holds 5 values, and values that are not numbers.
+        let o = ReadOptions::default();
+        let e = read_bytes(br#"{"width":2,"height":2,"values":[1,2,3,4,5]}"#, None, &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("holds 5"), "{e}");
+        let e = read_bytes(
+            br#"{"values":[1,"x",3,null],"width":2,"height":2}"#,
+            None,
+            &o,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("values[1]"), "{e}");
+        let r = read_bytes(
+            br#"{"values":[1,2.5,null,4],"width":2,"height":2,"cell_size":5}"#,
+            None,
+            &o,
+        )
+        .unwrap();
+        assert_eq!(r.heightfield.cell_size(), (5.0, 5.0));
+        assert!(r.heightfield.as_slice()[2].is_nan());
+        assert_eq!(r.heightfield.as_slice()[1], 2.5);
+        let e = read_bytes(br#"{"width":2,"height":2,"values":{"a":1}}"#, None, &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not an array"), "{e}");
+    }
+}

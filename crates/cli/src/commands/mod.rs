@@ -11,11 +11,11 @@ pub(crate) mod fit_procedural;
 pub(crate) mod info;
 pub(crate) mod learn;
 pub(crate) mod preview;
-pub(crate) mod volume;
 pub(crate) mod quilt;
 pub(crate) mod refine;
 pub(crate) mod synthesize;
 pub(crate) mod validate;
+pub(crate) mod volume;
 
 use std::path::Path;
 
@@ -37,6 +37,10 @@ pub(crate) struct ReadArgs {
     /// NPY); overrides a stored one.
     #[arg(long, value_parser = parse_cell_size)]
     pub(crate) cell_size: Option<(f64, f64)>,
+    /// Largest input raster accepted, in cells (default 268435456 = 2^28, 1 GiB of f32): a
+    /// file declaring more is refused before anything is allocated. Raise it for larger inputs.
+    #[arg(long)]
+    pub(crate) max_input_cells: Option<usize>,
 }
 
 impl ReadArgs {
@@ -45,6 +49,9 @@ impl ReadArgs {
             width: self.width,
             height: self.height,
             cell_size: self.cell_size,
+            max_cells: self
+                .max_input_cells
+                .unwrap_or(relief_io::ReadOptions::default().max_cells),
             ..Default::default()
         }
     }
