@@ -5,7 +5,9 @@
 //!
 //! The inputs are also written to `target/bench-data/omp_k{K}_n{N}_{dict,signals}.npy` so the
 //! SPAMS peer (`xtask/peers/spams_omp.py target/bench-data`) codes exactly the same data.
-//! Criterion ids: `omp/batch_omp_f32/k64_n256_s{1,4,8}`, `omp/batch_omp_f32/k256_n1024_s8`.
+//! Criterion ids: `omp/batch_omp_f32/k64_n256_s{1,4,8}`, `omp/batch_omp_f32/k256_n1024_s8`, and
+//! the same inputs in `f64`: `omp/batch_omp_f64/k64_n256_s{1,4,8}`,
+//! `omp/batch_omp_f64/k256_n1024_s8`.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -99,6 +101,27 @@ fn omp(c: &mut Criterion) {
         &st,
         |b, st| b.iter(|| batch_omp(d.view(), x.view(), st).expect("omp")),
     );
+    // The f64 path on the same data (section 4.3 asks for both precisions).
+    let (d64, x64) = (d.mapv(f64::from), x.mapv(f64::from));
+    g.bench_with_input(
+        BenchmarkId::new("batch_omp_f64", "k256_n1024_s8"),
+        &st,
+        |b, st| b.iter(|| batch_omp(d64.view(), x64.view(), st).expect("omp")),
+    );
+    let (d, x) = data(8, 1.0, 256, 65_536);
+    let (d64, x64) = (d.mapv(f64::from), x.mapv(f64::from));
+    g.throughput(Throughput::Elements(x.nrows() as u64));
+    for s in [1usize, 4, 8] {
+        let st = OmpSettings {
+            sparsity: s,
+            tolerance: None,
+        };
+        g.bench_with_input(
+            BenchmarkId::new("batch_omp_f64", format!("k64_n256_s{s}")),
+            &st,
+            |b, st| b.iter(|| batch_omp(d64.view(), x64.view(), st).expect("omp")),
+        );
+    }
     g.finish();
 }
 
