@@ -12,7 +12,10 @@
 //! | 4.3 fast OMP: Batch-OMP (Rubinstein, Zibulevsky & Elad 2008) | [`batch_omp`] |
 //! | 4.3 exact reconstruction with `s = 1` and the complete dictionary | `Dictionary::from_patches(&p, None)` + [`encode()`] (tested) |
 //! | 5.1 compact representation, `t(s, N) = KN + n(2s + 2) + 1`, `rho = t / t0`, PSNR | [`encode()`], [`encode::compression_report`], [`format`](mod@format) (`.sct` bytes) |
-//! | 5.4 authoring: operators (blend, add, max/min carve, replace in region), rivers (fig. 12-13) | [`sct::Node`], [`sct::River`], [`sct::Region`] |
+//! | 5.4 authoring: operators (blend, add, max/min carve, replace in region), rivers (fig. 12-13) | [`sct::Node`], [`sct::River`] (carve or bed profile along a polyline, width/depth per vertex), [`sct::Region`] |
+//! | 4.1 evaluation `f(p)` / rasterisation of any window at any scale, by stamping every node kind | [`Sct::eval`], [`Sct::rasterize`] |
+//! | storage of `D` alone (learned dictionaries, `relief learn` / `relief compress --dictionary`) | [`Dictionary::to_bytes`], [`Dictionary::from_bytes`] |
+//! | settings, validated once (errors name the field and the value) | [`PatchGeometry::check`], [`OmpSettings::check`], [`EncodeSettings::check`], [`RasterSettings::check`] |
 //!
 //! # Coordinates
 //! Positions are continuous *pixel coordinates of the encoded grid* (x = column, east; y = row,
@@ -25,7 +28,9 @@
 //!   thread count.
 //! * [`batch_omp`] gives the same codes for a signal whatever the batch and thread count.
 //! * Invalid input (empty dictionary, `s > N`, `s` outside `1..=64`, NaN, mismatched sizes,
-//!   corrupt `.sct` bytes) is an `Err`, never a panic.
+//!   absurd sizes, corrupt `.sct` or dictionary bytes) is an `Err`, never a panic (property
+//!   tests feed random settings to every entry point).
+//! * [`encode()`] gives the same `.sct` bytes whatever the thread count.
 //!
 //! Not guaranteed: [`omp_reference`] and [`batch_omp`] may pick different atoms on coherent
 //! dictionaries (they use different, though equivalent on orthogonal atoms, selection rules);
