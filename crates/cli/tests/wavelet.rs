@@ -314,3 +314,55 @@ fn bad_input_fails_cleanly() {
         &plot,
     );
 }
+
+#[test]
+fn analyze_writes_the_local_maps() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 100, 200, 96, 80);
+    let prefix = tmp.path().join("lsa");
+    let json = ok(&relief(&[
+        os("analyze"),
+        input.as_os_str(),
+        os("--local"),
+        os("3"),
+        os("--maps"),
+        prefix.as_os_str(),
+        os("--json"),
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let local = v["local"].as_array().unwrap();
+    assert_eq!(local.len(), 3);
+    let mean =
+        |h: &Heightfield| h.as_slice().iter().map(|&x| x as f64).sum::<f64>() / h.len() as f64;
+    let mut gammas = Vec::new();
+    for (i, b) in ["h", "v", "d"].iter().enumerate() {
+        let g = read(&tmp.path().join(format!("lsa_gamma_{b}.tif")));
+        let a = read(&tmp.path().join(format!("lsa_a_{b}.tif")));
+        assert_eq!((g.width(), g.height()), (96, 80));
+        assert!(!g.has_voids() && !a.has_voids());
+        // The map is what the summary describes.
+        let want = local[i]["gamma"]["mean"].as_f64().unwrap();
+        assert!(
+            (mean(&g) - want).abs() < 1e-3,
+            "{b}: {} vs {want}",
+            mean(&g)
+        );
+        // Local statistics vary over a real terrain.
+        let (lo, hi) = g.min_max().unwrap();
+        assert!(hi - lo > 0.2, "{b}: gamma map range {lo}..{hi}");
+        gammas.push(g);
+    }
+    let d = read(&tmp.path().join("lsa_dimension.tif"));
+    for k in [0, 1234, 96 * 80 - 1] {
+        let g = (gammas[0].as_slice()[k] + gammas[1].as_slice()[k] + gammas[2].as_slice()[k]) / 3.0;
+        assert!((d.as_slice()[k] - (3.0 - g / 2.0)).abs() < 1e-5);
+    }
+    // --maps needs --local.
+    let res = relief(&[
+        os("analyze"),
+        input.as_os_str(),
+        os("--maps"),
+        prefix.as_os_str(),
+    ]);
+    assert!(!res.status.success());
+}

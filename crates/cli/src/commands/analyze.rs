@@ -2,14 +2,15 @@
 //! per band (h, v, d) the variance of the detail coefficients at every level (equation (2)),
 //! the fitted line `log2 Var = -j gamma + a` (equation (3)) and the implied fractal dimension
 //! `3 - gamma / 2`; optionally the local fits of equation (4) summarised over the terrain
-//! (`--local W`), JSON output (`--json`) and the log-variance plot as a PNG (`--plot`).
+//! (`--local W`) and written as rasters (`--maps PREFIX`), JSON output (`--json`) and the
+//! log-variance plot as a PNG (`--plot`).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::Progress;
 use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_heightfield::{Heightfield, Progress};
 use relief_wavelet_lod::{
     Band, FitSettings, GlobalAnalysis, Wavelet, analyze, analyze_local, render_log_variance_plot,
 };
@@ -32,6 +33,11 @@ pub(crate) struct Args {
     /// their maps (mean and 5/50/95th percentiles of gamma and of the fractal dimension).
     #[arg(long, value_name = "W")]
     pub(crate) local: Option<usize>,
+    /// With --local: also write the local maps at input resolution (same cell size and
+    /// georeference) as `PREFIX_gamma_{h,v,d}.tif`, `PREFIX_a_{h,v,d}.tif` and
+    /// `PREFIX_dimension.tif` (fractal dimension, mean of the bands).
+    #[arg(long, value_name = "PREFIX", requires = "local")]
+    pub(crate) maps: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub(crate) json: bool,
@@ -218,6 +224,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let analysis = analyze(&hf, wavelet, &fit)
         .with_context(|| format!("cannot analyse {}", args.input.display()))?;
     let mut local = Vec::new();
+    let mut written: Vec<PathBuf> = Vec::new();
     if let Some(w) = args.local {
         progress.begin("local fits", 0);
         let maps = analyze_local(&hf, wavelet, w, &fit).with_context(|| {
@@ -226,6 +233,33 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 args.input.display()
             )
         })?;
+        if let Some(prefix) = &args.maps {
+            progress.begin("writing the local maps", 0);
+            let (cx, cy) = hf.cell_size();
+            let mut write = |suffix: &str, data: Vec<f32>| -> Result<()> {
+                let path = PathBuf::from(format!("{}_{suffix}.tif", prefix.display()));
+                let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
+                    .with_georef(hf.georef().cloned());
+                relief_io::write(&path, &map, &relief_io::WriteOptions::default())
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                written.push(path);
+                Ok(())
+            };
+            for b in Band::ALL {
+                write(
+                    &format!("gamma_{}", b.name()),
+                    maps.gamma[b.index()].data.clone(),
+                )?;
+                write(&format!("a_{}", b.name()), maps.a[b.index()].data.clone())?;
+            }
+            let dims: Vec<f32> = (0..hf.len())
+                .map(|i| {
+                    3.0 - (maps.gamma[0].data[i] + maps.gamma[1].data[i] + maps.gamma[2].data[i])
+                        / 6.0
+                })
+                .collect();
+            write("dimension", dims)?;
+        }
         for b in Band::ALL {
             local.push(LocalBand {
                 band: b,
@@ -262,7 +296,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut stdout = std::io::stdout().lock();
     std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
     if let Some(plot) = &args.plot {
-        ctx.note(format!("wrote {}", plot.display()));
+        written.push(plot.clone());
+    }
+    for p in &written {
+        ctx.note(format!("wrote {}", p.display()));
     }
     Ok(())
 }
