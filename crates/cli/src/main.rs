@@ -43,23 +43,23 @@ enum Command {
     Convert(commands::convert::Args),
     /// Write a shaded-relief preview PNG (hillshade blended with an elevation colour ramp).
     Preview(commands::preview::Args),
-    /// 3D landforms (sea caves, karst, hoodoos, arches, floating islands) on an implicit tree
-    /// built from the DEM (paris2018); writes a mesh, a render and a vertical section.
-    Volume(commands::volume::Args),
     /// Compress a terrain into a sparse construction tree (.sct): dictionary + Batch-OMP.
     Compress(commands::compress::Args),
     /// Rasterise a .sct at any scale or window into any raster format.
     Decompress(commands::decompress::Args),
+    /// 3D landforms (sea caves, karst, hoodoos, arches, floating islands) on an implicit tree
+    /// built from the DEM (paris2018); writes a mesh, a render and a vertical section.
+    Volume(commands::volume::Args),
     /// Amplify a coarse terrain x4^k with the details of a high-resolution exemplar (sparse
     /// multi-resolution dictionary, guerin2016 5.3); writes a raster or a .sct model.
     Amplify(commands::amplify::Args),
+    /// Learn a dictionary (K-SVD or constrained) from exemplar DEMs; `compress --dictionary`
+    /// reads it.
+    Learn(commands::learn::Args),
     /// Synthesise a terrain from a painted sketch and an exemplar (x4 steps, figure 12).
     Synthesize(commands::synthesize::Args),
     /// Fit an analytic (noise-atom) model to a terrain, write it as .sct and print its PSNR.
     FitProcedural(commands::fit_procedural::Args),
-    /// Learn a dictionary (K-SVD or constrained) from exemplar DEMs; `compress --dictionary`
-    /// reads it.
-    Learn(commands::learn::Args),
     /// Add levels of detail by wavelet synthesis (GSA/LSA, Perez et al.); any window on demand.
     Refine(commands::refine::Args),
     /// Print the wavelet detail statistics: gamma and a per band, fractal dimension, plot.
@@ -80,10 +80,11 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),
         Command::Preview(args) => commands::preview::run(args, &ctx),
-        Command::Volume(args) => commands::volume::run(args, &ctx),
         Command::Compress(args) => commands::compress::run(args, &ctx),
         Command::Decompress(args) => commands::decompress::run(args, &ctx),
+        Command::Volume(args) => commands::volume::run(args, &ctx),
         Command::Amplify(args) => commands::amplify::run(args, &ctx),
+        Command::Learn(args) => commands::learn::run(args, &ctx),
         Command::Synthesize(args) => commands::synthesize::run(args, &ctx),
         Command::FitProcedural(args) => commands::fit_procedural::run(args, &ctx),
         Command::Refine(args) => commands::refine::run(args, &ctx),
