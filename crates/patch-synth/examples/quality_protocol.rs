@@ -3,7 +3,8 @@
 //! visibility and slope-histogram distance.
 //!
 //! `cargo run --release -p relief-patch-synth --example quality_protocol`
-//! (optional environment overrides for experiments: `ALPHA`, `BETA`, `GAMMA`, `LAMBDA`, `KNN`).
+//! (optional environment overrides for experiments: `ALPHA`, `BETA`, `GAMMA`, `LAMBDA`, `KNN`,
+//! `PCA_DIMS`).
 #![allow(clippy::print_stdout)]
 
 use std::time::Instant;
@@ -37,6 +38,7 @@ fn main() {
         gamma: env("GAMMA", d.gamma),
         lambda: env("LAMBDA", d.lambda),
         knn: env("KNN", d.knn as f32) as usize,
+        pca_dims: env("PCA_DIMS", d.pca_dims as f32) as usize,
         ..d
     };
     let ex = vec![
