@@ -18,6 +18,7 @@ for t in "$@"; do
     -ignore_timeouts=1 -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 \
     -malloc_limit_mb=2048 -artifact_prefix="artifacts/$t/" -print_final_stats=1 "${extra[@]}" \
     > "logs/$t.log" 2>&1
-  echo "$t: $(( $(date +%s) - start )) s, exit $?" >> logs/summary.txt
+  rc=$?
+  echo "$t: $(( $(date +%s) - start )) s, exit $rc" >> logs/summary.txt
 done
 rm -rf "$snap"

@@ -27,6 +27,7 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> IoResult<Raster> {
     if header.deep {
         return Err(IoError::unsupported(F, "deep data"));
     }
+    check_tile_levels(bytes, &meta)?;
     // Every part's declared size counts: the decoder reads the offset tables of all of them.
     let mut total = 0u64;
     for h in &meta.headers {
@@ -97,6 +98,52 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> IoResult<Raster> {
         None,
         dtype,
     )
+}
+
+/// The exr crate picks the chunks of the wanted level from the offset table but trusts the
+/// level written in each chunk, and a chunk claiming another level trips its internal
+/// assertions (found by fuzzing: `fixtures/bad/exr_fuzz_tile_level_*.exr`). So multi-level
+/// (mip/rip-mapped) files are refused and every tile of a single-level file must say level 0.
+fn check_tile_levels(bytes: &[u8], meta: &exr::meta::MetaData) -> IoResult<()> {
+    use exr::block::chunk::CompressedBlock;
+    use exr::meta::BlockDescription;
+    use exr::meta::attribute::LevelMode;
+    let mut tiled = false;
+    for h in &meta.headers {
+        if let BlockDescription::Tiles(t) = h.blocks {
+            tiled = true;
+            if t.level_mode != LevelMode::Singular {
+                return Err(IoError::unsupported(
+                    F,
+                    format!(
+                        "{:?} tiled levels; only single-level EXR is read",
+                        t.level_mode
+                    ),
+                ));
+            }
+        }
+    }
+    if !tiled {
+        return Ok(());
+    }
+    let chunks = exr::block::read(Cursor::new(bytes), false)
+        .and_then(|r| r.filter_chunks(false, |_, _, _| true))
+        .map_err(eerr)?;
+    for chunk in chunks {
+        if let CompressedBlock::Tile(t) = chunk.map_err(eerr)?.compressed_block {
+            let level = t.coordinates.level_index;
+            if level != Vec2(0, 0) {
+                return Err(IoError::malformed(
+                    F,
+                    format!(
+                        "tile {:?} claims level {level:?} in a single-level file",
+                        t.coordinates.tile_index
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// One f32 channel named `Y`, ZIP-compressed (lossless; voids stay NaN).

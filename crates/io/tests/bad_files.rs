@@ -57,6 +57,9 @@ const EXPECT: &[(&str, &str)] = &[
     ("grid_nan_only.json", "only voids"),
     ("grid_not_json.json", "invalid json"),
     ("unknown_format.bin", "unknown format"),
+    // Minimised crashes found by fuzzing (fuzz/, see fixtures/bad/FUZZ.md).
+    ("exr_fuzz_tile_level_1.exr", "level"),
+    ("exr_fuzz_tile_level_2.exr", "level"),
 ];
 
 #[test]

@@ -239,7 +239,10 @@ mod limits {
         // The tiff crate itself notices that the strips cannot hold 4e9^2 samples.
         let e = read_bytes(&tif, Some(Path::new("a.tif")), &o).unwrap_err();
         assert!(
-            matches!(root(&e), IoError::Dimensions { .. } | IoError::Malformed { .. }),
+            matches!(
+                root(&e),
+                IoError::Dimensions { .. } | IoError::Malformed { .. }
+            ),
             "tif: {e}"
         );
         // PNG: IHDR width/height (checked before decoding, the CRC is not even looked at).
