@@ -585,7 +585,9 @@ fn taps(d: f64, delta: f64, a: usize) -> Taps {
     let u = d / delta + (a as f64 - 1.0) / 2.0;
     let f = u.floor();
     let w = cubic_weights(u - f);
-    let base = f as i64 - 1;
+    // Indices are clamped to the patch anyway; bounding `f` first keeps huge offsets (far
+    // centres, tiny spacings in decoded data) from overflowing the integer arithmetic.
+    let base = f.clamp(-8.0, a as f64 + 8.0) as i64 - 1;
     let last = a as i64 - 1;
     let idx = [
         base.clamp(0, last) as usize,
