@@ -14,7 +14,8 @@ const fn script(script: &'static str, key: &'static str, label: &'static str) ->
     })
 }
 
-const SPAMS_OMP: &str = "SPAMS omp (spams-bin, numThreads=2, same patches)";
+const SPAMS_OMP: &str = "SPAMS omp float32 (spams-bin, numThreads=2, same patches)";
+const SPAMS_OMP_F64: &str = "SPAMS omp float64 (spams-bin, numThreads=2, same patches)";
 
 /// Every dashboard row, in display order.
 pub(crate) const WORK_ITEMS: &[WorkItem] = &[
@@ -97,6 +98,38 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "",
     },
     WorkItem {
+        name: "Batch-OMP f64 K=64 N=256 s=1, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f64/k64_n256_s1",
+        peer: script("spams_omp.py", "f64_k64_n256_s1_s", SPAMS_OMP_F64),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP f64 K=64 N=256 s=4, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f64/k64_n256_s4",
+        peer: script("spams_omp.py", "f64_k64_n256_s4_s", SPAMS_OMP_F64),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP f64 K=64 N=256 s=8, 65,536 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f64/k64_n256_s8",
+        peer: script("spams_omp.py", "f64_k64_n256_s8_s", SPAMS_OMP_F64),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((65_536.0, "signals")),
+        note: "",
+    },
+    WorkItem {
+        name: "Batch-OMP f64 K=256 N=1024 s=8, 16,384 grandcanyon patches, 2 threads",
+        criterion_id: "omp/batch_omp_f64/k256_n1024_s8",
+        peer: script("spams_omp.py", "f64_k256_n1024_s8_s", SPAMS_OMP_F64),
+        goal: Goal::SpeedupAtLeast(1.5),
+        units: Some((16_384.0, "signals")),
+        note: "",
+    },
+    WorkItem {
         name: "SCT rasterisation, 8192^2 window at scale 16.1 (grandcanyon, 128 atoms, s=4)",
         criterion_id: "rasterize/sct_window/8192_scale16.1",
         peer: None,
@@ -104,7 +137,15 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         units: Some((8192.0 * 8192.0, "cells")),
         note: "",
     },
-    // Issue 5: wavelet-lod (brosz2006).
+    WorkItem {
+        name: "construction-tree rasterisation (river carve + replace), 8192^2 window at scale 16.1",
+        criterion_id: "rasterize/tree_window/8192_scale16.1",
+        peer: None,
+        goal: Goal::SecondsAtMost(2.0),
+        units: Some((8192.0 * 8192.0, "cells")),
+        note: "every node stamped (the issue's 2 s goal is for the SCT window above)",
+    },
+    // Issue 5: wavelet-lod (Perez et al., wavelet detail synthesis).
     WorkItem {
         name: "DWT forward + inverse 4096^2 f32, 6 levels, CDF 5/3",
         criterion_id: "wavelet_lod/dwt_fwd_inv_cdf53/4096",
