@@ -286,6 +286,74 @@ fn categorisation_map_picks_the_exemplar_per_region() {
     );
 }
 
+/// `--auto-categories 2`: the low and the high exemplar fall into categories 0 and 1 (ordered
+/// by height), the guide (low crop's low-pass on the left, high crop's on the right) is split
+/// into two height classes, and each half of the output comes from its own exemplar.
+#[test]
+fn auto_categories_cluster_exemplars_and_guide() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut crops: Vec<(f64, usize, usize)> = Vec::new();
+    for y in (0..=416).step_by(32) {
+        for x in (0..=416).step_by(32) {
+            let c = gc.crop(x, y, 96, 96).unwrap();
+            crops.push((stats(&c).unwrap().mean, x, y));
+        }
+    }
+    crops.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (lo, hi) = (crops[0], crops[crops.len() - 1]);
+    let low = gc.crop(lo.1, lo.2, 96, 96).unwrap();
+    let high = gc.crop(hi.1, hi.2, 96, 96).unwrap();
+    let a = write(tmp.path(), "low.tif", &low);
+    let b = write(tmp.path(), "high.tif", &high);
+    let guide = Heightfield::from_fn(112, 64, 61.7, 61.7, |x, y| {
+        if x < 56 {
+            low.get(x + 20, y + 16)
+        } else {
+            high.get(x - 56 + 20, y + 16)
+        }
+    });
+    let g = write(tmp.path(), "guide.tif", &guide);
+    let out = tmp.path().join("out.tif");
+    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([
+            os("quilt"),
+            out.as_os_str(),
+            os("--exemplar"),
+            a.as_os_str(),
+            os("--exemplar"),
+            b.as_os_str(),
+            os("--guide-from"),
+            g.as_os_str(),
+            os("--blur"),
+            os("3"),
+            os("--auto-categories"),
+            os("2"),
+            os("--patch"),
+            os("24"),
+            os("--overlap"),
+            os("6"),
+            os("--lambda"),
+            os("0"),
+            os("--no-validate"),
+        ])
+        .output()
+        .unwrap();
+    let err = stderr(&res);
+    assert!(res.status.success(), "{err}");
+    assert!(
+        err.contains("exemplar categories (clustered): 0,1"),
+        "{err}"
+    );
+    let hf = read(&out);
+    let (ml, mr) = (mean(&hf, 0, 30), mean(&hf, 82, 112));
+    let (el, er) = (stats(&low).unwrap().mean, stats(&high).unwrap().mean);
+    assert!(
+        (ml - el).abs() < 0.25 * (er - el) && (mr - er).abs() < 0.25 * (er - el),
+        "left {ml:.0} (low exemplar {el:.0}), right {mr:.0} (high exemplar {er:.0})"
+    );
+}
+
 /// Bad inputs fail with one stderr line naming the problem, and leave no output file.
 #[test]
 fn bad_inputs_exit_non_zero_with_one_line() {

@@ -9,8 +9,8 @@ use anyhow::{Context, Result, bail};
 use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, Blend, CategoryMap, Control, CutMethod, Exemplar, Settings, Synthesis, guide,
-    quilt,
+    ANY_CATEGORY, Blend, CategoryMap, Control, CutMethod, Exemplar, Settings, Synthesis,
+    categorize_exemplars, guide, quilt,
 };
 
 use crate::ctx::Ctx;
@@ -25,6 +25,12 @@ pub(crate) struct SynthArgs {
     /// The categorisation map names which categories each region accepts.
     #[arg(long, value_name = "C1,C2,..")]
     pub(crate) exemplar_categories: Option<String>,
+    /// Cluster the exemplars into K categories by their block averages (cruz2015 section 4)
+    /// unless `--exemplar-categories` is given, and, without `--categories`, make the
+    /// categorisation map by clustering the guide's heights into K classes (lowest class =
+    /// lowest exemplar category; a class no exemplar has accepts any).
+    #[arg(long, value_name = "K")]
+    pub(crate) auto_categories: Option<usize>,
     /// Guide DEM at the target resolution (low-frequency control); resampled to `--size` when
     /// its size differs.
     #[arg(long, value_name = "DEM")]
@@ -218,6 +224,19 @@ impl SynthArgs {
             }
             exemplars.push(Exemplar::new(hf, cat));
         }
+        if let (Some(k), None) = (self.auto_categories, &self.exemplar_categories) {
+            let hfs: Vec<Heightfield> = exemplars.iter().map(|e| e.heightfield.clone()).collect();
+            let cats = categorize_exemplars(&hfs, k, &settings)
+                .context("cannot cluster the exemplars (--auto-categories)")?;
+            for (e, c) in exemplars.iter_mut().zip(&cats) {
+                e.category = *c;
+            }
+            let list: Vec<String> = cats.iter().map(|c| c.to_string()).collect();
+            ctx.note(format!(
+                "exemplar categories (clustered): {}",
+                list.join(",")
+            ));
+        }
         let cell = exemplars[0].heightfield.cell_size();
 
         let guide = match (&self.guide, &self.guide_from) {
@@ -268,6 +287,15 @@ impl SynthArgs {
         };
         if let Some(path) = &self.categories {
             control.categories = Some(read_category_map(path, control.width, control.height)?);
+        } else if let (Some(k), Some(g)) = (self.auto_categories, &control.guide) {
+            let (mut map, _) = CategoryMap::from_guide_heights(g, k, self.seed)
+                .context("cannot cluster the guide's heights (--auto-categories)")?;
+            for c in 0..k.min(u16::MAX as usize) as u16 {
+                if !exemplars.iter().any(|e| e.category == c) {
+                    map.relabel(c, ANY_CATEGORY);
+                }
+            }
+            control.categories = Some(map);
         }
         Ok(Inputs {
             exemplars,
