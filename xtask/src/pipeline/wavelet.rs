@@ -318,6 +318,47 @@ impl Stage for WaveletStage {
             cx.section.plot(plot);
         }
 
+        // The local statistics (equation (4)) as a map: mean gamma of the three bands per input
+        // location, blue (smooth, gamma >= 4) to red (rough, gamma <= 0).
+        if let Some(maps) = refined[1].2.local_maps() {
+            let n_loc = maps.gamma[0].data.len();
+            let mean: Vec<f32> = (0..n_loc)
+                .map(|i| maps.gamma.iter().map(|g| g.data[i]).sum::<f32>() / 3.0)
+                .collect();
+            let mut sorted = mean.clone();
+            sorted.sort_by(f32::total_cmp);
+            let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize] as f64;
+            cx.section.figure("lsa_gamma_p05", q(0.05));
+            cx.section.figure("lsa_gamma_p50", q(0.5));
+            cx.section.figure("lsa_gamma_p95", q(0.95));
+            let rgb: Vec<u8> = mean
+                .iter()
+                .flat_map(|&g| {
+                    let t = (g / 4.0).clamp(0.0, 1.0);
+                    [
+                        (255.0 * (1.0 - t)) as u8,
+                        (255.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
+                        (255.0 * t) as u8,
+                    ]
+                })
+                .collect();
+            cx.save_rgb(
+                "wavelet_lsa_gamma",
+                &format!(
+                    "local gamma (LSA {w}x{w}, mean of the bands) per input location: red = \
+                     rough (gamma 0), green = 2, blue = smooth (gamma 4); 5/50/95 % = \
+                     {:.2}/{:.2}/{:.2}",
+                    q(0.05),
+                    q(0.5),
+                    q(0.95),
+                    w = p.window
+                ),
+                maps.gamma[0].width,
+                maps.gamma[0].height,
+                &rgb,
+            )?;
+        }
+
         // Rasters and hillshades side by side.
         for (method, tag, _, out) in &refined {
             cx.save_raster(
