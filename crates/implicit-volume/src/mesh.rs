@@ -279,12 +279,12 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
         return Err(Error::param("chunk", s.chunk, "must be in 2..=256"));
     }
     let bbox = match s.bbox {
-        Some(b) if b.is_finite() && !b.is_empty() => b,
+        Some(b) if b.is_finite() && b.size().iter().all(|&v| v > 0.0) => b,
         Some(b) => {
             return Err(Error::param(
                 "bbox",
                 format!("{b:?}"),
-                "must be finite and non-empty",
+                "must be finite with a positive size on every axis",
             ));
         }
         None => {

@@ -208,6 +208,22 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
         .min_max()
         .ok_or(Error::param("heightfield", "all void", "needs samples"))?;
     let relief = (hi - lo).max(l);
+    let mag = [
+        (hf.width() - 1) as f32 * cx as f32,
+        (hf.height() - 1) as f32 * cy as f32,
+        lo.abs(),
+        hi.abs(),
+        1.0,
+    ]
+    .into_iter()
+    .fold(0.0f32, f32::max);
+    if !(1e-3 * mag..=5.0 * mag).contains(&l) {
+        return Err(Error::param(
+            "scale",
+            recipe.scale,
+            "makes the feature unit out of scale with the DEM (1e-3 to 5 times its extent)",
+        ));
+    }
     let center = [
         (hf.width() - 1) as f32 * cx as f32 * 0.5,
         (hf.height() - 1) as f32 * cy as f32 * 0.5,

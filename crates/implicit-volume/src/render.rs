@@ -176,6 +176,35 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
             "must be non-zero and at most 2^26 pixels",
         ));
     }
+    if !(crate::math::finite3(cam.eye) && crate::math::finite3(cam.target))
+        || norm(sub(cam.target, cam.eye)) <= 0.0
+    {
+        return Err(Error::param(
+            "camera eye/target",
+            format!("{:?} -> {:?}", cam.eye, cam.target),
+            "must be finite and distinct",
+        ));
+    }
+    let side = cross(sub(cam.target, cam.eye), cam.up);
+    if !crate::math::finite3(cam.up) || norm(side) <= 0.0 {
+        return Err(Error::param(
+            "camera up",
+            format!("{:?}", cam.up),
+            "must be finite and not parallel to the view direction",
+        ));
+    }
+    if !crate::math::finite3(s.light) || norm(s.light) <= 0.0 {
+        return Err(Error::param(
+            "light",
+            format!("{:?}", s.light),
+            "must be finite and non-zero",
+        ));
+    }
+    if let Some(z) = s.sea_level
+        && !z.is_finite()
+    {
+        return Err(Error::param("sea_level", z, "must be finite"));
+    }
     if !(cam.fov_deg > 0.0 && cam.fov_deg < 179.0) {
         return Err(Error::param("fov_deg", cam.fov_deg, "must be in (0, 179)"));
     }
@@ -292,12 +321,19 @@ pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStat
         ));
     }
     let b = scene.bbox();
+    if !s.start.iter().chain(&s.end).all(|v| v.is_finite()) {
+        return Err(Error::param(
+            "start/end",
+            format!("{:?} -> {:?}", s.start, s.end),
+            "must be finite",
+        ));
+    }
     let (z0, z1) = s.z_range.unwrap_or((b.min[2], b.max[2]));
-    if z0.is_nan() || z1.is_nan() || z0 >= z1 {
+    if !(z0.is_finite() && z1.is_finite()) || z0 >= z1 {
         return Err(Error::param(
             "z_range",
             format!("{z0}..{z1}"),
-            "must be increasing",
+            "must be finite and increasing",
         ));
     }
     let cols: Vec<(Vec<u8>, SectionStats)> = (0..s.width)

@@ -128,7 +128,7 @@ impl Default for Weathering {
     }
 }
 impl Weathering {
-    fn check(&self) -> Result<()> {
+    fn check(&self, min_len: f32) -> Result<()> {
         for (n, v) in [
             ("spacing", self.spacing),
             ("radius", self.radius),
@@ -136,6 +136,13 @@ impl Weathering {
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::param(n, v, "must be finite and > 0"));
+            }
+            if n != "energy" && !(min_len..=1e6 * min_len).contains(&v) {
+                return Err(Error::param(
+                    n,
+                    v,
+                    "out of scale with the scene (1e-4 to 100 times its extent)",
+                ));
             }
         }
         for (n, v) in [("beta", self.beta), ("threshold", self.threshold)] {
@@ -370,6 +377,9 @@ pub struct SceneBuilder {
     positives: Vec<NodeId>,
     /// Carving spheres' centres and radii, kept for reports and tests.
     carved: Vec<(V3, f32, bool)>,
+    /// Smallest length an effect accepts: 1e-4 of the scene's coordinate magnitude (lengths
+    /// are also at most `1e6 min_len`), so no primitive degenerates in f32.
+    min_len: f32,
 }
 
 fn check_pos(name: &'static str, v: f32) -> Result<()> {
@@ -415,6 +425,25 @@ fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) ->
 }
 
 impl SceneBuilder {
+    fn check_len(&self, name: &'static str, v: f32) -> Result<()> {
+        check_pos(name, v)?;
+        if name != "energy" && v < self.min_len {
+            return Err(Error::param(
+                name,
+                v,
+                "too small for the scene's coordinates (below 1e-4 of its extent)",
+            ));
+        }
+        if name != "energy" && v > 1e6 * self.min_len {
+            return Err(Error::param(
+                name,
+                v,
+                "too large for the scene (above 100 times its extent)",
+            ));
+        }
+        Ok(())
+    }
+
     /// Implicitises `hf` (complete, no voids) with the geology `geology`.
     pub fn new(hf: &Heightfield, geology: Geology, settings: &ImplicitizeSettings) -> Result<Self> {
         let mut tree = TerrainTree::new();
@@ -425,7 +454,14 @@ impl SceneBuilder {
             settings.transition
         };
         let (node, frame) = tree.heightfield(hf, transition, settings.depth)?;
+        let bb = tree.bbox(node);
+        let mag = bb
+            .min
+            .iter()
+            .chain(&bb.max)
+            .fold(1.0f32, |m, v| m.max(v.abs()));
         Ok(Self {
+            min_len: 1e-4 * mag,
             tree,
             hf: node,
             frame,
@@ -583,6 +619,29 @@ impl SceneBuilder {
         keyed.into_iter().map(|x| x.1).collect()
     }
 
+    /// Number of candidates [`Self::surface_candidates`] would generate (without a z band).
+    fn candidate_count(&self, spacing: f32) -> f64 {
+        let f = self.frame;
+        let per_xy = ((f.cx as f64 * f.cy as f64) / (spacing as f64 * spacing as f64))
+            .ceil()
+            .max(1.0);
+        let mut n = 0.0;
+        for i in 0..f.height - 1 {
+            for j in 0..f.width - 1 {
+                let zs = [
+                    self.dem_at(j, i),
+                    self.dem_at(j + 1, i),
+                    self.dem_at(j, i + 1),
+                    self.dem_at(j + 1, i + 1),
+                ];
+                let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
+                let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                n += per_xy * (1.0 + ((hi - lo) / spacing).floor() as f64).min(32.0);
+            }
+        }
+        n
+    }
+
     /// Places negative spheres at Poisson samples with energy from `e(rho, sigma)`.
     fn weather(
         &mut self,
@@ -591,8 +650,15 @@ impl SceneBuilder {
         zband: Option<(f32, f32)>,
         stress: impl Fn(&Self, V3) -> f32 + Sync,
     ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
-        w.check()?;
+        w.check(self.min_len)?;
         region.check(&self.frame)?;
+        if self.candidate_count(w.spacing) > (1u64 << 22) as f64 {
+            return Err(Error::param(
+                "spacing",
+                w.spacing,
+                "too small for this DEM: more than 2^22 candidate samples",
+            ));
+        }
         let cand = self.surface_candidates(w.spacing, w.seed, zband);
         let kept = poisson_filter(&cand, w.spacing, |_| true);
         let me = &*self;
@@ -684,13 +750,20 @@ impl SceneBuilder {
             ("reach", s.reach),
             ("cave_length", s.cave_length),
         ] {
-            check_pos(n, v)?;
+            self.check_len(n, v)?;
         }
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
         if !(-s.depth..=s.height).contains(&s.peak) {
             return Err(Error::param("peak", s.peak, "must be in [-depth, height]"));
+        }
+        if s.cave_length / (0.5 * s.weathering.radius) > 4096.0 {
+            return Err(Error::param(
+                "cave_length",
+                s.cave_length,
+                "must be at most 2048 weathering radii",
+            ));
         }
         let dist = self.distance_to_sea(s.sea_level);
         let frame = self.frame;
@@ -879,10 +952,20 @@ impl SceneBuilder {
             ("step", s.step),
             ("poisson_radius", s.poisson_radius),
         ] {
-            check_pos(n, v)?;
+            self.check_len(n, v)?;
         }
-        if s.directions == 0 {
-            return Err(Error::param("directions", 0, "must be >= 1"));
+        if !(1..=64).contains(&s.directions) {
+            return Err(Error::param(
+                "directions",
+                s.directions,
+                "must be in 1..=64",
+            ));
+        }
+        if s.sub_spheres > 16 {
+            return Err(Error::param("sub_spheres", s.sub_spheres, "must be <= 16"));
+        }
+        if s.budget > 1 << 22 {
+            return Err(Error::param("budget", s.budget, "must be <= 2^22"));
         }
         region.check(&self.frame)?;
         let frame = self.frame;
@@ -1042,7 +1125,14 @@ impl SceneBuilder {
             ("radius", s.radius),
             ("spacing", s.spacing),
         ] {
-            check_pos(n, v)?;
+            self.check_len(n, v)?;
+        }
+        if !(0.0..=90.0).contains(&s.max_slope_deg) {
+            return Err(Error::param(
+                "max_slope_deg",
+                s.max_slope_deg,
+                "must be in [0, 90]",
+            ));
         }
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
@@ -1103,8 +1193,15 @@ impl SceneBuilder {
         thickness: f32,
         seed: u32,
     ) -> Result<NodeId> {
-        check_pos("height", height)?;
-        check_pos("thickness", thickness)?;
+        self.check_len("height", height)?;
+        self.check_len("thickness", thickness)?;
+        if !a.iter().chain(&b).all(|v| v.is_finite()) {
+            return Err(Error::param(
+                "arch feet",
+                format!("{a:?} -> {b:?}"),
+                "must be finite",
+            ));
+        }
         let za = self.ground(a[0], a[1]);
         let zb = self.ground(b[0], b[1]);
         let (pa, pb) = ([a[0], a[1], za - thickness], [b[0], b[1], zb - thickness]);
@@ -1137,7 +1234,7 @@ impl SceneBuilder {
             ("height", s.height),
             ("thickness", s.thickness),
         ] {
-            check_pos(n, v)?;
+            self.check_len(n, v)?;
         }
         region.check(&self.frame)?;
         let sites = self.flat_sites(2.0 * s.span, 30.0, s.seed, region, s.span);
@@ -1148,7 +1245,7 @@ impl SceneBuilder {
             primitives: 0,
         };
         for (k, &p) in sites.iter().enumerate() {
-            if report.primitives >= 12 * s.count {
+            if report.primitives >= 12usize.saturating_mul(s.count) {
                 break;
             }
             let ang = unit(hash(s.seed, k as u64, 3, 3)) * std::f32::consts::TAU;
@@ -1179,8 +1276,8 @@ impl SceneBuilder {
         s: &IslandSettings,
         region: &Region,
     ) -> Result<EffectReport> {
-        check_pos("radius", s.radius)?;
-        check_pos("altitude", s.altitude)?;
+        self.check_len("radius", s.radius)?;
+        self.check_len("altitude", s.altitude)?;
         region.check(&self.frame)?;
         let sites = self.flat_sites(3.0 * s.radius, 90.0, s.seed, region, s.radius);
         let mut report = EffectReport {
