@@ -10,7 +10,6 @@
 //! relief compress dem.tif dem.sct --dict complete --sparsity 1   # exact, large
 //! ```
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -111,35 +110,6 @@ pub(crate) fn read_model_bytes(path: &Path) -> Result<Vec<u8>> {
         );
     }
     std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
-}
-
-/// Writes `bytes` to a temporary file next to `path`, then renames it into place, so a failed
-/// write leaves no file behind.
-pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .with_context(|| format!("cannot write {}: not a file name", path.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("cannot write {}", path.display()));
-    }
-    Ok(())
 }
 
 /// Builds the dictionary the arguments ask for.
@@ -272,7 +242,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     };
     let bytes = sct.to_bytes_with(&options)?;
     let report = compression_report(&hf, &sct, &options, &registry())?;
-    write_bytes_atomic(&args.output, &bytes)?;
+    relief_io::write_bytes_atomic(&args.output, &bytes)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
     let layer = sct.layers()[0];
     let d = layer.dictionary();
     let mut out = String::new();
