@@ -162,7 +162,7 @@ pub(crate) fn check_output_path(path: &Path, window: Option<Window>) -> Result<(
 pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &Ctx) -> Result<()> {
     if is_sct(path) {
         let bytes = sct.to_bytes().context("cannot serialise the model")?;
-        write_bytes_atomic(path, &bytes)
+        relief_io::write_bytes_atomic(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
         ctx.note(format!(
             "wrote {} ({} x {} model, {} bytes)",
@@ -190,28 +190,6 @@ pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &
         hf.height()
     ));
     Ok(())
-}
-
-/// Writes bytes atomically: a temporary sibling, synced, renamed over `path` (removed on
-/// error, so a failure never leaves a partial file).
-pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write;
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other("the path has no file name"))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let res = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res
 }
 
 #[cfg(test)]

@@ -13,7 +13,6 @@ use relief_dictionary_learning::{
 use relief_heightfield::Heightfield;
 use relief_sparse_core::{Dictionary, PatchGeometry};
 
-use super::amplify::write_bytes_atomic;
 use crate::ctx::Ctx;
 
 /// Arguments of `relief learn`.
@@ -123,7 +122,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     )
     .context("cannot build the dictionary")?;
     let bytes = dict.to_bytes().context("cannot serialise the dictionary")?;
-    write_bytes_atomic(output, &bytes)
+    relief_io::write_bytes_atomic(output, &bytes)
         .with_context(|| format!("cannot write {}", output.display()))?;
     let first = learned.trace.first().map_or(f64::NAN, |t| t.rmse);
     let last = learned.trace.last().map_or(f64::NAN, |t| t.rmse);
