@@ -354,6 +354,62 @@ fn auto_categories_cluster_exemplars_and_guide() {
     );
 }
 
+/// Without a guide, `validate` checks the exemplars' mutual compatibility: a crop raised by
+/// 5000 m (translations disabled with `--lambda 0`) matches nothing of the other exemplar.
+#[test]
+fn unguided_validation_flags_an_incompatible_exemplar() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let a = write(tmp.path(), "a.tif", &gc.crop(0, 0, 96, 96).unwrap());
+    let b = write(tmp.path(), "b.tif", &gc.crop(200, 200, 96, 96).unwrap());
+    let raised = write(
+        tmp.path(),
+        "raised.tif",
+        &gc.crop(300, 100, 96, 96).unwrap().map(|v| v + 5000.0),
+    );
+    let run = |third: &Path| {
+        relief(&[
+            os("validate"),
+            os("--exemplar"),
+            a.as_os_str(),
+            os("--exemplar"),
+            b.as_os_str(),
+            os("--exemplar"),
+            third.as_os_str(),
+            os("--size"),
+            os("128x128"),
+            os("--patch"),
+            os("24"),
+            os("--overlap"),
+            os("6"),
+            os("--lambda"),
+            os("0"),
+            os("--min-candidates"),
+            os("50"),
+        ])
+    };
+    let same = write(tmp.path(), "c.tif", &gc.crop(100, 300, 96, 96).unwrap());
+    let ok = run(&same);
+    let stdout = String::from_utf8_lossy(&ok.stdout);
+    assert!(ok.status.success(), "{}\n{stdout}", stderr(&ok));
+    assert_eq!(stdout.matches("compatibility:").count(), 3, "{stdout}");
+    let bad = run(&raised);
+    let stdout = String::from_utf8_lossy(&bad.stdout);
+    let err = stderr(&bad);
+    assert!(!bad.status.success(), "{stdout}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("incompatible"), "{err}");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("compatibility:") && l.contains("raised.tif"))
+        .unwrap_or_default()
+        .to_string();
+    assert!(
+        line.contains("TOO FEW") && line.contains(": 0 of"),
+        "{stdout}"
+    );
+}
+
 /// Bad inputs fail with one stderr line naming the problem, and leave no output file.
 #[test]
 fn bad_inputs_exit_non_zero_with_one_line() {
