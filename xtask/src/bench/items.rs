@@ -145,6 +145,51 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         units: Some((8192.0 * 8192.0, "cells")),
         note: "every node stamped (the issue's 2 s goal is for the SCT window above)",
     },
+    // Issue 4: dictionary-learning (guerin2016 sections 4.2, 5.2, 5.3).
+    WorkItem {
+        name: "K-SVD, ~30k alps 16x16 patches, N=256, s=4, 10 iterations, 2 threads",
+        criterion_id: "ksvd/ten_iterations/k256_n256_s4",
+        peer: script(
+            "spams_traindl.py",
+            "traindl_3ep_s",
+            "SPAMS trainDL, 3 epochs (online, batch 512), same patches, 2 threads",
+        ),
+        goal: Goal::SecondsAtMost(5.0),
+        units: None,
+        note: "different algorithms: compare errors too (our RMSE: the crate's bench_ksvd example)",
+    },
+    WorkItem {
+        name: "K-SVD, one iteration (same data)",
+        criterion_id: "ksvd/iteration/k256_n256_s4",
+        peer: None,
+        goal: Goal::None,
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "x256 amplification 32^2 -> 8192^2, learned N=256, everything included",
+        criterion_id: "amplify/learned_n256/x256_32_to_8192",
+        peer: None,
+        goal: Goal::SecondsAtMost(10.0),
+        units: Some((8192.0 * 8192.0, "output cells")),
+        note: "the paper: 30 s learning + 27 s synthesis",
+    },
+    WorkItem {
+        name: "sketch synthesis 64x128 -> 4096x8192, N=64",
+        criterion_id: "amplify/sketch_n64/x64_64x128_to_4096x8192",
+        peer: None,
+        goal: Goal::SecondsAtMost(3.0),
+        units: Some((4096.0 * 8192.0, "output cells")),
+        note: "the paper: 15.4 s",
+    },
+    WorkItem {
+        name: "x16 amplification 32^2 -> 512^2, learned N=256",
+        criterion_id: "amplify/learned_n256/x16_32_to_512",
+        peer: None,
+        goal: Goal::None,
+        units: Some((512.0 * 512.0, "output cells")),
+        note: "",
+    },
     // Issue 5: wavelet-lod (Perez et al., wavelet detail synthesis).
     WorkItem {
         name: "DWT forward + inverse 4096^2 f32, 6 levels, CDF 5/3",
