@@ -368,18 +368,18 @@ fn river_example(
         scale,
         window: Some(win),
     })?;
-    if let Some(z) = cx.save_hillshade("sparse_river_x4", &zoom)? {
-        if let Some(c) = cx.save_hillshade("sparse_river_hs", &carved)? {
-            cx.section.pair(
-                (&c, "river carved into the tree (scale 1)"),
-                (&z, "window decoded at scale 4 from the same tree"),
-                &format!(
-                    "construction tree Min(sparse layer, river): {n}-vertex polyline, \
-                     {bytes} bytes; x4 window {} x {} at ({}, {})",
-                    win.width, win.height, win.x, win.y
-                ),
-            );
-        }
+    if let Some(z) = cx.save_hillshade("sparse_river_x4", &zoom)?
+        && let Some(c) = cx.save_hillshade("sparse_river_hs", &carved)?
+    {
+        cx.section.pair(
+            (&c, "river carved into the tree (scale 1)"),
+            (&z, "window decoded at scale 4 from the same tree"),
+            &format!(
+                "construction tree Min(sparse layer, river): {n}-vertex polyline, \
+                 {bytes} bytes; x4 window {} x {} at ({}, {})",
+                win.width, win.height, win.x, win.y
+            ),
+        );
     }
     cx.section
         .figure("river_seconds", t.elapsed().as_secs_f64());
