@@ -1151,15 +1151,27 @@ mod tests {
     }
 }
 
-/// The pipeline documentation stays in step with the code: every spec shown in
-/// `docs/PIPELINE.md` or kept in `docs/*.json` parses and builds (unknown stages, fields and
-/// invalid parameter values are errors).
+/// The pipeline documentation stays in step with the code: every registered stage has a
+/// section in `docs/PIPELINE.md`, and every spec shown there or kept in `docs/*.json` parses and
+/// builds (unknown stages, fields and invalid parameter values are errors).
 #[cfg(test)]
 mod docs_tests {
-    use super::super::spec::{PipelineSpec, build_stages};
+    use super::super::spec::{PipelineSpec, STAGE_NAMES, build_stages};
 
     fn doc() -> String {
         std::fs::read_to_string(crate::project_root().join("docs/PIPELINE.md")).unwrap()
+    }
+
+    #[test]
+    fn every_stage_is_documented() {
+        let doc = doc();
+        for name in STAGE_NAMES {
+            assert!(
+                doc.contains(&format!("### `{name}`")),
+                "docs/PIPELINE.md has no section for stage `{name}`: add one (what it does, its \
+                 parameter table)"
+            );
+        }
     }
 
     #[test]
