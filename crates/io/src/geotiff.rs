@@ -308,6 +308,40 @@ fn cell_size(g: &GeoRef, h: usize) -> Option<(f64, f64)> {
     Some((sx, sy))
 }
 
+/// The georeference tags to write: verbatim when `georef` has raw tags; a georeference without
+/// them (e.g. from an ASCII grid) is written from its affine transform, and none at all from
+/// the cell size.
+pub(crate) fn georef_tags(cell: (f64, f64), georef: Option<&GeoRef>) -> GeoRef {
+    match georef {
+        Some(g)
+            if g.pixel_scale.is_some() || g.tiepoints.is_some() || g.transformation.is_some() =>
+        {
+            g.clone()
+        }
+        other => {
+            let (cx, cy) = cell;
+            let mut d = other.cloned().unwrap_or_default();
+            match d.geotransform {
+                Some(t) if t[2] == 0.0 && t[4] == 0.0 && t[5] < 0.0 => {
+                    d.pixel_scale = Some(vec![t[1], -t[5], 0.0]);
+                    d.tiepoints = Some(vec![0.0, 0.0, 0.0, t[0], t[3], 0.0]);
+                }
+                Some(t) => {
+                    d.transformation = Some(vec![
+                        t[1], t[2], 0.0, t[0], t[4], t[5], 0.0, t[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                        0.0, 1.0,
+                    ]);
+                }
+                None => {
+                    d.pixel_scale = Some(vec![cx, cy, 0.0]);
+                    d.tiepoints = Some(vec![0.0; 6]);
+                }
+            }
+            d
+        }
+    }
+}
+
 /// Encodes `hf` as an uncompressed float32 GeoTIFF: the georeference tags verbatim (or a pixel
 /// scale from the cell size when there is none) and `GDAL_NODATA = nan` when it has voids.
 pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
@@ -334,40 +368,8 @@ pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
             .new_image::<colortype::Gray32Float>(w32, h32)
             .map_err(terr)?;
         let d = img.encoder();
-        // Tags come verbatim from the georeference; a georeference without raw tags (e.g. from
-        // an ASCII grid) is written from its affine transform, and none at all from the cell size.
-        let default_geo;
-        let g = match hf.georef() {
-            Some(g)
-                if g.pixel_scale.is_some()
-                    || g.tiepoints.is_some()
-                    || g.transformation.is_some() =>
-            {
-                g
-            }
-            other => {
-                let (cx, cy) = hf.cell_size();
-                let mut d = other.cloned().unwrap_or_default();
-                match d.geotransform {
-                    Some(t) if t[2] == 0.0 && t[4] == 0.0 && t[5] < 0.0 => {
-                        d.pixel_scale = Some(vec![t[1], -t[5], 0.0]);
-                        d.tiepoints = Some(vec![0.0, 0.0, 0.0, t[0], t[3], 0.0]);
-                    }
-                    Some(t) => {
-                        d.transformation = Some(vec![
-                            t[1], t[2], 0.0, t[0], t[4], t[5], 0.0, t[3], 0.0, 0.0, 0.0, 0.0, 0.0,
-                            0.0, 0.0, 1.0,
-                        ]);
-                    }
-                    None => {
-                        d.pixel_scale = Some(vec![cx, cy, 0.0]);
-                        d.tiepoints = Some(vec![0.0; 6]);
-                    }
-                }
-                default_geo = d;
-                &default_geo
-            }
-        };
+        let tags = georef_tags(hf.cell_size(), hf.georef());
+        let g = &tags;
         if let Some(v) = &g.pixel_scale {
             d.write_tag(Tag::ModelPixelScaleTag, v.as_slice())
                 .map_err(terr)?;

@@ -26,6 +26,8 @@
 //!   panic.
 //! * Writes are atomic: a temporary file in the destination directory is renamed over the
 //!   target only once everything was written; on error nothing is left behind.
+//! * Large outputs stream: [`GeoTiffStripWriter`] takes rows in order and keeps only a 64 KiB
+//!   buffer, so a 16384^2 raster never has to exist in memory (same atomic rename at the end).
 //!
 //! Cell size and georeference: GeoTIFF stores both (cell sizes of geographic grids are
 //! computed in metres at the centre latitude, Web Mercator pixels are scaled by cos(latitude));
@@ -67,6 +69,7 @@ mod png_io;
 mod preview;
 mod raw;
 mod sidecar;
+mod stream;
 mod util;
 
 use std::path::Path;
@@ -76,6 +79,7 @@ use relief_heightfield::Heightfield;
 pub use error::{IoError, Result};
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as};
 pub use preview::{preview_rgb, write_gray_png, write_preview_png, write_rgb_png};
+pub use stream::GeoTiffStripWriter;
 
 /// A raster or mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

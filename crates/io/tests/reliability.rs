@@ -353,3 +353,131 @@ mod limits {
         assert!(e.contains("not an array"), "{e}");
     }
 }
+
+mod streaming {
+    //! `GeoTiffStripWriter`: same file content as `write` for any row batching, atomic, and no
+    //! leftovers when the producer stops early.
+
+    use std::path::Path;
+
+    use relief_heightfield::Heightfield;
+    use relief_io::{GeoTiffStripWriter, ReadOptions, WriteOptions, read, write};
+
+    fn leftovers(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect()
+    }
+
+    fn fixture() -> Heightfield {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+        read(&p, &ReadOptions::default()).unwrap().heightfield
+    }
+
+    fn stream(path: &Path, hf: &Heightfield, batch: usize) {
+        let mut out =
+            GeoTiffStripWriter::create(path, hf.width(), hf.height(), hf.cell_size(), hf.georef())
+                .unwrap();
+        for rows in hf.as_slice().chunks(hf.width() * batch) {
+            out.write_rows(rows).unwrap();
+        }
+        assert_eq!(out.rows_written(), hf.height());
+        out.finish().unwrap();
+    }
+
+    #[test]
+    fn streamed_file_reads_back_like_a_whole_write() {
+        let mut hf = fixture();
+        // A void so the nodata tag is exercised.
+        hf.set(5, 7, f32::NAN);
+        let dir = tempfile::tempdir().unwrap();
+        let whole = dir.path().join("whole.tif");
+        write(&whole, &hf, &WriteOptions::default()).unwrap();
+        let a = read(&whole, &ReadOptions::default()).unwrap();
+        for batch in [1, 3, 64, hf.height()] {
+            let p = dir.path().join(format!("s{batch}.tif"));
+            stream(&p, &hf, batch);
+            let b = read(&p, &ReadOptions::default()).unwrap();
+            assert_eq!(b.heightfield.width(), hf.width());
+            let same = a
+                .heightfield
+                .as_slice()
+                .iter()
+                .zip(b.heightfield.as_slice())
+                .all(|(x, y)| x.to_bits() == y.to_bits());
+            assert!(same, "batch {batch}: samples differ");
+            assert_eq!(b.heightfield.cell_size(), a.heightfield.cell_size());
+            assert_eq!(
+                b.heightfield.georef(),
+                a.heightfield.georef(),
+                "batch {batch}"
+            );
+            assert_eq!(b.nodata.map(f64::is_nan), Some(true));
+            assert!(b.heightfield.get(5, 7).is_nan());
+        }
+        // The georeference of the fixture survived (EPSG code and geotransform).
+        let g = a.heightfield.georef().expect("fixture is georeferenced");
+        assert!(g.geotransform.is_some());
+    }
+
+    #[test]
+    fn strip_layout_for_wide_and_narrow_rasters() {
+        let dir = tempfile::tempdir().unwrap();
+        for (w, h) in [(1, 1), (1, 70000), (20000, 3), (257, 129)] {
+            let hf = Heightfield::from_fn(w, h, 2.0, 3.0, |x, y| (x as f32) - 0.5 * y as f32);
+            let p = dir.path().join(format!("{w}x{h}.tif"));
+            stream(&p, &hf, 7);
+            let b = read(&p, &ReadOptions::default()).unwrap().heightfield;
+            assert_eq!(b.as_slice(), hf.as_slice(), "{w} x {h}");
+            assert_eq!(b.cell_size(), (2.0, 3.0));
+        }
+    }
+
+    #[test]
+    fn misuse_and_early_stop_leave_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.tif");
+        let mut out = GeoTiffStripWriter::create(&p, 4, 3, (1.0, 1.0), None).unwrap();
+        assert!(out.write_rows(&[0.0; 5]).is_err(), "partial row accepted");
+        out.write_rows(&[1.0; 8]).unwrap();
+        assert!(
+            out.write_rows(&[1.0; 8]).is_err(),
+            "rows past the end accepted"
+        );
+        let e = out.finish().unwrap_err().to_string();
+        assert!(e.contains("3 rows were announced"), "{e}");
+        assert!(
+            leftovers(dir.path()).is_empty(),
+            "{:?}",
+            leftovers(dir.path())
+        );
+        // Dropped mid-way (e.g. the producer failed): the temporary is removed.
+        let mut out = GeoTiffStripWriter::create(&p, 4, 3, (1.0, 1.0), None).unwrap();
+        out.write_rows(&[1.0; 4]).unwrap();
+        drop(out);
+        assert!(
+            leftovers(dir.path()).is_empty(),
+            "{:?}",
+            leftovers(dir.path())
+        );
+        // An existing file is replaced only by a complete one.
+        std::fs::write(&p, b"old").unwrap();
+        let mut out = GeoTiffStripWriter::create(&p, 4, 3, (1.0, 1.0), None).unwrap();
+        out.write_rows(&[2.0; 8]).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"old");
+        out.write_rows(&[2.0; 4]).unwrap();
+        out.finish().unwrap();
+        let b = read(&p, &ReadOptions::default()).unwrap().heightfield;
+        assert_eq!(b.as_slice(), &[2.0; 12]);
+        // Bad arguments.
+        assert!(GeoTiffStripWriter::create(&p, 0, 3, (1.0, 1.0), None).is_err());
+        assert!(GeoTiffStripWriter::create(&p, 40000, 40000, (1.0, 1.0), None).is_err());
+        assert!(GeoTiffStripWriter::create(&p, 4, 3, (-1.0, 1.0), None).is_err());
+        assert!(
+            GeoTiffStripWriter::create(&dir.path().join("no/o.tif"), 4, 3, (1.0, 1.0), None)
+                .is_err()
+        );
+        assert_eq!(leftovers(dir.path()), ["o.tif"]);
+    }
+}
