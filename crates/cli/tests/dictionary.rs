@@ -164,6 +164,20 @@ fn amplify_x4_on_grand_canyon() {
     let r = sct.rasterize(&RasterSettings::default()).unwrap();
     assert!(metrics::rmse(&r, &out).unwrap() < 1e-3);
 
+    // Streamed band by band (GeoTIFF strip writer): the same raster.
+    let streamed = tmp.path().join("streamed.tif");
+    ok(&common(&streamed, &["--stream"]));
+    let st = read(&streamed);
+    assert_eq!((st.width(), st.height()), (128, 128));
+    assert!(metrics::rmse(&st, &out).unwrap() < 1e-4);
+    let streamed_win = tmp.path().join("streamed_win.tif");
+    ok(&common(
+        &streamed_win,
+        &["--stream", "--window", "40,8,50,60"],
+    ));
+    let sw = read(&streamed_win);
+    assert!(metrics::rmse(&sw, &out.crop(40, 8, 50, 60).unwrap()).unwrap() < 1e-4);
+
     // A window is the matching crop of the whole raster.
     let win = tmp.path().join("win.tif");
     ok(&common(&win, &["--window", "40,8,50,60"]));

@@ -50,6 +50,10 @@ pub(crate) struct Args {
     /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
     #[arg(long)]
     pub(crate) window: Option<String>,
+    /// Stream a GeoTIFF output band by band instead of rasterising it whole (automatic above
+    /// 16 M cells): memory stays at one band whatever the output size.
+    #[arg(long)]
+    pub(crate) stream: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -110,7 +114,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             )
         })?
     };
-    write_model(&sct, &args.output, window, ctx)
+    write_model(&sct, &args.output, window, args.stream, ctx)
 }
 
 /// Parses `--window X,Y,W,H` (output pixels).
@@ -159,7 +163,13 @@ pub(crate) fn check_output_path(path: &Path, window: Option<Window>) -> Result<(
 }
 
 /// Writes `sct` as a `.sct` model or rasterises it (whole, or one window) to a raster file.
-pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &Ctx) -> Result<()> {
+pub(crate) fn write_model(
+    sct: &Sct,
+    path: &Path,
+    window: Option<Window>,
+    stream: bool,
+    ctx: &Ctx,
+) -> Result<()> {
     if is_sct(path) {
         let bytes = sct.to_bytes().context("cannot serialise the model")?;
         relief_io::write_bytes_atomic(path, &bytes)
@@ -172,6 +182,20 @@ pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &
             bytes.len()
         ));
         return Ok(());
+    }
+    let (fw, fh) = sct
+        .raster_size(1.0)
+        .context("cannot size the output raster")?;
+    let win = window.unwrap_or(Window {
+        x: 0,
+        y: 0,
+        width: fw,
+        height: fh,
+    });
+    if relief_io::Format::from_extension(path) == Some(relief_io::Format::GeoTiff)
+        && (stream || win.width.saturating_mul(win.height) > STREAM_CELLS)
+    {
+        return stream_geotiff(sct, path, win, ctx);
     }
     let hf = {
         let progress = ctx.progress();
@@ -188,6 +212,54 @@ pub(crate) fn write_model(sct: &Sct, path: &Path, window: Option<Window>, ctx: &
         path.display(),
         hf.width(),
         hf.height()
+    ));
+    Ok(())
+}
+
+/// Rasters larger than this many cells written as GeoTIFF are streamed band by band.
+const STREAM_CELLS: usize = 1 << 24;
+
+/// Cells per rasterised band when streaming.
+const BAND_CELLS: usize = 1 << 22;
+
+/// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
+/// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
+fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
+    let mut out =
+        relief_io::GeoTiffStripWriter::create(path, win.width, win.height, sct.cell_size(), None)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    let band = (BAND_CELLS / win.width).clamp(1, win.height);
+    // Several bands even for small rasters, so `--stream` exercises the band seams.
+    let band = band.min(win.height.div_ceil(4)).max(1);
+    let progress = ctx.progress();
+    progress.begin("rasterising and writing", win.height as u64);
+    let mut y = 0;
+    while y < win.height {
+        let rows = band.min(win.height - y);
+        let hf = sct
+            .rasterize(&RasterSettings {
+                scale: 1.0,
+                window: Some(Window {
+                    x: win.x,
+                    y: win.y + y,
+                    width: win.width,
+                    height: rows,
+                }),
+            })
+            .context("cannot rasterise the result")?;
+        out.write_rows(hf.as_slice())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        progress.advance(rows as u64);
+        y += rows;
+    }
+    out.finish()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {}, streamed in bands of {band} rows)",
+        path.display(),
+        win.width,
+        win.height
     ));
     Ok(())
 }

@@ -90,7 +90,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             )
         })?
     };
-    write_model(&sct, &args.output, window, ctx)
+    write_model(&sct, &args.output, window, false, ctx)
 }
 
 #[cfg(test)]
