@@ -17,10 +17,11 @@
 //! * `sketch`: synthesis from a painted sketch (a ridge stroke, a peak, a valley) with the
 //!   current terrain as exemplar, in three incremental x4 steps (figure 12): the sketch of
 //!   `n x n` cells becomes a `64 n x 64 n` terrain. The current terrain is unchanged.
-//! * `procedural`: inverse procedural modelling (section 5.2, figures 7-8): a centre crop of
-//!   the current terrain (at most 128 x 128) is fitted with Perlin, ridged multifractal and
-//!   ridged-sum (figure 4) atoms and with a constrained-learning reduction of the ridged
-//!   dictionary; PSNR per family (the paper: ridged 24.9 dB vs Perlin 20.0 dB on its data).
+//! * `procedural`: inverse procedural modelling (section 5.2, figures 7-8): a centre crop (at
+//!   most `max_side`^2) of the input DEM as loaded (the current terrain if the input has
+//!   voids; earlier stages may have made the current terrain synthetic) is fitted with
+//!   Perlin, ridged multifractal and ridged-sum (figure 4) atoms and with a
+//!   constrained-learning reduction of the ridged dictionary; PSNR per family (the paper: ridged 24.9 dB vs Perlin 20.0 dB on its data).
 //!   The current terrain is unchanged.
 
 use std::time::Instant;
