@@ -21,8 +21,8 @@
 //!   most `max_side`^2) of the input DEM as loaded (the current terrain if the input has
 //!   voids; earlier stages may have made the current terrain synthetic) is fitted with
 //!   Perlin, ridged multifractal and ridged-sum (figure 4) atoms and with a
-//!   constrained-learning reduction of the ridged dictionary; PSNR per family (the paper: ridged 24.9 dB vs Perlin 20.0 dB on its data).
-//!   The current terrain is unchanged.
+//!   constrained-learning reduction of the ridged dictionary; PSNR per family (the paper:
+//!   ridged 24.9 dB vs Perlin 20.0 dB on its data). The current terrain is unchanged.
 
 use std::time::Instant;
 
