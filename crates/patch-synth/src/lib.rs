@@ -20,7 +20,11 @@
 //! * Candidates (section 3.2): the categories present in the map window filter the buckets;
 //!   clusters are probed in order of closeness to the guide's block descriptor until
 //!   `probe_candidates` patches are gathered; the `knn` nearest overlaps of each probed bucket
-//!   (kd-tree in PCA space) are the candidates. With a guide, the `knn` patches per probed
+//!   (kd-tree in PCA space) are the candidates ([`ExemplarIndex::nearest_overlaps`] runs one
+//!   such search on its own; the `search_quality` example measures it against the exhaustive
+//!   search: with 8 PCA dimensions it returns about a fifth of the exhaustive best 24, whose
+//!   best is within ~16 % of the optimal overlap error, in about 1 ms instead of 2.4 s for the
+//!   201,601 patches of a 512 x 512 exemplar). With a guide, the `knn` patches per probed
 //!   bucket whose block descriptors best match the guide's (after the translation of equation
 //!   3) join them: the paper leaves open how the two criteria are combined, and overlap
 //!   neighbours alone gave a guide RMSE about 1.5 times larger on the alps protocol.
@@ -46,8 +50,9 @@
 //! * Same inputs and seed give identical output bytes whatever the rayon thread count: scoring
 //!   is parallel but order-preserving, reductions use fixed chunks, and each block's random
 //!   choice is seeded from `(seed, block)`.
-//! * Errors name the offending setting and value; library code never prints (progress goes to
-//!   the [`Progress`] callback).
+//! * Errors name the offending setting and value and no public entry point panics on bad
+//!   input (property-tested); library code never prints (progress goes to the [`Progress`]
+//!   callback). Outputs are limited to [`MAX_OUTPUT_CELLS`] cells.
 //! * Not guaranteed: that every block finds a well-matching patch (validation tells when the
 //!   exemplars are too poor); the kd-tree search is exact in PCA space, not in the full overlap
 //!   space; the guide fidelity is limited by the exemplars' detail.
