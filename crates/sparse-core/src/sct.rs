@@ -1066,25 +1066,46 @@ pub enum Node {
     },
 }
 
-fn combine_many(kind: u8, vals: &[(f64, f64)]) -> (f64, f64) {
+/// Running `(value, weight)` of an operator node over its children (visited in order), before
+/// [`acc_finish`]. Point evaluation and rasterisation use these same three functions, so they
+/// agree bit for bit.
+#[inline]
+fn acc_init(kind: u8) -> (f64, f64) {
     match kind {
-        // Blend.
+        // Blend: (numerator, denominator).
+        0 => (0.0, 0.0),
+        // Add: the sum starts at -0.0 (the identity of IEEE addition).
+        1 => (-0.0, f64::NAN),
+        // Max / Min.
+        _ => (f64::NAN, f64::NAN),
+    }
+}
+
+/// Adds one child `(v, w)` to the running value; `first` for the first child (whose weight
+/// the non-blend operators keep).
+#[inline]
+fn acc_step(kind: u8, acc: (f64, f64), (v, w): (f64, f64), first: bool) -> (f64, f64) {
+    let keep = if first { w } else { acc.1 };
+    match kind {
         0 => {
-            let (mut num, mut den) = (0.0, 0.0);
-            for &(v, w) in vals {
-                if w > 0.0 {
-                    num += v * w;
-                    den += w;
-                }
+            if w > 0.0 {
+                (acc.0 + v * w, acc.1 + w)
+            } else {
+                acc
             }
-            (if den > 0.0 { num / den } else { f64::NAN }, den)
         }
-        // Add.
-        1 => (vals.iter().map(|p| p.0).sum(), vals[0].1),
-        // Max.
-        2 => (vals.iter().fold(f64::NAN, |m, p| m.max(p.0)), vals[0].1),
-        // Min.
-        _ => (vals.iter().fold(f64::NAN, |m, p| m.min(p.0)), vals[0].1),
+        1 => (acc.0 + v, keep),
+        2 => (acc.0.max(v), keep),
+        _ => (acc.0.min(v), keep),
+    }
+}
+
+/// Final `(value, weight)`: blend normalises (NaN where every weight is 0).
+#[inline]
+fn acc_finish(kind: u8, acc: (f64, f64)) -> (f64, f64) {
+    match kind {
+        0 => (if acc.1 > 0.0 { acc.0 / acc.1 } else { f64::NAN }, acc.1),
+        _ => acc,
     }
 }
 
@@ -1150,8 +1171,11 @@ impl Node {
     /// `(value, weight)` at `(x, y)` (terrain pixel coordinates).
     pub fn eval(&self, x: f64, y: f64) -> (f64, f64) {
         if let Some((kind, c)) = self.children_kind() {
-            let vals: Vec<(f64, f64)> = c.iter().map(|n| n.eval(x, y)).collect();
-            return combine_many(kind, &vals);
+            let mut acc = acc_init(kind);
+            for (i, n) in c.iter().enumerate() {
+                acc = acc_step(kind, acc, n.eval(x, y), i == 0);
+            }
+            return acc_finish(kind, acc);
         }
         match self {
             Node::Layer(l) => {
@@ -1183,22 +1207,26 @@ impl Node {
     fn raster(&self, band: &Band, val: &mut [f64], wt: &mut [f64], scratch: &mut StampScratch) {
         let ncols = band.x1 - band.x0;
         if let Some((kind, c)) = self.children_kind() {
+            // Children are stamped one after the other into one scratch pair and folded into
+            // the running value held in `val`/`wt` (memory: two buffers whatever the arity).
             let n = val.len();
-            let mut bufs: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(c.len());
-            for child in c {
-                let mut v = vec![0.0; n];
-                let mut w = vec![0.0; n];
-                child.raster(band, &mut v, &mut w, scratch);
-                bufs.push((v, w));
-            }
-            let mut tmp = vec![(0.0, 0.0); c.len()];
-            for k in 0..n {
-                for (t, b) in tmp.iter_mut().zip(&bufs) {
-                    *t = (b.0[k], b.1[k]);
+            let (a0, w0) = acc_init(kind);
+            val.iter_mut().for_each(|v| *v = a0);
+            wt.iter_mut().for_each(|v| *v = w0);
+            let mut cv = vec![0.0; n];
+            let mut cw = vec![0.0; n];
+            for (i, child) in c.iter().enumerate() {
+                child.raster(band, &mut cv, &mut cw, scratch);
+                for k in 0..n {
+                    let a = acc_step(kind, (val[k], wt[k]), (cv[k], cw[k]), i == 0);
+                    val[k] = a.0;
+                    wt[k] = a.1;
                 }
-                let (v, w) = combine_many(kind, &tmp);
-                val[k] = v;
-                wt[k] = w;
+            }
+            for k in 0..n {
+                let a = acc_finish(kind, (val[k], wt[k]));
+                val[k] = a.0;
+                wt[k] = a.1;
             }
             return;
         }
