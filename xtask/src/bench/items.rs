@@ -277,6 +277,17 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "the bench prints how many of the exhaustive best 24 the fast search returns",
     },
     WorkItem {
+        name: "patch search (PCA to 16 dims + kd-tree), L-shaped overlap, 24-NN, 2 threads",
+        criterion_id: "quilt_search/pca_kdtree/L_knn24_pca16",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("quilt_search/bruteforce/L_full"),
+            label: "exhaustive mean-removed SSD over the full L overlap (same index, 2 threads)",
+        }),
+        goal: Goal::None,
+        units: None,
+        note: "",
+    },
+    WorkItem {
         name: "patch search (PCA + kd-tree), left overlap, 24-NN, 2 threads",
         criterion_id: "quilt_search/pca_kdtree/left_knn24",
         peer: None,
