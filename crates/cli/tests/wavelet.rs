@@ -366,3 +366,188 @@ fn analyze_writes_the_local_maps() {
     ]);
     assert!(!res.status.success());
 }
+
+/// `relief refine ... --stream` (forced on small outputs; automatic above 16 M cells) writes the
+/// GeoTIFF band by band: the same bits, size, cell size and georeference as the in-memory path,
+/// for the whole grid (render_strips) and for a window (band by band), over several band seams.
+#[test]
+fn streamed_output_equals_the_in_memory_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 220, 180, 64, 48);
+    let src = read(&input);
+    assert!(src.georef().is_some(), "the fixture is georeferenced");
+    for (method, wavelet, window) in [
+        ("lsa", "cdf53", None),
+        ("gsa", "db4", None),
+        ("lsa", "cdf97", Some("37,101,50,60")),
+        ("lsa", "haar", Some("0,3,256,7")),
+    ] {
+        let mut common = vec![
+            os("refine"),
+            input.as_os_str(),
+            os("--levels"),
+            os("2"),
+            os("--method"),
+            os(method),
+            os("--wavelet"),
+            os(wavelet),
+            os("--seed"),
+            os("5"),
+        ];
+        if let Some(w) = window {
+            common.extend([os("--window-of"), os(w)]);
+        }
+        let tag = format!("{method}-{wavelet}-{}", window.is_some());
+        let mem = tmp.path().join(format!("mem-{tag}.tif"));
+        let streamed = tmp.path().join(format!("streamed-{tag}.tif"));
+        let mut a = common.clone();
+        a.insert(2, mem.as_os_str());
+        ok(&relief(&a));
+        let mut b = common.clone();
+        b.insert(2, streamed.as_os_str());
+        b.push(os("--stream"));
+        // Without --quiet: the note says the streamed path was taken.
+        let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+            .args(&b)
+            .output()
+            .unwrap();
+        ok(&res);
+        let note = String::from_utf8_lossy(&res.stderr);
+        assert!(note.contains("streamed in bands of"), "{tag}: {note}");
+        let (m, s) = (read(&mem), read(&streamed));
+        let size = window.map_or((256, 192), |w| {
+            let v: Vec<usize> = w.split(',').map(|p| p.parse().unwrap()).collect();
+            (v[2], v[3])
+        });
+        assert_eq!((m.width(), m.height()), size, "{tag}");
+        assert_eq!((s.width(), s.height()), size, "{tag}");
+        assert_eq!(bits(s.as_slice()), bits(m.as_slice()), "{tag}");
+        assert_eq!(s.cell_size(), m.cell_size(), "{tag}");
+        assert!(s.georef().is_some(), "{tag}: georeference lost");
+        assert_eq!(s.georef(), m.georef(), "{tag}");
+        assert!(!s.has_voids());
+    }
+    // Non-GeoTIFF outputs keep the in-memory path (same values).
+    let npy = tmp.path().join("out.npy");
+    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([
+            os("refine"),
+            input.as_os_str(),
+            npy.as_os_str(),
+            os("--levels"),
+            os("2"),
+            os("--method"),
+            os("gsa"),
+            os("--wavelet"),
+            os("db4"),
+            os("--seed"),
+            os("5"),
+            os("--stream"),
+        ])
+        .output()
+        .unwrap();
+    ok(&res);
+    assert!(!String::from_utf8_lossy(&res.stderr).contains("streamed"));
+    let gsa = read(&tmp.path().join("mem-gsa-db4-false.tif"));
+    assert_eq!(bits(read(&npy).as_slice()), bits(gsa.as_slice()));
+}
+
+/// Files in `dir` whose name starts with `.{name}.tmp-` (the writer's hidden temporaries).
+fn temps(dir: &Path, name: &str) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|f| f.starts_with(&format!(".{name}.tmp-")))
+        .collect()
+}
+
+/// A streamed write that fails leaves no output file: the output cannot be created (its
+/// directory is a regular file), or the file system refuses the data mid-stream (a file-size
+/// limit, `ulimit -f`: EFBIG with SIGXFSZ ignored -> the error path removes the temporary; with
+/// SIGXFSZ delivered the process dies mid-write, and the next run removes its stale temporary).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_failing_streamed_write_leaves_no_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 300, 100, 64, 64);
+    let args = |out: &Path| {
+        vec![
+            os("refine").to_owned(),
+            input.as_os_str().to_owned(),
+            out.as_os_str().to_owned(),
+            os("--levels").to_owned(),
+            os("2").to_owned(),
+            os("--stream").to_owned(),
+        ]
+    };
+    let one_error_line = |res: &Output, what: &str| {
+        assert!(!res.status.success(), "{what}: succeeded");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{what}: {stderr}");
+        assert!(
+            stderr.starts_with("error: cannot write"),
+            "{what}: {stderr}"
+        );
+    };
+
+    // 1. The output directory is a regular file.
+    let not_dir = tmp.path().join("not-a-dir");
+    std::fs::write(&not_dir, b"x").unwrap();
+    let out = not_dir.join("out.tif");
+    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args(&out))
+        .output()
+        .unwrap();
+    one_error_line(&res, "directory is a file");
+    assert!(!out.exists());
+
+    // 2. The file system refuses the data after 32 KiB (the output is 256 KiB): write error
+    //    mid-stream, reported on one line, temporary removed.
+    let dir = tmp.path().join("limited");
+    std::fs::create_dir(&dir).unwrap();
+    let out = dir.join("out.tif");
+    let limited = |trap: &str| {
+        Command::new("sh")
+            .arg("-c")
+            .arg(format!("{trap} ulimit -f 64 && exec \"$0\" --quiet \"$@\""))
+            .arg(env!("CARGO_BIN_EXE_relief"))
+            .args(args(&out))
+            .output()
+            .unwrap()
+    };
+    let res = limited("trap '' XFSZ;");
+    one_error_line(&res, "file size limit");
+    assert!(
+        String::from_utf8_lossy(&res.stderr).contains("large"),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    assert!(!out.exists());
+    assert_eq!(temps(&dir, "out.tif"), Vec::<String>::new());
+
+    // 3. Killed mid-write (SIGXFSZ): no output; the hidden temporary it left is removed by
+    //    the next run, which succeeds.
+    let res = limited("");
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(
+        res.status.signal(),
+        Some(25),
+        "SIGXFSZ expected: {:?}",
+        res.status
+    );
+    assert!(!out.exists());
+    assert_eq!(
+        temps(&dir, "out.tif").len(),
+        1,
+        "the killed run's temporary"
+    );
+    ok(&Command::new(env!("CARGO_BIN_EXE_relief"))
+        .arg("--quiet")
+        .args(args(&out))
+        .output()
+        .unwrap());
+    assert_eq!(read(&out).width(), 256);
+    assert_eq!(temps(&dir, "out.tif"), Vec::<String>::new());
+}

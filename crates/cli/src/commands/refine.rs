@@ -3,8 +3,14 @@
 //! from a `W x W` window), any basis, a seed, and optionally only one window of the refined
 //! terrain (`--window-of x,y,w,h`, in output cells; equal bit for bit to the same window of a
 //! full run, and costing memory proportional to the window).
+//!
+//! Large GeoTIFF outputs (above 16 M cells, or any size with `--stream`) are synthesised in
+//! bands of rows and streamed to the file through [`relief_io::GeoTiffStripWriter`], so the
+//! refined terrain never exists whole in memory (a 16384^2 output needs one band of 256 rows,
+//! not 1 GiB); the values are bit-identical to the in-memory path. Other formats are written
+//! from memory.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Progress;
@@ -54,6 +60,10 @@ pub(crate) struct Args {
     /// error.
     #[arg(long)]
     pub(crate) fill_voids: bool,
+    /// Stream a GeoTIFF output band by band instead of synthesising it whole (automatic above
+    /// 16 M cells): memory stays at one band of rows whatever the output size.
+    #[arg(long)]
+    pub(crate) stream: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -122,25 +132,40 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let refiner = Refiner::new(&hf, &settings)
         .with_context(|| format!("cannot analyse {}", args.input.display()))?;
     let (ow, oh) = refiner.output_size();
-    let out = match window {
-        Some((x, y, w, h)) => {
-            progress.begin("synthesising the window", 0);
-            refiner
-                .render_window(x, y, w, h)
-                .with_context(|| format!("invalid --window-of (the refined grid is {ow} x {oh})"))?
+    let (x, y, w, h) = window.unwrap_or((0, 0, ow, oh));
+    let streamed = relief_io::Format::from_extension(&args.output)
+        == Some(relief_io::Format::GeoTiff)
+        && (args.stream || w.saturating_mul(h) > STREAM_CELLS);
+    let band = if streamed {
+        if x.checked_add(w).is_none_or(|e| e > ow) || y.checked_add(h).is_none_or(|e| e > oh) {
+            bail!("invalid --window-of {x},{y},{w},{h}: outside the refined grid ({ow} x {oh})");
         }
-        None => refiner.render(&progress).context("cannot synthesise")?,
+        drop(progress);
+        let band = stream_geotiff(&refiner, &args.output, (x, y, w, h), window.is_none(), ctx)?;
+        Some(band)
+    } else {
+        let out = match window {
+            Some((x, y, w, h)) => {
+                progress.begin("synthesising the window", 0);
+                refiner.render_window(x, y, w, h).with_context(|| {
+                    format!("invalid --window-of (the refined grid is {ow} x {oh})")
+                })?
+            }
+            None => refiner.render(&progress).context("cannot synthesise")?,
+        };
+        progress.begin("writing", 0);
+        relief_io::write(&args.output, &out, &relief_io::WriteOptions::default())
+            .with_context(|| format!("cannot write {}", args.output.display()))?;
+        drop(progress);
+        None
     };
-    progress.begin("writing", 0);
-    relief_io::write(&args.output, &out, &relief_io::WriteOptions::default())
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
-    drop(progress);
     let fits = &refiner.analysis().fits;
     ctx.note(format!(
-        "wrote {} ({} x {} of the {ow} x {oh} refined grid; {} {}, gamma h/v/d {:.3}/{:.3}/{:.3})",
+        "wrote {} ({w} x {h} of the {ow} x {oh} refined grid{}; {} {}, gamma h/v/d \
+         {:.3}/{:.3}/{:.3})",
         args.output.display(),
-        out.width(),
-        out.height(),
+        band.map(|b| format!(", streamed in bands of {b} rows"))
+            .unwrap_or_default(),
         match settings.method {
             Method::Gsa => "gsa".to_string(),
             Method::Lsa => format!("lsa {0}x{0}", settings.window),
@@ -151,6 +176,60 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         fits[2].gamma
     ));
     Ok(())
+}
+
+/// GeoTIFF outputs larger than this many cells are streamed band by band.
+const STREAM_CELLS: usize = 1 << 24;
+
+/// Cells per synthesised band when streaming (16 MiB of f32: 256 rows of a 16384-wide output).
+const BAND_CELLS: usize = 1 << 22;
+
+/// Synthesises the window `(x, y, w, h)` of the refined terrain (inside the grid; the whole
+/// grid when `whole`) in bands of rows and streams them into a GeoTIFF at `path`: memory is one
+/// band plus the analysis, never the whole output. The whole grid goes through
+/// [`Refiner::render_strips`] (tiles of a band in parallel), a window through
+/// [`Refiner::render_window_values`] band by band; both are bit-identical to the in-memory
+/// [`Refiner::render`] / [`Refiner::render_window`]. Returns the band height. On any error the
+/// writer is dropped unfinished, which removes its temporary: no partial file under `path`.
+fn stream_geotiff(
+    refiner: &Refiner,
+    path: &Path,
+    (x, y, w, h): (usize, usize, usize, usize),
+    whole: bool,
+    ctx: &Ctx,
+) -> Result<usize> {
+    // Cell size and georeference of the window: those of its first cell (the refiner shifts
+    // the georeference of a window to its origin, exactly as for the in-memory output).
+    let corner = refiner
+        .render_window(x, y, 1, 1)
+        .context("cannot synthesise")?;
+    let cannot_write = || format!("cannot write {}", path.display());
+    let mut out =
+        relief_io::GeoTiffStripWriter::create(path, w, h, corner.cell_size(), corner.georef())
+            .with_context(cannot_write)?;
+    let band = (BAND_CELLS / w).clamp(1, h);
+    // Several bands even for small outputs, so `--stream` exercises the band seams.
+    let band = band.min(h.div_ceil(4)).max(1);
+    let progress = ctx.progress();
+    if whole {
+        refiner.render_strips(band, &progress, |_, rows| -> Result<()> {
+            out.write_rows(rows).with_context(cannot_write)
+        })?;
+    } else {
+        progress.begin("synthesising and writing the window", h as u64);
+        let mut r = 0;
+        while r < h {
+            let rows = band.min(h - r);
+            let values = refiner
+                .render_window_values(x, y + r, w, rows)
+                .context("cannot synthesise")?;
+            out.write_rows(&values).with_context(cannot_write)?;
+            progress.advance(rows as u64);
+            r += rows;
+        }
+    }
+    out.finish().with_context(cannot_write)?;
+    Ok(band)
 }
 
 #[cfg(test)]
