@@ -20,8 +20,12 @@
 //!   resistance threshold or a budget. Landforms: hoodoos (figure 3), arches, floating islands.
 //!   Every effect takes a [`Region`] (painted per-cell mask and/or 3D box) and a seed.
 //! * [`mesh`]: chunked marching tetrahedra with edge-key welding (watertight, manifold) and
-//!   gradient normals; plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
-//! * [`render`]: Lipschitz sphere tracing to an RGB8 buffer, and vertical sections.
+//!   normals from the analytic field gradient; plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
+//! * [`render`]: Lipschitz sphere tracing (interval-proven empty balls skipped, the carving-free
+//!   tree bounding steps in air, cone-limited minimum step) to an RGB8 buffer, and vertical
+//!   sections.
+//! * [`recipe`]: feature lists (`sea,caves,karst,...`) with parameters scaled to the DEM, as used
+//!   by `relief volume` and the pipeline's `volume` stage.
 //!
 //! # Guarantees
 //! Same inputs and seeds give identical bytes whatever the rayon thread count: random numbers

@@ -4,7 +4,9 @@
 //! The grid is processed in chunks of `chunk^3` cells: each chunk samples only its own
 //! `(chunk + 1)^3` nodes, so memory is bounded by the chunk plus the output mesh, never a dense
 //! grid of the whole scene. Chunks whose Lipschitz bound proves they hold no surface are skipped
-//! without sampling (interval bounds of the field over the chunk). Vertices lie on lattice edges and are welded across chunk borders by a
+//! without sampling (interval bounds of the field over the chunk); inside a sampled chunk, blocks
+//! of 8^3 nodes proven all air or all matter (with a one-cell margin) are not evaluated either.
+//! Vertex normals come from the analytic field gradient ([`crate::TerrainTree::eval_grad`]). Vertices lie on lattice edges and are welded across chunk borders by a
 //! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
 //! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
 //! (`inside <=> f > T`), the piecewise-linear iso-surface is a closed 2-manifold: every edge is
@@ -12,6 +14,29 @@
 //! border air).
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// Multiplicative hash for integer keys (edge keys are already well spread; SipHash was a
+/// third of the meshing time).
+#[derive(Default)]
+struct IntHasher(u64);
+impl Hasher for IntHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(v as u64);
+    }
+}
+type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<IntHasher>>;
 
 use rayon::prelude::*;
 
@@ -68,6 +93,9 @@ pub struct MeshReport {
     pub evaluations: usize,
 }
 
+/// Edge (in nodes) of the blocks culled by interval arithmetic inside a sampled chunk.
+const BLOCK: usize = 8;
+
 // The six Kuhn tetrahedra: corner offsets as bit masks (bit 0 = x, 1 = y, 2 = z).
 const TETS: [[u8; 4]; 6] = [
     [0, 1, 3, 7],
@@ -112,7 +140,7 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
         pos: Vec::new(),
         tris: Vec::new(),
     };
-    let mut local: HashMap<u64, u32> = HashMap::new();
+    let mut local: FastMap<u64, u32> = FastMap::default();
     for k in 0..d[2] - 1 {
         for j in 0..d[1] - 1 {
             for i in 0..d[0] - 1 {
@@ -159,19 +187,21 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                     id
                 };
                 for tet in TETS {
-                    let ins: Vec<u8> = tet
-                        .iter()
-                        .copied()
-                        .filter(|&c| cv[c as usize] > iso)
-                        .collect();
-                    let outs: Vec<u8> = tet
-                        .iter()
-                        .copied()
-                        .filter(|&c| cv[c as usize] <= iso)
-                        .collect();
-                    if ins.is_empty() || outs.is_empty() {
+                    let (mut ins_a, mut outs_a) = ([0u8; 4], [0u8; 4]);
+                    let (mut ni, mut no) = (0, 0);
+                    for c in tet {
+                        if cv[c as usize] > iso {
+                            ins_a[ni] = c;
+                            ni += 1;
+                        } else {
+                            outs_a[no] = c;
+                            no += 1;
+                        }
+                    }
+                    if ni == 0 || no == 0 {
                         continue;
                     }
+                    let (ins, outs) = (&ins_a[..ni], &outs_a[..no]);
                     let cen = |cs: &[u8]| {
                         let mut s = [0.0; 3];
                         for &c in cs {
@@ -180,7 +210,7 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                         }
                         mul(s, 1.0 / cs.len() as f32)
                     };
-                    let outward = sub(cen(&outs), cen(&ins));
+                    let outward = sub(cen(outs), cen(ins));
                     // The winding is decided on the lattice-edge midpoints, never degenerate
                     // (interpolated vertices may coincide when a value equals the iso-level).
                     let mid = |e: (u8, u8)| {
@@ -241,7 +271,7 @@ fn chunks_of(n: [usize; 3], c: usize) -> Vec<([usize; 3], [usize; 3])> {
 }
 
 fn weld(chunks: Vec<ChunkOut>) -> Mesh {
-    let mut map: HashMap<u64, u32> = HashMap::new();
+    let mut map: FastMap<u64, u32> = FastMap::default();
     let mut mesh = Mesh::default();
     for ch in chunks {
         let remap: Vec<u32> = ch
@@ -318,28 +348,57 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
             }
             let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
             let mut vals = vec![0f32; d[0] * d[1] * d[2]];
-            for k in 0..d[2] {
-                for j in 0..d[1] {
-                    for i in 0..d[0] {
-                        let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
-                        let border = gi == 0
-                            || gj == 0
-                            || gk == 0
-                            || gi == g.n[0]
-                            || gj == g.n[1]
-                            || gk == g.n[2];
-                        let mut v = scene.field(g.pos(gi, gj, gk));
-                        if s.close_boundary && border {
-                            v = v.min(THRESHOLD);
+            let mut evals = 0usize;
+            // Blocks of nodes whose box grown by one cell is proven all air or all matter by
+            // interval arithmetic get a constant: no edge from them crosses the surface, so
+            // their exact values are never interpolated.
+            for bk in (0..d[2]).step_by(BLOCK) {
+                for bj in (0..d[1]).step_by(BLOCK) {
+                    for bi in (0..d[0]).step_by(BLOCK) {
+                        let e = [
+                            (bi + BLOCK).min(d[0]),
+                            (bj + BLOCK).min(d[1]),
+                            (bk + BLOCK).min(d[2]),
+                        ];
+                        let a = g.pos(lo[0] + bi, lo[1] + bj, lo[2] + bk);
+                        let b = g.pos(lo[0] + e[0] - 1, lo[1] + e[1] - 1, lo[2] + e[2] - 1);
+                        let bb = Aabb::new(sub(a, g.step), add(b, g.step));
+                        let (blo, bhi) = scene.interval(&bb);
+                        let fill = if bhi <= THRESHOLD {
+                            Some(0.0)
+                        } else if blo > THRESHOLD {
+                            Some(2.0 * THRESHOLD)
+                        } else {
+                            None
+                        };
+                        for k in bk..e[2] {
+                            for j in bj..e[1] {
+                                for i in bi..e[0] {
+                                    let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
+                                    let mut v = match fill {
+                                        Some(v) => v,
+                                        None => {
+                                            evals += 1;
+                                            scene.field(g.pos(gi, gj, gk))
+                                        }
+                                    };
+                                    let border = gi == 0
+                                        || gj == 0
+                                        || gk == 0
+                                        || gi == g.n[0]
+                                        || gj == g.n[1]
+                                        || gk == g.n[2];
+                                    if s.close_boundary && border {
+                                        v = v.min(THRESHOLD);
+                                    }
+                                    vals[(k * d[1] + j) * d[0] + i] = v;
+                                }
+                            }
                         }
-                        vals[(k * d[1] + j) * d[0] + i] = v;
                     }
                 }
             }
-            (
-                Some(march_chunk(&g, lo, hi, &vals, THRESHOLD)),
-                vals.len() + 1,
-            )
+            (Some(march_chunk(&g, lo, hi, &vals, THRESHOLD)), evals)
         })
         .collect();
     let mut report = MeshReport {
@@ -461,8 +520,8 @@ pub struct Topology {
 /// Counts edges, checks that every edge is shared by exactly two triangles with opposite
 /// directions, and computes the Euler characteristic.
 pub fn topology(mesh: &Mesh) -> Topology {
-    let mut und: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut dir: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut und: FastMap<(u32, u32), u32> = FastMap::default();
+    let mut dir: FastMap<(u32, u32), u32> = FastMap::default();
     let mut used = vec![false; mesh.positions.len()];
     for t in &mesh.triangles {
         for e in 0..3 {

@@ -1408,16 +1408,10 @@ impl Scene {
     pub fn inside(&self, p: V3) -> bool {
         self.field(p) > THRESHOLD
     }
-    /// Central-difference gradient of `f` with step `h` (m).
+    /// Gradient of `f`: analytic through the tree ([`TerrainTree::eval_grad`]); central
+    /// differences with step `h` (m) only inside cones and noise warps.
     pub fn gradient(&self, p: V3, h: f32) -> V3 {
-        let mut g = [0.0; 3];
-        for k in 0..3 {
-            let (mut a, mut b) = (p, p);
-            a[k] += h;
-            b[k] -= h;
-            g[k] = (self.field(a) - self.field(b)) / (2.0 * h);
-        }
-        g
+        self.tree.eval_grad(self.root, p, h).1
     }
     /// Outward unit normal (`-grad f / |grad f|`).
     pub fn normal(&self, p: V3, h: f32) -> V3 {

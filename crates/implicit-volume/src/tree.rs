@@ -130,6 +130,66 @@ impl HfPrim {
         let dt = self.height(p[0], p[1]) - p[2];
         THRESHOLD + THRESHOLD * cubic_step(dt.min(db) / self.r)
     }
+    /// Field and analytic gradient (the gradient of the active branch of the `min`, and of
+    /// the bilinear patch of `H`).
+    #[inline]
+    fn field_grad(&self, p: V3) -> (f32, V3) {
+        let (xm, ym) = self.extent();
+        let cands = [
+            (p[0], [1.0, 0.0, 0.0]),
+            (xm - p[0], [-1.0, 0.0, 0.0]),
+            (p[1], [0.0, 1.0, 0.0]),
+            (ym - p[1], [0.0, -1.0, 0.0]),
+            (p[2] - self.z_bottom, [0.0, 0.0, 1.0]),
+        ];
+        let mut m = cands[0];
+        for c in &cands[1..] {
+            if c.0 < m.0 {
+                m = *c;
+            }
+        }
+        // Bilinear height and its derivatives.
+        let u = (p[0] / self.cx).clamp(0.0, (self.w - 1) as f32);
+        let v = ((self.h - 1) as f32 - p[1] / self.cy).clamp(0.0, (self.h - 1) as f32);
+        let (j0, i0) = (u.floor() as usize, v.floor() as usize);
+        let (j1, i1) = ((j0 + 1).min(self.w - 1), (i0 + 1).min(self.h - 1));
+        let (tx, ty) = (u - j0 as f32, v - i0 as f32);
+        let d = &self.data;
+        let (z00, z01) = (d[i0 * self.w + j0], d[i0 * self.w + j1]);
+        let (z10, z11) = (d[i1 * self.w + j0], d[i1 * self.w + j1]);
+        let a = z00 * (1.0 - tx) + z01 * tx;
+        let b = z10 * (1.0 - tx) + z11 * tx;
+        let hgt = a * (1.0 - ty) + b * ty;
+        let dt = hgt - p[2];
+        let (val, g) = if dt <= m.0 {
+            let inside_x = p[0] > 0.0 && p[0] < xm;
+            let inside_y = p[1] > 0.0 && p[1] < ym;
+            let dhdu = ((z01 - z00) * (1.0 - ty) + (z11 - z10) * ty) / self.cx;
+            // v grows southwards, y northwards.
+            let dhdv = -(b - a) / self.cy;
+            (
+                dt,
+                [
+                    if inside_x { dhdu } else { 0.0 },
+                    if inside_y { dhdv } else { 0.0 },
+                    -1.0,
+                ],
+            )
+        } else {
+            m
+        };
+        let x = val / self.r;
+        let ds = if x.abs() < 1.0 {
+            1.5 * (1.0 - x * x) / self.r
+        } else {
+            0.0
+        };
+        (
+            THRESHOLD + THRESHOLD * cubic_step(x),
+            mul(g, THRESHOLD * ds),
+        )
+    }
+
     /// Range of the bilinear DEM over the xy footprint of `b` (clamped to the grid).
     fn height_range(&self, b: &Aabb) -> (f32, f32) {
         let u0 = ((b.min[0] / self.cx).floor().max(0.0) as usize).min(self.w - 1);
@@ -556,6 +616,125 @@ impl TerrainTree {
         }
     }
 
+    /// Field value and gradient of node `id` at `p`: analytic through primitives (sphere,
+    /// capsule, ellipsoid, heightfield), sums, CSG branches and smooth blends; central
+    /// differences with step `h` only for cones and noise warps (their analytic Jacobians are
+    /// not worth the cost).
+    pub fn eval_grad(&self, id: NodeId, p: V3, h: f32) -> (f32, V3) {
+        self.evg(id.0, p, h)
+    }
+
+    fn fd(&self, id: u32, p: V3, h: f32) -> (f32, V3) {
+        let mut g = [0.0; 3];
+        for k in 0..3 {
+            let (mut a, mut b) = (p, p);
+            a[k] += h;
+            b[k] -= h;
+            g[k] = (self.ev(id, a) - self.ev(id, b)) / (2.0 * h);
+        }
+        (self.ev(id, p), g)
+    }
+
+    fn evg(&self, id: u32, p: V3, h: f32) -> (f32, V3) {
+        // Falloff e g(q) with q = |d|^2 / r^2: gradient e g'(q) dq/dp, g'(q) = -3 (1 - q)^2.
+        let radial = |e: f32, q: f32, dq: V3| {
+            if q >= 1.0 {
+                (0.0, [0.0; 3])
+            } else {
+                let t = 1.0 - q;
+                (e * t * t * t, mul(dq, -3.0 * e * t * t))
+            }
+        };
+        match self.nodes[id as usize] {
+            Node::Sphere { c, r, e } => {
+                let d = sub(p, c);
+                radial(e, dot(d, d) / (r * r), mul(d, 2.0 / (r * r)))
+            }
+            Node::Capsule { a, b, r, e } => {
+                let ab = sub(b, a);
+                let ap = sub(p, a);
+                let t = (dot(ap, ab) / dot(ab, ab)).clamp(0.0, 1.0);
+                let d = sub(ap, mul(ab, t));
+                radial(e, dot(d, d) / (r * r), mul(d, 2.0 / (r * r)))
+            }
+            Node::Ellipsoid { c, axes, e } => {
+                let d = sub(p, c);
+                let q =
+                    (d[0] / axes[0]).powi(2) + (d[1] / axes[1]).powi(2) + (d[2] / axes[2]).powi(2);
+                let dq = [
+                    2.0 * d[0] / (axes[0] * axes[0]),
+                    2.0 * d[1] / (axes[1] * axes[1]),
+                    2.0 * d[2] / (axes[2] * axes[2]),
+                ];
+                radial(e, q, dq)
+            }
+            Node::Cone { .. } | Node::Warp { .. } => {
+                if self.bbox_of(id).contains(p) {
+                    self.fd(id, p, h)
+                } else {
+                    (0.0, [0.0; 3])
+                }
+            }
+            Node::Heightfield(k) => self.hfs[k as usize].field_grad(p),
+            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+                .iter()
+                .fold((0.0, [0.0; 3]), |acc, &c| {
+                    let (v, g) = self.evg(c, p, h);
+                    (acc.0 + v, add(acc.1, g))
+                }),
+            Node::Bvh { bbox, left, right } => {
+                if bbox.contains(p) {
+                    let (a, ga) = self.evg(left, p, h);
+                    let (b, gb) = self.evg(right, p, h);
+                    (a + b, add(ga, gb))
+                } else {
+                    (0.0, [0.0; 3])
+                }
+            }
+            Node::Union { a, b } => {
+                let (x, y) = (self.evg(a, p, h), self.evg(b, p, h));
+                if x.0 >= y.0 { x } else { y }
+            }
+            Node::Intersection { a, b } => {
+                let (x, y) = (self.evg(a, p, h), self.evg(b, p, h));
+                if x.0 <= y.0 { x } else { y }
+            }
+            Node::Difference { a, b } => {
+                let x = self.evg(a, p, h);
+                let y = self.evg(b, p, h);
+                let c = 2.0 * THRESHOLD - y.0;
+                if c <= 0.0 {
+                    if x.0 <= 0.0 { x } else { (0.0, [0.0; 3]) }
+                } else if x.0 <= c {
+                    x
+                } else {
+                    (c, mul(y.1, -1.0))
+                }
+            }
+            Node::SmoothBlend { a, b, n } => {
+                let (x, gx) = self.evg(a, p, h);
+                let (y, gy) = self.evg(b, p, h);
+                let (x, y) = (x.max(0.0), y.max(0.0));
+                let (gx, gy) = (
+                    if x > 0.0 { gx } else { [0.0; 3] },
+                    if y > 0.0 { gy } else { [0.0; 3] },
+                );
+                let m = x.max(y);
+                if m <= 0.0 {
+                    (0.0, [0.0; 3])
+                } else {
+                    let (u, v) = (x / m, y / m);
+                    let s = u.powf(n) + v.powf(n);
+                    let k = s.powf(1.0 / n - 1.0);
+                    (
+                        m * s.powf(1.0 / n),
+                        add(mul(gx, k * u.powf(n - 1.0)), mul(gy, k * v.powf(n - 1.0))),
+                    )
+                }
+            }
+        }
+    }
+
     /// Upper bound of the Lipschitz constant of node `id`'s field restricted to `region`
     /// (0 when the node's support misses `region`). Used for sphere tracing and for skipping
     /// empty chunks when meshing.
@@ -822,6 +1001,55 @@ mod tests {
                 assert!(v >= lo - 1e-5 && v <= hi + 1e-5, "{v} not in [{lo}, {hi}]");
             }
         }
+    }
+
+    #[test]
+    fn analytic_gradient_matches_central_differences() {
+        let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
+            50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
+        });
+        let mut t = TerrainTree::new();
+        let (h, _) = t.heightfield(&hf, 15.0, 30.0).unwrap();
+        let s1 = t.sphere([100.0, 100.0, 60.0], 30.0, -2.0).unwrap();
+        let c1 = t
+            .capsule([50.0, 50.0, 60.0], [120.0, 80.0, 70.0], 12.0, -1.5)
+            .unwrap();
+        let e1 = t
+            .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+            .unwrap();
+        let k1 = t
+            .cone([200.0, 60.0, 60.0], [200.0, 60.0, 100.0], 15.0, 5.0, 1.0)
+            .unwrap();
+        let bv = t.bvh_blend(&[s1, c1]).unwrap();
+        let bl = t.blend(&[h, bv]).unwrap();
+        let sm = t.smooth_blend(e1, k1, 3.0).unwrap();
+        let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
+        let u = t.union(bl, sm).unwrap();
+        let d = t.difference(u, w).unwrap();
+        let root = t.intersection(d, h).unwrap();
+        let (mut n, mut worst) = (0, 0.0f32);
+        for k in 0..4000u64 {
+            let r = |s| crate::math::unit(crate::math::hash(8, k, s, 0));
+            let p = [r(0) * 290.0, r(1) * 190.0, 20.0 + r(2) * 100.0];
+            let (v, g) = t.eval_grad(root, p, 1e-3);
+            assert!((v - t.eval(root, p)).abs() < 1e-5);
+            let mut fd = [0.0; 3];
+            let hh = 1e-2;
+            for a in 0..3 {
+                let (mut p1, mut p2) = (p, p);
+                p1[a] += hh;
+                p2[a] -= hh;
+                fd[a] = (t.eval(root, p1) - t.eval(root, p2)) / (2.0 * hh);
+            }
+            let err = crate::math::norm(sub(g, fd));
+            let scale = crate::math::norm(fd).max(1e-3);
+            // Kinks (CSG switches, grid lines, clamps) can sit between the FD samples.
+            if err > 0.05 * scale + 1e-4 {
+                worst = worst.max(err / scale);
+                n += 1;
+            }
+        }
+        assert!(n < 40, "{n} points disagree (worst relative {worst})");
     }
 
     #[test]
