@@ -1,8 +1,10 @@
 //! Benchmarks of relief-implicit-volume on a karst + sea scene over a ~5 km^2 crop of N57E011
 //! (34x34 cells resampled to 136x136): tree build on 2 threads, field evaluation with and
 //! without the BVH, chunked meshing of a 256^3 sampling (field evaluation included) and marching
-//! tetrahedra on the same grid precomputed (compare `xtask/peers/skimage_mc.py`, which times
-//! scikit-image `marching_cubes` on the grid written by the crate's `bench_volume` example).
+//! tetrahedra on the same grid precomputed, meshing at 64^3 / 128^3 / 256^3 and with analytic
+//! gradient normals, gradient evaluation and a 320 x 240 render (compare
+//! `xtask/peers/skimage_mc.py`, which times scikit-image `marching_cubes` on the grid written
+//! by the crate's `bench_volume` example).
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use relief_heightfield::Heightfield;
@@ -87,6 +89,9 @@ fn volume(c: &mut Criterion) {
     g.bench_function(BenchmarkId::new("field_100_points", "no_bvh"), |b| {
         b.iter(|| few.iter().map(|&p| flat.field(p)).sum::<f32>())
     });
+    g.bench_function(BenchmarkId::new("gradient_10k_points", "bvh"), |b| {
+        b.iter(|| pts.iter().map(|&p| scene.gradient(p, 0.05)[2]).sum::<f32>())
+    });
     let bbox = scene.bbox();
     let ms = MeshSettings {
         bbox: Some(bbox),
@@ -95,8 +100,32 @@ fn volume(c: &mut Criterion) {
         close_boundary: true,
         normals: false,
     };
-    g.bench_function(BenchmarkId::new("polygonize_2threads", 256), |b| {
-        b.iter(|| pool.install(|| polygonize(&scene, &ms).expect("mesh")))
+    // Grids of n^3 nodes, field evaluation included (no normals).
+    for n in [64usize, 128, 256] {
+        let m = MeshSettings {
+            cells: [n - 1; 3],
+            ..ms
+        };
+        g.bench_function(BenchmarkId::new("polygonize_2threads", n), |b| {
+            b.iter(|| pool.install(|| polygonize(&scene, &m).expect("mesh")))
+        });
+    }
+    let mn = MeshSettings {
+        normals: true,
+        ..ms
+    };
+    g.bench_function(BenchmarkId::new("polygonize_normals_2threads", 256), |b| {
+        b.iter(|| pool.install(|| polygonize(&scene, &mn).expect("mesh")))
+    });
+    let cam = Camera::overview(&bbox);
+    let rs = RenderSettings {
+        width: 320,
+        height: 240,
+        sea_level: Some(0.0),
+        ..Default::default()
+    };
+    g.bench_function(BenchmarkId::new("render_2threads", "320x240"), |b| {
+        b.iter(|| pool.install(|| render(&scene, &cam, &rs).expect("render")))
     });
     let grid = pool.install(|| sample_grid(&scene, &bbox, [256, 256, 256]).expect("grid"));
     let s = bbox.size();

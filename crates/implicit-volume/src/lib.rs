@@ -21,7 +21,7 @@
 //!   Every effect takes a [`Region`] (painted per-cell mask and/or 3D box) and a seed.
 //! * [`mesh`]: chunked marching tetrahedra with edge-key welding (watertight, manifold) and
 //!   normals from the analytic field gradient; plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
-//! * [`render`]: Lipschitz sphere tracing (interval-proven empty balls skipped, the carving-free
+//! * [`mod@render`]: Lipschitz sphere tracing (interval-proven empty balls skipped, the carving-free
 //!   tree bounding steps in air, cone-limited minimum step) to an RGB8 buffer, and vertical
 //!   sections.
 //! * [`recipe`]: feature lists (`sea,caves,karst,...`) with parameters scaled to the DEM, as used
