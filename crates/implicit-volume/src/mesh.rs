@@ -520,24 +520,50 @@ pub struct Topology {
 /// Counts edges, checks that every edge is shared by exactly two triangles with opposite
 /// directions, and computes the Euler characteristic.
 pub fn topology(mesh: &Mesh) -> Topology {
-    let mut und: FastMap<(u32, u32), u32> = FastMap::default();
-    let mut dir: FastMap<(u32, u32), u32> = FastMap::default();
+    // Sorted edge lists (8 bytes per half-edge) instead of hash maps: a 20M-triangle mesh is
+    // checked in ~0.5 GB.
     let mut used = vec![false; mesh.positions.len()];
+    let mut e: Vec<u64> = Vec::with_capacity(mesh.triangles.len() * 3);
     for t in &mesh.triangles {
-        for e in 0..3 {
-            let (a, b) = (t[e], t[(e + 1) % 3]);
-            used[a as usize] = true;
-            *und.entry((a.min(b), a.max(b))).or_default() += 1;
-            *dir.entry((a, b)).or_default() += 1;
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if let Some(u) = used.get_mut(a as usize) {
+                *u = true;
+            }
+            e.push(((a as u64) << 32) | b as u64);
         }
     }
+    // Runs of equal keys in a sorted list: (number of distinct keys, keys whose run != want).
+    let runs = |v: &[u64], want: usize| {
+        let (mut distinct, mut off, mut i) = (0usize, 0usize, 0usize);
+        while i < v.len() {
+            let mut j = i + 1;
+            while j < v.len() && v[j] == v[i] {
+                j += 1;
+            }
+            distinct += 1;
+            if j - i != want {
+                off += 1;
+            }
+            i = j;
+        }
+        (distinct, off)
+    };
+    e.sort_unstable();
+    let (_, misoriented_edges) = runs(&e, 1);
+    for x in e.iter_mut() {
+        let (a, b) = (*x >> 32, *x & 0xffff_ffff);
+        *x = (a.min(b) << 32) | a.max(b);
+    }
+    e.sort_unstable();
+    let (edges, bad_edges) = runs(&e, 2);
     let vertices = used.iter().filter(|&&u| u).count();
     Topology {
         vertices,
-        edges: und.len(),
+        edges,
         faces: mesh.triangles.len(),
-        bad_edges: und.values().filter(|&&c| c != 2).count(),
-        misoriented_edges: dir.values().filter(|&&c| c != 1).count(),
-        euler: vertices as i64 - und.len() as i64 + mesh.triangles.len() as i64,
+        bad_edges,
+        misoriented_edges,
+        euler: vertices as i64 - edges as i64 + mesh.triangles.len() as i64,
     }
 }
