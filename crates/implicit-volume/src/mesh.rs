@@ -140,7 +140,8 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
         pos: Vec::new(),
         tris: Vec::new(),
     };
-    let mut local: FastMap<u64, u32> = FastMap::default();
+    // Vertex ids of this chunk's lattice edges: (local node, direction bits) -> id.
+    let mut local = vec![u32::MAX; d[0] * d[1] * d[2] * 8];
     for k in 0..d[2] - 1 {
         for j in 0..d[1] - 1 {
             for i in 0..d[0] - 1 {
@@ -170,10 +171,13 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                     // Edge from the lower corner to the upper one (Kuhn edges are monotone).
                     let (a, b) = if a < b { (a, b) } else { (b, a) };
                     let ca = corner(a);
-                    let key = g.node_id(ca[0], ca[1], ca[2]) * 8 + (a ^ b) as u64;
-                    if let Some(&v) = local.get(&key) {
-                        return v;
+                    let slot =
+                        (((ca[2] - lo[2]) * d[1] + (ca[1] - lo[1])) * d[0] + (ca[0] - lo[0])) * 8
+                            + (a ^ b) as usize;
+                    if local[slot] != u32::MAX {
+                        return local[slot];
                     }
+                    let key = g.node_id(ca[0], ca[1], ca[2]) * 8 + (a ^ b) as u64;
                     let (va, vb) = (cv[a as usize], cv[b as usize]);
                     let t = ((iso - va) / (vb - va)).clamp(0.0, 1.0);
                     let cb = corner(b);
@@ -183,7 +187,7 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                     let id = out.pos.len() as u32;
                     out.pos.push(p);
                     out.keys.push(key);
-                    local.insert(key, id);
+                    local[slot] = id;
                     id
                 };
                 for tet in TETS {
