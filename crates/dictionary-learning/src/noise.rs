@@ -81,9 +81,9 @@ impl Perlin {
         let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
         let (u, v) = (fade(dx), fade(dy));
         let n00 = self.grad(xi, yi, dx, dy);
-        let n10 = self.grad(xi + 1, yi, dx - 1.0, dy);
-        let n01 = self.grad(xi, yi + 1, dx, dy - 1.0);
-        let n11 = self.grad(xi + 1, yi + 1, dx - 1.0, dy - 1.0);
+        let n10 = self.grad(xi.wrapping_add(1), yi, dx - 1.0, dy);
+        let n01 = self.grad(xi, yi.wrapping_add(1), dx, dy - 1.0);
+        let n11 = self.grad(xi.wrapping_add(1), yi.wrapping_add(1), dx - 1.0, dy - 1.0);
         let a = n00 + u * (n10 - n00);
         let b = n01 + u * (n11 - n01);
         (a + v * (b - a)) * std::f64::consts::SQRT_2

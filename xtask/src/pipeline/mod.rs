@@ -27,10 +27,10 @@ mod fill;
 mod load;
 mod quilt;
 pub(crate) mod report;
-pub(crate) mod spec;
 mod sparse;
-mod wavelet;
+pub(crate) mod spec;
 mod volume;
+mod wavelet;
 
 pub(crate) use report::{Report, Section};
 

@@ -33,7 +33,9 @@ use anyhow::{Context, Result, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{PipelineConfig, Stage, convert, dictionary, fill, load, quilt, sparse, wavelet, volume};
+use super::{
+    PipelineConfig, Stage, convert, dictionary, fill, load, quilt, sparse, volume, wavelet,
+};
 
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,14 +115,36 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural", "volume"];
+pub(crate) const STAGE_NAMES: &[&str] = &[
+    "load",
+    "fill_voids",
+    "convert",
+    "sparse",
+    "quilt",
+    "wavelet",
+    "amplify",
+    "sketch",
+    "procedural",
+    "volume",
+];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
 pub(crate) fn default_spec() -> Vec<StageSpec> {
-    ["load", "fill_voids", "convert", "sparse", "quilt", "wavelet", "amplify", "sketch", "procedural", "volume"]
-        .iter()
-        .map(|s| StageSpec::named(s))
-        .collect()
+    [
+        "load",
+        "fill_voids",
+        "convert",
+        "sparse",
+        "quilt",
+        "wavelet",
+        "amplify",
+        "sketch",
+        "procedural",
+        "volume",
+    ]
+    .iter()
+    .map(|s| StageSpec::named(s))
+    .collect()
 }
 
 /// Builds one stage from its spec entry.
