@@ -14,6 +14,8 @@ pub(crate) struct Ctx {
     pub(crate) quiet: bool,
     /// `--verbose`: the full error cause chain and extra detail.
     pub(crate) verbose: bool,
+    /// `--force`: replace existing output files (never inputs).
+    pub(crate) force: bool,
 }
 
 impl Ctx {
@@ -30,6 +32,16 @@ impl Ctx {
         };
         bar.set_style(spinner_style());
         CliProgress { bar }
+    }
+
+    /// Refuses, before any work, outputs that are inputs, have the wrong extension, or exist
+    /// without `--force` (see [`crate::outputs`]).
+    pub(crate) fn check_outputs(
+        &self,
+        inputs: &[&std::path::Path],
+        outputs: &[(&std::path::Path, crate::outputs::OutKind)],
+    ) -> anyhow::Result<()> {
+        crate::outputs::check_outputs(inputs, outputs, self.force)
     }
 
     /// Prints an informational line on stderr unless `--quiet`.
@@ -150,6 +162,7 @@ mod tests {
         let ctx = Ctx {
             quiet: true,
             verbose: false,
+            force: false,
         };
         let p = ctx.progress();
         assert!(!p.is_visible());

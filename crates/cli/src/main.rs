@@ -18,6 +18,7 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 mod ctx;
+mod outputs;
 
 use ctx::Ctx;
 
@@ -31,6 +32,10 @@ struct Cli {
     /// On error, print the whole cause chain.
     #[arg(short, long, global = true)]
     verbose: bool,
+    /// Replace output files that already exist (never an input: a command refuses to write
+    /// over any file it reads, --force or not).
+    #[arg(long, global = true)]
+    force: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -75,6 +80,7 @@ fn main() -> ExitCode {
     let ctx = Ctx {
         quiet: cli.quiet,
         verbose: cli.verbose,
+        force: cli.force,
     };
     let result = match cli.command {
         Command::Info(args) => commands::info::run(args, &ctx),

@@ -527,3 +527,128 @@ fn learn_writes_a_dictionary_compress_can_use() {
         &["--variant"],
     );
 }
+
+/// Asserts `out` covers the extent of `src` with cells `f` times smaller: same CRS, same
+/// origin, pixel size divided by `f` (pixel-is-area), GDAL geotransform order.
+fn assert_georef_scaled(out: &Heightfield, src: &Heightfield, f: f64, what: &str) {
+    let gs = src.georef().expect("the source is georeferenced");
+    let go = out
+        .georef()
+        .unwrap_or_else(|| panic!("{what}: georeference lost"));
+    assert_eq!(go.crs, gs.crs, "{what}: CRS");
+    assert_eq!(
+        go.geo_key_directory, gs.geo_key_directory,
+        "{what}: GeoKeys"
+    );
+    let (ts, to) = (
+        gs.geotransform.expect("source transform"),
+        go.geotransform
+            .unwrap_or_else(|| panic!("{what}: no transform")),
+    );
+    let px = ts[1].abs();
+    for (i, (a, b)) in to.iter().zip(ts.iter()).enumerate() {
+        let want = if matches!(i, 1 | 2 | 4 | 5) {
+            b / f
+        } else {
+            *b
+        };
+        assert!(
+            (a - want).abs() <= 1e-9 * px.max(1.0) * 1e3,
+            "{what}: transform[{i}] {a} vs {want} ({to:?} vs {ts:?})"
+        );
+    }
+    assert_eq!(
+        (out.width() as f64, out.height() as f64),
+        (src.width() as f64 * f, src.height() as f64 * f),
+        "{what}: size"
+    );
+}
+
+/// Issue 14: amplify (raster, streamed raster and .sct), decompress, compress and
+/// fit-procedural keep the CRS and extent of a georeferenced input (EPSG:3857 crop of
+/// grandcanyon.tif), with the pixel size divided by the factor.
+#[test]
+fn method_outputs_keep_the_georeference() {
+    let dem = fixture();
+    assert!(dem.georef().and_then(|g| g.geotransform).is_some());
+    let tmp = tempfile::tempdir().unwrap();
+    let coarse = dem
+        .crop(96, 128, 128, 128)
+        .unwrap()
+        .resample(32, 32)
+        .unwrap();
+    let cin = write(tmp.path(), "coarse.tif", &coarse);
+    let coarse = read(&cin);
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 256, 256, 256).unwrap());
+    let amp = |out: &Path, extra: &[&str]| {
+        let mut a: Vec<&std::ffi::OsStr> = vec![
+            os("amplify"),
+            cin.as_os_str(),
+            out.as_os_str(),
+            os("--exemplar"),
+            ex.as_os_str(),
+            os("--factor"),
+            os("4"),
+            os("--atoms"),
+            os("32"),
+        ];
+        a.extend(extra.iter().map(os));
+        ok(&relief(&a));
+    };
+    let out_tif = tmp.path().join("a.tif");
+    amp(&out_tif, &[]);
+    assert_georef_scaled(&read(&out_tif), &coarse, 4.0, "amplify .tif");
+    let out_stream = tmp.path().join("s.tif");
+    amp(&out_stream, &["--stream"]);
+    assert_georef_scaled(&read(&out_stream), &coarse, 4.0, "amplify --stream");
+    let out_sct = tmp.path().join("a.sct");
+    amp(&out_sct, &[]);
+    let dec = tmp.path().join("dec.tif");
+    ok(&relief(&[
+        os("decompress"),
+        out_sct.as_os_str(),
+        dec.as_os_str(),
+    ]));
+    assert_georef_scaled(&read(&dec), &coarse, 4.0, "amplify .sct -> decompress");
+    assert_eq!(read(&dec).as_slice(), read(&out_tif).as_slice());
+    // compress -> decompress at scale 1 keeps the grid exactly.
+    let c_sct = tmp.path().join("c.sct");
+    ok(&relief(&[
+        os("compress"),
+        cin.as_os_str(),
+        c_sct.as_os_str(),
+        os("--dict"),
+        os("sample"),
+        os("-n"),
+        os("16"),
+    ]));
+    let c_dec = tmp.path().join("c.tif");
+    ok(&relief(&[
+        os("decompress"),
+        c_sct.as_os_str(),
+        c_dec.as_os_str(),
+    ]));
+    assert_georef_scaled(&read(&c_dec), &coarse, 1.0, "compress -> decompress");
+    // A window of a decompression starts at its own first cell.
+    let w_dec = tmp.path().join("w.tif");
+    ok(&relief(&[
+        os("decompress"),
+        out_sct.as_os_str(),
+        w_dec.as_os_str(),
+        os("--window"),
+        os("8,4,16,16"),
+    ]));
+    let gt = read(&dec).georef().unwrap().geotransform.unwrap();
+    let gw = read(&w_dec).georef().unwrap().geotransform.unwrap();
+    assert!((gw[0] - (gt[0] + 8.0 * gt[1])).abs() < 1e-6 * gt[1].abs());
+    assert!((gw[3] - (gt[3] + 4.0 * gt[5])).abs() < 1e-6 * gt[5].abs());
+    let fit = tmp.path().join("fit.tif");
+    ok(&relief(&[
+        os("fit-procedural"),
+        cin.as_os_str(),
+        fit.as_os_str(),
+        os("--candidates"),
+        os("64"),
+    ]));
+    assert_georef_scaled(&read(&fit), &coarse, 1.0, "fit-procedural");
+}

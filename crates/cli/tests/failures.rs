@@ -110,6 +110,11 @@ fn subcommands() -> Vec<(String, Vec<String>)> {
 /// `out_dir`, numbers get `4`.
 fn fill_args(cmd: &str, usage: &[String], input: &Path, out_dir: &Path) -> Vec<String> {
     let mut args = vec![cmd.to_owned()];
+    if cmd == "volume" {
+        // `volume` refuses to run with no output at all.
+        args.push("--render".into());
+        args.push(out_dir.join("render.png").display().to_string());
+    }
     let mut k = 0;
     let mut it = usage.iter().peekable();
     while let Some(t) = it.next() {
@@ -133,7 +138,14 @@ fn fill_args(cmd: &str, usage: &[String], input: &Path, out_dir: &Path) -> Vec<S
         let upper = t.to_ascii_uppercase();
         if upper.contains("OUT") {
             k += 1;
-            args.push(out_dir.join(format!("out{k}.tif")).display().to_string());
+            // Each command checks its output's extension before reading anything.
+            let ext = match cmd {
+                "preview" => "png",
+                "compress" => "sct",
+                "learn" => "dict",
+                _ => "tif",
+            };
+            args.push(out_dir.join(format!("out{k}.{ext}")).display().to_string());
         } else {
             args.push(input.display().to_string());
         }
@@ -442,7 +454,12 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
     // A later write of an output removes the hidden temporaries its killed runs left.
     for i in 0..12u32 {
         let out = out_dir.join(format!("o{i}.exr"));
-        let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+        let o = relief(&[
+            "--force".as_ref(),
+            "convert".as_ref(),
+            input.as_os_str(),
+            out.as_os_str(),
+        ]);
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let left: Vec<String> = files(&out_dir)
@@ -478,4 +495,92 @@ fn max_input_cells_flag_limits_and_raises_the_input_size() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.exists());
+}
+
+/// Bytes of `path`, to check a refused command left it untouched.
+fn bytes(path: &Path) -> Vec<u8> {
+    std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Issue 14 (data loss): an output that is an input, or whose implied `.json` sidecar is an
+/// input, is refused whatever `--force` says, and the input keeps its bytes.
+#[test]
+fn no_command_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
+    let volcano = dir.path().join("volcano.json");
+    std::fs::copy(fixtures.join("volcano.json"), &volcano).unwrap();
+    let before = bytes(&volcano);
+    let f32_out = dir.path().join("volcano.f32");
+    for force in [false, true] {
+        let mut args = vec!["convert".to_string()];
+        if force {
+            args.push("--force".into());
+        }
+        args.push(volcano.display().to_string());
+        args.push(f32_out.display().to_string());
+        let o = relief(&args);
+        assert_one_line_failure(&o, "convert volcano.json volcano.f32");
+        assert!(stderr(&o).contains("overwrite the input"), "{}", stderr(&o));
+        assert_eq!(bytes(&volcano), before, "volcano.json changed");
+        assert!(!f32_out.exists());
+    }
+    // The same file as input and output, for every command that takes one of each.
+    let tif = dir.path().join("dem.tif");
+    synthetic_tif(&tif, 64, 64);
+    let before = bytes(&tif);
+    let t = tif.display().to_string();
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["convert", &t, &t],
+        vec!["refine", &t, &t],
+        vec!["amplify", &t, &t, "--exemplar", &t, "--factor", "4"],
+        vec!["synthesize", &t, &t, "--exemplar", &t],
+        vec!["fit-procedural", &t, &t],
+        vec!["quilt", &t, "--exemplar", &t, "--size", "64"],
+    ];
+    for args in cases {
+        let mut a = vec!["--force"];
+        a.extend(args.iter().copied());
+        let o = relief(&a);
+        assert_one_line_failure(&o, &args.join(" "));
+        assert!(stderr(&o).contains("input"), "{args:?}: {}", stderr(&o));
+        assert_eq!(bytes(&tif), before, "{args:?} changed the input");
+    }
+}
+
+/// Issue 14: outputs whose extension does not match what a command writes are refused before
+/// any work, and an existing file is replaced only under `--force`.
+#[test]
+fn output_extension_and_existing_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let tif = dir.path().join("dem.tif");
+    synthetic_tif(&tif, 64, 64);
+    let mine = dir.path().join("mine.tif");
+    synthetic_tif(&mine, 8, 8);
+    let mine_before = bytes(&mine);
+    let t = tif.display().to_string();
+    let m = mine.display().to_string();
+    let p_tif = dir.path().join("p.tif").display().to_string();
+    let c_tif = dir.path().join("c.tif").display().to_string();
+    for (args, needle) in [
+        (vec!["learn", &t, &m], ".dict"),
+        (vec!["compress", &t, &c_tif], ".sct"),
+        (vec!["preview", &t, &p_tif], ".png"),
+    ] {
+        let o = relief(&args);
+        assert_one_line_failure(&o, &args.join(" "));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+    }
+    assert_eq!(bytes(&mine), mine_before, "learn overwrote a DEM");
+    assert!(!dir.path().join("p.tif").exists() && !dir.path().join("c.tif").exists());
+    // An existing output needs --force.
+    let out = dir.path().join("out.tif");
+    std::fs::write(&out, b"keep me").unwrap();
+    let o = relief(&["convert", &t, &out.display().to_string()]);
+    assert_one_line_failure(&o, "convert onto an existing file");
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_eq!(bytes(&out), b"keep me");
+    let o = relief(&["--force", "convert", &t, &out.display().to_string()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(bytes(&out), b"keep me");
 }

@@ -410,9 +410,13 @@ fn bad_input_fails_cleanly() {
             b
         }),
         ("huge.sct", {
-            // Atom count (u32 at byte 55) claims 4 billion atoms.
+            // The atom count N = 20 (u32 after the georeference block, the node tag, a,
+            // delta and R) claims 4 billion atoms.
             let mut b = bytes.clone();
-            b[55..59].copy_from_slice(&u32::MAX.to_le_bytes());
+            let at = (36..b.len() - 4)
+                .find(|&i| b[i..i + 4] == 20u32.to_le_bytes() && b[i - 19] == 0)
+                .expect("atom count in the stream");
+            b[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
             b
         }),
         ("trailing.sct", {

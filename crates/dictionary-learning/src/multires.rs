@@ -633,7 +633,12 @@ pub fn amplify(
         }
         result = Some(sct);
     }
-    result.ok_or(LearnError::param("steps", 0, "must be >= 1"))
+    // The result covers the coarse extent with cells 4^steps times smaller (pixel-is-area).
+    let f = 1.0 / STEP_FACTOR.pow(settings.steps as u32) as f64;
+    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
+    result
+        .map(|s| s.with_georef(georef))
+        .ok_or(LearnError::param("steps", 0, "must be >= 1"))
 }
 
 /// Settings of [`synthesize`].

@@ -20,6 +20,12 @@ fn terr(e: tiff::TiffError) -> IoError {
 
 // GeoKey ids (GeoTIFF 1.1, section 7).
 const GT_MODEL_TYPE: u16 = 1024;
+const GT_RASTER_TYPE: u16 = 1025;
+/// `GTRasterTypeGeoKey` values.
+const PIXEL_IS_AREA: u16 = 1;
+const PIXEL_IS_POINT: u16 = 2;
+/// GDAL's metadata tag (XML items such as SCALE and OFFSET).
+const GDAL_METADATA_TAG: u16 = 42112;
 const GEOGRAPHIC_TYPE: u16 = 2048;
 const GEOG_ANGULAR_UNITS: u16 = 2054;
 const PROJECTED_CS_TYPE: u16 = 3072;
@@ -174,6 +180,14 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         geotransform: None,
     };
 
+    let gdal_metadata = match dec
+        .find_tag(Tag::Unknown(GDAL_METADATA_TAG))
+        .map_err(terr)?
+    {
+        Some(v) => Some(v.into_string().map_err(terr)?),
+        None => None,
+    };
+
     let decoded = dec.read_image().map_err(terr)?;
     let mut data: Vec<f32> = match decoded {
         DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
@@ -205,6 +219,19 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let cell = cell_size(&geo, h).unwrap_or((1.0, 1.0));
     let georef = (geo != GeoRef::default()).then_some(geo);
     let mut r = finish(F, w, h, data, cell, nodata, dtype)?;
+    let (scale, offset) = gdal_metadata
+        .as_deref()
+        .map(gdal_scale_offset)
+        .unwrap_or_default();
+    if scale.is_some() || offset.is_some() {
+        // GDAL's unit scaling (e.g. an int16 DEM stored in decimetres): nodata was matched
+        // on the stored values above, the heights are scaled values.
+        let (s, o) = (scale.unwrap_or(1.0), offset.unwrap_or(0.0));
+        if s == 0.0 {
+            return Err(IoError::malformed(F, "GDAL metadata SCALE is 0"));
+        }
+        r.heightfield = r.heightfield.map(|v| (v as f64 * s + o) as f32);
+    }
     r.heightfield.set_georef(georef);
     r.rows_flipped = flipped;
     Ok(r)
@@ -213,6 +240,7 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// Fills `geotransform` and `crs` from the raw tags. If the grid is stored south-up (positive
 /// y pixel size), rewrites the tags for the row-flipped grid and returns `true`.
 fn complete_georef(g: &mut GeoRef, _w: usize, h: usize) -> bool {
+    to_pixel_is_area(g);
     let mut flipped = false;
     if let Some(m) = g.transformation.as_mut().filter(|m| m.len() == 16) {
         // y = m4 * i + m5 * j + m7.
@@ -261,6 +289,67 @@ fn complete_georef(g: &mut GeoRef, _w: usize, h: usize) -> bool {
         }
     }
     flipped
+}
+
+/// Rewrites a PixelIsPoint georeference as the equivalent PixelIsArea one, the single grid
+/// convention of the workspace (and what GDAL reports): a PixelIsPoint tiepoint at raster
+/// `(i, j)` names the centre of that pixel, i.e. area coordinate `(i + 1/2, j + 1/2)`; a
+/// transformation matrix moves by half a pixel. The raster-type key becomes PixelIsArea, so
+/// files written from it say what they mean.
+fn to_pixel_is_area(g: &mut GeoRef) {
+    let Some(dir) = g.geo_key_directory.as_mut() else {
+        return;
+    };
+    if geo_key(dir, GT_RASTER_TYPE) != Some(PIXEL_IS_POINT) {
+        return;
+    }
+    let n = dir.get(3).copied().unwrap_or(0) as usize;
+    if let Some(k) = dir
+        .get_mut(4..)
+        .into_iter()
+        .flat_map(|d| d.chunks_exact_mut(4))
+        .take(n)
+        .find(|k| k[0] == GT_RASTER_TYPE && k[1] == 0)
+    {
+        k[3] = PIXEL_IS_AREA;
+    }
+    if let Some(m) = g.transformation.as_mut().filter(|m| m.len() == 16) {
+        m[3] -= 0.5 * (m[0] + m[1]);
+        m[7] -= 0.5 * (m[4] + m[5]);
+    } else if let Some(t) = g.tiepoints.as_mut() {
+        for tp in t.chunks_exact_mut(6) {
+            tp[0] += 0.5;
+            tp[1] += 0.5;
+        }
+    }
+}
+
+/// The `SCALE` and `OFFSET` items of band 0 in GDAL's metadata XML (tag 42112), if any:
+/// stored values `v` mean `v * scale + offset`.
+fn gdal_scale_offset(xml: &str) -> (Option<f64>, Option<f64>) {
+    let mut scale = None;
+    let mut offset = None;
+    for item in xml.split("<Item").skip(1) {
+        let Some((attrs, rest)) = item.split_once('>') else {
+            continue;
+        };
+        let value = rest.split('<').next().unwrap_or("").trim();
+        let attr = |name: &str| {
+            attrs
+                .split_once(&format!("{name}=\""))
+                .and_then(|(_, r)| r.split('"').next())
+        };
+        if attr("sample").is_some_and(|s| s != "0") {
+            continue;
+        }
+        let v = value.parse::<f64>().ok().filter(|v| v.is_finite());
+        match (attr("name"), attr("role")) {
+            (Some("SCALE"), _) | (_, Some("scale")) => scale = v,
+            (Some("OFFSET"), _) | (_, Some("offset")) => offset = v,
+            _ => {}
+        }
+    }
+    (scale, offset)
 }
 
 /// Ground cell size in metres: geographic grids at the centre latitude (WGS84), Web Mercator
@@ -400,4 +489,82 @@ pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
         img.write_data(hf.as_slice()).map_err(terr)?;
     }
     Ok(buf.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn geo(raster_type: u16) -> GeoRef {
+        GeoRef {
+            pixel_scale: Some(vec![30.0, 30.0, 0.0]),
+            tiepoints: Some(vec![0.0, 0.0, 0.0, 500_000.0, 4_000_000.0, 0.0]),
+            // version 1.1.0, 3 keys: model projected, raster type, EPSG:32611.
+            geo_key_directory: Some(vec![
+                1,
+                1,
+                0,
+                3,
+                1024,
+                0,
+                1,
+                1,
+                1025,
+                0,
+                1,
+                raster_type,
+                3072,
+                0,
+                1,
+                32611,
+            ]),
+            ..Default::default()
+        }
+    }
+
+    fn round_trip(g: GeoRef) -> Raster {
+        let hf =
+            Heightfield::from_fn(4, 3, 30.0, 30.0, |x, y| (x + 10 * y) as f32).with_georef(Some(g));
+        read(&write(&hf).unwrap(), &crate::ReadOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn pixel_is_point_reads_as_the_area_grid_gdal_reports() {
+        let area = round_trip(geo(PIXEL_IS_AREA));
+        let t = area.heightfield.georef().unwrap().geotransform.unwrap();
+        assert_eq!(t, [500_000.0, 30.0, 0.0, 4_000_000.0, 0.0, -30.0]);
+        // The same tiepoint as a pixel centre: the corner is half a pixel north-west.
+        let point = round_trip(geo(PIXEL_IS_POINT));
+        let g = point.heightfield.georef().unwrap();
+        let t = g.geotransform.unwrap();
+        assert_eq!(t, [499_985.0, 30.0, 0.0, 4_000_015.0, 0.0, -30.0]);
+        let dir = g.geo_key_directory.as_deref().unwrap();
+        assert_eq!(geo_key(dir, GT_RASTER_TYPE), Some(PIXEL_IS_AREA));
+        // Written again and re-read: the same place (no second shift).
+        let again = round_trip(g.clone());
+        assert_eq!(again.heightfield.georef().unwrap().geotransform, Some(t));
+    }
+
+    #[test]
+    fn gdal_scale_and_offset_are_applied() {
+        let xml = "<GDALMetadata>\n  <Item name=\"OFFSET\" sample=\"0\" role=\"offset\">100\
+                   </Item>\n  <Item name=\"SCALE\" sample=\"0\" role=\"scale\">0.1</Item>\n\
+                   </GDALMetadata>";
+        assert_eq!(gdal_scale_offset(xml), (Some(0.1), Some(100.0)));
+        let mut buf = Cursor::new(Vec::new());
+        {
+            let mut enc = TiffEncoder::new(&mut buf).unwrap();
+            let mut img = enc.new_image::<colortype::GrayI16>(3, 2).unwrap();
+            img.encoder()
+                .write_tag(Tag::Unknown(GDAL_METADATA_TAG), xml)
+                .unwrap();
+            img.encoder().write_tag(Tag::GdalNodata, "-32768").unwrap();
+            img.write_data(&[10i16, 20, 30, -32768, 50, 12345]).unwrap();
+        }
+        let r = read(&buf.into_inner(), &crate::ReadOptions::default()).unwrap();
+        let v = r.heightfield.as_slice();
+        assert_eq!(v[0], 101.0);
+        assert!((v[5] - 1334.5).abs() < 1e-3, "{}", v[5]);
+        assert!(v[3].is_nan(), "nodata matched on the stored value");
+    }
 }

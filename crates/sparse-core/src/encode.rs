@@ -121,7 +121,10 @@ pub fn encode_with_progress(
         patches.means.clone(),
         &codes,
     )?;
-    Sct::new(Node::Layer(layer), hf.width(), hf.height(), hf.cell_size())
+    Ok(
+        Sct::new(Node::Layer(layer), hf.width(), hf.height(), hf.cell_size())?
+            .with_georef(hf.georef().cloned()),
+    )
 }
 
 /// Paper storage `t(s, N) = K N + n (2 s + 2) + 1` (number of stored values).

@@ -2,8 +2,13 @@
 //!
 //! Layout (all little-endian):
 //! ```text
-//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 1)   flags u16 (bit 0: 16-bit coefficients)
+//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 2)   flags u16 (bit 0: 16-bit coefficients)
 //! width u32  height u32  cell_x f64  cell_y f64
+//! georef (version 2 only; version 1 streams are still read, without it):
+//!   present u8 (0 | 1), then when 1, each optional field as flag u8 + value:
+//!   pixel_scale, tiepoints, transformation: n u32 + n f64 | geo_key_directory: n u32 + n u16
+//!   geo_double_params: n u32 + n f64 | geo_ascii_params, crs: n u32 + n UTF-8 bytes
+//!   geotransform: 6 f64
 //! node (recursive):
 //!   tag u8: 0 layer | 1 constant | 2 river | 3 blend | 4 add | 5 max | 6 min | 7 replace
 //!   layer:    dictionary, placement, z (n f32), counts (n u8), indices (nnz u16 if N <= 65536
@@ -30,6 +35,8 @@
 
 use std::sync::Arc;
 
+use relief_heightfield::GeoRef;
+
 use crate::dictionary::{Atom, AtomDescriptor, Dictionary, FunctionAtomRegistry};
 use crate::error::{Result, SparseError};
 use crate::patches::CentreGrid;
@@ -38,7 +45,11 @@ use crate::sct::{Node, Placement, Region, River, RiverMode, Sct, SparseLayer};
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RLFSCT\r\n";
 /// Current format version.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
+/// Oldest version still read (no georeference block).
+const OLDEST_VERSION: u16 = 1;
+/// Largest element count of one georeference field.
+const MAX_GEOREF_ITEMS: usize = 1 << 16;
 /// Magic of a dictionary stream ([`Dictionary::to_bytes`]).
 pub const DICTIONARY_MAGIC: &[u8; 8] = b"RLFDIC\r\n";
 /// Current version of the dictionary stream.
@@ -78,6 +89,45 @@ impl Writer {
     fn len32(&mut self, n: usize, what: &'static str) -> Result<()> {
         let v = u32::try_from(n).map_err(|_| SparseError::param(what, n, "exceeds u32"))?;
         self.u32(v);
+        Ok(())
+    }
+
+    fn opt_f64s(&mut self, v: Option<&[f64]>, what: &'static str) -> Result<()> {
+        self.u8(u8::from(v.is_some()));
+        if let Some(v) = v {
+            self.len32(v.len(), what)?;
+            v.iter().for_each(|&x| self.f64(x));
+        }
+        Ok(())
+    }
+
+    fn opt_str(&mut self, v: Option<&str>, what: &'static str) -> Result<()> {
+        self.u8(u8::from(v.is_some()));
+        if let Some(v) = v {
+            self.len32(v.len(), what)?;
+            self.buf.extend_from_slice(v.as_bytes());
+        }
+        Ok(())
+    }
+
+    fn georef(&mut self, g: Option<&GeoRef>) -> Result<()> {
+        let Some(g) = g else {
+            self.u8(0);
+            return Ok(());
+        };
+        self.u8(1);
+        self.opt_f64s(g.pixel_scale.as_deref(), "pixel scale")?;
+        self.opt_f64s(g.tiepoints.as_deref(), "tiepoints")?;
+        self.opt_f64s(g.transformation.as_deref(), "transformation")?;
+        self.u8(u8::from(g.geo_key_directory.is_some()));
+        if let Some(k) = &g.geo_key_directory {
+            self.len32(k.len(), "geo keys")?;
+            k.iter().for_each(|&x| self.u16(x));
+        }
+        self.opt_f64s(g.geo_double_params.as_deref(), "geo double params")?;
+        self.opt_str(g.geo_ascii_params.as_deref(), "geo ascii params")?;
+        self.opt_str(g.crs.as_deref(), "crs")?;
+        self.opt_f64s(g.geotransform.as_ref().map(|t| &t[..]), "geotransform")?;
         Ok(())
     }
 
@@ -296,6 +346,72 @@ impl<'a> Reader<'a> {
         let mut a = [0u8; 8];
         a.copy_from_slice(s);
         Ok(f64::from_le_bytes(a))
+    }
+    fn flag(&mut self, what: &str) -> Result<bool> {
+        match self.u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            v => Err(self.err(format!("invalid {what} flag {v}"))),
+        }
+    }
+    fn count(&mut self, size: usize, what: &str) -> Result<usize> {
+        let n = self.u32()? as usize;
+        if n > MAX_GEOREF_ITEMS {
+            return Err(self.err(format!("{what} count {n} exceeds {MAX_GEOREF_ITEMS}")));
+        }
+        self.need(n, size, what)?;
+        Ok(n)
+    }
+    fn opt_f64s(&mut self, what: &str) -> Result<Option<Vec<f64>>> {
+        if !self.flag(what)? {
+            return Ok(None);
+        }
+        let n = self.count(8, what)?;
+        (0..n).map(|_| self.f64()).collect::<Result<_>>().map(Some)
+    }
+    fn opt_str(&mut self, what: &str) -> Result<Option<String>> {
+        if !self.flag(what)? {
+            return Ok(None);
+        }
+        let n = self.count(1, what)?;
+        let bytes = self.take(n)?;
+        String::from_utf8(bytes.to_vec())
+            .map(Some)
+            .map_err(|_| self.err(format!("{what} is not UTF-8")))
+    }
+    fn georef(&mut self) -> Result<Option<GeoRef>> {
+        if !self.flag("georeference")? {
+            return Ok(None);
+        }
+        let pixel_scale = self.opt_f64s("pixel scale")?;
+        let tiepoints = self.opt_f64s("tiepoints")?;
+        let transformation = self.opt_f64s("transformation")?;
+        let geo_key_directory = if self.flag("geo keys")? {
+            let n = self.count(2, "geo keys")?;
+            Some((0..n).map(|_| self.u16()).collect::<Result<Vec<u16>>>()?)
+        } else {
+            None
+        };
+        let geo_double_params = self.opt_f64s("geo double params")?;
+        let geo_ascii_params = self.opt_str("geo ascii params")?;
+        let crs = self.opt_str("crs")?;
+        let geotransform = match self.opt_f64s("geotransform")? {
+            None => None,
+            Some(t) => match <[f64; 6]>::try_from(t.as_slice()) {
+                Ok(a) if a.iter().all(|v| v.is_finite()) => Some(a),
+                _ => return Err(self.err("geotransform must be 6 finite numbers")),
+            },
+        };
+        Ok(Some(GeoRef {
+            pixel_scale,
+            tiepoints,
+            transformation,
+            geo_key_directory,
+            geo_double_params,
+            geo_ascii_params,
+            crs,
+            geotransform,
+        }))
     }
     fn wrap<T>(&self, r: Result<T>) -> Result<T> {
         r.map_err(|e| match e {
@@ -543,6 +659,7 @@ impl Sct {
         w.len32(self.height(), "height")?;
         w.f64(self.cell_size().0);
         w.f64(self.cell_size().1);
+        w.georef(self.georef())?;
         w.node(self.root())?;
         Ok(w.buf)
     }
@@ -562,9 +679,9 @@ impl Sct {
             });
         }
         let version = r.u16()?;
-        if version != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(r.err(format!(
-                "unsupported version {version} (expected {VERSION})"
+                "unsupported version {version} (expected {OLDEST_VERSION} to {VERSION})"
             )));
         }
         let flags = r.u16()?;
@@ -575,11 +692,12 @@ impl Sct {
         let width = r.u32()? as usize;
         let height = r.u32()? as usize;
         let cell = (r.f64()?, r.f64()?);
+        let georef = if version >= 2 { r.georef()? } else { None };
         let root = r.node(0)?;
         if r.remaining() != 0 {
             return Err(r.err(format!("{} trailing bytes", r.remaining())));
         }
-        let s = Sct::new(root, width, height, cell);
+        let s = Sct::new(root, width, height, cell).map(|s| s.with_georef(georef));
         r.wrap(s)
     }
 }

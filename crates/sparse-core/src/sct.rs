@@ -39,7 +39,7 @@
 use std::sync::Arc;
 
 use rayon::prelude::*;
-use relief_heightfield::{Heightfield, NoProgress, Progress};
+use relief_heightfield::{GeoRef, Heightfield, NoProgress, Progress};
 
 use crate::dictionary::{Atom, Dictionary};
 use crate::error::{Result, SparseError};
@@ -1375,6 +1375,7 @@ pub struct Sct {
     width: usize,
     height: usize,
     cell_size: (f64, f64),
+    georef: Option<GeoRef>,
 }
 
 impl Sct {
@@ -1401,6 +1402,39 @@ impl Sct {
             width,
             height,
             cell_size,
+            georef: None,
+        })
+    }
+
+    /// The georeference of the domain grid at scale 1 (pixel-is-area: domain pixel `(i, j)`
+    /// covers `[i, i + 1) x [j, j + 1)` of the geotransform), carried into every raster.
+    pub fn georef(&self) -> Option<&GeoRef> {
+        self.georef.as_ref()
+    }
+
+    /// Sets the georeference of the domain grid (see [`Sct::georef`]).
+    pub fn set_georef(&mut self, georef: Option<GeoRef>) {
+        self.georef = georef;
+    }
+
+    /// Builder form of [`Sct::set_georef`].
+    pub fn with_georef(mut self, georef: Option<GeoRef>) -> Self {
+        self.georef = georef;
+        self
+    }
+
+    /// The georeference of the raster window `win` at scale `s`: raster pixel `X` samples
+    /// domain pixel `X / s`, whose centre is at `X / s + 1/2` of the domain grid, so the
+    /// raster's cells (size `1 / s`) start at `X / s + (1 - 1 / s) / 2`.
+    pub fn raster_georef(&self, scale: f64, win: Window) -> Option<GeoRef> {
+        let off = 0.5 - 0.5 / scale;
+        self.georef.as_ref().map(|g| {
+            g.window(
+                win.x as f64 / scale + off,
+                win.y as f64 / scale + off,
+                1.0 / scale,
+                1.0 / scale,
+            )
         })
     }
 
@@ -1536,7 +1570,8 @@ impl Sct {
             out,
             self.cell_size.0 / settings.scale,
             self.cell_size.1 / settings.scale,
-        )?;
+        )?
+        .with_georef(self.raster_georef(settings.scale, win));
         Ok(hf)
     }
 }

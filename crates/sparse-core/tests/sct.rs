@@ -712,3 +712,60 @@ fn progress_is_reported() {
         r.height() as u64
     );
 }
+
+/// Format version 2 stores the georeference; rasters inherit it (scaled and shifted to their
+/// window); version-1 streams (no georeference block) still read.
+#[test]
+fn georeference_round_trips_and_reaches_rasters() {
+    use relief_heightfield::GeoRef;
+    use relief_sparse_core::{FunctionAtomRegistry, Node, RasterSettings, Sct, Window};
+    let g = GeoRef {
+        pixel_scale: Some(vec![30.0, 30.0, 0.0]),
+        tiepoints: Some(vec![0.0, 0.0, 0.0, 500_000.0, 4_000_000.0, 0.0]),
+        geo_key_directory: Some(vec![1, 1, 0, 1, 3072, 0, 1, 32611]),
+        crs: Some("EPSG:32611".into()),
+        geotransform: Some([500_000.0, 30.0, 0.0, 4_000_000.0, 0.0, -30.0]),
+        ..Default::default()
+    };
+    let sct = Sct::new(Node::Constant(5.0), 16, 8, (30.0, 30.0))
+        .unwrap()
+        .with_georef(Some(g.clone()));
+    let reg = FunctionAtomRegistry::new();
+    let bytes = sct.to_bytes().unwrap();
+    let back = Sct::from_bytes(&bytes, &reg).unwrap();
+    assert_eq!(back.georef(), Some(&g));
+    // A truncated georeference block is an error, not a panic.
+    assert!(Sct::from_bytes(&bytes[..50], &reg).is_err());
+    let r = back
+        .rasterize(&RasterSettings {
+            scale: 1.0,
+            window: Some(Window {
+                x: 2,
+                y: 3,
+                width: 4,
+                height: 4,
+            }),
+        })
+        .unwrap();
+    let t = r.georef().unwrap().geotransform.unwrap();
+    assert_eq!(t, [500_060.0, 30.0, 0.0, 3_999_910.0, 0.0, -30.0]);
+    // Scale 2: raster pixel X samples domain pixel X / 2 (centre at X / 2 + 1/2), cells of
+    // 15 m starting a quarter of a domain cell in.
+    let r2 = back
+        .rasterize(&RasterSettings {
+            scale: 2.0,
+            window: None,
+        })
+        .unwrap();
+    let t2 = r2.georef().unwrap().geotransform.unwrap();
+    assert_eq!(t2, [500_007.5, 15.0, 0.0, 3_999_992.5, 0.0, -15.0]);
+    // A version-1 stream: same header without the georeference block.
+    let plain = Sct::new(Node::Constant(5.0), 16, 8, (30.0, 30.0)).unwrap();
+    let mut v1 = plain.to_bytes().unwrap();
+    assert_eq!(v1[36], 0, "no-georeference flag");
+    v1.remove(36);
+    v1[8..10].copy_from_slice(&1u16.to_le_bytes());
+    let old = Sct::from_bytes(&v1, &reg).unwrap();
+    assert!(old.georef().is_none());
+    assert_eq!(old.eval(3.0, 3.0), 5.0);
+}

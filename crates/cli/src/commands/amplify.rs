@@ -94,6 +94,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     settings.check().context("invalid amplification settings")?;
     let window = args.window.as_deref().map(parse_window).transpose()?;
     check_output_path(&args.output, window)?;
+    ctx.check_outputs(
+        &[&args.input, &args.exemplar],
+        &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
+    )?;
     let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
@@ -225,9 +229,15 @@ const BAND_CELLS: usize = 1 << 22;
 /// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
 /// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
 fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
-    let mut out =
-        relief_io::GeoTiffStripWriter::create(path, win.width, win.height, sct.cell_size(), None)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+    let georef = sct.raster_georef(1.0, win);
+    let mut out = relief_io::GeoTiffStripWriter::create(
+        path,
+        win.width,
+        win.height,
+        sct.cell_size(),
+        georef.as_ref(),
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
     let band = (BAND_CELLS / win.width).clamp(1, win.height);
     // Several bands even for small rasters, so `--stream` exercises the band seams.
     let band = band.min(win.height.div_ceil(4)).max(1);

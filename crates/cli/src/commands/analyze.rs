@@ -193,6 +193,22 @@ fn text(r: &Report) -> String {
     s
 }
 
+/// The file of one local map: `PREFIX_<suffix>.tif`.
+fn map_path(prefix: &std::path::Path, suffix: &str) -> PathBuf {
+    PathBuf::from(format!("{}_{suffix}.tif", prefix.display()))
+}
+
+/// Every file `--maps PREFIX` writes (checked before the analysis starts).
+fn map_paths(prefix: &std::path::Path) -> Vec<PathBuf> {
+    let mut v = Vec::new();
+    for b in Band::ALL {
+        v.push(map_path(prefix, &format!("gamma_{}", b.name())));
+        v.push(map_path(prefix, &format!("a_{}", b.name())));
+    }
+    v.push(map_path(prefix, "dimension"));
+    v
+}
+
 /// Prints the analysis on stdout; writes the plot when asked.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let wavelet = Wavelet::from_name(&args.wavelet).context("invalid --wavelet")?;
@@ -204,6 +220,20 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if args.plot_levels > 12 {
         bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
     }
+    let map_paths = match &args.maps {
+        Some(prefix) => map_paths(prefix),
+        None => Vec::new(),
+    };
+    let mut outputs: Vec<(&std::path::Path, crate::outputs::OutKind)> = map_paths
+        .iter()
+        .map(|p| (p.as_path(), crate::outputs::OutKind::Raster))
+        .collect();
+    outputs.extend(
+        args.plot
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Png)),
+    );
+    ctx.check_outputs(&[&args.input], &outputs)?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if hf.has_voids() {
@@ -237,7 +267,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             progress.begin("writing the local maps", 0);
             let (cx, cy) = hf.cell_size();
             let mut write = |suffix: &str, data: Vec<f32>| -> Result<()> {
-                let path = PathBuf::from(format!("{}_{suffix}.tif", prefix.display()));
+                let path = map_path(prefix, suffix);
                 let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
                     .with_georef(hf.georef().cloned());
                 relief_io::write(&path, &map, &relief_io::WriteOptions::default())

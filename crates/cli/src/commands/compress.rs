@@ -210,6 +210,9 @@ pub(crate) fn report_lines(r: &CompressionReport) -> String {
 
 /// Reads, (fills,) learns or loads a dictionary, encodes, writes the `.sct`, prints the figures.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let mut inputs = vec![args.input.as_path()];
+    inputs.extend(args.dictionary.as_deref());
+    ctx.check_outputs(&inputs, &[(&args.output, crate::outputs::OutKind::Sct)])?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if hf.has_voids() {

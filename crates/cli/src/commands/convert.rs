@@ -25,6 +25,10 @@ pub(crate) struct Args {
 
 /// Reads, optionally fills, writes atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    ctx.check_outputs(
+        &[&args.input],
+        &[(&args.output, crate::outputs::OutKind::Raster)],
+    )?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if args.fill_voids && hf.has_voids() {

@@ -67,6 +67,9 @@ fn parse_window(s: &str) -> std::result::Result<Window, String> {
 
 /// Reads the model, rasterises the window, writes it, prints the figures.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let mut inputs = vec![args.input.as_path()];
+    inputs.extend(args.reference.as_deref());
+    ctx.check_outputs(&inputs, &[(&args.output, crate::outputs::OutKind::Raster)])?;
     let bytes = read_model_bytes(&args.input)?;
     let sct = Sct::from_bytes(&bytes, &registry())
         .with_context(|| format!("cannot read {}", args.input.display()))?;

@@ -63,6 +63,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         ..Default::default()
     };
     check_output_path(&args.output, None)?;
+    ctx.check_outputs(
+        &[&args.input],
+        &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
+    )?;
     let hf = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
     let fit = {
         let progress = ctx.progress();

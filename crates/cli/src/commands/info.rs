@@ -64,10 +64,12 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 out.push_str(&format!("  crs:           {crs}\n"));
             }
             if let Some(t) = &g.geotransform {
-                out.push_str(&format!(
-                    "  geotransform:  origin ({}, {}), pixel ({}, {})\n",
-                    t[0], t[3], t[1], t[5]
-                ));
+                // The two lines gdalinfo prints (same digits), pixel-is-area corner origin.
+                out.push_str(&format!("  Origin = ({:.15},{:.15})\n", t[0], t[3]));
+                out.push_str(&format!("  Pixel Size = ({:.15},{:.15})\n", t[1], t[5]));
+                if t[2] != 0.0 || t[4] != 0.0 {
+                    out.push_str(&format!("  rotation:      ({}, {})\n", t[2], t[4]));
+                }
             }
             if let Some(s) = &g.pixel_scale {
                 out.push_str(&format!("  pixel scale:   {s:?}\n"));

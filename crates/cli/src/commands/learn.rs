@@ -60,6 +60,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if exemplars.is_empty() {
         bail!("give at least one exemplar before the output file");
     }
+    let inputs: Vec<&std::path::Path> = exemplars.iter().map(|p| p.as_path()).collect();
+    ctx.check_outputs(&inputs, &[(output, crate::outputs::OutKind::Dict)])?;
     let variant = match args.variant.to_ascii_lowercase().as_str() {
         "approximate" | "approx" => KsvdVariant::Approximate,
         "exact" | "svd" => KsvdVariant::Exact,

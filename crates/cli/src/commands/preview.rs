@@ -21,6 +21,10 @@ pub(crate) struct Args {
 
 /// Reads the raster and writes its preview atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    ctx.check_outputs(
+        &[&args.input],
+        &[(&args.output, crate::outputs::OutKind::Png)],
+    )?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let progress = ctx.progress();
     progress.begin("rendering preview", 0);

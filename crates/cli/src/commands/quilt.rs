@@ -75,6 +75,17 @@ pub(crate) struct SynthArgs {
     pub(crate) read: super::ReadArgs,
 }
 
+impl SynthArgs {
+    /// Every file these arguments read (exemplars, guide, categorisation map).
+    pub(crate) fn input_paths(&self) -> Vec<&Path> {
+        let mut v: Vec<&Path> = self.exemplars.iter().map(|p| p.as_path()).collect();
+        v.extend(self.guide.as_deref());
+        v.extend(self.guide_from.as_deref());
+        v.extend(self.categories.as_deref());
+        v
+    }
+}
+
 /// Seam blending of `relief quilt`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum BlendArg {
@@ -362,6 +373,13 @@ pub(crate) fn seam_map_rgb(out: &Synthesis) -> Vec<u8> {
 
 /// Reads the inputs, synthesizes and writes OUT (and the seam map) atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
+    outputs.extend(
+        args.seam_map
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Png)),
+    );
+    ctx.check_outputs(&args.synth.input_paths(), &outputs)?;
     let Inputs {
         exemplars,
         control,

@@ -110,6 +110,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Every argument is checked before the input is read, so a typo fails fast.
     let settings = args.settings()?;
     let window = args.window_of.as_deref().map(parse_window).transpose()?;
+    ctx.check_outputs(
+        &[&args.input],
+        &[(&args.output, crate::outputs::OutKind::Raster)],
+    )?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if hf.has_voids() {

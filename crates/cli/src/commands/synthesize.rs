@@ -77,6 +77,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .context("invalid synthesis settings")?;
     let window = args.window.as_deref().map(parse_window).transpose()?;
     check_output_path(&args.output, window)?;
+    ctx.check_outputs(
+        &[&args.sketch, &args.exemplar],
+        &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
+    )?;
     let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;

@@ -152,6 +152,31 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     }
     check_png(&args.render, "render")?;
     check_png(&args.section, "section")?;
+    let mut inputs = vec![args.input.as_path()];
+    inputs.extend(args.mask.as_deref());
+    let mut outputs: Vec<(&Path, crate::outputs::OutKind)> = Vec::new();
+    outputs.extend(
+        args.mesh
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Mesh)),
+    );
+    outputs.extend(
+        args.render
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Png)),
+    );
+    outputs.extend(
+        args.section
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Png)),
+    );
+    if outputs.is_empty() {
+        bail!(
+            "nothing to write for {}: give at least one of --mesh, --render or --section",
+            args.input.display()
+        );
+    }
+    ctx.check_outputs(&inputs, &outputs)?;
     if !(args.resolution.is_finite() && args.resolution > 0.0 && args.resolution <= 16.0) {
         bail!("--resolution {}: must be in (0, 16]", args.resolution);
     }

@@ -1,0 +1,255 @@
+//! Output-path checks run by every command before it reads or computes anything: an output (or
+//! a file it implies, such as the `.json` sidecar of an `.f32` raster) that is one of the
+//! command's inputs (or a file an input implies) is refused, an output whose extension does not
+//! match what the command writes is refused, and an existing file is only replaced under the
+//! global `--force`. Together with the atomic writes of `relief-io` this means no command can
+//! destroy data it was given.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, bail};
+
+/// What a command writes at an output path; decides which extensions are accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum OutKind {
+    /// A raster in any format relief-io writes (`.tif`, `.png`, `.exr`, `.npy`, `.r16`, ...).
+    Raster,
+    /// A raster or a `.sct` model (amplify, synthesize).
+    RasterOrSct,
+    /// A Sparse Construction Tree model (`.sct`).
+    Sct,
+    /// A learned dictionary (`.dict`).
+    Dict,
+    /// A PNG image (previews, renders, plots, seam maps).
+    Png,
+    /// A mesh (`.obj`, `.ply`, `.glb`).
+    Mesh,
+}
+
+fn ext_of(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+fn is_writable_raster(path: &Path) -> bool {
+    use relief_io::Format;
+    matches!(
+        Format::from_extension(path),
+        Some(
+            Format::GeoTiff
+                | Format::Hgt
+                | Format::AsciiGrid
+                | Format::Png
+                | Format::Exr
+                | Format::R16
+                | Format::R32
+                | Format::Npy
+                | Format::F32Sidecar
+        )
+    )
+}
+
+const RASTER_EXTS: &str = ".tif, .asc, .png, .exr, .npy, .r16, .r32, .f32, .hgt";
+
+/// Refuses `path` when its extension does not name what `kind` writes.
+fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
+    let ext = ext_of(path);
+    let ok = match kind {
+        OutKind::Raster => is_writable_raster(path),
+        OutKind::RasterOrSct => ext == "sct" || is_writable_raster(path),
+        OutKind::Sct => ext == "sct",
+        OutKind::Dict => ext == "dict",
+        OutKind::Png => ext == "png",
+        OutKind::Mesh => matches!(ext.as_str(), "obj" | "ply" | "glb"),
+    };
+    if ok {
+        return Ok(());
+    }
+    let expected = match kind {
+        OutKind::Raster => format!("a raster extension ({RASTER_EXTS})"),
+        OutKind::RasterOrSct => format!(".sct or a raster extension ({RASTER_EXTS})"),
+        OutKind::Sct => ".sct (this command writes a sparse construction tree)".into(),
+        OutKind::Dict => ".dict (this command writes a dictionary)".into(),
+        OutKind::Png => ".png (this command writes a PNG image)".into(),
+        OutKind::Mesh => ".obj, .ply or .glb (this command writes a mesh)".into(),
+    };
+    bail!("output {}: the name must end in {expected}", path.display())
+}
+
+/// The files written for an output: the path itself, plus the `.json` sidecar of an `.f32`.
+fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if matches!(kind, OutKind::Raster | OutKind::RasterOrSct) && ext_of(path) == "f32" {
+        v.push(path.with_extension("json"));
+    }
+    v
+}
+
+/// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32`.
+fn read_files(path: &Path) -> Vec<PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if ext_of(path) == "f32" {
+        v.push(path.with_extension("json"));
+    }
+    v
+}
+
+/// Whether two existing paths name the same file (same device and inode on Unix, same
+/// canonical path elsewhere).
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return ma.dev() == mb.dev() && ma.ino() == mb.ino();
+        }
+        false
+    }
+    #[cfg(not(unix))]
+    {
+        match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+            (Ok(ca), Ok(cb)) => ca == cb,
+            _ => false,
+        }
+    }
+}
+
+/// Lexical identity for paths that do not exist yet (two outputs naming the same new file).
+fn same_name(a: &Path, b: &Path) -> bool {
+    let abs = |p: &Path| {
+        std::path::absolute(p)
+            .unwrap_or_else(|_| p.to_path_buf())
+            .components()
+            .collect::<PathBuf>()
+    };
+    abs(a) == abs(b)
+}
+
+/// Checks every output of a command before it starts: extension matches `kind`, no output (or
+/// implied sidecar) is an input or another output, and an existing file is only replaced when
+/// `force` is set. `inputs` are every file the command reads.
+pub(crate) fn check_outputs(
+    inputs: &[&Path],
+    outputs: &[(&Path, OutKind)],
+    force: bool,
+) -> Result<()> {
+    let read: Vec<PathBuf> = inputs.iter().flat_map(|p| read_files(p)).collect();
+    let mut planned: Vec<PathBuf> = Vec::new();
+    for &(out, kind) in outputs {
+        check_extension(out, kind)?;
+        for file in written_files(out, kind) {
+            if let Some(input) = read
+                .iter()
+                .find(|i| same_file(i, &file) || same_name(i, &file))
+            {
+                if file.as_path() == out {
+                    bail!(
+                        "output {} is the input {}: refusing to overwrite an input (choose \
+                         another output name)",
+                        out.display(),
+                        input.display()
+                    );
+                }
+                bail!(
+                    "output {} would overwrite the input {} (its sidecar): choose another \
+                     output name",
+                    out.display(),
+                    input.display()
+                );
+            }
+            if planned.iter().any(|p| same_name(p, &file)) {
+                bail!(
+                    "{} is named as two outputs of the same command",
+                    file.display()
+                );
+            }
+            if !force && file.exists() {
+                bail!(
+                    "{} already exists: pass --force to overwrite it",
+                    file.display()
+                );
+            }
+            planned.push(file);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(p: &Path) {
+        std::fs::write(p, b"x").unwrap();
+    }
+
+    #[test]
+    fn refuses_input_as_output_and_sidecar_of_input() {
+        let d = tempfile::tempdir().unwrap();
+        let inp = d.path().join("volcano.json");
+        touch(&inp);
+        // `convert volcano.json volcano.f32` would write volcano.json as the sidecar.
+        let out = d.path().join("volcano.f32");
+        let e = check_outputs(&[&inp], &[(&out, OutKind::Raster)], true).unwrap_err();
+        assert!(e.to_string().contains("would overwrite the input"), "{e}");
+        // Same file through another spelling, even with --force.
+        let other = d.path().join(".").join("volcano.json");
+        let e = check_outputs(&[&inp], &[(&other, OutKind::Raster)], true);
+        assert!(e.is_err());
+        let tif = d.path().join("in.tif");
+        touch(&tif);
+        let e = check_outputs(&[&tif], &[(&tif, OutKind::Raster)], true).unwrap_err();
+        assert!(e.to_string().contains("is the input"), "{e}");
+    }
+
+    #[test]
+    fn hard_link_to_input_is_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let inp = d.path().join("a.tif");
+        touch(&inp);
+        let link = d.path().join("b.tif");
+        std::fs::hard_link(&inp, &link).unwrap();
+        assert!(check_outputs(&[&inp], &[(&link, OutKind::Raster)], true).is_err());
+    }
+
+    #[test]
+    fn existing_output_needs_force() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("o.tif");
+        assert!(check_outputs(&[], &[(&out, OutKind::Raster)], false).is_ok());
+        touch(&out);
+        let e = check_outputs(&[], &[(&out, OutKind::Raster)], false).unwrap_err();
+        assert!(e.to_string().contains("--force"), "{e}");
+        assert!(check_outputs(&[], &[(&out, OutKind::Raster)], true).is_ok());
+        // The sidecar an `.f32` output implies counts too.
+        let f = d.path().join("x.f32");
+        touch(&d.path().join("x.json"));
+        assert!(check_outputs(&[], &[(&f, OutKind::Raster)], false).is_err());
+    }
+
+    #[test]
+    fn extensions_match_the_kind() {
+        let p = Path::new;
+        assert!(check_extension(p("a.tif"), OutKind::Raster).is_ok());
+        assert!(check_extension(p("a.sct"), OutKind::Raster).is_err());
+        assert!(check_extension(p("a.npz"), OutKind::Raster).is_err());
+        assert!(check_extension(p("a.json"), OutKind::Raster).is_err());
+        assert!(check_extension(p("a.sct"), OutKind::RasterOrSct).is_ok());
+        assert!(check_extension(p("a.tif"), OutKind::Dict).is_err());
+        assert!(check_extension(p("a.DICT"), OutKind::Dict).is_ok());
+        assert!(check_extension(p("a.tif"), OutKind::Sct).is_err());
+        assert!(check_extension(p("p.tif"), OutKind::Png).is_err());
+        assert!(check_extension(p("m.glb"), OutKind::Mesh).is_ok());
+        assert!(check_extension(p("m.stl"), OutKind::Mesh).is_err());
+    }
+
+    #[test]
+    fn two_outputs_with_one_name_are_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let a = d.path().join("r.png");
+        let e = check_outputs(&[], &[(&a, OutKind::Png), (&a, OutKind::Png)], false);
+        assert!(e.is_err());
+    }
+}
