@@ -36,6 +36,10 @@ struct Cli {
     /// over any file it reads, --force or not).
     #[arg(long, global = true)]
     force: bool,
+    /// Worker threads for the parallel parts (default: one per core). Outputs are identical
+    /// whatever the count.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
     #[command(subcommand)]
     command: Command,
 }
@@ -82,6 +86,14 @@ fn main() -> ExitCode {
         verbose: cli.verbose,
         force: cli.force,
     };
+    if let Some(n) = cli.threads
+        && let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(usize::from(n))
+            .build_global()
+    {
+        ctx.report_error(&anyhow::anyhow!("cannot start {n} worker threads: {e}"));
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),

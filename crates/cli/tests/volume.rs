@@ -147,9 +147,15 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
         "karst",
         "--mask",
         s(&full),
+        "--section",
+        s(&dir.path().join("full_section.png")),
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(!stdout.contains("karst:        0 primitives"), "{stdout}");
 }
 

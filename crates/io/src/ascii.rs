@@ -128,23 +128,26 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
     let (cx, cy) = hf.cell_size();
     let (w, h) = (hf.width(), hf.height());
-    // The header stores metres; the corner is kept only when the georeference is in metres too.
-    let (sx, sy) = (cx, cy);
-    let (x0, y_top) = hf
+    // A north-up georeference is written in its own units (what GDAL reads back as the same
+    // extent); without one the header holds the cell size in metres and a corner at the origin.
+    let (x0, y_top, sx, sy) = match hf
         .georef()
         .and_then(|g| g.geotransform)
-        .filter(|t| t[2] == 0.0 && t[4] == 0.0)
-        .filter(|t| (t[1] - cx).abs() <= 1e-9 * cx && (-t[5] - cy).abs() <= 1e-9 * cy)
-        .map_or((0.0, cy * h as f64), |t| (t[0], t[3]));
+        .filter(|t| t[2] == 0.0 && t[4] == 0.0 && t[1] > 0.0 && t[5] < 0.0)
+    {
+        Some(t) => (t[0], t[3], t[1], -t[5]),
+        None => (0.0, cy * h as f64, cx, cy),
+    };
     let mut s = String::with_capacity(hf.len() * 8 + 200);
     let _ = writeln!(
         s,
         "ncols {w}\nnrows {h}\nxllcorner {x0}\nyllcorner {}",
         y_top - sy * h as f64
     );
-    if sx == sy {
+    if (sx - sy).abs() <= 1e-12 * sx {
         let _ = writeln!(s, "cellsize {sx}");
     } else {
+        // Non-square cells: GDAL's AAIGrid driver reads DX/DY.
         let _ = writeln!(s, "dx {sx}\ndy {sy}");
     }
     let _ = writeln!(s, "NODATA_value -9999");

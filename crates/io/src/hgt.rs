@@ -1,6 +1,6 @@
 //! SRTM `.hgt` tiles: square big-endian int16, -32768 = void, size from the file length.
 
-use relief_heightfield::Heightfield;
+use relief_heightfield::{GeoRef, Heightfield};
 
 use crate::util::finish;
 use crate::{Format, IoError, Raster, ReadOptions, Result};
@@ -38,19 +38,53 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     Ok(r)
 }
 
-/// Cell size of the tile whose south-west corner is at latitude `lat_sw` (from a name such as
-/// `N47E011.hgt`): east-west and north-south metres at the tile's centre latitude.
-pub(crate) fn tile_cell_from_name(name: &str, n: usize) -> Option<(f64, f64)> {
+/// Latitude and longitude of the south-west corner named by a tile name such as
+/// `N47E011.hgt` or `s03w060.hgt`.
+fn tile_corner(name: &str) -> Option<(f64, f64)> {
     let b = name.as_bytes();
-    if b.len() < 7 || !(b[0] == b'N' || b[0] == b'S' || b[0] == b'n' || b[0] == b's') {
+    if b.len() < 7 {
+        return None;
+    }
+    let ns = b[0].to_ascii_uppercase();
+    let ew = b[3].to_ascii_uppercase();
+    if !matches!(ns, b'N' | b'S') || !matches!(ew, b'E' | b'W') {
         return None;
     }
     let lat: f64 = name.get(1..3)?.parse().ok()?;
-    let lat = if b[0] == b'S' || b[0] == b's' {
-        -lat
-    } else {
-        lat
-    };
+    let lon: f64 = name.get(4..7)?.parse().ok()?;
+    if lat > 89.0 || lon > 180.0 {
+        return None;
+    }
+    Some((
+        if ns == b'S' { -lat } else { lat },
+        if ew == b'W' { -lon } else { lon },
+    ))
+}
+
+/// The EPSG:4326 georeference of the tile named `name` with `n` samples per side: SRTM samples
+/// sit on whole 1/(n-1) degree lines (pixel-centre registration), so sample `(0, 0)` is centred
+/// on the tile's north-west corner and the pixel-is-area grid starts half a cell further out.
+pub(crate) fn tile_georef(name: &str, n: usize) -> Option<GeoRef> {
+    let (lat, lon) = tile_corner(name)?;
+    let d = 1.0 / (n - 1) as f64;
+    let origin = (lon - d / 2.0, lat + 1.0 + d / 2.0);
+    Some(GeoRef {
+        pixel_scale: Some(vec![d, d, 0.0]),
+        tiepoints: Some(vec![0.0, 0.0, 0.0, origin.0, origin.1, 0.0]),
+        // GeoTIFF 1.1: geographic model, PixelIsArea, EPSG:4326.
+        geo_key_directory: Some(vec![
+            1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 1, 2048, 0, 1, 4326,
+        ]),
+        crs: Some("EPSG:4326".into()),
+        geotransform: Some([origin.0, d, 0.0, origin.1, 0.0, -d]),
+        ..Default::default()
+    })
+}
+
+/// Cell size of the tile whose south-west corner is at latitude `lat_sw` (from a name such as
+/// `N47E011.hgt`): east-west and north-south metres at the tile's centre latitude.
+pub(crate) fn tile_cell_from_name(name: &str, n: usize) -> Option<(f64, f64)> {
+    let (lat, _) = tile_corner(name)?;
     let (mx, my) = crate::geotiff::metres_per_degree(lat + 0.5);
     let d = 1.0 / (n - 1) as f64;
     Some((mx * d, my * d))
@@ -74,4 +108,28 @@ pub(crate) fn write(hf: &Heightfield) -> Result<Vec<u8>> {
         out.extend_from_slice(&q.to_be_bytes());
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_name_gives_the_srtm_grid() {
+        let g = tile_georef("N47E011.hgt", 1201).unwrap();
+        let d = 1.0 / 1200.0;
+        assert_eq!(
+            g.geotransform.unwrap(),
+            [11.0 - d / 2.0, d, 0.0, 48.0 + d / 2.0, 0.0, -d]
+        );
+        assert_eq!(g.crs.as_deref(), Some("EPSG:4326"));
+        let g = tile_georef("s03w060.hgt", 3601).unwrap();
+        let d = 1.0 / 3600.0;
+        assert_eq!(
+            g.geotransform.unwrap(),
+            [-60.0 - d / 2.0, d, 0.0, -2.0 + d / 2.0, 0.0, -d]
+        );
+        assert!(tile_georef("dem.hgt", 1201).is_none());
+        assert!(tile_georef("N47X011.hgt", 1201).is_none());
+    }
 }

@@ -329,8 +329,11 @@ pub fn read_bytes(bytes: &[u8], hint: Option<&Path>, opts: &ReadOptions) -> Resu
             .and_then(|p| p.file_name())
             .map(|s| s.to_string_lossy().into_owned());
         let n = raster.heightfield.width();
-        if let Some((cx, cy)) = name.and_then(|s| hgt::tile_cell_from_name(&s, n)) {
+        if let Some((cx, cy)) = name.as_deref().and_then(|s| hgt::tile_cell_from_name(s, n)) {
             raster.heightfield.set_cell_size(cx, cy)?;
+        }
+        if let Some(g) = name.as_deref().and_then(|s| hgt::tile_georef(s, n)) {
+            raster.heightfield.set_georef(Some(g));
         }
     }
     if let Some((cx, cy)) = opts.cell_size {

@@ -194,7 +194,17 @@ fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
     out
 }
 
+/// relief's Z-up frame (x east, y north, z up) to glTF's Y-up frame (x right, y up, z toward
+/// the viewer): a rotation of -90 degrees about x, `(x, y, z) -> (x, z, -y)`, so triangle winding
+/// and handedness are kept and engines and Blender show the terrain lying flat.
+fn z_up_to_y_up(v: &[f32; 3]) -> [f32; 3] {
+    [v[0], v[2], -v[1]]
+}
+
 fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Result<Vec<u8>> {
+    let p: Vec<[f32; 3]> = p.iter().map(z_up_to_y_up).collect();
+    let n: Option<Vec<[f32; 3]>> = n.map(|n| n.iter().map(z_up_to_y_up).collect());
+    let (p, n) = (p.as_slice(), n.as_deref());
     // BIN layout: positions, [normals], indices; every view starts 4-byte aligned (all
     // components are 4 bytes wide, so the views are contiguous).
     let mut bin = Vec::with_capacity(p.len() * 24 + t.len() * 12);

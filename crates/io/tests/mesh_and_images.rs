@@ -123,7 +123,20 @@ fn glb_chunks_and_accessors_are_valid() {
         let pos = acc(&prim["attributes"]["POSITION"]);
         assert_eq!(pos["count"], 4);
         assert_eq!(pos["type"], "VEC3");
-        assert_eq!(pos["max"], serde_json::json!([1.0, 1.0, 1.0]));
+        // glTF is Y-up: relief's (x, y, z) is stored as (x, z, -y).
+        assert_eq!(pos["max"], serde_json::json!([1.0, 1.0, 0.0]));
+        assert_eq!(pos["min"], serde_json::json!([0.0, 0.0, -1.0]));
+        let pv = &json["bufferViews"][pos["bufferView"].as_u64().unwrap() as usize];
+        let po = pv["byteOffset"].as_u64().unwrap() as usize;
+        let f32_at = |o: usize| f32::from_le_bytes(bin[o..o + 4].try_into().unwrap());
+        for (k, v) in p.iter().enumerate() {
+            let got = [
+                f32_at(po + 12 * k),
+                f32_at(po + 12 * k + 4),
+                f32_at(po + 12 * k + 8),
+            ];
+            assert_eq!(got, [v[0], v[2], -v[1]], "vertex {k}");
+        }
         assert_eq!(
             prim["attributes"].get("NORMAL").is_some(),
             normals.is_some()

@@ -280,6 +280,35 @@ fn ascii_georeference_survives_a_geotiff_round_trip() {
     );
 }
 
+/// Issue 14: a projected grid whose CRS units differ from ground metres (Web Mercator: 76.4 m
+/// pixels that are 61 m on the ground) keeps its corner and CRS pixel size in an ASCII grid.
+#[test]
+fn ascii_output_keeps_the_position_in_crs_units() {
+    let g = relief_heightfield::GeoRef {
+        geotransform: Some([-12_601_714.25, 76.5, 0.0, 4_344_069.5, 0.0, -76.5]),
+        ..Default::default()
+    };
+    let hf = Heightfield::from_fn(6, 4, 61.2, 61.2, |x, y| (x + y) as f32).with_georef(Some(g));
+    let asc = String::from_utf8(encode(&hf, Format::AsciiGrid, &WriteOptions::default()).unwrap())
+        .unwrap();
+    assert!(asc.contains("xllcorner -12601714.25\n"), "{asc}");
+    assert!(
+        asc.contains(&format!("yllcorner {}\n", 4_344_069.5 - 4.0 * 76.5)),
+        "{asc}"
+    );
+    assert!(asc.contains("cellsize 76.5\n"), "{asc}");
+    let back = read_bytes(
+        asc.as_bytes(),
+        Some(Path::new("x.asc")),
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        back.heightfield.georef().unwrap().geotransform,
+        Some([-12_601_714.25, 76.5, 0.0, 4_344_069.5, 0.0, -76.5])
+    );
+}
+
 #[test]
 fn raw_samples_that_look_like_text_keep_their_hinted_format() {
     // 0x7b = '{', 0x20 = ' ': a raw file may begin like JSON or ASCII text.

@@ -9,7 +9,6 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, Progress};
 use relief_wavelet_lod::{
     Band, FitSettings, GlobalAnalysis, Wavelet, analyze, analyze_local, render_log_variance_plot,
@@ -47,10 +46,6 @@ pub(crate) struct Args {
     /// Number of synthesised levels drawn on the plot (model values of equation (5)).
     #[arg(long, default_value_t = 2)]
     pub(crate) plot_levels: u32,
-    /// Fill voids (harmonic fill) before the analysis; without it an input with voids is an
-    /// error.
-    #[arg(long)]
-    pub(crate) fill_voids: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -235,19 +230,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     );
     ctx.check_outputs(&[&args.input], &outputs)?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let mut hf = raster.heightfield;
+    let hf = raster.heightfield;
+    // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
     if hf.has_voids() {
-        if !args.fill_voids {
-            bail!(
-                "{} has {} void cells; fill them first (--fill-voids)",
-                args.input.display(),
-                hf.void_count()
-            );
-        }
-        let progress = ctx.progress();
-        progress.begin("filling voids", 0);
-        fill_voids(&mut hf, &FillSettings::default())
-            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
+        bail!(
+            "{} has {} void cells; fill them first (--fill-voids)",
+            args.input.display(),
+            hf.void_count()
+        );
     }
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);

@@ -17,7 +17,6 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use relief_dictionary_learning::{KsvdSettings, ksvd, register_function_atoms};
 use relief_heightfield::Heightfield;
-use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_sparse_core::{
     CompressionReport, Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry,
     PatchGeometry, Sct, compression_report, encode_with_progress, extract_patches,
@@ -80,9 +79,6 @@ pub(crate) struct Args {
     /// Seed of the K-SVD initialisation (with `--dict ksvd`).
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
-    /// Fill voids (harmonic fill) before compressing; otherwise voids are an error.
-    #[arg(long)]
-    pub(crate) fill_voids: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -214,17 +210,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     inputs.extend(args.dictionary.as_deref());
     ctx.check_outputs(&inputs, &[(&args.output, crate::outputs::OutKind::Sct)])?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let mut hf = raster.heightfield;
+    let hf = raster.heightfield;
+    // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
     if hf.has_voids() {
-        if !args.fill_voids {
-            bail!(
-                "{} has {} void cells: pass --fill-voids to fill them first",
-                args.input.display(),
-                hf.void_count()
-            );
-        }
-        fill_voids(&mut hf, &FillSettings::default())
-            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
+        bail!(
+            "{} has {} void cells: pass --fill-voids to fill them first",
+            args.input.display(),
+            hf.void_count()
+        );
     }
     let t_start = Instant::now();
     let (dict, source) = build_dictionary(&args, &hf, ctx)?;

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use relief_heightfield::Progress;
-use relief_heightfield::fill::{FillSettings, fill_voids};
 
 use crate::ctx::Ctx;
 
@@ -16,9 +15,6 @@ pub(crate) struct Args {
     pub(crate) input: PathBuf,
     /// Output raster: .tif/.tiff, .png (16-bit), .exr, .npy, .r16 or .r32.
     pub(crate) output: PathBuf,
-    /// Fill voids (harmonic fill) before writing.
-    #[arg(long)]
-    pub(crate) fill_voids: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -30,18 +26,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[(&args.output, crate::outputs::OutKind::Raster)],
     )?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let mut hf = raster.heightfield;
-    if args.fill_voids && hf.has_voids() {
-        let progress = ctx.progress();
-        progress.begin("filling voids", 0);
-        let rep = fill_voids(&mut hf, &FillSettings::default())
-            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
-        drop(progress);
-        ctx.note(format!(
-            "filled {} voids ({} CG iterations, relative residual {:.1e})",
-            rep.filled, rep.iterations, rep.relative_residual
-        ));
-    }
+    let hf = raster.heightfield;
     let progress = ctx.progress();
     progress.begin("writing", 0);
     relief_io::write(&args.output, &hf, &relief_io::WriteOptions::default())

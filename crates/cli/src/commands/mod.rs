@@ -41,6 +41,10 @@ pub(crate) struct ReadArgs {
     /// file declaring more is refused before anything is allocated. Raise it for larger inputs.
     #[arg(long)]
     pub(crate) max_input_cells: Option<usize>,
+    /// Fill voids (nodata cells) by harmonic interpolation right after reading; without it a
+    /// command that needs complete data refuses an input with voids.
+    #[arg(long)]
+    pub(crate) fill_voids: bool,
 }
 
 impl ReadArgs {
@@ -75,8 +79,25 @@ fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
 pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {
     let progress = ctx.progress();
     progress.begin(&format!("reading {}", path.display()), 0);
-    relief_io::read(path, &read.options())
-        .with_context(|| format!("cannot read {}", path.display()))
+    let mut raster = relief_io::read(path, &read.options())
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    if read.fill_voids && raster.heightfield.has_voids() {
+        progress.begin("filling voids", 0);
+        let rep = relief_heightfield::fill::fill_voids(
+            &mut raster.heightfield,
+            &relief_heightfield::fill::FillSettings::default(),
+        )
+        .with_context(|| format!("cannot fill the voids of {}", path.display()))?;
+        drop(progress);
+        ctx.note(format!(
+            "filled {} voids of {} ({} CG iterations, relative residual {:.1e})",
+            rep.filled,
+            path.display(),
+            rep.iterations,
+            rep.relative_residual
+        ));
+    }
+    Ok(raster)
 }
 
 #[cfg(test)]

@@ -14,7 +14,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Progress;
-use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_wavelet_lod::{FitSettings, Method, RefineSettings, Refiner, Wavelet};
 
 use crate::ctx::Ctx;
@@ -56,10 +55,6 @@ pub(crate) struct Args {
     /// Write only this window `x,y,w,h` of the refined terrain (output cells).
     #[arg(long, value_name = "X,Y,W,H")]
     pub(crate) window_of: Option<String>,
-    /// Fill voids (harmonic fill) before the analysis; without it an input with voids is an
-    /// error.
-    #[arg(long)]
-    pub(crate) fill_voids: bool,
     /// Stream a GeoTIFF output band by band instead of synthesising it whole (automatic above
     /// 16 M cells): memory stays at one band of rows whatever the output size.
     #[arg(long)]
@@ -115,21 +110,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[(&args.output, crate::outputs::OutKind::Raster)],
     )?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let mut hf = raster.heightfield;
+    let hf = raster.heightfield;
+    // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
     if hf.has_voids() {
-        if !args.fill_voids {
-            bail!(
-                "{} has {} void cells; fill them first (--fill-voids)",
-                args.input.display(),
-                hf.void_count()
-            );
-        }
-        let progress = ctx.progress();
-        progress.begin("filling voids", 0);
-        let rep = fill_voids(&mut hf, &FillSettings::default())
-            .with_context(|| format!("cannot fill the voids of {}", args.input.display()))?;
-        drop(progress);
-        ctx.note(format!("filled {} voids", rep.filled));
+        bail!(
+            "{} has {} void cells; fill them first (--fill-voids)",
+            args.input.display(),
+            hf.void_count()
+        );
     }
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);
