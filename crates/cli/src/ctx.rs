@@ -16,6 +16,18 @@ pub(crate) struct Ctx {
     pub(crate) verbose: bool,
     /// `--force`: replace existing output files (never inputs).
     pub(crate) force: bool,
+    /// `--compress`: strip compression of GeoTIFF outputs.
+    pub(crate) compress: CompressArg,
+}
+
+/// `--compress` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub(crate) enum CompressArg {
+    /// DEFLATE with the floating-point predictor.
+    #[default]
+    Deflate,
+    /// Uncompressed strips.
+    None,
 }
 
 impl Ctx {
@@ -32,6 +44,17 @@ impl Ctx {
         };
         bar.set_style(spinner_style());
         CliProgress { bar }
+    }
+
+    /// Write options of raster outputs (GeoTIFF compression from `--compress`).
+    pub(crate) fn write_options(&self) -> relief_io::WriteOptions {
+        relief_io::WriteOptions {
+            compression: match self.compress {
+                CompressArg::Deflate => relief_io::TiffCompression::Deflate,
+                CompressArg::None => relief_io::TiffCompression::None,
+            },
+            ..Default::default()
+        }
     }
 
     /// Refuses, before any work, outputs that are inputs, have the wrong extension, or exist
@@ -163,6 +186,7 @@ mod tests {
             quiet: true,
             verbose: false,
             force: false,
+            compress: CompressArg::None,
         };
         let p = ctx.progress();
         assert!(!p.is_visible());

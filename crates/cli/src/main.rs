@@ -40,6 +40,10 @@ struct Cli {
     /// whatever the count.
     #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=1024))]
     threads: Option<u16>,
+    /// Compression of GeoTIFF outputs: deflate (with the floating-point predictor, lossless,
+    /// what GDAL reads as COMPRESS=DEFLATE PREDICTOR=3) or none.
+    #[arg(long, global = true, value_enum, default_value_t = ctx::CompressArg::Deflate)]
+    compress: ctx::CompressArg,
     #[command(subcommand)]
     command: Command,
 }
@@ -85,6 +89,7 @@ fn main() -> ExitCode {
         quiet: cli.quiet,
         verbose: cli.verbose,
         force: cli.force,
+        compress: cli.compress,
     };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()

@@ -247,3 +247,132 @@ fn every_bad_fixture_fails_cleanly() {
         "stray files left"
     );
 }
+
+/// `gdalinfo -json -checksum FILE`, or `None` (with a notice) when GDAL is not installed
+/// (`.ci/run` installs Debian's gdal-bin, so CI always runs these checks).
+fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
+    let out = match Command::new("gdalinfo")
+        .args(["-json", "-checksum"])
+        .arg(path)
+        .output()
+    {
+        Ok(o) => o,
+        Err(_) => {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "gdalinfo is missing under CI (.ci/run installs gdal-bin)"
+            );
+            #[allow(clippy::print_stderr)]
+            {
+                eprintln!("skipping the GDAL check: gdalinfo not found");
+            }
+            return None;
+        }
+    };
+    assert!(
+        out.status.success(),
+        "gdalinfo {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Some(serde_json::from_slice(&out.stdout).expect("gdalinfo -json"))
+}
+
+fn geo_transform(info: &serde_json::Value) -> Vec<f64> {
+    info["geoTransform"]
+        .as_array()
+        .expect("geoTransform")
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
+/// Issue 14, checked with GDAL itself: a DEFLATE (predictor 3) GeoTIFF from `convert` has the
+/// source's size, geotransform, CRS and band checksum; an amplified raster keeps the CRS and
+/// extent with the pixel size divided by the factor.
+#[test]
+fn gdal_reads_relief_outputs_in_place() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let Some(orig) = gdalinfo(&src) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("gc.tif");
+    let res = relief(&[os("convert"), src.as_os_str(), out.as_os_str()]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let info = gdalinfo(&out).unwrap();
+    assert_eq!(info["size"], orig["size"]);
+    assert_eq!(
+        info["metadata"]["IMAGE_STRUCTURE"]["COMPRESSION"],
+        "DEFLATE"
+    );
+    let (a, b) = (geo_transform(&info), geo_transform(&orig));
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{a:?} vs {b:?}");
+    }
+    assert!(
+        info["coordinateSystem"]["wkt"]
+            .as_str()
+            .unwrap()
+            .contains("\"EPSG\",3857"),
+        "CRS lost"
+    );
+    // f32 of the int16 source: GDAL's checksum of the values is the same.
+    assert_eq!(info["bands"][0]["checksum"], orig["bands"][0]["checksum"]);
+
+    // Amplify a georeferenced crop x4.
+    let dem = read(&src);
+    let coarse_p = tmp.path().join("coarse.tif");
+    relief_io::write(
+        &coarse_p,
+        &dem.crop(64, 96, 128, 128)
+            .unwrap()
+            .resample(32, 32)
+            .unwrap(),
+        &relief_io::WriteOptions::default(),
+    )
+    .unwrap();
+    let ex = tmp.path().join("ex.tif");
+    relief_io::write(
+        &ex,
+        &dem.crop(256, 256, 256, 256).unwrap(),
+        &relief_io::WriteOptions::default(),
+    )
+    .unwrap();
+    let amp = tmp.path().join("amp.tif");
+    let res = relief(&[
+        os("amplify"),
+        coarse_p.as_os_str(),
+        amp.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--factor"),
+        os("4"),
+        os("--atoms"),
+        os("32"),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let (ci, ai) = (gdalinfo(&coarse_p).unwrap(), gdalinfo(&amp).unwrap());
+    assert_eq!(ai["size"], serde_json::json!([128, 128]));
+    let (c, a) = (geo_transform(&ci), geo_transform(&ai));
+    for (k, (x, y)) in a.iter().zip(&c).enumerate() {
+        let want = if matches!(k, 1 | 2 | 4 | 5) {
+            y / 4.0
+        } else {
+            *y
+        };
+        assert!(
+            (x - want).abs() <= 1e-6 * want.abs().max(1.0),
+            "{a:?} vs {c:?} / 4"
+        );
+    }
+    assert_eq!(ai["coordinateSystem"], ci["coordinateSystem"]);
+}

@@ -77,6 +77,7 @@ use std::path::Path;
 use relief_heightfield::Heightfield;
 
 pub use error::{IoError, Result};
+pub use geotiff::TiffCompression;
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as};
 pub use preview::{preview_rgb, write_gray_png, write_preview_png, write_rgb_png};
 pub use stream::GeoTiffStripWriter;
@@ -251,6 +252,8 @@ pub struct WriteOptions {
     /// Vertical mapping `(offset, scale)` for PNG16 / `.r16` output: metres = offset + scale *
     /// count. `None` maps the finite range onto `0..=65535` (a flat field gets scale 1).
     pub mapping: Option<(f64, f64)>,
+    /// Strip compression of GeoTIFF output (other formats ignore it).
+    pub compression: TiffCompression,
 }
 
 /// A raster read from a file.
@@ -404,7 +407,7 @@ pub fn write(path: &Path, hf: &Heightfield, opts: &WriteOptions) -> Result<()> {
 /// Encodes `hf` as the bytes of a `format` file (no file is touched).
 pub fn encode(hf: &Heightfield, format: Format, opts: &WriteOptions) -> Result<Vec<u8>> {
     match format {
-        Format::GeoTiff => geotiff::write(hf),
+        Format::GeoTiff => geotiff::write_with(hf, opts.compression),
         Format::Hgt => hgt::write(hf),
         Format::AsciiGrid => ascii::write(hf),
         Format::Png => png_io::write_png16(hf, opts.mapping),

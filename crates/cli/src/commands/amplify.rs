@@ -208,7 +208,7 @@ pub(crate) fn write_model(
     };
     let progress = ctx.progress();
     progress.begin("writing", 0);
-    relief_io::write(path, &hf, &relief_io::WriteOptions::default())
+    relief_io::write(path, &hf, &ctx.write_options())
         .with_context(|| format!("cannot write {}", path.display()))?;
     drop(progress);
     ctx.note(format!(

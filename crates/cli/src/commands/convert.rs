@@ -29,7 +29,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let hf = raster.heightfield;
     let progress = ctx.progress();
     progress.begin("writing", 0);
-    relief_io::write(&args.output, &hf, &relief_io::WriteOptions::default())
+    relief_io::write(&args.output, &hf, &ctx.write_options())
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     drop(progress);
     ctx.note(format!(

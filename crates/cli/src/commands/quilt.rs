@@ -400,12 +400,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let progress = ctx.progress();
     let out = quilt(exemplars, &control, &settings, &progress).context("synthesis failed")?;
     progress.begin("writing", 0);
-    relief_io::write(
-        &args.output,
-        &out.heightfield,
-        &relief_io::WriteOptions::default(),
-    )
-    .with_context(|| format!("cannot write {}", args.output.display()))?;
+    relief_io::write(&args.output, &out.heightfield, &ctx.write_options())
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
     if let Some(png) = &args.seam_map {
         relief_io::write_rgb_png(
             png,
