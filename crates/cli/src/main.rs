@@ -133,4 +133,57 @@ mod tests {
     fn cli_definition_is_consistent() {
         Cli::command().debug_assert();
     }
+
+    /// The flag table of `docs/CLI.md`, generated from the clap definition.
+    fn flag_table() -> String {
+        let cmd = Cli::command();
+        let mut s = String::from(
+            "# `relief` flags\n\nGenerated from the clap definition by the test \
+             `tests::cli_doc_is_current` (`RELIEF_BLESS_CLI_DOC=1 cargo test -p relief-cli \
+             cli_doc` rewrites it). One name, one meaning, in every subcommand.\n\n\
+             ## Global flags\n\n| flag | value | meaning |\n|---|---|---|\n",
+        );
+        let row = |a: &clap::Arg| -> Option<String> {
+            let long = a.get_long()?;
+            let value = a
+                .get_value_names()
+                .map(|v| v.iter().map(|n| n.as_str()).collect::<Vec<_>>().join(" "))
+                .filter(|_| a.get_action().takes_values())
+                .unwrap_or_default();
+            let help = a
+                .get_help()
+                .map(|h| h.to_string())
+                .unwrap_or_default()
+                .replace('|', "\\|")
+                .replace('\n', " ");
+            Some(format!("| `--{long}` | {value} | {help} |\n"))
+        };
+        for a in cmd.get_arguments().filter(|a| a.is_global_set()) {
+            s.extend(row(a));
+        }
+        for sub in cmd.get_subcommands() {
+            s.push_str(&format!(
+                "\n## `relief {}`\n\n| flag | value | meaning |\n|---|---|---|\n",
+                sub.get_name()
+            ));
+            for a in sub.get_arguments().filter(|a| !a.is_global_set()) {
+                s.extend(row(a));
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn cli_doc_is_current() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/CLI.md");
+        let want = flag_table();
+        if std::env::var_os("RELIEF_BLESS_CLI_DOC").is_some() {
+            std::fs::write(&path, &want).unwrap();
+        }
+        let have = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            have == want,
+            "docs/CLI.md is out of date: RELIEF_BLESS_CLI_DOC=1 cargo test -p relief-cli cli_doc"
+        );
+    }
 }

@@ -279,8 +279,11 @@ fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
 }
 
 fn geo_transform(info: &serde_json::Value) -> Vec<f64> {
-    info["geoTransform"]
-        .as_array()
+    geo_transform_of(&info["geoTransform"])
+}
+
+fn geo_transform_of(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
         .expect("geoTransform")
         .iter()
         .map(|v| v.as_f64().unwrap())
@@ -296,6 +299,41 @@ fn gdal_reads_relief_outputs_in_place() {
     let Some(orig) = gdalinfo(&src) else {
         return;
     };
+    // `relief info --json` reports the grid exactly as GDAL does (grandcanyon.tif is
+    // PixelIsPoint; SRTM tiles are pixel-centre registered).
+    let mut files = vec![src.clone()];
+    files.extend(dem("N47E011.hgt"));
+    for f in &files {
+        let res = relief(&[os("info"), os("--json"), f.as_os_str()]);
+        assert!(
+            res.status.success(),
+            "{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let mine: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+        let gdal = gdalinfo(f).unwrap();
+        assert_eq!(mine["size"], gdal["size"], "{}", f.display());
+        let (a, b) = (
+            geo_transform_of(&mine["geotransform"]),
+            geo_transform(&gdal),
+        );
+        for (x, y) in a.iter().zip(&b) {
+            assert!(
+                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                "{}: {a:?} vs {b:?}",
+                f.display()
+            );
+        }
+        let epsg = mine["epsg"].as_u64().expect("an EPSG code");
+        assert!(
+            gdal["coordinateSystem"]["wkt"]
+                .as_str()
+                .unwrap()
+                .contains(&format!("ID[\"EPSG\",{epsg}]")),
+            "{}: EPSG {epsg}",
+            f.display()
+        );
+    }
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.tif");
     let res = relief(&[os("convert"), src.as_os_str(), out.as_os_str()]);

@@ -12,6 +12,10 @@ use crate::ctx::Ctx;
 pub(crate) struct Args {
     /// Raster to describe (format detected from its content).
     pub(crate) file: PathBuf,
+    /// Print one JSON object (size, dtype, nodata, CRS, GDAL-order geotransform, cell size,
+    /// statistics, voids) instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
@@ -21,6 +25,35 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let raster = super::read_raster(&args.file, &args.read, ctx)?;
     let hf = &raster.heightfield;
     let (cx, cy) = hf.cell_size();
+    if args.json {
+        let stats = metrics::stats(hf).ok();
+        let g = hf.georef();
+        let v = serde_json::json!({
+            "file": args.file.display().to_string(),
+            "format": format!("{:?}", raster.format),
+            "dtype": raster.dtype,
+            "size": [hf.width(), hf.height()],
+            "nodata": raster.nodata,
+            "stored_south_up": raster.rows_flipped,
+            "cell_size_m": [cx, cy],
+            "crs": g.and_then(|g| g.crs.clone()),
+            "epsg": g
+                .and_then(|g| g.crs.as_deref())
+                .and_then(|c| c.strip_prefix("EPSG:"))
+                .and_then(|c| c.parse::<u32>().ok()),
+            "geotransform": g.and_then(|g| g.geotransform),
+            "statistics": stats.map(|s| serde_json::json!({
+                "min": s.min, "max": s.max, "mean": s.mean, "std": s.std
+            })),
+            "voids": hf.void_count(),
+            "cells": hf.len(),
+        });
+        let mut stdout = std::io::stdout().lock();
+        let text = serde_json::to_string_pretty(&v).context("cannot encode the JSON")?;
+        std::io::Write::write_all(&mut stdout, format!("{text}\n").as_bytes())
+            .context("cannot write to stdout")?;
+        return Ok(());
+    }
     let mut out = String::new();
     out.push_str(&format!("file:        {}\n", args.file.display()));
     let nodata = raster
