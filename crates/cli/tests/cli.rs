@@ -414,3 +414,79 @@ fn gdal_reads_relief_outputs_in_place() {
     }
     assert_eq!(ai["coordinateSystem"], ci["coordinateSystem"]);
 }
+
+/// Issue 14: GeoTIFFs made by GDAL itself (ZSTD and LZW with predictors, tiled, COG, unit
+/// scale/offset) read with the source's values and placement.
+#[test]
+fn gdal_made_geotiff_variants_read_correctly() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    if gdalinfo(&src).is_none() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = read(&src);
+    let t0 = truth.georef().unwrap().geotransform.unwrap();
+    let variants: &[(&str, &[&str])] = &[
+        (
+            "zstd_fp.tif",
+            &[
+                "-ot",
+                "Float32",
+                "-co",
+                "COMPRESS=ZSTD",
+                "-co",
+                "PREDICTOR=3",
+            ],
+        ),
+        (
+            "lzw_tiled.tif",
+            &[
+                "-co",
+                "COMPRESS=LZW",
+                "-co",
+                "PREDICTOR=2",
+                "-co",
+                "TILED=YES",
+            ],
+        ),
+        ("cog.tif", &["-of", "COG", "-co", "COMPRESS=DEFLATE"]),
+        // Heights stored in decimetres with GDAL's unit scale: values x10, scale 0.1.
+        (
+            "decimetres.tif",
+            &[
+                "-ot", "Int32", "-scale", "0", "1", "0", "10", "-a_scale", "0.1",
+            ],
+        ),
+    ];
+    for (name, args) in variants {
+        let out = tmp.path().join(name);
+        let o = Command::new("gdal_translate")
+            .arg("-q")
+            .args(*args)
+            .arg(&src)
+            .arg(&out)
+            .output()
+            .expect("gdal_translate");
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let hf = read(&out);
+        assert_eq!((hf.width(), hf.height()), (truth.width(), truth.height()));
+        let worst = hf
+            .as_slice()
+            .iter()
+            .zip(truth.as_slice())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-3, "{name}: values differ by up to {worst} m");
+        let t = hf.georef().unwrap().geotransform.unwrap();
+        for (x, y) in t.iter().zip(&t0) {
+            assert!(
+                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                "{name}: {t:?} vs {t0:?}"
+            );
+        }
+    }
+}

@@ -40,8 +40,13 @@
 //!
 //! Not guaranteed: reprojection (cell sizes of geographic grids are computed at the centre
 //! latitude on the WGS84 ellipsoid), multi-band rasters (only the first band of a single-sample
-//! image is read), BigTIFF writing, the GeoTIFF raster-space convention (PixelIsPoint vs
-//! PixelIsArea is carried verbatim in the GeoKey directory but not applied to `geotransform`).
+//! image is read), BigTIFF writing.
+//!
+//! One grid convention: pixel-is-area. A PixelIsPoint GeoTIFF is read as the equivalent
+//! PixelIsArea grid (origin half a pixel out, as `gdalinfo` reports it) and written back as
+//! PixelIsArea; SRTM tiles get their EPSG:4326 pixel-centre grid from the tile name. GDAL's
+//! `SCALE`/`OFFSET` metadata (tag 42112) is applied on read. GeoTIFF output is uncompressed or
+//! DEFLATE with the floating-point predictor ([`WriteOptions::compression`]).
 //!
 //! # Example
 //! ```
