@@ -18,6 +18,38 @@ pub(crate) struct Ctx {
     pub(crate) force: bool,
     /// `--compress`: strip compression of GeoTIFF outputs.
     pub(crate) compress: CompressArg,
+    /// `--height-range LO,HI`: vertical mapping of 16-bit engine heightmaps (PNG16, `.r16`).
+    pub(crate) height_range: Option<(f64, f64)>,
+}
+
+/// Parses `--height-range LO,HI` (metres, LO < HI).
+pub(crate) fn parse_height_range(s: &str) -> Result<(f64, f64), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected LO,HI in metres"))?;
+    match v[..] {
+        [lo, hi] if lo.is_finite() && hi.is_finite() && lo < hi => Ok((lo, hi)),
+        _ => Err(format!(
+            "`{s}`: expected two finite heights LO,HI with LO < HI"
+        )),
+    }
+}
+
+/// The file beside a 16-bit heightmap that states its vertical mapping (`OUT.png.json`).
+pub(crate) fn heightmap_sidecar(path: &std::path::Path) -> std::path::PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".json");
+    std::path::PathBuf::from(s)
+}
+
+/// Whether `path` is written as a 16-bit engine heightmap (PNG16 or `.r16`).
+pub(crate) fn is_heightmap16(path: &std::path::Path) -> bool {
+    matches!(
+        relief_io::Format::from_extension(path),
+        Some(relief_io::Format::Png | relief_io::Format::R16)
+    )
 }
 
 /// `--compress` values.
@@ -55,6 +87,95 @@ impl Ctx {
             },
             ..Default::default()
         }
+    }
+
+    /// Writes a raster output atomically. 16-bit heightmaps (PNG16, `.r16`) for engines are
+    /// mapped onto `--height-range` (default: the data range), refuse voids (they would read as
+    /// the lowest height), and get a JSON sidecar `OUT.json` stating the mapping, which is
+    /// also printed: Unity/Unreal/Gaea users set their terrain height from it.
+    pub(crate) fn write_raster(
+        &self,
+        path: &std::path::Path,
+        hf: &relief_heightfield::Heightfield,
+    ) -> anyhow::Result<()> {
+        use anyhow::Context;
+        let mut opts = self.write_options();
+        let map16 = if is_heightmap16(path) {
+            if hf.has_voids() {
+                anyhow::bail!(
+                    "cannot write {}: {} void cells cannot be stored in a 16-bit heightmap \
+                     (they would read as the lowest height); pass --fill-voids",
+                    path.display(),
+                    hf.void_count()
+                );
+            }
+            let (dlo, dhi) = hf
+                .min_max()
+                .map(|(a, b)| (a as f64, b as f64))
+                .unwrap_or((0.0, 0.0));
+            let (lo, hi) = match self.height_range {
+                Some((lo, hi)) => {
+                    let outside = hf
+                        .as_slice()
+                        .iter()
+                        .filter(|&&v| (v as f64) < lo || (v as f64) > hi)
+                        .count();
+                    if outside > 0 {
+                        self.note(format!(
+                            "{}: {outside} cells ({dlo:.2}..{dhi:.2} m) outside --height-range \
+                             {lo},{hi} are clamped to it",
+                            path.display()
+                        ));
+                    }
+                    (lo, hi)
+                }
+                None => (dlo, dhi),
+            };
+            let scale = if hi > lo { (hi - lo) / 65535.0 } else { 1.0 };
+            opts.mapping = Some((lo, scale));
+            Some((lo, hi, scale))
+        } else {
+            None
+        };
+        relief_io::write(path, hf, &opts)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        if let Some((lo, hi, scale)) = map16 {
+            let side = heightmap_sidecar(path);
+            let (cx, cy) = hf.cell_size();
+            let json = serde_json::json!({
+                "width": hf.width(),
+                "height": hf.height(),
+                "encoding": if relief_io::Format::from_extension(path)
+                    == Some(relief_io::Format::R16) {
+                    "u16 little-endian, row 0 north"
+                } else {
+                    "16-bit grey PNG, row 0 north"
+                },
+                "height_min_m": lo,
+                "height_max_m": hi,
+                "height_range_m": hi - lo,
+                "metres_per_count": scale,
+                "offset_m": lo,
+                "cell_size_m": [cx, cy],
+                "extent_m": [cx * hf.width() as f64, cy * hf.height() as f64],
+                "note": "height = offset_m + count * metres_per_count. Unity: set the terrain \
+                         height to height_range_m and flip rows (Unity's row 0 is south).",
+            });
+            let text = serde_json::to_string_pretty(&json).unwrap_or_default();
+            if let Err(e) = relief_io::write_bytes_atomic(&side, text.as_bytes()) {
+                let _ = std::fs::remove_file(path);
+                return Err(
+                    anyhow::Error::new(e).context(format!("cannot write {}", side.display()))
+                );
+            }
+            self.note(format!(
+                "{}: heights {lo:.2}..{hi:.2} m ({:.4} m per count), mapping in {}",
+                path.display(),
+                scale,
+                side.display()
+            ));
+        }
+        Ok(())
     }
 
     /// Refuses, before any work, outputs that are inputs, have the wrong extension, or exist
@@ -163,6 +284,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn height_range_argument() {
+        assert_eq!(parse_height_range("-10,2500"), Ok((-10.0, 2500.0)));
+        assert!(parse_height_range("5,5").is_err());
+        assert!(parse_height_range("x,5").is_err());
+        assert!(parse_height_range("5").is_err());
+        assert!(parse_height_range("1,nan").is_err());
+    }
+
+    #[test]
     fn one_line_error_names_root_cause() {
         let err = anyhow::anyhow!("permission denied").context("cannot write out.tif");
         assert_eq!(
@@ -187,6 +317,7 @@ mod tests {
             verbose: false,
             force: false,
             compress: CompressArg::None,
+            height_range: None,
         };
         let p = ctx.progress();
         assert!(!p.is_visible());

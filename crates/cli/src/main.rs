@@ -44,6 +44,10 @@ struct Cli {
     /// what GDAL reads as COMPRESS=DEFLATE PREDICTOR=3) or none.
     #[arg(long, global = true, value_enum, default_value_t = ctx::CompressArg::Deflate)]
     compress: ctx::CompressArg,
+    /// Heights LO,HI (metres) mapped to counts 0 and 65535 in 16-bit heightmaps (.png, .r16);
+    /// default: the data range. The range used is printed and written to OUT.json beside them.
+    #[arg(long, global = true, value_name = "LO,HI", value_parser = ctx::parse_height_range, allow_hyphen_values = true)]
+    height_range: Option<(f64, f64)>,
     #[command(subcommand)]
     command: Command,
 }
@@ -90,6 +94,7 @@ fn main() -> ExitCode {
         verbose: cli.verbose,
         force: cli.force,
         compress: cli.compress,
+        height_range: cli.height_range,
     };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()

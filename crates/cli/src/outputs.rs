@@ -81,8 +81,12 @@ fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
 /// The files written for an output: the path itself, plus the `.json` sidecar of an `.f32`.
 fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
-    if matches!(kind, OutKind::Raster | OutKind::RasterOrSct) && ext_of(path) == "f32" {
-        v.push(path.with_extension("json"));
+    if matches!(kind, OutKind::Raster | OutKind::RasterOrSct) {
+        if ext_of(path) == "f32" {
+            v.push(path.with_extension("json"));
+        } else if crate::ctx::is_heightmap16(path) {
+            v.push(crate::ctx::heightmap_sidecar(path));
+        }
     }
     v
 }

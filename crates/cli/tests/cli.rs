@@ -490,3 +490,68 @@ fn gdal_made_geotiff_variants_read_correctly() {
         }
     }
 }
+
+/// Issue 14: 16-bit engine heightmaps state their vertical mapping in `OUT.json`, follow
+/// `--height-range`, and refuse voids unless `--fill-voids`.
+#[test]
+fn heightmaps_state_their_height_range() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let truth = read(&src);
+    let (lo, hi) = truth.min_max().unwrap();
+    let r16 = tmp.path().join("h.r16");
+    let res = relief(&[os("convert"), src.as_os_str(), r16.as_os_str()]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("h.r16.json")).unwrap()).unwrap();
+    assert_eq!(side["height_min_m"].as_f64().unwrap(), lo as f64);
+    assert_eq!(side["height_max_m"].as_f64().unwrap(), hi as f64);
+    assert_eq!(side["width"], 512);
+    // The stored counts follow the stated mapping.
+    let raw = std::fs::read(&r16).unwrap();
+    let scale = side["metres_per_count"].as_f64().unwrap();
+    let count = u16::from_le_bytes([raw[2 * 700], raw[2 * 700 + 1]]) as f64;
+    assert!((lo as f64 + count * scale - truth.as_slice()[700] as f64).abs() <= scale);
+    // A fixed range: PNG16 with 0..4000 m.
+    let png = tmp.path().join("h.png");
+    let res = relief(&[
+        os("--height-range"),
+        os("0,4000"),
+        os("convert"),
+        src.as_os_str(),
+        png.as_os_str(),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("h.png.json")).unwrap()).unwrap();
+    assert_eq!(side["height_range_m"].as_f64().unwrap(), 4000.0);
+    // Voids are refused for heightmaps, and nothing is left behind.
+    let mut holed = truth.clone();
+    holed.set(10, 10, f32::NAN);
+    let holed_p = tmp.path().join("holed.tif");
+    relief_io::write(&holed_p, &holed, &relief_io::WriteOptions::default()).unwrap();
+    let out = tmp.path().join("v.r16");
+    let res = relief(&[os("convert"), holed_p.as_os_str(), out.as_os_str()]);
+    assert!(!res.status.success());
+    assert!(String::from_utf8_lossy(&res.stderr).contains("--fill-voids"));
+    assert!(!out.exists() && !tmp.path().join("v.r16.json").exists());
+    let res = relief(&[
+        os("convert"),
+        os("--fill-voids"),
+        holed_p.as_os_str(),
+        out.as_os_str(),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+}

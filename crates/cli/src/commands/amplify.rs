@@ -208,8 +208,7 @@ pub(crate) fn write_model(
     };
     let progress = ctx.progress();
     progress.begin("writing", 0);
-    relief_io::write(path, &hf, &ctx.write_options())
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    ctx.write_raster(path, &hf)?;
     drop(progress);
     ctx.note(format!(
         "wrote {} ({} x {})",

@@ -260,8 +260,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 let path = map_path(prefix, suffix);
                 let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
                     .with_georef(hf.georef().cloned());
-                relief_io::write(&path, &map, &ctx.write_options())
-                    .with_context(|| format!("cannot write {}", path.display()))?;
+                ctx.write_raster(&path, &map)?;
                 written.push(path);
                 Ok(())
             };

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use relief_heightfield::Progress;
 
 use crate::ctx::Ctx;
@@ -29,8 +29,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let hf = raster.heightfield;
     let progress = ctx.progress();
     progress.begin("writing", 0);
-    relief_io::write(&args.output, &hf, &ctx.write_options())
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.write_raster(&args.output, &hf)?;
     drop(progress);
     ctx.note(format!(
         "wrote {} ({} x {})",

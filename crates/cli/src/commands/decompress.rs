@@ -127,8 +127,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         }
         _ => None,
     };
-    relief_io::write(&args.output, &hf, &ctx.write_options())
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.write_raster(&args.output, &hf)?;
     let (mut t, mut layers, mut s_max) = (0u64, 0usize, 0usize);
     for l in sct.layers() {
         let d = l.dictionary();

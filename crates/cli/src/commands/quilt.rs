@@ -400,8 +400,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let progress = ctx.progress();
     let out = quilt(exemplars, &control, &settings, &progress).context("synthesis failed")?;
     progress.begin("writing", 0);
-    relief_io::write(&args.output, &out.heightfield, &ctx.write_options())
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    ctx.write_raster(&args.output, &out.heightfield)?;
     if let Some(png) = &args.seam_map {
         relief_io::write_rgb_png(
             png,

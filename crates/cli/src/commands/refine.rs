@@ -146,8 +146,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             None => refiner.render(&progress).context("cannot synthesise")?,
         };
         progress.begin("writing", 0);
-        relief_io::write(&args.output, &out, &ctx.write_options())
-            .with_context(|| format!("cannot write {}", args.output.display()))?;
+        ctx.write_raster(&args.output, &out)?;
         drop(progress);
         None
     };

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use relief_dictionary_learning::{
     AmplifySettings, DictionaryChoice, SynthesisSettings, synthesize,
 };
@@ -34,22 +34,9 @@ pub(crate) struct Args {
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
-    /// Elevation range `LO,HI` in metres the sketch is mapped to (default: the exemplar's).
-    #[arg(long)]
-    pub(crate) height_range: Option<String>,
     /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
     #[arg(long)]
     pub(crate) window: Option<String>,
-}
-
-fn parse_range(s: &str) -> Result<(f32, f32)> {
-    let parsed = s
-        .split_once(',')
-        .and_then(|(a, b)| Some((a.trim().parse::<f32>().ok()?, b.trim().parse::<f32>().ok()?)));
-    match parsed {
-        Some((lo, hi)) if lo.is_finite() && hi.is_finite() && hi > lo => Ok((lo, hi)),
-        _ => bail!("invalid --height-range `{s}`: must be LO,HI metres with HI > LO"),
-    }
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
@@ -69,7 +56,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             seed: args.seed,
             ..SynthesisSettings::default().amplify
         },
-        height_range: args.height_range.as_deref().map(parse_range).transpose()?,
+        // The global --height-range: the sketch is mapped onto it (default: the exemplar's
+        // range), and a 16-bit heightmap output uses the same mapping.
+        height_range: ctx.height_range.map(|(lo, hi)| (lo as f32, hi as f32)),
     };
     settings
         .amplify
@@ -95,17 +84,4 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         })?
     };
     write_model(&sct, &args.output, window, false, ctx)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_range;
-
-    #[test]
-    fn ranges() {
-        assert_eq!(parse_range("100,2500").unwrap(), (100.0, 2500.0));
-        assert!(parse_range("5,5").is_err());
-        assert!(parse_range("x,5").is_err());
-        assert!(parse_range("5").is_err());
-    }
 }
