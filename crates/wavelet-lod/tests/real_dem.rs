@@ -237,13 +237,14 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
     let Some(hf) = dem_crop("alps_dem", 700, 300, 300, 260) else {
         return;
     };
-    let run = |threads: usize, wavelet: Wavelet, method: Method| {
+    let run = |threads: usize, wavelet: Wavelet, method: Method, model: Model| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
         pool.install(|| {
             let s = RefineSettings {
+                model,
                 wavelet,
                 method,
                 window: 5,
@@ -266,13 +267,16 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
             )
         })
     };
-    for wavelet in Wavelet::ALL {
-        for method in [Method::Gsa, Method::Lsa] {
-            let a = run(1, wavelet, method);
-            let b = run(2, wavelet, method);
-            assert!(a.0 == b.0, "{wavelet} {method:?}: refined terrain differs");
-            assert_eq!(a.1, b.1, "{wavelet} {method:?}: local maps differ");
-            assert_eq!(a.2, b.2, "{wavelet} {method:?}: analysis differs");
+    for model in [Model::Spectral, Model::Paper] {
+        for wavelet in Wavelet::ALL {
+            for method in [Method::Gsa, Method::Lsa] {
+                let a = run(1, wavelet, method, model);
+                let b = run(2, wavelet, method, model);
+                let what = format!("{model:?} {wavelet} {method:?}");
+                assert!(a.0 == b.0, "{what}: refined terrain differs");
+                assert_eq!(a.1, b.1, "{what}: local maps differ");
+                assert_eq!(a.2, b.2, "{what}: analysis differs");
+            }
         }
     }
 }
