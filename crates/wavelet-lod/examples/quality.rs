@@ -32,6 +32,10 @@ fn main() {
         ("carrizo", 12, 2, 480, 896),
     ];
     let extra: Vec<String> = std::env::args().skip(1).collect();
+    if extra.iter().any(|a| a == "timing") {
+        timing();
+        return;
+    }
     for (id, x, y, w, h) in crops {
         let Some(mut dem) = load_dem(id) else {
             println!("{id}: DEM set not found, skipped");
@@ -188,4 +192,37 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
         }
     }
     v
+}
+
+/// Wall time of `Refiner::new` + `render` for a 1024 x 1024 crop refined x4 (`-- timing`).
+fn timing() {
+    let Some(dem) = load_dem("alps_dem") else {
+        return;
+    };
+    let hf = dem.crop(600, 0, 1024, 704).expect("crop");
+    for (label, s) in [
+        ("spectral", RefineSettings::default()),
+        (
+            "spectral, no correction",
+            RefineSettings {
+                consistency: false,
+                ..Default::default()
+            },
+        ),
+        ("paper lsa3", RefineSettings::paper()),
+    ] {
+        let t = std::time::Instant::now();
+        let r = Refiner::new(&hf, &s).expect("refiner");
+        let t_new = t.elapsed().as_secs_f64();
+        let out = r.render(&NoProgress).expect("render");
+        println!(
+            "{label:<24} {} x {} -> {} x {}: analysis {:.2} s, total {:.2} s",
+            hf.width(),
+            hf.height(),
+            out.width(),
+            out.height(),
+            t_new,
+            t.elapsed().as_secs_f64()
+        );
+    }
 }
