@@ -63,7 +63,10 @@ pub struct RefineSettings {
     /// octaves); the paper recommends the linear spline, [`Wavelet::Cdf53`]
     /// ([`RefineSettings::paper`]).
     pub wavelet: Wavelet,
-    /// GSA or LSA.
+    /// GSA or LSA. With [`Model::Paper`] as in section 5; with [`Model::Spectral`], GSA draws
+    /// the same amplitude everywhere and LSA (default) modulates it by the bilinearly
+    /// interpolated local amplitude of the finest observed level (`window x window` mean
+    /// square), so flat areas stay flat.
     pub method: Method,
     /// LSA window side (odd; the paper tests 1, 3, 5, 7 and recommends 3).
     pub window: usize,
