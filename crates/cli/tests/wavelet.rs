@@ -69,6 +69,8 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
             wavelet,
             "--seed",
             "11",
+            "--model",
+            "paper",
         ];
         let mut a = vec![os("refine"), input.as_os_str(), full.as_os_str()];
         a.extend(common.iter().map(os));
@@ -243,7 +245,6 @@ fn bad_input_fails_cleanly() {
         (vec![os("--wavelet"), os("sym9")], "sym9"),
         (vec![os("--window-of"), os("0,0,300,10")], "window"),
         (vec![os("--window-of"), os("1,2,3")], "window-of"),
-        (vec![os("--min-level"), os("6")], "level"),
     ];
     let check = |args: Vec<&std::ffi::OsStr>, needle: &str, out: &Path| {
         let res = relief(&args);
@@ -267,11 +268,20 @@ fn bad_input_fails_cleanly() {
         "void",
         &out,
     );
-    check(
-        vec![os("refine"), tiny.as_os_str(), out.as_os_str()],
-        "levels",
-        &out,
+    // A tiny input is refined from the levels it has, with a note (not an error).
+    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
+        .args([os("refine"), tiny.as_os_str(), out.as_os_str()])
+        .output()
+        .expect("run relief");
+    ok(&res);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(stderr.contains("note:"), "{stderr}");
+    assert_eq!(
+        (read(&out).width(), read(&out).height()),
+        (32, 32),
+        "{stderr}"
     );
+    std::fs::remove_file(&out).unwrap();
     let missing = tmp.path().join("missing.tif");
     check(
         vec![os("refine"), missing.as_os_str(), out.as_os_str()],
@@ -550,4 +560,38 @@ fn a_failing_streamed_write_leaves_no_file() {
         .unwrap());
     assert_eq!(read(&out).width(), 256);
     assert_eq!(temps(&dir, "out.tif"), Vec::<String>::new());
+}
+
+/// The default (spectral) model is area-consistent: the 4 x 4 block means of the refined
+/// terrain are the input cells, within a small fraction of the relief; `--model paper` is not.
+#[test]
+fn default_refinement_is_area_consistent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = crop_file(tmp.path(), "in.tif", 200, 160, 64, 48);
+    let src = read(&input);
+    let (lo, hi) = src.min_max().unwrap();
+    let err = |model: &str| {
+        let out = tmp.path().join(format!("out-{model}.tif"));
+        ok(&relief(&[
+            os("refine"),
+            input.as_os_str(),
+            out.as_os_str(),
+            os("--model"),
+            os(model),
+            os("--seed"),
+            os("3"),
+        ]));
+        let down = read(&out).downsample_box(4).unwrap();
+        let se: f64 = down
+            .as_slice()
+            .iter()
+            .zip(src.as_slice())
+            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
+            .sum();
+        (se / src.len() as f64).sqrt() / (hi - lo) as f64
+    };
+    let spectral = err("spectral");
+    let paper = err("paper");
+    assert!(spectral < 0.005, "spectral: {spectral}");
+    assert!(spectral < paper, "spectral {spectral} vs paper {paper}");
 }

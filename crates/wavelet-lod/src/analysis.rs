@@ -292,15 +292,6 @@ pub(crate) fn global_from(
             fitted: j >= settings.min_level as i64 && count.iter().all(|&c| c > 0),
         });
     }
-    let mut fits = [BandFit {
-        gamma: 0.0,
-        a: 0.0,
-        gamma_fit: 0.0,
-        r_squared: 0.0,
-        clamped: false,
-        levels_used: 0,
-        fractal_dimension: 3.0,
-    }; 3];
     let used: Vec<&LevelVariance> = out.iter().filter(|l| l.fitted).collect();
     if used.len() < 2 {
         return Err(WaveletError::TooFewLevels {
@@ -311,26 +302,7 @@ pub(crate) fn global_from(
             height: dec.height,
         });
     }
-    for b in Band::ALL {
-        let js: Vec<f64> = used.iter().map(|l| l.level as f64).collect();
-        let ys: Vec<f64> = used
-            .iter()
-            .map(|l| l.variance[b.index()].max(settings.variance_floor).log2())
-            .collect();
-        let (g, a, r2) = line_fit(&js, &ys);
-        let mj = js.iter().sum::<f64>() / js.len() as f64;
-        let my = ys.iter().sum::<f64>() / ys.len() as f64;
-        let (gamma, a, clamped) = clamp_fit(g, a, mj, my, settings);
-        fits[b.index()] = BandFit {
-            gamma,
-            a,
-            gamma_fit: g,
-            r_squared: r2,
-            clamped,
-            levels_used: js.len(),
-            fractal_dimension: 3.0 - gamma / 2.0,
-        };
-    }
+    let fits = fit_levels(&used, settings);
     Ok(GlobalAnalysis {
         wavelet: dec.wavelet,
         width: dec.width,
@@ -340,6 +312,148 @@ pub(crate) fn global_from(
         fits,
         settings: settings.clone(),
     })
+}
+
+/// Equation (3) per band through the given levels (at least 2), clamped.
+fn fit_levels(used: &[&LevelVariance], settings: &FitSettings) -> [BandFit; 3] {
+    Band::ALL.map(|b| {
+        let js: Vec<f64> = used.iter().map(|l| l.level as f64).collect();
+        let ys: Vec<f64> = used
+            .iter()
+            .map(|l| l.variance[b.index()].max(settings.variance_floor).log2())
+            .collect();
+        let (g, a, r2) = line_fit(&js, &ys);
+        let mj = js.iter().sum::<f64>() / js.len() as f64;
+        let my = ys.iter().sum::<f64>() / ys.len() as f64;
+        let (gamma, a, clamped) = clamp_fit(g, a, mj, my, settings);
+        BandFit {
+            gamma,
+            a,
+            gamma_fit: g,
+            r_squared: r2,
+            clamped,
+            levels_used: js.len(),
+            fractal_dimension: 3.0 - gamma / 2.0,
+        }
+    })
+}
+
+/// Decay assumed when an input has fewer than two detail levels: `gamma = 2` (a surface that
+/// is smooth at the finest scale, the typical finest-level decay of DEMs), through the finest
+/// level's variance when there is one.
+const DEFAULT_GAMMA: f64 = 2.0;
+
+fn default_fits(levels: &[LevelVariance], top: i64, settings: &FitSettings) -> [BandFit; 3] {
+    let finest = levels.iter().rev().find(|l| l.count.iter().all(|&c| c > 0));
+    let gamma = DEFAULT_GAMMA.clamp(settings.gamma_min, settings.gamma_max);
+    Band::ALL.map(|b| {
+        let (j, var) = finest.map_or((top as f64 - 1.0, 0.0), |l| {
+            (l.level as f64, l.variance[b.index()])
+        });
+        BandFit {
+            gamma,
+            a: var.max(settings.variance_floor).log2() + j * gamma,
+            gamma_fit: gamma,
+            r_squared: 0.0,
+            clamped: false,
+            levels_used: usize::from(finest.is_some()),
+            fractal_dimension: 3.0 - gamma / 2.0,
+        }
+    })
+}
+
+/// [`global_from`] that never fails for lack of levels: below two levels `>= min_level` it fits
+/// every level of the input, below two levels at all it uses [`DEFAULT_GAMMA`]; each fallback
+/// adds a note.
+pub(crate) fn global_lenient(
+    dec: &Decomposition,
+    top: i64,
+    settings: &FitSettings,
+    notes: &mut Vec<String>,
+) -> GlobalAnalysis {
+    if let Ok(g) = global_from(dec, top, settings) {
+        return g;
+    }
+    let all = FitSettings {
+        min_level: 0,
+        ..settings.clone()
+    };
+    if let Ok(mut g) = global_from(dec, top, &all) {
+        notes.push(format!(
+            "fewer than 2 detail levels >= {} in the {} x {} input: the fit uses all {} levels",
+            settings.min_level,
+            dec.width,
+            dec.height,
+            g.levels.len()
+        ));
+        g.settings = settings.clone();
+        return g;
+    }
+    // Level variances without a fit: the same loop as global_from, nothing fitted.
+    let nl = dec.levels();
+    let levels: Vec<LevelVariance> = dec
+        .details
+        .iter()
+        .enumerate()
+        .map(|(i, lvl)| {
+            let depth = nl - i;
+            LevelVariance {
+                level: top - depth as i64,
+                depth,
+                variance: Band::ALL.map(|b| mean_square(lvl.band(b))),
+                count: Band::ALL.map(|b| lvl.band(b).len()),
+                fitted: false,
+            }
+        })
+        .collect();
+    notes.push(format!(
+        "the {} x {} input has fewer than 2 detail levels: default decay gamma = {DEFAULT_GAMMA} \
+         through the finest level",
+        dec.width, dec.height
+    ));
+    GlobalAnalysis {
+        wavelet: dec.wavelet,
+        width: dec.width,
+        height: dec.height,
+        top_level: top,
+        fits: default_fits(&levels, top, settings),
+        levels,
+        settings: settings.clone(),
+    }
+}
+
+/// The spectral model's fit: equation (3) through the finest `count` levels that have
+/// coefficients in every band (fewer, with a note, when the input has fewer; the global fit when
+/// fewer than 2).
+pub(crate) fn fine_fit(
+    global: &GlobalAnalysis,
+    count: usize,
+    settings: &FitSettings,
+    notes: &mut Vec<String>,
+) -> [BandFit; 3] {
+    let usable: Vec<&LevelVariance> = global
+        .levels
+        .iter()
+        .filter(|l| l.count.iter().all(|&c| c > 0))
+        .collect();
+    let used = &usable[usable.len().saturating_sub(count)..];
+    if used.len() < 2 {
+        notes.push(format!(
+            "spectral fit: fewer than 2 detail levels in the {} x {} input; the global fit is used",
+            global.width, global.height
+        ));
+        return global.fits;
+    }
+    if used.len() < count {
+        notes.push(format!(
+            "spectral fit: {} finest levels asked, the {} x {} input has {}",
+            count,
+            global.width,
+            global.height,
+            used.len()
+        ));
+    }
+    fit_levels(used, settings)
 }
 
 /// Global analysis (GSA statistics) of a void-free terrain: equations (2) and (3).

@@ -5,13 +5,14 @@ use relief_heightfield::{Heightfield, MAX_CELLS, NoProgress, Progress};
 use serde::{Deserialize, Serialize};
 
 use crate::analysis::{
-    FitSettings, GlobalAnalysis, LocalMaps, LocalStats, check_window, decompose, global_from,
-    maps_from,
+    BandFit, FitSettings, GlobalAnalysis, LocalMaps, LocalStats, check_window, decompose, fine_fit,
+    global_lenient, maps_from,
 };
-use crate::dwt::{AxisPlan, Band, Grid, inverse_level_window};
+use crate::dwt::{AxisPlan, Band, Grid, inverse_level_window, max_levels};
 use crate::error::{Result, WaveletError};
 use crate::lift::Boundary;
 use crate::rng::{fill_normals, row_key};
+use crate::spectral::{KR, KS, SpectralPlan, prefilter_grid};
 use crate::wavelet::Wavelet;
 
 /// Which statistics drive the synthesis.
@@ -26,12 +27,46 @@ pub enum Method {
     Lsa,
 }
 
+/// How the new coefficients are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    /// The default, a departure from the paper (see the crate docs, "Spectral model"): `gamma`
+    /// fitted on the finest [`RefineSettings::fine_levels`] levels, coloured coefficients whose
+    /// output spectrum continues the fitted power law inside every new octave, and an
+    /// area-consistent (pixel-is-area) placement of the input.
+    #[default]
+    Spectral,
+    /// The paper as written (section 5): independent Gaussian coefficients, `gamma` fitted from
+    /// [`FitSettings::min_level`] up, GSA or LSA, input samples on the even output samples.
+    Paper,
+}
+
+impl Model {
+    /// Lower-case name (`spectral`, `paper`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Spectral => "spectral",
+            Model::Paper => "paper",
+        }
+    }
+}
+
 /// Settings of [`Refiner`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct RefineSettings {
-    /// Basis (the paper recommends the linear spline, [`Wavelet::Cdf53`]).
+    /// Synthesis model: [`Model::Spectral`] (default) or the paper's [`Model::Paper`].
+    pub model: Model,
+    /// Basis. The default is [`Wavelet::Cdf97`], chosen by measurement for the spectral model
+    /// (its smoother synthesis filters leak less of each coarser synthetic level into the finer
+    /// octaves); the paper recommends the linear spline, [`Wavelet::Cdf53`]
+    /// ([`RefineSettings::paper`]).
     pub wavelet: Wavelet,
-    /// GSA or LSA.
+    /// GSA or LSA. With [`Model::Paper`] as in section 5; with [`Model::Spectral`], GSA draws
+    /// the same amplitude everywhere and LSA (default) modulates it by the bilinearly
+    /// interpolated local amplitude of the finest observed level (`window x window` mean
+    /// square), so flat areas stay flat.
     pub method: Method,
     /// LSA window side (odd; the paper tests 1, 3, 5, 7 and recommends 3).
     pub window: usize,
@@ -44,23 +79,50 @@ pub struct RefineSettings {
     /// Tile side (output cells, 16..=65536) of [`Refiner::render`]; only affects speed and
     /// memory, never the values.
     pub tile: usize,
+    /// Spectral model: number of finest observed levels the synthesis `gamma` is fitted on
+    /// (2..=8; fewer are used when the input has fewer levels, with a note).
+    pub fine_levels: usize,
+    /// Spectral model: correct the block means (one back-projection step, see the crate docs),
+    /// so that the box down-sampling of the refined terrain stays close to the input. Costs one
+    /// more synthesis of a slightly larger region.
+    pub consistency: bool,
+    /// Spectral model: smallest `gamma` of the continuation (in `[0, 8]`). With `gamma < 2`
+    /// every added octave adds more slope variance than the one before, so the slopes of the
+    /// refined terrain grow without bound with the number of levels, which real terrain does
+    /// not do; a fit on few coarse levels (large factors) often comes out that low because
+    /// terrain spectra steepen towards fine scales.
+    pub min_gamma: f64,
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
         Self {
-            wavelet: Wavelet::Cdf53,
+            model: Model::Spectral,
+            wavelet: Wavelet::Cdf97,
             method: Method::Lsa,
             window: 3,
             extra_levels: 2,
             seed: 0,
             fit: FitSettings::default(),
             tile: 512,
+            fine_levels: 4,
+            min_gamma: 2.0,
+            consistency: true,
         }
     }
 }
 
 impl RefineSettings {
+    /// The paper's defaults: [`Model::Paper`], the linear spline ([`Wavelet::Cdf53`]), LSA with
+    /// a 3 x 3 window.
+    pub fn paper() -> Self {
+        Self {
+            model: Model::Paper,
+            wavelet: Wavelet::Cdf53,
+            ..Self::default()
+        }
+    }
+
     /// Checks the settings.
     pub fn validate(&self) -> Result<()> {
         self.fit.validate()?;
@@ -72,6 +134,20 @@ impl RefineSettings {
                 "extra_levels",
                 self.extra_levels,
                 "must be <= 12",
+            ));
+        }
+        if !(2..=8).contains(&self.fine_levels) {
+            return Err(WaveletError::param(
+                "fine_levels",
+                self.fine_levels,
+                "must be in 2..=8",
+            ));
+        }
+        if !(0.0..=8.0).contains(&self.min_gamma) {
+            return Err(WaveletError::param(
+                "min_gamma",
+                self.min_gamma,
+                "must be in [0, 8]",
             ));
         }
         if !(16..=65_536).contains(&self.tile) {
@@ -91,15 +167,30 @@ impl RefineSettings {
 #[derive(Debug)]
 pub struct Refiner {
     input: Grid,
+    /// The approximation the synthesis starts from: the input, pre-filtered for area
+    /// consistency by the spectral model.
+    base: Grid,
     cell: (f64, f64),
     georef: Option<relief_heightfield::GeoRef>,
     settings: RefineSettings,
     global: GlobalAnalysis,
     local: Option<LocalStats>,
+    /// The `(gamma, a)` per band the new levels are drawn with (the global fit for the paper
+    /// model, the fit on the finest levels for the spectral model).
+    synthesis_fits: [BandFit; 3],
+    spectral: Option<SpectralPlan>,
+    /// Spectral model with LSA: per band, the local amplitude factor on the grid of the finest
+    /// observed detail level (mean square 1 over the terrain).
+    amplitude: Option<[Grid; 3]>,
+    notes: Vec<String>,
 }
 
 impl Refiner {
     /// Analyses a void-free terrain (forward DWT, equations (2)-(4)) and prepares the synthesis.
+    ///
+    /// An input too small for the requested fit is not an error: the fit falls back to the
+    /// levels available (or, below two levels, to a default decay), and [`Refiner::notes`]
+    /// says so.
     pub fn new(hf: &Heightfield, settings: &RefineSettings) -> Result<Self> {
         settings.validate()?;
         let n = settings.extra_levels;
@@ -114,21 +205,98 @@ impl Refiner {
                 "the refined grid would exceed the 2^31-cell limit",
             ));
         }
-        let (top, levels, _) = settings.fit.plan(hf.width(), hf.height())?;
-        let dec = decompose(hf, settings.wavelet, levels)?;
-        let global = global_from(&dec, top, &settings.fit)?;
-        let local = match settings.method {
-            Method::Gsa => None,
-            Method::Lsa => Some(LocalStats::new(&dec, top, settings.window, &settings.fit)?),
+        let mut notes = Vec::new();
+        let top = max_levels(hf.width(), hf.height());
+        let mut levels = match settings.fit.plan(hf.width(), hf.height()) {
+            Ok((_, levels, _)) => levels,
+            Err(WaveletError::TooFewLevels { .. }) => top,
+            Err(e) => return Err(e),
         };
+        if settings.model == Model::Spectral {
+            levels = levels.max(settings.fine_levels.min(top));
+        }
+        let top = top as i64;
+        let dec = decompose(hf, settings.wavelet, levels)?;
+        let global = global_lenient(&dec, top, &settings.fit, &mut notes);
+        let mut local = None;
+        if settings.method == Method::Lsa && settings.model == Model::Paper {
+            local = match LocalStats::new(&dec, top, settings.window, &settings.fit) {
+                Ok(l) => Some(l),
+                Err(WaveletError::TooFewLevels { .. }) => {
+                    let all = FitSettings {
+                        min_level: 0,
+                        ..settings.fit.clone()
+                    };
+                    match LocalStats::new(&dec, top, settings.window, &all) {
+                        Ok(l) => {
+                            notes.push(format!(
+                                "LSA: fewer than 2 levels >= {}; the local fit uses every \
+                                 level of the {} x {} input",
+                                settings.fit.min_level,
+                                hf.width(),
+                                hf.height()
+                            ));
+                            Some(l)
+                        }
+                        Err(_) => {
+                            notes.push(format!(
+                                "LSA: the {} x {} input has fewer than 2 detail levels; the \
+                                 global fit is used everywhere",
+                                hf.width(),
+                                hf.height()
+                            ));
+                            None
+                        }
+                    }
+                }
+                Err(e) => return Err(e),
+            };
+        }
+        let input = Grid::from_heightfield(hf);
+        let (synthesis_fits, spectral, base) = match settings.model {
+            Model::Paper => (global.fits, None, input.clone()),
+            Model::Spectral => {
+                let fit = FitSettings {
+                    gamma_min: settings.fit.gamma_min.max(settings.min_gamma),
+                    gamma_max: settings.fit.gamma_max.max(settings.min_gamma),
+                    ..settings.fit.clone()
+                };
+                let fits = fine_fit(&global, settings.fine_levels, &fit, &mut notes);
+                let beta = fits.map(|f| -(f.gamma + 2.0));
+                let plan = SpectralPlan::new(settings.wavelet, n, beta);
+                let base = prefilter_grid(&input, &plan.prefilter);
+                (fits, Some(plan), base)
+            }
+        };
+        let amplitude = (settings.model == Model::Spectral && settings.method == Method::Lsa)
+            .then(|| amplitude_maps(&dec, settings.window, settings.fit.variance_floor))
+            .flatten();
         Ok(Self {
-            input: Grid::from_heightfield(hf),
+            input,
+            base,
+            amplitude,
             cell: hf.cell_size(),
             georef: hf.georef().cloned(),
             settings: settings.clone(),
             global,
             local,
+            synthesis_fits,
+            spectral,
+            notes,
         })
+    }
+
+    /// Notes on the analysis: fallbacks taken for small inputs (fewer fitted levels than asked,
+    /// a default decay). Empty when everything went as configured.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// The `(gamma, a)` per band ([`Band::ALL`] order) the new levels are drawn with: the global
+    /// fit of equation (3) for [`Model::Paper`] GSA, the fit on the finest levels for
+    /// [`Model::Spectral`].
+    pub fn synthesis_fits(&self) -> &[BandFit; 3] {
+        &self.synthesis_fits
     }
 
     /// The global statistics (always computed, also for LSA).
@@ -167,7 +335,7 @@ impl Refiner {
                 .iter()
                 .map(|&j| {
                     Band::ALL.map(|b| {
-                        let f = self.global.fit(b);
+                        let f = &self.synthesis_fits[b.index()];
                         vec![(0.5 * (f.a - j * f.gamma)).exp2() as f32; w * h]
                     })
                 })
@@ -220,7 +388,12 @@ impl Refiner {
         let hf = Heightfield::new(w, h, data, self.cell.0 * s, self.cell.1 * s)?;
         // Refined sample k is centred on input pixel coordinate k * s (vertex-aligned lattice:
         // sample 2^n i lies on input sample i), so its corner is at k * s + (1 - s) / 2.
-        let shift = 0.5 - 0.5 * s;
+        // The spectral model is area-consistent: output block `[2^n i, 2^n (i + 1))` covers
+        // input cell `i`, the extent is the input's.
+        let shift = match self.settings.model {
+            Model::Paper => 0.5 - 0.5 * s,
+            Model::Spectral => 0.0,
+        };
         Ok(hf.with_georef(
             self.georef
                 .as_ref()
@@ -311,6 +484,17 @@ impl Refiner {
     /// The window at the finest level, computed from the input through every new level with
     /// only the lanes each inverse step needs (section 5, "generated when needed").
     fn render_region(&self, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
+        let correct = self.spectral.is_some() && self.settings.consistency;
+        self.render_pass(x, y, w, h, correct)
+    }
+
+    /// [`Refiner::render_region`] with or without the consistency correction of the spectral
+    /// model: with it, the approximation of every input cell the window needs is raised by the
+    /// cell's residual `input - box-down(uncorrected output)` (one back-projection step), which
+    /// removes most of what the synthetic detail and the interpolation add to the block means.
+    /// The uncorrected output of a block is the same whatever the window, and its mean is
+    /// summed in a fixed order, so windows stay bit-identical to the full run.
+    fn render_pass(&self, x: usize, y: usize, w: usize, h: usize, correct: bool) -> Vec<f32> {
         let n = self.settings.extra_levels;
         if n == 0 {
             let mut out = Vec::with_capacity(w * h);
@@ -334,10 +518,28 @@ impl Refiner {
             plans.push((px, py));
         }
         plans.reverse();
-        // Level 0: the input itself is the approximation at level J.
+        // Level 0: the input itself (pre-filtered by the spectral model) is the approximation
+        // at level J.
         let mut cur = Vec::with_capacity((bx - ax) * (by - ay));
         for r in ay..by {
-            cur.extend_from_slice(&self.input.data[r * iw + ax..r * iw + bx]);
+            cur.extend_from_slice(&self.base.data[r * iw + ax..r * iw + bx]);
+        }
+        if correct {
+            let f = 1usize << n;
+            let (uw, uh) = ((bx - ax) * f, (by - ay) * f);
+            let u = self.render_pass(ax * f, ay * f, uw, uh, false);
+            let inv = 1.0 / (f * f) as f64;
+            for (j, row) in cur.chunks_mut(bx - ax).enumerate() {
+                for (i, v) in row.iter_mut().enumerate() {
+                    let mut sum = 0.0f64;
+                    for r in 0..f {
+                        let o = (j * f + r) * uw + i * f;
+                        sum += u[o..o + f].iter().map(|&z| z as f64).sum::<f64>();
+                    }
+                    let target = self.input.data[(ay + j) * iw + ax + i] as f64;
+                    *v += (target - sum * inv) as f32;
+                }
+            }
         }
         let (lx0, ly0, lw, lh) = (ax, ay, bx - ax, by - ay);
         let scheme = wavelet.scheme();
@@ -350,6 +552,48 @@ impl Refiner {
                 let (cw, ch) = (xs.1 - xs.0, ys.1.max(ys.0) - ys.0);
                 let mut out = vec![0.0f32; cw * ch];
                 let s = &sig[band.index()];
+                if let Some(plan) = &self.spectral {
+                    let kern = &plan.kernels[t as usize][band.index()];
+                    colour_noise(
+                        self.settings.seed,
+                        band,
+                        level,
+                        xs.0,
+                        ys.0,
+                        cw,
+                        ch,
+                        kern,
+                        &mut out,
+                    );
+                    let sigma = s.first().copied().unwrap_or(0.0);
+                    match &self.amplitude {
+                        None => out.iter_mut().for_each(|v| *v *= sigma),
+                        Some(maps) => {
+                            let map = &maps[band.index()];
+                            // Coefficient k of new level t lies at input coordinate
+                            // (k + 1/2) / 2^t - 1/2; the amplitude grid at half the input
+                            // resolution. Bilinear, so the amplitude has no steps.
+                            let inv = 1.0 / (1u64 << t) as f32;
+                            let coord = |k: usize| ((k as f32 + 0.5) * inv - 0.5) * 0.5 - 0.25;
+                            let xw: Vec<(usize, usize, f32)> = (0..cw)
+                                .map(|k| lerp_index(coord(xs.0 + k), map.width))
+                                .collect();
+                            for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
+                                let (y0, y1, fy) = lerp_index(coord(ys.0 + r), map.height);
+                                let (r0, r1) = (
+                                    &map.data[y0 * map.width..(y0 + 1) * map.width],
+                                    &map.data[y1 * map.width..(y1 + 1) * map.width],
+                                );
+                                for (v, &(x0, x1, fx)) in row.iter_mut().zip(&xw) {
+                                    let a = r0[x0] + fx * (r0[x1] - r0[x0]);
+                                    let b = r1[x0] + fx * (r1[x1] - r1[x0]);
+                                    *v *= sigma * (a + fy * (b - a));
+                                }
+                            }
+                        }
+                    }
+                    return out;
+                }
                 for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
                     let gy = ys.0 + r;
                     let key = row_key(self.settings.seed, band.index(), level, gy);
@@ -368,6 +612,104 @@ impl Refiner {
             cur = inverse_level_window(scheme, Boundary::Symmetric, px, py, cur, hb, vb, db, false);
         }
         cur
+    }
+}
+
+/// Bilinear interpolation indices `(i0, i1, fraction)` of coordinate `u` on an axis of `n`
+/// samples (clamped at the ends).
+#[inline]
+fn lerp_index(u: f32, n: usize) -> (usize, usize, f32) {
+    if n <= 1 || u <= 0.0 {
+        return (0, 0, 0.0);
+    }
+    let last = (n - 1) as f32;
+    if u >= last {
+        return (n - 1, n - 1, 0.0);
+    }
+    let i = u as usize;
+    (i, i + 1, u - i as f32)
+}
+
+/// The local amplitude factors of the spectral model with LSA, per band: the square root of the
+/// windowed mean square of the finest observed detail level over its mean (so the factor has
+/// mean square 1 and the total variance of equation (5) is kept: this normalisation also removes
+/// the bias a logarithmic average of local variances would have). Flat areas get a factor near 0,
+/// rough ones above 1. `None` when the input has no detail level.
+fn amplitude_maps(dec: &crate::dwt::Decomposition, window: usize, floor: f64) -> Option<[Grid; 3]> {
+    let finest = dec.details.last()?;
+    if Band::ALL.iter().any(|&b| finest.band(b).is_empty()) {
+        return None;
+    }
+    Some(Band::ALL.map(|b| {
+        // The last coefficient of a high-pass lane of even length sees the mirrored boundary
+        // (a first rather than a second difference on a slope): it is replaced by its
+        // neighbour so that the border does not get a spuriously large amplitude.
+        let mut band = finest.band(b).clone();
+        let (w, h) = (band.width, band.height);
+        if w >= 2 {
+            for r in 0..h {
+                band.data[r * w + w - 1] = band.data[r * w + w - 2];
+            }
+        }
+        if h >= 2 {
+            let (head, tail) = band.data.split_at_mut((h - 1) * w);
+            tail[..w].copy_from_slice(&head[(h - 2) * w..]);
+        }
+        let g = crate::analysis::windowed_log_variance(&band, window, floor);
+        let lin: Vec<f64> = g.data.iter().map(|&v| (v as f64).exp2()).collect();
+        let mean = lin.iter().sum::<f64>() / lin.len() as f64;
+        let mean = if mean > 0.0 { mean } else { 1.0 };
+        Grid {
+            width: g.width,
+            height: g.height,
+            data: lin.iter().map(|v| (v / mean).sqrt() as f32).collect(),
+        }
+    }))
+}
+
+/// Coloured coefficients of the spectral model for the band region `[x0, x0 + w) x
+/// [y0, y0 + h)`: white numbers of the coefficient hash (the same stream as the paper model)
+/// filtered by the `KS x KS` kernel. Every value depends only on its position, never on the
+/// region, so windows and tiles agree bit for bit.
+#[allow(clippy::too_many_arguments)]
+fn colour_noise(
+    seed: u64,
+    band: Band,
+    level: i64,
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+    kern: &[f32; KS * KS],
+    out: &mut [f32],
+) {
+    if w == 0 || h == 0 {
+        return;
+    }
+    let ew = w + 2 * KR;
+    let mut white = vec![0.0f32; ew * (h + 2 * KR)];
+    for (r, row) in white.chunks_mut(ew).enumerate() {
+        let gy = (y0 + r).wrapping_sub(KR);
+        fill_normals(
+            row_key(seed, band.index(), level, gy),
+            x0.wrapping_sub(KR),
+            row,
+        );
+    }
+    for (r, orow) in out.chunks_mut(w).enumerate().take(h) {
+        orow.iter_mut().for_each(|v| *v = 0.0);
+        for q in 0..KS {
+            let src = &white[(r + q) * ew..(r + q + 1) * ew];
+            let taps = &kern[q * KS..(q + 1) * KS];
+            for (k, v) in orow.iter_mut().enumerate() {
+                let win = &src[k..k + KS];
+                let mut acc = 0.0f32;
+                for (a, b) in taps.iter().zip(win) {
+                    acc += a * b;
+                }
+                *v += acc;
+            }
+        }
     }
 }
 

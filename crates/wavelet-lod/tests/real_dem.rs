@@ -11,8 +11,8 @@ use relief_heightfield::metrics::{
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_testdata::dem_crop;
 use relief_wavelet_lod::{
-    Band, Boundary, FitSettings, Grid, LogVariancePlot, Method, RefineSettings, Refiner, Wavelet,
-    analyze, analyze_local, wavedec2, waverec2,
+    Band, Boundary, FitSettings, Grid, LogVariancePlot, Method, Model, RefineSettings, Refiner,
+    Wavelet, analyze, analyze_local, wavedec2, waverec2,
 };
 
 #[test]
@@ -108,28 +108,36 @@ fn lsa_on_the_flat_sea_of_n57e011_has_no_nan() {
         sea > 256 * 256 / 2,
         "crop should be mostly sea, {sea} cells at 0 m"
     );
-    let s = RefineSettings {
-        method: Method::Lsa,
-        window: 3,
-        seed: 3,
-        ..Default::default()
-    };
-    let r = Refiner::new(&hf, &s).unwrap();
-    let out = r.render(&NoProgress).unwrap();
-    assert!(out.as_slice().iter().all(|v| v.is_finite()));
-    // Where the input is flat sea in a wide neighbourhood, the refined terrain stays at 0 m.
-    let mut checked = 0;
-    for y in 8..248 {
-        for x in 8..248 {
-            let flat = (y - 8..y + 8).all(|yy| (x - 8..x + 8).all(|xx| hf.get(xx, yy) == 0.0));
-            if flat {
-                let v = out.get(4 * x, 4 * y);
-                assert!(v.abs() < 0.05, "sea at {x},{y} became {v}");
-                checked += 1;
+    for model in [Model::Paper, Model::Spectral] {
+        let s = RefineSettings {
+            model,
+            method: Method::Lsa,
+            window: 3,
+            seed: 3,
+            ..RefineSettings::paper()
+        };
+        let r = Refiner::new(&hf, &s).unwrap();
+        let out = r.render(&NoProgress).unwrap();
+        assert!(out.as_slice().iter().all(|v| v.is_finite()));
+        // Where the input is flat sea in a wide neighbourhood, the refined terrain stays at 0 m
+        // (the paper model puts input sample i on output sample 4i, the spectral model spreads
+        // it over the block [4i, 4i + 4)).
+        let mut checked = 0;
+        for y in 8..248 {
+            for x in 8..248 {
+                let flat = (y - 8..y + 8).all(|yy| (x - 8..x + 8).all(|xx| hf.get(xx, yy) == 0.0));
+                if flat {
+                    for (dx, dy) in [(0, 0), (1, 2), (3, 3)] {
+                        let v = out.get(4 * x + dx, 4 * y + dy);
+                        assert!(v.abs() < 0.05, "{model:?}: sea at {x},{y} became {v}");
+                    }
+                    checked += 1;
+                }
             }
         }
+        assert!(checked > 1000, "{checked} flat-sea cells checked");
     }
-    assert!(checked > 1000, "{checked} flat-sea cells checked");
+    let r = Refiner::new(&hf, &RefineSettings::paper()).unwrap();
     let maps = r.local_maps().unwrap();
     assert!(maps.a.iter().all(|g| g.data.iter().all(|v| v.is_finite())));
 }
@@ -229,13 +237,14 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
     let Some(hf) = dem_crop("alps_dem", 700, 300, 300, 260) else {
         return;
     };
-    let run = |threads: usize, wavelet: Wavelet, method: Method| {
+    let run = |threads: usize, wavelet: Wavelet, method: Method, model: Model| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
         pool.install(|| {
             let s = RefineSettings {
+                model,
                 wavelet,
                 method,
                 window: 5,
@@ -258,13 +267,58 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
             )
         })
     };
-    for wavelet in Wavelet::ALL {
-        for method in [Method::Gsa, Method::Lsa] {
-            let a = run(1, wavelet, method);
-            let b = run(2, wavelet, method);
-            assert!(a.0 == b.0, "{wavelet} {method:?}: refined terrain differs");
-            assert_eq!(a.1, b.1, "{wavelet} {method:?}: local maps differ");
-            assert_eq!(a.2, b.2, "{wavelet} {method:?}: analysis differs");
+    for model in [Model::Spectral, Model::Paper] {
+        for wavelet in Wavelet::ALL {
+            for method in [Method::Gsa, Method::Lsa] {
+                let a = run(1, wavelet, method, model);
+                let b = run(2, wavelet, method, model);
+                let what = format!("{model:?} {wavelet} {method:?}");
+                assert!(a.0 == b.0, "{what}: refined terrain differs");
+                assert_eq!(a.1, b.1, "{what}: local maps differ");
+                assert_eq!(a.2, b.2, "{what}: analysis differs");
+            }
         }
     }
+}
+
+/// Issue 16: on a real crop, the default (spectral) model's added octaves continue the
+/// spectrum (slope close to the truth's, much closer than the paper model and bicubic), the
+/// refinement is area-consistent, and the slope and curvature histograms beat bicubic's.
+#[test]
+fn spectral_model_matches_the_truth_spectrum_on_n47e011() {
+    let Some(mut dem) = relief_testdata::load_dem("N47E011") else {
+        return;
+    };
+    relief_heightfield::fill::fill_voids(&mut dem, &FillSettings::default()).unwrap();
+    let truth = dem.crop(100, 100, 512, 512).unwrap();
+    let p = relief_wavelet_lod::quality::Protocol::new(&truth, 4).unwrap();
+    let run = |s: RefineSettings| {
+        let out = Refiner::new(&p.coarse, &s)
+            .unwrap()
+            .render(&NoProgress)
+            .unwrap();
+        p.score(&out).unwrap()
+    };
+    let spectral = run(RefineSettings {
+        seed: 2024,
+        ..Default::default()
+    });
+    let paper = run(RefineSettings {
+        seed: 2024,
+        ..RefineSettings::paper()
+    });
+    let bicubic = p.score(&p.bicubic).unwrap();
+    println!(
+        "truth slope {:.2}; spectral {spectral:?}; paper {paper:?}; bicubic {bicubic:?}",
+        p.truth_slope
+    );
+    assert!(spectral.dslope < 0.5, "spectral dslope {}", spectral.dslope);
+    assert!(spectral.dslope < paper.dslope && spectral.dslope < bicubic.dslope);
+    assert!(
+        spectral.consistency < 0.005,
+        "consistency {}",
+        spectral.consistency
+    );
+    assert!(spectral.slope_emd < bicubic.slope_emd);
+    assert!(spectral.curv_emd < bicubic.curv_emd);
 }

@@ -118,7 +118,7 @@ fn refined_terrain_keeps_the_input_as_its_coarse_levels_and_follows_equation_5()
         method: Method::Gsa,
         extra_levels: 2,
         seed: 11,
-        ..Default::default()
+        ..RefineSettings::paper()
     };
     let r = Refiner::new(&hf, &s).unwrap();
     let out = r.render(&NoProgress).unwrap();
@@ -246,10 +246,11 @@ fn bad_settings_and_inputs_are_errors() {
             ..Default::default()
         },
         RefineSettings {
-            fit: FitSettings {
-                min_level: 5,
-                ..Default::default()
-            },
+            fine_levels: 1,
+            ..Default::default()
+        },
+        RefineSettings {
+            min_gamma: f64::NAN,
             ..Default::default()
         },
     ];
@@ -257,12 +258,24 @@ fn bad_settings_and_inputs_are_errors() {
         let e = Refiner::new(&hf, &s).unwrap_err();
         assert!(!e.to_string().is_empty());
     }
-    // Too small for a fit from level 3.
-    let tiny = rough(8, 8, 1);
-    assert!(matches!(
-        Refiner::new(&tiny, &RefineSettings::default()),
-        Err(WaveletError::TooFewLevels { .. })
-    ));
+    // Too few levels for the fit asked for: a result from the levels available, with a note.
+    let r = Refiner::new(
+        &hf,
+        &RefineSettings {
+            fit: FitSettings {
+                min_level: 5,
+                ..Default::default()
+            },
+            ..RefineSettings::paper()
+        },
+    )
+    .unwrap();
+    assert!(
+        r.notes().iter().any(|n| n.contains(">= 5")),
+        "{:?}",
+        r.notes()
+    );
+    assert!(r.render(&NoProgress).is_ok());
     // Voids.
     let mut holes = hf.clone();
     holes.set(3, 3, f32::NAN);
@@ -309,7 +322,12 @@ fn georeference_follows_the_vertex_aligned_lattice() {
         geotransform: Some([1000.0, 30.0, 0.0, 5000.0, 0.0, -30.0]),
         ..Default::default()
     }));
+    // The spectral model is area-consistent: same extent, pixel-is-area.
     let r = Refiner::new(&hf, &RefineSettings::default()).unwrap();
+    let out = r.render_window(8, 12, 16, 16).unwrap();
+    let t = out.georef().unwrap().geotransform.unwrap();
+    assert_eq!((t[0], t[3], t[1], t[5]), (1060.0, 4910.0, 7.5, -7.5));
+    let r = Refiner::new(&hf, &RefineSettings::paper()).unwrap();
     let out = r.render_window(8, 12, 16, 16).unwrap();
     let t = out.georef().unwrap().geotransform.unwrap();
     assert_eq!((t[1], t[5]), (7.5, -7.5));
@@ -377,5 +395,78 @@ enum SinkError {
 impl From<WaveletError> for SinkError {
     fn from(e: WaveletError) -> Self {
         Self::Wavelet(e)
+    }
+}
+
+#[test]
+fn small_inputs_give_a_result_with_a_note() {
+    for (w, h) in [(16, 16), (8, 8), (5, 3), (2, 2), (1, 1)] {
+        let hf = rough(w, h, 9);
+        for s in [RefineSettings::default(), RefineSettings::paper()] {
+            let r = Refiner::new(&hf, &s).unwrap_or_else(|e| panic!("{w}x{h} {:?}: {e}", s.model));
+            let out = r.render(&NoProgress).unwrap();
+            assert_eq!((out.width(), out.height()), (4 * w, 4 * h));
+            assert!(out.as_slice().iter().all(|v| v.is_finite()));
+            assert!(!r.notes().is_empty(), "{w}x{h} {:?}: no note", s.model);
+            // Windows still equal the full run.
+            let win = r.render_window(1, 1, 2, 2).unwrap();
+            assert_eq!(
+                bits(win.as_slice()),
+                bits(out.crop(1, 1, 2, 2).unwrap().as_slice())
+            );
+        }
+    }
+    // 16 x 16 has 4 levels: the spectral fit uses them (fewer than the 4 finest asked for only
+    // when a level is empty), so the note is about the paper's `min_level`.
+    let r = Refiner::new(&rough(16, 16, 9), &RefineSettings::default()).unwrap();
+    assert!(r.synthesis_fits().iter().all(|f| f.levels_used >= 2));
+}
+
+#[test]
+fn spectral_model_is_area_consistent() {
+    let hf = rough(96, 80, 12);
+    for levels in [1u32, 2, 3] {
+        let s = RefineSettings {
+            extra_levels: levels,
+            seed: 4,
+            ..Default::default()
+        };
+        let out = refine(&hf, &s).unwrap();
+        let f = 1usize << levels;
+        let down = out.downsample_box(f).unwrap();
+        let se: f64 = down
+            .as_slice()
+            .iter()
+            .zip(hf.as_slice())
+            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
+            .sum();
+        let rel = (se / hf.len() as f64).sqrt() / hf.relief() as f64;
+        // Without the correction step the same run is noticeably less consistent.
+        let raw = refine(
+            &hf,
+            &RefineSettings {
+                consistency: false,
+                ..s.clone()
+            },
+        )
+        .unwrap()
+        .downsample_box(f)
+        .unwrap();
+        let se_raw: f64 = raw
+            .as_slice()
+            .iter()
+            .zip(hf.as_slice())
+            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
+            .sum();
+        let rel_raw = (se_raw / hf.len() as f64).sqrt() / hf.relief() as f64;
+        // The issue asks for <= 0.5 % at x4 and <= 1 % at x16 on real DEMs.
+        assert!(
+            rel < 0.01,
+            "x{f}: box-down differs from the input by {rel} of the relief"
+        );
+        assert!(
+            rel < rel_raw,
+            "x{f}: correction does not help ({rel} vs {rel_raw})"
+        );
     }
 }

@@ -6,7 +6,7 @@ use proptest::prelude::*;
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_wavelet_lod::rng::{fill_normals, normal_at};
 use relief_wavelet_lod::{
-    Boundary, Decomposition, FitSettings, Grid, Method, RefineSettings, Refiner, Wavelet,
+    Boundary, Decomposition, FitSettings, Grid, Method, Model, RefineSettings, Refiner, Wavelet,
     WaveletError, analyze, analyze_local, dwt1, idwt1, max_levels, refine_window,
     render_log_variance_plot, size_at_depth, try_waverec2, wavedec2,
 };
@@ -70,9 +70,25 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
             2 => fit_settings()
         ],
         prop_oneof![3 => Just(512usize), 2 => 16usize..200, 2 => wild_usize()],
+        (
+            prop::bool::ANY,
+            prop_oneof![3 => Just(3usize), 1 => 0usize..12],
+            prop_oneof![3 => Just(2.0f64), 1 => -1.0f64..9.0],
+            prop::bool::ANY,
+        ),
     )
         .prop_map(
-            |(wavelet, gsa, window, extra_levels, seed, fit, tile)| RefineSettings {
+            |(
+                wavelet,
+                gsa,
+                window,
+                extra_levels,
+                seed,
+                fit,
+                tile,
+                (paper, fine_levels, min_gamma, consistency),
+            )| RefineSettings {
+                model: if paper { Model::Paper } else { Model::Spectral },
                 wavelet,
                 method: if gsa { Method::Gsa } else { Method::Lsa },
                 window,
@@ -80,6 +96,9 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 seed,
                 fit,
                 tile,
+                fine_levels,
+                min_gamma,
+                consistency,
             },
         )
 }
@@ -122,6 +141,8 @@ const FIELDS: &[&str] = &[
     "input",
     "decomposition",
     "strip",
+    "fine_levels",
+    "min_gamma",
 ];
 
 /// Every error names what is wrong: the field and its value for parameter errors.

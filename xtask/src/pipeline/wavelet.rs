@@ -28,8 +28,8 @@ use relief_heightfield::metrics::{
 };
 use relief_heightfield::{Heightfield, Progress};
 use relief_wavelet_lod::{
-    Band, FitSettings, GlobalAnalysis, Method, RefineSettings, Refiner, Wavelet as Basis, analyze,
-    render_log_variance_plot,
+    Band, FitSettings, GlobalAnalysis, Method, Model, RefineSettings, Refiner, Wavelet as Basis,
+    analyze, render_log_variance_plot,
 };
 use serde::Deserialize;
 
@@ -52,8 +52,12 @@ pub(crate) struct WaveletParams {
     pub(crate) levels: u32,
     /// LSA window side (odd; the paper recommends 3).
     pub(crate) window: usize,
-    /// Basis name (`haar`, `cdf53`, `cdf97`, `db4`; the paper recommends the linear spline).
-    pub(crate) wavelet: String,
+    /// Synthesis model: `"spectral"` (the default, issue 16) or `"paper"` (section 5 as
+    /// written).
+    pub(crate) model: Model,
+    /// Basis name (`haar`, `cdf53`, `cdf97`, `db4`); absent = the model's default (CDF 9/7
+    /// for the spectral model, the paper's linear spline CDF 5/3 for the paper model).
+    pub(crate) wavelet: Option<String>,
     /// Largest refined grid (cells) the showcase renders; a larger one is made from a centred
     /// crop of the terrain. Ignored for the terrain passed on by `replace_terrain`.
     pub(crate) max_cells: usize,
@@ -70,7 +74,8 @@ impl Default for WaveletParams {
         Self {
             levels: 2,
             window: 3,
-            wavelet: "cdf53".to_string(),
+            model: Model::Spectral,
+            wavelet: None,
             max_cells: 2048 * 2048,
             quality: true,
             replace_terrain: false,
@@ -91,7 +96,9 @@ impl WaveletStage {
         if p.levels == 0 {
             bail!("invalid `levels` = 0: at least one level must be synthesised");
         }
-        Basis::from_name(&p.wavelet).context("invalid `wavelet`")?;
+        if let Some(w) = &p.wavelet {
+            Basis::from_name(w).context("invalid `wavelet`")?;
+        }
         RefineSettings {
             window: p.window,
             extra_levels: p.levels,
@@ -105,14 +112,30 @@ impl WaveletStage {
         Ok(Self(params))
     }
 
+    /// The defaults of the model.
+    fn base(&self) -> RefineSettings {
+        match self.0.model {
+            Model::Spectral => RefineSettings::default(),
+            Model::Paper => RefineSettings::paper(),
+        }
+    }
+
+    /// The basis: the `wavelet` parameter or the model's default.
+    fn basis(&self) -> Result<Basis> {
+        Ok(match &self.0.wavelet {
+            Some(w) => Basis::from_name(w)?,
+            None => self.base().wavelet,
+        })
+    }
+
     fn settings(&self, method: Method, levels: u32, seed: u64) -> Result<RefineSettings> {
         Ok(RefineSettings {
-            wavelet: Basis::from_name(&self.0.wavelet)?,
+            wavelet: self.basis()?,
             method,
             window: self.0.window,
             extra_levels: levels,
             seed,
-            ..Default::default()
+            ..self.base()
         })
     }
 }
@@ -213,7 +236,8 @@ impl Stage for WaveletStage {
             terrain.crop((w - cw) / 2, (h - ch) / 2, cw, ch)?
         };
         cx.section.figure("levels", n);
-        cx.section.figure("wavelet", &p.wavelet);
+        cx.section.figure("wavelet", self.basis()?.name());
+        cx.section.figure("model", p.model.name());
         cx.section.figure("lsa_window", p.window);
         cx.section
             .figure("input_size", [input.width(), input.height()]);
@@ -267,7 +291,7 @@ impl Stage for WaveletStage {
 
         // Log-variance plots: input levels, fits, and the levels measured on each output.
         for (method, tag, _, out) in &refined {
-            let basis = Basis::from_name(&p.wavelet)?;
+            let basis = self.basis()?;
             let after = analyze(out, basis, &fit)?;
             let rgb = render_log_variance_plot(stats, n, Some(&after), 720, 440);
             cx.save_rgb(
@@ -462,10 +486,10 @@ fn quality(
     let f_hi = 0.5 / cxm.max(cym);
     let band = (f_hi / 4.0, f_hi);
     let t_slope = spectral_slope(&radial_power_spectrum(&truth)?, band.0, band.1)?;
-    // Bicubic keeps the extent (cell-centred lattice); the refinement is vertex-aligned:
+    // Bicubic keeps the extent (cell-centred lattice); the paper refinement is vertex-aligned:
     // refined sample k lies on coarse sample k / 4, i.e. on truth coordinate k + 1.5.
     let bicubic = coarse.resample(w, h)?;
-    let basis = Basis::from_name(&p.wavelet)?;
+    let basis = stage.basis()?;
     let t_added = added_levels(&truth, basis)?;
     let mut rows = vec![(
         "truth".to_string(),
@@ -498,7 +522,10 @@ fn quality(
             }
         };
         let out = refiner.render(&relief_heightfield::NoProgress)?;
-        let s = scores(&truth, &out, band, 1.5, basis)?;
+        // The paper model is vertex-aligned (refined sample k on truth coordinate k + 1.5), the
+        // spectral model area-aligned like bicubic.
+        let shift = if p.model == Model::Paper { 1.5 } else { 0.0 };
+        let s = scores(&truth, &out, band, shift, basis)?;
         let tag = if method == Method::Gsa { "gsa" } else { "lsa" };
         cx.section.figure(
             &format!("quality_{tag}_slope_error"),
@@ -562,6 +589,7 @@ mod tests {
             (serde_json::json!({"levels": 0}), "levels"),
             (serde_json::json!({"window": 4}), "window"),
             (serde_json::json!({"wavelet": "sym5"}), "sym5"),
+            (serde_json::json!({"model": "fancy"}), "fancy"),
             (serde_json::json!({"method": "both"}), "both"),
             (serde_json::json!({"max_cells": 10}), "max_cells"),
             (serde_json::json!({"levles": 1}), "levles"),
@@ -602,7 +630,8 @@ mod tests {
         let t = out.state.terrain().unwrap();
         assert_eq!((t.width(), t.height()), (144, 128));
         let src = out.state.source.as_ref().unwrap();
-        // The coarse shape is kept: refined sample 2i lies on input sample i.
+        // The coarse shape is kept: refined sample 2i lies on (paper model) or at a quarter cell
+        // from (spectral model, area-aligned) input sample i.
         let mut se = 0.0f64;
         for y in 0..64 {
             for x in 0..72 {

@@ -139,6 +139,15 @@ fn text(r: &Report) -> String {
         "fractal dimension (mean of bands): {:.4}",
         r.fractal_dimension
     );
+    if r.fractal_dimension < 2.0 {
+        // gamma > 2 means H > 1: no fractional Brownian surface decays that fast, so the
+        // fBm reading of section 4 does not hold over the fitted levels.
+        let _ = writeln!(
+            s,
+            "warning: D < 2 (gamma > 2): the fBm assumption fails over the fitted levels; the \
+             terrain is smoother than any fractal surface there and D is only a roughness index"
+        );
+    }
     let _ = writeln!(s, "log2 variance per level (equation 2):");
     let _ = writeln!(s, "  level  depth  h         v         d         fitted");
     for l in &a.levels {

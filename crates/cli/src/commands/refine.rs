@@ -1,6 +1,8 @@
 //! `relief refine IN OUT`: adds levels of detail with the wavelet synthesis of Perez et al.
-//! (relief-wavelet-lod): GSA (one statistics fit per band) or LSA (one per band and location,
-//! from a `W x W` window), any basis, a seed, and optionally only one window of the refined
+//! (relief-wavelet-lod): the spectral model (default, `--model spectral`: coloured coefficients
+//! that continue the terrain's spectrum, area-consistent) or the paper's (`--model paper`), GSA
+//! (one statistics fit per band) or LSA (local, from a `W x W` window), any basis, a seed, and
+//! optionally only one window of the refined
 //! terrain (`--window-of x,y,w,h`, in output cells; equal bit for bit to the same window of a
 //! full run, and costing memory proportional to the window).
 //!
@@ -27,6 +29,16 @@ pub(crate) enum MethodArg {
     Lsa,
 }
 
+/// Synthesis model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum ModelArg {
+    /// Coloured coefficients continuing the spectrum fitted on the finest levels,
+    /// area-consistent (the default; a departure from the paper).
+    Spectral,
+    /// The paper as written: independent Gaussian coefficients, fit from --min-level up.
+    Paper,
+}
+
 /// Arguments of `relief refine`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
@@ -37,15 +49,19 @@ pub(crate) struct Args {
     /// Number of synthesised levels: the output is 2^N times larger per side (1..=12).
     #[arg(long, default_value_t = 2)]
     pub(crate) levels: u32,
+    /// Synthesis model: spectral (default) or paper.
+    #[arg(long, value_enum, default_value_t = ModelArg::Spectral)]
+    pub(crate) model: ModelArg,
     /// Statistics scope: gsa (global) or lsa (local, the paper's recommendation).
     #[arg(long, value_enum, default_value_t = MethodArg::Lsa)]
     pub(crate) method: MethodArg,
     /// LSA window side (odd; the paper uses 1, 3, 5 or 7 and recommends 3).
     #[arg(long, default_value_t = 3)]
     pub(crate) window: usize,
-    /// Wavelet basis: haar, cdf53 (linear spline, default), cdf97, db4 (PyWavelets names too).
-    #[arg(long, default_value = "cdf53")]
-    pub(crate) wavelet: String,
+    /// Wavelet basis: haar, cdf53 (linear spline), cdf97, db4 (PyWavelets names too). Default:
+    /// cdf97 for the spectral model, cdf53 (the paper's) for --model paper.
+    #[arg(long)]
+    pub(crate) wavelet: Option<String>,
     /// Seed of the coefficient hash (same seed = same output bytes).
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
@@ -79,7 +95,14 @@ impl Args {
         if self.levels == 0 {
             bail!("invalid --levels 0: at least one level must be synthesised");
         }
-        let wavelet = Wavelet::from_name(&self.wavelet).context("invalid --wavelet")?;
+        let base = match self.model {
+            ModelArg::Spectral => RefineSettings::default(),
+            ModelArg::Paper => RefineSettings::paper(),
+        };
+        let wavelet = match &self.wavelet {
+            Some(w) => Wavelet::from_name(w).context("invalid --wavelet")?,
+            None => base.wavelet,
+        };
         let settings = RefineSettings {
             wavelet,
             method: match self.method {
@@ -93,7 +116,7 @@ impl Args {
                 min_level: self.min_level,
                 ..Default::default()
             },
-            ..Default::default()
+            ..base
         };
         settings.validate().context("invalid refine settings")?;
         Ok(settings)
@@ -123,6 +146,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     progress.begin("wavelet analysis", 0);
     let refiner = Refiner::new(&hf, &settings)
         .with_context(|| format!("cannot analyse {}", args.input.display()))?;
+    for n in refiner.notes() {
+        ctx.note(format!("note: {n}"));
+    }
     let (ow, oh) = refiner.output_size();
     let (x, y, w, h) = window.unwrap_or((0, 0, ow, oh));
     let streamed = relief_io::Format::from_extension(&args.output)
@@ -150,13 +176,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         drop(progress);
         None
     };
-    let fits = &refiner.analysis().fits;
+    let fits = refiner.synthesis_fits();
     ctx.note(format!(
-        "wrote {} ({w} x {h} of the {ow} x {oh} refined grid{}; {} {}, gamma h/v/d \
+        "wrote {} ({w} x {h} of the {ow} x {oh} refined grid{}; {} model, {} {}, gamma h/v/d \
          {:.3}/{:.3}/{:.3})",
         args.output.display(),
         band.map(|b| format!(", streamed in bands of {b} rows"))
             .unwrap_or_default(),
+        settings.model.name(),
         match settings.method {
             Method::Gsa => "gsa".to_string(),
             Method::Lsa => format!("lsa {0}x{0}", settings.window),
