@@ -146,6 +146,29 @@ fn preview_writes_png() {
     );
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // N47E011: 1201 x 1201 samples of 62.8 m x 92.6 m: the preview is square on the ground.
+    let Some(hgt) = dem("N47E011.hgt") else {
+        return;
+    };
+    let out = tmp.path().join("n47.png");
+    let res = relief(&[
+        os("preview"),
+        os("--fill-voids"),
+        hgt.as_os_str(),
+        out.as_os_str(),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let b = std::fs::read(&out).unwrap();
+    let (w, h) = (
+        u32::from_be_bytes(b[16..20].try_into().unwrap()),
+        u32::from_be_bytes(b[20..24].try_into().unwrap()),
+    );
+    assert_eq!(w, 1201);
+    assert!((1760..=1785).contains(&h), "preview height {h}");
 }
 
 #[test]
@@ -554,4 +577,41 @@ fn heightmaps_state_their_height_range() {
         "{}",
         String::from_utf8_lossy(&res.stderr)
     );
+}
+
+/// Issue 14: a Mapbox Terrain-RGB PNG (no relief marker) reads with `--png-encoding
+/// terrain-rgb`; without it the error names that flag, not a Rust API.
+#[test]
+fn terrain_rgb_png_reads_from_the_command_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (w, h) = (8usize, 4usize);
+    let mut rgb = Vec::new();
+    for i in 0..w * h {
+        let code = ((100.0 + i as f64 + 10_000.0) * 10.0).round() as u32;
+        rgb.extend_from_slice(&[(code >> 16) as u8, (code >> 8) as u8, code as u8]);
+    }
+    let p = tmp.path().join("tile.png");
+    relief_io::write_rgb_png(&p, w, h, &rgb).unwrap();
+    let res = relief(&[os("info"), p.as_os_str()]);
+    assert!(!res.status.success());
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        e.contains("--png-encoding terrain-rgb") && !e.contains("PngMode"),
+        "{e}"
+    );
+    let res = relief(&[
+        os("info"),
+        os("--json"),
+        os("--png-encoding"),
+        os("terrain-rgb"),
+        p.as_os_str(),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert!((v["statistics"]["min"].as_f64().unwrap() - 100.0).abs() < 0.06);
+    assert!((v["statistics"]["max"].as_f64().unwrap() - 131.0).abs() < 0.06);
 }

@@ -584,3 +584,58 @@ fn output_extension_and_existing_files() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert_ne!(bytes(&out), b"keep me");
 }
+
+/// Issue 18: absurd iteration counts are refused with the parameter named, not a capacity
+/// overflow panic, an abort or an endless loop; hostile magnitudes read as voids.
+#[test]
+fn absurd_counts_and_magnitudes_fail_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let tif = dir.path().join("dem.tif");
+    synthetic_tif(&tif, 48, 48);
+    let t = tif.display().to_string();
+    for it in ["18446744073709551615", "18446744073709551614", "1000000000"] {
+        let dict = dir.path().join("d.dict").display().to_string();
+        let o = relief(&["learn", &t, &dict, "--iterations", it, "-n", "8"]);
+        assert_one_line_failure(&o, &format!("learn --iterations {it}"));
+        assert!(stderr(&o).contains("iterations"), "{}", stderr(&o));
+        let sct = dir.path().join("c.sct").display().to_string();
+        let o = relief(&["compress", &t, &sct, "--iterations", it, "-n", "8"]);
+        assert_one_line_failure(&o, &format!("compress --iterations {it}"));
+        assert!(stderr(&o).contains("iterations"), "{}", stderr(&o));
+    }
+    // A float DEM whose -3.4e38 nodata lost its tag: those cells are voids, and quilt runs.
+    let mut hf = Heightfield::from_fn(96, 96, 10.0, 10.0, |x, y| {
+        300.0 + 20.0 * ((x as f32) * 0.1).sin() + 15.0 * ((y as f32) * 0.13).cos()
+    });
+    for i in 0..40 {
+        hf.set(i, 3, -3.402_823_5e38);
+    }
+    let ex = dir.path().join("max.tif");
+    relief_io::write(&ex, &hf, &relief_io::WriteOptions::default()).unwrap();
+    let back = relief_io::read(&ex, &relief_io::ReadOptions::default()).unwrap();
+    assert_eq!(back.heightfield.void_count(), 40);
+    let out = dir.path().join("q.tif").display().to_string();
+    let o = relief(&[
+        "quilt",
+        &out,
+        "--exemplar",
+        &ex.display().to_string(),
+        "--size",
+        "64",
+        "--patch",
+        "16",
+        "--overlap",
+        "4",
+        "--no-validate",
+    ]);
+    assert!(
+        o.status.success() || stderr(&o).starts_with("error: "),
+        "{}",
+        stderr(&o)
+    );
+    // An endless device is refused at the cell limit, not read until memory runs out.
+    if Path::new("/dev/zero").exists() {
+        let o = relief(&["info", "/dev/zero", "--max-input-cells", "1024"]);
+        assert_one_line_failure(&o, "info /dev/zero");
+    }
+}

@@ -122,6 +122,13 @@ pub fn constrained_learning(
     if s.n_atoms == 0 {
         return Err(LearnError::param("n_atoms", s.n_atoms, "must be >= 1"));
     }
+    if s.iterations > crate::ksvd::MAX_ITERATIONS {
+        return Err(LearnError::param(
+            "iterations",
+            s.iterations,
+            "must be at most 10000",
+        ));
+    }
     if s.sparsity == 0 || s.sparsity > s.n_atoms || s.sparsity > 64 {
         return Err(LearnError::param(
             "sparsity",

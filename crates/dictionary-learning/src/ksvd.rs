@@ -34,6 +34,10 @@ pub enum KsvdVariant {
     Approximate,
 }
 
+/// Largest number of learning iterations accepted (K-SVD and constrained learning): far
+/// beyond convergence (the paper uses tens), small enough that a typo cannot run for days.
+pub const MAX_ITERATIONS: usize = 10_000;
+
 /// Settings of [`ksvd`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KsvdSettings {
@@ -41,7 +45,7 @@ pub struct KsvdSettings {
     pub n_atoms: usize,
     /// Target sparsity `s` of the coding step.
     pub sparsity: usize,
-    /// Number of (coding, update) iterations.
+    /// Number of (coding, update) iterations (at most [`MAX_ITERATIONS`]).
     pub iterations: usize,
     /// Atom update rule.
     pub variant: KsvdVariant,
@@ -69,6 +73,13 @@ impl KsvdSettings {
     pub fn check(&self, n: usize) -> Result<()> {
         if self.n_atoms == 0 {
             return Err(LearnError::param("n_atoms", self.n_atoms, "must be >= 1"));
+        }
+        if self.iterations > MAX_ITERATIONS {
+            return Err(LearnError::param(
+                "iterations",
+                self.iterations,
+                "must be at most 10000",
+            ));
         }
         if self.sparsity == 0 || self.sparsity > self.n_atoms || self.sparsity > 64 {
             return Err(LearnError::param(

@@ -60,7 +60,8 @@ pub use baseline::{NoiseBaselineSettings, noise_amplify};
 pub use constrained::{ConstrainedSettings, constrained_learning};
 pub use error::{LearnError, Result};
 pub use ksvd::{
-    IterationStats, KsvdSettings, KsvdVariant, LearnedDictionary, ksvd, ksvd_from, ksvd_with_fixed,
+    IterationStats, KsvdSettings, KsvdVariant, LearnedDictionary, MAX_ITERATIONS, ksvd, ksvd_from,
+    ksvd_with_fixed,
 };
 pub use multires::{
     AmplifySettings, DictionaryChoice, MultiResDictionary, SynthesisSettings, amplify, synthesize,

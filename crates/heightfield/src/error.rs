@@ -34,9 +34,7 @@ pub enum HeightfieldError {
         cell_y: f64,
     },
     /// The operation needs a grid without voids.
-    #[error(
-        "heightfield has {count} void (NaN/nodata) cells; fill them first (e.g. `fill::fill_voids`)"
-    )]
+    #[error("heightfield has {count} void (NaN/nodata) cells; fill them first (--fill-voids)")]
     HasVoids {
         /// Number of void cells.
         count: usize,

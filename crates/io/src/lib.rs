@@ -299,7 +299,25 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
         )
         .in_file(path));
     }
-    let bytes = std::fs::read(path).map_err(|e| IoError::os(path, e))?;
+    // Devices and pipes report a length of 0: read them through the same cap, never to the
+    // end of an endless stream (`/dev/zero`).
+    let bytes = {
+        use std::io::Read as _;
+        let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
+        let mut buf = Vec::with_capacity(len.min(cap) as usize);
+        file.take(cap + 1)
+            .read_to_end(&mut buf)
+            .map_err(|e| IoError::os(path, e))?;
+        if buf.len() as u64 > cap {
+            return Err(IoError::param(
+                "max_cells",
+                opts.max_cells,
+                format!("the stream is longer than any raster within the cell limit ({cap} bytes)"),
+            )
+            .in_file(path));
+        }
+        buf
+    };
     let format = Format::detect(&bytes, Some(path)).map_err(|e| e.in_file(path))?;
     let res = match format {
         Format::F32Sidecar => sidecar::read_f32_file(path, &bytes, opts),

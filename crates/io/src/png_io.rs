@@ -139,7 +139,7 @@ pub(crate) fn read(bytes: &[u8], format: Format, opts: &ReadOptions) -> Result<R
             return Err(IoError::unsupported(
                 f,
                 format!(
-                    "{other:?} PNG: only grey PNGs are elevations (use PngMode::TerrainRgb for Mapbox Terrain-RGB)"
+                    "{other:?} PNG: only grey PNGs are elevations (read a Mapbox Terrain-RGB PNG with --png-encoding terrain-rgb)"
                 ),
             ));
         }

@@ -44,6 +44,10 @@ pub(crate) fn need(format: Format, what: &str, needed: u64, available: usize) ->
 }
 
 /// Builds the raster: nodata -> NaN, rejects NaN-only grids.
+/// Samples with a larger magnitude are read as voids (1e30 m: far beyond any elevation, far
+/// below the f32 nodata markers such as -3.4028235e38).
+pub(crate) const VOID_MAGNITUDE: f32 = 1e30;
+
 pub(crate) fn finish(
     format: Format,
     width: usize,
@@ -65,8 +69,10 @@ pub(crate) fn finish(
             }
         }
     }
+    // Infinite values, and magnitudes no terrain has (a float DEM whose GDAL nodata of
+    // -3.4e38 lost its tag), are voids.
     for v in &mut data {
-        if v.is_infinite() {
+        if v.is_infinite() || v.abs() > VOID_MAGNITUDE {
             *v = f32::NAN;
         }
     }

@@ -369,7 +369,7 @@ fn png8_grey_with_explicit_mapping() {
         read(&c, &ReadOptions::default())
             .unwrap_err()
             .to_string()
-            .contains("TerrainRgb")
+            .contains("terrain-rgb")
     );
     let t = read(
         &c,

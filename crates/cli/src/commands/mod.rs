@@ -45,6 +45,20 @@ pub(crate) struct ReadArgs {
     /// command that needs complete data refuses an input with voids.
     #[arg(long)]
     pub(crate) fill_voids: bool,
+    /// How a PNG input encodes heights: `auto` (relief's grey mapping or raw grey counts) or
+    /// `terrain-rgb` (Mapbox Terrain-RGB colour PNG).
+    #[arg(long, value_enum, default_value_t = PngEncoding::Auto)]
+    pub(crate) png_encoding: PngEncoding,
+}
+
+/// `--png-encoding` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub(crate) enum PngEncoding {
+    /// Grey PNG (relief's recorded mapping, else raw counts).
+    #[default]
+    Auto,
+    /// Mapbox Terrain-RGB.
+    TerrainRgb,
 }
 
 impl ReadArgs {
@@ -56,6 +70,10 @@ impl ReadArgs {
             max_cells: self
                 .max_input_cells
                 .unwrap_or(relief_io::ReadOptions::default().max_cells),
+            png: match self.png_encoding {
+                PngEncoding::Auto => relief_io::PngMode::Auto,
+                PngEncoding::TerrainRgb => relief_io::PngMode::TerrainRgb,
+            },
             ..Default::default()
         }
     }

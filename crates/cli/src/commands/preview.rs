@@ -28,9 +28,29 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let progress = ctx.progress();
     progress.begin("rendering preview", 0);
-    relief_io::write_preview_png(&args.output, &raster.heightfield)
+    let hf = square_cells(raster.heightfield)?;
+    relief_io::write_preview_png(&args.output, &hf)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     drop(progress);
     ctx.note(format!("wrote {}", args.output.display()));
     Ok(())
+}
+
+/// Resamples a grid with non-square ground cells (geographic grids away from the equator:
+/// N47E011's cells are 62.8 m x 92.6 m) so each preview pixel is square on the ground, stretching
+/// the shorter side; grids already within 1 % of square are kept as they are.
+fn square_cells(hf: relief_heightfield::Heightfield) -> Result<relief_heightfield::Heightfield> {
+    let (cx, cy) = hf.cell_size();
+    let ratio = cy / cx;
+    if (ratio - 1.0).abs() <= 0.01 || hf.has_voids() {
+        return Ok(hf);
+    }
+    let (w, h) = (hf.width() as f64, hf.height() as f64);
+    let (nw, nh) = if ratio > 1.0 {
+        (w, h * ratio)
+    } else {
+        (w / ratio, h)
+    };
+    hf.resample(nw.round().max(1.0) as usize, nh.round().max(1.0) as usize)
+        .context("cannot resample the preview to square ground cells")
 }
