@@ -31,6 +31,12 @@ pub(crate) struct Args {
     /// Support radius R in coarse pixels.
     #[arg(long, default_value_t = 4.0)]
     pub(crate) radius: f64,
+    /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
+    #[arg(long)]
+    pub(crate) step: Option<f64>,
+    /// The paper's plain method (no residual correction, no detail-energy normalisation).
+    #[arg(long)]
+    pub(crate) paper: bool,
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
@@ -67,6 +73,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 }
             },
             seed: args.seed,
+            step: args.step,
+            residual_correction: !args.paper,
+            normalize_detail: !args.paper,
             ..SynthesisSettings::default().amplify
         },
         height_range: args.height_range.as_deref().map(parse_range).transpose()?,
