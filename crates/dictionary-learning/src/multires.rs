@@ -805,22 +805,30 @@ fn box_down4(p: &[f32], a: usize) -> Vec<f64> {
     out
 }
 
-/// `box-down4(bicubic-up4(line))` of one line (the 1-D factor of the separable operator).
-fn box_of_bicubic(line: &[f64], out: &mut [f64]) {
-    let n = line.len() as i64;
-    let at = |i: i64| line[i.clamp(0, n - 1) as usize];
-    for (i, o) in out.iter_mut().enumerate() {
-        let mut acc = 0.0;
-        for j in 0..STEP_FACTOR {
-            let u =
-                i as f64 + (2.0 * j as f64 + 1.0 - STEP_FACTOR as f64) / (2.0 * STEP_FACTOR as f64);
-            let f = u.floor();
-            let w = keys(u - f);
-            let b = f as i64 - 1;
-            acc += (0..4).map(|k| w[k] * at(b + k as i64)).sum::<f64>();
-        }
-        *o = acc / STEP_FACTOR as f64;
-    }
+/// Taps of `box-down4(bicubic-up4(line))` for a line of `n` samples (the 1-D factor of the
+/// separable operator): for each output, the (clamped) input indices and weights.
+fn box_of_bicubic_taps(n: usize) -> Vec<Vec<(usize, f64)>> {
+    (0..n)
+        .map(|i| {
+            let mut taps: Vec<(usize, f64)> = Vec::with_capacity(6);
+            for j in 0..STEP_FACTOR {
+                let u = i as f64
+                    + (2.0 * j as f64 + 1.0 - STEP_FACTOR as f64) / (2.0 * STEP_FACTOR as f64);
+                let f = u.floor();
+                let w = keys(u - f);
+                let b = f as i64 - 1;
+                for (k, wk) in w.iter().enumerate() {
+                    let idx = (b + k as i64).clamp(0, n as i64 - 1) as usize;
+                    let wk = wk / STEP_FACTOR as f64;
+                    match taps.iter_mut().find(|t| t.0 == idx) {
+                        Some(t) => t.1 += wk,
+                        None => taps.push((idx, wk)),
+                    }
+                }
+            }
+            taps
+        })
+        .collect()
 }
 
 /// Back-projection iterations of [`back_project`].
@@ -831,24 +839,27 @@ const BACK_PROJECTION_ITERATIONS: usize = 4;
 /// interpolation of `r` then reduces (box average of the 4 x 4 fine cells) to `d`, so the
 /// output's box reduction matches the input closely instead of a low-passed copy of it.
 fn back_project(d: &[f64], w: usize, h: usize) -> Vec<f64> {
+    use rayon::prelude::*;
+    let (tx, ty) = (box_of_bicubic_taps(w), box_of_bicubic_taps(h));
     let mut r = d.to_vec();
     let mut tmp = vec![0.0; w * h];
-    let mut col = vec![0.0; h];
-    let mut col_out = vec![0.0; h];
     for _ in 0..BACK_PROJECTION_ITERATIONS {
-        for (src, dst) in r.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-            box_of_bicubic(src, dst);
-        }
-        for x in 0..w {
-            for y in 0..h {
-                col[y] = tmp[y * w + x];
-            }
-            box_of_bicubic(&col, &mut col_out);
-            for y in 0..h {
-                let o = y * w + x;
-                r[o] += d[o] - col_out[y];
-            }
-        }
+        tmp.par_chunks_mut(w)
+            .zip(r.par_chunks(w))
+            .for_each(|(dst, src)| {
+                for (o, taps) in dst.iter_mut().zip(&tx) {
+                    *o = taps.iter().map(|&(i, wt)| wt * src[i]).sum();
+                }
+            });
+        r.par_chunks_mut(w)
+            .zip(d.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, drow))| {
+                for (x, (o, dv)) in row.iter_mut().zip(drow).enumerate() {
+                    let bu: f64 = ty[y].iter().map(|&(i, wt)| wt * tmp[i * w + x]).sum();
+                    *o += dv - bu;
+                }
+            });
     }
     r
 }
@@ -923,7 +934,16 @@ pub fn amplify_observed(
             seed: item_seed(settings.seed, 0x57e9, t as u64),
             ..*settings
         };
-        let training = extract_patches(&current, &settings.coarse_geometry())?;
+        // Training signals for constrained learning (subsampled to `max_training` anyway):
+        // patches one radius apart are as representative as the coding grid's, at a quarter
+        // of the extraction cost.
+        let training = extract_patches(
+            &current,
+            &PatchGeometry {
+                step: settings.grid_step().max(settings.radius.floor().max(1.0)),
+                ..settings.coarse_geometry()
+            },
+        )?;
         let dict = MultiResDictionary::from_exemplar(
             &ex,
             Some(training.matrix.view()),
