@@ -969,7 +969,8 @@ pub fn amplify_observed(
 /// Settings of [`synthesize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SynthesisSettings {
-    /// Amplification settings; `steps` defaults to 3 (figure 12: three incremental steps).
+    /// Amplification settings; `steps` defaults to 3 (figure 12: three incremental steps) and
+    /// the residual correction is off (the sketch's pixels are not to be reproduced).
     pub amplify: AmplifySettings,
     /// Elevation range the sketch's `[min, max]` is mapped to (`None`: the exemplar's range).
     pub height_range: Option<(f32, f32)>,
@@ -984,6 +985,9 @@ impl Default for SynthesisSettings {
                     n_atoms: 64,
                     iterations: 3,
                 },
+                // A painted sketch is not a measurement: forcing the output to reduce to its
+                // pixels would reproduce them. The detail blend is still energy-normalised.
+                residual_correction: false,
                 ..Default::default()
             },
             height_range: None,

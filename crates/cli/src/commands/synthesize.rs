@@ -34,7 +34,8 @@ pub(crate) struct Args {
     /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
     #[arg(long)]
     pub(crate) step: Option<f64>,
-    /// The paper's plain method (no residual correction, no detail-energy normalisation).
+    /// The paper's plain method (no detail-energy normalisation; synthesis never applies the
+    /// residual correction, a sketch's pixels are not to be reproduced).
     #[arg(long)]
     pub(crate) paper: bool,
     /// Number of learned atoms N; 0 = the complete dictionary.
@@ -74,7 +75,6 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             },
             seed: args.seed,
             step: args.step,
-            residual_correction: !args.paper,
             normalize_detail: !args.paper,
             ..SynthesisSettings::default().amplify
         },
