@@ -56,6 +56,13 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
     for (name, base) in [
         ("default", AmplifySettings::default()),
         ("--paper", AmplifySettings::paper()),
+        (
+            "default w/o detail norm.",
+            AmplifySettings {
+                normalize_detail: false,
+                ..AmplifySettings::default()
+            },
+        ),
     ] {
         let st = AmplifySettings { steps, ..base };
         let t = Instant::now();
@@ -159,6 +166,7 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
 
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
+    let x256_only = std::env::args().any(|a| a == "--x256");
     let (Some(alps), Some(alps_ex)) = (
         dem_crop("alps_dem", 100, 200, 512, 512),
         dem_crop("alps_dem", 1300, 100, 1024, 640),
@@ -169,7 +177,7 @@ fn main() {
     // Truth: Inn valley and the mountains south of it; exemplar: the mountains further east.
     let n47 = filled("N47E011", 0, 688, 512, 512).zip(filled("N47E011", 600, 688, 601, 512));
     let carrizo = dem_crop("carrizo", 0, 0, 448, 448).zip(dem_crop("carrizo", 0, 452, 505, 448));
-    for steps in [1, 2] {
+    for steps in [1, 2].into_iter().filter(|_| !x256_only) {
         table("alps_dem", &alps, &alps_ex, steps);
         if let Some((t, e)) = &n47 {
             table("N47E011 (filled)", t, e, steps);
@@ -183,6 +191,13 @@ fn main() {
         for (name, s) in [
             ("default", AmplifySettings::default()),
             ("--paper", AmplifySettings::paper()),
+            (
+                "residual correction without detail normalisation",
+                AmplifySettings {
+                    normalize_detail: false,
+                    ..AmplifySettings::default()
+                },
+            ),
         ] {
             println!("{name}:");
             x256_steps(&alps, &alps_ex, &s);
