@@ -630,3 +630,40 @@ fn detail_gain_flattens_the_blend_variance() {
         assert!((1.5..4.0).contains(&gi), "{gi}");
     }
 }
+
+#[test]
+fn default_amplification_window_equals_full_raster_bit_for_bit() {
+    let (Some(hf), Some(ex)) = (alps(500, 100, 48, 48), alps(1500, 350, 256, 256)) else {
+        return;
+    };
+    let s = AmplifySettings {
+        steps: 2,
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 32,
+            iterations: 1,
+        },
+        max_candidates: 1024,
+        ..Default::default()
+    };
+    let sct = amplify(&hf, &ex, &s, &NoProgress).unwrap();
+    let full = sct.rasterize(&RasterSettings::default()).unwrap();
+    let win = relief_sparse_core::Window {
+        x: 101,
+        y: 37,
+        width: 333,
+        height: 77,
+    };
+    let part = sct
+        .rasterize(&RasterSettings {
+            scale: 1.0,
+            window: Some(win),
+        })
+        .unwrap();
+    let crop = full.crop(win.x, win.y, win.width, win.height).unwrap();
+    assert!(
+        part.as_slice()
+            .iter()
+            .zip(crop.as_slice())
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+}
