@@ -252,7 +252,9 @@ fn synthesize_from_painted_sketch() {
     let out = read(&out_path);
     assert_eq!((out.width(), out.height()), (256, 256));
     let (lo, hi) = out.min_max().unwrap();
-    assert!(lo > 300.0 && hi < 2500.0 && hi - lo > 1200.0, "{lo}..{hi}");
+    // The detail (at full energy since the blend is energy-normalised) reaches a little
+    // beyond the sketch's 500-2300 m.
+    assert!(lo > 300.0 && hi < 2700.0 && hi - lo > 1200.0, "{lo}..{hi}");
     let back = out.resample(16, 16).unwrap();
     let c = pearson(back.as_slice(), read(&sk).as_slice());
     assert!(c > 0.95, "correlation with the sketch {c}");

@@ -25,7 +25,8 @@ fn main() {
     };
     println!("threads: {}", rayon::current_num_threads());
     let coarse = src.resample(32, 32).unwrap();
-    let s = AmplifySettings {
+    let compare = std::env::args().any(|a| a == "--compare");
+    let base = AmplifySettings {
         steps: 4,
         dictionary: DictionaryChoice::Learned {
             n_atoms: 256,
@@ -33,16 +34,36 @@ fn main() {
         },
         ..Default::default()
     };
-    let t = Instant::now();
-    let sct = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
-    let t_model = t.elapsed().as_secs_f64();
-    let out = sct.rasterize(&RasterSettings::default()).unwrap();
-    let total = t.elapsed().as_secs_f64();
-    println!(
-        "x256 amplification 32^2 -> {}x{}: model {t_model:.2} s, total with raster {total:.2} s",
-        out.width(),
-        out.height()
-    );
+    let mut modes = vec![("default", base)];
+    if compare {
+        // The paper's plain method on the paper's grid, and the former default (grid step R).
+        let paper = AmplifySettings {
+            residual_correction: false,
+            normalize_detail: false,
+            ..base
+        };
+        modes.push(("--paper", paper));
+        modes.push((
+            "--paper --step 4 (former default)",
+            AmplifySettings {
+                step: Some(4.0),
+                ..paper
+            },
+        ));
+    }
+    for (name, s) in modes {
+        let t = Instant::now();
+        let sct = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
+        let t_model = t.elapsed().as_secs_f64();
+        let out = sct.rasterize(&RasterSettings::default()).unwrap();
+        let total = t.elapsed().as_secs_f64();
+        println!(
+            "x256 amplification 32^2 -> {}x{} [{name}]: model {t_model:.2} s, total with raster \
+             {total:.2} s",
+            out.width(),
+            out.height()
+        );
+    }
     let sketch = Heightfield::from_fn(128, 64, 1.0, 1.0, |x, y| {
         let (u, v) = (x as f32 / 127.0, y as f32 / 63.0);
         let ridge = 1.0 - ((u - 0.5) * 2.2 + 0.3 * (v * 6.0).sin()).abs();

@@ -21,6 +21,17 @@
 //! that step's resolution when it is large enough, otherwise the smallest usable reduction
 //! (self-similarity of relief across scales; documented, not guaranteed).
 //!
+//! # Defaults that depart from the paper
+//! Steps 1-3 are the paper's method ([`AmplifySettings::paper`]). By default two things are
+//! added: the high-frequency part of every `H` atom is scaled by the detail gain of the grid
+//! ([`detail_gain`], [`AmplifySettings::normalize_detail`]) so that the blended detail has a
+//! flat variance, and a residual layer ([`AmplifySettings::residual_correction`]) makes the
+//! box reduction of the output match the input: the footprint of every code (the box x4
+//! reduction of its `H` atom) predicts `box-down(detail layer)` on the coarse grid, the
+//! difference to the input is back-projected through the bicubic x4 interpolation (4 fixed-point
+//! iterations of `r += d - box(bicubic(r))`) and placed as a layer of its own patches (spacing 4,
+//! centres every `R` coarse pixels).
+//!
 //! The radius `R` (figure 11) sets the patch size `a = 2 ceil(R)` and the support: small `R`
 //! follows the input closely, large `R` imposes more of the exemplar.
 
@@ -62,7 +73,9 @@ pub enum DictionaryChoice {
 pub struct AmplifySettings {
     /// Support radius `R` in coarse pixels (figure 11); patch side `a = 2 ceil(R)`.
     pub radius: f64,
-    /// Step `S` between coarse centres (`None`: `R`). Must satisfy `R > S / sqrt(2)`.
+    /// Step `S` between coarse centres, a whole number of pixels (`None`: half the radius,
+    /// `max(1, floor(R / 2))`, the paper's grid step, so that about `pi R^2 / S^2` (12)
+    /// primitives overlap at every point). Must satisfy `R > S / sqrt(2)`.
     pub step: Option<f64>,
     /// Number of x4 steps (1: x4, 2: x16, 3: x64, 4: x256).
     pub steps: usize,
@@ -78,10 +91,21 @@ pub struct AmplifySettings {
     pub max_training: usize,
     /// Seed (candidate subsampling, learning initialisation).
     pub seed: u64,
-    /// Not in the paper: also add the coarse coding residual (input minus its reconstruction
-    /// on `L`), interpolated by a second sparse layer (its complete dictionary, atoms sampled
-    /// every 4 fine pixels, bicubic), so the output stays consistent with the input.
+    /// Not in the paper (default on): also add the coarse coding residual (input minus its
+    /// reconstruction on `L`), interpolated by a second sparse layer (its complete dictionary,
+    /// atoms sampled every 4 fine pixels, bicubic, centres every `R` coarse pixels), so the
+    /// output stays consistent with the input.
     pub residual_correction: bool,
+    /// Not in the paper (default on): normalise the detail energy of the blend. The blend
+    /// `sum a_i f_i / sum a_i` of details from unrelated atoms has the variance
+    /// `V(p) = sum a_i^2 / (sum a_i)^2` times a single detail's, which depends on the position
+    /// `p` modulo the grid step (a visible grid) and is well below 1 (washed-out detail). The
+    /// high-frequency part of every `H` atom (`H_j` minus the bicubic up-sampling of `L_j`) is
+    /// multiplied by `1 / sqrt(V)` at each of its samples; since all centres lie on the same
+    /// lattice this is the same factor for every atom, so it is baked into the dictionary and
+    /// the blended detail has a flat, undiminished variance. The low part (what the input
+    /// constrains) is untouched, so consistency is kept.
+    pub normalize_detail: bool,
 }
 
 impl Default for AmplifySettings {
@@ -99,12 +123,29 @@ impl Default for AmplifySettings {
             max_candidates: 4096,
             max_training: 8192,
             seed: 0,
-            residual_correction: false,
+            residual_correction: true,
+            normalize_detail: true,
         }
     }
 }
 
 impl AmplifySettings {
+    /// The paper's plain method (section 5.3) for comparison: the default settings without the
+    /// residual correction and without the detail-energy normalisation.
+    pub fn paper() -> Self {
+        Self {
+            residual_correction: false,
+            normalize_detail: false,
+            ..Self::default()
+        }
+    }
+
+    /// Coarse grid step `S` (see [`Self::step`]).
+    pub fn grid_step(&self) -> f64 {
+        self.step
+            .unwrap_or_else(|| (self.radius / 2.0).floor().max(1.0))
+    }
+
     /// Validates the settings.
     pub fn check(&self) -> Result<()> {
         if !(self.radius.is_finite() && self.radius >= 1.0 && self.radius <= 32.0) {
@@ -114,7 +155,7 @@ impl AmplifySettings {
                 "must be in [1, 32] coarse pixels",
             ));
         }
-        let step = self.step.unwrap_or(self.radius);
+        let step = self.grid_step();
         if !(step.is_finite() && step >= 1.0 && step.fract() == 0.0) {
             return Err(LearnError::param(
                 "step",
@@ -167,7 +208,7 @@ impl AmplifySettings {
         PatchGeometry {
             patch_size: self.patch_size(),
             spacing: 1.0,
-            step: self.step.unwrap_or(self.radius),
+            step: self.grid_step(),
             support_radius: self.radius,
         }
     }
@@ -184,6 +225,15 @@ pub struct MultiResDictionary {
     pub transfer: Vec<f32>,
     /// Centre of each atom in the coarse exemplar (pixel coordinates), for inspection.
     pub origins: Vec<[f64; 2]>,
+    /// Box x4 reduction of each `H` atom per unit code on `L` (`a x a`, the coarse footprint
+    /// of the fine primitive), as a dictionary: atom `j` times `footprint_scale[j]` plus
+    /// `footprint_mean[j]` (the mean over the coarse support) is the footprint. Used by the
+    /// residual correction to predict `box-down(output)` on the coarse grid.
+    pub footprint: Arc<Dictionary>,
+    /// Norms of the footprints (0 for a footprint without relief).
+    pub footprint_scale: Vec<f32>,
+    /// Means of the footprints over the coarse support.
+    pub footprint_mean: Vec<f32>,
 }
 
 struct Candidates {
@@ -200,6 +250,85 @@ fn masked_mean_removed(v: &mut [f64], mask: &[bool]) {
         .fold((0.0, 0usize), |(s, c), (x, _)| (s + x, c + 1));
     let mean = s / c.max(1) as f64;
     v.iter_mut().for_each(|x| *x -= mean);
+}
+
+/// Keys cubic (Catmull-Rom) weights of the four taps around a fractional offset `t`.
+fn keys(t: f64) -> [f64; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    ]
+}
+
+/// x4 bicubic up-sampling of an `a x a` patch to `4a x 4a` (pixel-centre alignment, edges
+/// clamped): the same interpolation as a layer of `a x a` atoms at spacing 4.
+fn upsample4(p: &[f64], a: usize) -> Vec<f64> {
+    let ah = STEP_FACTOR * a;
+    let taps: Vec<([usize; 4], [f64; 4])> = (0..ah)
+        .map(|o| {
+            let u = (o as f64 + 0.5) / STEP_FACTOR as f64 - 0.5;
+            let f = u.floor();
+            let base = f as i64 - 1;
+            let idx = [0, 1, 2, 3].map(|k| (base + k).clamp(0, a as i64 - 1) as usize);
+            (idx, keys(u - f))
+        })
+        .collect();
+    let mut rows = vec![0.0; a * ah];
+    for r in 0..a {
+        for (o, (idx, w)) in taps.iter().enumerate() {
+            rows[r * ah + o] = (0..4).map(|k| w[k] * p[r * a + idx[k]]).sum();
+        }
+    }
+    let mut out = vec![0.0; ah * ah];
+    for (o, (idx, w)) in taps.iter().enumerate() {
+        for c in 0..ah {
+            out[o * ah + c] = (0..4).map(|k| w[k] * rows[idx[k] * ah + c]).sum();
+        }
+    }
+    out
+}
+
+/// Detail gain `1 / sqrt(V(u))` at the samples of an `ah x ah` fine patch (offsets
+/// `u = index - (ah - 1) / 2` from its centre), where `V(u) = sum a_k^2 / (sum a_k)^2` over
+/// the primitives of a lattice of step `step` through the centre, with weights
+/// `a_k = g(|u - k step| / radius)` of the sparse layer (see
+/// [`AmplifySettings::normalize_detail`]). `V` is periodic, so the gain is the same for every
+/// primitive of the lattice.
+pub fn detail_gain(ah: usize, step: f64, radius: f64) -> Vec<f64> {
+    let h = (ah as f64 - 1.0) / 2.0;
+    let ks = |u: f64| {
+        let lo = ((u - radius) / step).ceil() as i64;
+        let hi = ((u + radius) / step).floor() as i64;
+        lo..=hi
+    };
+    let mut out = vec![1.0; ah * ah];
+    for r in 0..ah {
+        let uy = r as f64 - h;
+        for c in 0..ah {
+            let ux = c as f64 - h;
+            let (mut s1, mut s2) = (0.0f64, 0.0f64);
+            for ky in ks(uy) {
+                let dy = uy - ky as f64 * step;
+                for kx in ks(ux) {
+                    let dx = ux - kx as f64 * step;
+                    let r2 = (dx * dx + dy * dy) / (radius * radius);
+                    if r2 < 1.0 {
+                        let w = (1.0 - r2).powi(3);
+                        s1 += w;
+                        s2 += w * w;
+                    }
+                }
+            }
+            if s1 > 0.0 && s2 > 0.0 {
+                // V <= 1 always; the cap only guards sparse grids (S close to R sqrt 2).
+                out[r * ah + c] = (s1 / s2.sqrt()).min(8.0);
+            }
+        }
+    }
+    out
 }
 
 /// Candidate (L, H) patch pairs of an exemplar whose size is a multiple of 4.
@@ -244,6 +373,10 @@ fn candidates(exemplar: &Heightfield, settings: &AmplifySettings) -> Result<Cand
         pick.sort_unstable();
         corners = pick.into_iter().map(|i| corners[i]).collect();
     }
+    let gain = settings.normalize_detail.then(|| {
+        let f = STEP_FACTOR as f64;
+        detail_gain(ah, f * settings.grid_step(), f * settings.radius)
+    });
     let lv = low.view();
     let hv = ex.view();
     let mut lows = Vec::with_capacity(corners.len() * a * a);
@@ -265,6 +398,13 @@ fn candidates(exemplar: &Heightfield, settings: &AmplifySettings) -> Result<Cand
             }
         }
         masked_mean_removed(&mut hbuf, &mask_h);
+        if let Some(gain) = &gain {
+            let up = upsample4(&buf, a);
+            for ((hv, &lv), &g) in hbuf.iter_mut().zip(&up).zip(gain) {
+                *hv = lv + g * (*hv - lv);
+            }
+            masked_mean_removed(&mut hbuf, &mask_h);
+        }
         lows.extend(buf.iter().map(|&v| v as f32));
         highs.push(hbuf.iter().map(|&v| v as f32).collect());
         origins.push([
@@ -415,6 +555,9 @@ impl MultiResDictionary {
         let mut high = Dictionary::new(STEP_FACTOR * a, 1.0, settings.radius * STEP_FACTOR as f64)?;
         let mut transfer = Vec::with_capacity(chosen.len());
         let mut origins = Vec::with_capacity(chosen.len());
+        let mut footprint = Dictionary::new(a, 1.0, settings.radius)?;
+        let mut footprint_scale = Vec::with_capacity(chosen.len());
+        let mut footprint_mean = Vec::with_capacity(chosen.len());
         for (j, &c) in chosen.iter().enumerate() {
             low.row_mut(j)
                 .iter_mut()
@@ -423,12 +566,40 @@ impl MultiResDictionary {
             high.push_data(&cand.high[c])?;
             transfer.push((hnorms[c] / norms[c]) as f32);
             origins.push(cand.origins[c]);
+            let mut b = box_down4(&cand.high[c], a);
+            b.iter_mut().for_each(|v| *v /= norms[c]);
+            let (mean, cnt) = b
+                .iter()
+                .zip(footprint.support_mask())
+                .filter(|(_, m)| **m)
+                .fold((0.0, 0usize), |(s, c), (v, _)| (s + v, c + 1));
+            let mean = mean / cnt.max(1) as f64;
+            let norm = b
+                .iter()
+                .map(|v| (v - mean) * (v - mean))
+                .sum::<f64>()
+                .sqrt();
+            let row: Vec<f32> = b.iter().map(|&v| v as f32).collect();
+            match footprint.push_data(&row) {
+                Ok(_) => footprint_scale.push(norm as f32),
+                Err(relief_sparse_core::SparseError::DegenerateAtom { .. }) => {
+                    let mut v = vec![0f32; a * a];
+                    v[0] = 1.0;
+                    footprint.push_data(&v)?;
+                    footprint_scale.push(0.0);
+                }
+                Err(e) => return Err(e.into()),
+            }
+            footprint_mean.push(mean as f32);
         }
         Ok(Self {
             low,
             high: Arc::new(high),
             transfer,
             origins,
+            footprint: Arc::new(footprint),
+            footprint_scale,
+            footprint_mean,
         })
     }
 
@@ -495,7 +666,7 @@ impl MultiResDictionary {
         )?;
         let (cx, cy) = coarse.cell_size();
         let root = if settings.residual_correction {
-            let res = self.residual_layer(coarse, &patches, &codes, settings, fine)?;
+            let res = self.residual_layer(coarse, &patches, &codes, settings)?;
             Node::Add(vec![Node::Layer(layer), Node::Layer(res)])
         } else {
             Node::Layer(layer)
@@ -510,41 +681,83 @@ impl MultiResDictionary {
 }
 
 impl MultiResDictionary {
-    /// The coding residual of `coarse` on `L` as a fine-grid layer (see
-    /// [`AmplifySettings::residual_correction`]).
+    /// The coarse prediction of `box-down(H layer)`: the footprints of the codes, rasterised
+    /// on the coarse grid.
+    fn footprint_raster(
+        &self,
+        coarse: &Heightfield,
+        patches: &relief_sparse_core::Patches,
+        codes: &relief_sparse_core::SparseCodes<f32>,
+    ) -> Result<Heightfield> {
+        let n = codes.n_signals();
+        let mut z = patches.means.clone();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0u32);
+        let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
+        for (i, zi) in z.iter_mut().enumerate() {
+            let (idx, val) = codes.signal(i);
+            let mut shift = 0.0f64;
+            for (&j, &x) in idx.iter().zip(val) {
+                let j = j as usize;
+                shift += x as f64 * self.footprint_mean[j] as f64;
+                if self.footprint_scale[j] > 0.0 {
+                    atoms.push(j as u32);
+                    coeffs.push(x * self.footprint_scale[j]);
+                }
+            }
+            *zi = (*zi as f64 + shift) as f32;
+            offsets.push(atoms.len() as u32);
+        }
+        let layer = SparseLayer::from_parts(
+            self.footprint.clone(),
+            Placement::Grid(patches.grid),
+            z,
+            offsets,
+            atoms,
+            coeffs,
+        )?;
+        Ok(Sct::new(
+            Node::Layer(layer),
+            coarse.width(),
+            coarse.height(),
+            coarse.cell_size(),
+        )?
+        .rasterize(&RasterSettings::default())?)
+    }
+
+    /// The residual layer (see [`AmplifySettings::residual_correction`]): the difference
+    /// between the input and the predicted `box-down` of the detail layer, back-projected so
+    /// that its bicubic x4 interpolation reduces (box) to it, placed as a fine-grid layer.
     fn residual_layer(
         &self,
         coarse: &Heightfield,
         patches: &relief_sparse_core::Patches,
         codes: &relief_sparse_core::SparseCodes<f32>,
         settings: &AmplifySettings,
-        fine: CentreGrid,
     ) -> Result<SparseLayer> {
-        let geom = settings.coarse_geometry();
-        let low =
-            Dictionary::from_matrix(self.low.view(), geom.patch_size, 1.0, geom.support_radius)?;
-        let layer = SparseLayer::from_codes(
-            Arc::new(low),
-            Placement::Grid(patches.grid),
-            patches.means.clone(),
-            codes,
-        )?;
-        let rec = Sct::new(
-            Node::Layer(layer),
-            coarse.width(),
-            coarse.height(),
-            coarse.cell_size(),
-        )?
-        .rasterize(&RasterSettings::default())?;
-        let res: Vec<f32> = coarse
+        let rec = self.footprint_raster(coarse, patches, codes)?;
+        let d: Vec<f64> = coarse
             .as_slice()
             .iter()
             .zip(rec.as_slice())
-            .map(|(a, b)| a - b)
+            .map(|(a, b)| *a as f64 - *b as f64)
             .collect();
-        let res = coarse.with_data(res)?;
+        let r = back_project(&d, coarse.width(), coarse.height());
+        let res = coarse.with_data(r.iter().map(|&v| v as f32).collect())?;
+        // The residual is one smooth field: primitives one radius apart interpolate it as
+        // well as a denser grid, at a quarter of the primitives.
+        let geom = PatchGeometry {
+            step: settings.radius.floor().max(1.0),
+            ..settings.coarse_geometry()
+        };
         let rp = extract_patches(&res, &geom)?;
         let f = STEP_FACTOR as f64;
+        let fine = CentreGrid {
+            origin: [f * rp.grid.origin[0] + 1.5, f * rp.grid.origin[1] + 1.5],
+            step: f * rp.grid.step,
+            nx: rp.grid.nx,
+            ny: rp.grid.ny,
+        };
         let mut dict = Dictionary::new(geom.patch_size, f, geom.support_radius * f)?;
         let mut offsets = vec![0u32];
         let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
@@ -578,6 +791,79 @@ impl MultiResDictionary {
     }
 }
 
+/// Box x4 reduction of a `4a x 4a` patch to `a x a`.
+fn box_down4(p: &[f32], a: usize) -> Vec<f64> {
+    let ah = STEP_FACTOR * a;
+    let mut out = vec![0.0f64; a * a];
+    for (r, row) in p.chunks_exact(ah).enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            out[(r / STEP_FACTOR) * a + c / STEP_FACTOR] += v as f64;
+        }
+    }
+    let inv = 1.0 / (STEP_FACTOR * STEP_FACTOR) as f64;
+    out.iter_mut().for_each(|v| *v *= inv);
+    out
+}
+
+/// Taps of `box-down4(bicubic-up4(line))` for a line of `n` samples (the 1-D factor of the
+/// separable operator): for each output, the (clamped) input indices and weights.
+fn box_of_bicubic_taps(n: usize) -> Vec<Vec<(usize, f64)>> {
+    (0..n)
+        .map(|i| {
+            let mut taps: Vec<(usize, f64)> = Vec::with_capacity(6);
+            for j in 0..STEP_FACTOR {
+                let u = i as f64
+                    + (2.0 * j as f64 + 1.0 - STEP_FACTOR as f64) / (2.0 * STEP_FACTOR as f64);
+                let f = u.floor();
+                let w = keys(u - f);
+                let b = f as i64 - 1;
+                for (k, wk) in w.iter().enumerate() {
+                    let idx = (b + k as i64).clamp(0, n as i64 - 1) as usize;
+                    let wk = wk / STEP_FACTOR as f64;
+                    match taps.iter_mut().find(|t| t.0 == idx) {
+                        Some(t) => t.1 += wk,
+                        None => taps.push((idx, wk)),
+                    }
+                }
+            }
+            taps
+        })
+        .collect()
+}
+
+/// Back-projection iterations of [`back_project`].
+const BACK_PROJECTION_ITERATIONS: usize = 4;
+
+/// Approximately solves `box-down4(bicubic-up4(r)) = d` on the coarse grid (`w x h`,
+/// row-major) by fixed-point iterations `r += d - BU(r)` from `r = d`: the bicubic
+/// interpolation of `r` then reduces (box average of the 4 x 4 fine cells) to `d`, so the
+/// output's box reduction matches the input closely instead of a low-passed copy of it.
+fn back_project(d: &[f64], w: usize, h: usize) -> Vec<f64> {
+    use rayon::prelude::*;
+    let (tx, ty) = (box_of_bicubic_taps(w), box_of_bicubic_taps(h));
+    let mut r = d.to_vec();
+    let mut tmp = vec![0.0; w * h];
+    for _ in 0..BACK_PROJECTION_ITERATIONS {
+        tmp.par_chunks_mut(w)
+            .zip(r.par_chunks(w))
+            .for_each(|(dst, src)| {
+                for (o, taps) in dst.iter_mut().zip(&tx) {
+                    *o = taps.iter().map(|&(i, wt)| wt * src[i]).sum();
+                }
+            });
+        r.par_chunks_mut(w)
+            .zip(d.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, drow))| {
+                for (x, (o, dv)) in row.iter_mut().zip(drow).enumerate() {
+                    let bu: f64 = ty[y].iter().map(|&(i, wt)| wt * tmp[i * w + x]).sum();
+                    *o += dv - bu;
+                }
+            });
+    }
+    r
+}
+
 /// Minimum exemplar side used at a step, in units of the fine patch side.
 const MIN_EXEMPLAR_PATCHES: usize = 6;
 
@@ -591,6 +877,33 @@ pub fn amplify(
     exemplar: &Heightfield,
     settings: &AmplifySettings,
     progress: &dyn Progress,
+) -> Result<Sct> {
+    amplify_observed(coarse, exemplar, settings, progress, &mut |_| {})
+}
+
+/// What one x4 step of [`amplify_observed`] did.
+#[derive(Debug)]
+pub struct StepReport<'a> {
+    /// Step index (0: the first x4).
+    pub step: usize,
+    /// The step's coarse input.
+    pub input: &'a Heightfield,
+    /// The step's result (input size times 4).
+    pub output: &'a Sct,
+    /// Reduction applied to the exemplar for this step (1: native resolution).
+    pub exemplar_reduction: usize,
+    /// True when the exemplar was not large enough to be reduced to this step's resolution,
+    /// so the step relies on the self-similarity of relief across scales.
+    pub self_similar: bool,
+}
+
+/// [`amplify`], calling `observe` after every x4 step (for per-step measures).
+pub fn amplify_observed(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+    observe: &mut dyn FnMut(&StepReport<'_>),
 ) -> Result<Sct> {
     settings.check()?;
     coarse.require_complete()?;
@@ -607,7 +920,8 @@ pub fn amplify(
     let mut current = coarse.clone();
     let mut result = None;
     for t in 0..settings.steps {
-        let mut reduction = STEP_FACTOR.pow((settings.steps - 1 - t) as u32);
+        let wanted = STEP_FACTOR.pow((settings.steps - 1 - t) as u32);
+        let mut reduction = wanted;
         while reduction > 1 && exemplar.width().min(exemplar.height()) / reduction < min_side {
             reduction /= STEP_FACTOR;
         }
@@ -620,7 +934,16 @@ pub fn amplify(
             seed: item_seed(settings.seed, 0x57e9, t as u64),
             ..*settings
         };
-        let training = extract_patches(&current, &settings.coarse_geometry())?;
+        // Training signals for constrained learning (subsampled to `max_training` anyway):
+        // patches one radius apart are as representative as the coding grid's, at a quarter
+        // of the extraction cost.
+        let training = extract_patches(
+            &current,
+            &PatchGeometry {
+                step: settings.grid_step().max(settings.radius.floor().max(1.0)),
+                ..settings.coarse_geometry()
+            },
+        )?;
         let dict = MultiResDictionary::from_exemplar(
             &ex,
             Some(training.matrix.view()),
@@ -628,6 +951,13 @@ pub fn amplify(
             progress,
         )?;
         let sct = dict.amplify_once(&current, &step_settings)?;
+        observe(&StepReport {
+            step: t,
+            input: &current,
+            output: &sct,
+            exemplar_reduction: reduction,
+            self_similar: reduction < wanted,
+        });
         if t + 1 < settings.steps {
             current = sct.rasterize(&RasterSettings::default())?;
         }
@@ -644,7 +974,8 @@ pub fn amplify(
 /// Settings of [`synthesize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SynthesisSettings {
-    /// Amplification settings; `steps` defaults to 3 (figure 12: three incremental steps).
+    /// Amplification settings; `steps` defaults to 3 (figure 12: three incremental steps) and
+    /// the residual correction is off (the sketch's pixels are not to be reproduced).
     pub amplify: AmplifySettings,
     /// Elevation range the sketch's `[min, max]` is mapped to (`None`: the exemplar's range).
     pub height_range: Option<(f32, f32)>,
@@ -659,6 +990,9 @@ impl Default for SynthesisSettings {
                     n_atoms: 64,
                     iterations: 3,
                 },
+                // A painted sketch is not a measurement: forcing the output to reduce to its
+                // pixels would reproduce them. The detail blend is still energy-normalised.
+                residual_correction: false,
                 ..Default::default()
             },
             height_range: None,

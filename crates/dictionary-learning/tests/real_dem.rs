@@ -374,7 +374,8 @@ fn larger_radius_follows_the_input_less() {
                 iterations: 1,
             },
             max_candidates: 1024,
-            ..Default::default()
+            // The paper's plain method: the residual correction keeps every radius consistent.
+            ..AmplifySettings::paper()
         };
         let out = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
         let back = out
@@ -524,4 +525,145 @@ fn synthesis_noise_and_procedural_do_not_depend_on_thread_count() {
     assert!(one.1 == two.1, "synthesize");
     assert!(one.2 == two.2, "noise baseline");
     assert!(one.3 == two.3 && one.4 == two.4, "procedural fit");
+}
+
+/// Issue 15 protocol on a small alps crop: box x4, exemplar from a disjoint part. Returns the
+/// rows of the default, the paper's method and bicubic, and the phase swings (at 8 and 16 fine
+/// pixels) of the default and of the paper's method on the former grid (step R = 16 fine px).
+type X4Rows = (
+    BoxProtocolRow,
+    BoxProtocolRow,
+    BoxProtocolRow,
+    [f64; 2],
+    [f64; 2],
+);
+
+fn x4_rows() -> Option<X4Rows> {
+    let (truth, ex) = (alps(100, 200, 256, 256)?, alps(1300, 100, 640, 512)?);
+    let input = truth.downsample_box(4).unwrap();
+    let run = |s: AmplifySettings| {
+        amplify(&input, &ex, &s, &NoProgress)
+            .unwrap()
+            .rasterize(&RasterSettings::default())
+            .unwrap()
+    };
+    let small = |s: AmplifySettings| AmplifySettings {
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 128,
+            iterations: 2,
+        },
+        max_candidates: 2048,
+        ..s
+    };
+    let d = run(small(AmplifySettings::default()));
+    let p = run(small(AmplifySettings::paper()));
+    let old = run(small(AmplifySettings {
+        step: Some(4.0),
+        ..AmplifySettings::paper()
+    }));
+    let b = input.resample(256, 256).unwrap();
+    let corner = corner_bicubic(&input, 256, 256).unwrap();
+    let sw = |o: &Heightfield| {
+        [
+            phase_swing(o, &corner, 8).unwrap(),
+            phase_swing(o, &corner, 16).unwrap(),
+        ]
+    };
+    Some((
+        box_protocol(&truth, &input, &d, 4).unwrap(),
+        box_protocol(&truth, &input, &p, 4).unwrap(),
+        box_protocol(&truth, &input, &b, 4).unwrap(),
+        sw(&d),
+        sw(&old),
+    ))
+}
+
+#[test]
+fn default_is_consistent_and_beats_paper_and_bicubic() {
+    let Some((d, p, b, _, _)) = x4_rows() else {
+        return;
+    };
+    eprintln!("default {d:?}\npaper {p:?}\nbicubic {b:?}");
+    assert!(d.consistency < 0.005, "{d:?}");
+    assert!(d.consistency < 0.2 * p.consistency, "{d:?} vs {p:?}");
+    assert!(
+        d.slope_emd < b.slope_emd && d.slope_emd < p.slope_emd,
+        "{d:?}"
+    );
+    assert!(d.curvature_emd < b.curvature_emd, "{d:?} vs {b:?}");
+    assert!(d.slope_error < 0.5 * b.slope_error, "{d:?} vs {b:?}");
+}
+
+#[test]
+fn default_detail_has_no_grid_phase() {
+    let Some((_, _, _, sd, so)) = x4_rows() else {
+        return;
+    };
+    eprintln!("phase swing at 8 / 16 fine px: default {sd:?}, paper on the step-R grid {so:?}");
+    // A 256^2 crop: the estimator alone gives about 1.2-1.3 on real relief.
+    assert!(sd[0] <= 1.35 && sd[1] <= 1.35, "{sd:?}");
+    assert!(so[1] > sd[1], "{so:?} vs {sd:?}");
+}
+
+#[test]
+fn detail_gain_flattens_the_blend_variance() {
+    // sum a^2 g^2 / (sum a)^2 = 1 at every offset: the blended variance of unrelated unit
+    // details is flat and undiminished.
+    let (ah, step, radius) = (32usize, 8.0, 16.0);
+    let g = detail_gain(ah, step, radius);
+    let h = (ah as f64 - 1.0) / 2.0;
+    for (i, &gi) in g.iter().enumerate() {
+        let (ux, uy) = ((i % ah) as f64 - h, (i / ah) as f64 - h);
+        let (mut s1, mut s2) = (0.0, 0.0);
+        for ky in -4i32..=4 {
+            for kx in -4i32..=4 {
+                let (dx, dy) = (ux - kx as f64 * step, uy - ky as f64 * step);
+                let r2 = (dx * dx + dy * dy) / (radius * radius);
+                if r2 < 1.0 {
+                    let w = (1.0f64 - r2).powi(3);
+                    s1 += w;
+                    s2 += w * w;
+                }
+            }
+        }
+        assert!((s2 * gi * gi / (s1 * s1) - 1.0).abs() < 1e-9);
+        assert!((1.5..4.0).contains(&gi), "{gi}");
+    }
+}
+
+#[test]
+fn default_amplification_window_equals_full_raster_bit_for_bit() {
+    let (Some(hf), Some(ex)) = (alps(500, 100, 48, 48), alps(1500, 350, 256, 256)) else {
+        return;
+    };
+    let s = AmplifySettings {
+        steps: 2,
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 32,
+            iterations: 1,
+        },
+        max_candidates: 1024,
+        ..Default::default()
+    };
+    let sct = amplify(&hf, &ex, &s, &NoProgress).unwrap();
+    let full = sct.rasterize(&RasterSettings::default()).unwrap();
+    let win = relief_sparse_core::Window {
+        x: 101,
+        y: 37,
+        width: 333,
+        height: 77,
+    };
+    let part = sct
+        .rasterize(&RasterSettings {
+            scale: 1.0,
+            window: Some(win),
+        })
+        .unwrap();
+    let crop = full.crop(win.x, win.y, win.width, win.height).unwrap();
+    assert!(
+        part.as_slice()
+            .iter()
+            .zip(crop.as_slice())
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
 }

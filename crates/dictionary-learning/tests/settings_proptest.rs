@@ -182,9 +182,9 @@ proptest! {
         };
         let s = AmplifySettings {
             radius, step, steps, sparsity, dictionary, candidate_step, max_candidates,
-            max_training, seed, residual_correction: residual,
+            max_training, seed, residual_correction: residual, normalize_detail: residual,
         };
-        let st = step.unwrap_or(radius);
+        let st = step.unwrap_or((radius / 2.0).floor().max(1.0));
         let radius_bad = !(radius.is_finite() && (1.0..=32.0).contains(&radius));
         let step_bad = !radius_bad
             && (!(st.is_finite() && st >= 1.0 && st.fract() == 0.0) || radius * radius <= st * st / 2.0);

@@ -464,9 +464,15 @@ impl SparseLayer {
             let (rows, wy) = taps(dy, delta, a);
             let mut h = [0.0; 4];
             for r in 0..4 {
-                h[r] = hpass(&p[rows[r] * a..rows[r] * a + a], &cols, &wx);
+                let prow = &p[rows[r] * a..rows[r] * a + a];
+                h[r] = if is_exact(&wx) {
+                    prow[cols[1]]
+                } else {
+                    hpass(prow, &cols, &wx)
+                };
             }
-            let mut v = vpass(&h, &wy);
+            // The same arithmetic as `stamp` (sample positions read directly).
+            let mut v = if is_exact(&wy) { h[1] } else { vpass(&h, &wy) };
             if self.has_functions[i] {
                 v += self.functions(i, dx, dy);
             }
@@ -505,40 +511,92 @@ impl SparseLayer {
             }
             self.patch(i, &mut scratch.p);
             let w = (xb - xa + 1) as usize;
-            scratch.h.resize(a * w, 0.0);
-            scratch.ctaps.clear();
-            for xi in xa..=xb {
-                let dx = xi as f64 / sc - cx;
-                scratch.ctaps.push((dx, taps(dx, delta, a)));
+            let hgt = (yb - ya + 1) as usize;
+            // Offsets of the pixels from the centre. On a regular grid at a whole scale they
+            // repeat from one primitive to the next: the weights and row taps are then reused
+            // (the same values, computed by the same function, so bit for bit the same).
+            scratch.dx.clear();
+            scratch.dx.extend((xa..=xb).map(|xi| xi as f64 / sc - cx));
+            scratch.dy.clear();
+            scratch.dy.extend((ya..=yb).map(|yi| yi as f64 / sc - cy));
+            let params = (rr, delta, a);
+            if scratch.key != Some(params)
+                || scratch.key_dx != scratch.dx
+                || scratch.key_dy != scratch.dy
+            {
+                scratch.ctaps.clear();
+                scratch
+                    .ctaps
+                    .extend(scratch.dx.iter().map(|&dx| (dx, taps(dx, delta, a))));
+                scratch.rtaps.clear();
+                scratch
+                    .rtaps
+                    .extend(scratch.dy.iter().map(|&dy| taps(dy, delta, a)));
+                scratch.alpha.clear();
+                for &dy in &scratch.dy {
+                    for &dx in &scratch.dx {
+                        scratch.alpha.push(weight(dx, dy, rr).unwrap_or(f64::NAN));
+                    }
+                }
+                scratch.all_exact = scratch.ctaps.iter().all(|(_, (_, wx))| is_exact(wx));
+                scratch.key = Some(params);
+                scratch.key_dx.clone_from(&scratch.dx);
+                scratch.key_dy.clone_from(&scratch.dy);
             }
-            for r in 0..a {
-                let prow = &scratch.p[r * a..r * a + a];
-                let hrow = &mut scratch.h[r * w..r * w + w];
-                for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps) {
-                    *o = hpass(prow, cols, wx);
+            // h[r][k]: patch row r interpolated at column k. On patch samples (taps
+            // (0, 1, 0, 0)) the sum is that sample exactly, so it is read directly: the same
+            // value, only cheaper (scale 1 with pixel-aligned samples, e.g. amplification).
+            let direct = scratch.all_exact;
+            if !direct {
+                scratch.h.resize(a * w, 0.0);
+                for r in 0..a {
+                    let prow = &scratch.p[r * a..r * a + a];
+                    let hrow = &mut scratch.h[r * w..r * w + w];
+                    for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps) {
+                        *o = if is_exact(wx) {
+                            prow[cols[1]]
+                        } else {
+                            hpass(prow, cols, wx)
+                        };
+                    }
                 }
             }
             let z = self.z[i] as f64;
-            for yi in ya..=yb {
-                let dy = yi as f64 / sc - cy;
-                let (rows, wy) = taps(dy, delta, a);
-                let row_off = (yi as usize - band.y0) * ncols;
-                for (k, (dx, _)) in scratch.ctaps.iter().enumerate() {
-                    let Some(alpha) = weight(*dx, dy, rr) else {
+            let (p, h, ctaps) = (&scratch.p, &scratch.h, &scratch.ctaps);
+            let hv = |r: usize, k: usize| -> f64 {
+                if direct {
+                    p[r * a + ctaps[k].1.0[1]]
+                } else {
+                    h[r * w + k]
+                }
+            };
+            for ry in 0..hgt {
+                let yi = ya as usize + ry;
+                let dy = scratch.dy[ry];
+                let (rows, wy) = scratch.rtaps[ry];
+                let exact_row = is_exact(&wy);
+                let row_off = (yi - band.y0) * ncols + (xa as usize - band.x0);
+                let arow = &scratch.alpha[ry * w..ry * w + w];
+                for (k, &alpha) in arow.iter().enumerate() {
+                    if alpha.is_nan() {
                         continue;
+                    }
+                    let mut v = if exact_row {
+                        hv(rows[1], k)
+                    } else {
+                        let hh = [
+                            hv(rows[0], k),
+                            hv(rows[1], k),
+                            hv(rows[2], k),
+                            hv(rows[3], k),
+                        ];
+                        vpass(&hh, &wy)
                     };
-                    let h = [
-                        scratch.h[rows[0] * w + k],
-                        scratch.h[rows[1] * w + k],
-                        scratch.h[rows[2] * w + k],
-                        scratch.h[rows[3] * w + k],
-                    ];
-                    let mut v = vpass(&h, &wy);
                     if self.has_functions[i] {
-                        v += self.functions(i, *dx, dy);
+                        v += self.functions(i, ctaps[k].0, dy);
                     }
                     let f = z + v;
-                    let o = row_off + (xa as usize - band.x0) + k;
+                    let o = row_off + k;
                     num[o] += f * alpha;
                     den[o] += alpha;
                 }
@@ -598,6 +656,13 @@ fn taps(d: f64, delta: f64, a: usize) -> Taps {
     (idx, w)
 }
 
+/// Whether bicubic weights are exactly `(0, 1, 0, 0)` (a sample position): the weighted sum
+/// of finite values is then the second value, bit for bit (up to the sign of a zero).
+#[inline]
+fn is_exact(w: &[f64; 4]) -> bool {
+    w[1] == 1.0 && w[0] == 0.0 && w[2] == 0.0 && w[3] == 0.0
+}
+
 #[inline]
 fn hpass(row: &[f64], cols: &[usize; 4], wx: &[f64; 4]) -> f64 {
     let mut acc = 0.0;
@@ -632,6 +697,17 @@ struct StampScratch {
     p: Vec<f64>,
     h: Vec<f64>,
     ctaps: Vec<(f64, Taps)>,
+    rtaps: Vec<Taps>,
+    dx: Vec<f64>,
+    dy: Vec<f64>,
+    /// Weights of the cached offsets (NaN outside the support), row-major.
+    alpha: Vec<f64>,
+    /// Whether every cached column tap set is a sample position.
+    all_exact: bool,
+    /// `(R^2, delta, a)` and the offsets the cached taps and weights were computed for.
+    key: Option<(f64, f64, usize)>,
+    key_dx: Vec<f64>,
+    key_dy: Vec<f64>,
 }
 
 /// A region of the plane for [`Node::Replace`] (terrain pixel coordinates).

@@ -43,8 +43,16 @@ pub(crate) struct Args {
     /// Sparsity s of the coding (the paper uses 1).
     #[arg(long, default_value_t = 1)]
     pub(crate) sparsity: usize,
-    /// Also add the coarse coding residual back (keeps the output consistent with the input;
-    /// not in the paper).
+    /// Grid step S between primitive centres, in coarse pixels (default: half the radius,
+    /// the paper's grid; must be < radius * sqrt(2)). Larger is faster but shows the grid.
+    #[arg(long)]
+    pub(crate) step: Option<f64>,
+    /// The paper's plain method (section 5.3), for comparison: no residual correction and no
+    /// detail-energy normalisation (less consistent with the input, a visible grid).
+    #[arg(long, conflicts_with = "residual_correction")]
+    pub(crate) paper: bool,
+    /// Add the coarse residual back so the output reduces to the input (the default; kept
+    /// for compatibility, not in the paper).
     #[arg(long)]
     pub(crate) residual_correction: bool,
     /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
@@ -75,8 +83,14 @@ pub(crate) fn steps_of_factor(factor: usize) -> Result<usize> {
 /// Reads, amplifies, writes.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let steps = steps_of_factor(args.factor)?;
+    let base = if args.paper {
+        AmplifySettings::paper()
+    } else {
+        AmplifySettings::default()
+    };
     let settings = AmplifySettings {
         radius: args.radius,
+        step: args.step,
         steps,
         sparsity: args.sparsity,
         dictionary: if args.atoms == 0 {
@@ -88,8 +102,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             }
         },
         seed: args.seed,
-        residual_correction: args.residual_correction,
-        ..Default::default()
+        ..base
     };
     settings.check().context("invalid amplification settings")?;
     let window = args.window.as_deref().map(parse_window).transpose()?;

@@ -31,6 +31,13 @@ pub(crate) struct Args {
     /// Support radius R in coarse pixels.
     #[arg(long, default_value_t = 4.0)]
     pub(crate) radius: f64,
+    /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
+    #[arg(long)]
+    pub(crate) step: Option<f64>,
+    /// The paper's plain method (no detail-energy normalisation; synthesis never applies the
+    /// residual correction, a sketch's pixels are not to be reproduced).
+    #[arg(long)]
+    pub(crate) paper: bool,
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
@@ -54,6 +61,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 }
             },
             seed: args.seed,
+            step: args.step,
+            normalize_detail: !args.paper,
             ..SynthesisSettings::default().amplify
         },
         // The global --height-range: the sketch is mapped onto it (default: the exemplar's

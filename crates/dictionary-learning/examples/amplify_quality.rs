@@ -1,0 +1,206 @@
+//! Quality of amplification on real DEMs, the protocol of issue 15 (the measures of
+//! `shared/tools/terrain_quality.py`), release build:
+//!
+//! `cargo run --release -p relief-dictionary-learning --example amplify_quality`
+//!
+//! For alps_dem, N47E011 (voids filled) and carrizo: a truth crop, box down-sampled x4 and x16,
+//! amplified back with an exemplar from a disjoint part of the same DEM, and compared with the
+//! truth: consistency (RMS of box-down(output) - input over relief), spectral-slope error over
+//! the added octaves, slope- and Laplacian-histogram distances, detail phase swing. Rows: the
+//! default settings, the paper's plain method (`AmplifySettings::paper()`), bicubic and the
+//! figure-15 noise baseline. Then the swing of every step of a x256 run (32^2 -> 8192^2).
+//! `--quick` skips the x256 run.
+#![allow(clippy::print_stdout)]
+
+use std::time::Instant;
+
+use relief_dictionary_learning::*;
+use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_heightfield::{Heightfield, NoProgress};
+use relief_sparse_core::RasterSettings;
+use relief_testdata::dem_crop;
+
+fn row(name: &str, r: &BoxProtocolRow, p8: f64, secs: Option<f64>) {
+    println!(
+        "| {name:24} | {:>7.3} | {:>+6.2} | {:>6.2} | {:>6.3} | {:>5.2} | {p8:>5.2} | {} |",
+        100.0 * r.consistency,
+        r.slope_signed,
+        r.slope_emd,
+        r.curvature_emd,
+        r.swing,
+        secs.map_or("-".to_string(), |s| format!("{s:.1}"))
+    );
+}
+
+fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize) {
+    let f = 4usize.pow(steps as u32);
+    let input = truth.downsample_box(f).unwrap();
+    let bicubic = input.resample(truth.width(), truth.height()).unwrap();
+    let corner = corner_bicubic(&input, truth.width(), truth.height()).unwrap();
+    println!(
+        "\n{label} x{f}: truth {}x{}, input {}x{}, exemplar {}x{}; truth swing {:.2}, swing8 {:.2}",
+        truth.width(),
+        truth.height(),
+        input.width(),
+        input.height(),
+        exemplar.width(),
+        exemplar.height(),
+        detail_swing(truth, &corner).unwrap(),
+        phase_swing(truth, &corner, 8).unwrap()
+    );
+    let p8 = |o: &Heightfield| phase_swing(o, &corner, 8).unwrap();
+    println!(
+        "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (name, base) in [
+        ("default", AmplifySettings::default()),
+        ("--paper", AmplifySettings::paper()),
+        (
+            "default w/o detail norm.",
+            AmplifySettings {
+                normalize_detail: false,
+                ..AmplifySettings::default()
+            },
+        ),
+    ] {
+        let st = AmplifySettings { steps, ..base };
+        let t = Instant::now();
+        let out = amplify(&input, exemplar, &st, &NoProgress)
+            .unwrap()
+            .rasterize(&RasterSettings::default())
+            .unwrap();
+        let secs = t.elapsed().as_secs_f64();
+        row(
+            name,
+            &box_protocol(truth, &input, &out, f).unwrap(),
+            p8(&out),
+            Some(secs),
+        );
+    }
+    row(
+        "bicubic",
+        &box_protocol(truth, &input, &bicubic, f).unwrap(),
+        p8(&bicubic),
+        None,
+    );
+    let noise = noise_amplify(
+        &input,
+        &NoiseBaselineSettings {
+            factor: f,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    row(
+        "noise baseline (fig. 15)",
+        &box_protocol(truth, &input, &noise, f).unwrap(),
+        p8(&noise),
+        None,
+    );
+}
+
+fn filled(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
+    let mut t = dem_crop(id, x, y, w, h)?;
+    fill_voids(&mut t, &FillSettings::default()).ok()?;
+    Some(t)
+}
+
+/// Swing of the detail added by every step of a x256 run (each step's output minus the bicubic
+/// up-sampling of its input), in a 2048^2 window of the step's output.
+fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySettings) {
+    let input = truth.downsample_box(truth.width() / 32).unwrap();
+    let st = AmplifySettings {
+        steps: 4,
+        ..*settings
+    };
+    let t = Instant::now();
+    let mut swings = Vec::new();
+    let sct = amplify_observed(&input, exemplar, &st, &NoProgress, &mut |r| {
+        let (w, h) = (r.input.width(), r.input.height());
+        let side = (4 * w).min(4 * h).min(2048);
+        let win = relief_sparse_core::Window {
+            x: 0,
+            y: 0,
+            width: side,
+            height: side,
+        };
+        let out = r
+            .output
+            .rasterize(&RasterSettings {
+                scale: 1.0,
+                window: Some(win),
+            })
+            .unwrap();
+        let bic = corner_bicubic(r.input, 4 * w, 4 * h)
+            .unwrap()
+            .crop(0, 0, side, side)
+            .unwrap();
+        swings.push((
+            r.step,
+            4 * w,
+            detail_swing(&out, &bic).unwrap(),
+            phase_swing(&out, &bic, 8).unwrap(),
+            r.exemplar_reduction,
+            r.self_similar,
+        ));
+    })
+    .unwrap();
+    let model = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let out = sct.rasterize(&RasterSettings::default()).unwrap();
+    let raster = t.elapsed().as_secs_f64();
+    println!(
+        "x256 {}^2 -> {}^2: model {model:.1} s, rasterise {raster:.1} s",
+        input.width(),
+        out.width()
+    );
+    for (step, side, s, s8, red, ss) in swings {
+        println!(
+            "  step {} (-> {side}^2): swing {s:.3}, swing8 {s8:.3}, exemplar reduced x{red}{}",
+            step + 1,
+            if ss { " (self-similarity)" } else { "" }
+        );
+    }
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let x256_only = std::env::args().any(|a| a == "--x256");
+    let (Some(alps), Some(alps_ex)) = (
+        dem_crop("alps_dem", 100, 200, 512, 512),
+        dem_crop("alps_dem", 1300, 100, 1024, 640),
+    ) else {
+        println!("alps_dem absent");
+        return;
+    };
+    // Truth: Inn valley and the mountains south of it; exemplar: the mountains further east.
+    let n47 = filled("N47E011", 0, 688, 512, 512).zip(filled("N47E011", 600, 688, 601, 512));
+    let carrizo = dem_crop("carrizo", 0, 0, 448, 448).zip(dem_crop("carrizo", 0, 452, 505, 448));
+    for steps in [1, 2].into_iter().filter(|_| !x256_only) {
+        table("alps_dem", &alps, &alps_ex, steps);
+        if let Some((t, e)) = &n47 {
+            table("N47E011 (filled)", t, e, steps);
+        }
+        if let Some((t, e)) = &carrizo {
+            table("carrizo", t, e, steps);
+        }
+    }
+    if !quick {
+        println!();
+        for (name, s) in [
+            ("default", AmplifySettings::default()),
+            ("--paper", AmplifySettings::paper()),
+            (
+                "residual correction without detail normalisation",
+                AmplifySettings {
+                    normalize_detail: false,
+                    ..AmplifySettings::default()
+                },
+            ),
+        ] {
+            println!("{name}:");
+            x256_steps(&alps, &alps_ex, &s);
+        }
+    }
+}
