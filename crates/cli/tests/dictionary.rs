@@ -285,7 +285,7 @@ fn fit_procedural_prints_psnr_and_writes_function_atoms() {
             os("fit-procedural"),
             input.as_os_str(),
             out_path.as_os_str(),
-            os("--atoms"),
+            os("--family"),
             os(family),
             os("--candidates"),
             os("256"),
@@ -399,10 +399,10 @@ fn bad_input_fails_cleanly() {
         os("fit-procedural"),
         coarse.as_os_str(),
         sct.as_os_str(),
-        os("--atoms"),
+        os("--family"),
         os("simplex"),
     ]);
-    fails(&o, &sct, &["--atoms", "simplex"]);
+    fails(&o, &sct, &["--family", "simplex"]);
     let o = relief(&[os("fit-procedural"), holes.as_os_str(), sct.as_os_str()]);
     fails(&o, &sct, &["holes.tif", "void"]);
 }

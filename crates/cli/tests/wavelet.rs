@@ -63,7 +63,7 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
             "2",
             "--method",
             method,
-            "--window",
+            "--stats-window",
             "3",
             "--wavelet",
             wavelet,
@@ -77,7 +77,7 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
         ok(&relief(&a));
         let mut b = vec![os("refine"), input.as_os_str(), win.as_os_str()];
         b.extend(common.iter().map(os));
-        b.extend([os("--window-of"), os("37,101,50,60")]);
+        b.extend([os("--window"), os("37,101,50,60")]);
         ok(&relief(&b));
         let full = read(&full);
         let win = read(&win);
@@ -238,13 +238,13 @@ fn bad_input_fails_cleanly() {
     let tiny = crop_file(tmp.path(), "tiny.tif", 0, 0, 8, 8);
     let out = tmp.path().join("out.tif");
     let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
-        (vec![os("--window"), os("4")], "window"),
-        (vec![os("--window"), os("0")], "window"),
+        (vec![os("--stats-window"), os("4")], "window"),
+        (vec![os("--stats-window"), os("0")], "window"),
         (vec![os("--levels"), os("0")], "levels"),
         (vec![os("--levels"), os("13")], "extra_levels"),
         (vec![os("--wavelet"), os("sym9")], "sym9"),
-        (vec![os("--window-of"), os("0,0,300,10")], "window"),
-        (vec![os("--window-of"), os("1,2,3")], "window-of"),
+        (vec![os("--window"), os("0,0,300,10")], "window"),
+        (vec![os("--window"), os("1,2,3")], "--window"),
     ];
     let check = |args: Vec<&std::ffi::OsStr>, needle: &str, out: &Path| {
         let res = relief(&args);
@@ -405,7 +405,7 @@ fn streamed_output_equals_the_in_memory_output() {
             os("5"),
         ];
         if let Some(w) = window {
-            common.extend([os("--window-of"), os(w)]);
+            common.extend([os("--window"), os(w)]);
         }
         let tag = format!("{method}-{wavelet}-{}", window.is_some());
         let mem = tmp.path().join(format!("mem-{tag}.tif"));

@@ -21,7 +21,7 @@ pub(crate) struct Args {
     /// Atom family: `ridged` (sums of ridged noise, figure 4), `perlin` (fBm) or
     /// `ridged-multifractal`.
     #[arg(long, default_value = "ridged")]
-    pub(crate) atoms: String,
+    pub(crate) family: String,
     /// Size of the analytic dictionary (random atom parameters).
     #[arg(long, default_value_t = 2048)]
     pub(crate) candidates: usize,
@@ -47,14 +47,14 @@ pub(crate) fn family(name: &str) -> Result<NoiseFamily> {
         "ridged" | "ridged-sum" => NoiseFamily::RidgedSum,
         "perlin" => NoiseFamily::Perlin,
         "ridged-multifractal" | "multifractal" => NoiseFamily::RidgedMultifractal,
-        _ => bail!("invalid --atoms `{name}`: must be ridged, perlin or ridged-multifractal"),
+        _ => bail!("invalid --family `{name}`: must be ridged, perlin or ridged-multifractal"),
     })
 }
 
 /// Reads, fits, prints the PSNR, writes.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let settings = ProceduralSettings {
-        family: family(&args.atoms)?,
+        family: family(&args.family)?,
         n_candidates: args.candidates,
         learned_atoms: (args.learned > 0).then_some(args.learned),
         patch_size: args.patch_size,
@@ -79,7 +79,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         "psnr: {:.2} dB ({} atoms `{}`, sparsity {}, {})\n",
         fit.psnr,
         fit.n_atoms,
-        args.atoms,
+        args.family,
         args.sparsity,
         if is_sct(&args.output) {
             "function atoms in the .sct"
@@ -100,6 +100,6 @@ mod tests {
         assert_eq!(family("perlin").unwrap(), NoiseFamily::Perlin);
         assert_eq!(family("Ridged").unwrap(), NoiseFamily::RidgedSum);
         let e = family("simplex").unwrap_err().to_string();
-        assert!(e.contains("--atoms") && e.contains("simplex"), "{e}");
+        assert!(e.contains("--family") && e.contains("simplex"), "{e}");
     }
 }

@@ -50,7 +50,7 @@ pub(crate) struct SynthArgs {
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
     /// Patch side in cells.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long = "patch-size", alias = "patch", default_value_t = 64)]
     pub(crate) patch: usize,
     /// Overlap between neighbouring patches in cells (< patch / 2).
     #[arg(long, default_value_t = 16)]

@@ -3,7 +3,7 @@
 //! that continue the terrain's spectrum, area-consistent) or the paper's (`--model paper`), GSA
 //! (one statistics fit per band) or LSA (local, from a `W x W` window), any basis, a seed, and
 //! optionally only one window of the refined
-//! terrain (`--window-of x,y,w,h`, in output cells; equal bit for bit to the same window of a
+//! terrain (`--window x,y,w,h`, in output cells; equal bit for bit to the same window of a
 //! full run, and costing memory proportional to the window).
 //!
 //! Large GeoTIFF outputs (above 16 M cells, or any size with `--stream`) are synthesised in
@@ -55,8 +55,8 @@ pub(crate) struct Args {
     /// Statistics scope: gsa (global) or lsa (local, the paper's recommendation).
     #[arg(long, value_enum, default_value_t = MethodArg::Lsa)]
     pub(crate) method: MethodArg,
-    /// LSA window side (odd; the paper uses 1, 3, 5 or 7 and recommends 3).
-    #[arg(long, default_value_t = 3)]
+    /// LSA statistics window side (odd; the paper uses 1, 3, 5 or 7 and recommends 3).
+    #[arg(long = "stats-window", value_name = "W", default_value_t = 3)]
     pub(crate) window: usize,
     /// Wavelet basis: haar, cdf53 (linear spline), cdf97, db4 (PyWavelets names too). Default:
     /// cdf97 for the spectral model, cdf53 (the paper's) for --model paper.
@@ -68,8 +68,8 @@ pub(crate) struct Args {
     /// First level taking part in the fit of equation (3) (the paper uses 3).
     #[arg(long, default_value_t = 3)]
     pub(crate) min_level: u32,
-    /// Write only this window `x,y,w,h` of the refined terrain (output cells).
-    #[arg(long, value_name = "X,Y,W,H")]
+    /// Write only this window `X,Y,W,H` of the refined terrain (output cells).
+    #[arg(long = "window", value_name = "X,Y,W,H")]
     pub(crate) window_of: Option<String>,
     /// Stream a GeoTIFF output band by band instead of synthesising it whole (automatic above
     /// 16 M cells): memory stays at one band of rows whatever the output size.
@@ -85,7 +85,7 @@ pub(crate) fn parse_window(s: &str) -> Result<(usize, usize, usize, usize)> {
     let nums: Option<Vec<usize>> = parts.iter().map(|p| p.parse().ok()).collect();
     match nums.as_deref() {
         Some(&[x, y, w, h]) if w > 0 && h > 0 => Ok((x, y, w, h)),
-        _ => bail!("invalid --window-of `{s}`: expected x,y,w,h (integers, w and h > 0)"),
+        _ => bail!("invalid --window `{s}`: expected x,y,w,h (integers, w and h > 0)"),
     }
 }
 
@@ -156,7 +156,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         && (args.stream || w.saturating_mul(h) > STREAM_CELLS);
     let band = if streamed {
         if x.checked_add(w).is_none_or(|e| e > ow) || y.checked_add(h).is_none_or(|e| e > oh) {
-            bail!("invalid --window-of {x},{y},{w},{h}: outside the refined grid ({ow} x {oh})");
+            bail!("invalid --window {x},{y},{w},{h}: outside the refined grid ({ow} x {oh})");
         }
         drop(progress);
         let band = stream_geotiff(&refiner, &args.output, (x, y, w, h), window.is_none(), ctx)?;
@@ -166,7 +166,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             Some((x, y, w, h)) => {
                 progress.begin("synthesising the window", 0);
                 refiner.render_window(x, y, w, h).with_context(|| {
-                    format!("invalid --window-of (the refined grid is {ow} x {oh})")
+                    format!("invalid --window (the refined grid is {ow} x {oh})")
                 })?
             }
             None => refiner.render(&progress).context("cannot synthesise")?,
