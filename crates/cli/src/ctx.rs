@@ -63,10 +63,22 @@ pub(crate) enum CompressArg {
 }
 
 impl Ctx {
-    /// A progress sink for library calls. It draws an indicatif bar on stderr, or nothing when
-    /// `--quiet` is given or stderr is not a terminal (pipes and CI logs stay clean).
+    /// A progress sink for library calls. It draws an indicatif bar on stderr when stderr is a
+    /// terminal; in a log (pipe, file, batch job) a run that lasts longer than
+    /// [`LOG_AFTER`] prints one plain line per phase and at most one every [`LOG_EVERY`];
+    /// nothing under `--quiet`.
     pub(crate) fn progress(&self) -> CliProgress {
-        let visible = !self.quiet && std::io::stderr().is_terminal();
+        let terminal = std::io::stderr().is_terminal();
+        let visible = !self.quiet && terminal;
+        let log = (!self.quiet && !terminal).then(|| {
+            std::sync::Mutex::new(LogState {
+                start: *RUN_START.get_or_init(std::time::Instant::now),
+                last: None,
+                phase: String::new(),
+                total: 0,
+                done: 0,
+            })
+        });
         let bar = if visible {
             let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
             bar.enable_steady_tick(Duration::from_millis(120));
@@ -75,7 +87,7 @@ impl Ctx {
             ProgressBar::hidden()
         };
         bar.set_style(spinner_style());
-        CliProgress { bar }
+        CliProgress { bar, log }
     }
 
     /// Write options of raster outputs (GeoTIFF compression from `--compress`).
@@ -240,11 +252,78 @@ fn bar_style() -> ProgressStyle {
         .progress_chars("=> ")
 }
 
+/// When the run's first progress sink was made (the run's age decides whether lines print).
+static RUN_START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+/// Runs shorter than this print no progress line in a log.
+pub(crate) const LOG_AFTER: Duration = Duration::from_secs(5);
+/// Smallest interval between two progress lines of one phase in a log.
+pub(crate) const LOG_EVERY: Duration = Duration::from_secs(10);
+
+/// Progress state of a run whose stderr is not a terminal.
+#[derive(Debug)]
+struct LogState {
+    start: std::time::Instant,
+    last: Option<std::time::Instant>,
+    phase: String,
+    total: u64,
+    done: u64,
+}
+
+impl LogState {
+    /// The line to print now, if any.
+    fn line(&mut self, new_phase: bool) -> Option<String> {
+        let now = std::time::Instant::now();
+        let elapsed = now.duration_since(self.start);
+        if elapsed < LOG_AFTER {
+            return None;
+        }
+        if !new_phase && self.last.is_some_and(|t| now.duration_since(t) < LOG_EVERY) {
+            return None;
+        }
+        self.last = Some(now);
+        let pct = if self.total > 0 {
+            format!(
+                " {:.0}%",
+                100.0 * self.done.min(self.total) as f64 / self.total as f64
+            )
+        } else {
+            String::new()
+        };
+        Some(format!(
+            "progress: {}{pct} ({:.0} s)",
+            self.phase,
+            elapsed.as_secs_f64()
+        ))
+    }
+}
+
 /// indicatif-backed [`Progress`]: each `begin` starts a new phase on the same line (a bar when
-/// the total is known, a spinner otherwise). The bar is cleared when dropped.
+/// the total is known, a spinner otherwise). The bar is cleared when dropped. Without a
+/// terminal, long runs print plain `progress:` lines instead.
 #[derive(Debug)]
 pub(crate) struct CliProgress {
     bar: ProgressBar,
+    log: Option<std::sync::Mutex<LogState>>,
+}
+
+impl CliProgress {
+    fn log_line(&self, update: impl FnOnce(&mut LogState), new_phase: bool) {
+        let Some(log) = &self.log else {
+            return;
+        };
+        let line = {
+            let mut s = log.lock().unwrap_or_else(|e| e.into_inner());
+            update(&mut s);
+            s.line(new_phase)
+        };
+        if let Some(line) = line {
+            #[allow(clippy::print_stderr)]
+            {
+                eprintln!("{line}");
+            }
+        }
+    }
 }
 
 impl CliProgress {
@@ -257,6 +336,14 @@ impl CliProgress {
 
 impl Progress for CliProgress {
     fn begin(&self, phase: &str, total: u64) {
+        self.log_line(
+            |s| {
+                s.phase = phase.to_string();
+                s.total = total;
+                s.done = 0;
+            },
+            true,
+        );
         self.bar.set_message(phase.to_string());
         self.bar.reset();
         if total > 0 {
@@ -269,6 +356,7 @@ impl Progress for CliProgress {
     }
 
     fn advance(&self, n: u64) {
+        self.log_line(|s| s.done = s.done.saturating_add(n), false);
         self.bar.inc(n);
     }
 }
@@ -324,5 +412,24 @@ mod tests {
         p.begin("phase", 10);
         p.advance(3);
         assert_eq!(p.bar.position(), 3);
+        assert!(p.log.is_none(), "--quiet prints no log lines either");
+    }
+
+    #[test]
+    fn log_lines_only_for_long_runs_and_rate_limited() {
+        let t0 = std::time::Instant::now();
+        let mut s = LogState {
+            start: t0,
+            last: None,
+            phase: "k-svd".into(),
+            total: 4,
+            done: 1,
+        };
+        assert_eq!(s.line(true), None, "short runs stay silent");
+        s.start = t0 - LOG_AFTER - Duration::from_secs(1);
+        let l = s.line(false).expect("a line once the run is long");
+        assert!(l.starts_with("progress: k-svd 25%"), "{l}");
+        assert_eq!(s.line(false), None, "rate-limited");
+        assert!(s.line(true).is_some(), "a new phase is always shown");
     }
 }
