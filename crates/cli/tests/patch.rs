@@ -504,3 +504,59 @@ fn bad_inputs_exit_non_zero_with_one_line() {
         }
     }
 }
+
+fn quantile(v: &[f32], p: f64) -> f64 {
+    let mut s: Vec<f32> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    s.sort_by(f32::total_cmp);
+    s[((s.len() - 1) as f64 * p).round() as usize] as f64
+}
+
+/// Issue 17: a guide in other units (a 0-255 sketch at twice the exemplar's cell size) is
+/// mapped onto the exemplar's heights by `--guide-range auto` and resampled to the exemplar's
+/// cells over its own extent (no squashing); `--guide-out` writes it exactly as used.
+#[test]
+fn guide_range_auto_and_guide_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = fixture();
+    let ex = dem.crop(0, 0, 160, 160).unwrap();
+    let (cx, cy) = ex.cell_size();
+    let ex_p = write(tmp.path(), "ex.tif", &ex);
+    let sketch = Heightfield::from_fn(48, 40, 2.0 * cx, 2.0 * cy, |x, y| {
+        (127.0 + 120.0 * ((x as f32) * 0.15).sin() * ((y as f32) * 0.11).cos()).round()
+    });
+    let g_p = write(tmp.path(), "sketch.tif", &sketch);
+    let out = tmp.path().join("q.tif");
+    let used = tmp.path().join("guide_used.tif");
+    let o = relief(&[
+        os("quilt"),
+        out.as_os_str(),
+        os("--exemplar"),
+        ex_p.as_os_str(),
+        os("--guide"),
+        g_p.as_os_str(),
+        os("--guide-range"),
+        os("auto"),
+        os("--guide-out"),
+        used.as_os_str(),
+        os("--patch-size"),
+        os("32"),
+        os("--overlap"),
+        os("8"),
+        os("--no-validate"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let g = read(&used);
+    // Twice the exemplar's cell: twice the cells, same ground.
+    assert_eq!((g.width(), g.height()), (96, 80));
+    let (gx, gy) = g.cell_size();
+    assert!((gx / cx - 1.0).abs() < 1e-6 && (gy / cy - 1.0).abs() < 1e-6);
+    let (elo, ehi) = (quantile(ex.as_slice(), 0.02), quantile(ex.as_slice(), 0.98));
+    let (glo, ghi) = (quantile(g.as_slice(), 0.02), quantile(g.as_slice(), 0.98));
+    let tol = 0.03 * (ehi - elo);
+    assert!(
+        (glo - elo).abs() < tol && (ghi - ehi).abs() < tol,
+        "{glo}..{ghi} vs {elo}..{ehi}"
+    );
+    let q = read(&out);
+    assert_eq!((q.width(), q.height()), (96, 80));
+}

@@ -42,6 +42,14 @@ pub(crate) struct SynthArgs {
     /// Standard deviation in cells of the Gaussian low-pass applied to `--guide-from`.
     #[arg(long, value_name = "SIGMA")]
     pub(crate) blur: Option<f32>,
+    /// Map the guide's heights before use: `auto` maps its 2-98 % range onto the exemplars'
+    /// 2-98 % range (a guide from another DEM, or a PNG sketch read as 0-255); `LO,HI` maps it
+    /// onto LO..HI metres. Default: the guide's heights as they are.
+    #[arg(long, value_name = "auto|LO,HI", allow_hyphen_values = true)]
+    pub(crate) guide_range: Option<String>,
+    /// Also write the guide exactly as used (mapped, resampled to the output grid).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) guide_out: Option<PathBuf>,
     /// Categorisation map (e.g. an 8-bit grey PNG): each cell's value is the exemplar category
     /// allowed there (65535 = any). Resampled (nearest) to the output size.
     #[arg(long, value_name = "MAP")]
@@ -84,6 +92,115 @@ impl SynthArgs {
         v.extend(self.categories.as_deref());
         v
     }
+
+    /// The extra outputs these arguments ask for (`--guide-out`).
+    pub(crate) fn output_paths(&self) -> Vec<(&Path, crate::outputs::OutKind)> {
+        self.guide_out
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Raster))
+            .into_iter()
+            .collect()
+    }
+}
+
+/// Largest guide grid accepted without `--size` (cells at the exemplars' cell size).
+const MAX_GUIDE_CELLS: usize = 1 << 26;
+
+/// The guide on the output grid. With `--size` it is resampled to that size (its extent maps
+/// onto the output); without, to the exemplars' cell size over its own extent, so the output
+/// covers the guide's ground and keeps its georeference. Patches are copied cell for cell, so
+/// the output has the exemplars' cells: when the guide's cells differ from them (a `--size`
+/// that does not match the guide's extent), a note says how much the guide is scaled and the
+/// output carries no georeference.
+fn fit_guide(
+    g: Heightfield,
+    size: Option<(usize, usize)>,
+    cell: (f64, f64),
+    path: &Path,
+    ctx: &Ctx,
+) -> Result<Heightfield> {
+    let (gx, gy) = g.cell_size();
+    let (w, h) = match size {
+        Some(s) => s,
+        None => {
+            let w = (g.width() as f64 * gx / cell.0).round().max(1.0) as usize;
+            let h = (g.height() as f64 * gy / cell.1).round().max(1.0) as usize;
+            if w.saturating_mul(h) > MAX_GUIDE_CELLS {
+                bail!(
+                    "guide {} covers {w} x {h} cells of the exemplars' {:.2} x {:.2} m: give \
+                     --size WxH",
+                    path.display(),
+                    cell.0,
+                    cell.1
+                );
+            }
+            (w, h)
+        }
+    };
+    let mut g = if (w, h) != (g.width(), g.height()) {
+        g.resample(w, h)
+            .with_context(|| format!("cannot resample guide {}", path.display()))?
+    } else {
+        g
+    };
+    let (ncx, ncy) = g.cell_size();
+    let (sx, sy) = (cell.0 / ncx, cell.1 / ncy);
+    if (sx - 1.0).abs() > 0.01 || (sy - 1.0).abs() > 0.01 {
+        ctx.note(format!(
+            "guide {}: {ncx:.2} x {ncy:.2} m cells on the output grid, synthesised with the \
+             exemplars' {:.2} x {:.2} m cells: the guide's features are scaled x{sx:.2} x \
+             {sy:.2} and the output is not georeferenced (omit --size to keep its extent)",
+            path.display(),
+            cell.0,
+            cell.1
+        ));
+        g.set_georef(None);
+    }
+    g.set_cell_size(cell.0, cell.1)?;
+    Ok(g)
+}
+
+/// The `p`-quantile (0..1) of the finite values of `v` (subsampled to at most ~1 M values).
+fn quantile(v: &[f32], p: f64) -> Option<f64> {
+    let step = (v.len() / (1 << 20)).max(1);
+    let mut s: Vec<f32> = v
+        .iter()
+        .step_by(step)
+        .copied()
+        .filter(|x| x.is_finite())
+        .collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f32::total_cmp);
+    let i = ((s.len() - 1) as f64 * p).round() as usize;
+    Some(s[i] as f64)
+}
+
+/// Applies `--guide-range` to the guide (see [`SynthArgs::guide_range`]).
+fn map_guide(g: Heightfield, spec: &str, exemplars: &[Exemplar], ctx: &Ctx) -> Result<Heightfield> {
+    let (glo, ghi) = match (quantile(g.as_slice(), 0.02), quantile(g.as_slice(), 0.98)) {
+        (Some(a), Some(b)) => (a, b),
+        _ => bail!("--guide-range: the guide has no values"),
+    };
+    let (lo, hi) = if spec.trim().eq_ignore_ascii_case("auto") {
+        let all: Vec<f32> = exemplars
+            .iter()
+            .flat_map(|e| e.heightfield.as_slice().iter().copied())
+            .collect();
+        match (quantile(&all, 0.02), quantile(&all, 0.98)) {
+            (Some(a), Some(b)) => (a, b),
+            _ => bail!("--guide-range auto: the exemplars have no values"),
+        }
+    } else {
+        crate::ctx::parse_height_range(spec)
+            .map_err(|e| anyhow::anyhow!("invalid --guide-range {e} (or auto)"))?
+    };
+    let span = (ghi - glo).max(f64::MIN_POSITIVE);
+    ctx.note(format!(
+        "guide heights {glo:.1}..{ghi:.1} m (2-98 %) mapped onto {lo:.1}..{hi:.1} m"
+    ));
+    Ok(g.map(|v| (lo + (v as f64 - glo) / span * (hi - lo)) as f32))
 }
 
 /// Seam blending of `relief quilt`.
@@ -253,12 +370,7 @@ impl SynthArgs {
         let guide = match (&self.guide, &self.guide_from) {
             (Some(path), None) => {
                 let g = fill_if_needed(read_dem(path, "guide", self, ctx)?, "guide", path, ctx)?;
-                Some(match size {
-                    Some((w, h)) if (w, h) != (g.width(), g.height()) => g
-                        .resample(w, h)
-                        .with_context(|| format!("cannot resample guide {}", path.display()))?,
-                    _ => g,
-                })
+                Some(fit_guide(g, size, cell, path, ctx)?)
             }
             (None, Some(path)) => {
                 let dem = fill_if_needed(
@@ -267,28 +379,22 @@ impl SynthArgs {
                     path,
                     ctx,
                 )?;
-                let dem = match size {
-                    Some((w, h)) if (w, h) != (dem.width(), dem.height()) => {
-                        dem.resample(w, h).with_context(|| {
-                            format!("cannot resample guide source {}", path.display())
-                        })?
-                    }
-                    _ => dem,
-                };
+                let dem = fit_guide(dem, size, cell, path, ctx)?;
                 let sigma = self.blur.unwrap_or_default();
                 Some(guide::gaussian_blur(&dem, sigma).context("invalid --blur")?)
             }
             _ => None,
         };
+        let guide = match (guide, &self.guide_range) {
+            (Some(g), Some(spec)) => Some(map_guide(g, spec, &exemplars, ctx)?),
+            (g, None) => g,
+            (None, Some(_)) => bail!("--guide-range needs --guide or --guide-from"),
+        };
+        if let (Some(g), Some(p)) = (&guide, &self.guide_out) {
+            ctx.write_raster(p, g)?;
+        }
         let mut control = match guide {
-            Some(mut g) => {
-                // Patches are copied cell for cell, so the output has the exemplars' cells.
-                if g.cell_size() != cell {
-                    g.set_cell_size(cell.0, cell.1)?;
-                    g.set_georef(None);
-                }
-                Control::guided(g)
-            }
+            Some(g) => Control::guided(g),
             None => {
                 let Some((w, h)) = size else {
                     bail!("without a guide, --size WxH is required");
@@ -374,6 +480,7 @@ pub(crate) fn seam_map_rgb(out: &Synthesis) -> Vec<u8> {
 /// Reads the inputs, synthesizes and writes OUT (and the seam map) atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
+    outputs.extend(args.synth.output_paths());
     outputs.extend(
         args.seam_map
             .as_deref()

@@ -83,6 +83,7 @@ pub(crate) fn format_report(rep: &ValidationReport, names: &[String]) -> String 
 /// Builds the exemplar index, runs the validation, prints the report; an error (non-zero exit)
 /// when it fails.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    ctx.check_outputs(&args.synth.input_paths(), &args.synth.output_paths())?;
     let inputs = args.synth.inputs(ctx)?;
     let names: Vec<String> = args
         .synth
