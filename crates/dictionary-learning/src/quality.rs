@@ -223,41 +223,9 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
             "must have the output's size",
         ));
     }
-    let (w, h) = (output.width(), output.height());
-    let d: Vec<f64> = output
-        .as_slice()
-        .iter()
-        .zip(reference.as_slice())
-        .map(|(a, b)| *a as f64 - *b as f64)
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
-    let mut rows = vec![0.0f64; h];
-    let mut cols = vec![0.0f64; w];
-    for y in 0..h {
-        for x in 0..w {
-            let e = (d[y * w + x] - mean).powi(2);
-            rows[y] += e / w as f64;
-            cols[x] += e / h as f64;
-        }
-    }
-    let mut worst = 1.0f64;
-    for prof in [&rows, &cols] {
-        for p in [4usize, 8, 16, 32] {
-            let n = prof.len() / p * p;
-            if n < 12 * p {
-                continue;
-            }
-            let mut ph = vec![0.0f64; p];
-            for (i, v) in prof[..n].iter().enumerate() {
-                ph[i % p] += v;
-            }
-            let (lo, hi) = ph
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(l, u), &v| (l.min(v), u.max(v)));
-            worst = worst.max(hi / lo.max(1e-300));
-        }
-    }
-    Ok(worst)
+    Ok(relief_heightfield::metrics::detail_swing(
+        output, reference,
+    )?)
 }
 
 /// Phase swing of `output - reference` at one period `period` (pixels), robust to

@@ -232,3 +232,48 @@ pub fn histogram_emd(a: &[f64], b: &[f64]) -> f64 {
 pub fn slope_histogram_distance(a: &Heightfield, b: &Heightfield) -> f64 {
     histogram_emd(&slope_histogram(a), &slope_histogram(b))
 }
+
+/// Grid-artifact swing of `output - reference` (the definition of
+/// `shared/tools/terrain_quality.py`): the mean-removed squared difference is averaged into row
+/// and column profiles; for periods 4, 8, 16 and 32 px (profiles of at least 12 periods) the
+/// profile's sums per phase modulo the period are compared, max / min. The worst over periods
+/// and axes is returned (1 = no phase dependence). A grid of primitives or dyadic blocks raises
+/// it.
+pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64> {
+    same_size(output, reference)?;
+    let (w, h) = (output.width(), output.height());
+    let d: Vec<f64> = output
+        .as_slice()
+        .iter()
+        .zip(reference.as_slice())
+        .map(|(a, b)| *a as f64 - *b as f64)
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
+    let mut rows = vec![0.0f64; h];
+    let mut cols = vec![0.0f64; w];
+    for y in 0..h {
+        for x in 0..w {
+            let e = (d[y * w + x] - mean).powi(2);
+            rows[y] += e / w as f64;
+            cols[x] += e / h as f64;
+        }
+    }
+    let mut worst = 1.0f64;
+    for prof in [&rows, &cols] {
+        for p in [4usize, 8, 16, 32] {
+            let n = prof.len() / p * p;
+            if n < 12 * p {
+                continue;
+            }
+            let mut ph = vec![0.0f64; p];
+            for (i, v) in prof[..n].iter().enumerate() {
+                ph[i % p] += v;
+            }
+            let (lo, hi) = ph
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(l, u), &v| (l.min(v), u.max(v)));
+            worst = worst.max(hi / lo.max(1e-12 * (n / p) as f64));
+        }
+    }
+    Ok(worst)
+}

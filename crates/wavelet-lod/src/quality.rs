@@ -200,34 +200,15 @@ pub fn swing(a: &Heightfield, reference: &Heightfield) -> f64 {
         a.width().min(reference.width()),
         a.height().min(reference.height()),
     );
-    let d: Vec<f64> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| a.get(x, y) as f64 - reference.get(x, y) as f64)
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
-    let e: Vec<f64> = d.iter().map(|v| (v - mean).powi(2)).collect();
-    let rows: Vec<f64> = (0..h)
-        .map(|y| e[y * w..(y + 1) * w].iter().sum::<f64>() / w as f64)
-        .collect();
-    let cols: Vec<f64> = (0..w)
-        .map(|x| (0..h).map(|y| e[y * w + x]).sum::<f64>() / h as f64)
-        .collect();
-    let mut worst = 1.0f64;
-    for prof in [&rows, &cols] {
-        for p in [4usize, 8, 16, 32] {
-            let n = prof.len() / p * p;
-            if n < 12 * p {
-                continue;
-            }
-            let mut ph = vec![0.0f64; p];
-            for (i, v) in prof[..n].iter().enumerate() {
-                ph[i % p] += v;
-            }
-            let (lo, hi) = ph
-                .iter()
-                .fold((f64::MAX, f64::MIN), |(l, hh), &v| (l.min(v), hh.max(v)));
-            worst = worst.max(hi / lo.max(1e-12 * (n / p) as f64));
+    let same = |hf: &Heightfield| {
+        if (hf.width(), hf.height()) == (w, h) {
+            Some(hf.clone())
+        } else {
+            hf.crop(0, 0, w, h).ok()
         }
+    };
+    match (same(a), same(reference)) {
+        (Some(a), Some(r)) => relief_heightfield::metrics::detail_swing(&a, &r).unwrap_or(1.0),
+        _ => 1.0,
     }
-    worst
 }
