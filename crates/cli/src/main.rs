@@ -85,6 +85,9 @@ enum Command {
     Quilt(commands::quilt::Args),
     /// Check that the exemplars can synthesize a guide (cruz2015 section 4); non-zero if not.
     Validate(commands::validate::Args),
+    /// Split amplify, refine or decompress into output tiles for job arrays (Slurm,
+    /// Kubernetes Indexed Jobs): plan, run one task, status, mosaic.
+    Tile(commands::tile::Args),
 }
 
 fn main() -> ExitCode {
@@ -119,6 +122,7 @@ fn main() -> ExitCode {
         Command::Analyze(args) => commands::analyze::run(args, &ctx),
         Command::Quilt(args) => commands::quilt::run(args, &ctx),
         Command::Validate(args) => commands::validate::run(args, &ctx),
+        Command::Tile(args) => commands::tile::run(args, &ctx),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -166,10 +170,17 @@ mod tests {
         for a in cmd.get_arguments().filter(|a| a.is_global_set()) {
             s.extend(row(a));
         }
+        // Subcommands, and their own subcommands (`relief tile plan`).
+        let mut subs: Vec<(String, &clap::Command)> = Vec::new();
         for sub in cmd.get_subcommands() {
+            subs.push((sub.get_name().to_string(), sub));
+            for inner in sub.get_subcommands() {
+                subs.push((format!("{} {}", sub.get_name(), inner.get_name()), inner));
+            }
+        }
+        for (name, sub) in subs {
             s.push_str(&format!(
-                "\n## `relief {}`\n\n| flag | value | meaning |\n|---|---|---|\n",
-                sub.get_name()
+                "\n## `relief {name}`\n\n| flag | value | meaning |\n|---|---|---|\n"
             ));
             for a in sub.get_arguments().filter(|a| !a.is_global_set()) {
                 s.extend(row(a));

@@ -447,7 +447,7 @@ pub enum TiffCompression {
 /// TIFF Technical Note 3 floating-point predictor on one row of `f32` samples, in place into
 /// `out` (4 bytes per sample): bytes regrouped most significant first, then byte-wise
 /// horizontal differencing (libtiff's `fpDiff`).
-fn fp_predict_row(row: &[f32], out: &mut [u8]) {
+pub(crate) fn fp_predict_row(row: &[f32], out: &mut [u8]) {
     let w = row.len();
     for (i, v) in row.iter().enumerate() {
         let b = v.to_be_bytes();

@@ -75,6 +75,7 @@ mod preview;
 mod raw;
 mod sidecar;
 mod stream;
+mod tiled;
 mod util;
 
 use std::path::Path;
@@ -86,6 +87,7 @@ pub use geotiff::TiffCompression;
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as};
 pub use preview::{preview_rgb, write_gray_png, write_preview_png, write_rgb_png};
 pub use stream::GeoTiffStripWriter;
+pub use tiled::{GeoTiffRowReader, TiledGeoTiffWriter, TiledOptions};
 
 /// A raster or mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

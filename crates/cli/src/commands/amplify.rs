@@ -82,6 +82,20 @@ pub(crate) fn steps_of_factor(factor: usize) -> Result<usize> {
 
 /// Reads, amplifies, writes.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    // Every argument is checked before any file is touched, so a typo fails fast.
+    settings(&args)?;
+    let window = args.window.as_deref().map(parse_window).transpose()?;
+    check_output_path(&args.output, window)?;
+    ctx.check_outputs(
+        &[&args.input, &args.exemplar],
+        &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
+    )?;
+    let sct = build(&args, ctx)?;
+    write_model(&sct, &args.output, window, args.stream, ctx)
+}
+
+/// The library settings of the arguments (checked).
+fn settings(args: &Args) -> Result<AmplifySettings> {
     let steps = steps_of_factor(args.factor)?;
     let base = if args.paper {
         AmplifySettings::paper()
@@ -105,12 +119,13 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         ..base
     };
     settings.check().context("invalid amplification settings")?;
-    let window = args.window.as_deref().map(parse_window).transpose()?;
-    check_output_path(&args.output, window)?;
-    ctx.check_outputs(
-        &[&args.input, &args.exemplar],
-        &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
-    )?;
+    Ok(settings)
+}
+
+/// Reads the inputs and amplifies them into a model (`relief tile plan` stores it once for
+/// every tile task).
+pub(crate) fn build(args: &Args, ctx: &Ctx) -> Result<Sct> {
+    let settings = settings(args)?;
     let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
@@ -120,18 +135,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     exemplar
         .require_complete()
         .with_context(|| format!("cannot use {} as exemplar", args.exemplar.display()))?;
-    let sct = {
-        let progress = ctx.progress();
-        amplify(&coarse, &exemplar, &settings, &progress).with_context(|| {
-            format!(
-                "cannot amplify {} x{} with {}",
-                args.input.display(),
-                args.factor,
-                args.exemplar.display()
-            )
-        })?
-    };
-    write_model(&sct, &args.output, window, args.stream, ctx)
+    let progress = ctx.progress();
+    amplify(&coarse, &exemplar, &settings, &progress).with_context(|| {
+        format!(
+            "cannot amplify {} x{} with {}",
+            args.input.display(),
+            args.factor,
+            args.exemplar.display()
+        )
+    })
 }
 
 /// Parses `--window X,Y,W,H` (output pixels).

@@ -91,7 +91,7 @@ pub(crate) fn parse_window(s: &str) -> Result<(usize, usize, usize, usize)> {
 
 impl Args {
     /// The library settings (checked by the library itself when the refiner is built).
-    fn settings(&self) -> Result<RefineSettings> {
+    pub(crate) fn settings(&self) -> Result<RefineSettings> {
         if self.levels == 0 {
             bail!("invalid --levels 0: at least one level must be synthesised");
         }

@@ -1,0 +1,389 @@
+//! `relief tile`: a plan run as shuffled tasks two at a time, with a killed task and a corrupted
+//! tile, mosaics bit for bit into the single-machine output (values and georeference); the
+//! VRT and COG read in GDAL as the same raster.
+
+#![allow(clippy::print_stderr)] // skip notices for missing tools
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output};
+
+use relief_heightfield::Heightfield;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_relief"));
+    c.arg("--quiet");
+    // Scheduler variables of an enclosing job must not leak into the tests.
+    for v in [
+        "SLURM_ARRAY_TASK_ID",
+        "JOB_COMPLETION_INDEX",
+        "AWS_BATCH_JOB_ARRAY_INDEX",
+    ] {
+        c.env_remove(v);
+    }
+    c
+}
+
+fn relief(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run relief")
+}
+
+fn ok(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(name)
+}
+
+fn read(path: &Path) -> Heightfield {
+    relief_io::read(path, &relief_io::ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .heightfield
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn tasks(dir: &Path) -> usize {
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    m["tasks"].as_u64().unwrap() as usize
+}
+
+fn spawn_task(dir: &Path, i: usize) -> Child {
+    bin()
+        .args(["tile", "run", s(dir), "--index", &i.to_string()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn task")
+}
+
+/// Runs every task of the plan in a shuffled order, two processes at a time.
+fn run_all_two_at_a_time(dir: &Path, n: usize, seed: u64) {
+    let mut order: Vec<usize> = (0..n).collect();
+    // A fixed Fisher-Yates shuffle (splitmix64): the order differs from the plan's.
+    let mut x = seed;
+    for i in (1..n).rev() {
+        x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = x;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        order.swap(i, (z % (i as u64 + 1)) as usize);
+    }
+    for pair in order.chunks(2) {
+        let children: Vec<Child> = pair.iter().map(|&i| spawn_task(dir, i)).collect();
+        for c in children {
+            let out = c.wait_with_output().unwrap();
+            assert!(
+                out.status.success(),
+                "task failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+}
+
+fn assert_same_raster(a: &Path, b: &Path) {
+    let (x, y) = (read(a), read(b));
+    assert_eq!((x.width(), x.height()), (y.width(), y.height()));
+    let differ = x
+        .as_slice()
+        .iter()
+        .zip(y.as_slice())
+        .filter(|(p, q)| p.to_bits() != q.to_bits())
+        .count();
+    assert_eq!(
+        differ,
+        0,
+        "{differ} cells differ between {} and {}",
+        a.display(),
+        b.display()
+    );
+    assert_eq!(x.cell_size(), y.cell_size());
+    let (ga, gb) = (x.georef().unwrap(), y.georef().unwrap());
+    assert_eq!(ga.geotransform, gb.geotransform);
+    assert_eq!(ga.crs, gb.crs);
+    assert_eq!(ga.geo_key_directory, gb.geo_key_directory);
+}
+
+/// The whole cycle for one command: single run, plan, a killed task, shuffled tasks two at a
+/// time, a corrupted tile found and redone, mosaic equal to the single run.
+fn cycle(tmp: &Path, name: &str, command: &[&str]) {
+    let single = tmp.join(format!("{name}-single.tif"));
+    let planned = tmp.join(format!("{name}-tiled.tif"));
+    let dir = tmp.join(format!("{name}-plan"));
+    let mut args: Vec<&str> = command.to_vec();
+    args.insert(2, s(&single));
+    ok(&relief(&args), "single run");
+    let mut plan: Vec<&str> = vec!["tile", "plan", s(&dir), "--tile", "512", "--"];
+    plan.extend_from_slice(command);
+    plan.insert(8, s(&planned));
+    ok(&relief(&plan), "plan");
+    let n = tasks(&dir);
+    assert!(n >= 4, "{n} tasks");
+    // Mosaic and status refuse an incomplete plan.
+    let st = relief(&["tile", "status", s(&dir)]);
+    assert!(!st.status.success());
+    assert!(String::from_utf8_lossy(&st.stdout).contains(&format!("0/{n} tiles done")));
+    let mo = relief(&["tile", "mosaic", s(&dir)]);
+    assert!(!mo.status.success());
+    assert!(!planned.exists());
+    // A task killed at some point of its run leaves no tile that counts as done.
+    let mut c = spawn_task(&dir, 1);
+    std::thread::sleep(std::time::Duration::from_millis(60));
+    let _ = c.kill();
+    let _ = c.wait();
+    run_all_two_at_a_time(&dir, n, 7);
+    ok(&relief(&["tile", "status", s(&dir)]), "status");
+    // A re-run of a done task is a no-op.
+    let again = relief(&["tile", "run", s(&dir), "--index", "0"]);
+    ok(&again, "re-run");
+    // A damaged tile is reported, refused by the mosaic, and redone by its task.
+    let t2 = dir.join("tiles/tile-000002.tif");
+    let mut bytes = std::fs::read(&t2).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x55;
+    std::fs::write(&t2, &bytes).unwrap();
+    let st = relief(&["tile", "status", s(&dir)]);
+    assert!(!st.status.success());
+    assert!(
+        String::from_utf8_lossy(&st.stdout).contains("corrupt: 2"),
+        "{}",
+        String::from_utf8_lossy(&st.stdout)
+    );
+    assert!(!relief(&["tile", "mosaic", s(&dir)]).status.success());
+    ok(&relief(&["tile", "run", s(&dir), "--index", "2"]), "redo");
+    ok(&relief(&["tile", "mosaic", s(&dir)]), "mosaic");
+    assert_same_raster(&single, &planned);
+    // The COG holds the same full-resolution values.
+    ok(
+        &relief(&["--force", "tile", "mosaic", s(&dir), "--cog"]),
+        "cog mosaic",
+    );
+    assert_same_raster(&single, &planned);
+    // Out-of-range and absent indices are errors naming the problem.
+    let bad = relief(&["tile", "run", s(&dir), "--index", &n.to_string()]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("out of range"));
+    let none = relief(&["tile", "run", s(&dir)]);
+    assert!(String::from_utf8_lossy(&none.stderr).contains("SLURM_ARRAY_TASK_ID"));
+    let env = bin()
+        .args(["tile", "run", s(&dir)])
+        .env("JOB_COMPLETION_INDEX", "3")
+        .output()
+        .unwrap();
+    ok(&env, "index from JOB_COMPLETION_INDEX");
+}
+
+#[test]
+fn amplify_plan_mosaics_into_the_single_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = fixture("grandcanyon.tif");
+    cycle(
+        tmp.path(),
+        "amplify",
+        &["amplify", s(&gc), "--exemplar", s(&gc), "--factor", "4"],
+    );
+}
+
+#[test]
+fn refine_plan_mosaics_into_the_single_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = fixture("grandcanyon.tif");
+    cycle(
+        tmp.path(),
+        "refine",
+        &["refine", s(&gc), "--levels", "2", "--seed", "5"],
+    );
+}
+
+#[test]
+fn a_changed_input_or_prepared_file_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.tif");
+    std::fs::copy(fixture("grandcanyon.tif"), &input).unwrap();
+    let dir = tmp.path().join("plan");
+    let out = tmp.path().join("out.tif");
+    ok(
+        &relief(&[
+            "tile",
+            "plan",
+            s(&dir),
+            "--tile",
+            "256",
+            "--",
+            "refine",
+            s(&input),
+            s(&out),
+        ]),
+        "plan",
+    );
+    // A second plan into the same folder is refused.
+    let again = relief(&["tile", "plan", s(&dir), "--", "refine", s(&input), s(&out)]);
+    assert!(String::from_utf8_lossy(&again.stderr).contains("not empty"));
+    let mut bytes = std::fs::read(&input).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&input, &bytes).unwrap();
+    let r = relief(&["tile", "run", s(&dir), "--index", "0"]);
+    assert!(!r.status.success());
+    assert!(
+        String::from_utf8_lossy(&r.stderr).contains("changed since the plan"),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    // With the input gone (a task on a node that does not see it), the prepared copy is used;
+    // a damaged prepared copy is refused.
+    std::fs::remove_file(&input).unwrap();
+    ok(
+        &relief(&["tile", "run", s(&dir), "--index", "0"]),
+        "run without input",
+    );
+    let prepared = dir.join("input.tif");
+    let mut p = std::fs::read(&prepared).unwrap();
+    p[100] ^= 1;
+    std::fs::write(&prepared, &p).unwrap();
+    let r = relief(&["tile", "run", s(&dir), "--index", "1"]);
+    assert!(String::from_utf8_lossy(&r.stderr).contains("checksum"));
+    // A hand-edited manifest is refused.
+    let m = dir.join("manifest.json");
+    let text = std::fs::read_to_string(&m)
+        .unwrap()
+        .replace("\"tile\": 256", "\"tile\": 128");
+    std::fs::write(&m, text).unwrap();
+    let r = relief(&["tile", "status", s(&dir)]);
+    assert!(String::from_utf8_lossy(&r.stderr).contains("modified after planning"));
+}
+
+#[test]
+fn plans_refuse_what_they_cannot_tile() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = fixture("grandcanyon.tif");
+    let d = tmp.path().join("p");
+    let png = tmp.path().join("o.png");
+    let tif = tmp.path().join("o.tif");
+    for (args, want) in [
+        (vec!["refine", s(&gc), s(&png)], "GeoTIFF"),
+        (
+            vec!["refine", s(&gc), s(&tif), "--window", "0,0,8,8"],
+            "--window",
+        ),
+        (vec!["preview", s(&gc), s(&png)], "invalid command"),
+    ] {
+        let mut a = vec!["tile", "plan", s(&d), "--"];
+        a.extend(args);
+        let r = relief(&a);
+        assert!(!r.status.success());
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(e.contains(want), "{e}");
+    }
+    let r = relief(&[
+        "tile",
+        "plan",
+        s(&d),
+        "--tile",
+        "100",
+        "--",
+        "refine",
+        s(&gc),
+        s(&tif),
+    ]);
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--tile"));
+    assert!(!d.join("manifest.json").exists());
+}
+
+/// GDAL reads the VRT over the tiles and the COG as the same raster (same checksum), and sees
+/// the COG's overviews and layout.
+#[test]
+fn gdal_reads_the_vrt_and_the_cog() {
+    if Command::new("gdalinfo").arg("--version").output().is_err() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gdalinfo is missing under CI (.ci/run installs gdal-bin)"
+        );
+        eprintln!("skipping: gdalinfo not found (apt-get install gdal-bin)");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = fixture("grandcanyon.tif");
+    let dir = tmp.path().join("plan");
+    let out = tmp.path().join("out.tif");
+    ok(
+        &relief(&[
+            "tile",
+            "plan",
+            s(&dir),
+            "--tile",
+            "256",
+            "--",
+            "refine",
+            s(&gc),
+            s(&out),
+        ]),
+        "plan",
+    );
+    for i in 0..tasks(&dir) {
+        ok(
+            &relief(&["tile", "run", s(&dir), "--index", &i.to_string()]),
+            "run",
+        );
+    }
+    ok(&relief(&["tile", "mosaic", s(&dir), "--cog"]), "mosaic");
+    let info = |p: &Path| {
+        let o = Command::new("gdalinfo")
+            .args(["-checksum", s(p)])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let (a, b) = (info(&dir.join("mosaic.vrt")), info(&out));
+    let checksum = |t: &str| {
+        t.lines()
+            .find(|l| l.trim_start().starts_with("Checksum="))
+            .map(str::to_owned)
+            .unwrap_or_default()
+    };
+    assert!(!checksum(&a).is_empty(), "{a}");
+    assert_eq!(checksum(&a), checksum(&b));
+    let line = |t: &str, key: &str| {
+        t.lines()
+            .find(|l| l.starts_with(key))
+            .map(str::to_owned)
+            .unwrap_or_default()
+    };
+    for key in ["Size is", "Origin =", "Pixel Size ="] {
+        assert_eq!(line(&a, key), line(&b, key), "{key}");
+    }
+    assert!(b.contains("LAYOUT=COG"), "{b}");
+    assert!(b.contains("Overviews:"), "{b}");
+    assert!(b.contains("COMPRESSION=DEFLATE"), "{b}");
+    // GDAL's own COG validator (Debian's python3-gdal, a dependency of gdal-bin).
+    let validator =
+        Path::new("/usr/share/doc/python3-gdal/examples/validate_cloud_optimized_geotiff.py");
+    match Command::new("/usr/bin/python3")
+        .args([validator.to_str().unwrap(), "--full-check=yes", s(&out)])
+        .output()
+    {
+        Ok(o) if validator.exists() => {
+            let text = String::from_utf8_lossy(&o.stdout);
+            assert!(
+                o.status.success() && text.contains("is a valid cloud optimized GeoTIFF"),
+                "{text}{}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        _ => eprintln!(
+            "skipping the COG validator: {} not found",
+            validator.display()
+        ),
+    }
+}
