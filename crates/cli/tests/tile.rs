@@ -366,6 +366,15 @@ fn gdal_reads_the_vrt_and_the_cog() {
     assert!(b.contains("LAYOUT=COG"), "{b}");
     assert!(b.contains("Overviews:"), "{b}");
     assert!(b.contains("COMPRESSION=DEFLATE"), "{b}");
+    // A BigTIFF COG reads the same in GDAL.
+    ok(
+        &relief(&["--force", "tile", "mosaic", s(&dir), "--cog", "--bigtiff"]),
+        "bigtiff mosaic",
+    );
+    assert_eq!(std::fs::read(&out).unwrap()[2], 43, "BigTIFF magic");
+    let big = info(&out);
+    assert_eq!(checksum(&a), checksum(&big));
+    assert!(big.contains("LAYOUT=COG"), "{big}");
     // GDAL's own COG validator (Debian's python3-gdal, a dependency of gdal-bin).
     let validator =
         Path::new("/usr/share/doc/python3-gdal/examples/validate_cloud_optimized_geotiff.py");

@@ -31,6 +31,9 @@ pub struct TiledOptions {
     pub compression: TiffCompression,
     /// Build overviews (2x, 4x, ... down to one tile) and use the COG layout.
     pub cog: bool,
+    /// Always write BigTIFF (GDAL's `BIGTIFF=YES`); otherwise only when the file would pass
+    /// 4 GiB.
+    pub bigtiff: bool,
 }
 
 impl Default for TiledOptions {
@@ -39,6 +42,7 @@ impl Default for TiledOptions {
             tile: 512,
             compression: TiffCompression::Deflate,
             cog: false,
+            bigtiff: false,
         }
     }
 }
@@ -326,7 +330,7 @@ impl TiledGeoTiffWriter {
         let at = data_end.next_multiple_of(8);
         let specs = self.directories(&[HEADER]);
         let small = encode_directories(false, &specs, at);
-        let big = at + small.len() as u64 > u32::MAX as u64;
+        let big = self.opts.bigtiff || at + small.len() as u64 > u32::MAX as u64;
         let ifds = if big {
             encode_directories(true, &specs, at)
         } else {
@@ -367,7 +371,7 @@ impl TiledGeoTiffWriter {
             (head, at, bases, start)
         };
         let (mut head, mut at, mut bases, end) = try_layout(false);
-        let big = end > u32::MAX as u64;
+        let big = self.opts.bigtiff || end > u32::MAX as u64;
         if big {
             (head, at, bases, _) = try_layout(true);
         }
@@ -880,8 +884,11 @@ mod tests {
                 tile: 32,
                 compression,
                 cog,
+                bigtiff: cog == (compression == TiffCompression::None),
             };
             write(&p, w, h, opts, &data);
+            let magic = std::fs::read(&p).unwrap()[2];
+            assert_eq!(magic, if opts.bigtiff { 43 } else { 42 });
             let back = read(&p, &ReadOptions::default()).unwrap().heightfield;
             assert_eq!((back.width(), back.height()), (w, h));
             assert_eq!(back.as_slice(), &data[..], "cog {cog} {compression:?}");

@@ -33,6 +33,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Parser as _;
+use rayon::prelude::*;
 use relief_heightfield::{GeoRef, Heightfield, Progress};
 use relief_sparse_core::{RasterSettings, Sct, Window};
 use serde::{Deserialize, Serialize};
@@ -100,6 +101,9 @@ struct MosaicArgs {
     /// Write a Cloud-Optimized GeoTIFF: tiled, overviews down to one tile, directories first.
     #[arg(long)]
     cog: bool,
+    /// Always write BigTIFF (otherwise only when the file passes 4 GiB).
+    #[arg(long)]
+    bigtiff: bool,
     /// Only write DIR/mosaic.vrt (GDAL reads the tiles through it), not the GeoTIFF.
     #[arg(long)]
     vrt_only: bool,
@@ -173,6 +177,8 @@ struct TileRecord {
 
 const MANIFEST: &str = "manifest.json";
 const FORMAT: &str = "relief-tile-plan";
+/// Rows of the output decoded at once by the mosaic (a 32768-wide output: 16 MiB).
+const MOSAIC_ROWS: usize = 128;
 /// Largest tile grid a plan accepts.
 const MAX_TASKS: usize = 1 << 20;
 /// Scheduler variables holding the task index, in the order they are consulted.
@@ -777,6 +783,7 @@ fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
             crate::ctx::CompressArg::None => relief_io::TiffCompression::None,
         },
         cog: a.cog,
+        bigtiff: a.bigtiff,
     };
     let cell = (m.output.cell_size[0], m.output.cell_size[1]);
     let mut writer = relief_io::TiledGeoTiffWriter::create(
@@ -790,7 +797,10 @@ fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     .with_context(|| format!("cannot write {}", out.display()))?;
     let progress = ctx.progress();
     progress.begin("mosaicking", m.output.height as u64);
-    let mut row = Vec::with_capacity(m.output.width);
+    // Blocks of rows: every tile of a row of tiles decodes its part in parallel, then the
+    // block goes to the writer (which compresses its tiles in parallel too).
+    let width = m.output.width;
+    let mut block: Vec<f32> = Vec::new();
     for r in 0..m.tiles_y {
         let mut readers = (0..m.tiles_x)
             .map(|c| {
@@ -800,13 +810,30 @@ fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
             })
             .collect::<Result<Vec<_>>>()?;
         let [_, _, _, h] = m.window(r * m.tiles_x);
-        for _ in 0..h {
-            row.clear();
-            for rd in &mut readers {
-                rd.read_row(&mut row)?;
+        let mut y = 0;
+        while y < h {
+            let rows = MOSAIC_ROWS.min(h - y);
+            let parts = readers
+                .par_iter_mut()
+                .map(|rd| {
+                    let mut part = Vec::with_capacity(rows * rd.width());
+                    for _ in 0..rows {
+                        rd.read_row(&mut part)?;
+                    }
+                    Ok(part)
+                })
+                .collect::<Result<Vec<Vec<f32>>>>()?;
+            block.clear();
+            block.reserve(rows * width);
+            for k in 0..rows {
+                for (part, rd) in parts.iter().zip(&readers) {
+                    let w = rd.width();
+                    block.extend_from_slice(&part[k * w..(k + 1) * w]);
+                }
             }
-            writer.write_rows(&row)?;
-            progress.advance(1);
+            writer.write_rows(&block)?;
+            progress.advance(rows as u64);
+            y += rows;
         }
     }
     writer
@@ -952,6 +979,59 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&c| c == 1));
+    }
+
+    /// The plan id survives the manifest's JSON round trip: georeferences with awkward
+    /// floats (a x64 cell of a Web-Mercator grid) read back to the same bits.
+    #[test]
+    fn manifests_round_trip_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let cell = 76.437_028_285_174_16 / 64.0;
+        let mut m = Manifest {
+            format: FORMAT.into(),
+            version: 1,
+            command: "refine".into(),
+            args: vec!["refine".into()],
+            inputs: vec![],
+            prepared: bytes_sum(b"abc", "input.tif".into()),
+            output: OutputGrid {
+                path: "/o.tif".into(),
+                width: 32768,
+                height: 32768,
+                cell_size: [cell, cell * (1.0 + 1e-13)],
+                georef: Some(GeoRef {
+                    geotransform: Some([
+                        -12_601_714.231_207_296,
+                        cell,
+                        0.0,
+                        4_344_069.191_503_135_5,
+                        0.0,
+                        -cell,
+                    ]),
+                    crs: Some("EPSG:3857".into()),
+                    ..Default::default()
+                }),
+            },
+            tile: 4096,
+            tiles_x: 8,
+            tiles_y: 8,
+            tasks: 64,
+            plan_id: String::new(),
+        };
+        m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m).unwrap()));
+        let json = serde_json::to_string_pretty(&m).unwrap();
+        std::fs::write(dir.path().join(MANIFEST), json).unwrap();
+        let back = load_manifest(dir.path()).unwrap();
+        assert_eq!(back.output.cell_size, m.output.cell_size);
+        assert_eq!(back.plan_id, m.plan_id);
+        std::fs::write(
+            dir.path().join(MANIFEST),
+            serde_json::to_string_pretty(&m)
+                .unwrap()
+                .replace("32768", "32769"),
+        )
+        .unwrap();
+        assert!(load_manifest(dir.path()).is_err());
     }
 
     #[test]
