@@ -52,6 +52,23 @@ fn build(hf: &Heightfield, bvh: bool) -> Scene {
     b.build(bvh).expect("scene")
 }
 
+/// The default recipe with every feature on a real crop (the scenes of issue 19).
+fn recipe_scene(
+    name: &str,
+    x: usize,
+    y: usize,
+    w: usize,
+    h: usize,
+) -> Option<(Heightfield, Recipe)> {
+    let hf = relief_testdata::dem_crop(name, x, y, w, h)?;
+    let recipe = Recipe {
+        features: Feature::ALL.to_vec(),
+        seed: 1,
+        ..Default::default()
+    };
+    Some((hf, recipe))
+}
+
 fn points(scene: &Scene, n: usize) -> Vec<[f32; 3]> {
     let b = scene.bbox();
     let s = b.size();
@@ -79,6 +96,22 @@ fn volume(c: &mut Criterion) {
         BenchmarkId::new("tree_build_karst_sea_2threads", "5km2"),
         |b| b.iter(|| pool.install(|| build(&hf, true))),
     );
+    for (id, name, x, y, w, h) in [
+        ("grandcanyon_128", "grandcanyon", 200, 160, 128, 128),
+        ("n57e011_48", "N57E011", 888, 72, 48, 48),
+    ] {
+        let Some((crop, recipe)) = recipe_scene(name, x, y, w, h) else {
+            continue;
+        };
+        let (scene, _) = pool.install(|| build_recipe(&crop, &recipe).expect("recipe"));
+        #[allow(clippy::print_stderr)]
+        {
+            eprintln!("recipe scene {id}: {} tree nodes", scene.stats().nodes);
+        }
+        g.bench_function(BenchmarkId::new("tree_build_recipe_2threads", id), |b| {
+            b.iter(|| pool.install(|| build_recipe(&crop, &recipe).expect("recipe")))
+        });
+    }
     let scene = pool.install(|| build(&hf, true));
     let flat = pool.install(|| build(&hf, false));
     let pts = points(&scene, 10_000);

@@ -41,10 +41,12 @@ fn assert_failed_cleanly(out: &Output, needle: &str, files: &[&Path]) {
 #[test]
 fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
     let dir = tempfile::tempdir().unwrap();
-    let (glb, png, sec) = (
+    let (glb, png, sec, close, report) = (
         dir.path().join("scene.glb"),
         dir.path().join("render.png"),
         dir.path().join("section.png"),
+        dir.path().join("close.png"),
+        dir.path().join("report.json"),
     );
     let input = fixture();
     let out = relief(&[
@@ -60,6 +62,12 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
         s(&png),
         "--section",
         s(&sec),
+        "--closeups",
+        s(&close),
+        "--report",
+        s(&report),
+        "--max-triangles",
+        "20000",
         "--image-size",
         "64x48",
         "--resolution",
@@ -77,24 +85,49 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
         "tree:",
         "nodes",
         "karst:",
-        "hoodoos:",
         "watertight, manifold",
         "implicitise:",
     ] {
         assert!(stdout.contains(key), "`{key}` missing:\n{stdout}");
     }
-    // Every requested feature added primitives to the tree.
+    // Every requested feature added primitives to the tree, or a note says why it could not
+    // be resolved (at one voxel per 61.7 m cell, hoodoos of tens of metres cannot).
     for f in ["sea", "karst", "overhangs", "hoodoos", "arches", "islands"] {
-        let line = stdout
-            .lines()
-            .find(|l| l.starts_with(&format!("{f}:")))
-            .unwrap_or_else(|| panic!("no `{f}` line:\n{stdout}"));
-        let n: usize = line.split_whitespace().nth(1).unwrap().parse().unwrap();
-        assert!(n > 0, "{line}");
+        match stdout.lines().find(|l| l.starts_with(&format!("{f}:"))) {
+            Some(line) => {
+                let n: usize = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+                assert!(n > 0, "{line}");
+            }
+            None => assert!(
+                stdout
+                    .lines()
+                    .any(|l| l.starts_with("note:") && l.contains(&format!("{f} skipped"))),
+                "no `{f}` line nor note:\n{stdout}"
+            ),
+        }
     }
+    // The report: nodes in total and by kind, sizes in metres, the mesh within its budget.
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let nodes = r["tree_nodes"].as_u64().unwrap();
+    let by_kind: u64 = r["tree_nodes_by_kind"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(nodes, by_kind, "{r}");
+    assert!(r["tree_nodes_by_kind"]["sphere_carving"].as_u64().unwrap() > 0);
+    assert!(r["karst_passage_length_m"].as_f64().unwrap() > 0.0, "{r}");
+    assert!((r["dimensions"]["voxel_m"].as_f64().unwrap() - 61.703).abs() < 0.01);
+    assert!(r["mesh_triangles"].as_u64().unwrap() <= 20_000);
+    assert_eq!(r["mesh_watertight_manifold"], true);
+    assert!(r["build_s"].as_f64().is_some() && r["render_s"].as_f64().is_some());
+    assert_eq!(r["water_drawn"], true, "sea features draw water");
+    let (cw, ch) = png_size(&close);
+    assert!(ch == 24 && cw % 32 == 0 && cw >= 32, "{cw}x{ch}");
     let g = std::fs::read(&glb).unwrap();
     assert_eq!(&g[..4], b"glTF");
-    assert!(g.len() > 10_000, "{} bytes", g.len());
+    assert!(g.len() > 10_000 && g.len() < 2_000_000, "{} bytes", g.len());
     assert_eq!(png_size(&png), (64, 48));
     assert_eq!(png_size(&sec), (64, 48));
 }
@@ -255,4 +288,73 @@ fn glb_passes_the_khronos_validator() {
     let issues: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert_eq!(issues["numErrors"], 0, "{issues}");
     assert_eq!(issues["numWarnings"], 0, "{issues}");
+}
+
+/// `--geology FILE.json` drives the strata (echoed in the report), a karst-only scene draws no
+/// water, and a bad geology fails before any output is written.
+#[test]
+fn volume_reads_a_geology_and_draws_water_only_with_sea() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture();
+    let geo = dir.path().join("geo.json");
+    std::fs::write(
+        &geo,
+        r#"{"type": "strata", "z0": 0, "layers": [
+            {"thickness": 60, "hardness": 0.1}, {"thickness": 40, "hardness": 0.9}]}"#,
+    )
+    .unwrap();
+    let report = dir.path().join("r.json");
+    let png = dir.path().join("r.png");
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--crop",
+        "100,100,24,24",
+        "--features",
+        "karst",
+        "--geology",
+        s(&geo),
+        "--render",
+        s(&png),
+        "--image-size",
+        "32x24",
+        "--report",
+        s(&report),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["geology"]["type"], "strata", "{r}");
+    assert!((r["geology"]["layers"][1]["hardness"].as_f64().unwrap() - 0.9).abs() < 1e-6);
+    assert_eq!(r["water_drawn"], false);
+    let soft = r["dimensions"]["soft_thickness_m"].as_f64().unwrap();
+    assert!((soft - 60.0).abs() < 10.0, "{soft}");
+
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"type": "strata", "z0": 0, "layers": []}"#).unwrap();
+    let out2 = dir.path().join("o.png");
+    let rep2 = dir.path().join("o.json");
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--crop",
+        "100,100,24,24",
+        "--geology",
+        s(&bad),
+        "--render",
+        s(&out2),
+        "--report",
+        s(&rep2),
+    ]);
+    assert_failed_cleanly(&out, "layers", &[&out2, &rep2]);
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--report",
+        s(&dir.path().join("x.txt")),
+    ]);
+    assert_failed_cleanly(&out, ".json", &[]);
 }

@@ -24,6 +24,8 @@
 //! * [`mod@render`]: Lipschitz sphere tracing (interval-proven empty balls skipped, the carving-free
 //!   tree bounding steps in air, cone-limited minimum step) to an RGB8 buffer, and vertical
 //!   sections.
+//! * [`mod@simplify`]: quadric edge-collapse simplification to a triangle budget that keeps the
+//!   mesh watertight and manifold.
 //! * [`recipe`]: feature lists (`sea,caves,karst,...`) with parameters scaled to the DEM, as used
 //!   by `relief volume` and the pipeline's `volume` stage.
 //!
@@ -54,19 +56,22 @@ pub mod mesh;
 pub mod recipe;
 pub mod render;
 pub mod scene;
+pub mod simplify;
 pub mod tree;
 
 pub use error::{Error, Result};
-pub use geology::{GeoId, Geology, Layer};
+pub use geology::{GeoId, Geology, GeologySpec, Layer};
 pub use math::{Aabb, V3};
 pub use mesh::{
-    Mesh, MeshReport, MeshSettings, Topology, polygonize, polygonize_grid, sample_grid, topology,
+    Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,
+    sample_grid, topology,
 };
-pub use recipe::{Deviation, Feature, Recipe, RecipeReport, build_recipe};
+pub use recipe::{Densities, Deviation, Dimensions, Feature, Recipe, RecipeReport, build_recipe};
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,
-    RainErosion, Region, Scene, SceneBuilder, SeaErosion, Weathering, WindErosion,
-    erosion_intensity,
+    KarstStop, RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, Weathering,
+    WindErosion, erosion_intensity,
 };
+pub use simplify::{SimplifyReport, simplify};
 pub use tree::{DemFrame, NodeId, THRESHOLD, TerrainTree, TreeStats};

@@ -429,6 +429,16 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
     Ok((mesh, report))
 }
 
+/// Outward unit normals of `mesh`'s vertices from the scene's field gradient (central
+/// differences of step `h` metres where the gradient is not analytic), in parallel.
+pub fn field_normals(scene: &Scene, mesh: &mut Mesh, h: f32) {
+    mesh.normals = mesh
+        .positions
+        .par_iter()
+        .map(|&p| scene.normal(p, h))
+        .collect();
+}
+
 /// Samples the scene field on a grid of `dims` nodes spanning `bbox` (x fastest, then y, then
 /// z), in parallel. Meant for comparisons with other meshers; [`polygonize`] never builds it.
 pub fn sample_grid(scene: &Scene, bbox: &Aabb, dims: [usize; 3]) -> Result<Vec<f32>> {

@@ -50,6 +50,27 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// A close-up on `target` from the south-west and above, `distance` metres away, the eye
+    /// raised out of the rock if it starts inside (e.g. behind a cliff).
+    pub fn closeup(scene: &Scene, target: V3, distance: f32) -> Self {
+        let dir = normalize([-0.55, -0.7, 0.6]);
+        let mut eye = add(target, mul(dir, distance));
+        for _ in 0..64 {
+            if !scene.inside(eye) {
+                break;
+            }
+            eye[2] += 0.25 * distance;
+        }
+        Camera {
+            eye,
+            target,
+            up: [0.0, 0.0, 1.0],
+            fov_deg: 40.0,
+        }
+    }
+}
+
 /// Render settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderSettings {

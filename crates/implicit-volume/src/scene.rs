@@ -175,6 +175,10 @@ pub struct SeaErosion {
     pub caves: usize,
     /// Length of each sea cave (m).
     pub cave_length: f32,
+    /// Erosion passes: pass `k > 1` samples the *current* implicit surface (after the earlier
+    /// passes' carvings) inland of the previous samples and carves there with the stress
+    /// scaled by `0.8^(k-1)`, deepening notches into caves and arches (figure 4, left).
+    pub iterations: usize,
 }
 impl Default for SeaErosion {
     fn default() -> Self {
@@ -187,6 +191,41 @@ impl Default for SeaErosion {
             reach: 150.0,
             caves: 8,
             cave_length: 60.0,
+            iterations: 1,
+        }
+    }
+}
+
+/// Sea cliffs: the shore is cut back `retreat` metres by columns of negative spheres from
+/// below sea level up to the ground, each sphere's energy from `e(rho, sigma)` with `sigma`
+/// falling with the distance from the sea. The energy is tuned so that soft strata are
+/// removed and hard ones (`e` near `beta`) survive as ledges: a vertical, stepped cliff. This
+/// assumes saturated rock (`f = 2T`) a little under the surface, i.e. a heightfield transition
+/// ([`ImplicitizeSettings::transition`]) of about the sphere radius or less.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeaCliffs {
+    /// Sea level (m).
+    pub sea_level: f32,
+    /// Depth below sea level cut (m).
+    pub depth: f32,
+    /// How far inland the shore retreats (m).
+    pub retreat: f32,
+    /// Support radius of the spheres (m); columns are about `0.75 radius` apart (a jittered grid).
+    pub radius: f32,
+    /// `beta` of `e(rho, sigma)`.
+    pub beta: f32,
+    /// Seed.
+    pub seed: u64,
+}
+impl Default for SeaCliffs {
+    fn default() -> Self {
+        Self {
+            sea_level: 0.0,
+            depth: 3.0,
+            retreat: 40.0,
+            radius: 10.0,
+            beta: 0.2,
+            seed: 13,
         }
     }
 }
@@ -226,16 +265,28 @@ impl Default for RainErosion {
 }
 
 /// Karst by modified invasion percolation (paper section 4.2, figure 6).
+///
+/// Lengths are in metres. A carved step places a negative sphere whose *visible* passage
+/// radius is `radius` (the support radius follows from the energy, see
+/// [`KarstSettings::support_radius`]), shrunk down to `min_radius` until every test point on
+/// the passage sphere lies in soft rock (`rho < rho0`), so passages follow the soft strata;
+/// `sub_spheres` smaller spheres widen it horizontally. New candidates are `step` away in
+/// directions of the lower hemisphere flattened to at most `vertical` (the sine of the dip),
+/// following bedding planes as the authors' reference code does.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KarstSettings {
     /// Carve only where `rho < rho0`.
     pub rho0: f32,
-    /// Stop when the least resistant candidate has `rho` above this.
+    /// Stop when the least resistant candidate (its perturbed resistance) is above this; must
+    /// be reachable (below the hardest rock of the geology) to ever fire.
     pub rho_stop: f32,
     /// Range of the random perturbation of the resistance when ordering candidates.
     pub epsilon: f32,
-    /// Support radius of carving spheres (m).
+    /// Visible passage radius (m).
     pub radius: f32,
+    /// Smallest passage radius carved where the soft rock is thin (m); at least one meshing
+    /// voxel for the passage to be seen.
+    pub min_radius: f32,
     /// Energy scale: spheres get `-energy * e(rho, sigma)`.
     pub energy: f32,
     /// `beta` of `e(rho, sigma)`.
@@ -246,14 +297,23 @@ pub struct KarstSettings {
     pub step: f32,
     /// Poisson-sphere radius: a candidate closer than this to a queued one is rejected (m).
     pub poisson_radius: f32,
-    /// New candidate directions sampled on the lower hemisphere per step.
+    /// New candidate directions sampled per step.
     pub directions: usize,
-    /// Extra smaller spheres scattered in each carved sphere (rougher tunnels).
+    /// Largest sine of the dip of a new direction (0 = horizontal only, 1 = whole lower
+    /// hemisphere).
+    pub vertical: f32,
+    /// Extra spheres scattered around each carved sphere (wider, rougher passages).
     pub sub_spheres: usize,
-    /// Budget: maximum number of carving steps.
+    /// Budget: maximum number of carving steps (the queue may run dry or the threshold stop
+    /// the percolation before).
     pub budget: usize,
     /// Maximum number of initial sinkholes (the lowest first).
     pub max_sinkholes: usize,
+    /// Maximum number of extra seeds on steep faces (resurgences on cliffs, as in the authors'
+    /// karst scene), `cliff_spacing` apart.
+    pub cliff_seeds: usize,
+    /// Spacing of the cliff seeds (m).
+    pub cliff_spacing: f32,
     /// Seed.
     pub seed: u64,
 }
@@ -261,21 +321,45 @@ impl Default for KarstSettings {
     fn default() -> Self {
         Self {
             rho0: 0.5,
-            rho_stop: 0.95,
+            rho_stop: 0.6,
             epsilon: 0.1,
-            radius: 8.0,
+            radius: 5.0,
+            min_radius: 2.0,
             energy: 3.0,
             beta: 0.3,
             sigma: 1.0,
-            step: 6.0,
+            step: 5.0,
             poisson_radius: 4.0,
             directions: 3,
+            vertical: 0.3,
             sub_spheres: 2,
             budget: 5000,
             max_sinkholes: 64,
+            cliff_seeds: 32,
+            cliff_spacing: 50.0,
             seed: 7,
         }
     }
+}
+
+impl KarstSettings {
+    /// Support radius of the sphere whose carved hole in solid rock (field `2T`) has the
+    /// visible radius `a` at energy `energy * e`: `-energy e g(d^2/R^2) + 2T = T` at `d = a`.
+    pub fn support_radius(&self, a: f32, e: f32) -> f32 {
+        let k = (THRESHOLD / (self.energy * e).max(THRESHOLD + 1e-3)).cbrt();
+        a / (1.0 - k).max(1e-3).sqrt()
+    }
+}
+
+/// Why a karst percolation ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KarstStop {
+    /// The budget of carving steps was used up.
+    Budget,
+    /// The least resistant candidate was harder than `rho_stop`.
+    Threshold,
+    /// The queue ran dry (every reachable soft pocket was visited).
+    Exhausted,
 }
 
 /// Hoodoos (figure 3): stacked perturbed spheres on a cone, creased by a warp.
@@ -291,6 +375,9 @@ pub struct HoodooSettings {
     pub spacing: f32,
     /// Maximum ground slope (degrees) where a hoodoo may stand.
     pub max_slope_deg: f32,
+    /// Smallest resistance of the caprock: sites without rock this hard near the hoodoo's top
+    /// are skipped.
+    pub cap_rho: f32,
     /// Seed.
     pub seed: u64,
 }
@@ -302,6 +389,7 @@ impl Default for HoodooSettings {
             radius: 8.0,
             spacing: 40.0,
             max_slope_deg: 20.0,
+            cap_rho: 0.55,
             seed: 3,
         }
     }
@@ -357,12 +445,21 @@ impl Default for IslandSettings {
 }
 
 /// What an effect added.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct EffectReport {
     /// Candidate samples considered.
     pub candidates: usize,
     /// Primitives added to the tree.
     pub primitives: usize,
+    /// Landforms placed (hoodoos, arches, islands, caves; karst: carved steps).
+    pub features: usize,
+    /// Karst: length of the carved passages (carved steps times the step, m).
+    pub length_m: f32,
+    /// Karst: why the percolation ended.
+    pub stop: Option<KarstStop>,
+    /// Where the landforms were placed (hoodoo bases, arch middles, island centres, cave
+    /// mouths; karst: the seeds).
+    pub sites: Vec<V3>,
 }
 
 /// Builds a [`Scene`]: implicitises a DEM, then runs effects that add sub-trees.
@@ -680,6 +777,7 @@ impl SceneBuilder {
         let mut report = EffectReport {
             candidates: kept.len(),
             primitives: 0,
+            ..Default::default()
         };
         let mut placed = Vec::new();
         for &(p, e) in &energies {
@@ -695,7 +793,7 @@ impl SceneBuilder {
         Ok((report, placed))
     }
 
-    /// Horizontal distance (m) from every DEM cell to the nearest cell below `level`
+    /// Horizontal distance (m) from every DEM cell to the nearest cell at or below `level` (sea)
     /// (two-pass chamfer transform).
     fn distance_to_sea(&self, level: f32) -> Vec<f32> {
         let f = self.frame;
@@ -703,7 +801,7 @@ impl SceneBuilder {
         let mut d: Vec<f32> = self
             .dem
             .iter()
-            .map(|&z| if z < level { 0.0 } else { f32::INFINITY })
+            .map(|&z| if z <= level { 0.0 } else { f32::INFINITY })
             .collect();
         let dd = (f.cx * f.cx + f.cy * f.cy).sqrt();
         let steps_fwd = [
@@ -765,6 +863,9 @@ impl SceneBuilder {
                 "must be at most 2048 weathering radii",
             ));
         }
+        if !(1..=8).contains(&s.iterations) {
+            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
+        }
         let dist = self.distance_to_sea(s.sea_level);
         let frame = self.frame;
         let stress = |me: &Self, p: V3| {
@@ -797,7 +898,90 @@ impl SceneBuilder {
             band * acc
         };
         let band = Some((s.sea_level - s.depth, s.sea_level + s.height));
-        let (mut report, placed) = self.weather(&s.weathering, region, band, stress)?;
+        let (mut report, mut placed) = self.weather(&s.weathering, region, band, stress)?;
+        let inland = |p: V3| -> Option<V3> {
+            let (j, i) = frame.cell(p)?;
+            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
+            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
+            let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
+            let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
+            let g = (gx * gx + gy * gy).sqrt();
+            (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
+        };
+        let r = s.weathering.radius;
+        let w = &s.weathering;
+        let mut all_placed = placed.clone();
+        for pass in 1..s.iterations {
+            // The current surface: the scene with every carving so far.
+            let current = self.clone().build(true)?;
+            let decay = 0.8f32.powi(pass as i32);
+            let me = &*self;
+            let next: Vec<Option<(V3, f32)>> = placed
+                .par_iter()
+                .enumerate()
+                .map(|(k, &(p, _))| {
+                    let dir = inland(p)?;
+                    let h = |c: u64| unit(hash(w.seed, k as u64, pass as u64, 40 + c)) - 0.5;
+                    let start = add(p, [0.0, 0.0, 0.4 * r * h(0)]);
+                    // The nearest crossing of the current surface along inland, inland and
+                    // down, down, and inland and up (the sample may sit in air left by the
+                    // previous pass or still in rock).
+                    let jit = [0.5 * h(1), 0.5 * h(2), 0.0];
+                    let dirs = [
+                        normalize(add(dir, jit)),
+                        normalize(add(add(dir, jit), [0.0, 0.0, -0.7])),
+                        normalize(add(jit, [0.0, 0.0, -1.0])),
+                        normalize(add(add(dir, jit), [0.0, 0.0, 0.7])),
+                    ];
+                    let s_in = current.inside(start);
+                    let mut hit = None;
+                    'dirs: for d in dirs {
+                        let mut a = 0.0f32;
+                        for m in 1..=12 {
+                            let t = m as f32 * 0.25 * r;
+                            if current.inside(add(start, mul(d, t))) != s_in {
+                                hit = Some((d, a, t));
+                                break 'dirs;
+                            }
+                            a = t;
+                        }
+                    }
+                    let (d, mut a, mut b) = hit?;
+                    for _ in 0..12 {
+                        let m = 0.5 * (a + b);
+                        if current.inside(add(start, mul(d, m))) == s_in {
+                            a = m;
+                        } else {
+                            b = m;
+                        }
+                    }
+                    let q = add(start, mul(d, b));
+                    let wgt = region.weight(&frame, q);
+                    let sigma = (stress(me, q) * wgt * decay).clamp(0.0, 1.0);
+                    let e = erosion_intensity(me.geology.resistance(q), sigma, w.beta);
+                    (e >= w.threshold && e > 0.0).then_some((q, e))
+                })
+                .collect();
+            let pts: Vec<(V3, f32)> = next.into_iter().flatten().collect();
+            let keep = poisson_filter(
+                &pts.iter().map(|x| x.0).collect::<Vec<_>>(),
+                w.spacing,
+                |_| true,
+            );
+            report.candidates += pts.len();
+            placed = keep.into_iter().map(|k| pts[k]).collect();
+            for &(q, e) in &placed {
+                let id = self.tree.sphere(q, r, -w.energy * e)?;
+                self.negatives.push(id);
+                self.carved.push((q, r, false));
+                report.primitives += 1;
+            }
+            all_placed.extend_from_slice(&placed);
+            if placed.is_empty() {
+                break;
+            }
+        }
+        let placed = all_placed;
         // Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient),
         // from the most eroded samples just above sea level.
         let mut best: Vec<(f32, usize)> = placed
@@ -807,7 +991,6 @@ impl SceneBuilder {
             .map(|(k, (_, e))| (*e, k))
             .collect();
         best.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let r = s.weathering.radius;
         let mut mouths: Vec<V3> = Vec::new();
         for &(e, k) in &best {
             if mouths.len() >= s.caves {
@@ -817,28 +1000,150 @@ impl SceneBuilder {
             if mouths.iter().any(|m| norm(sub(*m, p)) < s.cave_length) {
                 continue;
             }
-            let Some((j, i)) = frame.cell(p) else {
+            let Some(mut dir) = inland(p) else {
                 continue;
             };
-            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
-            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
-            let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
-            let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
-            let g = (gx * gx + gy * gy).sqrt();
-            if !(g.is_finite() && g > 0.0) {
-                continue;
-            }
-            let dir = [gx / g, gy / g, 0.0];
             mouths.push(p);
+            report.features += 1;
+            report.sites.push(p);
+            // A wandering passage: the heading turns by up to +-20 degrees a step and the
+            // floor drifts a little, within the sea-erosion band.
             let n = (s.cave_length / (0.5 * r)).ceil() as usize;
+            let mut c = p;
             for m in 1..=n {
                 let t = m as f32 / n as f32;
-                let c = add(p, mul(dir, t * s.cave_length));
-                let rr = r * (1.0 - 0.5 * t);
+                let h = |q: u64| unit(hash(w.seed, k as u64, m as u64, 90 + q)) - 0.5;
+                let turn = 0.7 * h(0);
+                dir = [
+                    dir[0] * turn.cos() - dir[1] * turn.sin(),
+                    dir[0] * turn.sin() + dir[1] * turn.cos(),
+                    0.0,
+                ];
+                c = add(c, mul(dir, 0.5 * r));
+                c[2] = (c[2] + 0.15 * r * h(1))
+                    .clamp(s.sea_level - s.depth, s.sea_level + 0.5 * s.height);
+                let rr = r * (1.0 - 0.5 * t) * (0.85 + 0.3 * (h(2) + 0.5));
                 let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
                 self.negatives.push(id);
                 self.carved.push((c, rr, false));
                 report.primitives += 1;
+            }
+        }
+        Ok(report)
+    }
+
+    /// Sea cliffs ([`SeaCliffs`]).
+    pub fn sea_cliffs(&mut self, s: &SeaCliffs, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("depth", s.depth),
+            ("retreat", s.retreat),
+            ("radius", s.radius),
+        ] {
+            self.check_len(n, v)?;
+        }
+        if !s.sea_level.is_finite() {
+            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
+        }
+        if !(0.0..=1.0).contains(&s.beta) {
+            return Err(Error::param("beta", s.beta, "must be in [0, 1]"));
+        }
+        region.check(&self.frame)?;
+        let f = self.frame;
+        let spacing = 0.75 * s.radius;
+        let per_cell = ((f.cx / spacing).ceil() * (f.cy / spacing).ceil()) as usize;
+        if per_cell as f64 * (f.width * f.height) as f64 > (1u64 << 24) as f64 {
+            return Err(Error::param(
+                "radius",
+                s.radius,
+                "too small for this DEM: more than 2^24 cliff columns",
+            ));
+        }
+        let dist = self.distance_to_sea(s.sea_level);
+        // Bilinear distance to the sea (m).
+        let dist_at = |x: f32, y: f32| {
+            let (u, v) = f.to_grid([x, y, 0.0]);
+            let u = u.clamp(0.0, (f.width - 1) as f32);
+            let v = v.clamp(0.0, (f.height - 1) as f32);
+            let (j0, i0) = (u.floor() as usize, v.floor() as usize);
+            let (j1, i1) = ((j0 + 1).min(f.width - 1), (i0 + 1).min(f.height - 1));
+            let (tx, ty) = (u - j0 as f32, v - i0 as f32);
+            let g = |j: usize, i: usize| dist[i * f.width + j].min(1e9);
+            (g(j0, i0) * (1.0 - tx) + g(j1, i0) * tx) * (1.0 - ty)
+                + (g(j0, i1) * (1.0 - tx) + g(j1, i1) * tx) * ty
+        };
+        // Columns: a jittered grid `spacing` apart over the cells near the shore.
+        let reach_cells = (s.retreat / f.cx.min(f.cy)).ceil() + 1.0;
+        let (nx, ny) = (
+            (f.cx / spacing).ceil().max(1.0) as usize,
+            (f.cy / spacing).ceil().max(1.0) as usize,
+        );
+        let mut pts: Vec<V3> = Vec::new();
+        for i in 0..f.height - 1 {
+            for j in 0..f.width - 1 {
+                let dmin = [
+                    dist[i * f.width + j],
+                    dist[i * f.width + j + 1],
+                    dist[(i + 1) * f.width + j],
+                    dist[(i + 1) * f.width + j + 1],
+                ]
+                .into_iter()
+                .fold(f32::INFINITY, f32::min);
+                if dmin > reach_cells * f.cx.max(f.cy) {
+                    continue;
+                }
+                let base = f.node(j, i + 1, 0.0);
+                for a in 0..nx {
+                    for c in 0..ny {
+                        let k = (a * ny + c) as u64;
+                        let h = |q| unit(hash(s.seed, (i * f.width + j) as u64, k, q));
+                        pts.push([
+                            base[0] + (a as f32 + 0.25 + 0.5 * h(0)) / nx as f32 * f.cx,
+                            base[1] + (c as f32 + 0.25 + 0.5 * h(1)) / ny as f32 * f.cy,
+                            0.0,
+                        ]);
+                    }
+                }
+            }
+        }
+        let kept: Vec<usize> = (0..pts.len()).collect();
+        let mut report = EffectReport {
+            candidates: kept.len(),
+            ..Default::default()
+        };
+        // Energy per sphere: several supports of the lattice overlap at each point; the energy
+        // is set so that, in saturated rock, soft strata (e ~ 0.8) go and hard ones
+        // (e ~ beta + 0.15) mostly stay. Within the heightfield transition under the surface
+        // the rock is weaker and both go.
+        let energy = 0.25;
+        let dz = 0.5 * s.radius;
+        for k in kept {
+            let [x, y, _] = pts[k];
+            let d = dist_at(x, y);
+            let ground = self.ground(x, y);
+            if d <= 0.0 || d > s.retreat || ground <= s.sea_level {
+                continue;
+            }
+            let sigma = (1.0 - d / s.retreat).sqrt();
+            let mut z = s.sea_level - s.depth;
+            let mut any = false;
+            while z < ground + 0.5 * s.radius {
+                let p = [x, y, z];
+                let wgt = region.weight(&f, p);
+                if wgt > 0.0 {
+                    let e = erosion_intensity(self.geology.resistance(p), sigma * wgt, s.beta);
+                    let id = self.tree.sphere(p, s.radius, -energy * e)?;
+                    self.negatives.push(id);
+                    self.carved.push((p, s.radius, false));
+                    report.primitives += 1;
+                    any = true;
+                }
+                z += dz;
+            }
+            if any {
+                report.features += 1;
+                if report.sites.is_empty() {
+                    report.sites.push([x, y, s.sea_level]);
+                }
             }
         }
         Ok(report)
@@ -866,8 +1171,9 @@ impl SceneBuilder {
                 return 0.0;
             };
             let nrm = me.slope_normal(j, i);
-            let exposure =
-                (-crate::math::dot(nrm, wind)).max(0.0) / (1.0 - nrm[2] * nrm[2]).sqrt().max(1e-3);
+            // `-n . w` is sin(slope) cos(aspect to the wind): flat ground is not exposed, a
+            // face turned to the wind at 30 degrees or more is fully exposed.
+            let exposure = 2.0 * (-crate::math::dot(nrm, wind)).max(0.0);
             exposure.min(1.0) * ((p[2] - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0).sqrt()
         };
         Ok(self.weather(&s.weathering, region, None, stress)?.0)
@@ -933,7 +1239,11 @@ impl SceneBuilder {
         out
     }
 
-    /// Karst network by modified invasion percolation (section 4.2).
+    /// Karst network by modified invasion percolation (section 4.2): seeds at the DEM's
+    /// sinkholes and on steep faces, least (perturbed) resistance first, carving only where the
+    /// passage sphere lies in rock softer than `rho0`, new candidates on the flattened lower
+    /// hemisphere, Poisson rejection; ends on the budget, the `rho_stop` threshold or an empty
+    /// queue ([`EffectReport::stop`]).
     pub fn karst(&mut self, s: &KarstSettings, region: &Region) -> Result<EffectReport> {
         for (n, v) in [
             ("rho0", s.rho0),
@@ -941,6 +1251,7 @@ impl SceneBuilder {
             ("epsilon", s.epsilon),
             ("beta", s.beta),
             ("sigma", s.sigma),
+            ("vertical", s.vertical),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(Error::param(n, v, "must be in [0, 1]"));
@@ -948,11 +1259,20 @@ impl SceneBuilder {
         }
         for (n, v) in [
             ("radius", s.radius),
+            ("min_radius", s.min_radius),
             ("energy", s.energy),
             ("step", s.step),
             ("poisson_radius", s.poisson_radius),
+            ("cliff_spacing", s.cliff_spacing),
         ] {
             self.check_len(n, v)?;
+        }
+        if s.min_radius > s.radius {
+            return Err(Error::param(
+                "min_radius",
+                s.min_radius,
+                "must be <= radius",
+            ));
         }
         if !(1..=64).contains(&s.directions) {
             return Err(Error::param(
@@ -988,6 +1308,7 @@ impl SceneBuilder {
         let mut report = EffectReport::default();
         let seed = s.seed;
         let geo = self.geology.clone();
+        let geo = &geo;
         let push = |p: V3,
                     cands: &mut Vec<V3>,
                     heap: &mut BinaryHeap<Reverse<(u32, u32)>>,
@@ -1012,71 +1333,153 @@ impl SceneBuilder {
             heap.push(Reverse((k.to_bits(), idx)));
             true
         };
+        // Test points of a passage sphere: its six poles and eight diagonal points.
+        const D: f32 = 0.577_350_26;
+        const DIRS: [V3; 14] = [
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [D, D, D],
+            [D, D, -D],
+            [D, -D, D],
+            [D, -D, -D],
+            [-D, D, D],
+            [-D, D, -D],
+            [-D, -D, D],
+            [-D, -D, -D],
+        ];
+        let soft_radius = |p: V3| -> Option<f32> {
+            let mut a = s.radius;
+            loop {
+                if DIRS
+                    .iter()
+                    .all(|d| geo.resistance(add(p, mul(*d, a))) < s.rho0)
+                {
+                    return Some(a);
+                }
+                if a <= s.min_radius {
+                    return None;
+                }
+                a = (a * 0.75).max(s.min_radius);
+            }
+        };
         let sinks = self.sinkholes();
         let mut n_sinks = 0;
         for (j, i) in sinks {
             if n_sinks >= s.max_sinkholes {
                 break;
             }
-            let p = frame.node(j, i, self.dem_at(j, i) - 0.25 * s.radius);
-            if region.weight(&frame, p) <= 0.0 {
+            // The sinkhole drains down to the first soft rock under it (its shaft through the
+            // hard strata is not carved).
+            let mut p = frame.node(j, i, self.dem_at(j, i) - s.radius);
+            while geo.resistance(p) >= s.rho0 && p[2] > floor + 4.0 * s.radius {
+                p[2] -= 0.5 * s.radius;
+            }
+            if region.weight(&frame, p) <= 0.0 || geo.resistance(p) >= s.rho0 {
                 continue;
             }
             if push(p, &mut cands, &mut heap, &mut grid) {
                 n_sinks += 1;
             }
         }
+        // Resurgences on steep faces: Poisson-spaced steep cells, pushed into the rock.
+        if s.cliff_seeds > 0 {
+            let mut steep = Vec::new();
+            for i in 1..frame.height - 1 {
+                for j in 1..frame.width - 1 {
+                    let n = self.slope_normal(j, i);
+                    if n[2] < 0.8 {
+                        steep.push((hash(seed, (i * frame.width + j) as u64, 5, 0), j, i, n));
+                    }
+                }
+            }
+            steep.sort_by_key(|x| x.0);
+            let pts: Vec<V3> = steep
+                .iter()
+                .map(|&(_, j, i, _)| frame.node(j, i, self.dem_at(j, i)))
+                .collect();
+            let kept = poisson_filter(&pts, s.cliff_spacing, |_| true);
+            let mut n_cliff = 0;
+            for k in kept {
+                if n_cliff >= s.cliff_seeds {
+                    break;
+                }
+                let n = steep[k].3;
+                let mut p = sub(pts[k], mul(n, 1.5 * s.radius));
+                while geo.resistance(p) >= s.rho0 && p[2] > floor + 4.0 * s.radius {
+                    p[2] -= 0.5 * s.radius;
+                }
+                if region.weight(&frame, p) <= 0.0 || p[2] < floor + 3.0 * s.radius {
+                    continue;
+                }
+                if push(p, &mut cands, &mut heap, &mut grid) {
+                    n_cliff += 1;
+                }
+            }
+        }
+        report.sites = cands.clone();
         let mut steps = 0usize;
-        while let Some(Reverse((_, idx))) = heap.pop() {
+        report.stop = Some(KarstStop::Exhausted);
+        while let Some(Reverse((kbits, idx))) = heap.pop() {
             if steps >= s.budget {
+                report.stop = Some(KarstStop::Budget);
+                break;
+            }
+            if f32::from_bits(kbits) > s.rho_stop {
+                report.stop = Some(KarstStop::Threshold);
                 break;
             }
             let p = cands[idx as usize];
-            let rho = self.geology.resistance(p);
-            if rho > s.rho_stop {
-                break;
-            }
-            steps += 1;
             report.candidates += 1;
             let wgt = region.weight(&frame, p);
-            if rho < s.rho0 && wgt > 0.0 {
+            let rho = self.geology.resistance(p);
+            if rho < s.rho0
+                && wgt > 0.0
+                && let Some(a) = soft_radius(p)
+            {
                 let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
                 if e > 0.0 {
-                    let id = self.tree.sphere(p, s.radius, -s.energy * e)?;
+                    steps += 1;
+                    let r = s.support_radius(a, e);
+                    let id = self.tree.sphere(p, r, -s.energy * e)?;
                     self.negatives.push(id);
-                    self.carved.push((p, s.radius, true));
+                    self.carved.push((p, r, true));
                     report.primitives += 1;
                     for m in 0..s.sub_spheres {
                         let h =
                             |c: u64| unit(hash(seed, idx as u64, 100 + m as u64, c)) * 2.0 - 1.0;
-                        let q = add(p, mul([h(0), h(1), h(2)], 0.5 * s.radius));
+                        // Mostly sideways: passages widen along the bedding.
+                        let q = add(p, mul([h(0), h(1), 0.3 * h(2)], 0.6 * a));
                         let rq = self.geology.resistance(q);
                         if rq < s.rho0 {
                             let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
-                            let id = self.tree.sphere(q, 0.6 * s.radius, -s.energy * eq)?;
+                            let rr = 0.7 * s.support_radius(a, eq);
+                            let id = self.tree.sphere(q, rr, -s.energy * eq)?;
                             self.negatives.push(id);
-                            self.carved.push((q, 0.6 * s.radius, true));
+                            self.carved.push((q, rr, true));
                             report.primitives += 1;
                         }
                     }
                 }
             }
-            // New candidates on the lower hemisphere.
+            // New candidates on the lower hemisphere, flattened towards the horizontal.
             for d in 0..s.directions {
                 let h = |c: u64| unit(hash(seed, idx as u64, d as u64, 10 + c));
                 let phi = h(0) * std::f32::consts::TAU;
-                let cz = -h(1); // uniform on the lower hemisphere
-                let sz = (1.0 - cz * cz).sqrt();
-                let q = add(p, mul([sz * phi.cos(), sz * phi.sin(), cz], s.step));
+                let dir = normalize([phi.cos(), phi.sin(), -s.vertical * h(1)]);
+                let q = add(p, mul(dir, s.step));
                 if q[0] < 0.0
                     || q[1] < 0.0
                     || q[0] > xm
                     || q[1] > ym
-                    || q[2] < floor + 2.0 * s.radius
+                    || q[2] < floor + 3.0 * s.radius
                 {
                     continue;
                 }
-                if q[2] > self.ground(q[0], q[1]) {
+                if q[2] > self.ground(q[0], q[1]) - 0.5 * s.radius {
                     continue;
                 }
                 if region.weight(&frame, q) <= 0.0 {
@@ -1085,6 +1488,8 @@ impl SceneBuilder {
                 push(q, &mut cands, &mut heap, &mut grid);
             }
         }
+        report.features = steps;
+        report.length_m = steps as f32 * s.step;
         Ok(report)
     }
 
@@ -1134,47 +1539,71 @@ impl SceneBuilder {
                 "must be in [0, 90]",
             ));
         }
+        if !(0.0..=1.0).contains(&s.cap_rho) {
+            return Err(Error::param("cap_rho", s.cap_rho, "must be in [0, 1]"));
+        }
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
         let mut report = EffectReport {
             candidates: sites.len(),
             primitives: 0,
+            ..Default::default()
         };
-        for (k, &p) in sites.iter().take(s.count).enumerate() {
+        for (k, &p) in sites.iter().enumerate() {
+            if report.features >= s.count {
+                break;
+            }
             let h = |c| unit(hash(s.seed, k as u64, c, 7));
+            // A hoodoo survives under a resistant caprock: the cap sits at the hardest level
+            // of the top quarter; sites without hard rock there are skipped.
+            let rho = |z: f32| self.geology.resistance([p[0], p[1], z]);
+            let mut cap = (f32::NEG_INFINITY, p[2] + s.height);
+            for m in 0..=8 {
+                let z = p[2] + s.height * (0.75 + 0.3 * m as f32 / 8.0);
+                let r = rho(z);
+                if r > cap.0 {
+                    cap = (r, z);
+                }
+            }
+            if cap.0 < s.cap_rho {
+                continue;
+            }
+            let top = cap.1;
             let mut parts = Vec::new();
             let base = [p[0], p[1], p[2] - 0.2 * s.height];
             parts.push(self.tree.cone(
                 base,
-                add(base, [0.0, 0.0, 0.8 * s.height]),
-                1.6 * s.radius,
-                0.9 * s.radius,
+                [p[0], p[1], p[2] + 0.3 * (top - p[2])],
+                1.8 * s.radius,
+                1.0 * s.radius,
                 1.0,
             )?);
-            let n = 3 + (h(0) * 3.0) as usize;
+            // The column: soft strata are narrow necks, hard strata bulges.
+            let n = (((top - p[2]) / (0.45 * s.radius)).ceil() as usize).clamp(3, 64);
             for m in 0..n {
-                let t = (m as f32 + 1.0) / (n as f32 + 1.0);
+                let t = (m as f32 + 0.5) / n as f32;
+                let z = p[2] + t * (top - p[2]);
                 let c = [
-                    p[0] + (h(10 + m as u64) - 0.5) * 0.2 * s.radius,
-                    p[1] + (h(20 + m as u64) - 0.5) * 0.2 * s.radius,
-                    p[2] + t * 0.9 * s.height,
+                    p[0] + (h(10 + m as u64) - 0.5) * 0.15 * s.radius,
+                    p[1] + (h(20 + m as u64) - 0.5) * 0.15 * s.radius,
+                    z,
                 ];
-                parts.push(
-                    self.tree
-                        .sphere(c, s.radius * (0.9 + 0.5 * h(30 + m as u64)), 0.9)?,
-                );
+                let r = s.radius * (0.55 + 0.6 * rho(z)) * (0.9 + 0.2 * h(30 + m as u64));
+                parts.push(self.tree.sphere(c, r, 0.6)?);
             }
-            // Hard caprock: a flattened ellipsoid on top.
+            let cr = s.radius * (0.8 + 0.8 * cap.0);
             parts.push(self.tree.ellipsoid(
-                add(p, [0.0, 0.0, s.height]),
-                [1.5 * s.radius, 1.5 * s.radius, 0.6 * s.radius],
+                [p[0], p[1], top],
+                [1.3 * cr, 1.2 * cr, 0.45 * cr],
                 1.5,
             )?);
             report.primitives += parts.len();
+            report.features += 1;
+            report.sites.push(p);
             let b = self.tree.blend(&parts)?;
             let w = self.tree.warp(
                 b,
-                0.15 * s.radius,
+                0.12 * s.radius,
                 1.0 / (0.6 * s.radius),
                 (s.seed as u32).wrapping_add(k as u32),
             )?;
@@ -1243,9 +1672,10 @@ impl SceneBuilder {
         let mut report = EffectReport {
             candidates: sites.len(),
             primitives: 0,
+            ..Default::default()
         };
         for (k, &p) in sites.iter().enumerate() {
-            if report.primitives >= 12usize.saturating_mul(s.count) {
+            if report.features >= s.count {
                 break;
             }
             let ang = unit(hash(s.seed, k as u64, 3, 3)) * std::f32::consts::TAU;
@@ -1265,6 +1695,8 @@ impl SceneBuilder {
                 (s.seed as u32).wrapping_add(k as u32),
             )?;
             report.primitives += 12;
+            report.features += 1;
+            report.sites.push([p[0], p[1], p[2] + 0.5 * s.height]);
         }
         Ok(report)
     }
@@ -1283,6 +1715,7 @@ impl SceneBuilder {
         let mut report = EffectReport {
             candidates: sites.len(),
             primitives: 0,
+            ..Default::default()
         };
         for (k, &p) in sites.iter().take(s.count).enumerate() {
             let c = add(p, [0.0, 0.0, s.altitude]);
@@ -1305,6 +1738,8 @@ impl SceneBuilder {
             )?;
             self.positives.push(w);
             report.primitives += 2;
+            report.features += 1;
+            report.sites.push(c);
         }
         Ok(report)
     }

@@ -918,6 +918,48 @@ impl TerrainTree {
         }
     }
 
+    /// Node counts by kind (`sphere`, `capsule`, `cone`, `ellipsoid`, `heightfield`, `blend`,
+    /// `bvh`, `union`, `intersection`, `difference`, `smooth_blend`, `warp`), in that order,
+    /// kinds with no node left out; positive and negative spheres are counted apart
+    /// (`sphere_carving`).
+    pub fn kind_counts(&self) -> Vec<(&'static str, usize)> {
+        const NAMES: [&str; 13] = [
+            "sphere",
+            "sphere_carving",
+            "capsule",
+            "cone",
+            "ellipsoid",
+            "heightfield",
+            "blend",
+            "bvh",
+            "union",
+            "intersection",
+            "difference",
+            "smooth_blend",
+            "warp",
+        ];
+        let mut c = [0usize; 13];
+        for n in &self.nodes {
+            let k = match n {
+                Node::Sphere { e, .. } if *e < 0.0 => 1,
+                Node::Sphere { .. } => 0,
+                Node::Capsule { .. } => 2,
+                Node::Cone { .. } => 3,
+                Node::Ellipsoid { .. } => 4,
+                Node::Heightfield(_) => 5,
+                Node::Blend { .. } => 6,
+                Node::Bvh { .. } => 7,
+                Node::Union { .. } => 8,
+                Node::Intersection { .. } => 9,
+                Node::Difference { .. } => 10,
+                Node::SmoothBlend { .. } => 11,
+                Node::Warp { .. } => 12,
+            };
+            c[k] += 1;
+        }
+        NAMES.into_iter().zip(c).filter(|x| x.1 > 0).collect()
+    }
+
     /// Size in bytes of one node record.
     pub fn node_size() -> usize {
         std::mem::size_of::<Node>()

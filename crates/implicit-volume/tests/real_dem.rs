@@ -359,6 +359,7 @@ fn landforms_add_matter_above_the_ground() {
                 height: 60.0,
                 radius: 15.0,
                 spacing: 200.0,
+                cap_rho: 0.0,
                 seed: 1,
             },
             &Region::everywhere(),
@@ -479,12 +480,299 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
     assert_eq!(a.4, b.4);
     let rep = &a.4;
     assert_eq!(
-        rep.effects.len(),
-        Feature::ALL.len() - 1,
-        "sea and caves share one entry"
+        rep.effects.len() + rep.dims.notes.len(),
+        Feature::ALL.len() - 3,
+        "sea and caves share one entry, overhangs hold wind and rain, skipped ones have a note: {:?}",
+        rep.dims.notes
     );
     assert!(rep.effects.iter().all(|(_, e)| e.primitives > 0), "{rep:?}");
     assert!(rep.deviation.max < 0.01, "{:?}", rep.deviation);
     assert_eq!((a.5.bad_edges, a.5.misoriented_edges), (0, 0));
     assert!(a.3.carved > 0);
+}
+
+// ---- Issue 19: physical sizes, karst at scale, iterated erosion, cliffs, simplification ----
+
+fn canyon() -> Option<Heightfield> {
+    dem_crop("grandcanyon", 200, 160, 64, 64)
+}
+
+/// Default recipes on a plateau (grandcanyon) and a coast (N57E011): sizes in metres within
+/// the ranges of the issue, counts from densities, karst passages between one voxel and half
+/// the soft strata, the percolation ended by its threshold or an empty queue (not the budget).
+#[test]
+fn recipe_sizes_are_physical_on_the_canyon_and_the_coast() {
+    let (Some(gc), Some(co)) = (canyon(), coast()) else {
+        return;
+    };
+    for (name, hf) in [("grandcanyon 64x64", gc), ("N57E011 48x48", co)] {
+        let recipe = Recipe {
+            features: Feature::ALL.to_vec(),
+            ..Default::default()
+        };
+        let (scene, rep) = build_recipe(&hf, &recipe).unwrap();
+        let d = &rep.dims;
+        eprintln!(
+            "{name}: {} nodes; dims {d:?}; effects {:?}",
+            scene.stats().nodes,
+            rep.effects
+                .iter()
+                .map(|(f, e)| (f, e.primitives, e.features, e.length_m, e.stop))
+                .collect::<Vec<_>>()
+        );
+        assert!(d.floor_depth_m >= 0.3 * d.relief_m - 1e-3, "{d:?}");
+        if d.hoodoo_count > 0 {
+            assert!((10.0..=300.0).contains(&d.hoodoo_height_m), "{d:?}");
+            assert!(d.hoodoo_height_m < 0.5 * d.relief_m, "{d:?}");
+        }
+        if d.arch_count > 0 {
+            assert!((10.0..=300.0).contains(&d.arch_span_m), "{d:?}");
+            assert!(d.arch_span_m <= 0.5 * d.relief_m, "{d:?}");
+            assert!(d.arch_thickness_m >= d.voxel_m, "{d:?}");
+        }
+        let soft = d
+            .soft_thickness_m
+            .expect("the default geology has soft strata");
+        let karst = rep
+            .effects
+            .iter()
+            .find(|(f, _)| *f == Feature::Karst)
+            .map(|x| &x.1);
+        let karst = karst.unwrap_or_else(|| panic!("{name}: no karst: {:?}", d.notes));
+        assert!(
+            d.karst_radius_m >= d.voxel_m && d.karst_radius_m <= 0.5 * soft,
+            "{d:?}"
+        );
+        assert!(d.karst_step_m <= 0.5 * soft, "{d:?}");
+        assert!(karst.length_m > 0.0 && karst.features > 10, "{karst:?}");
+        assert!(
+            rep.effects.iter().all(|(_, e)| e.primitives > 0),
+            "{:?}",
+            rep.effects
+        );
+        assert!(rep.has_sea, "sea features present");
+    }
+}
+
+/// The karst stop rule is reachable (the default geology's hard strata are above `rho_stop`),
+/// passages spread sideways more than down, and the sphere poles of the carved steps are in
+/// soft rock.
+#[test]
+fn karst_stops_on_its_threshold_and_follows_the_strata() {
+    let Some(hf) = canyon() else { return };
+    let (lo, hi) = hf.min_max().unwrap();
+    let period = (hi - lo) / 6.0;
+    let geo = geology_for(&hf, period);
+    let mut b = SceneBuilder::new(
+        &hf,
+        geo.clone(),
+        &ImplicitizeSettings {
+            depth: 0.3 * (hi - lo),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let ks = KarstSettings {
+        radius: 0.1 * period,
+        min_radius: 0.05 * period,
+        step: 0.1 * period,
+        poisson_radius: 0.08 * period,
+        budget: 1 << 22,
+        cliff_spacing: period,
+        ..Default::default()
+    };
+    let rep = b.karst(&ks, &Region::everywhere()).unwrap();
+    eprintln!(
+        "karst to its end on the canyon 64x64: {rep:?} (period {period} m)",
+        rep = (rep.candidates, rep.primitives, rep.features, rep.stop)
+    );
+    assert!(
+        matches!(rep.stop, Some(KarstStop::Threshold | KarstStop::Exhausted)),
+        "{:?}",
+        rep.stop
+    );
+    assert!(rep.features > 100, "{}", rep.features);
+    let cs = b.carvings();
+    let mean = |k: usize| cs.iter().map(|c| c.0[k] as f64).sum::<f64>() / cs.len() as f64;
+    let m = [mean(0), mean(1), mean(2)];
+    let var = |k: usize| {
+        cs.iter()
+            .map(|c| (c.0[k] as f64 - m[k]).powi(2))
+            .sum::<f64>()
+            / cs.len() as f64
+    };
+    let (sh, sv) = ((var(0) + var(1)).sqrt(), var(2).sqrt());
+    assert!(sh > 3.0 * sv, "horizontal spread {sh} vs vertical {sv}");
+    let mut soft_poles = 0;
+    for (c, _, _) in cs {
+        if [1.0f32, -1.0]
+            .iter()
+            .all(|s| geo.resistance([c[0], c[1], c[2] + s * ks.min_radius]) < ks.rho0)
+        {
+            soft_poles += 1;
+        }
+    }
+    assert!(
+        soft_poles * 10 >= cs.len() * 9,
+        "{soft_poles} of {}",
+        cs.len()
+    );
+}
+
+/// Iterated sea erosion samples the carved surface again and cuts deeper inland than one pass.
+#[test]
+fn iterated_sea_erosion_cuts_deeper() {
+    let Some(hf) = coast() else { return };
+    let geo = geology_for(&hf, 15.0);
+    let removed = |iterations: usize| {
+        let mut b = SceneBuilder::new(&hf, geo.clone(), &ImplicitizeSettings::default()).unwrap();
+        let s = SeaErosion {
+            iterations,
+            caves: 0,
+            ..sea_settings()
+        };
+        let rep = b.sea_erosion(&s, &Region::everywhere()).unwrap();
+        let f = b.frame();
+        let scene = b.build(true).unwrap();
+        let mut n = 0;
+        for i in 0..hf.height() * 3 {
+            for j in 0..hf.width() * 3 {
+                let (x, y) = (j as f32 * f.cx / 3.0, i as f32 * f.cy / 3.0);
+                let g = scene.dem_height(x, y).unwrap();
+                let mut z = g - 0.5;
+                while z > -5.0 {
+                    if !scene.inside([x, y, z]) {
+                        n += 1;
+                    }
+                    z -= 1.0;
+                }
+            }
+        }
+        (n, rep.primitives)
+    };
+    let (one, p1) = removed(1);
+    let (three, p3) = removed(3);
+    eprintln!("sea erosion removed points: 1 pass {one} ({p1} spheres), 3 passes {three} ({p3})");
+    assert!(p3 > p1 && three as f64 > 1.1 * one as f64, "{one} {three}");
+}
+
+/// Sea cliffs cut only near the shore, and leave hard strata standing.
+#[test]
+fn sea_cliffs_cut_back_the_shore_only() {
+    let Some(hf) = coast() else { return };
+    let geo = geology_for(&hf, 40.0);
+    // Rock saturates 3 m under the surface, as in the recipes (two voxels).
+    let imp = ImplicitizeSettings {
+        transition: 3.0,
+        ..Default::default()
+    };
+    let plain = SceneBuilder::new(&hf, geo.clone(), &imp)
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let mut b = SceneBuilder::new(&hf, geo.clone(), &imp).unwrap();
+    let s = SeaCliffs {
+        retreat: 60.0,
+        radius: 4.0,
+        ..Default::default()
+    };
+    // The northern half of the crop, to keep the test fast.
+    let f0 = b.frame();
+    let (xm, ym) = (
+        (f0.width - 1) as f32 * f0.cx,
+        (f0.height - 1) as f32 * f0.cy,
+    );
+    let region = Region::in_box(Aabb::new([0.0, 0.5 * ym, -100.0], [xm, ym, 500.0]));
+    let rep = b.sea_cliffs(&s, &region).unwrap();
+    assert!(rep.primitives > 100, "{rep:?}");
+    let f = b.frame();
+    let scene = b.build(true).unwrap();
+    let (cx, cy) = (f.cx, f.cy);
+    let near_sea = |x: f32, y: f32, d: f32| {
+        let r = (d / cx.min(cy)).ceil() as i32 + 1;
+        let (j0, i0) = f.to_grid([x, y, 0.0]);
+        (-r..=r).any(|di| {
+            (-r..=r).any(|dj| {
+                let (j, i) = (j0.round() as i32 + dj, i0.round() as i32 + di);
+                j >= 0
+                    && i >= 0
+                    && (j as usize) < hf.width()
+                    && (i as usize) < hf.height()
+                    && hf.get(j as usize, i as usize) <= s.sea_level
+                    && {
+                        let p = f.node(j as usize, i as usize, 0.0);
+                        ((p[0] - x).powi(2) + (p[1] - y).powi(2)).sqrt() <= d
+                    }
+            })
+        })
+    };
+    // Removed fraction of the rock in the cut band, by hardness: soft strata go first.
+    let (mut removed, mut soft, mut soft_removed, mut hard, mut hard_removed) = (0, 0, 0, 0, 0);
+    for i in 0..hf.height() * 2 {
+        for j in 0..hf.width() * 3 {
+            let (x, y) = (j as f32 * cx / 3.0, i as f32 * cy / 2.0);
+            if y < 0.5 * ym - 2.0 * s.retreat {
+                continue;
+            }
+            let g = scene.dem_height(x, y).unwrap();
+            let mut z = g - 0.25;
+            while z > s.sea_level {
+                let p = [x, y, z];
+                if plain.inside(p) {
+                    let gone = !scene.inside(p);
+                    if gone {
+                        assert!(y >= 0.5 * ym - s.radius, "{p:?} outside the region");
+                        removed += 1;
+                        let diag = (cx * cx + cy * cy).sqrt();
+                        assert!(near_sea(x, y, s.retreat + s.radius + diag), "{p:?}");
+                    }
+                    if near_sea(x, y, 0.5 * s.retreat) {
+                        let rho = geo.resistance(p);
+                        if rho < 0.4 {
+                            soft += 1;
+                            soft_removed += gone as usize;
+                        } else if rho > 0.6 {
+                            hard += 1;
+                            hard_removed += gone as usize;
+                        }
+                    }
+                }
+                z -= 0.5;
+            }
+        }
+    }
+    let frac = |a: usize, b: usize| a as f64 / b.max(1) as f64;
+    eprintln!(
+        "sea cliffs: {} spheres in {} columns; removed {removed}; near the shore soft {soft_removed}/{soft}, hard {hard_removed}/{hard}",
+        rep.primitives, rep.features
+    );
+    assert!(removed > 200, "{removed}");
+    assert!(
+        frac(soft_removed, soft) > frac(hard_removed, hard),
+        "soft strata must retreat more than hard ones"
+    );
+}
+
+/// A real scene mesh simplified to a quarter stays watertight with the same Euler
+/// characteristic.
+#[test]
+fn simplified_scene_mesh_stays_watertight() {
+    let Some(hf) = coast() else { return };
+    let scene = full_scene(&hf);
+    let (mesh, _) = polygonize(
+        &scene,
+        &MeshSettings {
+            cells: [64, 64, 48],
+            chunk: 16,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let t0 = topology(&mesh);
+    let (s, rep) = simplify(&mesh, mesh.triangles.len() / 4).unwrap();
+    let t1 = topology(&s);
+    eprintln!("simplify: {rep:?}, before {t0:?}, after {t1:?}");
+    assert!(s.triangles.len() <= mesh.triangles.len() / 4 + 2);
+    assert_eq!((t1.bad_edges, t1.misoriented_edges), (0, 0), "{t1:?}");
+    assert_eq!(t0.euler, t1.euler);
 }

@@ -126,13 +126,18 @@ proptest! {
     #[test]
     fn sea_wind_rain(w in weathering(), lvl in num(5.0), d in num(4.0), h in num(20.0),
                      peak in num(3.0), reach in num(100.0), caves in count(), len in num(60.0),
-                     dir in num(1.0), slope in num(40.0)) {
+                     dir in num(1.0), slope in num(40.0), iters in 0usize..4,
+                     retreat in num(30.0)) {
         let mut b = builder();
         let sea = SeaErosion { weathering: w, sea_level: lvl, depth: d, height: h, peak,
-                               reach, caves, cave_length: len };
+                               reach, caves, cave_length: len, iterations: iters };
         let mut f = WEATHERING.to_vec();
-        f.extend(["sea_level", "depth", "height", "peak", "reach", "cave_length"]);
+        f.extend(["sea_level", "depth", "height", "peak", "reach", "cave_length", "iterations"]);
         check(b.sea_erosion(&sea, &Region::everywhere()), &f)?;
+        let cl = SeaCliffs { sea_level: lvl, depth: d, retreat, radius: w.radius, beta: w.beta,
+                             seed: 1 };
+        check(b.sea_cliffs(&cl, &Region::everywhere()),
+              &["sea_level", "depth", "retreat", "radius", "beta"])?;
         check(b.wind_erosion(&WindErosion { weathering: w, direction: [dir, 0.0] },
                              &Region::everywhere()), &[WEATHERING, &["direction"]].concat())?;
         check(b.rain_erosion(&RainErosion { weathering: w, full_slope_deg: slope },
@@ -144,14 +149,16 @@ proptest! {
     fn karst(rho0 in unit(), stop in unit(), eps in unit(), radius in num(8.0), energy in num(3.0),
              beta in unit(), sigma in unit(), step in num(6.0), pr in num(4.0),
              dirs in count(), subs in count(), budget in prop_oneof![0usize..400, Just(usize::MAX)],
-             sinks in count(), seed in any::<u64>()) {
+             sinks in count(), seed in any::<u64>(), minr in num(2.0), vert in unit(),
+             cliffs in count(), csp in num(50.0)) {
         let mut b = builder();
-        let k = KarstSettings { rho0, rho_stop: stop, epsilon: eps, radius, energy, beta, sigma,
-                                step, poisson_radius: pr, directions: dirs, sub_spheres: subs,
-                                budget, max_sinkholes: sinks, seed };
+        let k = KarstSettings { rho0, rho_stop: stop, epsilon: eps, radius, min_radius: minr,
+                                energy, beta, sigma, step, poisson_radius: pr, directions: dirs,
+                                vertical: vert, sub_spheres: subs, budget, max_sinkholes: sinks,
+                                cliff_seeds: cliffs, cliff_spacing: csp, seed };
         check(b.karst(&k, &Region::everywhere()), &["rho0", "rho_stop", "epsilon", "radius",
             "energy", "beta", "sigma", "step", "poisson_radius", "directions", "sub_spheres",
-            "budget"])?;
+            "budget", "min_radius", "vertical", "cliff_spacing"])?;
     }
 
     #[test]
@@ -164,9 +171,10 @@ proptest! {
             bbox: Some(Aabb::new([lo, lo, lo], [hi, hi, hi])),
         };
         let names = ["region", "height", "radius", "spacing", "count", "span", "thickness",
-                     "altitude", "max_slope_deg", "arch feet"];
+                     "altitude", "max_slope_deg", "arch feet", "cap_rho"];
         check(b.hoodoos(&HoodooSettings { count: n, height: h, radius: r, spacing: sp,
-                                          max_slope_deg: slope, seed }, &region), &names)?;
+                                          max_slope_deg: slope, cap_rho: mv, seed }, &region),
+              &names)?;
         check(b.arches(&ArchSettings { count: n, span: sp, height: h, thickness: r, seed },
                        &Region::everywhere()), &names)?;
         check(b.floating_islands(&IslandSettings { count: n, radius: r, altitude: h, seed },
@@ -212,13 +220,14 @@ proptest! {
     #[test]
     fn recipes(scale in num(1.0), sea in proptest::option::of(num(5.0)), budget in 0usize..300,
                mv in unit(), mlen in prop_oneof![Just(14usize * 12), 0usize..200],
-               feats in proptest::sample::subsequence(Feature::ALL.to_vec(), 0..=7),
+               feats in proptest::sample::subsequence(Feature::ALL.to_vec(), 0..=10),
                seed in any::<u64>()) {
         let recipe = Recipe { features: feats, sea_level: sea, mask: Some(vec![mv; mlen]),
-                              scale, karst_budget: budget, seed };
+                              scale, karst_budget: Some(budget), seed, ..Default::default() };
         let mut f = WEATHERING.to_vec();
         f.extend(["scale", "sea_level", "region", "cave_length", "height", "radius", "span",
-                  "thickness", "altitude", "step", "poisson_radius"]);
+                  "thickness", "altitude", "step", "poisson_radius", "retreat", "depth",
+                  "min_radius", "cliff_spacing", "voxel", "period"]);
         check(build_recipe(&dem(), &recipe), &f)?;
     }
 }

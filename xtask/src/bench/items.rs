@@ -327,6 +327,24 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "tree memory (<= 10 MB) is reported by the crate's bench_volume example",
     },
     WorkItem {
+        name: "tree build, default recipe (karst, sea, cliffs, caves, landforms) on a 128^2 \
+               grandcanyon crop (>= 50k nodes), 2 threads",
+        criterion_id: "implicit_volume/tree_build_recipe_2threads/grandcanyon_128",
+        peer: None,
+        goal: Goal::SecondsAtMost(3.0),
+        units: None,
+        note: "issue 19: paper scale (Table 1: 50k-166k nodes in < 7 s); node count printed by \
+               the bench",
+    },
+    WorkItem {
+        name: "tree build, default recipe on a 48^2 N57E011 coast crop, 2 threads",
+        criterion_id: "implicit_volume/tree_build_recipe_2threads/n57e011_48",
+        peer: None,
+        goal: Goal::SecondsAtMost(3.0),
+        units: None,
+        note: "issue 19",
+    },
+    WorkItem {
         name: "field evaluation with BVH, 10k points",
         criterion_id: "implicit_volume/field_10k_points/bvh",
         peer: None,

@@ -15,7 +15,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use relief_implicit_volume::{
     Camera, Feature, MeshSettings, Recipe, RenderSettings, SectionSettings, build_recipe,
-    polygonize, render, section, topology,
+    field_normals, polygonize, render, section, simplify, topology,
 };
 use serde::Deserialize;
 
@@ -32,12 +32,15 @@ pub(crate) struct VolumeParams {
     pub(crate) max_size: usize,
     /// Sea level in metres (`null`: the 25th percentile of the elevations).
     pub(crate) sea_level: Option<f32>,
-    /// Mesh cells per DEM cell (runs with previews; 1 without).
-    pub(crate) resolution: f32,
+    /// Mesh cells per DEM cell (runs with previews; 1 without); `null` = the voxel derived
+    /// by the recipe from the DEM.
+    pub(crate) resolution: Option<f32>,
     /// Multiplies every feature size.
     pub(crate) scale: f32,
-    /// Karst budget (carving steps).
-    pub(crate) karst_budget: usize,
+    /// Karst budget (carving steps); `null` = from the recipe's passage density.
+    pub(crate) karst_budget: Option<usize>,
+    /// Simplify the GLB to at most this many triangles (`null`: no simplification).
+    pub(crate) max_triangles: Option<usize>,
     /// Render width and height in pixels.
     pub(crate) render_size: [usize; 2],
 }
@@ -50,9 +53,10 @@ impl Default for VolumeParams {
                 .to_vec(),
             max_size: 128,
             sea_level: None,
-            resolution: 2.0,
+            resolution: None,
             scale: 1.0,
-            karst_budget: 600,
+            karst_budget: None,
+            max_triangles: Some(300_000),
             render_size: [480, 360],
         }
     }
@@ -75,8 +79,13 @@ impl VolumeStage {
     /// Checks the parameters when the spec is read.
     pub(crate) fn new(p: VolumeParams) -> Result<Self> {
         p.features()?;
-        if !(p.resolution.is_finite() && p.resolution > 0.0 && p.resolution <= 8.0) {
-            bail!("`resolution` = {} must be in (0, 8]", p.resolution);
+        if let Some(r) = p.resolution
+            && !(r.is_finite() && r > 0.0 && r <= 8.0)
+        {
+            bail!("`resolution` = {r} must be in (0, 8]");
+        }
+        if p.max_triangles == Some(0) {
+            bail!("`max_triangles` must be at least 1");
         }
         if p.render_size.iter().any(|&v| v == 0 || v > 4096) {
             bail!(
@@ -108,13 +117,22 @@ impl Stage for VolumeStage {
         } else {
             terrain.clone()
         };
+        // Without previews (the golden run) the mesh is one cell per DEM cell.
+        let (ccx, ccy) = hf.cell_size();
+        let cell = ccx.max(ccy) as f32;
+        let voxel = if cx.config.previews {
+            p.resolution.map(|r| cell / r)
+        } else {
+            Some(cell)
+        };
         let recipe = Recipe {
             features: p.features()?,
             sea_level: p.sea_level,
-            mask: None,
             scale: p.scale,
+            voxel,
             karst_budget: p.karst_budget,
             seed: cx.config.seed,
+            ..Default::default()
         };
         cx.section.figure(
             "features",
@@ -134,7 +152,18 @@ impl Stage for VolumeStage {
         cx.section
             .figure("geology_bytes", scene.geology().memory_bytes());
         cx.section.figure("sea_level_m", rep.sea_level);
-        cx.section.figure("unit_m", rep.unit);
+        cx.section.figure("voxel_m", rep.dims.voxel_m);
+        cx.section.figure("relief_m", rep.dims.relief_m);
+        cx.section
+            .figure("soft_thickness_m", rep.dims.soft_thickness_m);
+        cx.section.figure("karst_radius_m", rep.dims.karst_radius_m);
+        cx.section
+            .figure("hoodoo_height_m", rep.dims.hoodoo_height_m);
+        cx.section.figure("arch_span_m", rep.dims.arch_span_m);
+        cx.section.figure("notes", &rep.dims.notes);
+        for (k, n) in scene.tree().0.kind_counts() {
+            cx.section.figure(&format!("tree_nodes_{k}"), n);
+        }
         cx.section
             .figure("implicitisation_max_dev_m", rep.deviation.max);
         cx.section
@@ -146,35 +175,48 @@ impl Stage for VolumeStage {
             .iter()
             .map(|(f, e)| {
                 cx.section.figure(&format!("{f}_primitives"), e.primitives);
+                cx.section.figure(&format!("{f}_count"), e.features);
+                if *f == Feature::Karst {
+                    cx.section.figure("karst_passage_length_m", e.length_m);
+                }
                 vec![
                     f.to_string(),
                     e.candidates.to_string(),
                     e.primitives.to_string(),
+                    e.features.to_string(),
                 ]
             })
             .collect::<Vec<_>>();
-        cx.section
-            .table("effects", &["feature", "candidates", "primitives"], rows);
+        cx.section.table(
+            "effects",
+            &["feature", "candidates", "primitives", "count"],
+            rows,
+        );
 
         // Chunked polygonisation.
-        let res = if cx.config.previews {
-            p.resolution
-        } else {
-            1.0
-        };
-        let cell = rep.unit / p.scale / res;
+        let cell = rep.dims.voxel_m;
         let size = scene.bbox().size();
         let cells = [0, 1, 2].map(|k| ((size[k] / cell).ceil() as usize).clamp(2, 2048));
         relief_heightfield::Progress::begin(&progress, "polygonise", 0);
         let t = Instant::now();
-        let (mesh, mr) = polygonize(
+        let (mut mesh, mr) = polygonize(
             &scene,
             &MeshSettings {
                 cells,
+                normals: p.max_triangles.is_none(),
                 ..Default::default()
             },
         )?;
         cx.section.figure("mesh_s", t.elapsed().as_secs_f64());
+        cx.section
+            .figure("mesh_triangles_polygonised", mesh.triangles.len());
+        if let Some(max) = p.max_triangles {
+            let t = Instant::now();
+            let (m, _) = simplify(&mesh, max)?;
+            mesh = m;
+            field_normals(&scene, &mut mesh, 0.25 * cell);
+            cx.section.figure("simplify_s", t.elapsed().as_secs_f64());
+        }
         let topo = topology(&mesh);
         cx.section.figure("mesh_grid", cells);
         cx.section.figure("mesh_chunks", mr.chunks);
@@ -235,7 +277,7 @@ impl Stage for VolumeStage {
                 &RenderSettings {
                     width: p.render_size[0],
                     height: p.render_size[1],
-                    sea_level: Some(rep.sea_level),
+                    sea_level: rep.has_sea.then_some(rep.sea_level),
                     ..Default::default()
                 },
             )?;
@@ -250,6 +292,53 @@ impl Stage for VolumeStage {
                     st.nodes, rep.sea_level
                 ),
             );
+            // Close-ups on the first landforms of each kind (up to four).
+            let t = Instant::now();
+            let d = &rep.dims;
+            let mut tiles = Vec::new();
+            let mut names = Vec::new();
+            for (f, c) in rep.highlights.iter().take(4) {
+                let size = match f {
+                    Feature::Hoodoos => d.hoodoo_height_m * 3.5,
+                    Feature::Arches => d.arch_span_m * 2.5,
+                    Feature::Islands => d.island_radius_m * 8.0,
+                    Feature::Karst => d.karst_radius_m * 40.0,
+                    _ => d.sea_height_m * 6.0,
+                };
+                let cam = Camera::closeup(&scene, *c, size.max(4.0 * d.voxel_m));
+                tiles.push(render(
+                    &scene,
+                    &cam,
+                    &RenderSettings {
+                        width: p.render_size[0] / 2,
+                        height: p.render_size[1] / 2,
+                        sea_level: rep.has_sea.then_some(rep.sea_level),
+                        ..Default::default()
+                    },
+                )?);
+                names.push(f.to_string());
+            }
+            if !tiles.is_empty() {
+                let h = tiles[0].height;
+                let w: usize = tiles.iter().map(|t| t.width).sum();
+                let mut rgb = vec![0u8; w * h * 3];
+                let mut x0 = 0;
+                for t in &tiles {
+                    for y in 0..h {
+                        rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3]
+                            .copy_from_slice(&t.rgb[y * t.width * 3..(y + 1) * t.width * 3]);
+                    }
+                    x0 += t.width;
+                }
+                cx.section.figure("closeups_s", t.elapsed().as_secs_f64());
+                let path = cx.config.out_dir.join("volume_closeups.png");
+                relief_io::write_rgb_png(&path, w, h, &rgb)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                cx.section.image(
+                    "volume_closeups.png",
+                    &format!("close-ups, left to right: {}", names.join(", ")),
+                );
+            }
         }
         Ok(())
     }
@@ -287,12 +376,23 @@ mod tests {
         eprintln!("volume stage on the golden crop: {secs:.2} s");
         assert_eq!(f["mesh_watertight_manifold"], true, "{f:?}");
         assert!(f["implicitisation_max_dev_m"].as_f64().unwrap() < 0.01);
+        // Every feature carved or added something, or a note says why it could not be
+        // resolved at one voxel per DEM cell (the golden run).
+        let notes = f["notes"].to_string();
         for k in ["sea", "karst", "hoodoos", "arches", "islands"] {
+            let n = f
+                .get(&format!("{k}_primitives"))
+                .and_then(|v| v.as_u64())
+                .unwrap_or(0);
             assert!(
-                f[&format!("{k}_primitives")].as_u64().unwrap() > 0,
+                n > 0 || notes.contains(&format!("{k} skipped")),
                 "{k}: {f:?}"
             );
         }
+        eprintln!(
+            "build {} s, mesh {} s, nodes {}",
+            f["tree_build_s"], f["mesh_s"], f["tree_nodes"]
+        );
         assert!(f["tree_nodes"].as_u64().unwrap() > 500);
         assert!(f["section_carved_px"].as_u64().unwrap() > 0);
         assert!(tmp.path().join("volume.glb").is_file());
