@@ -138,6 +138,49 @@ fn read_mask(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Vec<f32>> {
     Ok(v.iter().map(|x| x / div).collect())
 }
 
+/// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
+/// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
+/// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
+/// case).
+const TRIANGLES_PER_COLUMN: f64 = 24.0;
+
+/// Peak bytes per triangle while meshing and writing: positions and normals of about half a
+/// vertex (24 B), the triangle (12 B), the vertex map of the chunked polygoniser and the
+/// encoded file built in memory before the atomic write (measured: 69-81 B at 1.5-6 M
+/// triangles, release build).
+const MESH_BYTES_PER_TRIANGLE: f64 = 90.0;
+
+/// Bytes per file triangle (binary PLY/GLB: 12 B of indices plus half a vertex of 24 B).
+const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
+
+/// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
+const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
+
+/// Pre-flight estimate of the mesh (issue 18): triangles from the polygonisation grid, memory
+/// against `--max-memory` and file size against `--max-output-size`, both naming
+/// `--resolution`.
+fn preflight_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], resolution: f32) -> Result<()> {
+    let columns = cells[0] as f64 * cells[1] as f64;
+    let triangles = columns * TRIANGLES_PER_COLUMN;
+    let change = format!(
+        "a smaller --resolution (now {resolution}; the grid is {}x{}x{}) or a --crop",
+        cells[0], cells[1], cells[2]
+    );
+    ctx.check_output_size(
+        &format!("the mesh {}", path.display()),
+        triangles * FILE_BYTES_PER_TRIANGLE,
+        &change,
+    )?;
+    ctx.check_memory(
+        &format!("volume --resolution {resolution}"),
+        &[&[crate::memory::part(
+            format!("the mesh (about {:.0} M triangles)", triangles / 1e6),
+            triangles * MESH_BYTES_PER_TRIANGLE,
+            change,
+        )]],
+    )
+}
+
 /// Builds the scene and writes the requested outputs.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
@@ -180,6 +223,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if !(args.resolution.is_finite() && args.resolution > 0.0 && args.resolution <= 16.0) {
         bail!("--resolution {}: must be in (0, 16]", args.resolution);
     }
+    // The mesh, the render and the section appear together or not at all.
+    let targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+    let staged = crate::staging::Outputs::new(&targets)?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if let Some((x, y, w, h)) = args.crop {
@@ -236,12 +282,26 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         st.heightfield_bytes as f64 / 1e6
     ));
 
+    let b = scene.bbox();
+    let cell = rep.unit / recipe.scale / args.resolution;
+    let sz = b.size();
+    let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
+    if let Some(path) = &args.mesh {
+        preflight_mesh(ctx, path, cells, args.resolution)?;
+    }
+    if args.render.is_some() || args.section.is_some() {
+        let (w, h) = args.image_size;
+        ctx.check_memory(
+            "volume",
+            &[&[crate::memory::part(
+                "the render and section images",
+                w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
+                "a smaller --image-size",
+            )]],
+        )?;
+    }
     if let Some(path) = &args.mesh {
         progress.begin("polygonising", 0);
-        let b = scene.bbox();
-        let cell = rep.unit / recipe.scale / args.resolution;
-        let sz = b.size();
-        let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
         let t = Instant::now();
         let (mesh, mr) = polygonize(
             &scene,
@@ -273,8 +333,13 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         ));
         let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
         let t = Instant::now();
-        relief_io::write_mesh(path, &mesh.positions, &mesh.triangles, normals)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        relief_io::write_mesh(
+            &staged.path(path),
+            &mesh.positions,
+            &mesh.triangles,
+            normals,
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
         out.push_str(&format!(
             "wrote {} in {:.3} s\n",
             path.display(),
@@ -296,7 +361,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             },
         )
         .context("cannot render the scene")?;
-        relief_io::write_rgb_png(path, img.width, img.height, &img.rgb)
+        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         out.push_str(&format!(
             "render:       {}x{} in {:.3} s, wrote {}\n",
@@ -321,7 +386,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             },
         )
         .context("cannot cut the section")?;
-        relief_io::write_rgb_png(path, img.width, img.height, &img.rgb)
+        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         out.push_str(&format!(
             "section:      y = {:.0} m, {} solid / {} carved ({} enclosed) / {} air pixels in {:.3} s, wrote {}\n",
@@ -334,6 +399,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             path.display()
         ));
     }
+    staged.commit()?;
     drop(progress);
     let mut stdout = std::io::stdout().lock();
     std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
