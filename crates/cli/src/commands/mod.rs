@@ -95,6 +95,10 @@ fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
     }
 }
 
+/// Largest raster read from a device or pipe without `--max-input-cells` (2^24 cells: the
+/// stream is read up to 512 MiB).
+const STREAM_CELLS: usize = 1 << 24;
+
 /// Reads any raster relief-io knows, with a progress indicator, naming the file on error.
 pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {
     let progress = ctx.progress();
@@ -106,9 +110,15 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
     let meta = std::fs::metadata(path).ok();
     let file_len = meta.as_ref().map_or(0, |m| m.len());
     let mut memory_cells = crate::memory::readable_cells(ctx.max_memory, file_len).max(1);
-    if meta.is_some_and(|m| !m.is_file()) {
-        // A device or pipe has no length: relief-io reads at most 32 bytes per cell of it.
+    let stream = meta.is_some_and(|m| !m.is_file());
+    if stream {
+        // A device or pipe has no length: relief-io reads at most 32 bytes per cell of it, so
+        // its cells are bounded tighter, and without --max-input-cells by STREAM_CELLS (an
+        // endless `/dev/zero` is refused after 512 MiB, not after gigabytes).
         memory_cells /= 3;
+        if read.max_input_cells.is_none() {
+            opts.max_cells = opts.max_cells.min(STREAM_CELLS);
+        }
     }
     let by_memory = memory_cells < opts.max_cells;
     if by_memory {
@@ -126,6 +136,12 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
                 ctx.max_memory,
                 crate::memory::READ_BYTES_PER_CELL,
                 crate::memory::human(file_len)
+            )
+        } else if stream && read.max_input_cells.is_none() {
+            format!(
+                "cannot read {}: a device or pipe is read up to {STREAM_CELLS} cells unless \
+                 --max-input-cells says more",
+                path.display()
             )
         } else {
             format!(
