@@ -20,6 +20,10 @@ pub(crate) struct Ctx {
     pub(crate) compress: CompressArg,
     /// `--height-range LO,HI`: vertical mapping of 16-bit engine heightmaps (PNG16, `.r16`).
     pub(crate) height_range: Option<(f64, f64)>,
+    /// `--max-memory`: pre-flight limit of a run's working memory (see `memory.rs`).
+    pub(crate) max_memory: crate::memory::Limit,
+    /// `--max-output-size`: pre-flight limit of a run's output bytes.
+    pub(crate) max_output: crate::memory::OutputLimit,
 }
 
 /// Parses `--height-range LO,HI` (metres, LO < HI).
@@ -117,7 +121,7 @@ impl Ctx {
                 anyhow::bail!(
                     "cannot write {}: {} void cells cannot be stored in a 16-bit heightmap \
                      (they would read as the lowest height); pass --fill-voids",
-                    path.display(),
+                    crate::staging::shown(path).display(),
                     hf.void_count()
                 );
             }
@@ -136,7 +140,7 @@ impl Ctx {
                         self.note(format!(
                             "{}: {outside} cells ({dlo:.2}..{dhi:.2} m) outside --height-range \
                              {lo},{hi} are clamped to it",
-                            path.display()
+                            crate::staging::shown(path).display()
                         ));
                     }
                     (lo, hi)
@@ -150,7 +154,7 @@ impl Ctx {
             None
         };
         relief_io::write(path, hf, &opts)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+            .with_context(|| format!("cannot write {}", crate::staging::shown(path).display()))?;
         if let Some((lo, hi, scale)) = map16 {
             let side = heightmap_sidecar(path);
             let (cx, cy) = hf.cell_size();
@@ -182,9 +186,9 @@ impl Ctx {
             }
             self.note(format!(
                 "{}: heights {lo:.2}..{hi:.2} m ({:.4} m per count), mapping in {}",
-                path.display(),
+                crate::staging::shown(path).display(),
                 scale,
-                side.display()
+                crate::staging::shown(&side).display()
             ));
         }
         Ok(())
@@ -406,6 +410,7 @@ mod tests {
             force: false,
             compress: CompressArg::None,
             height_range: None,
+            ..Default::default()
         };
         let p = ctx.progress();
         assert!(!p.is_visible());

@@ -18,7 +18,9 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 mod ctx;
+mod memory;
 mod outputs;
+mod staging;
 
 use ctx::Ctx;
 
@@ -48,6 +50,14 @@ struct Cli {
     /// default: the data range. The range used is printed and written to OUT.json beside them.
     #[arg(long, global = true, value_name = "LO,HI", value_parser = ctx::parse_height_range, allow_hyphen_values = true)]
     height_range: Option<(f64, f64)>,
+    /// Largest working memory of a run (e.g. 8G, 512M): a run whose pre-flight estimate needs
+    /// more is refused before it starts, naming the setting to change. Default: half of the
+    /// physical memory (less under a cgroup limit or `ulimit -v`).
+    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_limit)]
+    max_memory: Option<memory::Limit>,
+    /// Largest output a run may write (default 32G): a larger estimate is refused up front.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_size)]
+    max_output_size: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -98,6 +108,8 @@ fn main() -> ExitCode {
         force: cli.force,
         compress: cli.compress,
         height_range: cli.height_range,
+        max_memory: cli.max_memory.unwrap_or_else(memory::default_limit),
+        max_output: memory::OutputLimit(cli.max_output_size.unwrap_or(memory::DEFAULT_MAX_OUTPUT)),
     };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()

@@ -143,6 +143,22 @@ pub(crate) fn check_outputs(
     let mut planned: Vec<PathBuf> = Vec::new();
     for &(out, kind) in outputs {
         check_extension(out, kind)?;
+        let folder = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !folder.is_dir() {
+            bail!(
+                "cannot write {}: {} {}",
+                out.display(),
+                folder.display(),
+                if folder.exists() {
+                    "is not a folder"
+                } else {
+                    "does not exist"
+                }
+            );
+        }
         for file in written_files(out, kind) {
             if let Some(input) = read
                 .iter()
@@ -169,6 +185,15 @@ pub(crate) fn check_outputs(
                     file.display()
                 );
             }
+            if let Ok(m) = std::fs::metadata(&file)
+                && !m.is_file()
+            {
+                bail!(
+                    "output {} exists and is not a regular file (a device, pipe, socket or \
+                     folder): relief only writes regular files, --force or not",
+                    file.display()
+                );
+            }
             if !force && file.exists() {
                 bail!(
                     "{} already exists: pass --force to overwrite it",
@@ -176,6 +201,14 @@ pub(crate) fn check_outputs(
                 );
             }
             planned.push(file);
+        }
+    }
+    // Hidden temporaries that killed runs left in the output folders go now, whatever output
+    // they were for.
+    for file in &planned {
+        match file.parent() {
+            Some(d) if !d.as_os_str().is_empty() => relief_io::remove_stale_temporaries(d),
+            _ => relief_io::remove_stale_temporaries(Path::new(".")),
         }
     }
     Ok(())
@@ -247,6 +280,19 @@ mod tests {
         assert!(check_extension(p("p.tif"), OutKind::Png).is_err());
         assert!(check_extension(p("m.glb"), OutKind::Mesh).is_ok());
         assert!(check_extension(p("m.stl"), OutKind::Mesh).is_err());
+    }
+
+    #[test]
+    fn devices_and_folders_are_refused_even_with_force() {
+        let d = tempfile::tempdir().unwrap();
+        let dir = d.path().join("x.tif");
+        std::fs::create_dir(&dir).unwrap();
+        let e = check_outputs(&[], &[(&dir, OutKind::Raster)], true).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        if Path::new("/dev/null").exists() {
+            let e = check_outputs(&[], &[(Path::new("/dev/null"), OutKind::Raster)], true);
+            assert!(e.is_err());
+        }
     }
 
     #[test]

@@ -639,3 +639,421 @@ fn absurd_counts_and_magnitudes_fail_cleanly() {
         assert_one_line_failure(&o, "info /dev/zero");
     }
 }
+
+/// Runs `relief --quiet ARGS` under an address-space limit of `kib` KiB (`ulimit -v`): a run
+/// that started an impossible allocation would abort (SIGABRT) instead of failing cleanly.
+fn relief_capped(kib: u64, args: &[String]) -> Output {
+    let mut script = format!("ulimit -v {kib} && exec \"$0\" --quiet");
+    for i in 1..=args.len() {
+        script.push_str(&format!(" \"${i}\""));
+    }
+    Command::new("sh")
+        .arg("-c")
+        .arg(script)
+        .arg(bin())
+        .args(args)
+        .output()
+        .expect("run relief under ulimit")
+}
+
+fn strs(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// Issue 18: absurd requests are refused by the pre-flight estimate before any work, with a
+/// message naming the flag to change, even under a 2 GiB address-space cap (which an
+/// attempted run would hit with an abort).
+#[test]
+fn absurd_requests_are_refused_up_front_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    synthetic_tif(&dir.path().join("c64.tif"), 64, 64);
+    synthetic_tif(&dir.path().join("ex.tif"), 256, 256);
+    synthetic_tif(&dir.path().join("d128.tif"), 128, 128);
+    let cap = 2 << 20; // KiB
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            strs(&[
+                "amplify",
+                &p("c64.tif"),
+                &p("a.tif"),
+                "--exemplar",
+                &p("ex.tif"),
+                "--factor",
+                "1024",
+            ]),
+            "--factor",
+        ),
+        (
+            strs(&[
+                "volume",
+                &p("d128.tif"),
+                "--resolution",
+                "16",
+                "--mesh",
+                &p("m.ply"),
+                "--features",
+                "sea",
+            ]),
+            "--resolution",
+        ),
+        (
+            strs(&["refine", &p("d128.tif"), &p("r.png"), "--levels", "8"]),
+            "--levels",
+        ),
+        // A streamed GeoTIFF needs little memory, but 2^12 x 128 cells per side is 1 TiB of
+        // output: refused by --max-output-size.
+        (
+            strs(&["refine", &p("d128.tif"), &p("r.tif"), "--levels", "12"]),
+            "--max-output-size",
+        ),
+        (
+            strs(&[
+                "--max-memory",
+                "64M",
+                "quilt",
+                &p("q.tif"),
+                "--exemplar",
+                &p("ex.tif"),
+                "--size",
+                "4096",
+                "--no-validate",
+            ]),
+            "--max-memory",
+        ),
+        (
+            strs(&[
+                "compress",
+                &p("d128.tif"),
+                &p("c.sct"),
+                "--dict",
+                "complete",
+                "--patch-size",
+                "8",
+                "--step",
+                "0.25",
+            ]),
+            "--dict",
+        ),
+    ];
+    for (args, flag) in &cases {
+        let o = relief_capped(cap, args);
+        assert_one_line_failure(&o, &format!("{args:?}"));
+        let e = stderr(&o);
+        assert!(
+            e.contains(flag),
+            "{args:?}: the error does not name {flag}: {e}"
+        );
+        assert!(
+            e.contains("--max-memory") || e.contains("--max-output-size"),
+            "{args:?}: {e}"
+        );
+    }
+    assert_eq!(
+        files(dir.path()),
+        ["c64.tif", "d128.tif", "ex.tif"],
+        "a refused run left a file"
+    );
+    // The same refine fits once the output is a window.
+    let o = relief(&[
+        "refine",
+        &p("d128.tif"),
+        &p("w.tif"),
+        "--levels",
+        "8",
+        "--window",
+        "0,0,64,64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // --max-memory takes sizes with units; nonsense is a usage error.
+    for bad in ["lots", "0", "1k", "-5G"] {
+        let o = relief(&["--max-memory", bad, "info", &p("d128.tif")]);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "--max-memory {bad}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+/// Issue 18: a compressed raster that would inflate beyond what --max-memory leaves is refused
+/// from its header, before decoding (a PNG whose IHDR declares 4096 x 4096 zeros).
+#[test]
+fn decompression_bombs_are_refused_from_the_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("bomb.png");
+    relief_io::write_gray_png(&png, 4096, 4096, &vec![0u8; 4096 * 4096]).unwrap();
+    assert!(std::fs::metadata(&png).unwrap().len() < 1 << 20);
+    let path = png.display().to_string();
+    let o = relief(&["--max-memory", "64M", "info", &path]);
+    assert_one_line_failure(&o, "info bomb.png");
+    assert!(stderr(&o).contains("--max-memory"), "{}", stderr(&o));
+    let o = relief(&["--max-memory", "1G", "info", &path]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A model read from an endless device stops at the model size limit.
+    if Path::new("/dev/zero").exists() {
+        let out = dir.path().join("z.tif").display().to_string();
+        let o = relief_capped(2 << 20, &strs(&["decompress", "/dev/zero", &out]));
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    }
+}
+
+/// Issue 18: commands with several outputs check every path before working and write all of
+/// them or none; killed runs' temporaries are removed by the next write into the folder;
+/// temporary names of long output names stay legal; devices are never replaced.
+#[test]
+fn multi_output_commands_write_all_or_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.tif");
+    synthetic_tif(&input, 48, 48);
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let s = |p: &Path| p.display().to_string();
+    let i = s(&input);
+    // A render path that is a folder: no mesh either.
+    std::fs::create_dir(out.join("r.png")).unwrap();
+    let o = relief(&[
+        "volume",
+        &i,
+        "--features",
+        "sea",
+        "--mesh",
+        &s(&out.join("m.ply")),
+        "--render",
+        &s(&out.join("r.png")),
+    ]);
+    assert_one_line_failure(&o, "volume with a folder as render");
+    assert_eq!(files(&out), ["r.png"]);
+    std::fs::remove_dir(out.join("r.png")).unwrap();
+    // A plot into a missing folder: no local maps either.
+    let o = relief(&[
+        "analyze",
+        &i,
+        "--local",
+        "3",
+        "--maps",
+        &s(&out.join("m")),
+        "--plot",
+        &s(&dir.path().join("missing/plot.png")),
+    ]);
+    assert_one_line_failure(&o, "analyze with an unwritable plot");
+    assert!(files(&out).is_empty(), "{:?}", files(&out));
+    // A seam map in a read-only folder: no terrain either.
+    if let Some(ro) = ReadOnlyDir::new(dir.path().join("ro")) {
+        let o = relief(&[
+            "quilt",
+            &s(&out.join("q.tif")),
+            "--exemplar",
+            &i,
+            "--size",
+            "32",
+            "--patch-size",
+            "16",
+            "--overlap",
+            "4",
+            "--no-validate",
+            "--seam-map",
+            &s(&ro.path.join("seams.png")),
+        ]);
+        assert_one_line_failure(&o, "quilt with an unwritable seam map");
+        assert!(files(&out).is_empty(), "{:?}", files(&out));
+        assert!(files(&ro.path).is_empty());
+    }
+    // Both outputs when everything is writable.
+    let o = relief(&[
+        "analyze",
+        &i,
+        "--local",
+        "3",
+        "--maps",
+        &s(&out.join("m")),
+        "--plot",
+        &s(&out.join("plot.png")),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files(&out).len(), 8, "{:?}", files(&out));
+    // Leftovers of killed runs (a temporary file and a staging folder of a dead process) go
+    // with the next write of any output into the folder.
+    let dead = 4_194_303; // above Linux's pid_max
+    std::fs::write(out.join(format!(".big.tif.tmp-{dead}-0")), b"half").unwrap();
+    std::fs::create_dir(out.join(format!(".relief-stage-{dead}-1"))).unwrap();
+    std::fs::write(out.join(format!(".relief-stage-{dead}-1/m.glb")), b"half").unwrap();
+    let o = relief(&["convert", &i, &s(&out.join("other.tif"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        !files(&out).iter().any(|f| f.starts_with('.')),
+        "{:?}",
+        files(&out)
+    );
+    // A 250-byte output name: its temporary name must stay within the 255-byte limit.
+    let long = format!("{}.tif", "n".repeat(246));
+    let o = relief(&["convert", &i, &s(&out.join(&long))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join(&long).exists());
+    // A symlink to a device is refused, --force or not, and the device stays a device.
+    if Path::new("/dev/null").exists() {
+        use std::os::unix::fs::FileTypeExt;
+        let link = out.join("null.tif");
+        std::os::unix::fs::symlink("/dev/null", &link).unwrap();
+        let o = relief(&["--force", "convert", &i, &s(&link)]);
+        assert_one_line_failure(&o, "convert onto /dev/null");
+        assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+        let m = std::fs::metadata("/dev/null").unwrap();
+        assert!(m.file_type().is_char_device());
+    }
+}
+
+/// Issue 18: `.sct` and `.dict` files carry a checksum (a flipped byte is an error naming it)
+/// and `relief info` describes them.
+#[test]
+fn models_are_checksummed_and_described_by_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.tif");
+    synthetic_tif(&input, 64, 64);
+    let s = |p: &Path| p.display().to_string();
+    let sct = dir.path().join("m.sct");
+    let dict = dir.path().join("d.dict");
+    let o = relief(&[
+        "compress",
+        &s(&input),
+        &s(&sct),
+        "--atoms",
+        "16",
+        "--dict",
+        "sample",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relief(&[
+        "learn",
+        &s(&input),
+        &s(&dict),
+        "--atoms",
+        "8",
+        "--iterations",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relief(&["info", &s(&sct)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    for want in [
+        "version 3",
+        "CRC-32 ok",
+        "64 x 64",
+        "primitives",
+        "atoms:       16",
+    ] {
+        assert!(text.contains(want), "info .sct lacks {want:?}: {text}");
+    }
+    let o = relief(&["info", "--json", &s(&dict)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["atoms"], 8);
+    assert_eq!(v["patch_size"], 8);
+    assert_eq!(v["format"], "dict");
+    // One flipped byte in the middle of each: refused, naming the checksum.
+    for (file, run) in [
+        (
+            &sct,
+            vec![
+                "decompress".to_string(),
+                s(&sct),
+                s(&dir.path().join("x.tif")),
+            ],
+        ),
+        (
+            &dict,
+            vec![
+                "compress".to_string(),
+                s(&input),
+                s(&dir.path().join("y.sct")),
+                "--dictionary".into(),
+                s(&dict),
+            ],
+        ),
+    ] {
+        let mut b = std::fs::read(file).unwrap();
+        let k = b.len() / 2;
+        b[k] ^= 0x10;
+        std::fs::write(file, &b).unwrap();
+        let o = relief(&run);
+        assert_one_line_failure(&o, &format!("{run:?}"));
+        assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
+    }
+    assert!(!dir.path().join("x.tif").exists() && !dir.path().join("y.sct").exists());
+}
+
+/// Issue 18: header values that make no sense are refused with the field named; negative
+/// `--height-range` values parse.
+#[test]
+fn absurd_header_values_are_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.display().to_string();
+    let check = |path: &Path, field: &str| {
+        let o = relief(&["info", &s(path)]);
+        assert_one_line_failure(&o, &s(path));
+        assert!(stderr(&o).contains(field), "{field}: {}", stderr(&o));
+    };
+    let asc = dir.path().join("inf.asc");
+    std::fs::write(
+        &asc,
+        "ncols 2\nnrows 2\nxllcorner inf\nyllcorner 0\ncellsize 30\n1 2\n3 4\n",
+    )
+    .unwrap();
+    check(&asc, "xllcorner");
+    let asc = dir.path().join("neg.asc");
+    std::fs::write(
+        &asc,
+        "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize -30\n1 2\n3 4\n",
+    )
+    .unwrap();
+    check(&asc, "cellsize");
+    let f32 = dir.path().join("s.f32");
+    std::fs::write(&f32, [0u8; 16]).unwrap();
+    std::fs::write(
+        dir.path().join("s.json"),
+        r#"{"width": 2, "height": 2, "cell_size_m": "30 m"}"#,
+    )
+    .unwrap();
+    check(&f32, "cell_size_m");
+    // GeoTIFF with a NaN pixel scale.
+    let hf = Heightfield::from_fn(4, 4, 30.0, 30.0, |x, y| (x + y) as f32).with_georef(Some(
+        relief_heightfield::GeoRef {
+            pixel_scale: Some(vec![f64::NAN, 30.0, 0.0]),
+            tiepoints: Some(vec![0.0, 0.0, 0.0, 500_000.0, 4_000_000.0, 0.0]),
+            ..Default::default()
+        },
+    ));
+    let tif = dir.path().join("nan.tif");
+    relief_io::write(&tif, &hf, &relief_io::WriteOptions::default()).unwrap();
+    check(&tif, "ModelPixelScale");
+    // An SRTM tile named beyond the pole.
+    let hgt = dir.path().join("N95E011.hgt");
+    std::fs::write(&hgt, vec![0u8; 1201 * 1201 * 2]).unwrap();
+    check(&hgt, "latitude");
+    // Absurd --cell-size values are usage errors.
+    let tif = dir.path().join("ok.tif");
+    synthetic_tif(&tif, 8, 8);
+    for bad in ["1e-320", "1e308", "nan", "inf"] {
+        let o = relief(&["info", &s(&tif), "--cell-size", bad]);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "--cell-size {bad}: {}",
+            stderr(&o)
+        );
+    }
+    // Negative heights parse in --height-range.
+    let png = dir.path().join("h.png");
+    let o = relief(&["convert", &s(&tif), &s(&png), "--height-range", "-200,500"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relief(&[
+        "--height-range",
+        "-200,500",
+        "convert",
+        &s(&tif),
+        &s(&dir.path().join("h2.png")),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -80,12 +80,14 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         ));
     }
     let (dx, dy) = (dx.unwrap_or(1.0), dy.unwrap_or(dx.unwrap_or(1.0)));
-    if !(dx.is_finite() && dy.is_finite() && dx > 0.0 && dy > 0.0) {
-        return Err(IoError::malformed(
-            F,
-            format!("cell size {dx} x {dy} is not positive"),
-        ));
-    }
+    crate::util::check_cell(F, "header `cellsize` (or `dx`/`dy`)", dx, dy)?;
+    let (xk, yk) = if center {
+        ("xllcenter", "yllcenter")
+    } else {
+        ("xllcorner", "yllcorner")
+    };
+    crate::util::check_origin(F, &format!("header `{xk}`"), x0)?;
+    crate::util::check_origin(F, &format!("header `{yk}`"), y0)?;
     let mut data = Vec::with_capacity(n);
     for tok in tokens {
         if data.len() == n {

@@ -1,12 +1,20 @@
 //! Atomic file writes: a temporary file in the destination directory, then a rename. A run killed
-//! mid-write leaves at most a hidden `.<name>.tmp-<pid>-<n>` file, never a partial `<name>`; the
-//! next write of the same target removes such leftovers of dead processes.
+//! mid-write leaves at most a hidden `.<name>.tmp-<pid>-<n>` file (or a `.relief-stage-<pid>-<n>`
+//! folder of a [`Staging`]), never a partial `<name>`; the next write into the same folder
+//! removes such leftovers of dead processes. An existing target that is not a regular file
+//! (`/dev/null`, a pipe) is never replaced.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::{IoError, Result};
 
+/// Longest file name most filesystems accept (bytes).
+const NAME_MAX: usize = 255;
+
+/// The hidden temporary sibling of `path`: `.<name>.tmp-<pid>-<n>`, with `<name>` shortened
+/// (on a character boundary) so that the temporary name never exceeds [`NAME_MAX`] bytes
+/// when the output name itself is legal.
 pub(crate) fn temp_path(path: &Path) -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -15,60 +23,235 @@ pub(crate) fn temp_path(path: &Path) -> PathBuf {
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()))
+    let tail = format!(".tmp-{}-{n}-{}", std::process::id(), host_tag());
+    let room = NAME_MAX - 1 - tail.len();
+    let mut cut = name.len().min(room);
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    path.with_file_name(format!(".{}{tail}", &name[..cut]))
 }
 
-/// Writes `bytes` to a temporary sibling, syncs it and renames it over `path`. On error the
-/// temporary file is removed and `path` is untouched.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = write_temp(path, bytes)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        IoError::os(path, e)
+/// A short tag of this machine (8 hex digits of a hash of the host name), part of every
+/// temporary name: on a folder shared by several machines (a tile plan on NFS), a process id is
+/// only meaningful on the machine that owns it, so only this machine's dead temporaries are
+/// ever removed.
+fn host_tag() -> &'static str {
+    static TAG: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TAG.get_or_init(|| {
+        let name = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+            .unwrap_or_default();
+        let mut h: u32 = 0x811c_9dc5;
+        for b in name.trim().bytes() {
+            h = (h ^ b as u32).wrapping_mul(0x0100_0193);
+        }
+        format!("{h:08x}")
     })
 }
 
-/// Removes temporaries of `path` left by runs that were killed mid-write (`.<name>.tmp-<pid>-<n>`
-/// whose process no longer exists). Only where `/proc` tells which processes are alive (Linux);
-/// elsewhere they stay (hidden, harmless). Errors are ignored: this is housekeeping.
-pub(crate) fn remove_stale_temps(path: &Path) {
-    let proc_fs = Path::new("/proc/self");
-    let Some(name) = path.file_name().map(|s| s.to_string_lossy().into_owned()) else {
-        return;
+/// The owner of a relief temporary name (`.<name>.tmp-<pid>-<n>-<host>` or
+/// `.relief-stage-<pid>-<n>-<host>`; names of older versions have no host): the process id
+/// and the host tag, if `file` is one.
+fn temp_owner(file: &str) -> Option<(u32, Option<&str>)> {
+    let rest = if let Some(r) = file.strip_prefix(STAGE_PREFIX) {
+        r
+    } else {
+        let i = file.rfind(".tmp-")?;
+        if !file.starts_with('.') || i == 0 {
+            return None;
+        }
+        &file[i + ".tmp-".len()..]
     };
-    if !proc_fs.exists() {
-        return;
+    let mut parts = rest.split('-');
+    let pid = parts.next()?.parse::<u32>().ok()?;
+    parts.next()?.parse::<u64>().ok()?;
+    let host = parts.next();
+    if parts.next().is_some() || host.is_some_and(|h| h.len() != 8) {
+        return None;
     }
+    Some((pid, host))
+}
+
+/// Removes the temporaries (files and staging folders) that runs killed mid-write left in the
+/// folder of `path`: hidden `.<name>.tmp-<pid>-<n>` files and `.relief-stage-<pid>-<n>`
+/// folders whose process no longer exists, whatever output they were for. Only where `/proc`
+/// tells which processes are alive (Linux); elsewhere they stay (hidden, harmless). Errors are
+/// ignored: this is housekeeping.
+pub(crate) fn remove_stale_temps(path: &Path) {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let prefix = format!(".{name}.tmp-");
+    remove_stale_temps_in(dir);
+}
+
+/// [`remove_stale_temps`] for the folder `dir` itself.
+pub(crate) fn remove_stale_temps_in(dir: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     let me = std::process::id();
     for e in entries.flatten() {
         let file = e.file_name();
-        let Some(rest) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else {
+        let Some((pid, host)) = file.to_str().and_then(temp_owner) else {
             continue;
         };
-        let Some(pid) = rest
-            .split_once('-')
-            .and_then(|(p, n)| n.parse::<u64>().ok().and(p.parse::<u32>().ok()))
-        else {
+        // Another machine's temporary (shared folder): its process may well be alive there.
+        if host.is_some_and(|h| h != host_tag()) {
             continue;
-        };
-        if pid != me && !Path::new("/proc").join(pid.to_string()).exists() {
-            let _ = std::fs::remove_file(e.path());
+        }
+        if pid == me || Path::new("/proc").join(pid.to_string()).exists() {
+            continue;
+        }
+        match e.file_type() {
+            Ok(t) if t.is_dir() => {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+            Ok(t) if t.is_file() => {
+                let _ = std::fs::remove_file(e.path());
+            }
+            _ => {}
         }
     }
+}
+
+/// Refuses to replace an existing `path` that is not a regular file (a device such as
+/// `/dev/null`, a pipe, a socket or a folder): renaming over it would replace the node itself.
+pub(crate) fn check_replaceable(path: &Path) -> Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() => Err(IoError::param(
+            "path",
+            path.display(),
+            "exists and is not a regular file (a device, pipe, socket or folder); relief only \
+             replaces regular files",
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Renames the finished temporary `tmp` over `path` (removing `tmp` on failure).
+pub(crate) fn rename_into_place(tmp: &Path, path: &Path) -> Result<()> {
+    let res = check_replaceable(path)
+        .and_then(|()| std::fs::rename(tmp, path).map_err(|e| IoError::os(path, e)));
+    if res.is_err() {
+        let _ = std::fs::remove_file(tmp);
+    }
+    res
+}
+
+/// Writes `bytes` to a temporary sibling, syncs it and renames it over `path`. On error the
+/// temporary file is removed and `path` is untouched.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = write_temp(path, bytes)?;
+    rename_into_place(&tmp, path)
+}
+
+const STAGE_PREFIX: &str = ".relief-stage-";
+
+/// Outputs of one run that appear together or not at all.
+///
+/// [`Staging::path`] gives, for each target, a path with the same file name inside a hidden
+/// staging folder `.relief-stage-<pid>-<n>` next to the target; the caller writes there with
+/// any relief-io writer (sidecars such as `OUT.json` land beside it). [`Staging::commit`] moves
+/// every file of every staging folder into place; dropping the `Staging` without a commit (an
+/// error anywhere in the run) removes the staging folders, so no target is touched. A run
+/// killed before the commit leaves only the hidden folder, removed by the next write into
+/// that folder. The renames of the commit are not one atomic step, but each is a rename within
+/// one folder (they do not fail for lack of space).
+#[derive(Debug, Default)]
+pub struct Staging {
+    /// `(target folder, staging folder)`.
+    dirs: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Staging {
+    /// An empty set of outputs.
+    pub fn new() -> Staging {
+        Staging::default()
+    }
+
+    /// Where to write `target` so that it appears at `target` on [`Staging::commit`]. Creates
+    /// the staging folder of the target's folder on first use, which also checks that the
+    /// folder exists and is writable. `target` must not be an existing non-regular file.
+    pub fn path(&mut self, target: &Path) -> Result<PathBuf> {
+        let name = target
+            .file_name()
+            .ok_or_else(|| IoError::param("path", target.display(), "has no file name"))?;
+        check_replaceable(target)?;
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if let Some((_, stage)) = self.dirs.iter().find(|(d, _)| same_dir(d, &dir)) {
+            return Ok(stage.join(name));
+        }
+        remove_stale_temps_in(&dir);
+        use std::sync::atomic::{AtomicU64, Ordering};
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let stage = dir.join(format!(
+            "{STAGE_PREFIX}{}-{n}-{}",
+            std::process::id(),
+            host_tag()
+        ));
+        std::fs::create_dir(&stage).map_err(|e| IoError::os(target, e))?;
+        self.dirs.push((dir, stage.clone()));
+        Ok(stage.join(name))
+    }
+
+    /// Moves every staged file into its target folder, then removes the staging folders.
+    pub fn commit(mut self) -> Result<()> {
+        let dirs = std::mem::take(&mut self.dirs);
+        let mut moves = Vec::new();
+        for (dir, stage) in &dirs {
+            let entries = std::fs::read_dir(stage).map_err(|e| IoError::os(stage, e))?;
+            for e in entries {
+                let e = e.map_err(|e| IoError::os(stage, e))?;
+                let name = e.file_name();
+                // Leftover temporaries of the writers (none after a successful write).
+                if name.to_str().is_some_and(|n| temp_owner(n).is_some()) {
+                    continue;
+                }
+                let target = dir.join(&name);
+                check_replaceable(&target)?;
+                moves.push((e.path(), target));
+            }
+        }
+        let res = moves
+            .iter()
+            .try_for_each(|(from, to)| std::fs::rename(from, to).map_err(|e| IoError::os(to, e)));
+        for (_, stage) in &dirs {
+            let _ = std::fs::remove_dir_all(stage);
+        }
+        res
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        for (_, stage) in &self.dirs {
+            let _ = std::fs::remove_dir_all(stage);
+        }
+    }
+}
+
+fn same_dir(a: &Path, b: &Path) -> bool {
+    a == b
+        || matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
 }
 
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
     if path.file_name().is_none() {
         return Err(IoError::param("path", path.display(), "has no file name"));
     }
+    check_replaceable(path)?;
     remove_stale_temps(path);
     let tmp = temp_path(path);
     let res = (|| {
@@ -100,6 +283,14 @@ pub(crate) fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
             }
         }
     }
+    for (path, _) in files {
+        if let Err(e) = check_replaceable(path) {
+            for t in &temps {
+                let _ = std::fs::remove_file(t);
+            }
+            return Err(e);
+        }
+    }
     for (i, ((path, _), tmp)) in files.iter().zip(&temps).enumerate() {
         if let Err(e) = std::fs::rename(tmp, path) {
             for t in &temps[i..] {
@@ -109,4 +300,102 @@ pub(crate) fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pid that is not running (the largest pid Linux hands out is below 2^22).
+    const DEAD: u32 = 4_194_303;
+
+    #[test]
+    fn temporary_names_stay_within_the_name_limit() {
+        let d = tempfile::tempdir().unwrap();
+        for len in [1, 200, 239, 250, 255] {
+            let name: String = "é".repeat(len / 2) + &"a".repeat(len % 2);
+            assert_eq!(name.len(), len);
+            let target = d.path().join(&name);
+            let tmp = temp_path(&target);
+            let tn = tmp.file_name().unwrap().to_str().unwrap();
+            assert!(tn.len() <= NAME_MAX, "{len}: {}", tn.len());
+            assert_eq!(temp_owner(tn), Some((std::process::id(), Some(host_tag()))));
+            write_atomic(&target, b"abc").unwrap();
+            assert_eq!(std::fs::read(&target).unwrap(), b"abc");
+        }
+    }
+
+    #[test]
+    fn leftovers_of_dead_runs_are_removed_by_any_write_in_the_folder() {
+        if !Path::new("/proc/self").exists() {
+            return;
+        }
+        let d = tempfile::tempdir().unwrap();
+        let stale = d.path().join(format!(".big.tif.tmp-{DEAD}-3"));
+        std::fs::write(&stale, b"half").unwrap();
+        let stage = d.path().join(format!("{STAGE_PREFIX}{DEAD}-0"));
+        std::fs::create_dir(&stage).unwrap();
+        std::fs::write(stage.join("mesh.glb"), b"half").unwrap();
+        let live = d
+            .path()
+            .join(format!(".x.tif.tmp-{}-9", std::process::id()));
+        std::fs::write(&live, b"mine").unwrap();
+        let unrelated = d.path().join(".notes.tmp-abc");
+        std::fs::write(&unrelated, b"keep").unwrap();
+        // A dead-looking temporary of this host goes; one of another host (a task writing
+        // into a shared plan folder from another machine) stays.
+        let mine_dead = d.path().join(format!(".t.tif.tmp-{DEAD}-1-{}", host_tag()));
+        std::fs::write(&mine_dead, b"half").unwrap();
+        let other = if host_tag() == "00000000" {
+            "11111111"
+        } else {
+            "00000000"
+        };
+        let elsewhere = d.path().join(format!(".t.tif.tmp-{DEAD}-2-{other}"));
+        std::fs::write(&elsewhere, b"busy").unwrap();
+        write_atomic(&d.path().join("other.png"), b"png").unwrap();
+        assert!(!stale.exists() && !stage.exists() && !mine_dead.exists());
+        assert!(live.exists() && unrelated.exists() && elsewhere.exists());
+    }
+
+    #[test]
+    fn staged_outputs_appear_together_or_not_at_all() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("a.glb"), d.path().join("b.png"));
+        {
+            let mut s = Staging::new();
+            write_atomic(&s.path(&a).unwrap(), b"mesh").unwrap();
+            write_atomic(&s.path(&b).unwrap(), b"png").unwrap();
+            // Dropped without commit: an error later in the run.
+        }
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 0);
+        let mut s = Staging::new();
+        write_atomic(&s.path(&a).unwrap(), b"mesh").unwrap();
+        let side = s.path(&b).unwrap();
+        write_atomic(&side, b"png").unwrap();
+        write_atomic(&side.with_file_name("b.png.json"), b"{}").unwrap();
+        assert!(!a.exists());
+        s.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"mesh");
+        assert_eq!(std::fs::read(&b).unwrap(), b"png");
+        assert!(d.path().join("b.png.json").exists());
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 3);
+        // A folder that does not exist fails at `path`, before any work.
+        let mut s = Staging::new();
+        assert!(s.path(&d.path().join("no/such/dir/x.png")).is_err());
+    }
+
+    #[test]
+    fn non_regular_targets_are_never_replaced() {
+        let d = tempfile::tempdir().unwrap();
+        let sub = d.path().join("folder.tif");
+        std::fs::create_dir(&sub).unwrap();
+        assert!(write_atomic(&sub, b"x").is_err());
+        assert!(sub.is_dir());
+        if Path::new("/dev/null").exists() {
+            let e = write_atomic(Path::new("/dev/null"), b"x").unwrap_err();
+            assert!(e.to_string().contains("not a regular file"), "{e}");
+            assert!(Staging::new().path(Path::new("/dev/null")).is_err());
+        }
+    }
 }

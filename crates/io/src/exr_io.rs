@@ -12,7 +12,7 @@ use crate::{Format, IoError, Raster, ReadOptions, Result as IoResult};
 const F: Format = Format::Exr;
 
 fn eerr(e: exr::error::Error) -> IoError {
-    IoError::malformed(F, e.to_string())
+    IoError::malformed(F, crate::util::codec_reason(e.to_string()))
 }
 
 /// Channel names preferred as elevation, in order; otherwise the first channel.

@@ -15,7 +15,21 @@ use crate::{Format, IoError, Raster, ReadOptions, Result};
 const F: Format = Format::GeoTiff;
 
 fn terr(e: tiff::TiffError) -> IoError {
-    IoError::malformed(F, e.to_string())
+    use tiff::{TiffError, TiffFormatError};
+    // The codec's generic messages, said in terms of the parts of the file.
+    let reason = match &e {
+        TiffError::FormatError(TiffFormatError::InconsistentSizesEncountered) => {
+            "the strip/tile tables disagree with the image (StripOffsets / StripByteCounts / \
+             TileOffsets / TileByteCounts counts vs RowsPerStrip and the image size, or \
+             BitsPerSample / ExtraSamples vs SamplesPerPixel)"
+                .to_string()
+        }
+        TiffError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "truncated file: a tag value, strip or tile lies past the end of the file".to_string()
+        }
+        _ => e.to_string(),
+    };
+    IoError::malformed(F, reason)
 }
 
 // GeoKey ids (GeoTIFF 1.1, section 7).
@@ -53,6 +67,19 @@ pub(crate) fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
     let m = a * (1.0 - e2) / s.powf(1.5);
     let d = std::f64::consts::PI / 180.0;
     (n * phi.cos() * d, m * d)
+}
+
+/// The largest decompression ratio of a TIFF compression scheme (name, ratio): DEFLATE
+/// 1032:1, PackBits 64:1 (2 bytes for a run of 128), LZW 3641:1 (a 9-bit code for at most 4096
+/// bytes), ZSTD 65536:1 (generous: RLE blocks); `None` for schemes without a known bound.
+fn max_ratio(compression: u16) -> Option<(&'static str, u64)> {
+    match compression {
+        8 | 32946 => Some(("DEFLATE", 1032)),
+        32773 => Some(("PackBits", 64)),
+        5 => Some(("LZW", 3641)),
+        50000 => Some(("ZSTD", 65536)),
+        _ => None,
+    }
 }
 
 fn find_f64s(dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> Result<Option<Vec<f64>>> {
@@ -140,9 +167,9 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         .find_tag_unsigned::<u16>(Tag::Compression)
         .map_err(terr)?
         .unwrap_or(1);
+    let total: u64 = counts.iter().fold(0u64, |a, &c| a.saturating_add(c));
+    let needed = n as u64 * (bits as u64 / 8);
     if compression == 1 {
-        let total: u64 = counts.iter().fold(0u64, |a, &c| a.saturating_add(c));
-        let needed = n as u64 * (bits as u64 / 8);
         if total < needed {
             return Err(IoError::truncated(
                 F,
@@ -151,6 +178,20 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
                 total,
             ));
         }
+    } else if let Some((name, ratio)) = max_ratio(compression)
+        && total.saturating_mul(ratio) < needed
+    {
+        // A compressed chunk cannot inflate beyond the codec's largest ratio: a file whose
+        // chunks hold too few bytes for its declared samples is refused before the decoder
+        // allocates for them.
+        return Err(IoError::malformed(
+            F,
+            format!(
+                "{w} x {h} {dtype} samples need {needed} bytes, but the {kind} byte counts \
+                 (StripByteCounts / TileByteCounts) total {total} bytes, which {name} cannot \
+                 inflate beyond {ratio}:1"
+            ),
+        ));
     }
 
     let nodata = match dec.find_tag(Tag::GdalNodata).map_err(terr)? {
@@ -216,7 +257,14 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     if flipped {
         flip_rows(&mut data, w);
     }
+    check_georef_values(&geo)?;
     let cell = cell_size(&geo, h).unwrap_or((1.0, 1.0));
+    crate::util::check_cell(
+        F,
+        "georeference (ModelPixelScale / ModelTransformation)",
+        cell.0,
+        cell.1,
+    )?;
     let georef = (geo != GeoRef::default()).then_some(geo);
     let mut r = finish(F, w, h, data, cell, nodata, dtype)?;
     let (scale, offset) = gdal_metadata
@@ -289,6 +337,36 @@ fn complete_georef(g: &mut GeoRef, _w: usize, h: usize) -> bool {
         }
     }
     flipped
+}
+
+/// Refuses a georeference whose pixel size or origin is not a finite number, or whose pixel
+/// size is zero (NaN in ModelPixelScale, inf in ModelTiepoint), naming the tag.
+fn check_georef_values(g: &GeoRef) -> Result<()> {
+    let Some(t) = g.geotransform else {
+        return Ok(());
+    };
+    let tag = if g.transformation.is_some() {
+        "ModelTransformationTag"
+    } else {
+        "ModelPixelScaleTag"
+    };
+    let (sx, sy) = (
+        (t[1].powi(2) + t[4].powi(2)).sqrt(),
+        (t[2].powi(2) + t[5].powi(2)).sqrt(),
+    );
+    if !(sx.is_finite() && sy.is_finite() && sx > 0.0 && sy > 0.0) {
+        return Err(IoError::malformed(
+            F,
+            format!("{tag}: pixel size {sx} x {sy} is not a finite positive number"),
+        ));
+    }
+    let origin_tag = if g.transformation.is_some() {
+        "ModelTransformationTag"
+    } else {
+        "ModelTiepointTag"
+    };
+    crate::util::check_origin(F, &format!("{origin_tag} origin x"), t[0])?;
+    crate::util::check_origin(F, &format!("{origin_tag} origin y"), t[3])
 }
 
 /// Rewrites a PixelIsPoint georeference as the equivalent PixelIsArea one, the single grid

@@ -38,6 +38,49 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     Ok(r)
 }
 
+/// Refuses a tile name of the SRTM pattern (`N47E011.hgt`) whose corner lies off the globe:
+/// a north latitude above 89, a south latitude above 90, a longitude above 180 (east 179).
+pub(crate) fn check_tile_name(name: &str) -> Result<()> {
+    let b = name.as_bytes();
+    if b.len() < 7 {
+        return Ok(());
+    }
+    let ns = b[0].to_ascii_uppercase();
+    let ew = b[3].to_ascii_uppercase();
+    let (Some(lat), Some(lon)) = (
+        name.get(1..3).and_then(|t| t.parse::<u32>().ok()),
+        name.get(4..7).and_then(|t| t.parse::<u32>().ok()),
+    ) else {
+        return Ok(());
+    };
+    if !matches!(ns, b'N' | b'S') || !matches!(ew, b'E' | b'W') {
+        return Ok(());
+    }
+    let lat_max = if ns == b'N' { 89 } else { 90 };
+    let lon_max = if ew == b'E' { 179 } else { 180 };
+    if lat > lat_max {
+        return Err(IoError::malformed(
+            F,
+            format!(
+                "tile name {name}: latitude {}{lat} is beyond +-90 degrees (a 1-degree tile's \
+                 south-west corner is at most N89 or S90)",
+                ns as char
+            ),
+        ));
+    }
+    if lon > lon_max {
+        return Err(IoError::malformed(
+            F,
+            format!(
+                "tile name {name}: longitude {}{lon} is beyond +-180 degrees (at most E179 or \
+                 W180)",
+                ew as char
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Latitude and longitude of the south-west corner named by a tile name such as
 /// `N47E011.hgt` or `s03w060.hgt`.
 fn tile_corner(name: &str) -> Option<(f64, f64)> {
@@ -52,7 +95,8 @@ fn tile_corner(name: &str) -> Option<(f64, f64)> {
     }
     let lat: f64 = name.get(1..3)?.parse().ok()?;
     let lon: f64 = name.get(4..7)?.parse().ok()?;
-    if lat > 89.0 || lon > 180.0 {
+    let lat_max = if ns == b'S' { 90.0 } else { 89.0 };
+    if lat > lat_max || lon > 180.0 {
         return None;
     }
     Some((

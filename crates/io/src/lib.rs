@@ -82,6 +82,7 @@ use std::path::Path;
 
 use relief_heightfield::Heightfield;
 
+pub use atomic::Staging;
 pub use error::{IoError, Result};
 pub use geotiff::TiffCompression;
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as};
@@ -304,12 +305,16 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     // Devices and pipes report a length of 0: read them through the same cap, never to the
     // end of an endless stream (`/dev/zero`).
     let bytes = {
-        use std::io::Read as _;
         let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
-        let mut buf = Vec::with_capacity(len.min(cap) as usize);
-        file.take(cap + 1)
-            .read_to_end(&mut buf)
-            .map_err(|e| IoError::os(path, e))?;
+        let buf = read_capped(file, cap + 1, len).map_err(|e| match e {
+            ReadCapped::Io(e) => IoError::os(path, e),
+            ReadCapped::Alloc(n) => IoError::param(
+                "max_cells",
+                opts.max_cells,
+                format!("cannot allocate {n} bytes to read the file (lower the cell limit)"),
+            )
+            .in_file(path),
+        })?;
         if buf.len() as u64 > cap {
             return Err(IoError::param(
                 "max_cells",
@@ -336,6 +341,51 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     Ok(raster)
 }
 
+/// Why [`read_capped`] failed.
+#[derive(Debug)]
+pub(crate) enum ReadCapped {
+    /// The read itself.
+    Io(std::io::Error),
+    /// The buffer could not grow to this many bytes.
+    Alloc(usize),
+}
+
+/// Reads at most `limit` bytes of `r` into memory (`hint`: the expected length, 0 when
+/// unknown, as for devices and pipes). The buffer grows with `try_reserve`, so an allocation
+/// the process cannot make is an error instead of an abort.
+pub(crate) fn read_capped(
+    r: impl std::io::Read,
+    limit: u64,
+    hint: u64,
+) -> std::result::Result<Vec<u8>, ReadCapped> {
+    use std::io::Read as _;
+    let mut r = r.take(limit);
+    let mut buf: Vec<u8> = Vec::new();
+    let first = hint.min(limit).min(1 << 30) as usize;
+    buf.try_reserve_exact(first.max(1 << 16))
+        .map_err(|_| ReadCapped::Alloc(first))?;
+    loop {
+        if buf.len() == buf.capacity() {
+            let more = buf.len().max(1 << 16);
+            buf.try_reserve(more)
+                .map_err(|_| ReadCapped::Alloc(buf.len() + more))?;
+        }
+        // At most 4 MiB per read, so zero-filling the spare part stays linear in the size.
+        let spare = (buf.capacity() - buf.len()).min(4 << 20);
+        let start = buf.len();
+        buf.resize(start + spare, 0);
+        match r.read(&mut buf[start..]) {
+            Ok(0) => {
+                buf.truncate(start);
+                return Ok(buf);
+            }
+            Ok(n) => buf.truncate(start + n),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => buf.truncate(start),
+            Err(e) => return Err(ReadCapped::Io(e)),
+        }
+    }
+}
+
 /// Reads a raster from memory; `hint` is a file name used for formats without magic bytes.
 pub fn read_bytes(bytes: &[u8], hint: Option<&Path>, opts: &ReadOptions) -> Result<Raster> {
     check_max_cells(opts)?;
@@ -356,6 +406,9 @@ pub fn read_bytes(bytes: &[u8], hint: Option<&Path>, opts: &ReadOptions) -> Resu
         let name = hint
             .and_then(|p| p.file_name())
             .map(|s| s.to_string_lossy().into_owned());
+        if let Some(n) = name.as_deref() {
+            hgt::check_tile_name(n)?;
+        }
         let n = raster.heightfield.width();
         if let Some((cx, cy)) = name.as_deref().and_then(|s| hgt::tile_cell_from_name(s, n)) {
             raster.heightfield.set_cell_size(cx, cy)?;
@@ -396,6 +449,17 @@ fn check_max_cells(opts: &ReadOptions) -> Result<()> {
             format!("must be in 1..={}", relief_heightfield::MAX_CELLS),
         ));
     }
+    if let Some((cx, cy)) = opts.cell_size {
+        let (lo, hi) = util::CELL_RANGE_M;
+        if !(cx.is_finite() && cy.is_finite() && (lo..=hi).contains(&cx) && (lo..=hi).contains(&cy))
+        {
+            return Err(IoError::param(
+                "cell_size",
+                format!("{cx} x {cy}"),
+                format!("each must be a number of metres in {lo:e}..{hi:e}"),
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -405,6 +469,13 @@ fn check_max_cells(opts: &ReadOptions) -> Result<()> {
 /// non-raster outputs (`.sct`, dictionaries, reports).
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     atomic::write_atomic(path, bytes)
+}
+
+/// Removes the temporaries that killed runs left in `dir` (hidden `.<name>.tmp-<pid>-<n>`
+/// files and `.relief-stage-<pid>-<n>` folders of processes that no longer exist); every write
+/// does this for its own folder. Errors are ignored (housekeeping).
+pub fn remove_stale_temporaries(dir: &Path) {
+    atomic::remove_stale_temps_in(dir);
 }
 
 /// Writes `hf` to `path` atomically; the format comes from `opts.format` or the extension

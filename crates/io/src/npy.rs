@@ -250,16 +250,26 @@ pub(crate) fn read_npy(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// Reads every member of the archive within a total byte budget.
 fn members(bytes: &[u8], opts: &ReadOptions) -> Result<Vec<(String, Vec<u8>)>> {
     let f = Format::Npz;
-    let mut zip = zip::ZipArchive::new(Cursor::new(bytes))
-        .map_err(|e| IoError::malformed(f, format!("zip: {e}")))?;
+    let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| {
+        IoError::malformed(
+            f,
+            format!("zip: {}", crate::util::codec_reason(e.to_string())),
+        )
+    })?;
     let mut budget = (opts.max_cells as u64)
         .saturating_mul(8)
         .saturating_add(1 << 20);
     let mut out = Vec::new();
     for i in 0..zip.len() {
-        let mut entry = zip
-            .by_index(i)
-            .map_err(|e| IoError::malformed(f, format!("zip member {i}: {e}")))?;
+        let mut entry = zip.by_index(i).map_err(|e| {
+            IoError::malformed(
+                f,
+                format!(
+                    "zip member {i}: {}",
+                    crate::util::codec_reason(e.to_string())
+                ),
+            )
+        })?;
         let name = entry.name().trim_end_matches(".npy").to_string();
         let declared = entry.size();
         if declared > budget {
@@ -276,7 +286,15 @@ fn members(bytes: &[u8], opts: &ReadOptions) -> Result<Vec<(String, Vec<u8>)>> {
         (&mut entry)
             .take(declared + 1)
             .read_to_end(&mut buf)
-            .map_err(|e| IoError::malformed(f, format!("zip member {name:?}: {e}")))?;
+            .map_err(|e| {
+                IoError::malformed(
+                    f,
+                    format!(
+                        "zip member {name:?}: {}",
+                        crate::util::codec_reason(e.to_string())
+                    ),
+                )
+            })?;
         if buf.len() as u64 != declared {
             return Err(IoError::malformed(
                 f,

@@ -16,7 +16,7 @@ pub(crate) const KEY_VERTICAL: &str = "relief:vertical";
 pub(crate) const KEY_ENCODING: &str = "relief:encoding";
 
 fn perr(format: Format, e: png::DecodingError) -> IoError {
-    IoError::malformed(format, e.to_string())
+    IoError::malformed(format, crate::util::codec_reason(e.to_string()))
 }
 
 fn parse_kv(text: &str) -> impl Iterator<Item = (&str, &str)> {

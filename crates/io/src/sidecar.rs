@@ -30,19 +30,23 @@ fn parse_sidecar(v: &Value) -> Result<Sidecar> {
     };
     let width = dim("width")?;
     let height = dim("height")?;
-    let num = |key: &str| v.get(key).and_then(Value::as_f64);
-    let cx = num("cell_size_x_m")
-        .or_else(|| num("cell_size_m"))
-        .unwrap_or(1.0);
-    let cy = num("cell_size_y_m")
-        .or_else(|| num("cell_size_m"))
-        .unwrap_or(1.0);
-    if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
-        return Err(IoError::malformed(
-            f,
-            format!("sidecar cell size {cx} x {cy} is not positive"),
-        ));
-    }
+    // A field that is present must be a number: `"cell_size_m": "30 m"` is an error, not a
+    // silent 1 m cell.
+    let num = |key: &str| -> Result<Option<f64>> {
+        match v.get(key) {
+            None | Some(Value::Null) => Ok(None),
+            Some(x) => x.as_f64().map(Some).ok_or_else(|| {
+                IoError::malformed(
+                    f,
+                    format!("sidecar field `{key}` = {x} is not a number of metres"),
+                )
+            }),
+        }
+    };
+    let both = num("cell_size_m")?;
+    let cx = num("cell_size_x_m")?.or(both).unwrap_or(1.0);
+    let cy = num("cell_size_y_m")?.or(both).unwrap_or(1.0);
+    crate::util::check_cell(f, "sidecar field `cell_size_m`", cx, cy)?;
     let nodata = match v.get("nodata") {
         None | Some(Value::Null) => None,
         Some(x) => Some(x.as_f64().ok_or_else(|| {
@@ -350,16 +354,25 @@ pub(crate) fn read_json_grid(bytes: &[u8], opts: &ReadOptions) -> Result<Raster>
             format!("`values` holds {} values, expected {n}", data.len()),
         ));
     }
-    let num = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
+    let num = |key: &str, v: &Option<Value>| -> Result<Option<f64>> {
+        match v {
+            None | Some(Value::Null) => Ok(None),
+            Some(x) => x.as_f64().map(Some).ok_or_else(|| {
+                IoError::malformed(f, format!("field `{key}` = {x} is not a number"))
+            }),
+        }
+    };
+    let both = num("cell_size", &body.cell_size)?;
     let cell = (
-        num(&body.cell_size_x_m)
-            .or(num(&body.cell_size))
+        num("cell_size_x_m", &body.cell_size_x_m)?
+            .or(both)
             .unwrap_or(1.0),
-        num(&body.cell_size_y_m)
-            .or(num(&body.cell_size))
+        num("cell_size_y_m", &body.cell_size_y_m)?
+            .or(both)
             .unwrap_or(1.0),
     );
-    let nodata = num(&body.nodata);
+    crate::util::check_cell(f, "field `cell_size`", cell.0, cell.1)?;
+    let nodata = num("nodata", &body.nodata)?;
     finish(f, w as usize, h as usize, data, cell, nodata, "number")
 }
 

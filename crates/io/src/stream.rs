@@ -104,6 +104,7 @@ impl GeoTiffStripWriter {
         if path.file_name().is_none() {
             return Err(IoError::param("path", path.display(), "has no file name"));
         }
+        crate::atomic::check_replaceable(path)?;
         crate::atomic::remove_stale_temps(path);
         let tmp = crate::atomic::temp_path(path);
         let file = File::create(&tmp).map_err(|e| IoError::os(path, e))?;
@@ -208,10 +209,7 @@ impl GeoTiffStripWriter {
             let _ = std::fs::remove_file(&self.tmp);
             return Err(IoError::os(&self.path, e));
         }
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| {
-            let _ = std::fs::remove_file(&self.tmp);
-            IoError::os(&self.path, e)
-        })
+        crate::atomic::rename_into_place(&self.tmp, &self.path)
     }
 
     /// The image file directory placed at `at` (even: the data length is a multiple of 4),

@@ -33,6 +33,55 @@ pub(crate) fn check_dims(
     Ok(n as usize)
 }
 
+/// Smallest and largest cell size accepted from a file or an option, in metres (1 micrometre
+/// to 10 000 km): outside, products such as `width * cell` lose all precision or overflow.
+pub(crate) const CELL_RANGE_M: (f64, f64) = (1e-6, 1e7);
+
+/// Checks a cell size read from the file part `field`: finite, positive, within
+/// [`CELL_RANGE_M`]; the error names the field and the value.
+pub(crate) fn check_cell(format: Format, field: &str, cx: f64, cy: f64) -> Result<()> {
+    for v in [cx, cy] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(IoError::malformed(
+                format,
+                format!("{field}: cell size {cx} x {cy} is not a finite positive number"),
+            ));
+        }
+        if !(CELL_RANGE_M.0..=CELL_RANGE_M.1).contains(&v) {
+            return Err(IoError::malformed(
+                format,
+                format!(
+                    "{field}: cell size {cx} x {cy} m is outside {:e}..{:e} m",
+                    CELL_RANGE_M.0, CELL_RANGE_M.1
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks an origin coordinate read from the file part `field`: finite.
+pub(crate) fn check_origin(format: Format, field: &str, v: f64) -> Result<()> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(IoError::malformed(
+            format,
+            format!("{field} = {v} is not a finite coordinate"),
+        ))
+    }
+}
+
+/// A codec's error text, with the standard library's "failed to fill whole buffer" (an early
+/// end of file) said as what it means for the file.
+pub(crate) fn codec_reason(text: String) -> String {
+    if text.contains("failed to fill whole buffer") || text.contains("unexpected end of file") {
+        format!("truncated file: the data ends before the part being read ({text})")
+    } else {
+        text
+    }
+}
+
 /// Checks that `needed` bytes are available.
 #[allow(dead_code)]
 pub(crate) fn need(format: Format, what: &str, needed: u64, available: usize) -> Result<()> {
@@ -79,6 +128,7 @@ pub(crate) fn finish(
     if data.iter().all(|v| v.is_nan()) {
         return Err(IoError::AllVoid { format });
     }
+    check_cell(format, "cell size", cell.0, cell.1)?;
     let heightfield = Heightfield::new(width, height, data, cell.0, cell.1)?;
     Ok(Raster {
         heightfield,

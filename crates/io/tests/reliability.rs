@@ -98,7 +98,9 @@ fn stale_temporaries_of_dead_runs_are_removed_by_the_next_write() {
     write_bytes_atomic(&p, b"done").unwrap();
     assert!(!dead.exists(), "stale temporary of a dead process kept");
     assert!(alive.exists(), "temporary of a live process removed");
-    assert!(other.exists(), "temporary of another target removed");
+    // Issue 18: leftovers of killed runs go with the next write into the folder, whatever
+    // output they were for.
+    assert!(!other.exists(), "stale temporary of another target kept");
 }
 
 mod limits {
@@ -480,4 +482,79 @@ mod streaming {
         );
         assert_eq!(leftovers(dir.path()), ["o.tif"]);
     }
+}
+
+/// Issue 18: a compressed GeoTIFF whose strips hold fewer bytes than its declared samples could
+/// inflate from (DEFLATE: at most 1032:1) is refused from its tags, before the decoder
+/// allocates the image.
+#[test]
+fn geotiff_strips_too_small_for_their_samples_are_refused() {
+    use relief_heightfield::Heightfield;
+    let hf = Heightfield::from_fn(256, 256, 10.0, 10.0, |x, y| (x * 3 + y) as f32);
+    let opts = relief_io::WriteOptions {
+        compression: relief_io::TiffCompression::Deflate,
+        ..Default::default()
+    };
+    let mut b = relief_io::encode(&hf, relief_io::Format::GeoTiff, &opts).unwrap();
+    assert!(relief_io::read_bytes(&b, None, &ReadOptions::default()).is_ok());
+    // Little-endian IFD: count u16, then 12-byte entries (tag, type, count, value/offset).
+    let u16_at = |b: &[u8], i: usize| u16::from_le_bytes([b[i], b[i + 1]]) as usize;
+    let u32_at =
+        |b: &[u8], i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]) as usize;
+    let ifd = u32_at(&b, 4);
+    let entries = u16_at(&b, ifd);
+    let e = (0..entries)
+        .map(|k| ifd + 2 + 12 * k)
+        .find(|&e| u16_at(&b, e) == 279)
+        .expect("StripByteCounts");
+    let (ty, count) = (u16_at(&b, e + 2), u32_at(&b, e + 4));
+    let size = if ty == 3 { 2 } else { 4 };
+    let at = if count * size <= 4 {
+        e + 8
+    } else {
+        u32_at(&b, e + 8)
+    };
+    for k in 0..count {
+        let p = at + k * size;
+        b[p] = 1;
+        for q in 1..size {
+            b[p + q] = 0;
+        }
+    }
+    let e = relief_io::read_bytes(&b, None, &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("1032:1"), "{e}");
+}
+
+/// Issue 18: cell sizes and origins that are not finite positive numbers are refused with the
+/// field named; a present but non-numeric sidecar cell size is not silently 1 m.
+#[test]
+fn absurd_cell_sizes_and_origins_name_the_field() {
+    let asc = b"ncols 2\nnrows 2\nxllcorner nan\nyllcorner 0\ncellsize 30\n1 2\n3 4\n";
+    let e = relief_io::read_bytes(asc, None, &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("xllcorner"), "{e}");
+    let asc = b"ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1e308\n1 2\n3 4\n";
+    let e = relief_io::read_bytes(asc, None, &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("cellsize"), "{e}");
+    let data = [0u8; 16];
+    for side in [
+        r#"{"width": 2, "height": 2, "cell_size_m": "30 m"}"#,
+        r#"{"width": 2, "height": 2, "cell_size_m": 0}"#,
+        r#"{"width": 2, "height": 2, "cell_size_x_m": -5, "cell_size_y_m": 5}"#,
+    ] {
+        let e = read_f32_sidecar_bytes(&data, Some(side.as_bytes()), &ReadOptions::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("cell_size"), "{side}: {e}");
+    }
+    let ok = read_f32_sidecar_bytes(
+        &data,
+        Some(br#"{"width": 2, "height": 2, "cell_size_m": 30}"#),
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(ok.heightfield.cell_size(), (30.0, 30.0));
+    let opts = ReadOptions {
+        cell_size: Some((1e-320, 1e-320)),
+        ..Default::default()
+    };
+    assert!(read_f32_sidecar_bytes(&data, None, &opts).is_err());
 }

@@ -2,7 +2,7 @@
 //!
 //! Layout (all little-endian):
 //! ```text
-//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 2)   flags u16 (bit 0: 16-bit coefficients)
+//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 3)   flags u16 (bit 0: 16-bit coefficients)
 //! width u32  height u32  cell_x f64  cell_y f64
 //! georef (version 2 only; version 1 streams are still read, without it):
 //!   present u8 (0 | 1), then when 1, each optional field as flag u8 + value:
@@ -21,12 +21,17 @@
 //!   river:    n u32, n x (x, y, half width, depth) f64, mode u8 (0 carve | 1 bed + n f64)
 //!   blend/add/max/min: count u32, children
 //!   replace:  region u8 (0 rect: 4 f64 | 1 disk: 3 f64), falloff f64, base, overlay
+//! checksum (version 3): CRC-32 (IEEE, as zlib's `crc32`) u32 of every byte before it
 //! ```
+//!
+//! Versions 1 (no georeference) and 2 (no checksum) are still read.
 //!
 //! A dictionary alone (`.dict` files of `relief learn`, [`Dictionary::to_bytes`]) is
 //! ```text
-//! magic  "RLFDIC\r\n" (8 bytes)   version u16 (= 1)   flags u16 (= 0)   dictionary (as above)
+//! magic  "RLFDIC\r\n" (8 bytes)   version u16 (= 2)   flags u16 (= 0)   dictionary (as above)
+//! checksum (version 2): CRC-32 u32 of every byte before it
 //! ```
+//! (version 1, without the checksum, is still read).
 //! and its reader also checks that every data atom has unit L2 norm (OMP relies on it).
 //!
 //! The reader checks every declared count against the bytes that remain **before** allocating,
@@ -45,7 +50,11 @@ use crate::sct::{Node, Placement, Region, River, RiverMode, Sct, SparseLayer};
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RLFSCT\r\n";
 /// Current format version.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
+/// First `.sct` version that ends with a CRC-32 of the stream.
+const FIRST_CHECKSUMMED: u16 = 3;
+/// First dictionary version that ends with a CRC-32 of the stream.
+const FIRST_CHECKSUMMED_DICTIONARY: u16 = 2;
 /// Oldest version still read (no georeference block).
 const OLDEST_VERSION: u16 = 1;
 /// Largest element count of one georeference field.
@@ -53,7 +62,113 @@ const MAX_GEOREF_ITEMS: usize = 1 << 16;
 /// Magic of a dictionary stream ([`Dictionary::to_bytes`]).
 pub const DICTIONARY_MAGIC: &[u8; 8] = b"RLFDIC\r\n";
 /// Current version of the dictionary stream.
-pub const DICTIONARY_VERSION: u16 = 1;
+pub const DICTIONARY_VERSION: u16 = 2;
+/// Oldest dictionary version still read (no checksum).
+const OLDEST_DICTIONARY_VERSION: u16 = 1;
+
+/// CRC-32 (IEEE 802.3 polynomial, reflected; the checksum of zlib, PNG and gzip).
+pub fn crc32(bytes: &[u8]) -> u32 {
+    const TABLE: [u32; 256] = {
+        let mut t = [0u32; 256];
+        let mut i = 0;
+        while i < 256 {
+            let mut c = i as u32;
+            let mut k = 0;
+            while k < 8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+                k += 1;
+            }
+            t[i] = c;
+            i += 1;
+        }
+        t
+    };
+    let mut c = !0u32;
+    for &b in bytes {
+        c = TABLE[((c ^ b as u32) & 0xff) as usize] ^ (c >> 8);
+    }
+    !c
+}
+
+/// Splits a checksummed stream into its body and checks the trailing CRC-32; `what` names the
+/// stream in the error.
+fn verify_checksum<'a>(bytes: &'a [u8], what: &str) -> Result<&'a [u8]> {
+    let Some(split) = bytes.len().checked_sub(4).filter(|&n| n >= 12) else {
+        return Err(SparseError::Format {
+            offset: bytes.len(),
+            reason: format!("truncated {what}: no room for the header and the checksum"),
+        });
+    };
+    let (body, tail) = bytes.split_at(split);
+    let stored = u32::from_le_bytes([tail[0], tail[1], tail[2], tail[3]]);
+    let actual = crc32(body);
+    if stored != actual {
+        return Err(SparseError::Format {
+            offset: split,
+            reason: format!(
+                "checksum mismatch ({what} stores CRC-32 {stored:08x}, its bytes give \
+                 {actual:08x}): the file is corrupt or truncated"
+            ),
+        });
+    }
+    Ok(body)
+}
+
+/// The bytes to decode: for a stream with `magic` whose version is at least `first` (the first
+/// checksummed version), the body before its verified CRC-32; otherwise the bytes as given
+/// (older versions, or not this kind of stream: the decoder reports those).
+fn checked_body<'a>(bytes: &'a [u8], magic: &[u8; 8], first: u16, what: &str) -> Result<&'a [u8]> {
+    match bytes.get(8..10) {
+        Some(v) if bytes.starts_with(magic) && u16::from_le_bytes([v[0], v[1]]) >= first => {
+            verify_checksum(bytes, what)
+        }
+        _ => Ok(bytes),
+    }
+}
+
+/// Appends the CRC-32 of `buf` to it (the last field of checksummed streams).
+fn seal(mut buf: Vec<u8>) -> Vec<u8> {
+    let crc = crc32(&buf);
+    buf.extend_from_slice(&crc.to_le_bytes());
+    buf
+}
+
+/// What the header of a `.sct` or dictionary stream says, without decoding the rest: for
+/// `relief info`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamHeader {
+    /// True for a `.sct` model, false for a dictionary.
+    pub is_sct: bool,
+    /// Format version.
+    pub version: u16,
+    /// `Some(true)` when the checksum matches, `Some(false)` when it does not, `None` for
+    /// versions without one.
+    pub checksum_ok: Option<bool>,
+}
+
+/// Reads the header of a `.sct` or dictionary stream (magic, version, checksum).
+pub fn stream_header(bytes: &[u8]) -> Option<StreamHeader> {
+    let is_sct = bytes.starts_with(MAGIC);
+    if !is_sct && !bytes.starts_with(DICTIONARY_MAGIC) {
+        return None;
+    }
+    let version = u16::from_le_bytes([*bytes.get(8)?, *bytes.get(9)?]);
+    let first = if is_sct {
+        FIRST_CHECKSUMMED
+    } else {
+        FIRST_CHECKSUMMED_DICTIONARY
+    };
+    let checksum_ok = (version >= first).then(|| verify_checksum(bytes, "stream").is_ok());
+    Some(StreamHeader {
+        is_sct,
+        version,
+        checksum_ok,
+    })
+}
 const FLAG_QUANTIZED: u16 = 1;
 const MAX_DEPTH: usize = 64;
 
@@ -661,11 +776,14 @@ impl Sct {
         w.f64(self.cell_size().1);
         w.georef(self.georef())?;
         w.node(self.root())?;
-        Ok(w.buf)
+        Ok(seal(w.buf))
     }
 
     /// Reads `.sct` bytes; function atoms are rebuilt through `registry`.
     pub fn from_bytes(bytes: &[u8], registry: &FunctionAtomRegistry) -> Result<Sct> {
+        // The checksum is verified before anything is decoded: a flipped byte is an error
+        // naming the checksum, never a model with other values.
+        let bytes = checked_body(bytes, MAGIC, FIRST_CHECKSUMMED, "the .sct")?;
         let mut r = Reader {
             b: bytes,
             pos: 0,
@@ -714,13 +832,19 @@ impl Dictionary {
         w.u16(DICTIONARY_VERSION);
         w.u16(0);
         w.dictionary(self)?;
-        Ok(w.buf)
+        Ok(seal(w.buf))
     }
 
     /// Reads a dictionary written by [`Dictionary::to_bytes`]; function atoms are rebuilt
     /// through `registry`. Truncated, corrupt or hostile bytes, unknown versions, trailing
     /// bytes and data atoms that are not unit-norm are errors.
     pub fn from_bytes(bytes: &[u8], registry: &FunctionAtomRegistry) -> Result<Dictionary> {
+        let bytes = checked_body(
+            bytes,
+            DICTIONARY_MAGIC,
+            FIRST_CHECKSUMMED_DICTIONARY,
+            "the dictionary",
+        )?;
         let mut r = Reader {
             b: bytes,
             pos: 0,
@@ -734,9 +858,10 @@ impl Dictionary {
             });
         }
         let version = r.u16()?;
-        if version != DICTIONARY_VERSION {
+        if !(OLDEST_DICTIONARY_VERSION..=DICTIONARY_VERSION).contains(&version) {
             return Err(r.err(format!(
-                "unsupported dictionary version {version} (expected {DICTIONARY_VERSION})"
+                "unsupported dictionary version {version} (expected \
+                 {OLDEST_DICTIONARY_VERSION} to {DICTIONARY_VERSION})"
             )));
         }
         let flags = r.u16()?;
@@ -763,5 +888,33 @@ impl Dictionary {
             }
         }
         Ok(dict)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_is_the_ieee_checksum() {
+        // The standard check value of CRC-32/ISO-HDLC (zlib, PNG).
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
+
+    #[test]
+    fn stream_header_reports_version_and_checksum() {
+        let s = Sct::new(Node::Constant(2.0), 4, 4, (1.0, 1.0)).unwrap();
+        let mut b = s.to_bytes().unwrap();
+        let h = stream_header(&b).unwrap();
+        assert!(h.is_sct);
+        assert_eq!(h.version, VERSION);
+        assert_eq!(h.checksum_ok, Some(true));
+        let n = b.len();
+        b[n - 5] ^= 1;
+        assert_eq!(stream_header(&b).unwrap().checksum_ok, Some(false));
+        let e = Sct::from_bytes(&b, &FunctionAtomRegistry::new()).unwrap_err();
+        assert!(e.to_string().contains("checksum"), "{e}");
+        assert!(stream_header(b"not a model").is_none());
     }
 }

@@ -103,14 +103,33 @@ fn corrupt_and_hostile_bytes_are_errors() {
         Err(SparseError::Format { offset: 0, .. })
     ));
     let mut v = bytes.clone();
-    v[8] = 2;
+    v[8] = 9;
+    reseal(&mut v);
     assert!(Dictionary::from_bytes(&v, &registry()).is_err());
     let mut f = bytes.clone();
     f[10] = 1;
+    reseal(&mut f);
     assert!(Dictionary::from_bytes(&f, &registry()).is_err());
-    // Absurd atom count (header 12 bytes, then a u16, delta f64, R f64, N u32 at 30).
+    // Every single-byte change is caught by the checksum (version 2).
+    for i in 0..bytes.len() {
+        let mut c = bytes.clone();
+        c[i] ^= 0x21;
+        let e = Dictionary::from_bytes(&c, &registry());
+        assert!(e.is_err(), "byte {i} flipped");
+    }
+    // Version 1 (no checksum) is still read.
+    let mut v1 = bytes.clone();
+    v1.truncate(v1.len() - 4);
+    v1[8..10].copy_from_slice(&1u16.to_le_bytes());
+    assert_eq!(
+        Dictionary::from_bytes(&v1, &registry()).unwrap().len(),
+        Dictionary::from_bytes(&bytes, &registry()).unwrap().len()
+    );
+    // Absurd atom count (header 12 bytes, then a u16, delta f64, R f64, N u32 at 30); the
+    // edited streams are re-sealed, so the reader's own checks refuse them.
     let mut c = bytes.clone();
     c[30..34].copy_from_slice(&u32::MAX.to_le_bytes());
+    reseal(&mut c);
     assert!(matches!(
         Dictionary::from_bytes(&c, &registry()),
         Err(SparseError::Format { .. })
@@ -118,6 +137,7 @@ fn corrupt_and_hostile_bytes_are_errors() {
     // A data atom that is not unit-norm (first sample of atom 0 at 35) is refused.
     let mut c = bytes.clone();
     c[35..39].copy_from_slice(&5.0f32.to_le_bytes());
+    reseal(&mut c);
     let e = Dictionary::from_bytes(&c, &registry()).unwrap_err();
     assert!(e.to_string().contains("norm"), "{e}");
     // Unknown function kind without the registry.
@@ -132,4 +152,11 @@ fn corrupt_and_hostile_bytes_are_errors() {
         }
         let _ = Dictionary::from_bytes(&c, &registry());
     }
+}
+
+/// Rewrites the trailing CRC-32 of an edited stream.
+fn reseal(bytes: &mut [u8]) {
+    let n = bytes.len() - 4;
+    let crc = relief_sparse_core::format::crc32(&bytes[..n]);
+    bytes[n..].copy_from_slice(&crc.to_le_bytes());
 }

@@ -90,7 +90,13 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input, &args.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
-    let sct = build(&args, ctx)?;
+    let out = OutputPlan {
+        sct: is_sct(&args.output),
+        window,
+        stream: relief_io::Format::from_extension(&args.output) == Some(relief_io::Format::GeoTiff),
+        steps_flag: "--factor",
+    };
+    let sct = build(&args, out, ctx)?;
     write_model(&sct, &args.output, window, args.stream, ctx)
 }
 
@@ -122,9 +128,9 @@ fn settings(args: &Args) -> Result<AmplifySettings> {
     Ok(settings)
 }
 
-/// Reads the inputs and amplifies them into a model (`relief tile plan` stores it once for
-/// every tile task).
-pub(crate) fn build(args: &Args, ctx: &Ctx) -> Result<Sct> {
+/// Reads the inputs, checks the pre-flight estimate for the output `out`, and amplifies them
+/// into a model (`relief tile plan` stores it once for every tile task).
+pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
     let settings = settings(args)?;
     let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
     let exemplar =
@@ -135,6 +141,14 @@ pub(crate) fn build(args: &Args, ctx: &Ctx) -> Result<Sct> {
     exemplar
         .require_complete()
         .with_context(|| format!("cannot use {} as exemplar", args.exemplar.display()))?;
+    preflight(
+        ctx,
+        &format!("amplify x{}", args.factor),
+        (coarse.width(), coarse.height()),
+        (exemplar.width(), exemplar.height()),
+        &settings,
+        out,
+    )?;
     let progress = ctx.progress();
     amplify(&coarse, &exemplar, &settings, &progress).with_context(|| {
         format!(
@@ -144,6 +158,107 @@ pub(crate) fn build(args: &Args, ctx: &Ctx) -> Result<Sct> {
             args.exemplar.display()
         )
     })
+}
+
+/// How the result of an amplification is written (for [`preflight`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct OutputPlan {
+    /// A `.sct` model (no raster).
+    pub(crate) sct: bool,
+    /// Only this window of the raster.
+    pub(crate) window: Option<Window>,
+    /// A GeoTIFF that is streamed in bands when large.
+    pub(crate) stream: bool,
+    /// The flag that sets the number of x4 steps (`--factor`, `--steps`).
+    pub(crate) steps_flag: &'static str,
+}
+
+/// Working bytes per coarse cell of one x4 step (patch matrices of the coding and training
+/// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
+/// `a = 8` and grid step 2; scaled by `a^2 / S^2` for other settings. Calibrated on measured
+/// peak RSS (issue 18).
+const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
+
+/// Working bytes per exemplar cell (resampled copies, candidate patches, the learned pair of
+/// dictionaries).
+const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
+
+/// Bytes per output cell of a raster written from memory (the f32 grid and its encoding).
+pub(crate) const RASTER_OUT_BYTES_PER_CELL: f64 = 12.0;
+
+/// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the
+/// coarse size and the settings, and that of the written raster, checked against
+/// `--max-memory` (and the raster's size against `--max-output-size`) before any work. The
+/// message names `--factor` when an intermediate step is too large, `--window` / `--stream` /
+/// a `.sct` output when only the final raster is.
+pub(crate) fn preflight(
+    ctx: &Ctx,
+    command: &str,
+    coarse: (usize, usize),
+    exemplar: (usize, usize),
+    settings: &AmplifySettings,
+    out: OutputPlan,
+) -> Result<()> {
+    use crate::memory::part;
+    let a = settings.patch_size() as f64;
+    let s = settings.grid_step().max(1.0);
+    let shape = (a * a / (s * s)) / 16.0;
+    let ex_cells = exemplar.0 as f64 * exemplar.1 as f64;
+    let exemplar_part = part(
+        "the exemplar and its dictionaries",
+        ex_cells * EXEMPLAR_BYTES_PER_CELL,
+        "a smaller --exemplar",
+    );
+    let coarse_cells = coarse.0 as f64 * coarse.1 as f64;
+    let mut peaks: Vec<Vec<crate::memory::Part>> = Vec::new();
+    for t in 0..settings.steps {
+        let c = coarse_cells * 16f64.powi(t as i32);
+        peaks.push(vec![
+            part(
+                format!(
+                    "x4 step {} of {} on {} coarse cells",
+                    t + 1,
+                    settings.steps,
+                    c as u64
+                ),
+                c * STEP_BYTES_PER_COARSE_CELL * shape.max(0.25),
+                format!("a smaller {} (or a smaller input)", out.steps_flag),
+            ),
+            exemplar_part.clone(),
+        ]);
+    }
+    let out_cells = coarse_cells * 16f64.powi(settings.steps as i32);
+    let written = match out.window {
+        Some(w) => w.width as f64 * w.height as f64,
+        None => out_cells,
+    };
+    if !out.sct {
+        let change = if out.window.is_some() {
+            "a smaller --window".to_string()
+        } else {
+            format!("--window, a .sct output or a smaller {}", out.steps_flag)
+        };
+        ctx.check_output_size("the output raster", written * 4.0, &change)?;
+        let in_memory = if out.stream && written > STREAM_CELLS as f64 {
+            BAND_CELLS as f64
+        } else {
+            written
+        };
+        peaks.push(vec![part(
+            "the output raster",
+            in_memory * RASTER_OUT_BYTES_PER_CELL,
+            if out.window.is_some() {
+                "a smaller --window".to_string()
+            } else {
+                format!(
+                    "--window, a .tif output (streamed), a .sct output or a smaller {}",
+                    out.steps_flag
+                )
+            },
+        )]);
+    }
+    let refs: Vec<&[crate::memory::Part]> = peaks.iter().map(Vec::as_slice).collect();
+    ctx.check_memory(command, &refs)
 }
 
 /// Parses `--window X,Y,W,H` (output pixels).

@@ -238,6 +238,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .map(|p| (p, crate::outputs::OutKind::Png)),
     );
     ctx.check_outputs(&[&args.input], &outputs)?;
+    // The maps and the plot appear together or not at all.
+    let targets: Vec<&std::path::Path> = outputs.iter().map(|&(p, _)| p).collect();
+    let staged = crate::staging::Outputs::new(&targets)?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let hf = raster.heightfield;
     // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
@@ -248,6 +251,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             hf.void_count()
         );
     }
+    // Pre-flight (issue 18): the DWT pyramid, and with --local the fitted maps of every band.
+    ctx.check_memory(
+        "analyze",
+        &[&[crate::memory::part(
+            format!("the analysis of {} cells", hf.len()),
+            hf.len() as f64 * if args.local.is_some() { 96.0 } else { 48.0 },
+            "a smaller input (crop it)",
+        )]],
+    )?;
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);
     let analysis = analyze(&hf, wavelet, &fit)
@@ -269,7 +281,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 let path = map_path(prefix, suffix);
                 let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
                     .with_georef(hf.georef().cloned());
-                ctx.write_raster(&path, &map)?;
+                ctx.write_raster(&staged.path(&path), &map)?;
                 written.push(path);
                 Ok(())
             };
@@ -300,9 +312,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         progress.begin("plotting", 0);
         let (w, h) = (720, 440);
         let rgb = render_log_variance_plot(&analysis, args.plot_levels, None, w, h);
-        relief_io::write_rgb_png(plot, w, h, &rgb)
+        relief_io::write_rgb_png(&staged.path(plot), w, h, &rgb)
             .with_context(|| format!("cannot write {}", plot.display()))?;
     }
+    staged.commit()?;
     drop(progress);
     let report = Report {
         file: args.input.display().to_string(),

@@ -94,18 +94,52 @@ pub(crate) fn registry() -> FunctionAtomRegistry {
 /// Largest `.sct` / `.dict` file the CLI reads into memory.
 pub(crate) const MAX_MODEL_BYTES: u64 = 1 << 32;
 
-/// Reads a model file (`.sct` or `.dict`) into memory, refusing absurd sizes first.
-pub(crate) fn read_model_bytes(path: &Path) -> Result<Vec<u8>> {
+/// Reads a model file (`.sct` or `.dict`) into memory, refusing absurd sizes first: at most
+/// [`MAX_MODEL_BYTES`] and a third of `--max-memory` (the decoded model takes about twice the
+/// file). Devices and pipes (length 0) are read through the same cap, growing the buffer with
+/// `try_reserve` so an impossible allocation is an error.
+pub(crate) fn read_model_bytes(path: &Path, ctx: &Ctx) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    let cap = MAX_MODEL_BYTES.min(ctx.max_memory.bytes / 3);
     let len = std::fs::metadata(path)
         .with_context(|| format!("cannot read {}", path.display()))?
         .len();
-    if len > MAX_MODEL_BYTES {
-        bail!(
-            "cannot read {}: {len} bytes exceeds the {MAX_MODEL_BYTES}-byte limit",
-            path.display()
-        );
+    let too_big = |n: u64| {
+        anyhow::anyhow!(
+            "cannot read {}: {n} bytes or more, above the {} a model may take (a third of {})",
+            path.display(),
+            crate::memory::human(cap),
+            ctx.max_memory
+        )
+    };
+    if len > cap {
+        return Err(too_big(len));
     }
-    std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut r = file.take(cap + 1);
+    let mut bytes: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; 1 << 20];
+    loop {
+        let n = match r.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => {
+                return Err(
+                    anyhow::Error::new(e).context(format!("cannot read {}", path.display()))
+                );
+            }
+        };
+        if bytes.len() as u64 + n as u64 > cap {
+            return Err(too_big(cap + 1));
+        }
+        bytes
+            .try_reserve(n)
+            .map_err(|_| anyhow::anyhow!("cannot read {}: out of memory", path.display()))?;
+        bytes.extend_from_slice(&chunk[..n]);
+    }
+    Ok(bytes)
 }
 
 /// Builds the dictionary the arguments ask for.
@@ -121,7 +155,7 @@ fn build_dictionary(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<(Diction
                 bail!("{name} cannot be used with --dictionary (the file fixes the atoms)");
             }
         }
-        let bytes = read_model_bytes(path)?;
+        let bytes = read_model_bytes(path, ctx)?;
         let d = Dictionary::from_bytes(&bytes, &registry())
             .with_context(|| format!("cannot read the dictionary {}", path.display()))?;
         if d.is_empty() {
@@ -188,6 +222,48 @@ fn build_dictionary(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<(Diction
     }
 }
 
+/// Pre-flight estimate of `compress` (issue 18), before any patch is cut: the patch matrix
+/// (f32 rows of `a^2`, with the working copies of K-SVD), the dictionary and its Gram matrix
+/// (K^2: with `--dict complete`, K is the number of patches), the codes and the model.
+fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
+    use crate::memory::part;
+    let a = args.patch_size.unwrap_or(8) as f64;
+    let spacing = args.spacing.unwrap_or(1.0);
+    let step = args.step.unwrap_or(a * spacing / 2.0).max(0.25);
+    let cells = hf.len() as f64;
+    let patches = (hf.width() as f64 / step).ceil() * (hf.height() as f64 / step).ceil();
+    let k = match (&args.dictionary, args.dict.unwrap_or(DictSource::Ksvd)) {
+        (Some(_), _) => args.atoms as f64,
+        (None, DictSource::Complete) => patches,
+        (None, _) => args.atoms as f64,
+    };
+    let change_k = if matches!(args.dict, Some(DictSource::Complete)) && args.dictionary.is_none() {
+        "--dict ksvd or sample with --atoms (the complete dictionary has one atom per patch), \
+         or a smaller input"
+    } else {
+        "fewer --atoms"
+    };
+    ctx.check_memory(
+        "compress",
+        &[&[
+            part(
+                format!(
+                    "the {} patches of {} cells",
+                    patches as u64,
+                    a as u64 * a as u64
+                ),
+                patches * a * a * 4.0 * 4.0 + cells * 16.0,
+                "a larger --step or --spacing, or a smaller input",
+            ),
+            part(
+                format!("the dictionary of {} atoms and its Gram matrix", k as u64),
+                k * a * a * 4.0 * 2.0 + k * k * 4.0,
+                change_k,
+            ),
+        ]],
+    )
+}
+
 /// The report lines shared by `compress` and the tests: storage, bytes, PSNR.
 pub(crate) fn report_lines(r: &CompressionReport) -> String {
     format!(
@@ -219,6 +295,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             hf.void_count()
         );
     }
+    preflight(&args, &hf, ctx)?;
     let t_start = Instant::now();
     let (dict, source) = build_dictionary(&args, &hf, ctx)?;
     let t_dict = t_start.elapsed().as_secs_f64();

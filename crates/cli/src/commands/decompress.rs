@@ -70,12 +70,18 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(args.reference.as_deref());
     ctx.check_outputs(&inputs, &[(&args.output, crate::outputs::OutKind::Raster)])?;
-    let bytes = read_model_bytes(&args.input)?;
+    let bytes = read_model_bytes(&args.input, ctx)?;
     let sct = Sct::from_bytes(&bytes, &registry())
         .with_context(|| format!("cannot read {}", args.input.display()))?;
-    let (fw, fh) = sct
-        .raster_size(args.scale)
-        .context("invalid parameter `--scale`")?;
+    let (fw, fh) = sct.raster_size(args.scale).with_context(|| {
+        format!(
+            "cannot rasterise the {} x {} model {} at --scale {}",
+            sct.width(),
+            sct.height(),
+            args.input.display(),
+            args.scale
+        )
+    })?;
     let win = match &args.window {
         Some(w) => Some(
             parse_window(w)
@@ -98,6 +104,25 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             args.max_cells
         );
     }
+    // Pre-flight (issue 18): the raster in memory and its encoding, and the file size.
+    let out_cells = cells as f64;
+    let change = if args.window.is_some() {
+        "a smaller --window"
+    } else {
+        "a smaller --scale or --window"
+    };
+    ctx.check_output_size("the output raster", out_cells * 4.0, change)?;
+    ctx.check_memory(
+        &format!("decompress --scale {}", args.scale),
+        &[&[
+            crate::memory::part(
+                format!("the {} x {} output raster", win.width, win.height),
+                out_cells * super::amplify::RASTER_OUT_BYTES_PER_CELL,
+                change,
+            ),
+            crate::memory::part("the model", bytes.len() as f64 * 3.0, "a smaller model"),
+        ]],
+    )?;
     let reference = match &args.reference {
         Some(p) => Some(super::read_raster(p, &args.read, ctx)?.heightfield),
         None => None,

@@ -68,6 +68,30 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let hf = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
+    // Pre-flight (issue 18): the patches of the input, the discretised candidate atoms and
+    // their Gram matrix.
+    {
+        use crate::memory::part;
+        let a = args.patch_size as f64;
+        let step = (a / 2.0).max(1.0);
+        let patches = (hf.width() as f64 / step).ceil() * (hf.height() as f64 / step).ceil();
+        let k = args.candidates as f64;
+        ctx.check_memory(
+            "fit-procedural",
+            &[&[
+                part(
+                    format!("the {} patches of the input", patches as u64),
+                    patches * a * a * 4.0 * 4.0 + hf.len() as f64 * 16.0,
+                    "a smaller input or --patch-size",
+                ),
+                part(
+                    format!("the {} candidate atoms", k as u64),
+                    k * a * a * 8.0 + k * k * 8.0,
+                    "fewer --candidates",
+                ),
+            ]],
+        )?;
+    }
     let fit = {
         let progress = ctx.progress();
         fit_procedural(&hf, &settings, &progress)

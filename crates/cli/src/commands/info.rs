@@ -22,6 +22,9 @@ pub(crate) struct Args {
 
 /// Prints the description on stdout.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    if is_model(&args.file) {
+        return describe_model(&args, ctx);
+    }
     let raster = super::read_raster(&args.file, &args.read, ctx)?;
     let hf = &raster.heightfield;
     let (cx, cy) = hf.cell_size();
@@ -122,6 +125,164 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut stdout = std::io::stdout().lock();
     std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
     Ok(())
+}
+
+/// Whether `path` starts with the magic of a `.sct` model or a `.dict` dictionary.
+fn is_model(path: &std::path::Path) -> bool {
+    use std::io::Read as _;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && (&head == relief_sparse_core::format::MAGIC
+            || &head == relief_sparse_core::format::DICTIONARY_MAGIC)
+}
+
+/// One dictionary, for `info`: atoms, patch size, spacing, support radius, function atoms.
+fn dictionary_json(d: &relief_sparse_core::Dictionary) -> serde_json::Value {
+    let functions = d
+        .atoms()
+        .iter()
+        .filter(|a| !matches!(a, relief_sparse_core::dictionary::Atom::Data(_)))
+        .count();
+    serde_json::json!({
+        "atoms": d.len(),
+        "patch_size": d.patch_size(),
+        "spacing": d.spacing(),
+        "support_radius": d.support_radius(),
+        "function_atoms": functions,
+    })
+}
+
+/// Describes a `.sct` model or a `.dict` dictionary (issue 18): version, checksum, size,
+/// cell size, georeference, and per layer the atoms, patch size and primitives.
+fn describe_model(args: &Args, ctx: &Ctx) -> Result<()> {
+    let path = &args.file;
+    let bytes = super::compress::read_model_bytes(path, ctx)?;
+    let header = relief_sparse_core::format::stream_header(&bytes)
+        .with_context(|| format!("cannot read {}: not a model", path.display()))?;
+    let reg = super::compress::registry();
+    let checksum = match header.checksum_ok {
+        Some(true) => "CRC-32 ok",
+        Some(false) => "CRC-32 MISMATCH",
+        None => "none (older version)",
+    };
+    let v = if header.is_sct {
+        let sct = relief_sparse_core::Sct::from_bytes(&bytes, &reg)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let layers: Vec<serde_json::Value> = sct
+            .layers()
+            .iter()
+            .map(|l| {
+                let mut d = dictionary_json(l.dictionary());
+                d["primitives"] = l.len().into();
+                d["coefficients"] = l.coefficients().len().into();
+                d["max_sparsity"] = l.max_sparsity().into();
+                d
+            })
+            .collect();
+        let g = sct.georef();
+        serde_json::json!({
+            "file": path.display().to_string(),
+            "format": "sct",
+            "version": header.version,
+            "checksum": checksum,
+            "bytes": bytes.len(),
+            "size": [sct.width(), sct.height()],
+            "cell_size_m": [sct.cell_size().0, sct.cell_size().1],
+            "crs": g.and_then(|g| g.crs.clone()),
+            "geotransform": g.and_then(|g| g.geotransform),
+            "layers": layers,
+        })
+    } else {
+        let d = relief_sparse_core::Dictionary::from_bytes(&bytes, &reg)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let mut v = dictionary_json(&d);
+        v["file"] = path.display().to_string().into();
+        v["format"] = "dict".into();
+        v["version"] = header.version.into();
+        v["checksum"] = checksum.into();
+        v["bytes"] = bytes.len().into();
+        v
+    };
+    let text = if args.json {
+        serde_json::to_string_pretty(&v).context("cannot encode the JSON")? + "\n"
+    } else {
+        model_text(&v)
+    };
+    let mut stdout = std::io::stdout().lock();
+    std::io::Write::write_all(&mut stdout, text.as_bytes()).context("cannot write to stdout")?;
+    Ok(())
+}
+
+/// The text form of [`describe_model`]'s JSON.
+fn model_text(v: &serde_json::Value) -> String {
+    let mut out = String::new();
+    let f = |k: &str| v[k].to_string().trim_matches('"').to_string();
+    out.push_str(&format!("file:        {}\n", f("file")));
+    let kind = if v["format"] == "sct" {
+        "Sparse Construction Tree model (.sct)"
+    } else {
+        "dictionary (.dict)"
+    };
+    out.push_str(&format!(
+        "format:      {kind}, version {}, {} bytes\n",
+        f("version"),
+        f("bytes")
+    ));
+    out.push_str(&format!("checksum:    {}\n", f("checksum")));
+    let dict_lines = |out: &mut String, d: &serde_json::Value, indent: &str| {
+        out.push_str(&format!(
+            "{indent}atoms:       {} ({} function atoms), patch {} x {} samples, spacing {}, \
+             support radius {}\n",
+            d["atoms"],
+            d["function_atoms"],
+            d["patch_size"],
+            d["patch_size"],
+            d["spacing"],
+            d["support_radius"]
+        ));
+    };
+    if v["format"] == "sct" {
+        out.push_str(&format!(
+            "size:        {} x {} (width x height)\n",
+            v["size"][0], v["size"][1]
+        ));
+        out.push_str(&format!(
+            "cell size:   {} x {} m\n",
+            v["cell_size_m"][0], v["cell_size_m"][1]
+        ));
+        let layers = v["layers"].as_array().cloned().unwrap_or_default();
+        out.push_str(&format!("layers:      {}\n", layers.len()));
+        for (i, l) in layers.iter().enumerate() {
+            out.push_str(&format!(
+                "  layer {i}: {} primitives, {} coefficients (sparsity <= {})\n",
+                l["primitives"], l["coefficients"], l["max_sparsity"]
+            ));
+            dict_lines(&mut out, l, "    ");
+        }
+        match (&v["crs"], &v["geotransform"]) {
+            (serde_json::Value::Null, serde_json::Value::Null) => {
+                out.push_str("georeference: none\n")
+            }
+            (crs, t) => {
+                out.push_str("georeference:\n");
+                if !crs.is_null() {
+                    out.push_str(&format!(
+                        "  crs:           {}\n",
+                        crs.to_string().trim_matches('"')
+                    ));
+                }
+                if let Some(t) = t.as_array() {
+                    out.push_str(&format!("  Origin = ({},{})\n", t[0], t[3]));
+                    out.push_str(&format!("  Pixel Size = ({},{})\n", t[1], t[5]));
+                }
+            }
+        }
+    } else {
+        dict_lines(&mut out, v, "");
+    }
+    out
 }
 
 /// `54278` -> `54,278`.

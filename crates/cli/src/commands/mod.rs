@@ -81,12 +81,14 @@ impl ReadArgs {
 }
 
 fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
+    // 1 micrometre to 10 000 km, as relief-io accepts from files: `1e-320` or `1e308` are
+    // typos, and would overflow extents.
     let parse = |t: &str| {
         t.trim()
             .parse::<f64>()
             .ok()
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .ok_or_else(|| format!("`{t}` is not a positive number of metres"))
+            .filter(|v| v.is_finite() && (1e-6..=1e7).contains(v))
+            .ok_or_else(|| format!("`{t}` is not a cell size in metres between 1e-6 and 1e7"))
     };
     match s.split_once(',') {
         Some((x, y)) => Ok((parse(x)?, parse(y)?)),
@@ -94,12 +96,64 @@ fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
     }
 }
 
+/// Largest raster read from a device or pipe without `--max-input-cells` (2^24 cells: the
+/// stream is read up to 512 MiB).
+const STREAM_CELLS: usize = 1 << 24;
+
 /// Reads any raster relief-io knows, with a progress indicator, naming the file on error.
 pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {
     let progress = ctx.progress();
     progress.begin(&format!("reading {}", path.display()), 0);
-    let mut raster = relief_io::read(path, &read.options())
-        .with_context(|| format!("cannot read {}", path.display()))?;
+    // Pre-flight: the cells a read may decode are bounded by --max-input-cells and by what
+    // --max-memory leaves beside the file's bytes (decoded samples + f32 grid per cell), so a
+    // decompression bomb or an endless device is refused before it is inflated.
+    let mut opts = read.options();
+    let meta = std::fs::metadata(path).ok();
+    let file_len = meta.as_ref().map_or(0, |m| m.len());
+    let mut memory_cells = crate::memory::readable_cells(ctx.max_memory, file_len).max(1);
+    let stream = meta.is_some_and(|m| !m.is_file());
+    if stream {
+        // A device or pipe has no length: relief-io reads at most 32 bytes per cell of it, so
+        // its cells are bounded tighter, and without --max-input-cells by STREAM_CELLS (an
+        // endless `/dev/zero` is refused after 512 MiB, not after gigabytes).
+        memory_cells /= 3;
+        if read.max_input_cells.is_none() {
+            opts.max_cells = opts.max_cells.min(STREAM_CELLS);
+        }
+    }
+    let by_memory = memory_cells < opts.max_cells;
+    if by_memory {
+        opts.max_cells = memory_cells;
+    }
+    let mut raster = relief_io::read(path, &opts).map_err(|e| {
+        let limit_hit = e.to_string().contains("max_cells");
+        let what = if !limit_hit {
+            format!("cannot read {}", path.display())
+        } else if by_memory {
+            format!(
+                "cannot read {}: at most {memory_cells} cells fit in {} ({} bytes per cell \
+                 while decoding, beside the {} file): raise --max-memory",
+                path.display(),
+                ctx.max_memory,
+                crate::memory::READ_BYTES_PER_CELL,
+                crate::memory::human(file_len)
+            )
+        } else if stream && read.max_input_cells.is_none() {
+            format!(
+                "cannot read {}: a device or pipe is read up to {STREAM_CELLS} cells unless \
+                 --max-input-cells says more",
+                path.display()
+            )
+        } else {
+            format!(
+                "cannot read {}: more than --max-input-cells {} cells (raise it for larger \
+                 inputs)",
+                path.display(),
+                opts.max_cells
+            )
+        };
+        anyhow::Error::new(e).context(what)
+    })?;
     if read.fill_voids && raster.heightfield.has_voids() {
         progress.begin("filling voids", 0);
         let rep = relief_heightfield::fill::fill_voids(
@@ -129,5 +183,8 @@ mod tests {
         assert_eq!(parse_cell_size("62.8,92.6"), Ok((62.8, 92.6)));
         assert!(parse_cell_size("0").is_err());
         assert!(parse_cell_size("x,1").is_err());
+        for bad in ["1e-320", "1e308", "inf", "NaN", "-30", "30 m"] {
+            assert!(parse_cell_size(bad).is_err(), "{bad}");
+        }
     }
 }

@@ -477,8 +477,58 @@ pub(crate) fn seam_map_rgb(out: &Synthesis) -> Vec<u8> {
     rgb
 }
 
+/// Working bytes per exemplar cell that does not depend on the candidate count (summed-area
+/// tables in f64, the exemplar itself, block descriptors).
+const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
+
+/// Working bytes per candidate patch position, beyond its PCA coordinates (k-means cluster
+/// ids, kd-tree nodes, hash-table entries).
+const CANDIDATE_BYTES: f64 = 64.0;
+
+/// Working bytes per output cell (the canvas, the guide, the seam map, the blending buffers).
+const OUTPUT_BYTES_PER_CELL: f64 = 48.0;
+
+/// Pre-flight estimate of a synthesis (issue 18): the candidate index of the exemplars and
+/// the output canvases, checked against `--max-memory` before any index is built.
+pub(crate) fn preflight(
+    exemplars: &[Exemplar],
+    control: &Control,
+    settings: &Settings,
+    ctx: &Ctx,
+) -> Result<()> {
+    use crate::memory::part;
+    let stride = settings.exemplar_stride.max(1) as f64;
+    let mut ex_cells = 0.0;
+    let mut candidates = 0.0;
+    for e in exemplars {
+        let (w, h) = (e.heightfield.width() as f64, e.heightfield.height() as f64);
+        ex_cells += w * h;
+        let p = settings.patch_size as f64;
+        candidates +=
+            ((w - p + 1.0).max(0.0) / stride).ceil() * ((h - p + 1.0).max(0.0) / stride).ceil();
+    }
+    // Two PCA spaces (left and top overlaps), f32 coordinates.
+    let per_candidate = CANDIDATE_BYTES + 2.0 * 4.0 * settings.pca_dims as f64;
+    let out_cells = control.width as f64 * control.height as f64;
+    ctx.check_memory(
+        "quilt",
+        &[&[
+            part(
+                format!("the index of {} exemplar patches", candidates as u64),
+                candidates * per_candidate + ex_cells * EXEMPLAR_BYTES_PER_CELL,
+                "smaller (or fewer) --exemplar files, or a larger --stride",
+            ),
+            part(
+                format!("the {} x {} output canvases", control.width, control.height),
+                out_cells * OUTPUT_BYTES_PER_CELL,
+                "a smaller --size (or guide)",
+            ),
+        ]],
+    )
+}
+
 /// Reads the inputs, synthesizes and writes OUT (and the seam map) atomically.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
     let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
     outputs.extend(args.synth.output_paths());
     outputs.extend(
@@ -487,11 +537,18 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .map(|p| (p, crate::outputs::OutKind::Png)),
     );
     ctx.check_outputs(&args.synth.input_paths(), &outputs)?;
+    // The terrain, the guide as used and the seam map appear together or not at all.
+    let targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+    let staged = crate::staging::Outputs::new(&targets)?;
+    if let Some(g) = &args.synth.guide_out {
+        args.synth.guide_out = Some(staged.path(g));
+    }
     let Inputs {
         exemplars,
         control,
         mut settings,
     } = args.synth.inputs(ctx)?;
+    preflight(&exemplars, &control, &settings, ctx)?;
     settings.enforce_validation = !args.no_validate;
     settings.cut = match args.cut {
         CutArg::Dp => CutMethod::DynamicProgramming,
@@ -507,16 +564,17 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let progress = ctx.progress();
     let out = quilt(exemplars, &control, &settings, &progress).context("synthesis failed")?;
     progress.begin("writing", 0);
-    ctx.write_raster(&args.output, &out.heightfield)?;
+    ctx.write_raster(&staged.path(&args.output), &out.heightfield)?;
     if let Some(png) = &args.seam_map {
         relief_io::write_rgb_png(
-            png,
+            &staged.path(png),
             out.seam_map.width,
             out.seam_map.height,
             &seam_map_rgb(&out),
         )
         .with_context(|| format!("cannot write {}", png.display()))?;
     }
+    staged.commit()?;
     drop(progress);
     let s = &out.stats;
     ctx.note(format!(

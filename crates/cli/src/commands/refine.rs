@@ -142,6 +142,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             hf.void_count()
         );
     }
+    preflight(&args, &settings, &hf, window, ctx)?;
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);
     let refiner = Refiner::new(&hf, &settings)
@@ -194,6 +195,65 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         fits[2].gamma
     ));
     Ok(())
+}
+
+/// Working bytes per input cell of the analysis (the DWT pyramid and the fitted statistics
+/// maps of every band and level); calibrated on measured peak RSS (issue 18).
+const ANALYSIS_BYTES_PER_CELL: f64 = 80.0;
+
+/// Working bytes per output cell synthesised in memory (the synthesis pyramid, the f32 result
+/// and its encoding).
+const RENDER_BYTES_PER_CELL: f64 = 24.0;
+
+/// Pre-flight estimate (issue 18): the analysis of the input and the synthesis of the output
+/// (whole, one window, or one streamed band), checked against `--max-memory`, and the output
+/// size against `--max-output-size`, before the analysis starts.
+fn preflight(
+    args: &Args,
+    settings: &RefineSettings,
+    hf: &relief_heightfield::Heightfield,
+    window: Option<(usize, usize, usize, usize)>,
+    ctx: &Ctx,
+) -> Result<()> {
+    use crate::memory::part;
+    let n = hf.width() as f64 * hf.height() as f64;
+    let f = 2f64.powi(settings.extra_levels as i32);
+    let (ow, oh) = (hf.width() as f64 * f, hf.height() as f64 * f);
+    let written = window.map_or(ow * oh, |(_, _, w, h)| w as f64 * h as f64);
+    let change = if window.is_some() {
+        "a smaller --window"
+    } else {
+        "fewer --levels or --window"
+    };
+    ctx.check_output_size("the refined raster", written * 4.0, change)?;
+    let streamed = relief_io::Format::from_extension(&args.output)
+        == Some(relief_io::Format::GeoTiff)
+        && (args.stream || written > STREAM_CELLS as f64);
+    let rendered = if streamed {
+        written.min(BAND_CELLS as f64 + 2.0 * ow)
+    } else {
+        written
+    };
+    let analysis = part(
+        format!("the wavelet analysis of {} input cells", n as u64),
+        n * ANALYSIS_BYTES_PER_CELL,
+        "a smaller input (crop it)",
+    );
+    let synthesis = part(
+        format!("the synthesis of {} output cells", rendered as u64),
+        rendered * RENDER_BYTES_PER_CELL,
+        if streamed {
+            "fewer --levels"
+        } else if window.is_some() {
+            "a smaller --window (or a .tif output, streamed)"
+        } else {
+            "fewer --levels, --window or a .tif output (streamed)"
+        },
+    );
+    ctx.check_memory(
+        &format!("refine --levels {}", settings.extra_levels),
+        &[&[analysis, synthesis]],
+    )
 }
 
 /// GeoTIFF outputs larger than this many cells are streamed band by band.

@@ -82,6 +82,20 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
+    super::amplify::preflight(
+        ctx,
+        &format!("synthesize ({} steps)", settings.amplify.steps),
+        (sketch.width(), sketch.height()),
+        (exemplar.width(), exemplar.height()),
+        &settings.amplify,
+        super::amplify::OutputPlan {
+            sct: super::amplify::is_sct(&args.output),
+            window,
+            stream: relief_io::Format::from_extension(&args.output)
+                == Some(relief_io::Format::GeoTiff),
+            steps_flag: "--steps",
+        },
+    )?;
     let sct = {
         let progress = ctx.progress();
         synthesize(&sketch, &exemplar, &settings, &progress).with_context(|| {

@@ -371,7 +371,14 @@ fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     // Prepare what every task reads, and the output grid.
     let (prepared_name, prepared_bytes, width, height, cell, georef) = match &inner.command {
         Windowable::Amplify(x) => {
-            let sct = super::amplify::build(x, ctx)?;
+            // The plan writes the model only; the tasks write windows of it.
+            let out = super::amplify::OutputPlan {
+                sct: true,
+                window: None,
+                stream: true,
+                steps_flag: "--factor",
+            };
+            let sct = super::amplify::build(x, out, ctx)?;
             let (w, h) = sct.raster_size(1.0).context("cannot size the output")?;
             let win = Window {
                 x: 0,
@@ -384,7 +391,7 @@ fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
             ("model.sct", bytes, w, h, sct.cell_size(), g)
         }
         Windowable::Decompress(x) => {
-            let bytes = super::compress::read_model_bytes(&x.input)?;
+            let bytes = super::compress::read_model_bytes(&x.input, ctx)?;
             let sct = Sct::from_bytes(&bytes, &super::compress::registry())
                 .with_context(|| format!("cannot read {}", x.input.display()))?;
             let (w, h) = sct
@@ -617,7 +624,7 @@ fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
         }
     }
     let prepared_path = dir.join(&m.prepared.path);
-    let prepared = super::compress::read_model_bytes(&prepared_path)?;
+    let prepared = super::compress::read_model_bytes(&prepared_path, ctx)?;
     if bytes_sum(&prepared, m.prepared.path.clone()) != m.prepared {
         bail!(
             "{} does not match its checksum in the manifest (corrupt or replaced); plan again",

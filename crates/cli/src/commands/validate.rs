@@ -91,6 +91,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .iter()
         .map(|p| p.display().to_string())
         .collect();
+    super::quilt::preflight(&inputs.exemplars, &inputs.control, &inputs.settings, ctx)?;
     let progress = ctx.progress();
     let index = ExemplarIndex::build(inputs.exemplars, &inputs.settings, &progress)
         .context("cannot index the exemplars")?;

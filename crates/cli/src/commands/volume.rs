@@ -245,6 +245,50 @@ fn strip(tiles: &[Image]) -> Image {
     }
 }
 
+/// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
+/// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
+/// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
+/// case).
+const TRIANGLES_PER_COLUMN: f64 = 24.0;
+
+/// Peak bytes per triangle while meshing and writing: positions and normals of about half a
+/// vertex (24 B), the triangle (12 B), the vertex map of the chunked polygoniser and the
+/// encoded file built in memory before the atomic write (measured: 69-81 B at 1.5-6 M
+/// triangles, release build).
+const MESH_BYTES_PER_TRIANGLE: f64 = 90.0;
+
+/// Bytes per file triangle (binary PLY/GLB: 12 B of indices plus half a vertex of 24 B).
+const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
+
+/// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
+const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
+
+/// Pre-flight estimate of the mesh (issue 18): triangles from the polygonisation grid, memory
+/// against `--max-memory` and file size against `--max-output-size`, both naming
+/// `--resolution`.
+fn preflight_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Result<()> {
+    let columns = cells[0] as f64 * cells[1] as f64;
+    let triangles = columns * TRIANGLES_PER_COLUMN;
+    let change = format!(
+        "a larger --voxel or a smaller --resolution (the voxel is now {voxel_m:.3} m; the grid is \
+         {}x{}x{}) or a --crop",
+        cells[0], cells[1], cells[2]
+    );
+    ctx.check_output_size(
+        &format!("the mesh {}", path.display()),
+        triangles * FILE_BYTES_PER_TRIANGLE,
+        &change,
+    )?;
+    ctx.check_memory(
+        &format!("volume with {voxel_m:.3} m voxels"),
+        &[&[crate::memory::part(
+            format!("the mesh (about {:.0} M triangles)", triangles / 1e6),
+            triangles * MESH_BYTES_PER_TRIANGLE,
+            change,
+        )]],
+    )
+}
+
 /// Builds the scene and writes the requested outputs.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
@@ -306,6 +350,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         Some(p) => Some(read_geology(p)?),
         None => None,
     };
+    // The mesh, the images and the report appear together or not at all.
+    let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+    targets.extend(args.report.as_deref());
+    let staged = crate::staging::Outputs::new(&targets)?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if let Some((x, y, w, h)) = args.crop {
@@ -479,12 +527,26 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         report["karst_passage_length_m"] = json!(karst.1.length_m);
     }
 
+    let b = scene.bbox();
+    let cell = dims.voxel_m;
+    let sz = b.size();
+    let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
+    if let Some(path) = &args.mesh {
+        preflight_mesh(ctx, path, cells, dims.voxel_m as f64)?;
+    }
+    if args.render.is_some() || args.section.is_some() {
+        let (w, h) = args.image_size;
+        ctx.check_memory(
+            "volume",
+            &[&[crate::memory::part(
+                "the render and section images",
+                w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
+                "a smaller --image-size",
+            )]],
+        )?;
+    }
     if let Some(path) = &args.mesh {
         progress.begin("polygonising", 0);
-        let b = scene.bbox();
-        let cell = dims.voxel_m;
-        let sz = b.size();
-        let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
         let t = Instant::now();
         let (mut mesh, mr) = polygonize(
             &scene,
@@ -538,9 +600,16 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         ));
         let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
         let t = Instant::now();
-        relief_io::write_mesh(path, &mesh.positions, &mesh.triangles, normals)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+        relief_io::write_mesh(
+            &staged.path(path),
+            &mesh.positions,
+            &mesh.triangles,
+            normals,
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
+        let bytes = std::fs::metadata(staged.path(path))
+            .map(|m| m.len())
+            .unwrap_or(0);
         report["mesh_bytes"] = json!(bytes);
         out.push_str(&format!(
             "wrote {} ({:.1} MB) in {:.3} s\n",
@@ -561,7 +630,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         let t = Instant::now();
         let img = render(&scene, &Camera::overview(&scene.bbox()), &settings)
             .context("cannot render the scene")?;
-        relief_io::write_rgb_png(path, img.width, img.height, &img.rgb)
+        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         let secs = t.elapsed().as_secs_f64();
         report["render_s"] = json!(secs);
@@ -610,7 +679,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             names.push("centre".into());
         }
         let img = strip(&tiles);
-        relief_io::write_rgb_png(path, img.width, img.height, &img.rgb)
+        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         let secs = t.elapsed().as_secs_f64();
         report["closeups"] = json!(names);
@@ -637,7 +706,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             },
         )
         .context("cannot cut the section")?;
-        relief_io::write_rgb_png(path, img.width, img.height, &img.rgb)
+        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         report["section_carved_px"] = json!(ss.carved);
         report["section_enclosed_px"] = json!(ss.enclosed);
@@ -652,14 +721,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             path.display()
         ));
     }
-    drop(progress);
     if let Some(path) = &args.report {
         let mut text = serde_json::to_string_pretty(&report).context("cannot encode the report")?;
         text.push('\n');
-        relief_io::write_bytes_atomic(path, text.as_bytes())
+        relief_io::write_bytes_atomic(&staged.path(path), text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
         out.push_str(&format!("report:       wrote {}\n", path.display()));
     }
+    staged.commit()?;
+    drop(progress);
     let mut stdout = std::io::stdout().lock();
     std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
     Ok(())
