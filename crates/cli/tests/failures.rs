@@ -83,7 +83,9 @@ fn subcommands() -> Vec<(String, Vec<String>)> {
         .skip(1)
         .take_while(|l| l.starts_with("  "))
         .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
-        .filter(|n| n != "help")
+        // `tile` has subcommands of its own (plan, run, status, mosaic) whose inputs are a plan
+        // folder; tests/tile.rs covers their failures.
+        .filter(|n| n != "help" && n != "tile")
         .collect();
     assert!(names.len() >= 3, "no subcommands parsed from {text}");
     names

@@ -396,3 +396,29 @@ fn gdal_reads_the_vrt_and_the_cog() {
         ),
     }
 }
+
+/// Missing or corrupt plan folders fail with one line naming the problem, exit code 1.
+#[test]
+fn tile_commands_fail_cleanly_on_missing_and_corrupt_plans() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("nowhere");
+    let corrupt = tmp.path().join("corrupt");
+    std::fs::create_dir(&corrupt).unwrap();
+    std::fs::write(corrupt.join("manifest.json"), b"{\"format\": 3").unwrap();
+    for (dir, want) in [
+        (&missing, "is this a plan folder"),
+        (&corrupt, "not a tile plan"),
+    ] {
+        for sub in [
+            vec!["tile", "run", s(dir), "--index", "0"],
+            vec!["tile", "status", s(dir)],
+            vec!["tile", "mosaic", s(dir)],
+        ] {
+            let o = relief(&sub);
+            let e = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(1), "{sub:?}: {e}");
+            assert!(e.starts_with("error: ") && e.contains(want), "{sub:?}: {e}");
+            assert_eq!(e.trim_end().lines().count(), 1, "{sub:?}: {e}");
+        }
+    }
+}

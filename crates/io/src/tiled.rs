@@ -502,37 +502,46 @@ fn flush_band(
     let w = level.width;
     let rows = level.band.len() / w;
     let cols = w.div_ceil(tile);
-    let band = &level.band;
-    let tiles: Vec<Vec<u8>> = (0..cols)
-        .into_par_iter()
-        .map(|c| {
-            let mut t = vec![0f32; tile * tile];
-            let (x0, x1) = (c * tile, ((c + 1) * tile).min(w));
-            for r in 0..rows {
-                t[r * tile..r * tile + (x1 - x0)].copy_from_slice(&band[r * w + x0..r * w + x1]);
-            }
-            encode_tile(&t, tile, compression)
-        })
-        .collect::<Result<_>>()?;
     let os = |e| IoError::os(path, e);
-    for t in tiles {
-        // COG: GDAL's block leader (the size as u32) and trailer (the last 4 bytes again),
-        // which let a reader check a block fetched by a range request.
-        if cog {
-            level
-                .sink
-                .write_all(&(t.len() as u32).to_le_bytes())
-                .map_err(os)?;
-            level.written += 4;
+    // A few tiles per worker at a time, so the compressed tiles waiting for their turn stay
+    // a few MiB whatever the width.
+    let batch = 2 * rayon::current_num_threads().max(1);
+    let mut c0 = 0;
+    while c0 < cols {
+        let c1 = (c0 + batch).min(cols);
+        let band = &level.band;
+        let tiles: Vec<Vec<u8>> = (c0..c1)
+            .into_par_iter()
+            .map(|c| {
+                let mut t = vec![0f32; tile * tile];
+                let (x0, x1) = (c * tile, ((c + 1) * tile).min(w));
+                for r in 0..rows {
+                    t[r * tile..r * tile + (x1 - x0)]
+                        .copy_from_slice(&band[r * w + x0..r * w + x1]);
+                }
+                encode_tile(&t, tile, compression)
+            })
+            .collect::<Result<_>>()?;
+        for t in tiles {
+            // COG: GDAL's block leader (the size as u32) and trailer (the last 4 bytes
+            // again), which let a reader check a block fetched by a range request.
+            if cog {
+                level
+                    .sink
+                    .write_all(&(t.len() as u32).to_le_bytes())
+                    .map_err(os)?;
+                level.written += 4;
+            }
+            level.offsets.push(level.base + level.written);
+            level.counts.push(t.len() as u64);
+            level.sink.write_all(&t).map_err(os)?;
+            level.written += t.len() as u64;
+            if cog {
+                level.sink.write_all(&t[t.len() - 4..]).map_err(os)?;
+                level.written += 4;
+            }
         }
-        level.offsets.push(level.base + level.written);
-        level.counts.push(t.len() as u64);
-        level.sink.write_all(&t).map_err(os)?;
-        level.written += t.len() as u64;
-        if cog {
-            level.sink.write_all(&t[t.len() - 4..]).map_err(os)?;
-            level.written += 4;
-        }
+        c0 = c1;
     }
     level.band.clear();
     Ok(())

@@ -177,8 +177,8 @@ struct TileRecord {
 
 const MANIFEST: &str = "manifest.json";
 const FORMAT: &str = "relief-tile-plan";
-/// Rows of the output decoded at once by the mosaic (a 32768-wide output: 16 MiB).
-const MOSAIC_ROWS: usize = 128;
+/// Rows of the output decoded at once by the mosaic (a 32768-wide output: 8 MiB).
+const MOSAIC_ROWS: usize = 64;
 /// Largest tile grid a plan accepts.
 const MAX_TASKS: usize = 1 << 20;
 /// Scheduler variables holding the task index, in the order they are consulted.
