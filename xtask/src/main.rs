@@ -12,10 +12,10 @@
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
+use relief_cli::pipeline;
 
 mod bench;
 mod golden;
-mod pipeline;
 
 /// Workspace automation for relief.
 #[derive(Debug, Parser)]
@@ -66,7 +66,7 @@ fn main() -> anyhow::Result<()> {
             let mut config = pipeline::PipelineConfig::full(&root);
             let stages = match spec {
                 Some(path) => {
-                    let spec = pipeline::spec::PipelineSpec::read(&path, &root)?;
+                    let spec = pipeline::spec::PipelineSpec::read(&path)?;
                     spec.apply(&mut config);
                     pipeline::spec::build_stages(&spec.stages)?
                 }
@@ -117,7 +117,5 @@ pub(crate) fn project_root() -> PathBuf {
 
 /// Cargo's target directory (`$CARGO_TARGET_DIR` or `<root>/target`).
 pub(crate) fn target_dir(root: &Path) -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("target"))
+    relief_cli::target_dir(root)
 }

@@ -98,6 +98,9 @@ enum Command {
     /// Split amplify, refine or decompress into output tiles for job arrays (Slurm,
     /// Kubernetes Indexed Jobs): plan, run one task, status, mosaic.
     Tile(commands::tile::Args),
+    /// Run a pipeline spec (JSON: input, stages, parameters) and write its rasters, previews,
+    /// summary.json and report.html, as `cargo xtask pipeline SPEC.json` does.
+    Run(commands::run::Args),
 }
 
 fn main() -> ExitCode {
@@ -135,6 +138,7 @@ fn main() -> ExitCode {
         Command::Quilt(args) => commands::quilt::run(args, &ctx),
         Command::Validate(args) => commands::validate::run(args, &ctx),
         Command::Tile(args) => commands::tile::run(args, &ctx),
+        Command::Run(args) => commands::run::run(args, &ctx),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -615,3 +615,94 @@ fn terrain_rgb_png_reads_from_the_command_line() {
     assert!((v["statistics"]["min"].as_f64().unwrap() - 100.0).abs() < 0.06);
     assert!((v["statistics"]["max"].as_f64().unwrap() - 131.0).abs() < 0.06);
 }
+
+/// `relief run SPEC.json` resolves the spec's paths against the spec's folder, writes
+/// summary.json and report.html, and its figures equal the library pipeline's (what
+/// `cargo xtask pipeline SPEC.json` runs) on the same spec; a failing spec leaves nothing.
+#[test]
+fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let tmp = tempfile::tempdir().unwrap();
+    let job = tmp.path().join("job");
+    std::fs::create_dir(&job).unwrap();
+    std::fs::copy(
+        root.join("fixtures/grandcanyon.tif"),
+        job.join("canyon.tif"),
+    )
+    .unwrap();
+    let spec = job.join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{ "input": "canyon.tif", "crop": [40, 30, 96, 64], "seed": 3,
+             "stages": [ { "stage": "load" }, { "stage": "fill_voids" }, { "stage": "convert" },
+                         { "stage": "wavelet", "params": { "levels": 1, "quality": false } } ] }"#,
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), out.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["summary.json", "report.html", "dem.tif", "dem.png"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let from_cli: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+
+    let lib_out = tmp.path().join("lib");
+    let parsed = relief_cli::pipeline::spec::PipelineSpec::read(&spec).unwrap();
+    let mut config = relief_cli::pipeline::PipelineConfig::new(PathBuf::new(), lib_out.clone());
+    parsed.apply(&mut config);
+    config.verbose = false;
+    let stages = relief_cli::pipeline::spec::build_stages(&parsed.stages).unwrap();
+    relief_cli::pipeline::run(&config, &stages).unwrap();
+    let from_lib: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(lib_out.join("summary.json")).unwrap()).unwrap();
+    let figures = |v: &serde_json::Value| -> Vec<(String, String, serde_json::Value)> {
+        let mut all = Vec::new();
+        for st in v["stages"].as_array().unwrap() {
+            for (k, f) in st["figures"].as_object().unwrap() {
+                if !(k.contains("second") || k.contains("per_s") || k.contains("memory")) {
+                    all.push((st["stage"].to_string(), k.clone(), f.clone()));
+                }
+            }
+        }
+        all
+    };
+    let (a, b) = (figures(&from_cli), figures(&from_lib));
+    assert!(a.len() > 10, "{a:?}");
+    assert_eq!(a, b);
+    assert_eq!(from_cli["stages"][0]["figures"]["width"], 96);
+
+    // Re-running into the same (now non-empty) folder needs --force.
+    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), out.as_os_str()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not empty"));
+    // The input inside the output folder is refused.
+    let o = relief(&[
+        os("--force"),
+        os("run"),
+        spec.as_os_str(),
+        os("--out"),
+        job.as_os_str(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("write over its inputs"));
+    // A stage that fails leaves no output folder and no staging folder.
+    std::fs::write(
+        &spec,
+        r#"{ "input": "canyon.tif", "stages": [ { "stage": "fill_voids" } ] }"#,
+    )
+    .unwrap();
+    let failed = tmp.path().join("failed");
+    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), failed.as_os_str()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("`load` stage must come first"));
+    let left: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!failed.exists());
+    assert!(
+        left.iter().all(|n| !n.starts_with(".relief-stage")),
+        "{left:?}"
+    );
+}

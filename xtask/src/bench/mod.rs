@@ -25,7 +25,7 @@ use serde::Serialize;
 
 mod items;
 
-use crate::pipeline::report::esc;
+use relief_cli::pipeline::report::esc;
 
 /// Packages installed into the peers venv.
 pub(crate) const PEER_PACKAGES: &[&str] = &[
@@ -289,7 +289,7 @@ fn peer_extras(m: &BTreeMap<String, f64>, key: &str) -> String {
     let prefix = format!("{stem}_");
     m.iter()
         .filter(|(k, _)| k.starts_with(&prefix) && k.as_str() != key)
-        .map(|(k, v)| format!("peer {k} = {}", crate::pipeline::report::fmt_num(*v)))
+        .map(|(k, v)| format!("peer {k} = {}", relief_cli::pipeline::report::fmt_num(*v)))
         .collect::<Vec<_>>()
         .join(", ")
 }

@@ -13,6 +13,7 @@ pub(crate) mod learn;
 pub(crate) mod preview;
 pub(crate) mod quilt;
 pub(crate) mod refine;
+pub(crate) mod run;
 pub(crate) mod synthesize;
 pub(crate) mod tile;
 pub(crate) mod validate;

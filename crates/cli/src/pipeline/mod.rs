@@ -2,7 +2,7 @@
 //! previews, figures and tables into a shared [`Report`].
 //!
 //! # Adding a stage
-//! 1. Create `src/pipeline/<name>.rs` with a unit struct implementing [`Stage`]: `name()` and
+//! 1. Create `crates/cli/src/pipeline/<name>.rs` with a unit struct implementing [`Stage`]: `name()` and
 //!    `run(&self, cx: &mut StageCx)`. Read the current terrain with [`State::terrain`], replace
 //!    it with [`State::set_terrain`] when the stage produces the next terrain (stages compose:
 //!    the output of one is the input of the next), save every raster with
@@ -15,6 +15,9 @@
 //! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
 //!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
 
+// Application code: stage progress goes to stderr when `PipelineConfig::verbose` is set.
+#![allow(clippy::print_stderr)]
+
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -26,46 +29,84 @@ mod dictionary;
 mod fill;
 mod load;
 mod quilt;
-pub(crate) mod report;
+pub mod report;
 mod sparse;
-pub(crate) mod spec;
+pub mod spec;
 mod volume;
 mod wavelet;
 
-pub(crate) use report::{Report, Section};
+pub use report::{Report, Section};
 
 /// What to run on and where to write.
 #[derive(Debug, Clone)]
-pub(crate) struct PipelineConfig {
+pub struct PipelineConfig {
     /// Input DEM (any format relief-io reads).
-    pub(crate) input: PathBuf,
+    pub input: PathBuf,
     /// Optional crop `(x, y, w, h)` applied right after loading.
-    pub(crate) crop: Option<(usize, usize, usize, usize)>,
+    pub crop: Option<(usize, usize, usize, usize)>,
     /// Output directory (created if missing).
-    pub(crate) out_dir: PathBuf,
+    pub out_dir: PathBuf,
     /// Seed handed to every stochastic stage (each stage derives its own stream from it).
-    pub(crate) seed: u64,
+    pub seed: u64,
     /// Write preview PNGs (the golden run skips them).
-    pub(crate) previews: bool,
+    pub previews: bool,
     /// Print per-stage progress on stderr.
-    pub(crate) verbose: bool,
+    pub verbose: bool,
+    /// Folder that relative paths in stage parameters (and the default fixtures a stage reads,
+    /// such as `fixtures/volcano.json`) are resolved against: the spec file's folder.
+    pub base_dir: PathBuf,
 }
 
 impl PipelineConfig {
-    /// The default run: the whole bundled fixture into `target/pipeline/`.
-    pub(crate) fn full(root: &Path) -> Self {
+    /// A run on `input` writing into `out_dir`, with the default seed, previews and progress.
+    pub fn new(input: PathBuf, out_dir: PathBuf) -> Self {
+        let base_dir = input
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
         Self {
-            input: root.join("fixtures/grandcanyon.tif"),
+            input,
             crop: None,
-            out_dir: crate::target_dir(root).join("pipeline"),
+            out_dir,
             seed: 0x5eed_2024,
             previews: true,
             verbose: true,
+            base_dir,
+        }
+    }
+
+    /// The default run of the workspace at `root`: the whole bundled fixture into
+    /// `target/pipeline/`.
+    pub fn full(root: &Path) -> Self {
+        Self {
+            base_dir: root.to_path_buf(),
+            ..Self::new(
+                root.join("fixtures/grandcanyon.tif"),
+                crate::target_dir(root).join("pipeline"),
+            )
+        }
+    }
+
+    /// Where a relative path named by a spec or a stage lives: beside the spec
+    /// ([`PipelineConfig::base_dir`]) when it exists there, else in the workspace this binary
+    /// was built from (so `fixtures/...` works from a checkout), else beside the spec (the
+    /// error then names that path). Absolute paths are returned as they are.
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() {
+            return path.to_path_buf();
+        }
+        let beside = self.base_dir.join(path);
+        if beside.exists() {
+            return beside;
+        }
+        match crate::workspace_root().map(|r| r.join(path)) {
+            Some(p) if p.exists() => p,
+            _ => beside,
         }
     }
 
     /// The golden run: a 128 x 128 crop of the fixture (fast; goldens stay small).
-    pub(crate) fn golden(root: &Path, out_dir: PathBuf) -> Self {
+    pub fn golden(root: &Path, out_dir: PathBuf) -> Self {
         Self {
             crop: Some((200, 160, 128, 128)),
             out_dir,
@@ -78,16 +119,16 @@ impl PipelineConfig {
 
 /// Tolerance of a golden comparison, in metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Tolerance {
+pub struct Tolerance {
     /// Largest allowed absolute difference of any cell.
-    pub(crate) max_abs_m: f64,
+    pub max_abs_m: f64,
     /// Largest allowed root-mean-square difference.
-    pub(crate) rmse_m: f64,
+    pub rmse_m: f64,
 }
 
 impl Tolerance {
     /// Bit-exact within f32 rounding noise of deterministic float code.
-    pub(crate) const EXACT: Tolerance = Tolerance {
+    pub const EXACT: Tolerance = Tolerance {
         max_abs_m: 1e-4,
         rmse_m: 1e-5,
     };
@@ -95,55 +136,55 @@ impl Tolerance {
 
 /// A raster a stage produced, kept for the golden comparison.
 #[derive(Debug, Clone)]
-pub(crate) struct RasterOutput {
+pub struct RasterOutput {
     /// File stem (`<out>/<name>.tif`, `fixtures/golden/<name>.tif`).
-    pub(crate) name: String,
+    pub name: String,
     /// The raster.
-    pub(crate) raster: Heightfield,
+    pub raster: Heightfield,
     /// Golden tolerance, or `None` for rasters that are not compared.
-    pub(crate) tolerance: Option<Tolerance>,
+    pub tolerance: Option<Tolerance>,
 }
 
 /// Data flowing between stages.
 #[derive(Debug, Default)]
-pub(crate) struct State {
+pub struct State {
     terrain: Option<Heightfield>,
     /// The terrain as loaded (before any stage changed it), for before/after comparisons.
-    pub(crate) source: Option<Heightfield>,
+    pub source: Option<Heightfield>,
     /// Every raster saved so far, in order.
-    pub(crate) outputs: Vec<RasterOutput>,
+    pub outputs: Vec<RasterOutput>,
 }
 
 impl State {
     /// The current terrain (the previous stage's output).
-    pub(crate) fn terrain(&self) -> Result<&Heightfield> {
+    pub fn terrain(&self) -> Result<&Heightfield> {
         self.terrain
             .as_ref()
             .context("no terrain yet: the `load` stage must come first")
     }
 
     /// Replaces the current terrain; the next stage starts from it.
-    pub(crate) fn set_terrain(&mut self, hf: Heightfield) {
+    pub fn set_terrain(&mut self, hf: Heightfield) {
         self.terrain = Some(hf);
     }
 }
 
 /// Everything a stage may touch while it runs.
 #[derive(Debug)]
-pub(crate) struct StageCx<'a> {
+pub struct StageCx<'a> {
     /// The run's configuration.
-    pub(crate) config: &'a PipelineConfig,
+    pub config: &'a PipelineConfig,
     /// Terrain and outputs flowing between stages.
-    pub(crate) state: &'a mut State,
+    pub state: &'a mut State,
     /// This stage's part of the report.
-    pub(crate) section: &'a mut Section,
+    pub section: &'a mut Section,
 }
 
 impl StageCx<'_> {
     /// Writes `hf` as `<out>/<name>.tif` (GeoTIFF f32) and, unless previews are off, a shaded
     /// preview `<out>/<name>.png` shown in the report; records it for the golden check when
     /// `tolerance` is given.
-    pub(crate) fn save_raster(
+    pub fn save_raster(
         &mut self,
         name: &str,
         caption: &str,
@@ -166,12 +207,7 @@ impl StageCx<'_> {
     }
 
     /// Writes a preview PNG `<out>/<name>.png` and shows it in the report.
-    pub(crate) fn save_preview(
-        &mut self,
-        name: &str,
-        caption: &str,
-        hf: &Heightfield,
-    ) -> Result<()> {
+    pub fn save_preview(&mut self, name: &str, caption: &str, hf: &Heightfield) -> Result<()> {
         let png = self.config.out_dir.join(format!("{name}.png"));
         relief_io::write_preview_png(&png, hf)
             .with_context(|| format!("cannot write {}", png.display()))?;
@@ -180,7 +216,7 @@ impl StageCx<'_> {
     }
 
     /// A progress sink for library calls that prints phase names under `verbose`.
-    pub(crate) fn progress(&self) -> StageProgress {
+    pub fn progress(&self) -> StageProgress {
         StageProgress {
             verbose: self.config.verbose,
         }
@@ -189,7 +225,7 @@ impl StageCx<'_> {
 
 /// Prints each phase a library call announces (`    <phase> (<total>)`) on stderr.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct StageProgress {
+pub struct StageProgress {
     verbose: bool,
 }
 
@@ -202,7 +238,7 @@ impl Progress for StageProgress {
 }
 
 /// One step of the pipeline.
-pub(crate) trait Stage {
+pub trait Stage {
     /// Short identifier (`load`, `fill_voids`, ...): the report section and the progress line.
     fn name(&self) -> &'static str;
     /// Runs the stage: reads `cx.state`, writes files under `cx.config.out_dir`, fills
@@ -211,24 +247,24 @@ pub(crate) trait Stage {
 }
 
 /// The stages of the default run, in order (see [`spec::default_spec`]).
-pub(crate) fn default_stages() -> Vec<Box<dyn Stage>> {
+pub fn default_stages() -> Vec<Box<dyn Stage>> {
     spec::build_stages(&spec::default_spec())
         .expect("the default spec names registered stages with valid parameters (tested)")
 }
 
 /// What a finished run returns.
 #[derive(Debug)]
-pub(crate) struct PipelineRun {
+pub struct PipelineRun {
     /// The final state (terrain and saved rasters).
-    pub(crate) state: State,
+    pub state: State,
     /// Number of stages run.
-    pub(crate) stage_count: usize,
+    pub stage_count: usize,
     /// Wall time of the whole run.
-    pub(crate) seconds: f64,
+    pub seconds: f64,
 }
 
 /// Runs `stages` in order, then writes `summary.json` and `report.html` into the output folder.
-pub(crate) fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<PipelineRun> {
+pub fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<PipelineRun> {
     std::fs::create_dir_all(&config.out_dir)
         .with_context(|| format!("cannot create {}", config.out_dir.display()))?;
     let mut report = Report::new("relief pipeline", &config.input, config.seed);
@@ -291,7 +327,7 @@ mod tests {
     /// the summary holds every stage's figures.
     #[test]
     fn pipeline_writes_report_on_crop() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig {
             crop: Some((64, 64, 96, 80)),
@@ -336,7 +372,7 @@ mod tests {
 
     #[test]
     fn a_stage_before_load_is_an_error() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig {
             out_dir: tmp.path().to_path_buf(),

@@ -216,7 +216,9 @@ impl Stage for Quilt {
             .collect::<Result<_, _>>()?;
         let k = self.0.categories.max(1);
         let cats = categorize_exemplars(&quads, k, &settings)?;
-        let volcano_path = crate::project_root().join("fixtures/volcano.json");
+        let volcano_path = cx
+            .config
+            .resolve(std::path::Path::new("fixtures/volcano.json"));
         let volcano = relief_io::read(&volcano_path, &relief_io::ReadOptions::default())
             .with_context(|| format!("cannot read {}", volcano_path.display()))?
             .heightfield;

@@ -16,37 +16,37 @@ use super::{PipelineConfig, StageCx, State};
 
 /// An image shown in the report (path relative to the output folder).
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Image {
-    pub(crate) path: String,
-    pub(crate) caption: String,
+pub struct Image {
+    pub path: String,
+    pub caption: String,
 }
 
 /// Two images shown side by side at the same display width (before/after, input/output):
 /// grids of different sizes (an x4 amplification) cover the same extent on the page.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Pair {
-    pub(crate) left: Image,
-    pub(crate) right: Image,
-    pub(crate) caption: String,
+pub struct Pair {
+    pub left: Image,
+    pub right: Image,
+    pub caption: String,
 }
 
 /// A table of strings with a header row.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Table {
-    pub(crate) title: String,
+pub struct Table {
+    pub title: String,
     /// One sentence under the table saying what it shows (may be empty).
-    pub(crate) caption: String,
-    pub(crate) columns: Vec<String>,
-    pub(crate) rows: Vec<Vec<String>>,
+    pub caption: String,
+    pub columns: Vec<String>,
+    pub rows: Vec<Vec<String>>,
 }
 
 /// One line of a [`Plot`].
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Series {
-    pub(crate) label: String,
-    pub(crate) points: Vec<(f64, f64)>,
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
     /// Drawn dashed (fits, reference lines).
-    pub(crate) dashed: bool,
+    pub dashed: bool,
 }
 
 /// A line plot drawn as inline SVG in `report.html`; its points are in `summary.json`.
@@ -59,18 +59,18 @@ pub(crate) struct Series {
 /// );
 /// ```
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Plot {
-    pub(crate) title: String,
-    pub(crate) x_label: String,
-    pub(crate) y_label: String,
-    pub(crate) log_x: bool,
-    pub(crate) log_y: bool,
-    pub(crate) series: Vec<Series>,
+pub struct Plot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub log_x: bool,
+    pub log_y: bool,
+    pub series: Vec<Series>,
 }
 
 impl Plot {
     /// An empty plot with linear axes.
-    pub(crate) fn new(title: &str, x_label: &str, y_label: &str) -> Self {
+    pub fn new(title: &str, x_label: &str, y_label: &str) -> Self {
         Self {
             title: title.to_string(),
             x_label: x_label.to_string(),
@@ -82,7 +82,7 @@ impl Plot {
     }
 
     /// Both axes logarithmic (base 10; non-positive values are skipped).
-    pub(crate) fn log_log(mut self) -> Self {
+    pub fn log_log(mut self) -> Self {
         self.log_x = true;
         self.log_y = true;
         self
@@ -90,17 +90,13 @@ impl Plot {
 
     /// Logarithmic y axis only.
     #[allow(dead_code)] // for the method stages
-    pub(crate) fn log_y(mut self) -> Self {
+    pub fn log_y(mut self) -> Self {
         self.log_y = true;
         self
     }
 
     /// Adds a solid line.
-    pub(crate) fn line(
-        mut self,
-        label: &str,
-        points: impl IntoIterator<Item = (f64, f64)>,
-    ) -> Self {
+    pub fn line(mut self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
         self.series.push(Series {
             label: label.to_string(),
             points: points.into_iter().collect(),
@@ -111,11 +107,7 @@ impl Plot {
 
     /// Adds a dashed line (a fit, a target, a reference slope).
     #[allow(dead_code)] // for the method stages
-    pub(crate) fn dashed(
-        mut self,
-        label: &str,
-        points: impl IntoIterator<Item = (f64, f64)>,
-    ) -> Self {
+    pub fn dashed(mut self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
         self.series.push(Series {
             label: label.to_string(),
             points: points.into_iter().collect(),
@@ -127,37 +119,37 @@ impl Plot {
 
 /// One stage's part of the report.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Section {
+pub struct Section {
     /// Stage name.
-    pub(crate) stage: String,
+    pub stage: String,
     /// Wall time of the stage.
-    pub(crate) seconds: f64,
+    pub seconds: f64,
     /// Peak resident memory while the stage ran (Linux `VmHWM`, reset between stages), bytes.
-    pub(crate) peak_memory_bytes: Option<u64>,
+    pub peak_memory_bytes: Option<u64>,
     /// How far the peak rose above the resident memory when the stage started (memory the
     /// stage itself needed at its peak), bytes.
-    pub(crate) peak_rise_bytes: Option<u64>,
+    pub peak_rise_bytes: Option<u64>,
     /// Named figures (numbers, strings, small objects), in insertion order of their names.
-    pub(crate) figures: BTreeMap<String, Value>,
+    pub figures: BTreeMap<String, Value>,
     /// Names of the figures also shown in the summary table at the top of the report.
-    pub(crate) headlines: Vec<String>,
+    pub headlines: Vec<String>,
     /// Paragraphs of text (what the stage did, with which parameters).
-    pub(crate) notes: Vec<String>,
+    pub notes: Vec<String>,
     /// Side-by-side image pairs.
-    pub(crate) pairs: Vec<Pair>,
+    pub pairs: Vec<Pair>,
     /// Tables.
-    pub(crate) tables: Vec<Table>,
+    pub tables: Vec<Table>,
     /// Line plots.
-    pub(crate) plots: Vec<Plot>,
+    pub plots: Vec<Plot>,
     /// Images shown side by side.
-    pub(crate) images: Vec<Image>,
+    pub images: Vec<Image>,
     /// Other files written (rasters, meshes), relative to the output folder.
-    pub(crate) files: Vec<String>,
+    pub files: Vec<String>,
 }
 
 impl Section {
     /// An empty section for `stage`.
-    pub(crate) fn new(stage: &str) -> Self {
+    pub fn new(stage: &str) -> Self {
         Self {
             stage: stage.to_string(),
             seconds: 0.0,
@@ -175,7 +167,7 @@ impl Section {
     }
 
     /// Records a figure (anything serialisable: a number, a string, a small struct).
-    pub(crate) fn figure(&mut self, name: &str, value: impl Serialize) {
+    pub fn figure(&mut self, name: &str, value: impl Serialize) {
         let v = serde_json::to_value(value).unwrap_or(Value::Null);
         self.figures.insert(name.to_string(), v);
     }
@@ -183,7 +175,7 @@ impl Section {
     /// Records a figure and also shows it in the summary table at the top of the report (use
     /// it for the two or three numbers that say whether the stage worked: PSNR, rho, ...).
     #[allow(dead_code)] // for the method stages
-    pub(crate) fn headline(&mut self, name: &str, value: impl Serialize) {
+    pub fn headline(&mut self, name: &str, value: impl Serialize) {
         self.figure(name, value);
         if !self.headlines.iter().any(|h| h == name) {
             self.headlines.push(name.to_string());
@@ -192,18 +184,18 @@ impl Section {
 
     /// Adds a paragraph of text.
     #[allow(dead_code)] // for the method stages
-    pub(crate) fn note(&mut self, text: &str) {
+    pub fn note(&mut self, text: &str) {
         self.notes.push(text.to_string());
     }
 
     /// Adds a table; every row must have as many cells as `columns`.
-    pub(crate) fn table(&mut self, title: &str, columns: &[&str], rows: Vec<Vec<String>>) {
+    pub fn table(&mut self, title: &str, columns: &[&str], rows: Vec<Vec<String>>) {
         self.table_captioned(title, "", columns, rows);
     }
 
     /// Adds a table with a caption under it. Rows should have as many cells as `columns`;
     /// a mismatch never panics: short rows and the header are padded with empty cells.
-    pub(crate) fn table_captioned(
+    pub fn table_captioned(
         &mut self,
         title: &str,
         caption: &str,
@@ -226,7 +218,7 @@ impl Section {
 
     /// Adds a table of numbers: one row per `(name, values)`, values formatted with 4
     /// significant digits (NaN shows as `-`). `columns[0]` heads the row names.
-    pub(crate) fn numbers(
+    pub fn numbers(
         &mut self,
         title: &str,
         caption: &str,
@@ -245,7 +237,7 @@ impl Section {
     }
 
     /// Adds an image (a file already written under the output folder).
-    pub(crate) fn image(&mut self, path: &str, caption: &str) {
+    pub fn image(&mut self, path: &str, caption: &str) {
         self.images.push(Image {
             path: path.to_string(),
             caption: caption.to_string(),
@@ -254,7 +246,7 @@ impl Section {
 
     /// Shows two images (files already written under the output folder) side by side at the
     /// same display width, each with its caption, and `caption` under both.
-    pub(crate) fn pair(&mut self, left: (&str, &str), right: (&str, &str), caption: &str) {
+    pub fn pair(&mut self, left: (&str, &str), right: (&str, &str), caption: &str) {
         let im = |(path, caption): (&str, &str)| Image {
             path: path.to_string(),
             caption: caption.to_string(),
@@ -267,12 +259,12 @@ impl Section {
     }
 
     /// Adds a line plot (see [`Plot`]).
-    pub(crate) fn plot(&mut self, plot: Plot) {
+    pub fn plot(&mut self, plot: Plot) {
         self.plots.push(plot);
     }
 
     /// Lists a written file.
-    pub(crate) fn file(&mut self, path: &str) {
+    pub fn file(&mut self, path: &str) {
         self.files.push(path.to_string());
     }
 }
@@ -286,11 +278,7 @@ impl StageCx<'_> {
     /// slopes in metres so grids of any cell size shade alike; voids black) and returns its
     /// path relative to the output folder, or `None` when previews are off (golden run). Grids
     /// larger than 4096 cells on a side are box-averaged down to at most that first.
-    pub(crate) fn save_hillshade(
-        &mut self,
-        name: &str,
-        hf: &Heightfield,
-    ) -> Result<Option<String>> {
+    pub fn save_hillshade(&mut self, name: &str, hf: &Heightfield) -> Result<Option<String>> {
         if !self.config.previews {
             return Ok(None);
         }
@@ -319,7 +307,7 @@ impl StageCx<'_> {
     /// Writes hillshades `<name>_before.png` and `<name>_after.png` and shows them side by
     /// side (same display width, so an upsampled output covers the same extent as its
     /// input). Does nothing when previews are off.
-    pub(crate) fn before_after(
+    pub fn before_after(
         &mut self,
         name: &str,
         caption: &str,
@@ -340,7 +328,7 @@ impl StageCx<'_> {
     /// given grids, and records each one's spectral slope over the band from 4 cycles per
     /// grid to a quarter of its Nyquist frequency as the figure `spectral_slope_<label>`.
     /// Grids with voids or smaller than 8 x 8 are skipped.
-    pub(crate) fn spectrum_plot(&mut self, title: &str, grids: &[(&str, &Heightfield)]) {
+    pub fn spectrum_plot(&mut self, title: &str, grids: &[(&str, &Heightfield)]) {
         let mut plot = Plot::new(title, "frequency (cycles / m)", "power").log_log();
         for (label, hf) in grids {
             let Ok(spec) = metrics::radial_power_spectrum(hf) else {
@@ -363,7 +351,7 @@ impl StageCx<'_> {
     /// Writes an 8-bit RGB image (a render, a colour map) `<out>/<name>.png` from row-major
     /// `rgb` and shows it with `caption`. Does nothing when previews are off.
     #[allow(dead_code)] // for the method stages
-    pub(crate) fn save_rgb(
+    pub fn save_rgb(
         &mut self,
         name: &str,
         caption: &str,
@@ -385,17 +373,17 @@ impl StageCx<'_> {
 
 /// The whole report.
 #[derive(Debug, Clone, Serialize)]
-pub(crate) struct Report {
-    pub(crate) title: String,
-    pub(crate) input: PathBuf,
-    pub(crate) total_seconds: f64,
+pub struct Report {
+    pub title: String,
+    pub input: PathBuf,
+    pub total_seconds: f64,
     /// Peak resident memory of the whole run (the largest of the stages' peaks), bytes.
-    pub(crate) peak_memory_bytes: Option<u64>,
-    pub(crate) threads: usize,
-    pub(crate) seed: u64,
+    pub peak_memory_bytes: Option<u64>,
+    pub threads: usize,
+    pub seed: u64,
     /// Input versus final terrain (hillshades, spectra, statistics), shown first.
-    pub(crate) overview: Option<Section>,
-    pub(crate) stages: Vec<Section>,
+    pub overview: Option<Section>,
+    pub stages: Vec<Section>,
     /// Resident memory when the current stage started (after the high-water mark was reset).
     #[serde(skip)]
     stage_start_rss: Option<u64>,
@@ -403,7 +391,7 @@ pub(crate) struct Report {
 
 impl Report {
     /// An empty report about `input`.
-    pub(crate) fn new(title: &str, input: &Path, seed: u64) -> Self {
+    pub fn new(title: &str, input: &Path, seed: u64) -> Self {
         reset_peak_memory();
         Self {
             stage_start_rss: resident_memory_bytes(),
@@ -420,7 +408,7 @@ impl Report {
 
     /// Appends a finished stage, recording its peak memory (the process's high-water mark
     /// since the previous stage finished; the mark is then reset for the next stage).
-    pub(crate) fn push(&mut self, mut section: Section) {
+    pub fn push(&mut self, mut section: Section) {
         if section.peak_memory_bytes.is_none() {
             section.peak_memory_bytes = peak_memory_bytes();
             section.peak_rise_bytes = section
@@ -435,7 +423,7 @@ impl Report {
 
     /// Builds the overview section: the loaded terrain (`state.source`) against the final one
     /// (hillshades side by side, spectra, a statistics table). Call after the last stage.
-    pub(crate) fn overview(&mut self, config: &PipelineConfig, state: &mut State) -> Result<()> {
+    pub fn overview(&mut self, config: &PipelineConfig, state: &mut State) -> Result<()> {
         let (Some(src), Ok(fin)) = (state.source.clone(), state.terrain().cloned()) else {
             return Ok(());
         };
@@ -496,7 +484,7 @@ impl Report {
     }
 
     /// Writes `summary.json` and `report.html` into `dir`.
-    pub(crate) fn write(&mut self, dir: &Path) -> Result<()> {
+    pub fn write(&mut self, dir: &Path) -> Result<()> {
         let stage_peak = self.stages.iter().filter_map(|s| s.peak_memory_bytes).max();
         self.peak_memory_bytes = match (self.peak_memory_bytes, stage_peak) {
             (Some(a), Some(b)) => Some(a.max(b)),
@@ -512,7 +500,7 @@ impl Report {
 
     /// The HTML page: header, table of contents, summary table (per-stage seconds, peak
     /// memory and headline figures), the overview, then one section per stage.
-    pub(crate) fn html(&self) -> String {
+    pub fn html(&self) -> String {
         let mut h = String::new();
         let _ = write!(
             h,
@@ -894,7 +882,7 @@ fn tick_label(v: f64, log: bool) -> String {
 }
 
 /// A number with 4 significant digits (integers as they are; NaN as `-`).
-pub(crate) fn fmt_num(v: f64) -> String {
+pub fn fmt_num(v: f64) -> String {
     if v.is_nan() {
         return "-".to_string();
     }
@@ -917,7 +905,7 @@ fn fmt_mib(b: u64) -> String {
 }
 
 /// Peak resident memory of this process since the last reset (Linux `VmHWM`), when known.
-pub(crate) fn peak_memory_bytes() -> Option<u64> {
+pub fn peak_memory_bytes() -> Option<u64> {
     proc_status_bytes("VmHWM:")
 }
 
@@ -954,7 +942,7 @@ fn fmt_value(v: &Value) -> String {
 }
 
 /// Minimal HTML escaping.
-pub(crate) fn esc(s: &str) -> String {
+pub fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -1070,7 +1058,7 @@ mod tests {
         let config = PipelineConfig {
             out_dir: tmp.path().to_path_buf(),
             verbose: false,
-            ..PipelineConfig::full(&crate::project_root())
+            ..PipelineConfig::full(&crate::test_root())
         };
         let mut state = State::default();
         let mut section = Section::new("x");
@@ -1107,7 +1095,7 @@ mod tests {
     /// stage peak memory, and the figures in summary.json.
     #[test]
     fn overview_and_stage_memory_on_a_real_crop() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig {
             crop: Some((100, 120, 96, 64)),
@@ -1159,7 +1147,7 @@ mod docs_tests {
     use super::super::spec::{PipelineSpec, STAGE_NAMES, build_stages};
 
     fn doc() -> String {
-        std::fs::read_to_string(crate::project_root().join("docs/PIPELINE.md")).unwrap()
+        std::fs::read_to_string(crate::test_root().join("docs/PIPELINE.md")).unwrap()
     }
 
     #[test]
@@ -1176,7 +1164,7 @@ mod docs_tests {
 
     #[test]
     fn specs_in_the_docs_are_valid() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let doc = doc();
         let mut n = 0;
         for block in doc.split("```json\n").skip(1) {
@@ -1191,13 +1179,11 @@ mod docs_tests {
         for entry in std::fs::read_dir(root.join("docs")).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "json") {
-                let spec = PipelineSpec::read(&path, &root)
+                let spec = PipelineSpec::read(&path)
                     .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
-                assert!(
-                    spec.input.as_ref().is_none_or(|p| p.is_file()),
-                    "{}",
-                    path.display()
-                );
+                let mut config = crate::pipeline::PipelineConfig::full(&root);
+                spec.apply(&mut config);
+                assert!(config.input.is_file(), "{}", path.display());
                 assert_eq!(spec.stages[0].stage, "load", "{}", path.display());
                 files += 1;
             }

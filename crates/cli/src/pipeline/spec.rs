@@ -40,17 +40,17 @@ use super::{
 /// One entry of a spec's `stages` list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct StageSpec {
+pub struct StageSpec {
     /// Stage name (one of [`STAGE_NAMES`]).
-    pub(crate) stage: String,
+    pub stage: String,
     /// The stage's parameters (an object; `null` or absent = defaults).
     #[serde(default)]
-    pub(crate) params: serde_json::Value,
+    pub params: serde_json::Value,
 }
 
 impl StageSpec {
     /// A stage with default parameters.
-    pub(crate) fn named(stage: &str) -> Self {
+    pub fn named(stage: &str) -> Self {
         Self {
             stage: stage.to_string(),
             params: serde_json::Value::Null,
@@ -61,24 +61,27 @@ impl StageSpec {
 /// A whole pipeline spec file.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct PipelineSpec {
-    /// Input DEM; relative paths are resolved against the spec file's folder, then the
-    /// workspace root.
+pub struct PipelineSpec {
+    /// Input DEM; a relative path is resolved against the spec file's folder (see
+    /// [`PipelineConfig::resolve`]).
     #[serde(default)]
-    pub(crate) input: Option<PathBuf>,
+    pub input: Option<PathBuf>,
     /// Crop `[x, y, w, h]` applied by `load`.
     #[serde(default)]
-    pub(crate) crop: Option<[usize; 4]>,
+    pub crop: Option<[usize; 4]>,
     /// Seed of every stochastic stage.
     #[serde(default)]
-    pub(crate) seed: Option<u64>,
+    pub seed: Option<u64>,
     /// The stages, in order (the first is normally `load`).
-    pub(crate) stages: Vec<StageSpec>,
+    pub stages: Vec<StageSpec>,
+    /// The folder of the spec file (set by [`PipelineSpec::read`]).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
 }
 
 impl PipelineSpec {
     /// Reads and checks a spec file: JSON syntax, field names, and that every stage builds.
-    pub(crate) fn read(path: &Path, root: &Path) -> Result<Self> {
+    pub fn read(path: &Path) -> Result<Self> {
         let bytes = std::fs::read(path)
             .with_context(|| format!("cannot read pipeline spec {}", path.display()))?;
         let mut spec: PipelineSpec = serde_json::from_slice(&bytes)
@@ -87,23 +90,22 @@ impl PipelineSpec {
             bail!("{}: `stages` is empty", path.display());
         }
         build_stages(&spec.stages).with_context(|| format!("in {}", path.display()))?;
-        if let Some(input) = &spec.input
-            && input.is_relative()
-        {
-            let beside = path.parent().unwrap_or(Path::new(".")).join(input);
-            spec.input = Some(if beside.exists() {
-                beside
-            } else {
-                root.join(input)
-            });
-        }
+        let base_dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        spec.base_dir = Some(base_dir);
         Ok(spec)
     }
 
     /// Applies the spec's optional fields to `config`.
-    pub(crate) fn apply(&self, config: &mut PipelineConfig) {
+    /// Relative paths (the input, stage files) are resolved against the spec's folder.
+    pub fn apply(&self, config: &mut PipelineConfig) {
+        if let Some(base) = &self.base_dir {
+            config.base_dir = base.clone();
+        }
         if let Some(input) = &self.input {
-            config.input = input.clone();
+            config.input = config.resolve(input);
         }
         if let Some([x, y, w, h]) = self.crop {
             config.crop = Some((x, y, w, h));
@@ -115,7 +117,7 @@ impl PipelineSpec {
 }
 
 /// Every stage name a spec may use.
-pub(crate) const STAGE_NAMES: &[&str] = &[
+pub const STAGE_NAMES: &[&str] = &[
     "load",
     "fill_voids",
     "convert",
@@ -129,7 +131,7 @@ pub(crate) const STAGE_NAMES: &[&str] = &[
 ];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
-pub(crate) fn default_spec() -> Vec<StageSpec> {
+pub fn default_spec() -> Vec<StageSpec> {
     [
         "load",
         "fill_voids",
@@ -148,7 +150,7 @@ pub(crate) fn default_spec() -> Vec<StageSpec> {
 }
 
 /// Builds one stage from its spec entry.
-pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
+pub fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
     let p = &spec.params;
     let stage: Box<dyn Stage> = match spec.stage.as_str() {
         "load" => no_params(p, "load", Box::new(load::Load))?,
@@ -170,7 +172,7 @@ pub(crate) fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
 }
 
 /// Builds every stage of a list, naming the first one that fails.
-pub(crate) fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
+pub fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
     specs
         .iter()
         .enumerate()
@@ -180,7 +182,7 @@ pub(crate) fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
 
 /// Deserialises a stage's parameter struct; `null` gives its defaults.
 #[allow(dead_code)] // used by the method stages' arms
-pub(crate) fn params<T: DeserializeOwned + Default>(value: &serde_json::Value) -> Result<T> {
+pub fn params<T: DeserializeOwned + Default>(value: &serde_json::Value) -> Result<T> {
     if value.is_null() {
         return Ok(T::default());
     }
@@ -234,10 +236,13 @@ mod tests {
 
     #[test]
     fn example_spec_in_docs_is_valid() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let path = root.join("docs/pipeline-spec.example.json");
-        let spec = PipelineSpec::read(&path, &root).unwrap();
-        assert!(spec.input.as_ref().is_some_and(|p| p.is_file()));
+        let spec = PipelineSpec::read(&path).unwrap();
+        let mut config = PipelineConfig::full(&root);
+        spec.apply(&mut config);
+        assert!(config.input.is_file(), "{}", config.input.display());
+        assert_eq!(config.base_dir, root.join("docs"));
         assert_eq!(spec.stages[0].stage, "load");
     }
 
@@ -246,11 +251,11 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let p = tmp.path().join("s.json");
         std::fs::write(&p, r#"{"stages": [{"stage": "load"}], "sede": 1}"#).unwrap();
-        let err = PipelineSpec::read(&p, &crate::project_root()).unwrap_err();
+        let err = PipelineSpec::read(&p).unwrap_err();
         let msg = format!("{err:#}");
         assert!(msg.contains("s.json") && msg.contains("sede"), "{msg}");
         std::fs::write(&p, r#"{"stages": []}"#).unwrap();
-        let err = PipelineSpec::read(&p, &crate::project_root()).unwrap_err();
+        let err = PipelineSpec::read(&p).unwrap_err();
         assert!(format!("{err:#}").contains("empty"), "{err:#}");
     }
 }

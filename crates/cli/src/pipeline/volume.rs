@@ -353,7 +353,7 @@ mod tests {
     /// present, mesh watertight, implicitisation exact to a centimetre, a GLB written.
     #[test]
     fn stage_on_the_golden_crop() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig::golden(&root, tmp.path().to_path_buf());
         let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();

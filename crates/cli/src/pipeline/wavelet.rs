@@ -607,7 +607,7 @@ mod tests {
     /// crop (`max_cells`) never shrinks the terrain that is passed on.
     #[test]
     fn one_level_replaces_the_terrain_with_the_whole_refined_grid() {
-        let root = crate::project_root();
+        let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig {
             crop: Some((40, 30, 72, 64)),

@@ -1,0 +1,134 @@
+//! `relief run SPEC.json [--out DIR]`: runs a pipeline spec (the stages `cargo xtask pipeline`
+//! runs, same JSON, same `summary.json` and `report.html`) with the installed binary.
+//!
+//! Relative paths in the spec are relative to the spec file. The run writes into a hidden
+//! staging folder beside DIR and moves its files into DIR only when every stage succeeded, so a
+//! failed run leaves DIR as it was.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use relief_cli::pipeline::{self, PipelineConfig, spec::PipelineSpec};
+
+use crate::ctx::Ctx;
+
+/// Arguments of `relief run`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// Pipeline spec (JSON; see docs/PIPELINE.md and docs/pipeline-chain.example.json).
+    pub(crate) spec: PathBuf,
+    /// Output folder for rasters, previews, summary.json and report.html (default: SPEC's
+    /// name without `.json`, plus `.out`, beside SPEC). It must be empty or new (or --force).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) out: Option<PathBuf>,
+    /// Input DEM, replacing the spec's `input`.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) input: Option<PathBuf>,
+    /// Seed of every stochastic stage, replacing the spec's `seed`.
+    #[arg(long)]
+    pub(crate) seed: Option<u64>,
+}
+
+/// Reads the spec, runs it in a staging folder, moves the results into place.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let spec = PipelineSpec::read(&args.spec)?;
+    let out = args.out.clone().unwrap_or_else(|| default_out(&args.spec));
+    let mut config = PipelineConfig::new(PathBuf::new(), out.clone());
+    spec.apply(&mut config);
+    if let Some(input) = &args.input {
+        config.input = input.clone();
+    }
+    if let Some(seed) = args.seed {
+        config.seed = seed;
+    }
+    if config.input.as_os_str().is_empty() {
+        bail!(
+            "{} names no `input` DEM: add one to the spec or pass --input FILE",
+            args.spec.display()
+        );
+    }
+    if !config.input.is_file() {
+        bail!("input DEM {} does not exist", config.input.display());
+    }
+    config.verbose = !ctx.quiet;
+    check_out_dir(&out, &[&args.spec, &config.input], ctx.force)?;
+    let stages = pipeline::spec::build_stages(&spec.stages)?;
+
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let staged = parent.join(format!(".relief-stage-run-{}", std::process::id()));
+    let _cleanup = RemoveOnDrop(staged.clone());
+    std::fs::create_dir_all(&staged)
+        .with_context(|| format!("cannot create {}", staged.display()))?;
+    config.out_dir = staged.clone();
+    let run = pipeline::run(&config, &stages)?;
+
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    for entry in std::fs::read_dir(&staged)? {
+        let entry = entry?;
+        let target = out.join(entry.file_name());
+        std::fs::rename(entry.path(), &target)
+            .with_context(|| format!("cannot move the result into {}", target.display()))?;
+    }
+    ctx.note(format!(
+        "ran {} stages in {:.1} s; report: {}",
+        run.stage_count,
+        run.seconds,
+        out.join("report.html").display()
+    ));
+    Ok(())
+}
+
+/// `dir/name.out` for a spec `dir/name.json`.
+fn default_out(spec: &Path) -> PathBuf {
+    let stem = spec
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "pipeline".into());
+    spec.with_file_name(format!("{stem}.out"))
+}
+
+/// The output folder must not hold an input (the run would write over it) and must be new or
+/// empty unless `--force`.
+fn check_out_dir(out: &Path, inputs: &[&Path], force: bool) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        bail!("--out {} exists and is not a folder", out.display());
+    }
+    if let Ok(out_abs) = out.canonicalize() {
+        for input in inputs {
+            if let Ok(abs) = input.canonicalize()
+                && abs.starts_with(&out_abs)
+            {
+                bail!(
+                    "--out {} holds the input {}: the run would write over its inputs; choose \
+                     another output folder",
+                    out.display(),
+                    input.display()
+                );
+            }
+        }
+        let non_empty = std::fs::read_dir(out)
+            .with_context(|| format!("cannot read {}", out.display()))?
+            .next()
+            .is_some();
+        if non_empty && !force {
+            bail!(
+                "--out {} is not empty: pass --force to replace the files of an earlier run",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Removes the staging folder whatever happens.
+#[derive(Debug)]
+struct RemoveOnDrop(PathBuf);
+
+impl Drop for RemoveOnDrop {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
