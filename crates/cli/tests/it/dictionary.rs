@@ -4,49 +4,13 @@
 
 #![allow(clippy::print_stderr)] // the tests report their measured figures
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
 use relief_heightfield::{Heightfield, metrics};
 use relief_sparse_core::{FunctionAtomRegistry, RasterSettings, Sct};
 
-fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
-}
-
-fn fixture() -> Heightfield {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
-    read(&p)
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
-}
-
-fn write(dir: &Path, name: &str, hf: &Heightfield) -> PathBuf {
-    let p = dir.join(name);
-    relief_io::write(&p, hf, &relief_io::WriteOptions::default()).unwrap();
-    p
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use crate::common::*;
 
 /// Asserts a failure with exactly one stderr line containing every `needle`, and no `output`.
 fn fails(out: &Output, output: &Path, needles: &[&str]) {

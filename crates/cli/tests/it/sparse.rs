@@ -4,28 +4,11 @@
 //! or corrupt `.sct`, s > N, absurd sizes): non-zero exit, one line on stderr, no output file.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use relief_heightfield::{Heightfield, metrics};
 use relief_sparse_core::{Dictionary, PatchGeometry, Sct, extract_patches};
 
-fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
-}
+use crate::common::*;
 
 /// A crop of `fixtures/grandcanyon.tif` written as a GeoTIFF into `dir`.
 fn fixture_crop(dir: &Path, x: usize, y: usize, w: usize, h: usize) -> (PathBuf, Heightfield) {
@@ -34,15 +17,6 @@ fn fixture_crop(dir: &Path, x: usize, y: usize, w: usize, h: usize) -> (PathBuf,
     let path = dir.join(format!("gc_{x}_{y}_{w}x{h}.tif"));
     relief_io::write(&path, &hf, &relief_io::WriteOptions::default()).unwrap();
     (path, hf)
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 /// The number after `key` in the report (e.g. `"PSNR:"`).

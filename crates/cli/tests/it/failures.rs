@@ -16,6 +16,8 @@ use std::time::Instant;
 
 use relief_heightfield::Heightfield;
 
+use crate::common::*;
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_relief")
 }
@@ -26,10 +28,6 @@ fn relief<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
         .args(args)
         .output()
         .expect("run relief")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Asserts a clean failure: exit code 1, exactly one non-empty line starting with `error:`.
@@ -84,7 +82,7 @@ fn subcommands() -> Vec<(String, Vec<String>)> {
         .take_while(|l| l.starts_with("  "))
         .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
         // `tile` has subcommands of its own (plan, run, status, mosaic) whose inputs are a plan
-        // folder; tests/tile.rs covers their failures.
+        // folder; the `tile` module covers their failures.
         .filter(|n| n != "help" && n != "tile")
         .collect();
     assert!(names.len() >= 3, "no subcommands parsed from {text}");

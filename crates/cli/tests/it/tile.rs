@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output};
 
-use relief_heightfield::Heightfield;
+use crate::common::*;
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_relief"));
@@ -39,12 +39,6 @@ fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../fixtures")
         .join(name)
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
 }
 
 fn s(p: &Path) -> &str {

@@ -2,31 +2,9 @@
 //! `../shared/data/dem` is absent, failing under `CI`).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-use relief_heightfield::Heightfield;
-
-fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
-}
-
-fn dem(name: &str) -> Option<PathBuf> {
-    relief_testdata::dem_dir().map(|d| d.join(name))
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
-}
+use crate::common::*;
 
 #[test]
 fn info_reports_srtm_size_and_voids() {

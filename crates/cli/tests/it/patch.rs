@@ -2,46 +2,13 @@
 //! cruz2015) on crops of the bundled Grand Canyon fixture (`fixtures/grandcanyon.tif`, 512 x 512,
 //! ~62 m cells, 479..2347 m): one crop is the exemplar, another (low-passed) the guide.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use relief_heightfield::Heightfield;
 use relief_heightfield::metrics::{rmse, stats};
 
-fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
-}
-
-fn fixture() -> Heightfield {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
-    relief_io::read(&path, &relief_io::ReadOptions::default())
-        .expect("fixtures/grandcanyon.tif")
-        .heightfield
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
-}
-
-fn write(dir: &Path, name: &str, hf: &Heightfield) -> PathBuf {
-    let p = dir.join(name);
-    relief_io::write(&p, hf, &relief_io::WriteOptions::default()).unwrap();
-    p
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use crate::common::*;
 
 fn mean(hf: &Heightfield, x0: usize, x1: usize) -> f64 {
     let mut s = 0.0;

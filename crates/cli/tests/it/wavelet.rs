@@ -6,23 +6,7 @@ use std::process::{Command, Output};
 
 use relief_heightfield::Heightfield;
 
-fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
-}
-
-fn read(path: &Path) -> Heightfield {
-    relief_io::read(path, &relief_io::ReadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .heightfield
-}
+use crate::common::*;
 
 fn fixture() -> Heightfield {
     read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif"))

@@ -1,0 +1,13 @@
+//! Integration tests of the `relief` binary, in one test binary (one link for the crate).
+//! Each module is one area; `common` holds the helpers they share.
+
+mod common;
+
+mod cli;
+mod dictionary;
+mod failures;
+mod patch;
+mod sparse;
+mod tile;
+mod volume;
+mod wavelet;
