@@ -40,7 +40,8 @@
 //!
 //! Not guaranteed: reprojection (cell sizes of geographic grids are computed at the centre
 //! latitude on the WGS84 ellipsoid), multi-band rasters (only the first band of a single-sample
-//! image is read), BigTIFF writing.
+//! image is read), BigTIFF from the in-memory writer [`write`] (the streaming writers,
+//! [`GeoTiffStripWriter`] and [`TiledGeoTiffWriter`], write BigTIFF past 4 GiB).
 //!
 //! One grid convention: pixel-is-area. A PixelIsPoint GeoTIFF is read as the equivalent
 //! PixelIsArea grid (origin half a pixel out, as `gdalinfo` reports it) and written back as
@@ -75,6 +76,7 @@ mod preview;
 mod raw;
 mod sidecar;
 mod stream;
+mod tiff_dir;
 mod tiled;
 mod util;
 

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use relief_heightfield::GeoRef;
 
+use crate::tiff_dir::{Value, encode_directories, georef_entries, header};
 use crate::{Format, IoError, Result};
 
 const F: Format = Format::GeoTiff;
@@ -23,8 +24,8 @@ const F: Format = Format::GeoTiff;
 /// writer without `finish` (an error or a panic in the producer) removes the temporary, so no
 /// partial output is ever visible under `path`.
 ///
-/// Classic TIFF only: at most 4 GiB of samples (32768 x 32768); larger rasters are refused by
-/// [`create`](GeoTiffStripWriter::create).
+/// Classic TIFF up to 4 GiB of samples, BigTIFF beyond (what GDAL's `BIGTIFF=IF_NEEDED`
+/// gives).
 ///
 /// [`finish`]: GeoTiffStripWriter::finish
 ///
@@ -58,10 +59,9 @@ pub struct GeoTiffStripWriter {
     has_nan: bool,
     tags: GeoRef,
     row_bytes: Vec<u8>,
+    /// BigTIFF (samples past 4 GiB).
+    big: bool,
 }
-
-/// First data byte: right after the 8-byte header.
-const DATA_START: u64 = 8;
 
 impl GeoTiffStripWriter {
     /// Creates the temporary file for a `width x height` raster with cell size `cell_size`
@@ -72,6 +72,18 @@ impl GeoTiffStripWriter {
         height: usize,
         cell_size: (f64, f64),
         georef: Option<&GeoRef>,
+    ) -> Result<Self> {
+        Self::create_as(path, width, height, cell_size, georef, false)
+    }
+
+    /// [`create`](Self::create), writing BigTIFF even below 4 GiB when `bigtiff` is set.
+    fn create_as(
+        path: &Path,
+        width: usize,
+        height: usize,
+        cell_size: (f64, f64),
+        georef: Option<&GeoRef>,
+        bigtiff: bool,
     ) -> Result<Self> {
         if width == 0 || height == 0 {
             return Err(IoError::Dimensions {
@@ -85,14 +97,16 @@ impl GeoTiffStripWriter {
             .checked_mul(height as u64)
             .and_then(|n| n.checked_mul(4))
             .unwrap_or(u64::MAX);
-        if bytes > u32::MAX as u64 - (1 << 20) {
+        if width > u32::MAX as usize || height > u32::MAX as usize || bytes == u64::MAX {
             return Err(IoError::Dimensions {
                 format: F,
                 width: width as u64,
                 height: height as u64,
-                reason: "more than 4 GiB of float32 (BigTIFF writing is not supported)".into(),
+                reason: "larger than a TIFF can describe".into(),
             });
         }
+        // BigTIFF (what GDAL writes with BIGTIFF=IF_NEEDED) once the samples pass 4 GiB.
+        let big = bigtiff || bytes > u32::MAX as u64 - (1 << 20);
         let (cx, cy) = cell_size;
         if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
             return Err(IoError::param(
@@ -110,8 +124,8 @@ impl GeoTiffStripWriter {
         let file = File::create(&tmp).map_err(|e| IoError::os(path, e))?;
         let mut file = BufWriter::with_capacity(1 << 16, file);
         // Header; the directory offset is patched by `finish`.
-        let header = [b'I', b'I', 42, 0, 0, 0, 0, 0];
-        if let Err(e) = file.write_all(&header) {
+        let first = header(big, 0);
+        if let Err(e) = file.write_all(&first[..data_start(big) as usize]) {
             let _ = std::fs::remove_file(&tmp);
             return Err(IoError::os(path, e));
         }
@@ -126,6 +140,7 @@ impl GeoTiffStripWriter {
             has_nan: false,
             tags: crate::geotiff::georef_tags(cell_size, georef),
             row_bytes: Vec::new(),
+            big,
         })
     }
 
@@ -197,11 +212,12 @@ impl GeoTiffStripWriter {
             .take()
             .ok_or_else(|| IoError::param("writer", "finished", "already finished"))?;
         let res = (|| -> std::io::Result<()> {
-            let data_end = DATA_START + (self.width * self.height * 4) as u64;
-            let ifd = self.directory(data_end);
-            file.write_all(&ifd)?;
-            file.seek(SeekFrom::Start(4))?;
-            file.write_all(&(data_end as u32).to_le_bytes())?;
+            let data_end = data_start(self.big) + (self.width * self.height * 4) as u64;
+            let at = data_end.next_multiple_of(8);
+            file.write_all(&vec![0u8; (at - data_end) as usize])?;
+            file.write_all(&self.directory(at))?;
+            file.seek(SeekFrom::Start(0))?;
+            file.write_all(&header(self.big, at)[..data_start(self.big) as usize])?;
             let file = file.into_inner().map_err(|e| e.into_error())?;
             file.sync_all()
         })();
@@ -212,111 +228,93 @@ impl GeoTiffStripWriter {
         crate::atomic::rename_into_place(&self.tmp, &self.path)
     }
 
-    /// The image file directory placed at `at` (even: the data length is a multiple of 4),
-    /// followed by the out-of-line tag values.
+    /// The image file directory placed at `at` (after the data, 8-byte aligned), followed by
+    /// its out-of-line tag values.
     fn directory(&self, at: u64) -> Vec<u8> {
-        enum V {
-            Short(Vec<u16>),
-            Long(Vec<u32>),
-            Double(Vec<f64>),
-            Ascii(Vec<u8>),
-        }
         let (w, h, rps) = (self.width, self.height, self.rows_per_strip);
+        let start = data_start(self.big);
         let strips = h.div_ceil(rps);
         let strip_offsets = (0..strips)
-            .map(|i| (DATA_START + (i * rps * w * 4) as u64) as u32)
+            .map(|i| start + (i * rps * w * 4) as u64)
             .collect();
         let strip_counts = (0..strips)
-            .map(|i| ((rps.min(h - i * rps)) * w * 4) as u32)
+            .map(|i| ((rps.min(h - i * rps)) * w * 4) as u64)
             .collect();
-        let ascii = |s: &str| {
-            let mut b = s.as_bytes().to_vec();
-            b.push(0);
-            V::Ascii(b)
-        };
-        let g = &self.tags;
-        let mut entries: Vec<(u16, V)> = vec![
-            (256, V::Long(vec![w as u32])),
-            (257, V::Long(vec![h as u32])),
-            (258, V::Short(vec![32])),
-            (259, V::Short(vec![1])),
-            (262, V::Short(vec![1])),
-            (273, V::Long(strip_offsets)),
-            (277, V::Short(vec![1])),
-            (278, V::Long(vec![rps as u32])),
-            (279, V::Long(strip_counts)),
-            (284, V::Short(vec![1])),
-            (339, V::Short(vec![3])),
+        let mut entries: Vec<(u16, Value)> = vec![
+            (256, Value::Long(vec![w as u32])),
+            (257, Value::Long(vec![h as u32])),
+            (258, Value::Short(vec![32])),
+            (259, Value::Short(vec![1])),
+            (262, Value::Short(vec![1])),
+            (273, Value::Offsets(strip_offsets)),
+            (277, Value::Short(vec![1])),
+            (278, Value::Long(vec![rps as u32])),
+            (279, Value::Offsets(strip_counts)),
+            (284, Value::Short(vec![1])),
+            (339, Value::Short(vec![3])),
         ];
-        if let Some(v) = &g.pixel_scale {
-            entries.push((33550, V::Double(v.clone())));
-        }
-        if let Some(v) = &g.tiepoints {
-            entries.push((33922, V::Double(v.clone())));
-        }
-        if let Some(v) = &g.transformation {
-            entries.push((34264, V::Double(v.clone())));
-        }
-        if let Some(v) = &g.geo_key_directory {
-            entries.push((34735, V::Short(v.clone())));
-        }
-        if let Some(v) = &g.geo_double_params {
-            entries.push((34736, V::Double(v.clone())));
-        }
-        if let Some(v) = &g.geo_ascii_params {
-            entries.push((34737, ascii(v)));
-        }
+        georef_entries(&self.tags, &mut entries);
         if self.has_nan {
-            entries.push((42113, ascii("nan")));
+            entries.push((42113, Value::Ascii("nan".into())));
         }
-        entries.retain(|(_, v)| match v {
-            V::Short(x) => !x.is_empty(),
-            V::Long(x) => !x.is_empty(),
-            V::Double(x) => !x.is_empty(),
-            V::Ascii(x) => !x.is_empty(),
-        });
+        entries.retain(|(_, v)| !v.is_empty());
         entries.sort_by_key(|(t, _)| *t);
-        let ifd_len = 2 + 12 * entries.len() + 4;
-        let mut out = Vec::with_capacity(ifd_len);
-        let mut extra: Vec<u8> = Vec::new();
-        out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
-        for (tag, v) in &entries {
-            let (typ, count, bytes): (u16, usize, Vec<u8>) = match v {
-                V::Short(x) => (3, x.len(), x.iter().flat_map(|a| a.to_le_bytes()).collect()),
-                V::Long(x) => (4, x.len(), x.iter().flat_map(|a| a.to_le_bytes()).collect()),
-                V::Double(x) => (
-                    12,
-                    x.len(),
-                    x.iter().flat_map(|a| a.to_le_bytes()).collect(),
-                ),
-                V::Ascii(x) => (2, x.len(), x.clone()),
-            };
-            out.extend_from_slice(&tag.to_le_bytes());
-            out.extend_from_slice(&typ.to_le_bytes());
-            out.extend_from_slice(&(count as u32).to_le_bytes());
-            if bytes.len() <= 4 {
-                let mut word = [0u8; 4];
-                word[..bytes.len()].copy_from_slice(&bytes);
-                out.extend_from_slice(&word);
-            } else {
-                if extra.len() % 2 == 1 {
-                    extra.push(0);
-                }
-                let off = at + ifd_len as u64 + extra.len() as u64;
-                out.extend_from_slice(&(off as u32).to_le_bytes());
-                extra.extend_from_slice(&bytes);
-            }
-        }
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(&extra);
-        out
+        encode_directories(self.big, &[entries], at)
     }
+}
+
+/// First data byte: right after the header (8 bytes in TIFF, 16 in BigTIFF).
+fn data_start(big: bool) -> u64 {
+    if big { 16 } else { 8 }
 }
 
 impl Drop for GeoTiffStripWriter {
     fn drop(&mut self) {
         if self.file.take().is_some() {
             let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Classic and BigTIFF layouts (the latter chosen past 4 GiB) read back to the same values,
+    /// NaN and georeference included.
+    #[test]
+    fn classic_and_big_layouts_read_back_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (37, 1500); // several strips, the last one short
+        let georef = crate::geotiff::georef_tags((2.0, 3.0), None);
+        for big in [false, true] {
+            let path = dir.path().join(format!("s{big}.tif"));
+            let mut out =
+                GeoTiffStripWriter::create_as(&path, w, h, (2.0, 3.0), None, big).unwrap();
+            assert_eq!(out.big, big);
+            for y in 0..h {
+                let row: Vec<f32> = (0..w)
+                    .map(|x| {
+                        if x == 5 && y == 7 {
+                            f32::NAN
+                        } else {
+                            (x * 3 + y) as f32 * 0.5
+                        }
+                    })
+                    .collect();
+                out.write_rows(&row).unwrap();
+            }
+            out.finish().unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(&bytes[2..4], if big { &[43u8, 0] } else { &[42u8, 0] });
+            let back = crate::read(&path, &crate::ReadOptions::default())
+                .unwrap()
+                .heightfield;
+            assert_eq!((back.width(), back.height()), (w, h));
+            assert!(back.get(5, 7).is_nan());
+            assert_eq!(back.get(36, 1499), (36 * 3 + 1499) as f32 * 0.5);
+            assert_eq!(back.cell_size(), (2.0, 3.0));
+            assert_eq!(georef.pixel_scale.as_ref().map(|p| p[0]), Some(2.0));
         }
     }
 }

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 
 use relief_heightfield::GeoRef;
 
+use crate::tiff_dir::{Value, encode_directories, georef_entries, header};
 use crate::{Format, IoError, Result, TiffCompression};
 
 const F: Format = Format::GeoTiff;
@@ -445,25 +446,7 @@ impl TiledGeoTiffWriter {
                     e.push((317, Value::Short(vec![3])));
                 }
                 if k == 0 {
-                    let g = &self.tags;
-                    if let Some(v) = &g.pixel_scale {
-                        e.push((33550, Value::Double(v.clone())));
-                    }
-                    if let Some(v) = &g.tiepoints {
-                        e.push((33922, Value::Double(v.clone())));
-                    }
-                    if let Some(v) = &g.transformation {
-                        e.push((34264, Value::Double(v.clone())));
-                    }
-                    if let Some(v) = &g.geo_key_directory {
-                        e.push((34735, Value::Short(v.clone())));
-                    }
-                    if let Some(v) = &g.geo_double_params {
-                        e.push((34736, Value::Double(v.clone())));
-                    }
-                    if let Some(v) = &g.geo_ascii_params {
-                        e.push((34737, Value::Ascii(v.clone())));
-                    }
+                    georef_entries(&self.tags, &mut e);
                 }
                 if self.has_nan {
                     e.push((42113, Value::Ascii("nan".into())));
@@ -602,139 +585,6 @@ fn ghost_area() -> Vec<u8> {
         body.len()
     )
     .into_bytes()
-}
-
-/// A TIFF or BigTIFF header (16 bytes; a classic header uses the first 8) whose first
-/// directory is at `ifd`.
-fn header(big: bool, ifd: u64) -> Vec<u8> {
-    let mut h = Vec::with_capacity(16);
-    h.extend_from_slice(b"II");
-    if big {
-        h.extend_from_slice(&43u16.to_le_bytes());
-        h.extend_from_slice(&8u16.to_le_bytes());
-        h.extend_from_slice(&0u16.to_le_bytes());
-        h.extend_from_slice(&ifd.to_le_bytes());
-    } else {
-        h.extend_from_slice(&42u16.to_le_bytes());
-        h.extend_from_slice(&(ifd as u32).to_le_bytes());
-        h.extend_from_slice(&[0u8; 8]);
-    }
-    h
-}
-
-/// A tag value.
-#[derive(Debug, Clone)]
-enum Value {
-    Short(Vec<u16>),
-    Long(Vec<u32>),
-    /// Offsets and byte counts: LONG in TIFF, LONG8 in BigTIFF.
-    Offsets(Vec<u64>),
-    Double(Vec<f64>),
-    Ascii(String),
-}
-
-impl Value {
-    fn is_empty(&self) -> bool {
-        match self {
-            Value::Short(v) => v.is_empty(),
-            Value::Long(v) => v.is_empty(),
-            Value::Offsets(v) => v.is_empty(),
-            Value::Double(v) => v.is_empty(),
-            Value::Ascii(v) => v.is_empty(),
-        }
-    }
-
-    /// TIFF type, count and little-endian bytes.
-    fn encode(&self, big: bool) -> (u16, u64, Vec<u8>) {
-        match self {
-            Value::Short(v) => (
-                3,
-                v.len() as u64,
-                v.iter().flat_map(|a| a.to_le_bytes()).collect(),
-            ),
-            Value::Long(v) => (
-                4,
-                v.len() as u64,
-                v.iter().flat_map(|a| a.to_le_bytes()).collect(),
-            ),
-            Value::Offsets(v) if big => (
-                16,
-                v.len() as u64,
-                v.iter().flat_map(|a| a.to_le_bytes()).collect(),
-            ),
-            Value::Offsets(v) => (
-                4,
-                v.len() as u64,
-                v.iter().flat_map(|&a| (a as u32).to_le_bytes()).collect(),
-            ),
-            Value::Double(v) => (
-                12,
-                v.len() as u64,
-                v.iter().flat_map(|a| a.to_le_bytes()).collect(),
-            ),
-            Value::Ascii(s) => {
-                let mut b = s.as_bytes().to_vec();
-                b.push(0);
-                (2, b.len() as u64, b)
-            }
-        }
-    }
-}
-
-/// Encodes the directories one after the other from file offset `at` (each followed by its
-/// out-of-line values, chained by their next-directory offsets; the last points to 0).
-fn encode_directories(big: bool, dirs: &[Vec<(u16, Value)>], at: u64) -> Vec<u8> {
-    let (entry, inline, count_len, next_len) = if big { (20, 8, 8, 8) } else { (12, 4, 2, 4) };
-    let mut out: Vec<u8> = Vec::new();
-    for (d, entries) in dirs.iter().enumerate() {
-        let start = at + out.len() as u64;
-        let table = (count_len + entry * entries.len() + next_len) as u64;
-        let mut extra: Vec<u8> = Vec::new();
-        let mut table_bytes: Vec<u8> = Vec::with_capacity(table as usize);
-        if big {
-            table_bytes.extend_from_slice(&(entries.len() as u64).to_le_bytes());
-        } else {
-            table_bytes.extend_from_slice(&(entries.len() as u16).to_le_bytes());
-        }
-        for (tag, v) in entries {
-            let (typ, count, bytes) = v.encode(big);
-            table_bytes.extend_from_slice(&tag.to_le_bytes());
-            table_bytes.extend_from_slice(&typ.to_le_bytes());
-            if big {
-                table_bytes.extend_from_slice(&count.to_le_bytes());
-            } else {
-                table_bytes.extend_from_slice(&(count as u32).to_le_bytes());
-            }
-            if bytes.len() <= inline {
-                let mut word = vec![0u8; inline];
-                word[..bytes.len()].copy_from_slice(&bytes);
-                table_bytes.extend_from_slice(&word);
-            } else {
-                extra.resize(extra.len().next_multiple_of(8), 0);
-                let off = start + table + extra.len() as u64;
-                if big {
-                    table_bytes.extend_from_slice(&off.to_le_bytes());
-                } else {
-                    table_bytes.extend_from_slice(&(off as u32).to_le_bytes());
-                }
-                extra.extend_from_slice(&bytes);
-            }
-        }
-        extra.resize(extra.len().next_multiple_of(8), 0);
-        let next = if d + 1 < dirs.len() {
-            start + table + extra.len() as u64
-        } else {
-            0
-        };
-        if big {
-            table_bytes.extend_from_slice(&next.to_le_bytes());
-        } else {
-            table_bytes.extend_from_slice(&(next as u32).to_le_bytes());
-        }
-        out.extend_from_slice(&table_bytes);
-        out.extend_from_slice(&extra);
-    }
-    out
 }
 
 /// Reads a float32 GeoTIFF row by row (strip by strip or band of tiles by band of tiles), so
