@@ -40,7 +40,7 @@
 //!
 //! Not guaranteed: reprojection (cell sizes of geographic grids are computed at the centre
 //! latitude on the WGS84 ellipsoid), multi-band rasters (only the first band of a single-sample
-//! image is read), BigTIFF from the in-memory writer [`write`] (the streaming writers,
+//! image is read), BigTIFF from the in-memory writer [`write()`] (the streaming writers,
 //! [`GeoTiffStripWriter`] and [`TiledGeoTiffWriter`], write BigTIFF past 4 GiB).
 //!
 //! One grid convention: pixel-is-area. A PixelIsPoint GeoTIFF is read as the equivalent
