@@ -11,13 +11,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use relief_sparse_core::{AtomDescriptor, FunctionAtom, FunctionAtomRegistry, SparseError};
 
-/// Counter-based 64-bit hash (SplitMix64 finaliser) used to derive per-item seeds.
-pub fn hash64(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    x ^ (x >> 31)
-}
+/// Counter-based 64-bit hash (SplitMix64) used to derive per-item seeds: the workspace's one
+/// implementation, [`relief_heightfield::rng::splitmix64`].
+pub use relief_heightfield::rng::splitmix64 as hash64;
 
 /// Seed of work item `item` of stream `stream` under the user seed `seed`.
 pub fn item_seed(seed: u64, stream: u64, item: u64) -> u64 {

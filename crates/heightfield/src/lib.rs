@@ -41,6 +41,7 @@ mod grid;
 pub mod metrics;
 mod progress;
 mod resample;
+pub mod rng;
 mod sample;
 pub mod terrain;
 

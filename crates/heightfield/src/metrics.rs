@@ -277,3 +277,41 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
     }
     Ok(worst)
 }
+
+/// The `q`-quantile (`0..=1`, nearest rank) of the finite values of `values`; `None` when none
+/// is finite. Sorts a copy: O(n log n) time, O(n) memory.
+///
+/// ```
+/// use relief_heightfield::metrics::quantile;
+/// assert_eq!(quantile(&[3.0, f32::NAN, 1.0, 2.0], 0.5), Some(2.0));
+/// assert_eq!(quantile(&[f32::NAN], 0.5), None);
+/// ```
+pub fn quantile(values: &[f32], q: f64) -> Option<f32> {
+    let mut v: Vec<f32> = values.iter().copied().filter(|z| z.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f32::total_cmp);
+    Some(v[((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize])
+}
+
+/// Pearson correlation of two equally long series (0 when either is constant).
+///
+/// ```
+/// use relief_heightfield::metrics::pearson;
+/// assert!((pearson(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.5]) - 1.0).abs() < 0.01);
+/// assert!((pearson(&[1.0, 2.0, 3.0], &[3.0, 2.0, 1.0]) + 1.0).abs() < 1e-9);
+/// ```
+pub fn pearson(a: &[f32], b: &[f32]) -> f64 {
+    let n = a.len().min(b.len()).max(1) as f64;
+    let ma = a.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let mb = b.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    sab / (saa * sbb).sqrt().max(1e-300)
+}

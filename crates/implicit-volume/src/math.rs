@@ -158,24 +158,9 @@ impl Aabb {
     }
 }
 
-/// SplitMix64 finaliser of `seed` mixed with three counters: a counter-based random source, so
-/// every work item gets its own independent stream whatever the thread count.
-#[inline]
-pub fn hash(seed: u64, a: u64, b: u64, c: u64) -> u64 {
-    let mut z = seed
-        ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ c.wrapping_mul(0x1656_67B1_9E37_79F9);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Uniform value in `[0, 1)` from a hash.
-#[inline]
-pub fn unit(h: u64) -> f32 {
-    (h >> 40) as f32 / (1u64 << 24) as f32
-}
+/// Counter-based random source of a work item (`seed` and three counters) and its uniform
+/// `[0, 1)` value: the workspace's one implementation in [`relief_heightfield::rng`].
+pub use relief_heightfield::rng::{hash, unit_f32 as unit};
 
 #[inline]
 fn lattice(seed: u64, x: i32, y: i32, z: i32) -> f32 {

@@ -307,17 +307,7 @@ pub struct RecipeReport {
 }
 
 fn percentile(hf: &Heightfield, q: f32) -> f32 {
-    let mut v: Vec<f32> = hf
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
-    v.sort_by(f32::total_cmp);
-    if v.is_empty() {
-        return 0.0;
-    }
-    v[((v.len() - 1) as f32 * q).round() as usize]
+    relief_heightfield::metrics::quantile(hf.as_slice(), q as f64).unwrap_or(0.0)
 }
 
 fn count(density: f32, area_km2: f32, cap: usize) -> usize {

@@ -393,20 +393,6 @@ pub(crate) fn painted_sketch(n: usize) -> Heightfield {
     })
 }
 
-fn pearson(a: &[f32], b: &[f32]) -> f64 {
-    let n = a.len().max(1) as f64;
-    let ma = a.iter().map(|&v| v as f64).sum::<f64>() / n;
-    let mb = b.iter().map(|&v| v as f64).sum::<f64>() / n;
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in a.iter().zip(b) {
-        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-        sab += dx * dy;
-        saa += dx * dx;
-        sbb += dy * dy;
-    }
-    sab / (saa * sbb).sqrt().max(1e-300)
-}
-
 impl Stage for SketchStage {
     fn name(&self) -> &'static str {
         "sketch"
@@ -465,7 +451,7 @@ impl Stage for SketchStage {
         let out = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
         let secs = t.elapsed().as_secs_f64();
         let back = out.resample(n, n)?;
-        let fidelity = pearson(back.as_slice(), sketch.as_slice());
+        let fidelity = relief_heightfield::metrics::pearson(back.as_slice(), sketch.as_slice());
         let (lo, hi) = out.min_max().unwrap_or((0.0, 0.0));
         cx.section.figure("sketch_size", n);
         cx.section.figure("steps", p.steps);

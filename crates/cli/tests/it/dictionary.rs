@@ -30,20 +30,6 @@ fn fails(out: &Output, output: &Path, needles: &[&str]) {
     assert!(stray.is_empty(), "temporary files left: {stray:?}");
 }
 
-fn pearson(a: &[f32], b: &[f32]) -> f64 {
-    let n = a.len() as f64;
-    let ma = a.iter().map(|&v| v as f64).sum::<f64>() / n;
-    let mb = b.iter().map(|&v| v as f64).sum::<f64>() / n;
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in a.iter().zip(b) {
-        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-        sab += dx * dy;
-        saa += dx * dx;
-        sbb += dy * dy;
-    }
-    sab / (saa * sbb).sqrt()
-}
-
 /// x4: a 128^2 crop reduced to 32^2, amplified back with an exemplar from another part of the
 /// DEM. The output has the right size and cell size, stays consistent with its input, is
 /// closer to the truth than the input's relief, and the `.sct` and `--window` outputs agree
@@ -183,7 +169,7 @@ fn amplify_x16_two_steps() {
     let out = read(&out_path);
     assert_eq!((out.width(), out.height()), (256, 256));
     let back = out.resample(16, 16).unwrap();
-    let c = pearson(back.as_slice(), coarse.as_slice());
+    let c = relief_heightfield::metrics::pearson(back.as_slice(), coarse.as_slice());
     assert!(c > 0.95, "correlation with the input {c}");
 }
 
@@ -220,7 +206,7 @@ fn synthesize_from_painted_sketch() {
     // beyond the sketch's 500-2300 m.
     assert!(lo > 300.0 && hi < 2700.0 && hi - lo > 1200.0, "{lo}..{hi}");
     let back = out.resample(16, 16).unwrap();
-    let c = pearson(back.as_slice(), read(&sk).as_slice());
+    let c = relief_heightfield::metrics::pearson(back.as_slice(), read(&sk).as_slice());
     assert!(c > 0.95, "correlation with the sketch {c}");
 }
 

@@ -66,11 +66,8 @@ fn run_all_two_at_a_time(dir: &Path, n: usize, seed: u64) {
     // A fixed Fisher-Yates shuffle (splitmix64): the order differs from the plan's.
     let mut x = seed;
     for i in (1..n).rev() {
+        let z = relief_heightfield::rng::splitmix64(x);
         x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = x;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
         order.swap(i, (z % (i as u64 + 1)) as usize);
     }
     for pair in order.chunks(2) {
