@@ -16,6 +16,7 @@ use relief_cli::pipeline;
 
 mod bench;
 mod golden;
+mod tidy;
 
 /// Workspace automation for relief.
 #[derive(Debug, Parser)]
