@@ -98,7 +98,10 @@ mod tests {
             if name == "heightfield" {
                 assert!(deps(&manifest(&root, &name), "dependencies").is_empty());
             } else {
-                assert!(doc.contains_key(&name), "crates/{name} is not in the edge list");
+                assert!(
+                    doc.contains_key(&name),
+                    "crates/{name} is not in the edge list"
+                );
             }
         }
         // The test-data locator is never a normal dependency of a library crate.
