@@ -1,0 +1,368 @@
+//! Erosion effects of paper section 4: sea caves along the shore, sea cliffs, wind and rain.
+
+use super::*;
+
+impl SceneBuilder {
+    /// Sea erosion (section 4.1, figure 5), plus sea caves dug inland from the most eroded
+    /// samples near sea level.
+    pub fn sea_erosion(&mut self, s: &SeaErosion, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("depth", s.depth),
+            ("height", s.height),
+            ("reach", s.reach),
+            ("cave_length", s.cave_length),
+        ] {
+            self.check_len(n, v)?;
+        }
+        if !s.sea_level.is_finite() {
+            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
+        }
+        if !(-s.depth..=s.height).contains(&s.peak) {
+            return Err(Error::param("peak", s.peak, "must be in [-depth, height]"));
+        }
+        if s.cave_length / (0.5 * s.weathering.radius) > 4096.0 {
+            return Err(Error::param(
+                "cave_length",
+                s.cave_length,
+                "must be at most 2048 weathering radii",
+            ));
+        }
+        if !(1..=8).contains(&s.iterations) {
+            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
+        }
+        let dist = self.distance_to_sea(s.sea_level);
+        let frame = self.frame;
+        let stress = |me: &Self, p: V3| {
+            // A flat floor under water is not attacked by waves: only ground reaching up to the
+            // sea level around the sample (shores, cliffs, skerries) is.
+            let (u, v) = frame.to_grid(p);
+            let (j, i) = (u.floor().max(0.0) as usize, v.floor().max(0.0) as usize);
+            let (j1, i1) = ((j + 1).min(frame.width - 1), (i + 1).min(frame.height - 1));
+            let top = [
+                me.dem_at(j, i),
+                me.dem_at(j1, i),
+                me.dem_at(j, i1),
+                me.dem_at(j1, i1),
+            ]
+            .into_iter()
+            .fold(f32::NEG_INFINITY, f32::max);
+            if top <= s.sea_level {
+                return 0.0;
+            }
+            let hgt = p[2] - s.sea_level;
+            let t = if hgt >= s.peak {
+                (hgt - s.peak) / (s.height - s.peak).max(1e-3)
+            } else {
+                (s.peak - hgt) / (s.peak + s.depth).max(1e-3)
+            };
+            let band = if t < 1.0 { (1.0 - t * t).powi(2) } else { 0.0 };
+            let acc = frame.cell(p).map_or(0.0, |(j, i)| {
+                (1.0 - dist[i * frame.width + j] / s.reach).max(0.0)
+            });
+            band * acc
+        };
+        let band = Some((s.sea_level - s.depth, s.sea_level + s.height));
+        let (mut report, mut placed) = self.weather(&s.weathering, region, band, stress)?;
+        let inland = |p: V3| -> Option<V3> {
+            let (j, i) = frame.cell(p)?;
+            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
+            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
+            let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
+            let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
+            let g = (gx * gx + gy * gy).sqrt();
+            (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
+        };
+        let r = s.weathering.radius;
+        let w = &s.weathering;
+        let mut all_placed = placed.clone();
+        for pass in 1..s.iterations {
+            // The current surface: the scene with every carving so far.
+            let current = self.clone().build(true)?;
+            let decay = 0.8f32.powi(pass as i32);
+            let me = &*self;
+            let next: Vec<Option<(V3, f32)>> = placed
+                .par_iter()
+                .enumerate()
+                .map(|(k, &(p, _))| {
+                    let dir = inland(p)?;
+                    let h = |c: u64| unit(hash(w.seed, k as u64, pass as u64, 40 + c)) - 0.5;
+                    let start = add(p, [0.0, 0.0, 0.4 * r * h(0)]);
+                    // The nearest crossing of the current surface along inland, inland and
+                    // down, down, and inland and up (the sample may sit in air left by the
+                    // previous pass or still in rock).
+                    let jit = [0.5 * h(1), 0.5 * h(2), 0.0];
+                    let dirs = [
+                        normalize(add(dir, jit)),
+                        normalize(add(add(dir, jit), [0.0, 0.0, -0.7])),
+                        normalize(add(jit, [0.0, 0.0, -1.0])),
+                        normalize(add(add(dir, jit), [0.0, 0.0, 0.7])),
+                    ];
+                    let s_in = current.inside(start);
+                    let mut hit = None;
+                    'dirs: for d in dirs {
+                        let mut a = 0.0f32;
+                        for m in 1..=12 {
+                            let t = m as f32 * 0.25 * r;
+                            if current.inside(add(start, mul(d, t))) != s_in {
+                                hit = Some((d, a, t));
+                                break 'dirs;
+                            }
+                            a = t;
+                        }
+                    }
+                    let (d, mut a, mut b) = hit?;
+                    for _ in 0..12 {
+                        let m = 0.5 * (a + b);
+                        if current.inside(add(start, mul(d, m))) == s_in {
+                            a = m;
+                        } else {
+                            b = m;
+                        }
+                    }
+                    let q = add(start, mul(d, b));
+                    let wgt = region.weight(&frame, q);
+                    let sigma = (stress(me, q) * wgt * decay).clamp(0.0, 1.0);
+                    let e = erosion_intensity(me.geology.resistance(q), sigma, w.beta);
+                    (e >= w.threshold && e > 0.0).then_some((q, e))
+                })
+                .collect();
+            let pts: Vec<(V3, f32)> = next.into_iter().flatten().collect();
+            let keep = poisson_filter(
+                &pts.iter().map(|x| x.0).collect::<Vec<_>>(),
+                w.spacing,
+                |_| true,
+            );
+            report.candidates += pts.len();
+            placed = keep.into_iter().map(|k| pts[k]).collect();
+            for &(q, e) in &placed {
+                let id = self.tree.sphere(q, r, -w.energy * e)?;
+                self.negatives.push(id);
+                self.carved.push((q, r, false));
+                report.primitives += 1;
+            }
+            all_placed.extend_from_slice(&placed);
+            if placed.is_empty() {
+                break;
+            }
+        }
+        let placed = all_placed;
+        // Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient),
+        // from the most eroded samples just above sea level.
+        let mut best: Vec<(f32, usize)> = placed
+            .iter()
+            .enumerate()
+            .filter(|(_, (p, _))| p[2] >= s.sea_level && p[2] <= s.sea_level + 0.5 * s.height)
+            .map(|(k, (_, e))| (*e, k))
+            .collect();
+        best.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut mouths: Vec<V3> = Vec::new();
+        for &(e, k) in &best {
+            if mouths.len() >= s.caves {
+                break;
+            }
+            let p = placed[k].0;
+            if mouths.iter().any(|m| norm(sub(*m, p)) < s.cave_length) {
+                continue;
+            }
+            let Some(mut dir) = inland(p) else {
+                continue;
+            };
+            mouths.push(p);
+            report.features += 1;
+            report.sites.push(p);
+            // A wandering passage: the heading turns by up to +-20 degrees a step and the
+            // floor drifts a little, within the sea-erosion band.
+            let n = (s.cave_length / (0.5 * r)).ceil() as usize;
+            let mut c = p;
+            for m in 1..=n {
+                let t = m as f32 / n as f32;
+                let h = |q: u64| unit(hash(w.seed, k as u64, m as u64, 90 + q)) - 0.5;
+                let turn = 0.7 * h(0);
+                dir = [
+                    dir[0] * turn.cos() - dir[1] * turn.sin(),
+                    dir[0] * turn.sin() + dir[1] * turn.cos(),
+                    0.0,
+                ];
+                c = add(c, mul(dir, 0.5 * r));
+                c[2] = (c[2] + 0.15 * r * h(1))
+                    .clamp(s.sea_level - s.depth, s.sea_level + 0.5 * s.height);
+                let rr = r * (1.0 - 0.5 * t) * (0.85 + 0.3 * (h(2) + 0.5));
+                let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
+                self.negatives.push(id);
+                self.carved.push((c, rr, false));
+                report.primitives += 1;
+            }
+        }
+        Ok(report)
+    }
+
+    /// Sea cliffs ([`SeaCliffs`]).
+    pub fn sea_cliffs(&mut self, s: &SeaCliffs, region: &Region) -> Result<EffectReport> {
+        for (n, v) in [
+            ("depth", s.depth),
+            ("retreat", s.retreat),
+            ("radius", s.radius),
+        ] {
+            self.check_len(n, v)?;
+        }
+        if !s.sea_level.is_finite() {
+            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
+        }
+        if !(0.0..=1.0).contains(&s.beta) {
+            return Err(Error::param("beta", s.beta, "must be in [0, 1]"));
+        }
+        region.check(&self.frame)?;
+        let f = self.frame;
+        let spacing = 0.75 * s.radius;
+        let per_cell = ((f.cx / spacing).ceil() * (f.cy / spacing).ceil()) as usize;
+        if per_cell as f64 * (f.width * f.height) as f64 > (1u64 << 24) as f64 {
+            return Err(Error::param(
+                "radius",
+                s.radius,
+                "too small for this DEM: more than 2^24 cliff columns",
+            ));
+        }
+        let dist = self.distance_to_sea(s.sea_level);
+        // Bilinear distance to the sea (m).
+        let dist_at = |x: f32, y: f32| {
+            let (u, v) = f.to_grid([x, y, 0.0]);
+            let u = u.clamp(0.0, (f.width - 1) as f32);
+            let v = v.clamp(0.0, (f.height - 1) as f32);
+            let (j0, i0) = (u.floor() as usize, v.floor() as usize);
+            let (j1, i1) = ((j0 + 1).min(f.width - 1), (i0 + 1).min(f.height - 1));
+            let (tx, ty) = (u - j0 as f32, v - i0 as f32);
+            let g = |j: usize, i: usize| dist[i * f.width + j].min(1e9);
+            (g(j0, i0) * (1.0 - tx) + g(j1, i0) * tx) * (1.0 - ty)
+                + (g(j0, i1) * (1.0 - tx) + g(j1, i1) * tx) * ty
+        };
+        // Columns: a jittered grid `spacing` apart over the cells near the shore.
+        let reach_cells = (s.retreat / f.cx.min(f.cy)).ceil() + 1.0;
+        let (nx, ny) = (
+            (f.cx / spacing).ceil().max(1.0) as usize,
+            (f.cy / spacing).ceil().max(1.0) as usize,
+        );
+        let mut pts: Vec<V3> = Vec::new();
+        for i in 0..f.height - 1 {
+            for j in 0..f.width - 1 {
+                let dmin = [
+                    dist[i * f.width + j],
+                    dist[i * f.width + j + 1],
+                    dist[(i + 1) * f.width + j],
+                    dist[(i + 1) * f.width + j + 1],
+                ]
+                .into_iter()
+                .fold(f32::INFINITY, f32::min);
+                if dmin > reach_cells * f.cx.max(f.cy) {
+                    continue;
+                }
+                let base = f.node(j, i + 1, 0.0);
+                for a in 0..nx {
+                    for c in 0..ny {
+                        let k = (a * ny + c) as u64;
+                        let h = |q| unit(hash(s.seed, (i * f.width + j) as u64, k, q));
+                        pts.push([
+                            base[0] + (a as f32 + 0.25 + 0.5 * h(0)) / nx as f32 * f.cx,
+                            base[1] + (c as f32 + 0.25 + 0.5 * h(1)) / ny as f32 * f.cy,
+                            0.0,
+                        ]);
+                    }
+                }
+            }
+        }
+        let kept: Vec<usize> = (0..pts.len()).collect();
+        let mut report = EffectReport {
+            candidates: kept.len(),
+            ..Default::default()
+        };
+        // Energy per sphere: several supports of the lattice overlap at each point; the energy
+        // is set so that, in saturated rock, soft strata (e ~ 0.8) go and hard ones
+        // (e ~ beta + 0.15) mostly stay. Within the heightfield transition under the surface
+        // the rock is weaker and both go.
+        let energy = 0.25;
+        let dz = 0.5 * s.radius;
+        for k in kept {
+            let [x, y, _] = pts[k];
+            let d = dist_at(x, y);
+            let ground = self.ground(x, y);
+            if d <= 0.0 || d > s.retreat || ground <= s.sea_level {
+                continue;
+            }
+            let sigma = (1.0 - d / s.retreat).sqrt();
+            let mut z = s.sea_level - s.depth;
+            let mut any = false;
+            while z < ground + 0.5 * s.radius {
+                let p = [x, y, z];
+                let wgt = region.weight(&f, p);
+                if wgt > 0.0 {
+                    let e = erosion_intensity(self.geology.resistance(p), sigma * wgt, s.beta);
+                    let id = self.tree.sphere(p, s.radius, -energy * e)?;
+                    self.negatives.push(id);
+                    self.carved.push((p, s.radius, false));
+                    report.primitives += 1;
+                    any = true;
+                }
+                z += dz;
+            }
+            if any {
+                report.features += 1;
+                if report.sites.is_empty() {
+                    report.sites.push([x, y, s.sea_level]);
+                }
+            }
+        }
+        Ok(report)
+    }
+
+    /// Wind erosion: stress = exposure of the surface to the wind times relative altitude.
+    pub fn wind_erosion(&mut self, s: &WindErosion, region: &Region) -> Result<EffectReport> {
+        let n = (s.direction[0].powi(2) + s.direction[1].powi(2)).sqrt();
+        if !(n.is_finite() && n > 0.0) {
+            return Err(Error::param(
+                "direction",
+                format!("{:?}", s.direction),
+                "must be non-zero",
+            ));
+        }
+        let wind = [s.direction[0] / n, s.direction[1] / n, 0.0];
+        let (lo, hi) = self
+            .dem
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |a, &z| {
+                (a.0.min(z), a.1.max(z))
+            });
+        let stress = move |me: &Self, p: V3| {
+            let Some((j, i)) = me.frame.cell(p) else {
+                return 0.0;
+            };
+            let nrm = me.slope_normal(j, i);
+            // `-n . w` is sin(slope) cos(aspect to the wind): flat ground is not exposed, a
+            // face turned to the wind at 30 degrees or more is fully exposed.
+            let exposure = 2.0 * (-crate::math::dot(nrm, wind)).max(0.0);
+            exposure.min(1.0) * ((p[2] - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0).sqrt()
+        };
+        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+    }
+
+    /// Rain erosion: stress grows with the slope of the ground.
+    pub fn rain_erosion(&mut self, s: &RainErosion, region: &Region) -> Result<EffectReport> {
+        if !(s.full_slope_deg > 0.0 && s.full_slope_deg <= 90.0) {
+            return Err(Error::param(
+                "full_slope_deg",
+                s.full_slope_deg,
+                "must be in (0, 90]",
+            ));
+        }
+        let full = s.full_slope_deg;
+        let stress = move |me: &Self, p: V3| {
+            let Some((j, i)) = me.frame.cell(p) else {
+                return 0.0;
+            };
+            let slope = me.slope_normal(j, i)[2]
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            (slope / full).min(1.0)
+        };
+        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+    }
+}

@@ -1,0 +1,636 @@
+//! Scenes: an implicitised DEM, a geology tree and the landform sub-trees attached to it by the
+//! generators of paper section 4 ([`SceneBuilder`]).
+//!
+//! The builder's core (implicitisation, surface samples, weathering) is here; its effects live
+//! in `erosion.rs` (sea caves, sea cliffs, wind, rain), `karst.rs` (invasion percolation) and
+//! `landforms.rs` (hoodoos, arches, floating islands); their settings in `settings.rs`.
+
+mod erosion;
+mod karst;
+mod landforms;
+mod settings;
+
+pub use settings::*;
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+
+use rayon::prelude::*;
+use relief_heightfield::Heightfield;
+
+use crate::error::{Error, Result};
+use crate::geology::Geology;
+use crate::math::{Aabb, V3, add, hash, mul, norm, normalize, sub, unit};
+use crate::tree::{DemFrame, NodeId, THRESHOLD, TerrainTree, TreeStats};
+
+/// Paper section 4.1: erosion intensity `e(rho, sigma) = sigma (1 - rho)(1 - beta) + sigma beta`.
+#[inline]
+pub fn erosion_intensity(rho: f32, sigma: f32, beta: f32) -> f32 {
+    sigma * (1.0 - rho) * (1.0 - beta) + sigma * beta
+}
+
+/// Where an effect applies: a painted per-cell mask over the DEM and/or a 3D box. Both given:
+/// the weight is the mask's inside the box and 0 outside.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Region {
+    /// Per-cell weights in `[0, 1]`, row-major like the DEM (`width * height` values).
+    pub mask: Option<Vec<f32>>,
+    /// A 3D box in scene coordinates.
+    pub bbox: Option<Aabb>,
+}
+
+impl Region {
+    /// The whole scene with weight 1.
+    pub fn everywhere() -> Self {
+        Self::default()
+    }
+    /// Only inside `b`.
+    pub fn in_box(b: Aabb) -> Self {
+        Self {
+            mask: None,
+            bbox: Some(b),
+        }
+    }
+    pub(crate) fn check(&self, f: &DemFrame) -> Result<()> {
+        if let Some(m) = &self.mask {
+            if m.len() != f.width * f.height {
+                return Err(Error::param(
+                    "region.mask length",
+                    m.len(),
+                    "must equal DEM width * height",
+                ));
+            }
+            if let Some(v) = m.iter().find(|v| !(0.0..=1.0).contains(*v)) {
+                return Err(Error::param("region.mask value", v, "must be in [0, 1]"));
+            }
+        }
+        if let Some(b) = &self.bbox
+            && (!b.is_finite() || b.is_empty())
+        {
+            return Err(Error::param(
+                "region.bbox",
+                format!("{b:?}"),
+                "must be finite and non-empty",
+            ));
+        }
+        Ok(())
+    }
+    /// Weight of the effect at `p` (0 = no effect).
+    pub fn weight(&self, f: &DemFrame, p: V3) -> f32 {
+        if let Some(b) = &self.bbox
+            && !b.contains(p)
+        {
+            return 0.0;
+        }
+        match &self.mask {
+            Some(m) => match f.cell(p) {
+                Some((j, i)) => m[i * f.width + j],
+                None => 0.0,
+            },
+            None => 1.0,
+        }
+    }
+}
+
+/// Builds a [`Scene`]: implicitises a DEM, then runs effects that add sub-trees.
+#[derive(Debug, Clone)]
+pub struct SceneBuilder {
+    tree: TerrainTree,
+    hf: NodeId,
+    frame: DemFrame,
+    geology: Geology,
+    dem: Vec<f32>,
+    negatives: Vec<NodeId>,
+    positives: Vec<NodeId>,
+    /// Carving spheres' centres and radii, kept for reports and tests.
+    carved: Vec<(V3, f32, bool)>,
+    /// Smallest length an effect accepts: 1e-4 of the scene's coordinate magnitude (lengths
+    /// are also at most `1e6 min_len`), so no primitive degenerates in f32.
+    min_len: f32,
+}
+
+fn check_pos(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::param(name, v, "must be finite and > 0"))
+    }
+}
+
+/// Poisson elimination in order: keeps a point if no kept point is closer than `r`.
+fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) -> Vec<usize> {
+    let mut grid: HashMap<(i32, i32, i32), Vec<V3>> = HashMap::new();
+    let key = |p: V3| {
+        (
+            (p[0] / r).floor() as i32,
+            (p[1] / r).floor() as i32,
+            (p[2] / r).floor() as i32,
+        )
+    };
+    let mut out = Vec::new();
+    for (k, &p) in points.iter().enumerate() {
+        let (a, b, c) = key(p);
+        let mut ok = true;
+        'n: for da in -1..=1 {
+            for db in -1..=1 {
+                for dc in -1..=1 {
+                    if let Some(v) = grid.get(&(a + da, b + db, c + dc))
+                        && v.iter().any(|q| norm(sub(*q, p)) < r)
+                    {
+                        ok = false;
+                        break 'n;
+                    }
+                }
+            }
+        }
+        if ok && keep(k) {
+            grid.entry((a, b, c)).or_default().push(p);
+            out.push(k);
+        }
+    }
+    out
+}
+
+impl SceneBuilder {
+    fn check_len(&self, name: &'static str, v: f32) -> Result<()> {
+        check_pos(name, v)?;
+        if name != "energy" && v < self.min_len {
+            return Err(Error::param(
+                name,
+                v,
+                "too small for the scene's coordinates (below 1e-4 of its extent)",
+            ));
+        }
+        if name != "energy" && v > 1e6 * self.min_len {
+            return Err(Error::param(
+                name,
+                v,
+                "too large for the scene (above 100 times its extent)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Implicitises `hf` (complete, no voids) with the geology `geology`.
+    pub fn new(hf: &Heightfield, geology: Geology, settings: &ImplicitizeSettings) -> Result<Self> {
+        let mut tree = TerrainTree::new();
+        let (cx, cy) = hf.cell_size();
+        let transition = if settings.transition == 0.0 {
+            2.0 * cx.max(cy) as f32
+        } else {
+            settings.transition
+        };
+        let (node, frame) = tree.heightfield(hf, transition, settings.depth)?;
+        let bb = tree.bbox(node);
+        let mag = bb
+            .min
+            .iter()
+            .chain(&bb.max)
+            .fold(1.0f32, |m, v| m.max(v.abs()));
+        Ok(Self {
+            min_len: 1e-4 * mag,
+            tree,
+            hf: node,
+            frame,
+            geology,
+            dem: hf.as_slice().to_vec(),
+            negatives: Vec::new(),
+            positives: Vec::new(),
+            carved: Vec::new(),
+        })
+    }
+
+    /// The DEM's frame in scene coordinates.
+    pub fn frame(&self) -> DemFrame {
+        self.frame
+    }
+    /// The geology tree.
+    pub fn geology(&self) -> &Geology {
+        &self.geology
+    }
+    /// Mutable access to the terrain tree, to add hand-made sub-trees with
+    /// [`SceneBuilder::add_matter`] / [`SceneBuilder::add_carving`].
+    pub fn tree_mut(&mut self) -> &mut TerrainTree {
+        &mut self.tree
+    }
+    /// Blends a hand-made sub-tree with negative energy into the terrain (carving).
+    pub fn add_carving(&mut self, id: NodeId) {
+        self.negatives.push(id);
+    }
+    /// Unions a hand-made sub-tree with the terrain (adding matter).
+    pub fn add_matter(&mut self, id: NodeId) {
+        self.positives.push(id);
+    }
+    /// Every carving sphere placed by the generators: (centre, support radius, is-karst).
+    pub fn carvings(&self) -> &[(V3, f32, bool)] {
+        &self.carved
+    }
+
+    /// Implicitisation deviation: at up to `max_samples` interior DEM nodes (a regular
+    /// stride), the root of `f = T` of the heightfield primitive alone is found by bisection
+    /// along the vertical and compared with the DEM sample.
+    pub fn implicitization_deviation(&self, max_samples: usize) -> crate::recipe::Deviation {
+        let f = self.frame;
+        let interior = (f.width.saturating_sub(2)) * (f.height.saturating_sub(2));
+        if interior == 0 || max_samples == 0 {
+            return crate::recipe::Deviation::default();
+        }
+        let stride = ((interior as f64 / max_samples as f64).sqrt().ceil() as usize).max(1);
+        let mut pts = Vec::new();
+        for i in (1..f.height - 1).step_by(stride) {
+            for j in (1..f.width - 1).step_by(stride) {
+                pts.push((j, i));
+            }
+        }
+        let floor = self.tree.dem_floor(self.hf).unwrap_or(f32::NEG_INFINITY);
+        let devs: Vec<f32> = pts
+            .par_iter()
+            .map(|&(j, i)| {
+                let z = self.dem_at(j, i);
+                let p = f.node(j, i, z);
+                // Inside half-way to the floor, air above the DEM's top.
+                let d = 0.5 * (z - floor).min(1e4);
+                let (mut lo, mut hi) = (z - d, z + d);
+                for _ in 0..48 {
+                    let m = 0.5 * (lo + hi);
+                    if self.tree.eval(self.hf, [p[0], p[1], m]) > THRESHOLD {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                (0.5 * (lo + hi) - z).abs()
+            })
+            .collect();
+        let max = devs.iter().cloned().fold(0.0, f32::max);
+        let mean = (devs.iter().map(|&d| d as f64).sum::<f64>() / devs.len() as f64) as f32;
+        crate::recipe::Deviation {
+            max,
+            mean,
+            samples: devs.len(),
+        }
+    }
+
+    /// Bilinear DEM elevation at scene `(x, y)`.
+    pub fn ground(&self, x: f32, y: f32) -> f32 {
+        self.tree.dem_height(self.hf, x, y).unwrap_or(0.0)
+    }
+
+    fn dem_at(&self, j: usize, i: usize) -> f32 {
+        self.dem[i * self.frame.width + j]
+    }
+
+    fn slope_normal(&self, j: usize, i: usize) -> V3 {
+        let f = self.frame;
+        let (j0, j1) = (j.saturating_sub(1), (j + 1).min(f.width - 1));
+        let (i0, i1) = (i.saturating_sub(1), (i + 1).min(f.height - 1));
+        let dzdx = (self.dem_at(j1, i) - self.dem_at(j0, i)) / ((j1 - j0).max(1) as f32 * f.cx);
+        // Rows grow southwards, y northwards.
+        let dzdy = (self.dem_at(j, i0) - self.dem_at(j, i1)) / ((i1 - i0).max(1) as f32 * f.cy);
+        normalize([-dzdx, -dzdy, 1.0])
+    }
+
+    /// Candidate points on (within one cell of) the DEM surface, `spacing` apart on average,
+    /// including points spread up steep cells so cliffs get samples too. Deterministic.
+    fn surface_candidates(&self, spacing: f32, seed: u64, zband: Option<(f32, f32)>) -> Vec<V3> {
+        let f = self.frame;
+        let per_xy = ((f.cx * f.cy) / (spacing * spacing)).ceil().max(1.0) as usize;
+        let rows: Vec<Vec<V3>> = (0..f.height - 1)
+            .into_par_iter()
+            .map(|i| {
+                let mut out = Vec::new();
+                for j in 0..f.width - 1 {
+                    let zs = [
+                        self.dem_at(j, i),
+                        self.dem_at(j + 1, i),
+                        self.dem_at(j, i + 1),
+                        self.dem_at(j + 1, i + 1),
+                    ];
+                    let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
+                    let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                    if let Some((a, b)) = zband
+                        && (hi < a || lo > b)
+                    {
+                        continue;
+                    }
+                    let steep = hi - lo > f.cx.min(f.cy);
+                    let n = per_xy * (1 + ((hi - lo) / spacing) as usize).min(32);
+                    for k in 0..n {
+                        let h = |s| unit(hash(seed, (i * f.width + j) as u64, k as u64, s));
+                        let base = f.node(j, i + 1, 0.0);
+                        let (x, y) = (base[0] + h(0) * f.cx, base[1] + h(1) * f.cy);
+                        let z = if steep {
+                            lo + h(2) * (hi - lo)
+                        } else {
+                            self.ground(x, y)
+                        };
+                        if let Some((a, b)) = zband
+                            && (z < a || z > b)
+                        {
+                            continue;
+                        }
+                        out.push([x, y, z]);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut pts: Vec<V3> = rows.into_iter().flatten().collect();
+        // Shuffle deterministically so the Poisson elimination has no directional bias.
+        let mut keyed: Vec<(u64, V3)> = pts
+            .drain(..)
+            .enumerate()
+            .map(|(k, p)| (hash(seed ^ 0xABCD, k as u64, 0, 0), p))
+            .collect();
+        keyed.sort_by_key(|x| x.0);
+        keyed.into_iter().map(|x| x.1).collect()
+    }
+
+    /// Number of candidates [`Self::surface_candidates`] would generate (without a z band).
+    fn candidate_count(&self, spacing: f32) -> f64 {
+        let f = self.frame;
+        let per_xy = ((f.cx as f64 * f.cy as f64) / (spacing as f64 * spacing as f64))
+            .ceil()
+            .max(1.0);
+        let mut n = 0.0;
+        for i in 0..f.height - 1 {
+            for j in 0..f.width - 1 {
+                let zs = [
+                    self.dem_at(j, i),
+                    self.dem_at(j + 1, i),
+                    self.dem_at(j, i + 1),
+                    self.dem_at(j + 1, i + 1),
+                ];
+                let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
+                let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                n += per_xy * (1.0 + ((hi - lo) / spacing).floor() as f64).min(32.0);
+            }
+        }
+        n
+    }
+
+    /// Places negative spheres at Poisson samples with energy from `e(rho, sigma)`.
+    fn weather(
+        &mut self,
+        w: &Weathering,
+        region: &Region,
+        zband: Option<(f32, f32)>,
+        stress: impl Fn(&Self, V3) -> f32 + Sync,
+    ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
+        w.check(self.min_len)?;
+        region.check(&self.frame)?;
+        if self.candidate_count(w.spacing) > (1u64 << 22) as f64 {
+            return Err(Error::param(
+                "spacing",
+                w.spacing,
+                "too small for this DEM: more than 2^22 candidate samples",
+            ));
+        }
+        let cand = self.surface_candidates(w.spacing, w.seed, zband);
+        let kept = poisson_filter(&cand, w.spacing, |_| true);
+        let me = &*self;
+        let energies: Vec<(V3, f32)> = kept
+            .par_iter()
+            .map(|&k| {
+                let p = cand[k];
+                let wgt = region.weight(&me.frame, p);
+                if wgt <= 0.0 {
+                    return (p, 0.0);
+                }
+                let sigma = (stress(me, p) * wgt).clamp(0.0, 1.0);
+                (
+                    p,
+                    erosion_intensity(me.geology.resistance(p), sigma, w.beta),
+                )
+            })
+            .collect();
+        let mut report = EffectReport {
+            candidates: kept.len(),
+            primitives: 0,
+            ..Default::default()
+        };
+        let mut placed = Vec::new();
+        for &(p, e) in &energies {
+            if e < w.threshold || e <= 0.0 {
+                continue;
+            }
+            let id = self.tree.sphere(p, w.radius, -w.energy * e)?;
+            self.negatives.push(id);
+            self.carved.push((p, w.radius, false));
+            report.primitives += 1;
+            placed.push((p, e));
+        }
+        Ok((report, placed))
+    }
+
+    /// Horizontal distance (m) from every DEM cell to the nearest cell at or below `level` (sea)
+    /// (two-pass chamfer transform).
+    fn distance_to_sea(&self, level: f32) -> Vec<f32> {
+        let f = self.frame;
+        let (w, h) = (f.width, f.height);
+        let mut d: Vec<f32> = self
+            .dem
+            .iter()
+            .map(|&z| if z <= level { 0.0 } else { f32::INFINITY })
+            .collect();
+        let dd = (f.cx * f.cx + f.cy * f.cy).sqrt();
+        let steps_fwd = [
+            (-1i32, 0i32, f.cx),
+            (0, -1, f.cy),
+            (-1, -1, dd),
+            (1, -1, dd),
+        ];
+        for i in 0..h {
+            for j in 0..w {
+                for &(dj, di, c) in &steps_fwd {
+                    let (jj, ii) = (j as i32 + dj, i as i32 + di);
+                    if jj >= 0 && ii >= 0 && (jj as usize) < w {
+                        let v = d[ii as usize * w + jj as usize] + c;
+                        if v < d[i * w + j] {
+                            d[i * w + j] = v;
+                        }
+                    }
+                }
+            }
+        }
+        for i in (0..h).rev() {
+            for j in (0..w).rev() {
+                for &(dj, di, c) in &steps_fwd {
+                    let (jj, ii) = (j as i32 - dj, i as i32 - di);
+                    if jj >= 0 && (jj as usize) < w && (ii as usize) < h {
+                        let v = d[ii as usize * w + jj as usize] + c;
+                        if v < d[i * w + j] {
+                            d[i * w + j] = v;
+                        }
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// Assembles the scene: `union(blend(heightfield, carvings), matter)`. With `use_bvh` the
+    /// carvings and the matter are organised in BVHs; without, in flat n-ary blends (every
+    /// primitive is visited by each query: for comparisons only).
+    pub fn build(mut self, use_bvh: bool) -> Result<Scene> {
+        let mut root = self.hf;
+        let mut upper = self.hf;
+        if !self.negatives.is_empty() {
+            if use_bvh {
+                let n = self.tree.bvh_blend(&self.negatives)?;
+                root = self.tree.blend(&[root, n])?;
+            } else {
+                let mut all = vec![root];
+                all.extend_from_slice(&self.negatives);
+                root = self.tree.blend(&all)?;
+            }
+        }
+        if !self.positives.is_empty() {
+            let p = if use_bvh {
+                self.tree.bvh_blend(&self.positives)?
+            } else {
+                self.tree.blend(&self.positives)?
+            };
+            root = self.tree.union(root, p)?;
+            upper = self.tree.union(self.hf, p)?;
+        }
+        let mut scene = Scene::new(self.tree, root, self.geology, Some((self.hf, self.frame)))?;
+        scene.upper = Some(upper);
+        Ok(scene)
+    }
+}
+
+/// A terrain tree with its root and geology: the field to mesh, render and query.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    tree: TerrainTree,
+    root: NodeId,
+    geology: Geology,
+    dem: Option<(NodeId, DemFrame)>,
+    bbox: Aabb,
+    /// The tree without its carvings: `f <= upper` everywhere (carvings only lower the field),
+    /// so `{f > T}` lies inside `{upper > T}`; the tracer steps by this cheaper bound in air.
+    upper: Option<NodeId>,
+}
+
+impl Scene {
+    /// A scene from any tree and root (e.g. hand-built shapes). `dem` names the heightfield
+    /// primitive and its frame when there is one.
+    pub fn new(
+        tree: TerrainTree,
+        root: NodeId,
+        geology: Geology,
+        dem: Option<(NodeId, DemFrame)>,
+    ) -> Result<Self> {
+        if root.0 as usize >= tree.stats().nodes {
+            return Err(Error::param("root", root.0, "not a node of the tree"));
+        }
+        let bbox = tree.bbox(root);
+        if !bbox.is_finite() || bbox.is_empty() {
+            return Err(Error::param(
+                "root bbox",
+                format!("{bbox:?}"),
+                "must be finite and non-empty",
+            ));
+        }
+        Ok(Self {
+            tree,
+            root,
+            geology,
+            dem,
+            bbox,
+            upper: None,
+        })
+    }
+    /// Upper bound `u >= f` from the tree without carvings, with its Lipschitz bound over
+    /// `region`, when the scene was built by [`SceneBuilder::build`].
+    pub fn upper_bound(&self, p: V3, region: &Aabb) -> Option<(f32, f32)> {
+        let u = self.upper?;
+        Some((self.tree.eval(u, p), self.tree.lipschitz(u, region)))
+    }
+    /// Upper end of a conservative range of `f` over `region`, from the carving-free tree when
+    /// there is one (cheaper) or the whole tree: `<= T` proves `region` is air.
+    pub fn max_over(&self, region: &Aabb) -> f32 {
+        self.tree
+            .interval(self.upper.unwrap_or(self.root), region)
+            .1
+    }
+    /// Value of the carving-free upper bound at `p` (see [`Scene::upper_bound`]).
+    pub fn upper_field(&self, p: V3) -> Option<f32> {
+        self.upper.map(|u| self.tree.eval(u, p))
+    }
+    /// Field `f(p)`: matter where `f > T` ([`THRESHOLD`]).
+    #[inline]
+    pub fn field(&self, p: V3) -> f32 {
+        self.tree.eval(self.root, p)
+    }
+    /// Whether `p` is inside matter.
+    pub fn inside(&self, p: V3) -> bool {
+        self.field(p) > THRESHOLD
+    }
+    /// Gradient of `f`: analytic through the tree ([`TerrainTree::eval_grad`]); central
+    /// differences with step `h` (m) only inside cones and noise warps.
+    pub fn gradient(&self, p: V3, h: f32) -> V3 {
+        self.tree.eval_grad(self.root, p, h).1
+    }
+    /// Outward unit normal (`-grad f / |grad f|`).
+    pub fn normal(&self, p: V3, h: f32) -> V3 {
+        normalize(mul(self.gradient(p, h), -1.0))
+    }
+    /// Conservative range of `f` over `region` (interval arithmetic through the tree).
+    pub fn interval(&self, region: &Aabb) -> (f32, f32) {
+        self.tree.interval(self.root, region)
+    }
+    /// Lipschitz bound of `f` over `region`.
+    pub fn lipschitz(&self, region: &Aabb) -> f32 {
+        self.tree.lipschitz(self.root, region)
+    }
+    /// Box outside which `f = 0` (air).
+    pub fn bbox(&self) -> Aabb {
+        self.bbox
+    }
+    /// Resistance `rho(p)` of the geology.
+    pub fn resistance(&self, p: V3) -> f32 {
+        self.geology.resistance(p)
+    }
+    /// The DEM's bilinear elevation at `(x, y)`, if the scene has a heightfield primitive.
+    pub fn dem_height(&self, x: f32, y: f32) -> Option<f32> {
+        let (id, _) = self.dem?;
+        self.tree.dem_height(id, x, y)
+    }
+    /// Elevation of the implicitised DEM's closing floor, if the scene has one.
+    pub fn dem_floor(&self) -> Option<f32> {
+        let (id, _) = self.dem?;
+        self.tree.dem_floor(id)
+    }
+    /// The DEM frame, if any.
+    pub fn dem_frame(&self) -> Option<DemFrame> {
+        self.dem.map(|d| d.1)
+    }
+    /// Node count and memory of the terrain tree.
+    pub fn stats(&self) -> TreeStats {
+        self.tree.stats()
+    }
+    /// The terrain tree and root.
+    pub fn tree(&self) -> (&TerrainTree, NodeId) {
+        (&self.tree, self.root)
+    }
+    /// The geology tree.
+    pub fn geology(&self) -> &Geology {
+        &self.geology
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn erosion_intensity_matches_paper_constraints() {
+        for beta in [0.0, 0.3, 1.0] {
+            assert_eq!(erosion_intensity(0.4, 0.0, beta), 0.0);
+            assert!((erosion_intensity(1.0, 1.0, beta) - beta).abs() < 1e-6);
+            assert!((erosion_intensity(0.0, 1.0, beta) - 1.0).abs() < 1e-6);
+        }
+        assert!(erosion_intensity(0.2, 0.8, 0.2) > erosion_intensity(0.8, 0.8, 0.2));
+    }
+}
