@@ -176,7 +176,7 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
         relief_wavelet_lod::Wavelet::Cdf53,
     ] {
         for fine in [3usize, 4] {
-            for min_gamma in [2.0, 2.5] {
+            for min_gamma in [2.0, 2.25, 2.5, 2.75, 3.0] {
                 v.push((
                     format!("{wavelet} f{fine} g{min_gamma}"),
                     RefineSettings {
