@@ -162,6 +162,20 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
             ..Default::default()
         },
     ));
+    // Parent conditioning: the amplitude of the new coefficients follows the magnitude of the
+    // finest observed coefficients over a 1 x 1 (the parent alone), 3 x 3 (default) or 5 x 5
+    // window.
+    for window in [1usize, 5] {
+        v.push((
+            format!("amplitude w{window}"),
+            RefineSettings {
+                extra_levels: levels,
+                window,
+                seed: 2024,
+                ..Default::default()
+            },
+        ));
+    }
     v.push((
         "no correction".to_string(),
         RefineSettings {

@@ -191,7 +191,10 @@ impl CubicUp {
             .map(|r| {
                 let c = (r as f64 + 0.5) / f as f64 - 0.5;
                 let fl = c.floor();
-                (fl as isize - 1, relief_heightfield::cubic_weights((c - fl) as f32))
+                (
+                    fl as isize - 1,
+                    relief_heightfield::cubic_weights((c - fl) as f32),
+                )
             })
             .collect();
         // 1-D response of box-down(cubic(.)) to a coarse unit sample: a[m], m in -2..=2.
@@ -252,7 +255,11 @@ fn design_inverse(a: &[f64; 5]) -> Vec<f32> {
         let row: Vec<f64> = (0..np)
             .map(|j| {
                 let i = d as isize - j as isize;
-                if (0..5).contains(&i) { a[i as usize] } else { 0.0 }
+                if (0..5).contains(&i) {
+                    a[i as usize]
+                } else {
+                    0.0
+                }
             })
             .collect();
         let b = if d == QL + 2 { 1.0 } else { 0.0 };
