@@ -9,7 +9,10 @@
 //! amplitude windows 1 and 5, no block-mean removal, bases, fitted levels, `min_gamma`), `fits`
 //! (fitted `gamma`, notes and level variances of every run), `swing` (the detail energy against
 //! bicubic per position modulo the factor, truth and output: the profile behind the swing),
-//! `timing` (wall time of the spectral and paper models on a 1024 x 704 crop).
+//! `timing` (wall time of the spectral and paper models on a 1024 x 704 crop), `npy=DIR` (write
+//! the truth, the spectral output and the bicubic baseline of every crop as `.npy` into DIR, for
+//! checking against the reference `shared/tools/terrain_quality.py`:
+//! `python3 terrain_quality.py DIR/carrizo_x4_truth.npy DIR/carrizo_x4_spectral.npy 4 2.0`).
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::fill::{FillSettings, fill_voids};
@@ -53,8 +56,8 @@ fn main() {
         for factor in [4usize, 16] {
             let p = Protocol::new(&truth, factor).expect("protocol");
             println!(
-                "{id} {w}x{h}+{x}+{y} x{factor}: truth slope {:.2}, truth swing {:.2}",
-                p.truth_slope, p.truth_swing
+                "{id} {w}x{h}+{x}+{y} x{factor}: truth slope {:.2}, truth swing {:.2} (against Keys bicubic {:.2})",
+                p.truth_slope, p.truth_swing, p.truth_swing_keys
             );
             let levels = factor.trailing_zeros();
             let mut runs: Vec<(String, RefineSettings)> = vec![
@@ -113,6 +116,18 @@ fn main() {
                 }
                 let out = r.render(&NoProgress).expect("render");
                 row(&label, &p.score(&out).expect("score"));
+                if let (Some(dir), "spectral") = (npy_dir(&extra), label.as_str()) {
+                    let stem = format!("{dir}/{id}_x{factor}");
+                    write_npy(&format!("{stem}_truth.npy"), &p.truth);
+                    write_npy(&format!("{stem}_spectral.npy"), &out);
+                    write_npy(&format!("{stem}_bicubic.npy"), &p.bicubic);
+                    write_npy(&format!("{stem}_zoom.npy"), &p.zoom);
+                    println!(
+                        "  wrote {stem}_{{truth,spectral,bicubic}}.npy (cell {:.2} x {:.2} m)",
+                        p.truth.cell_size().0,
+                        p.truth.cell_size().1
+                    );
+                }
                 if extra.iter().any(|a| a == "swing") && label == "spectral" {
                     phase_profile("truth", &p.truth, &p.bicubic, factor);
                     phase_profile("spectral", &out, &p.bicubic, factor);
@@ -144,6 +159,7 @@ fn main() {
                 }
             }
             row("bicubic", &p.score(&p.bicubic).expect("score"));
+            row("zoom bicubic", &p.score(&p.zoom).expect("score"));
         }
     }
 }
@@ -277,4 +293,29 @@ fn phase_profile(label: &str, a: &Heightfield, reference: &Heightfield, p: usize
             s.join(" ")
         );
     }
+}
+
+/// The `npy=DIR` option.
+fn npy_dir(args: &[String]) -> Option<&str> {
+    args.iter().find_map(|a| a.strip_prefix("npy="))
+}
+
+/// Writes a heightfield as a 2-D little-endian `float32` `.npy` file (format version 1.0).
+fn write_npy(path: &str, hf: &Heightfield) {
+    let header = format!(
+        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
+        hf.height(),
+        hf.width()
+    );
+    // Magic (6) + version (2) + header length (2) + header + newline, padded to 64 bytes.
+    let total = (10 + header.len() + 1).div_ceil(64) * 64;
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&((total - 10) as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.resize(total - 1, b' ');
+    bytes.push(b'\n');
+    for v in hf.as_slice() {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).expect("write npy");
 }
