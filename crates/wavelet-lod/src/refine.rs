@@ -555,12 +555,16 @@ impl Refiner {
         let q = &up.inverse;
         let gw = gx1 - gx0;
         let mut tq = vec![0.0f32; gw * (ry1 - ry0)];
+        let qidx: Vec<usize> = (gx0..gx1)
+            .flat_map(|c| {
+                (0..q.len()).map(move |k| reflect(c as isize + k as isize - ql, iw) - rx0)
+            })
+            .collect();
         for (row, srow) in tq.chunks_mut(gw).zip(s.chunks(sw)) {
-            for (i, v) in row.iter_mut().enumerate() {
-                let c = (gx0 + i) as isize;
+            for (v, idx) in row.iter_mut().zip(qidx.chunks(q.len())) {
                 let mut acc = 0.0f32;
-                for (k, &qk) in q.iter().enumerate() {
-                    acc += qk * srow[reflect(c + k as isize - ql, iw) - rx0];
+                for (&qk, &i) in q.iter().zip(idx) {
+                    acc += qk * srow[i];
                 }
                 *v = acc;
             }
@@ -576,15 +580,23 @@ impl Refiner {
             }
         }
         // Cubic up-sampling of g to the window, rows then columns, plus the detail.
-        let mut th = vec![0.0f32; w * (gy1 - gy0)];
-        for (row, grow) in th.chunks_mut(w).zip(g.chunks(gw)) {
-            for (k, v) in row.iter_mut().enumerate() {
-                let o = x + k;
+        // Taps of every window column, computed once for all rows.
+        let taps: Vec<([usize; 4], [f32; 4])> = (x..x + w)
+            .map(|o| {
                 let (off, wt) = up.phases[o % f];
                 let base = (o / f) as isize + off;
+                (
+                    [0, 1, 2, 3].map(|t| reflect(base + t as isize, iw) - gx0),
+                    wt,
+                )
+            })
+            .collect();
+        let mut th = vec![0.0f32; w * (gy1 - gy0)];
+        for (row, grow) in th.chunks_mut(w).zip(g.chunks(gw)) {
+            for (v, (idx, wt)) in row.iter_mut().zip(&taps) {
                 let mut acc = 0.0f32;
-                for (t, &wv) in wt.iter().enumerate() {
-                    acc += wv * grow[reflect(base + t as isize, iw) - gx0];
+                for (&i, &wv) in idx.iter().zip(wt) {
+                    acc += wv * grow[i];
                 }
                 *v = acc;
             }
