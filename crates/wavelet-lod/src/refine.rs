@@ -90,7 +90,7 @@ pub struct RefineSettings {
     /// every added octave adds more slope variance than the one before, so the slopes of the
     /// refined terrain grow without bound with the number of levels, which real terrain does
     /// not do; a fit on few coarse levels (large factors) often comes out that low because
-    /// terrain spectra steepen towards fine scales. The default 2.25 was chosen by measurement
+    /// terrain spectra steepen towards fine scales. The default 2.5 was chosen by measurement
     /// (`examples/quality.rs`, see the crate docs).
     pub min_gamma: f64,
 }
@@ -107,7 +107,7 @@ impl Default for RefineSettings {
             fit: FitSettings::default(),
             tile: 512,
             fine_levels: 4,
-            min_gamma: 2.25,
+            min_gamma: 2.5,
             consistency: true,
         }
     }
