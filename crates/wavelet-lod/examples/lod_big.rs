@@ -1,8 +1,9 @@
 //! Release harness of the big level-of-detail run: a 4096^2 terrain refined by two levels to
-//! 16384^2 with LSA 3x3 (CDF 5/3).
+//! 16384^2 with LSA 3x3, the default spectral model (CDF 9/7), or the paper's model (CDF 5/3)
+//! with `paper`.
 //!
 //! ```text
-//! RAYON_NUM_THREADS=2 /usr/bin/time -v target/release/examples/lod_big [SIZE] [full|strips] [STRIP]
+//! RAYON_NUM_THREADS=2 /usr/bin/time -v target/release/examples/lod_big [SIZE] [full|strips] [STRIP] [spectral|paper]
 //! ```
 //! (build it first with `cargo build --release -p relief-wavelet-lod --example lod_big`).
 //! `full` (default) renders the whole refined grid into one buffer with `Refiner::render`;
@@ -17,7 +18,7 @@
 use std::time::Instant;
 
 use relief_heightfield::NoProgress;
-use relief_wavelet_lod::{Method, RefineSettings, Refiner, Wavelet, WaveletError};
+use relief_wavelet_lod::{Method, RefineSettings, Refiner, WaveletError};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -32,13 +33,18 @@ fn main() {
         "input {size}^2 prepared in {:.2} s (not part of the timing)",
         t.elapsed().as_secs_f64()
     );
+    let paper = args.get(4).map(String::as_str) == Some("paper");
+    let base = if paper {
+        RefineSettings::paper()
+    } else {
+        RefineSettings::default()
+    };
     let settings = RefineSettings {
-        wavelet: Wavelet::Cdf53,
         method: Method::Lsa,
         window: 3,
         extra_levels: 2,
         seed: 42,
-        ..Default::default()
+        ..base
     };
     let t0 = Instant::now();
     let refiner = Refiner::new(&input, &settings).expect("analysis");
@@ -67,8 +73,10 @@ fn main() {
     }
     let t2 = Instant::now();
     println!(
-        "LOD {size}^2 -> {ow}x{oh} LSA 3x3 cdf53, mode {mode}{}, {} threads: analysis {:.3} s, \
+        "LOD {size}^2 -> {ow}x{oh} LSA 3x3 {} {}, mode {mode}{}, {} threads: analysis {:.3} s, \
          synthesis {:.3} s, total {:.3} s",
+        settings.model.name(),
+        settings.wavelet,
         if mode == "strips" {
             format!(" ({strip} rows)")
         } else {

@@ -12,7 +12,7 @@ use crate::dwt::{AxisPlan, Band, Grid, inverse_level_window, max_levels};
 use crate::error::{Result, WaveletError};
 use crate::lift::Boundary;
 use crate::rng::{fill_normals, row_key};
-use crate::spectral::{KR, KS, SpectralPlan, prefilter_grid};
+use crate::spectral::{KR, KS, QL, SpectralPlan, reflect};
 use crate::wavelet::Wavelet;
 
 /// Which statistics drive the synthesis.
@@ -82,15 +82,16 @@ pub struct RefineSettings {
     /// Spectral model: number of finest observed levels the synthesis `gamma` is fitted on
     /// (2..=8; fewer are used when the input has fewer levels, with a note).
     pub fine_levels: usize,
-    /// Spectral model: correct the block means (one back-projection step, see the crate docs),
-    /// so that the box down-sampling of the refined terrain stays close to the input. Costs one
-    /// more synthesis of a slightly larger region.
+    /// Spectral model: take the synthetic detail's block means out through the smooth part, so
+    /// that the box down-sampling of the refined terrain is the input (see the crate docs).
+    /// Costs the synthesis of the detail over a slightly larger region.
     pub consistency: bool,
     /// Spectral model: smallest `gamma` of the continuation (in `[0, 8]`). With `gamma < 2`
     /// every added octave adds more slope variance than the one before, so the slopes of the
     /// refined terrain grow without bound with the number of levels, which real terrain does
     /// not do; a fit on few coarse levels (large factors) often comes out that low because
-    /// terrain spectra steepen towards fine scales.
+    /// terrain spectra steepen towards fine scales. The default 2.5 was chosen by measurement
+    /// (`examples/quality.rs`, see the crate docs).
     pub min_gamma: f64,
 }
 
@@ -106,7 +107,7 @@ impl Default for RefineSettings {
             fit: FitSettings::default(),
             tile: 512,
             fine_levels: 4,
-            min_gamma: 2.0,
+            min_gamma: 2.5,
             consistency: true,
         }
     }
@@ -167,9 +168,6 @@ impl RefineSettings {
 #[derive(Debug)]
 pub struct Refiner {
     input: Grid,
-    /// The approximation the synthesis starts from: the input, pre-filtered for area
-    /// consistency by the spectral model.
-    base: Grid,
     cell: (f64, f64),
     georef: Option<relief_heightfield::GeoRef>,
     settings: RefineSettings,
@@ -253,8 +251,8 @@ impl Refiner {
             };
         }
         let input = Grid::from_heightfield(hf);
-        let (synthesis_fits, spectral, base) = match settings.model {
-            Model::Paper => (global.fits, None, input.clone()),
+        let (synthesis_fits, spectral) = match settings.model {
+            Model::Paper => (global.fits, None),
             Model::Spectral => {
                 let fit = FitSettings {
                     gamma_min: settings.fit.gamma_min.max(settings.min_gamma),
@@ -263,9 +261,7 @@ impl Refiner {
                 };
                 let fits = fine_fit(&global, settings.fine_levels, &fit, &mut notes);
                 let beta = fits.map(|f| -(f.gamma + 2.0));
-                let plan = SpectralPlan::new(settings.wavelet, n, beta);
-                let base = prefilter_grid(&input, &plan.prefilter);
-                (fits, Some(plan), base)
+                (fits, Some(SpectralPlan::new(settings.wavelet, n, beta)))
             }
         };
         let amplitude = (settings.model == Model::Spectral && settings.method == Method::Lsa)
@@ -273,7 +269,6 @@ impl Refiner {
             .flatten();
         Ok(Self {
             input,
-            base,
             amplitude,
             cell: hf.cell_size(),
             georef: hf.georef().cloned(),
@@ -484,17 +479,148 @@ impl Refiner {
     /// The window at the finest level, computed from the input through every new level with
     /// only the lanes each inverse step needs (section 5, "generated when needed").
     fn render_region(&self, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
-        let correct = self.spectral.is_some() && self.settings.consistency;
-        self.render_pass(x, y, w, h, correct)
+        match &self.spectral {
+            Some(plan) if self.settings.extra_levels > 0 => self.render_spectral(plan, x, y, w, h),
+            _ => self.render_pass(x, y, w, h, true),
+        }
     }
 
-    /// [`Refiner::render_region`] with or without the consistency correction of the spectral
-    /// model: with it, the approximation of every input cell the window needs is raised by the
-    /// cell's residual `input - box-down(uncorrected output)` (one back-projection step), which
-    /// removes most of what the synthetic detail and the interpolation add to the block means.
-    /// The uncorrected output of a block is the same whatever the window, and its mean is
-    /// summed in a fixed order, so windows stay bit-identical to the full run.
-    fn render_pass(&self, x: usize, y: usize, w: usize, h: usize, correct: bool) -> Vec<f32> {
+    /// The spectral model's window: the smooth part `cubic(q * (input - box-down(D)))` plus the
+    /// synthetic detail `D` (the inverse DWT of the new levels over a zero approximation). `q`
+    /// inverts `box-down(cubic(.))`, so the box down-sampling of the output is the input (up to
+    /// rounding): the detail's own block means are taken out through the smooth part, as in a
+    /// conditional simulation. Every value depends only on its position (fixed summation
+    /// orders), so windows stay bit-identical to the full run.
+    fn render_spectral(
+        &self,
+        plan: &SpectralPlan,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+    ) -> Vec<f32> {
+        let up = &plan.cubic;
+        let f = up.factor;
+        let (iw, ih) = (self.input.width, self.input.height);
+        let correct = self.settings.consistency;
+        // Coarse cells the cubic reads, then the cells the inverse filter reads around them.
+        let (gx0, gx1) = up.coarse_range(x, x + w, iw);
+        let (gy0, gy1) = up.coarse_range(y, y + h, ih);
+        let ql = QL as isize;
+        let span = |g0: usize, g1: usize, n: usize| {
+            let (mut lo, mut hi) = (usize::MAX, 0usize);
+            for i in g0 as isize - ql..g1 as isize + ql {
+                let r = reflect(i, n);
+                lo = lo.min(r);
+                hi = hi.max(r + 1);
+            }
+            (lo, hi)
+        };
+        let (rx0, rx1) = span(gx0, gx1, iw);
+        let (ry0, ry1) = span(gy0, gy1, ih);
+        // The detail over the window, or over every block the correction reads (which holds
+        // the window).
+        let (dx0, dx1, dy0, dy1) = if correct {
+            (
+                (rx0 * f).min(x),
+                (rx1 * f).max(x + w),
+                (ry0 * f).min(y),
+                (ry1 * f).max(y + h),
+            )
+        } else {
+            (x, x + w, y, y + h)
+        };
+        let dw = dx1 - dx0;
+        let detail = self.render_pass(dx0, dy0, dw, dy1 - dy0, false);
+        // Coarse residual s = input - box-down(D) over [rx0, rx1) x [ry0, ry1).
+        let sw = rx1 - rx0;
+        let mut s = vec![0.0f32; sw * (ry1 - ry0)];
+        let inv = 1.0 / (f * f) as f64;
+        for (j, row) in s.chunks_mut(sw).enumerate() {
+            let cy = ry0 + j;
+            for (i, v) in row.iter_mut().enumerate() {
+                let cx = rx0 + i;
+                let mut mean = 0.0f64;
+                if correct {
+                    for r in 0..f {
+                        let o = (cy * f + r - dy0) * dw + cx * f - dx0;
+                        mean += detail[o..o + f].iter().map(|&z| z as f64).sum::<f64>();
+                    }
+                    mean *= inv;
+                }
+                *v = (self.input.data[cy * iw + cx] as f64 - mean) as f32;
+            }
+        }
+        // g = q * s (separable, symmetric reflection) over [gx0, gx1) x [gy0, gy1).
+        let q = &up.inverse;
+        let gw = gx1 - gx0;
+        let mut tq = vec![0.0f32; gw * (ry1 - ry0)];
+        let qidx: Vec<usize> = (gx0..gx1)
+            .flat_map(|c| {
+                (0..q.len()).map(move |k| reflect(c as isize + k as isize - ql, iw) - rx0)
+            })
+            .collect();
+        for (row, srow) in tq.chunks_mut(gw).zip(s.chunks(sw)) {
+            for (v, idx) in row.iter_mut().zip(qidx.chunks(q.len())) {
+                let mut acc = 0.0f32;
+                for (&qk, &i) in q.iter().zip(idx) {
+                    acc += qk * srow[i];
+                }
+                *v = acc;
+            }
+        }
+        let mut g = vec![0.0f32; gw * (gy1 - gy0)];
+        for (j, row) in g.chunks_mut(gw).enumerate() {
+            let c = (gy0 + j) as isize;
+            for (k, &qk) in q.iter().enumerate() {
+                let src = reflect(c + k as isize - ql, ih) - ry0;
+                row.iter_mut()
+                    .zip(&tq[src * gw..(src + 1) * gw])
+                    .for_each(|(a, b)| *a += qk * b);
+            }
+        }
+        // Cubic up-sampling of g to the window, rows then columns, plus the detail.
+        // Taps of every window column, computed once for all rows.
+        let taps: Vec<([usize; 4], [f32; 4])> = (x..x + w)
+            .map(|o| {
+                let (off, wt) = up.phases[o % f];
+                let base = (o / f) as isize + off;
+                (
+                    [0, 1, 2, 3].map(|t| reflect(base + t as isize, iw) - gx0),
+                    wt,
+                )
+            })
+            .collect();
+        let mut th = vec![0.0f32; w * (gy1 - gy0)];
+        for (row, grow) in th.chunks_mut(w).zip(g.chunks(gw)) {
+            for (v, (idx, wt)) in row.iter_mut().zip(&taps) {
+                let mut acc = 0.0f32;
+                for (&i, &wv) in idx.iter().zip(wt) {
+                    acc += wv * grow[i];
+                }
+                *v = acc;
+            }
+        }
+        let mut out = vec![0.0f32; w * h];
+        for (r, row) in out.chunks_mut(w).enumerate() {
+            let o = y + r;
+            let (off, wt) = up.phases[o % f];
+            let base = (o / f) as isize + off;
+            for (t, &wv) in wt.iter().enumerate() {
+                let src = reflect(base + t as isize, ih) - gy0;
+                row.iter_mut()
+                    .zip(&th[src * w..(src + 1) * w])
+                    .for_each(|(a, b)| *a += wv * b);
+            }
+            let d = &detail[(o - dy0) * dw + x - dx0..(o - dy0) * dw + x - dx0 + w];
+            row.iter_mut().zip(d).for_each(|(a, b)| *a += b);
+        }
+        out
+    }
+
+    /// The inverse DWT of the new levels over the approximation `input` (`with_input`) or over
+    /// a zero approximation (the spectral model's detail alone).
+    fn render_pass(&self, x: usize, y: usize, w: usize, h: usize, with_input: bool) -> Vec<f32> {
         let n = self.settings.extra_levels;
         if n == 0 {
             let mut out = Vec::with_capacity(w * h);
@@ -518,27 +644,14 @@ impl Refiner {
             plans.push((px, py));
         }
         plans.reverse();
-        // Level 0: the input itself (pre-filtered by the spectral model) is the approximation
-        // at level J.
+        // Level 0: the input itself is the approximation at level J (zero for the spectral
+        // model's detail).
         let mut cur = Vec::with_capacity((bx - ax) * (by - ay));
         for r in ay..by {
-            cur.extend_from_slice(&self.base.data[r * iw + ax..r * iw + bx]);
-        }
-        if correct {
-            let f = 1usize << n;
-            let (uw, uh) = ((bx - ax) * f, (by - ay) * f);
-            let u = self.render_pass(ax * f, ay * f, uw, uh, false);
-            let inv = 1.0 / (f * f) as f64;
-            for (j, row) in cur.chunks_mut(bx - ax).enumerate() {
-                for (i, v) in row.iter_mut().enumerate() {
-                    let mut sum = 0.0f64;
-                    for r in 0..f {
-                        let o = (j * f + r) * uw + i * f;
-                        sum += u[o..o + f].iter().map(|&z| z as f64).sum::<f64>();
-                    }
-                    let target = self.input.data[(ay + j) * iw + ax + i] as f64;
-                    *v += (target - sum * inv) as f32;
-                }
+            if with_input {
+                cur.extend_from_slice(&self.input.data[r * iw + ax..r * iw + bx]);
+            } else {
+                cur.resize(cur.len() + bx - ax, 0.0);
             }
         }
         let (lx0, ly0, lw, lh) = (ax, ay, bx - ax, by - ay);

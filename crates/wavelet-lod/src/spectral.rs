@@ -1,6 +1,6 @@
 //! The spectral synthesis model ([`crate::Model::Spectral`], the default; a departure from the
 //! paper): coloured new coefficients whose output spectrum continues the fitted power law, and
-//! a pre-filter of the input that makes the refinement area-consistent (pixel-is-area).
+//! a cubic smooth part that makes the refinement area-consistent (pixel-is-area).
 //!
 //! * **Target.** With the metric normalisation the detail variance of level `j` decays as
 //!   `2^(-j gamma)`; for a surface whose radially averaged power spectrum is `P(k) ~ k^beta`
@@ -16,11 +16,12 @@
 //!   `|omega|^beta / |response(omega)|^2`, where `response` is the product of the basis'
 //!   synthesis filters the coefficient passes through. The kernel is normalised to unit gain in
 //!   variance, so the coefficient variance still follows the fitted line (equation (5)).
-//! * **Area consistency.** The inverse DWT places input sample `i` on output sample `2^n i` and
-//!   treats it as a low-pass value, whereas an input cell is the mean of a `2^n x 2^n` block of
-//!   the output (pixel-is-area). The input is therefore pre-filtered by a short separable filter
-//!   `p`, fitted by regularised least squares so that `box-down(synthesis(p * input)) = input`
-//!   for the smooth part, which also undoes the `(2^n - 1) / 2` cells shift.
+//! * **Area consistency.** An input cell is the mean of a `2^n x 2^n` block of the output
+//!   (pixel-is-area). The smooth part is the Keys bicubic up-sampling (cell-centre aligned) of
+//!   the coarse grid `q * (input - box-down(D))`, where `D` is the synthetic detail and `q` a
+//!   17-tap separable filter, the least-squares inverse of `box-down(cubic(.))` (a 5-tap
+//!   symmetric filter whose response stays above 0.6 at the coarse Nyquist frequency, so the
+//!   inverse is short and well conditioned). Hence `box-down(output) = input`.
 
 use crate::dwt::{Band, idwt1};
 use crate::lift::Boundary;
@@ -30,12 +31,6 @@ use crate::wavelet::Wavelet;
 pub(crate) const KR: usize = 2;
 /// Side of the colouring kernels.
 pub(crate) const KS: usize = 2 * KR + 1;
-/// Half-length of the area-consistency pre-filter.
-const PL: usize = 6;
-/// Ridge of the pre-filter's least squares. Chosen by measurement (issue 16 protocol): 1e-1
-/// gives the best box consistency; smaller ridges invert the operator closer to the coarse
-/// Nyquist frequency and amplify what the box filter nearly removes (1e-2: +50 % RMS error).
-const RIDGE: f64 = 1e-1;
 
 /// The 1-D synthesis filters `(low, high)` of a basis in the metric normalisation: the response
 /// of one inverse level to a unit approximation (resp. detail) sample.
@@ -64,13 +59,13 @@ fn magnitude(h: &[f64], w: f64) -> f64 {
     re.hypot(im)
 }
 
-/// Colouring kernels and the pre-filter of one refinement.
+/// Colouring kernels and the smooth part of one refinement.
 #[derive(Debug, Clone)]
 pub(crate) struct SpectralPlan {
     /// Per new level (coarsest first), per band: a `KS x KS` row-major kernel.
     pub(crate) kernels: Vec<[[f32; KS * KS]; 3]>,
-    /// Pre-filter taps `p[-PL..=PL]`.
-    pub(crate) prefilter: Vec<f32>,
+    /// The smooth part: cubic up-sampling with its box-consistency inverse.
+    pub(crate) cubic: CubicUp,
 }
 
 impl SpectralPlan {
@@ -85,7 +80,7 @@ impl SpectralPlan {
             .collect();
         Self {
             kernels,
-            prefilter: design_prefilter(wavelet, levels),
+            cubic: CubicUp::new(levels),
         }
     }
 }
@@ -170,65 +165,119 @@ fn design_kernel(g0: &[f64], g1: &[f64], m: u32, band: Band, beta: f64) -> [f32;
     out
 }
 
-/// The area-consistency pre-filter for `levels` new levels (see the module docs).
-fn design_prefilter(wavelet: Wavelet, levels: u32) -> Vec<f32> {
-    if levels == 0 {
-        let mut p = vec![0.0f32; 2 * PL + 1];
-        p[PL] = 1.0;
-        return p;
+/// Cubic up-sampling by `2^levels` (Keys, `a = -0.5`, cell-centre aligned as
+/// [`relief_heightfield::Heightfield::resample`]) and its box-consistency inverse: the smooth
+/// part of the spectral model (see the module docs).
+#[derive(Debug, Clone)]
+pub(crate) struct CubicUp {
+    /// Up-sampling factor `f = 2^levels`.
+    pub(crate) factor: usize,
+    /// Per output phase `r` in `0..f`: the offset of the first of the four coarse taps from the
+    /// block index, and the weights.
+    pub(crate) phases: Vec<(isize, [f32; 4])>,
+    /// Coarse-grid pre-filter `q[-QL..=QL]` with `box-down(cubic(q * c)) = c` (1-D, applied
+    /// separably).
+    pub(crate) inverse: Vec<f32>,
+}
+
+/// Half-length of the box-consistency inverse filter (its taps decay by about 5x per tap, so
+/// the truncated tail is about 1e-6 of the centre tap; the unit test bounds the resulting
+/// block-mean error).
+pub(crate) const QL: usize = 8;
+
+impl CubicUp {
+    pub(crate) fn new(levels: u32) -> Self {
+        let f = 1usize << levels;
+        let phases: Vec<(isize, [f32; 4])> = (0..f)
+            .map(|r| {
+                let c = (r as f64 + 0.5) / f as f64 - 0.5;
+                let fl = c.floor();
+                (
+                    fl as isize - 1,
+                    relief_heightfield::cubic_weights((c - fl) as f32),
+                )
+            })
+            .collect();
+        // 1-D response of box-down(cubic(.)) to a coarse unit sample: a[m], m in -2..=2.
+        let mut a = [0.0f64; 5];
+        for (off, w) in &phases {
+            for (k, &wk) in w.iter().enumerate() {
+                let m = off + k as isize;
+                a[(m + 2) as usize] += wk as f64 / f as f64;
+            }
+        }
+        Self {
+            factor: f,
+            phases,
+            inverse: design_inverse(&a),
+        }
     }
-    // Response of box-down(synthesis(.)) to a unit coarse sample: k[d] for d in -D..=D.
-    const M: usize = 64;
-    const C: usize = M / 2;
-    const D: usize = 8;
-    let mut u = vec![0.0f32; M];
-    u[C] = 1.0;
-    for _ in 0..levels {
-        let zero = vec![0.0f32; u.len()];
-        u = idwt1(&u, &zero, wavelet, Boundary::Symmetric).unwrap_or_default();
+
+    /// Range of coarse indices `[lo, hi)` (whole-sample symmetric reflection into `[0, n)`)
+    /// that output positions `[o0, o1)` read.
+    pub(crate) fn coarse_range(&self, o0: usize, o1: usize, n: usize) -> (usize, usize) {
+        let f = self.factor;
+        let (mut lo, mut hi) = (usize::MAX, 0usize);
+        for o in o0..o1 {
+            let (off, _) = self.phases[o % f];
+            let base = (o / f) as isize + off;
+            for i in base..base + 4 {
+                let r = reflect(i, n);
+                lo = lo.min(r);
+                hi = hi.max(r + 1);
+            }
+        }
+        (lo.min(hi), hi)
     }
-    let f = 1usize << levels;
-    let k: Vec<f64> = (0..=2 * D)
-        .map(|i| {
-            let b = (C + i - D) * f;
-            u.get(b..b + f)
-                .map_or(0.0, |s| s.iter().map(|&v| v as f64).sum::<f64>() / f as f64)
-        })
-        .collect();
-    // Least squares: find p (taps -PL..=PL) with (k * p)[d] = delta[d] for d in -(PL+D)..=(PL+D),
-    // with a small ridge so that frequencies the operator nearly removes are not blown up.
-    let np = 2 * PL + 1;
-    let nd = 2 * (PL + D) + 1;
+}
+
+/// Whole-sample symmetric reflection of index `i` into `[0, n)`.
+#[inline]
+pub(crate) fn reflect(i: isize, n: usize) -> usize {
+    if n <= 1 {
+        return 0;
+    }
+    let period = 2 * (n as isize - 1);
+    let mut i = i.rem_euclid(period);
+    if i >= n as isize {
+        i = period - i;
+    }
+    i as usize
+}
+
+/// Least-squares inverse `q[-QL..=QL]` of the symmetric 5-tap filter `a[-2..=2]`:
+/// `(a * q)[d] = delta[d]` for every `d` the product reaches, with a tiny ridge.
+fn design_inverse(a: &[f64; 5]) -> Vec<f32> {
+    let np = 2 * QL + 1;
+    let nd = np + 4;
     let mut ata = vec![0.0f64; np * np];
     let mut atb = vec![0.0f64; np];
     for d in 0..nd {
-        // Row d: sum_j p[j] k[d - j] (indices offset).
         let row: Vec<f64> = (0..np)
             .map(|j| {
-                let i = d as isize - j as isize; // offset of k, in 0..=2D
-                if (0..=2 * D as isize).contains(&i) {
-                    k[i as usize]
+                let i = d as isize - j as isize;
+                if (0..5).contains(&i) {
+                    a[i as usize]
                 } else {
                     0.0
                 }
             })
             .collect();
-        let b = if d == PL + D { 1.0 } else { 0.0 };
-        for a in 0..np {
-            atb[a] += row[a] * b;
+        let b = if d == QL + 2 { 1.0 } else { 0.0 };
+        for r in 0..np {
+            atb[r] += row[r] * b;
             for c in 0..np {
-                ata[a * np + c] += row[a] * row[c];
+                ata[r * np + c] += row[r] * row[c];
             }
         }
     }
-    for a in 0..np {
-        ata[a * np + a] += RIDGE;
+    for r in 0..np {
+        ata[r * np + r] += 1e-9;
     }
-    let p = solve(&mut ata, &mut atb, np);
-    // Exact DC gain: a constant input must stay the same constant.
-    let sum: f64 = p.iter().sum();
+    let q = solve(&mut ata, &mut atb, np);
+    let sum: f64 = q.iter().sum();
     let sum = if sum.abs() > 1e-6 { sum } else { 1.0 };
-    p.iter().map(|&v| (v / sum) as f32).collect()
+    q.iter().map(|&v| (v / sum) as f32).collect()
 }
 
 /// Gaussian elimination with partial pivoting of a small dense system (positive definite here).
@@ -268,59 +317,39 @@ fn solve(a: &mut [f64], b: &mut [f64], n: usize) -> Vec<f64> {
     x
 }
 
-/// Convolves a grid with the separable pre-filter (whole-sample symmetric extension).
-pub(crate) fn prefilter_grid(g: &crate::dwt::Grid, p: &[f32]) -> crate::dwt::Grid {
-    let (w, h) = (g.width, g.height);
-    let l = p.len() / 2;
-    let reflect = |i: isize, n: usize| -> usize {
-        if n == 1 {
-            return 0;
-        }
-        let period = 2 * (n as isize - 1);
-        let mut i = i.rem_euclid(period);
-        if i >= n as isize {
-            i = period - i;
-        }
-        i as usize
-    };
-    let mut tmp = vec![0.0f32; w * h];
-    for y in 0..h {
-        let row = &g.data[y * w..(y + 1) * w];
-        for x in 0..w {
-            let mut s = 0.0f32;
-            for (j, &c) in p.iter().enumerate() {
-                s += c * row[reflect(x as isize + l as isize - j as isize, w)];
-            }
-            tmp[y * w + x] = s;
-        }
-    }
-    let mut out = vec![0.0f32; w * h];
-    for y in 0..h {
-        for (j, &c) in p.iter().enumerate() {
-            let src = reflect(y as isize + l as isize - j as isize, h);
-            let (o, s) = (&mut out[y * w..(y + 1) * w], &tmp[src * w..(src + 1) * w]);
-            o.iter_mut().zip(s).for_each(|(a, b)| *a += c * b);
-        }
-    }
-    crate::dwt::Grid {
-        width: w,
-        height: h,
-        data: out,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn prefilter_makes_box_down_of_the_smooth_refinement_consistent() {
-        for w in Wavelet::ALL {
-            for n in 1..=3u32 {
-                let p = design_prefilter(w, n);
-                let s: f32 = p.iter().sum();
-                assert!((s - 1.0).abs() < 1e-2, "{w} {n}: DC gain {s}");
+    fn cubic_inverse_makes_box_down_of_the_cubic_up_sampling_the_identity() {
+        for levels in 1..=5u32 {
+            let up = CubicUp::new(levels);
+            let f = up.factor;
+            // A random-ish coarse signal, symmetric extension; box-down(cubic(q * c)) = c.
+            let n = 40usize;
+            let c: Vec<f64> = (0..n).map(|i| ((i * 7919) % 23) as f64 - 11.0).collect();
+            let ql = QL as isize;
+            let g: Vec<f64> = (0..n as isize)
+                .map(|i| {
+                    (-ql..=ql)
+                        .map(|k| up.inverse[(k + ql) as usize] as f64 * c[reflect(i + k, n)])
+                        .sum()
+                })
+                .collect();
+            for (i, &ci) in c.iter().enumerate() {
+                let mut s = 0.0;
+                for r in 0..f {
+                    let (off, w) = up.phases[r];
+                    for (k, wk) in w.iter().enumerate() {
+                        s += *wk as f64 * g[reflect(i as isize + off + k as isize, n)];
+                    }
+                }
+                let err = (s / f as f64 - ci).abs();
+                assert!(err < 1e-4, "levels {levels}, cell {i}: {err}");
             }
+            let dc: f32 = up.inverse.iter().sum();
+            assert!((dc - 1.0).abs() < 1e-5);
         }
     }
 

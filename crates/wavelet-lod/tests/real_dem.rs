@@ -315,7 +315,7 @@ fn spectral_model_matches_the_truth_spectrum_on_n47e011() {
     assert!(spectral.dslope < 0.5, "spectral dslope {}", spectral.dslope);
     assert!(spectral.dslope < paper.dslope && spectral.dslope < bicubic.dslope);
     assert!(
-        spectral.consistency < 0.005,
+        spectral.consistency < 1e-4,
         "consistency {}",
         spectral.consistency
     );
