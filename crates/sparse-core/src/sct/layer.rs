@@ -1,0 +1,493 @@
+//! Sparse layers (section 4.1): primitives blended by their weights, evaluated at a point or
+//! stamped into a band of rows.
+
+use super::*;
+
+/// A set of sparse primitives over one dictionary, blended by the normalised weighted sum
+/// (section 4.1). Primitive `i`: centre `c_i`, elevation `z_i`, coefficients `(j, x_i^j)`.
+#[derive(Debug, Clone)]
+pub struct SparseLayer {
+    pub(super) dictionary: Arc<Dictionary>,
+    pub(super) placement: Placement,
+    pub(super) z: Vec<f32>,
+    pub(super) offsets: Vec<u32>,
+    pub(super) atoms: Vec<u32>,
+    pub(super) coeffs: Vec<f32>,
+    pub(super) centres: Vec<[f64; 2]>,
+    pub(super) has_functions: Vec<bool>,
+    pub(super) index: SpatialIndex,
+}
+
+impl SparseLayer {
+    /// Builds a layer from compressed-row coefficients (`offsets` has `n + 1` entries).
+    pub fn from_parts(
+        dictionary: Arc<Dictionary>,
+        placement: Placement,
+        z: Vec<f32>,
+        offsets: Vec<u32>,
+        atoms: Vec<u32>,
+        coeffs: Vec<f32>,
+    ) -> Result<Self> {
+        let n = placement.len();
+        if z.len() != n {
+            return Err(SparseError::DimensionMismatch {
+                what: "z values vs primitives",
+                expected: n,
+                got: z.len(),
+            });
+        }
+        if offsets.len() != n + 1
+            || offsets[0] != 0
+            || offsets.windows(2).any(|w| w[1] < w[0])
+            || offsets[n] as usize != atoms.len()
+            || atoms.len() != coeffs.len()
+        {
+            return Err(SparseError::param(
+                "offsets",
+                offsets.len(),
+                "need n + 1 non-decreasing offsets from 0 to the coefficient count",
+            ));
+        }
+        if let Some(&j) = atoms.iter().find(|&&j| j as usize >= dictionary.len()) {
+            return Err(SparseError::param(
+                "atom index",
+                j,
+                "exceeds the dictionary size",
+            ));
+        }
+        if let Some(i) = z.iter().position(|v| !v.is_finite()) {
+            return Err(SparseError::NonFinite { what: "z", row: i });
+        }
+        if let Some(i) = coeffs.iter().position(|v| !v.is_finite()) {
+            return Err(SparseError::NonFinite {
+                what: "coefficients",
+                row: i,
+            });
+        }
+        let centres: Vec<[f64; 2]> = (0..n).map(|k| placement.centre(k)).collect();
+        if let Some(i) = centres
+            .iter()
+            .position(|c| !(c[0].is_finite() && c[1].is_finite()))
+        {
+            return Err(SparseError::NonFinite {
+                what: "centres",
+                row: i,
+            });
+        }
+        let has_functions = (0..n)
+            .map(|k| {
+                atoms[offsets[k] as usize..offsets[k + 1] as usize]
+                    .iter()
+                    .any(|&j| matches!(dictionary.atoms()[j as usize], Atom::Function { .. }))
+            })
+            .collect();
+        let index = SpatialIndex::build(&centres, dictionary.support_radius());
+        Ok(Self {
+            dictionary,
+            placement,
+            z,
+            offsets,
+            atoms,
+            coeffs,
+            centres,
+            has_functions,
+            index,
+        })
+    }
+
+    /// Builds a layer from OMP codes (one signal per primitive).
+    pub fn from_codes(
+        dictionary: Arc<Dictionary>,
+        placement: Placement,
+        z: Vec<f32>,
+        codes: &SparseCodes<f32>,
+    ) -> Result<Self> {
+        let mut offsets = Vec::with_capacity(codes.n_signals() + 1);
+        offsets.push(0u32);
+        let mut atoms = Vec::with_capacity(codes.nnz());
+        let mut coeffs = Vec::with_capacity(codes.nnz());
+        for i in 0..codes.n_signals() {
+            let (idx, val) = codes.signal(i);
+            atoms.extend_from_slice(idx);
+            coeffs.extend_from_slice(val);
+            offsets.push(atoms.len() as u32);
+        }
+        Self::from_parts(dictionary, placement, z, offsets, atoms, coeffs)
+    }
+
+    /// The dictionary.
+    pub fn dictionary(&self) -> &Arc<Dictionary> {
+        &self.dictionary
+    }
+
+    /// The placement of the centres.
+    pub fn placement(&self) -> &Placement {
+        &self.placement
+    }
+
+    /// Number of primitives `n`.
+    pub fn len(&self) -> usize {
+        self.z.len()
+    }
+
+    /// True when the layer has no primitive.
+    pub fn is_empty(&self) -> bool {
+        self.z.is_empty()
+    }
+
+    /// Elevations `z_i`.
+    pub fn z(&self) -> &[f32] {
+        &self.z
+    }
+
+    /// Compressed-row offsets (`n + 1`).
+    pub fn offsets(&self) -> &[u32] {
+        &self.offsets
+    }
+
+    /// Atom indices of all primitives (see [`SparseLayer::offsets`]).
+    pub fn atom_indices(&self) -> &[u32] {
+        &self.atoms
+    }
+
+    /// Coefficients of all primitives (see [`SparseLayer::offsets`]).
+    pub fn coefficients(&self) -> &[f32] {
+        &self.coeffs
+    }
+
+    /// Atom indices and coefficients of primitive `i`.
+    pub fn primitive(&self, i: usize) -> (&[u32], &[f32]) {
+        let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+        (&self.atoms[a..b], &self.coeffs[a..b])
+    }
+
+    /// Centre of primitive `i`.
+    pub fn centre(&self, i: usize) -> [f64; 2] {
+        self.centres[i]
+    }
+
+    /// Largest number of coefficients of a primitive (the sparsity `s`).
+    pub fn max_sparsity(&self) -> usize {
+        self.offsets
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The primitives whose support holds `(x, y)`, in increasing order. The spatial index
+    /// limits the visit to the primitives listed in one grid cell.
+    pub fn primitives_at(&self, x: f64, y: f64) -> Vec<usize> {
+        let rr = self.dictionary.support_radius() * self.dictionary.support_radius();
+        self.index
+            .cell_ids(x, y)
+            .iter()
+            .map(|&i| i as usize)
+            .filter(|&i| {
+                let [cx, cy] = self.centres[i];
+                weight(x - cx, y - cy, rr).is_some()
+            })
+            .collect()
+    }
+
+    /// Number of primitives the index visits for a query at `(x, y)` (those listed in its cell).
+    pub fn candidates_at(&self, x: f64, y: f64) -> usize {
+        self.index.cell_ids(x, y).len()
+    }
+
+    /// Sums the data atoms of primitive `i` into `p` (`a * a`).
+    pub(super) fn patch(&self, i: usize, p: &mut [f64]) {
+        p.iter_mut().for_each(|v| *v = 0.0);
+        let (idx, val) = self.primitive(i);
+        for (&j, &x) in idx.iter().zip(val) {
+            if let Atom::Data(d) = &self.dictionary.atoms()[j as usize] {
+                let x = x as f64;
+                for (o, &dv) in p.iter_mut().zip(d) {
+                    *o += x * dv as f64;
+                }
+            }
+        }
+    }
+
+    /// Function-atom part of primitive `i` at offset `(dx, dy)`.
+    pub(super) fn functions(&self, i: usize, dx: f64, dy: f64) -> f64 {
+        let (idx, val) = self.primitive(i);
+        let mut acc = 0.0;
+        for (&j, &x) in idx.iter().zip(val) {
+            if let Some(v) = self.dictionary.eval_function(j as usize, dx, dy) {
+                acc += x as f64 * v;
+            }
+        }
+        acc
+    }
+
+    /// `(numerator, denominator)` of the blend at `(x, y)`.
+    pub(super) fn eval_parts(&self, x: f64, y: f64) -> (f64, f64) {
+        let a = self.dictionary.patch_size();
+        let delta = self.dictionary.spacing();
+        let rr = self.dictionary.support_radius() * self.dictionary.support_radius();
+        let mut p = vec![0.0; a * a];
+        let (mut num, mut den) = (0.0, 0.0);
+        for &id in self.index.cell_ids(x, y) {
+            let i = id as usize;
+            let [cx, cy] = self.centres[i];
+            let (dx, dy) = (x - cx, y - cy);
+            let Some(alpha) = weight(dx, dy, rr) else {
+                continue;
+            };
+            self.patch(i, &mut p);
+            let (cols, wx) = taps(dx, delta, a);
+            let (rows, wy) = taps(dy, delta, a);
+            let mut h = [0.0; 4];
+            for r in 0..4 {
+                let prow = &p[rows[r] * a..rows[r] * a + a];
+                h[r] = if is_exact(&wx) {
+                    prow[cols[1]]
+                } else {
+                    hpass(prow, &cols, &wx)
+                };
+            }
+            // The same arithmetic as `stamp` (sample positions read directly).
+            let mut v = if is_exact(&wy) { h[1] } else { vpass(&h, &wy) };
+            if self.has_functions[i] {
+                v += self.functions(i, dx, dy);
+            }
+            let f = self.z[i] as f64 + v;
+            num += f * alpha;
+            den += alpha;
+        }
+        (num, den)
+    }
+
+    /// Stamps the layer into a band: `num`/`den` are `ncols x nrows` buffers for pixels
+    /// `(X0 + c, Y0 + r)` at scale `scale`.
+    pub(super) fn stamp(
+        &self,
+        band: &Band,
+        num: &mut [f64],
+        den: &mut [f64],
+        scratch: &mut StampScratch,
+    ) {
+        let a = self.dictionary.patch_size();
+        let delta = self.dictionary.spacing();
+        let radius = self.dictionary.support_radius();
+        let rr = radius * radius;
+        let sc = band.scale;
+        let (wx0, wx1) = (band.x0 as f64 / sc, (band.x1 - 1) as f64 / sc);
+        let (wy0, wy1) = (band.y0 as f64 / sc, (band.y1 - 1) as f64 / sc);
+        self.index
+            .query_rect(wx0, wy0, wx1, wy1, &mut scratch.candidates);
+        scratch.p.resize(a * a, 0.0);
+        let ncols = band.x1 - band.x0;
+        let candidates = std::mem::take(&mut scratch.candidates);
+        for &id in &candidates {
+            let i = id as usize;
+            let [cx, cy] = self.centres[i];
+            // Conservative pixel ranges of the support (exact test per pixel below).
+            let xa = lo_pixel(cx - radius, sc, band.x0);
+            let xb = hi_pixel(cx + radius, sc, band.x1);
+            let ya = lo_pixel(cy - radius, sc, band.y0);
+            let yb = hi_pixel(cy + radius, sc, band.y1);
+            if xa > xb || ya > yb {
+                continue;
+            }
+            self.patch(i, &mut scratch.p);
+            let w = (xb - xa + 1) as usize;
+            let hgt = (yb - ya + 1) as usize;
+            // Offsets of the pixels from the centre. On a regular grid at a whole scale they
+            // repeat from one primitive to the next: the weights and row taps are then reused
+            // (the same values, computed by the same function, so bit for bit the same).
+            scratch.dx.clear();
+            scratch.dx.extend((xa..=xb).map(|xi| xi as f64 / sc - cx));
+            scratch.dy.clear();
+            scratch.dy.extend((ya..=yb).map(|yi| yi as f64 / sc - cy));
+            let params = (rr, delta, a);
+            if scratch.key != Some(params)
+                || scratch.key_dx != scratch.dx
+                || scratch.key_dy != scratch.dy
+            {
+                scratch.ctaps.clear();
+                scratch
+                    .ctaps
+                    .extend(scratch.dx.iter().map(|&dx| (dx, taps(dx, delta, a))));
+                scratch.rtaps.clear();
+                scratch
+                    .rtaps
+                    .extend(scratch.dy.iter().map(|&dy| taps(dy, delta, a)));
+                scratch.alpha.clear();
+                for &dy in &scratch.dy {
+                    for &dx in &scratch.dx {
+                        scratch.alpha.push(weight(dx, dy, rr).unwrap_or(f64::NAN));
+                    }
+                }
+                scratch.all_exact = scratch.ctaps.iter().all(|(_, (_, wx))| is_exact(wx));
+                scratch.key = Some(params);
+                scratch.key_dx.clone_from(&scratch.dx);
+                scratch.key_dy.clone_from(&scratch.dy);
+            }
+            // h[r][k]: patch row r interpolated at column k. On patch samples (taps
+            // (0, 1, 0, 0)) the sum is that sample exactly, so it is read directly: the same
+            // value, only cheaper (scale 1 with pixel-aligned samples, e.g. amplification).
+            let direct = scratch.all_exact;
+            if !direct {
+                scratch.h.resize(a * w, 0.0);
+                for r in 0..a {
+                    let prow = &scratch.p[r * a..r * a + a];
+                    let hrow = &mut scratch.h[r * w..r * w + w];
+                    for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps) {
+                        *o = if is_exact(wx) {
+                            prow[cols[1]]
+                        } else {
+                            hpass(prow, cols, wx)
+                        };
+                    }
+                }
+            }
+            let z = self.z[i] as f64;
+            let (p, h, ctaps) = (&scratch.p, &scratch.h, &scratch.ctaps);
+            let hv = |r: usize, k: usize| -> f64 {
+                if direct {
+                    p[r * a + ctaps[k].1.0[1]]
+                } else {
+                    h[r * w + k]
+                }
+            };
+            for ry in 0..hgt {
+                let yi = ya as usize + ry;
+                let dy = scratch.dy[ry];
+                let (rows, wy) = scratch.rtaps[ry];
+                let exact_row = is_exact(&wy);
+                let row_off = (yi - band.y0) * ncols + (xa as usize - band.x0);
+                let arow = &scratch.alpha[ry * w..ry * w + w];
+                for (k, &alpha) in arow.iter().enumerate() {
+                    if alpha.is_nan() {
+                        continue;
+                    }
+                    let mut v = if exact_row {
+                        hv(rows[1], k)
+                    } else {
+                        let hh = [
+                            hv(rows[0], k),
+                            hv(rows[1], k),
+                            hv(rows[2], k),
+                            hv(rows[3], k),
+                        ];
+                        vpass(&hh, &wy)
+                    };
+                    if self.has_functions[i] {
+                        v += self.functions(i, ctaps[k].0, dy);
+                    }
+                    let f = z + v;
+                    let o = row_off + k;
+                    num[o] += f * alpha;
+                    den[o] += alpha;
+                }
+            }
+        }
+        scratch.candidates = candidates;
+    }
+}
+
+/// `g(r) = (1 - r^2)^3` for `r < 1` with `r^2 = (dx^2 + dy^2) / R^2`.
+#[inline]
+pub(super) fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
+    let r2 = (dx * dx + dy * dy) / rr;
+    if r2 < 1.0 {
+        let q = 1.0 - r2;
+        Some(q * q * q)
+    } else {
+        None
+    }
+}
+
+/// First pixel (conservative: one before, clamped to the band start `b0`) whose coordinate at
+/// scale `sc` may be `>= v`. Saturating, so huge or infinite extents cannot overflow.
+#[inline]
+pub(super) fn lo_pixel(v: f64, sc: f64, b0: usize) -> i64 {
+    ((v * sc).floor() as i64).saturating_sub(1).max(b0 as i64)
+}
+
+/// Last pixel (conservative: one after, clamped to the band end `b1 - 1`) whose coordinate at
+/// scale `sc` may be `<= v`.
+#[inline]
+pub(super) fn hi_pixel(v: f64, sc: f64, b1: usize) -> i64 {
+    ((v * sc).ceil() as i64)
+        .saturating_add(1)
+        .min(b1 as i64 - 1)
+}
+
+/// Clamped sample indices and weights of a bicubic tap set.
+pub(super) type Taps = ([usize; 4], [f64; 4]);
+
+/// Bicubic taps (clamped sample indices and weights) of offset `d` in a patch of side `a`.
+#[inline]
+pub(super) fn taps(d: f64, delta: f64, a: usize) -> Taps {
+    let u = d / delta + (a as f64 - 1.0) / 2.0;
+    let f = u.floor();
+    let w = cubic_weights(u - f);
+    // Indices are clamped to the patch anyway; bounding `f` first keeps huge offsets (far
+    // centres, tiny spacings in decoded data) from overflowing the integer arithmetic.
+    let base = f.clamp(-8.0, a as f64 + 8.0) as i64 - 1;
+    let last = a as i64 - 1;
+    let idx = [
+        base.clamp(0, last) as usize,
+        (base + 1).clamp(0, last) as usize,
+        (base + 2).clamp(0, last) as usize,
+        (base + 3).clamp(0, last) as usize,
+    ];
+    (idx, w)
+}
+
+/// Whether bicubic weights are exactly `(0, 1, 0, 0)` (a sample position): the weighted sum
+/// of finite values is then the second value, bit for bit (up to the sign of a zero).
+#[inline]
+pub(super) fn is_exact(w: &[f64; 4]) -> bool {
+    w[1] == 1.0 && w[0] == 0.0 && w[2] == 0.0 && w[3] == 0.0
+}
+
+#[inline]
+pub(super) fn hpass(row: &[f64], cols: &[usize; 4], wx: &[f64; 4]) -> f64 {
+    let mut acc = 0.0;
+    for c in 0..4 {
+        acc += wx[c] * row[cols[c]];
+    }
+    acc
+}
+
+#[inline]
+pub(super) fn vpass(h: &[f64; 4], wy: &[f64; 4]) -> f64 {
+    let mut acc = 0.0;
+    for r in 0..4 {
+        acc += wy[r] * h[r];
+    }
+    acc
+}
+
+/// A rectangle of output pixels `[x0, x1) x [y0, y1)` at a scale factor.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Band {
+    pub(super) x0: usize,
+    pub(super) x1: usize,
+    pub(super) y0: usize,
+    pub(super) y1: usize,
+    pub(super) scale: f64,
+}
+
+#[derive(Debug, Default)]
+pub(super) struct StampScratch {
+    pub(super) candidates: Vec<u32>,
+    pub(super) p: Vec<f64>,
+    pub(super) h: Vec<f64>,
+    pub(super) ctaps: Vec<(f64, Taps)>,
+    pub(super) rtaps: Vec<Taps>,
+    pub(super) dx: Vec<f64>,
+    pub(super) dy: Vec<f64>,
+    /// Weights of the cached offsets (NaN outside the support), row-major.
+    pub(super) alpha: Vec<f64>,
+    /// Whether every cached column tap set is a sample position.
+    pub(super) all_exact: bool,
+    /// `(R^2, delta, a)` and the offsets the cached taps and weights were computed for.
+    pub(super) key: Option<(f64, f64, usize)>,
+    pub(super) key_dx: Vec<f64>,
+    pub(super) key_dy: Vec<f64>,
+}

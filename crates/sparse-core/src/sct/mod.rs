@@ -1,0 +1,332 @@
+//! The Sparse Construction Tree (guerin2016 sections 4.1 and 5.4): sparse layers of primitives
+//! blended by `f(p) = sum_i f_i(p) alpha_i(p) / sum_i alpha_i(p)`, operator nodes and procedural
+//! primitives, evaluation at any point and rasterisation of any window at any scale.
+//!
+//! # Value and weight
+//! Every node evaluates to a pair `(value, weight)`. A [`SparseLayer`] gives
+//! `(sum f_i alpha_i / sum alpha_i, sum alpha_i)` (value NaN where no support covers the point);
+//! [`Node::Blend`] normalises the weighted sum of its children the same way, so blending layers
+//! generalises the equation above to sub-trees. The other operators keep the weight of their
+//! first child (the base) and combine values: [`Node::Add`] sums, [`Node::Max`]/[`Node::Min`]
+//! take the extremum (carving: `Min(terrain, river bed)`), [`Node::Replace`] blends an overlay
+//! into the base inside a [`Region`] with a smooth fall-off.
+//!
+//! # Rasterisation
+//! [`Sct::rasterize`] splits the requested window into bands of rows processed in parallel.
+//! A layer is rasterised by *stamping*: each primitive whose support meets the band first sums
+//! its data atoms into one `a x a` patch `P_i = sum_j x_i^j d_j`, then adds
+//! `(z_i + bicubic(P_i) + function atoms) alpha_i` and `alpha_i` into numerator and denominator
+//! buffers, using a separable bicubic (one horizontal pass per patch row, then four taps per
+//! pixel). Primitives are always visited in increasing index order and every pixel's value is
+//! computed by the same arithmetic as [`Sct::eval`], so a window rasterised alone equals the
+//! same window of the full raster bit for bit, and both equal point evaluation, whatever the
+//! thread count.
+//!
+//! The other nodes are stamped too: a [`River`] stamps each segment over the pixels of its box
+//! grown by the largest half width (carve) or over the band (bed profile, defined everywhere),
+//! keeping per pixel the nearest segment in increasing segment order; [`Node::Replace`] stamps
+//! its overlay only on the part of the band where the region's weight is non-zero; operators
+//! combine their children's band buffers pixel by pixel with the same function as
+//! [`Node::eval`]. Every node kind therefore rasterises bit for bit like point evaluation
+//! (tested for each kind and for random trees).
+//!
+//! Point queries visit only nearby primitives: each layer and each carving river keeps a
+//! uniform-grid index of its supports (disks, segment boxes).
+//!
+//! Pixel `(X, Y)` of the raster at scale factor `s` samples the terrain at pixel coordinates
+//! `(X / s, Y / s)` of the encoded grid; the full raster has `floor((w - 1) s) + 1` columns.
+//!
+//! Files: `index.rs` (placement and the uniform-grid spatial index), `layer.rs` (sparse layers
+//! and their stamping), `river.rs` (regions and procedural rivers), `node.rs` (the operator tree),
+//! this file (windows, raster settings and [`Sct`]).
+
+mod index;
+mod layer;
+mod node;
+mod river;
+
+pub use index::Placement;
+pub use layer::SparseLayer;
+pub use node::Node;
+pub use river::{Region, River, RiverMode};
+
+use index::SpatialIndex;
+use layer::{Band, StampScratch, hi_pixel, lo_pixel};
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use relief_heightfield::{GeoRef, Heightfield, NoProgress, Progress};
+
+use crate::dictionary::{Atom, Dictionary};
+use crate::error::{Result, SparseError};
+use crate::omp::SparseCodes;
+use crate::patches::{CentreGrid, cubic_weights};
+
+/// A window of the output raster, in output pixels at the requested scale.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+}
+
+/// Settings of [`Sct::rasterize`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RasterSettings {
+    /// Scale factor `s` (> 0): output pixel `(X, Y)` samples terrain pixel `(X / s, Y / s)`.
+    pub scale: f64,
+    /// Window of the output raster (`None` = the whole raster).
+    pub window: Option<Window>,
+}
+
+impl Default for RasterSettings {
+    fn default() -> Self {
+        Self {
+            scale: 1.0,
+            window: None,
+        }
+    }
+}
+
+impl RasterSettings {
+    /// Validates the settings on their own: `scale` finite and in `(0, 1024]`, a window (if
+    /// any) non-empty and of at most `relief_heightfield::MAX_CELLS` cells. Whether the window
+    /// lies inside the raster is checked by [`Sct::rasterize`].
+    pub fn check(&self) -> Result<()> {
+        if !(self.scale.is_finite() && self.scale > 0.0 && self.scale <= 1024.0) {
+            return Err(SparseError::param(
+                "scale",
+                self.scale,
+                "must be finite and in (0, 1024]",
+            ));
+        }
+        if let Some(w) = self.window {
+            let cells = (w.width as u128) * (w.height as u128);
+            if cells == 0 || cells > relief_heightfield::MAX_CELLS as u128 {
+                return Err(SparseError::param(
+                    "window",
+                    format!("{},{},{},{}", w.x, w.y, w.width, w.height),
+                    "must be non-empty and hold at most MAX_CELLS cells",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Rows per parallel band.
+const BAND_ROWS: usize = 16;
+
+/// A Sparse Construction Tree over a `width x height` terrain domain.
+#[derive(Debug, Clone)]
+pub struct Sct {
+    root: Node,
+    width: usize,
+    height: usize,
+    cell_size: (f64, f64),
+    georef: Option<GeoRef>,
+}
+
+impl Sct {
+    /// A tree over a `width x height` domain with the given cell size (metres).
+    pub fn new(root: Node, width: usize, height: usize, cell_size: (f64, f64)) -> Result<Self> {
+        if width == 0 || height == 0 || width > 1 << 24 || height > 1 << 24 {
+            return Err(SparseError::param(
+                "width x height",
+                format!("{width} x {height}"),
+                "must be in 1..=2^24",
+            ));
+        }
+        let (cx, cy) = cell_size;
+        if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
+            return Err(SparseError::param(
+                "cell_size",
+                format!("{cx} x {cy}"),
+                "must be finite and > 0",
+            ));
+        }
+        root.check()?;
+        Ok(Self {
+            root,
+            width,
+            height,
+            cell_size,
+            georef: None,
+        })
+    }
+
+    /// The georeference of the domain grid at scale 1 (pixel-is-area: domain pixel `(i, j)`
+    /// covers `[i, i + 1) x [j, j + 1)` of the geotransform), carried into every raster.
+    pub fn georef(&self) -> Option<&GeoRef> {
+        self.georef.as_ref()
+    }
+
+    /// Sets the georeference of the domain grid (see [`Sct::georef`]).
+    pub fn set_georef(&mut self, georef: Option<GeoRef>) {
+        self.georef = georef;
+    }
+
+    /// Builder form of [`Sct::set_georef`].
+    pub fn with_georef(mut self, georef: Option<GeoRef>) -> Self {
+        self.georef = georef;
+        self
+    }
+
+    /// The georeference of the raster window `win` at scale `s`: raster pixel `X` samples
+    /// domain pixel `X / s`, whose centre is at `X / s + 1/2` of the domain grid, so the
+    /// raster's cells (size `1 / s`) start at `X / s + (1 - 1 / s) / 2`.
+    pub fn raster_georef(&self, scale: f64, win: Window) -> Option<GeoRef> {
+        let off = 0.5 - 0.5 / scale;
+        self.georef.as_ref().map(|g| {
+            g.window(
+                win.x as f64 / scale + off,
+                win.y as f64 / scale + off,
+                1.0 / scale,
+                1.0 / scale,
+            )
+        })
+    }
+
+    /// The root node.
+    pub fn root(&self) -> &Node {
+        &self.root
+    }
+
+    /// Replaces the root (authoring: wrap the current root in operators), checked.
+    pub fn set_root(&mut self, root: Node) -> Result<()> {
+        root.check()?;
+        self.root = root;
+        Ok(())
+    }
+
+    /// Takes the root out, leaving a constant 0 in its place.
+    pub fn take_root(&mut self) -> Node {
+        std::mem::replace(&mut self.root, Node::Constant(0.0))
+    }
+
+    /// Domain width in terrain pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Domain height in terrain pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Cell size `(east-west, north-south)` in metres at scale 1.
+    pub fn cell_size(&self) -> (f64, f64) {
+        self.cell_size
+    }
+
+    /// Every sparse layer of the tree (depth-first order).
+    pub fn layers(&self) -> Vec<&SparseLayer> {
+        let mut v = Vec::new();
+        self.root.collect_layers(&mut v);
+        v
+    }
+
+    /// Elevation `f(p)` at terrain pixel coordinates `(x, y)` (NaN outside every support).
+    pub fn eval(&self, x: f64, y: f64) -> f64 {
+        self.root.eval(x, y).0
+    }
+
+    /// Size `(columns, rows)` of the full raster at scale `scale`.
+    pub fn raster_size(&self, scale: f64) -> Result<(usize, usize)> {
+        if !(scale.is_finite() && scale > 0.0 && scale <= 1024.0) {
+            return Err(SparseError::param(
+                "scale",
+                scale,
+                "must be finite and in (0, 1024]",
+            ));
+        }
+        let f = |n: usize| ((n as f64 - 1.0) * scale + 1e-9).floor() as usize + 1;
+        let (w, h) = (f(self.width), f(self.height));
+        if (w as u128) * (h as u128) > 1u128 << 34 {
+            return Err(SparseError::param(
+                "scale",
+                scale,
+                "the raster would exceed 2^34 cells",
+            ));
+        }
+        Ok((w, h))
+    }
+
+    /// Rasterises a window at a scale factor, in parallel (see the module docs).
+    pub fn rasterize(&self, settings: &RasterSettings) -> Result<Heightfield> {
+        self.rasterize_with_progress(settings, &NoProgress)
+    }
+
+    /// [`Sct::rasterize`] reporting rows done to `progress` (phase `"rasterize"`).
+    pub fn rasterize_with_progress(
+        &self,
+        settings: &RasterSettings,
+        progress: &dyn Progress,
+    ) -> Result<Heightfield> {
+        settings.check()?;
+        let (fw, fh) = self.raster_size(settings.scale)?;
+        let win = settings.window.unwrap_or(Window {
+            x: 0,
+            y: 0,
+            width: fw,
+            height: fh,
+        });
+        if win.width == 0
+            || win.height == 0
+            || win.x.checked_add(win.width).is_none_or(|e| e > fw)
+            || win.y.checked_add(win.height).is_none_or(|e| e > fh)
+        {
+            return Err(SparseError::param(
+                "window",
+                format!(
+                    "{},{},{},{} (raster {fw} x {fh})",
+                    win.x, win.y, win.width, win.height
+                ),
+                "must be non-empty and inside the raster",
+            ));
+        }
+        if (win.width as u128) * (win.height as u128) > relief_heightfield::MAX_CELLS as u128 {
+            return Err(SparseError::param(
+                "scale",
+                settings.scale,
+                "the raster would exceed MAX_CELLS cells (ask for a window)",
+            ));
+        }
+        let mut out = vec![0f32; win.width * win.height];
+        progress.begin("rasterize", win.height as u64);
+        out.par_chunks_mut(win.width * BAND_ROWS)
+            .enumerate()
+            .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
+                let rows = chunk.len() / win.width;
+                let band = Band {
+                    x0: win.x,
+                    x1: win.x + win.width,
+                    y0: win.y + b * BAND_ROWS,
+                    y1: win.y + b * BAND_ROWS + rows,
+                    scale: settings.scale,
+                };
+                let mut val = vec![0.0; chunk.len()];
+                let mut wt = vec![0.0; chunk.len()];
+                self.root.raster(&band, &mut val, &mut wt, scratch);
+                for (o, v) in chunk.iter_mut().zip(&val) {
+                    *o = *v as f32;
+                }
+                progress.advance(rows as u64);
+            });
+        let hf = Heightfield::new(
+            win.width,
+            win.height,
+            out,
+            self.cell_size.0 / settings.scale,
+            self.cell_size.1 / settings.scale,
+        )?
+        .with_georef(self.raster_georef(settings.scale, win));
+        Ok(hf)
+    }
+}
