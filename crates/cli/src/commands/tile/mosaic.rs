@@ -1,0 +1,209 @@
+//! `relief tile status` and `relief tile mosaic` (streamed GeoTIFF or COG, plus a GDAL VRT).
+
+use super::*;
+
+pub(super) fn status(a: StatusArgs, ctx: &Ctx) -> Result<()> {
+    let dir = absolute(&a.dir)?;
+    let m = load_manifest(&dir)?;
+    let (mut missing, mut corrupt) = (Vec::new(), Vec::new());
+    for i in 0..m.tasks {
+        match tile_state(&dir, &m, i) {
+            TileState::Done => {}
+            TileState::Missing => missing.push(i),
+            TileState::Corrupt => corrupt.push(i),
+        }
+    }
+    let done = m.tasks - missing.len() - corrupt.len();
+    let mut text = format!(
+        "{done}/{} tiles done, {} missing, {} corrupt\n",
+        m.tasks,
+        missing.len(),
+        corrupt.len()
+    );
+    if !missing.is_empty() {
+        text.push_str(&format!("missing: {}\n", ranges(&missing)));
+    }
+    if !corrupt.is_empty() {
+        text.push_str(&format!("corrupt: {}\n", ranges(&corrupt)));
+    }
+    std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())
+        .context("cannot write to stdout")?;
+    if done < m.tasks {
+        bail!(
+            "the plan is incomplete: run tasks {} again",
+            ranges(&{
+                let mut all = [missing, corrupt].concat();
+                all.sort_unstable();
+                all
+            })
+        );
+    }
+    ctx.note("every tile is done: relief tile mosaic can assemble them");
+    Ok(())
+}
+
+/// `0-3,7,9-10`: the indices as Slurm `--array` ranges.
+pub(super) fn ranges(v: &[usize]) -> String {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < v.len() {
+        let mut j = i;
+        while j + 1 < v.len() && v[j + 1] == v[j] + 1 {
+            j += 1;
+        }
+        out.push(if i == j {
+            v[i].to_string()
+        } else {
+            format!("{}-{}", v[i], v[j])
+        });
+        i = j + 1;
+    }
+    out.join(",")
+}
+
+pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
+    let dir = absolute(&a.dir)?;
+    let m = load_manifest(&dir)?;
+    let bad: Vec<usize> = (0..m.tasks)
+        .filter(|&i| tile_state(&dir, &m, i) != TileState::Done)
+        .collect();
+    if !bad.is_empty() {
+        bail!(
+            "{} of {} tiles are missing or corrupt ({}): run them (relief tile status {})",
+            bad.len(),
+            m.tasks,
+            ranges(&bad),
+            dir.display()
+        );
+    }
+    let out = PathBuf::from(&m.output.path);
+    let inputs: Vec<PathBuf> = m.inputs.iter().map(|s| PathBuf::from(&s.path)).collect();
+    let in_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let vrt = dir.join("mosaic.vrt");
+    if !a.vrt_only {
+        ctx.check_outputs(&in_refs, &[(&out, crate::outputs::OutKind::Raster)])?;
+    }
+    write_vrt(&vrt, &m)?;
+    if a.vrt_only {
+        ctx.note(format!("wrote {}", vrt.display()));
+        return Ok(());
+    }
+    let opts = relief_io::TiledOptions {
+        tile: 512,
+        compression: match ctx.compress {
+            crate::ctx::CompressArg::Deflate => relief_io::TiffCompression::Deflate,
+            crate::ctx::CompressArg::None => relief_io::TiffCompression::None,
+        },
+        cog: a.cog,
+        bigtiff: a.bigtiff,
+    };
+    let cell = (m.output.cell_size[0], m.output.cell_size[1]);
+    let mut writer = relief_io::TiledGeoTiffWriter::create(
+        &out,
+        m.output.width,
+        m.output.height,
+        cell,
+        m.output.georef.as_ref(),
+        opts,
+    )
+    .with_context(|| format!("cannot write {}", out.display()))?;
+    let progress = ctx.progress();
+    progress.begin("mosaicking", m.output.height as u64);
+    // Blocks of rows: every tile of a row of tiles decodes its part in parallel, then the
+    // block goes to the writer (which compresses its tiles in parallel too).
+    let width = m.output.width;
+    let mut block: Vec<f32> = Vec::new();
+    for r in 0..m.tiles_y {
+        let mut readers = (0..m.tiles_x)
+            .map(|c| {
+                let p = dir.join("tiles").join(tile_name(r * m.tiles_x + c));
+                relief_io::GeoTiffRowReader::open(&p)
+                    .with_context(|| format!("cannot read {}", p.display()))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let [_, _, _, h] = m.window(r * m.tiles_x);
+        let mut y = 0;
+        while y < h {
+            let rows = MOSAIC_ROWS.min(h - y);
+            let parts = readers
+                .par_iter_mut()
+                .map(|rd| {
+                    let mut part = Vec::with_capacity(rows * rd.width());
+                    for _ in 0..rows {
+                        rd.read_row(&mut part)?;
+                    }
+                    Ok(part)
+                })
+                .collect::<Result<Vec<Vec<f32>>>>()?;
+            block.clear();
+            block.reserve(rows * width);
+            for k in 0..rows {
+                for (part, rd) in parts.iter().zip(&readers) {
+                    let w = rd.width();
+                    block.extend_from_slice(&part[k * w..(k + 1) * w]);
+                }
+            }
+            writer.write_rows(&block)?;
+            progress.advance(rows as u64);
+            y += rows;
+        }
+    }
+    writer
+        .finish()
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {}{}) and {}",
+        out.display(),
+        m.output.width,
+        m.output.height,
+        if a.cog { ", cloud-optimized" } else { "" },
+        vrt.display()
+    ));
+    Ok(())
+}
+
+/// A GDAL VRT over the tiles (paths relative to the VRT).
+pub(super) fn write_vrt(path: &Path, m: &Manifest) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<VRTDataset rasterXSize=\"{}\" rasterYSize=\"{}\">",
+        m.output.width, m.output.height
+    );
+    let g = m.output.georef.as_ref();
+    if let Some(crs) = g
+        .and_then(|g| g.crs.as_deref())
+        .filter(|c| c.starts_with("EPSG:"))
+    {
+        let _ = writeln!(s, "  <SRS dataAxisToSRSAxisMapping=\"1,2\">{crs}</SRS>");
+    }
+    let t = g.and_then(|g| g.geotransform).unwrap_or([
+        0.0,
+        m.output.cell_size[0],
+        0.0,
+        0.0,
+        0.0,
+        -m.output.cell_size[1],
+    ]);
+    let _ = writeln!(
+        s,
+        "  <GeoTransform>{:e}, {:e}, {:e}, {:e}, {:e}, {:e}</GeoTransform>",
+        t[0], t[1], t[2], t[3], t[4], t[5]
+    );
+    s.push_str("  <VRTRasterBand dataType=\"Float32\" band=\"1\">\n");
+    for i in 0..m.tasks {
+        let [x, y, w, h] = m.window(i);
+        let _ = write!(
+            s,
+            "    <SimpleSource>\n      <SourceFilename relativeToVRT=\"1\">tiles/{}</SourceFilename>\n      \
+             <SourceBand>1</SourceBand>\n      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{w}\" ySize=\"{h}\"/>\n      \
+             <DstRect xOff=\"{x}\" yOff=\"{y}\" xSize=\"{w}\" ySize=\"{h}\"/>\n    </SimpleSource>\n",
+            tile_name(i)
+        );
+    }
+    s.push_str("  </VRTRasterBand>\n</VRTDataset>\n");
+    relief_io::write_bytes_atomic(path, s.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))
+}

@@ -1,0 +1,296 @@
+//! `relief tile plan`: parse the command, make its paths absolute, prepare the shared input once,
+//! write the checksummed manifest.
+
+use super::*;
+
+pub(super) fn absolute(p: &Path) -> Result<PathBuf> {
+    std::path::absolute(p).with_context(|| format!("cannot resolve {}", p.display()))
+}
+
+/// The planned subcommand with every path argument made absolute (so tasks and the mosaic
+/// can run from any directory), and its input and output paths.
+pub(super) fn absolutise(cmd: &mut Windowable) -> Result<(Vec<PathBuf>, PathBuf)> {
+    Ok(match cmd {
+        Windowable::Amplify(a) => {
+            a.input = absolute(&a.input)?;
+            a.output = absolute(&a.output)?;
+            a.exemplar = absolute(&a.exemplar)?;
+            (vec![a.input.clone(), a.exemplar.clone()], a.output.clone())
+        }
+        Windowable::Refine(a) => {
+            a.input = absolute(&a.input)?;
+            a.output = absolute(&a.output)?;
+            (vec![a.input.clone()], a.output.clone())
+        }
+        Windowable::Decompress(a) => {
+            a.input = absolute(&a.input)?;
+            a.output = absolute(&a.output)?;
+            (vec![a.input.clone()], a.output.clone())
+        }
+    })
+}
+
+/// Rewrites the argument list with absolute input/output paths (positional arguments and
+/// `--exemplar`), leaving every other argument as typed.
+pub(super) fn absolute_args(args: &[String], inputs: &[PathBuf], output: &Path) -> Vec<String> {
+    let mut out = Vec::with_capacity(args.len());
+    let mut positional = 0;
+    let mut i = 0;
+    while i < args.len() {
+        let a = &args[i];
+        if i == 0 {
+            out.push(a.clone());
+        } else if a == "--exemplar" && i + 1 < args.len() {
+            out.push(a.clone());
+            out.push(inputs[1].display().to_string());
+            i += 1;
+        } else if a.starts_with("--exemplar=") {
+            out.push(format!("--exemplar={}", inputs[1].display()));
+        } else if a.starts_with('-') {
+            out.push(a.clone());
+        } else if positional < 2 && !takes_value(&args[i - 1]) {
+            out.push(if positional == 0 {
+                inputs[0].display().to_string()
+            } else {
+                output.display().to_string()
+            });
+            positional += 1;
+        } else {
+            out.push(a.clone());
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Whether a flag consumes the next argument (`--factor 4`), judged by the windowable
+/// commands' definitions.
+pub(super) fn takes_value(prev: &str) -> bool {
+    use clap::CommandFactory;
+    let Some(long) = prev.strip_prefix("--") else {
+        return false;
+    };
+    if long.contains('=') {
+        return false;
+    }
+    let cmd = Inner::command();
+    cmd.get_subcommands().any(|s| {
+        s.get_arguments()
+            .any(|a| a.get_long() == Some(long) && a.get_action().takes_values())
+    })
+}
+
+pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
+    if a.tile < 16 || !a.tile.is_multiple_of(16) || a.tile > 1 << 15 {
+        bail!(
+            "invalid --tile {}: must be a multiple of 16 between 16 and 32768",
+            a.tile
+        );
+    }
+    let mut inner = Inner::try_parse_from(&a.command)
+        .map_err(|e| anyhow::anyhow!("invalid command after `--`: {}", e.to_string().trim()))?;
+    let (inputs, output) = absolutise(&mut inner.command)?;
+    let name = a.command[0].clone();
+    let args = absolute_args(&a.command, &inputs, &output);
+    // The rewritten arguments must parse to the same command.
+    Inner::try_parse_from(&args).context("cannot rewrite the command's paths")?;
+    match &inner.command {
+        Windowable::Amplify(x) if x.window.is_some() => bail!(
+            "--window cannot be planned: a plan covers the whole output (the tiles are windows)"
+        ),
+        Windowable::Refine(x) if x.window_of.is_some() => bail!(
+            "--window cannot be planned: a plan covers the whole output (the tiles are windows)"
+        ),
+        Windowable::Decompress(x) if x.window.is_some() => bail!(
+            "--window cannot be planned: a plan covers the whole output (the tiles are windows)"
+        ),
+        _ => {}
+    }
+    if relief_io::Format::from_extension(&output) != Some(relief_io::Format::GeoTiff) {
+        bail!(
+            "the planned output {} must be a GeoTIFF (.tif): the mosaic is streamed into one",
+            output.display()
+        );
+    }
+    let dir = absolute(&a.dir)?;
+    if dir.exists()
+        && std::fs::read_dir(&dir)
+            .with_context(|| format!("cannot read {}", dir.display()))?
+            .next()
+            .is_some()
+    {
+        bail!(
+            "the plan folder {} is not empty (a plan is written into a new folder)",
+            dir.display()
+        );
+    }
+    let in_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    ctx.check_outputs(&in_refs, &[(&output, crate::outputs::OutKind::Raster)])?;
+    if inputs.iter().any(|i| dir.starts_with(i)) || output.starts_with(&dir) {
+        bail!(
+            "the plan folder {} must not contain the output nor be an input",
+            dir.display()
+        );
+    }
+    let sums = inputs
+        .iter()
+        .map(|p| file_sum(p, p.display().to_string()))
+        .collect::<Result<Vec<_>>>()?;
+    // Prepare what every task reads, and the output grid.
+    let Prepared {
+        name: prepared_name,
+        bytes: prepared_bytes,
+        width,
+        height,
+        cell,
+        georef,
+    } = prepare(&inner.command, ctx)?;
+    let (tx, ty) = (width.div_ceil(a.tile), height.div_ceil(a.tile));
+    if tx.saturating_mul(ty) > MAX_TASKS {
+        bail!(
+            "{tx} x {ty} tiles exceed {MAX_TASKS} tasks: use a larger --tile than {}",
+            a.tile
+        );
+    }
+    std::fs::create_dir_all(dir.join("tiles"))
+        .with_context(|| format!("cannot create {}", dir.display()))?;
+    relief_io::write_bytes_atomic(&dir.join(prepared_name), &prepared_bytes)
+        .with_context(|| format!("cannot write {}", dir.join(prepared_name).display()))?;
+    let mut m = Manifest {
+        format: FORMAT.into(),
+        version: 1,
+        command: name,
+        args,
+        inputs: sums,
+        prepared: bytes_sum(&prepared_bytes, prepared_name.into()),
+        output: OutputGrid {
+            path: output.display().to_string(),
+            width,
+            height,
+            cell_size: [cell.0, cell.1],
+            georef,
+        },
+        tile: a.tile,
+        tiles_x: tx,
+        tiles_y: ty,
+        tasks: tx * ty,
+        plan_id: String::new(),
+    };
+    m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m)?));
+    let json = serde_json::to_string_pretty(&m)? + "\n";
+    relief_io::write_bytes_atomic(&dir.join(MANIFEST), json.as_bytes())
+        .with_context(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
+    ctx.note(format!(
+        "planned {} x {} output {} as {} tasks of {} px tiles ({tx} x {ty}) in {}\n\
+         run them with: sbatch --array=0-{} --wrap 'relief tile run {}'",
+        width,
+        height,
+        output.display(),
+        m.tasks,
+        a.tile,
+        dir.display(),
+        m.tasks - 1,
+        dir.display()
+    ));
+    Ok(())
+}
+
+/// What a plan prepares once for every task: the file the tasks read, and the output grid.
+pub(super) struct Prepared {
+    name: &'static str,
+    bytes: Vec<u8>,
+    width: usize,
+    height: usize,
+    cell: (f64, f64),
+    georef: Option<GeoRef>,
+}
+
+/// Runs the expensive, shared part of the command once (amplify: the model; decompress: the
+/// model as given; refine: the void-checked input) and sizes the output.
+pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
+    let (name, bytes, width, height, cell, georef) = match cmd {
+        Windowable::Amplify(x) => {
+            // The plan writes the model only; the tasks write windows of it.
+            let out = crate::commands::amplify::OutputPlan {
+                sct: true,
+                window: None,
+                stream: true,
+                steps_flag: "--factor",
+            };
+            let sct = crate::commands::amplify::build(x, out, ctx)?;
+            let (w, h) = sct.raster_size(1.0).context("cannot size the output")?;
+            let win = Window {
+                x: 0,
+                y: 0,
+                width: w,
+                height: h,
+            };
+            let g = sct.raster_georef(1.0, win);
+            let bytes = sct.to_bytes().context("cannot serialise the model")?;
+            ("model.sct", bytes, w, h, sct.cell_size(), g)
+        }
+        Windowable::Decompress(x) => {
+            let bytes = crate::commands::compress::read_model_bytes(&x.input, ctx)?;
+            let sct = Sct::from_bytes(&bytes, &crate::commands::compress::registry())
+                .with_context(|| format!("cannot read {}", x.input.display()))?;
+            let (w, h) = sct
+                .raster_size(x.scale)
+                .context("invalid parameter `--scale`")?;
+            let win = Window {
+                x: 0,
+                y: 0,
+                width: w,
+                height: h,
+            };
+            let g = sct.raster_georef(x.scale, win);
+            let probe = sct.rasterize(&RasterSettings {
+                scale: x.scale,
+                window: Some(Window {
+                    width: 1,
+                    height: 1,
+                    ..win
+                }),
+            })?;
+            ("model.sct", bytes, w, h, probe.cell_size(), g)
+        }
+        Windowable::Refine(x) => {
+            let settings = x.settings()?;
+            let hf = crate::commands::read_raster(&x.input, &x.read, ctx)?.heightfield;
+            if hf.has_voids() {
+                bail!(
+                    "{} has {} void cells; fill them first (--fill-voids)",
+                    x.input.display(),
+                    hf.void_count()
+                );
+            }
+            let refiner = relief_wavelet_lod::Refiner::new(&hf, &settings)
+                .with_context(|| format!("cannot analyse {}", x.input.display()))?;
+            let (w, h) = refiner.output_size();
+            let corner = refiner.render_window(0, 0, 1, 1)?;
+            let bytes = relief_io::encode(
+                &hf,
+                relief_io::Format::GeoTiff,
+                &relief_io::WriteOptions {
+                    compression: relief_io::TiffCompression::Deflate,
+                    ..Default::default()
+                },
+            )?;
+            (
+                "input.tif",
+                bytes,
+                w,
+                h,
+                corner.cell_size(),
+                corner.georef().cloned(),
+            )
+        }
+    };
+    Ok(Prepared {
+        name,
+        bytes,
+        width,
+        height,
+        cell,
+        georef,
+    })
+}

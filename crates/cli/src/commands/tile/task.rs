@@ -1,0 +1,127 @@
+//! `relief tile run`: one task renders its tile atomically and idempotently.
+
+use super::*;
+
+/// The task index from `--index` or the scheduler's environment.
+pub(super) fn task_index(given: Option<usize>) -> Result<usize> {
+    if let Some(i) = given {
+        return Ok(i);
+    }
+    for var in INDEX_VARS {
+        if let Ok(v) = std::env::var(var) {
+            return v
+                .trim()
+                .parse()
+                .with_context(|| format!("{var} = `{v}` is not a task index"));
+        }
+    }
+    bail!(
+        "no task index: pass --index or run under a job array ({})",
+        INDEX_VARS.join(", ")
+    )
+}
+
+pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
+    let dir = absolute(&a.dir)?;
+    let m = load_manifest(&dir)?;
+    let i = task_index(a.index)?;
+    if i >= m.tasks {
+        bail!(
+            "task index {i} is out of range: the plan has {} tasks (0..{})",
+            m.tasks,
+            m.tasks - 1
+        );
+    }
+    if tile_state(&dir, &m, i) == TileState::Done {
+        ctx.note(format!("tile {i} is already done"));
+        return Ok(());
+    }
+    // Inputs still reachable must be those planned (a task on another machine may not see
+    // them: it reads only the prepared file, which is always checked).
+    for s in &m.inputs {
+        let p = Path::new(&s.path);
+        if p.exists() {
+            let now = file_sum(p, s.path.clone())?;
+            if now != *s {
+                bail!(
+                    "input {} changed since the plan (checksum {} instead of {}); plan again",
+                    s.path,
+                    &now.sha256[..12],
+                    &s.sha256[..12]
+                );
+            }
+        }
+    }
+    let prepared_path = dir.join(&m.prepared.path);
+    let prepared = crate::commands::compress::read_model_bytes(&prepared_path, ctx)?;
+    if bytes_sum(&prepared, m.prepared.path.clone()) != m.prepared {
+        bail!(
+            "{} does not match its checksum in the manifest (corrupt or replaced); plan again",
+            prepared_path.display()
+        );
+    }
+    let [x, y, w, h] = m.window(i);
+    let inner = Inner::try_parse_from(&m.args).context("the manifest's command does not parse")?;
+    let hf = render(
+        &inner.command,
+        &prepared,
+        Window {
+            x,
+            y,
+            width: w,
+            height: h,
+        },
+    )?;
+    let bytes = relief_io::encode(
+        &hf,
+        relief_io::Format::GeoTiff,
+        &relief_io::WriteOptions {
+            compression: relief_io::TiffCompression::Deflate,
+            ..Default::default()
+        },
+    )?;
+    let name = tile_name(i);
+    let tile_path = dir.join("tiles").join(&name);
+    relief_io::write_bytes_atomic(&tile_path, &bytes)
+        .with_context(|| format!("cannot write {}", tile_path.display()))?;
+    let rec = TileRecord {
+        plan_id: m.plan_id.clone(),
+        index: i,
+        window: [x, y, w, h],
+        file: bytes_sum(&bytes, name),
+    };
+    let json = serde_json::to_string_pretty(&rec)? + "\n";
+    relief_io::write_bytes_atomic(&record_path(&dir, i), json.as_bytes())
+        .with_context(|| format!("cannot write the record of tile {i}"))?;
+    ctx.note(format!("tile {i} done ({w} x {h} at {x},{y})"));
+    Ok(())
+}
+
+/// One window of the planned output, from the prepared file.
+pub(super) fn render(cmd: &Windowable, prepared: &[u8], win: Window) -> Result<Heightfield> {
+    let sct_window = |scale: f64| -> Result<Heightfield> {
+        let sct = Sct::from_bytes(prepared, &crate::commands::compress::registry())
+            .context("cannot read the prepared model")?;
+        Ok(sct.rasterize(&RasterSettings {
+            scale,
+            window: Some(win),
+        })?)
+    };
+    match cmd {
+        Windowable::Amplify(_) => sct_window(1.0),
+        Windowable::Decompress(x) => sct_window(x.scale),
+        Windowable::Refine(x) => {
+            let settings = x.settings()?;
+            let hf = relief_io::read_bytes(
+                prepared,
+                Some(Path::new("input.tif")),
+                &relief_io::ReadOptions::default(),
+            )
+            .context("cannot read the prepared input")?
+            .heightfield;
+            let refiner = relief_wavelet_lod::Refiner::new(&hf, &settings)
+                .context("cannot analyse the prepared input")?;
+            Ok(refiner.render_window(win.x, win.y, win.width, win.height)?)
+        }
+    }
+}
