@@ -66,7 +66,9 @@ pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,
     sample_grid, topology,
 };
-pub use recipe::{Densities, Deviation, Dimensions, Feature, Recipe, RecipeReport, build_recipe};
+pub use recipe::{
+    Densities, Deviation, Dimensions, Feature, Recipe, RecipeReport, build_recipe, render_closeups,
+};
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,

@@ -29,6 +29,7 @@ use relief_heightfield::Heightfield;
 
 use crate::error::{Error, Result};
 use crate::geology::GeologySpec;
+use crate::render::{Camera, Image, RenderSettings, render};
 use crate::scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,
     RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, Weathering, WindErosion,
@@ -722,6 +723,65 @@ fn best_section_line(b: &SceneBuilder) -> ([f32; 2], [f32; 2]) {
         .filter(|x| *x.1 > 0)
         .map_or(0.5 * ym, |(i, _)| i as f32 * f.cy);
     ([0.0, best], [xm, best])
+}
+
+/// Close-up renders of the first landforms a recipe placed (up to four, one per highlight, each
+/// framed by the size of its kind), side by side in one image, with their feature names; a
+/// closer oblique view of the middle of the scene when nothing was placed. `tile` is the size
+/// and shading of one close-up.
+pub fn render_closeups(
+    scene: &Scene,
+    rep: &RecipeReport,
+    tile: &RenderSettings,
+) -> Result<(Image, Vec<String>)> {
+    let d = &rep.dims;
+    let mut tiles = Vec::new();
+    let mut names = Vec::new();
+    for (f, p) in rep.highlights.iter().take(4) {
+        let size = match f {
+            Feature::Hoodoos => d.hoodoo_height_m * 3.5,
+            Feature::Arches => d.arch_span_m * 2.5,
+            Feature::Islands => d.island_radius_m * 8.0,
+            Feature::Karst => d.karst_radius_m * 40.0,
+            _ => d.sea_height_m * 6.0,
+        };
+        let cam = Camera::closeup(scene, *p, size.max(4.0 * d.voxel_m));
+        tiles.push(render(scene, &cam, tile)?);
+        names.push(f.to_string());
+    }
+    if tiles.is_empty() {
+        let b = scene.bbox();
+        let c = b.center();
+        let z = scene.dem_height(c[0], c[1]).unwrap_or(c[2]);
+        let dist = 0.3 * b.size()[0].max(b.size()[1]);
+        tiles.push(render(
+            scene,
+            &Camera::closeup(scene, [c[0], c[1], z], dist),
+            tile,
+        )?);
+        names.push("centre".into());
+    }
+    Ok((strip(&tiles), names))
+}
+
+/// Images side by side (top-aligned, black below the shorter ones).
+fn strip(tiles: &[Image]) -> Image {
+    let h = tiles.iter().map(|t| t.height).max().unwrap_or(1);
+    let w: usize = tiles.iter().map(|t| t.width).sum::<usize>().max(1);
+    let mut rgb = vec![0u8; w * h * 3];
+    let mut x0 = 0;
+    for t in tiles {
+        for y in 0..t.height {
+            let src = &t.rgb[y * t.width * 3..(y + 1) * t.width * 3];
+            rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3].copy_from_slice(src);
+        }
+        x0 += t.width;
+    }
+    Image {
+        width: w,
+        height: h,
+        rgb,
+    }
 }
 
 #[cfg(test)]

@@ -13,8 +13,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, Progress};
 use relief_implicit_volume::{
-    Camera, Feature, GeologySpec, Image, MeshSettings, Recipe, RenderSettings, SectionSettings,
-    build_recipe, field_normals, polygonize, render, section, simplify, topology,
+    Camera, Feature, GeologySpec, MeshSettings, Recipe, RenderSettings, SectionSettings,
+    build_recipe, field_normals, polygonize, render, render_closeups, section, simplify, topology,
 };
 use serde_json::json;
 
@@ -225,26 +225,6 @@ fn read_geology(path: &Path) -> Result<GeologySpec> {
     Ok(spec)
 }
 
-/// Tiles side by side (same height).
-fn strip(tiles: &[Image]) -> Image {
-    let h = tiles.iter().map(|t| t.height).max().unwrap_or(1);
-    let w: usize = tiles.iter().map(|t| t.width).sum::<usize>().max(1);
-    let mut rgb = vec![0u8; w * h * 3];
-    let mut x0 = 0;
-    for t in tiles {
-        for y in 0..t.height {
-            let src = &t.rgb[y * t.width * 3..(y + 1) * t.width * 3];
-            rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3].copy_from_slice(src);
-        }
-        x0 += t.width;
-    }
-    Image {
-        width: w,
-        height: h,
-        rgb,
-    }
-}
-
 /// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
 /// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
 /// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
@@ -289,107 +269,18 @@ fn preflight_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Re
     )
 }
 
-/// Builds the scene and writes the requested outputs.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
-    // Everything that can be checked without work is checked before any output is written.
-    let features = Feature::parse_list(&args.features).context("bad --features")?;
-    if let Some(m) = &args.mesh
-        && relief_io::MeshFormat::from_extension(m).is_none()
-    {
-        bail!(
-            "--mesh {}: the file must end in .glb, .ply or .obj",
-            m.display()
-        );
-    }
-    check_png(&args.render, "render")?;
-    check_png(&args.closeups, "closeups")?;
-    check_png(&args.section, "section")?;
-    let mut inputs = vec![args.input.as_path()];
-    inputs.extend(args.mask.as_deref());
-    inputs.extend(args.geology.as_deref());
-    let mut outputs: Vec<(&Path, crate::outputs::OutKind)> = Vec::new();
-    outputs.extend(
-        args.mesh
-            .as_deref()
-            .map(|p| (p, crate::outputs::OutKind::Mesh)),
-    );
-    for p in [&args.render, &args.closeups, &args.section]
-        .into_iter()
-        .flatten()
-    {
-        outputs.push((p.as_path(), crate::outputs::OutKind::Png));
-    }
-    if outputs.is_empty() && args.report.is_none() {
-        bail!(
-            "nothing to write for {}: give at least one of --mesh, --render, --closeups, \
-             --section or --report",
-            args.input.display()
-        );
-    }
-    ctx.check_outputs(&inputs, &outputs)?;
-    if let Some(r) = &args.report {
-        check_report_path(r, &args.input, ctx)?;
-        if outputs.iter().any(|(p, _)| *p == r.as_path()) {
-            bail!("--report {}: also named as another output", r.display());
-        }
-    }
-    if let Some(r) = args.resolution
-        && !(r.is_finite() && r > 0.0 && r <= 64.0)
-    {
-        bail!("--resolution {r}: must be in (0, 64]");
-    }
-    if let Some(v) = args.voxel
-        && !(v.is_finite() && v > 0.0)
-    {
-        bail!("--voxel {v}: must be finite and > 0");
-    }
-    if args.max_triangles == Some(0) {
-        bail!("--max-triangles 0: must be at least 1");
-    }
-    let geology = match &args.geology {
-        Some(p) => Some(read_geology(p)?),
-        None => None,
-    };
-    // The mesh, the images and the report appear together or not at all.
-    let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
-    targets.extend(args.report.as_deref());
-    let staged = crate::staging::Outputs::new(&targets)?;
-    let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let mut hf = raster.heightfield;
-    if let Some((x, y, w, h)) = args.crop {
-        hf = hf
-            .crop(x, y, w, h)
-            .with_context(|| format!("cannot crop {}", args.input.display()))?;
-    }
-    hf.require_complete()
-        .with_context(|| format!("{} cannot be implicitised", args.input.display()))?;
-    let mask = match &args.mask {
-        Some(p) => Some(read_mask(p, &hf, ctx)?),
-        None => None,
-    };
-    let (cx, cy) = hf.cell_size();
-    let voxel = args
-        .voxel
-        .or(args.resolution.map(|r| cx.max(cy) as f32 / r));
-    let recipe = Recipe {
-        features,
-        sea_level: args.sea_level,
-        mask,
-        scale: args.scale,
-        voxel,
-        geology,
-        karst_budget: args.karst_budget,
-        wind: [args.wind.0, args.wind.1],
-        seed: args.seed,
-        ..Default::default()
-    };
-    let progress = ctx.progress();
-    progress.begin("building the implicit scene", 0);
-    let t = Instant::now();
-    let (scene, rep) = build_recipe(&hf, &recipe).context("cannot build the scene")?;
-    let t_build = t.elapsed().as_secs_f64();
+/// The summary printed on stdout and the `--report` JSON of a built scene (before meshing and
+/// rendering add their lines and fields).
+fn describe(
+    args: &Args,
+    hf: &Heightfield,
+    scene: &relief_implicit_volume::Scene,
+    rep: &relief_implicit_volume::RecipeReport,
+    t_build: f64,
+) -> Result<(String, serde_json::Value)> {
     let st = scene.stats();
     let dims = &rep.dims;
+    let (cx, cy) = hf.cell_size();
     let mut out = String::new();
     out.push_str(&format!(
         "dem:          {}x{} ({:.1} x {:.1} m cells, {:.2} km2, relief {:.0} m), sea level {:.1} m, voxel {:.2} m\n",
@@ -527,97 +418,108 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         report["karst_passage_length_m"] = json!(karst.1.length_m);
     }
 
-    let b = scene.bbox();
-    let cell = dims.voxel_m;
-    let sz = b.size();
-    let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
-    if let Some(path) = &args.mesh {
-        preflight_mesh(ctx, path, cells, dims.voxel_m as f64)?;
-    }
-    if args.render.is_some() || args.section.is_some() {
-        let (w, h) = args.image_size;
-        ctx.check_memory(
-            "volume",
-            &[&[crate::memory::part(
-                "the render and section images",
-                w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
-                "a smaller --image-size",
-            )]],
-        )?;
-    }
-    if let Some(path) = &args.mesh {
-        progress.begin("polygonising", 0);
+    Ok((out, report))
+}
+
+/// Polygonises the scene on a `cells` grid (voxel `cell` metres), simplifies it under
+/// `--max-triangles`, checks its topology and writes it to its staged path; adds its lines to
+/// `out` and its fields to `report`.
+fn write_mesh_output(
+    args: &Args,
+    path: &Path,
+    scene: &relief_implicit_volume::Scene,
+    cells: [usize; 3],
+    cell: f32,
+    staged: &crate::staging::Outputs,
+    progress: &crate::ctx::CliProgress,
+    out: &mut String,
+    report: &mut serde_json::Value,
+) -> Result<()> {
+    progress.begin("polygonising", 0);
+    let t = Instant::now();
+    let (mut mesh, mr) = polygonize(
+        scene,
+        &MeshSettings {
+            cells,
+            normals: args.max_triangles.is_none(),
+            ..Default::default()
+        },
+    )
+    .context("cannot polygonise the scene")?;
+    let t_mesh = t.elapsed().as_secs_f64();
+    report["mesh_s"] = json!(t_mesh);
+    report["mesh_grid"] = json!(cells);
+    report["mesh_triangles_polygonised"] = json!(mesh.triangles.len());
+    if let Some(max) = args.max_triangles {
+        progress.begin("simplifying", 0);
         let t = Instant::now();
-        let (mut mesh, mr) = polygonize(
-            &scene,
-            &MeshSettings {
-                cells,
-                normals: args.max_triangles.is_none(),
-                ..Default::default()
-            },
-        )
-        .context("cannot polygonise the scene")?;
-        let t_mesh = t.elapsed().as_secs_f64();
-        report["mesh_s"] = json!(t_mesh);
-        report["mesh_grid"] = json!(cells);
-        report["mesh_triangles_polygonised"] = json!(mesh.triangles.len());
-        if let Some(max) = args.max_triangles {
-            progress.begin("simplifying", 0);
-            let t = Instant::now();
-            let (m, sr) = simplify(&mesh, max).context("cannot simplify the mesh")?;
-            mesh = m;
-            field_normals(&scene, &mut mesh, 0.25 * cell);
-            let t_simp = t.elapsed().as_secs_f64();
-            report["simplify_s"] = json!(t_simp);
-            out.push_str(&format!(
-                "simplify:     {} -> {} triangles ({} collapses refused) in {t_simp:.3} s\n",
-                sr.triangles_in, sr.triangles_out, sr.refused
-            ));
+        let (m, sr) = simplify(&mesh, max).context("cannot simplify the mesh")?;
+        mesh = m;
+        field_normals(scene, &mut mesh, 0.25 * cell);
+        let t_simp = t.elapsed().as_secs_f64();
+        report["simplify_s"] = json!(t_simp);
+        out.push_str(&format!(
+            "simplify:     {} -> {} triangles ({} collapses refused) in {t_simp:.3} s\n",
+            sr.triangles_in, sr.triangles_out, sr.refused
+        ));
+    }
+    let topo = topology(&mesh);
+    let watertight = topo.bad_edges == 0 && topo.misoriented_edges == 0;
+    report["mesh_vertices"] = json!(mesh.positions.len());
+    report["mesh_triangles"] = json!(mesh.triangles.len());
+    report["mesh_watertight_manifold"] = json!(watertight);
+    report["mesh_euler"] = json!(topo.euler);
+    out.push_str(&format!(
+        "mesh:         {} vertices, {} triangles, grid {}x{}x{} ({}/{} chunks sampled), {} in {t_mesh:.3} s\n",
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        cells[0],
+        cells[1],
+        cells[2],
+        mr.chunks_sampled,
+        mr.chunks,
+        if watertight {
+            "watertight, manifold".to_string()
+        } else {
+            format!(
+                "{} open/non-manifold edges, {} misoriented",
+                topo.bad_edges, topo.misoriented_edges
+            )
         }
-        let topo = topology(&mesh);
-        let watertight = topo.bad_edges == 0 && topo.misoriented_edges == 0;
-        report["mesh_vertices"] = json!(mesh.positions.len());
-        report["mesh_triangles"] = json!(mesh.triangles.len());
-        report["mesh_watertight_manifold"] = json!(watertight);
-        report["mesh_euler"] = json!(topo.euler);
-        out.push_str(&format!(
-            "mesh:         {} vertices, {} triangles, grid {}x{}x{} ({}/{} chunks sampled), {} in {t_mesh:.3} s\n",
-            mesh.positions.len(),
-            mesh.triangles.len(),
-            cells[0],
-            cells[1],
-            cells[2],
-            mr.chunks_sampled,
-            mr.chunks,
-            if watertight {
-                "watertight, manifold".to_string()
-            } else {
-                format!(
-                    "{} open/non-manifold edges, {} misoriented",
-                    topo.bad_edges, topo.misoriented_edges
-                )
-            }
-        ));
-        let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-        let t = Instant::now();
-        relief_io::write_mesh(
-            &staged.path(path),
-            &mesh.positions,
-            &mesh.triangles,
-            normals,
-        )
-        .with_context(|| format!("cannot write {}", path.display()))?;
-        let bytes = std::fs::metadata(staged.path(path))
-            .map(|m| m.len())
-            .unwrap_or(0);
-        report["mesh_bytes"] = json!(bytes);
-        out.push_str(&format!(
-            "wrote {} ({:.1} MB) in {:.3} s\n",
-            path.display(),
-            bytes as f64 / 1e6,
-            t.elapsed().as_secs_f64()
-        ));
-    }
+    ));
+    let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
+    let t = Instant::now();
+    relief_io::write_mesh(
+        &staged.path(path),
+        &mesh.positions,
+        &mesh.triangles,
+        normals,
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
+    let bytes = std::fs::metadata(staged.path(path))
+        .map(|m| m.len())
+        .unwrap_or(0);
+    report["mesh_bytes"] = json!(bytes);
+    out.push_str(&format!(
+        "wrote {} ({:.1} MB) in {:.3} s\n",
+        path.display(),
+        bytes as f64 / 1e6,
+        t.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+/// Writes the overview render, the close-ups and the vertical section that were asked for, at
+/// `--image-size`; adds their lines to `out` and their fields to `report`.
+fn write_images(
+    args: &Args,
+    scene: &relief_implicit_volume::Scene,
+    rep: &relief_implicit_volume::RecipeReport,
+    staged: &crate::staging::Outputs,
+    progress: &crate::ctx::CliProgress,
+    out: &mut String,
+    report: &mut serde_json::Value,
+) -> Result<()> {
     let (w, h) = args.image_size;
     let settings = RenderSettings {
         width: w,
@@ -628,7 +530,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(path) = &args.render {
         progress.begin("rendering", 0);
         let t = Instant::now();
-        let img = render(&scene, &Camera::overview(&scene.bbox()), &settings)
+        let img = render(scene, &Camera::overview(&scene.bbox()), &settings)
             .context("cannot render the scene")?;
         relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -645,40 +547,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(path) = &args.closeups {
         progress.begin("rendering close-ups", 0);
         let t = Instant::now();
-        let mut tiles = Vec::new();
-        let mut names = Vec::new();
         // Tiles of half the image size, side by side.
         let tile = RenderSettings {
             width: (w / 2).max(1),
             height: (h / 2).max(1),
             ..settings
         };
-        for (f, p) in rep.highlights.iter().take(4) {
-            let size = match f {
-                Feature::Hoodoos => dims.hoodoo_height_m * 3.5,
-                Feature::Arches => dims.arch_span_m * 2.5,
-                Feature::Islands => dims.island_radius_m * 8.0,
-                Feature::Karst => dims.karst_radius_m * 40.0,
-                _ => dims.sea_height_m * 6.0,
-            };
-            let cam = Camera::closeup(&scene, *p, size.max(4.0 * dims.voxel_m));
-            tiles.push(render(&scene, &cam, &tile).context("cannot render a close-up")?);
-            names.push(f.to_string());
-        }
-        if tiles.is_empty() {
-            // Nothing placed: a closer oblique view of the middle of the scene.
-            let b = scene.bbox();
-            let c = b.center();
-            let z = scene.dem_height(c[0], c[1]).unwrap_or(c[2]);
-            let d = 0.3 * b.size()[0].max(b.size()[1]);
-            tiles.push(render(
-                &scene,
-                &Camera::closeup(&scene, [c[0], c[1], z], d),
-                &tile,
-            )?);
-            names.push("centre".into());
-        }
-        let img = strip(&tiles);
+        let (img, names) =
+            render_closeups(scene, rep, &tile).context("cannot render the close-ups")?;
         relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
         let secs = t.elapsed().as_secs_f64();
@@ -686,7 +562,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         report["closeups_s"] = json!(secs);
         out.push_str(&format!(
             "close-ups:    {} ({}) in {secs:.3} s, wrote {}\n",
-            tiles.len(),
+            names.len(),
             names.join(", "),
             path.display()
         ));
@@ -696,7 +572,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         let t = Instant::now();
         let (start, end) = rep.section_line;
         let (img, ss) = section(
-            &scene,
+            scene,
             &SectionSettings {
                 start,
                 end,
@@ -721,6 +597,150 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             path.display()
         ));
     }
+    Ok(())
+}
+
+/// Builds the scene and writes the requested outputs.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    // Everything that can be checked without work is checked before any output is written.
+    let features = Feature::parse_list(&args.features).context("bad --features")?;
+    if let Some(m) = &args.mesh
+        && relief_io::MeshFormat::from_extension(m).is_none()
+    {
+        bail!(
+            "--mesh {}: the file must end in .glb, .ply or .obj",
+            m.display()
+        );
+    }
+    check_png(&args.render, "render")?;
+    check_png(&args.closeups, "closeups")?;
+    check_png(&args.section, "section")?;
+    let mut inputs = vec![args.input.as_path()];
+    inputs.extend(args.mask.as_deref());
+    inputs.extend(args.geology.as_deref());
+    let mut outputs: Vec<(&Path, crate::outputs::OutKind)> = Vec::new();
+    outputs.extend(
+        args.mesh
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Mesh)),
+    );
+    for p in [&args.render, &args.closeups, &args.section]
+        .into_iter()
+        .flatten()
+    {
+        outputs.push((p.as_path(), crate::outputs::OutKind::Png));
+    }
+    if outputs.is_empty() && args.report.is_none() {
+        bail!(
+            "nothing to write for {}: give at least one of --mesh, --render, --closeups, \
+             --section or --report",
+            args.input.display()
+        );
+    }
+    ctx.check_outputs(&inputs, &outputs)?;
+    if let Some(r) = &args.report {
+        check_report_path(r, &args.input, ctx)?;
+        if outputs.iter().any(|(p, _)| *p == r.as_path()) {
+            bail!("--report {}: also named as another output", r.display());
+        }
+    }
+    if let Some(r) = args.resolution
+        && !(r.is_finite() && r > 0.0 && r <= 64.0)
+    {
+        bail!("--resolution {r}: must be in (0, 64]");
+    }
+    if let Some(v) = args.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        bail!("--voxel {v}: must be finite and > 0");
+    }
+    if args.max_triangles == Some(0) {
+        bail!("--max-triangles 0: must be at least 1");
+    }
+    let geology = match &args.geology {
+        Some(p) => Some(read_geology(p)?),
+        None => None,
+    };
+    // The mesh, the images and the report appear together or not at all.
+    let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+    targets.extend(args.report.as_deref());
+    let staged = crate::staging::Outputs::new(&targets)?;
+    let raster = super::read_raster(&args.input, &args.read, ctx)?;
+    let mut hf = raster.heightfield;
+    if let Some((x, y, w, h)) = args.crop {
+        hf = hf
+            .crop(x, y, w, h)
+            .with_context(|| format!("cannot crop {}", args.input.display()))?;
+    }
+    hf.require_complete()
+        .with_context(|| format!("{} cannot be implicitised", args.input.display()))?;
+    let mask = match &args.mask {
+        Some(p) => Some(read_mask(p, &hf, ctx)?),
+        None => None,
+    };
+    let (cx, cy) = hf.cell_size();
+    let voxel = args
+        .voxel
+        .or(args.resolution.map(|r| cx.max(cy) as f32 / r));
+    let recipe = Recipe {
+        features,
+        sea_level: args.sea_level,
+        mask,
+        scale: args.scale,
+        voxel,
+        geology,
+        karst_budget: args.karst_budget,
+        wind: [args.wind.0, args.wind.1],
+        seed: args.seed,
+        ..Default::default()
+    };
+    let progress = ctx.progress();
+    progress.begin("building the implicit scene", 0);
+    let t = Instant::now();
+    let (scene, rep) = build_recipe(&hf, &recipe).context("cannot build the scene")?;
+    let t_build = t.elapsed().as_secs_f64();
+    let (mut out, mut report) = describe(&args, &hf, &scene, &rep, t_build)?;
+    let dims = &rep.dims;
+    let b = scene.bbox();
+    let cell = dims.voxel_m;
+    let sz = b.size();
+    let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
+    if let Some(path) = &args.mesh {
+        preflight_mesh(ctx, path, cells, dims.voxel_m as f64)?;
+    }
+    if args.render.is_some() || args.section.is_some() {
+        let (w, h) = args.image_size;
+        ctx.check_memory(
+            "volume",
+            &[&[crate::memory::part(
+                "the render and section images",
+                w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
+                "a smaller --image-size",
+            )]],
+        )?;
+    }
+    if let Some(path) = &args.mesh {
+        write_mesh_output(
+            &args,
+            path,
+            &scene,
+            cells,
+            cell,
+            &staged,
+            &progress,
+            &mut out,
+            &mut report,
+        )?;
+    }
+    write_images(
+        &args,
+        &scene,
+        &rep,
+        &staged,
+        &progress,
+        &mut out,
+        &mut report,
+    )?;
     if let Some(path) = &args.report {
         let mut text = serde_json::to_string_pretty(&report).context("cannot encode the report")?;
         text.push('\n');

@@ -294,51 +294,24 @@ impl Stage for VolumeStage {
             );
             // Close-ups on the first landforms of each kind (up to four).
             let t = Instant::now();
-            let d = &rep.dims;
-            let mut tiles = Vec::new();
-            let mut names = Vec::new();
-            for (f, c) in rep.highlights.iter().take(4) {
-                let size = match f {
-                    Feature::Hoodoos => d.hoodoo_height_m * 3.5,
-                    Feature::Arches => d.arch_span_m * 2.5,
-                    Feature::Islands => d.island_radius_m * 8.0,
-                    Feature::Karst => d.karst_radius_m * 40.0,
-                    _ => d.sea_height_m * 6.0,
-                };
-                let cam = Camera::closeup(&scene, *c, size.max(4.0 * d.voxel_m));
-                tiles.push(render(
-                    &scene,
-                    &cam,
-                    &RenderSettings {
-                        width: p.render_size[0] / 2,
-                        height: p.render_size[1] / 2,
-                        sea_level: rep.has_sea.then_some(rep.sea_level),
-                        ..Default::default()
-                    },
-                )?);
-                names.push(f.to_string());
-            }
-            if !tiles.is_empty() {
-                let h = tiles[0].height;
-                let w: usize = tiles.iter().map(|t| t.width).sum();
-                let mut rgb = vec![0u8; w * h * 3];
-                let mut x0 = 0;
-                for t in &tiles {
-                    for y in 0..h {
-                        rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3]
-                            .copy_from_slice(&t.rgb[y * t.width * 3..(y + 1) * t.width * 3]);
-                    }
-                    x0 += t.width;
-                }
-                cx.section.figure("closeups_s", t.elapsed().as_secs_f64());
-                let path = cx.config.out_dir.join("volume_closeups.png");
-                relief_io::write_rgb_png(&path, w, h, &rgb)
-                    .with_context(|| format!("cannot write {}", path.display()))?;
-                cx.section.image(
-                    "volume_closeups.png",
-                    &format!("close-ups, left to right: {}", names.join(", ")),
-                );
-            }
+            let (img, names) = relief_implicit_volume::render_closeups(
+                &scene,
+                &rep,
+                &RenderSettings {
+                    width: p.render_size[0] / 2,
+                    height: p.render_size[1] / 2,
+                    sea_level: rep.has_sea.then_some(rep.sea_level),
+                    ..Default::default()
+                },
+            )?;
+            cx.section.figure("closeups_s", t.elapsed().as_secs_f64());
+            let path = cx.config.out_dir.join("volume_closeups.png");
+            relief_io::write_rgb_png(&path, img.width, img.height, &img.rgb)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            cx.section.image(
+                "volume_closeups.png",
+                &format!("close-ups, left to right: {}", names.join(", ")),
+            );
         }
         Ok(())
     }
