@@ -54,7 +54,7 @@ impl Default for FitSettings {
 
 impl FitSettings {
     /// Checks the settings.
-    pub fn validate(&self) -> Result<()> {
+    pub fn check(&self) -> Result<()> {
         if !(self.variance_floor > 0.0 && self.variance_floor <= MAX_VARIANCE_FLOOR) {
             return Err(WaveletError::param(
                 "variance_floor",
@@ -90,7 +90,7 @@ impl FitSettings {
 
     /// `(J, analysed levels, levels used by the fit)` for an input size.
     pub(crate) fn plan(&self, width: usize, height: usize) -> Result<(i64, usize, usize)> {
-        self.validate()?;
+        self.check()?;
         let top = max_levels(width, height);
         let auto = top.saturating_sub(self.min_level as usize);
         let levels = if self.levels == 0 {

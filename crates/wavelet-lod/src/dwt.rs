@@ -177,7 +177,7 @@ impl Decomposition {
     /// Checks that the shapes are those [`wavedec2`] produces for `width x height` and
     /// `levels()` levels (always true for its output; a decomposition edited by hand or
     /// deserialised from a file may not be).
-    pub fn validate(&self) -> Result<()> {
+    pub fn check(&self) -> Result<()> {
         let bad = |what: String| {
             Err(WaveletError::param(
                 "decomposition",
@@ -498,10 +498,10 @@ pub fn wavedec2(
 }
 
 /// Multi-level inverse transform of a decomposition whose shapes are first checked
-/// ([`Decomposition::validate`]): use it for decompositions that did not come straight from
+/// ([`Decomposition::check`]): use it for decompositions that did not come straight from
 /// [`wavedec2`].
 pub fn try_waverec2(dec: &Decomposition) -> Result<Grid> {
-    dec.validate()?;
+    dec.check()?;
     Ok(waverec2(dec))
 }
 
@@ -528,7 +528,7 @@ pub fn waverec2(dec: &Decomposition) -> Grid {
 /// place instead of copied (same values bit for bit, less memory traffic).
 ///
 /// # Panics
-/// As [`waverec2`], if the shapes are inconsistent ([`Decomposition::validate`]).
+/// As [`waverec2`], if the shapes are inconsistent ([`Decomposition::check`]).
 pub fn waverec2_owned(dec: Decomposition) -> Grid {
     let Decomposition {
         wavelet,

@@ -125,8 +125,8 @@ impl RefineSettings {
     }
 
     /// Checks the settings.
-    pub fn validate(&self) -> Result<()> {
-        self.fit.validate()?;
+    pub fn check(&self) -> Result<()> {
+        self.fit.check()?;
         if self.method == Method::Lsa {
             check_window(self.window)?;
         }
@@ -190,7 +190,7 @@ impl Refiner {
     /// levels available (or, below two levels, to a default decay), and [`Refiner::notes`]
     /// says so.
     pub fn new(hf: &Heightfield, settings: &RefineSettings) -> Result<Self> {
-        settings.validate()?;
+        settings.check()?;
         let n = settings.extra_levels;
         let (ow, oh) = (
             hf.width().checked_shl(n).unwrap_or(usize::MAX),

@@ -220,7 +220,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         min_level: args.min_level,
         ..Default::default()
     };
-    fit.validate().context("invalid fit settings")?;
+    fit.check().context("invalid fit settings")?;
     if args.plot_levels > 12 {
         bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
     }

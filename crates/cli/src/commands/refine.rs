@@ -118,7 +118,7 @@ impl Args {
             },
             ..base
         };
-        settings.validate().context("invalid refine settings")?;
+        settings.check().context("invalid refine settings")?;
         Ok(settings)
     }
 }

@@ -104,7 +104,7 @@ impl WaveletStage {
             extra_levels: p.levels,
             ..Default::default()
         }
-        .validate()
+        .check()
         .context("invalid `window` or `levels`")?;
         if p.max_cells < 64 * 64 {
             bail!("invalid `max_cells` = {}: must be >= 4096", p.max_cells);
