@@ -44,8 +44,10 @@ mod resample;
 pub mod rng;
 mod sample;
 pub mod terrain;
+mod window;
 
 pub use error::{HeightfieldError, Result};
 pub use grid::{GeoRef, Heightfield, MAX_CELLS};
 pub use progress::{NoProgress, Progress};
 pub use sample::cubic_weights;
+pub use window::Window;

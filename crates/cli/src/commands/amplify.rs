@@ -56,8 +56,8 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) residual_correction: bool,
     /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
-    #[arg(long)]
-    pub(crate) window: Option<String>,
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub(crate) window: Option<Window>,
     /// Stream a GeoTIFF output band by band instead of rasterising it whole (automatic above
     /// 16 M cells): memory stays at one band whatever the output size.
     #[arg(long)]
@@ -84,7 +84,7 @@ pub(crate) fn steps_of_factor(factor: usize) -> Result<usize> {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Every argument is checked before any file is touched, so a typo fails fast.
     settings(&args)?;
-    let window = args.window.as_deref().map(parse_window).transpose()?;
+    let window = args.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
         &[&args.input, &args.exemplar],
@@ -261,24 +261,6 @@ pub(crate) fn preflight(
     ctx.check_memory(command, &refs)
 }
 
-/// Parses `--window X,Y,W,H` (output pixels).
-pub(crate) fn parse_window(s: &str) -> Result<Window> {
-    let v: Vec<usize> = s
-        .split(',')
-        .map(|t| t.trim().parse::<usize>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| anyhow::anyhow!("invalid --window `{s}`: must be X,Y,W,H in whole pixels"))?;
-    match v[..] {
-        [x, y, width, height] if width > 0 && height > 0 => Ok(Window {
-            x,
-            y,
-            width,
-            height,
-        }),
-        _ => bail!("invalid --window `{s}`: must be X,Y,W,H with W, H > 0"),
-    }
-}
-
 /// Whether `path` names a `.sct` model (by extension).
 pub(crate) fn is_sct(path: &Path) -> bool {
     path.extension()
@@ -426,21 +408,5 @@ mod tests {
             let e = steps_of_factor(bad).unwrap_err().to_string();
             assert!(e.contains("--factor"), "{e}");
         }
-    }
-
-    #[test]
-    fn windows() {
-        assert_eq!(
-            parse_window("1,2,30,40").unwrap(),
-            Window {
-                x: 1,
-                y: 2,
-                width: 30,
-                height: 40
-            }
-        );
-        assert!(parse_window("1,2,0,4").is_err());
-        assert!(parse_window("1,2,3").is_err());
-        assert!(parse_window("a,2,3,4").is_err());
     }
 }

@@ -28,9 +28,9 @@ pub(crate) struct Args {
     /// Scale factor: output pixel (X, Y) samples the terrain at (X / F, Y / F).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f64,
-    /// Window `x,y,w,h` of the output raster (in output pixels at --scale).
-    #[arg(long)]
-    pub(crate) window: Option<String>,
+    /// Window `X,Y,W,H` of the output raster (in output pixels at --scale).
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub(crate) window: Option<Window>,
     /// Raster to compare with (same size as the output): prints PSNR and RMSE.
     #[arg(long)]
     pub(crate) reference: Option<PathBuf>,
@@ -39,30 +39,6 @@ pub(crate) struct Args {
     pub(crate) max_cells: usize,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
-}
-
-fn parse_window(s: &str) -> std::result::Result<Window, String> {
-    let v: Vec<usize> = s
-        .split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<usize>()
-                .map_err(|_| format!("`{t}` is not a non-negative integer"))
-        })
-        .collect::<std::result::Result<_, _>>()?;
-    match v[..] {
-        [x, y, width, height] if width > 0 && height > 0 => Ok(Window {
-            x,
-            y,
-            width,
-            height,
-        }),
-        [_, _, _, _] => Err("width and height must be > 0".into()),
-        _ => Err(format!(
-            "expected x,y,w,h (4 integers), got {} values",
-            v.len()
-        )),
-    }
 }
 
 /// Reads the model, rasterises the window, writes it, prints the figures.
@@ -82,14 +58,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             args.scale
         )
     })?;
-    let win = match &args.window {
-        Some(w) => Some(
-            parse_window(w)
-                .map_err(|e| anyhow::anyhow!("invalid parameter `--window` = {w}: {e}"))?,
-        ),
-        None => None,
-    };
-    let win = win.unwrap_or(Window {
+    let win = args.window.unwrap_or(Window {
         x: 0,
         y: 0,
         width: fw,
@@ -189,18 +158,4 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         print!("{out}");
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_window;
-
-    #[test]
-    fn window_argument() {
-        let w = parse_window("1,2,30,40").unwrap();
-        assert_eq!((w.x, w.y, w.width, w.height), (1, 2, 30, 40));
-        assert!(parse_window("1,2,0,4").is_err());
-        assert!(parse_window("1,2,3").is_err());
-        assert!(parse_window("1,-2,3,4").is_err());
-    }
 }

@@ -70,23 +70,13 @@ pub(crate) struct Args {
     pub(crate) min_level: u32,
     /// Write only this window `X,Y,W,H` of the refined terrain (output cells).
     #[arg(long = "window", value_name = "X,Y,W,H")]
-    pub(crate) window_of: Option<String>,
+    pub(crate) window_of: Option<relief_heightfield::Window>,
     /// Stream a GeoTIFF output band by band instead of synthesising it whole (automatic above
     /// 16 M cells): memory stays at one band of rows whatever the output size.
     #[arg(long)]
     pub(crate) stream: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
-}
-
-/// Parses `x,y,w,h` (four non-negative integers, w and h > 0).
-pub(crate) fn parse_window(s: &str) -> Result<(usize, usize, usize, usize)> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let nums: Option<Vec<usize>> = parts.iter().map(|p| p.parse().ok()).collect();
-    match nums.as_deref() {
-        Some(&[x, y, w, h]) if w > 0 && h > 0 => Ok((x, y, w, h)),
-        _ => bail!("invalid --window `{s}`: expected x,y,w,h (integers, w and h > 0)"),
-    }
 }
 
 impl Args {
@@ -127,7 +117,7 @@ impl Args {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Every argument is checked before the input is read, so a typo fails fast.
     let settings = args.settings()?;
-    let window = args.window_of.as_deref().map(parse_window).transpose()?;
+    let window = args.window_of.map(|w| w.as_tuple());
     ctx.check_outputs(
         &[&args.input],
         &[(&args.output, crate::outputs::OutKind::Raster)],
@@ -308,19 +298,4 @@ fn stream_geotiff(
     }
     out.finish().with_context(cannot_write)?;
     Ok(band)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_window;
-
-    #[test]
-    fn window_argument() {
-        assert_eq!(parse_window("1,2,3,4").unwrap(), (1, 2, 3, 4));
-        assert_eq!(parse_window(" 0, 0 ,8,8").unwrap(), (0, 0, 8, 8));
-        assert!(parse_window("1,2,3").is_err());
-        assert!(parse_window("1,2,0,4").is_err());
-        assert!(parse_window("a,2,3,4").is_err());
-        assert!(parse_window("-1,2,3,4").is_err());
-    }
 }

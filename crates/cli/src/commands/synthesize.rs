@@ -9,7 +9,7 @@ use relief_dictionary_learning::{
     AmplifySettings, DictionaryChoice, SynthesisSettings, synthesize,
 };
 
-use super::amplify::{check_output_path, parse_window, write_model};
+use super::amplify::{check_output_path, write_model};
 use crate::ctx::Ctx;
 
 /// Arguments of `relief synthesize`.
@@ -42,8 +42,8 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
     /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
-    #[arg(long)]
-    pub(crate) window: Option<String>,
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub(crate) window: Option<relief_sparse_core::Window>,
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
@@ -73,7 +73,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .amplify
         .check()
         .context("invalid synthesis settings")?;
-    let window = args.window.as_deref().map(parse_window).transpose()?;
+    let window = args.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
         &[&args.sketch, &args.exemplar],

@@ -63,18 +63,9 @@ use crate::error::{Result, SparseError};
 use crate::omp::SparseCodes;
 use crate::patches::{CentreGrid, cubic_weights};
 
-/// A window of the output raster, in output pixels at the requested scale.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Window {
-    /// First column.
-    pub x: usize,
-    /// First row.
-    pub y: usize,
-    /// Number of columns.
-    pub width: usize,
-    /// Number of rows.
-    pub height: usize,
-}
+/// A window of the output raster, in output pixels at the requested scale (the workspace's one
+/// window type, from `relief-heightfield`).
+pub use relief_heightfield::Window;
 
 /// Settings of [`Sct::rasterize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
