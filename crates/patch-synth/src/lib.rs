@@ -91,6 +91,7 @@ mod validate;
 pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
 pub use cut::{Cut, min_error_cut};
 pub use error::{PatchSynthError, Result};
+pub use guide::{GuideRange, RangeMapping, SizeFit};
 pub use index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef};
 pub use relief_heightfield::{NoProgress, Progress};
 pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};

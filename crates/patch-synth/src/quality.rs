@@ -17,6 +17,8 @@ pub struct QualityReport {
     pub guide_std: f64,
     /// Mean gradient magnitude on seam cells divided by the mean elsewhere (1 = invisible).
     pub seam_ratio: f64,
+    /// Mean absolute curvature on seam cells divided by the mean elsewhere (1 = no crease).
+    pub seam_curvature_ratio: f64,
     /// Slope-angle histogram distance (EMD, degrees) of the output to the pooled exemplars.
     pub slope_distance: f64,
     /// The same distance between the guide's source and the exemplars, when known (else NaN):
@@ -60,6 +62,42 @@ pub fn seam_visibility(output: &Heightfield, seams: &SeamMap) -> Result<f64> {
     Ok((s1 / n1 as f64) / (s0 / n0 as f64))
 }
 
+/// Mean absolute curvature (5-point Laplacian) on seam cells over the mean on the other cells
+/// (the outer one-cell border excluded): a crease along the cuts shows here even when the
+/// gradient ratio of [`seam_visibility`] is 1.
+pub fn seam_curvature(output: &Heightfield, seams: &SeamMap) -> Result<f64> {
+    if (seams.width, seams.height) != (output.width(), output.height()) {
+        return Err(PatchSynthError::InvalidControl {
+            name: "seam_map",
+            reason: "size differs from the output".into(),
+        });
+    }
+    let (w, h) = (output.width(), output.height());
+    let (cx, cy) = output.cell_size();
+    let z = output.as_slice();
+    let (mut s1, mut n1, mut s0, mut n0) = (0.0f64, 0usize, 0.0f64, 0usize);
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let i = y * w + x;
+            let c = z[i] as f64;
+            let lx = (z[i - 1] as f64 + z[i + 1] as f64 - 2.0 * c) / (cx * cx);
+            let ly = (z[i - w] as f64 + z[i + w] as f64 - 2.0 * c) / (cy * cy);
+            let k = (lx + ly).abs();
+            if seams.seam[i] {
+                s1 += k;
+                n1 += 1;
+            } else {
+                s0 += k;
+                n0 += 1;
+            }
+        }
+    }
+    if n1 == 0 || n0 == 0 || s0 == 0.0 {
+        return Ok(1.0);
+    }
+    Ok((s1 / n1 as f64) / (s0 / n0 as f64))
+}
+
 /// Slope-histogram distance (EMD, degrees) between `output` and the pooled histogram of the
 /// exemplars (each weighted by its cell count).
 pub fn slope_distance(output: &Heightfield, exemplars: &[&Heightfield]) -> f64 {
@@ -93,6 +131,7 @@ pub fn assess(
         guide_rmse: guide_fidelity(output, guide, factor)?,
         guide_std: stats(guide)?.std,
         seam_ratio: seam_visibility(output, seams)?,
+        seam_curvature_ratio: seam_curvature(output, seams)?,
         slope_distance: slope_distance(output, exemplars),
         slope_distance_baseline: source.map_or(f64::NAN, |s| slope_distance(s, exemplars)),
     })
