@@ -166,7 +166,7 @@ fn bench_parts(c: &mut Criterion) {
     let exact = pool.install(|| bruteforce(&index, &region, p, o, settings.knn));
     let fast = pool.install(|| {
         index
-            .nearest_overlaps(OverlapShape::Both, &region, settings.knn)
+            .nearest_overlaps(OverlapShape::Both, &region, settings.knn, settings.rerank)
             .expect("search")
     });
     let hits = fast.iter().filter(|(_, id)| exact.contains(id)).count();
@@ -185,7 +185,7 @@ fn bench_parts(c: &mut Criterion) {
             b.iter(|| {
                 pool.install(|| {
                     index
-                        .nearest_overlaps(shape, &region, settings.knn)
+                        .nearest_overlaps(shape, &region, settings.knn, settings.rerank)
                         .expect("search")
                 })
             })
@@ -204,7 +204,7 @@ fn bench_parts(c: &mut Criterion) {
         b.iter(|| {
             pool.install(|| {
                 index16
-                    .nearest_overlaps(OverlapShape::Both, &region, settings.knn)
+                    .nearest_overlaps(OverlapShape::Both, &region, settings.knn, settings.rerank)
                     .expect("search")
             })
         })

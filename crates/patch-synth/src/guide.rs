@@ -193,3 +193,262 @@ pub fn guide_from_sketch(
     }
     Ok(hf)
 }
+
+/// The guide resampled to `cell` metres per cell over its own ground extent, so that its
+/// features keep their physical size on the exemplars' grid (patches are copied cell for cell).
+pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield> {
+    guide.require_complete()?;
+    if !(cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0) {
+        return Err(PatchSynthError::setting(
+            "cell_size",
+            format!("{} x {}", cell.0, cell.1),
+            "must be finite and > 0",
+        ));
+    }
+    let (gx, gy) = guide.cell_size();
+    let w = (guide.width() as f64 * gx / cell.0).round().max(1.0);
+    let h = (guide.height() as f64 * gy / cell.1).round().max(1.0);
+    if w * h > crate::synth::MAX_OUTPUT_CELLS as f64 {
+        return Err(PatchSynthError::InvalidControl {
+            name: "guide",
+            reason: format!(
+                "{} x {} cells of {gx:.2} x {gy:.2} m become {w} x {h} cells of {:.2} x {:.2} m, \
+                 more than a synthesis may produce",
+                guide.width(),
+                guide.height(),
+                cell.0,
+                cell.1
+            ),
+        });
+    }
+    let (w, h) = (w as usize, h as usize);
+    let mut out = if (w, h) == (guide.width(), guide.height()) {
+        guide.clone()
+    } else {
+        guide.resample(w, h)?
+    };
+    out.set_cell_size(cell.0, cell.1)?;
+    out.set_georef(
+        guide
+            .georef()
+            .cloned()
+            .filter(|_| (w, h) == (guide.width(), guide.height())),
+    );
+    Ok(out)
+}
+
+/// How [`fit_to_size`] changed a guide: cells removed (crop) or added (mirror padding) along
+/// each axis, split evenly between both sides.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SizeFit {
+    /// Columns and rows removed.
+    pub cropped: (usize, usize),
+    /// Columns and rows added.
+    pub padded: (usize, usize),
+}
+
+/// Crops (centred) or pads (mirrored at the edges, so no flat band appears) the guide to
+/// `width x height` cells without resampling: the guide keeps its cell size and scale (and its
+/// georeference, moved to the new origin).
+pub fn fit_to_size(
+    guide: &Heightfield,
+    width: usize,
+    height: usize,
+) -> Result<(Heightfield, SizeFit)> {
+    guide.require_complete()?;
+    if width == 0
+        || height == 0
+        || width
+            .checked_mul(height)
+            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
+    {
+        return Err(PatchSynthError::InvalidControl {
+            name: "size",
+            reason: format!("{width} x {height} is empty or too large"),
+        });
+    }
+    let (gw, gh) = (guide.width(), guide.height());
+    let fit = SizeFit {
+        cropped: (gw.saturating_sub(width), gh.saturating_sub(height)),
+        padded: (width.saturating_sub(gw), height.saturating_sub(gh)),
+    };
+    // Offset of the output's origin in guide cells (negative = padding).
+    let ox = gw as isize / 2 - width as isize / 2;
+    let oy = gh as isize / 2 - height as isize / 2;
+    let mirror = |i: isize, n: usize| -> usize {
+        let n = n as isize;
+        if n == 1 {
+            return 0;
+        }
+        let period = 2 * (n - 1);
+        let m = i.rem_euclid(period);
+        (if m < n { m } else { period - m }) as usize
+    };
+    let src = guide.as_slice();
+    let mut data = Vec::with_capacity(width * height);
+    for y in 0..height {
+        let sy = mirror(oy + y as isize, gh);
+        for x in 0..width {
+            data.push(src[sy * gw + mirror(ox + x as isize, gw)]);
+        }
+    }
+    let (cx, cy) = guide.cell_size();
+    let mut out = Heightfield::new(width, height, data, cx, cy)?;
+    // The output's origin is the guide's cell (ox, oy); padded cells extend the grid.
+    out.set_georef(
+        guide
+            .georef()
+            .map(|g| g.window(ox as f64, oy as f64, 1.0, 1.0)),
+    );
+    Ok((out, fit))
+}
+
+/// Target heights of [`map_range`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GuideRange {
+    /// The exemplars' range: the 2-98 % quantiles of the patches' means, the heights a whole
+    /// patch can actually bring.
+    Auto,
+    /// `lo..hi` metres.
+    Metres(f32, f32),
+}
+
+/// The linear height mapping [`map_range`] applied.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeMapping {
+    /// The guide's 2-98 % quantiles of its patch-sized window means (metres, before the
+    /// mapping).
+    pub from: (f32, f32),
+    /// Where they were mapped (metres).
+    pub to: (f32, f32),
+}
+
+/// Quantiles of the exemplar patches' means [`map_range`] maps onto.
+const RANGE_Q: (f64, f64) = (0.02, 0.98);
+/// Quantiles of the guide's window means [`map_range`] maps from: the extremes, so that no
+/// part of the guide asks for heights beyond the exemplars' (window means are already robust
+/// to single-cell outliers).
+const GUIDE_Q: (f64, f64) = (0.0, 1.0);
+
+fn quantiles(mut v: Vec<f32>, q: (f64, f64)) -> Option<(f32, f32)> {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f32::total_cmp);
+    let at = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+    Some((at(q.0), at(q.1)))
+}
+
+/// Maps the guide's heights linearly so that the 2-98 % quantiles of its patch-sized window
+/// means land on `range` (for [`GuideRange::Auto`], the same quantiles of the exemplar
+/// patches' means): a guide from another DEM, or a sketch in grey levels, then asks for
+/// heights the exemplars have at the scale of a patch (a narrow canyon floor has low cells but
+/// no low patch). Its form (and so its correlation with the output) is kept.
+pub fn map_range(
+    guide: &Heightfield,
+    index: &crate::ExemplarIndex,
+    range: GuideRange,
+) -> Result<(Heightfield, RangeMapping)> {
+    map_range_q(guide, index, range, RANGE_Q)
+}
+
+/// Exemplar quantile pairs [`fit_range`] tries after the default 2-98 %: the top or the bottom
+/// of the exemplars' range pulled in first (a guide's narrow ridges or flat lows may have no
+/// counterpart at the exemplars' extremes), then both.
+const FIT_Q: [(f64, f64); 9] = [
+    (0.02, 0.98),
+    (0.05, 0.98),
+    (0.1, 0.98),
+    (0.02, 0.995),
+    (0.05, 0.995),
+    (0.1, 0.995),
+    (0.15, 0.995),
+    (0.02, 0.95),
+    (0.05, 0.95),
+];
+
+/// [`GuideRange::Auto`] checked by the input validation (section 4): the guide is mapped onto
+/// the exemplar patches' 2-98 % mean range, and when some guide blocks then lack candidates,
+/// onto narrower ranges of the exemplars (top, bottom, then both pulled in) until the
+/// validation of `control` (its size and categorisation map; its guide is replaced) passes.
+/// Returns the first mapping that passes, else the one with the fewest failing blocks, with
+/// its validation report.
+pub fn fit_range(
+    guide: &Heightfield,
+    index: &crate::ExemplarIndex,
+    control: &crate::Control,
+    settings: &crate::Settings,
+) -> Result<(Heightfield, RangeMapping, crate::ValidationReport)> {
+    let mut best: Option<(Heightfield, RangeMapping, crate::ValidationReport)> = None;
+    for q in FIT_Q {
+        let (g, m) = map_range_q(guide, index, GuideRange::Auto, q)?;
+        let mut c = control.clone();
+        c.guide = Some(g);
+        let report = crate::validate(index, &c, settings)?;
+        let g = c.guide.take().expect("guide set above");
+        let ok = report.ok;
+        if best
+            .as_ref()
+            .is_none_or(|b| report.failing.len() < b.2.failing.len())
+        {
+            best = Some((g, m, report));
+        }
+        if ok {
+            break;
+        }
+    }
+    best.ok_or(PatchSynthError::NoExemplars)
+}
+
+fn map_range_q(
+    guide: &Heightfield,
+    index: &crate::ExemplarIndex,
+    range: GuideRange,
+    exemplar_q: (f64, f64),
+) -> Result<(Heightfield, RangeMapping)> {
+    guide.require_complete()?;
+    let b = index.params.patch;
+    let (w, h) = (guide.width(), guide.height());
+    let (bw, bh) = (b.min(w), b.min(h));
+    let step = (b / 4).max(1);
+    let src = guide.as_slice();
+    let mut means = Vec::new();
+    let mut y = 0;
+    while y + bh <= h {
+        let mut x = 0;
+        while x + bw <= w {
+            means.push(crate::synth::window_mean(src, w, x, y, bw, bh));
+            x += step;
+        }
+        y += step;
+    }
+    let from = quantiles(means, GUIDE_Q).ok_or_else(|| PatchSynthError::InvalidControl {
+        name: "guide",
+        reason: "no block of the guide".into(),
+    })?;
+    let to = match range {
+        GuideRange::Metres(lo, hi) => {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(PatchSynthError::setting(
+                    "guide_range",
+                    format!("{lo},{hi}"),
+                    "must be two finite heights LO < HI",
+                ));
+            }
+            (lo, hi)
+        }
+        GuideRange::Auto => quantiles(index.by_mean.iter().map(|v| v.0).collect(), exemplar_q)
+            .ok_or(PatchSynthError::NoExemplars)?,
+    };
+    let span = (from.1 - from.0) as f64;
+    let out = if span > 0.0 {
+        let k = (to.1 - to.0) as f64 / span;
+        guide.map(|v| (to.0 as f64 + (v - from.0) as f64 * k) as f32)
+    } else {
+        // A flat guide: centred on the target range.
+        let mid = 0.5 * (to.0 + to.1);
+        guide.map(|v| v - from.0 + mid)
+    };
+    Ok((out, RangeMapping { from, to }))
+}

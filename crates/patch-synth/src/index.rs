@@ -493,13 +493,16 @@ impl ExemplarIndex {
     /// overlap cells of `region` (a `patch_size x patch_size` row-major raster in patch-local
     /// coordinates; only the cells of `shape`'s overlap are read) are reduced to box-mean
     /// features, projected on the shape's PCA basis, and the `knn` nearest patches of every
-    /// non-empty bucket's kd-tree are merged. Returns `(squared PCA distance, patch id)` for
-    /// the `knn` nearest overall, ascending (ties by id). Exact in PCA space only.
+    /// non-empty bucket's kd-tree are merged, `knn * rerank` per bucket, then re-ranked by the
+    /// exact overlap error (mean squared difference over the full-resolution overlap cells,
+    /// both means removed). Returns `(exact error in m^2, patch id)` for the `knn` best,
+    /// ascending (ties by id). `rerank = 1` keeps the kd-tree's own choice.
     pub fn nearest_overlaps(
         &self,
         shape: OverlapShape,
         region: &[f32],
         knn: usize,
+        rerank: usize,
     ) -> Result<Vec<(f32, usize)>> {
         let p = self.params.patch;
         if region.len() != p * p {
@@ -537,20 +540,59 @@ impl ExemplarIndex {
         });
         let mut q = vec![0.0f32; self.params.pca_dims];
         self.pcas[sh].project(&f, &mut q);
+        let fetch = knn.saturating_mul(rerank.max(1));
         let mut out: Vec<(f32, usize)> = self
             .buckets
             .par_iter()
             .filter(|b| !b.patches.is_empty())
             .flat_map_iter(|b| {
                 b.trees[sh]
-                    .nearest(&q, knn)
+                    .nearest(&q, fetch)
                     .into_iter()
-                    .map(|(d, item)| (d, b.patches[item as usize] as usize))
+                    .map(|(_, item)| b.patches[item as usize] as usize)
+            })
+            .map(|id| {
+                let e = self.overlap_error(id, shape, |r, c| region[r * p + c]);
+                (e, id)
             })
             .collect();
         out.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         out.truncate(knn);
         Ok(out)
+    }
+
+    /// Exact overlap error of patch `id` against a target (`target(row, col)`, patch-local):
+    /// the mean squared difference over the overlap cells of `shape` after removing both means
+    /// (the vertical translation of equation 3), in square metres.
+    pub(crate) fn overlap_error(
+        &self,
+        id: usize,
+        shape: OverlapShape,
+        target: impl Fn(usize, usize) -> f32,
+    ) -> f32 {
+        let (p, o) = (self.params.patch, self.params.overlap);
+        let (mut sd, mut sd2, mut n) = (0.0f64, 0.0f64, 0usize);
+        for r in 0..p {
+            let nc = match shape {
+                OverlapShape::Left => o,
+                OverlapShape::Top if r < o => p,
+                OverlapShape::Top => 0,
+                OverlapShape::Both if r < o => p,
+                OverlapShape::Both => o,
+            };
+            let row = self.row(id, r);
+            for (c, &v) in row.iter().enumerate().take(nc) {
+                let d = (v - target(r, c)) as f64;
+                sd += d;
+                sd2 += d * d;
+            }
+            n += nc;
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        let m = sd / n as f64;
+        (sd2 / n as f64 - m * m).max(0.0) as f32
     }
 
     /// Category of patch `id`.

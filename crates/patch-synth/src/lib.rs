@@ -18,15 +18,17 @@
 //!   match is invariant to the vertical translation) are projected on a PCA basis (faer
 //!   symmetric eigen-decomposition of the covariance) and stored per bucket in kd-trees (kiddo).
 //! * Candidates (section 3.2): the categories present in the map window filter the buckets;
-//!   clusters are probed in order of closeness to the guide's block descriptor until
-//!   `probe_candidates` patches are gathered; the `knn` nearest overlaps of each probed bucket
-//!   (kd-tree in PCA space) are the candidates ([`ExemplarIndex::nearest_overlaps`] runs one
-//!   such search on its own; the `search_quality` example measures it against the exhaustive
-//!   search: with 8 PCA dimensions it returns about a fifth of the exhaustive best 24, whose
-//!   best is within ~16 % of the optimal overlap error, in about 1 ms instead of 2.4 s for the
-//!   201,601 patches of a 512 x 512 exemplar). With a guide, the `knn` patches per probed
-//!   bucket whose block descriptors best match the guide's (after the translation of equation
-//!   3) join them: the paper leaves open how the two criteria are combined, and overlap
+//!   clusters are probed in order of closeness to the guide's block descriptor (after the
+//!   vertical translation of equation 3, as the validation compares them) until
+//!   `probe_candidates` patches are gathered; each probed bucket's kd-tree (PCA space) is asked
+//!   for `knn * rerank` neighbours of the overlap, which are re-ranked by the exact
+//!   full-resolution overlap error (means removed) and the best `knn` kept
+//!   ([`ExemplarIndex::nearest_overlaps`] runs one such search on its own; the `search_quality`
+//!   example measures it against the exhaustive search on the 201,601 patches of a 512 x 512
+//!   exemplar: the kd-tree's own 24 hold 41 % of the exhaustive best 24 with 8 PCA dimensions,
+//!   the best 24 of the re-ranked 240 per bucket 99.7 %). With a guide, the `knn` patches per
+//!   probed bucket whose block descriptors best match the guide's (after the translation of
+//!   equation 3) join them: the paper leaves open how the two criteria are combined, and overlap
 //!   neighbours alone gave a guide RMSE about 1.5 times larger on the alps protocol.
 //! * Choice (section 3.3, equation 1): `M = alpha G + beta O + gamma P` with `G` the RMS
 //!   distance between `guide_cells x guide_cells` cell means of the patch and the guide, `O`
@@ -38,7 +40,15 @@
 //!   patch); when `|h| > lambda` the translation is not applied.
 //! * Insertion: minimum-error boundary cut by dynamic programming ([`min_error_cut`]; the
 //!   greedy variant is kept for comparison), then feathering or Poisson blending over the
-//!   overlap ([`Blend`]).
+//!   overlap ([`Blend`]), then `crease_passes` of smoothing on the cells next to the cut (the
+//!   blended gradients agree across a cut but the curvature creases; measured by
+//!   [`quality::seam_curvature`]).
+//! * Guides from another DEM (issue 17, not in the paper): [`guide::to_cell_size`] keeps the
+//!   guide's physical scale on the exemplars' grid, [`guide::fit_to_size`] crops or
+//!   mirror-pads it without resampling, [`guide::map_range`] maps its heights linearly onto
+//!   the exemplars' (or given) range and [`guide::fit_range`] picks such a mapping that passes
+//!   the validation. The `guided_quality` example measures the result (grandcanyon exemplar,
+//!   guides from jacksboro_fault and alps_dem, 512 x 512).
 //! * Validation (section 4, [`validate`]): every guide block needs `min_candidates` (default
 //!   500) patches whose `N x N` descriptor matches the guide's within an RMS tolerance (default
 //!   half the guide's standard deviation) after the vertical translation; the report names
@@ -91,6 +101,7 @@ mod validate;
 pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
 pub use cut::{Cut, min_error_cut};
 pub use error::{PatchSynthError, Result};
+pub use guide::{GuideRange, RangeMapping, SizeFit};
 pub use index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef};
 pub use relief_heightfield::{NoProgress, Progress};
 pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};

@@ -61,6 +61,11 @@ pub struct Settings {
     pub pca_samples: usize,
     /// Nearest neighbours taken from each probed bucket's kd-tree.
     pub knn: usize,
+    /// Each probed bucket's kd-tree is asked for `knn * rerank` neighbours in PCA space, which
+    /// are re-ranked by their exact full-resolution overlap error (means removed) and the best
+    /// `knn` kept: the PCA keeps only part of the overlap's variance, so its own top `knn`
+    /// misses most of the exact best (1 = no re-ranking).
+    pub rerank: usize,
     /// Clusters are probed in order of closeness to the guide descriptor until this many
     /// candidate patches are gathered (at least one cluster is always probed).
     pub probe_candidates: usize,
@@ -82,6 +87,10 @@ pub struct Settings {
     pub cut: CutMethod,
     /// Seam blending.
     pub blend: Blend,
+    /// Passes of crease smoothing after the blending: the cells within one cell of each new
+    /// cut are moved a third of the way towards the mean of their four neighbours, which removes the
+    /// curvature crease a cut leaves even when the gradients agree (0 = off).
+    pub crease_passes: usize,
     /// Seed of every random choice (k-means initialisation, PCA sampling, patch choice).
     pub seed: u64,
 }
@@ -102,6 +111,7 @@ impl Default for Settings {
             pca_dims: 8,
             pca_samples: 3000,
             knn: 24,
+            rerank: 10,
             probe_candidates: 1500,
             survivors: 8,
             choice_tolerance: 0.05,
@@ -113,6 +123,7 @@ impl Default for Settings {
             blend: Blend::Poisson {
                 max_iterations: 300,
             },
+            crease_passes: 1,
             seed: 0,
         }
     }
@@ -224,6 +235,7 @@ impl Settings {
         }
         for (name, v) in [
             ("knn", self.knn),
+            ("rerank", self.rerank),
             ("probe_candidates", self.probe_candidates),
             ("survivors", self.survivors),
             ("min_candidates", self.min_candidates),

@@ -8,8 +8,7 @@ use relief_heightfield::{Heightfield, Progress};
 use crate::category::{ANY_CATEGORY, CategoryMap};
 use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
-use crate::index::{Exemplar, ExemplarIndex, PatchRef, features, grid_rects};
-use crate::kmeans::dist2;
+use crate::index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef, features, grid_rects};
 use crate::settings::{Blend, Settings};
 use crate::validate::validate;
 
@@ -370,8 +369,15 @@ pub fn synthesize(
                     .collect()
             });
             let mut order: Vec<(f32, usize)> = if let Some(d) = &target_desc {
+                // After the vertical translation of equation (3), as the validation and the
+                // guide candidates compare descriptors.
                 (0..k)
-                    .map(|c| (dist2(d, index.clusters.centroid(c)), c))
+                    .map(|c| {
+                        (
+                            translated_dist2(d, index.clusters.centroid(c), settings.lambda),
+                            c,
+                        )
+                    })
                     .collect()
             } else if n_overlap > 0 {
                 // Unguided: compare on the blocks that hold synthesized cells only.
@@ -441,14 +447,25 @@ pub fn synthesize(
                     });
                     let mut q = vec![0.0f32; settings.pca_dims];
                     index.pcas[sh].project(&f, &mut q);
+                    let shape = [OverlapShape::Left, OverlapShape::Top, OverlapShape::Both][sh];
+                    let fetch = settings.knn.saturating_mul(settings.rerank);
                     probed
                         .par_iter()
                         .flat_map_iter(|&b| {
                             let bucket = &index.buckets[b];
-                            bucket.trees[sh]
-                                .nearest(&q, settings.knn)
+                            let mut near: Vec<(f32, u32)> = bucket.trees[sh]
+                                .nearest(&q, fetch)
                                 .into_iter()
-                                .map(|(_, item)| bucket.patches[item as usize])
+                                .map(|(_, item)| {
+                                    let id = bucket.patches[item as usize];
+                                    (index.overlap_error(id as usize, shape, target), id)
+                                })
+                                .collect();
+                            if settings.rerank > 1 {
+                                near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                                near.truncate(settings.knn);
+                            }
+                            near.into_iter().map(|v| v.1)
                         })
                         .collect()
                 }
@@ -467,12 +484,7 @@ pub fn synthesize(
                     .flat_map(|&b| index.buckets[b].patches.iter().copied())
                     .map(|id| {
                         let d = index.descriptor(id as usize);
-                        let mut hh = dg.iter().zip(d).map(|(a, b)| a - b).sum::<f32>() / dim as f32;
-                        if hh.abs() > lambda {
-                            hh = 0.0;
-                        }
-                        let e: f32 = dg.iter().zip(d).map(|(a, b)| (b + hh - a).powi(2)).sum();
-                        (e, id)
+                        (translated_dist2(dg, d, lambda), id)
                     })
                     .collect();
                 let keep = (settings.knn * probed.len()).min(by_guide.len());
@@ -702,6 +714,18 @@ pub fn synthesize(
             for (c, &r) in top.iter().enumerate() {
                 seam[(y0 + r) * cw + x0 + c] = true;
             }
+            if settings.crease_passes > 0 && n_overlap > 0 {
+                smooth_crease(
+                    &mut canvas,
+                    &filled,
+                    cw,
+                    ch,
+                    (x0, y0),
+                    left,
+                    top,
+                    settings.crease_passes,
+                );
+            }
             if sc.rejected {
                 stats.translations_rejected += 1;
             } else if sc.h != 0.0 {
@@ -781,6 +805,17 @@ pub fn quilt(
     synthesize(&index, control, settings, progress)
 }
 
+/// Squared distance between a target descriptor `d` and a patch (or centroid) descriptor `c`
+/// after the vertical translation of equation (3), not applied when larger than `lambda`.
+pub(crate) fn translated_dist2(d: &[f32], c: &[f32], lambda: f32) -> f32 {
+    let n = d.len().max(1) as f32;
+    let mut h = d.iter().zip(c).map(|(a, b)| a - b).sum::<f32>() / n;
+    if h.abs() > lambda {
+        h = 0.0;
+    }
+    d.iter().zip(c).map(|(a, b)| (b + h - a).powi(2)).sum()
+}
+
 /// Mean of a window of a row-major raster of width `cw`.
 pub(crate) fn window_mean(v: &[f32], cw: usize, x: usize, y: usize, w: usize, h: usize) -> f32 {
     let mut s = 0.0f64;
@@ -791,6 +826,66 @@ pub(crate) fn window_mean(v: &[f32], cw: usize, x: usize, y: usize, w: usize, h:
             .sum::<f64>();
     }
     (s / (w * h) as f64) as f32
+}
+
+/// Fraction of the way a crease-smoothing pass moves a cell towards its neighbours' mean.
+const CREASE_WEIGHT: f32 = 0.35;
+
+/// Crease smoothing along the new cuts of the patch at `(x0, y0)`: the cells within
+/// one cell of a cut (`left[r]` = cut column of row `r`, `top[c]` = cut row of column `c`,
+/// patch-local; empty when absent) move [`CREASE_WEIGHT`] of the way towards the mean of their four neighbours,
+/// `passes` times (Jacobi, so the result does not depend on the visiting order). Neighbours
+/// outside the canvas or not yet synthesized are skipped.
+#[allow(clippy::too_many_arguments)]
+fn smooth_crease(
+    canvas: &mut [f32],
+    filled: &[bool],
+    cw: usize,
+    ch: usize,
+    (x0, y0): (usize, usize),
+    left: &[usize],
+    top: &[usize],
+    passes: usize,
+) {
+    let mut cells: Vec<usize> = Vec::new();
+    let mut mark = |x: isize, y: isize| {
+        if x > 0 && y > 0 && (x as usize) + 1 < cw && (y as usize) + 1 < ch {
+            cells.push(y as usize * cw + x as usize);
+        }
+    };
+    for (r, &c) in left.iter().enumerate() {
+        for d in -1isize..=1 {
+            mark((x0 + c) as isize + d, (y0 + r) as isize);
+        }
+    }
+    for (c, &r) in top.iter().enumerate() {
+        for d in -1isize..=1 {
+            mark((x0 + c) as isize, (y0 + r) as isize + d);
+        }
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells.retain(|&i| filled[i]);
+    let mut next = vec![0.0f32; cells.len()];
+    for _ in 0..passes {
+        for (v, &i) in next.iter_mut().zip(&cells) {
+            let (mut s, mut n) = (0.0f32, 0u32);
+            for j in [i - 1, i + 1, i - cw, i + cw] {
+                if filled[j] {
+                    s += canvas[j];
+                    n += 1;
+                }
+            }
+            *v = if n > 0 {
+                (1.0 - CREASE_WEIGHT) * canvas[i] + CREASE_WEIGHT * s / n as f32
+            } else {
+                canvas[i]
+            };
+        }
+        for (&v, &i) in next.iter().zip(&cells) {
+            canvas[i] = v;
+        }
+    }
 }
 
 struct PoissonInput<'a> {

@@ -4,7 +4,10 @@
 
 use relief_heightfield::NoProgress;
 use relief_heightfield::metrics::{rmse, stats};
-use relief_patch_synth::guide::{Seed, Stroke, gaussian_blur, guide_from_sketch, lowpass_resample};
+use relief_patch_synth::guide::{
+    GuideRange, Seed, Stroke, fit_range, fit_to_size, gaussian_blur, guide_from_sketch,
+    lowpass_resample, map_range, to_cell_size,
+};
 use relief_patch_synth::quality::seam_visibility;
 use relief_patch_synth::{
     CategoryMap, Control, Exemplar, ExemplarIndex, Settings, categorize_exemplars, synthesize,
@@ -234,4 +237,81 @@ fn quilt_reports_progress_for_every_phase() {
     assert_eq!(*total as usize, out.placements.len());
     let expected: u64 = phases.iter().map(|(_, t)| t).sum();
     assert_eq!(p.done.load(std::sync::atomic::Ordering::Relaxed), expected);
+}
+
+/// Issue 17: a guide keeps its physical scale (resampled to the exemplars' cells over its own
+/// extent, then cropped or mirror-padded without resampling) and its heights are mapped onto
+/// the exemplars' (`LO,HI` exactly; `auto` checked by the validation).
+#[test]
+fn guide_keeps_its_scale_and_is_mapped_onto_the_exemplar_heights() {
+    let (Some(src), Some(ex)) = (
+        dem_crop("jacksboro_fault", 100, 80, 100, 80),
+        dem_crop("grandcanyon", 150, 150, 160, 160),
+    ) else {
+        return;
+    };
+    // 74.57 x 92.48 m cells onto 61.70 m: the same ground in more cells.
+    let cell = ex.cell_size();
+    let g = to_cell_size(&src, cell).unwrap();
+    assert_eq!(g.cell_size(), cell);
+    let (sx, sy) = src.cell_size();
+    assert_eq!(
+        (g.width(), g.height()),
+        (
+            (100.0 * sx / cell.0).round() as usize,
+            (80.0 * sy / cell.1).round() as usize
+        )
+    );
+    assert!(to_cell_size(&src, (0.0, 1.0)).is_err());
+
+    // Crop: the centred window, values unchanged.
+    let (c, fit) = fit_to_size(&g, 64, 50).unwrap();
+    assert_eq!(fit.cropped, (g.width() - 64, g.height() - 50));
+    assert_eq!(fit.padded, (0, 0));
+    let (ox, oy) = (g.width() / 2 - 32, g.height() / 2 - 25);
+    for (x, y) in [(0, 0), (63, 49), (20, 31)] {
+        assert_eq!(c.get(x, y), g.get(ox + x, oy + y));
+    }
+    // Pad: the guide in the middle, mirrored (not clamped) beyond its edges.
+    let (w, h) = (g.width() + 20, g.height() + 10);
+    let (pd, fit) = fit_to_size(&g, w, h).unwrap();
+    assert_eq!(fit.padded, (20, 10));
+    assert_eq!(pd.get(10, 5), g.get(0, 0));
+    assert_eq!(pd.get(9, 5), g.get(1, 0));
+    assert_eq!(pd.get(8, 5), g.get(2, 0));
+    assert!(fit_to_size(&g, 0, 4).is_err());
+
+    let s = small();
+    let index = ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &s, &NoProgress).unwrap();
+    let (guide, _) = fit_to_size(&gaussian_blur(&g, 4.0).unwrap(), 96, 96).unwrap();
+    // LO,HI: the extremes of the patch-window means land on LO and HI.
+    let (m, map) = map_range(&guide, &index, GuideRange::Metres(1000.0, 1500.0)).unwrap();
+    assert_eq!(map.to, (1000.0, 1500.0));
+    let k = 500.0 / (map.from.1 - map.from.0);
+    for (x, y) in [(0, 0), (50, 70)] {
+        let want = 1000.0 + (guide.get(x, y) - map.from.0) * k;
+        assert!(
+            (m.get(x, y) - want).abs() < 0.01,
+            "{} vs {want}",
+            m.get(x, y)
+        );
+    }
+    assert!(map_range(&guide, &index, GuideRange::Metres(5.0, 1.0)).is_err());
+    // auto: inside the exemplar's heights, and the validation passes where the raw guide
+    // (jacksboro's 300-700 m against the canyon's 1000-2000 m) fails.
+    let control = Control::guided(guide.clone());
+    let raw = validate(&index, &control, &s).unwrap();
+    let (a, amap, report) = fit_range(&guide, &index, &control, &s).unwrap();
+    let (elo, ehi) = ex.min_max().unwrap();
+    assert!(amap.to.0 >= elo && amap.to.1 <= ehi, "{amap:?}");
+    let (d, _) = map_range(&guide, &index, GuideRange::Auto).unwrap();
+    let default = validate(&index, &Control::guided(d), &s).unwrap();
+    assert!(
+        report.failing.len() < raw.failing.len() && report.failing.len() <= default.failing.len(),
+        "{} failing blocks (raw guide {}, 2-98 % mapping {})",
+        report.failing.len(),
+        raw.failing.len(),
+        default.failing.len()
+    );
+    assert_eq!(validate(&index, &Control::guided(a), &s).unwrap(), report);
 }

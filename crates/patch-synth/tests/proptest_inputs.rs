@@ -31,6 +31,7 @@ const FIELDS: &[&str] = &[
     "pca_dims",
     "pca_samples",
     "knn",
+    "rerank",
     "probe_candidates",
     "survivors",
     "choice_tolerance",
@@ -161,6 +162,9 @@ fn settings() -> impl Strategy<Value = Settings> {
                 CutMethod::DynamicProgramming
             },
             blend,
+            // Drawn from the seed: the strategy tuples are full.
+            rerank: (seed % 12) as usize,
+            crease_passes: ((seed >> 8) % 4) as usize,
             seed,
         },
     )
@@ -247,6 +251,8 @@ fn valid_settings() -> impl Strategy<Value = Settings> {
                 CutMethod::DynamicProgramming
             },
             blend,
+            rerank: 1 + (seed % 12) as usize,
+            crease_passes: ((seed >> 8) % 3) as usize,
             seed,
         },
     )
@@ -328,7 +334,7 @@ proptest! {
             let p = s.patch_size;
             let region: Vec<f32> = g.as_slice().iter().copied().cycle().take(p * p + (w % 3) / 2).collect();
             for shape in [OverlapShape::Left, OverlapShape::Top, OverlapShape::Both] {
-                match index.nearest_overlaps(shape, &region, s.knn) {
+                match index.nearest_overlaps(shape, &region, s.knn, s.rerank) {
                     Ok(near) => {
                         prop_assert_eq!(region.len(), p * p);
                         prop_assert!(!near.is_empty() && near.len() <= s.knn);

@@ -81,7 +81,7 @@ impl ReadArgs {
     }
 }
 
-fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
+pub(crate) fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
     // 1 micrometre to 10 000 km, as relief-io accepts from files: `1e-320` or `1e308` are
     // typos, and would overflow extents.
     let parse = |t: &str| {

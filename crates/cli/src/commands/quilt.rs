@@ -9,8 +9,9 @@ use anyhow::{Context, Result, bail};
 use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, Blend, CategoryMap, Control, CutMethod, Exemplar, Settings, Synthesis,
-    categorize_exemplars, guide, quilt,
+    ANY_CATEGORY, Blend, CategoryMap, Control, CutMethod, Exemplar, ExemplarIndex, GuideRange,
+    RangeMapping, Settings, Synthesis, ValidationReport, categorize_exemplars, guide, synthesize,
+    validate,
 };
 
 use crate::ctx::Ctx;
@@ -42,14 +43,21 @@ pub(crate) struct SynthArgs {
     /// Standard deviation in cells of the Gaussian low-pass applied to `--guide-from`.
     #[arg(long, value_name = "SIGMA")]
     pub(crate) blur: Option<f32>,
-    /// Map the guide's heights before use: `auto` maps its 2-98 % range onto the exemplars'
-    /// 2-98 % range (a guide from another DEM, or a PNG sketch read as 0-255); `LO,HI` maps it
-    /// onto LO..HI metres. Default: the guide's heights as they are.
+    /// Map the guide's heights linearly before use (a guide from another DEM, or a PNG sketch
+    /// of grey levels). `auto`: the extremes of its patch-sized window means go onto the 2-98 %
+    /// range of the exemplar patches' means, narrowed or shifted (a few fixed tries) until the
+    /// input validation passes; `LO,HI`: onto LO..HI metres. Default: the guide's heights as
+    /// they are (a failing validation says when `auto` would pass).
     #[arg(long, value_name = "auto|LO,HI", allow_hyphen_values = true)]
     pub(crate) guide_range: Option<String>,
-    /// Also write the guide exactly as used (mapped, resampled to the output grid).
+    /// Also write the guide exactly as used (at the exemplars' cell size, cropped or padded to
+    /// the output size, low-passed and mapped).
     #[arg(long, value_name = "FILE")]
     pub(crate) guide_out: Option<PathBuf>,
+    /// Cell size in metres of the guide, `X` or `X,Y`, for a guide that stores none (PNG, NPY)
+    /// or a wrong one; the guide is resampled from it to the exemplars' cell size.
+    #[arg(long, value_name = "X[,Y]", value_parser = super::parse_cell_size)]
+    pub(crate) guide_cell_size: Option<(f64, f64)>,
     /// Categorisation map (e.g. an 8-bit grey PNG): each cell's value is the exemplar category
     /// allowed there (65535 = any). Resampled (nearest) to the output size.
     #[arg(long, value_name = "MAP")]
@@ -76,6 +84,16 @@ pub(crate) struct SynthArgs {
     /// Largest vertical translation of a patch in metres (section 3.4).
     #[arg(long, default_value_t = 50.0)]
     pub(crate) lambda: f32,
+    /// Weight of the guide distance G in the patch energy M = alpha G + beta O + gamma P
+    /// (equation 1).
+    #[arg(long, default_value_t = Settings::default().alpha)]
+    pub(crate) alpha: f32,
+    /// Weight of the overlap distance O in equation 1.
+    #[arg(long, default_value_t = Settings::default().beta)]
+    pub(crate) beta: f32,
+    /// Weight of the cut cost P in equation 1.
+    #[arg(long, default_value_t = Settings::default().gamma)]
+    pub(crate) gamma: f32,
     /// Exemplar patches are taken every STRIDE cells (1 = every position).
     #[arg(long, default_value_t = 1)]
     pub(crate) stride: usize,
@@ -106,101 +124,106 @@ impl SynthArgs {
 /// Largest guide grid accepted without `--size` (cells at the exemplars' cell size).
 const MAX_GUIDE_CELLS: usize = 1 << 26;
 
-/// The guide on the output grid. With `--size` it is resampled to that size (its extent maps
-/// onto the output); without, to the exemplars' cell size over its own extent, so the output
-/// covers the guide's ground and keeps its georeference. Patches are copied cell for cell, so
-/// the output has the exemplars' cells: when the guide's cells differ from them (a `--size`
-/// that does not match the guide's extent), a note says how much the guide is scaled and the
-/// output carries no georeference.
+/// The guide on the output grid, at its own physical scale: resampled from its cell size (or
+/// `--guide-cell-size`) to the exemplars' (patches are copied cell for cell), then, with
+/// `--size`, cropped (centred, with a note) or mirror-padded to that size; without, the output
+/// covers the guide's ground and keeps its georeference.
 fn fit_guide(
-    g: Heightfield,
+    mut g: Heightfield,
     size: Option<(usize, usize)>,
     cell: (f64, f64),
+    guide_cell: Option<(f64, f64)>,
     path: &Path,
     ctx: &Ctx,
 ) -> Result<Heightfield> {
+    if let Some((cx, cy)) = guide_cell {
+        g.set_cell_size(cx, cy)?;
+    }
     let (gx, gy) = g.cell_size();
-    let (w, h) = match size {
-        Some(s) => s,
-        None => {
-            let w = (g.width() as f64 * gx / cell.0).round().max(1.0) as usize;
-            let h = (g.height() as f64 * gy / cell.1).round().max(1.0) as usize;
-            if w.saturating_mul(h) > MAX_GUIDE_CELLS {
-                bail!(
-                    "guide {} covers {w} x {h} cells of the exemplars' {:.2} x {:.2} m: give \
-                     --size WxH",
-                    path.display(),
-                    cell.0,
-                    cell.1
-                );
+    let (kx, ky) = (gx / cell.0, gy / cell.1);
+    // The guide's extent in the exemplars' cells.
+    let (rw, rh) = (
+        (g.width() as f64 * kx).round().max(1.0),
+        (g.height() as f64 * ky).round().max(1.0),
+    );
+    if rw * rh > MAX_GUIDE_CELLS as f64 {
+        match size {
+            // Only the centre is used: crop it first (with a resampling margin) so that the
+            // resampling stays within the output's size.
+            Some((w, h)) => {
+                let need = |n: usize, k: f64| ((n as f64 / k).ceil() as usize).saturating_add(4);
+                let (nw, nh) = (need(w, kx).min(g.width()), need(h, ky).min(g.height()));
+                g = g.crop((g.width() - nw) / 2, (g.height() - nh) / 2, nw, nh)?;
             }
-            (w, h)
+            None => bail!(
+                "guide {} covers {rw} x {rh} cells of the exemplars' {:.2} x {:.2} m: give \
+                 --size WxH{}",
+                path.display(),
+                cell.0,
+                cell.1,
+                if guide_cell.is_none() {
+                    " or the guide's --guide-cell-size"
+                } else {
+                    ""
+                }
+            ),
         }
+    }
+    let g = guide::to_cell_size(&g, cell)
+        .with_context(|| format!("cannot resample guide {}", path.display()))?;
+    let Some((w, h)) = size else {
+        return Ok(g);
     };
-    let mut g = if (w, h) != (g.width(), g.height()) {
-        g.resample(w, h)
-            .with_context(|| format!("cannot resample guide {}", path.display()))?
-    } else {
-        g
-    };
-    let (ncx, ncy) = g.cell_size();
-    let (sx, sy) = (cell.0 / ncx, cell.1 / ncy);
-    if (sx - 1.0).abs() > 0.01 || (sy - 1.0).abs() > 0.01 {
+    let (g2, fit) = guide::fit_to_size(&g, w, h)?;
+    let mut changes = Vec::new();
+    let cropped = (
+        (rw as usize).saturating_sub(w),
+        (rh as usize).saturating_sub(h),
+    );
+    if cropped != (0, 0) {
+        changes.push(format!(
+            "cropped (centred) by {} x {} cells",
+            cropped.0, cropped.1
+        ));
+    }
+    if fit.padded != (0, 0) {
+        changes.push(format!(
+            "mirror-padded by {} x {} cells",
+            fit.padded.0, fit.padded.1
+        ));
+    }
+    if !changes.is_empty() {
         ctx.note(format!(
-            "guide {}: {ncx:.2} x {ncy:.2} m cells on the output grid, synthesised with the \
-             exemplars' {:.2} x {:.2} m cells: the guide's features are scaled x{sx:.2} x \
-             {sy:.2} and the output is not georeferenced (omit --size to keep its extent)",
+            "guide {}: {rw} x {rh} cells at the exemplars' {:.2} x {:.2} m (its scale kept), {} to \
+             --size {w}x{h}",
             path.display(),
             cell.0,
-            cell.1
+            cell.1,
+            changes.join(" and ")
         ));
-        g.set_georef(None);
     }
-    g.set_cell_size(cell.0, cell.1)?;
-    Ok(g)
+    Ok(g2)
 }
 
-/// The `p`-quantile (0..1) of the finite values of `v` (subsampled to at most ~1 M values).
-fn quantile(v: &[f32], p: f64) -> Option<f64> {
-    let step = (v.len() / (1 << 20)).max(1);
-    let mut s: Vec<f32> = v
-        .iter()
-        .step_by(step)
-        .copied()
-        .filter(|x| x.is_finite())
-        .collect();
-    if s.is_empty() {
-        return None;
+/// The parsed `--guide-range`.
+fn parse_guide_range(spec: &str) -> Result<GuideRange> {
+    if spec.trim().eq_ignore_ascii_case("auto") {
+        return Ok(GuideRange::Auto);
     }
-    s.sort_by(f32::total_cmp);
-    let i = ((s.len() - 1) as f64 * p).round() as usize;
-    Some(s[i] as f64)
+    let (lo, hi) = crate::ctx::parse_height_range(spec)
+        .map_err(|e| anyhow::anyhow!("invalid --guide-range {e} (or auto)"))?;
+    Ok(GuideRange::Metres(lo as f32, hi as f32))
 }
 
-/// Applies `--guide-range` to the guide (see [`SynthArgs::guide_range`]).
-fn map_guide(g: Heightfield, spec: &str, exemplars: &[Exemplar], ctx: &Ctx) -> Result<Heightfield> {
-    let (glo, ghi) = match (quantile(g.as_slice(), 0.02), quantile(g.as_slice(), 0.98)) {
-        (Some(a), Some(b)) => (a, b),
-        _ => bail!("--guide-range: the guide has no values"),
-    };
-    let (lo, hi) = if spec.trim().eq_ignore_ascii_case("auto") {
-        let all: Vec<f32> = exemplars
+/// True for a PNG read as raw grey counts (no relief vertical mapping): whole numbers that fit
+/// 16 bits, which are grey levels rather than metres.
+fn png_counts(path: &Path, g: &Heightfield) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        && g.as_slice()
             .iter()
-            .flat_map(|e| e.heightfield.as_slice().iter().copied())
-            .collect();
-        match (quantile(&all, 0.02), quantile(&all, 0.98)) {
-            (Some(a), Some(b)) => (a, b),
-            _ => bail!("--guide-range auto: the exemplars have no values"),
-        }
-    } else {
-        crate::ctx::parse_height_range(spec)
-            .map_err(|e| anyhow::anyhow!("invalid --guide-range {e} (or auto)"))?
-    };
-    let span = (ghi - glo).max(f64::MIN_POSITIVE);
-    ctx.note(format!(
-        "guide heights {glo:.1}..{ghi:.1} m (2-98 %) mapped onto {lo:.1}..{hi:.1} m"
-    ));
-    Ok(g.map(|v| (lo + (v as f64 - glo) / span * (hi - lo)) as f32))
+            .all(|&v| !v.is_finite() || (v.fract() == 0.0 && (0.0..=65535.0).contains(&v)))
 }
 
 /// Seam blending of `relief quilt`.
@@ -249,6 +272,8 @@ pub(crate) struct Inputs {
     pub(crate) exemplars: Vec<Exemplar>,
     pub(crate) control: Control,
     pub(crate) settings: Settings,
+    /// `--guide-range`, applied once the exemplars are indexed.
+    pub(crate) guide_range: Option<GuideRange>,
 }
 
 /// Parses `WxH` or `N`.
@@ -296,6 +321,9 @@ impl SynthArgs {
             min_candidates: self.min_candidates,
             validation_tolerance: self.tolerance,
             lambda: self.lambda,
+            alpha: self.alpha,
+            beta: self.beta,
+            gamma: self.gamma,
             exemplar_stride: self.stride,
             ..Settings::default()
         }
@@ -367,10 +395,21 @@ impl SynthArgs {
         }
         let cell = exemplars[0].heightfield.cell_size();
 
+        let png_check = |path: &Path, g: &Heightfield| -> Result<()> {
+            if self.guide_range.is_none() && png_counts(path, g) {
+                bail!(
+                    "guide {}: a PNG of grey levels (no relief vertical mapping) holds no \
+                     heights; give --guide-range auto (the exemplars' heights) or LO,HI (metres)",
+                    path.display()
+                );
+            }
+            Ok(())
+        };
         let guide = match (&self.guide, &self.guide_from) {
             (Some(path), None) => {
                 let g = fill_if_needed(read_dem(path, "guide", self, ctx)?, "guide", path, ctx)?;
-                Some(fit_guide(g, size, cell, path, ctx)?)
+                png_check(path, &g)?;
+                Some(fit_guide(g, size, cell, self.guide_cell_size, path, ctx)?)
             }
             (None, Some(path)) => {
                 let dem = fill_if_needed(
@@ -379,19 +418,23 @@ impl SynthArgs {
                     path,
                     ctx,
                 )?;
-                let dem = fit_guide(dem, size, cell, path, ctx)?;
+                png_check(path, &dem)?;
+                let dem = fit_guide(dem, size, cell, self.guide_cell_size, path, ctx)?;
                 let sigma = self.blur.unwrap_or_default();
                 Some(guide::gaussian_blur(&dem, sigma).context("invalid --blur")?)
             }
             _ => None,
         };
-        let guide = match (guide, &self.guide_range) {
-            (Some(g), Some(spec)) => Some(map_guide(g, spec, &exemplars, ctx)?),
-            (g, None) => g,
-            (None, Some(_)) => bail!("--guide-range needs --guide or --guide-from"),
-        };
-        if let (Some(g), Some(p)) = (&guide, &self.guide_out) {
-            ctx.write_raster(p, g)?;
+        let guide_range = self
+            .guide_range
+            .as_deref()
+            .map(parse_guide_range)
+            .transpose()?;
+        if guide_range.is_some() && guide.is_none() {
+            bail!("--guide-range needs --guide or --guide-from");
+        }
+        if self.guide_cell_size.is_some() && guide.is_none() {
+            bail!("--guide-cell-size needs --guide or --guide-from");
         }
         let mut control = match guide {
             Some(g) => Control::guided(g),
@@ -418,8 +461,88 @@ impl SynthArgs {
             exemplars,
             control,
             settings,
+            guide_range,
         })
     }
+
+    /// Reads the inputs, checks the memory, indexes the exemplars, maps the guide's heights
+    /// (`--guide-range`), writes `--guide-out` and, with a guide, runs the input validation.
+    pub(crate) fn prepare(&self, ctx: &Ctx, progress: &dyn Progress) -> Result<Prepared> {
+        let Inputs {
+            exemplars,
+            mut control,
+            settings,
+            guide_range,
+        } = self.inputs(ctx)?;
+        preflight(&exemplars, &control, &settings, ctx)?;
+        let index = ExemplarIndex::build(exemplars, &settings, progress)
+            .context("cannot index the exemplars")?;
+        progress.begin("validating", 0);
+        let mut report = None;
+        let note_mapping = |m: &RangeMapping| {
+            ctx.note(format!(
+                "guide heights {:.1}..{:.1} m (patch-window means) mapped onto {:.1}..{:.1} m",
+                m.from.0, m.from.1, m.to.0, m.to.1
+            ));
+        };
+        if let Some(g) = control.guide.take() {
+            let g = match guide_range {
+                Some(GuideRange::Auto) => {
+                    let (g, m, r) = guide::fit_range(&g, &index, &control, &settings)
+                        .context("--guide-range auto")?;
+                    note_mapping(&m);
+                    report = Some(r);
+                    g
+                }
+                Some(r) => {
+                    let (g, m) = guide::map_range(&g, &index, r).context("--guide-range")?;
+                    note_mapping(&m);
+                    g
+                }
+                None => g,
+            };
+            control.guide = Some(g);
+        }
+        if let (Some(g), Some(p)) = (&control.guide, &self.guide_out) {
+            ctx.write_raster(p, g)?;
+        }
+        if report.is_none() && control.guide.is_some() {
+            report = Some(validate(&index, &control, &settings).context("validation failed")?);
+        }
+        let mut hint = None;
+        if let (Some(r), None, Some(g)) = (&report, guide_range, &control.guide)
+            && !r.ok
+        {
+            let mut c = control.clone();
+            c.guide = None;
+            let (_, m, auto) = guide::fit_range(g, &index, &c, &settings)?;
+            if auto.ok {
+                hint = Some(format!(
+                    "--guide-range auto would pass (it maps the guide's {:.0}..{:.0} m onto \
+                     {:.0}..{:.0} m)",
+                    m.from.0, m.from.1, m.to.0, m.to.1
+                ));
+            }
+        }
+        Ok(Prepared {
+            index,
+            control,
+            settings,
+            report,
+            hint,
+        })
+    }
+}
+
+/// Inputs indexed, guide mapped and validated (see [`SynthArgs::prepare`]).
+pub(crate) struct Prepared {
+    pub(crate) index: ExemplarIndex,
+    pub(crate) control: Control,
+    pub(crate) settings: Settings,
+    /// The input validation, with a guide.
+    pub(crate) report: Option<ValidationReport>,
+    /// What would make a failing validation pass.
+    pub(crate) hint: Option<String>,
 }
 
 /// Reads a categorisation map: raw sample counts (grey PNG 0..255 or 0..65535, or any raster's
@@ -543,13 +666,34 @@ pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(g) = &args.synth.guide_out {
         args.synth.guide_out = Some(staged.path(g));
     }
-    let Inputs {
-        exemplars,
+    let progress = ctx.progress();
+    let Prepared {
+        index,
         control,
         mut settings,
-    } = args.synth.inputs(ctx)?;
-    preflight(&exemplars, &control, &settings, ctx)?;
-    settings.enforce_validation = !args.no_validate;
+        report,
+        hint,
+    } = args.synth.prepare(ctx, &progress)?;
+    if let Some(r) = &report
+        && !r.ok
+    {
+        if args.no_validate {
+            ctx.note(format!(
+                "input validation failed, synthesizing anyway (--no-validate): {} of {} guide \
+                 blocks have fewer than {} candidates",
+                r.failing.len(),
+                r.blocks.len(),
+                r.min_candidates
+            ));
+        } else {
+            bail!(
+                "synthesis failed: input validation failed: {r}{}",
+                hint.map_or_else(String::new, |h| format!("; {h}"))
+            );
+        }
+    }
+    // Validated above.
+    settings.enforce_validation = false;
     settings.cut = match args.cut {
         CutArg::Dp => CutMethod::DynamicProgramming,
         CutArg::Greedy => CutMethod::Greedy,
@@ -561,8 +705,7 @@ pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
         },
         BlendArg::None => Blend::None,
     };
-    let progress = ctx.progress();
-    let out = quilt(exemplars, &control, &settings, &progress).context("synthesis failed")?;
+    let out = synthesize(&index, &control, &settings, &progress).context("synthesis failed")?;
     progress.begin("writing", 0);
     ctx.write_raster(&staged.path(&args.output), &out.heightfield)?;
     if let Some(png) = &args.seam_map {

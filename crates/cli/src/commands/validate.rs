@@ -5,8 +5,7 @@
 //! non-zero when the validation fails. Without a guide, checks the exemplars' compatibility.
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::Progress;
-use relief_patch_synth::{ExemplarIndex, ValidationReport, validate};
+use relief_patch_synth::{ValidationReport, validate};
 
 use crate::ctx::Ctx;
 
@@ -84,19 +83,19 @@ pub(crate) fn format_report(rep: &ValidationReport, names: &[String]) -> String 
 /// when it fails.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     ctx.check_outputs(&args.synth.input_paths(), &args.synth.output_paths())?;
-    let inputs = args.synth.inputs(ctx)?;
+    let progress = ctx.progress();
+    let prepared = args.synth.prepare(ctx, &progress)?;
     let names: Vec<String> = args
         .synth
         .exemplars
         .iter()
         .map(|p| p.display().to_string())
         .collect();
-    super::quilt::preflight(&inputs.exemplars, &inputs.control, &inputs.settings, ctx)?;
-    let progress = ctx.progress();
-    let index = ExemplarIndex::build(inputs.exemplars, &inputs.settings, &progress)
-        .context("cannot index the exemplars")?;
-    progress.begin("validating", 0);
-    let rep = validate(&index, &inputs.control, &inputs.settings).context("validation failed")?;
+    let rep = match prepared.report {
+        Some(r) => r,
+        None => validate(&prepared.index, &prepared.control, &prepared.settings)
+            .context("validation failed")?,
+    };
     drop(progress);
     #[allow(clippy::print_stdout)]
     {
@@ -112,7 +111,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .map(|r| format!("{:.0}..{:.0} m", r.0, r.1))
             .collect();
         bail!(
-            "validation failed: {} of {} guide blocks have fewer than {} candidates (missing heights {})",
+            "validation failed: {} of {} guide blocks have fewer than {} candidates (missing heights {}){}",
             rep.failing.len(),
             rep.blocks.len(),
             rep.min_candidates,
@@ -120,7 +119,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 "none".to_string()
             } else {
                 ranges.join(", ")
-            }
+            },
+            prepared.hint.map_or_else(String::new, |h| format!("; {h}"))
         );
     }
     Ok(())
