@@ -52,3 +52,16 @@ pub(crate) fn fixture() -> Heightfield {
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
 }
+
+/// A malformed flag value is a usage error: clap's message (naming the flag) on stderr, exit
+/// code 2, and `output` is not written.
+pub(crate) fn usage_error(args: &[&std::ffi::OsStr], flag: &str, output: &Path) {
+    let out = relief(args);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {e}");
+    assert!(
+        e.starts_with("error: ") && e.contains(flag),
+        "{args:?}: {e}"
+    );
+    assert!(!output.exists(), "{args:?}: {} written", output.display());
+}
