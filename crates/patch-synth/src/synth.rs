@@ -203,11 +203,7 @@ fn smoothstep(t: f32) -> f32 {
 /// Counter-based seed of a grid block: the choice at a block never depends on other blocks'
 /// random draws or on the thread count.
 pub(crate) fn block_seed(seed: u64, a: u64, b: u64) -> u64 {
-    let mut z =
-        seed ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    relief_heightfield::rng::hash(seed, a, b, 0)
 }
 
 /// Padded working canvas of the synthesis.

@@ -2,14 +2,8 @@
 //! of those five numbers (SplitMix64 finaliser chain, then Box-Muller), so any coefficient can be
 //! produced alone, in any order, on any thread.
 
-/// SplitMix64 finaliser (Steele, Lea and Flood 2014): a bijective 64-bit mix.
-#[inline(always)]
-pub fn splitmix64(z: u64) -> u64 {
-    let mut z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+/// SplitMix64 (Steele, Lea and Flood 2014): the workspace's one implementation.
+pub use relief_heightfield::rng::splitmix64;
 
 /// Hash of everything but the column: computed once per row of coefficients.
 #[inline]
