@@ -11,7 +11,8 @@
 //!
 //! A cluster index (spherical k-means, bound `|<c, x>| + r ||x||`) was tried first: on 8 x 8
 //! terrain patches the cluster radii are so large (64 dimensions) that the bound pruned almost
-//! nothing, and the per-signal scan was 60x slower than this blocked product.
+//! nothing, and the per-signal scan was about 7x slower than this blocked product (34 s vs
+//! 5 s for 16,384 signals and 65,536 atoms, `omp_large` bench).
 //!
 //! Deterministic: a signal's result depends only on the signal and the dictionary (fixed
 //! blocks), not on the batch or the thread count.
