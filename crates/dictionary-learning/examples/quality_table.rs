@@ -47,6 +47,7 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
             dictionary: dict,
             sparsity: s,
             max_candidates: 8192,
+            max_learning_pool: 8192,
             ..Default::default()
         };
         let t = std::time::Instant::now();

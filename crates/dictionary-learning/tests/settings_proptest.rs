@@ -182,7 +182,7 @@ proptest! {
         };
         let s = AmplifySettings {
             radius, step, steps, sparsity, dictionary, candidate_step, max_candidates,
-            max_training, seed, residual_correction: residual, normalize_detail: residual,
+            max_learning_pool: 4096, max_training, seed, residual_correction: residual, normalize_detail: residual,
         };
         let st = step.unwrap_or((radius / 2.0).floor().max(1.0));
         let radius_bad = !(radius.is_finite() && (1.0..=32.0).contains(&radius));
@@ -194,7 +194,7 @@ proptest! {
             ("steps", steps == 0 || steps > 6),
             ("sparsity", sparsity == 0 || sparsity > 64),
             ("candidate_step", candidate_step == 0),
-            ("max_candidates / max_training", max_candidates == 0 || max_training == 0),
+            ("max_candidates / max_training / max_learning_pool", max_candidates == 0 || max_training == 0),
             ("n_atoms", learned.is_some_and(|(n, _)| n < sparsity)),
         ];
         let r = amplify(&coarse, &exemplar, &s, &NoProgress);

@@ -10,6 +10,7 @@
 //! | 4.2 regular grid of disks, `z_i` = mean over the support, patches `T_i`, matrix `F` | [`PatchGeometry`], [`extract_patches`], [`Patches`] |
 //! | 4.3 OMP (literal argmin of the residual) | [`omp_reference`] |
 //! | 4.3 fast OMP: Batch-OMP (Rubinstein, Zibulevsky & Elad 2008) | [`batch_omp`] |
+//! | 5.3 `s = 1` coding with complete dictionaries of 60,000-120,000 atoms (exact nearest-atom search, blocked correlations, no Gram matrix) | [`nearest::nearest_atom`] (used by [`batch_omp`] above 4096 atoms) |
 //! | 4.3 exact reconstruction with `s = 1` and the complete dictionary | `Dictionary::from_patches(&p, None)` + [`encode()`] (tested) |
 //! | 5.1 compact representation, `t(s, N) = KN + n(2s + 2) + 1`, `rho = t / t0`, PSNR | [`encode()`], [`encode::compression_report`], [`format`](mod@format) (`.sct` bytes) |
 //! | 5.4 authoring: operators (blend, add, max/min carve, replace in region), rivers (fig. 12-13) | [`sct::Node`], [`sct::River`] (carve or bed profile along a polyline, width/depth per vertex), [`sct::Region`] |
@@ -61,6 +62,7 @@ pub mod dictionary;
 pub mod encode;
 mod error;
 pub mod format;
+pub mod nearest;
 pub mod omp;
 pub mod patches;
 pub mod sct;

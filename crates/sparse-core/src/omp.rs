@@ -23,8 +23,14 @@ use crate::error::{Result, SparseError};
 /// Largest sparsity the solvers accept.
 pub const MAX_SPARSITY: usize = 64;
 
-/// Largest number of atoms the solvers accept (both keep an `N x N` Gram matrix).
+/// Largest number of atoms the solvers accept at `s > 1` (both keep an `N x N` Gram matrix);
+/// at `s = 1` [`batch_omp`] accepts up to [`crate::nearest::MAX_NEAREST_ATOMS`].
 pub const MAX_ATOMS: usize = 1 << 15;
+
+/// Dictionaries of more than this many atoms are coded at `s = 1` by
+/// [`crate::nearest::nearest_atom`] (no Gram matrix, blocked correlations and a running arg-max);
+/// smaller ones keep the Gram path, whose output is unchanged.
+pub const NEAREST_MIN_ATOMS: usize = 4096;
 
 /// Number of signals per Batch-OMP block (fixed so results do not depend on the thread count).
 const BLOCK: usize = 256;
@@ -253,6 +259,16 @@ fn validate<T: OmpFloat>(
     signals: &ArrayView2<T>,
     settings: &OmpSettings,
 ) -> Result<()> {
+    validate_limit(dict, signals, settings, MAX_ATOMS)
+}
+
+/// [`validate`] with a caller-chosen atom limit.
+pub(crate) fn validate_limit<T: OmpFloat>(
+    dict: &ArrayView2<T>,
+    signals: &ArrayView2<T>,
+    settings: &OmpSettings,
+    max_atoms: usize,
+) -> Result<()> {
     let (n_atoms, dim) = dict.dim();
     if n_atoms == 0 || dim == 0 {
         return Err(SparseError::EmptyDictionary { n_atoms, dim });
@@ -264,11 +280,15 @@ fn validate<T: OmpFloat>(
             got: signals.ncols(),
         });
     }
-    if n_atoms > MAX_ATOMS {
+    if n_atoms > max_atoms {
         return Err(SparseError::param(
             "n_atoms",
             n_atoms,
-            "at most 2^15 atoms (the N x N Gram matrix must fit in memory)",
+            if max_atoms == MAX_ATOMS {
+                "at most 2^15 atoms at s > 1 (the N x N Gram matrix must fit in memory)"
+            } else {
+                "at most 2^22 atoms"
+            },
         ));
     }
     settings.check(n_atoms)?;
@@ -478,6 +498,10 @@ struct BlockOut<T> {
 ///
 /// Runs in parallel over blocks of 256 signals with rayon, one scratch per worker; the result
 /// does not depend on the thread count.
+///
+/// At `s = 1` with more than [`NEAREST_MIN_ATOMS`] atoms the exact nearest-atom search
+/// [`crate::nearest::nearest_atom`] runs instead (same selection rule and coefficient, no Gram
+/// matrix; dictionaries up to 2^22 atoms).
 pub fn batch_omp<T: OmpFloat>(
     dict: ArrayView2<T>,
     signals: ArrayView2<T>,
@@ -493,6 +517,9 @@ pub fn batch_omp_with_progress<T: OmpFloat>(
     settings: &OmpSettings,
     progress: &dyn Progress,
 ) -> Result<SparseCodes<T>> {
+    if settings.sparsity == 1 && dict.nrows() > NEAREST_MIN_ATOMS {
+        return crate::nearest::nearest_atom_with_progress(dict, signals, settings, progress);
+    }
     validate(&dict, &signals, settings)?;
     progress.begin("batch-omp", signals.nrows() as u64);
     let (n_atoms, _) = dict.dim();
@@ -607,7 +634,7 @@ fn code_block_dispatch<T: OmpFloat>(
 /// Lane-wise maxima over fixed chunks let the compiler vectorise the scan; the result is the
 /// same as a sequential scan with a strict `>`.
 #[inline(always)]
-fn argmax_abs<T: OmpFloat>(v: &[T]) -> Option<usize> {
+pub(crate) fn argmax_abs<T: OmpFloat>(v: &[T]) -> Option<usize> {
     const LANES: usize = 16;
     // Indices are carried as floats (exact below 2^24, checked by the caller's validation of
     // the atom count) so that values and indices select with the same vector mask.

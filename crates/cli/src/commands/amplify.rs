@@ -186,6 +186,25 @@ const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
 /// Bytes per output cell of a raster written from memory (the f32 grid and its encoding).
 pub(crate) const RASTER_OUT_BYTES_PER_CELL: f64 = 12.0;
 
+/// Bytes of the candidate (L, H) pairs an exemplar gives (`min(max_candidates, patches of the
+/// x4-reduced exemplar)` pairs for a complete dictionary, at most `max_learning_pool` for a
+/// learned one): per pair the L patch (`a^2` floats), the H patch (`16 a^2`) and the L
+/// footprint (`a^2`), held twice while the dictionaries are built (candidate matrices and
+/// dictionary). A complete 65,536-atom dictionary of the default `a = 8` takes about 600 MB.
+pub(crate) fn candidate_bytes(exemplar: (usize, usize), settings: &AmplifySettings) -> f64 {
+    let a = settings.patch_size();
+    let cs = settings.candidate_step.max(1);
+    let (wl, hl) = (exemplar.0 / 4, exemplar.1 / 4);
+    let per_axis = |l: usize| if l < a { 0 } else { (l - a) / cs + 1 };
+    let patches = per_axis(wl) as f64 * per_axis(hl) as f64;
+    let cap = match settings.dictionary {
+        DictionaryChoice::Complete => settings.max_candidates,
+        DictionaryChoice::Learned { .. } => settings.max_candidates.min(settings.max_learning_pool),
+    };
+    let pairs = patches.min(cap as f64);
+    pairs * (18 * a * a) as f64 * 4.0 * 2.0
+}
+
 /// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the
 /// coarse size and the settings, and that of the written raster, checked against
 /// `--max-memory` (and the raster's size against `--max-output-size`) before any work. The
@@ -206,8 +225,8 @@ pub(crate) fn preflight(
     let ex_cells = exemplar.0 as f64 * exemplar.1 as f64;
     let exemplar_part = part(
         "the exemplar and its dictionaries",
-        ex_cells * EXEMPLAR_BYTES_PER_CELL,
-        "a smaller --exemplar",
+        ex_cells * EXEMPLAR_BYTES_PER_CELL + candidate_bytes(exemplar, settings),
+        "a smaller --exemplar (or --atoms N, a learned dictionary)",
     );
     let coarse_cells = coarse.0 as f64 * coarse.1 as f64;
     let mut peaks: Vec<Vec<crate::memory::Part>> = Vec::new();
@@ -398,6 +417,30 @@ fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn candidate_memory_follows_the_dictionary_choice() {
+        // 1024^2 exemplar: 256^2 reduced grid, 249^2 patches of side 8 (< 65,536).
+        let complete = AmplifySettings {
+            dictionary: DictionaryChoice::Complete,
+            ..AmplifySettings::default()
+        };
+        let per_pair = 18.0 * 64.0 * 4.0 * 2.0;
+        assert_eq!(
+            candidate_bytes((1024, 1024), &complete),
+            249.0 * 249.0 * per_pair
+        );
+        // 2048^2: capped at max_candidates = 65,536.
+        assert_eq!(
+            candidate_bytes((2048, 2048), &complete),
+            65_536.0 * per_pair
+        );
+        // Learned: the 4096-patch pool.
+        let learned = AmplifySettings::default();
+        assert_eq!(candidate_bytes((2048, 2048), &learned), 4096.0 * per_pair);
+        // Too small an exemplar: no patch.
+        assert_eq!(candidate_bytes((16, 16), &complete), 0.0);
+    }
 
     #[test]
     fn factors() {

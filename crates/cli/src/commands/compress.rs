@@ -224,7 +224,8 @@ fn build_dictionary(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<(Diction
 
 /// Pre-flight estimate of `compress` (issue 18), before any patch is cut: the patch matrix
 /// (f32 rows of `a^2`, with the working copies of K-SVD), the dictionary and its Gram matrix
-/// (K^2: with `--dict complete`, K is the number of patches), the codes and the model.
+/// (K^2: with `--dict complete`, K is the number of patches; none at `--sparsity 1` above 4096
+/// atoms, where the exact nearest-atom search codes without it), the codes and the model.
 fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
     use crate::memory::part;
     let a = args.patch_size.unwrap_or(8) as f64;
@@ -243,6 +244,12 @@ fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
     } else {
         "fewer --atoms"
     };
+    let gram = if args.sparsity == 1 && k > relief_sparse_core::omp::NEAREST_MIN_ATOMS as f64 {
+        // One 256 x 4096 correlation buffer per worker.
+        8.0 * 256.0 * 4096.0 * 4.0
+    } else {
+        k * k * 4.0
+    };
     ctx.check_memory(
         "compress",
         &[&[
@@ -257,7 +264,7 @@ fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
             ),
             part(
                 format!("the dictionary of {} atoms and its Gram matrix", k as u64),
-                k * a * a * 4.0 * 2.0 + k * k * 4.0,
+                k * a * a * 4.0 * 2.0 + gram,
                 change_k,
             ),
         ]],
