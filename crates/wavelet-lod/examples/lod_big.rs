@@ -76,7 +76,7 @@ fn main() {
         "LOD {size}^2 -> {ow}x{oh} LSA 3x3 {} {}, mode {mode}{}, {} threads: analysis {:.3} s, \
          synthesis {:.3} s, total {:.3} s",
         settings.model.name(),
-        settings.wavelet,
+        settings.basis(),
         if mode == "strips" {
             format!(" ({strip} rows)")
         } else {

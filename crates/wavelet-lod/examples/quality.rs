@@ -228,7 +228,7 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
                 v.push((
                     format!("{wavelet} f{fine} g{min_gamma}"),
                     RefineSettings {
-                        wavelet,
+                        wavelet: Some(wavelet),
                         fine_levels: fine,
                         min_gamma,
                         extra_levels: levels,

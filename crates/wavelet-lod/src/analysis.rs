@@ -21,6 +21,7 @@ pub(crate) const MAX_ELEVATION: f32 = 1e12;
 
 /// Settings of the variance fit (equations (3) and (4)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct FitSettings {
     /// First level index `j` taking part in the fit (the paper rejects the coarse levels and
     /// fits "from level 3 and up"). Level `j` of an input whose larger side is `N` has about

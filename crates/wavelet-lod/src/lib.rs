@@ -123,6 +123,7 @@
 mod analysis;
 mod dwt;
 mod error;
+mod job;
 mod lift;
 mod plot;
 pub mod quality;
@@ -139,6 +140,7 @@ pub use dwt::{
     wavedec2, waverec2, waverec2_owned,
 };
 pub use error::{Result, WaveletError};
+pub use job::{RefineFigures, Refined};
 pub use lift::Boundary;
 pub use plot::{LogVariancePlot, PlotSeries, render_log_variance_plot};
 pub use refine::{Method, Model, RefineSettings, Refiner, refine, refine_window};

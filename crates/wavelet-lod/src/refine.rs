@@ -52,23 +52,27 @@ impl Model {
     }
 }
 
-/// Settings of [`Refiner`].
+/// Settings of the refine job ([`Refiner`], [`RefineSettings::run`]): the one definition of its
+/// parameters, read by the CLI's flags, the pipeline spec (JSON, snake_case names, missing
+/// fields take the defaults, unknown fields are an error) and tiled-run manifests.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct RefineSettings {
     /// Synthesis model: [`Model::Spectral`] (default) or the paper's [`Model::Paper`].
     pub model: Model,
-    /// Basis. The default is [`Wavelet::Cdf97`], chosen by measurement for the spectral model
-    /// (its smoother synthesis filters leak less of each coarser synthetic level into the finer
-    /// octaves); the paper recommends the linear spline, [`Wavelet::Cdf53`]
-    /// ([`RefineSettings::paper`]).
-    pub wavelet: Wavelet,
+    /// Basis; `None` takes the model's ([`RefineSettings::basis`]): [`Wavelet::Cdf97`] for the
+    /// spectral model, chosen by measurement (its smoother synthesis filters leak less of each
+    /// coarser synthetic level into the finer octaves), the paper's linear spline
+    /// [`Wavelet::Cdf53`] for [`Model::Paper`].
+    pub wavelet: Option<Wavelet>,
     /// GSA or LSA. With [`Model::Paper`] as in section 5; with [`Model::Spectral`], GSA draws
     /// the same amplitude everywhere and LSA (default) modulates it by the bilinearly
     /// interpolated local amplitude of the finest observed level (`window x window` mean
     /// square), so flat areas stay flat.
     pub method: Method,
-    /// LSA window side (odd; the paper tests 1, 3, 5, 7 and recommends 3).
+    /// LSA statistics window side (odd; the paper tests 1, 3, 5, 7 and recommends 3). Named
+    /// `stats_window` in JSON, as the CLI's `--stats-window` (an output window is `--window`).
+    #[serde(rename = "stats_window")]
     pub window: usize,
     /// Number of synthesised levels: the output is `2^extra_levels` times larger per side.
     pub extra_levels: u32,
@@ -99,7 +103,7 @@ impl Default for RefineSettings {
     fn default() -> Self {
         Self {
             model: Model::Spectral,
-            wavelet: Wavelet::Cdf97,
+            wavelet: None,
             method: Method::Lsa,
             window: 3,
             extra_levels: 2,
@@ -119,9 +123,16 @@ impl RefineSettings {
     pub fn paper() -> Self {
         Self {
             model: Model::Paper,
-            wavelet: Wavelet::Cdf53,
             ..Self::default()
         }
+    }
+
+    /// The basis used: [`RefineSettings::wavelet`], or the model's default.
+    pub fn basis(&self) -> Wavelet {
+        self.wavelet.unwrap_or(match self.model {
+            Model::Spectral => Wavelet::Cdf97,
+            Model::Paper => Wavelet::Cdf53,
+        })
     }
 
     /// Checks the settings.
@@ -130,11 +141,11 @@ impl RefineSettings {
         if self.method == Method::Lsa {
             check_window(self.window)?;
         }
-        if self.extra_levels > 12 {
+        if !(1..=12).contains(&self.extra_levels) {
             return Err(WaveletError::param(
                 "extra_levels",
                 self.extra_levels,
-                "must be <= 12",
+                "must be in 1..=12",
             ));
         }
         if !(2..=8).contains(&self.fine_levels) {
@@ -214,7 +225,7 @@ impl Refiner {
             levels = levels.max(settings.fine_levels.min(top));
         }
         let top = top as i64;
-        let dec = decompose(hf, settings.wavelet, levels)?;
+        let dec = decompose(hf, settings.basis(), levels)?;
         let global = global_lenient(&dec, top, &settings.fit, &mut notes);
         let mut local = None;
         if settings.method == Method::Lsa && settings.model == Model::Paper {
@@ -261,7 +272,7 @@ impl Refiner {
                 };
                 let fits = fine_fit(&global, settings.fine_levels, &fit, &mut notes);
                 let beta = fits.map(|f| -(f.gamma + 2.0));
-                (fits, Some(SpectralPlan::new(settings.wavelet, n, beta)))
+                (fits, Some(SpectralPlan::new(settings.basis(), n, beta)))
             }
         };
         let amplitude = (settings.model == Model::Spectral && settings.method == Method::Lsa)
@@ -631,7 +642,7 @@ impl Refiner {
             }
             return out;
         }
-        let wavelet = self.settings.wavelet;
+        let wavelet = self.settings.basis();
         let margin = wavelet.synthesis_margin();
         let (iw, ih) = (self.input.width, self.input.height);
         // Plans from the finest level down to the input.

@@ -245,7 +245,7 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
         pool.install(|| {
             let s = RefineSettings {
                 model,
-                wavelet,
+                wavelet: Some(wavelet),
                 method,
                 window: 5,
                 extra_levels: 2,

@@ -45,7 +45,7 @@ fn windows_equal_the_full_run_bit_for_bit() {
         for (method, window) in [(Method::Gsa, 3), (Method::Lsa, 3), (Method::Lsa, 1)] {
             for extra in [1u32, 2, 3] {
                 let s = RefineSettings {
-                    wavelet,
+                    wavelet: Some(wavelet),
                     method,
                     window,
                     extra_levels: extra,
@@ -127,7 +127,7 @@ fn refined_terrain_keeps_the_input_as_its_coarse_levels_and_follows_equation_5()
     // Two forward levels of the refined terrain give back the input (the refinement only adds
     // detail levels) ...
     let g = Grid::from_heightfield(&out);
-    let dec = wavedec2(&g, s.wavelet, 2, Boundary::Symmetric).unwrap();
+    let dec = wavedec2(&g, s.basis(), 2, Boundary::Symmetric).unwrap();
     let err = dec
         .approx
         .data
@@ -151,7 +151,7 @@ fn refined_terrain_keeps_the_input_as_its_coarse_levels_and_follows_equation_5()
         }
     }
     // The analysis of the refined terrain continues the same lines.
-    let fit2 = analyze(&out, s.wavelet, &FitSettings::default()).unwrap();
+    let fit2 = analyze(&out, s.basis(), &FitSettings::default()).unwrap();
     assert_eq!(fit2.top_level, an.top_level + 2);
 }
 

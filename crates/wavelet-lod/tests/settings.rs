@@ -89,7 +89,7 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 (paper, fine_levels, min_gamma, consistency),
             )| RefineSettings {
                 model: if paper { Model::Paper } else { Model::Spectral },
-                wavelet,
+                wavelet: Some(wavelet),
                 method: if gsa { Method::Gsa } else { Method::Lsa },
                 window,
                 extra_levels,

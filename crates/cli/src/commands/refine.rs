@@ -90,8 +90,8 @@ impl Args {
             ModelArg::Paper => RefineSettings::paper(),
         };
         let wavelet = match &self.wavelet {
-            Some(w) => Wavelet::from_name(w).context("invalid --wavelet")?,
-            None => base.wavelet,
+            Some(w) => Some(Wavelet::from_name(w).context("invalid --wavelet")?),
+            None => None,
         };
         let settings = RefineSettings {
             wavelet,
@@ -167,19 +167,20 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         drop(progress);
         None
     };
-    let fits = refiner.synthesis_fits();
+    let f = refiner.figures();
+    let fits = f.synthesis_fits;
     ctx.note(format!(
         "wrote {} ({w} x {h} of the {ow} x {oh} refined grid{}; {} model, {} {}, gamma h/v/d \
          {:.3}/{:.3}/{:.3})",
         args.output.display(),
         band.map(|b| format!(", streamed in bands of {b} rows"))
             .unwrap_or_default(),
-        settings.model.name(),
-        match settings.method {
-            Method::Gsa => "gsa".to_string(),
-            Method::Lsa => format!("lsa {0}x{0}", settings.window),
+        f.model.name(),
+        match f.stats_window {
+            None => "gsa".to_string(),
+            Some(w) => format!("lsa {w}x{w}"),
         },
-        settings.wavelet,
+        f.wavelet,
         fits[0].gamma,
         fits[1].gamma,
         fits[2].gamma

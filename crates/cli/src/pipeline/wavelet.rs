@@ -48,38 +48,27 @@ const WAVELET_TOLERANCE: Tolerance = Tolerance {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct WaveletParams {
-    /// Number of synthesised levels of the showcase (each doubles the resolution).
-    pub(crate) levels: u32,
-    /// LSA window side (odd; the paper recommends 3).
-    pub(crate) window: usize,
-    /// Synthesis model: `"spectral"` (the default, issue 16) or `"paper"` (section 5 as
-    /// written).
-    pub(crate) model: Model,
-    /// Basis name (`haar`, `cdf53`, `cdf97`, `db4`); absent = the model's default (CDF 9/7
-    /// for the spectral model, the paper's linear spline CDF 5/3 for the paper model).
-    pub(crate) wavelet: Option<String>,
+    /// The refine job, exactly as `relief refine` takes it ([`RefineSettings`]: `model`,
+    /// `wavelet`, `method`, `stats_window`, `extra_levels`, ...). The showcase runs it with
+    /// GSA and with LSA; `method` says which one `replace_terrain` hands on. Its `seed` is
+    /// mixed with the spec's.
+    pub(crate) job: RefineSettings,
     /// Largest refined grid (cells) the showcase renders; a larger one is made from a centred
     /// crop of the terrain. Ignored for the terrain passed on by `replace_terrain`.
     pub(crate) max_cells: usize,
     /// Run the quality protocol (down-sample by 4, refine by 2, compare with the truth).
     pub(crate) quality: bool,
-    /// Hand the refined terrain (`method`) to the next stages instead of the input terrain.
+    /// Hand the refined terrain (`job.method`) to the next stages instead of the input terrain.
     pub(crate) replace_terrain: bool,
-    /// Which refinement `replace_terrain` hands on: `"lsa"` or `"gsa"`.
-    pub(crate) method: Method,
 }
 
 impl Default for WaveletParams {
     fn default() -> Self {
         Self {
-            levels: 2,
-            window: 3,
-            model: Model::Spectral,
-            wavelet: None,
+            job: RefineSettings::default(),
             max_cells: 2048 * 2048,
             quality: true,
             replace_terrain: false,
-            method: Method::Lsa,
         }
     }
 }
@@ -92,51 +81,24 @@ impl WaveletStage {
     /// Checks the parameters (called when the spec is built, so a bad spec fails before any
     /// stage runs).
     pub(crate) fn new(params: WaveletParams) -> Result<Self> {
-        let p = &params;
-        if p.levels == 0 {
-            bail!("invalid `levels` = 0: at least one level must be synthesised");
-        }
-        if let Some(w) = &p.wavelet {
-            Basis::from_name(w).context("invalid `wavelet`")?;
-        }
-        RefineSettings {
-            window: p.window,
-            extra_levels: p.levels,
-            ..Default::default()
-        }
-        .check()
-        .context("invalid `window` or `levels`")?;
-        if p.max_cells < 64 * 64 {
-            bail!("invalid `max_cells` = {}: must be >= 4096", p.max_cells);
+        params.job.check().context("invalid `job`")?;
+        if params.max_cells < 64 * 64 {
+            bail!(
+                "invalid `max_cells` = {}: must be >= 4096",
+                params.max_cells
+            );
         }
         Ok(Self(params))
     }
 
-    /// The defaults of the model.
-    fn base(&self) -> RefineSettings {
-        match self.0.model {
-            Model::Spectral => RefineSettings::default(),
-            Model::Paper => RefineSettings::paper(),
-        }
-    }
-
-    /// The basis: the `wavelet` parameter or the model's default.
-    fn basis(&self) -> Result<Basis> {
-        Ok(match &self.0.wavelet {
-            Some(w) => Basis::from_name(w)?,
-            None => self.base().wavelet,
-        })
-    }
-
-    fn settings(&self, method: Method, levels: u32, seed: u64) -> Result<RefineSettings> {
-        Ok(RefineSettings {
-            wavelet: self.basis()?,
+    /// The job with another method, level count and seed.
+    fn settings(&self, method: Method, levels: u32, seed: u64) -> RefineSettings {
+        RefineSettings {
             method,
-            window: self.0.window,
             extra_levels: levels,
-            seed,
-            ..self.base()
-        })
+            seed: seed ^ self.0.job.seed,
+            ..self.0.job.clone()
+        }
     }
 }
 
@@ -220,7 +182,7 @@ impl Stage for WaveletStage {
                 terrain.void_count()
             );
         }
-        let n = p.levels;
+        let n = p.job.extra_levels;
         let progress = cx.progress();
 
         // Showcase input: the whole terrain, or a centred crop whose refinement fits max_cells.
@@ -236,18 +198,18 @@ impl Stage for WaveletStage {
             terrain.crop((w - cw) / 2, (h - ch) / 2, cw, ch)?
         };
         cx.section.figure("levels", n);
-        cx.section.figure("wavelet", self.basis()?.name());
-        cx.section.figure("model", p.model.name());
-        cx.section.figure("lsa_window", p.window);
+        cx.section.figure("wavelet", p.job.basis().name());
+        cx.section.figure("model", p.job.model.name());
+        cx.section.figure("lsa_window", p.job.window);
         cx.section
             .figure("input_size", [input.width(), input.height()]);
 
         let mut refined = Vec::new();
         for method in [Method::Gsa, Method::Lsa] {
-            let name = label(method, p.window);
+            let name = label(method, p.job.window);
             let t = std::time::Instant::now();
             progress.begin(&format!("{name}: analysis"), 0);
-            let refiner = Refiner::new(&input, &self.settings(method, n, seed)?)
+            let refiner = Refiner::new(&input, &self.settings(method, n, seed))
                 .with_context(|| format!("{name}: cannot analyse the terrain"))?;
             let t_analysis = t.elapsed().as_secs_f64();
             let out = refiner.render(&progress)?;
@@ -291,7 +253,7 @@ impl Stage for WaveletStage {
 
         // Log-variance plots: input levels, fits, and the levels measured on each output.
         for (method, tag, _, out) in &refined {
-            let basis = self.basis()?;
+            let basis = p.job.basis();
             let after = analyze(out, basis, &fit)?;
             let rgb = render_log_variance_plot(stats, n, Some(&after), 720, 440);
             cx.save_rgb(
@@ -300,14 +262,14 @@ impl Stage for WaveletStage {
                     "log2 variance per level, {} (squares: input levels, grey-edged = not \
                      fitted; lines: equation (3), dashed beyond the input; hollow: levels \
                      measured on the refined terrain); H red, V green, D blue",
-                    label(*method, p.window)
+                    label(*method, p.job.window)
                 ),
                 720,
                 440,
                 &rgb,
             )?;
             let mut plot = Plot::new(
-                &format!("log-variance per level, {}", label(*method, p.window)),
+                &format!("log-variance per level, {}", label(*method, p.job.window)),
                 "level j",
                 "log2 variance (m^2)",
             );
@@ -375,7 +337,7 @@ impl Stage for WaveletStage {
                     q(0.05),
                     q(0.5),
                     q(0.95),
-                    w = p.window
+                    w = p.job.window
                 ),
                 maps.gamma[0].width,
                 maps.gamma[0].height,
@@ -387,7 +349,7 @@ impl Stage for WaveletStage {
         for (method, tag, _, out) in &refined {
             cx.save_raster(
                 &format!("wavelet_{tag}"),
-                &format!("{} +{n} levels ({ow} x {oh})", label(*method, p.window)),
+                &format!("{} +{n} levels ({ow} x {oh})", label(*method, p.job.window)),
                 out,
                 None,
             )?;
@@ -397,7 +359,7 @@ impl Stage for WaveletStage {
         if let (Some(g), Some(l)) = (gsa_shade, lsa_shade) {
             cx.section.pair(
                 (&g, "GSA"),
-                (&l, &label(Method::Lsa, p.window)),
+                (&l, &label(Method::Lsa, p.job.window)),
                 &format!("hillshades, +{n} levels, {ow} x {oh}"),
             );
         }
@@ -437,7 +399,7 @@ impl Stage for WaveletStage {
         if let [Some(g), Some(l)] = &zooms[..] {
             cx.section.pair(
                 (g, "GSA"),
-                (l, &label(Method::Lsa, p.window)),
+                (l, &label(Method::Lsa, p.job.window)),
                 &format!(
                     "window [{zx}, {zy}] {zw} x {zh} of the refined grid at full resolution, \
                      rendered on demand (equal bit for bit to the full run)"
@@ -454,11 +416,11 @@ impl Stage for WaveletStage {
 
         if p.replace_terrain {
             let next = if terrain.width() == input.width() && terrain.height() == input.height() {
-                let i = if p.method == Method::Gsa { 0 } else { 1 };
+                let i = if p.job.method == Method::Gsa { 0 } else { 1 };
                 refined.swap_remove(i).3
             } else {
                 progress.begin("refining the whole terrain for the next stage", 0);
-                Refiner::new(&terrain, &self.settings(p.method, n, seed)?)?.render(&progress)?
+                Refiner::new(&terrain, &self.settings(p.job.method, n, seed))?.render(&progress)?
             };
             cx.section.figure(
                 "next_terrain",
@@ -489,7 +451,7 @@ fn quality(
     // Bicubic keeps the extent (cell-centred lattice); the paper refinement is vertex-aligned:
     // refined sample k lies on coarse sample k / 4, i.e. on truth coordinate k + 1.5.
     let bicubic = coarse.resample(w, h)?;
-    let basis = stage.basis()?;
+    let basis = p.job.basis();
     let t_added = added_levels(&truth, basis)?;
     let mut rows = vec![(
         "truth".to_string(),
@@ -508,8 +470,8 @@ fn quality(
         ],
     ));
     for method in [Method::Gsa, Method::Lsa] {
-        let name = label(method, p.window);
-        let refiner = match Refiner::new(&coarse, &stage.settings(method, 2, seed ^ 1)?) {
+        let name = label(method, p.job.window);
+        let refiner = match Refiner::new(&coarse, &stage.settings(method, 2, seed ^ 1)) {
             Ok(r) => r,
             Err(e) => {
                 cx.section.note(&format!(
@@ -524,7 +486,11 @@ fn quality(
         let out = refiner.render(&relief_heightfield::NoProgress)?;
         // The paper model is vertex-aligned (refined sample k on truth coordinate k + 1.5), the
         // spectral model area-aligned like bicubic.
-        let shift = if p.model == Model::Paper { 1.5 } else { 0.0 };
+        let shift = if p.job.model == Model::Paper {
+            1.5
+        } else {
+            0.0
+        };
         let s = scores(&truth, &out, band, shift, basis)?;
         let tag = if method == Method::Gsa { "gsa" } else { "lsa" };
         cx.section.figure(
@@ -586,11 +552,15 @@ mod tests {
     #[test]
     fn bad_params_are_named() {
         for (params, needle) in [
-            (serde_json::json!({"levels": 0}), "levels"),
-            (serde_json::json!({"window": 4}), "window"),
-            (serde_json::json!({"wavelet": "sym5"}), "sym5"),
-            (serde_json::json!({"model": "fancy"}), "fancy"),
-            (serde_json::json!({"method": "both"}), "both"),
+            (
+                serde_json::json!({"job": {"extra_levels": 0}}),
+                "extra_levels",
+            ),
+            (serde_json::json!({"job": {"stats_window": 4}}), "window"),
+            (serde_json::json!({"job": {"wavelet": "sym5"}}), "sym5"),
+            (serde_json::json!({"job": {"model": "fancy"}}), "fancy"),
+            (serde_json::json!({"job": {"method": "both"}}), "both"),
+            (serde_json::json!({"levels": 2}), "levels"),
             (serde_json::json!({"max_cells": 10}), "max_cells"),
             (serde_json::json!({"levles": 1}), "levles"),
         ] {
@@ -621,8 +591,8 @@ mod tests {
             StageSpec::named("fill_voids"),
             StageSpec {
                 stage: "wavelet".into(),
-                params: serde_json::json!({"levels": 1, "replace_terrain": true,
-                                            "method": "gsa", "max_cells": 4096}),
+                params: serde_json::json!({"job": {"extra_levels": 1, "method": "gsa"},
+                                            "replace_terrain": true, "max_cells": 4096}),
             },
         ];
         let stages: Vec<_> = specs.iter().map(|s| build_stage(s).unwrap()).collect();

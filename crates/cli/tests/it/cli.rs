@@ -613,7 +613,7 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
         &spec,
         r#"{ "input": "canyon.tif", "crop": [40, 30, 96, 64], "seed": 3,
              "stages": [ { "stage": "load" }, { "stage": "fill_voids" }, { "stage": "convert" },
-                         { "stage": "wavelet", "params": { "levels": 1, "quality": false } } ] }"#,
+                         { "stage": "wavelet", "params": { "job": { "extra_levels": 1 }, "quality": false } } ] }"#,
     )
     .unwrap();
     let out = tmp.path().join("out");
