@@ -25,7 +25,8 @@ use crate::error::{LearnError, Result};
 use crate::noise::item_seed;
 
 /// Which atom update K-SVD performs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum KsvdVariant {
     /// Rank-1 SVD of the restricted error (Aharon et al. 2006), via faer.
     Exact,
@@ -38,8 +39,9 @@ pub enum KsvdVariant {
 /// beyond convergence (the paper uses tens), small enough that a typo cannot run for days.
 pub const MAX_ITERATIONS: usize = 10_000;
 
-/// Settings of [`ksvd`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of [`ksvd`] (serde: missing fields take these defaults, unknown ones are an error).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct KsvdSettings {
     /// Number of atoms `N`.
     pub n_atoms: usize,

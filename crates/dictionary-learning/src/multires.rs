@@ -46,6 +46,7 @@ use relief_sparse_core::{
     CentreGrid, Dictionary, Node, OmpSettings, PatchGeometry, Placement, RasterSettings, Sct,
     SparseLayer, batch_omp, extract_patches,
 };
+use serde::{Deserialize, Serialize};
 
 use crate::constrained::{ConstrainedSettings, constrained_learning};
 use crate::error::{LearnError, Result};
@@ -54,8 +55,10 @@ use crate::noise::item_seed;
 /// Amplification factor of one step.
 pub const STEP_FACTOR: usize = 4;
 
-/// How the multi-resolution dictionary is chosen.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// How the multi-resolution dictionary is chosen. In JSON: `"complete"` or
+/// `{"learned": {"n_atoms": 256, "iterations": 3}}`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum DictionaryChoice {
     /// Every candidate patch of the exemplar (at most `max_candidates`, spread evenly).
     Complete,
@@ -68,8 +71,11 @@ pub enum DictionaryChoice {
     },
 }
 
-/// Settings of [`amplify`] and [`MultiResDictionary::from_exemplar`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of the amplify job ([`amplify`], [`MultiResDictionary::from_exemplar`]): the one
+/// definition of its parameters, read by the CLI's flags, the pipeline spec (JSON, missing
+/// fields take these defaults, unknown fields are an error) and tiled-run manifests.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct AmplifySettings {
     /// Support radius `R` in coarse pixels (figure 11); patch side `a = 2 ceil(R)`.
     pub radius: f64,
@@ -985,8 +991,11 @@ pub fn amplify_observed(
         .ok_or(LearnError::param("steps", 0, "must be >= 1"))
 }
 
-/// Settings of [`synthesize`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of the sketch-synthesis job ([`synthesize`]); serde as [`AmplifySettings`] (fields
+/// missing inside a JSON `amplify` object take [`AmplifySettings`]' defaults, not the ones
+/// below).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SynthesisSettings {
     /// Amplification settings; `steps` defaults to 3 (figure 12: three incremental steps) and
     /// the residual correction is off (the sketch's pixels are not to be reproduced).

@@ -318,7 +318,8 @@ pub fn register_function_atoms(registry: &mut FunctionAtomRegistry) {
 }
 
 /// Family of analytic atoms for [`random_function_atoms`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum NoiseFamily {
     /// [`PerlinAtom`] (fBm of gradient noise).
     Perlin,

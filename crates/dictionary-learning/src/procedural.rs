@@ -18,8 +18,10 @@ use crate::constrained::{ConstrainedSettings, constrained_learning};
 use crate::error::{LearnError, Result};
 use crate::noise::{NoiseFamily, random_function_atoms};
 
-/// Settings of [`fit_procedural`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of the fit-procedural job ([`fit_procedural`]; serde, missing fields take these
+/// defaults, unknown fields are an error).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ProceduralSettings {
     /// Noise family of the analytic atoms.
     pub family: NoiseFamily,

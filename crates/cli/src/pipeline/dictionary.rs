@@ -60,36 +60,42 @@ fn min_exemplar_side(r: f64) -> usize {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct AmplifyParams {
-    /// Number of x4 steps on inputs large enough (2 = x16); small inputs use 1.
-    pub(crate) steps: usize,
-    /// Support radius `R` in coarse pixels (figure 11); small inputs use 1.
-    pub(crate) radius: f64,
-    /// Learned atoms `N` (capped by a quarter of the candidate patches).
-    pub(crate) atoms: usize,
-    /// Constrained-learning iterations.
-    pub(crate) iterations: usize,
+    /// The amplify job, the same settings as `relief amplify` ([`AmplifySettings`]). Absent:
+    /// the stage's defaults ([`stage_amplify_job`]: x16, `R` = 2, 256 learned atoms); in a
+    /// given object missing fields take the library's defaults. On small terrains the stage
+    /// lowers `steps` and `radius` (recorded in the figures), caps the learned atoms at a
+    /// quarter of the candidate patches and mixes `seed` with the spec's. `steps` must be 1..=3.
+    pub(crate) job: AmplifySettings,
     /// Also amplify x4 from the truth reduced x4 (a second table block).
     pub(crate) also_x4: bool,
     /// Add the rows of the paper's plain method (`--paper`: no residual correction, no
-    /// detail-energy normalisation) next to the default's.
+    /// detail-energy normalisation) next to the job's.
     pub(crate) residual_rows: bool,
     /// Hand the x16 amplification on to the next stages (default true).
     pub(crate) replace_terrain: bool,
-    /// Step between coarse primitive centres (`None`: half the radius).
-    pub(crate) step: Option<f64>,
+}
+
+/// The amplify job of the default run: x16 with `R` = 2 and 256 learned atoms (3 iterations),
+/// sized for the 512 x 512 fixture.
+pub(crate) fn stage_amplify_job() -> AmplifySettings {
+    AmplifySettings {
+        steps: 2,
+        radius: 2.0,
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 256,
+            iterations: 3,
+        },
+        ..AmplifySettings::default()
+    }
 }
 
 impl Default for AmplifyParams {
     fn default() -> Self {
         Self {
-            steps: 2,
-            radius: 2.0,
-            atoms: 256,
-            iterations: 3,
+            job: stage_amplify_job(),
             also_x4: true,
             residual_rows: true,
             replace_terrain: true,
-            step: None,
         }
     }
 }
@@ -97,6 +103,50 @@ impl Default for AmplifyParams {
 /// The `amplify` stage.
 #[derive(Debug, Default)]
 pub(crate) struct AmplifyStage(pub(crate) AmplifyParams);
+
+impl AmplifyStage {
+    /// Checks the job when the spec is built, so a bad spec fails before any stage runs.
+    pub(crate) fn new(p: AmplifyParams) -> Result<Self> {
+        p.job.check().context("invalid `job`")?;
+        if !(1..=3).contains(&p.job.steps) {
+            bail!(
+                "invalid parameter `job.steps` = {}: the stage runs 1, 2 or 3 x4 steps",
+                p.job.steps
+            );
+        }
+        Ok(Self(p))
+    }
+}
+
+/// The job's dictionary with its atom count capped at `cap` (a learned dictionary cannot have
+/// more atoms than a quarter of the candidate patches), and that count (0 = complete).
+fn capped_dictionary(d: DictionaryChoice, cap: usize) -> (DictionaryChoice, usize) {
+    match d {
+        DictionaryChoice::Complete => (d, 0),
+        DictionaryChoice::Learned {
+            n_atoms,
+            iterations,
+        } => {
+            let n = n_atoms.min(cap).max(1);
+            (
+                DictionaryChoice::Learned {
+                    n_atoms: n,
+                    iterations,
+                },
+                n,
+            )
+        }
+    }
+}
+
+/// `N = n` for a learned dictionary, `complete` for 0.
+fn atoms_label(atoms: usize) -> String {
+    if atoms == 0 {
+        "complete".into()
+    } else {
+        format!("N = {atoms}")
+    }
+}
 
 fn quality_cells(r: &QualityRow, seconds: f64) -> Vec<f64> {
     vec![
@@ -116,9 +166,6 @@ impl Stage for AmplifyStage {
 
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        if !(1..=3).contains(&p.steps) {
-            bail!("invalid parameter `steps` = {}: must be 1, 2 or 3", p.steps);
-        }
         let terrain = cx.state.terrain()?.clone();
         terrain
             .require_complete()
@@ -129,11 +176,11 @@ impl Stage for AmplifyStage {
         let ex_side = exemplar.width().min(exemplar.height());
         // Scale the work to the input: x16 needs a coarse input of >= 8 pixels per side and an
         // exemplar of >= 6 fine patches; otherwise x4 and the smallest radius.
-        let mut steps = p.steps;
+        let mut steps = p.job.steps;
         while steps > 1 && half.min(h) / 4usize.pow(steps as u32) < 8 {
             steps -= 1;
         }
-        let mut radius = p.radius;
+        let mut radius = p.job.radius;
         if ex_side < min_exemplar_side(radius) {
             radius = 1.0;
         }
@@ -146,10 +193,10 @@ impl Stage for AmplifyStage {
             return Ok(());
         }
         let a = 2 * radius.ceil() as usize;
-        let atoms = p
-            .atoms
-            .min(candidate_count((exemplar.width(), exemplar.height()), a) / 4)
-            .max(1);
+        let (dictionary, atoms) = capped_dictionary(
+            p.job.dictionary,
+            candidate_count((exemplar.width(), exemplar.height()), a) / 4,
+        );
         let f = 4usize.pow(steps as u32);
         let (tw, th) = (half / f * f, h / f * f);
         let truth = terrain.crop(0, 0, tw, th)?;
@@ -163,18 +210,13 @@ impl Stage for AmplifyStage {
         let settings = |steps: usize, residual: bool| AmplifySettings {
             radius,
             steps,
-            sparsity: 1,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: atoms,
-                iterations: p.iterations,
-            },
-            seed: cx.config.seed ^ 0xa3f1,
-            // `false`: the paper's plain method; `true`: the library default (residual
-            // correction and detail-energy normalisation).
-            residual_correction: residual,
-            normalize_detail: residual,
-            step: p.step,
-            ..Default::default()
+            dictionary,
+            seed: cx.config.seed ^ 0xa3f1 ^ p.job.seed,
+            // `false`: the paper's plain method; `true`: the job as given (by default the
+            // residual correction and detail-energy normalisation).
+            residual_correction: residual && p.job.residual_correction,
+            normalize_detail: residual && p.job.normalize_detail,
+            ..p.job
         };
         let mut factors = vec![steps];
         if p.also_x4 && steps > 1 {
@@ -204,7 +246,11 @@ impl Stage for AmplifyStage {
                 let secs = t.elapsed().as_secs_f64();
                 let q = evaluate(&truth, &coarse, &out)?;
                 let label = if residual {
-                    format!("sparse, N = {atoms}, s = 1, default (x{fac})")
+                    format!(
+                        "sparse, {}, s = {}, default (x{fac})",
+                        atoms_label(atoms),
+                        p.job.sparsity
+                    )
                 } else {
                     format!("sparse --paper (plain method) (x{fac})")
                 };
@@ -309,8 +355,8 @@ impl Stage for AmplifyStage {
                 0,
             );
             let coarse_all = terrain.resample(fw, fh)?;
-            let whole_radius = if w.min(h) >= min_exemplar_side(p.radius) {
-                p.radius
+            let whole_radius = if w.min(h) >= min_exemplar_side(p.job.radius) {
+                p.job.radius
             } else {
                 radius
             };
@@ -354,23 +400,28 @@ impl Stage for AmplifyStage {
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct SketchParams {
     /// Side of the painted sketch in cells (capped so the output is at most the exemplar's
-    /// largest side times two); the output is `64 x` that.
+    /// largest side times two); the output is `4^steps x` that.
     pub(crate) sketch_size: usize,
-    /// Number of x4 steps (figure 12: 3).
-    pub(crate) steps: usize,
-    /// Learned atoms `N` (the issue's sketch benchmark uses 64).
-    pub(crate) atoms: usize,
-    /// Step between coarse primitive centres (`None`: half the radius).
-    pub(crate) step: Option<f64>,
+    /// The sketch-synthesis job, the same settings as `relief synthesize`
+    /// ([`SynthesisSettings`]). Absent: the library's defaults (figure 12: three x4 steps, 64
+    /// learned atoms) with `R` = 2; the stage lowers the radius to 1 on small exemplars, caps
+    /// the atoms at a quarter of the candidate patches and mixes `amplify.seed` with the
+    /// spec's. `amplify.steps` must be 1..=3.
+    pub(crate) job: SynthesisSettings,
 }
 
 impl Default for SketchParams {
     fn default() -> Self {
+        let lib = SynthesisSettings::default();
         Self {
             sketch_size: 8,
-            steps: 3,
-            atoms: 64,
-            step: None,
+            job: SynthesisSettings {
+                amplify: AmplifySettings {
+                    radius: 2.0,
+                    ..lib.amplify
+                },
+                ..lib
+            },
         }
     }
 }
@@ -378,6 +429,23 @@ impl Default for SketchParams {
 /// The `sketch` stage.
 #[derive(Debug, Default)]
 pub(crate) struct SketchStage(pub(crate) SketchParams);
+
+impl SketchStage {
+    /// Checks the job when the spec is built.
+    pub(crate) fn new(p: SketchParams) -> Result<Self> {
+        p.job.amplify.check().context("invalid `job.amplify`")?;
+        if !(1..=3).contains(&p.job.amplify.steps) {
+            bail!(
+                "invalid parameter `job.amplify.steps` = {}: must be 1, 2 or 3",
+                p.job.amplify.steps
+            );
+        }
+        if p.sketch_size == 0 {
+            bail!("invalid parameter `sketch_size` = 0: must be >= 1");
+        }
+        Ok(Self(p))
+    }
+}
 
 /// A "painted" sketch in `[0, 1]`: a diagonal ridge stroke, a round peak and a valley stroke,
 /// the kind of coarse drawing figure 12 starts from.
@@ -400,15 +468,13 @@ impl Stage for SketchStage {
 
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        if !(1..=3).contains(&p.steps) {
-            bail!("invalid parameter `steps` = {}: must be 1, 2 or 3", p.steps);
-        }
+        let steps = p.job.amplify.steps;
         let exemplar = cx.state.terrain()?.clone();
         exemplar
             .require_complete()
             .context("the sketch stage needs a void-free exemplar terrain")?;
         let side = exemplar.width().min(exemplar.height());
-        let mut radius = 2.0;
+        let mut radius = p.job.amplify.radius;
         if side < min_exemplar_side(radius) {
             radius = 1.0;
         }
@@ -420,29 +486,24 @@ impl Stage for SketchStage {
             ));
             return Ok(());
         }
-        let f = 4usize.pow(p.steps as u32);
+        let f = 4usize.pow(steps as u32);
         let a = 2 * radius.ceil() as usize;
         // Output at most twice the exemplar's largest side; the sketch holds >= one patch.
         let cap = 2 * exemplar.width().max(exemplar.height()) / f;
         let n = p.sketch_size.min(cap).max(a);
         let sketch = painted_sketch(n);
-        let atoms = p
-            .atoms
-            .min(candidate_count((exemplar.width(), exemplar.height()), a) / 4)
-            .max(1);
+        let (dictionary, atoms) = capped_dictionary(
+            p.job.amplify.dictionary,
+            candidate_count((exemplar.width(), exemplar.height()), a) / 4,
+        );
         let settings = SynthesisSettings {
             amplify: AmplifySettings {
                 radius,
-                steps: p.steps,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: atoms,
-                    iterations: 3,
-                },
-                seed: cx.config.seed ^ 0x5e7c,
-                step: p.step,
-                ..SynthesisSettings::default().amplify
+                dictionary,
+                seed: cx.config.seed ^ 0x5e7c ^ p.job.amplify.seed,
+                ..p.job.amplify
             },
-            height_range: None,
+            ..p.job
         };
         let progress = cx.progress();
         progress.begin(&format!("sketch synthesis {n} x {n} -> x{f}"), 0);
@@ -454,7 +515,7 @@ impl Stage for SketchStage {
         let fidelity = relief_heightfield::metrics::pearson(back.as_slice(), sketch.as_slice());
         let (lo, hi) = out.min_max().unwrap_or((0.0, 0.0));
         cx.section.figure("sketch_size", n);
-        cx.section.figure("steps", p.steps);
+        cx.section.figure("steps", steps);
         cx.section.figure("radius", radius);
         cx.section.figure("atoms", atoms);
         cx.section
@@ -467,7 +528,7 @@ impl Stage for SketchStage {
              elevation range and amplified in {} x4 steps (figure 12) to {} x {} with the \
              current terrain ({} x {}) as exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; \
              correlation of the output reduced to the sketch size with the sketch: {fidelity:.3}",
-            p.steps,
+            steps,
             out.width(),
             out.height(),
             exemplar.width(),
@@ -510,19 +571,43 @@ impl Stage for SketchStage {
 pub(crate) struct ProceduralParams {
     /// Largest side of the centre crop that is fitted.
     pub(crate) max_side: usize,
-    /// Size of the analytic dictionary per family (scaled down on small crops).
-    pub(crate) candidates: usize,
-    /// Atoms kept by constrained learning in the extra "ridged, learned" row.
-    pub(crate) learned_atoms: usize,
+    /// The fit-procedural job, the same settings as `relief fit-procedural`
+    /// ([`ProceduralSettings`]). The stage runs it once per atom family (`family` is set per
+    /// row), scales `n_candidates` down on crops under 128^2, and its "ridged, learned" row
+    /// keeps `learned_atoms` atoms (64 when null); `seed` is mixed with the spec's.
+    pub(crate) job: ProceduralSettings,
 }
 
 impl Default for ProceduralParams {
     fn default() -> Self {
         Self {
             max_side: 256,
-            candidates: 2048,
-            learned_atoms: 64,
+            job: ProceduralSettings::default(),
         }
+    }
+}
+
+impl ProceduralStage {
+    /// Checks the job when the spec is built.
+    pub(crate) fn new(p: ProceduralParams) -> Result<Self> {
+        p.job.check().context("invalid `job`")?;
+        if p.max_side < 16 {
+            bail!(
+                "invalid parameter `max_side` = {}: must be >= 16",
+                p.max_side
+            );
+        }
+        Ok(Self(p))
+    }
+
+    /// Atoms of the learned row.
+    fn learned_atoms(&self, candidates: usize) -> usize {
+        self.0
+            .job
+            .learned_atoms
+            .unwrap_or(64)
+            .min(candidates / 2)
+            .max(1)
     }
 }
 
@@ -553,7 +638,8 @@ impl Stage for ProceduralStage {
         );
         let crop = terrain.crop((terrain.width() - w) / 2, (terrain.height() - h) / 2, w, h)?;
         // Scale the dictionary down on small crops: full size from 128^2 up, fewer below.
-        let candidates = (p.candidates * w * h / (128 * 128)).clamp(64, p.candidates.max(64));
+        let n = p.job.n_candidates;
+        let candidates = (n * w * h / (128 * 128)).clamp(64, n.max(64));
         let progress = cx.progress();
         let mut rows = Vec::new();
         let mut best: Option<(f64, Heightfield)> = None;
@@ -564,7 +650,7 @@ impl Stage for ProceduralStage {
             (
                 "ridged_learned",
                 NoiseFamily::RidgedSum,
-                Some(p.learned_atoms.min(candidates / 2).max(1)),
+                Some(self.learned_atoms(candidates)),
             ),
         ];
         for (label, family, learned) in runs {
@@ -576,8 +662,8 @@ impl Stage for ProceduralStage {
                     family,
                     n_candidates: candidates,
                     learned_atoms: learned,
-                    seed: cx.config.seed ^ 0x9f0c,
-                    ..Default::default()
+                    seed: cx.config.seed ^ 0x9f0c ^ p.job.seed,
+                    ..p.job
                 },
                 &progress,
             )
@@ -612,7 +698,7 @@ impl Stage for ProceduralStage {
                  ridged), OMP on the discretised D, reconstruction with the analytic D~; \
                  ridged_learned keeps {} atoms by constrained learning (problem (2)). The paper \
                  reports ridged 24.9 dB vs Perlin 20.0 dB on its data",
-                p.learned_atoms.min(candidates / 2).max(1)
+                self.learned_atoms(candidates)
             ),
             &["atoms", "N", "PSNR (dB)", "RMSE (m)", "time (s)"],
             &rows_ref,

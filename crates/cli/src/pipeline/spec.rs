@@ -131,22 +131,9 @@ pub const STAGE_NAMES: &[&str] = &[
 ];
 
 /// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
+/// Every stage of [`STAGE_NAMES`], in that order, with its defaults.
 pub fn default_spec() -> Vec<StageSpec> {
-    [
-        "load",
-        "fill_voids",
-        "convert",
-        "sparse",
-        "quilt",
-        "wavelet",
-        "amplify",
-        "sketch",
-        "procedural",
-        "volume",
-    ]
-    .iter()
-    .map(|s| StageSpec::named(s))
-    .collect()
+    STAGE_NAMES.iter().map(|s| StageSpec::named(s)).collect()
 }
 
 /// Builds one stage from its spec entry.
@@ -159,9 +146,9 @@ pub fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "sparse" => Box::new(sparse::SparseStage(params(p)?)),
         "quilt" => Box::new(quilt::Quilt(params(p)?)),
         "wavelet" => Box::new(wavelet::WaveletStage::new(params(p)?)?),
-        "amplify" => Box::new(dictionary::AmplifyStage(params(p)?)),
-        "sketch" => Box::new(dictionary::SketchStage(params(p)?)),
-        "procedural" => Box::new(dictionary::ProceduralStage(params(p)?)),
+        "amplify" => Box::new(dictionary::AmplifyStage::new(params(p)?)?),
+        "sketch" => Box::new(dictionary::SketchStage::new(params(p)?)?),
+        "procedural" => Box::new(dictionary::ProceduralStage::new(params(p)?)?),
         "volume" => Box::new(volume::VolumeStage::new(params(p)?)?),
         other => bail!(
             "unknown stage `{other}`; known stages: {}",
