@@ -62,6 +62,7 @@
 #![warn(missing_docs)]
 
 pub mod baseline;
+pub mod compress;
 pub mod constrained;
 mod error;
 pub mod ksvd;
@@ -71,6 +72,7 @@ pub mod procedural;
 pub mod quality;
 
 pub use baseline::{NoiseBaselineSettings, noise_amplify};
+pub use compress::{CompressFigures, CompressSettings, Compressed, DictionarySource};
 pub use constrained::{ConstrainedSettings, constrained_learning};
 pub use error::{LearnError, Result};
 pub use ksvd::{

@@ -11,16 +11,13 @@
 //! ```
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{KsvdSettings, ksvd, register_function_atoms};
-use relief_heightfield::Heightfield;
-use relief_sparse_core::{
-    CompressionReport, Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry,
-    PatchGeometry, Sct, compression_report, encode_with_progress, extract_patches,
+use relief_dictionary_learning::{
+    CompressFigures, CompressSettings, DictionarySource, register_function_atoms,
 };
+use relief_heightfield::Heightfield;
+use relief_sparse_core::{Dictionary, FunctionAtomRegistry};
 
 use crate::ctx::Ctx;
 
@@ -142,84 +139,55 @@ pub(crate) fn read_model_bytes(path: &Path, ctx: &Ctx) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// Builds the dictionary the arguments ask for.
-fn build_dictionary(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<(Dictionary, String)> {
-    if let Some(path) = &args.dictionary {
-        for (given, name) in [
-            (args.dict.is_some(), "--dict"),
-            (args.patch_size.is_some(), "--patch-size"),
-            (args.spacing.is_some(), "--spacing"),
-            (args.radius.is_some(), "--radius"),
-        ] {
-            if given {
-                bail!("{name} cannot be used with --dictionary (the file fixes the atoms)");
-            }
-        }
-        let bytes = read_model_bytes(path, ctx)?;
-        let d = Dictionary::from_bytes(&bytes, &registry())
-            .with_context(|| format!("cannot read the dictionary {}", path.display()))?;
-        if d.is_empty() {
-            bail!("the dictionary {} holds no atom", path.display());
-        }
-        return Ok((d, format!("file {}", path.display())));
+impl Args {
+    /// The job settings of the flags (checked).
+    pub(crate) fn settings(&self) -> Result<CompressSettings> {
+        let d = CompressSettings::default();
+        let s = CompressSettings {
+            sparsity: self.sparsity,
+            atoms: self.atoms,
+            source: match self.dict.unwrap_or(DictSource::Ksvd) {
+                DictSource::Ksvd => DictionarySource::Ksvd,
+                DictSource::Sample => DictionarySource::Sample,
+                DictSource::Complete => DictionarySource::Complete,
+            },
+            patch_size: self.patch_size.unwrap_or(d.patch_size),
+            spacing: self.spacing.unwrap_or(d.spacing),
+            radius: self.radius,
+            step: self.step,
+            tolerance: self.tolerance,
+            quantize: self.quantize,
+            iterations: self.iterations,
+            seed: self.seed,
+        };
+        s.check().context("invalid compress settings")?;
+        Ok(s)
     }
-    let a = args.patch_size.unwrap_or(8);
-    let spacing = args.spacing.unwrap_or(1.0);
-    let geometry = PatchGeometry {
-        patch_size: a,
-        spacing,
-        step: args.step.unwrap_or(a as f64 * spacing / 2.0),
-        support_radius: args.radius.unwrap_or(a as f64 * spacing / 2.0),
+}
+
+/// The dictionary of `--dictionary FILE`, if given (it fixes the atoms: `--dict`,
+/// `--patch-size`, `--spacing` and `--radius` are refused with it).
+fn given_dictionary(args: &Args, ctx: &Ctx) -> Result<Option<(Dictionary, String)>> {
+    let Some(path) = &args.dictionary else {
+        return Ok(None);
     };
-    let patches = extract_patches(hf, &geometry).context("cannot cut the input into patches")?;
-    let n = patches.matrix.nrows();
-    match args.dict.unwrap_or(DictSource::Ksvd) {
-        DictSource::Complete => {
-            let (d, _) = Dictionary::from_patches(&patches, None)?;
-            Ok((d, "complete (every patch an atom)".into()))
-        }
-        DictSource::Sample => {
-            if args.atoms == 0 || args.atoms > n {
-                bail!(
-                    "invalid parameter `atoms` = {}: must be in 1..={n} (the number of patches)",
-                    args.atoms
-                );
-            }
-            let sel: Vec<usize> = (0..args.atoms).map(|k| k * n / args.atoms).collect();
-            let (d, _) = Dictionary::from_patches(&patches, Some(&sel))?;
-            if d.is_empty() {
-                bail!("every sampled patch is flat: no atom (try --dict ksvd or more atoms)");
-            }
-            let what = format!("{} patches sampled evenly", d.len());
-            Ok((d, what))
-        }
-        DictSource::Ksvd => {
-            let settings = KsvdSettings {
-                n_atoms: args.atoms,
-                sparsity: args.sparsity,
-                iterations: args.iterations,
-                seed: args.seed,
-                ..Default::default()
-            };
-            let progress = ctx.progress();
-            let learned = ksvd(patches.matrix.view(), &settings, &progress)
-                .context("cannot learn the dictionary (K-SVD)")?;
-            drop(progress);
-            let d = Dictionary::from_matrix(
-                learned.atoms.view(),
-                a,
-                geometry.spacing,
-                geometry.support_radius,
-            )?;
-            Ok((
-                d,
-                format!(
-                    "K-SVD, {} iterations on {n} patches, seed {}",
-                    args.iterations, args.seed
-                ),
-            ))
+    for (given, name) in [
+        (args.dict.is_some(), "--dict"),
+        (args.patch_size.is_some(), "--patch-size"),
+        (args.spacing.is_some(), "--spacing"),
+        (args.radius.is_some(), "--radius"),
+    ] {
+        if given {
+            bail!("{name} cannot be used with --dictionary (the file fixes the atoms)");
         }
     }
+    let bytes = read_model_bytes(path, ctx)?;
+    let d = Dictionary::from_bytes(&bytes, &registry())
+        .with_context(|| format!("cannot read the dictionary {}", path.display()))?;
+    if d.is_empty() {
+        bail!("the dictionary {} holds no atom", path.display());
+    }
+    Ok(Some((d, format!("file {}", path.display()))))
 }
 
 /// Pre-flight estimate of `compress` (issue 18), before any patch is cut: the patch matrix
@@ -271,24 +239,25 @@ fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
     )
 }
 
-/// The report lines shared by `compress` and the tests: storage, bytes, PSNR.
-pub(crate) fn report_lines(r: &CompressionReport) -> String {
+/// The report lines: storage, bytes, PSNR.
+fn report_lines(f: &CompressFigures) -> String {
     format!(
         "storage:     t(s, N) = KN + n(2s + 2) + 1 = {} values for t0 = {} samples: rho = {:.2} %\n\
          bytes:       {} ({:.2} % of the input as f32)\n\
          PSNR:        {:.2} dB (RMSE {:.3} m)\n",
-        r.t,
-        r.t0,
-        100.0 * r.rho,
-        r.bytes,
-        100.0 * r.byte_ratio,
-        r.psnr,
-        r.rmse
+        f.t,
+        f.t0,
+        100.0 * f.rho,
+        f.bytes,
+        100.0 * f.byte_ratio,
+        f.psnr,
+        f.rmse
     )
 }
 
 /// Reads, (fills,) learns or loads a dictionary, encodes, writes the `.sct`, prints the figures.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let job = args.settings()?;
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(args.dictionary.as_deref());
     ctx.check_outputs(&inputs, &[(&args.output, crate::outputs::OutKind::Sct)])?;
@@ -303,62 +272,49 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         );
     }
     preflight(&args, &hf, ctx)?;
-    let t_start = Instant::now();
-    let (dict, source) = build_dictionary(&args, &hf, ctx)?;
-    let t_dict = t_start.elapsed().as_secs_f64();
-    let settings = EncodeSettings {
-        sparsity: args.sparsity,
-        tolerance: args.tolerance,
-        step: args.step,
-    };
-    let t_enc = Instant::now();
+    let given = given_dictionary(&args, ctx)?;
     let progress = ctx.progress();
-    let sct: Sct = encode_with_progress(&hf, Arc::new(dict), &settings, &progress)
-        .context("cannot encode the terrain")?;
+    let out = job
+        .run(&hf, given, &progress)
+        .context("cannot compress the terrain")?;
     drop(progress);
-    let t_enc = t_enc.elapsed().as_secs_f64();
-    let options = FormatOptions {
-        quantize_coefficients: args.quantize,
-    };
-    let bytes = sct.to_bytes_with(&options)?;
-    let report = compression_report(&hf, &sct, &options, &registry())?;
-    relief_io::write_bytes_atomic(&args.output, &bytes)
+    relief_io::write_bytes_atomic(&args.output, &out.bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    let layer = sct.layers()[0];
-    let d = layer.dictionary();
-    let mut out = String::new();
-    out.push_str(&format!(
+    let f = &out.figures;
+    let mut text = format!(
         "input:       {} ({} x {})\n",
         args.input.display(),
         hf.width(),
         hf.height()
+    );
+    text.push_str(&format!(
+        "dictionary:  N = {} atoms of {a} x {a} (K = {}), delta {}, R {}: {}\n",
+        f.atoms,
+        f.patch_size * f.patch_size,
+        f.spacing,
+        f.radius,
+        f.dictionary,
+        a = f.patch_size
     ));
-    out.push_str(&format!(
-        "dictionary:  N = {} atoms of {a} x {a} (K = {}), delta {}, R {}: {source}\n",
-        d.len(),
-        d.dim(),
-        d.spacing(),
-        d.support_radius(),
-        a = d.patch_size()
-    ));
-    out.push_str(&format!(
+    text.push_str(&format!(
         "primitives:  n = {}, s = {}{}\n",
-        layer.len(),
-        args.sparsity,
-        if args.quantize {
+        f.primitives,
+        f.sparsity,
+        if job.quantize {
             ", 16-bit coefficients"
         } else {
             ""
         }
     ));
-    out.push_str(&report_lines(&report));
-    out.push_str(&format!(
-        "time:        dictionary {t_dict:.2} s, encode {t_enc:.2} s\n"
+    text.push_str(&report_lines(f));
+    text.push_str(&format!(
+        "time:        dictionary {:.2} s, encode {:.2} s\n",
+        f.dictionary_seconds, f.encode_seconds
     ));
-    out.push_str(&format!("wrote:       {}\n", args.output.display()));
+    text.push_str(&format!("wrote:       {}\n", args.output.display()));
     #[allow(clippy::print_stdout)]
     {
-        print!("{out}");
+        print!("{text}");
     }
     Ok(())
 }

@@ -18,16 +18,14 @@
 //! The terrain handed to the next stage is unchanged (later stages work on the original), unless
 //! `replace_terrain` is set.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{KsvdSettings, ksvd};
+use relief_dictionary_learning::CompressSettings;
 use relief_heightfield::{Heightfield, Progress};
 use relief_sparse_core::{
-    Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, Node, PatchGeometry,
-    RasterSettings, River, RiverMode, Sct, Window, compression_report, encode_with_progress,
-    extract_patches,
+    FormatOptions, FunctionAtomRegistry, Node, RasterSettings, River, RiverMode, Sct, Window,
+    compression_report, extract_patches,
 };
 use serde::Deserialize;
 
@@ -45,14 +43,12 @@ const SPARSE_TOLERANCE: Tolerance = Tolerance {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct SparseParams {
-    /// Patch side `a` in cells (`K = a^2`); step and support radius are `a / 2`.
-    pub(crate) patch_size: usize,
-    /// Dictionary size `N` (capped at the number of patches).
-    pub(crate) atoms: usize,
+    /// The compress job, the same settings as `relief compress` ([`CompressSettings`]). The
+    /// table runs it once per entry of `sparsities` (its `sparsity` is set per row), with the
+    /// atoms capped at the number of patches and `seed` mixed with the spec's and the row.
+    pub(crate) job: CompressSettings,
     /// The sparsities of the table.
     pub(crate) sparsities: Vec<usize>,
-    /// K-SVD iterations per dictionary.
-    pub(crate) ksvd_iterations: usize,
     /// Build the river tree example.
     pub(crate) river: bool,
     /// Hand the reconstruction at the largest sparsity to the next stages.
@@ -62,10 +58,8 @@ pub(crate) struct SparseParams {
 impl Default for SparseParams {
     fn default() -> Self {
         Self {
-            patch_size: 8,
-            atoms: 128,
+            job: CompressSettings::default(),
             sparsities: vec![1, 2, 8],
-            ksvd_iterations: 10,
             river: true,
             replace_terrain: false,
         }
@@ -76,6 +70,25 @@ impl Default for SparseParams {
 #[derive(Debug, Default)]
 pub(crate) struct SparseStage(pub(crate) SparseParams);
 
+impl SparseStage {
+    /// Checks the job and the sparsities when the spec is built.
+    pub(crate) fn new(p: SparseParams) -> Result<Self> {
+        p.job.check().context("invalid `job`")?;
+        if p.sparsities.is_empty() {
+            bail!("invalid parameter `sparsities` = []: give at least one sparsity");
+        }
+        for &s in &p.sparsities {
+            CompressSettings {
+                sparsity: s,
+                ..p.job
+            }
+            .check()
+            .context("invalid `sparsities`")?;
+        }
+        Ok(Self(p))
+    }
+}
+
 impl Stage for SparseStage {
     fn name(&self) -> &'static str {
         "sparse"
@@ -83,19 +96,17 @@ impl Stage for SparseStage {
 
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        if p.sparsities.is_empty() {
-            bail!("invalid parameter `sparsities` = []: give at least one sparsity");
-        }
         let terrain = cx.state.terrain()?.clone();
         terrain
             .require_complete()
             .context("the sparse stage needs a void-free terrain (run fill_voids first)")?;
         let progress = cx.progress();
-        let geometry = PatchGeometry::with_patch_size(p.patch_size);
+        let geometry = p.job.geometry();
         let patches = extract_patches(&terrain, &geometry)?;
         let n_patches = patches.matrix.nrows();
-        let n_atoms = p.atoms.min(n_patches);
-        cx.section.figure("patch_size", p.patch_size);
+        let n_atoms = p.job.atoms.min(n_patches);
+        let a = p.job.patch_size;
+        cx.section.figure("patch_size", a);
         cx.section.figure("atoms", n_atoms);
         cx.section.figure("primitives", n_patches);
         let registry = FunctionAtomRegistry::new();
@@ -103,38 +114,17 @@ impl Stage for SparseStage {
         let mut rows = Vec::new();
         let mut best: Option<(usize, f64, Sct, Heightfield)> = None;
         for (k, &s) in p.sparsities.iter().enumerate() {
-            let t = Instant::now();
             progress.begin(&format!("K-SVD, N = {n_atoms}, s = {s}"), 0);
-            let learned = ksvd(
-                patches.matrix.view(),
-                &KsvdSettings {
-                    n_atoms,
-                    sparsity: s,
-                    iterations: p.ksvd_iterations,
-                    seed: cx.config.seed ^ (0x5ca7_0000 + k as u64),
-                    ..Default::default()
-                },
-                &progress,
-            )
-            .with_context(|| format!("K-SVD at s = {s}"))?;
-            let dict = Dictionary::from_matrix(
-                learned.atoms.view(),
-                p.patch_size,
-                geometry.spacing,
-                geometry.support_radius,
-            )?;
-            let t_learn = t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let sct = encode_with_progress(
-                &terrain,
-                Arc::new(dict),
-                &EncodeSettings {
-                    sparsity: s,
-                    ..Default::default()
-                },
-                &progress,
-            )?;
-            let t_encode = t.elapsed().as_secs_f64();
+            let out = CompressSettings {
+                sparsity: s,
+                atoms: n_atoms,
+                seed: cx.config.seed ^ (0x5ca7_0000 + k as u64) ^ p.job.seed,
+                ..p.job
+            }
+            .run(&terrain, None, &progress)
+            .with_context(|| format!("compression at s = {s}"))?;
+            let (t_learn, t_encode) = (out.figures.dictionary_seconds, out.figures.encode_seconds);
+            let sct = out.sct;
             let t = Instant::now();
             let rec = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
             let t_decode = t.elapsed().as_secs_f64();
@@ -198,16 +188,16 @@ impl Stage for SparseStage {
             "compact representation (guerin2016 table 1 analogue)",
             &format!(
                 "{} x {} terrain, t0 = {} samples, {n_patches} primitives of {a} x {a} (K = {}), \
-                 step {h}, R = {h}; dictionary learned by approximate K-SVD ({} iterations) per \
+                 step {h}, R = {r}; dictionary learned by approximate K-SVD ({} iterations) per \
                  row; t = KN + n(2s + 2) + 1; bytes = real .sct size (f32 / 16-bit \
                  coefficients); PSNR over the elevation range",
                 terrain.width(),
                 terrain.height(),
                 terrain.width() * terrain.height(),
-                p.patch_size * p.patch_size,
-                p.ksvd_iterations,
-                a = p.patch_size,
-                h = p.patch_size as f64 / 2.0,
+                a * a,
+                p.job.iterations,
+                h = geometry.step,
+                r = geometry.support_radius,
             ),
             &[
                 "sparsity",

@@ -143,7 +143,7 @@ pub fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
         "load" => no_params(p, "load", Box::new(load::Load))?,
         "fill_voids" => no_params(p, "fill_voids", Box::new(fill::FillVoids))?,
         "convert" => no_params(p, "convert", Box::new(convert::ConvertRoundTrips))?,
-        "sparse" => Box::new(sparse::SparseStage(params(p)?)),
+        "sparse" => Box::new(sparse::SparseStage::new(params(p)?)?),
         "quilt" => Box::new(quilt::Quilt(params(p)?)),
         "wavelet" => Box::new(wavelet::WaveletStage::new(params(p)?)?),
         "amplify" => Box::new(dictionary::AmplifyStage::new(params(p)?)?),

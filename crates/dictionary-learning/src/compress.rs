@@ -1,0 +1,426 @@
+//! The compress job (guerin2016 section 5.1) as one unit: [`CompressSettings`] (serde,
+//! [`CompressSettings::check`]) run on a terrain by [`CompressSettings::run`], which returns the
+//! Sparse Construction Tree and its [`CompressFigures`]. `relief compress` and the pipeline's
+//! `sparse` stage both go through it, so a parameter is defined once.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use relief_heightfield::{Heightfield, Progress};
+use relief_sparse_core::{
+    Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, PatchGeometry, Sct,
+    compression_report, encode_with_progress, extract_patches,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{LearnError, Result};
+use crate::ksvd::{KsvdSettings, MAX_ITERATIONS, ksvd};
+use crate::noise::register_function_atoms;
+
+/// Where the dictionary of a compress job comes from (when none is given to
+/// [`CompressSettings::run`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DictionarySource {
+    /// Approximate K-SVD learned on the terrain's own patches (section 4.4).
+    #[default]
+    Ksvd,
+    /// `atoms` patches of the terrain picked evenly (no learning).
+    Sample,
+    /// Every patch is its own atom (section 4.3): exact with `s = 1`, but `N = n` atoms.
+    Complete,
+}
+
+/// Settings of the compress job. JSON: missing fields take these defaults, unknown fields are an
+/// error.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CompressSettings {
+    /// Sparsity `s`: atoms per primitive (1..=64, at most the number of atoms).
+    pub sparsity: usize,
+    /// Number of atoms `N` of a learned or sampled dictionary.
+    pub atoms: usize,
+    /// Dictionary source.
+    pub source: DictionarySource,
+    /// Patch side `a` in samples (`K = a^2`).
+    pub patch_size: usize,
+    /// Sample spacing `delta` of the patches, in cells.
+    pub spacing: f64,
+    /// Support radius `R` in cells (`None`: half the patch width, `a delta / 2`).
+    pub radius: Option<f64>,
+    /// Step between primitive centres in cells (`None`: half the patch width).
+    pub step: Option<f64>,
+    /// Stop a patch's OMP early once its squared residual is at most this (m^2).
+    pub tolerance: Option<f64>,
+    /// Store coefficients as 16-bit integers (smaller file, slightly lower PSNR).
+    pub quantize: bool,
+    /// K-SVD iterations.
+    pub iterations: usize,
+    /// Seed of the K-SVD initialisation.
+    pub seed: u64,
+}
+
+impl Default for CompressSettings {
+    fn default() -> Self {
+        Self {
+            sparsity: 2,
+            atoms: 128,
+            source: DictionarySource::Ksvd,
+            patch_size: 8,
+            spacing: 1.0,
+            radius: None,
+            step: None,
+            tolerance: None,
+            quantize: false,
+            iterations: 10,
+            seed: 0,
+        }
+    }
+}
+
+/// What a compress job reports (the paper's table 1 columns and more).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CompressFigures {
+    /// How the dictionary was made.
+    pub dictionary: String,
+    /// Atoms `N`.
+    pub atoms: usize,
+    /// Atom side `a` (`K = a^2`).
+    pub patch_size: usize,
+    /// Sample spacing `delta` and support radius `R` of the atoms.
+    pub spacing: f64,
+    /// Support radius `R`.
+    pub radius: f64,
+    /// Primitives `n`.
+    pub primitives: usize,
+    /// Sparsity `s`.
+    pub sparsity: usize,
+    /// Input samples `t0`.
+    pub t0: u64,
+    /// The paper's storage `t(s, N) = KN + n(2s + 2) + 1`.
+    pub t: u64,
+    /// `rho = t / t0`.
+    pub rho: f64,
+    /// Size of the `.sct` bytes (with the job's quantisation).
+    pub bytes: usize,
+    /// `bytes / (4 t0)`.
+    pub byte_ratio: f64,
+    /// PSNR of the reconstruction (dB, peak = elevation range).
+    pub psnr: f64,
+    /// RMSE of the reconstruction (m).
+    pub rmse: f64,
+    /// Seconds spent making the dictionary and encoding.
+    pub dictionary_seconds: f64,
+    /// Seconds spent encoding.
+    pub encode_seconds: f64,
+}
+
+/// Result of [`CompressSettings::run`].
+#[derive(Debug, Clone)]
+pub struct Compressed {
+    /// The Sparse Construction Tree.
+    pub sct: Sct,
+    /// Its serialised bytes (`.sct`, with the job's quantisation).
+    pub bytes: Vec<u8>,
+    /// Its figures.
+    pub figures: CompressFigures,
+}
+
+impl CompressSettings {
+    /// Validates the settings (the dictionary-dependent checks run in [`Self::run`]).
+    pub fn check(&self) -> Result<()> {
+        if !(1..=64).contains(&self.sparsity) {
+            return Err(LearnError::param(
+                "sparsity",
+                self.sparsity,
+                "must be in 1..=64",
+            ));
+        }
+        if self.source != DictionarySource::Complete && self.atoms == 0 {
+            return Err(LearnError::param("atoms", 0, "must be >= 1"));
+        }
+        if !(2..=64).contains(&self.patch_size) {
+            return Err(LearnError::param(
+                "patch_size",
+                self.patch_size,
+                "must be in 2..=64",
+            ));
+        }
+        if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
+            return Err(LearnError::param(
+                "spacing",
+                self.spacing,
+                "must be in (0, 1000] cells",
+            ));
+        }
+        for (name, v) in [("radius", self.radius), ("step", self.step)] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err(LearnError::param(name, v, "must be finite and > 0"));
+            }
+        }
+        if self.iterations > MAX_ITERATIONS {
+            return Err(LearnError::param(
+                "iterations",
+                self.iterations,
+                "must be <= 10000",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The patch geometry of a dictionary made by this job.
+    pub fn geometry(&self) -> PatchGeometry {
+        let half = self.patch_size as f64 * self.spacing / 2.0;
+        PatchGeometry {
+            patch_size: self.patch_size,
+            spacing: self.spacing,
+            step: self.step.unwrap_or(half),
+            support_radius: self.radius.unwrap_or(half),
+        }
+    }
+
+    /// Makes the dictionary of [`Self::source`] from the terrain's patches; returns it and a
+    /// description.
+    pub fn dictionary(
+        &self,
+        hf: &Heightfield,
+        progress: &dyn Progress,
+    ) -> Result<(Dictionary, String)> {
+        self.check()?;
+        let geometry = self.geometry();
+        let patches = extract_patches(hf, &geometry)?;
+        let n = patches.matrix.nrows();
+        match self.source {
+            DictionarySource::Complete => {
+                let (d, _) = Dictionary::from_patches(&patches, None)?;
+                Ok((d, "complete (every patch an atom)".into()))
+            }
+            DictionarySource::Sample => {
+                if self.atoms > n {
+                    return Err(LearnError::NotEnough {
+                        what: "patches to sample `atoms` from",
+                        needed: self.atoms,
+                        got: n,
+                    });
+                }
+                let sel: Vec<usize> = (0..self.atoms).map(|k| k * n / self.atoms).collect();
+                let (d, _) = Dictionary::from_patches(&patches, Some(&sel))?;
+                if d.is_empty() {
+                    return Err(LearnError::param(
+                        "source",
+                        "sample",
+                        "every sampled patch is flat: no atom (use ksvd or more atoms)",
+                    ));
+                }
+                let what = format!("{} patches sampled evenly", d.len());
+                Ok((d, what))
+            }
+            DictionarySource::Ksvd => {
+                let learned = ksvd(
+                    patches.matrix.view(),
+                    &KsvdSettings {
+                        n_atoms: self.atoms,
+                        sparsity: self.sparsity,
+                        iterations: self.iterations,
+                        seed: self.seed,
+                        ..Default::default()
+                    },
+                    progress,
+                )?;
+                let d = Dictionary::from_matrix(
+                    learned.atoms.view(),
+                    self.patch_size,
+                    geometry.spacing,
+                    geometry.support_radius,
+                )?;
+                Ok((
+                    d,
+                    format!(
+                        "K-SVD, {} iterations on {n} patches, seed {}",
+                        self.iterations, self.seed
+                    ),
+                ))
+            }
+        }
+    }
+
+    /// Runs the job on a void-free terrain: makes the dictionary (or uses `given`, with its own
+    /// patch geometry; then `source`, `atoms`, `patch_size`, `spacing` and `radius` are not
+    /// used), encodes with Batch-OMP and serialises the tree.
+    pub fn run(
+        &self,
+        hf: &Heightfield,
+        given: Option<(Dictionary, String)>,
+        progress: &dyn Progress,
+    ) -> Result<Compressed> {
+        self.check()?;
+        hf.require_complete()?;
+        let t = Instant::now();
+        let (dict, source) = match given {
+            Some(d) => d,
+            None => self.dictionary(hf, progress)?,
+        };
+        let dictionary_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let sct = encode_with_progress(
+            hf,
+            Arc::new(dict),
+            &EncodeSettings {
+                sparsity: self.sparsity,
+                tolerance: self.tolerance,
+                step: self.step,
+            },
+            progress,
+        )?;
+        let encode_seconds = t.elapsed().as_secs_f64();
+        let options = FormatOptions {
+            quantize_coefficients: self.quantize,
+        };
+        let bytes = sct.to_bytes_with(&options)?;
+        let mut registry = FunctionAtomRegistry::new();
+        register_function_atoms(&mut registry);
+        let r = compression_report(hf, &sct, &options, &registry)?;
+        let layer = sct.layers()[0];
+        let d = layer.dictionary();
+        let figures = CompressFigures {
+            dictionary: source,
+            atoms: d.len(),
+            patch_size: d.patch_size(),
+            spacing: d.spacing(),
+            radius: d.support_radius(),
+            primitives: layer.len(),
+            sparsity: self.sparsity,
+            t0: r.t0,
+            t: r.t,
+            rho: r.rho,
+            bytes: r.bytes,
+            byte_ratio: r.byte_ratio,
+            psnr: r.psnr,
+            rmse: r.rmse,
+            dictionary_seconds,
+            encode_seconds,
+        };
+        Ok(Compressed {
+            sct,
+            bytes,
+            figures,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relief_heightfield::NoProgress;
+
+    fn terrain() -> Heightfield {
+        Heightfield::from_fn(48, 40, 10.0, 10.0, |x, y| {
+            let (x, y) = (x as f32, y as f32);
+            60.0 * (x * 0.13).sin() * (y * 0.09).cos() + 8.0 * (x * 0.7 + y * 0.4).sin()
+        })
+    }
+
+    #[test]
+    fn settings_round_trip_and_refuse_unknown_fields() {
+        let s = CompressSettings {
+            source: DictionarySource::Sample,
+            radius: Some(5.0),
+            quantize: true,
+            ..CompressSettings::default()
+        };
+        let json = serde_json::to_string(&s).unwrap();
+        assert!(json.contains("\"source\":\"sample\""), "{json}");
+        assert_eq!(serde_json::from_str::<CompressSettings>(&json).unwrap(), s);
+        assert_eq!(
+            serde_json::from_str::<CompressSettings>("{}").unwrap(),
+            CompressSettings::default()
+        );
+        assert!(serde_json::from_str::<CompressSettings>(r#"{"dict": "ksvd"}"#).is_err());
+    }
+
+    #[test]
+    fn bad_settings_are_named() {
+        for (s, name) in [
+            (
+                CompressSettings {
+                    sparsity: 0,
+                    ..Default::default()
+                },
+                "sparsity",
+            ),
+            (
+                CompressSettings {
+                    patch_size: 1,
+                    ..Default::default()
+                },
+                "patch_size",
+            ),
+            (
+                CompressSettings {
+                    spacing: f64::NAN,
+                    ..Default::default()
+                },
+                "spacing",
+            ),
+            (
+                CompressSettings {
+                    step: Some(-1.0),
+                    ..Default::default()
+                },
+                "step",
+            ),
+            (
+                CompressSettings {
+                    iterations: usize::MAX,
+                    ..Default::default()
+                },
+                "iterations",
+            ),
+        ] {
+            let e = s.check().unwrap_err().to_string();
+            assert!(e.contains(name), "{name}: {e}");
+        }
+    }
+
+    #[test]
+    fn run_reports_the_tree_it_returns() {
+        let hf = terrain();
+        let s = CompressSettings {
+            atoms: 16,
+            sparsity: 2,
+            iterations: 3,
+            seed: 5,
+            ..Default::default()
+        };
+        let out = s.run(&hf, None, &NoProgress).unwrap();
+        let f = &out.figures;
+        assert_eq!(f.atoms, 16);
+        assert_eq!(f.patch_size, 8);
+        assert_eq!(f.primitives, out.sct.layers()[0].len());
+        assert_eq!(f.bytes, out.bytes.len());
+        assert_eq!(f.t0, 48 * 40);
+        assert!(f.psnr > 20.0, "psnr {}", f.psnr);
+        // Same settings, same bytes; another seed, another dictionary.
+        let again = s.run(&hf, None, &NoProgress).unwrap();
+        assert_eq!(again.bytes, out.bytes);
+        let other = CompressSettings { seed: 6, ..s }
+            .run(&hf, None, &NoProgress)
+            .unwrap();
+        assert_ne!(other.bytes, out.bytes);
+        // Sampling more atoms than patches is an error naming it.
+        let e = CompressSettings {
+            source: DictionarySource::Sample,
+            atoms: 100_000,
+            ..s
+        }
+        .run(&hf, None, &NoProgress)
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("atoms"), "{e}");
+        let mut holes = hf.clone();
+        holes.set(3, 3, f32::NAN);
+        assert!(s.run(&holes, None, &NoProgress).is_err());
+    }
+}
