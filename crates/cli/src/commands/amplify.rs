@@ -101,7 +101,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
 }
 
 /// The library settings of the arguments (checked).
-fn settings(args: &Args) -> Result<AmplifySettings> {
+pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
     let steps = steps_of_factor(args.factor)?;
     let base = if args.paper {
         AmplifySettings::paper()

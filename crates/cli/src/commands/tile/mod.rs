@@ -142,6 +142,10 @@ struct Manifest {
     command: String,
     /// Subcommand and arguments as planned, paths absolute.
     args: Vec<String>,
+    /// The job's settings as the method crate defines them (serde): `RefineSettings` for
+    /// refine, `AmplifySettings` for amplify (the model is prepared), `{"scale": s}` for
+    /// decompress. Tasks run from these, not from re-parsed flags.
+    job: serde_json::Value,
     /// The command's input files at plan time.
     inputs: Vec<FileSum>,
     /// The file in DIR every task reads (path relative to DIR).
@@ -185,6 +189,9 @@ struct TileRecord {
 
 const MANIFEST: &str = "manifest.json";
 const FORMAT: &str = "relief-tile-plan";
+
+/// Manifest version (2: the job's settings are stored in `job`).
+const VERSION: u32 = 2;
 /// Rows of the output decoded at once by the mosaic (a 32768-wide output: 8 MiB).
 const MOSAIC_ROWS: usize = 64;
 /// Largest tile grid a plan accepts.
@@ -250,8 +257,11 @@ fn load_manifest(dir: &Path) -> Result<Manifest> {
         .with_context(|| format!("cannot read {} (is this a plan folder?)", path.display()))?;
     let mut m: Manifest = serde_json::from_slice(&bytes)
         .with_context(|| format!("{} is not a tile plan manifest", path.display()))?;
-    if m.format != FORMAT || m.version != 1 {
-        bail!("{} is not a version-1 {FORMAT} manifest", path.display());
+    if m.format != FORMAT || m.version != VERSION {
+        bail!(
+            "{} is not a version-{VERSION} {FORMAT} manifest (plan again with this relief)",
+            path.display()
+        );
     }
     let id = std::mem::take(&mut m.plan_id);
     let want = hex(Sha256::digest(serde_json::to_vec(&m)?));
@@ -378,9 +388,10 @@ mod tests {
     fn windows_cover_the_output_once() {
         let m = Manifest {
             format: FORMAT.into(),
-            version: 1,
+            version: VERSION,
             command: "refine".into(),
             args: vec![],
+            job: serde_json::Value::Null,
             inputs: vec![],
             prepared: bytes_sum(b"", "x".into()),
             output: OutputGrid {
@@ -416,9 +427,10 @@ mod tests {
         let cell = 76.437_028_285_174_16 / 64.0;
         let mut m = Manifest {
             format: FORMAT.into(),
-            version: 1,
+            version: VERSION,
             command: "refine".into(),
             args: vec!["refine".into()],
+            job: serde_json::json!({"extra_levels": 2}),
             inputs: vec![],
             prepared: bytes_sum(b"abc", "input.tif".into()),
             output: OutputGrid {

@@ -140,6 +140,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     let Prepared {
         name: prepared_name,
         bytes: prepared_bytes,
+        job,
         width,
         height,
         cell,
@@ -158,9 +159,10 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
         .with_context(|| format!("cannot write {}", dir.join(prepared_name).display()))?;
     let mut m = Manifest {
         format: FORMAT.into(),
-        version: 1,
+        version: VERSION,
         command: name,
         args,
+        job,
         inputs: sums,
         prepared: bytes_sum(&prepared_bytes, prepared_name.into()),
         output: OutputGrid {
@@ -198,6 +200,8 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
 /// What a plan prepares once for every task: the file the tasks read, and the output grid.
 pub(super) struct Prepared {
     name: &'static str,
+    /// The job's settings (the manifest's `job`).
+    job: serde_json::Value,
     bytes: Vec<u8>,
     width: usize,
     height: usize,
@@ -208,7 +212,7 @@ pub(super) struct Prepared {
 /// Runs the expensive, shared part of the command once (amplify: the model; decompress: the
 /// model as given; refine: the void-checked input) and sizes the output.
 pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
-    let (name, bytes, width, height, cell, georef) = match cmd {
+    let (name, job, bytes, width, height, cell, georef) = match cmd {
         Windowable::Amplify(x) => {
             // The plan writes the model only; the tasks write windows of it.
             let out = crate::commands::amplify::OutputPlan {
@@ -217,6 +221,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
                 stream: true,
                 steps_flag: "--factor",
             };
+            let job = serde_json::to_value(crate::commands::amplify::settings(x)?)?;
             let sct = crate::commands::amplify::build(x, out, ctx)?;
             let (w, h) = sct.raster_size(1.0).context("cannot size the output")?;
             let win = Window {
@@ -227,7 +232,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
             };
             let g = sct.raster_georef(1.0, win);
             let bytes = sct.to_bytes().context("cannot serialise the model")?;
-            ("model.sct", bytes, w, h, sct.cell_size(), g)
+            ("model.sct", job, bytes, w, h, sct.cell_size(), g)
         }
         Windowable::Decompress(x) => {
             let bytes = crate::commands::compress::read_model_bytes(&x.input, ctx)?;
@@ -251,7 +256,8 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
                     ..win
                 }),
             })?;
-            ("model.sct", bytes, w, h, probe.cell_size(), g)
+            let job = serde_json::json!({ "scale": x.scale });
+            ("model.sct", job, bytes, w, h, probe.cell_size(), g)
         }
         Windowable::Refine(x) => {
             let settings = x.settings()?;
@@ -277,6 +283,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
             )?;
             (
                 "input.tif",
+                serde_json::to_value(&settings)?,
                 bytes,
                 w,
                 h,
@@ -287,6 +294,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
     };
     Ok(Prepared {
         name,
+        job,
         bytes,
         width,
         height,

@@ -61,9 +61,8 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
         );
     }
     let [x, y, w, h] = m.window(i);
-    let inner = Inner::try_parse_from(&m.args).context("the manifest's command does not parse")?;
     let hf = render(
-        &inner.command,
+        &m,
         &prepared,
         Window {
             x,
@@ -97,8 +96,8 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
     Ok(())
 }
 
-/// One window of the planned output, from the prepared file.
-pub(super) fn render(cmd: &Windowable, prepared: &[u8], win: Window) -> Result<Heightfield> {
+/// One window of the planned output, from the prepared file and the manifest's job settings.
+pub(super) fn render(m: &Manifest, prepared: &[u8], win: Window) -> Result<Heightfield> {
     let sct_window = |scale: f64| -> Result<Heightfield> {
         let sct = Sct::from_bytes(prepared, &crate::commands::compress::registry())
             .context("cannot read the prepared model")?;
@@ -107,11 +106,16 @@ pub(super) fn render(cmd: &Windowable, prepared: &[u8], win: Window) -> Result<H
             window: Some(win),
         })?)
     };
-    match cmd {
-        Windowable::Amplify(_) => sct_window(1.0),
-        Windowable::Decompress(x) => sct_window(x.scale),
-        Windowable::Refine(x) => {
-            let settings = x.settings()?;
+    let bad_job = || format!("the manifest's `job` is not valid {} settings", m.command);
+    match m.command.as_str() {
+        "amplify" => sct_window(1.0),
+        "decompress" => {
+            let scale = m.job["scale"].as_f64().with_context(bad_job)?;
+            sct_window(scale)
+        }
+        "refine" => {
+            let settings: relief_wavelet_lod::RefineSettings =
+                serde_json::from_value(m.job.clone()).with_context(bad_job)?;
             let hf = relief_io::read_bytes(
                 prepared,
                 Some(Path::new("input.tif")),
@@ -123,5 +127,6 @@ pub(super) fn render(cmd: &Windowable, prepared: &[u8], win: Window) -> Result<H
                 .context("cannot analyse the prepared input")?;
             Ok(refiner.render_window(win.x, win.y, win.width, win.height)?)
         }
+        other => bail!("the manifest's command `{other}` cannot be tiled"),
     }
 }
