@@ -78,12 +78,15 @@ fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
     bail!("output {}: the name must end in {expected}", path.display())
 }
 
-/// The files written for an output: the path itself, plus the `.json` sidecar of an `.f32`.
+/// The files written for an output: the path itself, plus the `.json` sidecar of an `.f32`
+/// and the `.prj` of an ESRI ASCII grid.
 fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
     if matches!(kind, OutKind::Raster | OutKind::RasterOrSct) {
         if ext_of(path) == "f32" {
             v.push(path.with_extension("json"));
+        } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
+            v.push(path.with_extension("prj"));
         } else if crate::ctx::is_heightmap16(path) {
             v.push(crate::ctx::heightmap_sidecar(path));
         }
@@ -91,11 +94,14 @@ fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
     v
 }
 
-/// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32`.
+/// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32` and
+/// the `.prj` of an ESRI ASCII grid.
 fn read_files(path: &Path) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
     if ext_of(path) == "f32" {
         v.push(path.with_extension("json"));
+    } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
+        v.push(path.with_extension("prj"));
     }
     v
 }

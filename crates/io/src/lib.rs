@@ -65,6 +65,7 @@
 
 mod ascii;
 mod atomic;
+pub mod crs;
 mod error;
 mod exr_io;
 mod geotiff;
@@ -82,7 +83,7 @@ mod util;
 
 use std::path::Path;
 
-use relief_heightfield::Heightfield;
+use relief_heightfield::{GeoRef, Heightfield};
 
 pub use atomic::Staging;
 pub use error::{IoError, Result};
@@ -331,6 +332,10 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let res = match format {
         Format::F32Sidecar => sidecar::read_f32_file(path, &bytes, opts),
         Format::JsonGrid => sidecar::read_json_any(path, &bytes, opts),
+        Format::AsciiGrid => read_bytes(&bytes, Some(path), opts).map(|mut r| {
+            ascii_prj_crs(&mut r.heightfield, path);
+            r
+        }),
         _ => return read_bytes(&bytes, Some(path), opts).map_err(|e| e.in_file(path)),
     };
     let mut raster = res.map_err(|e| e.in_file(path))?;
@@ -341,6 +346,34 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Raster> {
             .map_err(|e| IoError::from(e).in_file(path))?;
     }
     Ok(raster)
+}
+
+/// The `.prj` beside an ESRI ASCII grid names its CRS (GDAL's convention): recorded in the
+/// grid's georeference when readable. A missing or unreadable `.prj` leaves it unset.
+fn ascii_prj_crs(hf: &mut Heightfield, path: &Path) {
+    let prj = path.with_extension("prj");
+    let Ok(meta) = std::fs::metadata(&prj) else {
+        return;
+    };
+    if !meta.is_file() || meta.len() > 1 << 16 {
+        return;
+    }
+    let Ok(text) = std::fs::read_to_string(&prj) else {
+        return;
+    };
+    if let (Some(crs), Some(g)) = (crs::crs_of_prj(&text), hf.georef().cloned()) {
+        hf.set_georef(Some(GeoRef {
+            crs: Some(crs),
+            ..g
+        }));
+    }
+}
+
+/// The `.prj` file written beside an ESRI ASCII grid at `path`: its path and WKT, when the
+/// grid's CRS is one [`crs::epsg_wkt`] knows.
+pub fn ascii_prj(path: &Path, hf: &Heightfield) -> Option<(std::path::PathBuf, String)> {
+    let wkt = crs::wkt(hf.georef()?)?;
+    Some((path.with_extension("prj"), wkt))
 }
 
 /// Why [`read_capped`] failed.
@@ -481,7 +514,8 @@ pub fn remove_stale_temporaries(dir: &Path) {
 }
 
 /// Writes `hf` to `path` atomically; the format comes from `opts.format` or the extension
-/// (`.tif/.tiff`, `.hgt`, `.asc`, `.png`, `.exr`, `.r16`, `.r32`, `.npy`, `.f32` (+ `.json`)).
+/// (`.tif/.tiff`, `.hgt`, `.asc` (+ `.prj` when the CRS is known, see [`crs`]), `.png`,
+/// `.exr`, `.r16`, `.r32`, `.npy`, `.f32` (+ `.json`)). The files of one write appear together.
 pub fn write(path: &Path, hf: &Heightfield, opts: &WriteOptions) -> Result<()> {
     let format = match opts.format.or_else(|| Format::from_extension(path)) {
         Some(f) => f,
@@ -497,6 +531,11 @@ pub fn write(path: &Path, hf: &Heightfield, opts: &WriteOptions) -> Result<()> {
         let json = sidecar::sidecar_json(hf);
         let json_path = path.with_extension("json");
         atomic::write_all_atomic(&[(path, &bytes), (&json_path, json.as_bytes())])
+    } else if let Some((prj, wkt)) = (format == Format::AsciiGrid)
+        .then(|| ascii_prj(path, hf))
+        .flatten()
+    {
+        atomic::write_all_atomic(&[(path, &bytes), (&prj, wkt.as_bytes())])
     } else {
         atomic::write_atomic(path, &bytes)
     }

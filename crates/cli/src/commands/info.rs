@@ -44,6 +44,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
                 .and_then(|g| g.crs.as_deref())
                 .and_then(|c| c.strip_prefix("EPSG:"))
                 .and_then(|c| c.parse::<u32>().ok()),
+            "wkt": g.and_then(relief_io::crs::wkt),
             "geotransform": g.and_then(|g| g.geotransform),
             "statistics": stats.map(|s| serde_json::json!({
                 "min": s.min, "max": s.max, "mean": s.mean, "std": s.std

@@ -416,6 +416,59 @@ fn gdal_reads_relief_outputs_in_place() {
     assert_eq!(ai["coordinateSystem"], ci["coordinateSystem"]);
 }
 
+/// Issue 14: an ESRI ASCII grid keeps its CRS in a `.prj` (OGC WKT with the EPSG authority):
+/// relief reads it back, `info --json` reports the WKT, GDAL identifies the EPSG code and
+/// the extent; the `.prj` of an input is never overwritten.
+#[test]
+fn ascii_grids_carry_their_crs_in_a_prj() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let tmp = tempfile::tempdir().unwrap();
+    let asc = tmp.path().join("gc.asc");
+    let res = relief(&[os("convert"), src.as_os_str(), asc.as_os_str()]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let prj = std::fs::read_to_string(tmp.path().join("gc.prj")).expect("a .prj beside the .asc");
+    assert!(
+        prj.starts_with("PROJCS[\"WGS 84 / Pseudo-Mercator\""),
+        "{prj}"
+    );
+    assert!(prj.ends_with("AUTHORITY[\"EPSG\",\"3857\"]]"), "{prj}");
+    let res = relief(&[os("info"), os("--json"), asc.as_os_str()]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let v: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert_eq!(v["epsg"], 3857);
+    assert_eq!(v["wkt"].as_str(), Some(prj.as_str()));
+    // The GeoTIFF input's WKT is reported too.
+    let res = relief(&[os("info"), os("--json"), src.as_os_str()]);
+    let t: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert_eq!(t["wkt"], v["wkt"]);
+    let (a, b) = (
+        geo_transform_of(&v["geotransform"]),
+        geo_transform_of(&t["geotransform"]),
+    );
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{a:?} vs {b:?}");
+    }
+    // `gc.grd` would write `gc.prj`, which the input `gc.asc` reads: refused, even with --force.
+    let grd = tmp.path().join("gc.grd");
+    let res = relief(&[
+        os("convert"),
+        asc.as_os_str(),
+        grd.as_os_str(),
+        os("--force"),
+    ]);
+    assert!(!res.status.success());
+    assert!(stderr(&res).contains("gc.prj"), "{}", stderr(&res));
+    assert!(!grd.exists());
+    if let Some(info) = gdalinfo(&asc) {
+        let wkt = info["coordinateSystem"]["wkt"].as_str().unwrap();
+        assert!(wkt.contains("ID[\"EPSG\",3857]"), "{wkt}");
+        let (a, b) = (geo_transform(&info), geo_transform_of(&t["geotransform"]));
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-6 * y.abs().max(1.0), "{a:?} vs {b:?}");
+        }
+    }
+}
+
 /// Issue 14: GeoTIFFs made by GDAL itself (ZSTD and LZW with predictors, tiled, COG, unit
 /// scale/offset) read with the source's values and placement.
 #[test]
