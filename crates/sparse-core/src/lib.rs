@@ -20,8 +20,10 @@
 //!
 //! # Coordinates
 //! Positions are continuous *pixel coordinates of the encoded grid* (x = column, east; y = row,
-//! south); lengths (`delta`, `R`, step) are in cells. A raster at scale `s` samples
-//! `(X / s, Y / s)`, so any window at any resolution can be produced.
+//! south); lengths (`delta`, `R`, step) are in cells. A raster at scale `s` covers the encoded
+//! grid's extent with `round(w s) x round(h s)` cells (pixel-is-area) and its pixel `(X, Y)`
+//! samples [`raster_coord`]`(X, s)`, [`raster_coord`]`(Y, s)`, so any window at any resolution
+//! can be produced.
 //!
 //! # Guarantees
 //! * Rasterisation is deterministic and tiled: a window rasterised alone is bit-for-bit the
@@ -52,9 +54,9 @@
 //! let rec = sct.rasterize(&RasterSettings::default()).unwrap();
 //! let err = relief_heightfield::metrics::max_abs_diff(&hf, &rec).unwrap();
 //! assert!(err < 1e-3, "{err}");
-//! // Any window at any scale, e.g. x4:
+//! // Any window at any scale, e.g. x4 (the same extent with 4 x 4 cells per cell):
 //! let big = sct.rasterize(&RasterSettings { scale: 4.0, window: None }).unwrap();
-//! assert_eq!((big.width(), big.height()), (157, 125));
+//! assert_eq!((big.width(), big.height()), (160, 128));
 //! ```
 #![warn(missing_docs)]
 
@@ -80,4 +82,5 @@ pub use omp::{
 pub use patches::{CentreGrid, PatchGeometry, Patches, extract_patches};
 pub use sct::{
     Node, Placement, RasterSettings, Region, River, RiverMode, Sct, SparseLayer, Window,
+    raster_coord,
 };

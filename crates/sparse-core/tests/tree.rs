@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use relief_heightfield::Heightfield;
 use relief_sparse_core::{
     Dictionary, EncodeSettings, Node, PatchGeometry, RasterSettings, Region, River, RiverMode, Sct,
-    Window, encode, extract_patches,
+    Window, encode, extract_patches, raster_coord,
 };
 
 fn crop() -> Option<Heightfield> {
@@ -42,7 +42,7 @@ fn assert_raster_is_eval(t: &Sct, scale: f64, what: &str) {
         .unwrap();
     for r in 0..full.height() {
         for c in 0..full.width() {
-            let v = t.eval(c as f64 / scale, r as f64 / scale) as f32;
+            let v = t.eval(raster_coord(c, scale), raster_coord(r, scale)) as f32;
             assert_eq!(
                 v.to_bits(),
                 full.get(c, r).to_bits(),
@@ -376,7 +376,7 @@ proptest! {
         let r = t.rasterize(&RasterSettings { scale, window: Some(win) }).unwrap();
         for y in 0..win.height {
             for x in 0..win.width {
-                let v = t.eval((win.x + x) as f64 / scale, (win.y + y) as f64 / scale) as f32;
+                let v = t.eval(raster_coord(win.x + x, scale), raster_coord(win.y + y, scale)) as f32;
                 prop_assert_eq!(v.to_bits(), r.get(x, y).to_bits(), "pixel ({}, {})", x, y);
             }
         }

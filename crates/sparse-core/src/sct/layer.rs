@@ -273,8 +273,8 @@ impl SparseLayer {
         let radius = self.dictionary.support_radius();
         let rr = radius * radius;
         let sc = band.scale;
-        let (wx0, wx1) = (band.x0 as f64 / sc, (band.x1 - 1) as f64 / sc);
-        let (wy0, wy1) = (band.y0 as f64 / sc, (band.y1 - 1) as f64 / sc);
+        let (wx0, wx1) = (raster_coord(band.x0, sc), raster_coord(band.x1 - 1, sc));
+        let (wy0, wy1) = (raster_coord(band.y0, sc), raster_coord(band.y1 - 1, sc));
         self.index
             .query_rect(wx0, wy0, wx1, wy1, &mut scratch.candidates);
         scratch.p.resize(a * a, 0.0);
@@ -298,9 +298,13 @@ impl SparseLayer {
             // repeat from one primitive to the next: the weights and row taps are then reused
             // (the same values, computed by the same function, so bit for bit the same).
             scratch.dx.clear();
-            scratch.dx.extend((xa..=xb).map(|xi| xi as f64 / sc - cx));
+            scratch
+                .dx
+                .extend((xa..=xb).map(|xi| raster_coord(xi as usize, sc) - cx));
             scratch.dy.clear();
-            scratch.dy.extend((ya..=yb).map(|yi| yi as f64 / sc - cy));
+            scratch
+                .dy
+                .extend((ya..=yb).map(|yi| raster_coord(yi as usize, sc) - cy));
             let params = (rr, delta, a);
             if scratch.key != Some(params)
                 || scratch.key_dx != scratch.dx
@@ -404,14 +408,35 @@ pub(super) fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
 /// scale `sc` may be `>= v`. Saturating, so huge or infinite extents cannot overflow.
 #[inline]
 pub(super) fn lo_pixel(v: f64, sc: f64, b0: usize) -> i64 {
-    ((v * sc).floor() as i64).saturating_sub(1).max(b0 as i64)
+    (raster_pixel(v, sc).floor() as i64)
+        .saturating_sub(1)
+        .max(b0 as i64)
+}
+
+/// Terrain pixel coordinate sampled by raster pixel `i` at scale `sc`. Pixel-is-area: the
+/// raster's cells tile the terrain's extent, so cell centres map to `(i + 1/2) / sc - 1/2`;
+/// at scale 1 this is exactly `i`.
+#[inline]
+pub fn raster_coord(i: usize, sc: f64) -> f64 {
+    if sc == 1.0 {
+        i as f64
+    } else {
+        (i as f64 + 0.5) / sc - 0.5
+    }
+}
+
+/// The (fractional) raster pixel of terrain coordinate `v` at scale `sc`: the inverse of
+/// [`raster_coord`].
+#[inline]
+fn raster_pixel(v: f64, sc: f64) -> f64 {
+    if sc == 1.0 { v } else { (v + 0.5) * sc - 0.5 }
 }
 
 /// Last pixel (conservative: one after, clamped to the band end `b1 - 1`) whose coordinate at
 /// scale `sc` may be `<= v`.
 #[inline]
 pub(super) fn hi_pixel(v: f64, sc: f64, b1: usize) -> i64 {
-    ((v * sc).ceil() as i64)
+    (raster_pixel(v, sc).ceil() as i64)
         .saturating_add(1)
         .min(b1 as i64 - 1)
 }

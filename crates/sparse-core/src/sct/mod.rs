@@ -33,8 +33,10 @@
 //! Point queries visit only nearby primitives: each layer and each carving river keeps a
 //! uniform-grid index of its supports (disks, segment boxes).
 //!
-//! Pixel `(X, Y)` of the raster at scale factor `s` samples the terrain at pixel coordinates
-//! `(X / s, Y / s)` of the encoded grid; the full raster has `floor((w - 1) s) + 1` columns.
+//! One grid convention, pixel-is-area: the raster at scale factor `s` covers the encoded grid's
+//! extent with cells `1 / s` as large, so it has `round(w s)` columns (at least 1) and pixel
+//! `(X, Y)` samples the terrain at pixel coordinates `((X + 1/2) / s - 1/2, (Y + 1/2) / s - 1/2)`
+//! ([`raster_coord`]; exactly `(X, Y)` at scale 1).
 //!
 //! Files: `index.rs` (placement and the uniform-grid spatial index), `layer.rs` (sparse layers
 //! and their stamping), `river.rs` (regions and procedural rivers), `node.rs` (the operator tree),
@@ -51,6 +53,7 @@ pub use node::Node;
 pub use river::{Region, River, RiverMode};
 
 use index::SpatialIndex;
+pub use layer::raster_coord;
 use layer::{Band, StampScratch, hi_pixel, lo_pixel};
 
 use std::sync::Arc;
@@ -70,7 +73,9 @@ pub use relief_heightfield::Window;
 /// Settings of [`Sct::rasterize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RasterSettings {
-    /// Scale factor `s` (> 0): output pixel `(X, Y)` samples terrain pixel `(X / s, Y / s)`.
+    /// Scale factor `s` (> 0): the raster covers the terrain's extent with `round(w s) x
+    /// round(h s)` cells; pixel `(X, Y)` samples terrain pixel coordinates
+    /// [`raster_coord`]`(X, s)`, [`raster_coord`]`(Y, s)`.
     pub scale: f64,
     /// Window of the output raster (`None` = the whole raster).
     pub window: Option<Window>,
@@ -169,15 +174,14 @@ impl Sct {
         self
     }
 
-    /// The georeference of the raster window `win` at scale `s`: raster pixel `X` samples
-    /// domain pixel `X / s`, whose centre is at `X / s + 1/2` of the domain grid, so the
-    /// raster's cells (size `1 / s`) start at `X / s + (1 - 1 / s) / 2`.
+    /// The georeference of the raster window `win` at scale `s`: the raster's cells (size
+    /// `1 / s`) tile the domain grid's extent from its corner, so raster cell `X` starts at
+    /// `X / s` of the domain grid (pixel-is-area, see the module docs).
     pub fn raster_georef(&self, scale: f64, win: Window) -> Option<GeoRef> {
-        let off = 0.5 - 0.5 / scale;
         self.georef.as_ref().map(|g| {
             g.window(
-                win.x as f64 / scale + off,
-                win.y as f64 / scale + off,
+                win.x as f64 / scale,
+                win.y as f64 / scale,
                 1.0 / scale,
                 1.0 / scale,
             )
@@ -237,7 +241,7 @@ impl Sct {
                 "must be finite and in (0, 1024]",
             ));
         }
-        let f = |n: usize| ((n as f64 - 1.0) * scale + 1e-9).floor() as usize + 1;
+        let f = |n: usize| ((n as f64 * scale).round() as usize).max(1);
         let (w, h) = (f(self.width), f(self.height));
         if (w as u128) * (h as u128) > 1u128 << 34 {
             return Err(SparseError::param(

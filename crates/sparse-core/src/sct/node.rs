@@ -265,7 +265,7 @@ impl Node {
                 overlay.raster(&sub, &mut ov, &mut ow, scratch);
                 for j in 0..sn {
                     let (xi, yi) = (sub.x0 + j % sw, sub.y0 + j / sw);
-                    let (x, y) = (xi as f64 / sc, yi as f64 / sc);
+                    let (x, y) = (raster_coord(xi, sc), raster_coord(yi, sc));
                     let t = region.weight(x, y, *falloff);
                     let k = (yi - band.y0) * ncols + (xi - band.x0);
                     let (v, w) = replace_combine((val[k], wt[k]), (ov[j], ow[j]), t);

@@ -374,10 +374,10 @@ impl River {
                 continue;
             }
             for yi in ya..=yb {
-                let y = yi as f64 / sc;
+                let y = raster_coord(yi as usize, sc);
                 let row = (yi as usize - band.y0) * ncols;
                 for xi in xa..=xb {
-                    let x = xi as f64 / sc;
+                    let x = raster_coord(xi as usize, sc);
                     let o = row + (xi as usize - band.x0);
                     let (d2, t) = self.segment_d2(s, x, y);
                     if best[o].is_none_or(|p| d2 < p.0) {
@@ -388,8 +388,8 @@ impl River {
         }
         for (k, (v, b)) in val.iter_mut().zip(&best).enumerate() {
             if carve {
-                let x = (band.x0 + k % ncols) as f64 / sc;
-                let y = (band.y0 + k / ncols) as f64 / sc;
+                let x = raster_coord(band.x0 + k % ncols, sc);
+                let y = raster_coord(band.y0 + k / ncols, sc);
                 if self.outside_bbox(x, y) {
                     *v = 0.0;
                     continue;
