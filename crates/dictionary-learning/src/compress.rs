@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use relief_heightfield::{Heightfield, Progress};
 use relief_sparse_core::{
-    Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, PatchGeometry, Sct,
-    compression_report, encode_with_progress, extract_patches,
+    CompressionReport, Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry,
+    PatchGeometry, Sct, compression_report, encode_with_progress, extract_patches,
 };
 use serde::{Deserialize, Serialize};
 
@@ -78,38 +78,22 @@ impl Default for CompressSettings {
     }
 }
 
-/// What a compress job reports (the paper's table 1 columns and more).
+/// What a compress job reports: the dictionary and the paper's table 1 columns (`report`,
+/// flattened in JSON).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompressFigures {
     /// How the dictionary was made.
     pub dictionary: String,
-    /// Atoms `N`.
-    pub atoms: usize,
     /// Atom side `a` (`K = a^2`).
     pub patch_size: usize,
-    /// Sample spacing `delta` and support radius `R` of the atoms.
+    /// Sample spacing `delta` of the atoms.
     pub spacing: f64,
     /// Support radius `R`.
     pub radius: f64,
-    /// Primitives `n`.
-    pub primitives: usize,
-    /// Sparsity `s`.
-    pub sparsity: usize,
-    /// Input samples `t0`.
-    pub t0: u64,
-    /// The paper's storage `t(s, N) = KN + n(2s + 2) + 1`.
-    pub t: u64,
-    /// `rho = t / t0`.
-    pub rho: f64,
-    /// Size of the `.sct` bytes (with the job's quantisation).
-    pub bytes: usize,
-    /// `bytes / (4 t0)`.
-    pub byte_ratio: f64,
-    /// PSNR of the reconstruction (dB, peak = elevation range).
-    pub psnr: f64,
-    /// RMSE of the reconstruction (m).
-    pub rmse: f64,
-    /// Seconds spent making the dictionary and encoding.
+    /// Storage, size and reconstruction error.
+    #[serde(flatten)]
+    pub report: CompressionReport,
+    /// Seconds spent making the dictionary.
     pub dictionary_seconds: f64,
     /// Seconds spent encoding.
     pub encode_seconds: f64,
@@ -281,24 +265,14 @@ impl CompressSettings {
         let bytes = sct.to_bytes_with(&options)?;
         let mut registry = FunctionAtomRegistry::new();
         register_function_atoms(&mut registry);
-        let r = compression_report(hf, &sct, &options, &registry)?;
-        let layer = sct.layers()[0];
-        let d = layer.dictionary();
+        let report = compression_report(hf, &sct, &options, &registry)?;
+        let d = sct.layers()[0].dictionary();
         let figures = CompressFigures {
             dictionary: source,
-            atoms: d.len(),
             patch_size: d.patch_size(),
             spacing: d.spacing(),
             radius: d.support_radius(),
-            primitives: layer.len(),
-            sparsity: self.sparsity,
-            t0: r.t0,
-            t: r.t,
-            rho: r.rho,
-            bytes: r.bytes,
-            byte_ratio: r.byte_ratio,
-            psnr: r.psnr,
-            rmse: r.rmse,
+            report,
             dictionary_seconds,
             encode_seconds,
         };
@@ -396,12 +370,14 @@ mod tests {
         };
         let out = s.run(&hf, None, &NoProgress).unwrap();
         let f = &out.figures;
-        assert_eq!(f.atoms, 16);
+        assert_eq!(f.report.n_atoms, 16);
         assert_eq!(f.patch_size, 8);
-        assert_eq!(f.primitives, out.sct.layers()[0].len());
-        assert_eq!(f.bytes, out.bytes.len());
-        assert_eq!(f.t0, 48 * 40);
-        assert!(f.psnr > 20.0, "psnr {}", f.psnr);
+        assert_eq!(f.report.n_patches, out.sct.layers()[0].len());
+        assert_eq!(f.report.bytes, out.bytes.len());
+        assert_eq!(f.report.t0, 48 * 40);
+        assert!(f.report.psnr > 20.0, "psnr {}", f.report.psnr);
+        let json = serde_json::to_value(f).unwrap();
+        assert_eq!(json["psnr"], f.report.psnr);
         // Same settings, same bytes; another seed, another dictionary.
         let again = s.run(&hf, None, &NoProgress).unwrap();
         assert_eq!(again.bytes, out.bytes);

@@ -133,7 +133,7 @@ pub fn storage_values(k: usize, n_atoms: usize, n_patches: usize, sparsity: usiz
 }
 
 /// Measures of a compact representation (the columns of the paper's table 1 and more).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CompressionReport {
     /// Input samples `t0 = w h`.
     pub t0: u64,

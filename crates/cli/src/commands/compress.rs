@@ -13,11 +13,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{
-    CompressFigures, CompressSettings, DictionarySource, register_function_atoms,
-};
+use relief_dictionary_learning::{CompressSettings, DictionarySource, register_function_atoms};
 use relief_heightfield::Heightfield;
-use relief_sparse_core::{Dictionary, FunctionAtomRegistry};
+use relief_sparse_core::{CompressionReport, Dictionary, FunctionAtomRegistry};
 
 use crate::ctx::Ctx;
 
@@ -240,7 +238,7 @@ fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
 }
 
 /// The report lines: storage, bytes, PSNR.
-fn report_lines(f: &CompressFigures) -> String {
+fn report_lines(f: &CompressionReport) -> String {
     format!(
         "storage:     t(s, N) = KN + n(2s + 2) + 1 = {} values for t0 = {} samples: rho = {:.2} %\n\
          bytes:       {} ({:.2} % of the input as f32)\n\
@@ -289,8 +287,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     );
     text.push_str(&format!(
         "dictionary:  N = {} atoms of {a} x {a} (K = {}), delta {}, R {}: {}\n",
-        f.atoms,
-        f.patch_size * f.patch_size,
+        f.report.n_atoms,
+        f.report.k,
         f.spacing,
         f.radius,
         f.dictionary,
@@ -298,15 +296,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     ));
     text.push_str(&format!(
         "primitives:  n = {}, s = {}{}\n",
-        f.primitives,
-        f.sparsity,
+        f.report.n_patches,
+        job.sparsity,
         if job.quantize {
             ", 16-bit coefficients"
         } else {
             ""
         }
     ));
-    text.push_str(&report_lines(f));
+    text.push_str(&report_lines(&f.report));
     text.push_str(&format!(
         "time:        dictionary {:.2} s, encode {:.2} s\n",
         f.dictionary_seconds, f.encode_seconds
