@@ -471,12 +471,24 @@ impl VolumeJob {
         if self.section {
             progress.begin("cutting a section", 0);
             let (start, end) = rep.section_line;
+            // From the closing floor to a little over the highest ground (floating islands
+            // need the whole box).
+            let d = &rep.dims;
+            let z_range = scene
+                .dem_floor()
+                .filter(|_| {
+                    !self
+                        .recipe
+                        .features
+                        .contains(&crate::recipe::Feature::Islands)
+                })
+                .map(|f| (f, f + d.floor_depth_m + 1.15 * d.relief_m.max(d.voxel_m)));
             let (img, ss) = section(
                 &scene,
                 &SectionSettings {
                     start,
                     end,
-                    z_range: None,
+                    z_range,
                     width: w,
                     height: h,
                 },
