@@ -26,6 +26,8 @@
 //!   sections.
 //! * [`mod@simplify`]: quadric edge-collapse simplification to a triangle budget that keeps the
 //!   mesh watertight and manifold.
+//! * [`job`]: the `volume` job (recipe + mesh + render settings, serde) run by `relief volume`
+//!   and the pipeline's `volume` stage.
 //! * [`recipe`]: feature lists (`sea,caves,karst,...`) with parameters scaled to the DEM, as used
 //!   by `relief volume` and the pipeline's `volume` stage.
 //!
@@ -51,6 +53,7 @@
 
 mod error;
 pub mod geology;
+pub mod job;
 pub mod math;
 pub mod mesh;
 pub mod recipe;
@@ -61,13 +64,15 @@ pub mod tree;
 
 pub use error::{Error, Result};
 pub use geology::{GeoId, Geology, GeologySpec, Layer};
+pub use job::{Built, EffectFigures, VolumeFigures, VolumeJob, VolumeOutput};
 pub use math::{Aabb, V3};
 pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,
     sample_grid, topology,
 };
 pub use recipe::{
-    Densities, Deviation, Dimensions, Feature, Recipe, RecipeReport, build_recipe, render_closeups,
+    Densities, Deviation, Dimensions, Feature, Highlight, Recipe, RecipeReport, build_recipe,
+    render_closeups,
 };
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{

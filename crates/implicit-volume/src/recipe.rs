@@ -36,7 +36,10 @@ use crate::scene::{
 };
 
 /// One landform effect of a [`Recipe`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum Feature {
     /// Sea erosion of the shore band (section 4.1, figure 5): notches and cliff undercuts.
     Sea,
@@ -130,7 +133,8 @@ impl std::fmt::Display for Feature {
 }
 
 /// Landform densities used to derive counts from the DEM's area.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Densities {
     /// Hoodoos per km^2.
     pub hoodoos_per_km2: f32,
@@ -159,7 +163,8 @@ impl Default for Densities {
 }
 
 /// What to build on a DEM.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Recipe {
     /// Effects to apply (any order; applied in [`Feature::ALL`] order).
     pub features: Vec<Feature>,
@@ -215,7 +220,7 @@ impl Default for Recipe {
 }
 
 /// The physical parameters a recipe derived from the DEM (metres, counts), for reports.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct Dimensions {
     /// Larger DEM cell size (m).
     pub cell_m: f32,
@@ -274,7 +279,7 @@ pub struct Dimensions {
 }
 
 /// Deviation of the implicitised DEM's surface `f = T` from the DEM samples.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct Deviation {
     /// Largest absolute vertical distance (m).
     pub max: f32,
@@ -302,9 +307,23 @@ pub struct RecipeReport {
     /// A horizontal segment (scene x, y) crossing the most carvings: where a vertical section
     /// shows the tunnels and caves best (the middle west-east line when nothing was carved).
     pub section_line: ([f32; 2], [f32; 2]),
-    /// Centres of the placed landforms (hoodoos, arches, islands, cave mouths) and of the
-    /// densest karst area, for close-up cameras.
-    pub highlights: Vec<(Feature, [f32; 3])>,
+    /// The placed landforms (hoodoos, arches, islands, cave mouths) and the densest karst
+    /// area, for close-up cameras.
+    pub highlights: Vec<Highlight>,
+}
+
+/// A landform worth a close-up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Highlight {
+    /// Its kind.
+    pub feature: Feature,
+    /// Where to look (scene coordinates).
+    pub at: [f32; 3],
+    /// Horizontal direction from `at` towards a good eye position (arches: along the tunnel,
+    /// to see through the opening); `None` = the default oblique view from the south-west.
+    pub from: Option<[f32; 3]>,
+    /// Underground (karst): the close-up is a cut-away through `at`, facing the eye.
+    pub cutaway: bool,
 }
 
 fn percentile(hf: &Heightfield, q: f32) -> f32 {
@@ -313,6 +332,68 @@ fn percentile(hf: &Heightfield, q: f32) -> f32 {
 
 fn count(density: f32, area_km2: f32, cap: usize) -> usize {
     ((density.max(0.0) * area_km2).round() as usize).clamp(1, cap)
+}
+
+impl Recipe {
+    /// Checks the settings that do not depend on the DEM (each error names the field and the
+    /// rule); [`build_recipe`] also checks the sizes against the DEM.
+    pub fn check(&self) -> Result<()> {
+        if !(self.scale.is_finite() && self.scale > 0.0) {
+            return Err(Error::param("scale", self.scale, "must be finite and > 0"));
+        }
+        if let Some(s) = self.sea_level
+            && !s.is_finite()
+        {
+            return Err(Error::param("sea_level", s, "must be finite"));
+        }
+        for (n, v) in [
+            ("wind_strength", self.wind_strength),
+            ("rain_strength", self.rain_strength),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 100.0) {
+                return Err(Error::param(n, v, "must be in (0, 100]"));
+            }
+        }
+        let d = &self.densities;
+        for (n, v) in [
+            ("hoodoos_per_km2", d.hoodoos_per_km2),
+            ("arches_per_km2", d.arches_per_km2),
+            ("islands_per_km2", d.islands_per_km2),
+            ("caves_per_km2", d.caves_per_km2),
+            ("karst_km_per_km2", d.karst_km_per_km2),
+            ("karst_cliff_seeds_per_km2", d.karst_cliff_seeds_per_km2),
+        ] {
+            if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
+                return Err(Error::param(n, v, "must be in [0, 10000]"));
+            }
+        }
+        if let Some(v) = self.voxel
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(Error::param("voxel", v, "must be finite and > 0"));
+        }
+        if let Some(n) = self.karst_budget
+            && n > 1 << 22
+        {
+            return Err(Error::param("karst_budget", n, "must be <= 2^22"));
+        }
+        if !self.wind.iter().all(|v| v.is_finite()) || self.wind == [0.0, 0.0] {
+            return Err(Error::param(
+                "wind",
+                format!("{:?}", self.wind),
+                "must be finite and non-zero",
+            ));
+        }
+        if let Some(m) = &self.mask
+            && let Some(v) = m.iter().find(|v| !(0.0..=1.0).contains(*v))
+        {
+            return Err(Error::param("region.mask value", v, "must be in [0, 1]"));
+        }
+        if let Some(g) = &self.geology {
+            g.build()?;
+        }
+        Ok(())
+    }
 }
 
 /// Builds the scene of `recipe` on `hf` (complete, at least 3 x 3 nodes). Deterministic in
@@ -326,39 +407,8 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
             "needs at least 3x3 nodes",
         ));
     }
-    if !(recipe.scale.is_finite() && recipe.scale > 0.0) {
-        return Err(Error::param(
-            "scale",
-            recipe.scale,
-            "must be finite and > 0",
-        ));
-    }
-    if let Some(s) = recipe.sea_level
-        && !s.is_finite()
-    {
-        return Err(Error::param("sea_level", s, "must be finite"));
-    }
-    for (n, v) in [
-        ("wind_strength", recipe.wind_strength),
-        ("rain_strength", recipe.rain_strength),
-    ] {
-        if !(v.is_finite() && v > 0.0 && v <= 100.0) {
-            return Err(Error::param(n, v, "must be in (0, 100]"));
-        }
-    }
+    recipe.check()?;
     let d = &recipe.densities;
-    for (n, v) in [
-        ("hoodoos_per_km2", d.hoodoos_per_km2),
-        ("arches_per_km2", d.arches_per_km2),
-        ("islands_per_km2", d.islands_per_km2),
-        ("caves_per_km2", d.caves_per_km2),
-        ("karst_km_per_km2", d.karst_km_per_km2),
-        ("karst_cliff_seeds_per_km2", d.karst_cliff_seeds_per_km2),
-    ] {
-        if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
-            return Err(Error::param(n, v, "must be in [0, 10000]"));
-        }
-    }
     let (cx, cy) = hf.cell_size();
     let (cx, cy) = (cx as f32, cy as f32);
     let l = cx.max(cy);
@@ -605,14 +655,14 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     }
     if has(Feature::Arches) {
         let span = (0.2 * relief).clamp(30.0, 300.0) * k;
-        let thickness = (span / 7.0).max(voxel);
+        let thickness = (span / 4.0).max(voxel);
         dims.arch_span_m = span;
-        dims.arch_height_m = 0.5 * span;
+        dims.arch_height_m = 0.6 * span;
         dims.arch_thickness_m = thickness;
-        if span > 0.5 * relief || thickness > 0.25 * span {
+        if span > 0.5 * relief || span < 3.0 * voxel {
             dims.notes.push(format!(
-                "arches skipped: a {span:.0} m span is over half the relief ({:.0} m) or too \
-                 small for {voxel:.1} m voxels",
+                "arches skipped: a {span:.0} m opening is over half the relief ({:.0} m) or \
+                 under three {voxel:.1} m voxels",
                 0.5 * relief
             ));
         } else {
@@ -620,11 +670,21 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
             let a = ArchSettings {
                 count: dims.arch_count,
                 span,
-                height: 0.5 * span,
+                height: dims.arch_height_m,
                 thickness,
+                max_length: (5.0 * span).max(3.0 * l),
                 seed: sub(6),
             };
-            effects.push((Feature::Arches, b.arches(&a, &region)?));
+            let rep = b.arches(&a, &region)?;
+            if rep.features == 0 {
+                dims.notes.push(format!(
+                    "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
+                    a.height + a.thickness,
+                    a.max_length
+                ));
+            } else {
+                effects.push((Feature::Arches, rep));
+            }
         }
     }
     if has(Feature::Islands) {
@@ -645,7 +705,12 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     for (f, e) in &effects {
         if *f == Feature::Karst {
             if let Some(c) = densest_karst(&b) {
-                highlights.push((*f, c));
+                highlights.push(Highlight {
+                    feature: *f,
+                    at: c,
+                    from: Some([-0.55, -0.7, 0.35]),
+                    cutaway: true,
+                });
             }
         } else if matches!(
             f,
@@ -657,7 +722,12 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
                 | Feature::Cliffs
         ) && let Some(p) = e.sites.first()
         {
-            highlights.push((*f, *p));
+            highlights.push(Highlight {
+                feature: *f,
+                at: *p,
+                from: e.axes.first().copied(),
+                cutaway: false,
+            });
         }
     }
     let has_sea = effects.iter().any(|(f, e)| {
@@ -737,17 +807,40 @@ pub fn render_closeups(
     let d = &rep.dims;
     let mut tiles = Vec::new();
     let mut names = Vec::new();
-    for (f, p) in rep.highlights.iter().take(4) {
-        let size = match f {
+    for h in rep.highlights.iter().take(4) {
+        let size = match h.feature {
             Feature::Hoodoos => d.hoodoo_height_m * 3.5,
-            Feature::Arches => d.arch_span_m * 2.5,
+            Feature::Arches => d.arch_span_m * 3.0,
             Feature::Islands => d.island_radius_m * 8.0,
             Feature::Karst => d.karst_radius_m * 40.0,
             _ => d.sea_height_m * 6.0,
         };
-        let cam = Camera::closeup(scene, *p, size.max(4.0 * d.voxel_m));
+        let dist = size.max(4.0 * d.voxel_m);
+        if h.cutaway {
+            // Eye in the removed rock, looking at the cut face through `at`.
+            let v = h.from.unwrap_or([-0.55, -0.7, 0.35]);
+            let dir = crate::math::normalize(v);
+            let cam = Camera {
+                eye: crate::math::add(h.at, crate::math::mul(dir, dist)),
+                target: h.at,
+                up: [0.0, 0.0, 1.0],
+                fov_deg: 40.0,
+            };
+            let s = RenderSettings {
+                cutaway: Some((h.at, crate::math::normalize([v[0], v[1], 0.0]))),
+                sea_level: None,
+                ..*tile
+            };
+            tiles.push(render(scene, &cam, &s)?);
+            names.push(format!("{} (cut-away)", h.feature));
+            continue;
+        }
+        let cam = match h.from {
+            Some(v) => Camera::closeup_from(scene, h.at, dist, [v[0], v[1], 0.08]),
+            None => Camera::closeup(scene, h.at, dist),
+        };
         tiles.push(render(scene, &cam, tile)?);
-        names.push(f.to_string());
+        names.push(h.feature.to_string());
     }
     if tiles.is_empty() {
         let b = scene.bbox();

@@ -54,8 +54,45 @@ impl Camera {
     /// A close-up on `target` from the south-west and above, `distance` metres away, the eye
     /// raised out of the rock if it starts inside (e.g. behind a cliff).
     pub fn closeup(scene: &Scene, target: V3, distance: f32) -> Self {
-        let dir = normalize([-0.55, -0.7, 0.6]);
-        let mut eye = add(target, mul(dir, distance));
+        Self::closeup_from(scene, target, distance, [-0.55, -0.7, 0.6])
+    }
+
+    /// A close-up on `target` from the direction `from` (towards the eye, need not be
+    /// normalised; a zero vector falls back to the south-west view), `distance` metres away,
+    /// the eye raised out of the rock if it starts inside.
+    pub fn closeup_from(scene: &Scene, target: V3, distance: f32, from: V3) -> Self {
+        let dir = if norm(from) > 0.0 && crate::math::finite3(from) {
+            normalize(from)
+        } else {
+            normalize([-0.55, -0.7, 0.6])
+        };
+        // From the target, out along the horizontal of `from` to where the ground is under
+        // it (the mouth of a tunnel the target is in), then `distance` further along `from`;
+        // raised out of the rock if still inside.
+        let h = normalize([dir[0], dir[1], 0.0]);
+        let mut start = target;
+        if crate::math::finite3(h) {
+            for m in 0..=64 {
+                let q = add(target, mul(h, m as f32 * distance / 16.0));
+                start = q;
+                if scene.dem_height(q[0], q[1]).is_none_or(|g| g < target[2]) {
+                    break;
+                }
+            }
+        }
+        // Not beyond the first ground rising over the line of sight (a neighbouring ridge).
+        let mut reach = distance;
+        if crate::math::finite3(h) {
+            for m in 1..=32 {
+                let t = m as f32 * distance / 32.0;
+                let q = add(start, mul(dir, t));
+                if scene.dem_height(q[0], q[1]).is_some_and(|g| g > q[2]) {
+                    reach = (t - distance / 32.0).max(0.25 * distance);
+                    break;
+                }
+            }
+        }
+        let mut eye = add(start, mul(dir, reach));
         for _ in 0..64 {
             if !scene.inside(eye) {
                 break;
@@ -86,6 +123,10 @@ pub struct RenderSettings {
     pub shadows: bool,
     /// Sea level drawn as a translucent water plane (`None`: no water).
     pub sea_level: Option<f32>,
+    /// Cut-away: a plane (a point on it, its normal pointing to the side removed, towards
+    /// the eye) in front of which matter is ignored; the cut face is drawn with the strata
+    /// colours of [`section`], so tunnels behind it show as holes (`None`: no cut).
+    pub cutaway: Option<(V3, V3)>,
 }
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -96,6 +137,7 @@ impl Default for RenderSettings {
             max_steps: 600,
             shadows: true,
             sea_level: None,
+            cutaway: None,
         }
     }
 }
@@ -226,6 +268,19 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
     {
         return Err(Error::param("sea_level", z, "must be finite"));
     }
+    let cut = match s.cutaway {
+        Some((p, n)) if crate::math::finite3(p) && crate::math::finite3(n) && norm(n) > 0.0 => {
+            Some((p, normalize(n)))
+        }
+        Some((p, n)) => {
+            return Err(Error::param(
+                "cutaway",
+                format!("{p:?}, {n:?}"),
+                "must be a finite point and a finite non-zero normal",
+            ));
+        }
+        None => None,
+    };
     if !(cam.fov_deg > 0.0 && cam.fov_deg < 179.0) {
         return Err(Error::param("fov_deg", cam.fov_deg, "must be in (0, 179)"));
     }
@@ -249,20 +304,61 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                 let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
                 let d = normalize(add(fwd, add(mul(right, u), mul(up, v))));
                 let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
-                let hit = trace(scene, cam.eye, d, 1e30, s.max_steps, cone, 0.0);
+                // With a cut-away, the ray starts where it enters the kept side.
+                let (t0, on_cut) = match cut {
+                    Some((cp, cn)) => {
+                        let side = dot(sub(cam.eye, cp), cn);
+                        let dn = dot(d, cn);
+                        if side <= 0.0 {
+                            (Some(0.0), false)
+                        } else if dn < 0.0 {
+                            let t = side / -dn;
+                            (Some(t), scene.inside(add(cam.eye, mul(d, t))))
+                        } else {
+                            (None, false)
+                        }
+                    }
+                    None => (Some(0.0), false),
+                };
+                let hit = match t0 {
+                    Some(t0) if on_cut => Some(t0),
+                    Some(t0) => trace(
+                        scene,
+                        add(cam.eye, mul(d, t0)),
+                        d,
+                        1e30,
+                        s.max_steps,
+                        cone,
+                        t0,
+                    )
+                    .map(|t| t + t0),
+                    None => None,
+                };
                 let mut col = match hit {
                     None => sky,
                     Some(t) => {
                         let p = add(cam.eye, mul(d, t));
-                        let n = scene.normal(p, h);
+                        let n = match cut {
+                            Some((_, cn)) if on_cut => cn,
+                            _ => scene.normal(p, h),
+                        };
                         let mut lam = dot(n, light).max(0.0);
+                        // Shadow rays stop at the cut-away plane (the removed rock casts none).
+                        let tmax = cut.map_or(1e30, |(cp, cn)| {
+                            let ln = dot(light, cn);
+                            if ln > 0.0 {
+                                (-dot(sub(p, cp), cn) / ln).max(0.0)
+                            } else {
+                                1e30
+                            }
+                        });
                         if s.shadows
                             && lam > 0.0
                             && trace(
                                 scene,
                                 add(p, mul(n, 4.0 * h)),
                                 light,
-                                1e30,
+                                tmax,
                                 s.max_steps / 2,
                                 cone,
                                 t,
@@ -270,6 +366,15 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                             .is_some()
                         {
                             lam *= 0.15;
+                        }
+                        if on_cut {
+                            let r = scene.resistance(p);
+                            let base = [0.85 - 0.5 * r, 0.75 - 0.45 * r, 0.55 - 0.35 * r];
+                            let col = mul(base, 0.55 + 0.45 * lam);
+                            for c in 0..3 {
+                                row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+                            }
+                            continue;
                         }
                         let rho = scene.resistance(p);
                         let hgt = ((p[2] - zlo) / (zhi - zlo).max(1e-3)).clamp(0.0, 1.0);
@@ -319,7 +424,7 @@ pub struct SectionSettings {
 }
 
 /// Pixel counts of a section.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct SectionStats {
     /// Matter (coloured by resistance: light = soft, dark = hard).
     pub solid: usize,

@@ -171,11 +171,12 @@ proptest! {
             bbox: Some(Aabb::new([lo, lo, lo], [hi, hi, hi])),
         };
         let names = ["region", "height", "radius", "spacing", "count", "span", "thickness",
-                     "altitude", "max_slope_deg", "arch feet", "cap_rho"];
+                     "altitude", "max_slope_deg", "arch feet", "cap_rho", "max_length"];
         check(b.hoodoos(&HoodooSettings { count: n, height: h, radius: r, spacing: sp,
                                           max_slope_deg: slope, cap_rho: mv, seed }, &region),
               &names)?;
-        check(b.arches(&ArchSettings { count: n, span: sp, height: h, thickness: r, seed },
+        check(b.arches(&ArchSettings { count: n, span: sp, height: h, thickness: r,
+                                       max_length: 4.0 * sp, seed },
                        &Region::everywhere()), &names)?;
         check(b.floating_islands(&IslandSettings { count: n, radius: r, altitude: h, seed },
                                  &Region::everywhere()), &names)?;
@@ -209,7 +210,7 @@ proptest! {
         let cam = Camera { eye: [eye, -eye, 200.0], target: [60.0, 50.0, 0.0],
                            up: [0.0, 0.0, up], fov_deg: fov };
         let rs = RenderSettings { width: w, height: h, light: [up, 0.3, 1.0], max_steps: steps,
-                                  shadows: true, sea_level: sea };
+                                  shadows: true, sea_level: sea, cutaway: None };
         check(render(&scene, &cam, &rs), &["image size", "fov_deg", "camera", "light", "sea_level"])?;
         let ss = SectionSettings { start: [lo, 0.0], end: [hi, 100.0], z_range: Some((z0, z1)),
                                    width: w, height: h };

@@ -8,15 +8,10 @@
 //! writes them as JSON.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::{Heightfield, Progress};
-use relief_implicit_volume::{
-    Camera, Feature, GeologySpec, MeshSettings, Recipe, RenderSettings, SectionSettings,
-    build_recipe, field_normals, polygonize, render, render_closeups, section, simplify, topology,
-};
-use serde_json::json;
+use relief_heightfield::Heightfield;
+use relief_implicit_volume::{Feature, GeologySpec, Image, VolumeJob};
 
 use crate::ctx::Ctx;
 
@@ -269,341 +264,35 @@ fn preflight_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Re
     )
 }
 
-/// The summary printed on stdout and the `--report` JSON of a built scene (before meshing and
-/// rendering add their lines and fields).
-fn describe(
-    args: &Args,
-    hf: &Heightfield,
-    scene: &relief_implicit_volume::Scene,
-    rep: &relief_implicit_volume::RecipeReport,
-    t_build: f64,
-) -> Result<(String, serde_json::Value)> {
-    let st = scene.stats();
-    let dims = &rep.dims;
-    let (cx, cy) = hf.cell_size();
-    let mut out = String::new();
-    out.push_str(&format!(
-        "dem:          {}x{} ({:.1} x {:.1} m cells, {:.2} km2, relief {:.0} m), sea level {:.1} m, voxel {:.2} m\n",
-        hf.width(),
-        hf.height(),
-        cx,
-        cy,
-        dims.area_km2,
-        dims.relief_m,
-        rep.sea_level,
-        dims.voxel_m
-    ));
-    out.push_str(&format!(
-        "implicitise:  surface vs DEM max {:.4} m, mean {:.5} m ({} nodes), floor {:.0} m deep\n",
-        rep.deviation.max, rep.deviation.mean, rep.deviation.samples, dims.floor_depth_m
-    ));
-    if let Some(t) = dims.soft_thickness_m {
-        out.push_str(&format!(
-            "geology:      soft strata {t:.1} m thick (median)\n"
-        ));
-    }
-    for (f, e) in &rep.effects {
-        let extra = match f {
-            Feature::Karst => format!(
-                ", {} steps, {:.2} km of passages of radius {:.1} m ({:?})",
-                e.features,
-                e.length_m / 1000.0,
-                dims.karst_radius_m,
-                e.stop.map_or("-".to_string(), |s| format!("{s:?}"))
-            ),
-            Feature::Hoodoos => format!(
-                ", {} hoodoos {:.0} m tall, radius {:.0} m",
-                e.features, dims.hoodoo_height_m, dims.hoodoo_radius_m
-            ),
-            Feature::Arches => format!(
-                ", {} arches spanning {:.0} m, {:.0} m thick",
-                e.features, dims.arch_span_m, dims.arch_thickness_m
-            ),
-            Feature::Islands => format!(
-                ", {} islands of radius {:.0} m",
-                e.features, dims.island_radius_m
-            ),
-            Feature::Cliffs => format!(
-                ", {} columns, shore cut back {:.0} m",
-                e.features, dims.cliff_retreat_m
-            ),
-            Feature::Sea | Feature::Caves => format!(
-                ", {} caves, spheres of {:.1} m up to {:.0} m above the sea",
-                e.features, dims.sea_radius_m, dims.sea_height_m
-            ),
-            _ => format!(", spheres of {:.1} m", dims.weathering_radius_m),
-        };
-        out.push_str(&format!(
-            "{:<13} {} primitives from {} candidates{extra}\n",
-            format!("{f}:"),
-            e.primitives,
-            e.candidates
-        ));
-    }
-    for n in &dims.notes {
-        out.push_str(&format!("note:         {n}\n"));
-    }
-    out.push_str(&format!(
-        "tree:         {} nodes ({} primitives), {:.3} MB nodes + {:.3} MB DEM; built in {t_build:.3} s\n",
-        st.nodes,
-        st.primitives,
-        st.node_bytes as f64 / 1e6,
-        st.heightfield_bytes as f64 / 1e6
-    ));
-    let mut report = json!({
-        "input": args.input.display().to_string(),
-        "width": hf.width(),
-        "height": hf.height(),
-        "cell_size_m": [cx, cy],
-        "seed": args.seed,
-        "sea_level_m": rep.sea_level,
-        "water_drawn": rep.has_sea,
-        "tree_nodes": st.nodes,
-        "tree_primitives": st.primitives,
-        "tree_nodes_by_kind": scene
-            .tree()
-            .0
-            .kind_counts()
-            .into_iter()
-            .map(|(k, n)| (k.to_string(), json!(n)))
-            .collect::<serde_json::Map<_, _>>(),
-        "tree_node_bytes": st.node_bytes,
-        "build_s": t_build,
-        "implicitisation_max_dev_m": rep.deviation.max,
-        "dimensions": {
-            "cell_m": dims.cell_m,
-            "relief_m": dims.relief_m,
-            "area_km2": dims.area_km2,
-            "voxel_m": dims.voxel_m,
-            "floor_depth_m": dims.floor_depth_m,
-            "strata_period_m": dims.strata_period_m,
-            "soft_thickness_m": dims.soft_thickness_m,
-            "karst_radius_m": dims.karst_radius_m,
-            "karst_step_m": dims.karst_step_m,
-            "karst_budget": dims.karst_budget,
-            "hoodoo_height_m": dims.hoodoo_height_m,
-            "hoodoo_radius_m": dims.hoodoo_radius_m,
-            "arch_span_m": dims.arch_span_m,
-            "arch_height_m": dims.arch_height_m,
-            "arch_thickness_m": dims.arch_thickness_m,
-            "island_radius_m": dims.island_radius_m,
-            "island_altitude_m": dims.island_altitude_m,
-            "sea_radius_m": dims.sea_radius_m,
-            "sea_height_m": dims.sea_height_m,
-            "cave_length_m": dims.cave_length_m,
-            "weathering_radius_m": dims.weathering_radius_m,
-            "cliff_retreat_m": dims.cliff_retreat_m,
-        },
-        "notes": dims.notes,
-        "geology": serde_json::to_value(&rep.geology).context("cannot encode the geology")?,
-    });
-    let effects: serde_json::Map<String, serde_json::Value> = rep
-        .effects
-        .iter()
-        .map(|(f, e)| {
-            (
-                f.to_string(),
-                json!({
-                    "candidates": e.candidates,
-                    "primitives": e.primitives,
-                    "count": e.features,
-                    "length_m": e.length_m,
-                    "stop": e.stop.map(|s| format!("{s:?}").to_lowercase()),
-                }),
-            )
-        })
-        .collect();
-    report["effects"] = effects.into();
-    if let Some(karst) = rep.effects.iter().find(|(f, _)| *f == Feature::Karst) {
-        report["karst_passage_length_m"] = json!(karst.1.length_m);
-    }
-
-    Ok((out, report))
-}
-
-/// Polygonises the scene on a `cells` grid (voxel `cell` metres), simplifies it under
-/// `--max-triangles`, checks its topology and writes it to its staged path; adds its lines to
-/// `out` and its fields to `report`.
-fn write_mesh_output(
-    args: &Args,
-    path: &Path,
-    scene: &relief_implicit_volume::Scene,
-    cells: [usize; 3],
-    cell: f32,
+fn write_png(
     staged: &crate::staging::Outputs,
-    progress: &crate::ctx::CliProgress,
-    out: &mut String,
-    report: &mut serde_json::Value,
+    path: &Option<PathBuf>,
+    img: Option<&Image>,
 ) -> Result<()> {
-    progress.begin("polygonising", 0);
-    let t = Instant::now();
-    let (mut mesh, mr) = polygonize(
-        scene,
-        &MeshSettings {
-            cells,
-            normals: args.max_triangles.is_none(),
-            ..Default::default()
-        },
-    )
-    .context("cannot polygonise the scene")?;
-    let t_mesh = t.elapsed().as_secs_f64();
-    report["mesh_s"] = json!(t_mesh);
-    report["mesh_grid"] = json!(cells);
-    report["mesh_triangles_polygonised"] = json!(mesh.triangles.len());
-    if let Some(max) = args.max_triangles {
-        progress.begin("simplifying", 0);
-        let t = Instant::now();
-        let (m, sr) = simplify(&mesh, max).context("cannot simplify the mesh")?;
-        mesh = m;
-        field_normals(scene, &mut mesh, 0.25 * cell);
-        let t_simp = t.elapsed().as_secs_f64();
-        report["simplify_s"] = json!(t_simp);
-        out.push_str(&format!(
-            "simplify:     {} -> {} triangles ({} collapses refused) in {t_simp:.3} s\n",
-            sr.triangles_in, sr.triangles_out, sr.refused
-        ));
-    }
-    let topo = topology(&mesh);
-    let watertight = topo.bad_edges == 0 && topo.misoriented_edges == 0;
-    report["mesh_vertices"] = json!(mesh.positions.len());
-    report["mesh_triangles"] = json!(mesh.triangles.len());
-    report["mesh_watertight_manifold"] = json!(watertight);
-    report["mesh_euler"] = json!(topo.euler);
-    out.push_str(&format!(
-        "mesh:         {} vertices, {} triangles, grid {}x{}x{} ({}/{} chunks sampled), {} in {t_mesh:.3} s\n",
-        mesh.positions.len(),
-        mesh.triangles.len(),
-        cells[0],
-        cells[1],
-        cells[2],
-        mr.chunks_sampled,
-        mr.chunks,
-        if watertight {
-            "watertight, manifold".to_string()
-        } else {
-            format!(
-                "{} open/non-manifold edges, {} misoriented",
-                topo.bad_edges, topo.misoriented_edges
-            )
-        }
-    ));
-    let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-    let t = Instant::now();
-    relief_io::write_mesh(
-        &staged.path(path),
-        &mesh.positions,
-        &mesh.triangles,
-        normals,
-    )
-    .with_context(|| format!("cannot write {}", path.display()))?;
-    let bytes = std::fs::metadata(staged.path(path))
-        .map(|m| m.len())
-        .unwrap_or(0);
-    report["mesh_bytes"] = json!(bytes);
-    out.push_str(&format!(
-        "wrote {} ({:.1} MB) in {:.3} s\n",
-        path.display(),
-        bytes as f64 / 1e6,
-        t.elapsed().as_secs_f64()
-    ));
-    Ok(())
-}
-
-/// Writes the overview render, the close-ups and the vertical section that were asked for, at
-/// `--image-size`; adds their lines to `out` and their fields to `report`.
-fn write_images(
-    args: &Args,
-    scene: &relief_implicit_volume::Scene,
-    rep: &relief_implicit_volume::RecipeReport,
-    staged: &crate::staging::Outputs,
-    progress: &crate::ctx::CliProgress,
-    out: &mut String,
-    report: &mut serde_json::Value,
-) -> Result<()> {
-    let (w, h) = args.image_size;
-    let settings = RenderSettings {
-        width: w,
-        height: h,
-        sea_level: rep.has_sea.then_some(rep.sea_level),
-        ..Default::default()
-    };
-    if let Some(path) = &args.render {
-        progress.begin("rendering", 0);
-        let t = Instant::now();
-        let img = render(scene, &Camera::overview(&scene.bbox()), &settings)
-            .context("cannot render the scene")?;
+    if let (Some(path), Some(img)) = (path, img) {
         relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
             .with_context(|| format!("cannot write {}", path.display()))?;
-        let secs = t.elapsed().as_secs_f64();
-        report["render_s"] = json!(secs);
-        out.push_str(&format!(
-            "render:       {}x{} in {secs:.3} s, wrote {}{}\n",
-            w,
-            h,
-            path.display(),
-            if rep.has_sea { " (with water)" } else { "" }
-        ));
-    }
-    if let Some(path) = &args.closeups {
-        progress.begin("rendering close-ups", 0);
-        let t = Instant::now();
-        // Tiles of half the image size, side by side.
-        let tile = RenderSettings {
-            width: (w / 2).max(1),
-            height: (h / 2).max(1),
-            ..settings
-        };
-        let (img, names) =
-            render_closeups(scene, rep, &tile).context("cannot render the close-ups")?;
-        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        let secs = t.elapsed().as_secs_f64();
-        report["closeups"] = json!(names);
-        report["closeups_s"] = json!(secs);
-        out.push_str(&format!(
-            "close-ups:    {} ({}) in {secs:.3} s, wrote {}\n",
-            names.len(),
-            names.join(", "),
-            path.display()
-        ));
-    }
-    if let Some(path) = &args.section {
-        progress.begin("cutting a section", 0);
-        let t = Instant::now();
-        let (start, end) = rep.section_line;
-        let (img, ss) = section(
-            scene,
-            &SectionSettings {
-                start,
-                end,
-                z_range: None,
-                width: w,
-                height: h,
-            },
-        )
-        .context("cannot cut the section")?;
-        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        report["section_carved_px"] = json!(ss.carved);
-        report["section_enclosed_px"] = json!(ss.enclosed);
-        out.push_str(&format!(
-            "section:      y = {:.0} m, {} solid / {} carved ({} enclosed) / {} air pixels in {:.3} s, wrote {}\n",
-            start[1],
-            ss.solid,
-            ss.carved,
-            ss.enclosed,
-            ss.air,
-            t.elapsed().as_secs_f64(),
-            path.display()
-        ));
     }
     Ok(())
 }
 
-/// Builds the scene and writes the requested outputs.
+/// Maps the flags onto a [`VolumeJob`], runs it and writes the outputs.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
-    let features = Feature::parse_list(&args.features).context("bad --features")?;
+    let mut job = VolumeJob::default();
+    let r = &mut job.recipe;
+    r.features = Feature::parse_list(&args.features).context("bad --features")?;
+    r.sea_level = args.sea_level;
+    r.scale = args.scale;
+    r.karst_budget = args.karst_budget;
+    r.wind = [args.wind.0, args.wind.1];
+    r.seed = args.seed;
+    job.mesh = args.mesh.is_some();
+    job.max_triangles = args.max_triangles;
+    job.render = args.render.is_some();
+    job.closeups = args.closeups.is_some();
+    job.section = args.section.is_some();
+    job.image_size = [args.image_size.0, args.image_size.1];
     if let Some(m) = &args.mesh
         && relief_io::MeshFormat::from_extension(m).is_none()
     {
@@ -657,10 +346,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if args.max_triangles == Some(0) {
         bail!("--max-triangles 0: must be at least 1");
     }
-    let geology = match &args.geology {
-        Some(p) => Some(read_geology(p)?),
-        None => None,
-    };
+    if let Some(p) = &args.geology {
+        job.recipe.geology = Some(read_geology(p)?);
+    }
+    job.check().context("invalid volume settings")?;
     // The mesh, the images and the report appear together or not at all.
     let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
     targets.extend(args.report.as_deref());
@@ -674,41 +363,26 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     }
     hf.require_complete()
         .with_context(|| format!("{} cannot be implicitised", args.input.display()))?;
-    let mask = match &args.mask {
-        Some(p) => Some(read_mask(p, &hf, ctx)?),
-        None => None,
-    };
+    if let Some(p) = &args.mask {
+        job.recipe.mask = Some(read_mask(p, &hf, ctx)?);
+    }
     let (cx, cy) = hf.cell_size();
-    let voxel = args
+    job.recipe.voxel = args
         .voxel
         .or(args.resolution.map(|r| cx.max(cy) as f32 / r));
-    let recipe = Recipe {
-        features,
-        sea_level: args.sea_level,
-        mask,
-        scale: args.scale,
-        voxel,
-        geology,
-        karst_budget: args.karst_budget,
-        wind: [args.wind.0, args.wind.1],
-        seed: args.seed,
-        ..Default::default()
-    };
     let progress = ctx.progress();
-    progress.begin("building the implicit scene", 0);
-    let t = Instant::now();
-    let (scene, rep) = build_recipe(&hf, &recipe).context("cannot build the scene")?;
-    let t_build = t.elapsed().as_secs_f64();
-    let (mut out, mut report) = describe(&args, &hf, &scene, &rep, t_build)?;
-    let dims = &rep.dims;
-    let b = scene.bbox();
-    let cell = dims.voxel_m;
-    let sz = b.size();
-    let cells = [0, 1, 2].map(|k| ((sz[k] / cell).ceil() as usize).clamp(2, 4096));
+    let built = job
+        .build(&hf, &progress)
+        .context("cannot build the scene")?;
     if let Some(path) = &args.mesh {
-        preflight_mesh(ctx, path, cells, dims.voxel_m as f64)?;
+        preflight_mesh(
+            ctx,
+            path,
+            built.mesh_grid(&job),
+            built.report.dims.voxel_m as f64,
+        )?;
     }
-    if args.render.is_some() || args.section.is_some() {
+    if job.render || job.section || job.closeups {
         let (w, h) = args.image_size;
         ctx.check_memory(
             "volume",
@@ -719,38 +393,37 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             )]],
         )?;
     }
-    if let Some(path) = &args.mesh {
-        write_mesh_output(
-            &args,
-            path,
-            &scene,
-            cells,
-            cell,
-            &staged,
-            &progress,
-            &mut out,
-            &mut report,
-        )?;
+    let out = job
+        .finish(built, &progress)
+        .context("cannot mesh or render the scene")?;
+    let mut text = out.figures.summary();
+    if let (Some(path), Some(mesh)) = (&args.mesh, &out.mesh) {
+        let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
+        relief_io::write_mesh(
+            &staged.path(path),
+            &mesh.positions,
+            &mesh.triangles,
+            normals,
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
+        let bytes = std::fs::metadata(staged.path(path)).map_or(0, |m| m.len());
+        text += &format!("wrote {} ({:.1} MB)\n", path.display(), bytes as f64 / 1e6);
     }
-    write_images(
-        &args,
-        &scene,
-        &rep,
-        &staged,
-        &progress,
-        &mut out,
-        &mut report,
-    )?;
+    write_png(&staged, &args.render, out.render.as_ref())?;
+    write_png(&staged, &args.closeups, out.closeups.as_ref())?;
+    write_png(&staged, &args.section, out.section.as_ref())?;
     if let Some(path) = &args.report {
-        let mut text = serde_json::to_string_pretty(&report).context("cannot encode the report")?;
-        text.push('\n');
-        relief_io::write_bytes_atomic(&staged.path(path), text.as_bytes())
+        let mut v = serde_json::to_value(&out.figures).context("cannot encode the report")?;
+        v["input"] = args.input.display().to_string().into();
+        let mut s = serde_json::to_string_pretty(&v).context("cannot encode the report")?;
+        s.push('\n');
+        relief_io::write_bytes_atomic(&staged.path(path), s.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
-        out.push_str(&format!("report:       wrote {}\n", path.display()));
+        text += &format!("report:       wrote {}\n", path.display());
     }
     staged.commit()?;
     drop(progress);
     let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
+    std::io::Write::write_all(&mut stdout, text.as_bytes()).context("cannot write to stdout")?;
     Ok(())
 }

@@ -166,47 +166,175 @@ impl SceneBuilder {
         Ok(w)
     }
 
-    /// Arches at sampled gentle sites of the region.
+    /// Natural arches carved out of the rock ([`ArchSettings`]): the narrowest ridges of the
+    /// DEM (at every node, eight horizontal directions; the ridge must drop by the opening
+    /// plus the bridge on both sides within `max_length`) are bored through by a negative
+    /// capsule whose support stays under the ridge's crest, so the crest survives as the
+    /// bridge; the tunnel's walls are widened by smaller spheres where the rock is soft
+    /// (`e(rho, sigma)` of section 4.1), so the opening follows the strata. Ridges are taken
+    /// thinnest first, `max(2 max_length, 4 span)` apart.
     pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
         for (n, v) in [
             ("span", s.span),
             ("height", s.height),
             ("thickness", s.thickness),
+            ("max_length", s.max_length),
         ] {
             self.check_len(n, v)?;
         }
+        if s.max_length < s.span {
+            return Err(Error::param(
+                "max_length",
+                s.max_length,
+                "must be at least the span",
+            ));
+        }
         region.check(&self.frame)?;
-        let sites = self.flat_sites(2.0 * s.span, 30.0, s.seed, region, s.span);
         let f = self.frame;
         let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        let a = 0.5 * s.span;
+        // The tunnel's axis sits `height - a` above the floor (a round opening when the height
+        // is the span, a low flat-floored one below that).
+        let lift = s.height - a;
+        let need = s.height + s.thickness;
+        let step = (0.25 * f.cx.min(f.cy)).min(0.5 * a);
+        let half = 0.5 * s.max_length;
+        let margin = a;
+        // Candidates: (fin width, node index, direction index, mouths, floor).
+        let nodes: Vec<(usize, usize)> = (0..f.height)
+            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .collect();
+        let me = &*self;
+        let mut cands: Vec<(f32, u64, V3, V3, V3)> = nodes
+            .par_iter()
+            .filter_map(|&(j, i)| {
+                let top = me.dem_at(j, i);
+                let c = f.node(j, i, top);
+                if c[0] < margin || c[1] < margin || c[0] > xm - margin || c[1] > ym - margin {
+                    return None;
+                }
+                if region.weight(&f, c) <= 0.0 {
+                    return None;
+                }
+                let mut best: Option<(f32, V3, V3, V3)> = None;
+                for k in 0..8 {
+                    let ang = (k as f32 + 0.5 * unit(hash(s.seed, (i * f.width + j) as u64, 1, 0)))
+                        * std::f32::consts::PI
+                        / 8.0;
+                    let d = [ang.cos(), ang.sin(), 0.0];
+                    // Walk out on both sides to the first ground `need` under the crest.
+                    let mut mouths = [[0.0f32; 3]; 2];
+                    let mut ok = true;
+                    for (m, sign) in [1.0f32, -1.0].into_iter().enumerate() {
+                        let mut t = step;
+                        let mut found = None;
+                        while t <= half {
+                            let q = add(c, mul(d, sign * t));
+                            if q[0] < 0.0 || q[1] < 0.0 || q[0] > xm || q[1] > ym {
+                                break;
+                            }
+                            let g = me.ground(q[0], q[1]);
+                            if g <= top - need {
+                                found = Some([q[0], q[1], g]);
+                                break;
+                            }
+                            t += step;
+                        }
+                        match found {
+                            Some(q) => mouths[m] = q,
+                            None => {
+                                ok = false;
+                                break;
+                            }
+                        }
+                    }
+                    if !ok {
+                        continue;
+                    }
+                    let len = norm(sub(mouths[0], mouths[1]));
+                    if len < s.span.min(f.cx.min(f.cy)) {
+                        continue;
+                    }
+                    if best.as_ref().is_none_or(|b| len < b.0) {
+                        best = Some((len, d, mouths[0], mouths[1]));
+                    }
+                }
+                let (len, d, m0, m1) = best?;
+                Some((len, (i * f.width + j) as u64, d, m0, m1))
+            })
+            .collect();
+        cands.sort_by(|x, y| {
+            x.0.total_cmp(&y.0)
+                .then(hash(s.seed, x.1, 2, 0).cmp(&hash(s.seed, y.1, 2, 0)))
+        });
+        let pts: Vec<V3> = cands
+            .iter()
+            .map(|x| {
+                let c = mul(add(x.3, x.4), 0.5);
+                [c[0], c[1], 0.0]
+            })
+            .collect();
+        let spacing = (2.0 * s.max_length).max(4.0 * s.span);
+        let kept = poisson_filter(&pts, spacing, |_| true);
         let mut report = EffectReport {
-            candidates: sites.len(),
-            primitives: 0,
+            candidates: cands.len(),
             ..Default::default()
         };
-        for (k, &p) in sites.iter().enumerate() {
+        // Saturated rock (field 2T) keeps 0.8 of the support radius at this energy; in the
+        // weaker rock of the heightfield's transition under the surface the hole is wider.
+        let energy = 20.0 * THRESHOLD;
+        for k in kept {
             if report.features >= s.count {
                 break;
             }
-            let ang = unit(hash(s.seed, k as u64, 3, 3)) * std::f32::consts::TAU;
-            let (dx, dy) = (0.5 * s.span * ang.cos(), 0.5 * s.span * ang.sin());
-            let (a, b) = ([p[0] - dx, p[1] - dy], [p[0] + dx, p[1] + dy]);
-            if [a, b]
-                .iter()
-                .any(|q| q[0] < 0.0 || q[1] < 0.0 || q[0] > xm || q[1] > ym)
-            {
+            let (_, idx, d, m0, m1) = cands[k];
+            let floor = m0[2].max(m1[2]);
+            let z = floor + lift;
+            // The crest along the tunnel's middle third: the support must stay under it.
+            let crest = (1..=5)
+                .map(|q| {
+                    let t = 1.0 / 3.0 + q as f32 / 18.0;
+                    let p = add(m0, mul(sub(m1, m0), t));
+                    self.ground(p[0], p[1])
+                })
+                .fold(f32::INFINITY, f32::min);
+            let r = (a / 0.8).min(crest - s.thickness - z);
+            if r < 0.5 * a {
                 continue;
             }
-            self.arch(
-                a,
-                b,
-                s.height,
-                s.thickness,
-                (s.seed as u32).wrapping_add(k as u32),
-            )?;
-            report.primitives += 12;
+            let e0 = add([m0[0], m0[1], z], mul(d, a));
+            let e1 = add([m1[0], m1[1], z], mul(d, -a));
+            let id = self.tree.capsule(e0, e1, r, -energy)?;
+            self.negatives.push(id);
+            self.carved.push((mul(add(e0, e1), 0.5), r, false));
+            report.primitives += 1;
+            // Soft strata along the walls and the floor widen the opening (notches).
+            let len = norm(sub(e1, e0));
+            let n = ((len / (0.5 * a)).ceil() as usize).clamp(2, 256);
+            let side = [-d[1], d[0], 0.0];
+            for q in 0..=n {
+                let p = add(e0, mul(sub(e1, e0), q as f32 / n as f32));
+                for (w, off) in [(0u64, 1.0f32), (1, -1.0)] {
+                    let h = |c: u64| unit(hash(s.seed, idx, (q * 4) as u64 + w, c));
+                    let dz = (h(0) - 0.7) * a;
+                    let c = add(p, [side[0] * off * 0.8 * a, side[1] * off * 0.8 * a, dz]);
+                    let rho = self.geology.resistance(c);
+                    let e = erosion_intensity(rho, 1.0, 0.1);
+                    if rho < 0.5 && c[2] + 0.6 * a < crest - s.thickness {
+                        let id = self.tree.sphere(c, 0.6 * a, -energy * e)?;
+                        self.negatives.push(id);
+                        self.carved.push((c, 0.6 * a, false));
+                        report.primitives += 1;
+                    }
+                }
+            }
             report.features += 1;
-            report.sites.push([p[0], p[1], p[2] + 0.5 * s.height]);
+            report.length_m += len;
+            let mid = mul(add(e0, e1), 0.5);
+            report.sites.push([mid[0], mid[1], z]);
+            // Look through the opening from the lower side.
+            let look = if m0[2] <= m1[2] { d } else { mul(d, -1.0) };
+            report.axes.push(look);
         }
         Ok(report)
     }
@@ -252,5 +380,57 @@ impl SceneBuilder {
             report.sites.push(c);
         }
         Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geology::Geology;
+
+    /// A north-south fin 30 m wide and 50 m high: the arch is a tunnel through it (air at the
+    /// opening's middle, which was rock) under a bridge of rock (still matter), seen along the
+    /// tunnel's east-west axis.
+    #[test]
+    fn arches_bore_through_a_fin_under_a_bridge() {
+        let hf = Heightfield::from_fn(40, 40, 5.0, 5.0, |x, _| {
+            if (x as f32 - 20.0).abs() <= 3.0 {
+                60.0
+            } else {
+                10.0
+            }
+        });
+        let geo = Geology::layered_default([100.0, 100.0, 35.0], 12.0, 1).unwrap();
+        let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+        let before = b.clone().build(true).unwrap();
+        let s = ArchSettings {
+            count: 1,
+            span: 12.0,
+            height: 15.0,
+            thickness: 8.0,
+            max_length: 80.0,
+            seed: 3,
+        };
+        let rep = b.arches(&s, &Region::everywhere()).unwrap();
+        assert_eq!(rep.features, 1, "{rep:?}");
+        let site = rep.sites[0];
+        let axis = rep.axes[0];
+        assert!(axis[0].abs() > 0.9, "the tunnel crosses the fin: {axis:?}");
+        assert!((site[0] - 100.0).abs() < 10.0, "{site:?}");
+        let scene = b.build(true).unwrap();
+        assert!(before.inside(site), "the opening was rock");
+        assert!(!scene.inside(site), "the opening is air");
+        let bridge = [site[0], site[1], 56.0];
+        assert!(scene.inside(bridge), "the bridge stands");
+        // Air all the way through the fin along the axis.
+        for k in -4..=4 {
+            let p = add(site, mul(axis, 4.0 * k as f32));
+            assert!(!scene.inside(p), "rock at {p:?}");
+        }
+        // No ridge narrow enough: no arch, no error.
+        let flat = Heightfield::from_fn(20, 20, 5.0, 5.0, |_, _| 10.0);
+        let geo = Geology::layered_default([50.0, 50.0, 10.0], 12.0, 1).unwrap();
+        let mut b = SceneBuilder::new(&flat, geo, &ImplicitizeSettings::default()).unwrap();
+        assert_eq!(b.arches(&s, &Region::everywhere()).unwrap().features, 0);
     }
 }

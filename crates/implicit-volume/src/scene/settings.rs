@@ -317,17 +317,21 @@ impl Default for HoodooSettings {
     }
 }
 
-/// Natural arches: capsules along an arc between two feet, warped.
+/// Natural arches carved out of the rock: a tunnel bored through a narrow ridge (a fin, a
+/// headland between two coves, a wall between two canyons) under a bridge of rock left above
+/// it, its walls widened where the strata are soft (see [`SceneBuilder::arches`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArchSettings {
-    /// Number of arches.
+    /// Number of arches (fewer when the DEM has no ridge narrow and high enough).
     pub count: usize,
-    /// Distance between the feet (m).
+    /// Width of the opening (m): the tunnel's diameter.
     pub span: f32,
-    /// Height of the arc above the higher foot (m).
+    /// Height of the opening above its floor, the higher ground at the two mouths (m).
     pub height: f32,
-    /// Thickness (capsule radius, m).
+    /// Rock left above the opening (the bridge, m).
     pub thickness: f32,
+    /// Thickest ridge bored through (the tunnel's length between its mouths, m).
+    pub max_length: f32,
     /// Seed.
     pub seed: u64,
 }
@@ -335,9 +339,10 @@ impl Default for ArchSettings {
     fn default() -> Self {
         Self {
             count: 2,
-            span: 80.0,
-            height: 35.0,
-            thickness: 10.0,
+            span: 60.0,
+            height: 40.0,
+            thickness: 12.0,
+            max_length: 240.0,
             seed: 5,
         }
     }
@@ -379,7 +384,10 @@ pub struct EffectReport {
     pub length_m: f32,
     /// Karst: why the percolation ended.
     pub stop: Option<KarstStop>,
-    /// Where the landforms were placed (hoodoo bases, arch middles, island centres, cave
+    /// Where the landforms were placed (hoodoo bases, arch openings, island centres, cave
     /// mouths; karst: the seeds).
     pub sites: Vec<V3>,
+    /// Per site, the horizontal direction to look along to see it best (arches: the tunnel's
+    /// axis, so a camera sees through the opening); empty for the other effects.
+    pub axes: Vec<V3>,
 }
