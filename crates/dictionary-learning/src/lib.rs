@@ -70,6 +70,7 @@ pub mod multires;
 pub mod noise;
 pub mod procedural;
 pub mod quality;
+pub mod sketch;
 
 pub use baseline::{NoiseBaselineSettings, noise_amplify};
 pub use compress::{CompressFigures, CompressSettings, Compressed, DictionarySource};
@@ -80,8 +81,8 @@ pub use ksvd::{
     ksvd_with_fixed,
 };
 pub use multires::{
-    AmplifySettings, DictionaryChoice, MultiResDictionary, StepReport, SynthesisSettings, amplify,
-    amplify_observed, detail_gain, synthesize,
+    AmplifySettings, DictionaryChoice, MultiResDictionary, StepReport, amplify, amplify_observed,
+    detail_gain,
 };
 pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};
@@ -89,6 +90,7 @@ pub use quality::{
     BoxProtocolRow, QualityRow, box_protocol, corner_bicubic, detail_swing, evaluate,
     laplacian_histogram_distance, phase_swing,
 };
+pub use sketch::{SynthesisSettings, synthesize};
 
 /// Stacks the patch matrices of several terrains (same geometry) into one training matrix, for
 /// learning one dictionary from several exemplars at once.
