@@ -181,7 +181,8 @@ fn amplified_sct_windows_match_full_raster() {
             window: None,
         })
         .unwrap();
-    assert_eq!(big.width(), 127);
+    // Pixel-is-area: the same extent with cells half as large.
+    assert_eq!(big.width(), 2 * full.width());
 }
 
 #[test]
@@ -269,7 +270,7 @@ fn inverse_procedural_fits_every_family() {
                 window: None,
             })
             .unwrap();
-        assert_eq!(big.width(), 191);
+        assert_eq!(big.width(), 192, "the same extent, cells half as large");
         psnr.push(fit.psnr);
     }
     assert!(psnr.iter().all(|p| *p > 15.0), "{psnr:?}");
