@@ -126,6 +126,30 @@ pub struct SeamMap {
     pub source: Vec<u32>,
 }
 
+impl SeamMap {
+    /// RGB image (row-major, 3 bytes a cell): one muted colour per patch (a fixed hash of its
+    /// placement index, so neighbours differ), seam cells white, unfilled cells black.
+    pub fn rgb(&self) -> Vec<u8> {
+        let mut rgb = Vec::with_capacity(self.width * self.height * 3);
+        for (&src, &seam) in self.source.iter().zip(&self.seam) {
+            if seam {
+                rgb.extend_from_slice(&[255, 255, 255]);
+            } else if src == u32::MAX {
+                rgb.extend_from_slice(&[0, 0, 0]);
+            } else {
+                let mut z = (src as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                z ^= z >> 29;
+                rgb.extend_from_slice(&[
+                    60 + (z & 0x7f) as u8,
+                    60 + ((z >> 8) & 0x7f) as u8,
+                    60 + ((z >> 16) & 0x7f) as u8,
+                ]);
+            }
+        }
+        rgb
+    }
+}
+
 /// One inserted patch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Placement {
