@@ -86,6 +86,7 @@
 //! ```
 #![warn(missing_docs)]
 
+mod block;
 mod category;
 mod cut;
 mod error;
