@@ -194,10 +194,8 @@ pub fn guide_from_sketch(
     Ok(hf)
 }
 
-/// The guide resampled to `cell` metres per cell over its own ground extent, so that its
-/// features keep their physical size on the exemplars' grid (patches are copied cell for cell).
-pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield> {
-    guide.require_complete()?;
+/// A target cell size must be finite and positive.
+fn check_cell(cell: (f64, f64)) -> Result<()> {
     if !(cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0) {
         return Err(PatchSynthError::setting(
             "cell_size",
@@ -205,6 +203,14 @@ pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield
             "must be finite and > 0",
         ));
     }
+    Ok(())
+}
+
+/// The guide resampled to `cell` metres per cell over its own ground extent, so that its
+/// features keep their physical size on the exemplars' grid (patches are copied cell for cell).
+pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield> {
+    guide.require_complete()?;
+    check_cell(cell)?;
     let (gx, gy) = guide.cell_size();
     let w = (guide.width() as f64 * gx / cell.0).round().max(1.0);
     let h = (guide.height() as f64 * gy / cell.1).round().max(1.0);
@@ -476,13 +482,7 @@ pub fn fit_to_grid(
     size: Option<(usize, usize)>,
 ) -> Result<(Heightfield, GuideFit)> {
     guide.require_complete()?;
-    if !(cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0) {
-        return Err(PatchSynthError::setting(
-            "cell_size",
-            format!("{} x {}", cell.0, cell.1),
-            "must be finite and > 0",
-        ));
-    }
+    check_cell(cell)?;
     let (gx, gy) = guide.cell_size();
     let (kx, ky) = (gx / cell.0, gy / cell.1);
     let (rw, rh) = (
