@@ -2,14 +2,32 @@
 //! threads (goal <= 10 s). The exemplar is the Grand Canyon DEM; the guide is the low-pass
 //! (factor 16) of a 512 x 512 alps crop enlarged to 1024 x 1024.
 //!
+//! Also prints the time of every progress phase (descriptors, k-means, pca, kd-trees,
+//! synthesis): the profile of the run.
+//!
 //! `cargo run --release -p relief-patch-synth --example bench_quilt`
 #![allow(clippy::print_stdout)]
 
+use std::sync::Mutex;
 use std::time::Instant;
 
-use relief_heightfield::NoProgress;
+use relief_heightfield::Progress;
 use relief_patch_synth::{Control, Exemplar, ExemplarIndex, Settings, guide, synthesize};
 use relief_testdata::{dem_crop, load_dem};
+
+/// Prints the time spent in each progress phase.
+struct Phases(Instant, Mutex<Option<(String, f64)>>);
+
+impl Progress for Phases {
+    fn begin(&self, phase: &str, _total: u64) {
+        let now = self.0.elapsed().as_secs_f64();
+        let mut last = self.1.lock().unwrap();
+        if let Some((name, t)) = last.take() {
+            println!("  {name:32} {:.2} s", now - t);
+        }
+        *last = Some((phase.to_string(), now));
+    }
+}
 
 fn main() {
     let Some(ex) = load_dem("grandcanyon") else {
@@ -29,11 +47,13 @@ fn main() {
         .unwrap();
     pool.install(|| {
         let t0 = Instant::now();
-        let index = ExemplarIndex::build(vec![Exemplar::new(ex, 0)], &settings, &NoProgress)
-            .expect("index");
+        let phases = Phases(t0, Mutex::new(None));
+        let index =
+            ExemplarIndex::build(vec![Exemplar::new(ex, 0)], &settings, &phases).expect("index");
         let t1 = Instant::now();
-        let out = synthesize(&index, &Control::guided(g.clone()), &settings, &NoProgress)
+        let out = synthesize(&index, &Control::guided(g.clone()), &settings, &phases)
             .expect("synthesis");
+        phases.begin("end", 0);
         let t2 = Instant::now();
         println!(
             "patch-synth 1024x1024 from 512x512, 2 threads: index {:.2} s + synthesis {:.2} s = {:.2} s total ({} patches, {:.0} candidates/block, PCA explained {:?})",

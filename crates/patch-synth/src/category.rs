@@ -35,6 +35,39 @@ impl CategoryMap {
         Ok(Self { width, height, ids })
     }
 
+    /// A map from a raster of category ids (e.g. a grey PNG read as raw counts), rounded and
+    /// nearest-resampled to `width x height`; a value outside 0..=65535 is an error naming it.
+    pub fn from_heightfield(map: &Heightfield, width: usize, height: usize) -> Result<Self> {
+        if width == 0
+            || height == 0
+            || width
+                .checked_mul(height)
+                .is_none_or(|n| n > crate::MAX_OUTPUT_CELLS)
+        {
+            return Err(PatchSynthError::InvalidControl {
+                name: "categories",
+                reason: format!("a {width} x {height} map is empty or too large"),
+            });
+        }
+        let (mw, mh) = (map.width(), map.height());
+        let mut ids = Vec::with_capacity(width * height);
+        for y in 0..height {
+            let sy = (y * mh / height).min(mh - 1);
+            for x in 0..width {
+                let sx = (x * mw / width).min(mw - 1);
+                let v = map.get(sx, sy);
+                if !(v.is_finite() && v >= 0.0 && v <= ANY_CATEGORY as f32) {
+                    return Err(PatchSynthError::InvalidControl {
+                        name: "categories",
+                        reason: format!("value {v} at ({sx}, {sy}) is not a category id 0..65535"),
+                    });
+                }
+                ids.push(v.round() as u16);
+            }
+        }
+        Self::from_raster(width, height, ids)
+    }
+
     /// A map with one category everywhere.
     pub fn uniform(width: usize, height: usize, id: u16) -> Self {
         Self {

@@ -194,10 +194,8 @@ pub fn guide_from_sketch(
     Ok(hf)
 }
 
-/// The guide resampled to `cell` metres per cell over its own ground extent, so that its
-/// features keep their physical size on the exemplars' grid (patches are copied cell for cell).
-pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield> {
-    guide.require_complete()?;
+/// A target cell size must be finite and positive.
+fn check_cell(cell: (f64, f64)) -> Result<()> {
     if !(cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0) {
         return Err(PatchSynthError::setting(
             "cell_size",
@@ -205,6 +203,14 @@ pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield
             "must be finite and > 0",
         ));
     }
+    Ok(())
+}
+
+/// The guide resampled to `cell` metres per cell over its own ground extent, so that its
+/// features keep their physical size on the exemplars' grid (patches are copied cell for cell).
+pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield> {
+    guide.require_complete()?;
+    check_cell(cell)?;
     let (gx, gy) = guide.cell_size();
     let w = (guide.width() as f64 * gx / cell.0).round().max(1.0);
     let h = (guide.height() as f64 * gy / cell.1).round().max(1.0);
@@ -239,7 +245,7 @@ pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield
 
 /// How [`fit_to_size`] changed a guide: cells removed (crop) or added (mirror padding) along
 /// each axis, split evenly between both sides.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct SizeFit {
     /// Columns and rows removed.
     pub cropped: (usize, usize),
@@ -304,7 +310,8 @@ pub fn fit_to_size(
 }
 
 /// Target heights of [`map_range`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum GuideRange {
     /// The exemplars' range: the 2-98 % quantiles of the patches' means, the heights a whole
     /// patch can actually bring.
@@ -314,7 +321,7 @@ pub enum GuideRange {
 }
 
 /// The linear height mapping [`map_range`] applied.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RangeMapping {
     /// The guide's 2-98 % quantiles of its patch-sized window means (metres, before the
     /// mapping).
@@ -451,4 +458,80 @@ fn map_range_q(
         guide.map(|v| v - from.0 + mid)
     };
     Ok((out, RangeMapping { from, to }))
+}
+
+/// How [`fit_to_grid`] placed a guide on the output grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct GuideFit {
+    /// The guide's ground extent in cells of the exemplars' cell size.
+    pub extent: (usize, usize),
+    /// Columns and rows cropped (centred) to reach the output size.
+    pub cropped: (usize, usize),
+    /// Columns and rows added by mirror padding to reach the output size.
+    pub padded: (usize, usize),
+}
+
+/// The guide on the output grid at its own physical scale: resampled from its cell size to the
+/// exemplars' `cell` (patches are copied cell for cell), then, with `size`, cropped (centred)
+/// or mirror-padded to it ([`fit_to_size`]); without, the output covers the guide's ground and
+/// keeps its georeference. A guide whose extent exceeds [`crate::MAX_OUTPUT_CELLS`] at `cell` is
+/// cropped to the needed centre before the resampling (with `size`) or refused.
+pub fn fit_to_grid(
+    guide: &Heightfield,
+    cell: (f64, f64),
+    size: Option<(usize, usize)>,
+) -> Result<(Heightfield, GuideFit)> {
+    guide.require_complete()?;
+    check_cell(cell)?;
+    let (gx, gy) = guide.cell_size();
+    let (kx, ky) = (gx / cell.0, gy / cell.1);
+    let (rw, rh) = (
+        (guide.width() as f64 * kx).round().max(1.0),
+        (guide.height() as f64 * ky).round().max(1.0),
+    );
+    let mut g = std::borrow::Cow::Borrowed(guide);
+    if rw * rh > crate::synth::MAX_OUTPUT_CELLS as f64 {
+        let Some((w, h)) = size else {
+            return Err(PatchSynthError::InvalidControl {
+                name: "guide",
+                reason: format!(
+                    "it covers {rw} x {rh} cells of the exemplars' {:.2} x {:.2} m: give an \
+                     output size (or the guide's cell size)",
+                    cell.0, cell.1
+                ),
+            });
+        };
+        // Only the centre is used: crop it first (with a resampling margin).
+        let need = |n: usize, k: f64| ((n as f64 / k).ceil() as usize).saturating_add(4);
+        let (nw, nh) = (
+            need(w, kx).min(guide.width()),
+            need(h, ky).min(guide.height()),
+        );
+        g = std::borrow::Cow::Owned(guide.crop(
+            (guide.width() - nw) / 2,
+            (guide.height() - nh) / 2,
+            nw,
+            nh,
+        )?);
+    }
+    let g = to_cell_size(&g, cell)?;
+    let extent = (rw as usize, rh as usize);
+    let Some((w, h)) = size else {
+        return Ok((
+            g,
+            GuideFit {
+                extent,
+                ..Default::default()
+            },
+        ));
+    };
+    let (g2, fit) = fit_to_size(&g, w, h)?;
+    Ok((
+        g2,
+        GuideFit {
+            extent,
+            cropped: (extent.0.saturating_sub(w), extent.1.saturating_sub(h)),
+            padded: fit.padded,
+        },
+    ))
 }

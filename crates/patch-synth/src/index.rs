@@ -382,27 +382,41 @@ impl ExemplarIndex {
         }
         progress.begin("patch-synth: kd-trees", members.len() as u64);
         let kd = settings.pca_dims;
-        let buckets: Vec<Bucket> = members
+        // One task per (bucket, shape), largest first: the k-means buckets differ in size by
+        // an order of magnitude, and one task per bucket left a thread idle most of the phase.
+        let mut tasks: Vec<(usize, usize)> = (0..members.len())
+            .filter(|&b| !members[b].is_empty())
+            .flat_map(|b| (0..3).map(move |shape| (b, shape)))
+            .collect();
+        tasks.sort_by_key(|&(b, shape)| (std::cmp::Reverse(members[b].len()), b, shape));
+        let mut trees: Vec<(usize, usize, Tree)> = tasks
             .into_par_iter()
-            .map(|ids| {
-                let trees = if ids.is_empty() {
-                    Vec::new()
-                } else {
-                    (0..3)
-                        .map(|shape| {
-                            let mut pts = vec![0.0f32; ids.len() * kd];
-                            for (j, &pid) in ids.iter().enumerate() {
-                                let f = feat(pid as usize, shape);
-                                pcas[shape].project(&f, &mut pts[j * kd..(j + 1) * kd]);
-                            }
-                            Tree::build(&pts, kd)
-                        })
-                        .collect()
-                };
-                progress.advance(1);
+            .map(|(b, shape)| {
+                let ids = &members[b];
+                let mut pts = vec![0.0f32; ids.len() * kd];
+                for (j, &pid) in ids.iter().enumerate() {
+                    let f = feat(pid as usize, shape);
+                    pcas[shape].project(&f, &mut pts[j * kd..(j + 1) * kd]);
+                }
+                if shape == 2 {
+                    progress.advance(1);
+                }
+                (b, shape, Tree::build(&pts, kd))
+            })
+            .collect();
+        trees.sort_by_key(|t| (t.0, t.1));
+        let mut trees = trees.into_iter().peekable();
+        let buckets: Vec<Bucket> = members
+            .into_iter()
+            .enumerate()
+            .map(|(b, ids)| {
+                let mut t = Vec::new();
+                while let Some((_, _, tree)) = trees.next_if(|x| x.0 == b) {
+                    t.push(tree);
+                }
                 Bucket {
                     patches: ids,
-                    trees,
+                    trees: t,
                 }
             })
             .collect();

@@ -86,11 +86,13 @@
 //! ```
 #![warn(missing_docs)]
 
+mod block;
 mod category;
 mod cut;
 mod error;
 pub mod guide;
 mod index;
+pub mod job;
 pub mod kmeans;
 pub mod pca;
 pub mod quality;
@@ -101,8 +103,12 @@ mod validate;
 pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
 pub use cut::{Cut, min_error_cut};
 pub use error::{PatchSynthError, Result};
-pub use guide::{GuideRange, RangeMapping, SizeFit};
+pub use guide::{GuideFit, GuideRange, RangeMapping, SizeFit};
 pub use index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef};
+pub use job::{
+    GuideSetup, JobInputs, MemoryEstimate, PrepareFigures, QuiltFigures, QuiltJob, QuiltOutput,
+    ValidateJob, ValidateOutput,
+};
 pub use relief_heightfield::{NoProgress, Progress};
 pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};
 pub use synth::{

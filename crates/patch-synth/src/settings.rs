@@ -1,9 +1,12 @@
 //! Settings of the synthesis, validated once by [`Settings::check`].
 
+use serde::{Deserialize, Serialize};
+
 use crate::error::{PatchSynthError, Result};
 
 /// How the seam through an overlap region is found (section 3.3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CutMethod {
     /// Minimum-error boundary cut by dynamic programming (globally optimal path; the default).
     DynamicProgramming,
@@ -12,7 +15,8 @@ pub enum CutMethod {
 }
 
 /// How the transition across the seam is blended after the cut (section 3.3).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Blend {
     /// Plain cut and paste.
     None,
@@ -32,7 +36,8 @@ pub enum Blend {
 
 /// Parameters of the guided patch-based synthesis. Use as
 /// `Settings { patch_size: 48, ..Default::default() }`; [`Settings::check`] validates them once.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Settings {
     /// Side of the square patches in cells.
     pub patch_size: usize,
@@ -76,6 +81,12 @@ pub struct Settings {
     pub choice_tolerance: f32,
     /// Minimum number of candidate patches per guide block (section 4; the paper asks 500).
     pub min_candidates: usize,
+    /// When set, the validation asks for `min(min_candidates, ceil(share * patches))` with
+    /// `patches` the index's candidate patch count: 500 is 0.25 % of the 201,601 patches of
+    /// a 512 x 512 exemplar (patch 64) but 5 % of the ~10,000 of a 128 x 128 crop (patch 16),
+    /// where it fails blocks that have ample candidates for their size (`None`: the absolute
+    /// `min_candidates`).
+    pub min_candidates_share: Option<f32>,
     /// RMS tolerance in metres of the block-descriptor match counted by the validation; `None`
     /// uses 50 % of the guide's (or, without a guide, the exemplars') standard deviation.
     pub validation_tolerance: Option<f32>,
@@ -116,6 +127,7 @@ impl Default for Settings {
             survivors: 8,
             choice_tolerance: 0.05,
             min_candidates: 500,
+            min_candidates_share: None,
             validation_tolerance: None,
             enforce_validation: true,
             exemplar_stride: 1,
@@ -252,6 +264,15 @@ impl Settings {
                 "must be finite and >= 0",
             ));
         }
+        if let Some(f) = self.min_candidates_share
+            && !(f.is_finite() && f > 0.0 && f <= 1.0)
+        {
+            return Err(PatchSynthError::setting(
+                "min_candidates_share",
+                f,
+                "must be in (0, 1]",
+            ));
+        }
         if let Some(t) = self.validation_tolerance
             && !(t.is_finite() && t > 0.0)
         {
@@ -279,6 +300,17 @@ impl Settings {
             _ => {}
         }
         Ok(())
+    }
+
+    /// Candidates per guide block the validation asks for, out of `patches` candidate patches
+    /// (see [`Settings::min_candidates_share`]).
+    pub fn required_candidates(&self, patches: usize) -> usize {
+        match self.min_candidates_share {
+            Some(f) => self
+                .min_candidates
+                .min(((f as f64 * patches as f64).ceil() as usize).max(1)),
+            None => self.min_candidates,
+        }
     }
 
     /// Step between patch origins on the synthesis grid (`patch_size - overlap`).

@@ -1,15 +1,14 @@
 //! Raster-order synthesis over an overlapping grid (sections 3.2 to 3.4).
 
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
-use rayon::prelude::*;
 use relief_heightfield::{Heightfield, Progress};
 
+use crate::block::{self, Block, Canvas, Shared};
 use crate::category::{ANY_CATEGORY, CategoryMap};
-use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
-use crate::index::{Exemplar, ExemplarIndex, OverlapShape, PatchRef, features, grid_rects};
-use crate::settings::{Blend, Settings};
+use crate::index::{Exemplar, ExemplarIndex, PatchRef, grid_rects};
+use crate::settings::Settings;
 use crate::validate::validate;
 
 /// Largest output a synthesis accepts (`width * height`, 2^28 cells: the working canvases then
@@ -126,6 +125,30 @@ pub struct SeamMap {
     pub source: Vec<u32>,
 }
 
+impl SeamMap {
+    /// RGB image (row-major, 3 bytes a cell): one muted colour per patch (a fixed hash of its
+    /// placement index, so neighbours differ), seam cells white, unfilled cells black.
+    pub fn rgb(&self) -> Vec<u8> {
+        let mut rgb = Vec::with_capacity(self.width * self.height * 3);
+        for (&src, &seam) in self.source.iter().zip(&self.seam) {
+            if seam {
+                rgb.extend_from_slice(&[255, 255, 255]);
+            } else if src == u32::MAX {
+                rgb.extend_from_slice(&[0, 0, 0]);
+            } else {
+                let mut z = (src as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                z ^= z >> 29;
+                rgb.extend_from_slice(&[
+                    60 + (z & 0x7f) as u8,
+                    60 + ((z >> 8) & 0x7f) as u8,
+                    60 + ((z >> 16) & 0x7f) as u8,
+                ]);
+            }
+        }
+        rgb
+    }
+}
+
 /// One inserted patch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Placement {
@@ -195,7 +218,7 @@ pub struct Synthesis {
     pub stats: SynthesisStats,
 }
 
-fn smoothstep(t: f32) -> f32 {
+pub(crate) fn smoothstep(t: f32) -> f32 {
     let t = t.clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
 }
@@ -265,15 +288,6 @@ pub(crate) fn allowed_categories(
     allowed
 }
 
-struct Scored {
-    id: u32,
-    h: f32,
-    rejected: bool,
-    g: f32,
-    o: f32,
-    s1: f32,
-}
-
 /// Synthesizes a terrain from the preprocessed exemplars under `control` (sections 3.2-3.4).
 ///
 /// Blocks are visited in raster order; at each block the candidates are scored in parallel and
@@ -308,17 +322,23 @@ pub fn synthesize(
         .categories
         .as_ref()
         .map(|m| pad(&m.ids, w, h, cw, ch));
-    let ncat = index.categories.len();
-    let nblocks = settings.blocks;
-    let block_rects = grid_rects(p, nblocks);
+    let block_rects = grid_rects(p, settings.blocks);
     let guide_rects = grid_rects(p, settings.guide_cells);
-    let margin = o / 4;
-    let (alpha, beta, gamma) = (settings.alpha, settings.beta, settings.gamma);
-
-    let mut canvas = vec![0.0f32; cw * ch];
-    let mut filled = vec![false; cw * ch];
-    let mut seam = vec![false; cw * ch];
-    let mut source = vec![u32::MAX; cw * ch];
+    let sh = Shared {
+        index,
+        settings,
+        guide: guide.as_deref(),
+        block_rects: &block_rects,
+        guide_rects: &guide_rects,
+    };
+    let mut cv = Canvas {
+        values: vec![0.0f32; cw * ch],
+        filled: vec![false; cw * ch],
+        seam: vec![false; cw * ch],
+        source: vec![u32::MAX; cw * ch],
+        cw,
+        ch,
+    };
     let mut placements = Vec::with_capacity(nx * ny);
     let mut stats = SynthesisStats {
         grid: (nx, ny),
@@ -330,10 +350,18 @@ pub fn synthesize(
 
     for gy in 0..ny {
         for gx in 0..nx {
-            let (x0, y0) = (gx * s, gy * s);
-            let (has_left, has_top) = (gx > 0, gy > 0);
+            let b = Block {
+                gx,
+                gy,
+                x0: gx * s,
+                y0: gy * s,
+                p,
+                o,
+                has_left: gx > 0,
+                has_top: gy > 0,
+            };
             let mut rng = Pcg64Mcg::seed_from_u64(block_seed(settings.seed, gx as u64, gy as u64));
-            let allowed = allowed_categories(index, cmap.as_deref(), cw, x0, y0, p);
+            let allowed = allowed_categories(index, cmap.as_deref(), cw, b.x0, b.y0, p);
             if !allowed.iter().any(|&a| a) {
                 return Err(PatchSynthError::NoCandidates {
                     gx,
@@ -341,387 +369,20 @@ pub fn synthesize(
                     reason: "the categorisation map names no category of the exemplar set".into(),
                 });
             }
-            // Overlap cells: rows < o take the whole width when a top neighbour exists, the
-            // other rows the first o columns when a left neighbour exists.
-            let ov_cols = |r: usize| -> usize {
-                if has_top && r < o {
-                    p
-                } else if has_left {
-                    o
-                } else {
-                    0
-                }
-            };
-            let n_overlap: usize = (0..p).map(ov_cols).sum();
-            let target = |r: usize, c: usize| canvas[(y0 + r) * cw + x0 + c];
-
-            // Cluster order by closeness of the target descriptor (section 3.2).
-            let k = index.clusters.k();
-            let dim = nblocks * nblocks;
-            let target_desc: Option<Vec<f32>> = guide.as_ref().map(|g| {
-                block_rects
-                    .iter()
-                    .map(|r| window_mean(g, cw, x0 + r[0], y0 + r[1], r[2], r[3]))
-                    .collect()
-            });
-            let mut order: Vec<(f32, usize)> = if let Some(d) = &target_desc {
-                // After the vertical translation of equation (3), as the validation and the
-                // guide candidates compare descriptors.
-                (0..k)
-                    .map(|c| {
-                        (
-                            translated_dist2(d, index.clusters.centroid(c), settings.lambda),
-                            c,
-                        )
-                    })
-                    .collect()
-            } else if n_overlap > 0 {
-                // Unguided: compare on the blocks that hold synthesized cells only.
-                let mut d = Vec::with_capacity(dim);
-                for r in &block_rects {
-                    let (mut sum, mut n) = (0.0f64, 0usize);
-                    for y in r[1]..r[1] + r[3] {
-                        for x in r[0]..r[0] + r[2] {
-                            if filled[(y0 + y) * cw + x0 + x] {
-                                sum += canvas[(y0 + y) * cw + x0 + x] as f64;
-                                n += 1;
-                            }
-                        }
-                    }
-                    d.push((n > 0).then(|| (sum / n as f64) as f32));
-                }
-                (0..k)
-                    .map(|c| {
-                        let cen = index.clusters.centroid(c);
-                        let e: f32 = d
-                            .iter()
-                            .zip(cen)
-                            .filter_map(|(a, b)| a.map(|a| (a - b) * (a - b)))
-                            .sum();
-                        (e, c)
-                    })
-                    .collect()
-            } else {
-                (0..k).map(|c| (rng.random::<f32>(), c)).collect()
-            };
-            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let mut probed = Vec::new();
-            let mut gathered = 0usize;
-            for &(_, c) in &order {
-                for (ci, &ok) in allowed.iter().enumerate() {
-                    let b = c * ncat + ci;
-                    if ok && !index.buckets[b].patches.is_empty() {
-                        gathered += index.buckets[b].patches.len();
-                        probed.push(b);
-                    }
-                }
-                if gathered >= settings.probe_candidates {
-                    break;
-                }
-            }
-            if probed.is_empty() {
-                return Err(PatchSynthError::NoCandidates {
-                    gx,
-                    gy,
-                    reason: "no exemplar patch of an allowed category".into(),
-                });
-            }
+            let target_desc = block::target_descriptor(&sh, &cv, &b);
+            let order = block::cluster_order(&sh, &cv, &b, target_desc.as_deref(), &mut rng);
+            let probed = block::probe_buckets(&sh, &b, &order, &allowed)?;
             buckets_probed += probed.len();
-
-            // Candidates: kd-tree nearest neighbours of the PCA-reduced overlap (section 3.5),
-            // or every probed patch for the first block.
-            let shape = match (has_left, has_top) {
-                (true, false) => Some(0),
-                (false, true) => Some(1),
-                (true, true) => Some(2),
-                (false, false) => None,
-            };
-            let mut cands: Vec<u32> = match shape {
-                Some(sh) => {
-                    let f = features(&index.layouts.rects[sh], |x, y, ww, hh| {
-                        window_mean(&canvas, cw, x0 + x, y0 + y, ww, hh)
-                    });
-                    let mut q = vec![0.0f32; settings.pca_dims];
-                    index.pcas[sh].project(&f, &mut q);
-                    let shape = [OverlapShape::Left, OverlapShape::Top, OverlapShape::Both][sh];
-                    let fetch = settings.knn.saturating_mul(settings.rerank);
-                    probed
-                        .par_iter()
-                        .flat_map_iter(|&b| {
-                            let bucket = &index.buckets[b];
-                            let mut near: Vec<(f32, u32)> = bucket.trees[sh]
-                                .nearest(&q, fetch)
-                                .into_iter()
-                                .map(|(_, item)| {
-                                    let id = bucket.patches[item as usize];
-                                    (index.overlap_error(id as usize, shape, target), id)
-                                })
-                                .collect();
-                            if settings.rerank > 1 {
-                                near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                                near.truncate(settings.knn);
-                            }
-                            near.into_iter().map(|v| v.1)
-                        })
-                        .collect()
-                }
-                None => probed
-                    .iter()
-                    .flat_map(|&b| index.buckets[b].patches.iter().copied())
-                    .collect(),
-            };
-            // With a guide and an overlap, the patches of the probed buckets whose block
-            // descriptors are closest to the guide's (after the translation of equation 3)
-            // join the overlap neighbours, so that G and O both have good candidates.
-            if let (Some(dg), Some(_)) = (&target_desc, shape) {
-                let lambda = settings.lambda;
-                let mut by_guide: Vec<(f32, u32)> = probed
-                    .iter()
-                    .flat_map(|&b| index.buckets[b].patches.iter().copied())
-                    .map(|id| {
-                        let d = index.descriptor(id as usize);
-                        (translated_dist2(dg, d, lambda), id)
-                    })
-                    .collect();
-                let keep = (settings.knn * probed.len()).min(by_guide.len());
-                if keep > 0 && keep < by_guide.len() {
-                    by_guide.select_nth_unstable_by(keep - 1, |a, b| {
-                        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
-                    });
-                }
-                cands.extend(by_guide[..keep].iter().map(|v| v.1));
-            }
-            cands.sort_unstable();
-            cands.dedup();
-            if guide.is_none() && shape.is_none() && !cands.is_empty() {
-                // Unguided first block: nothing to compare with, so a seeded random patch.
-                cands = vec![cands[rng.random_range(0..cands.len())]];
-            }
-
-            // Guide cell means of the block (for G) and its mean (for h without overlap).
-            let gcells: Option<Vec<f32>> = guide.as_ref().map(|g| {
-                guide_rects
-                    .iter()
-                    .map(|r| window_mean(g, cw, x0 + r[0], y0 + r[1], r[2], r[3]))
-                    .collect()
-            });
-            let gmean = guide.as_ref().map(|g| window_mean(g, cw, x0, y0, p, p));
-
-            // Step 1: alpha G + beta O for every candidate (parallel, order-preserving).
-            let mut scored: Vec<Scored> = cands
-                .par_iter()
-                .map(|&id| {
-                    let idu = id as usize;
-                    let mut hsum = 0.0f64;
-                    if n_overlap > 0 {
-                        for r in 0..p {
-                            let nc = ov_cols(r);
-                            if nc == 0 {
-                                continue;
-                            }
-                            let row = index.row(idu, r);
-                            for c in 0..nc {
-                                hsum += (target(r, c) - row[c]) as f64;
-                            }
-                        }
-                    }
-                    // Equation (3): mean difference over the compared block.
-                    let mut hv = if n_overlap > 0 {
-                        (hsum / n_overlap as f64) as f32
-                    } else if let Some(gm) = gmean {
-                        gm - index.box_mean(idu, 0, 0, p, p)
-                    } else {
-                        0.0
-                    };
-                    let rejected = hv.abs() > settings.lambda;
-                    if rejected {
-                        hv = 0.0;
-                    }
-                    let ov = if n_overlap > 0 {
-                        let mut e = 0.0f64;
-                        for r in 0..p {
-                            let nc = ov_cols(r);
-                            let row = index.row(idu, r);
-                            for c in 0..nc {
-                                let d = (row[c] + hv - target(r, c)) as f64;
-                                e += d * d;
-                            }
-                        }
-                        (e / n_overlap as f64).sqrt() as f32
-                    } else {
-                        0.0
-                    };
-                    let g = gcells.as_ref().map_or(0.0, |gc| {
-                        let e: f64 = guide_rects
-                            .iter()
-                            .zip(gc)
-                            .map(|(r, &gv)| {
-                                let d =
-                                    (index.box_mean(idu, r[0], r[1], r[2], r[3]) + hv - gv) as f64;
-                                d * d
-                            })
-                            .sum();
-                        (e / guide_rects.len() as f64).sqrt() as f32
-                    });
-                    Scored {
-                        id,
-                        h: hv,
-                        rejected,
-                        g,
-                        o: ov,
-                        s1: alpha * g + beta * ov,
-                    }
-                })
-                .collect();
-            scored.sort_by(|a, b| a.s1.total_cmp(&b.s1).then(a.id.cmp(&b.id)));
+            let cands = block::candidates(&sh, &cv, &b, &probed, target_desc.as_deref(), &mut rng);
+            let mut scored = block::score(&sh, &cv, &b, &cands);
             let ncand = scored.len();
             scored.truncate(settings.survivors);
-
-            // Step 2: the cut for the survivors only, then M = alpha G + beta O + gamma P.
-            let cuts: Vec<(Vec<usize>, Vec<usize>, f32)> = scored
-                .par_iter()
-                .map(|sc| {
-                    let idu = sc.id as usize;
-                    let err = |r: usize, c: usize| {
-                        let d = index.row(idu, r)[c] + sc.h - target(r, c);
-                        d * d
-                    };
-                    let (mut cost, mut len) = (0.0f64, 0usize);
-                    // One strip's cut: `transposed` walks the top strip with patch columns as
-                    // rows, so both strips share the same DP over a p x o error table.
-                    let mut strip_cut = |present: bool, transposed: bool| {
-                        if !present {
-                            return Vec::new();
-                        }
-                        let e: Vec<f32> = (0..p)
-                            .flat_map(|i| {
-                                (0..o).map(move |j| if transposed { (j, i) } else { (i, j) })
-                            })
-                            .map(|(r, c)| err(r, c))
-                            .collect();
-                        let cut = seam_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
-                        cost += cut.cost;
-                        len += p;
-                        cut.path
-                    };
-                    let left = strip_cut(has_left, false);
-                    let top = strip_cut(has_top, true);
-                    let pc = if len > 0 {
-                        (cost / len as f64).sqrt() as f32
-                    } else {
-                        0.0
-                    };
-                    (left, top, pc)
-                })
-                .collect();
-            let energies: Vec<f32> = scored
-                .iter()
-                .zip(&cuts)
-                .map(|(sc, cut)| sc.s1 + gamma * cut.2)
-                .collect();
-            let best = energies.iter().copied().fold(f32::INFINITY, f32::min);
-            let limit = best * (1.0 + settings.choice_tolerance) + 1e-6;
-            let near: Vec<usize> = (0..energies.len())
-                .filter(|&i| energies[i] <= limit)
-                .collect();
-            let pick = near[rng.random_range(0..near.len())];
+            let cuts = block::cut_survivors(&sh, &cv, &b, &scored);
+            let (pick, energies) = block::choose(settings, &scored, &cuts, &mut rng);
             let sc = &scored[pick];
-            let (left, top, pcost) = &cuts[pick];
-            let idu = sc.id as usize;
-
-            // Insertion: cut mask, composite, blending.
-            let is_new =
-                |r: usize, c: usize| (!has_left || c >= left[r]) && (!has_top || r >= top[c]);
-            let nv = |r: usize, c: usize| index.row(idu, r)[c] + sc.h;
-            let mut out = vec![0.0f32; p * p];
-            for r in 0..p {
-                let nc = ov_cols(r);
-                for c in 0..p {
-                    out[r * p + c] = if c < nc && !is_new(r, c) {
-                        target(r, c)
-                    } else {
-                        nv(r, c)
-                    };
-                }
-            }
-            match settings.blend {
-                Blend::None => {}
-                Blend::Feather { radius } => {
-                    for r in 0..p {
-                        for c in 0..ov_cols(r) {
-                            let wl = if has_left {
-                                smoothstep(
-                                    (c as f32 + 0.5 - left[r] as f32 + radius) / (2.0 * radius),
-                                )
-                            } else {
-                                1.0
-                            };
-                            let wt = if has_top {
-                                smoothstep(
-                                    (r as f32 + 0.5 - top[c] as f32 + radius) / (2.0 * radius),
-                                )
-                            } else {
-                                1.0
-                            };
-                            let wgt = wl * wt;
-                            out[r * p + c] = wgt * nv(r, c) + (1.0 - wgt) * target(r, c);
-                        }
-                    }
-                }
-                Blend::Poisson { max_iterations } => {
-                    if n_overlap > 0 {
-                        poisson_iters += poisson_blend(
-                            &mut out,
-                            PoissonInput {
-                                p,
-                                ov_cols: &ov_cols,
-                                is_new: &is_new,
-                                nv: &nv,
-                                old: &target,
-                                outside: &|x: isize, y: isize| {
-                                    let (ax, ay) = (x0 as isize + x, y0 as isize + y);
-                                    if ax < 0 || ay < 0 || ax >= cw as isize || ay >= ch as isize {
-                                        return None;
-                                    }
-                                    let i = ay as usize * cw + ax as usize;
-                                    filled[i].then_some(canvas[i])
-                                },
-                            },
-                            max_iterations,
-                        );
-                    }
-                }
-            }
             let pi = placements.len() as u32;
-            for r in 0..p {
-                let nc = ov_cols(r);
-                for c in 0..p {
-                    let i = (y0 + r) * cw + x0 + c;
-                    canvas[i] = out[r * p + c];
-                    filled[i] = true;
-                    if c >= nc || is_new(r, c) {
-                        source[i] = pi;
-                    }
-                }
-            }
-            for (r, &c) in left.iter().enumerate() {
-                seam[(y0 + r) * cw + x0 + c] = true;
-            }
-            for (c, &r) in top.iter().enumerate() {
-                seam[(y0 + r) * cw + x0 + c] = true;
-            }
-            if settings.crease_passes > 0 && n_overlap > 0 {
-                smooth_crease(
-                    &mut canvas,
-                    &filled,
-                    cw,
-                    ch,
-                    (x0, y0),
-                    left,
-                    top,
-                    settings.crease_passes,
-                );
-            }
+            poisson_iters += block::insert(&sh, &mut cv, &b, sc, &cuts[pick], pi);
+            let pcost = cuts[pick].2;
             if sc.rejected {
                 stats.translations_rejected += 1;
             } else if sc.h != 0.0 {
@@ -731,18 +392,18 @@ pub fn synthesize(
             stats.mean_candidates += ncand as f64;
             stats.mean_guide_distance += sc.g as f64;
             stats.mean_overlap_distance += sc.o as f64;
-            stats.mean_cut_cost += *pcost as f64;
+            stats.mean_cut_cost += pcost as f64;
             placements.push(Placement {
                 gx,
                 gy,
-                x: x0,
-                y: y0,
-                patch: index.patches[idu],
+                x: b.x0,
+                y: b.y0,
+                patch: index.patches[sc.id as usize],
                 translation: sc.h,
                 translation_rejected: sc.rejected,
                 guide_distance: sc.g,
                 overlap_distance: sc.o,
-                cut_cost: *pcost,
+                cut_cost: pcost,
                 energy: energies[pick],
                 candidates: ncand,
             });
@@ -767,7 +428,7 @@ pub fn synthesize(
         || index.exemplars[0].heightfield.cell_size(),
         |g| g.cell_size(),
     );
-    let mut hf = Heightfield::new(w, h, crop(&canvas), cx, cy)?;
+    let mut hf = Heightfield::new(w, h, crop(&cv.values), cx, cy)?;
     if let Some(g) = &control.guide {
         hf.set_georef(g.georef().cloned());
     }
@@ -775,10 +436,10 @@ pub fn synthesize(
         width: w,
         height: h,
         seam: (0..h)
-            .flat_map(|y| seam[y * cw..y * cw + w].iter().copied())
+            .flat_map(|y| cv.seam[y * cw..y * cw + w].iter().copied())
             .collect(),
         source: (0..h)
-            .flat_map(|y| source[y * cw..y * cw + w].iter().copied())
+            .flat_map(|y| cv.source[y * cw..y * cw + w].iter().copied())
             .collect(),
     };
     Ok(Synthesis {
@@ -833,7 +494,7 @@ const CREASE_WEIGHT: f32 = 0.35;
 /// `passes` times (Jacobi, so the result does not depend on the visiting order). Neighbours
 /// outside the canvas or not yet synthesized are skipped.
 #[allow(clippy::too_many_arguments)]
-fn smooth_crease(
+pub(crate) fn smooth_crease(
     canvas: &mut [f32],
     filled: &[bool],
     cw: usize,
@@ -884,14 +545,14 @@ fn smooth_crease(
     }
 }
 
-struct PoissonInput<'a> {
-    p: usize,
-    ov_cols: &'a dyn Fn(usize) -> usize,
-    is_new: &'a dyn Fn(usize, usize) -> bool,
-    nv: &'a dyn Fn(usize, usize) -> f32,
-    old: &'a dyn Fn(usize, usize) -> f32,
+pub(crate) struct PoissonInput<'a> {
+    pub(crate) p: usize,
+    pub(crate) ov_cols: &'a dyn Fn(usize) -> usize,
+    pub(crate) is_new: &'a dyn Fn(usize, usize) -> bool,
+    pub(crate) nv: &'a dyn Fn(usize, usize) -> f32,
+    pub(crate) old: &'a dyn Fn(usize, usize) -> f32,
     /// Value of an already synthesized cell outside the patch (patch-local coordinates).
-    outside: &'a dyn Fn(isize, isize) -> Option<f32>,
+    pub(crate) outside: &'a dyn Fn(isize, isize) -> Option<f32>,
 }
 
 /// Poisson blending of the overlap region (Zhou et al. 2007, as cited in section 3.3): solves
@@ -900,7 +561,11 @@ struct PoissonInput<'a> {
 /// the patch interior and the surrounding synthesized terrain are Dirichlet boundaries, cells
 /// not yet synthesized are Neumann. Conjugate gradients, started from the cut-and-paste values.
 /// Returns the iterations used.
-fn poisson_blend(out: &mut [f32], inp: PoissonInput<'_>, max_iterations: usize) -> usize {
+pub(crate) fn poisson_blend(
+    out: &mut [f32],
+    inp: PoissonInput<'_>,
+    max_iterations: usize,
+) -> usize {
     let p = inp.p;
     let mut idx = vec![usize::MAX; p * p];
     let mut cells = Vec::new();

@@ -69,6 +69,9 @@ pub struct ValidationReport {
     pub uncovered: Vec<(usize, usize)>,
     /// Exemplar compatibility (unguided validation only).
     pub compatibility: Vec<ExemplarCompatibility>,
+    /// What would make a failing validation pass (set by the job layer, e.g. a guide height
+    /// mapping that passes), printed after the report.
+    pub suggestion: Option<String>,
 }
 
 impl std::fmt::Display for ValidationReport {
@@ -130,6 +133,9 @@ impl std::fmt::Display for ValidationReport {
                     bad.join("; ")
                 }
             )?;
+        }
+        if let Some(h) = &self.suggestion {
+            write!(f, "; {h}")?;
         }
         Ok(())
     }
@@ -216,6 +222,7 @@ pub fn validate(
             )
         });
         let step = o.max(1);
+        let min_needed = settings.required_candidates(index.patches.len());
         let compatibility: Vec<ExemplarCompatibility> = (0..ne)
             .into_par_iter()
             .map(|e| {
@@ -261,13 +268,13 @@ pub fn validate(
                     checked: own.len(),
                     compatible,
                     estimated_compatible: est,
-                    ok: est >= settings.min_candidates,
+                    ok: est >= min_needed,
                 }
             })
             .collect();
         return Ok(ValidationReport {
             ok: compatibility.iter().all(|c| c.ok),
-            min_candidates: settings.min_candidates,
+            min_candidates: min_needed,
             tolerance: tol,
             grid: (grid.nx, grid.ny),
             blocks: Vec::new(),
@@ -277,6 +284,7 @@ pub fn validate(
             cover: (0..ne).collect(),
             uncovered: Vec::new(),
             compatibility,
+            suggestion: None,
         });
     };
     let tol = settings
@@ -323,7 +331,7 @@ pub fn validate(
             }
         })
         .collect();
-    let min = settings.min_candidates;
+    let min = settings.required_candidates(index.patches.len());
     let failing: Vec<usize> = (0..blocks.len())
         .filter(|&i| blocks[i].candidates < min)
         .collect();
@@ -380,5 +388,6 @@ pub fn validate(
         cover,
         uncovered,
         compatibility: Vec::new(),
+        suggestion: None,
     })
 }

@@ -153,6 +153,8 @@ fn settings() -> impl Strategy<Value = Settings> {
             survivors,
             choice_tolerance,
             min_candidates,
+            // Sometimes set, sometimes out of (0, 1] (checked).
+            min_candidates_share: (seed % 3 == 0).then(|| (seed % 100) as f32 / 50.0 - 0.5),
             validation_tolerance,
             enforce_validation,
             exemplar_stride,
@@ -242,6 +244,7 @@ fn valid_settings() -> impl Strategy<Value = Settings> {
             survivors,
             choice_tolerance,
             min_candidates,
+            min_candidates_share: None,
             validation_tolerance,
             enforce_validation,
             exemplar_stride,

@@ -6,12 +6,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, Blend, CategoryMap, Control, CutMethod, Exemplar, ExemplarIndex, GuideRange,
-    RangeMapping, Settings, Synthesis, ValidationReport, categorize_exemplars, guide, synthesize,
-    validate,
+    Blend, CutMethod, GuideRange, GuideSetup, JobInputs, PatchSynthError, PrepareFigures, QuiltJob,
+    Settings, ValidateJob,
 };
 
 use crate::ctx::Ctx;
@@ -48,8 +46,8 @@ pub(crate) struct SynthArgs {
     /// range of the exemplar patches' means, narrowed or shifted (a few fixed tries) until the
     /// input validation passes; `LO,HI`: onto LO..HI metres. Default: the guide's heights as
     /// they are (a failing validation says when `auto` would pass).
-    #[arg(long, value_name = "auto|LO,HI", allow_hyphen_values = true)]
-    pub(crate) guide_range: Option<String>,
+    #[arg(long, value_name = "auto|LO,HI", allow_hyphen_values = true, value_parser = parse_guide_range)]
+    pub(crate) guide_range: Option<GuideRange>,
     /// Also write the guide exactly as used (at the exemplars' cell size, cropped or padded to
     /// the output size, low-passed and mapped).
     #[arg(long, value_name = "FILE")]
@@ -66,23 +64,23 @@ pub(crate) struct SynthArgs {
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
     /// Patch side in cells.
-    #[arg(long = "patch-size", alias = "patch", default_value_t = 64)]
+    #[arg(long = "patch-size", alias = "patch", default_value_t = Settings::default().patch_size)]
     pub(crate) patch: usize,
     /// Overlap between neighbouring patches in cells (< patch / 2).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = Settings::default().overlap)]
     pub(crate) overlap: usize,
     /// Seed of every random choice (same seed, same output bytes).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = Settings::default().seed)]
     pub(crate) seed: u64,
     /// Minimum candidate patches per guide block for the input validation (section 4).
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = Settings::default().min_candidates)]
     pub(crate) min_candidates: usize,
     /// RMS tolerance in metres of a block match counted by the validation (default: half the
     /// guide's standard deviation).
     #[arg(long, value_name = "METRES")]
     pub(crate) tolerance: Option<f32>,
     /// Largest vertical translation of a patch in metres (section 3.4).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = Settings::default().lambda)]
     pub(crate) lambda: f32,
     /// Weight of the guide distance G in the patch energy M = alpha G + beta O + gamma P
     /// (equation 1).
@@ -95,10 +93,45 @@ pub(crate) struct SynthArgs {
     #[arg(long, default_value_t = Settings::default().gamma)]
     pub(crate) gamma: f32,
     /// Exemplar patches are taken every STRIDE cells (1 = every position).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = Settings::default().exemplar_stride)]
     pub(crate) stride: usize,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
+}
+
+/// `--guide-range` value parser: `auto` or `LO,HI` metres.
+fn parse_guide_range(spec: &str) -> std::result::Result<GuideRange, String> {
+    if spec.trim().eq_ignore_ascii_case("auto") {
+        return Ok(GuideRange::Auto);
+    }
+    let (lo, hi) = crate::ctx::parse_height_range(spec).map_err(|e| format!("{e} (or auto)"))?;
+    Ok(GuideRange::Metres(lo as f32, hi as f32))
+}
+
+/// True for a PNG read as raw grey counts (no relief vertical mapping): whole numbers that fit
+/// 16 bits, which are grey levels rather than metres.
+fn png_counts(path: &Path, g: &Heightfield) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        && g.as_slice()
+            .iter()
+            .all(|&v| !v.is_finite() || (v.fract() == 0.0 && (0.0..=65535.0).contains(&v)))
+}
+
+/// Parses `WxH` or `N`.
+pub(crate) fn parse_size(s: &str) -> Result<(usize, usize)> {
+    let num = |t: &str| -> Result<usize> {
+        t.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&v| v > 0)
+            .with_context(|| format!("invalid --size `{s}`: expected WxH with positive integers"))
+    };
+    match s.split_once(['x', 'X']) {
+        Some((w, h)) => Ok((num(w)?, num(h)?)),
+        None => num(s).map(|v| (v, v)),
+    }
 }
 
 impl SynthArgs {
@@ -119,111 +152,183 @@ impl SynthArgs {
             .into_iter()
             .collect()
     }
-}
 
-/// Largest guide grid accepted without `--size` (cells at the exemplars' cell size).
-const MAX_GUIDE_CELLS: usize = 1 << 26;
-
-/// The guide on the output grid, at its own physical scale: resampled from its cell size (or
-/// `--guide-cell-size`) to the exemplars' (patches are copied cell for cell), then, with
-/// `--size`, cropped (centred, with a note) or mirror-padded to that size; without, the output
-/// covers the guide's ground and keeps its georeference.
-fn fit_guide(
-    mut g: Heightfield,
-    size: Option<(usize, usize)>,
-    cell: (f64, f64),
-    guide_cell: Option<(f64, f64)>,
-    path: &Path,
-    ctx: &Ctx,
-) -> Result<Heightfield> {
-    if let Some((cx, cy)) = guide_cell {
-        g.set_cell_size(cx, cy)?;
+    /// The validation job these flags describe (library defaults where a flag is absent).
+    pub(crate) fn job(&self) -> Result<ValidateJob> {
+        if self.exemplars.is_empty() {
+            bail!("no exemplar: give at least one --exemplar DEM");
+        }
+        if self.guide.is_some() && self.guide_from.is_some() {
+            bail!("give either --guide or --guide-from, not both");
+        }
+        if self.guide_from.is_some() != self.blur.is_some() {
+            bail!("--guide-from DEM and --blur SIGMA go together");
+        }
+        let exemplar_categories = self
+            .exemplar_categories
+            .as_deref()
+            .map(|list| {
+                list.split(',')
+                    .map(|t| {
+                        t.trim().parse::<u16>().with_context(|| {
+                            format!("invalid --exemplar-categories `{list}`: `{t}` is not 0..65535")
+                        })
+                    })
+                    .collect::<Result<Vec<u16>>>()
+            })
+            .transpose()?;
+        let job = ValidateJob {
+            settings: Settings {
+                patch_size: self.patch,
+                overlap: self.overlap,
+                seed: self.seed,
+                min_candidates: self.min_candidates,
+                validation_tolerance: self.tolerance,
+                lambda: self.lambda,
+                alpha: self.alpha,
+                beta: self.beta,
+                gamma: self.gamma,
+                exemplar_stride: self.stride,
+                ..Settings::default()
+            },
+            size: self.size.as_deref().map(parse_size).transpose()?,
+            guide: GuideSetup {
+                cell_size: self.guide_cell_size,
+                blur: self.blur,
+                range: self.guide_range,
+            },
+            exemplar_categories,
+            auto_categories: self.auto_categories,
+        };
+        job.check().context("invalid synthesis settings")?;
+        Ok(job)
     }
-    let (gx, gy) = g.cell_size();
-    let (kx, ky) = (gx / cell.0, gy / cell.1);
-    // The guide's extent in the exemplars' cells.
-    let (rw, rh) = (
-        (g.width() as f64 * kx).round().max(1.0),
-        (g.height() as f64 * ky).round().max(1.0),
-    );
-    if rw * rh > MAX_GUIDE_CELLS as f64 {
-        match size {
-            // Only the centre is used: crop it first (with a resampling margin) so that the
-            // resampling stays within the output's size.
-            Some((w, h)) => {
-                let need = |n: usize, k: f64| ((n as f64 / k).ceil() as usize).saturating_add(4);
-                let (nw, nh) = (need(w, kx).min(g.width()), need(h, ky).min(g.height()));
-                g = g.crop((g.width() - nw) / 2, (g.height() - nh) / 2, nw, nh)?;
+
+    /// Reads the exemplars, the guide (refusing a grey-level PNG without `--guide-range`) and
+    /// the categorisation map (raw grey counts).
+    pub(crate) fn inputs(&self, ctx: &Ctx) -> Result<JobInputs> {
+        let read = |path: &Path, what: &str| -> Result<Heightfield> {
+            Ok(super::read_raster(path, &self.read, ctx)
+                .with_context(|| format!("{what} {}", path.display()))?
+                .heightfield)
+        };
+        let mut inputs = JobInputs::default();
+        for p in &self.exemplars {
+            inputs.exemplars.push(read(p, "exemplar")?);
+        }
+        if let Some(path) = self.guide.as_deref().or(self.guide_from.as_deref()) {
+            let g = read(path, "guide")?;
+            if self.guide_range.is_none() && png_counts(path, &g) {
+                bail!(
+                    "guide {}: a PNG of grey levels (no relief vertical mapping) holds no \
+                     heights; give --guide-range auto (the exemplars' heights) or LO,HI (metres)",
+                    path.display()
+                );
             }
-            None => bail!(
-                "guide {} covers {rw} x {rh} cells of the exemplars' {:.2} x {:.2} m: give \
-                 --size WxH{}",
-                path.display(),
-                cell.0,
-                cell.1,
-                if guide_cell.is_none() {
-                    " or the guide's --guide-cell-size"
-                } else {
-                    ""
-                }
-            ),
+            inputs.guide = Some(g);
+        }
+        if let Some(path) = &self.categories {
+            let opts = relief_io::ReadOptions {
+                png: relief_io::PngMode::Grey {
+                    offset: 0.0,
+                    scale: 1.0,
+                },
+                ..Default::default()
+            };
+            let map = relief_io::read(path, &opts)
+                .with_context(|| format!("cannot read categorisation map {}", path.display()))?;
+            inputs.categories = Some(map.heightfield);
+        }
+        Ok(inputs)
+    }
+
+    /// Pre-flight memory check (issue 18) of the job on these inputs.
+    pub(crate) fn preflight(&self, job: &ValidateJob, inputs: &JobInputs, ctx: &Ctx) -> Result<()> {
+        use crate::memory::part;
+        let m = job.memory(inputs)?;
+        ctx.check_memory(
+            "quilt",
+            &[&[
+                part(
+                    format!("the index of {} exemplar patches", m.candidates),
+                    m.index_bytes,
+                    "smaller (or fewer) --exemplar files, or a larger --stride",
+                ),
+                part(
+                    format!("the {} x {} output canvases", m.output.0, m.output.1),
+                    m.output_bytes,
+                    "a smaller --size (or guide)",
+                ),
+            ]],
+        )
+    }
+
+    /// An error of the job with the exemplar's or guide's path named.
+    pub(crate) fn job_error(&self, e: PatchSynthError) -> anyhow::Error {
+        let what = match &e {
+            PatchSynthError::BadExemplar { index, .. } => self
+                .exemplars
+                .get(*index)
+                .map(|p| format!("exemplar {}", p.display())),
+            PatchSynthError::InvalidControl { name: "guide", .. } => self
+                .guide
+                .as_deref()
+                .or(self.guide_from.as_deref())
+                .map(|p| format!("guide {}", p.display())),
+            _ => None,
+        };
+        match what {
+            Some(w) => anyhow::anyhow!("{w}: {e}"),
+            None => anyhow::Error::new(e),
         }
     }
-    let g = guide::to_cell_size(&g, cell)
-        .with_context(|| format!("cannot resample guide {}", path.display()))?;
-    let Some((w, h)) = size else {
-        return Ok(g);
-    };
-    let (g2, fit) = guide::fit_to_size(&g, w, h)?;
-    let mut changes = Vec::new();
-    let cropped = (
-        (rw as usize).saturating_sub(w),
-        (rh as usize).saturating_sub(h),
-    );
-    if cropped != (0, 0) {
-        changes.push(format!(
-            "cropped (centred) by {} x {} cells",
-            cropped.0, cropped.1
-        ));
-    }
-    if fit.padded != (0, 0) {
-        changes.push(format!(
-            "mirror-padded by {} x {} cells",
-            fit.padded.0, fit.padded.1
-        ));
-    }
-    if !changes.is_empty() {
-        ctx.note(format!(
-            "guide {}: {rw} x {rh} cells at the exemplars' {:.2} x {:.2} m (its scale kept), {} to \
-             --size {w}x{h}",
-            path.display(),
-            cell.0,
-            cell.1,
-            changes.join(" and ")
-        ));
-    }
-    Ok(g2)
-}
 
-/// The parsed `--guide-range`.
-fn parse_guide_range(spec: &str) -> Result<GuideRange> {
-    if spec.trim().eq_ignore_ascii_case("auto") {
-        return Ok(GuideRange::Auto);
+    /// Notes on stderr of what the preparation did to the inputs.
+    pub(crate) fn note_figures(&self, f: &PrepareFigures, ctx: &Ctx) {
+        for (p, &n) in self.exemplars.iter().zip(&f.exemplar_voids_filled) {
+            if n > 0 {
+                ctx.note(format!("exemplar {}: filled {n} void cells", p.display()));
+            }
+        }
+        let guide = self.guide.as_deref().or(self.guide_from.as_deref());
+        if let (Some(p), n @ 1..) = (guide, f.guide_voids_filled) {
+            ctx.note(format!("guide {}: filled {n} void cells", p.display()));
+        }
+        if f.categories_clustered {
+            let list: Vec<String> = f
+                .exemplar_categories
+                .iter()
+                .map(|c| c.to_string())
+                .collect();
+            ctx.note(format!(
+                "exemplar categories (clustered): {}",
+                list.join(",")
+            ));
+        }
+        if let (Some(p), Some(fit)) = (guide, &f.guide_fit)
+            && (fit.cropped != (0, 0) || fit.padded != (0, 0))
+        {
+            ctx.note(format!(
+                "guide {}: {} x {} cells at the exemplars' cell size (its scale kept), cropped \
+                 (centred) by {} x {} and mirror-padded by {} x {} cells to {} x {}",
+                p.display(),
+                fit.extent.0,
+                fit.extent.1,
+                fit.cropped.0,
+                fit.cropped.1,
+                fit.padded.0,
+                fit.padded.1,
+                f.output_size.0,
+                f.output_size.1
+            ));
+        }
+        if let Some(m) = &f.guide_mapping {
+            ctx.note(format!(
+                "guide heights {:.1}..{:.1} m (patch-window means) mapped onto {:.1}..{:.1} m",
+                m.from.0, m.from.1, m.to.0, m.to.1
+            ));
+        }
     }
-    let (lo, hi) = crate::ctx::parse_height_range(spec)
-        .map_err(|e| anyhow::anyhow!("invalid --guide-range {e} (or auto)"))?;
-    Ok(GuideRange::Metres(lo as f32, hi as f32))
-}
-
-/// True for a PNG read as raw grey counts (no relief vertical mapping): whole numbers that fit
-/// 16 bits, which are grey levels rather than metres.
-fn png_counts(path: &Path, g: &Heightfield) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-        && g.as_slice()
-            .iter()
-            .all(|&v| !v.is_finite() || (v.fract() == 0.0 && (0.0..=65535.0).contains(&v)))
 }
 
 /// Seam blending of `relief quilt`.
@@ -267,391 +372,9 @@ pub(crate) struct Args {
     pub(crate) no_validate: bool,
 }
 
-/// Everything a synthesis needs, read and checked.
-pub(crate) struct Inputs {
-    pub(crate) exemplars: Vec<Exemplar>,
-    pub(crate) control: Control,
-    pub(crate) settings: Settings,
-    /// `--guide-range`, applied once the exemplars are indexed.
-    pub(crate) guide_range: Option<GuideRange>,
-}
-
-/// Parses `WxH` or `N`.
-pub(crate) fn parse_size(s: &str) -> Result<(usize, usize)> {
-    let num = |t: &str| -> Result<usize> {
-        t.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|&v| v > 0)
-            .with_context(|| format!("invalid --size `{s}`: expected WxH with positive integers"))
-    };
-    match s.split_once(['x', 'X']) {
-        Some((w, h)) => Ok((num(w)?, num(h)?)),
-        None => num(s).map(|v| (v, v)),
-    }
-}
-
-fn read_dem(path: &Path, what: &str, args: &SynthArgs, ctx: &Ctx) -> Result<Heightfield> {
-    let hf = super::read_raster(path, &args.read, ctx)
-        .with_context(|| format!("{what} {}", path.display()))?
-        .heightfield;
-    Ok(hf)
-}
-
-fn fill_if_needed(mut hf: Heightfield, what: &str, path: &Path, ctx: &Ctx) -> Result<Heightfield> {
-    if hf.has_voids() {
-        let voids = hf.void_count();
-        fill_voids(&mut hf, &FillSettings::default())
-            .with_context(|| format!("cannot fill the voids of {what} {}", path.display()))?;
-        ctx.note(format!(
-            "{what} {}: filled {voids} void cells",
-            path.display()
-        ));
-    }
-    Ok(hf)
-}
-
-impl SynthArgs {
-    /// The library settings these options describe (checked by the library).
-    pub(crate) fn settings(&self) -> Settings {
-        Settings {
-            patch_size: self.patch,
-            overlap: self.overlap,
-            seed: self.seed,
-            min_candidates: self.min_candidates,
-            validation_tolerance: self.tolerance,
-            lambda: self.lambda,
-            alpha: self.alpha,
-            beta: self.beta,
-            gamma: self.gamma,
-            exemplar_stride: self.stride,
-            ..Settings::default()
-        }
-    }
-
-    /// Reads exemplars, guide and categorisation map, and checks the settings.
-    pub(crate) fn inputs(&self, ctx: &Ctx) -> Result<Inputs> {
-        let settings = self.settings();
-        settings.check().context("invalid synthesis settings")?;
-        if self.exemplars.is_empty() {
-            bail!("no exemplar: give at least one --exemplar DEM");
-        }
-        let cats: Vec<u16> = match &self.exemplar_categories {
-            None => vec![0; self.exemplars.len()],
-            Some(list) => {
-                let cats = list
-                    .split(',')
-                    .map(|t| {
-                        t.trim().parse::<u16>().with_context(|| {
-                            format!("invalid --exemplar-categories `{list}`: `{t}` is not 0..65535")
-                        })
-                    })
-                    .collect::<Result<Vec<u16>>>()?;
-                if cats.len() != self.exemplars.len() {
-                    bail!(
-                        "--exemplar-categories names {} categories for {} exemplars",
-                        cats.len(),
-                        self.exemplars.len()
-                    );
-                }
-                cats
-            }
-        };
-        if self.guide.is_some() && self.guide_from.is_some() {
-            bail!("give either --guide or --guide-from, not both");
-        }
-        if self.guide_from.is_some() != self.blur.is_some() {
-            bail!("--guide-from DEM and --blur SIGMA go together");
-        }
-        let size = self.size.as_deref().map(parse_size).transpose()?;
-
-        let mut exemplars = Vec::with_capacity(self.exemplars.len());
-        for (path, &cat) in self.exemplars.iter().zip(&cats) {
-            let hf = read_dem(path, "exemplar", self, ctx)?;
-            let hf = fill_if_needed(hf, "exemplar", path, ctx)?;
-            if hf.width() < settings.patch_size || hf.height() < settings.patch_size {
-                bail!(
-                    "exemplar {} is {} x {}, smaller than --patch {}",
-                    path.display(),
-                    hf.width(),
-                    hf.height(),
-                    settings.patch_size
-                );
-            }
-            exemplars.push(Exemplar::new(hf, cat));
-        }
-        if let (Some(k), None) = (self.auto_categories, &self.exemplar_categories) {
-            let hfs: Vec<Heightfield> = exemplars.iter().map(|e| e.heightfield.clone()).collect();
-            let cats = categorize_exemplars(&hfs, k, &settings)
-                .context("cannot cluster the exemplars (--auto-categories)")?;
-            for (e, c) in exemplars.iter_mut().zip(&cats) {
-                e.category = *c;
-            }
-            let list: Vec<String> = cats.iter().map(|c| c.to_string()).collect();
-            ctx.note(format!(
-                "exemplar categories (clustered): {}",
-                list.join(",")
-            ));
-        }
-        let cell = exemplars[0].heightfield.cell_size();
-
-        let png_check = |path: &Path, g: &Heightfield| -> Result<()> {
-            if self.guide_range.is_none() && png_counts(path, g) {
-                bail!(
-                    "guide {}: a PNG of grey levels (no relief vertical mapping) holds no \
-                     heights; give --guide-range auto (the exemplars' heights) or LO,HI (metres)",
-                    path.display()
-                );
-            }
-            Ok(())
-        };
-        let guide = match (&self.guide, &self.guide_from) {
-            (Some(path), None) => {
-                let g = fill_if_needed(read_dem(path, "guide", self, ctx)?, "guide", path, ctx)?;
-                png_check(path, &g)?;
-                Some(fit_guide(g, size, cell, self.guide_cell_size, path, ctx)?)
-            }
-            (None, Some(path)) => {
-                let dem = fill_if_needed(
-                    read_dem(path, "guide source", self, ctx)?,
-                    "guide source",
-                    path,
-                    ctx,
-                )?;
-                png_check(path, &dem)?;
-                let dem = fit_guide(dem, size, cell, self.guide_cell_size, path, ctx)?;
-                let sigma = self.blur.unwrap_or_default();
-                Some(guide::gaussian_blur(&dem, sigma).context("invalid --blur")?)
-            }
-            _ => None,
-        };
-        let guide_range = self
-            .guide_range
-            .as_deref()
-            .map(parse_guide_range)
-            .transpose()?;
-        if guide_range.is_some() && guide.is_none() {
-            bail!("--guide-range needs --guide or --guide-from");
-        }
-        if self.guide_cell_size.is_some() && guide.is_none() {
-            bail!("--guide-cell-size needs --guide or --guide-from");
-        }
-        let mut control = match guide {
-            Some(g) => Control::guided(g),
-            None => {
-                let Some((w, h)) = size else {
-                    bail!("without a guide, --size WxH is required");
-                };
-                Control::unguided(w, h)
-            }
-        };
-        if let Some(path) = &self.categories {
-            control.categories = Some(read_category_map(path, control.width, control.height)?);
-        } else if let (Some(k), Some(g)) = (self.auto_categories, &control.guide) {
-            let (mut map, _) = CategoryMap::from_guide_heights(g, k, self.seed)
-                .context("cannot cluster the guide's heights (--auto-categories)")?;
-            for c in 0..k.min(u16::MAX as usize) as u16 {
-                if !exemplars.iter().any(|e| e.category == c) {
-                    map.relabel(c, ANY_CATEGORY);
-                }
-            }
-            control.categories = Some(map);
-        }
-        Ok(Inputs {
-            exemplars,
-            control,
-            settings,
-            guide_range,
-        })
-    }
-
-    /// Reads the inputs, checks the memory, indexes the exemplars, maps the guide's heights
-    /// (`--guide-range`), writes `--guide-out` and, with a guide, runs the input validation.
-    pub(crate) fn prepare(&self, ctx: &Ctx, progress: &dyn Progress) -> Result<Prepared> {
-        let Inputs {
-            exemplars,
-            mut control,
-            settings,
-            guide_range,
-        } = self.inputs(ctx)?;
-        preflight(&exemplars, &control, &settings, ctx)?;
-        let index = ExemplarIndex::build(exemplars, &settings, progress)
-            .context("cannot index the exemplars")?;
-        progress.begin("validating", 0);
-        let mut report = None;
-        let note_mapping = |m: &RangeMapping| {
-            ctx.note(format!(
-                "guide heights {:.1}..{:.1} m (patch-window means) mapped onto {:.1}..{:.1} m",
-                m.from.0, m.from.1, m.to.0, m.to.1
-            ));
-        };
-        if let Some(g) = control.guide.take() {
-            let g = match guide_range {
-                Some(GuideRange::Auto) => {
-                    let (g, m, r) = guide::fit_range(&g, &index, &control, &settings)
-                        .context("--guide-range auto")?;
-                    note_mapping(&m);
-                    report = Some(r);
-                    g
-                }
-                Some(r) => {
-                    let (g, m) = guide::map_range(&g, &index, r).context("--guide-range")?;
-                    note_mapping(&m);
-                    g
-                }
-                None => g,
-            };
-            control.guide = Some(g);
-        }
-        if let (Some(g), Some(p)) = (&control.guide, &self.guide_out) {
-            ctx.write_raster(p, g)?;
-        }
-        if report.is_none() && control.guide.is_some() {
-            report = Some(validate(&index, &control, &settings).context("validation failed")?);
-        }
-        let mut hint = None;
-        if let (Some(r), None, Some(g)) = (&report, guide_range, &control.guide)
-            && !r.ok
-        {
-            let mut c = control.clone();
-            c.guide = None;
-            let (_, m, auto) = guide::fit_range(g, &index, &c, &settings)?;
-            if auto.ok {
-                hint = Some(format!(
-                    "--guide-range auto would pass (it maps the guide's {:.0}..{:.0} m onto \
-                     {:.0}..{:.0} m)",
-                    m.from.0, m.from.1, m.to.0, m.to.1
-                ));
-            }
-        }
-        Ok(Prepared {
-            index,
-            control,
-            settings,
-            report,
-            hint,
-        })
-    }
-}
-
-/// Inputs indexed, guide mapped and validated (see [`SynthArgs::prepare`]).
-pub(crate) struct Prepared {
-    pub(crate) index: ExemplarIndex,
-    pub(crate) control: Control,
-    pub(crate) settings: Settings,
-    /// The input validation, with a guide.
-    pub(crate) report: Option<ValidationReport>,
-    /// What would make a failing validation pass.
-    pub(crate) hint: Option<String>,
-}
-
-/// Reads a categorisation map: raw sample counts (grey PNG 0..255 or 0..65535, or any raster's
-/// values) rounded to category ids, nearest-resampled to `w x h`.
-fn read_category_map(path: &Path, w: usize, h: usize) -> Result<CategoryMap> {
-    let opts = relief_io::ReadOptions {
-        png: relief_io::PngMode::Grey {
-            offset: 0.0,
-            scale: 1.0,
-        },
-        ..Default::default()
-    };
-    let map = relief_io::read(path, &opts)
-        .with_context(|| format!("cannot read categorisation map {}", path.display()))?
-        .heightfield;
-    let (mw, mh) = (map.width(), map.height());
-    let mut ids = Vec::with_capacity(w * h);
-    for y in 0..h {
-        let sy = (y * mh / h).min(mh - 1);
-        for x in 0..w {
-            let sx = (x * mw / w).min(mw - 1);
-            let v = map.get(sx, sy);
-            if !(v.is_finite() && v >= 0.0 && v <= ANY_CATEGORY as f32) {
-                bail!(
-                    "categorisation map {}: value {v} at ({sx}, {sy}) is not a category id 0..65535",
-                    path.display()
-                );
-            }
-            ids.push(v.round() as u16);
-        }
-    }
-    Ok(CategoryMap::from_raster(w, h, ids)?)
-}
-
-/// RGB image of a seam map: one muted colour per patch, seam cells white.
-pub(crate) fn seam_map_rgb(out: &Synthesis) -> Vec<u8> {
-    let m = &out.seam_map;
-    let mut rgb = Vec::with_capacity(m.width * m.height * 3);
-    for (&src, &seam) in m.source.iter().zip(&m.seam) {
-        if seam {
-            rgb.extend_from_slice(&[255, 255, 255]);
-        } else if src == u32::MAX {
-            rgb.extend_from_slice(&[0, 0, 0]);
-        } else {
-            // A fixed hash of the placement index: neighbours get distinct colours.
-            let mut z = (src as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-            z ^= z >> 29;
-            rgb.extend_from_slice(&[
-                60 + (z & 0x7f) as u8,
-                60 + ((z >> 8) & 0x7f) as u8,
-                60 + ((z >> 16) & 0x7f) as u8,
-            ]);
-        }
-    }
-    rgb
-}
-
-/// Working bytes per exemplar cell that does not depend on the candidate count (summed-area
-/// tables in f64, the exemplar itself, block descriptors).
-const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
-
-/// Working bytes per candidate patch position, beyond its PCA coordinates (k-means cluster
-/// ids, kd-tree nodes, hash-table entries).
-const CANDIDATE_BYTES: f64 = 64.0;
-
-/// Working bytes per output cell (the canvas, the guide, the seam map, the blending buffers).
-const OUTPUT_BYTES_PER_CELL: f64 = 48.0;
-
-/// Pre-flight estimate of a synthesis (issue 18): the candidate index of the exemplars and
-/// the output canvases, checked against `--max-memory` before any index is built.
-pub(crate) fn preflight(
-    exemplars: &[Exemplar],
-    control: &Control,
-    settings: &Settings,
-    ctx: &Ctx,
-) -> Result<()> {
-    use crate::memory::part;
-    let stride = settings.exemplar_stride.max(1) as f64;
-    let mut ex_cells = 0.0;
-    let mut candidates = 0.0;
-    for e in exemplars {
-        let (w, h) = (e.heightfield.width() as f64, e.heightfield.height() as f64);
-        ex_cells += w * h;
-        let p = settings.patch_size as f64;
-        candidates +=
-            ((w - p + 1.0).max(0.0) / stride).ceil() * ((h - p + 1.0).max(0.0) / stride).ceil();
-    }
-    // Two PCA spaces (left and top overlaps), f32 coordinates.
-    let per_candidate = CANDIDATE_BYTES + 2.0 * 4.0 * settings.pca_dims as f64;
-    let out_cells = control.width as f64 * control.height as f64;
-    ctx.check_memory(
-        "quilt",
-        &[&[
-            part(
-                format!("the index of {} exemplar patches", candidates as u64),
-                candidates * per_candidate + ex_cells * EXEMPLAR_BYTES_PER_CELL,
-                "smaller (or fewer) --exemplar files, or a larger --stride",
-            ),
-            part(
-                format!("the {} x {} output canvases", control.width, control.height),
-                out_cells * OUTPUT_BYTES_PER_CELL,
-                "a smaller --size (or guide)",
-            ),
-        ]],
-    )
-}
-
-/// Reads the inputs, synthesizes and writes OUT (and the seam map) atomically.
-pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
+/// Reads the inputs, synthesizes and writes OUT (and the guide as used, the seam map)
+/// atomically.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
     outputs.extend(args.synth.output_paths());
     outputs.extend(
@@ -660,40 +383,9 @@ pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
             .map(|p| (p, crate::outputs::OutKind::Png)),
     );
     ctx.check_outputs(&args.synth.input_paths(), &outputs)?;
-    // The terrain, the guide as used and the seam map appear together or not at all.
-    let targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
-    let staged = crate::staging::Outputs::new(&targets)?;
-    if let Some(g) = &args.synth.guide_out {
-        args.synth.guide_out = Some(staged.path(g));
-    }
-    let progress = ctx.progress();
-    let Prepared {
-        index,
-        control,
-        mut settings,
-        report,
-        hint,
-    } = args.synth.prepare(ctx, &progress)?;
-    if let Some(r) = &report
-        && !r.ok
-    {
-        if args.no_validate {
-            ctx.note(format!(
-                "input validation failed, synthesizing anyway (--no-validate): {} of {} guide \
-                 blocks have fewer than {} candidates",
-                r.failing.len(),
-                r.blocks.len(),
-                r.min_candidates
-            ));
-        } else {
-            bail!(
-                "synthesis failed: input validation failed: {r}{}",
-                hint.map_or_else(String::new, |h| format!("; {h}"))
-            );
-        }
-    }
-    // Validated above.
-    settings.enforce_validation = false;
+    let v = args.synth.job()?;
+    let mut settings = v.settings;
+    settings.enforce_validation = !args.no_validate;
     settings.cut = match args.cut {
         CutArg::Dp => CutMethod::DynamicProgramming,
         CutArg::Greedy => CutMethod::Greedy,
@@ -705,33 +397,61 @@ pub(crate) fn run(mut args: Args, ctx: &Ctx) -> Result<()> {
         },
         BlendArg::None => Blend::None,
     };
-    let out = synthesize(&index, &control, &settings, &progress).context("synthesis failed")?;
+    let job = QuiltJob {
+        settings,
+        size: v.size,
+        guide: v.guide,
+        exemplar_categories: v.exemplar_categories,
+        auto_categories: v.auto_categories,
+    };
+    let inputs = args.synth.inputs(ctx)?;
+    args.synth.preflight(&job.validate_job(), &inputs, ctx)?;
+    let progress = ctx.progress();
+    let out = job
+        .run(inputs, &progress)
+        .map_err(|e| args.synth.job_error(e))
+        .context("synthesis failed")?;
     progress.begin("writing", 0);
-    ctx.write_raster(&staged.path(&args.output), &out.heightfield)?;
+    // The terrain, the guide as used and the seam map appear together or not at all.
+    let targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+    let staged = crate::staging::Outputs::new(&targets)?;
+    let hf = &out.synthesis.heightfield;
+    ctx.write_raster(&staged.path(&args.output), hf)?;
+    if let (Some(g), Some(p)) = (&out.guide, &args.synth.guide_out) {
+        ctx.write_raster(&staged.path(p), g)?;
+    }
     if let Some(png) = &args.seam_map {
-        relief_io::write_rgb_png(
-            &staged.path(png),
-            out.seam_map.width,
-            out.seam_map.height,
-            &seam_map_rgb(&out),
-        )
-        .with_context(|| format!("cannot write {}", png.display()))?;
+        let m = &out.synthesis.seam_map;
+        relief_io::write_rgb_png(&staged.path(png), m.width, m.height, &m.rgb())
+            .with_context(|| format!("cannot write {}", png.display()))?;
     }
     staged.commit()?;
     drop(progress);
-    let s = &out.stats;
+    let f = &out.figures;
+    args.synth.note_figures(&f.prepare, ctx);
+    if let Some(r) = out.report.as_ref().filter(|r| !r.ok) {
+        ctx.note(format!(
+            "input validation failed, synthesized anyway (--no-validate): {} of {} guide \
+             blocks have fewer than {} candidates",
+            r.failing.len(),
+            r.blocks.len(),
+            r.min_candidates
+        ));
+    }
     ctx.note(format!(
-        "wrote {} ({} x {}): {} patches on a {} x {} grid, {:.0} candidates per block, {} translations applied, {} rejected (|h| > {} m)",
+        "wrote {} ({} x {}): {} patches on a {} x {} grid, {:.0} candidates per block, {} \
+         translations applied, {} rejected (|h| > {} m), {:.0} % distinct source patches",
         args.output.display(),
-        out.heightfield.width(),
-        out.heightfield.height(),
-        s.patches,
-        s.grid.0,
-        s.grid.1,
-        s.mean_candidates,
-        s.translations_applied,
-        s.translations_rejected,
-        settings.lambda
+        hf.width(),
+        hf.height(),
+        f.patches,
+        f.grid.0,
+        f.grid.1,
+        f.mean_candidates,
+        f.translations_applied,
+        f.translations_rejected,
+        job.settings.lambda,
+        100.0 * f.distinct_source_share
     ));
     Ok(())
 }

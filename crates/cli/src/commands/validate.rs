@@ -5,7 +5,7 @@
 //! non-zero when the validation fails. Without a guide, checks the exemplars' compatibility.
 
 use anyhow::{Context, Result, bail};
-use relief_patch_synth::{ValidationReport, validate};
+use relief_patch_synth::ValidationReport;
 
 use crate::ctx::Ctx;
 
@@ -83,20 +83,26 @@ pub(crate) fn format_report(rep: &ValidationReport, names: &[String]) -> String 
 /// when it fails.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     ctx.check_outputs(&args.synth.input_paths(), &args.synth.output_paths())?;
+    let job = args.synth.job()?;
+    let inputs = args.synth.inputs(ctx)?;
+    args.synth.preflight(&job, &inputs, ctx)?;
     let progress = ctx.progress();
-    let prepared = args.synth.prepare(ctx, &progress)?;
+    let out = job
+        .run(inputs, &progress)
+        .map_err(|e| args.synth.job_error(e))
+        .context("validation failed")?;
+    if let (Some(g), Some(p)) = (&out.guide, &args.synth.guide_out) {
+        ctx.write_raster(p, g)?;
+    }
+    drop(progress);
+    args.synth.note_figures(&out.figures, ctx);
     let names: Vec<String> = args
         .synth
         .exemplars
         .iter()
         .map(|p| p.display().to_string())
         .collect();
-    let rep = match prepared.report {
-        Some(r) => r,
-        None => validate(&prepared.index, &prepared.control, &prepared.settings)
-            .context("validation failed")?,
-    };
-    drop(progress);
+    let rep = out.report;
     #[allow(clippy::print_stdout)]
     {
         print!("{}", format_report(&rep, &names));
@@ -120,7 +126,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             } else {
                 ranges.join(", ")
             },
-            prepared.hint.map_or_else(String::new, |h| format!("; {h}"))
+            rep.suggestion
+                .map_or_else(String::new, |h| format!("; {h}"))
         );
     }
     Ok(())

@@ -324,7 +324,9 @@ mod tests {
     use super::*;
 
     /// The default stages on a crop write rasters, previews, summary.json and report.html, and
-    /// the summary holds every stage's figures.
+    /// the summary holds every stage's figures. The quilt stage enforces the paper's
+    /// validation, which the quadrant exemplars of this small crop fail (6 of 48 volcano blocks
+    /// lack candidates; the golden 128 x 128 crop passes): here it is reported, not enforced.
     #[test]
     fn pipeline_writes_report_on_crop() {
         let root = crate::test_root();
@@ -335,7 +337,13 @@ mod tests {
             verbose: false,
             ..PipelineConfig::full(&root)
         };
-        let run = run(&config, &default_stages()).unwrap();
+        let mut specs = spec::default_spec();
+        for s in &mut specs {
+            if s.stage == "quilt" {
+                s.params = serde_json::json!({"job": {"settings": {"enforce_validation": false}}});
+            }
+        }
+        let run = run(&config, &spec::build_stages(&specs).unwrap()).unwrap();
         assert_eq!(run.stage_count, default_stages().len());
         let terrain = run.state.terrain().unwrap();
         assert_eq!((terrain.width(), terrain.height()), (96, 80));

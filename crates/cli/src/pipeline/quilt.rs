@@ -22,8 +22,7 @@ use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::metrics::{radial_power_spectrum, rmse, spectral_slope};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, CategoryMap, Control, Exemplar, ExemplarIndex, Settings, Synthesis,
-    categorize_exemplars, guide, quality, synthesize, validate,
+    ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, Settings, quality,
 };
 use serde::Deserialize;
 
@@ -36,21 +35,42 @@ const QUILT_TOLERANCE: Tolerance = Tolerance {
     rmse_m: 0.05,
 };
 
-/// Parameters of the `quilt` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+/// The stage's default job: patches of 16 cells (the exemplars are quadrants of a crop), the
+/// validation enforced with the candidate requirement scaled to the exemplars' patch count
+/// (500 per 201,601 patches, the paper's 500 on a 512 x 512 exemplar), vertical translations
+/// up to 100 m (the golden crop spans 1300 m; at 50 m one or two of its 88 volcano blocks
+/// fail), the guide low-passed (sigma 3 cells) and mapped onto the exemplars' heights
+/// (`auto`), two categories.
+fn default_job() -> QuiltJob {
+    QuiltJob {
+        settings: Settings {
+            patch_size: 16,
+            overlap: 4,
+            min_candidates_share: Some(500.0 / 201_601.0),
+            lambda: 100.0,
+            ..Settings::default()
+        },
+        guide: GuideSetup {
+            blur: Some(3.0),
+            range: Some(GuideRange::Auto),
+            cell_size: None,
+        },
+        auto_categories: Some(2),
+        ..QuiltJob::default()
+    }
+}
+
+/// Parameters of the `quilt` stage (JSON `params`). The fields of `job` given in the spec are
+/// merged (recursively) onto the stage's default job, so `{"job": {"settings": {"overlap": 6}}}`
+/// keeps the stage's patch size.
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) struct QuiltParams {
-    /// Patch side in cells; 0 = an eighth of the exemplar quadrant's side, rounded down to a
-    /// multiple of 4, in 16..=64 (32 on the 512 x 512 fixture, 16 on the 128 x 128 golden crop).
-    pub(crate) patch: usize,
-    /// Overlap in cells; 0 = patch / 4.
-    pub(crate) overlap: usize,
-    /// Low-pass factor of the guides (`guide::lowpass_resample`); 0 = patch / 4.
-    pub(crate) lowpass: usize,
-    /// Number of exemplar categories and guide height classes of the volcano run.
-    pub(crate) categories: usize,
-    /// Minimum candidates per guide block reported by the validation.
-    pub(crate) min_candidates: usize,
+    /// The synthesis job (`relief_patch_synth::QuiltJob`) of both runs. The stage sets
+    /// `settings.seed` from the run's seed; the volcano guide, which stores no cell size, gets
+    /// the one that spans the terrain's width unless `guide.cell_size` is given; the holdout
+    /// run keeps its guide's heights (`guide.range` none) and has one exemplar
+    /// (`auto_categories` none).
+    pub(crate) job: QuiltJob,
     /// Hand the volcano-guided result to the next stages instead of the input terrain.
     pub(crate) replace_terrain: bool,
 }
@@ -58,13 +78,56 @@ pub(crate) struct QuiltParams {
 impl Default for QuiltParams {
     fn default() -> Self {
         Self {
-            patch: 0,
-            overlap: 0,
-            lowpass: 0,
-            categories: 2,
-            min_candidates: 500,
+            job: default_job(),
             replace_terrain: false,
         }
+    }
+}
+
+/// `params` as written in the spec.
+#[derive(Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct RawParams {
+    job: serde_json::Value,
+    replace_terrain: bool,
+}
+
+impl Default for RawParams {
+    fn default() -> Self {
+        Self {
+            job: serde_json::Value::Object(Default::default()),
+            replace_terrain: false,
+        }
+    }
+}
+
+/// `over` merged onto `base`: objects field by field, anything else replaced.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (b, o) => *b = o,
+    }
+}
+
+impl<'de> Deserialize<'de> for QuiltParams {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error;
+        let raw = RawParams::deserialize(d)?;
+        let mut job = serde_json::to_value(default_job()).map_err(D::Error::custom)?;
+        merge(&mut job, raw.job);
+        Ok(Self {
+            job: serde_json::from_value(job).map_err(|e| D::Error::custom(format!("job: {e}")))?,
+            replace_terrain: raw.replace_terrain,
+        })
     }
 }
 
@@ -127,66 +190,6 @@ fn category_rgb(map: &CategoryMap) -> Vec<u8> {
         .collect()
 }
 
-/// RGB image of a seam map: one muted colour per patch, seams white.
-fn seam_rgb(out: &Synthesis) -> Vec<u8> {
-    let m = &out.seam_map;
-    m.source
-        .iter()
-        .zip(&m.seam)
-        .flat_map(|(&src, &seam)| {
-            if seam {
-                [255, 255, 255]
-            } else if src == u32::MAX {
-                [0, 0, 0]
-            } else {
-                let mut z = (src as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                z ^= z >> 29;
-                [
-                    60 + (z & 0x7f) as u8,
-                    60 + ((z >> 8) & 0x7f) as u8,
-                    60 + ((z >> 16) & 0x7f) as u8,
-                ]
-            }
-        })
-        .collect()
-}
-
-/// Height below which a fraction `q` of the cells lie.
-fn quantile(hf: &Heightfield, q: f64) -> f32 {
-    let mut v: Vec<f32> = hf.as_slice().to_vec();
-    v.sort_by(f32::total_cmp);
-    v[((v.len() - 1) as f64 * q).round() as usize]
-}
-
-impl Quilt {
-    fn settings(&self, quadrant: usize, seed: u64) -> Settings {
-        let p = &self.0;
-        let patch = if p.patch > 0 {
-            p.patch
-        } else {
-            (quadrant / 8 / 4 * 4).clamp(16, 64)
-        };
-        let overlap = if p.overlap > 0 { p.overlap } else { patch / 4 };
-        Settings {
-            patch_size: patch,
-            overlap,
-            min_candidates: p.min_candidates,
-            // The validation runs separately and is reported; the synthesis goes on.
-            enforce_validation: false,
-            seed,
-            ..Settings::default()
-        }
-    }
-
-    fn lowpass(&self, s: &Settings) -> usize {
-        if self.0.lowpass > 0 {
-            self.0.lowpass
-        } else {
-            (s.patch_size / 4).max(2)
-        }
-    }
-}
-
 impl Stage for Quilt {
     fn name(&self) -> &'static str {
         "quilt"
@@ -198,144 +201,166 @@ impl Stage for Quilt {
             fill_voids(&mut terrain, &FillSettings::default())?;
         }
         let (w, h) = (terrain.width(), terrain.height());
-        let settings = self.settings(w.min(h) / 2, cx.config.seed ^ 0x0c12_2015);
-        settings.check().context("quilt settings")?;
-        let factor = self.lowpass(&settings);
+        let mut job = self.0.job.clone();
+        job.settings.seed = cx.config.seed ^ 0x0c12_2015;
+        job.check().context("quilt job")?;
+        let settings = &job.settings;
+        // Guide fidelity is measured at the low-pass of a quarter patch.
+        let factor = (settings.patch_size / 4).max(2);
         let progress = cx.progress();
         cx.section.figure("patch_size", settings.patch_size);
         cx.section.figure("overlap", settings.overlap);
-        cx.section.figure("guide_lowpass_factor", factor);
+        cx.section.figure("fidelity_lowpass_factor", factor);
         let mut rows = Vec::new();
 
         // --- volcano: guide from another real DEM, categories from clustering ---------------
-        let t = std::time::Instant::now();
         let (qw, qh) = (w / 2, h / 2);
         let quads: Vec<Heightfield> = [(0, 0), (qw, 0), (0, qh), (qw, qh)]
             .iter()
             .map(|&(x, y)| terrain.crop(x, y, qw, qh))
             .collect::<Result<_, _>>()?;
-        let k = self.0.categories.max(1);
-        let cats = categorize_exemplars(&quads, k, &settings)?;
         let volcano_path = cx
             .config
             .resolve(std::path::Path::new("fixtures/volcano.json"));
         let volcano = relief_io::read(&volcano_path, &relief_io::ReadOptions::default())
             .with_context(|| format!("cannot read {}", volcano_path.display()))?
             .heightfield;
-        let gh = ((w as f64 * volcano.height() as f64 / volcano.width() as f64).round() as usize)
-            .max(settings.patch_size);
-        let (vlo, vhi) = volcano
-            .min_max()
-            .context("volcano.json has no valid cell")?;
-        let (tlo, thi) = (quantile(&terrain, 0.1), quantile(&terrain, 0.9));
-        let mapped = volcano
-            .resample(w, gh)?
-            .map(|v| tlo + (v - vlo) / (vhi - vlo) * (thi - tlo));
-        let mut g = guide::lowpass_resample(&mapped, factor)?;
-        g.set_cell_size(terrain.cell_size().0, terrain.cell_size().1)?;
-        g.set_georef(None);
-        let (mut cmap, centres) = CategoryMap::from_guide_heights(&g, k, cx.config.seed)?;
-        // Height class c takes the exemplar category c (both ordered by height); a class no
-        // exemplar has accepts every category.
-        for c in 0..centres.len() as u16 {
-            if !cats.contains(&c) {
-                cmap.relabel(c, ANY_CATEGORY);
-            }
+        let mut vjob = job.clone();
+        if vjob.guide.cell_size.is_none() {
+            // Spans the terrain's width (the fixture stores no cell size).
+            let k = w as f64 / volcano.width() as f64;
+            let (cx_, cy_) = terrain.cell_size();
+            vjob.guide.cell_size = Some((cx_ * k, cy_ * k));
         }
+        progress.begin("quilt: volcano", 0);
+        let t = std::time::Instant::now();
+        let out = vjob
+            .run(
+                JobInputs {
+                    exemplars: quads.clone(),
+                    guide: Some(volcano),
+                    categories: None,
+                },
+                &progress,
+            )
+            .context("quilt (volcano guide)")?;
+        let secs = t.elapsed().as_secs_f64();
+        let g = out.guide.clone().context("the volcano run has a guide")?;
+        let pf = &out.figures.prepare;
         cx.section.figure(
             "volcano_exemplar_categories",
-            cats.iter()
+            pf.exemplar_categories
+                .iter()
                 .map(|c| c.to_string())
                 .collect::<Vec<_>>()
                 .join(","),
         );
-        cx.section.figure(
-            "volcano_guide_class_centres_m",
-            centres
-                .iter()
-                .map(|c| format!("{c:.0}"))
-                .collect::<Vec<_>>()
-                .join(","),
-        );
-        let exemplars: Vec<Exemplar> = quads
-            .iter()
-            .zip(&cats)
-            .map(|(q, &c)| Exemplar::new(q.clone(), c))
-            .collect();
-        progress.begin("quilt: indexing the quadrant exemplars", 0);
-        let index = ExemplarIndex::build(exemplars, &settings, &progress)?;
-        let control = Control::guided(g.clone()).with_categories(cmap.clone());
-        let report = validate(&index, &control, &settings)?;
+        if let Some(m) = &pf.guide_mapping {
+            cx.section.figure(
+                "volcano_guide_mapping_m",
+                format!(
+                    "{:.0}..{:.0} -> {:.0}..{:.0}",
+                    m.from.0, m.from.1, m.to.0, m.to.1
+                ),
+            );
+        }
+        cx.section
+            .figure("volcano_required_candidates", pf.required_candidates);
+        let report = out.report.as_ref().context("validation report")?;
         cx.section.figure("volcano_validation_ok", report.ok);
         cx.section.figure("volcano_validation", report.to_string());
-        let out = synthesize(&index, &control, &settings, &progress)?;
-        let secs = t.elapsed().as_secs_f64();
+        cx.section.figure(
+            "volcano_distinct_source_share",
+            out.figures.distinct_source_share,
+        );
         let refs: Vec<&Heightfield> = quads.iter().collect();
-        let q = quality::assess(&out.heightfield, &out.seam_map, &g, factor, &refs, None)?;
+        let syn = &out.synthesis;
+        let q = quality::assess(&syn.heightfield, &syn.seam_map, &g, factor, &refs, None)?;
         rows.push(Row {
             name: "volcano",
-            output: format!("{} x {}", out.heightfield.width(), out.heightfield.height()),
+            output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
             guide_rmse: q.guide_rmse,
             guide_std: q.guide_std,
             truth_rmse: None,
             seam_ratio: q.seam_ratio,
-            slope_out: spectral(&out.heightfield),
+            slope_out: spectral(&syn.heightfield),
             slope_ex: spectral_pooled(&refs),
             slope_truth: None,
             hist_out: q.slope_distance,
             hist_truth: None,
             failing_blocks: report.failing.len(),
             blocks: report.blocks.len(),
-            patches: out.stats.patches,
+            patches: syn.stats.patches,
             seconds: secs,
         });
-        cx.save_raster("quilt_volcano_guide", "volcano guide (low-pass)", &g, None)?;
-        cx.save_rgb(
-            "quilt_volcano_categories",
-            "categorisation map (guide height classes; colour = exemplar category)",
-            cmap.width,
-            cmap.height,
-            &category_rgb(&cmap),
-        )?;
+        cx.save_raster("quilt_volcano_guide", "volcano guide as used", &g, None)?;
+        if let Some(cmap) = &out.categories {
+            cx.save_rgb(
+                "quilt_volcano_categories",
+                "categorisation map (guide height classes; colour = exemplar category)",
+                cmap.width,
+                cmap.height,
+                &category_rgb(cmap),
+            )?;
+        }
         cx.save_raster(
             "quilt_volcano",
             "quilted from the terrain's quadrants under the volcano guide",
-            &out.heightfield,
+            &syn.heightfield,
             Some(QUILT_TOLERANCE),
         )?;
         cx.save_rgb(
             "quilt_volcano_seams",
             "seam map (one colour per patch, seams white)",
-            out.seam_map.width,
-            out.seam_map.height,
-            &seam_rgb(&out),
+            syn.seam_map.width,
+            syn.seam_map.height,
+            &syn.seam_map.rgb(),
         )?;
         cx.section.figure(
             "volcano_translations_applied",
-            out.stats.translations_applied,
+            syn.stats.translations_applied,
         );
         cx.section.figure(
             "volcano_translations_rejected",
-            out.stats.translations_rejected,
+            syn.stats.translations_rejected,
         );
-        let volcano_result = out.heightfield;
+        let volcano_result = out.synthesis.heightfield;
 
         // --- holdout: left half as exemplar, low-pass of the right half as guide -------------
-        let t = std::time::Instant::now();
         let half = w / 2;
         let ex = terrain.crop(0, 0, half, h)?;
         let truth = terrain.crop(half, 0, w - half, h)?;
-        let g = guide::lowpass_resample(&truth, factor)?;
-        progress.begin("quilt: indexing the left half", 0);
-        let index = ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &settings, &progress)?;
-        let control = Control::guided(g.clone());
-        let report = validate(&index, &control, &settings)?;
-        cx.section.figure("holdout_validation_ok", report.ok);
-        let out = synthesize(&index, &control, &settings, &progress)?;
+        let mut hjob = job.clone();
+        hjob.guide.range = None;
+        hjob.auto_categories = None;
+        // The truth is held out of the exemplar, which may lack some of its patterns (on the
+        // golden crop 5-11 of 55 blocks have no match): the validation is reported, not
+        // enforced, so that the protocol measures the method on what it has.
+        hjob.settings.enforce_validation = false;
+        progress.begin("quilt: holdout", 0);
+        let t = std::time::Instant::now();
+        let out = hjob
+            .run(
+                JobInputs {
+                    exemplars: vec![ex.clone()],
+                    guide: Some(truth.clone()),
+                    categories: None,
+                },
+                &progress,
+            )
+            .context("quilt (holdout)")?;
         let secs = t.elapsed().as_secs_f64();
+        let g = out.guide.clone().context("the holdout run has a guide")?;
+        let report = out.report.as_ref().context("validation report")?;
+        cx.section.figure("holdout_validation_ok", report.ok);
+        cx.section.figure(
+            "holdout_distinct_source_share",
+            out.figures.distinct_source_share,
+        );
+        let syn = &out.synthesis;
         let q = quality::assess(
-            &out.heightfield,
-            &out.seam_map,
+            &syn.heightfield,
+            &syn.seam_map,
             &g,
             factor,
             &[&ex],
@@ -343,19 +368,19 @@ impl Stage for Quilt {
         )?;
         rows.push(Row {
             name: "holdout",
-            output: format!("{} x {}", out.heightfield.width(), out.heightfield.height()),
+            output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
             guide_rmse: q.guide_rmse,
             guide_std: q.guide_std,
-            truth_rmse: Some(rmse(&out.heightfield, &truth)?),
+            truth_rmse: Some(rmse(&syn.heightfield, &truth)?),
             seam_ratio: q.seam_ratio,
-            slope_out: spectral(&out.heightfield),
+            slope_out: spectral(&syn.heightfield),
             slope_ex: spectral(&ex),
             slope_truth: Some(spectral(&truth)),
             hist_out: q.slope_distance,
             hist_truth: Some(q.slope_distance_baseline),
             failing_blocks: report.failing.len(),
             blocks: report.blocks.len(),
-            patches: out.stats.patches,
+            patches: syn.stats.patches,
             seconds: secs,
         });
         cx.save_raster(
@@ -367,7 +392,7 @@ impl Stage for Quilt {
         cx.save_raster(
             "quilt_holdout",
             "right half re-synthesized from the left half under its low-pass",
-            &out.heightfield,
+            &syn.heightfield,
             Some(QUILT_TOLERANCE),
         )?;
         if cx.config.previews {
@@ -376,16 +401,16 @@ impl Stage for Quilt {
         cx.save_rgb(
             "quilt_holdout_seams",
             "holdout seam map (seams white)",
-            out.seam_map.width,
-            out.seam_map.height,
-            &seam_rgb(&out),
+            syn.seam_map.width,
+            syn.seam_map.height,
+            &syn.seam_map.rgb(),
         )?;
         cx.spectrum_plot(
             "quilt holdout: power spectra",
             &[
                 ("holdout_exemplar", &ex),
                 ("holdout_truth", &truth),
-                ("holdout_output", &out.heightfield),
+                ("holdout_output", &syn.heightfield),
             ],
         );
         let f = |v: f64| format!("{v:.2}");
@@ -441,5 +466,27 @@ impl Stage for Quilt {
             cx.state.set_terrain(volcano_result);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn params_merge_onto_the_stage_defaults_and_refuse_unknown_fields() {
+        let p: QuiltParams = serde_json::from_str("{}").unwrap();
+        assert_eq!(p, QuiltParams::default());
+        let p: QuiltParams =
+            serde_json::from_str(r#"{"job": {"settings": {"overlap": 6}, "auto_categories": 3}}"#)
+                .unwrap();
+        assert_eq!(p.job.settings.overlap, 6);
+        assert_eq!(p.job.settings.patch_size, 16);
+        assert_eq!(p.job.auto_categories, Some(3));
+        assert_eq!(p.job.guide.range, Some(GuideRange::Auto));
+        assert!(serde_json::from_str::<QuiltParams>(r#"{"patch": 16}"#).is_err());
+        let e = serde_json::from_str::<QuiltParams>(r#"{"job": {"settings": {"patch": 16}}}"#)
+            .unwrap_err();
+        assert!(e.to_string().contains("patch"), "{e}");
     }
 }

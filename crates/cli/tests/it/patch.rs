@@ -397,7 +397,7 @@ fn bad_inputs_exit_non_zero_with_one_line() {
                 os("--overlap"),
                 os("8"),
             ],
-            "smaller than --patch 64",
+            "smaller than patch_size 64",
         ),
         // overlap >= patch
         (

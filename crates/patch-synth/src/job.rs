@@ -1,0 +1,782 @@
+//! Job layer (issue 13): the `quilt` and `validate` jobs as serde settings with one `check` and
+//! one `run` on heightfields, shared by the CLI commands and the pipeline stage.
+//!
+//! A job takes the exemplars, the guide DEM as read (any cell size, any height units) and an
+//! optional categorisation raster, and does every step between reading and writing: void
+//! filling, exemplar categories (given or clustered), the guide on the output grid at its own
+//! physical scale ([`guide::fit_to_grid`]), its low-pass, the categorisation map (given or from
+//! the guide's height classes), the exemplar index, the guide's height mapping
+//! ([`GuideRange`]) and the input validation (section 4), then the synthesis.
+
+use std::time::Instant;
+
+use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_heightfield::{Heightfield, Progress};
+use serde::{Deserialize, Serialize};
+
+use crate::category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
+use crate::error::{PatchSynthError, Result};
+use crate::guide::{self, GuideFit, GuideRange, RangeMapping};
+use crate::index::{Exemplar, ExemplarIndex};
+use crate::settings::Settings;
+use crate::synth::{Control, Synthesis, synthesize};
+use crate::validate::{ValidationReport, validate};
+
+/// How the guide DEM given to a job becomes the guide of the synthesis.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GuideSetup {
+    /// Cell size `(x, y)` in metres of the guide DEM, replacing the one it carries (a PNG or
+    /// NPY stores none); it is resampled from it to the exemplars' cell size.
+    pub cell_size: Option<(f64, f64)>,
+    /// Standard deviation in cells of a Gaussian low-pass applied once the guide is on the
+    /// output grid (a guide made from a detailed DEM); `None` = used as given.
+    pub blur: Option<f32>,
+    /// Linear height mapping once the exemplars are indexed: `auto` (onto the exemplar
+    /// patches' range, checked by the validation, see [`guide::fit_range`]) or
+    /// `{"metres": [lo, hi]}`; `None` = the guide's heights as they are.
+    pub range: Option<GuideRange>,
+}
+
+/// The input check of section 4 on its own (`relief validate`): everything a synthesis reads,
+/// without the synthesis.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ValidateJob {
+    /// Synthesis settings (patch size, overlap, validation thresholds, ...).
+    pub settings: Settings,
+    /// Output size `(width, height)`; `None` = the guide's extent at the exemplars' cell size
+    /// (required without a guide).
+    pub size: Option<(usize, usize)>,
+    /// How the guide is made.
+    pub guide: GuideSetup,
+    /// Category id of each exemplar, in input order (default: all 0, or clustered).
+    pub exemplar_categories: Option<Vec<u16>>,
+    /// Cluster the exemplars into K categories by their block averages (section 4) unless
+    /// `exemplar_categories` is given, and, without a categorisation map, make one from the
+    /// guide's heights clustered into K classes (lowest class = lowest exemplar category; a
+    /// class no exemplar has accepts any).
+    pub auto_categories: Option<usize>,
+}
+
+/// Guided patch-based synthesis (`relief quilt`): the validation's inputs plus the synthesis.
+/// With `settings.enforce_validation` a failing validation is an error
+/// ([`PatchSynthError::Validation`], with a suggested guide mapping when one passes).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct QuiltJob {
+    /// Synthesis settings.
+    pub settings: Settings,
+    /// Output size `(width, height)`; `None` = the guide's extent at the exemplars' cell size.
+    pub size: Option<(usize, usize)>,
+    /// How the guide is made.
+    pub guide: GuideSetup,
+    /// Category id of each exemplar, in input order.
+    pub exemplar_categories: Option<Vec<u16>>,
+    /// Clustered categories (see [`ValidateJob::auto_categories`]).
+    pub auto_categories: Option<usize>,
+}
+
+/// The rasters a job reads.
+#[derive(Debug, Clone, Default)]
+pub struct JobInputs {
+    /// Exemplar DEMs (voids are filled; the first one's cell size is the output's).
+    pub exemplars: Vec<Heightfield>,
+    /// Guide DEM as read (any cell size; voids are filled).
+    pub guide: Option<Heightfield>,
+    /// Categorisation raster: category ids (65535 = any), nearest-resampled to the output.
+    pub categories: Option<Heightfield>,
+}
+
+/// Figures of the preparation (inputs, guide, index, validation).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct PrepareFigures {
+    /// Void cells filled per exemplar.
+    pub exemplar_voids_filled: Vec<usize>,
+    /// Void cells filled in the guide DEM.
+    pub guide_voids_filled: usize,
+    /// Category of each exemplar.
+    pub exemplar_categories: Vec<u16>,
+    /// True when the categories were clustered (`auto_categories`).
+    pub categories_clustered: bool,
+    /// Where the guide went on the output grid.
+    pub guide_fit: Option<GuideFit>,
+    /// The guide's height mapping.
+    pub guide_mapping: Option<RangeMapping>,
+    /// Output size `(width, height)`.
+    pub output_size: (usize, usize),
+    /// Candidate patches in the index.
+    pub candidate_patches: usize,
+    /// Candidates the validation asked per block.
+    pub required_candidates: usize,
+    /// Validation passed (`None`: not run, an unguided synthesis).
+    pub validation_ok: Option<bool>,
+    /// Guide blocks failing the validation, of `validation_blocks`.
+    pub failing_blocks: usize,
+    /// Guide blocks checked.
+    pub validation_blocks: usize,
+    /// Seconds to build the index.
+    pub index_seconds: f64,
+    /// Seconds of the guide mapping and validation.
+    pub validation_seconds: f64,
+}
+
+/// Everything a synthesis needs, built and checked by [`ValidateJob::prepare`].
+#[derive(Debug)]
+pub struct Prepared {
+    /// The exemplar index.
+    pub index: ExemplarIndex,
+    /// Output size, guide as used and categorisation map.
+    pub control: Control,
+    /// The input validation (always with a guide; without, only for [`ValidateJob`]).
+    pub report: Option<ValidationReport>,
+    /// Figures so far.
+    pub figures: PrepareFigures,
+}
+
+/// Result of [`ValidateJob::run`].
+#[derive(Debug)]
+pub struct ValidateOutput {
+    /// The report (its `suggestion` names a guide mapping that would pass, if any).
+    pub report: ValidationReport,
+    /// The guide exactly as used (mapped, on the output grid).
+    pub guide: Option<Heightfield>,
+    /// Figures.
+    pub figures: PrepareFigures,
+}
+
+/// Figures of a quilt job.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct QuiltFigures {
+    /// The preparation's figures.
+    pub prepare: PrepareFigures,
+    /// Patches placed.
+    pub patches: usize,
+    /// Synthesis grid (columns, rows).
+    pub grid: (usize, usize),
+    /// Mean candidates scored per block.
+    pub mean_candidates: f64,
+    /// Vertical translations applied.
+    pub translations_applied: usize,
+    /// Translations rejected (`|h| > lambda`).
+    pub translations_rejected: usize,
+    /// Distinct source patches over patches placed (1 = no patch used twice).
+    pub distinct_source_share: f64,
+    /// Most placements of one source patch.
+    pub max_source_repeats: usize,
+    /// Seconds of the synthesis proper.
+    pub synthesis_seconds: f64,
+}
+
+/// Result of [`QuiltJob::run`].
+#[derive(Debug)]
+pub struct QuiltOutput {
+    /// The synthesis (terrain, seam map, placements, statistics).
+    pub synthesis: Synthesis,
+    /// The guide exactly as used.
+    pub guide: Option<Heightfield>,
+    /// The input validation (with a guide), reported even when not enforced.
+    pub report: Option<ValidationReport>,
+    /// Categorisation map as used.
+    pub categories: Option<CategoryMap>,
+    /// Figures.
+    pub figures: QuiltFigures,
+}
+
+fn control_error(name: &'static str, reason: impl Into<String>) -> PatchSynthError {
+    PatchSynthError::InvalidControl {
+        name,
+        reason: reason.into(),
+    }
+}
+
+fn filled(mut hf: Heightfield) -> Result<(Heightfield, usize)> {
+    let voids = hf.void_count();
+    if voids > 0 {
+        fill_voids(&mut hf, &FillSettings::default())?;
+    }
+    Ok((hf, voids))
+}
+
+/// Working bytes per exemplar cell that does not depend on the candidate count (summed-area
+/// tables in f64, the exemplar itself, block descriptors).
+const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
+
+/// Working bytes per candidate patch position, beyond its PCA coordinates (k-means cluster
+/// ids, kd-tree nodes, hash-table entries).
+const CANDIDATE_BYTES: f64 = 64.0;
+
+/// Working bytes per output cell (the canvas, the guide, the seam map, the blending buffers).
+const OUTPUT_BYTES_PER_CELL: f64 = 48.0;
+
+/// Pre-flight estimate of a job's working memory ([`ValidateJob::memory`]), before any index
+/// is built.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MemoryEstimate {
+    /// Candidate patch positions of the exemplars.
+    pub candidates: u64,
+    /// Bytes of the exemplar index.
+    pub index_bytes: f64,
+    /// Output size `(width, height)`.
+    pub output: (usize, usize),
+    /// Bytes of the output canvases.
+    pub output_bytes: f64,
+}
+
+impl ValidateJob {
+    /// The working memory this job would need on `inputs` (cheap: no resampling, no index).
+    pub fn memory(&self, inputs: &JobInputs) -> Result<MemoryEstimate> {
+        let s = &self.settings;
+        let stride = s.exemplar_stride.max(1) as f64;
+        let p = s.patch_size as f64;
+        let (mut cells, mut candidates) = (0.0, 0.0);
+        for e in &inputs.exemplars {
+            let (w, h) = (e.width() as f64, e.height() as f64);
+            cells += w * h;
+            candidates +=
+                ((w - p + 1.0).max(0.0) / stride).ceil() * ((h - p + 1.0).max(0.0) / stride).ceil();
+        }
+        let output = match (self.size, &inputs.guide, inputs.exemplars.first()) {
+            (Some(size), _, _) => size,
+            (None, Some(g), Some(e)) => {
+                let (gx, gy) = self.guide.cell_size.unwrap_or_else(|| g.cell_size());
+                let (ex, ey) = e.cell_size();
+                (
+                    (g.width() as f64 * gx / ex).round() as usize,
+                    (g.height() as f64 * gy / ey).round() as usize,
+                )
+            }
+            _ => (0, 0),
+        };
+        // Two PCA spaces (left and top overlaps), f32 coordinates.
+        let per_candidate = CANDIDATE_BYTES + 2.0 * 4.0 * s.pca_dims as f64;
+        Ok(MemoryEstimate {
+            candidates: candidates as u64,
+            index_bytes: candidates * per_candidate + cells * EXEMPLAR_BYTES_PER_CELL,
+            output,
+            output_bytes: output.0 as f64 * output.1 as f64 * OUTPUT_BYTES_PER_CELL,
+        })
+    }
+
+    /// Checks every field; the error names the field and the rule.
+    pub fn check(&self) -> Result<()> {
+        self.settings.check()?;
+        if let Some((w, h)) = self.size
+            && (w == 0
+                || h == 0
+                || w.checked_mul(h)
+                    .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS))
+        {
+            return Err(PatchSynthError::setting(
+                "size",
+                format!("{w}x{h}"),
+                format!(
+                    "must be positive and at most {} cells",
+                    crate::MAX_OUTPUT_CELLS
+                ),
+            ));
+        }
+        if let Some((x, y)) = self.guide.cell_size
+            && !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0)
+        {
+            return Err(PatchSynthError::setting(
+                "guide.cell_size",
+                format!("{x},{y}"),
+                "must be finite and > 0",
+            ));
+        }
+        if let Some(s) = self.guide.blur
+            && !(s.is_finite() && s > 0.0 && s < 1e4)
+        {
+            return Err(PatchSynthError::setting(
+                "guide.blur",
+                s,
+                "must be in (0, 1e4)",
+            ));
+        }
+        if let Some(GuideRange::Metres(lo, hi)) = self.guide.range
+            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+        {
+            return Err(PatchSynthError::setting(
+                "guide.range",
+                format!("{lo},{hi}"),
+                "must be two finite heights LO < HI",
+            ));
+        }
+        if let Some(k) = self.auto_categories
+            && !(1..=1024).contains(&k)
+        {
+            return Err(PatchSynthError::setting(
+                "auto_categories",
+                k,
+                "must be in 1..=1024",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Reads nothing: checks the inputs against the job, fills voids, sets the categories,
+    /// puts the guide on the output grid, indexes the exemplars, maps the guide's heights and
+    /// runs the validation (with a guide, or always when `unguided_validation`).
+    pub fn prepare(
+        &self,
+        inputs: JobInputs,
+        unguided_validation: bool,
+        progress: &dyn Progress,
+    ) -> Result<Prepared> {
+        self.check()?;
+        let settings = &self.settings;
+        let mut fig = PrepareFigures::default();
+        let exemplars = self.exemplars(inputs.exemplars, &mut fig)?;
+        let cell = exemplars[0].heightfield.cell_size();
+        let guide = match inputs.guide {
+            Some(g) => Some(self.guide_on_grid(g, cell, &mut fig)?),
+            None => None,
+        };
+        if guide.is_none() && (self.guide.range.is_some() || self.guide.blur.is_some()) {
+            return Err(control_error(
+                "guide",
+                "guide.range and guide.blur need a guide",
+            ));
+        }
+        let mut control = match guide {
+            Some(g) => Control::guided(g),
+            None => {
+                let (w, h) = self
+                    .size
+                    .ok_or_else(|| control_error("size", "without a guide, a size is required"))?;
+                Control::unguided(w, h)
+            }
+        };
+        fig.output_size = (control.width, control.height);
+        control.categories = self.category_map(inputs.categories.as_ref(), &control, &exemplars)?;
+        let t = Instant::now();
+        let index = ExemplarIndex::build(exemplars, settings, progress)?;
+        fig.index_seconds = t.elapsed().as_secs_f64();
+        fig.candidate_patches = index.patches.len();
+        fig.required_candidates = settings.required_candidates(index.patches.len());
+        progress.begin("validating", 0);
+        let t = Instant::now();
+        let report = self.map_and_validate(&index, &mut control, unguided_validation, &mut fig)?;
+        fig.validation_seconds = t.elapsed().as_secs_f64();
+        if let Some(r) = &report {
+            fig.validation_ok = Some(r.ok);
+            fig.failing_blocks = r.failing.len();
+            fig.validation_blocks = r.blocks.len();
+        }
+        Ok(Prepared {
+            index,
+            control,
+            report,
+            figures: fig,
+        })
+    }
+
+    /// Runs the validation; a failing one is a report with `ok == false`, not an error.
+    pub fn run(&self, inputs: JobInputs, progress: &dyn Progress) -> Result<ValidateOutput> {
+        let p = self.prepare(inputs, true, progress)?;
+        let report = p
+            .report
+            .ok_or_else(|| control_error("guide", "no report"))?;
+        Ok(ValidateOutput {
+            report,
+            guide: p.control.guide,
+            figures: p.figures,
+        })
+    }
+
+    /// Exemplars filled, size-checked and categorised.
+    fn exemplars(&self, hfs: Vec<Heightfield>, fig: &mut PrepareFigures) -> Result<Vec<Exemplar>> {
+        if hfs.is_empty() {
+            return Err(PatchSynthError::NoExemplars);
+        }
+        let p = self.settings.patch_size;
+        let mut out = Vec::with_capacity(hfs.len());
+        for (i, hf) in hfs.into_iter().enumerate() {
+            if hf.width() < p || hf.height() < p {
+                return Err(PatchSynthError::BadExemplar {
+                    index: i,
+                    width: hf.width(),
+                    height: hf.height(),
+                    reason: format!("smaller than patch_size {p}"),
+                });
+            }
+            let (hf, voids) = filled(hf)?;
+            fig.exemplar_voids_filled.push(voids);
+            out.push(Exemplar::new(hf, 0));
+        }
+        let cats = match (&self.exemplar_categories, self.auto_categories) {
+            (Some(c), _) => {
+                if c.len() != out.len() {
+                    return Err(PatchSynthError::setting(
+                        "exemplar_categories",
+                        format!("{c:?}"),
+                        format!("names {} categories for {} exemplars", c.len(), out.len()),
+                    ));
+                }
+                c.clone()
+            }
+            (None, Some(k)) => {
+                let hfs: Vec<Heightfield> = out.iter().map(|e| e.heightfield.clone()).collect();
+                fig.categories_clustered = true;
+                categorize_exemplars(&hfs, k, &self.settings)?
+            }
+            (None, None) => vec![0; out.len()],
+        };
+        for (e, &c) in out.iter_mut().zip(&cats) {
+            e.category = c;
+        }
+        fig.exemplar_categories = cats;
+        Ok(out)
+    }
+
+    /// The guide DEM filled, given its cell size, on the output grid and low-passed.
+    fn guide_on_grid(
+        &self,
+        g: Heightfield,
+        cell: (f64, f64),
+        fig: &mut PrepareFigures,
+    ) -> Result<Heightfield> {
+        let (mut g, voids) = filled(g)?;
+        fig.guide_voids_filled = voids;
+        if let Some((cx, cy)) = self.guide.cell_size {
+            g.set_cell_size(cx, cy)?;
+        }
+        let (g, fit) = guide::fit_to_grid(&g, cell, self.size)?;
+        fig.guide_fit = Some(fit);
+        match self.guide.blur {
+            Some(s) => guide::gaussian_blur(&g, s),
+            None => Ok(g),
+        }
+    }
+
+    /// The categorisation map: the given raster, or the guide's height classes.
+    fn category_map(
+        &self,
+        raster: Option<&Heightfield>,
+        control: &Control,
+        exemplars: &[Exemplar],
+    ) -> Result<Option<CategoryMap>> {
+        if let Some(m) = raster {
+            return CategoryMap::from_heightfield(m, control.width, control.height).map(Some);
+        }
+        let (Some(k), Some(g)) = (self.auto_categories, &control.guide) else {
+            return Ok(None);
+        };
+        let (mut map, _) = CategoryMap::from_guide_heights(g, k, self.settings.seed)?;
+        for c in 0..k.min(u16::MAX as usize) as u16 {
+            if !exemplars.iter().any(|e| e.category == c) {
+                map.relabel(c, ANY_CATEGORY);
+            }
+        }
+        Ok(Some(map))
+    }
+
+    /// Maps the guide's heights (`guide.range`) and validates; a failing validation of an
+    /// unmapped guide suggests the `auto` mapping when that one passes.
+    fn map_and_validate(
+        &self,
+        index: &ExemplarIndex,
+        control: &mut Control,
+        unguided_validation: bool,
+        fig: &mut PrepareFigures,
+    ) -> Result<Option<ValidationReport>> {
+        let settings = &self.settings;
+        let mut report = None;
+        if let Some(g) = control.guide.take() {
+            let g = match self.guide.range {
+                Some(GuideRange::Auto) => {
+                    let (g, m, r) = guide::fit_range(&g, index, control, settings)?;
+                    fig.guide_mapping = Some(m);
+                    report = Some(r);
+                    g
+                }
+                Some(r) => {
+                    let (g, m) = guide::map_range(&g, index, r)?;
+                    fig.guide_mapping = Some(m);
+                    g
+                }
+                None => g,
+            };
+            control.guide = Some(g);
+        }
+        if report.is_none() && (control.guide.is_some() || unguided_validation) {
+            report = Some(validate(index, control, settings)?);
+        }
+        if let (Some(r), None, Some(g)) = (&mut report, self.guide.range, &control.guide)
+            && !r.ok
+        {
+            let mut c = control.clone();
+            c.guide = None;
+            let (_, m, auto) = guide::fit_range(g, index, &c, settings)?;
+            if auto.ok {
+                r.suggestion = Some(format!(
+                    "guide range auto would pass (it maps the guide's {:.0}..{:.0} m onto \
+                     {:.0}..{:.0} m)",
+                    m.from.0, m.from.1, m.to.0, m.to.1
+                ));
+            }
+        }
+        Ok(report)
+    }
+}
+
+impl QuiltJob {
+    /// The validation part of this job.
+    pub fn validate_job(&self) -> ValidateJob {
+        ValidateJob {
+            settings: self.settings.clone(),
+            size: self.size,
+            guide: self.guide.clone(),
+            exemplar_categories: self.exemplar_categories.clone(),
+            auto_categories: self.auto_categories,
+        }
+    }
+
+    /// Checks every field; the error names the field and the rule.
+    pub fn check(&self) -> Result<()> {
+        self.validate_job().check()
+    }
+
+    /// Prepares (see [`ValidateJob::prepare`]), refuses a failing validation when
+    /// `settings.enforce_validation` is set, and synthesizes.
+    pub fn run(&self, inputs: JobInputs, progress: &dyn Progress) -> Result<QuiltOutput> {
+        let Prepared {
+            index,
+            control,
+            report,
+            figures,
+        } = self.validate_job().prepare(inputs, false, progress)?;
+        if let Some(r) = &report
+            && !r.ok
+            && self.settings.enforce_validation
+        {
+            return Err(PatchSynthError::Validation(Box::new(r.clone())));
+        }
+        let settings = Settings {
+            // Validated above (and reported when not enforced).
+            enforce_validation: false,
+            ..self.settings.clone()
+        };
+        let t = Instant::now();
+        let synthesis = synthesize(&index, &control, &settings, progress)?;
+        let synthesis_seconds = t.elapsed().as_secs_f64();
+        let (distinct_source_share, max_source_repeats) = reuse(&synthesis);
+        let s = &synthesis.stats;
+        let figures = QuiltFigures {
+            prepare: figures,
+            patches: s.patches,
+            grid: s.grid,
+            mean_candidates: s.mean_candidates,
+            translations_applied: s.translations_applied,
+            translations_rejected: s.translations_rejected,
+            distinct_source_share,
+            max_source_repeats,
+            synthesis_seconds,
+        };
+        Ok(QuiltOutput {
+            synthesis,
+            guide: control.guide,
+            report,
+            categories: control.categories,
+            figures,
+        })
+    }
+}
+
+/// Share of distinct source patches among the placements, and the most placements of one.
+pub fn reuse(out: &Synthesis) -> (f64, usize) {
+    let mut ids: Vec<(u32, u32, u32)> = out
+        .placements
+        .iter()
+        .map(|p| (p.patch.exemplar, p.patch.y, p.patch.x))
+        .collect();
+    if ids.is_empty() {
+        return (1.0, 0);
+    }
+    ids.sort_unstable();
+    let mut distinct = 0;
+    let mut most = 0;
+    let mut run = 0;
+    for (i, &id) in ids.iter().enumerate() {
+        if i == 0 || id != ids[i - 1] {
+            distinct += 1;
+            run = 0;
+        }
+        run += 1;
+        most = most.max(run);
+    }
+    (distinct as f64 / ids.len() as f64, most)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jobs_round_trip_through_json_and_refuse_unknown_fields() {
+        let q = QuiltJob::default();
+        let s = serde_json::to_string(&q).unwrap();
+        assert_eq!(serde_json::from_str::<QuiltJob>(&s).unwrap(), q);
+        let v = ValidateJob::default();
+        let s = serde_json::to_string(&v).unwrap();
+        assert_eq!(serde_json::from_str::<ValidateJob>(&s).unwrap(), v);
+        assert!(serde_json::from_str::<QuiltJob>(r#"{"patch": 32}"#).is_err());
+        assert!(serde_json::from_str::<QuiltJob>(r#"{"settings": {"patch": 32}}"#).is_err());
+        assert!(serde_json::from_str::<QuiltJob>(r#"{"guide": {"sigma": 2}}"#).is_err());
+        let j: QuiltJob = serde_json::from_str(
+            r#"{"settings": {"patch_size": 32, "blend": {"feather": {"radius": 2.0}}},
+                "guide": {"range": "auto", "blur": 3.0}, "size": [64, 48]}"#,
+        )
+        .unwrap();
+        assert_eq!(j.settings.patch_size, 32);
+        assert_eq!(j.settings.overlap, Settings::default().overlap);
+        assert_eq!(j.guide.range, Some(GuideRange::Auto));
+        assert_eq!(j.size, Some((64, 48)));
+        let m: GuideSetup = serde_json::from_str(r#"{"range": {"metres": [10, 20]}}"#).unwrap();
+        assert_eq!(m.range, Some(GuideRange::Metres(10.0, 20.0)));
+    }
+
+    #[test]
+    fn check_names_the_field() {
+        let mut j = QuiltJob::default();
+        j.guide.blur = Some(-1.0);
+        assert!(j.check().unwrap_err().to_string().contains("guide.blur"));
+        let mut j = QuiltJob::default();
+        j.guide.range = Some(GuideRange::Metres(5.0, 5.0));
+        assert!(j.check().unwrap_err().to_string().contains("guide.range"));
+        let j = QuiltJob {
+            size: Some((0, 8)),
+            ..Default::default()
+        };
+        assert!(j.check().unwrap_err().to_string().contains("`size`"));
+        let mut j = QuiltJob::default();
+        j.settings.overlap = 40;
+        assert!(j.check().unwrap_err().to_string().contains("overlap"));
+        let j = QuiltJob {
+            auto_categories: Some(0),
+            ..Default::default()
+        };
+        assert!(
+            j.check()
+                .unwrap_err()
+                .to_string()
+                .contains("auto_categories")
+        );
+    }
+
+    fn exemplar() -> Heightfield {
+        Heightfield::from_fn(80, 80, 30.0, 30.0, |x, y| {
+            ((x as f32 * 0.21).sin() * (y as f32 * 0.17).cos()) * 40.0 + x as f32 * 2.0
+        })
+    }
+
+    fn small_settings() -> Settings {
+        Settings {
+            patch_size: 24,
+            overlap: 6,
+            min_candidates: 20,
+            kmeans_clusters: 4,
+            pca_samples: 400,
+            ..Default::default()
+        }
+    }
+
+    /// A guide at twice the exemplar's cell size in other units: kept at its ground extent,
+    /// mapped into the exemplar's heights, validated and synthesized; enforcement refuses a
+    /// guide far above the exemplar and suggests the auto mapping.
+    #[test]
+    fn quilt_job_maps_and_scales_the_guide() {
+        let ex = exemplar();
+        // The exemplar's centre at half the resolution, in other units (0.5 x, 5000 m up).
+        let mut g = ex
+            .crop(10, 15, 60, 50)
+            .unwrap()
+            .resample(30, 25)
+            .unwrap()
+            .map(|v| 5000.0 + 0.5 * v);
+        g.set_cell_size(60.0, 60.0).unwrap();
+        let mut job = QuiltJob {
+            settings: small_settings(),
+            ..Default::default()
+        };
+        let inputs = JobInputs {
+            exemplars: vec![ex.clone()],
+            guide: Some(g.clone()),
+            categories: None,
+        };
+        let err = job
+            .run(inputs.clone(), &relief_heightfield::NoProgress)
+            .unwrap_err();
+        let PatchSynthError::Validation(r) = err else {
+            panic!("{err}")
+        };
+        assert!(!r.ok);
+        assert!(r.suggestion.unwrap().contains("auto would pass"));
+        job.guide.range = Some(GuideRange::Auto);
+        let out = job.run(inputs, &relief_heightfield::NoProgress).unwrap();
+        let used = out.guide.unwrap();
+        assert_eq!((used.width(), used.height()), (60, 50));
+        assert_eq!(used.cell_size(), (30.0, 30.0));
+        // The guide's window-mean extremes went inside the exemplar's range (from 5000 m up).
+        let m = out.figures.prepare.guide_mapping.unwrap();
+        let (elo, ehi) = ex.min_max().unwrap();
+        assert!(m.from.0 > 4900.0, "{m:?}");
+        assert!(
+            m.to.0 >= elo && m.to.1 <= ehi && m.to.0 < m.to.1,
+            "{m:?} vs {elo}..{ehi}"
+        );
+        let (lo, hi) = used.min_max().unwrap();
+        assert!(lo > elo - 100.0 && hi < ehi + 100.0, "{lo}..{hi}");
+        assert_eq!(out.figures.prepare.validation_ok, Some(true));
+        assert_eq!(out.figures.prepare.output_size, (60, 50));
+        assert!(out.figures.prepare.guide_mapping.is_some());
+        assert_eq!(
+            (
+                out.synthesis.heightfield.width(),
+                out.synthesis.heightfield.height()
+            ),
+            (60, 50)
+        );
+        assert!(out.figures.distinct_source_share > 0.0 && out.figures.patches > 0);
+    }
+
+    #[test]
+    fn validate_job_reports_unguided_compatibility_and_refuses_bad_inputs() {
+        let job = ValidateJob {
+            settings: small_settings(),
+            size: Some((64, 64)),
+            ..Default::default()
+        };
+        let inputs = JobInputs {
+            exemplars: vec![exemplar(), exemplar()],
+            ..Default::default()
+        };
+        let out = job.run(inputs, &relief_heightfield::NoProgress).unwrap();
+        assert_eq!(out.report.compatibility.len(), 2);
+        let err = job
+            .run(JobInputs::default(), &relief_heightfield::NoProgress)
+            .unwrap_err();
+        assert!(matches!(err, PatchSynthError::NoExemplars), "{err}");
+        let small = JobInputs {
+            exemplars: vec![exemplar().crop(0, 0, 20, 20).unwrap()],
+            ..Default::default()
+        };
+        let err = job.run(small, &relief_heightfield::NoProgress).unwrap_err();
+        assert!(err.to_string().contains("patch_size 24"), "{err}");
+        let j = ValidateJob {
+            size: None,
+            ..job.clone()
+        };
+        let err = j
+            .run(
+                JobInputs {
+                    exemplars: vec![exemplar()],
+                    ..Default::default()
+                },
+                &relief_heightfield::NoProgress,
+            )
+            .unwrap_err();
+        assert!(err.to_string().contains("size"), "{err}");
+    }
+}
