@@ -11,7 +11,7 @@ use crate::multires::{AmplifySettings, DictionaryChoice, STEP_FACTOR, amplify};
 
 /// Settings of the sketch-synthesis job ([`synthesize`]); serde as [`AmplifySettings`] (fields
 /// missing inside a JSON `amplify` object take [`AmplifySettings`]' defaults, not the ones
-/// below).
+/// below; the pipeline merges a spec onto these defaults instead).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SynthesisSettings {

@@ -33,7 +33,7 @@ use relief_dictionary_learning::{
 };
 use relief_heightfield::{Heightfield, Progress, metrics};
 use relief_sparse_core::RasterSettings;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::{Stage, StageCx, Tolerance};
 
@@ -57,12 +57,12 @@ fn min_exemplar_side(r: f64) -> usize {
 }
 
 /// Parameters of the `amplify` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct AmplifyParams {
-    /// The amplify job, the same settings as `relief amplify` ([`AmplifySettings`]). Absent:
-    /// the stage's defaults ([`stage_amplify_job`]: x16, `R` = 2, 256 learned atoms); in a
-    /// given object missing fields take the library's defaults. On small terrains the stage
+    /// The amplify job, the same settings as `relief amplify` ([`AmplifySettings`]); the spec's
+    /// fields are merged onto the stage's defaults ([`stage_amplify_job`]: x16, `R` = 2, 256
+    /// learned atoms). On small terrains the stage
     /// lowers `steps` and `radius` (recorded in the figures), caps the learned atoms at a
     /// quarter of the candidate patches and mixes `seed` with the spec's. `steps` must be 1..=3.
     pub(crate) job: AmplifySettings,
@@ -396,15 +396,16 @@ impl Stage for AmplifyStage {
 }
 
 /// Parameters of the `sketch` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct SketchParams {
     /// Side of the painted sketch in cells (capped so the output is at most the exemplar's
     /// largest side times two); the output is `4^steps x` that.
     pub(crate) sketch_size: usize,
     /// The sketch-synthesis job, the same settings as `relief synthesize`
-    /// ([`SynthesisSettings`]). Absent: the library's defaults (figure 12: three x4 steps, 64
-    /// learned atoms) with `R` = 2; the stage lowers the radius to 1 on small exemplars, caps
+    /// ([`SynthesisSettings`]); the spec's fields are merged onto the library's defaults
+    /// (figure 12: three x4 steps, 64 learned atoms) with `R` = 2. The stage lowers the radius
+    /// to 1 on small exemplars, caps
     /// the atoms at a quarter of the candidate patches and mixes `amplify.seed` with the
     /// spec's. `amplify.steps` must be 1..=3.
     pub(crate) job: SynthesisSettings,
@@ -566,7 +567,7 @@ impl Stage for SketchStage {
 }
 
 /// Parameters of the `procedural` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct ProceduralParams {
     /// Largest side of the centre crop that is fitted.

@@ -9,9 +9,10 @@
 //!    [`StageCx::save_raster`] (GeoTIFF f32 + preview PNG, and a golden candidate with its
 //!    tolerance), and put numbers into `cx.section` (`figure`, `table`, `image`).
 //! 2. Add `mod <name>;` below and register it in `spec.rs` (one arm of `build_stage`, its name
-//!    in `STAGE_NAMES`, and in `default_spec` if it belongs in the default run). A stage with
-//!    parameters derives `Deserialize + Default` (`#[serde(default, deny_unknown_fields)]`) so a
-//!    user's JSON spec can set them.
+//!    in `STAGE_NAMES`, the default run's list). A stage with parameters derives
+//!    `Serialize + Deserialize + Default` (`#[serde(default, deny_unknown_fields)]`, its method
+//!    settings in a `job` field of the method crate's serde type) so a user's JSON spec can set
+//!    them; the spec is merged onto its defaults.
 //! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
 //!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
 

@@ -24,7 +24,7 @@ use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
     ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, Settings, quality,
 };
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::{Stage, StageCx, Tolerance};
 
@@ -60,10 +60,11 @@ fn default_job() -> QuiltJob {
     }
 }
 
-/// Parameters of the `quilt` stage (JSON `params`). The fields of `job` given in the spec are
-/// merged (recursively) onto the stage's default job, so `{"job": {"settings": {"overlap": 6}}}`
-/// keeps the stage's patch size.
-#[derive(Debug, Clone, PartialEq)]
+/// Parameters of the `quilt` stage (JSON `params`; like every stage's, merged recursively onto
+/// these defaults, see [`super::spec::params`], so `{"job": {"settings": {"overlap": 6}}}` keeps
+/// the stage's patch size).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub(crate) struct QuiltParams {
     /// The synthesis job (`relief_patch_synth::QuiltJob`) of both runs. The stage sets
     /// `settings.seed` from the run's seed; the volcano guide, which stores no cell size, gets
@@ -81,53 +82,6 @@ impl Default for QuiltParams {
             job: default_job(),
             replace_terrain: false,
         }
-    }
-}
-
-/// `params` as written in the spec.
-#[derive(Deserialize)]
-#[serde(default, deny_unknown_fields)]
-struct RawParams {
-    job: serde_json::Value,
-    replace_terrain: bool,
-}
-
-impl Default for RawParams {
-    fn default() -> Self {
-        Self {
-            job: serde_json::Value::Object(Default::default()),
-            replace_terrain: false,
-        }
-    }
-}
-
-/// `over` merged onto `base`: objects field by field, anything else replaced.
-fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
-    match (base, over) {
-        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
-            for (k, v) in o {
-                match b.get_mut(&k) {
-                    Some(slot) => merge(slot, v),
-                    None => {
-                        b.insert(k, v);
-                    }
-                }
-            }
-        }
-        (b, o) => *b = o,
-    }
-}
-
-impl<'de> Deserialize<'de> for QuiltParams {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        use serde::de::Error;
-        let raw = RawParams::deserialize(d)?;
-        let mut job = serde_json::to_value(default_job()).map_err(D::Error::custom)?;
-        merge(&mut job, raw.job);
-        Ok(Self {
-            job: serde_json::from_value(job).map_err(|e| D::Error::custom(format!("job: {e}")))?,
-            replace_terrain: raw.replace_terrain,
-        })
     }
 }
 
@@ -475,18 +429,19 @@ mod tests {
 
     #[test]
     fn params_merge_onto_the_stage_defaults_and_refuse_unknown_fields() {
-        let p: QuiltParams = serde_json::from_str("{}").unwrap();
+        use crate::pipeline::spec::params;
+        let p: QuiltParams = params(&serde_json::json!({})).unwrap();
         assert_eq!(p, QuiltParams::default());
         let p: QuiltParams =
-            serde_json::from_str(r#"{"job": {"settings": {"overlap": 6}, "auto_categories": 3}}"#)
+            params(&serde_json::json!({"job": {"settings": {"overlap": 6}, "auto_categories": 3}}))
                 .unwrap();
         assert_eq!(p.job.settings.overlap, 6);
         assert_eq!(p.job.settings.patch_size, 16);
         assert_eq!(p.job.auto_categories, Some(3));
         assert_eq!(p.job.guide.range, Some(GuideRange::Auto));
-        assert!(serde_json::from_str::<QuiltParams>(r#"{"patch": 16}"#).is_err());
-        let e = serde_json::from_str::<QuiltParams>(r#"{"job": {"settings": {"patch": 16}}}"#)
+        assert!(params::<QuiltParams>(&serde_json::json!({"patch": 16})).is_err());
+        let e = params::<QuiltParams>(&serde_json::json!({"job": {"settings": {"patch": 16}}}))
             .unwrap_err();
-        assert!(e.to_string().contains("patch"), "{e}");
+        assert!(format!("{e:#}").contains("patch"), "{e:#}");
     }
 }

@@ -27,7 +27,7 @@ use relief_sparse_core::{
     FormatOptions, FunctionAtomRegistry, Node, RasterSettings, River, RiverMode, Sct, Window,
     compression_report, extract_patches,
 };
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::{Stage, StageCx, Tolerance};
 
@@ -40,7 +40,7 @@ const SPARSE_TOLERANCE: Tolerance = Tolerance {
 };
 
 /// Parameters of the `sparse` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct SparseParams {
     /// The compress job, the same settings as `relief compress` ([`CompressSettings`]). The

@@ -23,9 +23,9 @@
 //!
 //! # Registering a stage
 //! Add one arm to [`build_stage`] (`"name" => boxed(params::<YourStage>(p)?)` for a stage with
-//! parameters, which must implement `Deserialize + Default`; `Box::new(YourStage)` for one
-//! without), its name to [`STAGE_NAMES`], and, if it belongs in the default run, its name to
-//! [`default_spec`]. The test below checks that every listed name builds and reports that name.
+//! parameters, which must implement `Serialize + Deserialize + Default`; `Box::new(YourStage)`
+//! for one without) and its name to [`STAGE_NAMES`] (in the order of the default run,
+//! [`default_spec`]). The test below checks that every listed name builds and reports that name.
 
 use std::path::{Path, PathBuf};
 
@@ -167,13 +167,38 @@ pub fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
         .collect()
 }
 
-/// Deserialises a stage's parameter struct; `null` gives its defaults.
-#[allow(dead_code)] // used by the method stages' arms
-pub fn params<T: DeserializeOwned + Default>(value: &serde_json::Value) -> Result<T> {
+/// Deserialises a stage's parameter struct: the spec's `params` merged recursively onto the
+/// stage's defaults (objects field by field, anything else replaced), so a spec names only what
+/// it changes, also inside nested job settings (`{"job": {"steps": 1}}` keeps the stage's other
+/// job fields); `null` gives the defaults; an unknown field is an error.
+pub fn params<T: DeserializeOwned + Serialize + Default>(value: &serde_json::Value) -> Result<T> {
     if value.is_null() {
         return Ok(T::default());
     }
-    serde_json::from_value(value.clone()).context("invalid `params`")
+    let mut merged = serde_json::to_value(T::default()).context("cannot encode the defaults")?;
+    merge(&mut merged, value.clone());
+    serde_json::from_value(merged).context("invalid `params`")
+}
+
+/// `over` merged onto `base`: objects field by field, anything else replaced. A one-key object
+/// over a one-key object with another key is an enum variant switch (`{"poisson": {...}}` over
+/// `{"feather": {...}}`) and replaces it.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o))
+            if !(b.len() == 1 && o.len() == 1 && o.keys().all(|k| !b.contains_key(k))) =>
+        {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (b, o) => *b = o,
+    }
 }
 
 fn no_params(
@@ -244,5 +269,45 @@ mod tests {
         std::fs::write(&p, r#"{"stages": []}"#).unwrap();
         let err = PipelineSpec::read(&p).unwrap_err();
         assert!(format!("{err:#}").contains("empty"), "{err:#}");
+    }
+
+    /// A spec's `params` are merged onto the stage's defaults, nested job settings included;
+    /// a one-key object with another key switches an enum variant; unknown fields fail.
+    #[test]
+    fn params_merge_onto_the_stage_defaults() {
+        use relief_dictionary_learning::DictionaryChoice;
+        let p: dictionary::AmplifyParams =
+            params(&serde_json::json!({"job": {"steps": 1}, "also_x4": false})).unwrap();
+        let d = dictionary::AmplifyParams::default();
+        assert_eq!(p.job.steps, 1);
+        assert_eq!(p.job.radius, d.job.radius, "the stage's radius is kept");
+        assert!(!p.also_x4 && p.replace_terrain == d.replace_terrain);
+        let p: dictionary::AmplifyParams =
+            params(&serde_json::json!({"job": {"dictionary": {"learned": {"n_atoms": 32}}}}))
+                .unwrap();
+        assert_eq!(
+            p.job.dictionary,
+            DictionaryChoice::Learned {
+                n_atoms: 32,
+                iterations: 3
+            }
+        );
+        let p: dictionary::AmplifyParams =
+            params(&serde_json::json!({"job": {"dictionary": "complete"}})).unwrap();
+        assert_eq!(p.job.dictionary, DictionaryChoice::Complete);
+        let p: wavelet::WaveletParams =
+            params(&serde_json::json!({"job": {"fit": {"min_level": 2}}})).unwrap();
+        assert_eq!(p.job.fit.min_level, 2);
+        assert_eq!(
+            p.job.fit.gamma_max,
+            wavelet::WaveletParams::default().job.fit.gamma_max
+        );
+        for bad in [
+            serde_json::json!({"job": {"stepz": 1}}),
+            serde_json::json!({"jobs": {}}),
+            serde_json::json!({"job": {"dictionary": {"learned": {"atoms": 3}}}}),
+        ] {
+            assert!(params::<dictionary::AmplifyParams>(&bad).is_err(), "{bad}");
+        }
     }
 }

@@ -12,12 +12,12 @@
 
 use anyhow::{Context, Result, bail};
 use relief_implicit_volume::{Feature, Recipe, VolumeJob};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::{Stage, StageCx};
 
 /// Parameters of the `volume` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct VolumeParams {
     /// The job, exactly as `relief volume` builds it ([`VolumeJob`]: `recipe` with

@@ -31,7 +31,7 @@ use relief_wavelet_lod::{
     Band, FitSettings, GlobalAnalysis, Method, Model, RefineSettings, Refiner, Wavelet as Basis,
     analyze, render_log_variance_plot,
 };
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::report::Plot;
 use super::{Stage, StageCx, Tolerance};
@@ -45,7 +45,7 @@ const WAVELET_TOLERANCE: Tolerance = Tolerance {
 };
 
 /// Parameters of the `wavelet` stage (JSON `params`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct WaveletParams {
     /// The refine job, exactly as `relief refine` takes it ([`RefineSettings`]: `model`,
