@@ -10,6 +10,7 @@
 //! amplitude windows 1 and 5, no block-mean removal, bases, fitted levels, `min_gamma`), `fits`
 //! (fitted `gamma`, notes and level variances of every run), `swing` (the detail energy against
 //! bicubic per position modulo the factor, truth and output: the profile behind the swing),
+//! `try=JSON` (one more run with these settings, e.g. `'try={"amplitude_power":2}'`),
 //! `timing` (wall time of the spectral and paper models on a 1024 x 704 crop), `npy=DIR` (write
 //! the truth, the spectral output and the bicubic baseline of every crop as `.npy` into DIR, for
 //! checking against the reference `shared/tools/terrain_quality.py`:
@@ -24,13 +25,15 @@ use relief_wavelet_lod::{Method, RefineSettings, Refiner};
 
 fn row(name: &str, s: &Scores) {
     println!(
-        "  {name:<14} consistency {:>6.3} %  slope {:>6.2}  dslope {:>5.2}  slope_emd {:>5.2}  curv_emd {:>6.3}  swing {:>5.2}",
+        "  {name:<14} consistency {:>6.3} %  slope {:>6.2}  dslope {:>5.2}  slope_emd {:>5.2}  curv_emd {:>6.3}  swing {:>5.2}  place {:>5.2}  flat {:>+5.2}",
         100.0 * s.consistency,
         s.spectral_slope,
         s.dslope,
         s.slope_emd,
         s.curv_emd,
-        s.swing
+        s.swing,
+        s.placement,
+        s.flat_excess
     );
 }
 
@@ -96,6 +99,18 @@ fn main() {
                     },
                 ),
             ];
+            // `try=JSON`: a spectral run with these settings (merged onto the defaults).
+            for a in extra.iter().filter_map(|a| a.strip_prefix("try=")) {
+                let s: RefineSettings = serde_json::from_str(a).expect("try=JSON settings");
+                runs.push((
+                    a.to_string(),
+                    RefineSettings {
+                        extra_levels: levels,
+                        seed: 2024,
+                        ..s
+                    },
+                ));
+            }
             if extra.iter().any(|a| a == "variants") {
                 for (label, s) in variants(levels) {
                     runs.push((label, s));

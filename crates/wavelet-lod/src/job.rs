@@ -1,13 +1,15 @@
-//! The refine job as one unit: [`RefineSettings`] (serde, [`RefineSettings::check`]) run on a
-//! heightfield by [`RefineSettings::run`], which returns the refined terrain and its
-//! [`RefineFigures`]. The CLI (`relief refine`), the pipeline's `wavelet` stage and tiled runs
-//! all go through this type, so a parameter is defined once.
+//! The refine and analyze jobs as units: [`RefineSettings`] (serde, [`RefineSettings::check`])
+//! run on a heightfield by [`RefineSettings::run`], which returns the refined terrain and its
+//! [`RefineFigures`]; [`AnalyzeSettings::run`] returns the statistics of equations (2)-(4) and
+//! their [`AnalyzeFigures`]. The CLI (`relief refine`, `relief analyze`), the pipeline's
+//! `wavelet` stage and tiled runs all go through these types, so a parameter is defined once.
 
 use relief_heightfield::{Heightfield, Progress};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use crate::analysis::BandFit;
-use crate::error::Result;
+use crate::analysis::{BandFit, FitSettings, GlobalAnalysis, LocalMaps, analyze, analyze_local};
+use crate::dwt::Band;
+use crate::error::{Result, WaveletError};
 use crate::refine::{Method, Model, RefineSettings, Refiner};
 use crate::wavelet::Wavelet;
 
@@ -74,6 +76,162 @@ impl RefineSettings {
     }
 }
 
+/// Settings of the analyze job ([`AnalyzeSettings::run`]): the statistics of section 4 of a
+/// void-free terrain, optionally with the local fits of equation (4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AnalyzeSettings {
+    /// Analysis basis (the paper's linear spline, [`Wavelet::Cdf53`], by default).
+    pub wavelet: Wavelet,
+    /// Fit settings of equation (3) (first fitted level, variance floor, `gamma` clamp).
+    pub fit: FitSettings,
+    /// Also fit the local statistics (LSA, equation (4)) in a `W x W` window (odd).
+    pub local_window: Option<usize>,
+}
+
+impl Default for AnalyzeSettings {
+    fn default() -> Self {
+        Self {
+            wavelet: Wavelet::Cdf53,
+            fit: FitSettings::default(),
+            local_window: None,
+        }
+    }
+}
+
+/// Mean and 5/50/95th percentiles of a local map.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MapSummary {
+    /// Mean.
+    pub mean: f64,
+    /// 5th percentile.
+    pub p5: f64,
+    /// Median.
+    pub p50: f64,
+    /// 95th percentile.
+    pub p95: f64,
+}
+
+impl MapSummary {
+    /// Summary of a non-empty list of values (`None` when empty).
+    pub fn of(values: &[f32]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        let mut v: Vec<f32> = values.to_vec();
+        v.sort_by(f32::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize] as f64;
+        Some(Self {
+            mean: v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64,
+            p5: q(0.05),
+            p50: q(0.5),
+            p95: q(0.95),
+        })
+    }
+}
+
+/// The local fits of one band, summarised over the terrain.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LocalBand {
+    /// Band.
+    pub band: Band,
+    /// `gamma` over the locations.
+    pub gamma: MapSummary,
+    /// Implied fractal dimension `3 - gamma / 2` over the locations.
+    pub fractal_dimension: MapSummary,
+}
+
+/// What an analyze job reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AnalyzeFigures {
+    /// Mean fractal dimension over the three bands.
+    pub fractal_dimension: f64,
+    /// `false` when the fractal dimension is below 2 (`gamma > 2`, `H > 1`): no fractional
+    /// Brownian surface decays that fast, so the fBm reading of section 4 fails over the fitted
+    /// levels (the terrain is smoother than any fractal surface there).
+    pub fbm_holds: bool,
+    /// The global analysis (variances per level and band, fits).
+    pub analysis: GlobalAnalysis,
+    /// LSA window side, when the local fits were asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub local_window: Option<usize>,
+    /// The local fits summarised per band (empty without `local_window`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub local: Vec<LocalBand>,
+}
+
+/// Result of [`AnalyzeSettings::run`].
+#[derive(Debug, Clone)]
+pub struct Analyzed {
+    /// The local maps at input resolution (with `local_window`).
+    pub local: Option<LocalMaps>,
+    /// The figures (they hold the global analysis).
+    pub figures: AnalyzeFigures,
+}
+
+impl Analyzed {
+    /// The map of the implied fractal dimension, mean of the bands (`3 - mean(gamma) / 2`),
+    /// at input resolution (with `local_window`).
+    pub fn dimension_map(&self) -> Option<Vec<f32>> {
+        let m = self.local.as_ref()?;
+        Some(
+            (0..m.gamma[0].data.len())
+                .map(|i| 3.0 - (m.gamma[0].data[i] + m.gamma[1].data[i] + m.gamma[2].data[i]) / 6.0)
+                .collect(),
+        )
+    }
+}
+
+impl AnalyzeSettings {
+    /// Checks the settings (the fit, the window).
+    pub fn check(&self) -> Result<()> {
+        self.fit.check()?;
+        if let Some(w) = self.local_window {
+            crate::analysis::check_window(w)?;
+        }
+        Ok(())
+    }
+
+    /// Runs the job on a void-free terrain.
+    pub fn run(&self, hf: &Heightfield, progress: &dyn Progress) -> Result<Analyzed> {
+        self.check()?;
+        hf.require_complete()?;
+        progress.begin("wavelet analysis", 0);
+        let analysis = analyze(hf, self.wavelet, &self.fit)?;
+        let (local, summaries) = match self.local_window {
+            Some(w) => {
+                progress.begin("local fits", 0);
+                let maps = analyze_local(hf, self.wavelet, w, &self.fit)?;
+                let mut bands = Vec::with_capacity(3);
+                for b in Band::ALL {
+                    let summary = |data: &[f32]| {
+                        MapSummary::of(data)
+                            .ok_or_else(|| WaveletError::param("input", "empty", "must have cells"))
+                    };
+                    bands.push(LocalBand {
+                        band: b,
+                        gamma: summary(&maps.gamma[b.index()].data)?,
+                        fractal_dimension: summary(&maps.fractal_dimension(b).data)?,
+                    });
+                }
+                (Some(maps), bands)
+            }
+            None => (None, Vec::new()),
+        };
+        let d = analysis.fractal_dimension();
+        Ok(Analyzed {
+            local,
+            figures: AnalyzeFigures {
+                fractal_dimension: d,
+                fbm_holds: d >= 2.0,
+                analysis,
+                local_window: self.local_window,
+                local: summaries,
+            },
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -131,5 +289,42 @@ mod tests {
             ..s
         };
         assert!(bad.run(&hf, &NoProgress).is_err());
+    }
+
+    #[test]
+    fn analyze_job_reports_the_fits_and_the_local_summaries() {
+        let hf = Heightfield::from_fn(64, 64, 10.0, 10.0, |x, y| {
+            let (x, y) = (x as f32, y as f32);
+            40.0 * (x * 0.2).sin() * (y * 0.15).cos() + 5.0 * (x * 0.9 + y * 0.5).sin()
+        });
+        let s: AnalyzeSettings = serde_json::from_str(r#"{"local_window": 3}"#).unwrap();
+        let out = s.run(&hf, &NoProgress).unwrap();
+        let direct = analyze(&hf, Wavelet::Cdf53, &FitSettings::default()).unwrap();
+        assert_eq!(out.figures.analysis, direct);
+        assert_eq!(out.figures.fractal_dimension, direct.fractal_dimension());
+        assert_eq!(out.figures.fbm_holds, direct.fractal_dimension() >= 2.0);
+        assert_eq!(out.figures.local.len(), 3);
+        let maps = out.local.as_ref().unwrap();
+        let g = &maps.gamma[0].data;
+        let mean = g.iter().map(|&v| v as f64).sum::<f64>() / g.len() as f64;
+        assert!((out.figures.local[0].gamma.mean - mean).abs() < 1e-9);
+        let l = out.figures.local[1].gamma;
+        assert!(l.p5 <= l.p50 && l.p50 <= l.p95);
+        let dims = out.dimension_map().unwrap();
+        assert_eq!(dims.len(), hf.len());
+        // A smooth terrain decays faster than any fBm over the fitted levels.
+        let smooth = Heightfield::from_fn(64, 64, 10.0, 10.0, |x, y| (x * x + y * y) as f32);
+        assert!(
+            !AnalyzeSettings::default()
+                .run(&smooth, &NoProgress)
+                .unwrap()
+                .figures
+                .fbm_holds
+        );
+        for bad in [r#"{"local_window": 4}"#, r#"{"fit": {"min_level": 99}}"#] {
+            let s: AnalyzeSettings = serde_json::from_str(bad).unwrap();
+            assert!(s.run(&hf, &NoProgress).is_err(), "{bad}");
+        }
+        assert!(serde_json::from_str::<AnalyzeSettings>(r#"{"window": 3}"#).is_err());
     }
 }

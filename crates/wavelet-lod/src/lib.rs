@@ -33,7 +33,13 @@
 //! * with LSA ([`Method::Lsa`], the default), modulates the amplitude by a local factor from
 //!   the finest observed level (windowed mean square over its mean, so the total variance is
 //!   kept and the log-domain bias of local fits does not arise), bilinearly interpolated to
-//!   every coefficient position: no dyadic blocks, flat areas stay flat;
+//!   every coefficient position: no dyadic blocks, flat areas stay flat; the finer new
+//!   levels blend that narrow amplitude with one from a 5 times wider window
+//!   ([`RefineSettings::amplitude_persistence`]), so the finest texture also reaches the smooth
+//!   ground next to rough ground (valley and glacier floors) as it does in real DEMs, while
+//!   exactly flat ground (sea, lakes) stays flat. Measured with the protocol's `flat_excess`
+//!   (curvature energy of the smoothest fifth of the ground against the truth's, [`quality`]):
+//!   summed over five DEMs at x4 and x16, 15.9 instead of 21.1;
 //! * is area-consistent (pixel-is-area, the workspace convention): output block
 //!   `[2^n i, 2^n (i + 1))` covers input cell `i`, and the box down-sampling of the output is
 //!   the input (up to `f32` rounding). The output is `cubic(q * (input - box-down(D))) + D`,
@@ -140,7 +146,9 @@ pub use dwt::{
     wavedec2, waverec2, waverec2_owned,
 };
 pub use error::{Result, WaveletError};
-pub use job::{RefineFigures, Refined};
+pub use job::{
+    AnalyzeFigures, AnalyzeSettings, Analyzed, LocalBand, MapSummary, RefineFigures, Refined,
+};
 pub use lift::Boundary;
 pub use plot::{LogVariancePlot, PlotSeries, render_log_variance_plot};
 pub use refine::{Method, Model, RefineSettings, Refiner, refine, refine_window};

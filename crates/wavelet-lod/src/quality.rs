@@ -13,6 +13,14 @@
 //!   columns; for periods `P` in 4, 8, 16, 32 (profiles of at least 12 periods) the max/min of
 //!   the phase means of `e` modulo `P`, the worst over periods and axes (dyadic blocks or grids
 //!   raise it; compare with `T`'s own).
+//! * `placement`: where the fine relief goes. On blocks of `4F x 4F` output cells the
+//!   curvature energy `e = mean(Laplacian(X)^2)` (the 5-point Laplacian above, what a hillshade
+//!   shows as texture) of the truth and of the output; the Pearson correlation of `log2 e` over
+//!   the blocks (1: the output is rough where the truth is; near 0: uniform grain). Not in the
+//!   Python reference (an addition of issue 16).
+//! * `flat_excess`: `log2` of the output's over the truth's curvature energy on the smoothest
+//!   fifth of the blocks (by the truth's `e`): 0 when smooth areas stay as smooth as the truth,
+//!   1 when they get twice its energy (grain on glacier floors, lake flats).
 //!
 //! `zoom(C)` is [`spline_zoom`], the script's `scipy.ndimage.zoom(C, F, order=3)`: a cubic
 //! B-spline through the coarse samples with the *corner* samples aligned (output sample `o` at
@@ -51,6 +59,10 @@ pub struct Scores {
     pub curv_emd: f64,
     /// Detail-energy swing (1 = none).
     pub swing: f64,
+    /// Correlation of the block detail energies (log) of output and truth.
+    pub placement: f64,
+    /// `log2` output / truth detail energy on the smoothest fifth of the blocks.
+    pub flat_excess: f64,
 }
 
 /// The truth, its coarse version and the references the scores need.
@@ -74,6 +86,8 @@ pub struct Protocol {
     pub truth_swing_keys: f64,
     lap_clip: f64,
     lap_hist: Vec<f64>,
+    /// The truth's curvature energy per `4F x 4F` block ([`block_curvature`]).
+    truth_energy: Vec<f64>,
 }
 
 impl Protocol {
@@ -103,7 +117,9 @@ impl Protocol {
         abs.sort_by(f64::total_cmp);
         let lap_clip = percentile(&abs, 99.0).max(1e-12);
         let lap_hist = histogram(&lt, lap_clip);
+        let truth_energy = block_curvature(&truth, 4 * factor);
         Ok(Self {
+            truth_energy,
             truth,
             coarse,
             bicubic,
@@ -139,7 +155,11 @@ impl Protocol {
         let spectral_slope = added_octave_slope(&o, self.factor)?;
         let curv = histogram(&laplacian(&o), self.lap_clip);
         let curv_emd = emd(&curv, &self.lap_hist) * (2.0 / 90.0);
+        let energy = block_curvature(&o, 4 * self.factor);
+        let (placement, flat_excess) = placement(&self.truth_energy, &energy);
         Ok(Scores {
+            placement,
+            flat_excess,
             consistency,
             spectral_slope,
             dslope: (spectral_slope - self.truth_slope).abs(),
@@ -295,6 +315,56 @@ fn emd(a: &[f64], b: &[f64]) -> f64 {
         d += (ca - cb).abs();
     }
     d
+}
+
+/// Mean squared 5-point Laplacian per `b x b` block of the interior `(w - 2) x (h - 2)` grid
+/// (whole blocks only, row-major).
+pub fn block_curvature(hf: &Heightfield, b: usize) -> Vec<f64> {
+    let b = b.max(1);
+    let (w, h) = (hf.width().saturating_sub(2), hf.height().saturating_sub(2));
+    let lap = laplacian(hf);
+    let (bw, bh) = (w / b, h / b);
+    let mut out = vec![0.0f64; bw * bh];
+    for y in 0..bh * b {
+        for x in 0..bw * b {
+            out[(y / b) * bw + x / b] += lap[y * w + x].powi(2);
+        }
+    }
+    let n = (b * b) as f64;
+    out.iter_mut().for_each(|v| *v /= n);
+    out
+}
+
+/// `(placement, flat_excess)` of two block-energy lists (see the module docs).
+fn placement(truth: &[f64], out: &[f64]) -> (f64, f64) {
+    let n = truth.len().min(out.len());
+    if n < 5 {
+        return (0.0, 0.0);
+    }
+    // Energies below a millionth of the mean are floored, so exact zeros stay finite.
+    let floor = |v: &[f64]| 1e-6 * v.iter().sum::<f64>() / v.len() as f64 + 1e-12;
+    let (ft, fo) = (floor(&truth[..n]), floor(&out[..n]));
+    let lt: Vec<f64> = truth[..n].iter().map(|v| (v + ft).log2()).collect();
+    let lo: Vec<f64> = out[..n].iter().map(|v| (v + fo).log2()).collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (mt, mo) = (mean(&lt), mean(&lo));
+    let (mut stt, mut soo, mut sto) = (0.0, 0.0, 0.0);
+    for (a, b) in lt.iter().zip(&lo) {
+        stt += (a - mt) * (a - mt);
+        soo += (b - mo) * (b - mo);
+        sto += (a - mt) * (b - mo);
+    }
+    let corr = if stt > 0.0 && soo > 0.0 {
+        sto / (stt * soo).sqrt()
+    } else {
+        0.0
+    };
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| truth[i].total_cmp(&truth[j]).then(i.cmp(&j)));
+    let flat = &order[..n.div_ceil(5)];
+    let et: f64 = flat.iter().map(|&i| truth[i]).sum::<f64>() + ft;
+    let eo: f64 = flat.iter().map(|&i| out[i]).sum::<f64>() + fo;
+    (corr, (eo / et).log2())
 }
 
 /// Detail-energy swing of `a - reference` (see the module docs).

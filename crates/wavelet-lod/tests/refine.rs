@@ -478,3 +478,54 @@ fn spectral_model_is_area_consistent() {
         );
     }
 }
+
+#[test]
+fn local_amplitude_keeps_flat_ground_smooth_and_its_knobs_act() {
+    // Left half rough, right half a tilted plane (no detail at any level).
+    let r = rough(128, 64, 3);
+    let hf = Heightfield::from_fn(128, 64, 30.0, 30.0, |x, y| {
+        if x < 64 {
+            r.get(x, y)
+        } else {
+            500.0 + 2.0 * x as f32 + y as f32
+        }
+    });
+    let run = |s: RefineSettings| {
+        let s = RefineSettings {
+            extra_levels: 3,
+            seed: 11,
+            ..s
+        };
+        let out = refine(&hf, &s).unwrap();
+        // Away from the seam and the borders (the mirrored plane has a kink there): the
+        // middle of each half, input cells [16, 48) x [16, 48) and [80, 112) x [16, 48).
+        let left = out.crop(16 * 8, 16 * 8, 32 * 8, 32 * 8).unwrap();
+        let right = out.crop(80 * 8, 16 * 8, 32 * 8, 32 * 8).unwrap();
+        let e = |h: &Heightfield| {
+            let b = h.width().min(h.height()) - 2;
+            relief_wavelet_lod::quality::block_curvature(h, b)[0]
+        };
+        e(&right) / e(&left)
+    };
+    let default = run(RefineSettings::default());
+    let follow = run(RefineSettings {
+        amplitude_power: 1.0,
+        amplitude_persistence: 1.0,
+        ..Default::default()
+    });
+    let uniform = run(RefineSettings {
+        amplitude_power: 0.0,
+        ..Default::default()
+    });
+    let gsa = run(RefineSettings {
+        method: Method::Gsa,
+        ..Default::default()
+    });
+    // The plane gets almost none of the rough half's fine relief with the local amplitude,
+    // a comparable share without it.
+    assert!(follow < 0.02, "plane/rough curvature energy {follow}");
+    assert!(default < 0.2, "plane/rough curvature energy {default}");
+    assert!(uniform > 0.2 && gsa > 0.2, "uniform {uniform}, gsa {gsa}");
+    // Persistence below 1 spreads the finest levels towards a uniform texture.
+    assert!(default > follow, "default {default} vs follow {follow}");
+}

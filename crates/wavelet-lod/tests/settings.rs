@@ -76,6 +76,10 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
             prop_oneof![3 => Just(2.0f64), 1 => -1.0f64..9.0],
             prop::bool::ANY,
         ),
+        (
+            prop_oneof![3 => Just(1.0f64), 1 => -1.0f64..5.0],
+            prop_oneof![3 => Just(0.6f64), 1 => -0.5f64..1.5],
+        ),
     )
         .prop_map(
             |(
@@ -87,6 +91,7 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 fit,
                 tile,
                 (paper, fine_levels, min_gamma, consistency),
+                (amplitude_power, amplitude_persistence),
             )| RefineSettings {
                 model: if paper { Model::Paper } else { Model::Spectral },
                 wavelet: Some(wavelet),
@@ -99,6 +104,8 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 fine_levels,
                 min_gamma,
                 consistency,
+                amplitude_power,
+                amplitude_persistence,
             },
         )
 }
@@ -143,6 +150,8 @@ const FIELDS: &[&str] = &[
     "strip",
     "fine_levels",
     "min_gamma",
+    "amplitude_power",
+    "amplitude_persistence",
 ];
 
 /// Every error names what is wrong: the field and its value for parameter errors.

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, Progress};
 use relief_wavelet_lod::{
-    Band, FitSettings, GlobalAnalysis, Wavelet, analyze, analyze_local, render_log_variance_plot,
+    AnalyzeFigures, AnalyzeSettings, Band, FitSettings, Wavelet, render_log_variance_plot,
 };
 use serde::Serialize;
 
@@ -50,55 +50,20 @@ pub(crate) struct Args {
     pub(crate) read: super::ReadArgs,
 }
 
-/// Summary of one local map.
-#[derive(Debug, Clone, Serialize)]
-pub(crate) struct MapSummary {
-    mean: f64,
-    p5: f64,
-    p50: f64,
-    p95: f64,
-}
-
-impl MapSummary {
-    fn of(values: &[f32]) -> Self {
-        let mut v: Vec<f32> = values.to_vec();
-        v.sort_by(f32::total_cmp);
-        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize] as f64;
-        Self {
-            mean: v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64,
-            p5: q(0.05),
-            p50: q(0.5),
-            p95: q(0.95),
-        }
-    }
-}
-
-/// Local statistics of one band, summarised.
-#[derive(Debug, Clone, Serialize)]
-pub(crate) struct LocalBand {
-    band: Band,
-    gamma: MapSummary,
-    fractal_dimension: MapSummary,
-}
-
-/// Everything `--json` prints.
+/// Everything `--json` prints: the input and the job's figures.
 #[derive(Debug, Serialize)]
 pub(crate) struct Report {
     file: String,
     width: usize,
     height: usize,
     cell_size: (f64, f64),
-    /// Mean fractal dimension over the three bands.
-    fractal_dimension: f64,
-    analysis: GlobalAnalysis,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    local_window: Option<usize>,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    local: Vec<LocalBand>,
+    #[serde(flatten)]
+    figures: AnalyzeFigures,
 }
 
 fn text(r: &Report) -> String {
-    let a = &r.analysis;
+    let f = &r.figures;
+    let a = &f.analysis;
     let mut s = String::new();
     let _ = writeln!(s, "file:        {}", r.file);
     let _ = writeln!(
@@ -137,9 +102,9 @@ fn text(r: &Report) -> String {
     let _ = writeln!(
         s,
         "fractal dimension (mean of bands): {:.4}",
-        r.fractal_dimension
+        f.fractal_dimension
     );
-    if r.fractal_dimension < 2.0 {
+    if !f.fbm_holds {
         // gamma > 2 means H > 1: no fractional Brownian surface decays that fast, so the
         // fBm reading of section 4 does not hold over the fitted levels.
         let _ = writeln!(
@@ -169,7 +134,7 @@ fn text(r: &Report) -> String {
             if l.fitted { "yes" } else { "no" }
         );
     }
-    if let Some(w) = r.local_window {
+    if let Some(w) = f.local_window {
         let _ = writeln!(
             s,
             "local fit (equation 4), {w}x{w} window, over all locations:"
@@ -178,7 +143,7 @@ fn text(r: &Report) -> String {
             s,
             "  band  gamma mean/p5/p50/p95          D mean/p5/p50/p95"
         );
-        for l in &r.local {
+        for l in &f.local {
             let _ = writeln!(
                 s,
                 "  {:<4}  {:.3}/{:.3}/{:.3}/{:.3}  {:.3}/{:.3}/{:.3}/{:.3}",
@@ -215,12 +180,15 @@ fn map_paths(prefix: &std::path::Path) -> Vec<PathBuf> {
 
 /// Prints the analysis on stdout; writes the plot when asked.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
-    let wavelet = Wavelet::from_name(&args.wavelet).context("invalid --wavelet")?;
-    let fit = FitSettings {
-        min_level: args.min_level,
-        ..Default::default()
+    let settings = AnalyzeSettings {
+        wavelet: Wavelet::from_name(&args.wavelet).context("invalid --wavelet")?,
+        fit: FitSettings {
+            min_level: args.min_level,
+            ..Default::default()
+        },
+        local_window: args.local,
     };
-    fit.check().context("invalid fit settings")?;
+    settings.check().context("invalid analysis settings")?;
     if args.plot_levels > 12 {
         bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
     }
@@ -261,57 +229,34 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         )]],
     )?;
     let progress = ctx.progress();
-    progress.begin("wavelet analysis", 0);
-    let analysis = analyze(&hf, wavelet, &fit)
+    let result = settings
+        .run(&hf, &progress)
         .with_context(|| format!("cannot analyse {}", args.input.display()))?;
-    let mut local = Vec::new();
     let mut written: Vec<PathBuf> = Vec::new();
-    if let Some(w) = args.local {
-        progress.begin("local fits", 0);
-        let maps = analyze_local(&hf, wavelet, w, &fit).with_context(|| {
-            format!(
-                "cannot fit the local statistics of {}",
-                args.input.display()
-            )
-        })?;
-        if let Some(prefix) = &args.maps {
-            progress.begin("writing the local maps", 0);
-            let (cx, cy) = hf.cell_size();
-            let mut write = |suffix: &str, data: Vec<f32>| -> Result<()> {
-                let path = map_path(prefix, suffix);
-                let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
-                    .with_georef(hf.georef().cloned());
-                ctx.write_raster(&staged.path(&path), &map)?;
-                written.push(path);
-                Ok(())
-            };
-            for b in Band::ALL {
-                write(
-                    &format!("gamma_{}", b.name()),
-                    maps.gamma[b.index()].data.clone(),
-                )?;
-                write(&format!("a_{}", b.name()), maps.a[b.index()].data.clone())?;
-            }
-            let dims: Vec<f32> = (0..hf.len())
-                .map(|i| {
-                    3.0 - (maps.gamma[0].data[i] + maps.gamma[1].data[i] + maps.gamma[2].data[i])
-                        / 6.0
-                })
-                .collect();
-            write("dimension", dims)?;
-        }
+    if let (Some(prefix), Some(maps)) = (&args.maps, &result.local) {
+        progress.begin("writing the local maps", 0);
+        let (cx, cy) = hf.cell_size();
+        let mut write = |suffix: &str, data: Vec<f32>| -> Result<()> {
+            let path = map_path(prefix, suffix);
+            let map = Heightfield::new(hf.width(), hf.height(), data, cx, cy)?
+                .with_georef(hf.georef().cloned());
+            ctx.write_raster(&staged.path(&path), &map)?;
+            written.push(path);
+            Ok(())
+        };
         for b in Band::ALL {
-            local.push(LocalBand {
-                band: b,
-                gamma: MapSummary::of(&maps.gamma[b.index()].data),
-                fractal_dimension: MapSummary::of(&maps.fractal_dimension(b).data),
-            });
+            write(
+                &format!("gamma_{}", b.name()),
+                maps.gamma[b.index()].data.clone(),
+            )?;
+            write(&format!("a_{}", b.name()), maps.a[b.index()].data.clone())?;
         }
+        write("dimension", result.dimension_map().unwrap_or_default())?;
     }
     if let Some(plot) = &args.plot {
         progress.begin("plotting", 0);
         let (w, h) = (720, 440);
-        let rgb = render_log_variance_plot(&analysis, args.plot_levels, None, w, h);
+        let rgb = render_log_variance_plot(&result.figures.analysis, args.plot_levels, None, w, h);
         relief_io::write_rgb_png(&staged.path(plot), w, h, &rgb)
             .with_context(|| format!("cannot write {}", plot.display()))?;
     }
@@ -322,10 +267,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         width: hf.width(),
         height: hf.height(),
         cell_size: hf.cell_size(),
-        fractal_dimension: analysis.fractal_dimension(),
-        analysis,
-        local_window: args.local,
-        local,
+        figures: result.figures,
     };
     let out = if args.json {
         let mut s = serde_json::to_string_pretty(&report).context("cannot encode JSON")?;

@@ -9,11 +9,11 @@
 //!   against the same window of the full run (generation on demand). When the refined grid would
 //!   exceed `max_cells`, a centred crop of the terrain is refined instead (recorded in the
 //!   figures).
-//! * **Quality protocol** (the issue's, as for the dictionary stage): the terrain (the truth) is
-//!   down-sampled by 4 (Lanczos low-pass), refined by 2 levels with GSA, LSA and bicubic
-//!   interpolation, and compared with the truth: spectral slope over the two added octaves,
-//!   slope-angle histogram distance (EMD, degrees) and, for reference, RMSE (statistical detail
-//!   is not the truth's detail, so its RMSE exceeds bicubic's by design).
+//! * **Quality protocol** (issue 16's, [`relief_wavelet_lod::quality`]): the terrain (the
+//!   truth) is box down-sampled by 4 and by 16, refined back with the stage's GSA and LSA and
+//!   the paper's LSA, and compared with the truth and with bicubic: consistency, spectral slope
+//!   over the added octaves, slope and Laplacian histogram distances, detail-energy swing,
+//!   placement and flat excess of the fine relief.
 //!
 //! The terrain handed to the next stage is unchanged unless `replace_terrain` is set: the
 //! default run demonstrates every method on the fixture-sized terrain, and a terrain 16 times
@@ -23,13 +23,11 @@
 //! `method` becomes the current terrain.
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::metrics::{
-    radial_power_spectrum, slope_histogram_distance, spectral_slope,
-};
-use relief_heightfield::{Heightfield, Progress};
+use relief_heightfield::{Heightfield, NoProgress, Progress};
+use relief_wavelet_lod::quality::{Protocol, Scores};
 use relief_wavelet_lod::{
-    Band, FitSettings, GlobalAnalysis, Method, Model, RefineSettings, Refiner, Wavelet as Basis,
-    analyze, render_log_variance_plot,
+    Band, FitSettings, GlobalAnalysis, Method, RefineSettings, Refiner, analyze,
+    render_log_variance_plot,
 };
 use serde::{Deserialize, Serialize};
 
@@ -107,64 +105,6 @@ fn label(method: Method, window: usize) -> String {
         Method::Gsa => "GSA".to_string(),
         Method::Lsa => format!("LSA {window}x{window}"),
     }
-}
-
-/// Quality numbers of one up-sampled terrain against the truth.
-struct Scores {
-    slope: f64,
-    hist: f64,
-    rmse: f64,
-    /// log2 of the detail variance (mean over the three bands) of the two finest levels, i.e.
-    /// the added ones: `[J, J + 1]`.
-    added: [f64; 2],
-}
-
-/// log2 of the mean (over the bands) detail variance of the two finest levels.
-fn added_levels(hf: &Heightfield, basis: Basis) -> Result<[f64; 2]> {
-    let a = analyze(hf, basis, &FitSettings::default())?;
-    let k = a.levels.len();
-    let lv = |l: &relief_wavelet_lod::LevelVariance| (l.variance.iter().sum::<f64>() / 3.0).log2();
-    Ok([lv(&a.levels[k - 2]), lv(&a.levels[k - 1])])
-}
-
-/// Root-mean-square difference between `test` sampled at output cell `(x, y)` and the truth
-/// bicubically sampled at `(x + shift, y + shift)`, over the cells where that lies inside the
-/// truth.
-fn shifted_rmse(truth: &Heightfield, test: &Heightfield, shift: f64) -> f64 {
-    let (mut se, mut n) = (0.0f64, 0usize);
-    let (w, h) = (truth.width() as f64, truth.height() as f64);
-    for y in 0..test.height() {
-        let ty = y as f64 + shift;
-        if ty > h - 1.0 {
-            break;
-        }
-        for x in 0..test.width() {
-            let tx = x as f64 + shift;
-            if tx > w - 1.0 {
-                break;
-            }
-            let d = test.get(x, y) as f64 - truth.sample_bicubic(tx as f32, ty as f32) as f64;
-            se += d * d;
-            n += 1;
-        }
-    }
-    (se / n.max(1) as f64).sqrt()
-}
-
-fn scores(
-    truth: &Heightfield,
-    test: &Heightfield,
-    band: (f64, f64),
-    shift: f64,
-    basis: Basis,
-) -> Result<Scores> {
-    let spec = radial_power_spectrum(test)?;
-    Ok(Scores {
-        added: added_levels(test, basis)?,
-        slope: spectral_slope(&spec, band.0, band.1)?,
-        hist: slope_histogram_distance(truth, test),
-        rmse: shifted_rmse(truth, test, shift),
-    })
 }
 
 impl Stage for WaveletStage {
@@ -432,112 +372,128 @@ impl Stage for WaveletStage {
     }
 }
 
-/// The quality protocol: down-sample by 4, refine by 2 levels, compare with the truth.
+/// The quality protocol of issue 16 ([`relief_wavelet_lod::quality::Protocol`], the same as
+/// the crate's `examples/quality.rs`): the terrain (the truth) box down-sampled by 4 (and by 16
+/// when it is large enough), refined back with the stage's settings (GSA and LSA) and the
+/// paper's LSA, against Keys bicubic.
 fn quality(
     cx: &mut StageCx<'_>,
     terrain: &Heightfield,
     stage: &WaveletStage,
     seed: u64,
 ) -> Result<()> {
-    let p = &stage.0;
-    let (w, h) = (terrain.width() / 4 * 4, terrain.height() / 4 * 4);
-    let truth = terrain.crop(0, 0, w, h)?;
-    let coarse = truth.resample(w / 4, h / 4)?;
-    let (cxm, cym) = truth.cell_size();
-    // The two added octaves: from the coarse grid's Nyquist frequency to the truth's.
-    let f_hi = 0.5 / cxm.max(cym);
-    let band = (f_hi / 4.0, f_hi);
-    let t_slope = spectral_slope(&radial_power_spectrum(&truth)?, band.0, band.1)?;
-    // Bicubic keeps the extent (cell-centred lattice); the paper refinement is vertex-aligned:
-    // refined sample k lies on coarse sample k / 4, i.e. on truth coordinate k + 1.5.
-    let bicubic = coarse.resample(w, h)?;
-    let basis = p.job.basis();
-    let t_added = added_levels(&truth, basis)?;
-    let mut rows = vec![(
-        "truth".to_string(),
-        vec![t_slope, 0.0, 0.0, 0.0, t_added[0], t_added[1]],
-    )];
-    let b = scores(&truth, &bicubic, band, 0.0, basis)?;
-    rows.push((
-        "bicubic".to_string(),
-        vec![
-            b.slope,
-            (b.slope - t_slope).abs(),
-            b.hist,
-            b.rmse,
-            b.added[0],
-            b.added[1],
-        ],
-    ));
-    for method in [Method::Gsa, Method::Lsa] {
-        let name = label(method, p.job.window);
-        let refiner = match Refiner::new(&coarse, &stage.settings(method, 2, seed ^ 1)) {
-            Ok(r) => r,
+    let mut rows: Vec<(String, Vec<f64>)> = Vec::new();
+    for factor in [4usize, 16] {
+        let protocol = match Protocol::new(terrain, factor) {
+            Ok(p) => p,
+            Err(e) if factor > 4 => {
+                cx.section
+                    .note(&format!("quality protocol at x{factor} skipped ({e})"));
+                break;
+            }
             Err(e) => {
-                cx.section.note(&format!(
-                    "quality protocol skipped: the {} x {} coarse grid is too small to fit \
-                     the statistics ({e})",
-                    coarse.width(),
-                    coarse.height()
-                ));
+                cx.section.note(&format!("quality protocol skipped ({e})"));
                 return Ok(());
             }
         };
-        let out = refiner.render(&relief_heightfield::NoProgress)?;
-        // The paper model is vertex-aligned (refined sample k on truth coordinate k + 1.5), the
-        // spectral model area-aligned like bicubic.
-        let shift = if p.job.model == Model::Paper {
-            1.5
-        } else {
-            0.0
+        let levels = factor.trailing_zeros();
+        let window = stage.0.job.window;
+        let runs = [
+            (
+                label(Method::Gsa, window),
+                stage.settings(Method::Gsa, levels, seed ^ 1),
+            ),
+            (
+                label(Method::Lsa, window),
+                stage.settings(Method::Lsa, levels, seed ^ 1),
+            ),
+            (
+                "paper LSA 3x3".to_string(),
+                RefineSettings {
+                    extra_levels: levels,
+                    seed: seed ^ 1,
+                    ..RefineSettings::paper()
+                },
+            ),
+        ];
+        let row = |name: String, s: &Scores| {
+            (
+                format!("x{factor} {name}"),
+                vec![
+                    100.0 * s.consistency,
+                    s.spectral_slope,
+                    s.dslope,
+                    s.slope_emd,
+                    s.curv_emd,
+                    s.swing,
+                    s.placement,
+                    s.flat_excess,
+                ],
+            )
         };
-        let s = scores(&truth, &out, band, shift, basis)?;
-        let tag = if method == Method::Gsa { "gsa" } else { "lsa" };
-        cx.section.figure(
-            &format!("quality_{tag}_slope_error"),
-            (s.slope - t_slope).abs(),
-        );
-        cx.section
-            .figure(&format!("quality_{tag}_slope_hist_emd_deg"), s.hist);
         rows.push((
-            name,
+            format!("x{factor} truth"),
             vec![
-                s.slope,
-                (s.slope - t_slope).abs(),
-                s.hist,
-                s.rmse,
-                s.added[0],
-                s.added[1],
+                0.0,
+                protocol.truth_slope,
+                0.0,
+                0.0,
+                0.0,
+                protocol.truth_swing,
+                1.0,
+                0.0,
             ],
         ));
+        let b = protocol.score(&protocol.bicubic)?;
+        rows.push(row("bicubic".into(), &b));
+        for (name, settings) in runs {
+            let out = Refiner::new(&protocol.coarse, &settings)?.render(&NoProgress)?;
+            let s = protocol.score(&out)?;
+            if factor == 4 && name.starts_with("LSA") {
+                cx.section.headline("quality_lsa_slope_error", s.dslope);
+                cx.section
+                    .figure("quality_lsa_slope_hist_emd_deg", s.slope_emd);
+                cx.section
+                    .figure("quality_lsa_consistency_pct", 100.0 * s.consistency);
+                cx.section.figure("quality_lsa_flat_excess", s.flat_excess);
+            }
+            if factor == 4 && name == "GSA" {
+                cx.section.figure("quality_gsa_slope_error", s.dslope);
+                cx.section
+                    .figure("quality_gsa_slope_hist_emd_deg", s.slope_emd);
+            }
+            rows.push(row(name, &s));
+        }
+        if factor == 4 {
+            cx.section.figure("quality_bicubic_slope_error", b.dslope);
+            cx.section
+                .figure("quality_bicubic_slope_hist_emd_deg", b.slope_emd);
+        }
     }
-    cx.section
-        .headline("quality_lsa_slope_error", (rows[3].1[0] - t_slope).abs());
-    cx.section
-        .figure("quality_bicubic_slope_error", (b.slope - t_slope).abs());
-    cx.section
-        .figure("quality_bicubic_slope_hist_emd_deg", b.hist);
     let rows: Vec<(&str, Vec<f64>)> = rows.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
     cx.section.numbers(
         &format!(
-            "Quality against the truth: {w} x {h} down-sampled by 4 to {} x {}, refined by 2 \
-             levels",
-            w / 4,
-            h / 4
+            "Quality against the truth: the {} x {} terrain box down-sampled by 4 and 16,              refined back",
+            terrain.width(),
+            terrain.height()
         ),
-        "Spectral slope of the radial power spectrum over the two added octaves (truth's \
-         Nyquist / 4 .. Nyquist), its distance to the truth's, slope-angle histogram distance \
-         (EMD, degrees) and RMSE (m; the synthesised detail is statistical, so RMSE is not \
-         expected to beat bicubic), and log2 of the detail variance (mean of the bands) at the \
-         two added levels, measured with the analysis wavelet.",
+        "The protocol of relief_wavelet_lod::quality (issue 16): consistency (RMS of the \
+         box-down of the output minus the input, % of relief), spectral slope over the added \
+         octaves and its distance to the truth's, slope-angle and Laplacian histogram distances \
+         (EMD), detail-energy swing with the position modulo 4-32 px (compare with the \
+         truth's), placement (correlation of the block curvature energies with the truth's) \
+         and flat excess (log2 curvature energy of the smoothest fifth of the ground against \
+         the truth's: 0 ideal, > 0 grain on smooth ground).",
         &[
-            "method",
+            "run",
+            "consistency (%)",
             "spectral slope",
             "|slope - truth|",
             "slope-hist EMD (deg)",
-            "RMSE (m)",
-            "log2 Var level J",
-            "log2 Var level J+1",
+            "Laplacian-hist EMD",
+            "swing",
+            "placement",
+            "flat excess",
         ],
         &rows,
     );
