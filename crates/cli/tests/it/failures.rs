@@ -799,6 +799,54 @@ fn decompression_bombs_are_refused_from_the_header() {
     }
 }
 
+/// Issue 18: an NPZ whose member inflates far beyond the file (2 MiB of deflated zeros
+/// declaring a 4096 x 4096 `f64` grid, 128 MiB) is refused from the member's declared size
+/// under a small --max-memory, naming the flag, and read when the memory allows it.
+#[test]
+fn npz_bombs_are_refused_before_inflating() {
+    use std::io::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let npz = dir.path().join("bomb.npz");
+    let (w, h) = (4096usize, 4096usize);
+    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({h}, {w}), }}");
+    while !(10 + header.len() + 1).is_multiple_of(64) {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut z = zip::ZipWriter::new(std::fs::File::create(&npz).unwrap());
+    let opts = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .large_file(false);
+    z.start_file("elevation.npy", opts).unwrap();
+    z.write_all(b"\x93NUMPY\x01\x00").unwrap();
+    z.write_all(&(header.len() as u16).to_le_bytes()).unwrap();
+    z.write_all(header.as_bytes()).unwrap();
+    let zeros = vec![0u8; 1 << 20];
+    for _ in 0..(w * h * 8) >> 20 {
+        z.write_all(&zeros).unwrap();
+    }
+    z.finish().unwrap();
+    let len = std::fs::metadata(&npz).unwrap().len();
+    assert!(len < 2 << 20, "the bomb is {len} bytes");
+    let path = npz.display().to_string();
+    let o = relief(&["--max-memory", "64M", "info", &path]);
+    assert_one_line_failure(&o, "info bomb.npz");
+    assert!(stderr(&o).contains("--max-memory"), "{}", stderr(&o));
+    // The same file converts when the memory allows it; a refused conversion leaves nothing.
+    let out = dir.path().join("out.tif");
+    let o = relief(&[
+        "--max-memory",
+        "64M",
+        "convert",
+        &path,
+        &out.display().to_string(),
+    ]);
+    assert_one_line_failure(&o, "convert bomb.npz");
+    assert!(!out.exists());
+    let o = relief(&["--max-memory", "2G", "info", &path]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Issue 18: commands with several outputs check every path before working and write all of
 /// them or none; killed runs' temporaries are removed by the next write into the folder;
 /// temporary names of long output names stay legal; devices are never replaced.
