@@ -212,7 +212,8 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
             "dwt_fwd_inv_bior22_4096_s",
             "PyWavelets wavedec2 + waverec2, bior2.2, symmetric",
         ),
-        goal: Goal::SpeedupAtLeast(5.0),
+        // Issue 16 raised the goal from 5x to 8x.
+        goal: Goal::SpeedupAtLeast(8.0),
         units: Some((4096.0 * 4096.0, "cells")),
         note: "same random-walk surface on both sides (target/bench-data/dwt_surface_4096.npy)",
     },
@@ -220,9 +221,10 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         name: "LOD 4096^2 -> 16384^2, LSA 3x3 (analysis + synthesis, 256-row strips), 2 threads",
         criterion_id: "wavelet_lod/lod_lsa3_x4_strips/4096",
         peer: None,
-        goal: Goal::SecondsAtMost(5.0),
+        // Issue 16: <= 4 s and <= 400 MB peak RSS with the spectral model.
+        goal: Goal::SecondsAtMost(4.0),
         units: Some((16384.0 * 16384.0, "output cells")),
-        note: "peak memory (<= 3 GB) is measured by the lod_big example under /usr/bin/time -v",
+        note: "peak memory (<= 400 MB) is measured by the lod_big example under /usr/bin/time -v",
     },
     WorkItem {
         name: "LSA 3x3 window 512^2 on demand, 1024^2 terrain refined by 2 levels",
