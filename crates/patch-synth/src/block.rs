@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
-use crate::index::{ExemplarIndex, OverlapShape, features};
+use crate::index::{ExemplarIndex, OverlapShape, PatchRef, features};
 use crate::settings::{Blend, Settings};
 use crate::synth::{
     PoissonInput, poisson_blend, smooth_crease, smoothstep, translated_dist2, window_mean,
@@ -402,6 +402,31 @@ pub(crate) fn cut_survivors(
             (left, top, pc)
         })
         .collect()
+}
+
+/// The patch-reuse penalty (before the survivors are taken): the step-1 energy of every
+/// candidate whose source lies less than half a patch from the source of a placed block within
+/// `reuse_radius` (`nearby`, same exemplar) is multiplied by `1 + reuse_penalty * n` (`n` such
+/// blocks), and the candidates re-sorted, so other sources take the survivors' places.
+pub(crate) fn penalise_reuse(sh: &Shared<'_>, scored: &mut [Scored], nearby: &[PatchRef]) {
+    let settings = sh.settings;
+    if settings.reuse_penalty == 0.0 || nearby.is_empty() {
+        return;
+    }
+    let half = (settings.patch_size / 2) as i64;
+    for sc in scored.iter_mut() {
+        let me = sh.index.patches[sc.id as usize];
+        let n = nearby
+            .iter()
+            .filter(|q| {
+                q.exemplar == me.exemplar
+                    && (q.x as i64 - me.x as i64).abs() < half
+                    && (q.y as i64 - me.y as i64).abs() < half
+            })
+            .count();
+        sc.s1 *= 1.0 + settings.reuse_penalty * n as f32;
+    }
+    scored.sort_by(|a, b| a.s1.total_cmp(&b.s1).then(a.id.cmp(&b.id)));
 }
 
 /// The final choice: uniformly (seeded) among the survivors whose energy `M` is within

@@ -35,6 +35,16 @@
 //!   the RMS overlap difference and `P` the RMS error along the cut; in two steps (the best
 //!   `survivors` by `alpha G + beta O`, then the cut for those only). The final pick is uniform
 //!   among survivors within `choice_tolerance` of the best.
+//! * Patch-reuse penalty (a departure from the paper, `Settings::reuse_penalty`, 0 = the
+//!   paper): before the survivors are taken, `alpha G + beta O` of a candidate whose source
+//!   lies within half a patch of the source of a block placed within `reuse_radius` blocks is
+//!   multiplied by `1 + reuse_penalty` per such block. Without it the best match of
+//!   neighbouring blocks is often the same exemplar region, shifted by a cell or two, and one
+//!   canyon pattern wallpapers an area (hillshade of the `guided_quality` example). Default 0.5,
+//!   measured: near-reuse pairs (sources less than half a patch apart within 3 blocks) 735 ->
+//!   287 unguided on a grandcanyon crop and 227 -> 75 / 136 -> 57 guided (`guided_quality`),
+//!   slope-histogram distance to the exemplar 2.28 -> 1.75 / 2.83 -> 2.03 deg; 1.0 halves the
+//!   pairs again but raised the unguided seam visibility 0.94 -> 1.18.
 //! * Vertical translation (section 3.4, equations 2-3): the patch is shifted by the mean
 //!   difference `h` over the overlap (over the whole block against the guide for the first
 //!   patch); when `|h| > lambda` the translation is not applied.

@@ -79,6 +79,13 @@ pub struct Settings {
     /// Final choice: uniformly among survivors whose energy is within `(1 + tolerance)` of the
     /// best (seeded, so deterministic).
     pub choice_tolerance: f32,
+    /// Patch-reuse penalty: a survivor's energy is multiplied by `1 + reuse_penalty * n`, where
+    /// `n` counts the blocks within `reuse_radius` blocks already filled from a source patch
+    /// less than half a patch away from the survivor's (same exemplar), so one source region
+    /// does not wallpaper an area (0 = off, the paper's choice).
+    pub reuse_penalty: f32,
+    /// Neighbourhood of the reuse penalty, in blocks (Chebyshev distance).
+    pub reuse_radius: usize,
     /// Minimum number of candidate patches per guide block (section 4; the paper asks 500).
     pub min_candidates: usize,
     /// When set, the validation asks for `min(min_candidates, ceil(share * patches))` with
@@ -126,6 +133,8 @@ impl Default for Settings {
             probe_candidates: 1500,
             survivors: 8,
             choice_tolerance: 0.05,
+            reuse_penalty: 0.5,
+            reuse_radius: 3,
             min_candidates: 500,
             min_candidates_share: None,
             validation_tolerance: None,
@@ -262,6 +271,20 @@ impl Settings {
                 "choice_tolerance",
                 self.choice_tolerance,
                 "must be finite and >= 0",
+            ));
+        }
+        if !(self.reuse_penalty.is_finite() && (0.0..=100.0).contains(&self.reuse_penalty)) {
+            return Err(PatchSynthError::setting(
+                "reuse_penalty",
+                self.reuse_penalty,
+                "must be in [0, 100]",
+            ));
+        }
+        if self.reuse_radius > 64 {
+            return Err(PatchSynthError::setting(
+                "reuse_radius",
+                self.reuse_radius,
+                "must be <= 64 blocks",
             ));
         }
         if let Some(f) = self.min_candidates_share

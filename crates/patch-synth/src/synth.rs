@@ -339,7 +339,7 @@ pub fn synthesize(
         cw,
         ch,
     };
-    let mut placements = Vec::with_capacity(nx * ny);
+    let mut placements: Vec<Placement> = Vec::with_capacity(nx * ny);
     let mut stats = SynthesisStats {
         grid: (nx, ny),
         ..Default::default()
@@ -376,6 +376,15 @@ pub fn synthesize(
             let cands = block::candidates(&sh, &cv, &b, &probed, target_desc.as_deref(), &mut rng);
             let mut scored = block::score(&sh, &cv, &b, &cands);
             let ncand = scored.len();
+            // Sources of the placed blocks within reuse_radius (placements are in raster order:
+            // block (x, y) is placement y * nx + x).
+            let r = settings.reuse_radius;
+            let nearby: Vec<PatchRef> = (gy.saturating_sub(r)..=gy)
+                .flat_map(|y| (gx.saturating_sub(r)..=(gx + r).min(nx - 1)).map(move |x| (x, y)))
+                .filter(|&(x, y)| y < gy || x < gx)
+                .map(|(x, y)| placements[y * nx + x].patch)
+                .collect();
+            block::penalise_reuse(&sh, &mut scored, &nearby);
             scored.truncate(settings.survivors);
             let cuts = block::cut_survivors(&sh, &cv, &b, &scored);
             let (pick, energies) = block::choose(settings, &scored, &cuts, &mut rng);

@@ -32,6 +32,8 @@ const FIELDS: &[&str] = &[
     "pca_samples",
     "knn",
     "rerank",
+    "reuse_penalty",
+    "reuse_radius",
     "probe_candidates",
     "survivors",
     "choice_tolerance",
@@ -167,6 +169,9 @@ fn settings() -> impl Strategy<Value = Settings> {
             // Drawn from the seed: the strategy tuples are full.
             rerank: (seed % 12) as usize,
             crease_passes: ((seed >> 8) % 4) as usize,
+            // Sometimes out of range (checked).
+            reuse_penalty: ((seed >> 12) % 7) as f32 * 40.0 - 40.0,
+            reuse_radius: ((seed >> 16) % 80) as usize,
             seed,
         },
     )
@@ -256,6 +261,8 @@ fn valid_settings() -> impl Strategy<Value = Settings> {
             blend,
             rerank: 1 + (seed % 12) as usize,
             crease_passes: ((seed >> 8) % 3) as usize,
+            reuse_penalty: ((seed >> 12) % 4) as f32 * 0.5,
+            reuse_radius: ((seed >> 16) % 5) as usize,
             seed,
         },
     )

@@ -92,6 +92,11 @@ pub(crate) struct SynthArgs {
     /// Weight of the cut cost P in equation 1.
     #[arg(long, default_value_t = Settings::default().gamma)]
     pub(crate) gamma: f32,
+    /// Patch-reuse penalty: a candidate whose source lies within half a patch of the source of
+    /// a block placed within 3 blocks has its energy multiplied by 1 + PENALTY per such block,
+    /// so one source region does not wallpaper an area (0 = off, as in the paper).
+    #[arg(long, value_name = "PENALTY", default_value_t = Settings::default().reuse_penalty)]
+    pub(crate) reuse_penalty: f32,
     /// Exemplar patches are taken every STRIDE cells (1 = every position).
     #[arg(long, default_value_t = Settings::default().exemplar_stride)]
     pub(crate) stride: usize,
@@ -188,6 +193,7 @@ impl SynthArgs {
                 alpha: self.alpha,
                 beta: self.beta,
                 gamma: self.gamma,
+                reuse_penalty: self.reuse_penalty,
                 exemplar_stride: self.stride,
                 ..Settings::default()
             },
