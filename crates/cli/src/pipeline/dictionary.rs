@@ -17,7 +17,7 @@
 //!   bicubic. On small inputs (the 128 x 128 golden crop) the factor drops to x4 and the radius
 //!   to 1 so the exemplar still holds enough patches.
 //! * `sketch`: synthesis from a painted sketch (a ridge stroke, a peak, a valley) with the
-//!   current terrain as exemplar, in three incremental x4 steps (figure 12): the sketch of
+//!   input DEM as exemplar (the current terrain if the input has voids), in three incremental x4 steps (figure 12): the sketch of
 //!   `n x n` cells becomes a `64 n x 64 n` terrain. The current terrain is unchanged.
 //! * `procedural`: inverse procedural modelling (section 5.2, figures 7-8): a centre crop (at
 //!   most `max_side`^2) of the input DEM as loaded (the current terrain if the input has
@@ -674,7 +674,13 @@ impl Stage for SketchStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let steps = p.job.amplify.steps;
-        let exemplar = cx.state.terrain()?.clone();
+        // The real DEM as loaded when it is complete: earlier stages (amplify) may have made the
+        // current terrain synthetic, and a sketch should get real relief; else the current
+        // terrain.
+        let (exemplar, which) = match &cx.state.source {
+            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
+            _ => (cx.state.terrain()?.clone(), "the current terrain"),
+        };
         exemplar
             .require_complete()
             .context("the sketch stage needs a void-free exemplar terrain")?;
@@ -730,8 +736,8 @@ impl Stage for SketchStage {
         cx.section.headline("sketch_correlation", fidelity);
         cx.section.note(&format!(
             "a {n} x {n} painted sketch (ridge stroke, peak, valley) mapped to the exemplar's \
-             elevation range and amplified in {} x4 steps (figure 12) to {} x {} with the \
-             current terrain ({} x {}) as exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; \
+             elevation range and amplified in {} x4 steps (figure 12) to {} x {} with \
+             {which} ({} x {}) as exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; \
              correlation of the output reduced to the sketch size with the sketch: {fidelity:.3}",
             steps,
             out.width(),
