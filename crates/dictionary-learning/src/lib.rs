@@ -40,6 +40,11 @@
 //!   scaled so the blended detail energy is flat and undiminished ([`detail_gain`]).
 //! * The grid step defaults to half the support radius (the paper's grid), so about 12
 //!   primitives overlap at every point instead of 1-4.
+//! * Sketch synthesis ([`synthesize`]) sets [`AmplifySettings::exemplar_detail`]: a coded
+//!   detail amplitude is proportional to the input's local relief, so a painted sketch's flat
+//!   and smooth parts got no detail (a smooth blob following the sketch pixels); each primitive
+//!   now adds its atom's detail at the exemplar's amplitude on the bicubic interpolation of the
+//!   input.
 //!
 //! Not guaranteed: repeated steps use the exemplar at the closest available resolution; a step
 //! for which the exemplar is too small to be reduced relies on the self-similarity of relief

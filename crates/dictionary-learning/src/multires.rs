@@ -121,6 +121,16 @@ pub struct AmplifySettings {
     /// the blended detail has a flat, undiminished variance. The low part (what the input
     /// constrains) is untouched, so consistency is kept.
     pub normalize_detail: bool,
+    /// Not in the paper (default off; on in sketch synthesis, [`crate::SynthesisSettings`]):
+    /// each primitive adds the detail of its atom (`H_j` minus the bicubic up-sampling of
+    /// `L_j`) at the exemplar's own amplitude in metres (times the sign of the code), on top of
+    /// the bicubic interpolation of the input, instead of scaling the whole `H_j` by the code.
+    /// A coded amplitude is proportional to the input's local relief, so the flat or smooth
+    /// parts of a painted sketch get no detail at all; this gives them the exemplar's ridges
+    /// and valleys. Steps for which the exemplar is not fine enough (self-similarity) scale the
+    /// detail by the exemplar's measured amplitude ratio per x4 octave. The residual correction
+    /// does not apply in this mode.
+    pub exemplar_detail: bool,
 }
 
 impl Default for AmplifySettings {
@@ -141,6 +151,7 @@ impl Default for AmplifySettings {
             seed: 0,
             residual_correction: true,
             normalize_detail: true,
+            exemplar_detail: false,
         }
     }
 }
@@ -250,6 +261,11 @@ pub struct MultiResDictionary {
     pub footprint_scale: Vec<f32>,
     /// Means of the footprints over the coarse support.
     pub footprint_mean: Vec<f32>,
+    /// Norms `l_j` (metres) of the mean-removed low patches before normalisation.
+    pub low_norm: Vec<f32>,
+    /// Target RMS (metres) of the detail a step adds with [`AmplifySettings::exemplar_detail`]:
+    /// the exemplar's x4 detail at the step's scale (`None`: the atoms' own amplitudes).
+    pub detail_rms: Option<f64>,
 }
 
 struct Candidates {
@@ -281,7 +297,7 @@ fn keys(t: f64) -> [f64; 4] {
 
 /// x4 bicubic up-sampling of an `a x a` patch to `4a x 4a` (pixel-centre alignment, edges
 /// clamped): the same interpolation as a layer of `a x a` atoms at spacing 4.
-fn upsample4(p: &[f64], a: usize) -> Vec<f64> {
+pub(crate) fn upsample4(p: &[f64], a: usize) -> Vec<f64> {
     let ah = STEP_FACTOR * a;
     let taps: Vec<([usize; 4], [f64; 4])> = (0..ah)
         .map(|o| {
@@ -574,6 +590,7 @@ impl MultiResDictionary {
         let mut low = Array2::<f32>::zeros((chosen.len(), a * a));
         let mut high = Dictionary::new(STEP_FACTOR * a, 1.0, settings.radius * STEP_FACTOR as f64)?;
         let mut transfer = Vec::with_capacity(chosen.len());
+        let mut low_norm = Vec::with_capacity(chosen.len());
         let mut origins = Vec::with_capacity(chosen.len());
         let mut footprint = Dictionary::new(a, 1.0, settings.radius)?;
         let mut footprint_scale = Vec::with_capacity(chosen.len());
@@ -585,6 +602,7 @@ impl MultiResDictionary {
                 .for_each(|(o, &v)| *o = (v as f64 / norms[c]) as f32);
             high.push_data(&cand.high[c])?;
             transfer.push((hnorms[c] / norms[c]) as f32);
+            low_norm.push(norms[c] as f32);
             origins.push(cand.origins[c]);
             let mut b = box_down4(&cand.high[c], a);
             b.iter_mut().for_each(|v| *v /= norms[c]);
@@ -620,6 +638,8 @@ impl MultiResDictionary {
             footprint: Arc::new(footprint),
             footprint_scale,
             footprint_mean,
+            low_norm,
+            detail_rms: None,
         })
     }
 
@@ -647,6 +667,17 @@ impl MultiResDictionary {
             ));
         }
         let patches = extract_patches(coarse, &geom)?;
+        let f = STEP_FACTOR as f64;
+        let g = patches.grid;
+        let fine = CentreGrid {
+            origin: [f * g.origin[0] + 1.5, f * g.origin[1] + 1.5],
+            step: f * g.step,
+            nx: g.nx,
+            ny: g.ny,
+        };
+        if settings.exemplar_detail {
+            return self.exemplar_detail_step(coarse, &patches, fine, settings);
+        }
         let codes = batch_omp(
             self.low.view(),
             patches.matrix.view(),
@@ -668,14 +699,6 @@ impl MultiResDictionary {
             }
             offsets.push(atoms.len() as u32);
         }
-        let f = STEP_FACTOR as f64;
-        let g = patches.grid;
-        let fine = CentreGrid {
-            origin: [f * g.origin[0] + 1.5, f * g.origin[1] + 1.5],
-            step: f * g.step,
-            nx: g.nx,
-            ny: g.ny,
-        };
         let layer = SparseLayer::from_parts(
             self.high.clone(),
             Placement::Grid(fine),
@@ -764,51 +787,61 @@ impl MultiResDictionary {
             .collect();
         let r = back_project(&d, coarse.width(), coarse.height());
         let res = coarse.with_data(r.iter().map(|&v| v as f32).collect())?;
-        // The residual is one smooth field: primitives one radius apart interpolate it as
-        // well as a denser grid, at a quarter of the primitives.
-        let geom = PatchGeometry {
-            step: settings.radius.floor().max(1.0),
-            ..settings.coarse_geometry()
-        };
-        let rp = extract_patches(&res, &geom)?;
-        let f = STEP_FACTOR as f64;
-        let fine = CentreGrid {
-            origin: [f * rp.grid.origin[0] + 1.5, f * rp.grid.origin[1] + 1.5],
-            step: f * rp.grid.step,
-            nx: rp.grid.nx,
-            ny: rp.grid.ny,
-        };
-        let mut dict = Dictionary::new(geom.patch_size, f, geom.support_radius * f)?;
-        let mut offsets = vec![0u32];
-        let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
-        for row in rp.matrix.outer_iter() {
-            let v: Vec<f32> = row.iter().copied().collect();
-            let norm = v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
-            match dict.push_data(&v) {
-                Ok(j) => {
-                    atoms.push(j as u32);
-                    coeffs.push(norm as f32);
-                }
-                Err(relief_sparse_core::SparseError::DegenerateAtom { .. }) => {}
-                Err(e) => return Err(e.into()),
-            }
-            offsets.push(atoms.len() as u32);
-        }
-        if dict.is_empty() {
-            // A residual without relief: one harmless atom, used by nobody.
-            let mut v = vec![0f32; geom.patch_size * geom.patch_size];
-            v[0] = 1.0;
-            dict.push_data(&v)?;
-        }
-        Ok(SparseLayer::from_parts(
-            Arc::new(dict),
-            Placement::Grid(fine),
-            rp.means.clone(),
-            offsets,
-            atoms,
-            coeffs,
-        )?)
+        interpolation_layer(&res, settings)
     }
+}
+
+/// A smooth field interpolated x4 as a fine-grid layer of its own patches (complete
+/// dictionary, atoms sampled every 4 fine pixels, centres every `R` coarse pixels): the
+/// residual layer, and the low part of [`AmplifySettings::exemplar_detail`].
+pub(crate) fn interpolation_layer(
+    field: &Heightfield,
+    settings: &AmplifySettings,
+) -> Result<SparseLayer> {
+    // One smooth field: primitives one radius apart interpolate it as well as a denser grid,
+    // at a quarter of the primitives.
+    let geom = PatchGeometry {
+        step: settings.radius.floor().max(1.0),
+        ..settings.coarse_geometry()
+    };
+    let rp = extract_patches(field, &geom)?;
+    let f = STEP_FACTOR as f64;
+    let fine = CentreGrid {
+        origin: [f * rp.grid.origin[0] + 1.5, f * rp.grid.origin[1] + 1.5],
+        step: f * rp.grid.step,
+        nx: rp.grid.nx,
+        ny: rp.grid.ny,
+    };
+    let mut dict = Dictionary::new(geom.patch_size, f, geom.support_radius * f)?;
+    let mut offsets = vec![0u32];
+    let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
+    for row in rp.matrix.outer_iter() {
+        let v: Vec<f32> = row.iter().copied().collect();
+        let norm = v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
+        match dict.push_data(&v) {
+            Ok(j) => {
+                atoms.push(j as u32);
+                coeffs.push(norm as f32);
+            }
+            Err(relief_sparse_core::SparseError::DegenerateAtom { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+        offsets.push(atoms.len() as u32);
+    }
+    if dict.is_empty() {
+        // A field without relief: one harmless atom, used by nobody.
+        let mut v = vec![0f32; geom.patch_size * geom.patch_size];
+        v[0] = 1.0;
+        dict.push_data(&v)?;
+    }
+    Ok(SparseLayer::from_parts(
+        Arc::new(dict),
+        Placement::Grid(fine),
+        rp.means.clone(),
+        offsets,
+        atoms,
+        coeffs,
+    )?)
 }
 
 /// Box x4 reduction of a `4a x 4a` patch to `a x a`.
@@ -939,6 +972,7 @@ pub fn amplify_observed(
     }
     let mut current = coarse.clone();
     let mut result = None;
+    let mut octave_ratio = None;
     for t in 0..settings.steps {
         let wanted = STEP_FACTOR.pow((settings.steps - 1 - t) as u32);
         let mut reduction = wanted;
@@ -964,12 +998,24 @@ pub fn amplify_observed(
                 ..settings.coarse_geometry()
             },
         )?;
-        let dict = MultiResDictionary::from_exemplar(
+        let mut dict = MultiResDictionary::from_exemplar(
             &ex,
             Some(training.matrix.view()),
             &step_settings,
             progress,
         )?;
+        if settings.exemplar_detail {
+            // The exemplar's x4 detail at this step's scale; under self-similarity, the
+            // exemplar's detail one x4 octave coarser is `ratio` times larger.
+            let scale = if reduction < wanted {
+                let ratio =
+                    *octave_ratio.get_or_insert_with(|| crate::sketch::octave_ratio(exemplar));
+                ratio.powi((wanted / reduction).ilog(STEP_FACTOR) as i32)
+            } else {
+                1.0
+            };
+            dict.detail_rms = crate::sketch::x4_detail_rms(&ex).map(|r| r * scale);
+        }
         let sct = dict.amplify_once(&current, &step_settings)?;
         observe(&StepReport {
             step: t,

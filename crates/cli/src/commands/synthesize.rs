@@ -34,8 +34,9 @@ pub(crate) struct Args {
     /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
     #[arg(long)]
     pub(crate) step: Option<f64>,
-    /// The paper's plain method (no detail-energy normalisation; synthesis never applies the
-    /// residual correction, a sketch's pixels are not to be reproduced).
+    /// The paper's plain method: the whole high-resolution atom scaled by the code (no detail at
+    /// the exemplar's amplitude, no detail-energy normalisation). Synthesis never applies the
+    /// residual correction (a sketch's pixels are not to be reproduced).
     #[arg(long)]
     pub(crate) paper: bool,
     /// Number of learned atoms N; 0 = the complete dictionary.
@@ -63,6 +64,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             seed: args.seed,
             step: args.step,
             normalize_detail: !args.paper,
+            exemplar_detail: !args.paper,
             ..SynthesisSettings::default().amplify
         },
         // The global --height-range: the sketch is mapped onto it (default: the exemplar's

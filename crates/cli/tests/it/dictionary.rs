@@ -202,9 +202,9 @@ fn synthesize_from_painted_sketch() {
     let out = read(&out_path);
     assert_eq!((out.width(), out.height()), (256, 256));
     let (lo, hi) = out.min_max().unwrap();
-    // The detail (at full energy since the blend is energy-normalised) reaches a little
-    // beyond the sketch's 500-2300 m.
-    assert!(lo > 300.0 && hi < 2700.0 && hi - lo > 1200.0, "{lo}..{hi}");
+    // The detail (the exemplar's, at the canyon's own amplitude of a few hundred metres)
+    // reaches beyond the sketch's 500-2300 m, but not by more than that.
+    assert!(lo > 0.0 && hi < 2800.0 && hi - lo > 1200.0, "{lo}..{hi}");
     let back = out.resample(16, 16).unwrap();
     let c = relief_heightfield::metrics::pearson(back.as_slice(), read(&sk).as_slice());
     assert!(c > 0.95, "correlation with the sketch {c}");
