@@ -71,7 +71,8 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
 const MAX_COORD: f32 = 1e7;
 
 /// A painted seed: a height at a point (pixel coordinates of the target).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Seed {
     /// Column.
     pub x: f32,
@@ -80,12 +81,14 @@ pub struct Seed {
     /// Height in metres.
     pub height: f32,
     /// Radius in cells of the disc the seed paints (0 = one cell).
+    #[serde(default)]
     pub radius: f32,
 }
 
 /// A sketch stroke: a polyline whose height varies linearly between its vertices
 /// (`(x, y, height)` in pixel coordinates and metres).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stroke {
     /// Vertices.
     pub points: Vec<(f32, f32, f32)>,
@@ -192,6 +195,66 @@ pub fn guide_from_sketch(
         hf = gaussian_blur(&hf, smoothing)?;
     }
     Ok(hf)
+}
+
+/// A sketch guide as a file (`relief quilt --guide-sketch FILE.json`): the grid and the painted
+/// seeds and strokes of [`guide_from_sketch`], in JSON:
+///
+/// ```json
+/// {"width": 256, "height": 192, "cell_size": [30, 30], "smoothing": 4,
+///  "seeds": [{"x": 60, "y": 50, "height": 1800, "radius": 6}],
+///  "strokes": [{"points": [[10, 150, 900], [240, 120, 1100]]}]}
+/// ```
+///
+/// Coordinates are cells of the guide (column, row), heights metres; `cell_size` (metres,
+/// `[x, y]`) may be left out to take the exemplars'.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SketchGuide {
+    /// Guide width in cells.
+    pub width: usize,
+    /// Guide height in cells.
+    pub height: usize,
+    /// Cell size in metres; `None` takes the exemplars'.
+    #[serde(default)]
+    pub cell_size: Option<(f64, f64)>,
+    /// Gaussian blur in cells applied after the interpolation (default 2).
+    #[serde(default = "default_sketch_smoothing")]
+    pub smoothing: f32,
+    /// Painted seeds.
+    #[serde(default)]
+    pub seeds: Vec<Seed>,
+    /// Sketch strokes.
+    #[serde(default)]
+    pub strokes: Vec<Stroke>,
+}
+
+fn default_sketch_smoothing() -> f32 {
+    2.0
+}
+
+impl SketchGuide {
+    /// Rasterises the sketch ([`guide_from_sketch`]) at its cell size, or at `fallback_cell`
+    /// when it names none.
+    pub fn render(&self, fallback_cell: (f64, f64)) -> Result<Heightfield> {
+        let cell = self.cell_size.unwrap_or(fallback_cell);
+        check_cell(cell)?;
+        if !(self.smoothing.is_finite() && (0.0..=1000.0).contains(&self.smoothing)) {
+            return Err(PatchSynthError::setting(
+                "smoothing",
+                self.smoothing,
+                "must be in [0, 1000] cells",
+            ));
+        }
+        guide_from_sketch(
+            self.width,
+            self.height,
+            cell,
+            &self.seeds,
+            &self.strokes,
+            self.smoothing,
+        )
+    }
 }
 
 /// A target cell size must be finite and positive.

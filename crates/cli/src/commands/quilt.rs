@@ -38,6 +38,13 @@ pub(crate) struct SynthArgs {
     /// low-pass of `--blur` cells.
     #[arg(long, value_name = "DEM")]
     pub(crate) guide_from: Option<PathBuf>,
+    /// Make the guide from a sketch file (JSON: `width`, `height`, optional `cell_size` [x, y]
+    /// in metres (default: the exemplars'), `smoothing` in cells (default 2), `seeds`
+    /// [{x, y, height, radius}] and `strokes` [{points: [[x, y, height], ...]}], coordinates
+    /// in guide cells, heights in metres): the painted heights, harmonic interpolation between
+    /// them, then the blur.
+    #[arg(long, value_name = "FILE.json")]
+    pub(crate) guide_sketch: Option<PathBuf>,
     /// Standard deviation in cells of the Gaussian low-pass applied to `--guide-from`.
     #[arg(long, value_name = "SIGMA")]
     pub(crate) blur: Option<f32>,
@@ -145,6 +152,7 @@ impl SynthArgs {
         let mut v: Vec<&Path> = self.exemplars.iter().map(|p| p.as_path()).collect();
         v.extend(self.guide.as_deref());
         v.extend(self.guide_from.as_deref());
+        v.extend(self.guide_sketch.as_deref());
         v.extend(self.categories.as_deref());
         v
     }
@@ -163,8 +171,13 @@ impl SynthArgs {
         if self.exemplars.is_empty() {
             bail!("no exemplar: give at least one --exemplar DEM");
         }
-        if self.guide.is_some() && self.guide_from.is_some() {
-            bail!("give either --guide or --guide-from, not both");
+        let guides = [
+            self.guide.is_some(),
+            self.guide_from.is_some(),
+            self.guide_sketch.is_some(),
+        ];
+        if guides.iter().filter(|&&g| g).count() > 1 {
+            bail!("give one of --guide, --guide-from and --guide-sketch, not several");
         }
         if self.guide_from.is_some() != self.blur.is_some() {
             bail!("--guide-from DEM and --blur SIGMA go together");
@@ -232,6 +245,9 @@ impl SynthArgs {
                 );
             }
             inputs.guide = Some(g);
+        }
+        if let Some(path) = &self.guide_sketch {
+            inputs.guide = Some(read_sketch(path, &inputs.exemplars)?);
         }
         if let Some(path) = &self.categories {
             let opts = relief_io::ReadOptions {
@@ -335,6 +351,31 @@ impl SynthArgs {
             ));
         }
     }
+}
+
+/// Largest sketch file read by `--guide-sketch` (a sketch is a few seeds and strokes).
+const MAX_SKETCH_BYTES: u64 = 16 << 20;
+
+/// Reads and rasterises a `--guide-sketch` file (at the first exemplar's cell size unless the
+/// sketch names one).
+fn read_sketch(path: &Path, exemplars: &[Heightfield]) -> Result<Heightfield> {
+    let len = std::fs::metadata(path)
+        .with_context(|| format!("cannot read sketch {}", path.display()))?
+        .len();
+    if len > MAX_SKETCH_BYTES {
+        bail!(
+            "sketch {}: {len} bytes, more than the {MAX_SKETCH_BYTES} a sketch file may have",
+            path.display()
+        );
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read sketch {}", path.display()))?;
+    let sketch: relief_patch_synth::guide::SketchGuide = serde_json::from_str(&text)
+        .with_context(|| format!("sketch {}: not a sketch guide", path.display()))?;
+    let cell = exemplars.first().map_or((1.0, 1.0), |e| e.cell_size());
+    sketch
+        .render(cell)
+        .with_context(|| format!("sketch {}", path.display()))
 }
 
 /// Seam blending of `relief quilt`.

@@ -626,3 +626,90 @@ fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
     let u = read(&used);
     assert_eq!((u.width(), u.height()), (96, 80));
 }
+
+/// `--guide-sketch FILE.json`: a ridge stroke (high) across a low seed field gives an output
+/// that is high along the stroke and low at the seeds; a malformed sketch or a second guide is
+/// refused with the file or the flags named, and nothing is written.
+#[test]
+fn quilt_follows_a_sketch_guide_file() {
+    let gc = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 256, 256).unwrap());
+    let sketch = tmp.path().join("sketch.json");
+    // A high ridge along the middle row, low corners.
+    std::fs::write(
+        &sketch,
+        r#"{"width": 96, "height": 96, "smoothing": 3,
+            "seeds": [{"x": 4, "y": 4, "height": 1500, "radius": 4},
+                      {"x": 92, "y": 92, "height": 1500, "radius": 4},
+                      {"x": 4, "y": 92, "height": 1500, "radius": 4},
+                      {"x": 92, "y": 4, "height": 1500, "radius": 4}],
+            "strokes": [{"points": [[8, 48, 2050], [88, 48, 2050]]}]}"#,
+    )
+    .unwrap();
+    let out = tmp.path().join("out.tif");
+    let run = |extra: &[&str], out: &Path| {
+        let mut v: Vec<std::ffi::OsString> = vec!["quilt".into()];
+        for a in [
+            "--exemplar",
+            ex.to_str().unwrap(),
+            "--patch",
+            "32",
+            "--overlap",
+            "8",
+            "--min-candidates",
+            "40",
+            "--seed",
+            "5",
+        ] {
+            v.push(a.into());
+        }
+        v.extend(extra.iter().map(|s| std::ffi::OsString::from(*s)));
+        v.push(out.as_os_str().to_owned());
+        let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
+        relief(&refs)
+    };
+    let res = run(&["--guide-sketch", sketch.to_str().unwrap()], &out);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let hf = read(&out);
+    assert_eq!((hf.width(), hf.height()), (96, 96));
+    // The guide as the library rasterises it (the exemplar's cell size).
+    let sk: relief_patch_synth::guide::SketchGuide =
+        serde_json::from_str(&std::fs::read_to_string(&sketch).unwrap()).unwrap();
+    let guide = sk.render(gc.cell_size()).unwrap();
+    let band = |g: &Heightfield, y0: usize, y1: usize| {
+        let mut s = 0.0;
+        for y in y0..y1 {
+            for x in 24..72 {
+                s += g.get(x, y) as f64;
+            }
+        }
+        s / ((y1 - y0) * 48) as f64
+    };
+    let rise = |g: &Heightfield| band(g, 40, 56) - (band(g, 0, 12) + band(g, 84, 96)) / 2.0;
+    let (out_rise, guide_rise) = (rise(&hf), rise(&guide));
+    assert!(guide_rise > 150.0, "guide rise {guide_rise:.0} m");
+    assert!(
+        out_rise > 0.6 * guide_rise,
+        "ridge rise {out_rise:.0} m against the guide's {guide_rise:.0} m"
+    );
+    // A malformed sketch names the file; two guides are refused; nothing is written.
+    let bad = tmp.path().join("bad.json");
+    std::fs::write(&bad, r#"{"width": 96, "height": 96, "seedz": []}"#).unwrap();
+    let out2 = tmp.path().join("out2.tif");
+    let res = run(&["--guide-sketch", bad.to_str().unwrap()], &out2);
+    assert!(!res.status.success());
+    assert!(stderr(&res).contains("bad.json"), "{}", stderr(&res));
+    let res = run(
+        &[
+            "--guide-sketch",
+            sketch.to_str().unwrap(),
+            "--guide",
+            ex.to_str().unwrap(),
+        ],
+        &out2,
+    );
+    assert!(!res.status.success());
+    assert!(stderr(&res).contains("--guide-sketch"), "{}", stderr(&res));
+    assert!(!out2.exists());
+}
