@@ -8,6 +8,19 @@ use relief_heightfield::NoProgress;
 use relief_implicit_volume::job::VolumeJob;
 use relief_implicit_volume::recipe::{Feature, Recipe};
 
+/// CPU seconds of this process (user + system, all threads) from `/proc/self/stat`.
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = s
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let t = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (t(11) + t(12)) / 100.0
+}
+
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     let runs: Vec<(String, [usize; 4], usize)> = if a.len() >= 5 {
@@ -65,14 +78,19 @@ fn main() {
             };
             for _ in 0..3 {
                 let t = std::time::Instant::now();
+                let c = cpu_s();
                 let (m, r) =
                     pool.install(|| relief_implicit_volume::polygonize(scene, &ms).expect("mesh"));
                 println!(
-                    "  polygonize {:.3} s, {} triangles, {:?}",
+                    "  polygonize {:.3} s (cpu {:.2} s), {} triangles, {:?}",
                     t.elapsed().as_secs_f64(),
+                    cpu_s() - c,
                     m.triangles.len(),
                     r
                 );
+                if std::env::var_os("NO_SIMPLIFY").is_some() {
+                    continue;
+                }
                 let t = std::time::Instant::now();
                 let (_, r) =
                     pool.install(|| relief_implicit_volume::simplify(&m, max).expect("simplify"));
