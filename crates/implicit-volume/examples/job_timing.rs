@@ -40,6 +40,8 @@ fn main() {
         .num_threads(2)
         .build()
         .expect("pool");
+    // RENDER=1: write the overview, close-ups and section as PPM to target/bench-data/.
+    let images = std::env::var_os("RENDER").is_some();
     for (name, [x, y, w, h], max) in runs {
         let hf = relief_testdata::dem_crop(&name, x, y, w, h).expect("DEM set");
         let job = VolumeJob {
@@ -49,6 +51,10 @@ fn main() {
                 ..Default::default()
             },
             max_triangles: Some(max),
+            render: images,
+            closeups: images,
+            section: images,
+            image_size: [960, 640],
             ..Default::default()
         };
         let out = pool.install(|| {
@@ -56,6 +62,28 @@ fn main() {
             job.finish(built, &NoProgress).expect("finish")
         });
         let f = &out.figures;
+        if images {
+            let dir = relief_testdata::workspace_root().join("target/bench-data");
+            std::fs::create_dir_all(&dir).expect("dir");
+            for (kind, img) in [
+                ("render", &out.render),
+                ("closeups", &out.closeups),
+                ("section", &out.section),
+            ] {
+                if let Some(img) = img {
+                    let path = dir.join(format!("{name}_{kind}.ppm"));
+                    let mut bytes = format!("P6\n{} {}\n255\n", img.width, img.height).into_bytes();
+                    bytes.extend_from_slice(&img.rgb);
+                    std::fs::write(&path, bytes).expect("write");
+                    println!("wrote {}", path.display());
+                }
+            }
+            println!("  closeups {:?}", f.closeups);
+            for h in &out.report.highlights {
+                println!("  highlight {h:?}");
+            }
+            println!("  effects {:?}", f.effects.keys().collect::<Vec<_>>());
+        }
         println!(
             "{name} {x} {y} {w}x{h}: nodes {}, build {:.3} s, grid {:?}, mesh {:.3} s ({} triangles), simplify to {} in {:.3} s (refused {}), watertight {:?}",
             f.tree_nodes,
