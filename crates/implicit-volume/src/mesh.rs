@@ -5,7 +5,11 @@
 //! `(chunk + 1)^3` nodes, so memory is bounded by the chunk plus the output mesh, never a dense
 //! grid of the whole scene. Chunks whose Lipschitz bound proves they hold no surface are skipped
 //! without sampling (interval bounds of the field over the chunk); inside a sampled chunk, blocks
-//! of 8^3 nodes proven all air or all matter (with a one-cell margin) are not evaluated either.
+//! of 8^3 nodes proven all air or all matter (with a one-cell margin) are not evaluated either,
+//! and undecided blocks are split in eight down to 2^3 nodes before any node is evaluated
+//! (about 2.5x fewer evaluations than 8^3 blocks alone, the same mesh as the dense grid).
+//! Edge-vertex slots are kept for two node layers only, and only vertices on a chunk face go
+//! through the weld hash map.
 //! Vertex normals come from the analytic field gradient ([`crate::TerrainTree::eval_grad`]). Vertices lie on lattice edges and are welded across chunk borders by a
 //! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
 //! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
