@@ -152,6 +152,11 @@ fn volume(c: &mut Criterion) {
     g.bench_function(BenchmarkId::new("polygonize_normals_2threads", 256), |b| {
         b.iter(|| pool.install(|| polygonize(&scene, &mn).expect("mesh")))
     });
+    // Simplification of the 256^3 mesh (1.94M triangles) to 200k, 2 threads.
+    let (full, _) = pool.install(|| polygonize(&scene, &ms).expect("mesh"));
+    g.bench_function(BenchmarkId::new("simplify_2threads", "256_to_200k"), |b| {
+        b.iter(|| pool.install(|| simplify(&full, 200_000).expect("simplify")))
+    });
     let cam = Camera::overview(&bbox);
     let rs = RenderSettings {
         width: 320,

@@ -450,7 +450,7 @@ impl VolumeJob {
         if self.render {
             progress.begin("rendering", 0);
             let t = Instant::now();
-            overview = Some(render(&scene, &Camera::overview(&scene.bbox()), &settings)?);
+            overview = Some(render(&scene, &Camera::landscape(&scene), &settings)?);
             f.render_s = Some(t.elapsed().as_secs_f64());
         }
         let mut closeups = None;

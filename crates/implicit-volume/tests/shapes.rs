@@ -128,3 +128,118 @@ fn iso_values_on_grid_nodes_keep_the_orientation_consistent() {
     assert!(topo.faces > 100);
     assert_eq!((topo.bad_edges, topo.misoriented_edges), (0, 0), "{topo:?}");
 }
+
+/// Interval culling (blocks split down to 2^3 nodes) and the rolling edge slots give exactly
+/// the mesh of marching tetrahedra on the dense grid, and the same on 1 and 2 threads.
+#[test]
+fn culled_chunked_mesh_equals_the_dense_grid_mesh() {
+    let mut t = TerrainTree::new();
+    let ids: Vec<NodeId> = (0..40)
+        .map(|k| {
+            let a = k as f32 / 40.0 * std::f32::consts::TAU;
+            let r = 4.0 + 3.0 * (3.0 * a).sin().abs();
+            t.sphere([20.0 * a.cos(), 20.0 * a.sin(), 2.0 * a.cos()], r, 1.0)
+                .unwrap()
+        })
+        .collect();
+    let root = t.bvh_blend(&ids).unwrap();
+    let scene = Scene::new(t, root, Geology::new(), None).unwrap();
+    let b = Aabb::new([-32.0, -32.0, -12.0], [32.0, 32.0, 12.0]);
+    let cells = [70, 66, 30];
+    let s = MeshSettings {
+        bbox: Some(b),
+        cells,
+        chunk: 16,
+        close_boundary: true,
+        normals: false,
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| polygonize(&scene, &s).unwrap())
+    };
+    let (m, rep) = run(2);
+    assert_eq!(run(1).0, m);
+    let dims = [cells[0] + 1, cells[1] + 1, cells[2] + 1];
+    let g = sample_grid(&scene, &b, dims).unwrap();
+    let sz = b.size();
+    let step = [
+        sz[0] / cells[0] as f32,
+        sz[1] / cells[1] as f32,
+        sz[2] / cells[2] as f32,
+    ];
+    let dense = polygonize_grid(&g, dims, b.min, step, THRESHOLD, 16).unwrap();
+    assert_eq!(m.triangles.len(), dense.triangles.len());
+    assert_eq!(m, dense);
+    // The culling evaluated far fewer nodes than the dense grid holds.
+    assert!(
+        rep.evaluations * 3 < g.len(),
+        "{} of {}",
+        rep.evaluations,
+        g.len()
+    );
+    let topo = topology(&m);
+    assert_eq!((topo.bad_edges, topo.misoriented_edges), (0, 0));
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn norm(a: [f32; 3]) -> f32 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+fn normalize(a: [f32; 3]) -> [f32; 3] {
+    let n = norm(a);
+    [a[0] / n, a[1] / n, a[2] / n]
+}
+
+/// The landscape camera sits over the DEM's footprint above all matter and looks down across
+/// it; a close-up near the border stays over the DEM, and a pillar standing between the
+/// target and the default eye position pulls the eye in front of it.
+#[test]
+fn cameras_stay_over_the_scene_and_in_front_of_occluders() {
+    let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |x, _| 100.0 + x as f32);
+    let mut b = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default()).unwrap();
+    let target = [200.0, 200.0, 130.0];
+    // A pillar 60 m south-west of the target, on the default close-up line of sight.
+    let d = normalize([-0.55, -0.7, 0.0]);
+    let foot = [200.0 + 60.0 * d[0], 200.0 + 60.0 * d[1], 100.0];
+    let pillar = b
+        .tree_mut()
+        .capsule(foot, [foot[0], foot[1], 400.0], 12.0, 2.0)
+        .unwrap();
+    b.add_matter(pillar);
+    let scene = b.build(true).unwrap();
+    let bb = scene.bbox();
+
+    let land = Camera::landscape(&scene);
+    assert!(land.eye[2] > bb.max[2], "{land:?}");
+    for k in 0..2 {
+        assert!((0.0..=400.0).contains(&land.eye[k]), "{land:?}");
+        assert!((0.0..=400.0).contains(&land.target[k]), "{land:?}");
+    }
+    assert!(land.target[2] < land.eye[2]);
+
+    let far = 300.0;
+    let cam = Camera::closeup(&scene, target, far);
+    assert!(!scene.inside(cam.eye), "{cam:?}");
+    let dist = norm(sub(cam.eye, target));
+    let across = norm([cam.eye[0] - target[0], cam.eye[1] - target[1], 0.0]);
+    assert!(across < 60.0, "eye behind the pillar: {cam:?}");
+    assert!(dist > 20.0, "{cam:?}");
+    // Without the pillar the eye goes the whole distance (or to the DEM's border).
+    let mut b = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default()).unwrap();
+    let p = b
+        .tree_mut()
+        .sphere([380.0, 380.0, 600.0], 5.0, 1.0)
+        .unwrap();
+    b.add_matter(p);
+    let open = b.build(true).unwrap();
+    let cam = Camera::closeup(&open, target, far);
+    assert!(norm(sub(cam.eye, target)) > 150.0, "{cam:?}");
+    // Near the border the eye stays over the DEM.
+    let cam = Camera::closeup(&open, [30.0, 30.0, 110.0], far);
+    assert!(cam.eye[0] >= -1e-3 && cam.eye[1] >= -1e-3, "{cam:?}");
+}

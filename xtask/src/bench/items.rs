@@ -393,6 +393,14 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "issue 19: mesh 256^3 <= 0.5 s",
     },
     WorkItem {
+        name: "simplify the 256^3 mesh (1.94M triangles) to 200k, 2 threads",
+        criterion_id: "implicit_volume/simplify_2threads/256_to_200k",
+        peer: None,
+        goal: Goal::None,
+        units: None,
+        note: "issue 19: parallel-planned passes (the heap-driven version took 41-153 s on real scenes)",
+    },
+    WorkItem {
         name: "marching tetrahedra on the precomputed 256^3 grid, 2 threads",
         criterion_id: "implicit_volume/marching_tetrahedra_precomputed_2threads/256",
         peer: script(

@@ -222,6 +222,8 @@ impl SceneBuilder {
                 "too small for this DEM: more than 2^24 cliff columns",
             ));
         }
+        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        let mut best: Option<(f32, V3)> = None;
         let dist = self.distance_to_sea(s.sea_level);
         // Bilinear distance to the sea (m).
         let dist_at = |x: f32, y: f32| {
@@ -305,11 +307,15 @@ impl SceneBuilder {
             }
             if any {
                 report.features += 1;
-                if report.sites.is_empty() {
-                    report.sites.push([x, y, s.sea_level]);
+                // The site shown by close-ups: the cliff farthest from the DEM's border
+                // (first found on ties).
+                let inner = x.min(xm - x).min(y).min(ym - y);
+                if best.is_none_or(|(b, _)| inner > b) {
+                    best = Some((inner, [x, y, s.sea_level]));
                 }
             }
         }
+        report.sites.extend(best.map(|(_, p)| p));
         Ok(report)
     }
 

@@ -1,0 +1,132 @@
+//! Release timing of the whole `relief volume` job on real crops (tree build, polygonisation at
+//! the recipe's voxel, simplification to a triangle budget, render), 2 threads:
+//! `cargo run --release -p relief-implicit-volume --example job_timing -- [DEM X Y W H [MAX_TRIANGLES]]`
+//! (default: N57E011 888 72 48 48, then grandcanyon 200 160 128 128, 200000 triangles).
+#![allow(clippy::print_stdout)]
+
+use relief_heightfield::NoProgress;
+use relief_implicit_volume::job::VolumeJob;
+use relief_implicit_volume::recipe::{Feature, Recipe};
+
+/// CPU seconds of this process (user + system, all threads) from `/proc/self/stat`.
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = s
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let t = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (t(11) + t(12)) / 100.0
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let runs: Vec<(String, [usize; 4], usize)> = if a.len() >= 5 {
+        let n = |k: usize| a[k].parse::<usize>().expect("integer");
+        vec![(
+            a[0].clone(),
+            [n(1), n(2), n(3), n(4)],
+            a.get(5).map_or(200_000, |_| n(5)),
+        )]
+    } else {
+        vec![
+            ("N57E011".into(), [888, 72, 48, 48], 200_000),
+            ("grandcanyon".into(), [200, 160, 128, 128], 200_000),
+        ]
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    // RENDER=1: write the overview, close-ups and section as PPM to target/bench-data/.
+    let images = std::env::var_os("RENDER").is_some();
+    for (name, [x, y, w, h], max) in runs {
+        let hf = relief_testdata::dem_crop(&name, x, y, w, h).expect("DEM set");
+        let job = VolumeJob {
+            recipe: Recipe {
+                features: Feature::ALL.to_vec(),
+                seed: 1,
+                ..Default::default()
+            },
+            max_triangles: Some(max),
+            render: images,
+            closeups: images,
+            section: images,
+            image_size: [960, 640],
+            ..Default::default()
+        };
+        let out = pool.install(|| {
+            let built = job.build(&hf, &NoProgress).expect("build");
+            job.finish(built, &NoProgress).expect("finish")
+        });
+        let f = &out.figures;
+        if images {
+            let dir = relief_testdata::workspace_root().join("target/bench-data");
+            std::fs::create_dir_all(&dir).expect("dir");
+            for (kind, img) in [
+                ("render", &out.render),
+                ("closeups", &out.closeups),
+                ("section", &out.section),
+            ] {
+                if let Some(img) = img {
+                    let path = dir.join(format!("{name}_{kind}.ppm"));
+                    let mut bytes = format!("P6\n{} {}\n255\n", img.width, img.height).into_bytes();
+                    bytes.extend_from_slice(&img.rgb);
+                    std::fs::write(&path, bytes).expect("write");
+                    println!("wrote {}", path.display());
+                }
+            }
+            println!("  closeups {:?}", f.closeups);
+            for h in &out.report.highlights {
+                println!("  highlight {h:?}");
+            }
+            println!("  effects {:?}", f.effects.keys().collect::<Vec<_>>());
+        }
+        println!(
+            "{name} {x} {y} {w}x{h}: nodes {}, build {:.3} s, grid {:?}, mesh {:.3} s ({} triangles), simplify to {} in {:.3} s (refused {}), watertight {:?}",
+            f.tree_nodes,
+            f.build_s,
+            f.mesh_grid,
+            f.mesh_s.unwrap_or(0.0),
+            f.mesh_triangles_polygonised.unwrap_or(0),
+            f.mesh_triangles.unwrap_or(0),
+            f.simplify_s.unwrap_or(0.0),
+            f.simplify_refused.unwrap_or(0),
+            f.mesh_watertight_manifold,
+        );
+        println!("  nodes by kind {:?}", f.tree_nodes_by_kind);
+        if std::env::var_os("MESH_ONLY").is_some() {
+            let scene = &out.scene;
+            let ms = relief_implicit_volume::MeshSettings {
+                cells: f.mesh_grid.expect("grid"),
+                normals: false,
+                ..Default::default()
+            };
+            for _ in 0..3 {
+                let t = std::time::Instant::now();
+                let c = cpu_s();
+                let (m, r) =
+                    pool.install(|| relief_implicit_volume::polygonize(scene, &ms).expect("mesh"));
+                println!(
+                    "  polygonize {:.3} s (cpu {:.2} s), {} triangles, {:?}",
+                    t.elapsed().as_secs_f64(),
+                    cpu_s() - c,
+                    m.triangles.len(),
+                    r
+                );
+                if std::env::var_os("NO_SIMPLIFY").is_some() {
+                    continue;
+                }
+                let t = std::time::Instant::now();
+                let (_, r) =
+                    pool.install(|| relief_implicit_volume::simplify(&m, max).expect("simplify"));
+                println!(
+                    "  simplify to {max}: {:.3} s {r:?}",
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+}
