@@ -197,7 +197,7 @@ fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
 /// relief's Z-up frame (x east, y north, z up) to glTF's Y-up frame (x right, y up, z toward
 /// the viewer): a rotation of -90 degrees about x, `(x, y, z) -> (x, z, -y)`, so triangle winding
 /// and handedness are kept and engines and Blender show the terrain lying flat.
-fn z_up_to_y_up(v: &[f32; 3]) -> [f32; 3] {
+pub fn z_up_to_y_up(v: &[f32; 3]) -> [f32; 3] {
     [v[0], v[2], -v[1]]
 }
 

@@ -33,6 +33,12 @@ pub(crate) struct Args {
     /// Write the polygonised scene (.glb, .ply or .obj).
     #[arg(long)]
     pub(crate) mesh: Option<PathBuf>,
+    /// Up axis of an OBJ or PLY mesh: z (default; relief's frame: x east, y north, z up, as
+    /// GIS tools and Houdini's Z-up setting read it) or y (rotated -90 degrees about x,
+    /// `(x, y, z) -> (x, z, -y)`, as Blender's OBJ importer, Maya and game engines expect). A
+    /// GLB is always Y-up (glTF 2.0 requires it).
+    #[arg(long, value_enum)]
+    pub(crate) up: Option<UpArg>,
     /// Write a sphere-traced shaded render (.png).
     #[arg(long)]
     pub(crate) render: Option<PathBuf>,
@@ -276,6 +282,15 @@ fn write_png(
     Ok(())
 }
 
+/// Up axis of `relief volume --up`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum UpArg {
+    /// Z up (relief's frame).
+    Z,
+    /// Y up (x, z, -y).
+    Y,
+}
+
 /// Maps the flags onto a [`VolumeJob`], runs it and writes the outputs.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
@@ -300,6 +315,19 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             "--mesh {}: the file must end in .glb, .ply or .obj",
             m.display()
         );
+    }
+    match (&args.mesh, args.up) {
+        (None, Some(_)) => bail!("--up applies to a --mesh; give one"),
+        (Some(m), Some(UpArg::Z))
+            if relief_io::MeshFormat::from_extension(m) == Some(relief_io::MeshFormat::Glb) =>
+        {
+            bail!(
+                "--up z: {} is glTF, which is Y-up by specification; use .obj or .ply for a \
+                 Z-up mesh",
+                m.display()
+            )
+        }
+        _ => {}
     }
     check_png(&args.render, "render")?;
     check_png(&args.closeups, "closeups")?;
@@ -396,16 +424,23 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let out = job
         .finish(built, &progress)
         .context("cannot mesh or render the scene")?;
+    let y_up = args.up == Some(UpArg::Y);
     let mut text = out.figures.summary();
     if let (Some(path), Some(mesh)) = (&args.mesh, &out.mesh) {
         let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-        relief_io::write_mesh(
-            &staged.path(path),
-            &mesh.positions,
-            &mesh.triangles,
-            normals,
-        )
-        .with_context(|| format!("cannot write {}", path.display()))?;
+        let glb = relief_io::MeshFormat::from_extension(path) == Some(relief_io::MeshFormat::Glb);
+        let rotated = (y_up && !glb).then(|| {
+            let r = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+                v.iter().map(relief_io::z_up_to_y_up).collect()
+            };
+            (r(&mesh.positions), normals.map(r))
+        });
+        let (positions, normals) = match &rotated {
+            Some((p, n)) => (&p[..], n.as_deref()),
+            None => (&mesh.positions[..], normals),
+        };
+        relief_io::write_mesh(&staged.path(path), positions, &mesh.triangles, normals)
+            .with_context(|| format!("cannot write {}", path.display()))?;
         let bytes = std::fs::metadata(staged.path(path)).map_or(0, |m| m.len());
         text += &format!("wrote {} ({:.1} MB)\n", path.display(), bytes as f64 / 1e6);
     }

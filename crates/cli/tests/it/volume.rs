@@ -192,6 +192,72 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
     assert!(!stdout.contains("karst:        0 primitives"), "{stdout}");
 }
 
+/// Issue 14: `--up y` writes OBJ/PLY meshes rotated into a Y-up frame, `(x, y, z) -> (x, z,
+/// -y)`, vertex for vertex; `--up z` with a GLB (Y-up by specification) is refused.
+#[test]
+fn volume_up_axis_rotates_obj_and_ply() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture();
+    let obj_vertices = |p: &Path| -> Vec<[f32; 3]> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .filter_map(|l| l.strip_prefix("v "))
+            .map(|l| {
+                let v: Vec<f32> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+                [v[0], v[1], v[2]]
+            })
+            .collect()
+    };
+    let run = |up: &str, mesh: &Path| {
+        let out = relief(&[
+            "volume",
+            s(&input),
+            "--crop",
+            "100,100,24,24",
+            "--features",
+            "arches",
+            "--mesh",
+            s(mesh),
+            "--up",
+            up,
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        obj_vertices(mesh)
+    };
+    let z = run("z", &dir.path().join("z.obj"));
+    let y = run("y", &dir.path().join("y.obj"));
+    assert_eq!(z.len(), y.len());
+    assert!(!z.is_empty());
+    for (a, b) in z.iter().zip(&y) {
+        assert_eq!([a[0], a[2], -a[1]], *b);
+    }
+    // The terrain's height range lies along z in one and along y in the other.
+    let span = |v: &[[f32; 3]], k: usize| {
+        let (lo, hi) = v.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+            (lo.min(p[k]), hi.max(p[k]))
+        });
+        hi - lo
+    };
+    assert_eq!(span(&z, 2), span(&y, 1));
+    let glb = dir.path().join("m.glb");
+    let out = relief(&[
+        "volume",
+        s(&input),
+        "--crop",
+        "100,100,24,24",
+        "--mesh",
+        s(&glb),
+        "--up",
+        "z",
+    ]);
+    assert_failed_cleanly(&out, "Y-up", &[&glb]);
+}
+
 #[test]
 fn volume_rejects_bad_input_without_writing() {
     let dir = tempfile::tempdir().unwrap();
