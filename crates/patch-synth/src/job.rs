@@ -59,22 +59,26 @@ pub struct ValidateJob {
     pub auto_categories: Option<usize>,
 }
 
-/// Guided patch-based synthesis (`relief quilt`): the validation's inputs plus the synthesis.
-/// With `settings.enforce_validation` a failing validation is an error
-/// ([`PatchSynthError::Validation`], with a suggested guide mapping when one passes).
+/// Guided patch-based synthesis (`relief quilt`): the validation job's fields (the same JSON,
+/// the same checks) run through to the synthesis. With `settings.enforce_validation` a failing
+/// validation is an error ([`PatchSynthError::Validation`], with a suggested guide mapping
+/// when one passes). Dereferences to its [`ValidateJob`], so `job.settings` reads and writes
+/// the settings.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct QuiltJob {
-    /// Synthesis settings.
-    pub settings: Settings,
-    /// Output size `(width, height)`; `None` = the guide's extent at the exemplars' cell size.
-    pub size: Option<(usize, usize)>,
-    /// How the guide is made.
-    pub guide: GuideSetup,
-    /// Category id of each exemplar, in input order.
-    pub exemplar_categories: Option<Vec<u16>>,
-    /// Clustered categories (see [`ValidateJob::auto_categories`]).
-    pub auto_categories: Option<usize>,
+#[serde(transparent)]
+pub struct QuiltJob(pub ValidateJob);
+
+impl std::ops::Deref for QuiltJob {
+    type Target = ValidateJob;
+    fn deref(&self) -> &ValidateJob {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for QuiltJob {
+    fn deref_mut(&mut self) -> &mut ValidateJob {
+        &mut self.0
+    }
 }
 
 /// The rasters a job reads.
@@ -524,13 +528,7 @@ impl ValidateJob {
 impl QuiltJob {
     /// The validation part of this job.
     pub fn validate_job(&self) -> ValidateJob {
-        ValidateJob {
-            settings: self.settings.clone(),
-            size: self.size,
-            guide: self.guide.clone(),
-            exemplar_categories: self.exemplar_categories.clone(),
-            auto_categories: self.auto_categories,
-        }
+        self.0.clone()
     }
 
     /// Checks every field; the error names the field and the rule.
@@ -645,18 +643,18 @@ mod tests {
         let mut j = QuiltJob::default();
         j.guide.range = Some(GuideRange::Metres(5.0, 5.0));
         assert!(j.check().unwrap_err().to_string().contains("guide.range"));
-        let j = QuiltJob {
+        let j = QuiltJob(ValidateJob {
             size: Some((0, 8)),
             ..Default::default()
-        };
+        });
         assert!(j.check().unwrap_err().to_string().contains("`size`"));
         let mut j = QuiltJob::default();
         j.settings.overlap = 40;
         assert!(j.check().unwrap_err().to_string().contains("overlap"));
-        let j = QuiltJob {
+        let j = QuiltJob(ValidateJob {
             auto_categories: Some(0),
             ..Default::default()
-        };
+        });
         assert!(
             j.check()
                 .unwrap_err()
@@ -696,10 +694,10 @@ mod tests {
             .unwrap()
             .map(|v| 5000.0 + 0.5 * v);
         g.set_cell_size(60.0, 60.0).unwrap();
-        let mut job = QuiltJob {
+        let mut job = QuiltJob(ValidateJob {
             settings: small_settings(),
             ..Default::default()
-        };
+        });
         let inputs = JobInputs {
             exemplars: vec![ex.clone()],
             guide: Some(g.clone()),

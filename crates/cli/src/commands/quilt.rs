@@ -444,13 +444,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         },
         BlendArg::None => Blend::None,
     };
-    let job = QuiltJob {
-        settings,
-        size: v.size,
-        guide: v.guide,
-        exemplar_categories: v.exemplar_categories,
-        auto_categories: v.auto_categories,
-    };
+    let job = QuiltJob(ValidateJob { settings, ..v });
     let inputs = args.synth.inputs(ctx)?;
     args.synth.preflight(&job.validate_job(), &inputs, ctx)?;
     let progress = ctx.progress();

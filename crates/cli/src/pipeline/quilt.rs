@@ -22,7 +22,8 @@ use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::metrics::{radial_power_spectrum, rmse, spectral_slope};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, Settings, quality,
+    ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, Settings, ValidateJob,
+    quality,
 };
 use serde::{Deserialize, Serialize};
 
@@ -42,7 +43,7 @@ const QUILT_TOLERANCE: Tolerance = Tolerance {
 /// fail), the guide low-passed (sigma 3 cells) and mapped onto the exemplars' heights
 /// (`auto`), two categories.
 fn default_job() -> QuiltJob {
-    QuiltJob {
+    QuiltJob(ValidateJob {
         settings: Settings {
             patch_size: 16,
             overlap: 4,
@@ -56,8 +57,8 @@ fn default_job() -> QuiltJob {
             cell_size: None,
         },
         auto_categories: Some(2),
-        ..QuiltJob::default()
-    }
+        ..ValidateJob::default()
+    })
 }
 
 /// Parameters of the `quilt` stage (JSON `params`; like every stage's, merged recursively onto
