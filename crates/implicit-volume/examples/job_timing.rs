@@ -2,6 +2,9 @@
 //! the recipe's voxel, simplification to a triangle budget, render), 2 threads:
 //! `cargo run --release -p relief-implicit-volume --example job_timing -- [DEM X Y W H [MAX_TRIANGLES]]`
 //! (default: N57E011 888 72 48 48, then grandcanyon 200 160 128 128, 200000 triangles).
+//! `FEATURES=wind,rain` builds only those features (default: all); `LOOK=1` meshes the scene at
+//! the recipe's grid and prints its [`relief_implicit_volume::surface_look`] (downward-facing
+//! area share, small closed pits of the top surface at the meshing voxel).
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::NoProgress;
@@ -46,7 +49,13 @@ fn main() {
         let hf = relief_testdata::dem_crop(&name, x, y, w, h).expect("DEM set");
         let job = VolumeJob {
             recipe: Recipe {
-                features: Feature::ALL.to_vec(),
+                features: match std::env::var("FEATURES") {
+                    Ok(v) => v
+                        .split(',')
+                        .map(|f| f.trim().parse::<Feature>().expect("feature"))
+                        .collect(),
+                    Err(_) => Feature::ALL.to_vec(),
+                },
                 seed: 1,
                 ..Default::default()
             },
@@ -97,6 +106,25 @@ fn main() {
             f.mesh_watertight_manifold,
         );
         println!("  nodes by kind {:?}", f.tree_nodes_by_kind);
+        if std::env::var_os("LOOK").is_some() {
+            let grid = f.mesh_grid.expect("grid");
+            let ms = relief_implicit_volume::MeshSettings {
+                cells: grid,
+                normals: false,
+                ..Default::default()
+            };
+            let (m, _) =
+                pool.install(|| relief_implicit_volume::polygonize(&out.scene, &ms).expect("mesh"));
+            let v = out.report.dims.voxel_m;
+            let r = out.report.dims.weathering_radius_m;
+            // Small pits: closed depressions deeper than a quarter voxel and no wider than about
+            // two weathering spheres.
+            let max_cells = (std::f32::consts::PI * (2.0 * r / v).powi(2)).ceil() as usize;
+            let look = relief_implicit_volume::surface_look(&m, v, 0.25 * v, max_cells);
+            println!(
+                "  look (voxel {v:.2} m, weathering radius {r:.2} m, small = at most {max_cells} cells): {look:?}"
+            );
+        }
         if std::env::var_os("MESH_ONLY").is_some() {
             let scene = &out.scene;
             let ms = relief_implicit_volume::MeshSettings {

@@ -54,6 +54,7 @@
 mod error;
 pub mod geology;
 pub mod job;
+pub mod look;
 pub mod math;
 pub mod mesh;
 pub mod recipe;
@@ -65,6 +66,7 @@ pub mod tree;
 pub use error::{Error, Result};
 pub use geology::{GeoId, Geology, GeologySpec, Layer};
 pub use job::{Built, EffectFigures, VolumeFigures, VolumeJob, VolumeOutput};
+pub use look::{SurfaceLook, surface_look};
 pub use math::{Aabb, V3};
 pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,

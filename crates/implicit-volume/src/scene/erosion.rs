@@ -62,7 +62,7 @@ impl SceneBuilder {
             band * acc
         };
         let band = Some((s.sea_level - s.depth, s.sea_level + s.height));
-        let (mut report, mut placed) = self.weather(&s.weathering, region, band, stress)?;
+        let (mut report, mut placed) = self.weather(&s.weathering, region, band, false, stress)?;
         let inland = |p: V3| -> Option<V3> {
             let (j, i) = frame.cell(p)?;
             let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
@@ -346,7 +346,7 @@ impl SceneBuilder {
             let exposure = 2.0 * (-crate::math::dot(nrm, wind)).max(0.0);
             exposure.min(1.0) * ((p[2] - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0).sqrt()
         };
-        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+        Ok(self.weather(&s.weathering, region, None, true, stress)?.0)
     }
 
     /// Rain erosion: stress grows with the slope of the ground.
@@ -369,6 +369,6 @@ impl SceneBuilder {
                 .to_degrees();
             (slope / full).min(1.0)
         };
-        Ok(self.weather(&s.weathering, region, None, stress)?.0)
+        Ok(self.weather(&s.weathering, region, None, true, stress)?.0)
     }
 }

@@ -117,6 +117,11 @@ fn check_pos(name: &'static str, v: f32) -> Result<()> {
     }
 }
 
+/// Length of a wind or rain weathering groove in support radii (see
+/// [`SceneBuilder::groove_axis`]): samples about one radius apart along a contour overlap into
+/// one continuous groove.
+const GROOVE_LENGTH: f32 = 2.5;
+
 /// Poisson elimination in order: keeps a point if no kept point is closer than `r`.
 fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) -> Vec<usize> {
     let mut grid: HashMap<(i32, i32, i32), Vec<V3>> = HashMap::new();
@@ -375,6 +380,7 @@ impl SceneBuilder {
         w: &Weathering,
         region: &Region,
         zband: Option<(f32, f32)>,
+        groove: bool,
         stress: impl Fn(&Self, V3) -> f32 + Sync,
     ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
         w.check(self.min_len)?;
@@ -414,13 +420,49 @@ impl SceneBuilder {
             if e < w.threshold || e <= 0.0 {
                 continue;
             }
-            let id = self.tree.sphere(p, w.radius, -w.energy * e)?;
+            let id = if groove {
+                let (a, b) = self.groove_axis(p, w.radius);
+                self.carved.push((mul(add(a, b), 0.5), w.radius, false));
+                self.tree.capsule(a, b, w.radius, -w.energy * e)?
+            } else {
+                self.carved.push((p, w.radius, false));
+                self.tree.sphere(p, w.radius, -w.energy * e)?
+            };
             self.negatives.push(id);
-            self.carved.push((p, w.radius, false));
             report.primitives += 1;
             placed.push((p, e));
         }
         Ok((report, placed))
+    }
+
+    /// Axis of a weathering groove at the surface sample `p` (wind and rain): a horizontal
+    /// segment [`GROOVE_LENGTH`] radii long along the contour line of the DEM (so on a cliff it
+    /// runs along the strata), its centre moved up or down by at most a third of the radius
+    /// to the softest rock nearby (neighbouring grooves in one soft stratum line up and merge
+    /// into a continuous undercut) and a quarter radius into the face (undercut, not a dent).
+    fn groove_axis(&self, p: V3, r: f32) -> (V3, V3) {
+        let f = self.frame;
+        let (j, i) = f.cell(p).unwrap_or((0, 0));
+        let n = self.slope_normal(j, i);
+        let h = (n[0] * n[0] + n[1] * n[1]).sqrt();
+        // Contour direction; on flat ground (no contour) a fixed one: the stress there is
+        // near zero anyway for wind and rain.
+        let (t, inward) = if h > 1e-4 {
+            ([-n[1] / h, n[0] / h, 0.0], [-n[0] / h, -n[1] / h, 0.0])
+        } else {
+            ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+        };
+        let mut best = (self.geology.resistance(p), 0.0f32);
+        for k in [-2.0f32, -1.0, 1.0, 2.0] {
+            let dz = k / 6.0 * r;
+            let rho = self.geology.resistance([p[0], p[1], p[2] + dz]);
+            if rho < best.0 - 1e-4 {
+                best = (rho, dz);
+            }
+        }
+        let c = add(add(p, [0.0, 0.0, best.1]), mul(inward, 0.25 * r));
+        let half = 0.5 * GROOVE_LENGTH * r;
+        (add(c, mul(t, -half)), add(c, mul(t, half)))
     }
 
     /// Horizontal distance (m) from every DEM cell to the nearest cell at or below `level` (sea)
