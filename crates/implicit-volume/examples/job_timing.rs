@@ -52,6 +52,7 @@ fn main() {
                 features: match std::env::var("FEATURES") {
                     Ok(v) => v
                         .split(',')
+                        .filter(|f| !f.trim().is_empty())
                         .map(|f| f.trim().parse::<Feature>().expect("feature"))
                         .collect(),
                     Err(_) => Feature::ALL.to_vec(),

@@ -341,15 +341,17 @@ impl SceneBuilder {
                 return 0.0;
             };
             let nrm = me.slope_normal(j, i);
-            // `-n . w` is sin(slope) cos(aspect to the wind): flat ground is not exposed, a
-            // face turned to the wind at 30 degrees or more is fully exposed.
-            let exposure = 2.0 * (-crate::math::dot(nrm, wind)).max(0.0);
+            // `-n . w` is sin(slope) cos(aspect to the wind): ground gentler than 14.5 degrees
+            // is not exposed (a groove there would be a closed pit, not an undercut), a face
+            // turned to the wind at 30 degrees or more is fully exposed.
+            let exposure = 4.0 * (-crate::math::dot(nrm, wind) - 0.25).max(0.0);
             exposure.min(1.0) * ((p[2] - lo) / (hi - lo).max(1e-3)).clamp(0.0, 1.0).sqrt()
         };
         Ok(self.weather(&s.weathering, region, None, true, stress)?.0)
     }
 
-    /// Rain erosion: stress grows with the slope of the ground.
+    /// Rain erosion: stress grows with the slope of the ground, from a third of
+    /// `full_slope_deg` to `full_slope_deg`.
     pub fn rain_erosion(&mut self, s: &RainErosion, region: &Region) -> Result<EffectReport> {
         if !(s.full_slope_deg > 0.0 && s.full_slope_deg <= 90.0) {
             return Err(Error::param(
@@ -367,7 +369,9 @@ impl SceneBuilder {
                 .clamp(-1.0, 1.0)
                 .acos()
                 .to_degrees();
-            (slope / full).min(1.0)
+            // Zero on ground gentler than a third of `full` (no runoff to undercut a face;
+            // a groove there would be a closed pit).
+            ((slope - full / 3.0) / (full * 2.0 / 3.0)).clamp(0.0, 1.0)
         };
         Ok(self.weather(&s.weathering, region, None, true, stress)?.0)
     }

@@ -169,7 +169,8 @@ impl Default for WindErosion {
     }
 }
 
-/// Rain erosion: stress grows with the slope (runoff), full at `full_slope_deg`.
+/// Rain erosion: stress grows with the slope (runoff), zero below a third of `full_slope_deg`,
+/// full at `full_slope_deg`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RainErosion {
     /// Sampling and energy parameters.
