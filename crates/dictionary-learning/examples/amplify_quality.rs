@@ -141,8 +141,8 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
             4 * w,
             detail_swing(&out, &bic).unwrap(),
             phase_swing(&out, &bic, 8).unwrap(),
-            r.exemplar_reduction,
-            r.self_similar,
+            r.exemplar.reduction,
+            r.exemplar.self_similar,
         ));
     })
     .unwrap();
