@@ -799,28 +799,34 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
         exemplar_detail: true,
         ..s
     };
+    // Added detail: the output's detail finer than 4 of its cells.
     let added = |settings: &AmplifySettings| {
         let out = amplify(&coarse, &ex, settings, &NoProgress)
             .unwrap()
             .rasterize(&RasterSettings::default())
             .unwrap();
-        let bic = corner_bicubic(&coarse, out.width(), out.height()).unwrap();
-        metrics::rmse(&out, &bic).unwrap()
+        detail_rms(&out, 4)
     };
     let at_scale = added(&one);
     let native = added(&AmplifySettings {
         exemplar_cell_size: Some((4.0 * cx, 4.0 * cy)),
         ..one
     });
-    let expected = detail_rms(&ex.downsample_box(4).unwrap(), 4) / detail_rms(&ex, 4);
-    let got = at_scale / native;
-    eprintln!(
-        "added detail {at_scale:.2} m at scale, {native:.2} m at native resolution: ratio {got:.2}, \
-         exemplar's {expected:.2}"
+    let (ex_scale, ex_native) = (
+        detail_rms(&ex.downsample_box(4).unwrap(), 4),
+        detail_rms(&ex, 4),
     );
-    assert!(expected > 1.5, "exemplar detail ratio {expected}");
+    eprintln!(
+        "added detail {at_scale:.2} m at scale, {native:.2} m with the exemplar at native \
+         resolution; exemplar's detail {ex_scale:.2} m at 4 c, {ex_native:.2} m at c"
+    );
+    assert!(ex_scale > 2.0 * ex_native, "{ex_scale} {ex_native}");
     assert!(
-        got > 0.75 * expected && got < 1.33 * expected,
-        "added detail ratio {got:.2} vs the exemplar's {expected:.2}"
+        at_scale > 0.5 * ex_scale && at_scale < 1.5 * ex_scale,
+        "added detail {at_scale:.2} m vs the exemplar's {ex_scale:.2} m at the step's scale"
+    );
+    assert!(
+        native < 0.5 * ex_scale && at_scale > 1.8 * native,
+        "the exemplar at native resolution gives less detail: {native:.2} vs {at_scale:.2} m"
     );
 }
