@@ -48,6 +48,17 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
         detail_swing(truth, &corner).unwrap(),
         phase_swing(truth, &corner, 8).unwrap()
     );
+    for step in exemplar_plan(
+        input.cell_size(),
+        (exemplar.width(), exemplar.height()),
+        exemplar.cell_size(),
+        &AmplifySettings {
+            steps,
+            ..AmplifySettings::default()
+        },
+    ) {
+        println!("  {}", step.note);
+    }
     let p8 = |o: &Heightfield| phase_swing(o, &corner, 8).unwrap();
     println!(
         "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | s |"
