@@ -48,6 +48,17 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
         detail_swing(truth, &corner).unwrap(),
         phase_swing(truth, &corner, 8).unwrap()
     );
+    for step in exemplar_plan(
+        input.cell_size(),
+        (exemplar.width(), exemplar.height()),
+        exemplar.cell_size(),
+        &AmplifySettings {
+            steps,
+            ..AmplifySettings::default()
+        },
+    ) {
+        println!("  {}", step.note);
+    }
     let p8 = |o: &Heightfield| phase_swing(o, &corner, 8).unwrap();
     println!(
         "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | s |"
@@ -141,8 +152,8 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
             4 * w,
             detail_swing(&out, &bic).unwrap(),
             phase_swing(&out, &bic, 8).unwrap(),
-            r.exemplar_reduction,
-            r.self_similar,
+            r.exemplar.reduction,
+            r.exemplar.self_similar,
         ));
     })
     .unwrap();

@@ -46,9 +46,11 @@
 //!   now adds its atom's detail at the exemplar's amplitude on the bicubic interpolation of the
 //!   input.
 //!
-//! Not guaranteed: repeated steps use the exemplar at the closest available resolution; a step
-//! for which the exemplar is too small to be reduced relies on the self-similarity of relief
-//! across scales ([`StepReport::self_similar`] says so).
+//! Exemplar scale: every x4 step cuts its atoms from the exemplar box-down-sampled to the
+//! step's target cell size (the exemplar's cell size is its grid's, or
+//! [`AmplifySettings::exemplar_cell_size`]). Not guaranteed: a step finer than the exemplar,
+//! or for which the exemplar is too small to be reduced, relies on the self-similarity of
+//! relief across scales ([`StepScale::self_similar`] and [`StepScale::note`] say so).
 //!
 //! # Example
 //! ```
@@ -86,8 +88,8 @@ pub use ksvd::{
     ksvd_with_fixed,
 };
 pub use multires::{
-    AmplifySettings, DictionaryChoice, MultiResDictionary, StepReport, amplify, amplify_observed,
-    detail_gain,
+    AmplifyFigures, AmplifySettings, DictionaryChoice, MultiResDictionary, StepReport, StepScale,
+    amplify, amplify_observed, amplify_with_figures, box_resample, detail_gain, exemplar_plan,
 };
 pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};

@@ -94,7 +94,10 @@ pub fn synthesize(
     let span = (smax - smin).max(f32::MIN_POSITIVE);
     let mut s = sketch.map(|v| lo + (v - smin) / span * (hi - lo));
     let f = STEP_FACTOR.pow(settings.amplify.steps as u32) as f64;
-    let (cx, cy) = exemplar.cell_size();
+    let (cx, cy) = settings
+        .amplify
+        .exemplar_cell_size
+        .unwrap_or_else(|| exemplar.cell_size());
     s.set_cell_size(cx * f, cy * f)?;
     amplify(&s, exemplar, &settings.amplify, progress)
 }

@@ -737,3 +737,96 @@ fn default_amplification_window_equals_full_raster_bit_for_bit() {
             .all(|(a, b)| a.to_bits() == b.to_bits())
     );
 }
+
+/// Exemplar scale handling (issue 15): every x4 step cuts its atoms from the exemplar
+/// box-down-sampled to the step's target cell size. The figures name the cell sizes per step,
+/// and with the exemplar's own amplitude (`exemplar_detail`) the detail a step adds follows the
+/// exemplar's detail at the step's scale: declaring the exemplar 4x coarser than it is (so it
+/// is used at native resolution) changes the added detail by the exemplar's own ratio of
+/// detail between the two scales.
+#[test]
+fn each_step_uses_the_exemplar_at_its_target_cell_size() {
+    let (Some(truth), Some(ex)) = (alps(100, 200, 512, 512), alps(1300, 100, 640, 640)) else {
+        return;
+    };
+    let (cx, cy) = ex.cell_size();
+    let coarse = truth.downsample_box(16).unwrap();
+    assert_eq!(coarse.cell_size(), (16.0 * cx, 16.0 * cy));
+    let learned = DictionaryChoice::Learned {
+        n_atoms: 32,
+        iterations: 1,
+    };
+    let s = AmplifySettings {
+        steps: 2,
+        radius: 2.0,
+        dictionary: learned,
+        ..Default::default()
+    };
+    let close = |a: (f64, f64), b: (f64, f64)| {
+        (a.0 - b.0).abs() < 1e-6 * b.0 && (a.1 - b.1).abs() < 1e-6 * b.1
+    };
+    let (_, fig) =
+        amplify_with_figures(&coarse.crop(0, 0, 8, 8).unwrap(), &ex, &s, &NoProgress).unwrap();
+    assert_eq!(fig.steps.len(), 2);
+    let (s0, s1) = (&fig.steps[0], &fig.steps[1]);
+    assert!(close(s0.target_cell_size, (4.0 * cx, 4.0 * cy)), "{s0:?}");
+    assert!(close(s0.exemplar_cell_size, (4.0 * cx, 4.0 * cy)), "{s0:?}");
+    assert_eq!(s0.exemplar_size, (160, 160));
+    assert!(
+        (s0.reduction - 4.0).abs() < 1e-9 && !s0.self_similar,
+        "{s0:?}"
+    );
+    assert!(s0.note.contains("box-down-sampled x4.000"), "{}", s0.note);
+    assert!(close(s1.target_cell_size, (cx, cy)) && close(s1.exemplar_cell_size, (cx, cy)));
+    assert!(s1.reduction == 1.0 && !s1.self_similar, "{s1:?}");
+    // A third step would be finer than the exemplar: native resolution, said so.
+    let plan = exemplar_plan(
+        coarse.cell_size(),
+        (640, 640),
+        (cx, cy),
+        &AmplifySettings { steps: 3, ..s },
+    );
+    assert!(plan[2].self_similar && plan[2].reduction == 1.0);
+    assert!(
+        plan[2].note.contains("finer than the exemplar"),
+        "{}",
+        plan[2].note
+    );
+
+    // Detail amplitude of one x4 step (16 c -> 4 c) with the exemplar's own amplitude.
+    let one = AmplifySettings {
+        steps: 1,
+        exemplar_detail: true,
+        ..s
+    };
+    // Added detail: the output's detail finer than 4 of its cells.
+    let added = |settings: &AmplifySettings| {
+        let out = amplify(&coarse, &ex, settings, &NoProgress)
+            .unwrap()
+            .rasterize(&RasterSettings::default())
+            .unwrap();
+        detail_rms(&out, 4)
+    };
+    let at_scale = added(&one);
+    let native = added(&AmplifySettings {
+        exemplar_cell_size: Some((4.0 * cx, 4.0 * cy)),
+        ..one
+    });
+    let (ex_scale, ex_native) = (
+        detail_rms(&ex.downsample_box(4).unwrap(), 4),
+        detail_rms(&ex, 4),
+    );
+    eprintln!(
+        "added detail {at_scale:.2} m at scale, {native:.2} m with the exemplar at native \
+         resolution; exemplar's detail {ex_scale:.2} m at 4 c, {ex_native:.2} m at c"
+    );
+    assert!(ex_scale > 2.0 * ex_native, "{ex_scale} {ex_native}");
+    assert!(
+        at_scale > 0.5 * ex_scale && at_scale < 1.5 * ex_scale,
+        "added detail {at_scale:.2} m vs the exemplar's {ex_scale:.2} m at the step's scale"
+    );
+    assert!(
+        native < 0.5 * ex_scale && at_scale > 1.8 * native,
+        "the exemplar at native resolution gives less detail: {native:.2} vs {at_scale:.2} m"
+    );
+}

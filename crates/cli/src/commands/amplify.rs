@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{AmplifySettings, DictionaryChoice, amplify};
+use relief_dictionary_learning::{AmplifySettings, DictionaryChoice, amplify_with_figures};
 use relief_heightfield::Progress;
 use relief_sparse_core::{RasterSettings, Sct, Window};
 
@@ -26,6 +26,13 @@ pub(crate) struct Args {
     /// the input's divided by the factor).
     #[arg(long)]
     pub(crate) exemplar: PathBuf,
+    /// Cell size of the exemplar in metres, `X` or `X,Y`, for an exemplar that does not store
+    /// one (PNG, EXR, raw, NPY) or to override a stored one (GeoTIFF, sidecar). Each x4 step
+    /// cuts its atoms from the exemplar box-down-sampled to the step's cell size (the input's
+    /// over 4, 16, ...); a step finer than the exemplar uses it at native resolution
+    /// (self-similarity), and says so.
+    #[arg(long, value_parser = super::parse_cell_size, value_name = "X[,Y]")]
+    pub(crate) exemplar_cell_size: Option<(f64, f64)>,
     /// Amplification factor per axis: a power of 4 (4, 16, 64, 256, ...; 4 per step).
     #[arg(long)]
     pub(crate) factor: usize,
@@ -122,6 +129,7 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
             }
         },
         seed: args.seed,
+        exemplar_cell_size: args.exemplar_cell_size,
         ..base
     };
     settings.check().context("invalid amplification settings")?;
@@ -149,15 +157,21 @@ pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
         &settings,
         out,
     )?;
-    let progress = ctx.progress();
-    amplify(&coarse, &exemplar, &settings, &progress).with_context(|| {
-        format!(
-            "cannot amplify {} x{} with {}",
-            args.input.display(),
-            args.factor,
-            args.exemplar.display()
-        )
-    })
+    let (sct, figures) = {
+        let progress = ctx.progress();
+        amplify_with_figures(&coarse, &exemplar, &settings, &progress).with_context(|| {
+            format!(
+                "cannot amplify {} x{} with {}",
+                args.input.display(),
+                args.factor,
+                args.exemplar.display()
+            )
+        })?
+    };
+    for step in &figures.steps {
+        ctx.note(step.note.clone());
+    }
+    Ok(sct)
 }
 
 /// How the result of an amplification is written (for [`preflight`]).

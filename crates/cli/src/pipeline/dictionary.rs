@@ -518,8 +518,8 @@ impl AmplifyStage {
                     w as f64,
                     detail_swing(&out, &bic)?,
                     phase_swing(&out, &bic, 8)?,
-                    r.exemplar_reduction as f64,
-                    f64::from(u8::from(r.self_similar)),
+                    r.exemplar.reduction,
+                    f64::from(u8::from(r.exemplar.self_similar)),
                 ])
             };
             match run() {
