@@ -122,21 +122,7 @@ fn main() {
         pos.dedup();
         // Near reuse: pairs of blocks within 3 blocks of each other whose sources (same
         // exemplar) are less than half a patch apart: the same terrain pasted twice nearby.
-        let half = (settings.patch_size / 2) as i64;
-        let pl = &out.placements;
-        let mut near_pairs = 0;
-        for (i, a) in pl.iter().enumerate() {
-            for b in &pl[i + 1..] {
-                if a.gx.abs_diff(b.gx) <= 3
-                    && a.gy.abs_diff(b.gy) <= 3
-                    && a.patch.exemplar == b.patch.exemplar
-                    && (a.patch.x as i64 - b.patch.x as i64).abs() < half
-                    && (a.patch.y as i64 - b.patch.y as i64).abs() < half
-                {
-                    near_pairs += 1;
-                }
-            }
-        }
+        let near_pairs = quality::near_reuse_pairs(&out.placements, settings.patch_size, 3);
         println!(
             "| {id} | {} ({} failing of {}) | {corr:.3} | {slope:.2} | {grad:.3} | {curv:.3} | {} of {} | {near_pairs} | {} | {secs:.2} |",
             if report.ok { "passes" } else { "FAILS" },

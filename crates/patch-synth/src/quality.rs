@@ -129,6 +129,31 @@ pub fn assess(
     })
 }
 
+/// Near reuse of exemplar patches: the pairs of placements within `radius` blocks of each other
+/// (Chebyshev) whose sources (same exemplar) are less than half a patch (`patch` cells) apart,
+/// i.e. the same terrain pasted twice nearby (what `Settings::reuse_penalty` discourages).
+pub fn near_reuse_pairs(
+    placements: &[crate::synth::Placement],
+    patch: usize,
+    radius: usize,
+) -> usize {
+    let half = (patch / 2) as i64;
+    let mut n = 0;
+    for (i, a) in placements.iter().enumerate() {
+        for b in &placements[i + 1..] {
+            if a.gx.abs_diff(b.gx) <= radius
+                && a.gy.abs_diff(b.gy) <= radius
+                && a.patch.exemplar == b.patch.exemplar
+                && (a.patch.x as i64 - b.patch.x as i64).abs() < half
+                && (a.patch.y as i64 - b.patch.y as i64).abs() < half
+            {
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

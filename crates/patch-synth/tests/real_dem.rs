@@ -366,27 +366,6 @@ fn settings_errors_name_field_and_value() {
     assert!(e.contains("void"), "{e}");
 }
 
-/// Pairs of placements within 3 blocks of each other whose sources (same exemplar) are less
-/// than half a patch apart: the same terrain pasted twice nearby.
-fn near_reuse_pairs(out: &relief_patch_synth::Synthesis, patch: usize) -> usize {
-    let half = (patch / 2) as i64;
-    let pl = &out.placements;
-    let mut n = 0;
-    for (i, a) in pl.iter().enumerate() {
-        for b in &pl[i + 1..] {
-            if a.gx.abs_diff(b.gx) <= 3
-                && a.gy.abs_diff(b.gy) <= 3
-                && a.patch.exemplar == b.patch.exemplar
-                && (a.patch.x as i64 - b.patch.x as i64).abs() < half
-                && (a.patch.y as i64 - b.patch.y as i64).abs() < half
-            {
-                n += 1;
-            }
-        }
-    }
-    n
-}
-
 #[test]
 fn reuse_penalty_keeps_one_source_from_wallpapering() {
     let Some(ex) = dem_crop("grandcanyon", 0, 0, 192, 192) else {
@@ -405,7 +384,10 @@ fn reuse_penalty_keeps_one_source_from_wallpapering() {
         synthesize(&index, &Control::unguided(200, 200), &s, &NoProgress).unwrap()
     };
     let (off, on) = (run(0.0), run(Settings::default().reuse_penalty));
-    let (a, b) = (near_reuse_pairs(&off, 32), near_reuse_pairs(&on, 32));
+    let pairs = |o: &relief_patch_synth::Synthesis| {
+        relief_patch_synth::quality::near_reuse_pairs(&o.placements, 32, 3)
+    };
+    let (a, b) = (pairs(&off), pairs(&on));
     eprintln!("near-reuse pairs: penalty 0 -> {a}, default penalty -> {b}");
     assert!(b * 2 <= a, "penalty 0: {a} pairs, default penalty: {b}");
     // The seams stay as invisible.
