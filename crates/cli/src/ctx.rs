@@ -24,6 +24,8 @@ pub(crate) struct Ctx {
     pub(crate) max_memory: crate::memory::Limit,
     /// `--max-output-size`: pre-flight limit of a run's output bytes.
     pub(crate) max_output: crate::memory::OutputLimit,
+    /// `--max-time`: the longest estimated run a command starts (see `budget.rs`).
+    pub(crate) max_time: crate::budget::TimeLimit,
 }
 
 /// Parses `--height-range LO,HI` (metres, LO < HI).

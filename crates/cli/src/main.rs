@@ -16,6 +16,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod budget;
 mod commands;
 mod ctx;
 mod memory;
@@ -58,6 +59,11 @@ struct Cli {
     /// Largest output a run may write (default 32G): a larger estimate is refused up front.
     #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_size)]
     max_output_size: Option<u64>,
+    /// Longest estimated run time a command starts (e.g. 90s, 15m, 2h; `none`: no limit;
+    /// default 30m). `decompress` and `volume` renders time a small pilot of their work,
+    /// print the estimate and refuse a longer run before starting it.
+    #[arg(long, global = true, value_name = "DURATION", value_parser = budget::parse_time)]
+    max_time: Option<budget::TimeLimit>,
     #[command(subcommand)]
     command: Command,
 }
@@ -113,6 +119,7 @@ fn main() -> ExitCode {
         height_range: cli.height_range,
         max_memory: cli.max_memory.unwrap_or_else(memory::default_limit),
         max_output: memory::OutputLimit(cli.max_output_size.unwrap_or(memory::DEFAULT_MAX_OUTPUT)),
+        max_time: cli.max_time.unwrap_or_default(),
     };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()

@@ -15,7 +15,7 @@ use crate::geology::GeologySpec;
 use crate::mesh::{Mesh, MeshSettings, field_normals, polygonize, topology};
 use crate::recipe::{Dimensions, Recipe, RecipeReport, build_recipe, render_closeups};
 use crate::render::{
-    Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section,
+    Camera, Image, RenderSettings, SectionSettings, SectionStats, render_with_progress, section,
 };
 use crate::scene::Scene;
 use crate::simplify::simplify;
@@ -161,6 +161,11 @@ pub struct VolumeOutput {
     /// The figures.
     pub figures: VolumeFigures,
 }
+
+/// [`VolumeJob::estimate_image_seconds`] times the images at 1/this of their width and height.
+pub const PILOT_DIVISOR: usize = 4;
+/// Smallest pilot image (width, height) in pixels.
+const PILOT_MIN: [usize; 2] = [16, 12];
 
 /// A built scene before its products ([`VolumeJob::build`]), so a caller can check the mesh
 /// grid ([`Built::mesh_grid`]) against its memory before [`VolumeJob::finish`].
@@ -439,7 +444,30 @@ impl VolumeJob {
             f.mesh_euler = Some(topo.euler);
             mesh = Some(m);
         }
-        let [w, h] = self.image_size;
+        let (overview, closeups, cut) =
+            self.images(&scene, &rep, self.image_size, &mut figures, progress)?;
+        Ok(VolumeOutput {
+            scene,
+            report: rep,
+            mesh,
+            render: overview,
+            closeups,
+            section: cut,
+            figures,
+        })
+    }
+
+    /// The images asked for (overview render, close-ups, section) at `size`, with their
+    /// timings in `f`.
+    fn images(
+        &self,
+        scene: &Scene,
+        rep: &RecipeReport,
+        size: [usize; 2],
+        f: &mut VolumeFigures,
+        progress: &dyn Progress,
+    ) -> Result<(Option<Image>, Option<Image>, Option<Image>)> {
+        let [w, h] = size;
         let settings = RenderSettings {
             width: w,
             height: h,
@@ -448,9 +476,14 @@ impl VolumeJob {
         };
         let mut overview = None;
         if self.render {
-            progress.begin("rendering", 0);
+            progress.begin("rendering", h as u64);
             let t = Instant::now();
-            overview = Some(render(&scene, &Camera::landscape(&scene), &settings)?);
+            overview = Some(render_with_progress(
+                scene,
+                &Camera::landscape(scene),
+                &settings,
+                progress,
+            )?);
             f.render_s = Some(t.elapsed().as_secs_f64());
         }
         let mut closeups = None;
@@ -462,7 +495,7 @@ impl VolumeJob {
                 height: (h / 2).max(1),
                 ..settings
             };
-            let (img, names) = render_closeups(&scene, &rep, &tile)?;
+            let (img, names) = render_closeups(scene, rep, &tile)?;
             f.closeups = Some(names);
             f.closeups_s = Some(t.elapsed().as_secs_f64());
             closeups = Some(img);
@@ -484,7 +517,7 @@ impl VolumeJob {
                 })
                 .map(|f| (f, f + d.floor_depth_m + 1.15 * d.relief_m.max(d.voxel_m)));
             let (img, ss) = section(
-                &scene,
+                scene,
                 &SectionSettings {
                     start,
                     end,
@@ -497,15 +530,34 @@ impl VolumeJob {
             f.section = Some(ss);
             cut = Some(img);
         }
-        Ok(VolumeOutput {
-            scene,
-            report: rep,
-            mesh,
-            render: overview,
-            closeups,
-            section: cut,
-            figures,
-        })
+        Ok((overview, closeups, cut))
+    }
+
+    /// Estimated seconds of [`VolumeJob::finish`]'s images (render, close-ups, section) at
+    /// this job's `image_size`, from timing the same images at 1/[`PILOT_DIVISOR`] of the width
+    /// and height and scaling by the pixel count (the work is per pixel: one ray or one
+    /// field sample each). `None` when no image is asked for. The pilot costs about
+    /// 1/[`PILOT_DIVISOR`]^2 of the run it estimates; front ends use it to refuse a run over
+    /// a time budget before starting it.
+    pub fn estimate_image_seconds(&self, built: &Built) -> Result<Option<f64>> {
+        if !(self.render || self.closeups || self.section) {
+            return Ok(None);
+        }
+        let [w, h] = self.image_size;
+        let pilot = [
+            (w / PILOT_DIVISOR).max(PILOT_MIN[0]).min(w),
+            (h / PILOT_DIVISOR).max(PILOT_MIN[1]).min(h),
+        ];
+        let t = Instant::now();
+        self.images(
+            &built.scene,
+            &built.report,
+            pilot,
+            &mut built.figures.clone(),
+            &relief_heightfield::NoProgress,
+        )?;
+        let ratio = (w as f64 * h as f64) / (pilot[0] as f64 * pilot[1] as f64);
+        Ok(Some(t.elapsed().as_secs_f64() * ratio))
     }
 
     /// [`VolumeJob::build`] then [`VolumeJob::finish`].

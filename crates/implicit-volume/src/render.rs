@@ -351,6 +351,17 @@ fn trace(
 
 /// Renders the scene (see module docs).
 pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> {
+    render_with_progress(scene, cam, s, &relief_heightfield::NoProgress)
+}
+
+/// [`render`] reporting image rows done to `progress` (within the caller's phase: the total
+/// is the image height).
+pub fn render_with_progress(
+    scene: &Scene,
+    cam: &Camera,
+    s: &RenderSettings,
+    progress: &dyn relief_heightfield::Progress,
+) -> Result<Image> {
     if s.width == 0 || s.height == 0 || s.width * s.height > 1 << 26 {
         return Err(Error::param(
             "image size",
@@ -519,6 +530,7 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
                     row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
                 }
             }
+            progress.advance(1);
         });
     Ok(Image {
         width: s.width,

@@ -12,6 +12,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+use rayon::prelude::*;
 use relief_heightfield::metrics;
 use relief_sparse_core::{RasterSettings, Sct, Window, storage_values};
 
@@ -100,6 +101,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         scale: args.scale,
         window: Some(win),
     };
+    if let Some((est, how)) = estimate_seconds(&sct, &settings)? {
+        ctx.check_time(
+            &format!("rasterising {} x {}", win.width, win.height),
+            est,
+            &how,
+            change,
+        )?;
+    }
     let progress = ctx.progress();
     let hf = sct
         .rasterize_with_progress(&settings, &progress)
@@ -158,4 +167,54 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         print!("{out}");
     }
     Ok(())
+}
+
+/// Rasters of at least this many cells get a time estimate (smaller ones take seconds).
+const PILOT_FROM_CELLS: usize = 1 << 20;
+/// The pilot rasterises this many evenly spaced row strips ...
+const PILOT_STRIPS: usize = 16;
+/// ... covering about 1/this of the window's rows.
+const PILOT_SHARE: usize = 64;
+
+/// Estimated seconds to rasterise `settings`' window: times [`PILOT_STRIPS`] evenly spaced
+/// full-width row strips covering about 1/[`PILOT_SHARE`] of it, in parallel as the run is,
+/// and scales by the cell count (the cost of a cell is the atoms over it, which the strips
+/// sample across the whole model). `None` for small windows. Returns the pilot's description.
+pub(crate) fn estimate_seconds(
+    sct: &Sct,
+    settings: &RasterSettings,
+) -> Result<Option<(f64, String)>> {
+    let Some(win) = settings.window else {
+        return Ok(None);
+    };
+    let cells = win.width * win.height;
+    if cells < PILOT_FROM_CELLS {
+        return Ok(None);
+    }
+    let rows = win.height.div_ceil(PILOT_SHARE * PILOT_STRIPS).max(1);
+    let strips: Vec<Window> = (0..PILOT_STRIPS)
+        .map(|i| Window {
+            x: win.x,
+            y: win.y + (i * (win.height - rows)) / (PILOT_STRIPS - 1),
+            width: win.width,
+            height: rows,
+        })
+        .collect();
+    let t = std::time::Instant::now();
+    strips.par_iter().try_for_each(|&w| {
+        sct.rasterize(&RasterSettings {
+            scale: settings.scale,
+            window: Some(w),
+        })
+        .map(drop)
+    })?;
+    let pilot_cells = (PILOT_STRIPS * rows * win.width) as f64;
+    let est = t.elapsed().as_secs_f64() * cells as f64 / pilot_cells;
+    Ok(Some((
+        est,
+        format!(
+            "from {PILOT_STRIPS} strips of {rows} rows, {:.1} % of the cells",
+            100.0 * pilot_cells / cells as f64
+        ),
+    )))
 }

@@ -421,6 +421,21 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             )]],
         )?;
     }
+    if let Some(est) = job
+        .estimate_image_seconds(&built)
+        .context("cannot time the pilot render")?
+    {
+        let (w, h) = args.image_size;
+        ctx.check_time(
+            &format!("rendering {w} x {h} images"),
+            est,
+            &format!(
+                "from the same images at 1/{} of the size",
+                relief_implicit_volume::job::PILOT_DIVISOR
+            ),
+            "a smaller --image-size",
+        )?;
+    }
     let out = job
         .finish(built, &progress)
         .context("cannot mesh or render the scene")?;

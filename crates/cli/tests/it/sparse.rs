@@ -424,6 +424,24 @@ fn bad_input_fails_cleanly() {
         a.extend(args.iter().map(os));
         fails(&a, &raster, &format!("{args:?}"));
     }
+    // A time budget the pilot estimate exceeds: refused before the raster is made (issue 18).
+    let e = fails(
+        &[
+            os("decompress"),
+            good.as_os_str(),
+            raster.as_os_str(),
+            os("--scale"),
+            os("32"),
+            os("--max-time"),
+            os("0.001s"),
+        ],
+        &raster,
+        "time budget",
+    );
+    assert!(
+        e.contains("estimated at") && e.contains("--max-time") && e.contains("--scale"),
+        "{e}"
+    );
     for w in ["0,0,0,10", "1,2,3", "1,-2,3,4"] {
         let a = [
             os("decompress"),

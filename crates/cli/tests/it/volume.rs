@@ -424,3 +424,33 @@ fn volume_reads_a_geology_and_draws_water_only_with_sea() {
     ]);
     assert_failed_cleanly(&out, ".json", &[]);
 }
+
+#[test]
+fn volume_renders_over_the_time_budget_are_refused_before_starting() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = dir.path().join("r.png");
+    let mesh = dir.path().join("m.obj");
+    let out = relief(&[
+        "volume",
+        s(&fixture()),
+        "--crop",
+        "100,100,24,24",
+        "--features",
+        "arches",
+        "--mesh",
+        s(&mesh),
+        "--render",
+        s(&render),
+        "--image-size",
+        "256x192",
+        "--max-time",
+        "0.001s",
+    ]);
+    assert_failed_cleanly(&out, "--max-time", &[&render, &mesh]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("rendering 256 x 192 images") && err.contains("estimated at"),
+        "{err}"
+    );
+    assert!(err.contains("--image-size"), "{err}");
+}

@@ -1,0 +1,167 @@
+//! Time budgets (issue 18). Memory and output size follow from the input and the settings
+//! (`memory.rs`), but the run time of some jobs does not: `decompress` of a model with wide
+//! blends at a large `--scale`, or `volume` renders at a large `--image-size`, can take from
+//! seconds to hours for the same output size. Those commands time a small pilot of the very
+//! same work before they start (a few evenly spaced row strips of the raster, the images at
+//! 1/4 of their width and height), extrapolate by the amount of work, print the estimate when
+//! it is not short, and refuse a run whose estimate exceeds the global `--max-time` (default
+//! [`DEFAULT_MAX_TIME_S`]) with a message naming the setting to change. `--max-time none`
+//! lifts the limit. The estimate never changes an output: only whether the run starts.
+
+use anyhow::{Result, bail};
+
+/// Default `--max-time`: 30 minutes.
+pub(crate) const DEFAULT_MAX_TIME_S: f64 = 1800.0;
+
+/// Estimates shorter than this are not printed.
+const NOTE_AFTER_S: f64 = 10.0;
+
+/// `--max-time`: the longest estimated run time a command starts (`None`: no limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct TimeLimit(pub(crate) Option<f64>);
+
+impl Default for TimeLimit {
+    fn default() -> Self {
+        TimeLimit(Some(DEFAULT_MAX_TIME_S))
+    }
+}
+
+/// Parses `--max-time`: `none`, or a duration in seconds with an optional unit `s`, `m`
+/// (`min`) or `h`, e.g. `90`, `90s`, `15m`, `2h`, `1.5h`.
+pub(crate) fn parse_time(s: &str) -> std::result::Result<TimeLimit, String> {
+    let t = s.trim().to_ascii_lowercase();
+    if t == "none" {
+        return Ok(TimeLimit(None));
+    }
+    let (num, mul) = if let Some(n) = t.strip_suffix("min") {
+        (n, 60.0)
+    } else if let Some(n) = t.strip_suffix('h') {
+        (n, 3600.0)
+    } else if let Some(n) = t.strip_suffix('m') {
+        (n, 60.0)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else {
+        (t.as_str(), 1.0)
+    };
+    let v: f64 = num.trim().parse().map_err(|_| {
+        format!("`{s}` is not a duration (seconds, or a number with s, m or h, e.g. 15m; or none)")
+    })?;
+    let secs = v * mul;
+    if !(secs.is_finite() && secs > 0.0 && secs <= 1e9) {
+        return Err(format!(
+            "`{s}`: the duration must be over 0 s and at most 10^9 s (or none)"
+        ));
+    }
+    Ok(TimeLimit(Some(secs)))
+}
+
+/// A duration for people: `0.5 s`, `45 s`, `12 min`, `2.5 h`.
+pub(crate) fn human_secs(s: f64) -> String {
+    if s < 10.0 {
+        format!("{s:.1} s")
+    } else if s < 90.0 {
+        format!("{s:.0} s")
+    } else if s < 5400.0 {
+        format!("{:.0} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
+
+impl std::fmt::Display for TimeLimit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            None => write!(f, "--max-time none"),
+            Some(s) if s == DEFAULT_MAX_TIME_S => {
+                write!(f, "--max-time {} (the default)", human_secs(s))
+            }
+            Some(s) => write!(f, "--max-time {}", human_secs(s)),
+        }
+    }
+}
+
+/// Refuses a run estimated at `est_s` seconds over `limit`. `what` names the work, `how` the
+/// pilot the estimate comes from, `change` the setting that makes the work smaller.
+pub(crate) fn check_time(
+    what: &str,
+    est_s: f64,
+    how: &str,
+    limit: TimeLimit,
+    change: &str,
+) -> Result<()> {
+    if let Some(max) = limit.0
+        && (est_s.is_nan() || est_s > max)
+    {
+        bail!(
+            "{what} is estimated at {} ({how}), more than {limit}: use {change}, or raise \
+             --max-time (`--max-time none` lifts the limit)",
+            human_secs(est_s)
+        );
+    }
+    Ok(())
+}
+
+impl crate::ctx::Ctx {
+    /// [`check_time`] against `--max-time`; prints the estimate when it is not short.
+    pub(crate) fn check_time(&self, what: &str, est_s: f64, how: &str, change: &str) -> Result<()> {
+        check_time(what, est_s, how, self.max_time, change)?;
+        if est_s >= NOTE_AFTER_S {
+            self.note(format!("{what}: estimated {} ({how})", human_secs(est_s)));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations_parse_with_units_and_none() {
+        assert_eq!(parse_time("90").unwrap(), TimeLimit(Some(90.0)));
+        assert_eq!(parse_time("90s").unwrap(), TimeLimit(Some(90.0)));
+        assert_eq!(parse_time("15m").unwrap(), TimeLimit(Some(900.0)));
+        assert_eq!(parse_time("15min").unwrap(), TimeLimit(Some(900.0)));
+        assert_eq!(parse_time("1.5h").unwrap(), TimeLimit(Some(5400.0)));
+        assert_eq!(parse_time("None").unwrap(), TimeLimit(None));
+        for bad in ["", "fast", "-5m", "0", "nan", "inf", "1e12h"] {
+            assert!(parse_time(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn estimates_over_the_limit_are_refused_naming_the_flags() {
+        let limit = TimeLimit(Some(600.0));
+        assert!(
+            check_time(
+                "the render",
+                599.0,
+                "pilot",
+                limit,
+                "a smaller --image-size"
+            )
+            .is_ok()
+        );
+        let e = check_time(
+            "the render",
+            1500.0,
+            "pilot",
+            limit,
+            "a smaller --image-size",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("25 min") && e.contains("--max-time 10 min"),
+            "{e}"
+        );
+        assert!(
+            e.contains("a smaller --image-size") && e.contains("--max-time none"),
+            "{e}"
+        );
+        // A NaN estimate (a broken clock) is refused, not waved through.
+        assert!(check_time("x", f64::NAN, "pilot", limit, "y").is_err());
+        assert!(check_time("x", 1e12, "pilot", TimeLimit(None), "y").is_ok());
+    }
+}
