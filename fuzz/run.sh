@@ -13,6 +13,7 @@ for t in "$@"; do
   mkdir -p "corpus/$t" "artifacts/$t"
   extra=()
   [ "$t" = hgt ] && extra=(-max_len=2884802)
+  [ "$t" = cli_args ] && extra=(-dict=cli_args.dict)
   start=$(date +%s)
   nice -n 19 "$snap/$t" "corpus/$t" "seeds/$t" -fork=1 -ignore_crashes=1 -ignore_ooms=1 \
     -ignore_timeouts=1 -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 \

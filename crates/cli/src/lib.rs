@@ -6,7 +6,15 @@
 //! This is application code, not one of the method libraries: it reports errors with `anyhow`
 //! and, when asked to be verbose, prints each stage's progress on stderr.
 
+pub mod app;
 pub mod pipeline;
+
+mod budget;
+mod commands;
+mod ctx;
+mod memory;
+mod outputs;
+mod staging;
 
 use std::path::{Path, PathBuf};
 

@@ -179,7 +179,8 @@ fn map_paths(prefix: &std::path::Path) -> Vec<PathBuf> {
 }
 
 /// Prints the analysis on stdout; writes the plot when asked.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+/// The library settings of the arguments (checked, with the plot's own flag).
+pub(crate) fn settings(args: &Args) -> Result<AnalyzeSettings> {
     let settings = AnalyzeSettings {
         wavelet: Wavelet::from_name(&args.wavelet).context("invalid --wavelet")?,
         fit: FitSettings {
@@ -192,6 +193,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if args.plot_levels > 12 {
         bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
     }
+    Ok(settings)
+}
+
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let settings = settings(&args)?;
     let map_paths = match &args.maps {
         Some(prefix) => map_paths(prefix),
         None => Vec::new(),

@@ -52,7 +52,8 @@ pub(crate) fn family(name: &str) -> Result<NoiseFamily> {
 }
 
 /// Reads, fits, prints the PSNR, writes.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+/// The library settings of the arguments (checked).
+pub(crate) fn settings(args: &Args) -> Result<ProceduralSettings> {
     let settings = ProceduralSettings {
         family: family(&args.family)?,
         n_candidates: args.candidates,
@@ -62,6 +63,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         seed: args.seed,
         ..Default::default()
     };
+    settings
+        .check()
+        .context("invalid fit-procedural settings")?;
+    Ok(settings)
+}
+
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let settings = settings(&args)?;
     check_output_path(&args.output, None)?;
     ctx.check_outputs(
         &[&args.input],

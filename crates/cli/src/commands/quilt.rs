@@ -73,9 +73,10 @@ pub(crate) struct SynthArgs {
     /// Patch side in cells.
     #[arg(long = "patch-size", alias = "patch", default_value_t = Settings::default().patch_size)]
     pub(crate) patch: usize,
-    /// Overlap between neighbouring patches in cells (< patch / 2).
-    #[arg(long, default_value_t = Settings::default().overlap)]
-    pub(crate) overlap: usize,
+    /// Overlap between neighbouring patches in cells (< patch / 2; default: a quarter of the
+    /// patch side, 16 for the default 64).
+    #[arg(long)]
+    pub(crate) overlap: Option<usize>,
     /// Seed of every random choice (same seed, same output bytes).
     #[arg(long, default_value_t = Settings::default().seed)]
     pub(crate) seed: u64,
@@ -198,7 +199,10 @@ impl SynthArgs {
         let job = ValidateJob {
             settings: Settings {
                 patch_size: self.patch,
-                overlap: self.overlap,
+                overlap: self.overlap.unwrap_or_else(|| {
+                    let d = Settings::default();
+                    (self.patch * d.overlap / d.patch_size).max(1)
+                }),
                 seed: self.seed,
                 min_candidates: self.min_candidates,
                 validation_tolerance: self.tolerance,
@@ -419,17 +423,8 @@ pub(crate) struct Args {
     pub(crate) no_validate: bool,
 }
 
-/// Reads the inputs, synthesizes and writes OUT (and the guide as used, the seam map)
-/// atomically.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
-    let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
-    outputs.extend(args.synth.output_paths());
-    outputs.extend(
-        args.seam_map
-            .as_deref()
-            .map(|p| (p, crate::outputs::OutKind::Png)),
-    );
-    ctx.check_outputs(&args.synth.input_paths(), &outputs)?;
+/// The flags as a [`QuiltJob`] (checked; library defaults where a flag is absent).
+pub(crate) fn job(args: &Args) -> Result<QuiltJob> {
     let v = args.synth.job()?;
     let mut settings = v.settings;
     settings.enforce_validation = !args.no_validate;
@@ -445,6 +440,22 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         BlendArg::None => Blend::None,
     };
     let job = QuiltJob(ValidateJob { settings, ..v });
+    job.check().context("invalid quilt settings")?;
+    Ok(job)
+}
+
+/// Reads the inputs, synthesizes and writes OUT (and the guide as used, the seam map)
+/// atomically.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let mut outputs = vec![(args.output.as_path(), crate::outputs::OutKind::Raster)];
+    outputs.extend(args.synth.output_paths());
+    outputs.extend(
+        args.seam_map
+            .as_deref()
+            .map(|p| (p, crate::outputs::OutKind::Png)),
+    );
+    ctx.check_outputs(&args.synth.input_paths(), &outputs)?;
+    let job = job(&args)?;
     let inputs = args.synth.inputs(ctx)?;
     args.synth.preflight(&job.validate_job(), &inputs, ctx)?;
     let progress = ctx.progress();

@@ -7,8 +7,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::pipeline::{self, PipelineConfig, spec::PipelineSpec};
 use anyhow::{Context, Result, bail};
-use relief_cli::pipeline::{self, PipelineConfig, spec::PipelineSpec};
 
 use crate::ctx::Ctx;
 

@@ -48,7 +48,8 @@ pub(crate) struct Args {
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+/// The library settings of the arguments (checked).
+pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
     let settings = SynthesisSettings {
         amplify: AmplifySettings {
             radius: args.radius,
@@ -75,6 +76,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .amplify
         .check()
         .context("invalid synthesis settings")?;
+    Ok(settings)
+}
+
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let settings = settings(&args, ctx)?;
     let window = args.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(

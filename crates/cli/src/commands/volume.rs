@@ -291,9 +291,9 @@ pub(crate) enum UpArg {
     Y,
 }
 
-/// Maps the flags onto a [`VolumeJob`], runs it and writes the outputs.
-pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
-    // Everything that can be checked without work is checked before any output is written.
+/// The flags as a [`VolumeJob`] (checked; the geology file and the voxel from the input's
+/// cell size are added by [`run`] once the files are read).
+pub(crate) fn job(args: &Args) -> Result<VolumeJob> {
     let mut job = VolumeJob::default();
     let r = &mut job.recipe;
     r.features = Feature::parse_list(&args.features).context("bad --features")?;
@@ -329,6 +329,27 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         }
         _ => {}
     }
+    if let Some(r) = args.resolution
+        && !(r.is_finite() && r > 0.0 && r <= 64.0)
+    {
+        bail!("--resolution {r}: must be in (0, 64]");
+    }
+    if let Some(v) = args.voxel
+        && !(v.is_finite() && v > 0.0)
+    {
+        bail!("--voxel {v}: must be finite and > 0");
+    }
+    if args.max_triangles == Some(0) {
+        bail!("--max-triangles 0: must be at least 1");
+    }
+    job.check().context("invalid volume settings")?;
+    Ok(job)
+}
+
+/// Maps the flags onto a [`VolumeJob`], runs it and writes the outputs.
+pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    // Everything that can be checked without work is checked before any output is written.
+    let mut job = job(&args)?;
     check_png(&args.render, "render")?;
     check_png(&args.closeups, "closeups")?;
     check_png(&args.section, "section")?;
@@ -361,23 +382,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             bail!("--report {}: also named as another output", r.display());
         }
     }
-    if let Some(r) = args.resolution
-        && !(r.is_finite() && r > 0.0 && r <= 64.0)
-    {
-        bail!("--resolution {r}: must be in (0, 64]");
-    }
-    if let Some(v) = args.voxel
-        && !(v.is_finite() && v > 0.0)
-    {
-        bail!("--voxel {v}: must be finite and > 0");
-    }
-    if args.max_triangles == Some(0) {
-        bail!("--max-triangles 0: must be at least 1");
-    }
     if let Some(p) = &args.geology {
         job.recipe.geology = Some(read_geology(p)?);
+        job.check().context("invalid volume settings")?;
     }
-    job.check().context("invalid volume settings")?;
     // The mesh, the images and the report appear together or not at all.
     let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
     targets.extend(args.report.as_deref());
