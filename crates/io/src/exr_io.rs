@@ -40,7 +40,7 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> IoResult<Raster> {
                 width: w,
                 height: hh,
                 reason: format!(
-                    "the {} parts declare more than {} samples in total (ReadOptions::max_cells)",
+                    "the {} parts declare more than {} samples in total (the cell limit)",
                     meta.headers.len(),
                     opts.max_cells
                 ),

@@ -278,7 +278,7 @@ fn members(bytes: &[u8], opts: &ReadOptions) -> Result<Vec<(String, Vec<u8>)>> {
                 width: declared,
                 height: 1,
                 reason: format!(
-                    "member {name:?} declares {declared} bytes, more than the remaining budget of {budget} (ReadOptions::max_cells)"
+                    "member {name:?} declares {declared} bytes, more than the remaining budget of {budget} bytes (from the cell limit)"
                 ),
             });
         }

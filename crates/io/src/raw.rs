@@ -47,7 +47,7 @@ pub(crate) fn raw_dims(
             if s * s != n {
                 return Err(IoError::malformed(
                     format,
-                    format!("{n} samples do not form a square; give ReadOptions::width/height"),
+                    format!("{n} samples do not form a square; give the width and height"),
                 ));
             }
             (s, s)

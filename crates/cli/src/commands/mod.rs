@@ -127,7 +127,8 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
         opts.max_cells = memory_cells;
     }
     let mut raster = relief_io::read(path, &opts).map_err(|e| {
-        let limit_hit = e.to_string().contains("max_cells");
+        let text = e.to_string();
+        let limit_hit = text.contains("max_cells") || text.contains("cell limit");
         let what = if !limit_hit {
             format!("cannot read {}", path.display())
         } else if by_memory {
@@ -153,7 +154,23 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
                 opts.max_cells
             )
         };
-        anyhow::Error::new(e).context(what)
+        if !limit_hit {
+            return anyhow::Error::new(e).context(what);
+        }
+        // The library's cause names its own option (`ReadOptions::max_cells`), which means
+        // nothing on the command line: say what the file declares instead.
+        let mut root = &e;
+        while let relief_io::IoError::InFile { source, .. } = root {
+            root = source;
+        }
+        match root {
+            relief_io::IoError::Dimensions { width, height, .. } => anyhow::anyhow!(
+                "{what} (the file declares {width} x {height} = {} cells)",
+                u128::from(*width) * u128::from(*height)
+            ),
+            relief_io::IoError::Param { reason, .. } => anyhow::anyhow!("{what}: {reason}"),
+            other => anyhow::anyhow!("{what}: {other}"),
+        }
     })?;
     if read.fill_voids && raster.heightfield.has_voids() {
         progress.begin("filling voids", 0);
