@@ -44,7 +44,7 @@
 //!   best-matching atom; where the input is smooth a whole row of primitives picks the same
 //!   atom and its detail repeats every grid step (short horizontal and vertical streaks,
 //!   dotted rows in hillshades, measured by [`repeat_score`]). The default picks, seeded per
-//!   primitive, among the atoms within 90 % of the best correlation (at most 8).
+//!   primitive, among the atoms within 90 % of the best correlation (at most 8; radius >= 2).
 //! * Sketch synthesis ([`synthesize`]) sets [`AmplifySettings::exemplar_detail`]: a coded
 //!   detail amplitude is proportional to the input's local relief, so a painted sketch's flat
 //!   and smooth parts got no detail (a smooth blob following the sketch pixels); each primitive
