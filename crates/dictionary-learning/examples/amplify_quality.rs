@@ -8,7 +8,9 @@
 //! truth: consistency (RMS of box-down(output) - input over relief), spectral-slope error over
 //! the added octaves, slope- and Laplacian-histogram distances, detail phase swing. Rows: the
 //! default settings, the paper's plain method (`AmplifySettings::paper()`), bicubic and the
-//! figure-15 noise baseline. Then the swing of every step of a x256 run (32^2 -> 8192^2).
+//! figure-15 noise baseline. `repeat`: [`repeat_score`] of the detail at the fine grid step
+//! (8 px), one atom's detail repeated along rows of primitives (truth: about 0). Then the swing
+//! of every step of a x256 run (32^2 -> 8192^2).
 //! `--quick` skips the x256 run.
 #![allow(clippy::print_stdout)]
 
@@ -20,9 +22,9 @@ use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
 use relief_testdata::dem_crop;
 
-fn row(name: &str, r: &BoxProtocolRow, p8: f64, secs: Option<f64>) {
+fn row(name: &str, r: &BoxProtocolRow, (p8, rep): (f64, f64), secs: Option<f64>) {
     println!(
-        "| {name:24} | {:>7.3} | {:>+6.2} | {:>6.2} | {:>6.3} | {:>5.2} | {p8:>5.2} | {} |",
+        "| {name:24} | {:>7.3} | {:>+6.2} | {:>6.2} | {:>6.3} | {:>5.2} | {p8:>5.2} | {rep:>+6.3} | {} |",
         100.0 * r.consistency,
         r.slope_signed,
         r.slope_emd,
@@ -38,7 +40,7 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
     let bicubic = input.resample(truth.width(), truth.height()).unwrap();
     let corner = corner_bicubic(&input, truth.width(), truth.height()).unwrap();
     println!(
-        "\n{label} x{f}: truth {}x{}, input {}x{}, exemplar {}x{}; truth swing {:.2}, swing8 {:.2}",
+        "\n{label} x{f}: truth {}x{}, input {}x{}, exemplar {}x{}; truth swing {:.2}, swing8 {:.2}, repeat {:+.3}",
         truth.width(),
         truth.height(),
         input.width(),
@@ -46,7 +48,8 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
         exemplar.width(),
         exemplar.height(),
         detail_swing(truth, &corner).unwrap(),
-        phase_swing(truth, &corner, 8).unwrap()
+        phase_swing(truth, &corner, 8).unwrap(),
+        repeat_score(truth, &corner, 8).unwrap()
     );
     for step in exemplar_plan(
         input.cell_size(),
@@ -59,11 +62,17 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
     ) {
         println!("  {}", step.note);
     }
-    let p8 = |o: &Heightfield| phase_swing(o, &corner, 8).unwrap();
+    // Phase swing at 8 px and repeat score at the default fine grid step (4 S = 8 px).
+    let p8 = |o: &Heightfield| {
+        (
+            phase_swing(o, &corner, 8).unwrap(),
+            repeat_score(o, &corner, 8).unwrap(),
+        )
+    };
     println!(
-        "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | s |"
+        "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | repeat | s |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for (name, base) in [
         ("default", AmplifySettings::default()),
         ("--paper", AmplifySettings::paper()),
@@ -71,6 +80,13 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
             "default w/o detail norm.",
             AmplifySettings {
                 normalize_detail: false,
+                ..AmplifySettings::default()
+            },
+        ),
+        (
+            "default, best atom only",
+            AmplifySettings {
+                diverse_atoms: false,
                 ..AmplifySettings::default()
             },
         ),

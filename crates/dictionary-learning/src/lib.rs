@@ -40,6 +40,11 @@
 //!   scaled so the blended detail energy is flat and undiminished ([`detail_gain`]).
 //! * The grid step defaults to half the support radius (the paper's grid), so about 12
 //!   primitives overlap at every point instead of 1-4.
+//! * [`AmplifySettings::diverse_atoms`]: with `s = 1` the paper codes every patch with its
+//!   best-matching atom; where the input is smooth a whole row of primitives picks the same
+//!   atom and its detail repeats every grid step (short horizontal and vertical streaks,
+//!   dotted rows in hillshades, measured by [`repeat_score`]). The default picks, seeded per
+//!   primitive, among the atoms within 90 % of the best correlation (at most 8; radius >= 2).
 //! * Sketch synthesis ([`synthesize`]) sets [`AmplifySettings::exemplar_detail`]: a coded
 //!   detail amplitude is proportional to the input's local relief, so a painted sketch's flat
 //!   and smooth parts got no detail (a smooth blob following the sketch pixels); each primitive
@@ -88,14 +93,15 @@ pub use ksvd::{
     ksvd_with_fixed,
 };
 pub use multires::{
-    AmplifyFigures, AmplifySettings, DictionaryChoice, MultiResDictionary, StepReport, StepScale,
-    amplify, amplify_observed, amplify_with_figures, box_resample, detail_gain, exemplar_plan,
+    AmplifyFigures, AmplifySettings, DIVERSE_CHOICES, DIVERSE_MAX_ATOMS, DIVERSE_TOLERANCE,
+    DictionaryChoice, MultiResDictionary, StepReport, StepScale, amplify, amplify_observed,
+    amplify_with_figures, box_resample, detail_gain, exemplar_plan,
 };
 pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};
 pub use quality::{
     BoxProtocolRow, QualityRow, box_protocol, corner_bicubic, detail_swing, evaluate,
-    laplacian_histogram_distance, phase_swing,
+    laplacian_histogram_distance, phase_swing, repeat_score,
 };
 pub use sketch::{SynthesisSettings, synthesize};
 

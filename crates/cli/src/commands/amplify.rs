@@ -54,8 +54,9 @@ pub(crate) struct Args {
     /// the paper's grid; must be < radius * sqrt(2)). Larger is faster but shows the grid.
     #[arg(long)]
     pub(crate) step: Option<f64>,
-    /// The paper's plain method (section 5.3), for comparison: no residual correction and no
-    /// detail-energy normalisation (less consistent with the input, a visible grid).
+    /// The paper's plain method (section 5.3), for comparison: no residual correction, no
+    /// detail-energy normalisation and always the best-matching atom (less consistent with the
+    /// input, a visible grid, details repeated along rows of primitives).
     #[arg(long, conflicts_with = "residual_correction")]
     pub(crate) paper: bool,
     /// Add the coarse residual back so the output reduces to the input (the default; kept

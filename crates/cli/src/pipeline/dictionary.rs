@@ -265,9 +265,10 @@ impl Stage for AmplifyStage {
             dictionary,
             seed: cx.config.seed ^ 0xa3f1 ^ p.job.seed,
             // `false`: the paper's plain method; `true`: the job as given (by default the
-            // residual correction and detail-energy normalisation).
+            // residual correction, detail-energy normalisation and diverse atom choice).
             residual_correction: residual && p.job.residual_correction,
             normalize_detail: residual && p.job.normalize_detail,
+            diverse_atoms: residual && p.job.diverse_atoms,
             ..p.job
         };
         let mut factors = vec![steps];
