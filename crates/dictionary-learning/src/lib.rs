@@ -122,6 +122,10 @@ pub fn training_patches(
             got: 0,
         });
     }
+    if mats.len() == 1 {
+        // One terrain: its matrix as it is, without a second copy.
+        return Ok(mats.swap_remove(0));
+    }
     let views: Vec<_> = mats.iter().map(|m| m.view()).collect();
     ndarray::concatenate(ndarray::Axis(0), &views)
         .map_err(|_| LearnError::param("terrains", terrains.len(), "patch dimensions differ"))

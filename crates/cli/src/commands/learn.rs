@@ -92,12 +92,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .sum();
         let kept = all.min(args.max_patches as f64);
         let k = args.atoms as f64;
+        // Several exemplars' patch matrices are joined into one (a second copy).
+        let copies = if terrains.len() > 1 { 2.0 } else { 1.0 };
+        let cells: f64 = terrains.iter().map(|t| t.len() as f64).sum();
         ctx.check_memory(
             "learn",
             &[&[
                 part(
                     format!("the {} training patches", all as u64),
-                    all * a * a * 4.0 + kept * a * a * 4.0 * 3.0,
+                    cells * 4.0 + all * a * a * 4.0 * copies + kept * a * a * 4.0 * 3.0,
                     "a larger --step, smaller exemplars or fewer --max-patches",
                 ),
                 part(
