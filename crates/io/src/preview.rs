@@ -31,21 +31,96 @@ fn ramp(t: f32) -> [f32; 3] {
     RAMP[RAMP.len() - 1].1
 }
 
-/// RGB bytes of the preview: Lambertian hillshade (light from the north-west at 45 degrees)
-/// multiplied 65/35 with an elevation colour ramp over the finite range; voids are red.
+/// Sea colours (below 0 m) from the deepest (0) to the coast (1).
+const SEA: [[f32; 3]; 2] = [[18.0, 45.0, 105.0], [95.0, 165.0, 215.0]];
+
+/// How a preview is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreviewStyle {
+    /// Direction the light comes from, degrees clockwise from north (default 315: north-west).
+    pub azimuth_deg: f32,
+    /// Height of the light above the horizon in degrees, in (0, 90] (default 45).
+    pub altitude_deg: f32,
+    /// Vertical exaggeration of the hillshade, > 0 (default 1).
+    pub exaggeration: f32,
+    /// Draw ground below 0 m in sea colours (by depth) when the raster also has ground above
+    /// 0 m; the land ramp then spans 0 m to the highest point (default on).
+    pub sea: bool,
+}
+
+impl Default for PreviewStyle {
+    fn default() -> Self {
+        Self {
+            azimuth_deg: 315.0,
+            altitude_deg: 45.0,
+            exaggeration: 1.0,
+            sea: true,
+        }
+    }
+}
+
+impl PreviewStyle {
+    /// Checks the fields, naming the first invalid one.
+    pub fn check(&self) -> Result<()> {
+        if !self.azimuth_deg.is_finite() {
+            return Err(IoError::param(
+                "azimuth",
+                self.azimuth_deg,
+                "must be finite",
+            ));
+        }
+        if !(self.altitude_deg > 0.0 && self.altitude_deg <= 90.0) {
+            return Err(IoError::param(
+                "altitude",
+                self.altitude_deg,
+                "must be in (0, 90] degrees",
+            ));
+        }
+        if !(self.exaggeration.is_finite() && self.exaggeration > 0.0 && self.exaggeration <= 1e4) {
+            return Err(IoError::param(
+                "exaggeration",
+                self.exaggeration,
+                "must be in (0, 10000]",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// RGB bytes of the preview in the default [`PreviewStyle`]: Lambertian hillshade (light from
+/// the north-west at 45 degrees) multiplied 65/35 with an elevation colour ramp over the finite
+/// range (sea colours below 0 m when there is land too); voids are red.
 pub fn preview_rgb(hf: &Heightfield) -> Result<Vec<u8>> {
+    preview_rgb_with(hf, &PreviewStyle::default())
+}
+
+/// [`preview_rgb`] in a given style.
+pub fn preview_rgb_with(hf: &Heightfield, style: &PreviewStyle) -> Result<Vec<u8>> {
+    style.check()?;
     let (lo, hi) = hf.min_max().ok_or(IoError::AllVoid {
         format: crate::Format::Png,
     })?;
-    let span = if hi > lo { hi - lo } else { 1.0 };
-    let shade = hillshade(hf, 315.0, 45.0, 1.0);
+    let sea = style.sea && lo < 0.0 && hi > 0.0;
+    let land_lo = if sea { 0.0 } else { lo };
+    let span = if hi > land_lo { hi - land_lo } else { 1.0 };
+    let shade = hillshade(
+        hf,
+        style.azimuth_deg,
+        style.altitude_deg,
+        style.exaggeration,
+    );
     let mut out = Vec::with_capacity(hf.len() * 3);
     for (v, s) in hf.as_slice().iter().zip(shade.iter()) {
         if v.is_nan() {
             out.extend_from_slice(&[220, 30, 30]);
             continue;
         }
-        let c = ramp((v - lo) / span);
+        let c = if sea && *v < 0.0 {
+            let t = (1.0 - v / lo).clamp(0.0, 1.0);
+            [0, 1, 2].map(|i| SEA[0][i] + t * (SEA[1][i] - SEA[0][i]))
+        } else {
+            ramp((v - land_lo) / span)
+        };
         let k = 0.35 + 0.65 * s;
         out.extend(c.map(|x| (x * k).round().clamp(0.0, 255.0) as u8));
     }
@@ -54,7 +129,12 @@ pub fn preview_rgb(hf: &Heightfield) -> Result<Vec<u8>> {
 
 /// Writes an 8-bit RGB preview of `hf` (see [`preview_rgb`]) to `path` atomically.
 pub fn write_preview_png(path: &Path, hf: &Heightfield) -> Result<()> {
-    let rgb = preview_rgb(hf).map_err(|e| e.in_file(path))?;
+    write_preview_png_with(path, hf, &PreviewStyle::default())
+}
+
+/// [`write_preview_png`] in a given style.
+pub fn write_preview_png_with(path: &Path, hf: &Heightfield, style: &PreviewStyle) -> Result<()> {
+    let rgb = preview_rgb_with(hf, style).map_err(|e| e.in_file(path))?;
     write_rgb_png(path, hf.width(), hf.height(), &rgb)
 }
 

@@ -221,3 +221,77 @@ fn preview_and_helper_pngs() {
     assert!(write_rgb_png(&dir.path().join("bad.png"), 2, 2, &[0; 5]).is_err());
     assert!(!dir.path().join("bad.png").exists());
 }
+
+/// Issue 14: sea colours below 0 m (blue by depth) when there is land too, the light and the
+/// exaggeration act, and a bad style names its field.
+#[test]
+fn preview_style_draws_the_sea_and_moves_the_light() {
+    use relief_io::{PreviewStyle, preview_rgb_with};
+    // A coast: sea on the left (down to -100 m), land rising to the right (up to 300 m).
+    let hf = Heightfield::from_fn(40, 20, 10.0, 10.0, |x, y| {
+        (x as f32 - 10.0) * 10.0 + (y as f32 * 0.7).sin() * 5.0
+    });
+    let px = |rgb: &[u8], x: usize, y: usize| -> [u8; 3] {
+        let i = (y * 40 + x) * 3;
+        [rgb[i], rgb[i + 1], rgb[i + 2]]
+    };
+    let sea = preview_rgb_with(&hf, &PreviewStyle::default()).unwrap();
+    let [r, g, b] = px(&sea, 2, 10);
+    assert!(b > r + 40 && b > g, "sea pixel {r},{g},{b} is not blue");
+    let [r, g, b] = px(&sea, 30, 10);
+    assert!(!(b > r + 40 && b > g), "land pixel {r},{g},{b} is blue");
+    let no_sea = preview_rgb_with(
+        &hf,
+        &PreviewStyle {
+            sea: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let [r, g, b] = px(&no_sea, 2, 10);
+    assert!(!(b > r + 40 && b > g), "--no-sea pixel {r},{g},{b} is blue");
+    // Light from the east instead of the north-west: the east-rising slope darkens.
+    let east = preview_rgb_with(
+        &hf,
+        &PreviewStyle {
+            azimuth_deg: 90.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let lum = |p: [u8; 3]| p.iter().map(|&c| c as u32).sum::<u32>();
+    assert!(lum(px(&east, 30, 10)) < lum(px(&sea, 30, 10)));
+    for (bad, field) in [
+        (
+            PreviewStyle {
+                altitude_deg: 0.0,
+                ..Default::default()
+            },
+            "altitude",
+        ),
+        (
+            PreviewStyle {
+                altitude_deg: 95.0,
+                ..Default::default()
+            },
+            "altitude",
+        ),
+        (
+            PreviewStyle {
+                exaggeration: -1.0,
+                ..Default::default()
+            },
+            "exaggeration",
+        ),
+        (
+            PreviewStyle {
+                azimuth_deg: f32::NAN,
+                ..Default::default()
+            },
+            "azimuth",
+        ),
+    ] {
+        let e = preview_rgb_with(&hf, &bad).unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+}

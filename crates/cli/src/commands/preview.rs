@@ -1,5 +1,6 @@
-//! `relief preview IN OUT.png`: shaded-relief preview (hillshade blended with an elevation
-//! colour ramp; voids drawn in a flat colour).
+//! `relief preview IN OUT.png [--azimuth D] [--altitude D] [--exaggeration F] [--no-sea]`:
+//! shaded-relief preview (hillshade blended with an elevation colour ramp, sea colours by depth
+//! below 0 m; voids drawn in a flat colour), square on the ground.
 
 use std::path::PathBuf;
 
@@ -15,12 +16,40 @@ pub(crate) struct Args {
     pub(crate) input: PathBuf,
     /// Output PNG.
     pub(crate) output: PathBuf,
+    /// Direction the light comes from, degrees clockwise from north.
+    #[arg(long, default_value_t = 315.0, allow_hyphen_values = true)]
+    pub(crate) azimuth: f32,
+    /// Height of the light above the horizon, degrees in (0, 90].
+    #[arg(long, default_value_t = 45.0)]
+    pub(crate) altitude: f32,
+    /// Vertical exaggeration of the hillshade (> 0).
+    #[arg(long, default_value_t = 1.0)]
+    pub(crate) exaggeration: f32,
+    /// Draw ground below 0 m with the land colours instead of sea colours by depth.
+    #[arg(long)]
+    pub(crate) no_sea: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
 
 /// Reads the raster and writes its preview atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
+    let style = relief_io::PreviewStyle {
+        azimuth_deg: args.azimuth,
+        altitude_deg: args.altitude,
+        exaggeration: args.exaggeration,
+        sea: !args.no_sea,
+    };
+    if let Err(e) = style.check() {
+        match e {
+            relief_io::IoError::Param {
+                name,
+                value,
+                reason,
+            } => anyhow::bail!("invalid --{name} {value}: {reason}"),
+            e => return Err(e.into()),
+        }
+    }
     ctx.check_outputs(
         &[&args.input],
         &[(&args.output, crate::outputs::OutKind::Png)],
@@ -29,7 +58,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let progress = ctx.progress();
     progress.begin("rendering preview", 0);
     let hf = square_cells(raster.heightfield)?;
-    relief_io::write_preview_png(&args.output, &hf)
+    relief_io::write_preview_png_with(&args.output, &hf, &style)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     drop(progress);
     ctx.note(format!("wrote {}", args.output.display()));

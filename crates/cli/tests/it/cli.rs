@@ -858,3 +858,45 @@ fn gdal_places_every_command_output_on_the_input_extent() {
         }
     }
 }
+
+/// Issue 14: `preview` takes the light and the exaggeration, and refuses a bad one by its flag
+/// without writing.
+#[test]
+fn preview_light_flags_are_used_and_checked() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let tmp = tempfile::tempdir().unwrap();
+    let a = tmp.path().join("a.png");
+    let b = tmp.path().join("b.png");
+    let res = relief(&[os("preview"), src.as_os_str(), a.as_os_str()]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    let res = relief(&[
+        os("preview"),
+        src.as_os_str(),
+        b.as_os_str(),
+        os("--azimuth"),
+        os("90"),
+        os("--altitude"),
+        os("20"),
+        os("--exaggeration"),
+        os("3"),
+    ]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    for (flag, v) in [
+        ("--altitude", "95"),
+        ("--exaggeration", "0"),
+        ("--azimuth", "nan"),
+    ] {
+        let c = tmp.path().join("c.png");
+        let res = relief(&[
+            os("preview"),
+            src.as_os_str(),
+            c.as_os_str(),
+            os(flag),
+            os(v),
+        ]);
+        assert!(!res.status.success());
+        assert!(stderr(&res).contains(flag), "{flag}: {}", stderr(&res));
+        assert!(!c.exists());
+    }
+}
