@@ -45,6 +45,11 @@ struct Cli {
     /// default: the data range. The range used is printed and written to OUT.json beside them.
     #[arg(long, global = true, value_name = "LO,HI", value_parser = ctx::parse_height_range, allow_hyphen_values = true)]
     height_range: Option<(f64, f64)>,
+    /// Write 16-bit heightmaps (.png, .r16) with one more row and column: the heights at the
+    /// cell corners (the mean of the cells around each), over the same extent, so a 2^n x 2^n
+    /// result becomes the 2^n+1 heightmap Unreal and Unity expect.
+    #[arg(long, global = true)]
+    size_plus_one: bool,
     /// Largest working memory of a run (e.g. 8G, 512M): a run whose pre-flight estimate needs
     /// more is refused before it starts, naming the setting to change. Default: half of the
     /// physical memory (less under a cgroup limit or `ulimit -v`).
@@ -113,6 +118,7 @@ pub fn main() -> ExitCode {
         force: cli.force,
         compress: cli.compress,
         height_range: cli.height_range,
+        size_plus_one: cli.size_plus_one,
         max_memory: cli.max_memory.unwrap_or_else(memory::default_limit),
         max_output: memory::OutputLimit(cli.max_output_size.unwrap_or(memory::DEFAULT_MAX_OUTPUT)),
         max_time: cli.max_time.unwrap_or_default(),

@@ -20,6 +20,8 @@ pub(crate) struct Ctx {
     pub(crate) compress: CompressArg,
     /// `--height-range LO,HI`: vertical mapping of 16-bit engine heightmaps (PNG16, `.r16`).
     pub(crate) height_range: Option<(f64, f64)>,
+    /// `--size-plus-one`: 16-bit heightmaps get the corner samples (`(w + 1) x (h + 1)`).
+    pub(crate) size_plus_one: bool,
     /// `--max-memory`: pre-flight limit of a run's working memory (see `memory.rs`).
     pub(crate) max_memory: crate::memory::Limit,
     /// `--max-output-size`: pre-flight limit of a run's output bytes.
@@ -118,6 +120,15 @@ impl Ctx {
     ) -> anyhow::Result<()> {
         use anyhow::Context;
         let mut opts = self.write_options();
+        let corners;
+        let hf = if self.size_plus_one && is_heightmap16(path) {
+            corners = hf
+                .corner_samples()
+                .context("cannot make the corner samples (--size-plus-one)")?;
+            &corners
+        } else {
+            hf
+        };
         let map16 = if is_heightmap16(path) {
             if hf.has_voids() {
                 anyhow::bail!(
@@ -175,7 +186,17 @@ impl Ctx {
                 "metres_per_count": scale,
                 "offset_m": lo,
                 "cell_size_m": [cx, cy],
-                "extent_m": [cx * hf.width() as f64, cy * hf.height() as f64],
+                "samples": if self.size_plus_one {
+                    "cell corners (--size-plus-one): width x height vertices, the extent is \
+                     (width - 1) x (height - 1) cells"
+                } else {
+                    "cell centres"
+                },
+                "extent_m": if self.size_plus_one {
+                    [cx * (hf.width() - 1) as f64, cy * (hf.height() - 1) as f64]
+                } else {
+                    [cx * hf.width() as f64, cy * hf.height() as f64]
+                },
                 "note": "height = offset_m + count * metres_per_count. Unity: set the terrain \
                          height to height_range_m and flip rows (Unity's row 0 is south).",
             });
@@ -203,6 +224,19 @@ impl Ctx {
         inputs: &[&std::path::Path],
         outputs: &[(&std::path::Path, crate::outputs::OutKind)],
     ) -> anyhow::Result<()> {
+        let heightmap = |(p, k): &(&std::path::Path, crate::outputs::OutKind)| {
+            is_heightmap16(p)
+                && matches!(
+                    k,
+                    crate::outputs::OutKind::Raster | crate::outputs::OutKind::RasterOrSct
+                )
+        };
+        if self.size_plus_one && !outputs.iter().any(heightmap) {
+            anyhow::bail!(
+                "--size-plus-one applies to 16-bit heightmaps (.png, .r16); no output of this \
+                 command is one"
+            );
+        }
         crate::outputs::check_outputs(inputs, outputs, self.force)
     }
 

@@ -96,6 +96,37 @@ impl Heightfield {
         Ok(out.with_georef(self.georef().map(|g| g.window(0.0, 0.0, sx, sy))))
     }
 
+    /// The heights at the cell corners: a `(w + 1) x (h + 1)` grid of the mean of the (up to
+    /// four) cells around each corner, spanning the same extent with the same spacing. This is
+    /// the point-registered grid game engines take as a heightmap (Unreal and Unity want
+    /// `2^n + 1` samples per side: a `2^n x 2^n` result becomes one). The georeference is
+    /// dropped (a corner grid is not an area grid of the same extent); a void cell makes its
+    /// corners void.
+    pub fn corner_samples(&self) -> Result<Self> {
+        let (w, h) = (self.width(), self.height());
+        check_dims(w + 1, h + 1)?;
+        let mut data = Vec::with_capacity((w + 1) * (h + 1));
+        for y in 0..=h {
+            for x in 0..=w {
+                let (mut sum, mut n) = (0.0f64, 0u32);
+                for (cy, cx) in [
+                    (y.wrapping_sub(1), x.wrapping_sub(1)),
+                    (y.wrapping_sub(1), x),
+                    (y, x.wrapping_sub(1)),
+                    (y, x),
+                ] {
+                    if cy < h && cx < w {
+                        sum += f64::from(self.get(cx, cy));
+                        n += 1;
+                    }
+                }
+                data.push((sum / f64::from(n)) as f32);
+            }
+        }
+        let (cx, cy) = self.cell_size();
+        Heightfield::new(w + 1, h + 1, data, cx, cy)
+    }
+
     /// Resamples by a scale `factor` (> 1 enlarges, < 1 reduces); sizes are rounded and at
     /// least one cell.
     pub fn scale(&self, factor: f64) -> Result<Self> {
@@ -138,5 +169,29 @@ impl Heightfield {
             self.georef()
                 .map(|g| g.window(0.0, 0.0, k as f64, k as f64)),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::grid::Heightfield;
+
+    #[test]
+    fn corner_samples_average_the_cells_around_each_corner() {
+        let hf = Heightfield::from_fn(4, 2, 10.0, 20.0, |x, y| (x + 10 * y) as f32);
+        let c = hf.corner_samples().unwrap();
+        assert_eq!((c.width(), c.height()), (5, 3));
+        assert_eq!(c.cell_size(), (10.0, 20.0));
+        assert_eq!(c.get(0, 0), 0.0); // one cell
+        assert_eq!(c.get(1, 0), 0.5); // two cells
+        assert_eq!(c.get(1, 1), (0.0 + 1.0 + 10.0 + 11.0) / 4.0); // four cells
+        assert_eq!(c.get(4, 2), 13.0);
+        // A constant grid stays constant, and a void spreads only to its own corners.
+        let mut hf = Heightfield::from_fn(4, 4, 1.0, 1.0, |_, _| 7.0);
+        hf.set(0, 0, f32::NAN);
+        let c = hf.corner_samples().unwrap();
+        assert!(c.get(1, 1).is_nan() && c.get(0, 0).is_nan());
+        assert_eq!(c.get(2, 2), 7.0);
+        assert_eq!(c.void_count(), 4);
     }
 }

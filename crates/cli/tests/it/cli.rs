@@ -900,3 +900,48 @@ fn preview_light_flags_are_used_and_checked() {
         assert!(!c.exists());
     }
 }
+
+/// Issue 14: `--size-plus-one` writes the corner samples of a 16-bit heightmap (a 512^2 DEM
+/// becomes the 513^2 heightmap engines expect, over the same extent), and is refused where no
+/// output is a 16-bit heightmap.
+#[test]
+fn size_plus_one_writes_engine_heightmaps() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let tmp = tempfile::tempdir().unwrap();
+    let r16 = tmp.path().join("h.r16");
+    let res = relief(&[
+        os("convert"),
+        src.as_os_str(),
+        r16.as_os_str(),
+        os("--size-plus-one"),
+    ]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    assert_eq!(std::fs::metadata(&r16).unwrap().len(), 513 * 513 * 2);
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("h.r16.json")).unwrap()).unwrap();
+    assert_eq!(side["width"], 513);
+    assert_eq!(side["height"], 513);
+    let cell = side["cell_size_m"][0].as_f64().unwrap();
+    let extent = side["extent_m"][0].as_f64().unwrap();
+    assert!((extent - 512.0 * cell).abs() < 1e-6, "{side}");
+    // The corner between the first four cells is their mean (within a 16-bit count).
+    let dem = read(&src);
+    let raw = std::fs::read(&r16).unwrap();
+    let count = u16::from_le_bytes([raw[(513 + 1) * 2], raw[(513 + 1) * 2 + 1]]) as f64;
+    let h = side["offset_m"].as_f64().unwrap() + count * side["metres_per_count"].as_f64().unwrap();
+    let mean = (dem.get(0, 0) + dem.get(1, 0) + dem.get(0, 1) + dem.get(1, 1)) as f64 / 4.0;
+    assert!(
+        (h - mean).abs() <= side["metres_per_count"].as_f64().unwrap(),
+        "{h} vs {mean}"
+    );
+    let tif = tmp.path().join("h.tif");
+    let res = relief(&[
+        os("convert"),
+        src.as_os_str(),
+        tif.as_os_str(),
+        os("--size-plus-one"),
+    ]);
+    assert!(!res.status.success());
+    assert!(stderr(&res).contains("--size-plus-one"), "{}", stderr(&res));
+    assert!(!tif.exists());
+}
