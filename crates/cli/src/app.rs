@@ -37,8 +37,9 @@ struct Cli {
     /// whatever the count.
     #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=1024))]
     threads: Option<u16>,
-    /// Compression of GeoTIFF outputs: deflate (with the floating-point predictor, lossless,
-    /// what GDAL reads as COMPRESS=DEFLATE PREDICTOR=3) or none.
+    /// Compression of GeoTIFF outputs, lossless, with the floating-point predictor: deflate
+    /// (GDAL's COMPRESS=DEFLATE PREDICTOR=3), zstd (COMPRESS=ZSTD, about as small, faster to
+    /// read), lzw (COMPRESS=LZW, read everywhere, larger) or none.
     #[arg(long, global = true, value_enum, default_value_t = ctx::CompressArg::Deflate)]
     compress: ctx::CompressArg,
     /// Heights LO,HI (metres) mapped to counts 0 and 65535 in 16-bit heightmaps (.png, .r16);

@@ -66,6 +66,10 @@ pub(crate) enum CompressArg {
     /// DEFLATE with the floating-point predictor.
     #[default]
     Deflate,
+    /// Zstandard with the floating-point predictor (GDAL's COMPRESS=ZSTD PREDICTOR=3).
+    Zstd,
+    /// LZW with the floating-point predictor (COMPRESS=LZW PREDICTOR=3).
+    Lzw,
     /// Uncompressed strips.
     None,
 }
@@ -103,6 +107,8 @@ impl Ctx {
         relief_io::WriteOptions {
             compression: match self.compress {
                 CompressArg::Deflate => relief_io::TiffCompression::Deflate,
+                CompressArg::Zstd => relief_io::TiffCompression::Zstd,
+                CompressArg::Lzw => relief_io::TiffCompression::Lzw,
                 CompressArg::None => relief_io::TiffCompression::None,
             },
             ..Default::default()

@@ -415,7 +415,7 @@ impl TiledGeoTiffWriter {
     /// The image directories, level 0 first, with each level's data starting at `bases[k]`.
     fn directories(&self, bases: &[u64]) -> Vec<Vec<(u16, Value)>> {
         let t = self.opts.tile;
-        let compressed = self.opts.compression == TiffCompression::Deflate;
+        let compressed = self.opts.compression != TiffCompression::None;
         self.levels
             .iter()
             .zip(bases)
@@ -429,7 +429,7 @@ impl TiledGeoTiffWriter {
                     (256, Value::Long(vec![l.width as u32])),
                     (257, Value::Long(vec![l.height as u32])),
                     (258, Value::Short(vec![32])),
-                    (259, Value::Short(vec![if compressed { 8 } else { 1 }])),
+                    (259, Value::Short(vec![self.opts.compression.tag()])),
                     (262, Value::Short(vec![1])),
                     (277, Value::Short(vec![1])),
                     (284, Value::Short(vec![1])),
@@ -530,25 +530,10 @@ fn flush_band(
     Ok(())
 }
 
-/// One tile's bytes: raw little-endian samples, or DEFLATE of the floating-point-predicted
-/// rows.
+/// One tile's bytes: raw little-endian samples, or the floating-point-predicted rows through
+/// the codec.
 fn encode_tile(t: &[f32], tile: usize, compression: TiffCompression) -> Result<Vec<u8>> {
-    match compression {
-        TiffCompression::Deflate => {
-            let mut raw = vec![0u8; t.len() * 4];
-            for (row, out) in t.chunks(tile).zip(raw.chunks_mut(4 * tile)) {
-                crate::geotiff::fp_predict_row(row, out);
-            }
-            let mut z = flate2::write::ZlibEncoder::new(
-                Vec::with_capacity(raw.len() / 2),
-                flate2::Compression::new(6),
-            );
-            z.write_all(&raw)
-                .and_then(|()| z.finish())
-                .map_err(|e| IoError::unsupported(F, format!("deflate failed: {e}")))
-        }
-        _ => Ok(t.iter().flat_map(|v| v.to_le_bytes()).collect()),
-    }
+    compression.encode(t, tile)
 }
 
 /// 2 x 2 mean of two rows (the second absent at an odd last row) into one row of half the

@@ -945,3 +945,41 @@ fn size_plus_one_writes_engine_heightmaps() {
     assert!(stderr(&res).contains("--size-plus-one"), "{}", stderr(&res));
     assert!(!tif.exists());
 }
+
+/// Issue 14: `--compress zstd|lzw` GeoTIFFs (with the floating-point predictor) read in GDAL
+/// with the same values as the source, and back in relief exactly; a COG mosaic takes them too.
+#[test]
+fn zstd_and_lzw_geotiffs_read_in_gdal_and_relief() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = read(&src);
+    let orig = gdalinfo(&src);
+    let mut sizes = Vec::new();
+    for (codec, gdal_name) in [("deflate", "DEFLATE"), ("zstd", "ZSTD"), ("lzw", "LZW")] {
+        let out = tmp.path().join(format!("{codec}.tif"));
+        let res = relief(&[
+            os("--compress"),
+            os(codec),
+            os("convert"),
+            src.as_os_str(),
+            out.as_os_str(),
+        ]);
+        assert!(res.status.success(), "{codec}: {}", stderr(&res));
+        assert_eq!(read(&out).as_slice(), dem.as_slice(), "{codec}");
+        sizes.push(std::fs::metadata(&out).unwrap().len());
+        if let (Some(info), Some(orig)) = (gdalinfo(&out), &orig) {
+            let st = &info["metadata"]["IMAGE_STRUCTURE"];
+            assert_eq!(st["COMPRESSION"], gdal_name, "{codec}: {st}");
+            assert_eq!(st["PREDICTOR"], "3", "{codec}: {st}");
+            assert_eq!(
+                info["bands"][0]["checksum"], orig["bands"][0]["checksum"],
+                "{codec}"
+            );
+        }
+    }
+    let raw = (dem.len() * 4) as u64;
+    assert!(
+        sizes.iter().all(|&s| s < raw),
+        "{sizes:?} vs {raw} uncompressed"
+    );
+}

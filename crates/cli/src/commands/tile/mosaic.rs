@@ -90,10 +90,7 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     }
     let opts = relief_io::TiledOptions {
         tile: 512,
-        compression: match ctx.compress {
-            crate::ctx::CompressArg::Deflate => relief_io::TiffCompression::Deflate,
-            crate::ctx::CompressArg::None => relief_io::TiffCompression::None,
-        },
+        compression: ctx.write_options().compression,
         cog: a.cog,
         bigtiff: a.bigtiff,
     };
