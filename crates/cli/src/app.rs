@@ -51,6 +51,10 @@ struct Cli {
     /// result becomes the 2^n+1 heightmap Unreal and Unity expect.
     #[arg(long, global = true)]
     size_plus_one: bool,
+    /// Write GeoTIFF outputs as Cloud-Optimized GeoTIFFs: 512-pixel tiles, overviews down to
+    /// one tile, directories first (compressed as --compress says).
+    #[arg(long, global = true)]
+    cog: bool,
     /// Largest working memory of a run (e.g. 8G, 512M): a run whose pre-flight estimate needs
     /// more is refused before it starts, naming the setting to change. Default: half of the
     /// physical memory (less under a cgroup limit or `ulimit -v`).
@@ -120,6 +124,7 @@ pub fn main() -> ExitCode {
         compress: cli.compress,
         height_range: cli.height_range,
         size_plus_one: cli.size_plus_one,
+        cog: cli.cog,
         max_memory: cli.max_memory.unwrap_or_else(memory::default_limit),
         max_output: memory::OutputLimit(cli.max_output_size.unwrap_or(memory::DEFAULT_MAX_OUTPUT)),
         max_time: cli.max_time.unwrap_or_default(),

@@ -22,6 +22,8 @@ pub(crate) struct Ctx {
     pub(crate) height_range: Option<(f64, f64)>,
     /// `--size-plus-one`: 16-bit heightmaps get the corner samples (`(w + 1) x (h + 1)`).
     pub(crate) size_plus_one: bool,
+    /// `--cog`: GeoTIFF outputs as Cloud-Optimized GeoTIFFs (tiled, with overviews).
+    pub(crate) cog: bool,
     /// `--max-memory`: pre-flight limit of a run's working memory (see `memory.rs`).
     pub(crate) max_memory: crate::memory::Limit,
     /// `--max-output-size`: pre-flight limit of a run's output bytes.
@@ -102,6 +104,30 @@ impl Ctx {
         CliProgress { bar, log }
     }
 
+    /// A GeoTIFF writer fed row by row (north first) in bounded memory: tiled, compressed as
+    /// `--compress` says, a Cloud-Optimized GeoTIFF with overviews under `--cog`; written to a
+    /// temporary and renamed by `finish` (dropped unfinished, it leaves nothing).
+    pub(crate) fn geotiff_rows(
+        &self,
+        path: &std::path::Path,
+        (width, height): (usize, usize),
+        cell_size: (f64, f64),
+        georef: Option<&relief_heightfield::GeoRef>,
+    ) -> relief_io::Result<relief_io::TiledGeoTiffWriter> {
+        relief_io::TiledGeoTiffWriter::create(
+            path,
+            width,
+            height,
+            cell_size,
+            georef,
+            relief_io::TiledOptions {
+                compression: self.write_options().compression,
+                cog: self.cog,
+                ..Default::default()
+            },
+        )
+    }
+
     /// Write options of raster outputs (GeoTIFF compression from `--compress`).
     pub(crate) fn write_options(&self) -> relief_io::WriteOptions {
         relief_io::WriteOptions {
@@ -172,8 +198,16 @@ impl Ctx {
         } else {
             None
         };
-        relief_io::write(path, hf, &opts)
-            .with_context(|| format!("cannot write {}", crate::staging::shown(path).display()))?;
+        let cannot = || format!("cannot write {}", crate::staging::shown(path).display());
+        if self.cog && relief_io::Format::from_extension(path) == Some(relief_io::Format::GeoTiff) {
+            let mut w = self
+                .geotiff_rows(path, (hf.width(), hf.height()), hf.cell_size(), hf.georef())
+                .with_context(cannot)?;
+            w.write_rows(hf.as_slice()).with_context(cannot)?;
+            w.finish().with_context(cannot)?;
+        } else {
+            relief_io::write(path, hf, &opts).with_context(cannot)?;
+        }
         if let Some((lo, hi, scale)) = map16 {
             let side = heightmap_sidecar(path);
             let (cx, cy) = hf.cell_size();
@@ -237,6 +271,18 @@ impl Ctx {
                     crate::outputs::OutKind::Raster | crate::outputs::OutKind::RasterOrSct
                 )
         };
+        let geotiff = |(p, k): &(&std::path::Path, crate::outputs::OutKind)| {
+            relief_io::Format::from_extension(p) == Some(relief_io::Format::GeoTiff)
+                && matches!(
+                    k,
+                    crate::outputs::OutKind::Raster | crate::outputs::OutKind::RasterOrSct
+                )
+        };
+        if self.cog && !outputs.iter().any(geotiff) {
+            anyhow::bail!(
+                "--cog applies to GeoTIFF outputs (.tif); no output of this command is one"
+            );
+        }
         if self.size_plus_one && !outputs.iter().any(heightmap) {
             anyhow::bail!(
                 "--size-plus-one applies to 16-bit heightmaps (.png, .r16); no output of this \

@@ -385,14 +385,14 @@ const BAND_CELLS: usize = 1 << 22;
 /// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
 fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
     let georef = sct.raster_georef(1.0, win);
-    let mut out = relief_io::GeoTiffStripWriter::create(
-        path,
-        win.width,
-        win.height,
-        sct.cell_size(),
-        georef.as_ref(),
-    )
-    .with_context(|| format!("cannot write {}", path.display()))?;
+    let mut out = ctx
+        .geotiff_rows(
+            path,
+            (win.width, win.height),
+            sct.cell_size(),
+            georef.as_ref(),
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
     let band = (BAND_CELLS / win.width).clamp(1, win.height);
     // Several bands even for small rasters, so `--stream` exercises the band seams.
     let band = band.min(win.height.div_ceil(4)).max(1);

@@ -273,9 +273,9 @@ fn stream_geotiff(
         .render_window(x, y, 1, 1)
         .context("cannot synthesise")?;
     let cannot_write = || format!("cannot write {}", path.display());
-    let mut out =
-        relief_io::GeoTiffStripWriter::create(path, w, h, corner.cell_size(), corner.georef())
-            .with_context(cannot_write)?;
+    let mut out = ctx
+        .geotiff_rows(path, (w, h), corner.cell_size(), corner.georef())
+        .with_context(cannot_write)?;
     let band = (BAND_CELLS / w).clamp(1, h);
     // Several bands even for small outputs, so `--stream` exercises the band seams.
     let band = band.min(h.div_ceil(4)).max(1);

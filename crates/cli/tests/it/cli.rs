@@ -983,3 +983,38 @@ fn zstd_and_lzw_geotiffs_read_in_gdal_and_relief() {
         "{sizes:?} vs {raw} uncompressed"
     );
 }
+
+/// Issue 14: the global `--cog` makes any command's GeoTIFF a Cloud-Optimized GeoTIFF (tiled,
+/// overviews, GDAL's COG layout) with the same values and place; streamed outputs are tiled
+/// and compressed too; `--cog` with no GeoTIFF output is refused.
+#[test]
+fn cog_flag_writes_cloud_optimized_geotiffs() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("cog.tif");
+    let res = relief(&[
+        os("--cog"),
+        os("--compress"),
+        os("zstd"),
+        os("convert"),
+        src.as_os_str(),
+        out.as_os_str(),
+    ]);
+    assert!(res.status.success(), "{}", stderr(&res));
+    assert_eq!(read(&out).as_slice(), read(&src).as_slice());
+    if let (Some(info), Some(orig)) = (gdalinfo(&out), gdalinfo(&src)) {
+        assert_eq!(
+            info["metadata"]["IMAGE_STRUCTURE"]["LAYOUT"], "COG",
+            "{info}"
+        );
+        assert_eq!(info["metadata"]["IMAGE_STRUCTURE"]["COMPRESSION"], "ZSTD");
+        // 512^2 is one 512-pixel tile: no overview is needed (the tile test checks them).
+        assert_eq!(info["bands"][0]["block"], serde_json::json!([512, 512]), "{info}");
+        assert_eq!(info["bands"][0]["checksum"], orig["bands"][0]["checksum"]);
+        assert_eq!(geo_transform(&info), geo_transform(&orig));
+    }
+    let png = tmp.path().join("x.png");
+    let res = relief(&[os("--cog"), os("convert"), src.as_os_str(), png.as_os_str()]);
+    assert!(!res.status.success() && stderr(&res).contains("--cog"));
+    assert!(!png.exists());
+}

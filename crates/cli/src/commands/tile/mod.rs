@@ -106,9 +106,6 @@ struct StatusArgs {
 struct MosaicArgs {
     /// Plan folder.
     dir: PathBuf,
-    /// Write a Cloud-Optimized GeoTIFF: tiled, overviews down to one tile, directories first.
-    #[arg(long)]
-    cog: bool,
     /// Always write BigTIFF (otherwise only when the file passes 4 GiB).
     #[arg(long)]
     bigtiff: bool,

@@ -91,7 +91,7 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     let opts = relief_io::TiledOptions {
         tile: 512,
         compression: ctx.write_options().compression,
-        cog: a.cog,
+        cog: ctx.cog,
         bigtiff: a.bigtiff,
     };
     let cell = (m.output.cell_size[0], m.output.cell_size[1]);
@@ -154,7 +154,7 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
         out.display(),
         m.output.width,
         m.output.height,
-        if a.cog { ", cloud-optimized" } else { "" },
+        if ctx.cog { ", cloud-optimized" } else { "" },
         vrt.display()
     ));
     Ok(())
