@@ -1009,7 +1009,11 @@ fn cog_flag_writes_cloud_optimized_geotiffs() {
         );
         assert_eq!(info["metadata"]["IMAGE_STRUCTURE"]["COMPRESSION"], "ZSTD");
         // 512^2 is one 512-pixel tile: no overview is needed (the tile test checks them).
-        assert_eq!(info["bands"][0]["block"], serde_json::json!([512, 512]), "{info}");
+        assert_eq!(
+            info["bands"][0]["block"],
+            serde_json::json!([512, 512]),
+            "{info}"
+        );
         assert_eq!(info["bands"][0]["checksum"], orig["bands"][0]["checksum"]);
         assert_eq!(geo_transform(&info), geo_transform(&orig));
     }
