@@ -260,6 +260,10 @@ mod tests {
             .unwrap();
         assert_eq!(v["render"], true, "{v}");
         assert!(settings("info /no/a.tif").unwrap().is_none());
+        let v = settings("validate --guide /g --exemplar /e --min-candidates-share 0.05")
+            .unwrap()
+            .unwrap();
+        assert!((v["settings"]["min_candidates_share"].as_f64().unwrap() - 0.05).abs() < 1e-6);
         // The seed command lines of the fuzz target `cli_args` (fuzz/seeds/cli_args).
         for good in [
             "amplify /a.tif /o.sct --exemplar /b.tif --factor 4 --paper --atoms 64",
@@ -285,6 +289,7 @@ mod tests {
             "volume /a --render /r.png --resolution nan",
             "analyze /a --plot-levels 99",
             "quilt --guide /g --exemplar /e /o.tif --patch-size 0",
+            "validate --guide /g --exemplar /e --min-candidates-share 1.5",
         ] {
             let e = format!("{:#}", settings(bad).unwrap_err());
             assert!(!e.contains(MAPPING_BUG), "{bad}: {e}");

@@ -83,6 +83,11 @@ pub(crate) struct SynthArgs {
     /// Minimum candidate patches per guide block for the input validation (section 4).
     #[arg(long, default_value_t = Settings::default().min_candidates)]
     pub(crate) min_candidates: usize,
+    /// Candidates a guide block needs as a share in (0, 1] of the exemplars' candidate
+    /// patches, when that is fewer than --min-candidates (on small exemplars an absolute count
+    /// fails blocks that have ample candidates for their size).
+    #[arg(long, value_name = "SHARE")]
+    pub(crate) min_candidates_share: Option<f32>,
     /// RMS tolerance in metres of a block match counted by the validation (default: half the
     /// guide's standard deviation).
     #[arg(long, value_name = "METRES")]
@@ -205,6 +210,7 @@ impl SynthArgs {
                 }),
                 seed: self.seed,
                 min_candidates: self.min_candidates,
+                min_candidates_share: self.min_candidates_share,
                 validation_tolerance: self.tolerance,
                 lambda: self.lambda,
                 alpha: self.alpha,
