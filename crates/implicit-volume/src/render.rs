@@ -349,19 +349,9 @@ fn trace(
     None
 }
 
-/// Renders the scene (see module docs).
-pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> {
-    render_with_progress(scene, cam, s, &relief_heightfield::NoProgress)
-}
-
-/// [`render`] reporting image rows done to `progress` (within the caller's phase: the total
-/// is the image height).
-pub fn render_with_progress(
-    scene: &Scene,
-    cam: &Camera,
-    s: &RenderSettings,
-    progress: &dyn relief_heightfield::Progress,
-) -> Result<Image> {
+/// Checks the image size, the camera and the settings; returns the cut-away plane with a unit
+/// normal.
+fn check_view(cam: &Camera, s: &RenderSettings) -> Result<Option<(V3, V3)>> {
     if s.width == 0 || s.height == 0 || s.width * s.height > 1 << 26 {
         return Err(Error::param(
             "image size",
@@ -414,6 +404,23 @@ pub fn render_with_progress(
     if !(cam.fov_deg > 0.0 && cam.fov_deg < 179.0) {
         return Err(Error::param("fov_deg", cam.fov_deg, "must be in (0, 179)"));
     }
+    Ok(cut)
+}
+
+/// Renders the scene (see module docs).
+pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> {
+    render_with_progress(scene, cam, s, &relief_heightfield::NoProgress)
+}
+
+/// [`render`] reporting image rows done to `progress` (within the caller's phase: the total
+/// is the image height).
+pub fn render_with_progress(
+    scene: &Scene,
+    cam: &Camera,
+    s: &RenderSettings,
+    progress: &dyn relief_heightfield::Progress,
+) -> Result<Image> {
+    let cut = check_view(cam, s)?;
     let fwd = normalize(sub(cam.target, cam.eye));
     let right = normalize(cross(fwd, cam.up));
     let up = cross(right, fwd);

@@ -89,47 +89,15 @@ fn find_f64s(dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> Result<Option<Vec<f6
     }
 }
 
-pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    let mut dec = Decoder::new(Cursor::new(bytes)).map_err(terr)?;
-    let mut limits = Limits::default();
-    limits.decoding_buffer_size = opts.max_cells.saturating_mul(8);
-    limits.ifd_value_size = 16 << 20;
-    dec = dec.with_limits(limits);
-
-    let (w, h) = dec.dimensions().map_err(terr)?;
-    let n = check_dims(F, w as u64, h as u64, opts)?;
-    let bits = match dec.colortype().map_err(terr)? {
-        ColorType::Gray(b) => b,
-        other => {
-            return Err(IoError::unsupported(
-                F,
-                format!("colour type {other:?}; only single-band rasters are read"),
-            ));
-        }
-    };
-    let sample_format = dec
-        .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
-        .map_err(terr)?
-        .and_then(|v| v.first().copied())
-        .unwrap_or(1);
-    let dtype = match (sample_format, bits) {
-        (1, 8) => "uint8",
-        (1, 16) => "uint16",
-        (1, 32) => "uint32",
-        (2, 8) => "int8",
-        (2, 16) => "int16",
-        (2, 32) => "int32",
-        (3, 32) => "float32",
-        (3, 64) => "float64",
-        (sf, b) => {
-            return Err(IoError::unsupported(
-                F,
-                format!("sample format {sf} with {b} bits per sample"),
-            ));
-        }
-    };
-
-    // Every chunk must lie inside the file before the decoder touches it.
+/// Checks, before the decoder touches them, that every chunk lies inside the file and that
+/// the chunks hold enough bytes for the `w x h = n` declared samples.
+fn check_chunks(
+    dec: &mut Decoder<Cursor<&[u8]>>,
+    bytes: &[u8],
+    (w, h, n): (u32, u32, usize),
+    bits: u8,
+    dtype: &str,
+) -> Result<()> {
     let (off_tag, cnt_tag, kind) = match dec.get_chunk_type() {
         ChunkType::Strip => (Tag::StripOffsets, Tag::StripByteCounts, "strip"),
         ChunkType::Tile => (Tag::TileOffsets, Tag::TileByteCounts, "tile"),
@@ -193,6 +161,50 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
             ),
         ));
     }
+    Ok(())
+}
+
+pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let mut dec = Decoder::new(Cursor::new(bytes)).map_err(terr)?;
+    let mut limits = Limits::default();
+    limits.decoding_buffer_size = opts.max_cells.saturating_mul(8);
+    limits.ifd_value_size = 16 << 20;
+    dec = dec.with_limits(limits);
+
+    let (w, h) = dec.dimensions().map_err(terr)?;
+    let n = check_dims(F, w as u64, h as u64, opts)?;
+    let bits = match dec.colortype().map_err(terr)? {
+        ColorType::Gray(b) => b,
+        other => {
+            return Err(IoError::unsupported(
+                F,
+                format!("colour type {other:?}; only single-band rasters are read"),
+            ));
+        }
+    };
+    let sample_format = dec
+        .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
+        .map_err(terr)?
+        .and_then(|v| v.first().copied())
+        .unwrap_or(1);
+    let dtype = match (sample_format, bits) {
+        (1, 8) => "uint8",
+        (1, 16) => "uint16",
+        (1, 32) => "uint32",
+        (2, 8) => "int8",
+        (2, 16) => "int16",
+        (2, 32) => "int32",
+        (3, 32) => "float32",
+        (3, 64) => "float64",
+        (sf, b) => {
+            return Err(IoError::unsupported(
+                F,
+                format!("sample format {sf} with {b} bits per sample"),
+            ));
+        }
+    };
+
+    check_chunks(&mut dec, bytes, (w, h, n), bits, dtype)?;
 
     let nodata = match dec.find_tag(Tag::GdalNodata).map_err(terr)? {
         Some(v) => {

@@ -155,272 +155,296 @@ impl Stage for Quilt {
         if terrain.has_voids() {
             fill_voids(&mut terrain, &FillSettings::default())?;
         }
-        let (w, h) = (terrain.width(), terrain.height());
         let mut job = self.0.job.clone();
         job.settings.seed = cx.config.seed ^ 0x0c12_2015;
         job.check().context("quilt job")?;
         let settings = &job.settings;
         // Guide fidelity is measured at the low-pass of a quarter patch.
         let factor = (settings.patch_size / 4).max(2);
-        let progress = cx.progress();
         cx.section.figure("patch_size", settings.patch_size);
         cx.section.figure("overlap", settings.overlap);
         cx.section.figure("fidelity_lowpass_factor", factor);
-        let mut rows = Vec::new();
-
-        // --- volcano: guide from another real DEM, categories from clustering ---------------
-        let (qw, qh) = (w / 2, h / 2);
-        let quads: Vec<Heightfield> = [(0, 0), (qw, 0), (0, qh), (qw, qh)]
-            .iter()
-            .map(|&(x, y)| terrain.crop(x, y, qw, qh))
-            .collect::<Result<_, _>>()?;
-        let volcano_path = cx
-            .config
-            .resolve(std::path::Path::new("fixtures/volcano.json"));
-        let volcano = relief_io::read(&volcano_path, &relief_io::ReadOptions::default())
-            .with_context(|| format!("cannot read {}", volcano_path.display()))?
-            .heightfield;
-        let mut vjob = job.clone();
-        if vjob.guide.cell_size.is_none() {
-            // Spans the terrain's width (the fixture stores no cell size).
-            let k = w as f64 / volcano.width() as f64;
-            let (cx_, cy_) = terrain.cell_size();
-            vjob.guide.cell_size = Some((cx_ * k, cy_ * k));
-        }
-        progress.begin("quilt: volcano", 0);
-        let t = std::time::Instant::now();
-        let out = vjob
-            .run(
-                JobInputs {
-                    exemplars: quads.clone(),
-                    guide: Some(volcano),
-                    categories: None,
-                },
-                &progress,
-            )
-            .context("quilt (volcano guide)")?;
-        let secs = t.elapsed().as_secs_f64();
-        let g = out.guide.clone().context("the volcano run has a guide")?;
-        let pf = &out.figures.prepare;
-        cx.section.figure(
-            "volcano_exemplar_categories",
-            pf.exemplar_categories
-                .iter()
-                .map(|c| c.to_string())
-                .collect::<Vec<_>>()
-                .join(","),
-        );
-        if let Some(m) = &pf.guide_mapping {
-            cx.section.figure(
-                "volcano_guide_mapping_m",
-                format!(
-                    "{:.0}..{:.0} -> {:.0}..{:.0}",
-                    m.from.0, m.from.1, m.to.0, m.to.1
-                ),
-            );
-        }
-        cx.section
-            .figure("volcano_required_candidates", pf.required_candidates);
-        let report = out.report.as_ref().context("validation report")?;
-        cx.section.figure("volcano_validation_ok", report.ok);
-        cx.section.figure("volcano_validation", report.to_string());
-        cx.section.figure(
-            "volcano_distinct_source_share",
-            out.figures.distinct_source_share,
-        );
-        let refs: Vec<&Heightfield> = quads.iter().collect();
-        let syn = &out.synthesis;
-        let q = quality::assess(&syn.heightfield, &syn.seam_map, &g, factor, &refs, None)?;
-        rows.push(Row {
-            name: "volcano",
-            output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
-            guide_rmse: q.guide_rmse,
-            guide_std: q.guide_std,
-            truth_rmse: None,
-            seam_ratio: q.seam_ratio,
-            slope_out: spectral(&syn.heightfield),
-            slope_ex: spectral_pooled(&refs),
-            slope_truth: None,
-            hist_out: q.slope_distance,
-            hist_truth: None,
-            failing_blocks: report.failing.len(),
-            blocks: report.blocks.len(),
-            patches: syn.stats.patches,
-            seconds: secs,
-        });
-        cx.save_raster("quilt_volcano_guide", "volcano guide as used", &g, None)?;
-        if let Some(cmap) = &out.categories {
-            cx.save_rgb(
-                "quilt_volcano_categories",
-                "categorisation map (guide height classes; colour = exemplar category)",
-                cmap.width,
-                cmap.height,
-                &category_rgb(cmap),
-            )?;
-        }
-        cx.save_raster(
-            "quilt_volcano",
-            "quilted from the terrain's quadrants under the volcano guide",
-            &syn.heightfield,
-            Some(QUILT_TOLERANCE),
-        )?;
-        cx.save_rgb(
-            "quilt_volcano_seams",
-            "seam map (one colour per patch, seams white)",
-            syn.seam_map.width,
-            syn.seam_map.height,
-            &syn.seam_map.rgb(),
-        )?;
-        cx.section.figure(
-            "volcano_translations_applied",
-            syn.stats.translations_applied,
-        );
-        cx.section.figure(
-            "volcano_translations_rejected",
-            syn.stats.translations_rejected,
-        );
-        let volcano_result = out.synthesis.heightfield;
-
-        // --- holdout: left half as exemplar, low-pass of the right half as guide -------------
-        let half = w / 2;
-        let ex = terrain.crop(0, 0, half, h)?;
-        let truth = terrain.crop(half, 0, w - half, h)?;
-        let mut hjob = job.clone();
-        hjob.guide.range = None;
-        hjob.auto_categories = None;
-        // The truth is held out of the exemplar, which may lack some of its patterns (on the
-        // golden crop 5-11 of 55 blocks have no match): the validation is reported, not
-        // enforced, so that the protocol measures the method on what it has.
-        hjob.settings.enforce_validation = false;
-        progress.begin("quilt: holdout", 0);
-        let t = std::time::Instant::now();
-        let out = hjob
-            .run(
-                JobInputs {
-                    exemplars: vec![ex.clone()],
-                    guide: Some(truth.clone()),
-                    categories: None,
-                },
-                &progress,
-            )
-            .context("quilt (holdout)")?;
-        let secs = t.elapsed().as_secs_f64();
-        let g = out.guide.clone().context("the holdout run has a guide")?;
-        let report = out.report.as_ref().context("validation report")?;
-        cx.section.figure("holdout_validation_ok", report.ok);
-        cx.section.figure(
-            "holdout_distinct_source_share",
-            out.figures.distinct_source_share,
-        );
-        let syn = &out.synthesis;
-        let q = quality::assess(
-            &syn.heightfield,
-            &syn.seam_map,
-            &g,
-            factor,
-            &[&ex],
-            Some(&truth),
-        )?;
-        rows.push(Row {
-            name: "holdout",
-            output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
-            guide_rmse: q.guide_rmse,
-            guide_std: q.guide_std,
-            truth_rmse: Some(rmse(&syn.heightfield, &truth)?),
-            seam_ratio: q.seam_ratio,
-            slope_out: spectral(&syn.heightfield),
-            slope_ex: spectral(&ex),
-            slope_truth: Some(spectral(&truth)),
-            hist_out: q.slope_distance,
-            hist_truth: Some(q.slope_distance_baseline),
-            failing_blocks: report.failing.len(),
-            blocks: report.blocks.len(),
-            patches: syn.stats.patches,
-            seconds: secs,
-        });
-        cx.save_raster(
-            "quilt_holdout_guide",
-            "holdout guide: low-pass of the right half",
-            &g,
-            None,
-        )?;
-        cx.save_raster(
-            "quilt_holdout",
-            "right half re-synthesized from the left half under its low-pass",
-            &syn.heightfield,
-            Some(QUILT_TOLERANCE),
-        )?;
-        if cx.config.previews {
-            cx.save_preview("quilt_holdout_truth", "held-out truth (right half)", &truth)?;
-        }
-        cx.save_rgb(
-            "quilt_holdout_seams",
-            "holdout seam map (seams white)",
-            syn.seam_map.width,
-            syn.seam_map.height,
-            &syn.seam_map.rgb(),
-        )?;
-        cx.spectrum_plot(
-            "quilt holdout: power spectra",
-            &[
-                ("holdout_exemplar", &ex),
-                ("holdout_truth", &truth),
-                ("holdout_output", &syn.heightfield),
-            ],
-        );
-        let f = |v: f64| format!("{v:.2}");
-        let opt = |v: Option<f64>| v.map_or("-".to_string(), f);
-        cx.section.table(
-            "quilt quality (guide fidelity, seams, spectrum, slopes)",
-            &[
-                "run",
-                "output",
-                "guide RMSE (m)",
-                "guide std (m)",
-                "RMSE vs truth (m)",
-                "seam ratio",
-                "spectral slope out",
-                "spectral slope exemplars",
-                "spectral slope truth",
-                "slope-hist EMD out vs exemplars (deg)",
-                "slope-hist EMD truth vs exemplars (deg)",
-                "failing blocks",
-                "patches",
-                "seconds",
-            ],
-            rows.iter()
-                .map(|r| {
-                    vec![
-                        r.name.to_string(),
-                        r.output.clone(),
-                        f(r.guide_rmse),
-                        f(r.guide_std),
-                        opt(r.truth_rmse),
-                        format!("{:.3}", r.seam_ratio),
-                        f(r.slope_out),
-                        f(r.slope_ex),
-                        opt(r.slope_truth),
-                        f(r.hist_out),
-                        opt(r.hist_truth),
-                        format!("{} of {}", r.failing_blocks, r.blocks),
-                        r.patches.to_string(),
-                        f(r.seconds),
-                    ]
-                })
-                .collect(),
-        );
-        for r in &rows {
-            cx.section
-                .headline(&format!("{}_guide_rmse_m", r.name), r.guide_rmse);
-            cx.section
-                .headline(&format!("{}_seam_ratio", r.name), r.seam_ratio);
-            cx.section
-                .figure(&format!("{}_slope_hist_emd_deg", r.name), r.hist_out);
-        }
+        let (volcano_row, volcano_result) = volcano(cx, &job, &terrain, factor)?;
+        let rows = [volcano_row, holdout(cx, &job, &terrain, factor)?];
+        quality_table(cx, &rows);
         if self.0.replace_terrain {
             cx.state.set_terrain(volcano_result);
         }
         Ok(())
+    }
+}
+
+/// The volcano run: the guide from another real DEM, categories from clustering, the
+/// terrain's quadrants as exemplars. Returns its table row and its output.
+fn volcano(
+    cx: &mut StageCx<'_>,
+    job: &QuiltJob,
+    terrain: &Heightfield,
+    factor: usize,
+) -> Result<(Row, Heightfield)> {
+    let (w, h) = (terrain.width(), terrain.height());
+    let progress = cx.progress();
+    let (qw, qh) = (w / 2, h / 2);
+    let quads: Vec<Heightfield> = [(0, 0), (qw, 0), (0, qh), (qw, qh)]
+        .iter()
+        .map(|&(x, y)| terrain.crop(x, y, qw, qh))
+        .collect::<Result<_, _>>()?;
+    let volcano_path = cx
+        .config
+        .resolve(std::path::Path::new("fixtures/volcano.json"));
+    let volcano = relief_io::read(&volcano_path, &relief_io::ReadOptions::default())
+        .with_context(|| format!("cannot read {}", volcano_path.display()))?
+        .heightfield;
+    let mut vjob = job.clone();
+    if vjob.guide.cell_size.is_none() {
+        // Spans the terrain's width (the fixture stores no cell size).
+        let k = w as f64 / volcano.width() as f64;
+        let (cx_, cy_) = terrain.cell_size();
+        vjob.guide.cell_size = Some((cx_ * k, cy_ * k));
+    }
+    progress.begin("quilt: volcano", 0);
+    let t = std::time::Instant::now();
+    let out = vjob
+        .run(
+            JobInputs {
+                exemplars: quads.clone(),
+                guide: Some(volcano),
+                categories: None,
+            },
+            &progress,
+        )
+        .context("quilt (volcano guide)")?;
+    let secs = t.elapsed().as_secs_f64();
+    let g = out.guide.clone().context("the volcano run has a guide")?;
+    let pf = &out.figures.prepare;
+    cx.section.figure(
+        "volcano_exemplar_categories",
+        pf.exemplar_categories
+            .iter()
+            .map(|c| c.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+    );
+    if let Some(m) = &pf.guide_mapping {
+        cx.section.figure(
+            "volcano_guide_mapping_m",
+            format!(
+                "{:.0}..{:.0} -> {:.0}..{:.0}",
+                m.from.0, m.from.1, m.to.0, m.to.1
+            ),
+        );
+    }
+    cx.section
+        .figure("volcano_required_candidates", pf.required_candidates);
+    let report = out.report.as_ref().context("validation report")?;
+    cx.section.figure("volcano_validation_ok", report.ok);
+    cx.section.figure("volcano_validation", report.to_string());
+    cx.section.figure(
+        "volcano_distinct_source_share",
+        out.figures.distinct_source_share,
+    );
+    let refs: Vec<&Heightfield> = quads.iter().collect();
+    let syn = &out.synthesis;
+    let q = quality::assess(&syn.heightfield, &syn.seam_map, &g, factor, &refs, None)?;
+    let row = Row {
+        name: "volcano",
+        output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
+        guide_rmse: q.guide_rmse,
+        guide_std: q.guide_std,
+        truth_rmse: None,
+        seam_ratio: q.seam_ratio,
+        slope_out: spectral(&syn.heightfield),
+        slope_ex: spectral_pooled(&refs),
+        slope_truth: None,
+        hist_out: q.slope_distance,
+        hist_truth: None,
+        failing_blocks: report.failing.len(),
+        blocks: report.blocks.len(),
+        patches: syn.stats.patches,
+        seconds: secs,
+    };
+    cx.save_raster("quilt_volcano_guide", "volcano guide as used", &g, None)?;
+    if let Some(cmap) = &out.categories {
+        cx.save_rgb(
+            "quilt_volcano_categories",
+            "categorisation map (guide height classes; colour = exemplar category)",
+            cmap.width,
+            cmap.height,
+            &category_rgb(cmap),
+        )?;
+    }
+    cx.save_raster(
+        "quilt_volcano",
+        "quilted from the terrain's quadrants under the volcano guide",
+        &syn.heightfield,
+        Some(QUILT_TOLERANCE),
+    )?;
+    cx.save_rgb(
+        "quilt_volcano_seams",
+        "seam map (one colour per patch, seams white)",
+        syn.seam_map.width,
+        syn.seam_map.height,
+        &syn.seam_map.rgb(),
+    )?;
+    cx.section.figure(
+        "volcano_translations_applied",
+        syn.stats.translations_applied,
+    );
+    cx.section.figure(
+        "volcano_translations_rejected",
+        syn.stats.translations_rejected,
+    );
+    Ok((row, out.synthesis.heightfield))
+}
+
+/// The holdout run: the left half as exemplar, the low-pass of the right half as guide.
+fn holdout(
+    cx: &mut StageCx<'_>,
+    job: &QuiltJob,
+    terrain: &Heightfield,
+    factor: usize,
+) -> Result<Row> {
+    let (w, h) = (terrain.width(), terrain.height());
+    let progress = cx.progress();
+    let half = w / 2;
+    let ex = terrain.crop(0, 0, half, h)?;
+    let truth = terrain.crop(half, 0, w - half, h)?;
+    let mut hjob = job.clone();
+    hjob.guide.range = None;
+    hjob.auto_categories = None;
+    // The truth is held out of the exemplar, which may lack some of its patterns (on the
+    // golden crop 5-11 of 55 blocks have no match): the validation is reported, not
+    // enforced, so that the protocol measures the method on what it has.
+    hjob.settings.enforce_validation = false;
+    progress.begin("quilt: holdout", 0);
+    let t = std::time::Instant::now();
+    let out = hjob
+        .run(
+            JobInputs {
+                exemplars: vec![ex.clone()],
+                guide: Some(truth.clone()),
+                categories: None,
+            },
+            &progress,
+        )
+        .context("quilt (holdout)")?;
+    let secs = t.elapsed().as_secs_f64();
+    let g = out.guide.clone().context("the holdout run has a guide")?;
+    let report = out.report.as_ref().context("validation report")?;
+    cx.section.figure("holdout_validation_ok", report.ok);
+    cx.section.figure(
+        "holdout_distinct_source_share",
+        out.figures.distinct_source_share,
+    );
+    let syn = &out.synthesis;
+    let q = quality::assess(
+        &syn.heightfield,
+        &syn.seam_map,
+        &g,
+        factor,
+        &[&ex],
+        Some(&truth),
+    )?;
+    let row = Row {
+        name: "holdout",
+        output: format!("{} x {}", syn.heightfield.width(), syn.heightfield.height()),
+        guide_rmse: q.guide_rmse,
+        guide_std: q.guide_std,
+        truth_rmse: Some(rmse(&syn.heightfield, &truth)?),
+        seam_ratio: q.seam_ratio,
+        slope_out: spectral(&syn.heightfield),
+        slope_ex: spectral(&ex),
+        slope_truth: Some(spectral(&truth)),
+        hist_out: q.slope_distance,
+        hist_truth: Some(q.slope_distance_baseline),
+        failing_blocks: report.failing.len(),
+        blocks: report.blocks.len(),
+        patches: syn.stats.patches,
+        seconds: secs,
+    };
+    cx.save_raster(
+        "quilt_holdout_guide",
+        "holdout guide: low-pass of the right half",
+        &g,
+        None,
+    )?;
+    cx.save_raster(
+        "quilt_holdout",
+        "right half re-synthesized from the left half under its low-pass",
+        &syn.heightfield,
+        Some(QUILT_TOLERANCE),
+    )?;
+    if cx.config.previews {
+        cx.save_preview("quilt_holdout_truth", "held-out truth (right half)", &truth)?;
+    }
+    cx.save_rgb(
+        "quilt_holdout_seams",
+        "holdout seam map (seams white)",
+        syn.seam_map.width,
+        syn.seam_map.height,
+        &syn.seam_map.rgb(),
+    )?;
+    cx.spectrum_plot(
+        "quilt holdout: power spectra",
+        &[
+            ("holdout_exemplar", &ex),
+            ("holdout_truth", &truth),
+            ("holdout_output", &syn.heightfield),
+        ],
+    );
+    Ok(row)
+}
+
+/// The table of both runs and their headline figures.
+fn quality_table(cx: &mut StageCx<'_>, rows: &[Row]) {
+    let f = |v: f64| format!("{v:.2}");
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), f);
+    cx.section.table(
+        "quilt quality (guide fidelity, seams, spectrum, slopes)",
+        &[
+            "run",
+            "output",
+            "guide RMSE (m)",
+            "guide std (m)",
+            "RMSE vs truth (m)",
+            "seam ratio",
+            "spectral slope out",
+            "spectral slope exemplars",
+            "spectral slope truth",
+            "slope-hist EMD out vs exemplars (deg)",
+            "slope-hist EMD truth vs exemplars (deg)",
+            "failing blocks",
+            "patches",
+            "seconds",
+        ],
+        rows.iter()
+            .map(|r| {
+                vec![
+                    r.name.to_string(),
+                    r.output.clone(),
+                    f(r.guide_rmse),
+                    f(r.guide_std),
+                    opt(r.truth_rmse),
+                    format!("{:.3}", r.seam_ratio),
+                    f(r.slope_out),
+                    f(r.slope_ex),
+                    opt(r.slope_truth),
+                    f(r.hist_out),
+                    opt(r.hist_truth),
+                    format!("{} of {}", r.failing_blocks, r.blocks),
+                    r.patches.to_string(),
+                    f(r.seconds),
+                ]
+            })
+            .collect(),
+    );
+    for r in rows {
+        cx.section
+            .headline(&format!("{}_guide_rmse_m", r.name), r.guide_rmse);
+        cx.section
+            .headline(&format!("{}_seam_ratio", r.name), r.seam_ratio);
+        cx.section
+            .figure(&format!("{}_slope_hist_emd_deg", r.name), r.hist_out);
     }
 }
 

@@ -26,7 +26,7 @@ use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, NoProgress, Progress};
 use relief_wavelet_lod::quality::{Protocol, Scores};
 use relief_wavelet_lod::{
-    Band, FitSettings, GlobalAnalysis, Method, RefineSettings, Refiner, analyze,
+    Band, FitSettings, GlobalAnalysis, LocalMaps, Method, RefineSettings, Refiner, analyze,
     render_log_variance_plot,
 };
 use serde::{Deserialize, Serialize};
@@ -167,122 +167,11 @@ impl Stage for WaveletStage {
         cx.section.headline("output_size", format!("{ow} x {oh}"));
 
         // Statistics of the input (identical for both refiners: GSA's fit is always computed).
-        let fit = FitSettings::default();
         let stats: &GlobalAnalysis = refined[0].2.analysis();
-        for (b, f) in Band::ALL.iter().zip(&stats.fits) {
-            cx.section.figure(&format!("gamma_{}", b.name()), f.gamma);
-            cx.section.figure(&format!("a_{}", b.name()), f.a);
-            cx.section.figure(&format!("r2_{}", b.name()), f.r_squared);
-        }
-        cx.section
-            .headline("fractal_dimension", stats.fractal_dimension());
-        let mut rows = Vec::new();
-        for (b, f) in Band::ALL.iter().zip(&stats.fits) {
-            rows.push((
-                b.name(),
-                vec![f.gamma, f.a, f.r_squared, f.fractal_dimension()],
-            ));
-        }
-        let rows: Vec<(&str, Vec<f64>)> = rows;
-        cx.section.numbers(
-            "Fitted statistics of the input (equation 3, levels >= 3)",
-            "log2 Var[d_j] = -j gamma + a per detail band; D = 3 - gamma / 2.",
-            &["band", "gamma", "a", "r2", "D"],
-            &rows,
-        );
-
-        // Log-variance plots: input levels, fits, and the levels measured on each output.
-        for (method, tag, _, out) in &refined {
-            let basis = p.job.basis();
-            let after = analyze(out, basis, &fit)?;
-            let rgb = render_log_variance_plot(stats, n, Some(&after), 720, 440);
-            cx.save_rgb(
-                &format!("wavelet_logvar_{tag}"),
-                &format!(
-                    "log2 variance per level, {} (squares: input levels, grey-edged = not \
-                     fitted; lines: equation (3), dashed beyond the input; hollow: levels \
-                     measured on the refined terrain); H red, V green, D blue",
-                    label(*method, p.job.window)
-                ),
-                720,
-                440,
-                &rgb,
-            )?;
-            let mut plot = Plot::new(
-                &format!("log-variance per level, {}", label(*method, p.job.window)),
-                "level j",
-                "log2 variance (m^2)",
-            );
-            for (b, f) in Band::ALL.iter().zip(&stats.fits) {
-                let measured = |a: &GlobalAnalysis| -> Vec<(f64, f64)> {
-                    a.levels
-                        .iter()
-                        .filter(|l| l.variance[b.index()] > 0.0)
-                        .map(|l| (l.level as f64, l.variance[b.index()].log2()))
-                        .collect()
-                };
-                let j0 = stats.settings.min_level as f64;
-                let j1 = (stats.top_level + n as i64 - 1) as f64;
-                plot = plot
-                    .line(&format!("{} refined", b.name()), measured(&after))
-                    .line(&format!("{} input", b.name()), measured(stats))
-                    .dashed(
-                        &format!("{} fit", b.name()),
-                        [(j0, f.a - j0 * f.gamma), (j1, f.a - j1 * f.gamma)],
-                    );
-                // Each synthesised level's measured variance against equation (5).
-                for t in 0..n as i64 {
-                    let j = stats.top_level + t;
-                    if let Some(l) = after.levels.iter().find(|l| l.level == j) {
-                        cx.section.figure(
-                            &format!("{tag}_log2var_{}_level{j}_measured_minus_model", b.name()),
-                            l.variance[b.index()].log2() - (f.a - j as f64 * f.gamma),
-                        );
-                    }
-                }
-            }
-            cx.section.plot(plot);
-        }
-
-        // The local statistics (equation (4)) as a map: mean gamma of the three bands per input
-        // location, blue (smooth, gamma >= 4) to red (rough, gamma <= 0).
+        statistics_table(cx, stats);
+        log_variance_plots(cx, p, stats, &refined)?;
         if let Some(maps) = refined[1].2.local_maps() {
-            let n_loc = maps.gamma[0].data.len();
-            let mean: Vec<f32> = (0..n_loc)
-                .map(|i| maps.gamma.iter().map(|g| g.data[i]).sum::<f32>() / 3.0)
-                .collect();
-            let mut sorted = mean.clone();
-            sorted.sort_by(f32::total_cmp);
-            let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize] as f64;
-            cx.section.figure("lsa_gamma_p05", q(0.05));
-            cx.section.figure("lsa_gamma_p50", q(0.5));
-            cx.section.figure("lsa_gamma_p95", q(0.95));
-            let rgb: Vec<u8> = mean
-                .iter()
-                .flat_map(|&g| {
-                    let t = (g / 4.0).clamp(0.0, 1.0);
-                    [
-                        (255.0 * (1.0 - t)) as u8,
-                        (255.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
-                        (255.0 * t) as u8,
-                    ]
-                })
-                .collect();
-            cx.save_rgb(
-                "wavelet_lsa_gamma",
-                &format!(
-                    "local gamma (LSA {w}x{w}, mean of the bands) per input location: red = \
-                     rough (gamma 0), green = 2, blue = smooth (gamma 4); 5/50/95 % = \
-                     {:.2}/{:.2}/{:.2}",
-                    q(0.05),
-                    q(0.5),
-                    q(0.95),
-                    w = p.job.window
-                ),
-                maps.gamma[0].width,
-                maps.gamma[0].height,
-                &rgb,
-            )?;
+            local_gamma_map(cx, p, &maps)?;
         }
 
         // Rasters and hillshades side by side.
@@ -304,48 +193,7 @@ impl Stage for WaveletStage {
             );
         }
 
-        // On demand: a window rendered alone equals the same window of the full run; shown
-        // at full resolution.
-        let (zw, zh) = (ow.min(256), oh.min(256));
-        let (zx, zy) = ((ow - zw) / 2, (oh - zh) / 2);
-        let mut zooms = Vec::new();
-        for (_, tag, refiner, out) in &refined {
-            let win = refiner.render_window(zx, zy, zw, zh)?;
-            let same = win.as_slice().iter().map(|v| v.to_bits()).eq(out
-                .crop(zx, zy, zw, zh)?
-                .as_slice()
-                .iter()
-                .map(|v| v.to_bits()));
-            if !same {
-                bail!("{tag}: the window rendered on demand differs from the full run");
-            }
-            cx.section
-                .figure(&format!("{tag}_window_equals_full_run"), same);
-            zooms.push(cx.save_hillshade(&format!("wavelet_{tag}_zoom"), &win)?);
-            if *tag == "lsa" {
-                // The golden keeps its top-left 128 x 128 cells (goldens stay small).
-                let (gw, gh) = (zw.min(128), zh.min(128));
-                cx.save_raster(
-                    "wavelet_lsa_window",
-                    &format!(
-                        "LSA, window [{zx}, {zy}] {gw} x {gh} of the refined grid, rendered on \
-                         demand"
-                    ),
-                    &win.crop(0, 0, gw, gh)?,
-                    Some(WAVELET_TOLERANCE),
-                )?;
-            }
-        }
-        if let [Some(g), Some(l)] = &zooms[..] {
-            cx.section.pair(
-                (g, "GSA"),
-                (l, &label(Method::Lsa, p.job.window)),
-                &format!(
-                    "window [{zx}, {zy}] {zw} x {zh} of the refined grid at full resolution, \
-                     rendered on demand (equal bit for bit to the full run)"
-                ),
-            );
-        }
+        on_demand_windows(cx, p, &refined)?;
         if let Some(shade) = cx.save_hillshade("wavelet_input_shade", &input)? {
             cx.section.image(&shade, "input of the refinement");
         }
@@ -370,6 +218,187 @@ impl Stage for WaveletStage {
         }
         Ok(())
     }
+}
+
+/// A refinement of the stage: its method, tag, refiner and full output.
+type Refined = (Method, &'static str, Refiner, Heightfield);
+
+/// The fitted statistics of the input (equation 3) as figures and a table.
+fn statistics_table(cx: &mut StageCx<'_>, stats: &GlobalAnalysis) {
+    for (b, f) in Band::ALL.iter().zip(&stats.fits) {
+        cx.section.figure(&format!("gamma_{}", b.name()), f.gamma);
+        cx.section.figure(&format!("a_{}", b.name()), f.a);
+        cx.section.figure(&format!("r2_{}", b.name()), f.r_squared);
+    }
+    cx.section
+        .headline("fractal_dimension", stats.fractal_dimension());
+    let mut rows = Vec::new();
+    for (b, f) in Band::ALL.iter().zip(&stats.fits) {
+        rows.push((
+            b.name(),
+            vec![f.gamma, f.a, f.r_squared, f.fractal_dimension()],
+        ));
+    }
+    let rows: Vec<(&str, Vec<f64>)> = rows;
+    cx.section.numbers(
+        "Fitted statistics of the input (equation 3, levels >= 3)",
+        "log2 Var[d_j] = -j gamma + a per detail band; D = 3 - gamma / 2.",
+        &["band", "gamma", "a", "r2", "D"],
+        &rows,
+    );
+}
+
+/// Log-variance plots: input levels, fits, and the levels measured on each output.
+fn log_variance_plots(
+    cx: &mut StageCx<'_>,
+    p: &WaveletParams,
+    stats: &GlobalAnalysis,
+    refined: &[Refined],
+) -> Result<()> {
+    let n = p.job.extra_levels;
+    let fit = FitSettings::default();
+    for (method, tag, _, out) in refined {
+        let basis = p.job.basis();
+        let after = analyze(out, basis, &fit)?;
+        let rgb = render_log_variance_plot(stats, n, Some(&after), 720, 440);
+        cx.save_rgb(
+            &format!("wavelet_logvar_{tag}"),
+            &format!(
+                "log2 variance per level, {} (squares: input levels, grey-edged = not \
+                 fitted; lines: equation (3), dashed beyond the input; hollow: levels \
+                 measured on the refined terrain); H red, V green, D blue",
+                label(*method, p.job.window)
+            ),
+            720,
+            440,
+            &rgb,
+        )?;
+        let mut plot = Plot::new(
+            &format!("log-variance per level, {}", label(*method, p.job.window)),
+            "level j",
+            "log2 variance (m^2)",
+        );
+        for (b, f) in Band::ALL.iter().zip(&stats.fits) {
+            let measured = |a: &GlobalAnalysis| -> Vec<(f64, f64)> {
+                a.levels
+                    .iter()
+                    .filter(|l| l.variance[b.index()] > 0.0)
+                    .map(|l| (l.level as f64, l.variance[b.index()].log2()))
+                    .collect()
+            };
+            let j0 = stats.settings.min_level as f64;
+            let j1 = (stats.top_level + n as i64 - 1) as f64;
+            plot = plot
+                .line(&format!("{} refined", b.name()), measured(&after))
+                .line(&format!("{} input", b.name()), measured(stats))
+                .dashed(
+                    &format!("{} fit", b.name()),
+                    [(j0, f.a - j0 * f.gamma), (j1, f.a - j1 * f.gamma)],
+                );
+            // Each synthesised level's measured variance against equation (5).
+            for t in 0..n as i64 {
+                let j = stats.top_level + t;
+                if let Some(l) = after.levels.iter().find(|l| l.level == j) {
+                    cx.section.figure(
+                        &format!("{tag}_log2var_{}_level{j}_measured_minus_model", b.name()),
+                        l.variance[b.index()].log2() - (f.a - j as f64 * f.gamma),
+                    );
+                }
+            }
+        }
+        cx.section.plot(plot);
+    }
+
+    Ok(())
+}
+
+/// The local statistics (equation (4)) as a map: mean gamma of the three bands per input
+/// location, blue (smooth, gamma >= 4) to red (rough, gamma <= 0).
+fn local_gamma_map(cx: &mut StageCx<'_>, p: &WaveletParams, maps: &LocalMaps) -> Result<()> {
+    let n_loc = maps.gamma[0].data.len();
+    let mean: Vec<f32> = (0..n_loc)
+        .map(|i| maps.gamma.iter().map(|g| g.data[i]).sum::<f32>() / 3.0)
+        .collect();
+    let mut sorted = mean.clone();
+    sorted.sort_by(f32::total_cmp);
+    let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize] as f64;
+    cx.section.figure("lsa_gamma_p05", q(0.05));
+    cx.section.figure("lsa_gamma_p50", q(0.5));
+    cx.section.figure("lsa_gamma_p95", q(0.95));
+    let rgb: Vec<u8> = mean
+        .iter()
+        .flat_map(|&g| {
+            let t = (g / 4.0).clamp(0.0, 1.0);
+            [
+                (255.0 * (1.0 - t)) as u8,
+                (255.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8,
+                (255.0 * t) as u8,
+            ]
+        })
+        .collect();
+    cx.save_rgb(
+        "wavelet_lsa_gamma",
+        &format!(
+            "local gamma (LSA {w}x{w}, mean of the bands) per input location: red = \
+             rough (gamma 0), green = 2, blue = smooth (gamma 4); 5/50/95 % = \
+             {:.2}/{:.2}/{:.2}",
+            q(0.05),
+            q(0.5),
+            q(0.95),
+            w = p.job.window
+        ),
+        maps.gamma[0].width,
+        maps.gamma[0].height,
+        &rgb,
+    )?;
+    Ok(())
+}
+
+/// On demand: a window rendered alone equals the same window of the full run; shown at full
+/// resolution.
+fn on_demand_windows(cx: &mut StageCx<'_>, p: &WaveletParams, refined: &[Refined]) -> Result<()> {
+    let (ow, oh) = (refined[0].3.width(), refined[0].3.height());
+    let (zw, zh) = (ow.min(256), oh.min(256));
+    let (zx, zy) = ((ow - zw) / 2, (oh - zh) / 2);
+    let mut zooms = Vec::new();
+    for (_, tag, refiner, out) in refined {
+        let win = refiner.render_window(zx, zy, zw, zh)?;
+        let same = win.as_slice().iter().map(|v| v.to_bits()).eq(out
+            .crop(zx, zy, zw, zh)?
+            .as_slice()
+            .iter()
+            .map(|v| v.to_bits()));
+        if !same {
+            bail!("{tag}: the window rendered on demand differs from the full run");
+        }
+        cx.section
+            .figure(&format!("{tag}_window_equals_full_run"), same);
+        zooms.push(cx.save_hillshade(&format!("wavelet_{tag}_zoom"), &win)?);
+        if *tag == "lsa" {
+            // The golden keeps its top-left 128 x 128 cells (goldens stay small).
+            let (gw, gh) = (zw.min(128), zh.min(128));
+            cx.save_raster(
+                "wavelet_lsa_window",
+                &format!(
+                    "LSA, window [{zx}, {zy}] {gw} x {gh} of the refined grid, rendered on \
+                     demand"
+                ),
+                &win.crop(0, 0, gw, gh)?,
+                Some(WAVELET_TOLERANCE),
+            )?;
+        }
+    }
+    if let [Some(g), Some(l)] = &zooms[..] {
+        cx.section.pair(
+            (g, "GSA"),
+            (l, &label(Method::Lsa, p.job.window)),
+            &format!(
+                "window [{zx}, {zy}] {zw} x {zh} of the refined grid at full resolution, \
+                 rendered on demand (equal bit for bit to the full run)"
+            ),
+        );
+    }
+    Ok(())
 }
 
 /// The quality protocol of issue 16 ([`relief_wavelet_lod::quality::Protocol`], the same as

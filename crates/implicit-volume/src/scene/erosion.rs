@@ -6,30 +6,7 @@ impl SceneBuilder {
     /// Sea erosion (section 4.1, figure 5), plus sea caves dug inland from the most eroded
     /// samples near sea level.
     pub fn sea_erosion(&mut self, s: &SeaErosion, region: &Region) -> Result<EffectReport> {
-        for (n, v) in [
-            ("depth", s.depth),
-            ("height", s.height),
-            ("reach", s.reach),
-            ("cave_length", s.cave_length),
-        ] {
-            self.check_len(n, v)?;
-        }
-        if !s.sea_level.is_finite() {
-            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
-        }
-        if !(-s.depth..=s.height).contains(&s.peak) {
-            return Err(Error::param("peak", s.peak, "must be in [-depth, height]"));
-        }
-        if s.cave_length / (0.5 * s.weathering.radius) > 4096.0 {
-            return Err(Error::param(
-                "cave_length",
-                s.cave_length,
-                "must be at most 2048 weathering radii",
-            ));
-        }
-        if !(1..=8).contains(&s.iterations) {
-            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
-        }
+        self.check_sea_erosion(s)?;
         let dist = self.distance_to_sea(s.sea_level);
         let frame = self.frame;
         let stress = |me: &Self, p: V3| {
@@ -63,15 +40,7 @@ impl SceneBuilder {
         };
         let band = Some((s.sea_level - s.depth, s.sea_level + s.height));
         let (mut report, mut placed) = self.weather(&s.weathering, region, band, false, stress)?;
-        let inland = |p: V3| -> Option<V3> {
-            let (j, i) = frame.cell(p)?;
-            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
-            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
-            let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
-            let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
-            let g = (gx * gx + gy * gy).sqrt();
-            (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
-        };
+        let inland = |p: V3| inland(&frame, &dist, p);
         let r = s.weathering.radius;
         let w = &s.weathering;
         let mut all_placed = placed.clone();
@@ -145,9 +114,50 @@ impl SceneBuilder {
                 break;
             }
         }
-        let placed = all_placed;
-        // Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient),
-        // from the most eroded samples just above sea level.
+        self.sea_caves(s, &all_placed, inland, &mut report)?;
+        Ok(report)
+    }
+
+    /// Checks the settings of [`SceneBuilder::sea_erosion`].
+    fn check_sea_erosion(&self, s: &SeaErosion) -> Result<()> {
+        for (n, v) in [
+            ("depth", s.depth),
+            ("height", s.height),
+            ("reach", s.reach),
+            ("cave_length", s.cave_length),
+        ] {
+            self.check_len(n, v)?;
+        }
+        if !s.sea_level.is_finite() {
+            return Err(Error::param("sea_level", s.sea_level, "must be finite"));
+        }
+        if !(-s.depth..=s.height).contains(&s.peak) {
+            return Err(Error::param("peak", s.peak, "must be in [-depth, height]"));
+        }
+        if s.cave_length / (0.5 * s.weathering.radius) > 4096.0 {
+            return Err(Error::param(
+                "cave_length",
+                s.cave_length,
+                "must be at most 2048 weathering radii",
+            ));
+        }
+        if !(1..=8).contains(&s.iterations) {
+            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
+        }
+        Ok(())
+    }
+
+    /// Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient,
+    /// `inland`), from the most eroded samples just above sea level of `placed`.
+    fn sea_caves(
+        &mut self,
+        s: &SeaErosion,
+        placed: &[(V3, f32)],
+        inland: impl Fn(V3) -> Option<V3>,
+        report: &mut EffectReport,
+    ) -> Result<()> {
+        let r = s.weathering.radius;
+        let w = &s.weathering;
         let mut best: Vec<(f32, usize)> = placed
             .iter()
             .enumerate()
@@ -193,7 +203,7 @@ impl SceneBuilder {
                 report.primitives += 1;
             }
         }
-        Ok(report)
+        Ok(())
     }
 
     /// Sea cliffs ([`SeaCliffs`]).
@@ -375,4 +385,15 @@ impl SceneBuilder {
         };
         Ok(self.weather(&s.weathering, region, None, true, stress)?.0)
     }
+}
+
+/// The horizontal direction inland (up the distance-to-sea gradient `dist`) at `p`.
+fn inland(frame: &DemFrame, dist: &[f32], p: V3) -> Option<V3> {
+    let (j, i) = frame.cell(p)?;
+    let (j0, j1) = (j.saturating_sub(1), (j + 1).min(frame.width - 1));
+    let (i0, i1) = (i.saturating_sub(1), (i + 1).min(frame.height - 1));
+    let gx = dist[i * frame.width + j1] - dist[i * frame.width + j0];
+    let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
+    let g = (gx * gx + gy * gy).sqrt();
+    (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
 }

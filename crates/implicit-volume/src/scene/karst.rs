@@ -46,6 +46,75 @@ impl SceneBuilder {
     /// hemisphere, Poisson rejection; ends on the budget, the `rho_stop` threshold or an empty
     /// queue ([`EffectReport::stop`]).
     pub fn karst(&mut self, s: &KarstSettings, region: &Region) -> Result<EffectReport> {
+        self.check_karst(s, region)?;
+        let frame = self.frame;
+        let floor = self.tree.bbox(self.hf).min[2];
+        let (xm, ym) = (
+            (frame.width - 1) as f32 * frame.cx,
+            (frame.height - 1) as f32 * frame.cy,
+        );
+        let mut report = EffectReport::default();
+        let seed = s.seed;
+        let geo = self.geology.clone();
+        let mut queue = Percolation::new(s, &geo);
+        self.karst_sinkholes(s, region, floor, &mut queue);
+        self.karst_resurgences(s, region, floor, &mut queue);
+        report.sites = queue.cands.clone();
+        let mut steps = 0usize;
+        report.stop = Some(KarstStop::Exhausted);
+        while let Some(Reverse((kbits, idx))) = queue.heap.pop() {
+            if steps >= s.budget {
+                report.stop = Some(KarstStop::Budget);
+                break;
+            }
+            if f32::from_bits(kbits) > s.rho_stop {
+                report.stop = Some(KarstStop::Threshold);
+                break;
+            }
+            let p = queue.cands[idx as usize];
+            report.candidates += 1;
+            let wgt = region.weight(&frame, p);
+            let rho = self.geology.resistance(p);
+            if rho < s.rho0
+                && wgt > 0.0
+                && let Some(a) = soft_radius(&geo, s, p)
+            {
+                let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
+                if e > 0.0 {
+                    steps += 1;
+                    report.primitives += self.karst_passage(s, p, a, e, wgt, idx)?;
+                }
+            }
+            // New candidates on the lower hemisphere, flattened towards the horizontal.
+            for d in 0..s.directions {
+                let h = |c: u64| unit(hash(seed, idx as u64, d as u64, 10 + c));
+                let phi = h(0) * std::f32::consts::TAU;
+                let dir = normalize([phi.cos(), phi.sin(), -s.vertical * h(1)]);
+                let q = add(p, mul(dir, s.step));
+                if q[0] < 0.0
+                    || q[1] < 0.0
+                    || q[0] > xm
+                    || q[1] > ym
+                    || q[2] < floor + 3.0 * s.radius
+                {
+                    continue;
+                }
+                if q[2] > self.ground(q[0], q[1]) - 0.5 * s.radius {
+                    continue;
+                }
+                if region.weight(&frame, q) <= 0.0 {
+                    continue;
+                }
+                queue.push(q);
+            }
+        }
+        report.features = steps;
+        report.length_m = steps as f32 * s.step;
+        Ok(report)
+    }
+
+    /// Checks the settings of [`SceneBuilder::karst`] and the region.
+    fn check_karst(&self, s: &KarstSettings, region: &Region) -> Result<()> {
         for (n, v) in [
             ("rho0", s.rho0),
             ("rho_stop", s.rho_stop),
@@ -88,93 +157,24 @@ impl SceneBuilder {
         if s.budget > 1 << 22 {
             return Err(Error::param("budget", s.budget, "must be <= 2^22"));
         }
-        region.check(&self.frame)?;
-        let frame = self.frame;
-        let floor = self.tree.bbox(self.hf).min[2];
-        let (xm, ym) = (
-            (frame.width - 1) as f32 * frame.cx,
-            (frame.height - 1) as f32 * frame.cy,
-        );
-        let mut cands: Vec<V3> = Vec::new();
-        let mut heap: BinaryHeap<Reverse<(u32, u32)>> = BinaryHeap::new();
-        let mut grid: HashMap<(i32, i32, i32), Vec<u32>> = HashMap::new();
-        let pr = s.poisson_radius;
-        let key = |p: V3| {
-            (
-                (p[0] / pr).floor() as i32,
-                (p[1] / pr).floor() as i32,
-                (p[2] / pr).floor() as i32,
-            )
-        };
-        let mut report = EffectReport::default();
-        let seed = s.seed;
-        let geo = self.geology.clone();
-        let geo = &geo;
-        let push = |p: V3,
-                    cands: &mut Vec<V3>,
-                    heap: &mut BinaryHeap<Reverse<(u32, u32)>>,
-                    grid: &mut HashMap<(i32, i32, i32), Vec<u32>>|
-         -> bool {
-            let (a, b, c) = key(p);
-            for da in -1..=1 {
-                for db in -1..=1 {
-                    for dc in -1..=1 {
-                        if let Some(v) = grid.get(&(a + da, b + db, c + dc))
-                            && v.iter().any(|&q| norm(sub(cands[q as usize], p)) < pr)
-                        {
-                            return false;
-                        }
-                    }
-                }
-            }
-            let idx = cands.len() as u32;
-            let k = geo.resistance(p) + s.epsilon * unit(hash(seed, idx as u64, 1, 0));
-            cands.push(p);
-            grid.entry((a, b, c)).or_default().push(idx);
-            heap.push(Reverse((k.to_bits(), idx)));
-            true
-        };
-        // Test points of a passage sphere: its six poles and eight diagonal points.
-        const D: f32 = 0.577_350_26;
-        const DIRS: [V3; 14] = [
-            [1.0, 0.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 0.0, -1.0],
-            [D, D, D],
-            [D, D, -D],
-            [D, -D, D],
-            [D, -D, -D],
-            [-D, D, D],
-            [-D, D, -D],
-            [-D, -D, D],
-            [-D, -D, -D],
-        ];
-        let soft_radius = |p: V3| -> Option<f32> {
-            let mut a = s.radius;
-            loop {
-                if DIRS
-                    .iter()
-                    .all(|d| geo.resistance(add(p, mul(*d, a))) < s.rho0)
-                {
-                    return Some(a);
-                }
-                if a <= s.min_radius {
-                    return None;
-                }
-                a = (a * 0.75).max(s.min_radius);
-            }
-        };
-        let sinks = self.sinkholes();
+        region.check(&self.frame)
+    }
+
+    /// Seeds at the sinkholes: each drains down to the first soft rock under it (its shaft
+    /// through the hard strata is not carved).
+    fn karst_sinkholes(
+        &self,
+        s: &KarstSettings,
+        region: &Region,
+        floor: f32,
+        queue: &mut Percolation<'_>,
+    ) {
+        let (frame, geo) = (self.frame, queue.geo);
         let mut n_sinks = 0;
-        for (j, i) in sinks {
+        for (j, i) in self.sinkholes() {
             if n_sinks >= s.max_sinkholes {
                 break;
             }
-            // The sinkhole drains down to the first soft rock under it (its shaft through the
-            // hard strata is not carved).
             let mut p = frame.node(j, i, self.dem_at(j, i) - s.radius);
             while geo.resistance(p) >= s.rho0 && p[2] > floor + 4.0 * s.radius {
                 p[2] -= 0.5 * s.radius;
@@ -182,115 +182,179 @@ impl SceneBuilder {
             if region.weight(&frame, p) <= 0.0 || geo.resistance(p) >= s.rho0 {
                 continue;
             }
-            if push(p, &mut cands, &mut heap, &mut grid) {
+            if queue.push(p) {
                 n_sinks += 1;
             }
         }
-        // Resurgences on steep faces: Poisson-spaced steep cells, pushed into the rock.
-        if s.cliff_seeds > 0 {
-            let mut steep = Vec::new();
-            for i in 1..frame.height - 1 {
-                for j in 1..frame.width - 1 {
-                    let n = self.slope_normal(j, i);
-                    if n[2] < 0.8 {
-                        steep.push((hash(seed, (i * frame.width + j) as u64, 5, 0), j, i, n));
-                    }
-                }
-            }
-            steep.sort_by_key(|x| x.0);
-            let pts: Vec<V3> = steep
-                .iter()
-                .map(|&(_, j, i, _)| frame.node(j, i, self.dem_at(j, i)))
-                .collect();
-            let kept = poisson_filter(&pts, s.cliff_spacing, |_| true);
-            let mut n_cliff = 0;
-            for k in kept {
-                if n_cliff >= s.cliff_seeds {
-                    break;
-                }
-                let n = steep[k].3;
-                let mut p = sub(pts[k], mul(n, 1.5 * s.radius));
-                while geo.resistance(p) >= s.rho0 && p[2] > floor + 4.0 * s.radius {
-                    p[2] -= 0.5 * s.radius;
-                }
-                if region.weight(&frame, p) <= 0.0 || p[2] < floor + 3.0 * s.radius {
-                    continue;
-                }
-                if push(p, &mut cands, &mut heap, &mut grid) {
-                    n_cliff += 1;
+    }
+
+    /// Resurgences on steep faces: Poisson-spaced steep cells, pushed into the rock.
+    fn karst_resurgences(
+        &self,
+        s: &KarstSettings,
+        region: &Region,
+        floor: f32,
+        queue: &mut Percolation<'_>,
+    ) {
+        if s.cliff_seeds == 0 {
+            return;
+        }
+        let (frame, geo) = (self.frame, queue.geo);
+        let mut steep = Vec::new();
+        for i in 1..frame.height - 1 {
+            for j in 1..frame.width - 1 {
+                let n = self.slope_normal(j, i);
+                if n[2] < 0.8 {
+                    steep.push((hash(s.seed, (i * frame.width + j) as u64, 5, 0), j, i, n));
                 }
             }
         }
-        report.sites = cands.clone();
-        let mut steps = 0usize;
-        report.stop = Some(KarstStop::Exhausted);
-        while let Some(Reverse((kbits, idx))) = heap.pop() {
-            if steps >= s.budget {
-                report.stop = Some(KarstStop::Budget);
+        steep.sort_by_key(|x| x.0);
+        let pts: Vec<V3> = steep
+            .iter()
+            .map(|&(_, j, i, _)| frame.node(j, i, self.dem_at(j, i)))
+            .collect();
+        let kept = poisson_filter(&pts, s.cliff_spacing, |_| true);
+        let mut n_cliff = 0;
+        for k in kept {
+            if n_cliff >= s.cliff_seeds {
                 break;
             }
-            if f32::from_bits(kbits) > s.rho_stop {
-                report.stop = Some(KarstStop::Threshold);
-                break;
+            let n = steep[k].3;
+            let mut p = sub(pts[k], mul(n, 1.5 * s.radius));
+            while geo.resistance(p) >= s.rho0 && p[2] > floor + 4.0 * s.radius {
+                p[2] -= 0.5 * s.radius;
             }
-            let p = cands[idx as usize];
-            report.candidates += 1;
-            let wgt = region.weight(&frame, p);
-            let rho = self.geology.resistance(p);
-            if rho < s.rho0
-                && wgt > 0.0
-                && let Some(a) = soft_radius(p)
-            {
-                let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
-                if e > 0.0 {
-                    steps += 1;
-                    let r = s.support_radius(a, e);
-                    let id = self.tree.sphere(p, r, -s.energy * e)?;
-                    self.negatives.push(id);
-                    self.carved.push((p, r, true));
-                    report.primitives += 1;
-                    for m in 0..s.sub_spheres {
-                        let h =
-                            |c: u64| unit(hash(seed, idx as u64, 100 + m as u64, c)) * 2.0 - 1.0;
-                        // Mostly sideways: passages widen along the bedding.
-                        let q = add(p, mul([h(0), h(1), 0.3 * h(2)], 0.6 * a));
-                        let rq = self.geology.resistance(q);
-                        if rq < s.rho0 {
-                            let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
-                            let rr = 0.7 * s.support_radius(a, eq);
-                            let id = self.tree.sphere(q, rr, -s.energy * eq)?;
-                            self.negatives.push(id);
-                            self.carved.push((q, rr, true));
-                            report.primitives += 1;
-                        }
+            if region.weight(&frame, p) <= 0.0 || p[2] < floor + 3.0 * s.radius {
+                continue;
+            }
+            if queue.push(p) {
+                n_cliff += 1;
+            }
+        }
+    }
+
+    /// Carves the passage at candidate `idx` (position `p`, visible radius `a`, intensity `e`)
+    /// and its sub-spheres; returns the number of primitives added.
+    fn karst_passage(
+        &mut self,
+        s: &KarstSettings,
+        p: V3,
+        a: f32,
+        e: f32,
+        wgt: f32,
+        idx: u32,
+    ) -> Result<usize> {
+        let r = s.support_radius(a, e);
+        let id = self.tree.sphere(p, r, -s.energy * e)?;
+        self.negatives.push(id);
+        self.carved.push((p, r, true));
+        let mut primitives = 1;
+        for m in 0..s.sub_spheres {
+            let h = |c: u64| unit(hash(s.seed, idx as u64, 100 + m as u64, c)) * 2.0 - 1.0;
+            // Mostly sideways: passages widen along the bedding.
+            let q = add(p, mul([h(0), h(1), 0.3 * h(2)], 0.6 * a));
+            let rq = self.geology.resistance(q);
+            if rq < s.rho0 {
+                let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
+                let rr = 0.7 * s.support_radius(a, eq);
+                let id = self.tree.sphere(q, rr, -s.energy * eq)?;
+                self.negatives.push(id);
+                self.carved.push((q, rr, true));
+                primitives += 1;
+            }
+        }
+        Ok(primitives)
+    }
+}
+
+/// The candidates of the invasion percolation: positions, a min-heap on the perturbed
+/// resistance, and a grid for the Poisson rejection.
+struct Percolation<'a> {
+    s: &'a KarstSettings,
+    geo: &'a Geology,
+    cands: Vec<V3>,
+    heap: BinaryHeap<Reverse<(u32, u32)>>,
+    grid: HashMap<(i32, i32, i32), Vec<u32>>,
+}
+
+impl<'a> Percolation<'a> {
+    fn new(s: &'a KarstSettings, geo: &'a Geology) -> Self {
+        Self {
+            s,
+            geo,
+            cands: Vec::new(),
+            heap: BinaryHeap::new(),
+            grid: HashMap::new(),
+        }
+    }
+
+    fn key(&self, p: V3) -> (i32, i32, i32) {
+        let pr = self.s.poisson_radius;
+        (
+            (p[0] / pr).floor() as i32,
+            (p[1] / pr).floor() as i32,
+            (p[2] / pr).floor() as i32,
+        )
+    }
+
+    /// Adds a candidate unless one lies within the Poisson radius; true when added.
+    fn push(&mut self, p: V3) -> bool {
+        let pr = self.s.poisson_radius;
+        let (a, b, c) = self.key(p);
+        for da in -1..=1 {
+            for db in -1..=1 {
+                for dc in -1..=1 {
+                    if let Some(v) = self.grid.get(&(a + da, b + db, c + dc))
+                        && v.iter().any(|&q| norm(sub(self.cands[q as usize], p)) < pr)
+                    {
+                        return false;
                     }
                 }
             }
-            // New candidates on the lower hemisphere, flattened towards the horizontal.
-            for d in 0..s.directions {
-                let h = |c: u64| unit(hash(seed, idx as u64, d as u64, 10 + c));
-                let phi = h(0) * std::f32::consts::TAU;
-                let dir = normalize([phi.cos(), phi.sin(), -s.vertical * h(1)]);
-                let q = add(p, mul(dir, s.step));
-                if q[0] < 0.0
-                    || q[1] < 0.0
-                    || q[0] > xm
-                    || q[1] > ym
-                    || q[2] < floor + 3.0 * s.radius
-                {
-                    continue;
-                }
-                if q[2] > self.ground(q[0], q[1]) - 0.5 * s.radius {
-                    continue;
-                }
-                if region.weight(&frame, q) <= 0.0 {
-                    continue;
-                }
-                push(q, &mut cands, &mut heap, &mut grid);
-            }
         }
-        report.features = steps;
-        report.length_m = steps as f32 * s.step;
-        Ok(report)
+        let idx = self.cands.len() as u32;
+        let k = self.geo.resistance(p) + self.s.epsilon * unit(hash(self.s.seed, idx as u64, 1, 0));
+        self.cands.push(p);
+        self.grid.entry((a, b, c)).or_default().push(idx);
+        self.heap.push(Reverse((k.to_bits(), idx)));
+        true
+    }
+}
+
+/// Test points of a passage sphere: its six poles and eight diagonal points.
+const D: f32 = 0.577_350_26;
+const DIRS: [V3; 14] = [
+    [1.0, 0.0, 0.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, -1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [0.0, 0.0, -1.0],
+    [D, D, D],
+    [D, D, -D],
+    [D, -D, D],
+    [D, -D, -D],
+    [-D, D, D],
+    [-D, D, -D],
+    [-D, -D, D],
+    [-D, -D, -D],
+];
+
+/// The largest passage radius from `s.radius` down to `s.min_radius` (steps of 3/4) whose
+/// sphere lies in rock softer than `rho0`.
+fn soft_radius(geo: &Geology, s: &KarstSettings, p: V3) -> Option<f32> {
+    let mut a = s.radius;
+    loop {
+        if DIRS
+            .iter()
+            .all(|d| geo.resistance(add(p, mul(*d, a))) < s.rho0)
+        {
+            return Some(a);
+        }
+        if a <= s.min_radius {
+            return None;
+        }
+        a = (a * 0.75).max(s.min_radius);
     }
 }

@@ -190,79 +190,11 @@ impl SceneBuilder {
             ));
         }
         region.check(&self.frame)?;
-        let f = self.frame;
-        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
         let a = 0.5 * s.span;
         // The tunnel's axis sits `height - a` above the floor (a round opening when the height
         // is the span, a low flat-floored one below that).
         let lift = s.height - a;
-        let need = s.height + s.thickness;
-        let step = (0.25 * f.cx.min(f.cy)).min(0.5 * a);
-        let half = 0.5 * s.max_length;
-        let margin = a;
-        // Candidates: (fin width, node index, direction index, mouths, floor).
-        let nodes: Vec<(usize, usize)> = (0..f.height)
-            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
-            .collect();
-        let me = &*self;
-        let mut cands: Vec<(f32, u64, V3, V3, V3)> = nodes
-            .par_iter()
-            .filter_map(|&(j, i)| {
-                let top = me.dem_at(j, i);
-                let c = f.node(j, i, top);
-                if c[0] < margin || c[1] < margin || c[0] > xm - margin || c[1] > ym - margin {
-                    return None;
-                }
-                if region.weight(&f, c) <= 0.0 {
-                    return None;
-                }
-                let mut best: Option<(f32, V3, V3, V3)> = None;
-                for k in 0..8 {
-                    let ang = (k as f32 + 0.5 * unit(hash(s.seed, (i * f.width + j) as u64, 1, 0)))
-                        * std::f32::consts::PI
-                        / 8.0;
-                    let d = [ang.cos(), ang.sin(), 0.0];
-                    // Walk out on both sides to the first ground `need` under the crest.
-                    let mut mouths = [[0.0f32; 3]; 2];
-                    let mut ok = true;
-                    for (m, sign) in [1.0f32, -1.0].into_iter().enumerate() {
-                        let mut t = step;
-                        let mut found = None;
-                        while t <= half {
-                            let q = add(c, mul(d, sign * t));
-                            if q[0] < 0.0 || q[1] < 0.0 || q[0] > xm || q[1] > ym {
-                                break;
-                            }
-                            let g = me.ground(q[0], q[1]);
-                            if g <= top - need {
-                                found = Some([q[0], q[1], g]);
-                                break;
-                            }
-                            t += step;
-                        }
-                        match found {
-                            Some(q) => mouths[m] = q,
-                            None => {
-                                ok = false;
-                                break;
-                            }
-                        }
-                    }
-                    if !ok {
-                        continue;
-                    }
-                    let len = norm(sub(mouths[0], mouths[1]));
-                    if len < s.span.min(f.cx.min(f.cy)) {
-                        continue;
-                    }
-                    if best.as_ref().is_none_or(|b| len < b.0) {
-                        best = Some((len, d, mouths[0], mouths[1]));
-                    }
-                }
-                let (len, d, m0, m1) = best?;
-                Some((len, (i * f.width + j) as u64, d, m0, m1))
-            })
-            .collect();
+        let mut cands = self.arch_candidates(s, region);
         cands.sort_by(|x, y| {
             x.0.total_cmp(&y.0)
                 .then(hash(s.seed, x.1, 2, 0).cmp(&hash(s.seed, y.1, 2, 0)))
@@ -337,6 +269,81 @@ impl SceneBuilder {
             report.axes.push(look);
         }
         Ok(report)
+    }
+
+    /// Arch candidates, one per DEM node whose ridge is thin enough in some direction: (tunnel
+    /// length, node index, direction, the two mouths).
+    fn arch_candidates(&self, s: &ArchSettings, region: &Region) -> Vec<(f32, u64, V3, V3, V3)> {
+        let f = self.frame;
+        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        let a = 0.5 * s.span;
+        let need = s.height + s.thickness;
+        let step = (0.25 * f.cx.min(f.cy)).min(0.5 * a);
+        let half = 0.5 * s.max_length;
+        let margin = a;
+        // Candidates: (fin width, node index, direction index, mouths, floor).
+        let nodes: Vec<(usize, usize)> = (0..f.height)
+            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .collect();
+        let me = self;
+        nodes
+            .par_iter()
+            .filter_map(|&(j, i)| {
+                let top = me.dem_at(j, i);
+                let c = f.node(j, i, top);
+                if c[0] < margin || c[1] < margin || c[0] > xm - margin || c[1] > ym - margin {
+                    return None;
+                }
+                if region.weight(&f, c) <= 0.0 {
+                    return None;
+                }
+                let mut best: Option<(f32, V3, V3, V3)> = None;
+                for k in 0..8 {
+                    let ang = (k as f32 + 0.5 * unit(hash(s.seed, (i * f.width + j) as u64, 1, 0)))
+                        * std::f32::consts::PI
+                        / 8.0;
+                    let d = [ang.cos(), ang.sin(), 0.0];
+                    // Walk out on both sides to the first ground `need` under the crest.
+                    let mut mouths = [[0.0f32; 3]; 2];
+                    let mut ok = true;
+                    for (m, sign) in [1.0f32, -1.0].into_iter().enumerate() {
+                        let mut t = step;
+                        let mut found = None;
+                        while t <= half {
+                            let q = add(c, mul(d, sign * t));
+                            if q[0] < 0.0 || q[1] < 0.0 || q[0] > xm || q[1] > ym {
+                                break;
+                            }
+                            let g = me.ground(q[0], q[1]);
+                            if g <= top - need {
+                                found = Some([q[0], q[1], g]);
+                                break;
+                            }
+                            t += step;
+                        }
+                        match found {
+                            Some(q) => mouths[m] = q,
+                            None => {
+                                ok = false;
+                                break;
+                            }
+                        }
+                    }
+                    if !ok {
+                        continue;
+                    }
+                    let len = norm(sub(mouths[0], mouths[1]));
+                    if len < s.span.min(f.cx.min(f.cy)) {
+                        continue;
+                    }
+                    if best.as_ref().is_none_or(|b| len < b.0) {
+                        best = Some((len, d, mouths[0], mouths[1]));
+                    }
+                }
+                let (len, d, m0, m1) = best?;
+                Some((len, (i * f.width + j) as u64, d, m0, m1))
+            })
+            .collect()
     }
 
     /// Floating islands: an ellipsoidal top blended with an inverted cone, warped, hovering

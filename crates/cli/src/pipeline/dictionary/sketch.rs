@@ -1,0 +1,180 @@
+//! The `sketch` stage: synthesis from a painted sketch in three x4 steps (figure 12).
+
+use super::*;
+
+/// Parameters of the `sketch` stage (JSON `params`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub(crate) struct SketchParams {
+    /// Side of the painted sketch in cells (capped so the output is at most the exemplar's
+    /// largest side times two); the output is `4^steps x` that.
+    pub(crate) sketch_size: usize,
+    /// The sketch-synthesis job, the same settings as `relief synthesize`
+    /// ([`SynthesisSettings`]); the spec's fields are merged onto the library's defaults
+    /// (figure 12: three x4 steps, 64 learned atoms) with `R` = 2. The stage lowers the radius
+    /// to 1 on small exemplars, caps
+    /// the atoms at a quarter of the candidate patches and mixes `amplify.seed` with the
+    /// spec's. `amplify.steps` must be 1..=3.
+    pub(crate) job: SynthesisSettings,
+}
+
+impl Default for SketchParams {
+    fn default() -> Self {
+        let lib = SynthesisSettings::default();
+        Self {
+            sketch_size: 8,
+            job: SynthesisSettings {
+                amplify: AmplifySettings {
+                    radius: 2.0,
+                    ..lib.amplify
+                },
+                ..lib
+            },
+        }
+    }
+}
+
+/// The `sketch` stage.
+#[derive(Debug, Default)]
+pub(crate) struct SketchStage(pub(crate) SketchParams);
+
+impl SketchStage {
+    /// Checks the job when the spec is built.
+    pub(crate) fn new(p: SketchParams) -> Result<Self> {
+        p.job.amplify.check().context("invalid `job.amplify`")?;
+        if !(1..=3).contains(&p.job.amplify.steps) {
+            bail!(
+                "invalid parameter `job.amplify.steps` = {}: must be 1, 2 or 3",
+                p.job.amplify.steps
+            );
+        }
+        if p.sketch_size == 0 {
+            bail!("invalid parameter `sketch_size` = 0: must be >= 1");
+        }
+        Ok(Self(p))
+    }
+}
+
+/// A "painted" sketch in `[0, 1]`: a diagonal ridge stroke, a round peak and a valley stroke,
+/// the kind of coarse drawing figure 12 starts from.
+pub(crate) fn painted_sketch(n: usize) -> Heightfield {
+    let s = n as f32;
+    Heightfield::from_fn(n, n, 1.0, 1.0, |x, y| {
+        let (u, v) = ((x as f32 + 0.5) / s, (y as f32 + 0.5) / s);
+        let stroke = |d: f32, w: f32| (-(d * d) / (w * w)).exp();
+        let ridge = stroke((u - 0.2) - 0.9 * (v - 0.1), 0.18) * (1.0 - 0.6 * u);
+        let peak = stroke(((u - 0.7).powi(2) + (v - 0.3).powi(2)).sqrt(), 0.15);
+        let valley = stroke((v - 0.8) + 0.3 * (u - 0.5), 0.1);
+        (0.25 + 0.5 * ridge + 0.6 * peak - 0.25 * valley).clamp(0.0, 1.0)
+    })
+}
+
+impl Stage for SketchStage {
+    fn name(&self) -> &'static str {
+        "sketch"
+    }
+
+    fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
+        let p = &self.0;
+        let steps = p.job.amplify.steps;
+        // The real DEM as loaded when it is complete: earlier stages (amplify) may have made the
+        // current terrain synthetic, and a sketch should get real relief; else the current
+        // terrain.
+        let (exemplar, which) = match &cx.state.source {
+            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
+            _ => (cx.state.terrain()?.clone(), "the current terrain"),
+        };
+        exemplar
+            .require_complete()
+            .context("the sketch stage needs a void-free exemplar terrain")?;
+        let side = exemplar.width().min(exemplar.height());
+        let mut radius = p.job.amplify.radius;
+        if side < min_exemplar_side(radius) {
+            radius = 1.0;
+        }
+        if side < min_exemplar_side(radius) {
+            cx.section.note(&format!(
+                "exemplar {} x {} too small for sketch synthesis; stage skipped",
+                exemplar.width(),
+                exemplar.height()
+            ));
+            return Ok(());
+        }
+        let f = 4usize.pow(steps as u32);
+        let a = 2 * radius.ceil() as usize;
+        // Output at most twice the exemplar's largest side; the sketch holds >= one patch.
+        let cap = 2 * exemplar.width().max(exemplar.height()) / f;
+        let n = p.sketch_size.min(cap).max(a);
+        let sketch = painted_sketch(n);
+        let (dictionary, atoms) = capped_dictionary(
+            p.job.amplify.dictionary,
+            candidate_count((exemplar.width(), exemplar.height()), a) / 4,
+        );
+        let settings = SynthesisSettings {
+            amplify: AmplifySettings {
+                radius,
+                dictionary,
+                seed: cx.config.seed ^ 0x5e7c ^ p.job.amplify.seed,
+                ..p.job.amplify
+            },
+            ..p.job
+        };
+        let progress = cx.progress();
+        progress.begin(&format!("sketch synthesis {n} x {n} -> x{f}"), 0);
+        let t = Instant::now();
+        let sct = synthesize(&sketch, &exemplar, &settings, &progress)?;
+        let out = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
+        let secs = t.elapsed().as_secs_f64();
+        let back = out.resample(n, n)?;
+        let fidelity = relief_heightfield::metrics::pearson(back.as_slice(), sketch.as_slice());
+        let (lo, hi) = out.min_max().unwrap_or((0.0, 0.0));
+        cx.section.figure("sketch_size", n);
+        cx.section.figure("steps", steps);
+        cx.section.figure("radius", radius);
+        cx.section.figure("atoms", atoms);
+        cx.section
+            .figure("output_size", [out.width(), out.height()]);
+        cx.section.figure("seconds", secs);
+        cx.section.figure("elevation_range_m", [lo, hi]);
+        cx.section.headline("sketch_correlation", fidelity);
+        cx.section.note(&format!(
+            "a {n} x {n} painted sketch (ridge stroke, peak, valley) mapped to the exemplar's \
+             elevation range and amplified in {} x4 steps (figure 12) to {} x {} with \
+             {which} ({} x {}) as exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; \
+             correlation of the output reduced to the sketch size with the sketch: {fidelity:.3}",
+            steps,
+            out.width(),
+            out.height(),
+            exemplar.width(),
+            exemplar.height()
+        ));
+        cx.save_raster(
+            "sketch_synthesis",
+            "terrain synthesised from the sketch",
+            &out,
+            None,
+        )?;
+        // The golden is a centre window (at most 128 x 128) so the fixture stays small.
+        let (gw, gh) = (out.width().min(128), out.height().min(128));
+        let window = out.crop((out.width() - gw) / 2, (out.height() - gh) / 2, gw, gh)?;
+        cx.save_raster(
+            "sketch_synthesis_window",
+            "centre window of the synthesis",
+            &window,
+            Some(DICT_TOLERANCE),
+        )?;
+        if cx.config.previews {
+            let (elo, ehi) = exemplar.min_max().unwrap_or((0.0, 1.0));
+            let shown = sketch
+                .map(|v| elo + v * (ehi - elo))
+                .resample(out.width(), out.height())?;
+            cx.before_after(
+                "sketch",
+                "painted sketch (bicubic, for display) and the synthesis",
+                &shown,
+                &out,
+            )?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,330 @@
+//! Steps chained: which exemplar scale each step uses, box resampling, and the `amplify`
+//! drivers with their figures.
+
+use super::*;
+
+/// Minimum exemplar side used at a step, in units of the fine patch side.
+const MIN_EXEMPLAR_PATCHES: usize = 6;
+
+/// Relative tolerance under which a cell-size ratio counts as 1 (no resampling).
+const SCALE_TOLERANCE: f64 = 1e-6;
+
+/// How one x4 step uses the exemplar (see [`AmplifySettings::exemplar_cell_size`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepScale {
+    /// Step index (0: the first x4).
+    pub step: usize,
+    /// Cell size `(x, y)` in metres of the step's output: the coarse input's over `4^(step+1)`.
+    pub target_cell_size: (f64, f64),
+    /// Cell size `(x, y)` of the exemplar grid the step's `H` atoms are cut from.
+    pub exemplar_cell_size: (f64, f64),
+    /// Size `(width, height)` of that grid.
+    pub exemplar_size: (usize, usize),
+    /// Box down-sampling factor applied to the exemplar along x (1: native resolution).
+    pub reduction: f64,
+    /// True when the exemplar could not be brought to the target cell size (it is coarser
+    /// than the target, or too small to be reduced that far): the step relies on the
+    /// self-similarity of relief across scales.
+    pub self_similar: bool,
+    /// One line saying what the step does with the exemplar (printed by the CLI).
+    pub note: String,
+}
+
+/// Figures of an amplification ([`amplify_with_figures`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AmplifyFigures {
+    /// How every x4 step used the exemplar, first step first.
+    pub steps: Vec<StepScale>,
+}
+
+fn fmt_cell((x, y): (f64, f64)) -> String {
+    if (x - y).abs() <= SCALE_TOLERANCE * x.abs().max(y.abs()) {
+        format!("{x:.4} m")
+    } else {
+        format!("{x:.4} x {y:.4} m")
+    }
+}
+
+/// The exemplar grid of every step of an amplification of a coarse input of cell size
+/// `coarse_cell` with an exemplar of `exemplar_size` cells of `exemplar_cell` metres (see
+/// [`AmplifySettings::exemplar_cell_size`]): the target cell size of step `t` is
+/// `coarse_cell / 4^(t+1)`; when the exemplar is at least that fine along both axes it is
+/// box-down-sampled to it, as far as it stays at least 6 fine patches wide; otherwise it is
+/// used at native resolution.
+pub fn exemplar_plan(
+    coarse_cell: (f64, f64),
+    exemplar_size: (usize, usize),
+    exemplar_cell: (f64, f64),
+    settings: &AmplifySettings,
+) -> Vec<StepScale> {
+    let min_side = (MIN_EXEMPLAR_PATCHES * settings.patch_size() * STEP_FACTOR) as f64;
+    let (w, h) = (exemplar_size.0 as f64, exemplar_size.1 as f64);
+    (0..settings.steps)
+        .map(|t| {
+            let f = STEP_FACTOR.pow((t + 1) as u32) as f64;
+            let target = (coarse_cell.0 / f, coarse_cell.1 / f);
+            let (rx, ry) = (target.0 / exemplar_cell.0, target.1 / exemplar_cell.1);
+            let fine_enough = rx >= 1.0 - SCALE_TOLERANCE && ry >= 1.0 - SCALE_TOLERANCE;
+            let native = |note: String| StepScale {
+                step: t,
+                target_cell_size: target,
+                exemplar_cell_size: exemplar_cell,
+                exemplar_size,
+                reduction: 1.0,
+                self_similar: true,
+                note,
+            };
+            if !fine_enough {
+                return native(format!(
+                    "step {}: target cell {} is finer than the exemplar's {}: exemplar used at \
+                     native resolution (self-similarity across scales)",
+                    t + 1,
+                    fmt_cell(target),
+                    fmt_cell(exemplar_cell)
+                ));
+            }
+            let (rx, ry) = (rx.max(1.0), ry.max(1.0));
+            // The largest reduction that keeps the exemplar `min_side` cells wide.
+            let limit = (w / min_side).min(h / min_side).max(1.0);
+            let shrink = (limit / rx.max(ry)).min(1.0);
+            let (kx, ky) = ((rx * shrink).max(1.0), (ry * shrink).max(1.0));
+            let size = (
+                ((w / kx).round() as usize).max(1),
+                ((h / ky).round() as usize).max(1),
+            );
+            let cell = (
+                exemplar_cell.0 * w / size.0 as f64,
+                exemplar_cell.1 * h / size.1 as f64,
+            );
+            let reduced = kx > 1.0 + SCALE_TOLERANCE || ky > 1.0 + SCALE_TOLERANCE;
+            let (size, cell) = if reduced {
+                (size, cell)
+            } else {
+                (exemplar_size, exemplar_cell)
+            };
+            let self_similar = shrink < 1.0 - SCALE_TOLERANCE;
+            let note = if self_similar {
+                format!(
+                    "step {}: target cell {}, exemplar too small to be reduced that far: \
+                     box-down-sampled x{kx:.3} to {} only (self-similarity across scales)",
+                    t + 1,
+                    fmt_cell(target),
+                    fmt_cell(cell)
+                )
+            } else if reduced {
+                format!(
+                    "step {}: target cell {}: exemplar box-down-sampled x{kx:.3} to {} ({} x {})",
+                    t + 1,
+                    fmt_cell(target),
+                    fmt_cell(cell),
+                    size.0,
+                    size.1
+                )
+            } else {
+                format!(
+                    "step {}: target cell {}: exemplar used at native resolution",
+                    t + 1,
+                    fmt_cell(target)
+                )
+            };
+            StepScale {
+                step: t,
+                target_cell_size: target,
+                exemplar_cell_size: cell,
+                exemplar_size: size,
+                reduction: if reduced { kx } else { 1.0 },
+                self_similar,
+                note,
+            }
+        })
+        .collect()
+}
+
+/// Area-consistent box down-sampling of `hf` to `w x h` cells: every output cell is the
+/// exact area average of the input cells it covers (fractional overlaps weighted), so the
+/// mean over any output region equals that of the input over the same ground. The cell size
+/// is scaled to keep the extent.
+pub fn box_resample(hf: &Heightfield, w: usize, h: usize) -> Result<Heightfield> {
+    let (iw, ih) = (hf.width(), hf.height());
+    if w == 0 || h == 0 || w > iw || h > ih {
+        return Err(LearnError::param(
+            "box_resample size",
+            format!("{w}x{h}"),
+            "must be in 1..=the input size (down-sampling only)",
+        ));
+    }
+    // Per output index, the (input index, weight) taps of the 1-D area average.
+    let taps = |n_in: usize, n_out: usize| -> Vec<Vec<(usize, f64)>> {
+        let s = n_in as f64 / n_out as f64;
+        (0..n_out)
+            .map(|i| {
+                let (a, b) = (i as f64 * s, ((i + 1) as f64 * s).min(n_in as f64));
+                let lo = a.floor() as usize;
+                let hi = (b.ceil() as usize).min(n_in);
+                (lo..hi)
+                    .filter_map(|j| {
+                        let ov = (b.min((j + 1) as f64) - a.max(j as f64)) / s;
+                        (ov > 0.0).then_some((j, ov))
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let (tx, ty) = (taps(iw, w), taps(ih, h));
+    let src = hf.as_slice();
+    let mut rows = vec![0.0f64; ih * w];
+    for y in 0..ih {
+        let line = &src[y * iw..(y + 1) * iw];
+        for (x, t) in tx.iter().enumerate() {
+            rows[y * w + x] = t.iter().map(|&(j, wt)| wt * line[j] as f64).sum();
+        }
+    }
+    let data = Array2::from_shape_fn((h, w), |(y, x)| {
+        ty[y]
+            .iter()
+            .map(|&(j, wt)| wt * rows[j * w + x])
+            .sum::<f64>() as f32
+    });
+    let (fx, fy) = (iw as f64 / w as f64, ih as f64 / h as f64);
+    let (cx, cy) = hf.cell_size();
+    let out = Heightfield::from_array(data, cx * fx, cy * fy)?;
+    Ok(out.with_georef(hf.georef().map(|g| g.window(0.0, 0.0, fx, fy))))
+}
+
+/// Amplifies `coarse` by `4^steps` with details of `exemplar` (section 5.3). Step `t` targets
+/// the input's cell size over `4^(t+1)` and cuts its atoms from the exemplar box-down-sampled
+/// to that cell size ([`exemplar_plan`]; the exemplar's cell size is its grid's or
+/// [`AmplifySettings::exemplar_cell_size`]). Intermediate results are rasterised at their own
+/// resolution and fed to the next step; the last step's [`Sct`] is returned, to be rasterised
+/// at any resolution or window.
+pub fn amplify(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+) -> Result<Sct> {
+    amplify_observed(coarse, exemplar, settings, progress, &mut |_| {})
+}
+
+/// [`amplify`], also returning how every step used the exemplar.
+pub fn amplify_with_figures(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+) -> Result<(Sct, AmplifyFigures)> {
+    let mut steps = Vec::with_capacity(settings.steps);
+    let sct = amplify_observed(coarse, exemplar, settings, progress, &mut |r| {
+        steps.push(r.exemplar.clone());
+    })?;
+    Ok((sct, AmplifyFigures { steps }))
+}
+
+/// What one x4 step of [`amplify_observed`] did.
+#[derive(Debug)]
+pub struct StepReport<'a> {
+    /// Step index (0: the first x4).
+    pub step: usize,
+    /// The step's coarse input.
+    pub input: &'a Heightfield,
+    /// The step's result (input size times 4).
+    pub output: &'a Sct,
+    /// How the step used the exemplar (cell sizes, reduction, self-similarity).
+    pub exemplar: &'a StepScale,
+}
+
+/// [`amplify`], calling `observe` after every x4 step (for per-step measures).
+pub fn amplify_observed(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+    observe: &mut dyn FnMut(&StepReport<'_>),
+) -> Result<Sct> {
+    settings.check()?;
+    coarse.require_complete()?;
+    exemplar.require_complete()?;
+    let ah = settings.patch_size() * STEP_FACTOR;
+    let min_side = MIN_EXEMPLAR_PATCHES * ah;
+    if exemplar.width().min(exemplar.height()) < min_side {
+        return Err(LearnError::NotEnough {
+            what: "exemplar side in pixels",
+            needed: min_side,
+            got: exemplar.width().min(exemplar.height()),
+        });
+    }
+    let exemplar_cell = settings
+        .exemplar_cell_size
+        .unwrap_or_else(|| exemplar.cell_size());
+    let plan = exemplar_plan(
+        coarse.cell_size(),
+        (exemplar.width(), exemplar.height()),
+        exemplar_cell,
+        settings,
+    );
+    let mut native = exemplar.clone();
+    native.set_cell_size(exemplar_cell.0, exemplar_cell.1)?;
+    let mut current = coarse.clone();
+    let mut result = None;
+    let mut octave_ratio = None;
+    for (t, scale) in plan.iter().enumerate() {
+        let ex = if scale.exemplar_size == (native.width(), native.height()) {
+            native.clone()
+        } else {
+            box_resample(&native, scale.exemplar_size.0, scale.exemplar_size.1)?
+        };
+        let step_settings = AmplifySettings {
+            seed: item_seed(settings.seed, 0x57e9, t as u64),
+            ..*settings
+        };
+        // Training signals for constrained learning (subsampled to `max_training` anyway):
+        // patches one radius apart are as representative as the coding grid's, at a quarter
+        // of the extraction cost.
+        let training = extract_patches(
+            &current,
+            &PatchGeometry {
+                step: settings.grid_step().max(settings.radius.floor().max(1.0)),
+                ..settings.coarse_geometry()
+            },
+        )?;
+        let mut dict = MultiResDictionary::from_exemplar(
+            &ex,
+            Some(training.matrix.view()),
+            &step_settings,
+            progress,
+        )?;
+        if settings.exemplar_detail {
+            // The exemplar's x4 detail at this step's scale; under self-similarity, the
+            // exemplar's detail one x4 octave coarser is `ratio` times larger.
+            // `octaves` x4 octaves between the exemplar grid used and the target (negative
+            // when the target is finer than the exemplar).
+            let octaves = (scale.target_cell_size.0 / scale.exemplar_cell_size.0).ln()
+                / (STEP_FACTOR as f64).ln();
+            let gain = if scale.self_similar && octaves.abs() > SCALE_TOLERANCE {
+                let ratio =
+                    *octave_ratio.get_or_insert_with(|| crate::sketch::octave_ratio(exemplar));
+                ratio.powf(octaves)
+            } else {
+                1.0
+            };
+            dict.detail_rms = crate::sketch::x4_detail_rms(&ex).map(|r| r * gain);
+        }
+        let sct = dict.amplify_once(&current, &step_settings)?;
+        observe(&StepReport {
+            step: t,
+            input: &current,
+            output: &sct,
+            exemplar: scale,
+        });
+        if t + 1 < settings.steps {
+            current = sct.rasterize(&RasterSettings::default())?;
+        }
+        result = Some(sct);
+    }
+    // The result covers the coarse extent with cells 4^steps times smaller (pixel-is-area).
+    let f = 1.0 / STEP_FACTOR.pow(settings.steps as u32) as f64;
+    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
+    result
+        .map(|s| s.with_georef(georef))
+        .ok_or(LearnError::param("steps", 0, "must be >= 1"))
+}

@@ -1,0 +1,138 @@
+//! Cameras on what a recipe built: the densest karst, the section line and the close-up
+//! renders of its highlights.
+
+use super::*;
+
+/// Centre of the karst spheres in the densest column block (for a close-up camera).
+pub(super) fn densest_karst(b: &SceneBuilder) -> Option<[f32; 3]> {
+    let f = b.frame();
+    let cell = 8.0 * f.cx.max(f.cy);
+    let mut bins: std::collections::BTreeMap<(i64, i64), (usize, [f64; 3])> = Default::default();
+    for (c, _, karst) in b.carvings() {
+        if !karst {
+            continue;
+        }
+        let e = bins
+            .entry(((c[0] / cell) as i64, (c[1] / cell) as i64))
+            .or_insert((0, [0.0; 3]));
+        e.0 += 1;
+        for k in 0..3 {
+            e.1[k] += c[k] as f64;
+        }
+    }
+    bins.values()
+        .max_by_key(|v| v.0)
+        .map(|(n, s)| s.map(|v| (v / *n as f64) as f32))
+}
+
+/// The west-east line through the DEM row holding the most karst spheres (or carving
+/// spheres when there is no karst).
+pub(super) fn best_section_line(b: &SceneBuilder) -> ([f32; 2], [f32; 2]) {
+    let f = b.frame();
+    let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+    let mut counts = vec![0usize; f.height];
+    // Karst passages when there are any (weathering pits would win the count otherwise).
+    let any_karst = b.carvings().iter().any(|c| c.2);
+    for (c, _, karst) in b.carvings() {
+        if any_karst && !karst {
+            continue;
+        }
+        let i = ((c[1] / f.cy).round().max(0.0) as usize).min(f.height - 1);
+        counts[i] += 1;
+    }
+    let best = counts
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
+        .filter(|x| *x.1 > 0)
+        .map_or(0.5 * ym, |(i, _)| i as f32 * f.cy);
+    ([0.0, best], [xm, best])
+}
+
+/// Close-up renders of the first landforms a recipe placed (up to four, one per highlight, each
+/// framed by the size of its kind), side by side in one image, with their feature names; a
+/// closer oblique view of the middle of the scene when nothing was placed. `tile` is the size
+/// and shading of one close-up.
+pub fn render_closeups(
+    scene: &Scene,
+    rep: &RecipeReport,
+    tile: &RenderSettings,
+) -> Result<(Image, Vec<String>)> {
+    let d = &rep.dims;
+    let mut tiles = Vec::new();
+    let mut names = Vec::new();
+    for h in rep.highlights.iter().take(4) {
+        let size = match h.feature {
+            Feature::Hoodoos => d.hoodoo_height_m * 3.5,
+            Feature::Arches => d.arch_span_m * 3.0,
+            Feature::Islands => d.island_radius_m * 8.0,
+            Feature::Karst => d.karst_radius_m * 40.0,
+            _ => d.sea_height_m * 6.0,
+        };
+        let dist = size.max(4.0 * d.voxel_m);
+        if h.cutaway {
+            // Eye in the removed rock, looking at the cut face through `at`.
+            let v = h.from.unwrap_or([-0.55, -0.7, 0.35]);
+            let dir = crate::math::normalize(v);
+            let cam = Camera {
+                eye: crate::math::add(h.at, crate::math::mul(dir, dist)),
+                target: h.at,
+                up: [0.0, 0.0, 1.0],
+                fov_deg: 40.0,
+            };
+            let s = RenderSettings {
+                cutaway: Some((h.at, crate::math::normalize([v[0], v[1], 0.0]))),
+                sea_level: None,
+                ..*tile
+            };
+            tiles.push(render(scene, &cam, &s)?);
+            names.push(format!("{} (cut-away)", h.feature));
+            continue;
+        }
+        // Hoodoos are placed by their foot: aim at mid-height.
+        let at = if h.feature == Feature::Hoodoos {
+            [h.at[0], h.at[1], h.at[2] + 0.5 * d.hoodoo_height_m]
+        } else {
+            h.at
+        };
+        let cam = match h.from {
+            Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
+            None => Camera::closeup(scene, at, dist),
+        };
+        tiles.push(render(scene, &cam, tile)?);
+        names.push(h.feature.to_string());
+    }
+    if tiles.is_empty() {
+        let b = scene.bbox();
+        let c = b.center();
+        let z = scene.dem_height(c[0], c[1]).unwrap_or(c[2]);
+        let dist = 0.3 * b.size()[0].max(b.size()[1]);
+        tiles.push(render(
+            scene,
+            &Camera::closeup(scene, [c[0], c[1], z], dist),
+            tile,
+        )?);
+        names.push("centre".into());
+    }
+    Ok((strip(&tiles), names))
+}
+
+/// Images side by side (top-aligned, black below the shorter ones).
+fn strip(tiles: &[Image]) -> Image {
+    let h = tiles.iter().map(|t| t.height).max().unwrap_or(1);
+    let w: usize = tiles.iter().map(|t| t.width).sum::<usize>().max(1);
+    let mut rgb = vec![0u8; w * h * 3];
+    let mut x0 = 0;
+    for t in tiles {
+        for y in 0..t.height {
+            let src = &t.rgb[y * t.width * 3..(y + 1) * t.width * 3];
+            rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3].copy_from_slice(src);
+        }
+        x0 += t.width;
+    }
+    Image {
+        width: w,
+        height: h,
+        rgb,
+    }
+}

@@ -1,0 +1,407 @@
+//! Ready-made scenes: a list of [`Feature`]s applied to a DEM with physical parameters in
+//! metres derived from the DEM's relief and extent ([`Recipe`], [`build_recipe`],
+//! [`Dimensions`]). This is what the `relief volume` command and the pipeline's `volume` stage
+//! run; the individual generators of [`crate::scene::SceneBuilder`] stay available for finer
+//! control.
+//!
+//! # Sizes (with `R` the relief, `v` the meshing voxel, `s` [`Recipe::scale`])
+//! * voxel `v`: half the larger DEM cell, refined to `R / 32` for low relief, but never finer
+//!   than 1/512 of the larger horizontal extent (the mesh stays within ~512 cells a side);
+//! * closing floor `max(0.3 R, 8 v)` below the lowest sample;
+//! * default geology [`GeologySpec::layered_default`] with a period of `max(R / 6, 9 v)` so that
+//!   its soft strata are at least 2.5 voxels thick;
+//! * karst passages: visible radius `clamp(0.4 t s, v, 0.5 t)` with `t` the median soft-stratum
+//!   thickness measured on the geology, step = radius, budget from a passage density
+//!   ([`Densities::karst_km_per_km2`]); skipped (with a note) when `0.5 t < v`;
+//! * hoodoos `clamp(0.12 R, 15, 250) s` tall (at most `0.45 R`), radius a sixth of that (at
+//!   least `v`); arches spanning `clamp(0.2 R, 30, 300) s` (at most `0.5 R`), rising half their
+//!   span, a seventh of it thick; islands of radius `clamp(0.1 R, 20, 300) s`;
+//! * sea and weathering spheres of radius `max(2.5 v, 0.05 R)`, `0.4` radius apart; sea
+//!   cliffs cut `6 c` back with spheres of `c = max(1.5 v, min(that, 0.4 t))`;
+//! * counts from densities per km^2 ([`Densities`]) over the DEM's area (at least one).
+//!
+//! Each size is checked against the voxel and the relief; a feature that cannot be resolved is
+//! skipped and [`Dimensions::notes`] says why.
+
+use std::str::FromStr;
+
+use relief_heightfield::Heightfield;
+
+use crate::error::{Error, Result};
+use crate::geology::GeologySpec;
+use crate::render::{Camera, Image, RenderSettings, render};
+use crate::scene::{
+    ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,
+    RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, Weathering, WindErosion,
+};
+
+mod build;
+mod closeups;
+
+pub use self::build::build_recipe;
+pub use self::closeups::render_closeups;
+use self::closeups::{best_section_line, densest_karst};
+
+/// One landform effect of a [`Recipe`].
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Feature {
+    /// Sea erosion of the shore band (section 4.1, figure 5): notches and cliff undercuts.
+    Sea,
+    /// Sea caves dug inland from the most eroded shore samples (implies the sea band).
+    Caves,
+    /// Sea cliffs: the shore cut back into a vertical face with ledges of hard strata.
+    Cliffs,
+    /// Karst network by invasion percolation from the sinkholes (section 4.2).
+    Karst,
+    /// Hoodoos on gentle ground (figure 3).
+    Hoodoos,
+    /// Natural arches.
+    Arches,
+    /// Floating islands.
+    Islands,
+    /// Wind and rain erosion of exposed and steep faces (both [`Feature::Wind`] and
+    /// [`Feature::Rain`]).
+    Overhangs,
+    /// Wind erosion of the faces turned to the wind ([`Recipe::wind`]).
+    Wind,
+    /// Rain erosion of steep faces.
+    Rain,
+}
+
+impl Feature {
+    /// Every feature, in the order a recipe applies them.
+    pub const ALL: [Feature; 10] = [
+        Feature::Cliffs,
+        Feature::Sea,
+        Feature::Caves,
+        Feature::Karst,
+        Feature::Overhangs,
+        Feature::Wind,
+        Feature::Rain,
+        Feature::Hoodoos,
+        Feature::Arches,
+        Feature::Islands,
+    ];
+
+    /// The name used on command lines and in specs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Feature::Sea => "sea",
+            Feature::Caves => "caves",
+            Feature::Cliffs => "cliffs",
+            Feature::Karst => "karst",
+            Feature::Hoodoos => "hoodoos",
+            Feature::Arches => "arches",
+            Feature::Islands => "islands",
+            Feature::Overhangs => "overhangs",
+            Feature::Wind => "wind",
+            Feature::Rain => "rain",
+        }
+    }
+
+    /// Parses a comma-separated list (`"sea,karst"`); duplicates are merged, order is
+    /// [`Feature::ALL`]'s.
+    pub fn parse_list(s: &str) -> Result<Vec<Feature>> {
+        let mut v = Vec::new();
+        for part in s.split(',') {
+            let f: Feature = part.trim().parse()?;
+            if !v.contains(&f) {
+                v.push(f);
+            }
+        }
+        v.sort();
+        Ok(v)
+    }
+}
+
+impl FromStr for Feature {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Feature::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                Error::param(
+                    "feature",
+                    format!("`{s}`"),
+                    "must be one of cliffs, sea, caves, karst, hoodoos, arches, islands, overhangs, wind, rain",
+                )
+            })
+    }
+}
+
+impl std::fmt::Display for Feature {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Landform densities used to derive counts from the DEM's area.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Densities {
+    /// Hoodoos per km^2.
+    pub hoodoos_per_km2: f32,
+    /// Arches per km^2.
+    pub arches_per_km2: f32,
+    /// Floating islands per km^2.
+    pub islands_per_km2: f32,
+    /// Sea caves per km^2.
+    pub caves_per_km2: f32,
+    /// Karst passage length per km^2 (km), which sets the karst budget.
+    pub karst_km_per_km2: f32,
+    /// Karst seeds on steep faces per km^2.
+    pub karst_cliff_seeds_per_km2: f32,
+}
+impl Default for Densities {
+    fn default() -> Self {
+        Self {
+            hoodoos_per_km2: 1.0,
+            arches_per_km2: 0.3,
+            islands_per_km2: 0.1,
+            caves_per_km2: 1.0,
+            karst_km_per_km2: 6.0,
+            karst_cliff_seeds_per_km2: 4.0,
+        }
+    }
+}
+
+/// What to build on a DEM.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Recipe {
+    /// Effects to apply (any order; applied in [`Feature::ALL`] order).
+    pub features: Vec<Feature>,
+    /// Sea level (m); `None` = the 25th percentile of the DEM's elevations, so an inland DEM
+    /// gets a lake shore to erode.
+    pub sea_level: Option<f32>,
+    /// Per-cell weights in `[0, 1]` (row-major, DEM size) limiting every effect; `None` =
+    /// everywhere.
+    pub mask: Option<Vec<f32>>,
+    /// Multiplies every derived feature size (module docs); 1 = default.
+    pub scale: f32,
+    /// Meshing voxel edge (m) the sizes are checked against; `None` = derived (module docs).
+    pub voxel: Option<f32>,
+    /// Geology tree; `None` = [`GeologySpec::layered_default`] scaled to the DEM.
+    pub geology: Option<GeologySpec>,
+    /// Karst budget (carving steps); `None` = from [`Densities::karst_km_per_km2`].
+    pub karst_budget: Option<usize>,
+    /// Landform densities.
+    pub densities: Densities,
+    /// Direction the wind blows towards (x east, y north).
+    pub wind: [f32; 2],
+    /// Energy of wind erosion (negative sphere energy scale).
+    pub wind_strength: f32,
+    /// Energy of rain erosion.
+    pub rain_strength: f32,
+    /// Seed of every effect (each derives its own stream).
+    pub seed: u64,
+}
+
+impl Default for Recipe {
+    fn default() -> Self {
+        Self {
+            features: vec![
+                Feature::Sea,
+                Feature::Karst,
+                Feature::Hoodoos,
+                Feature::Arches,
+                Feature::Islands,
+            ],
+            sea_level: None,
+            mask: None,
+            scale: 1.0,
+            voxel: None,
+            geology: None,
+            karst_budget: None,
+            densities: Densities::default(),
+            wind: [1.0, 0.3],
+            wind_strength: 2.0,
+            rain_strength: 2.0,
+            seed: 1,
+        }
+    }
+}
+
+/// The physical parameters a recipe derived from the DEM (metres, counts), for reports.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct Dimensions {
+    /// Larger DEM cell size (m).
+    pub cell_m: f32,
+    /// Relief: highest minus lowest sample (m).
+    pub relief_m: f32,
+    /// Area of the DEM (km^2).
+    pub area_km2: f32,
+    /// Meshing voxel the sizes were checked against (m).
+    pub voxel_m: f32,
+    /// Depth of the closing floor below the lowest sample (m).
+    pub floor_depth_m: f32,
+    /// Period of the default geology's strata (m); `None` with a user geology.
+    pub strata_period_m: Option<f32>,
+    /// Median thickness of the soft strata (`rho < rho0`) measured on the geology (m).
+    pub soft_thickness_m: Option<f32>,
+    /// Karst passage radius (visible, m).
+    pub karst_radius_m: f32,
+    /// Karst step (m).
+    pub karst_step_m: f32,
+    /// Karst budget (steps).
+    pub karst_budget: usize,
+    /// Hoodoo height (m).
+    pub hoodoo_height_m: f32,
+    /// Hoodoo base radius (m).
+    pub hoodoo_radius_m: f32,
+    /// Hoodoos asked for.
+    pub hoodoo_count: usize,
+    /// Arch span (m).
+    pub arch_span_m: f32,
+    /// Arch rise above the higher foot (m).
+    pub arch_height_m: f32,
+    /// Arch thickness (m).
+    pub arch_thickness_m: f32,
+    /// Arches asked for.
+    pub arch_count: usize,
+    /// Floating island radius (m).
+    pub island_radius_m: f32,
+    /// Floating island height above the ground (m).
+    pub island_altitude_m: f32,
+    /// Islands asked for.
+    pub island_count: usize,
+    /// Radius of sea-erosion spheres (m).
+    pub sea_radius_m: f32,
+    /// Height above sea level still eroded (m).
+    pub sea_height_m: f32,
+    /// Sea caves asked for.
+    pub cave_count: usize,
+    /// Sea cave length (m).
+    pub cave_length_m: f32,
+    /// Radius of wind and rain spheres (m).
+    pub weathering_radius_m: f32,
+    /// How far sea cliffs cut the shore back (m).
+    pub cliff_retreat_m: f32,
+    /// Features skipped or adjusted, and why.
+    pub notes: Vec<String>,
+}
+
+/// Deviation of the implicitised DEM's surface `f = T` from the DEM samples.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Deviation {
+    /// Largest absolute vertical distance (m).
+    pub max: f32,
+    /// Mean absolute vertical distance (m).
+    pub mean: f32,
+    /// Number of DEM nodes measured.
+    pub samples: usize,
+}
+
+/// What [`build_recipe`] did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RecipeReport {
+    /// One entry per applied feature.
+    pub effects: Vec<(Feature, EffectReport)>,
+    /// Sea level used (m).
+    pub sea_level: f32,
+    /// Whether the scene has sea features (sea erosion or caves), i.e. water to draw.
+    pub has_sea: bool,
+    /// The derived sizes and counts.
+    pub dims: Dimensions,
+    /// The geology used.
+    pub geology: GeologySpec,
+    /// Implicitisation deviation of the plain DEM primitive.
+    pub deviation: Deviation,
+    /// A horizontal segment (scene x, y) crossing the most carvings: where a vertical section
+    /// shows the tunnels and caves best (the middle west-east line when nothing was carved).
+    pub section_line: ([f32; 2], [f32; 2]),
+    /// The placed landforms (hoodoos, arches, islands, cave mouths) and the densest karst
+    /// area, for close-up cameras.
+    pub highlights: Vec<Highlight>,
+}
+
+/// A landform worth a close-up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Highlight {
+    /// Its kind.
+    pub feature: Feature,
+    /// Where to look (scene coordinates).
+    pub at: [f32; 3],
+    /// Horizontal direction from `at` towards a good eye position (arches: along the tunnel,
+    /// to see through the opening); `None` = the default oblique view from the south-west.
+    pub from: Option<[f32; 3]>,
+    /// Underground (karst): the close-up is a cut-away through `at`, facing the eye.
+    pub cutaway: bool,
+}
+
+fn percentile(hf: &Heightfield, q: f32) -> f32 {
+    relief_heightfield::metrics::quantile(hf.as_slice(), q as f64).unwrap_or(0.0)
+}
+
+fn count(density: f32, area_km2: f32, cap: usize) -> usize {
+    ((density.max(0.0) * area_km2).round() as usize).clamp(1, cap)
+}
+
+impl Recipe {
+    /// Checks the settings that do not depend on the DEM (each error names the field and the
+    /// rule); [`build_recipe`] also checks the sizes against the DEM.
+    pub fn check(&self) -> Result<()> {
+        if !(self.scale.is_finite() && self.scale > 0.0) {
+            return Err(Error::param("scale", self.scale, "must be finite and > 0"));
+        }
+        if let Some(s) = self.sea_level
+            && !s.is_finite()
+        {
+            return Err(Error::param("sea_level", s, "must be finite"));
+        }
+        for (n, v) in [
+            ("wind_strength", self.wind_strength),
+            ("rain_strength", self.rain_strength),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 100.0) {
+                return Err(Error::param(n, v, "must be in (0, 100]"));
+            }
+        }
+        let d = &self.densities;
+        for (n, v) in [
+            ("hoodoos_per_km2", d.hoodoos_per_km2),
+            ("arches_per_km2", d.arches_per_km2),
+            ("islands_per_km2", d.islands_per_km2),
+            ("caves_per_km2", d.caves_per_km2),
+            ("karst_km_per_km2", d.karst_km_per_km2),
+            ("karst_cliff_seeds_per_km2", d.karst_cliff_seeds_per_km2),
+        ] {
+            if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
+                return Err(Error::param(n, v, "must be in [0, 10000]"));
+            }
+        }
+        if let Some(v) = self.voxel
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(Error::param("voxel", v, "must be finite and > 0"));
+        }
+        if let Some(n) = self.karst_budget
+            && n > 1 << 22
+        {
+            return Err(Error::param("karst_budget", n, "must be <= 2^22"));
+        }
+        if !self.wind.iter().all(|v| v.is_finite()) || self.wind == [0.0, 0.0] {
+            return Err(Error::param(
+                "wind",
+                format!("{:?}", self.wind),
+                "must be finite and non-zero",
+            ));
+        }
+        if let Some(m) = &self.mask
+            && let Some(v) = m.iter().find(|v| !(0.0..=1.0).contains(*v))
+        {
+            return Err(Error::param("region.mask value", v, "must be in [0, 1]"));
+        }
+        if let Some(g) = &self.geology {
+            g.build()?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,37 @@
+use super::*;
+
+#[test]
+fn feature_lists_parse_and_reject_unknown_names() {
+    assert_eq!(
+        Feature::parse_list("karst, sea,karst").unwrap(),
+        vec![Feature::Sea, Feature::Karst]
+    );
+    let e = Feature::parse_list("sea,volcano").unwrap_err().to_string();
+    assert!(e.contains("feature") && e.contains("volcano"), "{e}");
+    for f in Feature::ALL {
+        assert_eq!(f.name().parse::<Feature>().unwrap(), f);
+    }
+}
+
+#[test]
+fn recipe_rejects_bad_settings() {
+    let hf = Heightfield::from_fn(8, 8, 10.0, 10.0, |x, y| (x + y) as f32);
+    let e = build_recipe(
+        &hf,
+        &Recipe {
+            scale: f32::NAN,
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("scale"), "{e}");
+    let e = build_recipe(
+        &hf,
+        &Recipe {
+            mask: Some(vec![1.0; 3]),
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("mask"), "{e}");
+}

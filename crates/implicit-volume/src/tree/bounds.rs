@@ -1,0 +1,165 @@
+//! Bounds of a node's field over a region: Lipschitz constants (sphere tracing, skipping empty
+//! cells) and interval ranges.
+
+use super::*;
+
+impl TerrainTree {
+    /// Upper bound of the Lipschitz constant of node `id`'s field restricted to `region`
+    /// (0 when the node's support misses `region`). Used for sphere tracing and for skipping
+    /// empty chunks when meshing.
+    pub fn lipschitz(&self, id: NodeId, region: &Aabb) -> f32 {
+        self.lip(id.0, region)
+    }
+
+    fn lip(&self, id: u32, region: &Aabb) -> f32 {
+        let node = self.nodes[id as usize];
+        let prim = |e: f32, r: f32| {
+            if self.bbox_of(id).intersects(region) {
+                e.abs() * FALLOFF_LIPSCHITZ / r
+            } else {
+                0.0
+            }
+        };
+        match node {
+            Node::Sphere { r, e, .. } | Node::Capsule { r, e, .. } => prim(e, r),
+            Node::Cone { a, b, ra, rb, e } => {
+                let len = crate::math::norm(sub(b, a));
+                prim(e, ra.min(rb)) * (1.0 + (ra - rb).abs() / len)
+            }
+            Node::Ellipsoid { axes, e, .. } => prim(e, axes[0].min(axes[1]).min(axes[2])),
+            Node::Heightfield(k) => {
+                let h = &self.hfs[k as usize];
+                if h.bbox().intersects(region) {
+                    h.lipschitz()
+                } else {
+                    0.0
+                }
+            }
+            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+                .iter()
+                .map(|&c| self.lip(c, region))
+                .sum(),
+            Node::Bvh { bbox, left, right } => {
+                if bbox.intersects(region) {
+                    self.lip(left, region) + self.lip(right, region)
+                } else {
+                    0.0
+                }
+            }
+            Node::Union { a, b } | Node::Intersection { a, b } | Node::Difference { a, b } => {
+                self.lip(a, region).max(self.lip(b, region))
+            }
+            Node::SmoothBlend { a, b, .. } => self.lip(a, region) + self.lip(b, region),
+            Node::Warp {
+                child, amp, freq, ..
+            } => {
+                if !self.bbox_of(id).intersects(region) {
+                    return 0.0;
+                }
+                let grown = region.inflate(0.75 * amp);
+                let jac = 1.0 + amp * freq * fbm_lipschitz(2) * 3f32.sqrt();
+                self.lip(child, &grown) * jac
+            }
+        }
+    }
+
+    /// Conservative range `[lo, hi]` of node `id`'s field over `region` (interval arithmetic
+    /// through the tree; exact bounds of the falloff from the box-to-skeleton distance and of
+    /// the DEM elevations under the box). Used to skip empty chunks when meshing.
+    pub fn interval(&self, id: NodeId, region: &Aabb) -> (f32, f32) {
+        self.iv(id.0, region)
+    }
+
+    fn iv(&self, id: u32, region: &Aabb) -> (f32, f32) {
+        let node = self.nodes[id as usize];
+        let span = |e: f32, gmax: f32| {
+            if e >= 0.0 {
+                (0.0, e * gmax)
+            } else {
+                (e * gmax, 0.0)
+            }
+        };
+        match node {
+            Node::Sphere { c, r, e } => span(e, falloff(region.dist_sq(c) / (r * r))),
+            Node::Ellipsoid { c, axes, e } => {
+                let mut q = 0.0;
+                for k in 0..3 {
+                    let d = (region.min[k] - c[k]).max(0.0).max(c[k] - region.max[k]) / axes[k];
+                    q += d * d;
+                }
+                span(e, falloff(q))
+            }
+            Node::Capsule { e, .. } | Node::Cone { e, .. } => {
+                if self.bbox_of(id).intersects(region) {
+                    span(e, 1.0)
+                } else {
+                    (0.0, 0.0)
+                }
+            }
+            Node::Heightfield(k) => {
+                let h = &self.hfs[k as usize];
+                if !h.bbox().intersects(region) {
+                    return (0.0, 0.0);
+                }
+                let (hl, hh) = h.height_range(region);
+                let (xm, ym) = h.extent();
+                let comps = [
+                    (region.min[0], region.max[0]),
+                    (xm - region.max[0], xm - region.min[0]),
+                    (region.min[1], region.max[1]),
+                    (ym - region.max[1], ym - region.min[1]),
+                    (region.min[2] - h.z_bottom, region.max[2] - h.z_bottom),
+                ];
+                let (mut dl, mut dh) = (hl - region.max[2], hh - region.min[2]);
+                for (a, b) in comps {
+                    dl = dl.min(a);
+                    dh = dh.min(b);
+                }
+                (
+                    THRESHOLD + THRESHOLD * cubic_step(dl / h.r),
+                    THRESHOLD + THRESHOLD * cubic_step(dh / h.r),
+                )
+            }
+            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+                .iter()
+                .fold((0.0, 0.0), |acc, &c| {
+                    let v = self.iv(c, region);
+                    (acc.0 + v.0, acc.1 + v.1)
+                }),
+            Node::Bvh { bbox, left, right } => {
+                if bbox.intersects(region) {
+                    let (a, b) = (self.iv(left, region), self.iv(right, region));
+                    (a.0 + b.0, a.1 + b.1)
+                } else {
+                    (0.0, 0.0)
+                }
+            }
+            Node::Union { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.max(b.0), a.1.max(b.1))
+            }
+            Node::Intersection { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.min(b.0), a.1.min(b.1))
+            }
+            Node::Difference { a, b } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                let (cl, ch) = (
+                    (2.0 * THRESHOLD - b.1).max(0.0),
+                    (2.0 * THRESHOLD - b.0).max(0.0),
+                );
+                (a.0.min(cl), a.1.min(ch))
+            }
+            Node::SmoothBlend { a, b, .. } => {
+                let (a, b) = (self.iv(a, region), self.iv(b, region));
+                (a.0.max(b.0).max(0.0), a.1.max(0.0) + b.1.max(0.0))
+            }
+            Node::Warp { child, amp, .. } => {
+                if !self.bbox_of(id).intersects(region) {
+                    return (0.0, 0.0);
+                }
+                self.iv(child, &region.inflate(0.75 * amp))
+            }
+        }
+    }
+}

@@ -1,0 +1,158 @@
+//! The heightfield primitive (the implicitised DEM: its field, analytic gradient, bounds) and
+//! the DEM frame that places it in the scene.
+
+use super::*;
+
+impl HfPrim {
+    #[inline]
+    pub(super) fn height(&self, x: f32, y: f32) -> f32 {
+        let u = (x / self.cx).clamp(0.0, (self.w - 1) as f32);
+        let v = ((self.h - 1) as f32 - y / self.cy).clamp(0.0, (self.h - 1) as f32);
+        let (j0, i0) = (u.floor() as usize, v.floor() as usize);
+        let (j1, i1) = ((j0 + 1).min(self.w - 1), (i0 + 1).min(self.h - 1));
+        let (tx, ty) = (u - j0 as f32, v - i0 as f32);
+        let d = &self.data;
+        let a = d[i0 * self.w + j0] * (1.0 - tx) + d[i0 * self.w + j1] * tx;
+        let b = d[i1 * self.w + j0] * (1.0 - tx) + d[i1 * self.w + j1] * tx;
+        a * (1.0 - ty) + b * ty
+    }
+    pub(super) fn extent(&self) -> (f32, f32) {
+        ((self.w - 1) as f32 * self.cx, (self.h - 1) as f32 * self.cy)
+    }
+    #[inline]
+    pub(super) fn field(&self, p: V3) -> f32 {
+        let (xm, ym) = self.extent();
+        let db = p[0]
+            .min(xm - p[0])
+            .min(p[1])
+            .min(ym - p[1])
+            .min(p[2] - self.z_bottom);
+        let dt = self.height(p[0], p[1]) - p[2];
+        THRESHOLD + THRESHOLD * cubic_step(dt.min(db) / self.r)
+    }
+    /// Field and analytic gradient (the gradient of the active branch of the `min`, and of
+    /// the bilinear patch of `H`).
+    #[inline]
+    pub(super) fn field_grad(&self, p: V3) -> (f32, V3) {
+        let (xm, ym) = self.extent();
+        let cands = [
+            (p[0], [1.0, 0.0, 0.0]),
+            (xm - p[0], [-1.0, 0.0, 0.0]),
+            (p[1], [0.0, 1.0, 0.0]),
+            (ym - p[1], [0.0, -1.0, 0.0]),
+            (p[2] - self.z_bottom, [0.0, 0.0, 1.0]),
+        ];
+        let mut m = cands[0];
+        for c in &cands[1..] {
+            if c.0 < m.0 {
+                m = *c;
+            }
+        }
+        // Bilinear height and its derivatives.
+        let u = (p[0] / self.cx).clamp(0.0, (self.w - 1) as f32);
+        let v = ((self.h - 1) as f32 - p[1] / self.cy).clamp(0.0, (self.h - 1) as f32);
+        let (j0, i0) = (u.floor() as usize, v.floor() as usize);
+        let (j1, i1) = ((j0 + 1).min(self.w - 1), (i0 + 1).min(self.h - 1));
+        let (tx, ty) = (u - j0 as f32, v - i0 as f32);
+        let d = &self.data;
+        let (z00, z01) = (d[i0 * self.w + j0], d[i0 * self.w + j1]);
+        let (z10, z11) = (d[i1 * self.w + j0], d[i1 * self.w + j1]);
+        let a = z00 * (1.0 - tx) + z01 * tx;
+        let b = z10 * (1.0 - tx) + z11 * tx;
+        let hgt = a * (1.0 - ty) + b * ty;
+        let dt = hgt - p[2];
+        let (val, g) = if dt <= m.0 {
+            let inside_x = p[0] > 0.0 && p[0] < xm;
+            let inside_y = p[1] > 0.0 && p[1] < ym;
+            let dhdu = ((z01 - z00) * (1.0 - ty) + (z11 - z10) * ty) / self.cx;
+            // v grows southwards, y northwards.
+            let dhdv = -(b - a) / self.cy;
+            (
+                dt,
+                [
+                    if inside_x { dhdu } else { 0.0 },
+                    if inside_y { dhdv } else { 0.0 },
+                    -1.0,
+                ],
+            )
+        } else {
+            m
+        };
+        let x = val / self.r;
+        let ds = if x.abs() < 1.0 {
+            1.5 * (1.0 - x * x) / self.r
+        } else {
+            0.0
+        };
+        (
+            THRESHOLD + THRESHOLD * cubic_step(x),
+            mul(g, THRESHOLD * ds),
+        )
+    }
+
+    /// Range of the bilinear DEM over the xy footprint of `b` (clamped to the grid).
+    pub(super) fn height_range(&self, b: &Aabb) -> (f32, f32) {
+        let u0 = ((b.min[0] / self.cx).floor().max(0.0) as usize).min(self.w - 1);
+        let u1 = ((b.max[0] / self.cx).ceil().max(0.0) as usize).min(self.w - 1);
+        let top = (self.h - 1) as f32;
+        let v0 = ((top - b.max[1] / self.cy).floor().max(0.0) as usize).min(self.h - 1);
+        let v1 = ((top - b.min[1] / self.cy).ceil().max(0.0) as usize).min(self.h - 1);
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in v0..=v1 {
+            for &z in &self.data[i * self.w + u0..=i * self.w + u1] {
+                lo = lo.min(z);
+                hi = hi.max(z);
+            }
+        }
+        (lo, hi)
+    }
+    pub(super) fn bbox(&self) -> Aabb {
+        let (xm, ym) = self.extent();
+        Aabb::new([0.0, 0.0, self.z_bottom], [xm, ym, self.z_max]).inflate(self.r)
+    }
+    pub(super) fn lipschitz(&self) -> f32 {
+        THRESHOLD * 1.5 / self.r * self.slope_lip
+    }
+}
+
+/// Where a DEM becomes a heightfield primitive, and its geometry in the scene frame.
+///
+/// The scene frame has `x` east and `y` north in metres from the DEM's south-west node and `z`
+/// up in the DEM's units: DEM node (row `i`, column `j`) of a `w x h` grid sits at
+/// `(j cx, (h - 1 - i) cy)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DemFrame {
+    /// Grid width (columns).
+    pub width: usize,
+    /// Grid height (rows).
+    pub height: usize,
+    /// East-west spacing (m).
+    pub cx: f32,
+    /// North-south spacing (m).
+    pub cy: f32,
+}
+
+impl DemFrame {
+    /// Scene position of node (column `j`, row `i`) at elevation `z`.
+    pub fn node(&self, j: usize, i: usize, z: f32) -> V3 {
+        [
+            j as f32 * self.cx,
+            (self.height - 1 - i) as f32 * self.cy,
+            z,
+        ]
+    }
+    /// Continuous (column, row) of a scene point.
+    pub fn to_grid(&self, p: V3) -> (f32, f32) {
+        (p[0] / self.cx, (self.height - 1) as f32 - p[1] / self.cy)
+    }
+    /// Nearest cell (column, row) of a scene point, if inside the grid.
+    pub fn cell(&self, p: V3) -> Option<(usize, usize)> {
+        let (u, v) = self.to_grid(p);
+        let (j, i) = (u.round(), v.round());
+        if j >= 0.0 && i >= 0.0 && (j as usize) < self.width && (i as usize) < self.height {
+            Some((j as usize, i as usize))
+        } else {
+            None
+        }
+    }
+}

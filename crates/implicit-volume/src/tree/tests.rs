@@ -1,0 +1,161 @@
+use super::*;
+use relief_heightfield::Heightfield;
+
+#[test]
+fn node_is_compact() {
+    assert!(
+        TerrainTree::node_size() <= 40,
+        "{}",
+        TerrainTree::node_size()
+    );
+}
+
+#[test]
+fn bvh_equals_flat_blend_and_lipschitz_bounds_hold() {
+    let mut t = TerrainTree::new();
+    let mut ids = Vec::new();
+    for k in 0..200u64 {
+        let h = |s| crate::math::unit(crate::math::hash(3, k, s, 0)) * 100.0;
+        let c = [h(0), h(1), h(2)];
+        ids.push(match k % 4 {
+            0 => t.sphere(c, 5.0 + h(3) * 0.1, 1.0).unwrap(),
+            1 => t.capsule(c, add(c, [3.0, 1.0, 2.0]), 4.0, -0.7).unwrap(),
+            2 => t.cone(c, add(c, [0.0, 0.0, 8.0]), 6.0, 2.0, 0.9).unwrap(),
+            _ => t.ellipsoid(c, [6.0, 4.0, 3.0], 1.2).unwrap(),
+        });
+    }
+    let flat = t.blend(&ids).unwrap();
+    let bvh = t.bvh_blend(&ids).unwrap();
+    let region = Aabb::new([0.0; 3], [100.0; 3]);
+    let l = t.lipschitz(flat, &region);
+    assert!((l - t.lipschitz(bvh, &region)).abs() < 1e-3 * l);
+    for k in 0..2000u64 {
+        let h = |s| crate::math::unit(crate::math::hash(9, k, s, 0)) * 100.0;
+        let p = [h(0), h(1), h(2)];
+        let (a, b) = (t.eval(flat, p), t.eval(bvh, p));
+        assert!((a - b).abs() < 1e-5, "{a} {b}");
+        let q = add(p, [0.3, -0.2, 0.1]);
+        let small = Aabb::new(p, q);
+        let lb = t.lipschitz(bvh, &small);
+        let d = crate::math::norm(sub(q, p));
+        assert!((t.eval(bvh, q) - b).abs() <= lb * d + 1e-5);
+    }
+}
+
+#[test]
+fn intervals_contain_the_field() {
+    let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
+        50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
+    });
+    let mut t = TerrainTree::new();
+    let (h, _) = t.heightfield(&hf, 15.0, 30.0).unwrap();
+    let s1 = t.sphere([100.0, 100.0, 60.0], 30.0, -2.0).unwrap();
+    let e1 = t
+        .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+        .unwrap();
+    let bv = t.bvh_blend(&[s1, e1]).unwrap();
+    let bl = t.blend(&[h, bv]).unwrap();
+    let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
+    let root = t.union(bl, w).unwrap();
+    for k in 0..300u64 {
+        let r = |s| crate::math::unit(crate::math::hash(5, k, s, 0));
+        let c = [r(0) * 290.0, r(1) * 190.0, r(2) * 150.0];
+        let b = Aabb::new(c, add(c, [r(3) * 40.0, r(4) * 40.0, r(5) * 40.0]));
+        let (lo, hi) = t.interval(root, &b);
+        for m in 0..20u64 {
+            let q = |s| crate::math::unit(crate::math::hash(6, k, m, s));
+            let p = [
+                b.min[0] + q(0) * (b.max[0] - b.min[0]),
+                b.min[1] + q(1) * (b.max[1] - b.min[1]),
+                b.min[2] + q(2) * (b.max[2] - b.min[2]),
+            ];
+            let v = t.eval(root, p);
+            assert!(v >= lo - 1e-5 && v <= hi + 1e-5, "{v} not in [{lo}, {hi}]");
+        }
+    }
+}
+
+#[test]
+fn warp_skips_the_noise_outside_its_box_without_changing_the_field() {
+    let mut t = TerrainTree::new();
+    let e1 = t
+        .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+        .unwrap();
+    let (amp, freq) = (6.0, 0.1);
+    let w = t.warp(e1, amp, freq, 3).unwrap();
+    let b = t.bbox(w);
+    assert_eq!(b, t.bbox(e1).inflate(0.75 * amp));
+    let mut inside = 0;
+    for k in 0..4000u64 {
+        let r = |s| crate::math::unit(crate::math::hash(9, k, s, 0));
+        let p = [110.0 + r(0) * 80.0, 60.0 + r(1) * 40.0, 65.0 + r(2) * 50.0];
+        // The definition: the child at the displaced point.
+        let d = fbm3(3, mul(p, freq), 2);
+        let want = t.eval(e1, add(p, mul(d, amp)));
+        assert_eq!(t.eval(w, p), want, "at {p:?}");
+        if !b.contains(p) {
+            assert_eq!(want, 0.0, "warp box too small at {p:?}");
+        } else if want > 0.0 {
+            inside += 1;
+        }
+    }
+    assert!(inside > 100, "{inside}");
+}
+
+#[test]
+fn analytic_gradient_matches_central_differences() {
+    let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
+        50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
+    });
+    let mut t = TerrainTree::new();
+    let (h, _) = t.heightfield(&hf, 15.0, 30.0).unwrap();
+    let s1 = t.sphere([100.0, 100.0, 60.0], 30.0, -2.0).unwrap();
+    let c1 = t
+        .capsule([50.0, 50.0, 60.0], [120.0, 80.0, 70.0], 12.0, -1.5)
+        .unwrap();
+    let e1 = t
+        .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
+        .unwrap();
+    let k1 = t
+        .cone([200.0, 60.0, 60.0], [200.0, 60.0, 100.0], 15.0, 5.0, 1.0)
+        .unwrap();
+    let bv = t.bvh_blend(&[s1, c1]).unwrap();
+    let bl = t.blend(&[h, bv]).unwrap();
+    let sm = t.smooth_blend(e1, k1, 3.0).unwrap();
+    let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
+    let u = t.union(bl, sm).unwrap();
+    let d = t.difference(u, w).unwrap();
+    let root = t.intersection(d, h).unwrap();
+    let (mut n, mut worst) = (0, 0.0f32);
+    for k in 0..4000u64 {
+        let r = |s| crate::math::unit(crate::math::hash(8, k, s, 0));
+        let p = [r(0) * 290.0, r(1) * 190.0, 20.0 + r(2) * 100.0];
+        let (v, g) = t.eval_grad(root, p, 1e-3);
+        assert!((v - t.eval(root, p)).abs() < 1e-5);
+        let mut fd = [0.0; 3];
+        let hh = 1e-2;
+        for a in 0..3 {
+            let (mut p1, mut p2) = (p, p);
+            p1[a] += hh;
+            p2[a] -= hh;
+            fd[a] = (t.eval(root, p1) - t.eval(root, p2)) / (2.0 * hh);
+        }
+        let err = crate::math::norm(sub(g, fd));
+        let scale = crate::math::norm(fd).max(1e-3);
+        // Kinks (CSG switches, grid lines, clamps) can sit between the FD samples.
+        if err > 0.05 * scale + 1e-4 {
+            worst = worst.max(err / scale);
+            n += 1;
+        }
+    }
+    assert!(n < 40, "{n} points disagree (worst relative {worst})");
+}
+
+#[test]
+fn errors_name_the_parameter() {
+    let mut t = TerrainTree::new();
+    let e = t.sphere([0.0; 3], -1.0, 1.0).unwrap_err();
+    assert!(e.to_string().contains("sphere.radius"));
+    assert!(t.union(NodeId(5), NodeId(6)).is_err());
+    assert!(t.smooth_blend(NodeId(0), NodeId(0), 0.5).is_err());
+}
