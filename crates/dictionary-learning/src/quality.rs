@@ -209,13 +209,8 @@ pub fn laplacian_histogram_distance(a: &Heightfield, truth: &Heightfield) -> f64
     metrics::histogram_emd(&hist(&la), &hist(&lt)) * (2.0 * ls / 90.0) / ls
 }
 
-/// Detail-energy phase swing of `output - reference` (the reference is usually the bicubic
-/// up-sampling of the input): the squared mean-removed detail averaged along rows and along
-/// columns gives two profiles; for periods 4, 8, 16 and 32 (when the profile holds at least 12
-/// periods) the profile's means per phase modulo the period are compared, max / min. The worst
-/// over periods and axes is returned (1 = no phase dependence). A grid of primitives or dyadic
-/// blocks raises it; real terrain gives about 1.06.
-pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64> {
+/// Refuses a reference of another size than the output.
+fn check_reference(output: &Heightfield, reference: &Heightfield) -> Result<()> {
     if output.width() != reference.width() || output.height() != reference.height() {
         return Err(LearnError::param(
             "reference",
@@ -223,6 +218,17 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
             "must have the output's size",
         ));
     }
+    Ok(())
+}
+
+/// Detail-energy phase swing of `output - reference` (the reference is usually the bicubic
+/// up-sampling of the input): the squared mean-removed detail averaged along rows and along
+/// columns gives two profiles; for periods 4, 8, 16 and 32 (when the profile holds at least 12
+/// periods) the profile's means per phase modulo the period are compared, max / min. The worst
+/// over periods and axes is returned (1 = no phase dependence). A grid of primitives or dyadic
+/// blocks raises it; real terrain gives about 1.06.
+pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64> {
+    check_reference(output, reference)?;
     Ok(relief_heightfield::metrics::detail_swing(
         output, reference,
     )?)
@@ -235,13 +241,7 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
 /// give max / min; the worse axis is returned. Stationary detail gives 1 up to estimation
 /// noise; a grid of primitives with that spacing raises it.
 pub fn phase_swing(output: &Heightfield, reference: &Heightfield, period: usize) -> Result<f64> {
-    if output.width() != reference.width() || output.height() != reference.height() {
-        return Err(LearnError::param(
-            "reference",
-            format!("{}x{}", reference.width(), reference.height()),
-            "must have the output's size",
-        ));
-    }
+    check_reference(output, reference)?;
     let p = period;
     let (w, h) = (output.width(), output.height());
     if p < 2 || w < 2 * p || h < 2 * p {
@@ -251,13 +251,7 @@ pub fn phase_swing(output: &Heightfield, reference: &Heightfield, period: usize)
             "must be >= 2 and leave at least 2 x 2 blocks",
         ));
     }
-    let d: Vec<f64> = output
-        .as_slice()
-        .iter()
-        .zip(reference.as_slice())
-        .map(|(a, b)| *a as f64 - *b as f64)
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let (d, mean) = metrics::difference_field(output, reference)?;
     let mut phase = vec![0.0f64; p * p];
     let mut blocks = 0usize;
     for by in 0..h / p {
@@ -308,13 +302,7 @@ pub fn phase_swing(output: &Heightfield, reference: &Heightfield, period: usize)
 /// primitives (the same atom picked by a row of neighbouring primitives) makes a peak at the
 /// grid step, seen as short horizontal and vertical streaks and dotted rows in hillshades.
 pub fn repeat_score(output: &Heightfield, reference: &Heightfield, lag: usize) -> Result<f64> {
-    if output.width() != reference.width() || output.height() != reference.height() {
-        return Err(LearnError::param(
-            "reference",
-            format!("{}x{}", reference.width(), reference.height()),
-            "must have the output's size",
-        ));
-    }
+    check_reference(output, reference)?;
     let (w, h) = (output.width(), output.height());
     if lag < 3 || w <= 2 * (lag + 2) || h <= 2 * (lag + 2) {
         return Err(LearnError::param(
@@ -323,13 +311,7 @@ pub fn repeat_score(output: &Heightfield, reference: &Heightfield, lag: usize) -
             "must be >= 3 and leave the grid at least twice lag + 2 wide",
         ));
     }
-    let d: Vec<f64> = output
-        .as_slice()
-        .iter()
-        .zip(reference.as_slice())
-        .map(|(a, b)| *a as f64 - *b as f64)
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let (d, mean) = metrics::difference_field(output, reference)?;
     let d: Vec<f64> = d.iter().map(|v| v - mean).collect();
     let var = d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64;
     if var <= 0.0 {

@@ -12,19 +12,24 @@ fn alps(x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
     dem_crop("alps_dem", x, y, w, h)
 }
 
-#[test]
-fn ksvd_reduces_error_and_is_deterministic() {
-    let Some(hf) = alps(200, 100, 160, 160) else {
-        return;
-    };
-    let p = extract_patches(
-        &hf,
+/// The `8 x 8` patches of `hf` at step 2.
+fn patches_8(hf: &Heightfield) -> relief_sparse_core::Patches {
+    extract_patches(
+        hf,
         &PatchGeometry {
             step: 2.0,
             ..PatchGeometry::with_patch_size(8)
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn ksvd_reduces_error_and_is_deterministic() {
+    let Some(hf) = alps(200, 100, 160, 160) else {
+        return;
+    };
+    let p = patches_8(&hf);
     for variant in [KsvdVariant::Approximate, KsvdVariant::Exact] {
         let s = KsvdSettings {
             n_atoms: 48,
@@ -60,14 +65,7 @@ fn constrained_atoms_are_patches_and_error_decreases() {
     let Some(hf) = alps(600, 300, 128, 128) else {
         return;
     };
-    let p = extract_patches(
-        &hf,
-        &PatchGeometry {
-            step: 2.0,
-            ..PatchGeometry::with_patch_size(8)
-        },
-    )
-    .unwrap();
+    let p = patches_8(&hf);
     let s = ConstrainedSettings {
         n_atoms: 32,
         sparsity: 2,
@@ -464,14 +462,7 @@ fn results_do_not_depend_on_thread_count() {
     let (Some(hf), Some(ex)) = (alps(500, 100, 96, 96), alps(1500, 350, 256, 256)) else {
         return;
     };
-    let p = extract_patches(
-        &hf,
-        &PatchGeometry {
-            step: 2.0,
-            ..PatchGeometry::with_patch_size(8)
-        },
-    )
-    .unwrap();
+    let p = patches_8(&hf);
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

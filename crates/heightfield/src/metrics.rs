@@ -233,15 +233,11 @@ pub fn slope_histogram_distance(a: &Heightfield, b: &Heightfield) -> f64 {
     histogram_emd(&slope_histogram(a), &slope_histogram(b))
 }
 
-/// Grid-artifact swing of `output - reference` (the definition of
-/// `shared/tools/terrain_quality.py`): the mean-removed squared difference is averaged into row
-/// and column profiles; for periods 4, 8, 16 and 32 px (profiles of at least 12 periods) the
-/// profile's sums per phase modulo the period are compared, max / min. The worst over periods
-/// and axes is returned (1 = no phase dependence). A grid of primitives or dyadic blocks raises
-/// it.
-pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64> {
+/// The detail `output - reference` (row-major, `f64`) and its mean, on which the
+/// grid-artifact measures work ([`detail_swing`], and the phase swing and repeat score of
+/// relief-dictionary-learning). The grids must have the same size.
+pub fn difference_field(output: &Heightfield, reference: &Heightfield) -> Result<(Vec<f64>, f64)> {
     same_size(output, reference)?;
-    let (w, h) = (output.width(), output.height());
     let d: Vec<f64> = output
         .as_slice()
         .iter()
@@ -249,6 +245,18 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
         .map(|(a, b)| *a as f64 - *b as f64)
         .collect();
     let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
+    Ok((d, mean))
+}
+
+/// Grid-artifact swing of `output - reference` (the definition of
+/// `shared/tools/terrain_quality.py`): the mean-removed squared difference is averaged into row
+/// and column profiles; for periods 4, 8, 16 and 32 px (profiles of at least 12 periods) the
+/// profile's sums per phase modulo the period are compared, max / min. The worst over periods
+/// and axes is returned (1 = no phase dependence). A grid of primitives or dyadic blocks raises
+/// it.
+pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64> {
+    let (d, mean) = difference_field(output, reference)?;
+    let (w, h) = (output.width(), output.height());
     let mut rows = vec![0.0f64; h];
     let mut cols = vec![0.0f64; w];
     for y in 0..h {

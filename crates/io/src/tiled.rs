@@ -502,7 +502,7 @@ fn flush_band(
                     t[r * tile..r * tile + (x1 - x0)]
                         .copy_from_slice(&band[r * w + x0..r * w + x1]);
                 }
-                encode_tile(&t, tile, compression)
+                compression.encode(&t, tile)
             })
             .collect::<Result<_>>()?;
         for t in tiles {
@@ -528,12 +528,6 @@ fn flush_band(
     }
     level.band.clear();
     Ok(())
-}
-
-/// One tile's bytes: raw little-endian samples, or the floating-point-predicted rows through
-/// the codec.
-fn encode_tile(t: &[f32], tile: usize, compression: TiffCompression) -> Result<Vec<u8>> {
-    compression.encode(t, tile)
 }
 
 /// 2 x 2 mean of two rows (the second absent at an odd last row) into one row of half the

@@ -20,6 +20,11 @@ pub fn workspace_root() -> PathBuf {
         .expect("workspace root")
 }
 
+/// A bundled fixture of the workspace (`fixtures/<name>`, e.g. `grandcanyon.tif`).
+pub fn fixture(name: &str) -> PathBuf {
+    workspace_root().join("fixtures").join(name)
+}
+
 /// The real DEM folder, or `None` (with a notice on stderr) when absent outside CI.
 ///
 /// # Panics

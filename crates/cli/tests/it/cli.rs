@@ -93,11 +93,7 @@ fn convert_fill_voids_leaves_no_voids() {
         out.as_os_str(),
         os("--fill-voids"),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let filled = read(&out);
     assert_eq!(filled.void_count(), 0);
     let original = read(&hgt);
@@ -117,11 +113,7 @@ fn preview_writes_png() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.png");
     let res = relief(&[os("preview"), tif.as_os_str(), out.as_os_str()]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     // N47E011: 1201 x 1201 samples of 62.8 m x 92.6 m: the preview is square on the ground.
@@ -135,11 +127,7 @@ fn preview_writes_png() {
         hgt.as_os_str(),
         out.as_os_str(),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let b = std::fs::read(&out).unwrap();
     let (w, h) = (
         u32::from_be_bytes(b[16..20].try_into().unwrap()),
@@ -296,7 +284,7 @@ fn geo_transform_of(v: &serde_json::Value) -> Vec<f64> {
 /// extent with the pixel size divided by the factor.
 #[test]
 fn gdal_reads_relief_outputs_in_place() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let Some(orig) = gdalinfo(&src) else {
         return;
     };
@@ -306,11 +294,7 @@ fn gdal_reads_relief_outputs_in_place() {
     files.extend(dem("N47E011.hgt"));
     for f in &files {
         let res = relief(&[os("info"), os("--json"), f.as_os_str()]);
-        assert!(
-            res.status.success(),
-            "{}",
-            String::from_utf8_lossy(&res.stderr)
-        );
+        ok(&res);
         let mine: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
         let gdal = gdalinfo(f).unwrap();
         assert_eq!(mine["size"], gdal["size"], "{}", f.display());
@@ -338,11 +322,7 @@ fn gdal_reads_relief_outputs_in_place() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.tif");
     let res = relief(&[os("convert"), src.as_os_str(), out.as_os_str()]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let info = gdalinfo(&out).unwrap();
     assert_eq!(info["size"], orig["size"]);
     assert_eq!(
@@ -394,11 +374,7 @@ fn gdal_reads_relief_outputs_in_place() {
         os("--atoms"),
         os("32"),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let (ci, ai) = (gdalinfo(&coarse_p).unwrap(), gdalinfo(&amp).unwrap());
     assert_eq!(ai["size"], serde_json::json!([128, 128]));
     let (c, a) = (geo_transform(&ci), geo_transform(&ai));
@@ -421,7 +397,7 @@ fn gdal_reads_relief_outputs_in_place() {
 /// the extent; the `.prj` of an input is never overwritten.
 #[test]
 fn ascii_grids_carry_their_crs_in_a_prj() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let asc = tmp.path().join("gc.asc");
     let res = relief(&[os("convert"), src.as_os_str(), asc.as_os_str()]);
@@ -473,7 +449,7 @@ fn ascii_grids_carry_their_crs_in_a_prj() {
 /// scale/offset) read with the source's values and placement.
 #[test]
 fn gdal_made_geotiff_variants_read_correctly() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     if gdalinfo(&src).is_none() {
         return;
     }
@@ -550,16 +526,12 @@ fn gdal_made_geotiff_variants_read_correctly() {
 #[test]
 fn heightmaps_state_their_height_range() {
     let tmp = tempfile::tempdir().unwrap();
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let truth = read(&src);
     let (lo, hi) = truth.min_max().unwrap();
     let r16 = tmp.path().join("h.r16");
     let res = relief(&[os("convert"), src.as_os_str(), r16.as_os_str()]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let side: serde_json::Value =
         serde_json::from_slice(&std::fs::read(tmp.path().join("h.r16.json")).unwrap()).unwrap();
     assert_eq!(side["height_min_m"].as_f64().unwrap(), lo as f64);
@@ -579,11 +551,7 @@ fn heightmaps_state_their_height_range() {
         src.as_os_str(),
         png.as_os_str(),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let side: serde_json::Value =
         serde_json::from_slice(&std::fs::read(tmp.path().join("h.png.json")).unwrap()).unwrap();
     assert_eq!(side["height_range_m"].as_f64().unwrap(), 4000.0);
@@ -603,11 +571,7 @@ fn heightmaps_state_their_height_range() {
         holed_p.as_os_str(),
         out.as_os_str(),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
 }
 
 /// Issue 14: a Mapbox Terrain-RGB PNG (no relief marker) reads with `--png-encoding
@@ -637,11 +601,7 @@ fn terrain_rgb_png_reads_from_the_command_line() {
         os("terrain-rgb"),
         p.as_os_str(),
     ]);
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let v: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert!((v["statistics"]["min"].as_f64().unwrap() - 100.0).abs() < 0.06);
     assert!((v["statistics"]["max"].as_f64().unwrap() - 131.0).abs() < 0.06);
@@ -671,7 +631,7 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
     .unwrap();
     let out = tmp.path().join("out");
     let o = relief(&[os("run"), spec.as_os_str(), os("--out"), out.as_os_str()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ok(&o);
     for f in ["summary.json", "report.html", "dem.tif", "dem.png"] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
@@ -746,7 +706,7 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
 /// after two levels, 0.5 per level in that level's pixels), and says so.
 #[test]
 fn gdal_places_every_command_output_on_the_input_extent() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     if gdalinfo(&src).is_none() {
         return;
     }
@@ -863,7 +823,7 @@ fn gdal_places_every_command_output_on_the_input_extent() {
 /// without writing.
 #[test]
 fn preview_light_flags_are_used_and_checked() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let a = tmp.path().join("a.png");
     let b = tmp.path().join("b.png");
@@ -906,7 +866,7 @@ fn preview_light_flags_are_used_and_checked() {
 /// output is a 16-bit heightmap.
 #[test]
 fn size_plus_one_writes_engine_heightmaps() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let r16 = tmp.path().join("h.r16");
     let res = relief(&[
@@ -950,7 +910,7 @@ fn size_plus_one_writes_engine_heightmaps() {
 /// with the same values as the source, and back in relief exactly; a COG mosaic takes them too.
 #[test]
 fn zstd_and_lzw_geotiffs_read_in_gdal_and_relief() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let dem = read(&src);
     let orig = gdalinfo(&src);
@@ -989,7 +949,7 @@ fn zstd_and_lzw_geotiffs_read_in_gdal_and_relief() {
 /// and compressed too; `--cog` with no GeoTIFF output is refused.
 #[test]
 fn cog_flag_writes_cloud_optimized_geotiffs() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("cog.tif");
     let res = relief(&[

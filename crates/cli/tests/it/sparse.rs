@@ -12,7 +12,7 @@ use crate::common::*;
 
 /// A crop of `fixtures/grandcanyon.tif` written as a GeoTIFF into `dir`.
 fn fixture_crop(dir: &Path, x: usize, y: usize, w: usize, h: usize) -> (PathBuf, Heightfield) {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
+    let src = relief_testdata::fixture("grandcanyon.tif");
     let hf = read(&src).crop(x, y, w, h).unwrap();
     let path = dir.join(format!("gc_{x}_{y}_{w}x{h}.tif"));
     relief_io::write(&path, &hf, &relief_io::WriteOptions::default()).unwrap();

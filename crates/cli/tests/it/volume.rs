@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use crate::common::ok;
+
 fn relief(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_relief"))
         .arg("--quiet")
@@ -156,11 +158,7 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
             "1",
         ]);
         let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        ok(&out);
         assert!(stdout.contains("karst:        0 primitives"), "{stdout}");
         let head = std::fs::read(&mesh).unwrap();
         match ext {
@@ -184,11 +182,7 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
         s(&dir.path().join("full_section.png")),
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ok(&out);
     assert!(!stdout.contains("karst:        0 primitives"), "{stdout}");
 }
 
@@ -222,11 +216,7 @@ fn volume_up_axis_rotates_obj_and_ply() {
             "--up",
             up,
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        ok(&out);
         obj_vertices(mesh)
     };
     let z = run("z", &dir.path().join("z.obj"));
@@ -331,11 +321,7 @@ fn glb_passes_the_khronos_validator() {
         "--mesh",
         s(&glb),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ok(&out);
     let script = "const v=require('gltf-validator');const b=new Uint8Array(require('fs')\
                   .readFileSync(process.argv[1]));v.validateBytes(b).then(r=>{console.log(\
                   JSON.stringify(r.issues))}).catch(e=>{console.error(String(e));process.exit(2)})";
@@ -346,11 +332,7 @@ fn glb_passes_the_khronos_validator() {
         .arg(&glb)
         .output()
         .expect("run node");
-    assert!(
-        res.status.success(),
-        "{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    ok(&res);
     let issues: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert_eq!(issues["numErrors"], 0, "{issues}");
     assert_eq!(issues["numWarnings"], 0, "{issues}");
@@ -387,11 +369,7 @@ fn volume_reads_a_geology_and_draws_water_only_with_sea() {
         "--report",
         s(&report),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ok(&out);
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(r["geology"]["type"], "strata", "{r}");
     assert!((r["geology"]["layers"][1]["hardness"].as_f64().unwrap() - 0.9).abs() < 1e-6);

@@ -9,7 +9,7 @@ use relief_heightfield::Heightfield;
 use crate::common::*;
 
 fn fixture() -> Heightfield {
-    read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif"))
+    read(&relief_testdata::fixture("grandcanyon.tif"))
 }
 
 /// Writes a crop of the fixture as GeoTIFF into `dir`.
