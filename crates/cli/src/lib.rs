@@ -14,6 +14,7 @@ mod commands;
 mod ctx;
 mod memory;
 mod outputs;
+mod sparse_model;
 mod staging;
 
 use std::path::{Path, PathBuf};

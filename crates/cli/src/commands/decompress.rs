@@ -87,7 +87,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&[
             crate::memory::part(
                 format!("the {} x {} output raster", win.width, win.height),
-                out_cells * super::amplify::RASTER_OUT_BYTES_PER_CELL,
+                out_cells * crate::sparse_model::RASTER_OUT_BYTES_PER_CELL,
                 change,
             ),
             crate::memory::part("the model", bytes.len() as f64 * 3.0, "a smaller model"),

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use relief_dictionary_learning::{NoiseFamily, ProceduralSettings, fit_procedural};
 
-use super::amplify::{check_output_path, is_sct, write_model};
 use crate::ctx::Ctx;
+use crate::sparse_model::{check_output_path, is_sct, write_model};
 
 /// Arguments of `relief fit-procedural`.
 #[derive(Debug, clap::Args)]

@@ -9,8 +9,8 @@ use relief_dictionary_learning::{
     AmplifySettings, DictionaryChoice, SynthesisSettings, synthesize,
 };
 
-use super::amplify::{check_output_path, write_model};
 use crate::ctx::Ctx;
+use crate::sparse_model::{check_output_path, write_model};
 
 /// Arguments of `relief synthesize`.
 #[derive(Debug, clap::Args)]
@@ -90,14 +90,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
-    super::amplify::preflight(
+    crate::sparse_model::preflight(
         ctx,
         &format!("synthesize ({} steps)", settings.amplify.steps),
         (sketch.width(), sketch.height()),
         (exemplar.width(), exemplar.height()),
         &settings.amplify,
-        super::amplify::OutputPlan {
-            sct: super::amplify::is_sct(&args.output),
+        crate::sparse_model::OutputPlan {
+            sct: crate::sparse_model::is_sct(&args.output),
             window,
             stream: relief_io::Format::from_extension(&args.output)
                 == Some(relief_io::Format::GeoTiff),

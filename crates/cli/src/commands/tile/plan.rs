@@ -215,7 +215,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
     let (name, job, bytes, width, height, cell, georef) = match cmd {
         Windowable::Amplify(x) => {
             // The plan writes the model only; the tasks write windows of it.
-            let out = crate::commands::amplify::OutputPlan {
+            let out = crate::sparse_model::OutputPlan {
                 sct: true,
                 window: None,
                 stream: true,

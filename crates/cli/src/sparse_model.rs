@@ -1,0 +1,296 @@
+//! What the commands that build a sparse model by x4 steps share (`amplify`, `synthesize`,
+//! `fit-procedural`, `tile plan`): the pre-flight estimate of the steps and of the output
+//! (issue 18), and writing the model as a `.sct` file or as a raster (whole, one window, or
+//! streamed in bands of rows).
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use relief_dictionary_learning::{AmplifySettings, DictionaryChoice};
+use relief_heightfield::Progress;
+use relief_sparse_core::{RasterSettings, Sct, Window};
+
+use crate::ctx::Ctx;
+
+/// How the result of an amplification is written (for [`preflight`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct OutputPlan {
+    /// A `.sct` model (no raster).
+    pub(crate) sct: bool,
+    /// Only this window of the raster.
+    pub(crate) window: Option<Window>,
+    /// A GeoTIFF that is streamed in bands when large.
+    pub(crate) stream: bool,
+    /// The flag that sets the number of x4 steps (`--factor`, `--steps`).
+    pub(crate) steps_flag: &'static str,
+}
+
+/// Working bytes per coarse cell of one x4 step (patch matrices of the coding and training
+/// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
+/// `a = 8` and grid step 2; scaled by `a^2 / S^2` for other settings. Calibrated on measured
+/// peak RSS (issue 18).
+const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
+
+/// Working bytes per exemplar cell (resampled copies, candidate patches, the learned pair of
+/// dictionaries).
+const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
+
+/// Bytes per output cell of a raster written from memory (the f32 grid and its encoding).
+pub(crate) const RASTER_OUT_BYTES_PER_CELL: f64 = 12.0;
+
+/// Bytes of the candidate (L, H) pairs an exemplar gives (`min(max_candidates, patches of the
+/// x4-reduced exemplar)` pairs for a complete dictionary, at most `max_learning_pool` for a
+/// learned one): per pair the L patch (`a^2` floats), the H patch (`16 a^2`) and the L
+/// footprint (`a^2`), held twice while the dictionaries are built (candidate matrices and
+/// dictionary). A complete 65,536-atom dictionary of the default `a = 8` takes about 600 MB.
+pub(crate) fn candidate_bytes(exemplar: (usize, usize), settings: &AmplifySettings) -> f64 {
+    let a = settings.patch_size();
+    let cs = settings.candidate_step.max(1);
+    let (wl, hl) = (exemplar.0 / 4, exemplar.1 / 4);
+    let per_axis = |l: usize| if l < a { 0 } else { (l - a) / cs + 1 };
+    let patches = per_axis(wl) as f64 * per_axis(hl) as f64;
+    let cap = match settings.dictionary {
+        DictionaryChoice::Complete => settings.max_candidates,
+        DictionaryChoice::Learned { .. } => settings.max_candidates.min(settings.max_learning_pool),
+    };
+    let pairs = patches.min(cap as f64);
+    pairs * (18 * a * a) as f64 * 4.0 * 2.0
+}
+
+/// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the
+/// coarse size and the settings, and that of the written raster, checked against
+/// `--max-memory` (and the raster's size against `--max-output-size`) before any work. The
+/// message names `--factor` when an intermediate step is too large, `--window` / `--stream` /
+/// a `.sct` output when only the final raster is.
+pub(crate) fn preflight(
+    ctx: &Ctx,
+    command: &str,
+    coarse: (usize, usize),
+    exemplar: (usize, usize),
+    settings: &AmplifySettings,
+    out: OutputPlan,
+) -> Result<()> {
+    use crate::memory::part;
+    let a = settings.patch_size() as f64;
+    let s = settings.grid_step().max(1.0);
+    let shape = (a * a / (s * s)) / 16.0;
+    let ex_cells = exemplar.0 as f64 * exemplar.1 as f64;
+    let exemplar_part = part(
+        "the exemplar and its dictionaries",
+        ex_cells * EXEMPLAR_BYTES_PER_CELL + candidate_bytes(exemplar, settings),
+        "a smaller --exemplar (or --atoms N, a learned dictionary)",
+    );
+    let coarse_cells = coarse.0 as f64 * coarse.1 as f64;
+    let mut peaks: Vec<Vec<crate::memory::Part>> = Vec::new();
+    for t in 0..settings.steps {
+        let c = coarse_cells * 16f64.powi(t as i32);
+        peaks.push(vec![
+            part(
+                format!(
+                    "x4 step {} of {} on {} coarse cells",
+                    t + 1,
+                    settings.steps,
+                    c as u64
+                ),
+                c * STEP_BYTES_PER_COARSE_CELL * shape.max(0.25),
+                format!("a smaller {} (or a smaller input)", out.steps_flag),
+            ),
+            exemplar_part.clone(),
+        ]);
+    }
+    let out_cells = coarse_cells * 16f64.powi(settings.steps as i32);
+    let written = match out.window {
+        Some(w) => w.width as f64 * w.height as f64,
+        None => out_cells,
+    };
+    if !out.sct {
+        let change = if out.window.is_some() {
+            "a smaller --window".to_string()
+        } else {
+            format!("--window, a .sct output or a smaller {}", out.steps_flag)
+        };
+        ctx.check_output_size("the output raster", written * 4.0, &change)?;
+        let in_memory = if out.stream && written > STREAM_CELLS as f64 {
+            BAND_CELLS as f64
+        } else {
+            written
+        };
+        peaks.push(vec![part(
+            "the output raster",
+            in_memory * RASTER_OUT_BYTES_PER_CELL,
+            if out.window.is_some() {
+                "a smaller --window".to_string()
+            } else {
+                format!(
+                    "--window, a .tif output (streamed), a .sct output or a smaller {}",
+                    out.steps_flag
+                )
+            },
+        )]);
+    }
+    let refs: Vec<&[crate::memory::Part]> = peaks.iter().map(Vec::as_slice).collect();
+    ctx.check_memory(command, &refs)
+}
+
+/// Whether `path` names a `.sct` model (by extension).
+pub(crate) fn is_sct(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("sct"))
+}
+
+/// Refuses an output path we could not write before any work is done: a window with a `.sct`
+/// output, or a raster extension relief-io does not know.
+pub(crate) fn check_output_path(path: &Path, window: Option<Window>) -> Result<()> {
+    if is_sct(path) {
+        if window.is_some() {
+            bail!(
+                "--window applies to raster outputs, not to the .sct model {}",
+                path.display()
+            );
+        }
+    } else if relief_io::Format::from_extension(path).is_none() {
+        bail!(
+            "cannot tell the output format of {} (use .sct or a raster extension: .tif, .png, \
+             .exr, .npy, .r16, .r32)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes `sct` as a `.sct` model or rasterises it (whole, or one window) to a raster file.
+pub(crate) fn write_model(
+    sct: &Sct,
+    path: &Path,
+    window: Option<Window>,
+    stream: bool,
+    ctx: &Ctx,
+) -> Result<()> {
+    if is_sct(path) {
+        let bytes = sct.to_bytes().context("cannot serialise the model")?;
+        relief_io::write_bytes_atomic(path, &bytes)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        ctx.note(format!(
+            "wrote {} ({} x {} model, {} bytes)",
+            path.display(),
+            sct.width(),
+            sct.height(),
+            bytes.len()
+        ));
+        return Ok(());
+    }
+    let (fw, fh) = sct
+        .raster_size(1.0)
+        .context("cannot size the output raster")?;
+    let win = window.unwrap_or(Window {
+        x: 0,
+        y: 0,
+        width: fw,
+        height: fh,
+    });
+    if relief_io::Format::from_extension(path) == Some(relief_io::Format::GeoTiff)
+        && (stream || win.width.saturating_mul(win.height) > STREAM_CELLS)
+    {
+        return stream_geotiff(sct, path, win, ctx);
+    }
+    let hf = {
+        let progress = ctx.progress();
+        sct.rasterize_with_progress(&RasterSettings { scale: 1.0, window }, &progress)
+            .context("cannot rasterise the result")?
+    };
+    let progress = ctx.progress();
+    progress.begin("writing", 0);
+    ctx.write_raster(path, &hf)?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {})",
+        path.display(),
+        hf.width(),
+        hf.height()
+    ));
+    Ok(())
+}
+
+/// Rasters larger than this many cells written as GeoTIFF are streamed band by band.
+const STREAM_CELLS: usize = 1 << 24;
+
+/// Cells per rasterised band when streaming.
+const BAND_CELLS: usize = 1 << 22;
+
+/// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
+/// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
+fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
+    let georef = sct.raster_georef(1.0, win);
+    let mut out = ctx
+        .geotiff_rows(
+            path,
+            (win.width, win.height),
+            sct.cell_size(),
+            georef.as_ref(),
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let band = (BAND_CELLS / win.width).clamp(1, win.height);
+    // Several bands even for small rasters, so `--stream` exercises the band seams.
+    let band = band.min(win.height.div_ceil(4)).max(1);
+    let progress = ctx.progress();
+    progress.begin("rasterising and writing", win.height as u64);
+    let mut y = 0;
+    while y < win.height {
+        let rows = band.min(win.height - y);
+        let hf = sct
+            .rasterize(&RasterSettings {
+                scale: 1.0,
+                window: Some(Window {
+                    x: win.x,
+                    y: win.y + y,
+                    width: win.width,
+                    height: rows,
+                }),
+            })
+            .context("cannot rasterise the result")?;
+        out.write_rows(hf.as_slice())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        progress.advance(rows as u64);
+        y += rows;
+    }
+    out.finish()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    drop(progress);
+    ctx.note(format!(
+        "wrote {} ({} x {}, streamed in bands of {band} rows)",
+        path.display(),
+        win.width,
+        win.height
+    ));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn candidate_memory_follows_the_dictionary_choice() {
+        // 1024^2 exemplar: 256^2 reduced grid, 249^2 patches of side 8 (< 65,536).
+        let complete = AmplifySettings {
+            dictionary: DictionaryChoice::Complete,
+            ..AmplifySettings::default()
+        };
+        let per_pair = 18.0 * 64.0 * 4.0 * 2.0;
+        assert_eq!(
+            candidate_bytes((1024, 1024), &complete),
+            249.0 * 249.0 * per_pair
+        );
+        // 2048^2: capped at max_candidates = 65,536.
+        assert_eq!(
+            candidate_bytes((2048, 2048), &complete),
+            65_536.0 * per_pair
+        );
+        // Learned: the 4096-patch pool.
+        let learned = AmplifySettings::default();
+        assert_eq!(candidate_bytes((2048, 2048), &learned), 4096.0 * per_pair);
+        // Too small an exemplar: no patch.
+        assert_eq!(candidate_bytes((16, 16), &complete), 0.0);
+    }
+}
