@@ -137,6 +137,44 @@ fn same_name(a: &Path, b: &Path) -> bool {
     abs(a) == abs(b)
 }
 
+/// Refuses a `--<what>` image path that does not end in `.png`.
+pub(crate) fn check_png_flag(p: Option<&Path>, what: &str) -> Result<()> {
+    if let Some(p) = p {
+        let ok = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        if !ok {
+            bail!("--{what} {}: the file must end in .png", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a `--report` path that is not `.json`, is the input, or exists without `--force`.
+pub(crate) fn check_report_path(report: &Path, input: &Path, force: bool) -> Result<()> {
+    let ok = report
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if !ok {
+        bail!("--report {}: the file must end in .json", report.display());
+    }
+    if report.exists() {
+        let same = std::fs::canonicalize(report).ok() == std::fs::canonicalize(input).ok();
+        if same {
+            bail!("--report {}: is the input", report.display());
+        }
+        if !force {
+            bail!(
+                "--report {}: exists (use --force to overwrite)",
+                report.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Checks every output of a command before it starts: extension matches `kind`, no output (or
 /// implied sidecar) is an input or another output, and an existing file is only replaced when
 /// `force` is set. `inputs` are every file the command reads.

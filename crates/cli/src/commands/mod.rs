@@ -97,6 +97,49 @@ pub(crate) fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String
     }
 }
 
+/// `X,Y,W,H` crop of `relief volume --crop` (W, H >= 3).
+pub(crate) fn parse_crop(s: &str) -> std::result::Result<(usize, usize, usize, usize), String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| t.trim().parse::<usize>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("`{s}` is not X,Y,W,H (four non-negative integers)"))?;
+    match v[..] {
+        [x, y, w, h] if w >= 3 && h >= 3 => Ok((x, y, w, h)),
+        _ => Err(format!("`{s}` is not X,Y,W,H with W, H >= 3")),
+    }
+}
+
+/// `X,Y`: two finite numbers.
+pub(crate) fn parse_pair(s: &str) -> std::result::Result<(f32, f32), String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}` is not X,Y"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("`{s}` is not X,Y (two finite numbers)"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+/// `WxH` image size, each side in 1..=8192.
+pub(crate) fn parse_image_size(s: &str) -> std::result::Result<(usize, usize), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}` is not WxH"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|v| (1..=8192).contains(v))
+            .ok_or_else(|| format!("`{s}`: each size must be in 1..=8192"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
 /// Largest raster read from a device or pipe without `--max-input-cells` (2^24 cells: the
 /// stream is read up to 512 MiB).
 const STREAM_CELLS: usize = 1 << 24;

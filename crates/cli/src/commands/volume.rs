@@ -63,7 +63,7 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) geology: Option<PathBuf>,
     /// Crop `X,Y,W,H` (columns, rows) applied after reading.
-    #[arg(long, value_parser = parse_crop)]
+    #[arg(long, value_parser = super::parse_crop)]
     pub(crate) crop: Option<(usize, usize, usize, usize)>,
     /// Meshing voxel edge in metres; feature sizes are checked against it (default: derived
     /// from the DEM's cell size, relief and extent).
@@ -83,66 +83,13 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) karst_budget: Option<usize>,
     /// Direction the wind blows towards, `X,Y` (x east, y north).
-    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true, default_value = "1,0.3")]
+    #[arg(long, value_parser = super::parse_pair, allow_hyphen_values = true, default_value = "1,0.3")]
     pub(crate) wind: (f32, f32),
     /// Render and section size `WxH` in pixels.
-    #[arg(long, default_value = "640x480", value_parser = parse_size)]
+    #[arg(long, default_value = "640x480", value_parser = super::parse_image_size)]
     pub(crate) image_size: (usize, usize),
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
-}
-
-fn parse_crop(s: &str) -> std::result::Result<(usize, usize, usize, usize), String> {
-    let v: Vec<usize> = s
-        .split(',')
-        .map(|t| t.trim().parse::<usize>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| format!("`{s}` is not X,Y,W,H (four non-negative integers)"))?;
-    match v[..] {
-        [x, y, w, h] if w >= 3 && h >= 3 => Ok((x, y, w, h)),
-        _ => Err(format!("`{s}` is not X,Y,W,H with W, H >= 3")),
-    }
-}
-
-fn parse_pair(s: &str) -> std::result::Result<(f32, f32), String> {
-    let (a, b) = s
-        .split_once(',')
-        .ok_or_else(|| format!("`{s}` is not X,Y"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<f32>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("`{s}` is not X,Y (two finite numbers)"))
-    };
-    Ok((p(a)?, p(b)?))
-}
-
-fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not WxH"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|v| (1..=8192).contains(v))
-            .ok_or_else(|| format!("`{s}`: each size must be in 1..=8192"))
-    };
-    Ok((p(w)?, p(h)?))
-}
-
-fn check_png(p: &Option<PathBuf>, what: &str) -> Result<()> {
-    if let Some(p) = p {
-        let ok = p
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-        if !ok {
-            bail!("--{what} {}: the file must end in .png", p.display());
-        }
-    }
-    Ok(())
 }
 
 /// Reads a mask raster and maps it to `[0, 1]`: values already in `[0, 1]` are kept, 8-bit
@@ -181,30 +128,6 @@ fn read_mask(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Vec<f32>> {
         );
     };
     Ok(v.iter().map(|x| x / div).collect())
-}
-
-/// Refuses a `--report` path that is not `.json`, is the input, or exists without `--force`.
-fn check_report_path(report: &Path, input: &Path, ctx: &Ctx) -> Result<()> {
-    let ok = report
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if !ok {
-        bail!("--report {}: the file must end in .json", report.display());
-    }
-    if report.exists() {
-        let same = std::fs::canonicalize(report).ok() == std::fs::canonicalize(input).ok();
-        if same {
-            bail!("--report {}: is the input", report.display());
-        }
-        if !ctx.force {
-            bail!(
-                "--report {}: exists (use --force to overwrite)",
-                report.display()
-            );
-        }
-    }
-    Ok(())
 }
 
 fn read_geology(path: &Path) -> Result<GeologySpec> {
@@ -350,9 +273,13 @@ pub(crate) fn job(args: &Args) -> Result<VolumeJob> {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
     let mut job = job(&args)?;
-    check_png(&args.render, "render")?;
-    check_png(&args.closeups, "closeups")?;
-    check_png(&args.section, "section")?;
+    for (p, flag) in [
+        (&args.render, "render"),
+        (&args.closeups, "closeups"),
+        (&args.section, "section"),
+    ] {
+        crate::outputs::check_png_flag(p.as_deref(), flag)?;
+    }
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(args.mask.as_deref());
     inputs.extend(args.geology.as_deref());
@@ -377,7 +304,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     }
     ctx.check_outputs(&inputs, &outputs)?;
     if let Some(r) = &args.report {
-        check_report_path(r, &args.input, ctx)?;
+        crate::outputs::check_report_path(r, &args.input, ctx.force)?;
         if outputs.iter().any(|(p, _)| *p == r.as_path()) {
             bail!("--report {}: also named as another output", r.display());
         }
