@@ -14,6 +14,7 @@ pub(crate) mod preview;
 pub(crate) mod quilt;
 pub(crate) mod refine;
 pub(crate) mod run;
+pub(crate) mod synth_args;
 pub(crate) mod synthesize;
 pub(crate) mod tile;
 pub(crate) mod validate;
