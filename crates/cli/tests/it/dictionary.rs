@@ -277,8 +277,8 @@ fn bad_input_fails_cleanly() {
     let coarse = write(tmp.path(), "coarse.tif", &dem.crop(0, 0, 32, 32).unwrap());
     let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 256, 256).unwrap());
     let out = tmp.path().join("out.tif");
-    let amp = |input: &Path, ex: &Path, factor: &str, out: &Path| {
-        relief(&[
+    let amp_with = |input: &Path, ex: &Path, factor: &str, out: &Path, extra: &[&str]| {
+        let mut args = vec![
             os("amplify"),
             input.as_os_str(),
             out.as_os_str(),
@@ -286,8 +286,12 @@ fn bad_input_fails_cleanly() {
             ex.as_os_str(),
             os("--factor"),
             os(factor),
-        ])
+        ];
+        args.extend(extra.iter().map(os));
+        relief(&args)
     };
+    let amp =
+        |input: &Path, ex: &Path, factor: &str, out: &Path| amp_with(input, ex, factor, out, &[]);
     // Factor not a power of 4.
     for f in ["8", "2", "1", "0"] {
         fails(&amp(&coarse, &ex, f, &out), &out, &["--factor", f]);
@@ -308,30 +312,10 @@ fn bad_input_fails_cleanly() {
     let odd = tmp.path().join("out.xyz");
     fails(&amp(&coarse, &ex, "4", &odd), &odd, &["out.xyz"]);
     let sct = tmp.path().join("out.sct");
-    let o = relief(&[
-        os("amplify"),
-        coarse.as_os_str(),
-        sct.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--factor"),
-        os("4"),
-        os("--window"),
-        os("0,0,4,4"),
-    ]);
+    let o = amp_with(&coarse, &ex, "4", &sct, &["--window", "0,0,4,4"]);
     fails(&o, &sct, &["--window"]);
     // Invalid radius names the field.
-    let o = relief(&[
-        os("amplify"),
-        coarse.as_os_str(),
-        out.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--factor"),
-        os("4"),
-        os("--radius"),
-        os("NaN"),
-    ]);
+    let o = amp_with(&coarse, &ex, "4", &out, &["--radius", "NaN"]);
     fails(&o, &out, &["radius"]);
     // synthesize: zero steps; fit-procedural: unknown family and NaN input.
     let o = relief(&[
