@@ -107,17 +107,7 @@ impl GeoTiffStripWriter {
         }
         // BigTIFF (what GDAL writes with BIGTIFF=IF_NEEDED) once the samples pass 4 GiB.
         let big = bigtiff || bytes > u32::MAX as u64 - (1 << 20);
-        let (cx, cy) = cell_size;
-        if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
-            return Err(IoError::param(
-                "cell_size",
-                format!("({cx}, {cy})"),
-                "must be finite and positive",
-            ));
-        }
-        if path.file_name().is_none() {
-            return Err(IoError::param("path", path.display(), "has no file name"));
-        }
+        crate::util::check_target(path, cell_size)?;
         crate::atomic::check_replaceable(path)?;
         crate::atomic::remove_stale_temps(path);
         let tmp = crate::atomic::temp_path(path);

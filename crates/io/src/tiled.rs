@@ -134,17 +134,7 @@ impl TiledGeoTiffWriter {
                 "must be a multiple of 16 between 16 and 16384",
             ));
         }
-        let (cx, cy) = cell_size;
-        if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
-            return Err(IoError::param(
-                "cell_size",
-                format!("({cx}, {cy})"),
-                "must be finite and positive",
-            ));
-        }
-        if path.file_name().is_none() {
-            return Err(IoError::param("path", path.display(), "has no file name"));
-        }
+        crate::util::check_target(path, cell_size)?;
         crate::atomic::remove_stale_temps(path);
         let tmp = crate::atomic::temp_path(path);
         let mut sizes = vec![(width, height)];

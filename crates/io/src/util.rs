@@ -152,3 +152,19 @@ pub(crate) fn flip_rows<T>(data: &mut [T], width: usize) {
 pub(crate) fn finite_range(hf: &Heightfield, format: Format) -> Result<(f32, f32)> {
     hf.min_max().ok_or(IoError::AllVoid { format })
 }
+
+/// Refuses a raster target without a file name or with a cell size that is not finite and
+/// positive (the streamed and tiled GeoTIFF writers).
+pub(crate) fn check_target(path: &std::path::Path, (cx, cy): (f64, f64)) -> Result<()> {
+    if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
+        return Err(IoError::param(
+            "cell_size",
+            format!("({cx}, {cy})"),
+            "must be finite and positive",
+        ));
+    }
+    if path.file_name().is_none() {
+        return Err(IoError::param("path", path.display(), "has no file name"));
+    }
+    Ok(())
+}

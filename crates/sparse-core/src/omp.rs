@@ -71,45 +71,33 @@ pub trait OmpFloat:
     const RESIDUAL_FLOOR: f64;
 }
 
-impl OmpFloat for f32 {
-    fn from_f64(v: f64) -> Self {
-        v as f32
-    }
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    fn sqrt(self) -> Self {
-        f32::sqrt(self)
-    }
-    fn abs(self) -> Self {
-        f32::abs(self)
-    }
-    fn is_finite(self) -> bool {
-        f32::is_finite(self)
-    }
-    const PIVOT_FLOOR: f64 = 1e-5;
-    const RESIDUAL_FLOOR: f64 = 1e-9;
+/// `OmpFloat` for a primitive float type with its two floors.
+macro_rules! omp_float {
+    ($t:ident, $pivot:expr, $residual:expr) => {
+        impl OmpFloat for $t {
+            fn from_f64(v: f64) -> Self {
+                v as $t
+            }
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            fn sqrt(self) -> Self {
+                $t::sqrt(self)
+            }
+            fn abs(self) -> Self {
+                $t::abs(self)
+            }
+            fn is_finite(self) -> bool {
+                $t::is_finite(self)
+            }
+            const PIVOT_FLOOR: f64 = $pivot;
+            const RESIDUAL_FLOOR: f64 = $residual;
+        }
+    };
 }
 
-impl OmpFloat for f64 {
-    fn from_f64(v: f64) -> Self {
-        v
-    }
-    fn to_f64(self) -> f64 {
-        self
-    }
-    fn sqrt(self) -> Self {
-        f64::sqrt(self)
-    }
-    fn abs(self) -> Self {
-        f64::abs(self)
-    }
-    fn is_finite(self) -> bool {
-        f64::is_finite(self)
-    }
-    const PIVOT_FLOOR: f64 = 1e-10;
-    const RESIDUAL_FLOOR: f64 = 1e-20;
-}
+omp_float!(f32, 1e-5, 1e-9);
+omp_float!(f64, 1e-10, 1e-20);
 
 /// Settings of both OMP solvers.
 #[derive(Debug, Clone, Copy, PartialEq)]

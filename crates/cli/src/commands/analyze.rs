@@ -215,16 +215,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // The maps and the plot appear together or not at all.
     let targets: Vec<&std::path::Path> = outputs.iter().map(|&(p, _)| p).collect();
     let staged = crate::staging::Outputs::new(&targets)?;
-    let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let hf = raster.heightfield;
-    // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
-    if hf.has_voids() {
-        bail!(
-            "{} has {} void cells; fill them first (--fill-voids)",
-            args.input.display(),
-            hf.void_count()
-        );
-    }
+    // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
+    let hf = super::read_void_free(&args.input, &args.read, ctx)?;
     // Pre-flight (issue 18): the DWT pyramid, and with --local the fitted maps of every band.
     ctx.check_memory(
         "analyze",

@@ -22,8 +22,8 @@ pub(crate) mod volume;
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
-use relief_heightfield::Progress;
+use anyhow::{Context, Result, bail};
+use relief_heightfield::{Heightfield, Progress};
 
 use crate::ctx::Ctx;
 
@@ -144,6 +144,20 @@ pub(crate) fn parse_image_size(s: &str) -> std::result::Result<(usize, usize), S
 /// Largest raster read from a device or pipe without `--max-input-cells` (2^24 cells: the
 /// stream is read up to 512 MiB).
 const STREAM_CELLS: usize = 1 << 24;
+
+/// [`read_raster`] of a terrain that must be void-free: `--fill-voids` (in `read`) fills
+/// the voids on reading; without it they are an error naming the flag.
+pub(crate) fn read_void_free(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<Heightfield> {
+    let hf = read_raster(path, read, ctx)?.heightfield;
+    if hf.has_voids() {
+        bail!(
+            "{} has {} void cells; fill them first (--fill-voids)",
+            path.display(),
+            hf.void_count()
+        );
+    }
+    Ok(hf)
+}
 
 /// Reads any raster relief-io knows, with a progress indicator, naming the file on error.
 pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {

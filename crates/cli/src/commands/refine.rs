@@ -122,16 +122,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input],
         &[(&args.output, crate::outputs::OutKind::Raster)],
     )?;
-    let raster = super::read_raster(&args.input, &args.read, ctx)?;
-    let hf = raster.heightfield;
-    // `--fill-voids` (ReadArgs) filled them on reading; without it voids are an error.
-    if hf.has_voids() {
-        bail!(
-            "{} has {} void cells; fill them first (--fill-voids)",
-            args.input.display(),
-            hf.void_count()
-        );
-    }
+    // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
+    let hf = super::read_void_free(&args.input, &args.read, ctx)?;
     preflight(&args, &settings, &hf, window, ctx)?;
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);

@@ -305,14 +305,7 @@ impl SceneBuilder {
             .map(|i| {
                 let mut out = Vec::new();
                 for j in 0..f.width - 1 {
-                    let zs = [
-                        self.dem_at(j, i),
-                        self.dem_at(j + 1, i),
-                        self.dem_at(j, i + 1),
-                        self.dem_at(j + 1, i + 1),
-                    ];
-                    let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
-                    let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                    let (lo, hi) = self.cell_range(j, i);
                     if let Some((a, b)) = zband
                         && (hi < a || lo > b)
                     {
@@ -351,6 +344,19 @@ impl SceneBuilder {
         keyed.into_iter().map(|x| x.1).collect()
     }
 
+    /// Lowest and highest DEM sample of cell `(j, i)` (its four corner nodes).
+    fn cell_range(&self, j: usize, i: usize) -> (f32, f32) {
+        let zs = [
+            self.dem_at(j, i),
+            self.dem_at(j + 1, i),
+            self.dem_at(j, i + 1),
+            self.dem_at(j + 1, i + 1),
+        ];
+        let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
+        let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+        (lo, hi)
+    }
+
     /// Number of candidates [`Self::surface_candidates`] would generate (without a z band).
     fn candidate_count(&self, spacing: f32) -> f64 {
         let f = self.frame;
@@ -360,14 +366,7 @@ impl SceneBuilder {
         let mut n = 0.0;
         for i in 0..f.height - 1 {
             for j in 0..f.width - 1 {
-                let zs = [
-                    self.dem_at(j, i),
-                    self.dem_at(j + 1, i),
-                    self.dem_at(j, i + 1),
-                    self.dem_at(j + 1, i + 1),
-                ];
-                let lo = zs.iter().cloned().fold(f32::INFINITY, f32::min);
-                let hi = zs.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+                let (lo, hi) = self.cell_range(j, i);
                 n += per_xy * (1.0 + ((hi - lo) / spacing).floor() as f64).min(32.0);
             }
         }

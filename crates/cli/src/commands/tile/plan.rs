@@ -261,14 +261,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
         }
         Windowable::Refine(x) => {
             let settings = x.settings()?;
-            let hf = crate::commands::read_raster(&x.input, &x.read, ctx)?.heightfield;
-            if hf.has_voids() {
-                bail!(
-                    "{} has {} void cells; fill them first (--fill-voids)",
-                    x.input.display(),
-                    hf.void_count()
-                );
-            }
+            let hf = crate::commands::read_void_free(&x.input, &x.read, ctx)?;
             let refiner = relief_wavelet_lod::Refiner::new(&hf, &settings)
                 .with_context(|| format!("cannot analyse {}", x.input.display()))?;
             let (w, h) = refiner.output_size();
