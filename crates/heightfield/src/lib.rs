@@ -49,5 +49,5 @@ mod window;
 pub use error::{HeightfieldError, Result};
 pub use grid::{GeoRef, Heightfield, MAX_CELLS};
 pub use progress::{NoProgress, Progress};
-pub use sample::cubic_weights;
+pub use sample::{cubic_weights, cubic_weights_f64};
 pub use window::Window;

@@ -1,18 +1,32 @@
 use crate::grid::Heightfield;
 
+/// The four Keys weights of a fractional position, in the float type of `t`.
+macro_rules! keys_weights {
+    ($t:expr) => {{
+        let t = $t;
+        let t2 = t * t;
+        let t3 = t2 * t;
+        [
+            -0.5 * t3 + t2 - 0.5 * t,
+            1.5 * t3 - 2.5 * t2 + 1.0,
+            -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+            0.5 * t3 - 0.5 * t2,
+        ]
+    }};
+}
+
 /// Keys cubic convolution weights (a = -1/2, Catmull-Rom) for the four samples at offsets
 /// -1, 0, 1, 2 from the integer part, given the fractional position `t` in [0, 1). The kernel
 /// interpolates (weight 1 at t = 0) and reproduces quadratics.
 #[inline]
 pub fn cubic_weights(t: f32) -> [f32; 4] {
-    let t2 = t * t;
-    let t3 = t2 * t;
-    [
-        -0.5 * t3 + t2 - 0.5 * t,
-        1.5 * t3 - 2.5 * t2 + 1.0,
-        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
-        0.5 * t3 - 0.5 * t2,
-    ]
+    keys_weights!(t)
+}
+
+/// [`cubic_weights`] in `f64` (the same expressions, evaluated in double precision).
+#[inline]
+pub fn cubic_weights_f64(t: f64) -> [f64; 4] {
+    keys_weights!(t)
 }
 
 impl Heightfield {

@@ -165,18 +165,8 @@ pub struct Patches {
     pub grid: CentreGrid,
 }
 
-/// Keys cubic weights (Catmull-Rom), `f64`.
-#[inline]
-pub(crate) fn cubic_weights(t: f64) -> [f64; 4] {
-    let t2 = t * t;
-    let t3 = t2 * t;
-    [
-        -0.5 * t3 + t2 - 0.5 * t,
-        1.5 * t3 - 2.5 * t2 + 1.0,
-        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
-        0.5 * t3 - 0.5 * t2,
-    ]
-}
+// Keys cubic weights (Catmull-Rom), `f64`.
+pub(crate) use relief_heightfield::cubic_weights_f64 as cubic_weights;
 
 fn sample(hf: &Heightfield, x: f64, y: f64) -> f64 {
     let (rx, ry) = (x.round(), y.round());

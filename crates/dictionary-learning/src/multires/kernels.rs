@@ -3,16 +3,8 @@
 
 use super::*;
 
-/// Keys cubic (Catmull-Rom) weights of the four taps around a fractional offset `t`.
-fn keys(t: f64) -> [f64; 4] {
-    let (t2, t3) = (t * t, t * t * t);
-    [
-        -0.5 * t3 + t2 - 0.5 * t,
-        1.5 * t3 - 2.5 * t2 + 1.0,
-        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
-        0.5 * t3 - 0.5 * t2,
-    ]
-}
+// Keys cubic (Catmull-Rom) weights of the four taps around a fractional offset `t`.
+use relief_heightfield::cubic_weights_f64 as keys;
 
 /// x4 bicubic up-sampling of an `a x a` patch to `4a x 4a` (pixel-centre alignment, edges
 /// clamped): the same interpolation as a layer of `a x a` atoms at spacing 4.

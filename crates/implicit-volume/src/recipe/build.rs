@@ -43,7 +43,7 @@ impl Basis<'_> {
 pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeReport)> {
     let (mut basis, mut dims) = sizes(hf, recipe)?;
     let (geology, geo) = geology(&basis, &mut dims)?;
-    let mut b = SceneBuilder::new(
+    let b = SceneBuilder::new(
         hf,
         geo,
         &ImplicitizeSettings {
@@ -62,11 +62,28 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     basis.sea_level = recipe.sea_level.unwrap_or_else(|| percentile(hf, 0.25));
     basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
     dims.weathering_radius_m = basis.wr;
-    let mut effects = Vec::new();
-    coast(&basis, &mut b, &region, &mut dims, &mut effects)?;
-    karst(&basis, &mut b, &region, &mut dims, &mut effects)?;
-    weathering(&basis, &mut b, &region, &mut effects)?;
-    landforms(&basis, &mut b, &region, &mut dims, &mut effects)?;
+    let mut steps = Steps {
+        basis,
+        b,
+        region,
+        dims,
+        effects: Vec::new(),
+    };
+    steps.coast()?;
+    steps.karst()?;
+    steps.weathering()?;
+    steps.hoodoos()?;
+    if steps.basis.has(Feature::Arches) {
+        steps.arches()?;
+    }
+    steps.islands()?;
+    let Steps {
+        basis,
+        b,
+        dims,
+        effects,
+        ..
+    } = steps;
     let section_line = best_section_line(&b);
     let highlights = highlights(&b, &effects);
     let has_sea = effects.iter().any(|(f, e)| {
@@ -191,279 +208,312 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
     Ok((geology, geo))
 }
 
-/// Sea cliffs, and sea erosion with or without caves.
-fn coast(
-    basis: &Basis<'_>,
-    b: &mut SceneBuilder,
-    region: &Region,
-    dims: &mut Dimensions,
-    effects: &mut Vec<(Feature, EffectReport)>,
-) -> Result<()> {
-    let (voxel, relief, wr) = (basis.voxel, basis.relief, basis.wr);
-    if basis.has(Feature::Cliffs) {
-        // Spheres finer than the soft strata, so hard ones survive as ledges.
-        let cr = (1.5 * voxel).max(wr.min(0.4 * dims.soft_thickness_m.unwrap_or(wr)));
-        let c = SeaCliffs {
-            sea_level: basis.sea_level,
-            depth: 0.3 * cr,
-            retreat: 6.0 * cr,
-            radius: cr,
-            beta: 0.2,
-            seed: basis.sub(8),
-        };
-        dims.cliff_retreat_m = c.retreat;
-        effects.push((Feature::Cliffs, b.sea_cliffs(&c, region)?));
-    }
-    if basis.has(Feature::Sea) || basis.has(Feature::Caves) {
-        let r = wr;
-        dims.sea_radius_m = r;
-        dims.sea_height_m = (0.15 * relief).max(2.0 * r);
-        dims.cave_count = if basis.has(Feature::Caves) {
-            count(basis.recipe.densities.caves_per_km2, basis.area_km2, 64)
-        } else {
-            0
-        };
-        dims.cave_length_m = (12.0 * r).min(0.25 * basis.ex.min(basis.ey));
-        let s = SeaErosion {
-            weathering: Weathering {
-                spacing: 0.4 * r,
-                radius: r,
-                energy: 3.0,
-                seed: basis.sub(1),
-                ..Default::default()
-            },
-            sea_level: basis.sea_level,
-            depth: 0.3 * r,
-            height: dims.sea_height_m,
-            peak: 0.2 * dims.sea_height_m,
-            reach: (6.0 * r).max(2.0 * basis.l),
-            caves: dims.cave_count,
-            cave_length: dims.cave_length_m,
-            iterations: 3,
-        };
-        let rep = b.sea_erosion(&s, region)?;
-        let f = if basis.has(Feature::Sea) {
-            Feature::Sea
-        } else {
-            Feature::Caves
-        };
-        effects.push((f, rep));
-    }
-    Ok(())
+/// The steps after the implicitised DEM: each adds its effects to the scene builder, its
+/// sizes to the dimensions and its report to the effects.
+struct Steps<'a> {
+    basis: Basis<'a>,
+    b: SceneBuilder,
+    region: Region,
+    dims: Dimensions,
+    effects: Vec<(Feature, EffectReport)>,
 }
 
-/// Karst passages in the soft strata, when they are at least two voxels thick.
-fn karst(
-    basis: &Basis<'_>,
-    b: &mut SceneBuilder,
-    region: &Region,
-    dims: &mut Dimensions,
-    effects: &mut Vec<(Feature, EffectReport)>,
-) -> Result<()> {
-    if !basis.has(Feature::Karst) {
-        return Ok(());
-    }
-    let (voxel, k, area_km2) = (basis.voxel, basis.recipe.scale, basis.area_km2);
-    let d = &basis.recipe.densities;
-    match dims.soft_thickness_m {
-        Some(t) if 0.5 * t >= voxel => {
-            let a = (0.4 * t * k).clamp(voxel, 0.5 * t);
-            let step = a;
-            dims.karst_radius_m = a;
-            dims.karst_step_m = step;
-            dims.karst_budget = basis.recipe.karst_budget.unwrap_or(
-                ((d.karst_km_per_km2 * area_km2 * 1000.0 / step).round() as usize).min(1 << 22),
-            );
-            let ks = KarstSettings {
-                radius: a,
-                min_radius: voxel.min(a),
-                step,
-                poisson_radius: 0.8 * step,
-                sub_spheres: 4,
-                budget: dims.karst_budget,
-                max_sinkholes: 256,
-                cliff_seeds: (d.karst_cliff_seeds_per_km2 * area_km2).round() as usize,
-                cliff_spacing: 10.0 * a,
-                rho0: basis.rho0,
-                rho_stop: 0.7,
-                seed: basis.sub(2),
-                ..Default::default()
+impl Steps<'_> {
+    /// Sea cliffs, and sea erosion with or without caves.
+    fn coast(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            dims,
+            effects,
+        } = self;
+        let (voxel, relief, wr) = (basis.voxel, basis.relief, basis.wr);
+        if basis.has(Feature::Cliffs) {
+            // Spheres finer than the soft strata, so hard ones survive as ledges.
+            let cr = (1.5 * voxel).max(wr.min(0.4 * dims.soft_thickness_m.unwrap_or(wr)));
+            let c = SeaCliffs {
+                sea_level: basis.sea_level,
+                depth: 0.3 * cr,
+                retreat: 6.0 * cr,
+                radius: cr,
+                beta: 0.2,
+                seed: basis.sub(8),
             };
-            effects.push((Feature::Karst, b.karst(&ks, region)?));
+            dims.cliff_retreat_m = c.retreat;
+            effects.push((Feature::Cliffs, b.sea_cliffs(&c, region)?));
         }
-        Some(t) => dims.notes.push(format!(
-            "karst skipped: soft strata {t:.1} m thick, under two voxels of {voxel:.1} m \
-             (a finer --voxel or a thicker geology resolves them)"
-        )),
-        None => dims
-            .notes
-            .push("karst skipped: the geology has no soft strata (rho < 0.5)".into()),
-    }
-    Ok(())
-}
-
-/// Wind and rain erosion; together they are the overhangs feature (one report).
-fn weathering(
-    basis: &Basis<'_>,
-    b: &mut SceneBuilder,
-    region: &Region,
-    effects: &mut Vec<(Feature, EffectReport)>,
-) -> Result<()> {
-    let recipe = basis.recipe;
-    let wind = basis.has(Feature::Wind) || basis.has(Feature::Overhangs);
-    let rain = basis.has(Feature::Rain) || basis.has(Feature::Overhangs);
-    let w = Weathering {
-        spacing: 0.5 * basis.wr,
-        radius: basis.wr,
-        energy: recipe.wind_strength,
-        threshold: 0.45,
-        seed: basis.sub(3),
-        ..Default::default()
-    };
-    let mut overhangs: Option<EffectReport> = None;
-    if wind {
-        let rep = b.wind_erosion(
-            &WindErosion {
-                weathering: w,
-                direction: recipe.wind,
-            },
-            region,
-        )?;
-        if basis.has(Feature::Overhangs) {
-            overhangs = Some(rep);
-        } else {
-            effects.push((Feature::Wind, rep));
-        }
-    }
-    if rain {
-        let rep = b.rain_erosion(
-            &RainErosion {
+        if basis.has(Feature::Sea) || basis.has(Feature::Caves) {
+            let r = wr;
+            dims.sea_radius_m = r;
+            dims.sea_height_m = (0.15 * relief).max(2.0 * r);
+            dims.cave_count = if basis.has(Feature::Caves) {
+                count(basis.recipe.densities.caves_per_km2, basis.area_km2, 64)
+            } else {
+                0
+            };
+            dims.cave_length_m = (12.0 * r).min(0.25 * basis.ex.min(basis.ey));
+            let s = SeaErosion {
                 weathering: Weathering {
-                    seed: basis.sub(4),
-                    energy: recipe.rain_strength,
-                    ..w
+                    spacing: 0.4 * r,
+                    radius: r,
+                    energy: 3.0,
+                    seed: basis.sub(1),
+                    ..Default::default()
                 },
-                full_slope_deg: 40.0,
-            },
-            region,
-        )?;
-        match overhangs.as_mut() {
-            Some(o) => {
-                o.candidates += rep.candidates;
-                o.primitives += rep.primitives;
-            }
-            None => effects.push((Feature::Rain, rep)),
+                sea_level: basis.sea_level,
+                depth: 0.3 * r,
+                height: dims.sea_height_m,
+                peak: 0.2 * dims.sea_height_m,
+                reach: (6.0 * r).max(2.0 * basis.l),
+                caves: dims.cave_count,
+                cave_length: dims.cave_length_m,
+                iterations: 3,
+            };
+            let rep = b.sea_erosion(&s, region)?;
+            let f = if basis.has(Feature::Sea) {
+                Feature::Sea
+            } else {
+                Feature::Caves
+            };
+            effects.push((f, rep));
         }
+        Ok(())
     }
-    if let Some(o) = overhangs {
-        effects.push((Feature::Overhangs, o));
-    }
-    Ok(())
-}
 
-/// Hoodoos, arches and floating islands, each skipped (with a note) when the voxel or the
-/// relief cannot hold it.
-fn landforms(
-    basis: &Basis<'_>,
-    b: &mut SceneBuilder,
-    region: &Region,
-    dims: &mut Dimensions,
-    effects: &mut Vec<(Feature, EffectReport)>,
-) -> Result<()> {
-    let (voxel, relief, k, area_km2) = (
-        basis.voxel,
-        basis.relief,
-        basis.recipe.scale,
-        basis.area_km2,
-    );
-    let d = &basis.recipe.densities;
-    if basis.has(Feature::Hoodoos) {
-        let height = (0.12 * relief).clamp(15.0, 250.0) * k;
-        let radius = (height / 6.0).max(voxel);
-        dims.hoodoo_height_m = height;
-        dims.hoodoo_radius_m = radius;
-        if height > 0.45 * relief || height < 4.0 * voxel {
+    /// Karst passages in the soft strata, when they are at least two voxels thick.
+    fn karst(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            dims,
+            effects,
+        } = self;
+        if !basis.has(Feature::Karst) {
+            return Ok(());
+        }
+        let (voxel, k, area_km2) = (basis.voxel, basis.recipe.scale, basis.area_km2);
+        let d = &basis.recipe.densities;
+        match dims.soft_thickness_m {
+            Some(t) if 0.5 * t >= voxel => {
+                let a = (0.4 * t * k).clamp(voxel, 0.5 * t);
+                let step = a;
+                dims.karst_radius_m = a;
+                dims.karst_step_m = step;
+                dims.karst_budget = basis.recipe.karst_budget.unwrap_or(
+                    ((d.karst_km_per_km2 * area_km2 * 1000.0 / step).round() as usize).min(1 << 22),
+                );
+                let ks = KarstSettings {
+                    radius: a,
+                    min_radius: voxel.min(a),
+                    step,
+                    poisson_radius: 0.8 * step,
+                    sub_spheres: 4,
+                    budget: dims.karst_budget,
+                    max_sinkholes: 256,
+                    cliff_seeds: (d.karst_cliff_seeds_per_km2 * area_km2).round() as usize,
+                    cliff_spacing: 10.0 * a,
+                    rho0: basis.rho0,
+                    rho_stop: 0.7,
+                    seed: basis.sub(2),
+                    ..Default::default()
+                };
+                effects.push((Feature::Karst, b.karst(&ks, region)?));
+            }
+            Some(t) => dims.notes.push(format!(
+                "karst skipped: soft strata {t:.1} m thick, under two voxels of {voxel:.1} m \
+                 (a finer --voxel or a thicker geology resolves them)"
+            )),
+            None => dims
+                .notes
+                .push("karst skipped: the geology has no soft strata (rho < 0.5)".into()),
+        }
+        Ok(())
+    }
+
+    /// Wind and rain erosion; together they are the overhangs feature (one report).
+    fn weathering(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            effects,
+            ..
+        } = self;
+        let recipe = basis.recipe;
+        let wind = basis.has(Feature::Wind) || basis.has(Feature::Overhangs);
+        let rain = basis.has(Feature::Rain) || basis.has(Feature::Overhangs);
+        let w = Weathering {
+            spacing: 0.5 * basis.wr,
+            radius: basis.wr,
+            energy: recipe.wind_strength,
+            threshold: 0.45,
+            seed: basis.sub(3),
+            ..Default::default()
+        };
+        let mut overhangs: Option<EffectReport> = None;
+        if wind {
+            let rep = b.wind_erosion(
+                &WindErosion {
+                    weathering: w,
+                    direction: recipe.wind,
+                },
+                region,
+            )?;
+            if basis.has(Feature::Overhangs) {
+                overhangs = Some(rep);
+            } else {
+                effects.push((Feature::Wind, rep));
+            }
+        }
+        if rain {
+            let rep = b.rain_erosion(
+                &RainErosion {
+                    weathering: Weathering {
+                        seed: basis.sub(4),
+                        energy: recipe.rain_strength,
+                        ..w
+                    },
+                    full_slope_deg: 40.0,
+                },
+                region,
+            )?;
+            match overhangs.as_mut() {
+                Some(o) => {
+                    o.candidates += rep.candidates;
+                    o.primitives += rep.primitives;
+                }
+                None => effects.push((Feature::Rain, rep)),
+            }
+        }
+        if let Some(o) = overhangs {
+            effects.push((Feature::Overhangs, o));
+        }
+        Ok(())
+    }
+
+    /// Hoodoos, skipped (with a note) when the voxel or the relief cannot hold them.
+    fn hoodoos(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            dims,
+            effects,
+        } = self;
+        let (voxel, relief, k, area_km2) = (
+            basis.voxel,
+            basis.relief,
+            basis.recipe.scale,
+            basis.area_km2,
+        );
+        let d = &basis.recipe.densities;
+        if basis.has(Feature::Hoodoos) {
+            let height = (0.12 * relief).clamp(15.0, 250.0) * k;
+            let radius = (height / 6.0).max(voxel);
+            dims.hoodoo_height_m = height;
+            dims.hoodoo_radius_m = radius;
+            if height > 0.45 * relief || height < 4.0 * voxel {
+                dims.notes.push(format!(
+                    "hoodoos skipped: {height:.0} m tall is not between four voxels ({:.0} m) and \
+                     0.45 of the relief ({:.0} m)",
+                    4.0 * voxel,
+                    0.45 * relief
+                ));
+            } else {
+                dims.hoodoo_count = count(d.hoodoos_per_km2, area_km2, 256);
+                let h = HoodooSettings {
+                    count: dims.hoodoo_count,
+                    height,
+                    radius,
+                    spacing: 4.0 * radius,
+                    max_slope_deg: 25.0,
+                    cap_rho: 0.55,
+                    seed: basis.sub(5),
+                };
+                effects.push((Feature::Hoodoos, b.hoodoos(&h, region)?));
+            }
+        }
+        Ok(())
+    }
+
+    /// Arches bored through the narrowest ridges.
+    /// Floating islands.
+    fn islands(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            dims,
+            effects,
+        } = self;
+        let (voxel, relief, k, area_km2) = (
+            basis.voxel,
+            basis.relief,
+            basis.recipe.scale,
+            basis.area_km2,
+        );
+        let d = &basis.recipe.densities;
+        if basis.has(Feature::Islands) {
+            let radius = (0.1 * relief).clamp(20.0, 300.0) * k;
+            dims.island_radius_m = radius.max(2.0 * voxel);
+            dims.island_altitude_m = (0.3 * relief).max(4.0 * dims.island_radius_m);
+            dims.island_count = count(d.islands_per_km2, area_km2, 16);
+            let i = IslandSettings {
+                count: dims.island_count,
+                radius: dims.island_radius_m,
+                altitude: dims.island_altitude_m,
+                seed: basis.sub(7),
+            };
+            effects.push((Feature::Islands, b.floating_islands(&i, region)?));
+        }
+        Ok(())
+    }
+
+    fn arches(&mut self) -> Result<()> {
+        let Steps {
+            basis,
+            b,
+            region,
+            dims,
+            effects,
+        } = self;
+        let (voxel, relief, k) = (basis.voxel, basis.relief, basis.recipe.scale);
+        let span = (0.2 * relief).clamp(30.0, 300.0) * k;
+        let thickness = (span / 4.0).max(voxel);
+        dims.arch_span_m = span;
+        dims.arch_height_m = 0.6 * span;
+        dims.arch_thickness_m = thickness;
+        if span > 0.5 * relief || span < 3.0 * voxel {
             dims.notes.push(format!(
-                "hoodoos skipped: {height:.0} m tall is not between four voxels ({:.0} m) and \
-                 0.45 of the relief ({:.0} m)",
-                4.0 * voxel,
-                0.45 * relief
+                "arches skipped: a {span:.0} m opening is over half the relief ({:.0} m) or \
+                 under three {voxel:.1} m voxels",
+                0.5 * relief
+            ));
+            return Ok(());
+        }
+        dims.arch_count = count(basis.recipe.densities.arches_per_km2, basis.area_km2, 64);
+        let a = ArchSettings {
+            count: dims.arch_count,
+            span,
+            height: dims.arch_height_m,
+            thickness,
+            max_length: (5.0 * span).max(3.0 * basis.l),
+            seed: basis.sub(6),
+        };
+        let rep = b.arches(&a, region)?;
+        if rep.features == 0 {
+            dims.notes.push(format!(
+                "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
+                a.height + a.thickness,
+                a.max_length
             ));
         } else {
-            dims.hoodoo_count = count(d.hoodoos_per_km2, area_km2, 256);
-            let h = HoodooSettings {
-                count: dims.hoodoo_count,
-                height,
-                radius,
-                spacing: 4.0 * radius,
-                max_slope_deg: 25.0,
-                cap_rho: 0.55,
-                seed: basis.sub(5),
-            };
-            effects.push((Feature::Hoodoos, b.hoodoos(&h, region)?));
+            effects.push((Feature::Arches, rep));
         }
+        Ok(())
     }
-    if basis.has(Feature::Arches) {
-        arches(basis, b, region, dims, effects)?;
-    }
-    if basis.has(Feature::Islands) {
-        let radius = (0.1 * relief).clamp(20.0, 300.0) * k;
-        dims.island_radius_m = radius.max(2.0 * voxel);
-        dims.island_altitude_m = (0.3 * relief).max(4.0 * dims.island_radius_m);
-        dims.island_count = count(d.islands_per_km2, area_km2, 16);
-        let i = IslandSettings {
-            count: dims.island_count,
-            radius: dims.island_radius_m,
-            altitude: dims.island_altitude_m,
-            seed: basis.sub(7),
-        };
-        effects.push((Feature::Islands, b.floating_islands(&i, region)?));
-    }
-    Ok(())
-}
-
-/// Arches bored through the narrowest ridges.
-fn arches(
-    basis: &Basis<'_>,
-    b: &mut SceneBuilder,
-    region: &Region,
-    dims: &mut Dimensions,
-    effects: &mut Vec<(Feature, EffectReport)>,
-) -> Result<()> {
-    let (voxel, relief, k) = (basis.voxel, basis.relief, basis.recipe.scale);
-    let span = (0.2 * relief).clamp(30.0, 300.0) * k;
-    let thickness = (span / 4.0).max(voxel);
-    dims.arch_span_m = span;
-    dims.arch_height_m = 0.6 * span;
-    dims.arch_thickness_m = thickness;
-    if span > 0.5 * relief || span < 3.0 * voxel {
-        dims.notes.push(format!(
-            "arches skipped: a {span:.0} m opening is over half the relief ({:.0} m) or \
-             under three {voxel:.1} m voxels",
-            0.5 * relief
-        ));
-        return Ok(());
-    }
-    dims.arch_count = count(basis.recipe.densities.arches_per_km2, basis.area_km2, 64);
-    let a = ArchSettings {
-        count: dims.arch_count,
-        span,
-        height: dims.arch_height_m,
-        thickness,
-        max_length: (5.0 * span).max(3.0 * basis.l),
-        seed: basis.sub(6),
-    };
-    let rep = b.arches(&a, region)?;
-    if rep.features == 0 {
-        dims.notes.push(format!(
-            "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
-            a.height + a.thickness,
-            a.max_length
-        ));
-    } else {
-        effects.push((Feature::Arches, rep));
-    }
-    Ok(())
 }
 
 /// The landforms worth a close-up: the densest karst (cut away) and, of the other placed
