@@ -149,50 +149,6 @@ fn read_geology(path: &Path) -> Result<GeologySpec> {
     Ok(spec)
 }
 
-/// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
-/// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
-/// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
-/// case).
-const TRIANGLES_PER_COLUMN: f64 = 24.0;
-
-/// Peak bytes per triangle while meshing and writing: positions and normals of about half a
-/// vertex (24 B), the triangle (12 B), the vertex map of the chunked polygoniser and the
-/// encoded file built in memory before the atomic write (measured: 69-81 B at 1.5-6 M
-/// triangles, release build).
-const MESH_BYTES_PER_TRIANGLE: f64 = 90.0;
-
-/// Bytes per file triangle (binary PLY/GLB: 12 B of indices plus half a vertex of 24 B).
-const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
-
-/// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
-const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
-
-/// Pre-flight estimate of the mesh (issue 18): triangles from the polygonisation grid, memory
-/// against `--max-memory` and file size against `--max-output-size`, both naming
-/// `--resolution`.
-fn preflight_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Result<()> {
-    let columns = cells[0] as f64 * cells[1] as f64;
-    let triangles = columns * TRIANGLES_PER_COLUMN;
-    let change = format!(
-        "a larger --voxel or a smaller --resolution (the voxel is now {voxel_m:.3} m; the grid is \
-         {}x{}x{}) or a --crop",
-        cells[0], cells[1], cells[2]
-    );
-    ctx.check_output_size(
-        &format!("the mesh {}", path.display()),
-        triangles * FILE_BYTES_PER_TRIANGLE,
-        &change,
-    )?;
-    ctx.check_memory(
-        &format!("volume with {voxel_m:.3} m voxels"),
-        &[&[crate::memory::part(
-            format!("the mesh (about {:.0} M triangles)", triangles / 1e6),
-            triangles * MESH_BYTES_PER_TRIANGLE,
-            change,
-        )]],
-    )
-}
-
 fn write_png(
     staged: &crate::staging::Outputs,
     path: &Option<PathBuf>,
@@ -338,7 +294,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .build(&hf, &progress)
         .context("cannot build the scene")?;
     if let Some(path) = &args.mesh {
-        preflight_mesh(
+        crate::memory::preflight_volume_mesh(
             ctx,
             path,
             built.mesh_grid(&job),
@@ -346,15 +302,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         )?;
     }
     if job.render || job.section || job.closeups {
-        let (w, h) = args.image_size;
-        ctx.check_memory(
-            "volume",
-            &[&[crate::memory::part(
-                "the render and section images",
-                w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
-                "a smaller --image-size",
-            )]],
-        )?;
+        crate::memory::preflight_volume_images(ctx, args.image_size)?;
     }
     if let Some(est) = job
         .estimate_image_seconds(&built)
