@@ -50,6 +50,22 @@ fn correlation(a: &[f32], b: &[f32]) -> f64 {
     sab / (saa * sbb).sqrt()
 }
 
+/// A painted 512 x 512 sketch (`relief quilt --guide-sketch` reads the same JSON): a ridge
+/// line across the top third rising to a summit, a valley stroke winding down to a low basin
+/// in the bottom right, and a plateau seed on the left.
+fn sketch() -> guide::SketchGuide {
+    serde_json::from_str(
+        r#"{"width": 512, "height": 512, "smoothing": 4,
+            "seeds": [{"x": 110, "y": 330, "height": 1700, "radius": 40},
+                      {"x": 430, "y": 440, "height": 700, "radius": 30}],
+            "strokes": [{"points": [[20, 150, 1500], [200, 120, 1900], [330, 170, 2300],
+                                    [490, 110, 1800]]},
+                        {"points": [[250, 260, 1300], [300, 350, 1000], [380, 400, 850],
+                                    [430, 440, 700]]}]}"#,
+    )
+    .expect("sketch JSON")
+}
+
 fn main() {
     let Some(ex) = load_dem("grandcanyon") else {
         return;
@@ -75,10 +91,14 @@ fn main() {
         "| guide | validation | corr(lowpass16(out), guide) | slope EMD (deg) | seam grad ratio | seam curv ratio | distinct patches | near-reuse pairs | 1 vs 2 threads | seconds |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
-    for id in ["jacksboro_fault", "alps_dem"] {
-        let src = load_dem(id).expect("guide DEM");
-        let g = guide::to_cell_size(&src, ex.cell_size()).expect("cell size");
-        let (g, _fit) = guide::fit_to_size(&g, 512, 512).expect("fit");
+    for id in ["jacksboro_fault", "alps_dem", "sketch"] {
+        let g = if id == "sketch" {
+            sketch().render(ex.cell_size()).expect("sketch")
+        } else {
+            let src = load_dem(id).expect("guide DEM");
+            let g = guide::to_cell_size(&src, ex.cell_size()).expect("cell size");
+            guide::fit_to_size(&g, 512, 512).expect("fit").0
+        };
         let g = guide::gaussian_blur(&g, blur).expect("blur");
         let (g, map, report) =
             guide::fit_range(&g, &index, &Control::guided(g.clone()), &settings).expect("map");

@@ -5,7 +5,7 @@ use relief_heightfield::Heightfield;
 
 use crate::error::{PatchSynthError, Result};
 use crate::index::{Sat, check_exemplars, grid_rects};
-use crate::kmeans::kmeans;
+use crate::kmeans::{kmeans, nearest};
 use crate::settings::Settings;
 
 /// Map value that allows every category.
@@ -110,14 +110,14 @@ impl CategoryMap {
     }
 }
 
-/// Automatic exemplar categories (section 4): the patches of all exemplars are clustered into
-/// `k` classes by their `N x N` block averages (k-means), classes ordered by mean height; each
-/// exemplar takes the class most of its patches fall in. Returns one category per exemplar.
-pub fn categorize_exemplars(
+/// Block-average descriptors (`N x N` means, section 3.2) of the patches of every exemplar on
+/// a grid of step `max(overlap, exemplar_stride)` (bounded cost on large exemplars), one flat
+/// vector per exemplar; `settings` and `k` are checked here.
+fn grid_descriptors(
     exemplars: &[Heightfield],
     k: usize,
     settings: &Settings,
-) -> Result<Vec<u16>> {
+) -> Result<(Vec<Vec<f32>>, usize)> {
     settings.check()?;
     if k == 0 || k > 1024 {
         return Err(PatchSynthError::setting("k", k, "must be in 1..=1024"));
@@ -129,7 +129,6 @@ pub fn categorize_exemplars(
     check_exemplars(&ex, settings.patch_size)?;
     let p = settings.patch_size;
     let rects = grid_rects(p, settings.blocks);
-    // Patches on a grid of step `overlap` keep the cost bounded on large exemplars.
     let step = settings.overlap.max(settings.exemplar_stride);
     let per: Vec<Vec<f32>> = exemplars
         .par_iter()
@@ -148,8 +147,21 @@ pub fn categorize_exemplars(
             d
         })
         .collect();
+    Ok((per, rects.len()))
+}
+
+/// Automatic exemplar categories (section 4): the patches of all exemplars are clustered into
+/// `k` classes by their `N x N` block averages (k-means), classes ordered by mean height; each
+/// exemplar takes the class most of its patches fall in. Returns one category per exemplar.
+/// With a single exemplar (or exemplars that each hold several kinds of ground), use
+/// [`categorize_regions`].
+pub fn categorize_exemplars(
+    exemplars: &[Heightfield],
+    k: usize,
+    settings: &Settings,
+) -> Result<Vec<u16>> {
+    let (per, dim) = grid_descriptors(exemplars, k, settings)?;
     let all: Vec<f32> = per.iter().flatten().copied().collect();
-    let dim = rects.len();
     let km = kmeans(
         &all,
         dim,
@@ -170,4 +182,51 @@ pub fn categorize_exemplars(
         out.push(best.unwrap_or(0) as u16);
     }
     Ok(out)
+}
+
+/// Categories by region (section 4: "we cluster the patches from exemplars according to the
+/// blocks of average of pieces, and create the categorization according to this
+/// clustering"): the patches of all exemplars are clustered into `k` classes by their
+/// `N x N` block averages (k-means on a grid of patches), classes numbered by ascending mean
+/// height, and every cell of every exemplar takes the class nearest to the descriptor of the
+/// patch centred on it (clamped inside the exemplar). One exemplar thus holds several
+/// categories (valley floor, slopes, rims), and a categorisation map can send each region
+/// of the output to its own kind of ground. Returns a row-major category raster per exemplar
+/// (for [`crate::Exemplar::with_regions`]).
+pub fn categorize_regions(
+    exemplars: &[Heightfield],
+    k: usize,
+    settings: &Settings,
+) -> Result<Vec<Vec<u16>>> {
+    let (per, dim) = grid_descriptors(exemplars, k, settings)?;
+    let all: Vec<f32> = per.iter().flatten().copied().collect();
+    let km = kmeans(
+        &all,
+        dim,
+        k,
+        settings.kmeans_iterations.max(10),
+        settings.seed,
+    );
+    let p = settings.patch_size;
+    let rects = grid_rects(p, settings.blocks);
+    Ok(exemplars
+        .iter()
+        .map(|hf| {
+            let sat = Sat::new(hf);
+            let (w, h) = (hf.width(), hf.height());
+            let mut out = vec![0u16; w * h];
+            out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                let py = y.saturating_sub(p / 2).min(h - p);
+                let mut d = vec![0.0f32; dim];
+                for (x, c) in row.iter_mut().enumerate() {
+                    let px = x.saturating_sub(p / 2).min(w - p);
+                    for (v, r) in d.iter_mut().zip(&rects) {
+                        *v = sat.mean(px + r[0], py + r[1], r[2], r[3]);
+                    }
+                    *c = nearest(&d, &km.centroids, dim).0 as u16;
+                }
+            });
+            out
+        })
+        .collect())
 }

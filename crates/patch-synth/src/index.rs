@@ -17,13 +17,18 @@ use crate::kmeans::{KMeans, kmeans};
 use crate::pca::Pca;
 use crate::settings::Settings;
 
-/// An exemplar DEM with its category (section 3.1).
+/// An exemplar DEM with its category (section 3.1), or with categories by region.
 #[derive(Debug, Clone)]
 pub struct Exemplar {
     /// The exemplar terrain (void-free).
     pub heightfield: Heightfield,
     /// Category id; the categorisation map names which categories each target region accepts.
     pub category: u16,
+    /// Category of every cell (row-major, the exemplar's size), when regions of one exemplar
+    /// belong to different categories (section 4 clusters the patches, not the exemplars; see
+    /// [`crate::categorize_regions`]). A patch takes the category of its centre cell;
+    /// `None` = `category` for every patch.
+    pub regions: Option<Vec<u16>>,
 }
 
 impl Exemplar {
@@ -32,6 +37,22 @@ impl Exemplar {
         Self {
             heightfield,
             category,
+            regions: None,
+        }
+    }
+
+    /// The same exemplar with a category per cell (`regions`, row-major, the exemplar's size;
+    /// checked when the index is built).
+    pub fn with_regions(mut self, regions: Vec<u16>) -> Self {
+        self.regions = Some(regions);
+        self
+    }
+
+    /// Category of the patch of side `p` whose top-left cell is `(x, y)`.
+    pub(crate) fn patch_category(&self, x: usize, y: usize, p: usize) -> u16 {
+        match &self.regions {
+            Some(r) => r[(y + p / 2) * self.heightfield.width() + x + p / 2],
+            None => self.category,
         }
     }
 }
@@ -214,6 +235,8 @@ pub struct ExemplarIndex {
     pub(crate) clusters: KMeans,
     /// Distinct categories, sorted.
     pub(crate) categories: Vec<u16>,
+    /// Category of every patch.
+    pub(crate) patch_categories: Vec<u16>,
     /// `cluster * categories.len() + category index`.
     pub(crate) buckets: Vec<Bucket>,
     pub(crate) layouts: Layouts,
@@ -264,6 +287,21 @@ pub(crate) fn check_exemplars(exemplars: &[Exemplar], patch: usize) -> Result<()
         }
         if hf.as_slice().iter().any(|v| !v.is_finite()) {
             return Err(bad("non-finite heights".into()));
+        }
+        if let Some(r) = &e.regions {
+            if r.len() != hf.len() {
+                return Err(bad(format!(
+                    "{} region categories for {} cells",
+                    r.len(),
+                    hf.len()
+                )));
+            }
+            if r.contains(&crate::ANY_CATEGORY) {
+                return Err(bad(format!(
+                    "region category {} (any) is for the categorisation map only",
+                    crate::ANY_CATEGORY
+                )));
+            }
         }
     }
     Ok(())
@@ -328,18 +366,16 @@ impl ExemplarIndex {
         );
         progress.advance(settings.kmeans_iterations as u64);
 
-        let mut categories: Vec<u16> = exemplars.iter().map(|e| e.category).collect();
+        let patch_categories: Vec<u16> = patches
+            .iter()
+            .map(|pr| {
+                exemplars[pr.exemplar as usize].patch_category(pr.x as usize, pr.y as usize, p)
+            })
+            .collect();
+        let mut categories = patch_categories.clone();
         categories.sort_unstable();
         categories.dedup();
         let ncat = categories.len();
-        let cat_index: Vec<usize> = exemplars
-            .iter()
-            .map(|e| {
-                categories
-                    .binary_search(&e.category)
-                    .expect("listed category")
-            })
-            .collect();
 
         // PCA bases of the three overlap shapes, fitted on seeded random patches.
         progress.begin("patch-synth: pca", 3);
@@ -376,9 +412,10 @@ impl ExemplarIndex {
         // Buckets: cluster x category.
         let k = clusters.k();
         let mut members: Vec<Vec<u32>> = vec![Vec::new(); k * ncat];
-        for (pid, pr) in patches.iter().enumerate() {
+        for (pid, cat) in patch_categories.iter().enumerate() {
             let c = clusters.labels[pid] as usize;
-            members[c * ncat + cat_index[pr.exemplar as usize]].push(pid as u32);
+            let ci = categories.binary_search(cat).expect("listed category");
+            members[c * ncat + ci].push(pid as u32);
         }
         progress.begin("patch-synth: kd-trees", members.len() as u64);
         let kd = settings.pca_dims;
@@ -444,6 +481,7 @@ impl ExemplarIndex {
             descriptors,
             clusters,
             categories,
+            patch_categories,
             buckets,
             layouts,
             pcas,
@@ -611,7 +649,7 @@ impl ExemplarIndex {
 
     /// Category of patch `id`.
     pub(crate) fn patch_category(&self, id: usize) -> u16 {
-        self.exemplars[self.patches[id].exemplar as usize].category
+        self.patch_categories[id]
     }
     /// Row `y` of patch `id` (patch-local, `patch_size` values).
     #[inline]

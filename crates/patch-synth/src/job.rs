@@ -14,7 +14,7 @@ use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, Progress};
 use serde::{Deserialize, Serialize};
 
-use crate::category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
+use crate::category::{ANY_CATEGORY, CategoryMap, categorize_exemplars, categorize_regions};
 use crate::error::{PatchSynthError, Result};
 use crate::guide::{self, GuideFit, GuideRange, RangeMapping};
 use crate::index::{Exemplar, ExemplarIndex};
@@ -57,6 +57,16 @@ pub struct ValidateJob {
     /// guide's heights clustered into K classes (lowest class = lowest exemplar category; a
     /// class no exemplar has accepts any).
     pub auto_categories: Option<usize>,
+    /// Cluster the exemplars' patches into K categories by their block averages (section 4),
+    /// so regions of one exemplar get different categories ([`categorize_regions`]), and,
+    /// without a categorisation map, make one from the guide's heights clustered into K
+    /// classes (class i accepts the patches of category i, the i-th lowest). Not with
+    /// `auto_categories` or painted exemplar regions.
+    pub region_categories: Option<usize>,
+    /// Once the validation passes, keep only the small exemplar subset its greedy set cover
+    /// picks (section 4: "a huge amount of redundant data increases significantly the
+    /// processing cost"), re-index and re-validate it; a subset that fails keeps them all.
+    pub auto_subset: bool,
 }
 
 /// Guided patch-based synthesis (`relief quilt`): the validation job's fields (the same JSON,
@@ -90,6 +100,9 @@ pub struct JobInputs {
     pub guide: Option<Heightfield>,
     /// Categorisation raster: category ids (65535 = any), nearest-resampled to the output.
     pub categories: Option<Heightfield>,
+    /// Painted category regions of the exemplars: none, or one raster of category ids per
+    /// exemplar, in order, at the exemplar's size ([`Exemplar::with_regions`]).
+    pub exemplar_regions: Vec<Heightfield>,
 }
 
 /// Figures of the preparation (inputs, guide, index, validation).
@@ -101,8 +114,12 @@ pub struct PrepareFigures {
     pub guide_voids_filled: usize,
     /// Category of each exemplar.
     pub exemplar_categories: Vec<u16>,
-    /// True when the categories were clustered (`auto_categories`).
+    /// True when the categories were clustered (`auto_categories` or `region_categories`).
     pub categories_clustered: bool,
+    /// Candidate patches per category `(category, patches)`, ascending category.
+    pub patches_per_category: Vec<(u16, usize)>,
+    /// The exemplars kept by `auto_subset` (input order), when it dropped any.
+    pub exemplar_subset: Option<Vec<usize>>,
     /// Where the guide went on the output grid.
     pub guide_fit: Option<GuideFit>,
     /// The guide's height mapping.
@@ -192,6 +209,41 @@ fn control_error(name: &'static str, reason: impl Into<String>) -> PatchSynthErr
         name,
         reason: reason.into(),
     }
+}
+
+/// A painted region raster of `exemplar` as category ids: the same size, whole numbers in
+/// 0..65535 (65535, "any", is for the categorisation map only).
+fn region_ids(map: &Heightfield, exemplar: &Heightfield) -> Result<Vec<u16>> {
+    if (map.width(), map.height()) != (exemplar.width(), exemplar.height()) {
+        return Err(control_error(
+            "exemplar_regions",
+            format!(
+                "a {} x {} region map for a {} x {} exemplar",
+                map.width(),
+                map.height(),
+                exemplar.width(),
+                exemplar.height()
+            ),
+        ));
+    }
+    map.as_slice()
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            if v.is_finite() && v >= 0.0 && v < ANY_CATEGORY as f32 {
+                Ok(v.round() as u16)
+            } else {
+                Err(control_error(
+                    "exemplar_regions",
+                    format!(
+                        "value {v} at ({}, {}) is not a category id 0..65534",
+                        i % map.width(),
+                        i / map.width()
+                    ),
+                ))
+            }
+        })
+        .collect()
 }
 
 fn filled(mut hf: Heightfield) -> Result<(Heightfield, usize)> {
@@ -307,13 +359,21 @@ impl ValidateJob {
                 "must be two finite heights LO < HI",
             ));
         }
-        if let Some(k) = self.auto_categories
-            && !(1..=1024).contains(&k)
-        {
+        for (name, k) in [
+            ("auto_categories", self.auto_categories),
+            ("region_categories", self.region_categories),
+        ] {
+            if let Some(k) = k
+                && !(1..=1024).contains(&k)
+            {
+                return Err(PatchSynthError::setting(name, k, "must be in 1..=1024"));
+            }
+        }
+        if let (Some(_), Some(k)) = (self.auto_categories, self.region_categories) {
             return Err(PatchSynthError::setting(
-                "auto_categories",
+                "region_categories",
                 k,
-                "must be in 1..=1024",
+                "clusters the patches; auto_categories clusters whole exemplars: give one",
             ));
         }
         Ok(())
@@ -331,7 +391,7 @@ impl ValidateJob {
         self.check()?;
         let settings = &self.settings;
         let mut fig = PrepareFigures::default();
-        let exemplars = self.exemplars(inputs.exemplars, &mut fig)?;
+        let exemplars = self.exemplars(inputs.exemplars, inputs.exemplar_regions, &mut fig)?;
         let cell = exemplars[0].heightfield.cell_size();
         let guide = match inputs.guide {
             Some(g) => Some(self.guide_on_grid(g, cell, &mut fig)?),
@@ -355,14 +415,44 @@ impl ValidateJob {
         fig.output_size = (control.width, control.height);
         control.categories = self.category_map(inputs.categories.as_ref(), &control, &exemplars)?;
         let t = Instant::now();
-        let index = ExemplarIndex::build(exemplars, settings, progress)?;
+        let mut index = ExemplarIndex::build(exemplars, settings, progress)?;
         fig.index_seconds = t.elapsed().as_secs_f64();
-        fig.candidate_patches = index.patches.len();
-        fig.required_candidates = settings.required_candidates(index.patches.len());
         progress.begin("validating", 0);
         let t = Instant::now();
-        let report = self.map_and_validate(&index, &mut control, unguided_validation, &mut fig)?;
+        let mut report =
+            self.map_and_validate(&index, &mut control, unguided_validation, &mut fig)?;
         fig.validation_seconds = t.elapsed().as_secs_f64();
+        if self.auto_subset
+            && let Some(r) = &report
+            && r.ok
+            && !r.blocks.is_empty()
+            && r.cover.len() < index.exemplars.len()
+        {
+            let mut keep = r.cover.clone();
+            keep.sort_unstable();
+            let subset: Vec<Exemplar> = keep.iter().map(|&e| index.exemplars[e].clone()).collect();
+            let t = Instant::now();
+            let sub = ExemplarIndex::build(subset, settings, progress)?;
+            let sr = validate(&sub, &control, settings)?;
+            if sr.ok {
+                fig.index_seconds += t.elapsed().as_secs_f64();
+                index = sub;
+                report = Some(sr);
+                fig.exemplar_subset = Some(keep);
+            }
+        }
+        fig.candidate_patches = index.patches.len();
+        fig.required_candidates = settings.required_candidates(index.patches.len());
+        fig.patches_per_category = index
+            .categories
+            .iter()
+            .map(|&c| {
+                (
+                    c,
+                    index.patch_categories.iter().filter(|&&p| p == c).count(),
+                )
+            })
+            .collect();
         if let Some(r) = &report {
             fig.validation_ok = Some(r.ok);
             fig.failing_blocks = r.failing.len();
@@ -390,9 +480,28 @@ impl ValidateJob {
     }
 
     /// Exemplars filled, size-checked and categorised.
-    fn exemplars(&self, hfs: Vec<Heightfield>, fig: &mut PrepareFigures) -> Result<Vec<Exemplar>> {
+    fn exemplars(
+        &self,
+        hfs: Vec<Heightfield>,
+        regions: Vec<Heightfield>,
+        fig: &mut PrepareFigures,
+    ) -> Result<Vec<Exemplar>> {
         if hfs.is_empty() {
             return Err(PatchSynthError::NoExemplars);
+        }
+        if !regions.is_empty() {
+            if regions.len() != hfs.len() {
+                return Err(control_error(
+                    "exemplar_regions",
+                    format!("{} region maps for {} exemplars", regions.len(), hfs.len()),
+                ));
+            }
+            if self.auto_categories.is_some() || self.region_categories.is_some() {
+                return Err(control_error(
+                    "exemplar_regions",
+                    "painted regions replace auto_categories and region_categories: give one",
+                ));
+            }
         }
         let p = self.settings.patch_size;
         let mut out = Vec::with_capacity(hfs.len());
@@ -431,6 +540,21 @@ impl ValidateJob {
             e.category = c;
         }
         fig.exemplar_categories = cats;
+        let regions = match self.region_categories {
+            Some(k) => {
+                let hfs: Vec<Heightfield> = out.iter().map(|e| e.heightfield.clone()).collect();
+                fig.categories_clustered = true;
+                categorize_regions(&hfs, k, &self.settings)?
+            }
+            None => regions
+                .iter()
+                .zip(&out)
+                .map(|(r, e)| region_ids(r, &e.heightfield))
+                .collect::<Result<_>>()?,
+        };
+        for (e, r) in out.iter_mut().zip(regions) {
+            e.regions = Some(r);
+        }
         Ok(out)
     }
 
@@ -464,12 +588,17 @@ impl ValidateJob {
         if let Some(m) = raster {
             return CategoryMap::from_heightfield(m, control.width, control.height).map(Some);
         }
-        let (Some(k), Some(g)) = (self.auto_categories, &control.guide) else {
+        let k = self.auto_categories.or(self.region_categories);
+        let (Some(k), Some(g)) = (k, &control.guide) else {
             return Ok(None);
         };
         let (mut map, _) = CategoryMap::from_guide_heights(g, k, self.settings.seed)?;
         for c in 0..k.min(u16::MAX as usize) as u16 {
-            if !exemplars.iter().any(|e| e.category == c) {
+            let present = exemplars.iter().any(|e| match &e.regions {
+                Some(r) => r.contains(&c),
+                None => e.category == c,
+            });
+            if !present {
                 map.relabel(c, ANY_CATEGORY);
             }
         }
@@ -608,173 +737,4 @@ pub fn reuse(out: &Synthesis) -> (f64, usize) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn jobs_round_trip_through_json_and_refuse_unknown_fields() {
-        let q = QuiltJob::default();
-        let s = serde_json::to_string(&q).unwrap();
-        assert_eq!(serde_json::from_str::<QuiltJob>(&s).unwrap(), q);
-        let v = ValidateJob::default();
-        let s = serde_json::to_string(&v).unwrap();
-        assert_eq!(serde_json::from_str::<ValidateJob>(&s).unwrap(), v);
-        assert!(serde_json::from_str::<QuiltJob>(r#"{"patch": 32}"#).is_err());
-        assert!(serde_json::from_str::<QuiltJob>(r#"{"settings": {"patch": 32}}"#).is_err());
-        assert!(serde_json::from_str::<QuiltJob>(r#"{"guide": {"sigma": 2}}"#).is_err());
-        let j: QuiltJob = serde_json::from_str(
-            r#"{"settings": {"patch_size": 32, "blend": {"feather": {"radius": 2.0}}},
-                "guide": {"range": "auto", "blur": 3.0}, "size": [64, 48]}"#,
-        )
-        .unwrap();
-        assert_eq!(j.settings.patch_size, 32);
-        assert_eq!(j.settings.overlap, Settings::default().overlap);
-        assert_eq!(j.guide.range, Some(GuideRange::Auto));
-        assert_eq!(j.size, Some((64, 48)));
-        let m: GuideSetup = serde_json::from_str(r#"{"range": {"metres": [10, 20]}}"#).unwrap();
-        assert_eq!(m.range, Some(GuideRange::Metres(10.0, 20.0)));
-    }
-
-    #[test]
-    fn check_names_the_field() {
-        let mut j = QuiltJob::default();
-        j.guide.blur = Some(-1.0);
-        assert!(j.check().unwrap_err().to_string().contains("guide.blur"));
-        let mut j = QuiltJob::default();
-        j.guide.range = Some(GuideRange::Metres(5.0, 5.0));
-        assert!(j.check().unwrap_err().to_string().contains("guide.range"));
-        let j = QuiltJob(ValidateJob {
-            size: Some((0, 8)),
-            ..Default::default()
-        });
-        assert!(j.check().unwrap_err().to_string().contains("`size`"));
-        let mut j = QuiltJob::default();
-        j.settings.overlap = 40;
-        assert!(j.check().unwrap_err().to_string().contains("overlap"));
-        let j = QuiltJob(ValidateJob {
-            auto_categories: Some(0),
-            ..Default::default()
-        });
-        assert!(
-            j.check()
-                .unwrap_err()
-                .to_string()
-                .contains("auto_categories")
-        );
-    }
-
-    fn exemplar() -> Heightfield {
-        Heightfield::from_fn(80, 80, 30.0, 30.0, |x, y| {
-            ((x as f32 * 0.21).sin() * (y as f32 * 0.17).cos()) * 40.0 + x as f32 * 2.0
-        })
-    }
-
-    fn small_settings() -> Settings {
-        Settings {
-            patch_size: 24,
-            overlap: 6,
-            min_candidates: 20,
-            kmeans_clusters: 4,
-            pca_samples: 400,
-            ..Default::default()
-        }
-    }
-
-    /// A guide at twice the exemplar's cell size in other units: kept at its ground extent,
-    /// mapped into the exemplar's heights, validated and synthesized; enforcement refuses a
-    /// guide far above the exemplar and suggests the auto mapping.
-    #[test]
-    fn quilt_job_maps_and_scales_the_guide() {
-        let ex = exemplar();
-        // The exemplar's centre at half the resolution, in other units (0.5 x, 5000 m up).
-        let mut g = ex
-            .crop(10, 15, 60, 50)
-            .unwrap()
-            .resample(30, 25)
-            .unwrap()
-            .map(|v| 5000.0 + 0.5 * v);
-        g.set_cell_size(60.0, 60.0).unwrap();
-        let mut job = QuiltJob(ValidateJob {
-            settings: small_settings(),
-            ..Default::default()
-        });
-        let inputs = JobInputs {
-            exemplars: vec![ex.clone()],
-            guide: Some(g.clone()),
-            categories: None,
-        };
-        let err = job
-            .run(inputs.clone(), &relief_heightfield::NoProgress)
-            .unwrap_err();
-        let PatchSynthError::Validation(r) = err else {
-            panic!("{err}")
-        };
-        assert!(!r.ok);
-        assert!(r.suggestion.unwrap().contains("auto would pass"));
-        job.guide.range = Some(GuideRange::Auto);
-        let out = job.run(inputs, &relief_heightfield::NoProgress).unwrap();
-        let used = out.guide.unwrap();
-        assert_eq!((used.width(), used.height()), (60, 50));
-        assert_eq!(used.cell_size(), (30.0, 30.0));
-        // The guide's window-mean extremes went inside the exemplar's range (from 5000 m up).
-        let m = out.figures.prepare.guide_mapping.unwrap();
-        let (elo, ehi) = ex.min_max().unwrap();
-        assert!(m.from.0 > 4900.0, "{m:?}");
-        assert!(
-            m.to.0 >= elo && m.to.1 <= ehi && m.to.0 < m.to.1,
-            "{m:?} vs {elo}..{ehi}"
-        );
-        let (lo, hi) = used.min_max().unwrap();
-        assert!(lo > elo - 100.0 && hi < ehi + 100.0, "{lo}..{hi}");
-        assert_eq!(out.figures.prepare.validation_ok, Some(true));
-        assert_eq!(out.figures.prepare.output_size, (60, 50));
-        assert!(out.figures.prepare.guide_mapping.is_some());
-        assert_eq!(
-            (
-                out.synthesis.heightfield.width(),
-                out.synthesis.heightfield.height()
-            ),
-            (60, 50)
-        );
-        assert!(out.figures.distinct_source_share > 0.0 && out.figures.patches > 0);
-    }
-
-    #[test]
-    fn validate_job_reports_unguided_compatibility_and_refuses_bad_inputs() {
-        let job = ValidateJob {
-            settings: small_settings(),
-            size: Some((64, 64)),
-            ..Default::default()
-        };
-        let inputs = JobInputs {
-            exemplars: vec![exemplar(), exemplar()],
-            ..Default::default()
-        };
-        let out = job.run(inputs, &relief_heightfield::NoProgress).unwrap();
-        assert_eq!(out.report.compatibility.len(), 2);
-        let err = job
-            .run(JobInputs::default(), &relief_heightfield::NoProgress)
-            .unwrap_err();
-        assert!(matches!(err, PatchSynthError::NoExemplars), "{err}");
-        let small = JobInputs {
-            exemplars: vec![exemplar().crop(0, 0, 20, 20).unwrap()],
-            ..Default::default()
-        };
-        let err = job.run(small, &relief_heightfield::NoProgress).unwrap_err();
-        assert!(err.to_string().contains("patch_size 24"), "{err}");
-        let j = ValidateJob {
-            size: None,
-            ..job.clone()
-        };
-        let err = j
-            .run(
-                JobInputs {
-                    exemplars: vec![exemplar()],
-                    ..Default::default()
-                },
-                &relief_heightfield::NoProgress,
-            )
-            .unwrap_err();
-        assert!(err.to_string().contains("size"), "{err}");
-    }
-}
+mod tests;

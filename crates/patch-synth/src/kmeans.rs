@@ -35,7 +35,7 @@ pub(crate) fn dist2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-fn nearest(p: &[f32], centroids: &[f32], dim: usize) -> (u32, f32) {
+pub(crate) fn nearest(p: &[f32], centroids: &[f32], dim: usize) -> (u32, f32) {
     let mut best = (0u32, f32::INFINITY);
     for (c, cen) in centroids.chunks_exact(dim).enumerate() {
         let d = dist2(p, cen);

@@ -7,7 +7,9 @@
 //!   filtering an existing DEM ([`guide::lowpass_resample`], [`guide::gaussian_blur`]) or by
 //!   interpolating painted seeds and sketch strokes ([`guide::guide_from_sketch`]);
 //! * exemplar **categories** and a **categorisation map** (sections 3.1 and 4): user-given per
-//!   exemplar or clustered ([`categorize_exemplars`]); the map comes from a user raster or from
+//!   exemplar or by region of an exemplar (a painted raster, [`Exemplar::with_regions`]), or
+//!   clustered per exemplar ([`categorize_exemplars`]) or per region ([`categorize_regions`],
+//!   the patches clustered as section 4 says); the map comes from a user raster or from
 //!   k-means of the guide's heights ([`CategoryMap::from_guide_heights`]).
 //!
 //! # Method
@@ -110,7 +112,7 @@ mod settings;
 mod synth;
 mod validate;
 
-pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars};
+pub use category::{ANY_CATEGORY, CategoryMap, categorize_exemplars, categorize_regions};
 pub use cut::{Cut, min_error_cut};
 pub use error::{PatchSynthError, Result};
 pub use guide::{GuideFit, GuideRange, RangeMapping, SizeFit};
@@ -120,7 +122,7 @@ pub use job::{
     ValidateJob, ValidateOutput,
 };
 pub use relief_heightfield::{NoProgress, Progress};
-pub use settings::{Blend, CutMethod, SUPPORTED_PCA_DIMS, Settings};
+pub use settings::{Blend, CutMethod, DEFAULT_MIN_CANDIDATES_SHARE, SUPPORTED_PCA_DIMS, Settings};
 pub use synth::{
     Control, MAX_OUTPUT_CELLS, Placement, SeamMap, Synthesis, SynthesisStats, quilt, synthesize,
 };

@@ -91,8 +91,11 @@ pub struct Settings {
     /// When set, the validation asks for `min(min_candidates, ceil(share * patches))` with
     /// `patches` the index's candidate patch count: 500 is 0.25 % of the 201,601 patches of
     /// a 512 x 512 exemplar (patch 64) but 5 % of the ~10,000 of a 128 x 128 crop (patch 16),
-    /// where it fails blocks that have ample candidates for their size (`None`: the absolute
-    /// `min_candidates`).
+    /// and 89 % of the 561 of a 96 x 80 crop, where it fails blocks that have ample
+    /// candidates for their size. Default `0.0025` (500 / 201,601: the paper's count where
+    /// its exemplar size gives it, the same share of smaller exemplar sets; a departure from
+    /// the paper's absolute count on small exemplars, which it does not discuss); `None` or
+    /// `1`: the absolute `min_candidates`.
     pub min_candidates_share: Option<f32>,
     /// RMS tolerance in metres of the block-descriptor match counted by the validation; `None`
     /// uses 50 % of the guide's (or, without a guide, the exemplars') standard deviation.
@@ -112,6 +115,10 @@ pub struct Settings {
     /// Seed of every random choice (k-means initialisation, PCA sampling, patch choice).
     pub seed: u64,
 }
+
+/// Default [`Settings::min_candidates_share`]: the paper's 500 candidates over the 201,601
+/// patches of a 512 x 512 exemplar with 64-cell patches.
+pub const DEFAULT_MIN_CANDIDATES_SHARE: f32 = 500.0 / 201_601.0;
 
 impl Default for Settings {
     fn default() -> Self {
@@ -136,7 +143,7 @@ impl Default for Settings {
             reuse_penalty: 0.5,
             reuse_radius: 3,
             min_candidates: 500,
-            min_candidates_share: None,
+            min_candidates_share: Some(DEFAULT_MIN_CANDIDATES_SHARE),
             validation_tolerance: None,
             enforce_validation: true,
             exemplar_stride: 1,

@@ -1,17 +1,18 @@
 //! Control structures and unguided synthesis on real DEM crops: guides from a DEM and from a
-//! sketch, exemplar categories by clustering, the categorisation map from guide heights, the
-//! compatibility check and greedy exemplar selection.
+//! sketch, exemplar categories by clustering (per exemplar and per region of one exemplar), the
+//! categorisation map from guide heights, the compatibility check and greedy exemplar
+//! selection (reported, and applied by `auto_subset`).
 
-use relief_heightfield::NoProgress;
 use relief_heightfield::metrics::{rmse, stats};
+use relief_heightfield::{Heightfield, NoProgress};
 use relief_patch_synth::guide::{
     GuideRange, Seed, Stroke, fit_range, fit_to_size, gaussian_blur, guide_from_sketch,
     lowpass_resample, map_range, to_cell_size,
 };
 use relief_patch_synth::quality::seam_visibility;
 use relief_patch_synth::{
-    CategoryMap, Control, Exemplar, ExemplarIndex, Settings, categorize_exemplars, synthesize,
-    validate,
+    CategoryMap, Control, Exemplar, ExemplarIndex, GuideSetup, JobInputs, QuiltJob, Settings,
+    ValidateJob, categorize_exemplars, categorize_regions, synthesize, validate,
 };
 use relief_testdata::dem_crop;
 
@@ -314,4 +315,172 @@ fn guide_keeps_its_scale_and_is_mapped_onto_the_exemplar_heights() {
         default.failing.len()
     );
     assert_eq!(validate(&index, &Control::guided(a), &s).unwrap(), report);
+}
+
+/// Section 4 clusters the patches, not the exemplars: one Grand Canyon crop gets two region
+/// categories (the lower class lower on average), and a categorisation map that asks for
+/// category 0 on the left and 1 on the right is obeyed by every block wholly inside a half.
+#[test]
+fn region_categories_split_one_exemplar_and_the_map_is_obeyed() {
+    let Some(ex) = dem_crop("grandcanyon", 0, 0, 192, 192) else {
+        return;
+    };
+    let s = small();
+    let regions = categorize_regions(std::slice::from_ref(&ex), 2, &s).unwrap();
+    let r = &regions[0];
+    assert_eq!(r.len(), ex.len());
+    let mean_of = |c: u16| {
+        let v: Vec<f64> = (0..r.len())
+            .filter(|&i| r[i] == c)
+            .map(|i| ex.as_slice()[i] as f64)
+            .collect();
+        (v.len(), v.iter().sum::<f64>() / v.len().max(1) as f64)
+    };
+    let ((n0, m0), (n1, m1)) = (mean_of(0), mean_of(1));
+    assert!(n0 > r.len() / 10 && n1 > r.len() / 10, "{n0} / {n1} cells");
+    assert!(m0 < m1, "class 0 {m0:.0} m, class 1 {m1:.0} m");
+    let p = s.patch_size;
+    let index = ExemplarIndex::build(
+        vec![Exemplar::new(ex.clone(), 0).with_regions(r.clone())],
+        &s,
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(index.categories(), &[0, 1]);
+    let (w, h) = (160, 96);
+    let ids: Vec<u16> = (0..w * h).map(|i| u16::from(i % w >= w / 2)).collect();
+    let control =
+        Control::unguided(w, h).with_categories(CategoryMap::from_raster(w, h, ids).unwrap());
+    let out = synthesize(&index, &control, &s, &NoProgress).unwrap();
+    let cat = |pl: &relief_patch_synth::Placement| {
+        let (x, y) = (pl.patch.x as usize + p / 2, pl.patch.y as usize + p / 2);
+        r[y * ex.width() + x]
+    };
+    let (mut left, mut right) = (0, 0);
+    for pl in &out.placements {
+        if pl.x + p <= w / 2 {
+            assert_eq!(cat(pl), 0, "block ({}, {}) on the left", pl.gx, pl.gy);
+            left += 1;
+        } else if pl.x >= w / 2 {
+            assert_eq!(cat(pl), 1, "block ({}, {}) on the right", pl.gx, pl.gy);
+            right += 1;
+        }
+    }
+    assert!(
+        left > 0 && right > 0,
+        "{left} / {right} blocks inside a half"
+    );
+    // The output follows: its right half stands higher than its left.
+    let o = &out.heightfield;
+    let half = |x0: usize| {
+        (0..h)
+            .flat_map(|y| (x0..x0 + w / 2).map(move |x| (x, y)))
+            .map(|(x, y)| o.get(x, y) as f64)
+            .sum::<f64>()
+            / (w / 2 * h) as f64
+    };
+    assert!(half(0) < half(w / 2), "{} vs {}", half(0), half(w / 2));
+}
+
+/// The job layer: `region_categories` clusters the patches of one exemplar and makes the map
+/// from the guide's height classes; painted regions must fit their exemplar; `auto_subset`
+/// drops a redundant exemplar once the validation passes, and the subset still validates.
+#[test]
+fn jobs_take_region_categories_painted_regions_and_apply_the_exemplar_subset() {
+    let (Some(a), Some(b)) = (
+        dem_crop("grandcanyon", 0, 0, 160, 160),
+        dem_crop("grandcanyon", 300, 300, 160, 160),
+    ) else {
+        return;
+    };
+    let s = Settings {
+        enforce_validation: false,
+        min_candidates: 40,
+        ..small()
+    };
+    let guide = Heightfield::from_fn(128, 96, 61.7, 61.7, |x, y| {
+        if x < 64 {
+            a.get(x + 10, y + 20)
+        } else {
+            b.get(x - 64 + 10, y + 20)
+        }
+    });
+    let mut job = QuiltJob(ValidateJob {
+        settings: s.clone(),
+        guide: GuideSetup {
+            blur: Some(4.0),
+            ..Default::default()
+        },
+        region_categories: Some(3),
+        ..Default::default()
+    });
+    let inputs = JobInputs {
+        exemplars: vec![a.clone()],
+        guide: Some(guide.clone()),
+        ..Default::default()
+    };
+    let out = job.run(inputs, &NoProgress).unwrap();
+    let f = &out.figures.prepare;
+    assert!(f.categories_clustered);
+    assert_eq!(
+        f.patches_per_category.len(),
+        3,
+        "{:?}",
+        f.patches_per_category
+    );
+    assert!(
+        out.categories.is_some(),
+        "a map from the guide's height classes"
+    );
+    // Painted regions: a wrong size is refused by name, a good one gives its categories.
+    job.region_categories = None;
+    let bad = JobInputs {
+        exemplars: vec![a.clone()],
+        guide: Some(guide.clone()),
+        exemplar_regions: vec![Heightfield::from_fn(10, 10, 1.0, 1.0, |_, _| 0.0)],
+        ..Default::default()
+    };
+    let err = job.run(bad, &NoProgress).unwrap_err().to_string();
+    assert!(
+        err.contains("exemplar_regions") && err.contains("10 x 10"),
+        "{err}"
+    );
+    let painted = Heightfield::from_fn(160, 160, 1.0, 1.0, |x, _| if x < 80 { 4.0 } else { 7.0 });
+    let good = JobInputs {
+        exemplars: vec![a.clone()],
+        guide: Some(guide.clone()),
+        exemplar_regions: vec![painted],
+        ..Default::default()
+    };
+    let out = job.run(good, &NoProgress).unwrap();
+    let cats: Vec<u16> = out
+        .figures
+        .prepare
+        .patches_per_category
+        .iter()
+        .map(|c| c.0)
+        .collect();
+    assert_eq!(cats, vec![4, 7]);
+    // Three exemplars, the first two the same: the cover needs two of them.
+    let v = ValidateJob {
+        settings: s,
+        guide: GuideSetup {
+            blur: Some(4.0),
+            ..Default::default()
+        },
+        auto_subset: true,
+        ..Default::default()
+    };
+    let three = JobInputs {
+        exemplars: vec![a.clone(), a.clone(), b.clone()],
+        guide: Some(guide),
+        ..Default::default()
+    };
+    let out = v.run(three, &NoProgress).unwrap();
+    assert!(out.report.ok, "{}", out.report);
+    let kept = out.figures.exemplar_subset.clone().expect("a subset");
+    assert_eq!(kept.len(), 2, "{kept:?}");
+    assert!(kept.contains(&2), "the high exemplar is needed: {kept:?}");
+    let one = ExemplarIndex::build(vec![Exemplar::new(a, 0)], &small(), &NoProgress).unwrap();
+    assert_eq!(out.figures.candidate_patches, 2 * one.patches().len());
 }

@@ -28,6 +28,26 @@ pub(crate) struct SynthArgs {
     /// lowest exemplar category; a class no exemplar has accepts any).
     #[arg(long, value_name = "K")]
     pub(crate) auto_categories: Option<usize>,
+    /// Cluster the exemplars' patches (not whole exemplars) into K categories by their block
+    /// averages (cruz2015 section 4), so regions of one exemplar (valley floors, slopes, rims)
+    /// get their own categories, numbered from the lowest; without `--categories`, the map
+    /// comes from the guide's heights clustered into K classes.
+    #[arg(long, value_name = "K", conflicts_with_all = ["auto_categories", "exemplar_regions"])]
+    pub(crate) region_categories: Option<usize>,
+    /// Painted category regions of an exemplar (e.g. an 8-bit grey PNG at the exemplar's size,
+    /// values are category ids); repeat once per `--exemplar`, in the same order. A patch takes
+    /// the category under its centre.
+    #[arg(
+        long = "exemplar-regions",
+        value_name = "MAP",
+        conflicts_with = "auto_categories"
+    )]
+    pub(crate) exemplar_regions: Vec<PathBuf>,
+    /// Once the input validation passes, keep only the small subset of exemplars its greedy
+    /// set cover picks (cruz2015 section 4), re-index and re-validate it (all are kept when the
+    /// subset fails).
+    #[arg(long)]
+    pub(crate) auto_subset: bool,
     /// Guide DEM at the target resolution (low-frequency control); resampled to `--size` when
     /// its size differs.
     #[arg(long, value_name = "DEM")]
@@ -83,7 +103,8 @@ pub(crate) struct SynthArgs {
     pub(crate) min_candidates: usize,
     /// Candidates a guide block needs as a share in (0, 1] of the exemplars' candidate
     /// patches, when that is fewer than --min-candidates (on small exemplars an absolute count
-    /// fails blocks that have ample candidates for their size).
+    /// fails blocks that have ample candidates for their size). Default 0.0025: 500 of the
+    /// 201,601 patches of a 512 x 512 exemplar; 1 = the absolute --min-candidates.
     #[arg(long, value_name = "SHARE")]
     pub(crate) min_candidates_share: Option<f32>,
     /// RMS tolerance in metres of a block match counted by the validation (default: half the
@@ -158,6 +179,7 @@ impl SynthArgs {
         v.extend(self.guide_from.as_deref());
         v.extend(self.guide_sketch.as_deref());
         v.extend(self.categories.as_deref());
+        v.extend(self.exemplar_regions.iter().map(|p| p.as_path()));
         v
     }
 
@@ -208,7 +230,9 @@ impl SynthArgs {
                 }),
                 seed: self.seed,
                 min_candidates: self.min_candidates,
-                min_candidates_share: self.min_candidates_share,
+                min_candidates_share: self
+                    .min_candidates_share
+                    .or(Settings::default().min_candidates_share),
                 validation_tolerance: self.tolerance,
                 lambda: self.lambda,
                 alpha: self.alpha,
@@ -226,7 +250,18 @@ impl SynthArgs {
             },
             exemplar_categories,
             auto_categories: self.auto_categories,
+            region_categories: self.region_categories,
+            auto_subset: self.auto_subset,
         };
+        if !self.exemplar_regions.is_empty() && self.exemplar_regions.len() != self.exemplars.len()
+        {
+            bail!(
+                "{} --exemplar-regions for {} --exemplar: give one region map per exemplar, in \
+                 the same order",
+                self.exemplar_regions.len(),
+                self.exemplars.len()
+            );
+        }
         job.check().context("invalid synthesis settings")?;
         Ok(job)
     }
@@ -257,7 +292,8 @@ impl SynthArgs {
         if let Some(path) = &self.guide_sketch {
             inputs.guide = Some(read_sketch(path, &inputs.exemplars)?);
         }
-        if let Some(path) = &self.categories {
+        // Category rasters are raw grey counts (ids), not heights.
+        let ids = |path: &Path, what: &str| -> Result<Heightfield> {
             let opts = relief_io::ReadOptions {
                 png: relief_io::PngMode::Grey {
                     offset: 0.0,
@@ -265,9 +301,15 @@ impl SynthArgs {
                 },
                 ..Default::default()
             };
-            let map = relief_io::read(path, &opts)
-                .with_context(|| format!("cannot read categorisation map {}", path.display()))?;
-            inputs.categories = Some(map.heightfield);
+            Ok(relief_io::read(path, &opts)
+                .with_context(|| format!("cannot read {what} {}", path.display()))?
+                .heightfield)
+        };
+        if let Some(path) = &self.categories {
+            inputs.categories = Some(ids(path, "categorisation map")?);
+        }
+        for p in &self.exemplar_regions {
+            inputs.exemplar_regions.push(ids(p, "exemplar region map")?);
         }
         Ok(inputs)
     }
@@ -324,7 +366,7 @@ impl SynthArgs {
         if let (Some(p), n @ 1..) = (guide, f.guide_voids_filled) {
             ctx.note(format!("guide {}: filled {n} void cells", p.display()));
         }
-        if f.categories_clustered {
+        if f.categories_clustered && self.region_categories.is_none() {
             let list: Vec<String> = f
                 .exemplar_categories
                 .iter()
@@ -333,6 +375,30 @@ impl SynthArgs {
             ctx.note(format!(
                 "exemplar categories (clustered): {}",
                 list.join(",")
+            ));
+        }
+        if self.region_categories.is_some() || !self.exemplar_regions.is_empty() {
+            let list: Vec<String> = f
+                .patches_per_category
+                .iter()
+                .map(|(c, n)| format!("{c}: {n}"))
+                .collect();
+            ctx.note(format!(
+                "candidate patches per region category: {}",
+                list.join(", ")
+            ));
+        }
+        if let Some(keep) = &f.exemplar_subset {
+            let names: Vec<String> = keep
+                .iter()
+                .filter_map(|&i| self.exemplars.get(i))
+                .map(|p| p.display().to_string())
+                .collect();
+            ctx.note(format!(
+                "--auto-subset: kept {} of {} exemplars ({}); the subset passes the validation",
+                keep.len(),
+                self.exemplars.len(),
+                names.join(", ")
             ));
         }
         if let (Some(p), Some(fit)) = (guide, &f.guide_fit)

@@ -37,8 +37,8 @@ const QUILT_TOLERANCE: Tolerance = Tolerance {
 };
 
 /// The stage's default job: patches of 16 cells (the exemplars are quadrants of a crop), the
-/// validation enforced with the candidate requirement scaled to the exemplars' patch count
-/// (500 per 201,601 patches, the paper's 500 on a 512 x 512 exemplar), vertical translations
+/// validation enforced with the library's candidate requirement scaled to the exemplars' patch
+/// count (500 per 201,601 patches, the paper's 500 on a 512 x 512 exemplar), vertical translations
 /// up to 100 m (the golden crop spans 1300 m; at 50 m one or two of its 88 volcano blocks
 /// fail), the guide low-passed (sigma 3 cells) and mapped onto the exemplars' heights
 /// (`auto`), two categories.
@@ -47,7 +47,6 @@ fn default_job() -> QuiltJob {
         settings: Settings {
             patch_size: 16,
             overlap: 4,
-            min_candidates_share: Some(500.0 / 201_601.0),
             lambda: 100.0,
             ..Settings::default()
         },
@@ -210,6 +209,7 @@ fn volcano(
                 exemplars: quads.clone(),
                 guide: Some(volcano),
                 categories: None,
+                exemplar_regions: Vec::new(),
             },
             &progress,
         )
@@ -324,6 +324,7 @@ fn holdout(
                 exemplars: vec![ex.clone()],
                 guide: Some(truth.clone()),
                 categories: None,
+                exemplar_regions: Vec::new(),
             },
             &progress,
         )
