@@ -322,26 +322,7 @@ impl ExemplarIndex {
             .par_iter()
             .map(|e| Sat::new(&e.heightfield))
             .collect();
-        let mut patches = Vec::new();
-        for (i, e) in exemplars.iter().enumerate() {
-            let (w, h) = (e.heightfield.width(), e.heightfield.height());
-            for y in (0..=h - p).step_by(stride) {
-                for x in (0..=w - p).step_by(stride) {
-                    patches.push(PatchRef {
-                        exemplar: i as u32,
-                        x: x as u32,
-                        y: y as u32,
-                    });
-                }
-            }
-        }
-        if patches.len() > u32::MAX as usize {
-            return Err(PatchSynthError::setting(
-                "exemplar_stride",
-                stride,
-                "too many patches; increase the stride",
-            ));
-        }
+        let patches = patch_positions(&exemplars, p, stride)?;
         progress.begin("patch-synth: descriptors", patches.len() as u64);
         let n = settings.blocks;
         let block_rects = grid_rects(p, n);
@@ -377,14 +358,7 @@ impl ExemplarIndex {
         categories.dedup();
         let ncat = categories.len();
 
-        // PCA bases of the three overlap shapes, fitted on seeded random patches.
-        progress.begin("patch-synth: pca", 3);
         let layouts = Layouts::new(p, settings.overlap);
-        let mut rng = Pcg64Mcg::seed_from_u64(settings.seed ^ 0x7063_6121);
-        let ns = settings.pca_samples.min(patches.len()).max(2);
-        let sample: Vec<usize> = (0..ns)
-            .map(|_| rng.random_range(0..patches.len()))
-            .collect();
         let feat = |pid: usize, shape: usize| {
             let pr = patches[pid];
             let sat = &sats[pr.exemplar as usize];
@@ -393,70 +367,19 @@ impl ExemplarIndex {
                 sat.mean(px + x, py + y, w, h)
             })
         };
-        let mut pcas = Vec::with_capacity(3);
-        for shape in 0..3 {
-            let dim = layouts.rects[shape].len();
-            let k = settings.pca_dims;
-            if k > dim {
-                return Err(PatchSynthError::setting(
-                    "pca_dims",
-                    k,
-                    format!("exceeds the {dim} overlap features of this patch geometry"),
-                ));
-            }
-            let data: Vec<f32> = sample.iter().flat_map(|&s| feat(s, shape)).collect();
-            pcas.push(Pca::fit(&data, dim, k)?);
-            progress.advance(1);
-        }
+        progress.begin("patch-synth: pca", 3);
+        let pcas = fit_pcas(&layouts, patches.len(), settings, &feat, progress)?;
 
         // Buckets: cluster x category.
         let k = clusters.k();
         let mut members: Vec<Vec<u32>> = vec![Vec::new(); k * ncat];
         for (pid, cat) in patch_categories.iter().enumerate() {
             let c = clusters.labels[pid] as usize;
-            let ci = categories.binary_search(cat).expect("listed category");
+            let ci = categories.binary_search(cat).unwrap_or(0);
             members[c * ncat + ci].push(pid as u32);
         }
         progress.begin("patch-synth: kd-trees", members.len() as u64);
-        let kd = settings.pca_dims;
-        // One task per (bucket, shape), largest first: the k-means buckets differ in size by
-        // an order of magnitude, and one task per bucket left a thread idle most of the phase.
-        let mut tasks: Vec<(usize, usize)> = (0..members.len())
-            .filter(|&b| !members[b].is_empty())
-            .flat_map(|b| (0..3).map(move |shape| (b, shape)))
-            .collect();
-        tasks.sort_by_key(|&(b, shape)| (std::cmp::Reverse(members[b].len()), b, shape));
-        let mut trees: Vec<(usize, usize, Tree)> = tasks
-            .into_par_iter()
-            .map(|(b, shape)| {
-                let ids = &members[b];
-                let mut pts = vec![0.0f32; ids.len() * kd];
-                for (j, &pid) in ids.iter().enumerate() {
-                    let f = feat(pid as usize, shape);
-                    pcas[shape].project(&f, &mut pts[j * kd..(j + 1) * kd]);
-                }
-                if shape == 2 {
-                    progress.advance(1);
-                }
-                (b, shape, Tree::build(&pts, kd))
-            })
-            .collect();
-        trees.sort_by_key(|t| (t.0, t.1));
-        let mut trees = trees.into_iter().peekable();
-        let buckets: Vec<Bucket> = members
-            .into_iter()
-            .enumerate()
-            .map(|(b, ids)| {
-                let mut t = Vec::new();
-                while let Some((_, _, tree)) = trees.next_if(|x| x.0 == b) {
-                    t.push(tree);
-                }
-                Bucket {
-                    patches: ids,
-                    trees: t,
-                }
-            })
-            .collect();
+        let buckets = build_buckets(members, settings.pca_dims, &pcas, &feat, progress);
         let nn = n * n;
         let mut by_mean: Vec<(f32, u32)> = (0..patches.len())
             .map(|i| {
@@ -488,7 +411,113 @@ impl ExemplarIndex {
             by_mean,
         })
     }
+}
 
+/// Every patch position of every exemplar, `stride` cells apart.
+fn patch_positions(exemplars: &[Exemplar], p: usize, stride: usize) -> Result<Vec<PatchRef>> {
+    let mut patches = Vec::new();
+    for (i, e) in exemplars.iter().enumerate() {
+        let (w, h) = (e.heightfield.width(), e.heightfield.height());
+        for y in (0..=h - p).step_by(stride) {
+            for x in (0..=w - p).step_by(stride) {
+                patches.push(PatchRef {
+                    exemplar: i as u32,
+                    x: x as u32,
+                    y: y as u32,
+                });
+            }
+        }
+    }
+    if patches.len() > u32::MAX as usize {
+        return Err(PatchSynthError::setting(
+            "exemplar_stride",
+            stride,
+            "too many patches; increase the stride",
+        ));
+    }
+    Ok(patches)
+}
+
+/// PCA bases of the three overlap shapes, fitted on seeded random patches (`feat(patch,
+/// shape)` gives a patch's overlap features).
+fn fit_pcas(
+    layouts: &Layouts,
+    npatches: usize,
+    settings: &Settings,
+    feat: &(dyn Fn(usize, usize) -> Vec<f32> + Sync),
+    progress: &dyn Progress,
+) -> Result<Vec<Pca>> {
+    let mut rng = Pcg64Mcg::seed_from_u64(settings.seed ^ 0x7063_6121);
+    let ns = settings.pca_samples.min(npatches).max(2);
+    let sample: Vec<usize> = (0..ns).map(|_| rng.random_range(0..npatches)).collect();
+    let mut pcas = Vec::with_capacity(3);
+    for shape in 0..3 {
+        let dim = layouts.rects[shape].len();
+        let k = settings.pca_dims;
+        if k > dim {
+            return Err(PatchSynthError::setting(
+                "pca_dims",
+                k,
+                format!("exceeds the {dim} overlap features of this patch geometry"),
+            ));
+        }
+        let data: Vec<f32> = sample.iter().flat_map(|&s| feat(s, shape)).collect();
+        pcas.push(Pca::fit(&data, dim, k)?);
+        progress.advance(1);
+    }
+    Ok(pcas)
+}
+
+/// One bucket per (cluster, category) with a kd-tree per overlap shape over the PCA projections
+/// (`kd` components) of its patches.
+fn build_buckets(
+    members: Vec<Vec<u32>>,
+    kd: usize,
+    pcas: &[Pca],
+    feat: &(dyn Fn(usize, usize) -> Vec<f32> + Sync),
+    progress: &dyn Progress,
+) -> Vec<Bucket> {
+    // One task per (bucket, shape), largest first: the k-means buckets differ in size by
+    // an order of magnitude, and one task per bucket left a thread idle most of the phase.
+    let mut tasks: Vec<(usize, usize)> = (0..members.len())
+        .filter(|&b| !members[b].is_empty())
+        .flat_map(|b| (0..3).map(move |shape| (b, shape)))
+        .collect();
+    tasks.sort_by_key(|&(b, shape)| (std::cmp::Reverse(members[b].len()), b, shape));
+    let mut trees: Vec<(usize, usize, Tree)> = tasks
+        .into_par_iter()
+        .map(|(b, shape)| {
+            let ids = &members[b];
+            let mut pts = vec![0.0f32; ids.len() * kd];
+            for (j, &pid) in ids.iter().enumerate() {
+                let f = feat(pid as usize, shape);
+                pcas[shape].project(&f, &mut pts[j * kd..(j + 1) * kd]);
+            }
+            if shape == 2 {
+                progress.advance(1);
+            }
+            (b, shape, Tree::build(&pts, kd))
+        })
+        .collect();
+    trees.sort_by_key(|t| (t.0, t.1));
+    let mut trees = trees.into_iter().peekable();
+    members
+        .into_iter()
+        .enumerate()
+        .map(|(b, ids)| {
+            let mut t = Vec::new();
+            while let Some((_, _, tree)) = trees.next_if(|x| x.0 == b) {
+                t.push(tree);
+            }
+            Bucket {
+                patches: ids,
+                trees: t,
+            }
+        })
+        .collect()
+}
+
+impl ExemplarIndex {
     /// Checks that `settings` use the patch geometry this index was built with.
     pub(crate) fn check_settings(&self, s: &Settings) -> Result<()> {
         let p = &self.params;

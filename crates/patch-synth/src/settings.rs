@@ -163,6 +163,14 @@ pub const SUPPORTED_PCA_DIMS: [usize; 5] = [4, 6, 8, 12, 16];
 impl Settings {
     /// Validates every field; the error names the first offending field and its value.
     pub fn check(&self) -> Result<()> {
+        self.check_geometry()?;
+        self.check_energy()?;
+        self.check_search()?;
+        self.check_blend()
+    }
+
+    /// Patch, overlap, descriptor blocks, k-means and PCA sizes.
+    fn check_geometry(&self) -> Result<()> {
         if self.patch_size < 8 || self.patch_size > 1024 {
             return Err(PatchSynthError::setting(
                 "patch_size",
@@ -178,29 +186,6 @@ impl Settings {
                     "must be >= 1 and < patch_size / 2 = {}",
                     self.patch_size / 2
                 ),
-            ));
-        }
-        for (name, v) in [
-            ("alpha", self.alpha),
-            ("beta", self.beta),
-            ("gamma", self.gamma),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(PatchSynthError::setting(name, v, "must be finite and >= 0"));
-            }
-        }
-        if self.alpha + self.beta + self.gamma <= 0.0 {
-            return Err(PatchSynthError::setting(
-                "alpha",
-                self.alpha,
-                "alpha, beta and gamma are all zero",
-            ));
-        }
-        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return Err(PatchSynthError::setting(
-                "lambda",
-                self.lambda,
-                "must be finite and >= 0",
             ));
         }
         if self.blocks == 0 || self.blocks > self.patch_size {
@@ -261,6 +246,39 @@ impl Settings {
                 "must be >= 2 * pca_dims",
             ));
         }
+        Ok(())
+    }
+
+    /// Energy weights and the largest vertical translation (finite, >= 0).
+    fn check_energy(&self) -> Result<()> {
+        for (name, v) in [
+            ("alpha", self.alpha),
+            ("beta", self.beta),
+            ("gamma", self.gamma),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(PatchSynthError::setting(name, v, "must be finite and >= 0"));
+            }
+        }
+        if self.alpha + self.beta + self.gamma <= 0.0 {
+            return Err(PatchSynthError::setting(
+                "alpha",
+                self.alpha,
+                "alpha, beta and gamma are all zero",
+            ));
+        }
+        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
+            return Err(PatchSynthError::setting(
+                "lambda",
+                self.lambda,
+                "must be finite and >= 0",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Counts of the candidate search, the reuse penalty and the validation thresholds.
+    fn check_search(&self) -> Result<()> {
         for (name, v) in [
             ("knn", self.knn),
             ("rerank", self.rerank),
@@ -312,6 +330,11 @@ impl Settings {
                 "must be finite and > 0",
             ));
         }
+        Ok(())
+    }
+
+    /// The blend's parameters.
+    fn check_blend(&self) -> Result<()> {
         match self.blend {
             Blend::Feather { radius } if !(radius.is_finite() && radius > 0.0) => {
                 return Err(PatchSynthError::setting(

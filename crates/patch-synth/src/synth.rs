@@ -360,62 +360,21 @@ pub fn synthesize(
                 has_left: gx > 0,
                 has_top: gy > 0,
             };
-            let mut rng = Pcg64Mcg::seed_from_u64(block_seed(settings.seed, gx as u64, gy as u64));
-            let allowed = allowed_categories(index, cmap.as_deref(), cw, b.x0, b.y0, p);
-            if !allowed.iter().any(|&a| a) {
-                return Err(PatchSynthError::NoCandidates {
-                    gx,
-                    gy,
-                    reason: "the categorisation map names no category of the exemplar set".into(),
-                });
-            }
-            let target_desc = block::target_descriptor(&sh, &cv, &b);
-            let order = block::cluster_order(&sh, &cv, &b, target_desc.as_deref(), &mut rng);
-            let probed = block::probe_buckets(&sh, &b, &order, &allowed)?;
-            buckets_probed += probed.len();
-            let cands = block::candidates(&sh, &cv, &b, &probed, target_desc.as_deref(), &mut rng);
-            let mut scored = block::score(&sh, &cv, &b, &cands);
-            let ncand = scored.len();
-            // Sources of the placed blocks within reuse_radius (placements are in raster order:
-            // block (x, y) is placement y * nx + x).
-            let r = settings.reuse_radius;
-            let nearby: Vec<PatchRef> = (gy.saturating_sub(r)..=gy)
-                .flat_map(|y| (gx.saturating_sub(r)..=(gx + r).min(nx - 1)).map(move |x| (x, y)))
-                .filter(|&(x, y)| y < gy || x < gx)
-                .map(|(x, y)| placements[y * nx + x].patch)
-                .collect();
-            block::penalise_reuse(&sh, &mut scored, &nearby);
-            scored.truncate(settings.survivors);
-            let cuts = block::cut_survivors(&sh, &cv, &b, &scored);
-            let (pick, energies) = block::choose(settings, &scored, &cuts, &mut rng);
-            let sc = &scored[pick];
-            let pi = placements.len() as u32;
-            poisson_iters += block::insert(&sh, &mut cv, &b, sc, &cuts[pick], pi);
-            let pcost = cuts[pick].2;
-            if sc.rejected {
+            let (pl, probed, iters) =
+                place_block(&sh, &mut cv, &b, cmap.as_deref(), &placements, nx)?;
+            buckets_probed += probed;
+            poisson_iters += iters;
+            if pl.translation_rejected {
                 stats.translations_rejected += 1;
-            } else if sc.h != 0.0 {
+            } else if pl.translation != 0.0 {
                 stats.translations_applied += 1;
-                stats.max_translation = stats.max_translation.max(sc.h.abs());
+                stats.max_translation = stats.max_translation.max(pl.translation.abs());
             }
-            stats.mean_candidates += ncand as f64;
-            stats.mean_guide_distance += sc.g as f64;
-            stats.mean_overlap_distance += sc.o as f64;
-            stats.mean_cut_cost += pcost as f64;
-            placements.push(Placement {
-                gx,
-                gy,
-                x: b.x0,
-                y: b.y0,
-                patch: index.patches[sc.id as usize],
-                translation: sc.h,
-                translation_rejected: sc.rejected,
-                guide_distance: sc.g,
-                overlap_distance: sc.o,
-                cut_cost: pcost,
-                energy: energies[pick],
-                candidates: ncand,
-            });
+            stats.mean_candidates += pl.candidates as f64;
+            stats.mean_guide_distance += pl.guide_distance as f64;
+            stats.mean_overlap_distance += pl.overlap_distance as f64;
+            stats.mean_cut_cost += pl.cut_cost as f64;
+            placements.push(pl);
             progress.advance(1);
         }
     }
@@ -428,6 +387,85 @@ pub fn synthesize(
     stats.mean_buckets_probed = buckets_probed as f64 / np;
     stats.mean_poisson_iterations = poisson_iters as f64 / np;
 
+    let (hf, seam_map) = assemble(&cv, control, index, w, h)?;
+    Ok(Synthesis {
+        heightfield: hf,
+        seam_map,
+        placements,
+        stats,
+    })
+}
+
+/// Chooses and inserts the patch of block `b` (section 3: candidates from the probed
+/// clusters, energy, cut, choice): its placement, the buckets probed and the Poisson
+/// iterations of the insert.
+fn place_block(
+    sh: &Shared<'_>,
+    cv: &mut Canvas,
+    b: &Block,
+    cmap: Option<&[u16]>,
+    placements: &[Placement],
+    nx: usize,
+) -> Result<(Placement, usize, usize)> {
+    let (gx, gy) = (b.gx, b.gy);
+    let mut rng = Pcg64Mcg::seed_from_u64(block_seed(sh.settings.seed, gx as u64, gy as u64));
+    let allowed = allowed_categories(sh.index, cmap, cv.cw, b.x0, b.y0, b.p);
+    if !allowed.iter().any(|&a| a) {
+        return Err(PatchSynthError::NoCandidates {
+            gx,
+            gy,
+            reason: "the categorisation map names no category of the exemplar set".into(),
+        });
+    }
+    let target_desc = block::target_descriptor(sh, cv, b);
+    let order = block::cluster_order(sh, cv, b, target_desc.as_deref(), &mut rng);
+    let probed = block::probe_buckets(sh, b, &order, &allowed)?;
+    let cands = block::candidates(sh, cv, b, &probed, target_desc.as_deref(), &mut rng);
+    let mut scored = block::score(sh, cv, b, &cands);
+    let ncand = scored.len();
+    // Sources of the placed blocks within reuse_radius (placements are in raster order:
+    // block (x, y) is placement y * nx + x).
+    let r = sh.settings.reuse_radius;
+    let nearby: Vec<PatchRef> = (gy.saturating_sub(r)..=gy)
+        .flat_map(|y| (gx.saturating_sub(r)..=(gx + r).min(nx - 1)).map(move |x| (x, y)))
+        .filter(|&(x, y)| y < gy || x < gx)
+        .map(|(x, y)| placements[y * nx + x].patch)
+        .collect();
+    block::penalise_reuse(sh, &mut scored, &nearby);
+    scored.truncate(sh.settings.survivors);
+    let cuts = block::cut_survivors(sh, cv, b, &scored);
+    let (pick, energies) = block::choose(sh.settings, &scored, &cuts, &mut rng);
+    let sc = &scored[pick];
+    let pi = placements.len() as u32;
+    let iters = block::insert(sh, cv, b, sc, &cuts[pick], pi);
+    let pcost = cuts[pick].2;
+    let placement = Placement {
+        gx,
+        gy,
+        x: b.x0,
+        y: b.y0,
+        patch: sh.index.patches[sc.id as usize],
+        translation: sc.h,
+        translation_rejected: sc.rejected,
+        guide_distance: sc.g,
+        overlap_distance: sc.o,
+        cut_cost: pcost,
+        energy: energies[pick],
+        candidates: ncand,
+    };
+    Ok((placement, probed.len(), iters))
+}
+
+/// The output heightfield (cell size and georeference of the guide, else of the first
+/// exemplar) and seam map cropped from the canvas.
+fn assemble(
+    cv: &Canvas,
+    control: &Control,
+    index: &ExemplarIndex,
+    w: usize,
+    h: usize,
+) -> Result<(Heightfield, SeamMap)> {
+    let cw = cv.cw;
     let crop = |v: &[f32]| -> Vec<f32> {
         (0..h)
             .flat_map(|y| v[y * cw..y * cw + w].iter().copied())
@@ -451,12 +489,7 @@ pub fn synthesize(
             .flat_map(|y| cv.source[y * cw..y * cw + w].iter().copied())
             .collect(),
     };
-    Ok(Synthesis {
-        heightfield: hf,
-        seam_map,
-        placements,
-        stats,
-    })
+    Ok((hf, seam_map))
 }
 
 /// Builds the index, then synthesizes: the one-call entry point.

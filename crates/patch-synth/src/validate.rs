@@ -5,7 +5,7 @@ use rayon::prelude::*;
 use crate::error::Result;
 use crate::index::{ExemplarIndex, grid_rects};
 use crate::settings::Settings;
-use crate::synth::{Control, allowed_categories, grid_for, pad, window_mean};
+use crate::synth::{Control, Grid, allowed_categories, grid_for, pad, window_mean};
 
 /// Candidate count of one guide block.
 #[derive(Debug, Clone, PartialEq)]
@@ -197,95 +197,9 @@ pub fn validate(
     let (p, o) = (settings.patch_size, settings.overlap);
     let grid = grid_for(control.width, control.height, p, o);
     let ne = index.exemplars.len();
-    let nn = settings.blocks * settings.blocks;
-    let exemplar_ranges: Vec<(f32, f32)> = (0..ne)
-        .map(|e| {
-            let mut r = (f32::INFINITY, f32::NEG_INFINITY);
-            for (i, pr) in index.patches.iter().enumerate() {
-                if pr.exemplar as usize == e {
-                    let m = index.descriptor(i).iter().sum::<f32>() / nn as f32;
-                    r = (r.0.min(m), r.1.max(m));
-                }
-            }
-            r
-        })
-        .collect();
-    let lambda = settings.lambda;
+    let exemplar_ranges = exemplar_ranges(index, settings.blocks * settings.blocks);
     let Some(guide) = &control.guide else {
-        // Exemplar compatibility.
-        let tol = settings.validation_tolerance.unwrap_or_else(|| {
-            0.5 * std_of(
-                index
-                    .exemplars
-                    .iter()
-                    .flat_map(|e| e.heightfield.as_slice().iter().copied()),
-            )
-        });
-        let step = o.max(1);
-        let min_needed = settings.required_candidates(index.patches.len());
-        let compatibility: Vec<ExemplarCompatibility> = (0..ne)
-            .into_par_iter()
-            .map(|e| {
-                let own: Vec<usize> = index
-                    .patches
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, pr)| {
-                        pr.exemplar as usize == e
-                            && (pr.x as usize).is_multiple_of(step)
-                            && (pr.y as usize).is_multiple_of(step)
-                    })
-                    .map(|(i, _)| i)
-                    .collect();
-                let total = index
-                    .patches
-                    .iter()
-                    .filter(|pr| pr.exemplar as usize == e)
-                    .count();
-                let compatible = if ne < 2 {
-                    own.len()
-                } else {
-                    own.iter()
-                        .filter(|&&i| {
-                            let d = index.descriptor(i);
-                            let m = d.iter().sum::<f32>() / nn as f32;
-                            mean_range(index, m - lambda - tol, m + lambda + tol)
-                                .iter()
-                                .any(|&(_, j)| {
-                                    index.patches[j as usize].exemplar as usize != e
-                                        && matches(index.descriptor(j as usize), d, lambda, tol)
-                                })
-                        })
-                        .count()
-                };
-                let est = if own.is_empty() {
-                    0
-                } else {
-                    (compatible as f64 / own.len() as f64 * total as f64).round() as usize
-                };
-                ExemplarCompatibility {
-                    exemplar: e,
-                    checked: own.len(),
-                    compatible,
-                    estimated_compatible: est,
-                    ok: est >= min_needed,
-                }
-            })
-            .collect();
-        return Ok(ValidationReport {
-            ok: compatibility.iter().all(|c| c.ok),
-            min_candidates: min_needed,
-            tolerance: tol,
-            grid: (grid.nx, grid.ny),
-            blocks: Vec::new(),
-            failing: Vec::new(),
-            missing_ranges: Vec::new(),
-            exemplar_ranges,
-            cover: (0..ne).collect(),
-            uncovered: Vec::new(),
-            compatibility,
-            suggestion: None,
-        });
+        return Ok(validate_unguided(index, settings, &grid, exemplar_ranges));
     };
     let tol = settings
         .validation_tolerance
@@ -297,27 +211,17 @@ pub fn validate(
         .as_ref()
         .map(|m| pad(&m.ids, w, h, grid.cw, grid.ch));
     let rects = grid_rects(p, settings.blocks);
-    let s = p - o;
     let blocks: Vec<BlockReport> = (0..grid.nx * grid.ny)
         .into_par_iter()
         .map(|bi| {
             let (gx, gy) = (bi % grid.nx, bi / grid.nx);
-            let (x0, y0) = (gx * s, gy * s);
+            let (x0, y0) = (gx * (p - o), gy * (p - o));
             let dg: Vec<f32> = rects
                 .iter()
                 .map(|r| window_mean(&g, grid.cw, x0 + r[0], y0 + r[1], r[2], r[3]))
                 .collect();
             let allowed = allowed_categories(index, cmap.as_deref(), grid.cw, x0, y0, p);
-            let m = dg.iter().sum::<f32>() / nn as f32;
-            let mut per = vec![0usize; ne];
-            for &(_, j) in mean_range(index, m - lambda - tol, m + lambda + tol) {
-                let j = j as usize;
-                let cat = index.patch_category(j);
-                let ci = index.categories.binary_search(&cat).unwrap_or(0);
-                if allowed[ci] && matches(index.descriptor(j), &dg, lambda, tol) {
-                    per[index.patches[j].exemplar as usize] += 1;
-                }
-            }
+            let per = block_candidates(index, &dg, &allowed, settings.lambda, tol);
             let lo = dg.iter().copied().fold(f32::INFINITY, f32::min);
             let hi = dg.iter().copied().fold(f32::NEG_INFINITY, f32::max);
             BlockReport {
@@ -335,17 +239,82 @@ pub fn validate(
     let failing: Vec<usize> = (0..blocks.len())
         .filter(|&i| blocks[i].candidates < min)
         .collect();
-    let mut ranges: Vec<(f32, f32)> = failing.iter().map(|&i| blocks[i].guide_range).collect();
-    ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut missing_ranges: Vec<(f32, f32)> = Vec::new();
-    for r in ranges {
-        match missing_ranges.last_mut() {
-            Some(last) if r.0 <= last.1 => last.1 = last.1.max(r.1),
-            _ => missing_ranges.push(r),
+    let missing_ranges = merged_ranges(failing.iter().map(|&i| blocks[i].guide_range).collect());
+    let cover = greedy_cover(&blocks, min, ne);
+    let uncovered = failing
+        .iter()
+        .map(|&i| (blocks[i].gx, blocks[i].gy))
+        .collect();
+    Ok(ValidationReport {
+        ok: failing.is_empty(),
+        min_candidates: min,
+        tolerance: tol,
+        grid: (grid.nx, grid.ny),
+        blocks,
+        failing,
+        missing_ranges,
+        exemplar_ranges,
+        cover,
+        uncovered,
+        compatibility: Vec::new(),
+        suggestion: None,
+    })
+}
+
+/// Per exemplar, the range of its patches' block-descriptor means (`nn` blocks per patch).
+fn exemplar_ranges(index: &ExemplarIndex, nn: usize) -> Vec<(f32, f32)> {
+    (0..index.exemplars.len())
+        .map(|e| {
+            let mut r = (f32::INFINITY, f32::NEG_INFINITY);
+            for (i, pr) in index.patches.iter().enumerate() {
+                if pr.exemplar as usize == e {
+                    let m = index.descriptor(i).iter().sum::<f32>() / nn as f32;
+                    r = (r.0.min(m), r.1.max(m));
+                }
+            }
+            r
+        })
+        .collect()
+}
+
+/// Per exemplar, the patches of an allowed category matching the guide block descriptor `dg`
+/// (RMS within `tol` after a vertical translation of at most `lambda`).
+fn block_candidates(
+    index: &ExemplarIndex,
+    dg: &[f32],
+    allowed: &[bool],
+    lambda: f32,
+    tol: f32,
+) -> Vec<usize> {
+    let m = dg.iter().sum::<f32>() / dg.len() as f32;
+    let mut per = vec![0usize; index.exemplars.len()];
+    for &(_, j) in mean_range(index, m - lambda - tol, m + lambda + tol) {
+        let j = j as usize;
+        let cat = index.patch_category(j);
+        let ci = index.categories.binary_search(&cat).unwrap_or(0);
+        if allowed[ci] && matches(index.descriptor(j), dg, lambda, tol) {
+            per[index.patches[j].exemplar as usize] += 1;
         }
     }
-    // Greedy multi-cover: repeatedly take the exemplar that removes the most missing
-    // candidates from the blocks' deficits.
+    per
+}
+
+/// The height ranges sorted and merged where they overlap.
+fn merged_ranges(mut ranges: Vec<(f32, f32)>) -> Vec<(f32, f32)> {
+    ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut merged: Vec<(f32, f32)> = Vec::new();
+    for r in ranges {
+        match merged.last_mut() {
+            Some(last) if r.0 <= last.1 => last.1 = last.1.max(r.1),
+            _ => merged.push(r),
+        }
+    }
+    merged
+}
+
+/// Greedy multi-cover: repeatedly takes the exemplar that removes the most missing candidates
+/// from the blocks' deficits (each block needs `min`); returns the exemplars in pick order.
+fn greedy_cover(blocks: &[BlockReport], min: usize, ne: usize) -> Vec<usize> {
     let mut deficit: Vec<usize> = blocks.iter().map(|b| min.min(b.candidates)).collect();
     let mut cover = Vec::new();
     let mut used = vec![false; ne];
@@ -369,25 +338,93 @@ pub fn validate(
                     *d -= (*d).min(b.per_exemplar[e]);
                 }
             }
-            _ => break,
+            _ => return cover,
         }
     }
-    let uncovered = failing
-        .iter()
-        .map(|&i| (blocks[i].gx, blocks[i].gy))
+}
+
+/// Without a guide: every exemplar must have enough patches that match patches of other
+/// exemplars (sampled every `overlap` cells, scaled to all its patches).
+fn validate_unguided(
+    index: &ExemplarIndex,
+    settings: &Settings,
+    grid: &Grid,
+    exemplar_ranges: Vec<(f32, f32)>,
+) -> ValidationReport {
+    let ne = index.exemplars.len();
+    let nn = settings.blocks * settings.blocks;
+    let lambda = settings.lambda;
+    let tol = settings.validation_tolerance.unwrap_or_else(|| {
+        0.5 * std_of(
+            index
+                .exemplars
+                .iter()
+                .flat_map(|e| e.heightfield.as_slice().iter().copied()),
+        )
+    });
+    let step = settings.overlap.max(1);
+    let min_needed = settings.required_candidates(index.patches.len());
+    let compatibility: Vec<ExemplarCompatibility> = (0..ne)
+        .into_par_iter()
+        .map(|e| {
+            let own: Vec<usize> = index
+                .patches
+                .iter()
+                .enumerate()
+                .filter(|(_, pr)| {
+                    pr.exemplar as usize == e
+                        && (pr.x as usize).is_multiple_of(step)
+                        && (pr.y as usize).is_multiple_of(step)
+                })
+                .map(|(i, _)| i)
+                .collect();
+            let total = index
+                .patches
+                .iter()
+                .filter(|pr| pr.exemplar as usize == e)
+                .count();
+            let compatible = if ne < 2 {
+                own.len()
+            } else {
+                own.iter()
+                    .filter(|&&i| {
+                        let d = index.descriptor(i);
+                        let m = d.iter().sum::<f32>() / nn as f32;
+                        mean_range(index, m - lambda - tol, m + lambda + tol)
+                            .iter()
+                            .any(|&(_, j)| {
+                                index.patches[j as usize].exemplar as usize != e
+                                    && matches(index.descriptor(j as usize), d, lambda, tol)
+                            })
+                    })
+                    .count()
+            };
+            let est = if own.is_empty() {
+                0
+            } else {
+                (compatible as f64 / own.len() as f64 * total as f64).round() as usize
+            };
+            ExemplarCompatibility {
+                exemplar: e,
+                checked: own.len(),
+                compatible,
+                estimated_compatible: est,
+                ok: est >= min_needed,
+            }
+        })
         .collect();
-    Ok(ValidationReport {
-        ok: failing.is_empty(),
-        min_candidates: min,
+    ValidationReport {
+        ok: compatibility.iter().all(|c| c.ok),
+        min_candidates: min_needed,
         tolerance: tol,
         grid: (grid.nx, grid.ny),
-        blocks,
-        failing,
-        missing_ranges,
+        blocks: Vec::new(),
+        failing: Vec::new(),
+        missing_ranges: Vec::new(),
         exemplar_ranges,
-        cover,
-        uncovered,
-        compatibility: Vec::new(),
+        cover: (0..ne).collect(),
+        uncovered: Vec::new(),
+        compatibility,
         suggestion: None,
-    })
+    }
 }
