@@ -77,7 +77,15 @@
 //!   needed values either, nor do the input's octave slopes. Switching the block-mean removal off
 //!   trades one for the other (alps_dem 0.81, carrizo 1.04), `fine_levels` 2 makes both worse
 //!   (1.07, 1.37); `examples/quality.rs -- octaves` prints the per-octave slopes behind these
-//!   numbers;
+//!   numbers. Tried and not kept: pivoting the clamped line at the finest observed level (the free
+//!   fit's value there) instead of at the centroid of the fitted levels, which raises the new
+//!   levels by `(gamma - gamma_fit) (levels - 1) / 2` in log2 variance. Half of that raise partly
+//!   fills the dip of the x16 outputs in the first added octave (slope -4.6 to -7.3 instead of -5.8
+//!   to -8.9, truth -4.0 to -5.0): at x16 the slope errors sum 1.12 instead of 1.48, the
+//!   slope-histogram distances 18.5 instead of 20.9, the Laplacian distances 0.41 instead of 0.53
+//!   over the five DEMs; but at x4 the slope errors sum 3.06 instead of 2.45 (alps_dem 1.11,
+//!   carrizo 0.63, grandcanyon 0.57, jacksboro_fault 0.74), the wrong way for the x4 bar and the
+//!   held-out DEMs (the full raise: x16 0.98, x4 3.91);
 //! * can condition the new coefficients on their parents ([`RefineSettings::parent_conditioning`]
 //!   `kappa`, off by default): the coloured numbers of new level `t >= 1` are multiplied by
 //!   `m^(kappa/2)` (normalised to mean square 1), `m` the mean square of the same band's
