@@ -17,11 +17,12 @@ use super::*;
 /// Radius of the parent window (`3 x 3` parents).
 const PARENT_R: usize = 1;
 
-/// Side of the square sample the normalisation `c_t` is measured on (parent-level coefficients).
+/// Side of the square sample (coefficients of the conditioned level) `c_t` is measured on.
 const NORM_SIDE: usize = 256;
 
-/// Offset of the normalisation sample on a virtual grid large enough to have no edge inside it.
-const NORM_OFFSET: usize = 1 << 12;
+/// Offset of the normalisation sample on a virtual grid (`2^30` coefficients per side at the
+/// conditioned level) large enough to have no edge near it at any level.
+const NORM_OFFSET: usize = 1 << 20;
 
 /// Bilinear parent coordinate of child coefficient `k`: children `2i` and `2i + 1` lie at
 /// `i - 1/4` and `i + 1/4` on the parent grid.
@@ -39,7 +40,7 @@ impl Refiner {
         if self.spectral.is_none() || self.settings.parent_conditioning <= 0.0 {
             return;
         }
-        let big = 1usize << 40;
+        let big = 1usize << 30;
         for t in 1..n {
             let range = (NORM_OFFSET, NORM_OFFSET + NORM_SIDE);
             let norms = Band::ALL.map(|b| {
