@@ -11,6 +11,8 @@
 //! (fitted `gamma`, notes and level variances of every run), `swing` (the detail energy against
 //! bicubic per position modulo the factor, truth and output: the profile behind the swing),
 //! `try=JSON` (one more run with these settings, e.g. `'try={"amplitude_power":2}'`),
+//! `octaves` (the spectral slope of every octave from 1/64 to 1/2 cycles per sample of the truth,
+//! the coarse input and every output: where in the added octaves a `dslope` comes from),
 //! `timing` (wall time of the spectral and paper models on a 1024 x 704 crop), `npy=DIR` (write
 //! the truth, the spectral output and the bicubic baseline of every crop as `.npy` into DIR, for
 //! checking against the reference `shared/tools/terrain_quality.py`:
@@ -18,6 +20,7 @@
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::fill::{FillSettings, fill_voids};
+use relief_heightfield::metrics::{radial_power_spectrum, spectral_slope};
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_testdata::load_dem;
 use relief_wavelet_lod::quality::{Protocol, Scores};
@@ -71,6 +74,19 @@ fn main() {
                 "{id} {w}x{h}+{x}+{y} x{factor}: truth slope {:.2}, truth swing {:.2} (against Keys bicubic {:.2})",
                 p.truth_slope, p.truth_swing, p.truth_swing_keys
             );
+            let octaves = extra.iter().any(|a| a == "octaves");
+            if octaves {
+                println!(
+                    "  {:<14} octave slopes {}",
+                    "truth",
+                    octave_slopes(&p.truth)
+                );
+                println!(
+                    "  {:<14} octave slopes {}",
+                    "coarse",
+                    octave_slopes(&p.coarse)
+                );
+            }
             let levels = factor.trailing_zeros();
             let mut runs: Vec<(String, RefineSettings)> = vec![
                 (
@@ -140,6 +156,9 @@ fn main() {
                 }
                 let out = r.render(&NoProgress).expect("render");
                 row(&label, &p.score(&out).expect("score"));
+                if octaves {
+                    println!("  {:<14} octave slopes {}", "", octave_slopes(&out));
+                }
                 if let (Some(dir), "spectral") = (npy_dir(&extra), label.as_str()) {
                     let stem = format!("{dir}/{id}_x{factor}");
                     write_npy(&format!("{stem}_truth.npy"), &p.truth);
@@ -211,15 +230,26 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
             ..Default::default()
         },
     ));
-    // Parent conditioning: the amplitude of the new coefficients follows the magnitude of the
-    // finest observed coefficients over a 1 x 1 (the parent alone), 3 x 3 (default) or 5 x 5
-    // window.
+    // The local amplitude of the first new level follows the magnitude of the finest observed
+    // coefficients over a 1 x 1 (the parent alone), 3 x 3 (default) or 5 x 5 window.
     for window in [1usize, 5] {
         v.push((
             format!("amplitude w{window}"),
             RefineSettings {
                 extra_levels: levels,
                 window,
+                seed: 2024,
+                ..Default::default()
+            },
+        ));
+    }
+    // Parent conditioning across the new levels (magnitude correlation, off by default).
+    for kappa in [0.5, 1.0, 2.0] {
+        v.push((
+            format!("parent k{kappa}"),
+            RefineSettings {
+                extra_levels: levels,
+                parent_conditioning: kappa,
                 seed: 2024,
                 ..Default::default()
             },
@@ -255,6 +285,26 @@ fn variants(levels: u32) -> Vec<(String, RefineSettings)> {
         }
     }
     v
+}
+
+/// Spectral slopes of the octaves `[1/64, 1/32]` ... `[1/4, 1/2]` cycles per sample of the
+/// largest top-left square (`-- octaves`; `nan` where the square is too small).
+fn octave_slopes(hf: &Heightfield) -> String {
+    let n = hf.width().min(hf.height());
+    let unit = hf
+        .crop(0, 0, n, n)
+        .and_then(|sq| Heightfield::new(n, n, sq.as_slice().to_vec(), 1.0, 1.0))
+        .expect("square");
+    let spec = radial_power_spectrum(&unit).expect("spectrum");
+    (0..5)
+        .rev()
+        .map(|k| {
+            let hi = 0.5 / (1u32 << k) as f64;
+            let v = spectral_slope(&spec, hi / 2.0, hi).unwrap_or(f64::NAN);
+            format!("{v:6.2}")
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// Wall time of `Refiner::new` + `render` for a 1024 x 1024 crop refined x4 (`-- timing`).

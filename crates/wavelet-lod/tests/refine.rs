@@ -529,3 +529,69 @@ fn local_amplitude_keeps_flat_ground_smooth_and_its_knobs_act() {
     // Persistence below 1 spreads the finest levels towards a uniform texture.
     assert!(default > follow, "default {default} vs follow {follow}");
 }
+
+#[test]
+fn parent_conditioning_keeps_windows_threads_and_consistency() {
+    let hf = rough(45, 37, 21);
+    for extra in [2u32, 3] {
+        let s = RefineSettings {
+            extra_levels: extra,
+            seed: 8,
+            tile: 48,
+            parent_conditioning: 1.0,
+            ..Default::default()
+        };
+        let r = Refiner::new(&hf, &s).unwrap();
+        let full = r.render(&NoProgress).unwrap();
+        let (ow, oh) = r.output_size();
+        for (x, y, w, h) in [
+            (0, 0, 1, 1),
+            (ow - 3, oh - 5, 3, 5),
+            (7, 11, 33, 17),
+            (ow / 2 + 1, 3, 20, 9),
+        ] {
+            let win = r.render_window(x, y, w, h).unwrap();
+            let want = full.crop(x, y, w, h).unwrap();
+            assert_eq!(
+                bits(win.as_slice()),
+                bits(want.as_slice()),
+                "+{extra} {x},{y},{w},{h}"
+            );
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let one = pool.install(|| {
+            refine(
+                &hf,
+                &RefineSettings {
+                    tile: 512,
+                    ..s.clone()
+                },
+            )
+            .unwrap()
+        });
+        assert_eq!(bits(one.as_slice()), bits(full.as_slice()));
+        // Area consistency is untouched, and the setting acts.
+        let f = 1usize << extra;
+        let worst = full
+            .downsample_box(f)
+            .unwrap()
+            .as_slice()
+            .iter()
+            .zip(hf.as_slice())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4 * hf.relief(), "+{extra}: worst cell {worst} m");
+        let free = refine(
+            &hf,
+            &RefineSettings {
+                parent_conditioning: 0.0,
+                ..s.clone()
+            },
+        )
+        .unwrap();
+        assert_ne!(bits(free.as_slice()), bits(full.as_slice()));
+    }
+}

@@ -79,6 +79,7 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
         (
             prop_oneof![3 => Just(1.0f64), 1 => -1.0f64..5.0],
             prop_oneof![3 => Just(0.6f64), 1 => -0.5f64..1.5],
+            prop_oneof![3 => Just(0.0f64), 1 => -0.5f64..2.5],
         ),
     )
         .prop_map(
@@ -91,7 +92,7 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 fit,
                 tile,
                 (paper, fine_levels, min_gamma, consistency),
-                (amplitude_power, amplitude_persistence),
+                (amplitude_power, amplitude_persistence, parent_conditioning),
             )| RefineSettings {
                 model: if paper { Model::Paper } else { Model::Spectral },
                 wavelet: Some(wavelet),
@@ -106,6 +107,7 @@ fn refine_settings() -> impl Strategy<Value = RefineSettings> {
                 consistency,
                 amplitude_power,
                 amplitude_persistence,
+                parent_conditioning,
             },
         )
 }
@@ -152,6 +154,7 @@ const FIELDS: &[&str] = &[
     "min_gamma",
     "amplitude_power",
     "amplitude_persistence",
+    "parent_conditioning",
 ];
 
 /// Every error names what is wrong: the field and its value for parameter errors.

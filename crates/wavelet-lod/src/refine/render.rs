@@ -314,21 +314,10 @@ impl Refiner {
             let level = self.global.top_level + t as i64;
             let make_band = |band: Band, xs: (usize, usize), ys: (usize, usize)| -> Vec<f32> {
                 let (cw, ch) = (xs.1 - xs.0, ys.1.max(ys.0) - ys.0);
-                let mut out = vec![0.0f32; cw * ch];
                 let s = &sig[band.index()];
-                if let Some(plan) = &self.spectral {
-                    let kern = &plan.kernels[t as usize][band.index()];
-                    colour_noise(
-                        self.settings.seed,
-                        band,
-                        level,
-                        xs.0,
-                        ys.0,
-                        cw,
-                        ch,
-                        kern,
-                        &mut out,
-                    );
+                if self.spectral.is_some() {
+                    let dims = (iw << t, ih << t);
+                    let mut out = self.texture(t, band, (xs.0, xs.1), (ys.0, ys.0 + ch), dims);
                     let sigma = s.first().copied().unwrap_or(0.0);
                     match &self.amplitude {
                         None => out.iter_mut().for_each(|v| *v *= sigma),
@@ -358,6 +347,7 @@ impl Refiner {
                     }
                     return out;
                 }
+                let mut out = vec![0.0f32; cw * ch];
                 for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
                     let gy = ys.0 + r;
                     let key = row_key(self.settings.seed, band.index(), level, gy);
