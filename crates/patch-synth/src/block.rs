@@ -502,13 +502,19 @@ pub(crate) fn insert(
                     }
                 }
             }
-            Blend::Poisson { max_iterations } => {
+            Blend::Poisson { max_iterations } | Blend::Screened { max_iterations, .. } => {
+                let (whole, screen) = match settings.blend {
+                    Blend::Screened { decay, .. } => (true, 1.0 / (decay as f64 * decay as f64)),
+                    _ => (false, 0.0),
+                };
                 if b.n_overlap() > 0 {
                     let (cw, ch) = (cvr.cw, cvr.ch);
                     poisson_iters += poisson_blend(
                         &mut out,
                         PoissonInput {
                             p,
+                            whole,
+                            screen,
                             ov_cols: &ov_cols,
                             is_new: &is_new,
                             nv: &nv,

@@ -32,6 +32,19 @@ pub enum Blend {
         /// Maximum conjugate-gradient iterations per patch.
         max_iterations: usize,
     },
+    /// Screened Poisson blending over the whole patch (a departure from the paper): the same
+    /// guidance gradients, with the patch interior free too and a screening term that pulls
+    /// every cell towards the cut-and-paste value, so a height offset between the new patch
+    /// and the terrain around it decays over about `decay` cells inside the patch instead of
+    /// being squeezed into the overlap (the steps of patches at slightly different heights on
+    /// a plateau).
+    Screened {
+        /// Maximum conjugate-gradient iterations per patch.
+        max_iterations: usize,
+        /// Decay length in cells of a boundary offset (> 0): the screening weight is
+        /// `1 / decay^2`.
+        decay: f32,
+    },
 }
 
 /// Parameters of the guided patch-based synthesis. Use as
@@ -343,7 +356,17 @@ impl Settings {
                     "must be finite and > 0",
                 ));
             }
-            Blend::Poisson { max_iterations: 0 } => {
+            Blend::Screened { decay, .. } if !(decay.is_finite() && decay > 0.0) => {
+                return Err(PatchSynthError::setting(
+                    "blend.decay",
+                    decay,
+                    "must be finite and > 0",
+                ));
+            }
+            Blend::Poisson { max_iterations: 0 }
+            | Blend::Screened {
+                max_iterations: 0, ..
+            } => {
                 return Err(PatchSynthError::setting(
                     "blend.max_iterations",
                     0,

@@ -589,6 +589,10 @@ pub(crate) fn smooth_crease(
 
 pub(crate) struct PoissonInput<'a> {
     pub(crate) p: usize,
+    /// Solve over the whole patch (else the overlap only, the interior as boundary).
+    pub(crate) whole: bool,
+    /// Screening weight towards the cut-and-paste values (0 = plain Poisson).
+    pub(crate) screen: f64,
     pub(crate) ov_cols: &'a dyn Fn(usize) -> usize,
     pub(crate) is_new: &'a dyn Fn(usize, usize) -> bool,
     pub(crate) nv: &'a dyn Fn(usize, usize) -> f32,
@@ -612,7 +616,8 @@ pub(crate) fn poisson_blend(
     let mut idx = vec![usize::MAX; p * p];
     let mut cells = Vec::new();
     for r in 0..p {
-        for c in 0..(inp.ov_cols)(r) {
+        let cols = if inp.whole { p } else { (inp.ov_cols)(r) };
+        for c in 0..cols {
             idx[r * p + c] = cells.len();
             cells.push((r, c));
         }
@@ -661,6 +666,12 @@ pub(crate) fn poisson_blend(
             }
         }
     }
+    if inp.screen > 0.0 {
+        for (a, &(r, c)) in cells.iter().enumerate() {
+            diag[a] += inp.screen;
+            rhs[a] += inp.screen * out[r * p + c] as f64;
+        }
+    }
     let apply = |x: &[f64], y: &mut [f64]| {
         for a in 0..n {
             let mut s = diag[a] * x[a];
@@ -704,4 +715,56 @@ pub(crate) fn poisson_blend(
         out[r * p + c] = x[a] as f32;
     }
     it
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flat new patch 10 m below the terrain on its left: the plain Poisson blend squeezes
+    /// the step into the overlap, the screened one spreads it over the patch (gentler largest
+    /// slope) and lets it decay towards the patch's own height.
+    #[test]
+    fn screened_blend_spreads_a_boundary_offset_over_the_patch() {
+        let (p, ov) = (32usize, 8usize);
+        let run = |whole: bool, screen: f64| {
+            let mut out = vec![0.0f32; p * p];
+            let iters = poisson_blend(
+                &mut out,
+                PoissonInput {
+                    p,
+                    whole,
+                    screen,
+                    ov_cols: &|_| ov,
+                    is_new: &|_, c| c >= ov / 2,
+                    nv: &|_, _| 0.0,
+                    old: &|_, _| 10.0,
+                    outside: &|x, _| (x < 0).then_some(10.0),
+                },
+                2000,
+            );
+            assert!(iters > 0);
+            out
+        };
+        let max_step = |v: &[f32]| {
+            (0..p)
+                .flat_map(|r| (1..p).map(move |c| (r, c)))
+                .map(|(r, c)| (v[r * p + c] - v[r * p + c - 1]).abs())
+                .fold(0.0f32, f32::max)
+        };
+        let plain = run(false, 0.0);
+        let screened = run(true, 1.0 / 256.0);
+        // Plain: the interior keeps the patch's height.
+        assert!(plain[16 * p + ov + 2].abs() < 1e-6);
+        // Screened: the offset reaches into the interior and decays along the row.
+        let row = &screened[16 * p..17 * p];
+        assert!(row[ov + 2] > 1.0, "{row:?}");
+        assert!(row[ov + 2] > row[p - 1], "{row:?}");
+        assert!(
+            max_step(&screened) < 0.7 * max_step(&plain),
+            "{} vs {}",
+            max_step(&screened),
+            max_step(&plain)
+        );
+    }
 }

@@ -112,6 +112,10 @@ fn settings() -> impl Strategy<Value = Settings> {
             Just(Blend::None),
             any_f32().prop_map(|radius| Blend::Feather { radius }),
             (0usize..=40).prop_map(|max_iterations| Blend::Poisson { max_iterations }),
+            (0usize..=40, any_f32()).prop_map(|(max_iterations, decay)| Blend::Screened {
+                max_iterations,
+                decay
+            }),
         ],
         any::<u64>(),
     );
@@ -206,6 +210,10 @@ fn valid_settings() -> impl Strategy<Value = Settings> {
             Just(Blend::None),
             (0.5f32..6.0).prop_map(|radius| Blend::Feather { radius }),
             (1usize..=40).prop_map(|max_iterations| Blend::Poisson { max_iterations }),
+            (1usize..=40, 1.0f32..40.0).prop_map(|(max_iterations, decay)| Blend::Screened {
+                max_iterations,
+                decay
+            }),
         ],
         any::<u64>(),
     );

@@ -596,9 +596,7 @@ mod tests {
         let quilt = WorkItem {
             criterion_id: "quilt/relief_patch_synth_1024_from_512_2threads",
             peer: Some(Peer {
-                source: PeerSource::Criterion(
-                    "quilt/texture_synthesis_1024_from_512_8bit_2threads",
-                ),
+                source: PeerSource::Criterion("quilt/texture_synthesis_512_from_512_8bit_2threads"),
                 label: "texture-synthesis",
             }),
             ..ITEM
