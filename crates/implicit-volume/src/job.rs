@@ -129,6 +129,10 @@ pub struct VolumeFigures {
     pub mesh_watertight_manifold: Option<bool>,
     /// Euler characteristic of the final mesh.
     pub mesh_euler: Option<i64>,
+    /// Look of the polygonised surface (before simplification, [`crate::surface_look`]):
+    /// downward-facing area share and closed pits deeper than a quarter voxel, "small" when at
+    /// most about two weathering spheres wide (the bubble-wrap of isolated carvings).
+    pub mesh_look: Option<crate::SurfaceLook>,
     /// Chunks of the mesh grid / chunks sampled.
     pub mesh_chunks: Option<[usize; 2]>,
     /// Overview render time (s).
@@ -389,6 +393,7 @@ impl VolumeJob {
             mesh_triangles: None,
             mesh_watertight_manifold: None,
             mesh_euler: None,
+            mesh_look: None,
             mesh_chunks: None,
             render_s: None,
             closeups: None,
@@ -428,6 +433,9 @@ impl VolumeJob {
             f.mesh_grid = Some(cells);
             f.mesh_chunks = Some([mr.chunks, mr.chunks_sampled]);
             f.mesh_triangles_polygonised = Some(m.triangles.len());
+            let (v, r) = (rep.dims.voxel_m, rep.dims.weathering_radius_m);
+            let max_cells = (std::f32::consts::PI * (2.0 * r / v).powi(2)).ceil() as usize;
+            f.mesh_look = Some(crate::surface_look(&m, v, 0.25 * v, max_cells));
             if let Some(max) = self.max_triangles {
                 progress.begin("simplifying", 0);
                 let t = Instant::now();
@@ -637,6 +645,10 @@ mod tests {
         let m = out.mesh.as_ref().unwrap();
         assert!(m.triangles.len() <= 2000);
         assert_eq!(out.figures.mesh_watertight_manifold, Some(true));
+        let look = out.figures.mesh_look.expect("a mesh has a look");
+        assert!(look.raster[0] > 1 && look.raster[1] > 1, "{look:?}");
+        assert!((0.0..0.5).contains(&look.downward_share), "{look:?}");
+        assert!(look.small_pits <= look.pits, "{look:?}");
         assert!(out.render.is_none() && out.closeups.is_none());
         assert_eq!(out.section.as_ref().unwrap().width, 32);
         assert_eq!(

@@ -438,7 +438,6 @@ impl Steps<'_> {
         Ok(())
     }
 
-    /// Arches bored through the narrowest ridges.
     /// Floating islands.
     fn islands(&mut self) -> Result<()> {
         let Steps {
