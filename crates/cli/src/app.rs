@@ -108,6 +108,9 @@ enum Command {
     /// Split amplify, refine or decompress into output tiles for job arrays (Slurm,
     /// Kubernetes Indexed Jobs): plan, run one task, status, mosaic.
     Tile(commands::tile::Args),
+    /// Author a construction tree from JSON (layers, blend/add/max/min/replace, rivers and the
+    /// paper's river sub-tree) into a .sct that `decompress` rasterises.
+    Tree(commands::tree::Args),
     /// Run a pipeline spec (JSON: input, stages, parameters) and write its rasters, previews,
     /// summary.json and report.html, as `cargo xtask pipeline SPEC.json` does.
     Run(commands::run::Args),
@@ -153,6 +156,7 @@ pub fn main() -> ExitCode {
         Command::Quilt(args) => commands::quilt::run(args, &ctx),
         Command::Validate(args) => commands::validate::run(args, &ctx),
         Command::Tile(args) => commands::tile::run(args, &ctx),
+        Command::Tree(args) => commands::tree::run(args, &ctx),
         Command::Run(args) => commands::run::run(args, &ctx),
     };
     match result {
@@ -224,6 +228,7 @@ where
         | Command::Decompress(_)
         | Command::Learn(_)
         | Command::Tile(_)
+        | Command::Tree(_)
         | Command::Run(_) => return Ok(None),
     };
     Ok(Some(v))

@@ -17,6 +17,7 @@ pub(crate) mod run;
 pub(crate) mod synth_args;
 pub(crate) mod synthesize;
 pub(crate) mod tile;
+pub(crate) mod tree;
 pub(crate) mod validate;
 pub(crate) mod volume;
 

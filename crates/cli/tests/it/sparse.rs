@@ -473,3 +473,74 @@ fn bad_input_fails_cleanly() {
         "unknown output extension",
     );
 }
+
+/// `relief tree build`: a river valley (the paper's 3-level sub-tree) on a layer compressed
+/// from a DEM, replaced by an exact `.sct` layer in a disk; the rasterised tree only lowers the
+/// terrain, carves the channel below the original on every path vertex and keeps the DEM far
+/// from the river; a missing layer and an output that is one of its inputs are refused.
+#[test]
+fn tree_build_authors_a_river_valley_on_layers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, hf) = fixture_crop(tmp.path(), 200, 150, 72, 64);
+    let exact = tmp.path().join("exact.sct");
+    ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        exact.as_os_str(),
+        os("--dict"),
+        os("complete"),
+        os("--sparsity"),
+        os("1"),
+    ]));
+    let name = input.file_name().unwrap().to_str().unwrap();
+    let spec = tmp.path().join("tree.json");
+    let json = format!(
+        r#"{{"root": {{"river_valley": {{
+            "on": {{"replace": {{"base": {{"layer": "{name}"}}, "overlay": {{"layer": "exact.sct"}},
+                                 "region": {{"disk": [36, 32, 100]}}, "falloff": 0}}}},
+            "path": [[2, 5], [30, 30], [69, 60]],
+            "valley_half_width": 6, "bank_height": 60, "channel_depth": 4}}}}}}"#
+    );
+    std::fs::write(&spec, json).unwrap();
+    let sct = tmp.path().join("tree.sct");
+    let stdout = ok(&relief(&[
+        os("tree"),
+        os("build"),
+        spec.as_os_str(),
+        sct.as_os_str(),
+    ]));
+    assert!(
+        stdout.contains("2 layer(s) (1 compressed from DEMs)"),
+        "{stdout}"
+    );
+    let out = tmp.path().join("tree.tif");
+    ok(&relief(&[
+        os("decompress"),
+        sct.as_os_str(),
+        out.as_os_str(),
+    ]));
+    let t = read(&out);
+    assert_eq!((t.width(), t.height()), (72, 64));
+    let (a, b) = (hf.as_slice(), t.as_slice());
+    // The disk covers the grid: the exact layer, so only the river changes the terrain.
+    assert!(a.iter().zip(b).all(|(x, y)| *y <= *x + 1e-3));
+    for (x, y) in [(2, 5), (30, 30), (69, 60)] {
+        assert!(t.get(x, y) <= hf.get(x, y) - 4.0 + 1e-3, "({x}, {y})");
+    }
+    let lowered = a.iter().zip(b).filter(|(x, y)| **y < **x - 0.5).count();
+    assert!(lowered > 100 && lowered < a.len() / 2, "{lowered}");
+    assert_eq!(t.get(70, 2), hf.get(70, 2));
+    // A missing layer: named, no output.
+    std::fs::write(&spec, r#"{"root": {"layer": "missing.sct"}}"#).unwrap();
+    let bad = tmp.path().join("bad.sct");
+    let o = relief(&[os("tree"), os("build"), spec.as_os_str(), bad.as_os_str()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("missing.sct"), "{}", stderr(&o));
+    assert!(!bad.exists());
+    // The output may not overwrite a layer.
+    std::fs::write(&spec, r#"{"root": {"layer": "exact.sct"}}"#).unwrap();
+    let before = std::fs::read(&exact).unwrap();
+    let o = relief(&[os("tree"), os("build"), spec.as_os_str(), exact.as_os_str()]);
+    assert!(!o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&exact).unwrap(), before);
+}

@@ -40,17 +40,20 @@
 //!
 //! Files: `index.rs` (placement and the uniform-grid spatial index), `layer.rs` (sparse layers
 //! and their stamping), `river.rs` (regions and procedural rivers), `node.rs` (the operator tree),
+//! `spec.rs` (trees authored from a JSON description),
 //! this file (windows, raster settings and [`Sct`]).
 
 mod index;
 mod layer;
 mod node;
 mod river;
+mod spec;
 
 pub use index::Placement;
 pub use layer::SparseLayer;
 pub use node::Node;
 pub use river::{Region, River, RiverMode};
+pub use spec::{NodeSpec, Profile, RegionSpec, RiverSpec, RiverValleySpec, TreeSpec};
 
 use index::SpatialIndex;
 pub use layer::raster_coord;
