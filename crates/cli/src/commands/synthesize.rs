@@ -22,6 +22,11 @@ pub(crate) struct Args {
     /// Exemplar DEM whose details (and, by default, elevation range and cell size) are used.
     #[arg(long)]
     pub(crate) exemplar: PathBuf,
+    /// Cell size of the exemplar in metres, `X` or `X,Y`, for an exemplar that does not store
+    /// one (PNG, EXR, raw, NPY) or to override a stored one; the output has this cell size and
+    /// the sketch 4^steps times it.
+    #[arg(long, value_parser = super::parse_cell_size, value_name = "X[,Y]")]
+    pub(crate) exemplar_cell_size: Option<(f64, f64)>,
     /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
     #[arg(long, default_value_t = 3)]
     pub(crate) steps: usize,
@@ -66,6 +71,7 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
             step: args.step,
             normalize_detail: !args.paper,
             exemplar_detail: !args.paper,
+            exemplar_cell_size: args.exemplar_cell_size,
             ..SynthesisSettings::default().amplify
         },
         // The global --height-range: the sketch is mapped onto it (default: the exemplar's

@@ -208,6 +208,29 @@ fn synthesize_from_painted_sketch() {
     let back = out.resample(16, 16).unwrap();
     let c = relief_heightfield::metrics::pearson(back.as_slice(), read(&sk).as_slice());
     assert!(c > 0.95, "correlation with the sketch {c}");
+    // The output has the exemplar's cell size (as read back: EPSG:3857 metres at the crop's
+    // latitude); --exemplar-cell-size overrides it.
+    let ex_cell = read(&ex).cell_size();
+    assert!(
+        (out.cell_size().0 - ex_cell.0).abs() < 1e-6,
+        "{:?} vs {ex_cell:?}",
+        out.cell_size()
+    );
+    let scaled = tmp.path().join("scaled.tif");
+    ok(&relief(&[
+        os("synthesize"),
+        sk.as_os_str(),
+        scaled.as_os_str(),
+        os("--exemplar"),
+        ex.as_os_str(),
+        os("--steps"),
+        os("1"),
+        os("--exemplar-cell-size"),
+        os("30"),
+    ]));
+    let s = read(&scaled);
+    assert_eq!((s.width(), s.height()), (64, 64));
+    assert!((s.cell_size().0 - 30.0).abs() < 1e-6, "{:?}", s.cell_size());
 }
 
 fn psnr_of(stdout: &str) -> f64 {
