@@ -15,7 +15,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{LearnError, Result};
 use crate::ksvd::{KsvdSettings, MAX_ITERATIONS, ksvd};
-use crate::noise::register_function_atoms;
+use crate::noise::{NoiseFamily, random_function_atoms, register_function_atoms};
+
+/// Most analytic atoms [`CompressSettings::analytic_atoms`] may add.
+const MAX_ANALYTIC_ATOMS: usize = 65_536;
 
 /// Where the dictionary of a compress job comes from (when none is given to
 /// [`CompressSettings::run`]).
@@ -56,8 +59,39 @@ pub struct CompressSettings {
     pub quantize: bool,
     /// K-SVD iterations.
     pub iterations: usize,
-    /// Seed of the K-SVD initialisation.
+    /// Seed of the K-SVD initialisation (and of the analytic atoms' parameters).
     pub seed: u64,
+    /// Analytic (noise function) atoms appended to the data dictionary, so that every
+    /// primitive's OMP chooses freely between data and analytic atoms (the paper's mixed
+    /// dictionaries, figure 14). Not used with a given dictionary.
+    pub analytic_atoms: AnalyticAtoms,
+}
+
+/// How many random analytic atoms of each family [`CompressSettings::analytic_atoms`] adds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AnalyticAtoms {
+    /// Sums of ridged noise (figure 4).
+    pub ridged_sum: usize,
+    /// Perlin fBm.
+    pub perlin: usize,
+    /// Ridged multifractal noise.
+    pub ridged_multifractal: usize,
+}
+
+impl AnalyticAtoms {
+    /// Atoms in all.
+    pub fn total(&self) -> usize {
+        self.ridged_sum + self.perlin + self.ridged_multifractal
+    }
+
+    fn families(&self) -> [(NoiseFamily, usize); 3] {
+        [
+            (NoiseFamily::RidgedSum, self.ridged_sum),
+            (NoiseFamily::Perlin, self.perlin),
+            (NoiseFamily::RidgedMultifractal, self.ridged_multifractal),
+        ]
+    }
 }
 
 impl Default for CompressSettings {
@@ -74,6 +108,7 @@ impl Default for CompressSettings {
             quantize: false,
             iterations: 10,
             seed: 0,
+            analytic_atoms: AnalyticAtoms::default(),
         }
     }
 }
@@ -149,6 +184,13 @@ impl CompressSettings {
                 "iterations",
                 self.iterations,
                 "must be <= 10000",
+            ));
+        }
+        if self.analytic_atoms.total() > MAX_ANALYTIC_ATOMS {
+            return Err(LearnError::param(
+                "analytic_atoms",
+                self.analytic_atoms.total(),
+                "must be <= 65536 in all",
             ));
         }
         Ok(())
@@ -244,7 +286,19 @@ impl CompressSettings {
         let t = Instant::now();
         let (dict, source) = match given {
             Some(d) => d,
-            None => self.dictionary(hf, progress)?,
+            None => {
+                let (mut dict, mut source) = self.dictionary(hf, progress)?;
+                for (family, n) in self.analytic_atoms.families() {
+                    if n == 0 {
+                        continue;
+                    }
+                    for atom in random_function_atoms(family, n, self.seed) {
+                        dict.push_function(atom)?;
+                    }
+                    source.push_str(&format!(" + {n} analytic {family:?} atoms"));
+                }
+                (dict, source)
+            }
         };
         let dictionary_seconds = t.elapsed().as_secs_f64();
         let t = Instant::now();
@@ -352,10 +406,55 @@ mod tests {
                 },
                 "iterations",
             ),
+            (
+                CompressSettings {
+                    analytic_atoms: AnalyticAtoms {
+                        perlin: 70_000,
+                        ..Default::default()
+                    },
+                    ..Default::default()
+                },
+                "analytic_atoms",
+            ),
         ] {
             let e = s.check().unwrap_err().to_string();
             assert!(e.contains(name), "{name}: {e}");
         }
+    }
+
+    /// Mixed dictionaries (figure 14): the analytic atoms join the learned ones, OMP may pick
+    /// either, and the tree round-trips through its bytes with the noise atoms' registry.
+    #[test]
+    fn analytic_atoms_join_the_dictionary() {
+        let hf = terrain();
+        let s = CompressSettings {
+            atoms: 16,
+            iterations: 2,
+            analytic_atoms: AnalyticAtoms {
+                ridged_sum: 8,
+                perlin: 4,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let out = s.run(&hf, None, &NoProgress).unwrap();
+        let d = out.sct.layers()[0].dictionary().clone();
+        assert_eq!(d.len(), 16 + 12);
+        assert!(!d.is_data_only());
+        assert_eq!(out.figures.report.n_atoms, 28);
+        assert!(
+            out.figures.dictionary.contains("8 analytic RidgedSum"),
+            "{}",
+            out.figures.dictionary
+        );
+        let mut registry = FunctionAtomRegistry::new();
+        register_function_atoms(&mut registry);
+        let back = Sct::from_bytes(&out.bytes, &registry).unwrap();
+        for (x, y) in [(3.0, 4.0), (20.5, 17.25), (40.0, 33.0)] {
+            assert_eq!(back.eval(x, y), out.sct.eval(x, y));
+        }
+        // The same seed gives the same atoms and the same tree.
+        assert_eq!(s.run(&hf, None, &NoProgress).unwrap().bytes, out.bytes);
     }
 
     #[test]

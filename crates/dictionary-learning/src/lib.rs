@@ -85,7 +85,9 @@ pub mod quality;
 pub mod sketch;
 
 pub use baseline::{NoiseBaselineSettings, noise_amplify};
-pub use compress::{CompressFigures, CompressSettings, Compressed, DictionarySource};
+pub use compress::{
+    AnalyticAtoms, CompressFigures, CompressSettings, Compressed, DictionarySource,
+};
 pub use constrained::{ConstrainedSettings, constrained_learning};
 pub use error::{LearnError, Result};
 pub use ksvd::{

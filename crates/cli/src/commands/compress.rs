@@ -13,7 +13,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{CompressSettings, DictionarySource, register_function_atoms};
+use relief_dictionary_learning::{
+    AnalyticAtoms, CompressSettings, DictionarySource, NoiseFamily, register_function_atoms,
+};
 use relief_heightfield::Heightfield;
 use relief_sparse_core::{CompressionReport, Dictionary, FunctionAtomRegistry};
 
@@ -74,8 +76,33 @@ pub(crate) struct Args {
     /// Seed of the K-SVD initialisation (with `--dict ksvd`).
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
+    /// Append random analytic atoms to the data dictionary, `FAMILY:N,...` with FAMILY one of
+    /// `ridged` (sums of ridged noise, figure 4), `perlin`, `ridged-multifractal`: a mixed
+    /// dictionary whose OMP picks data or analytic atoms per primitive (figure 14).
+    #[arg(long, value_name = "FAMILY:N,..", value_parser = parse_analytic_atoms)]
+    pub(crate) analytic_atoms: Option<AnalyticAtoms>,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
+}
+
+/// `--analytic-atoms` value parser.
+fn parse_analytic_atoms(spec: &str) -> std::result::Result<AnalyticAtoms, String> {
+    let mut a = AnalyticAtoms::default();
+    for item in spec.split(',') {
+        let (name, n) = item
+            .split_once(':')
+            .ok_or_else(|| format!("`{item}`: expected FAMILY:N"))?;
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{item}`: N must be a count"))?;
+        match super::fit_procedural::family(name.trim()).map_err(|e| e.to_string())? {
+            NoiseFamily::RidgedSum => a.ridged_sum += n,
+            NoiseFamily::Perlin => a.perlin += n,
+            NoiseFamily::RidgedMultifractal => a.ridged_multifractal += n,
+        }
+    }
+    Ok(a)
 }
 
 /// Function atoms every `.sct` / `.dict` reader of the CLI understands (the noise atoms of
@@ -157,7 +184,13 @@ impl Args {
             quantize: self.quantize,
             iterations: self.iterations,
             seed: self.seed,
+            analytic_atoms: self.analytic_atoms.unwrap_or_default(),
         };
+        if self.dictionary.is_some() && self.analytic_atoms.is_some() {
+            anyhow::bail!(
+                "--analytic-atoms adds to a dictionary this command makes, not to --dictionary"
+            );
+        }
         s.check().context("invalid compress settings")?;
         Ok(s)
     }

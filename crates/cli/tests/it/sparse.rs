@@ -544,3 +544,46 @@ fn tree_build_authors_a_river_valley_on_layers() {
     assert!(!o.status.success(), "{}", stderr(&o));
     assert_eq!(std::fs::read(&exact).unwrap(), before);
 }
+
+/// `compress --analytic-atoms`: a mixed dictionary (figure 14) whose model decompresses; an
+/// unknown family is a usage error naming it.
+#[test]
+fn compress_with_analytic_atoms_mixes_the_dictionary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (input, hf) = fixture_crop(tmp.path(), 120, 60, 64, 56);
+    let sct = tmp.path().join("mixed.sct");
+    let stdout = ok(&relief(&[
+        os("compress"),
+        input.as_os_str(),
+        sct.as_os_str(),
+        os("--atoms"),
+        os("32"),
+        os("--iterations"),
+        os("2"),
+        os("--analytic-atoms"),
+        os("ridged:16,perlin:8"),
+    ]));
+    assert!(stdout.contains("N = 56 atoms"), "{stdout}");
+    assert!(stdout.contains("16 analytic RidgedSum"), "{stdout}");
+    let out = tmp.path().join("mixed.tif");
+    ok(&relief(&[
+        os("decompress"),
+        sct.as_os_str(),
+        out.as_os_str(),
+    ]));
+    let rec = read(&out);
+    assert_eq!((rec.width(), rec.height()), (64, 56));
+    let rmse = metrics::rmse(&hf, &rec).unwrap();
+    assert!(rmse < 0.05 * hf.relief() as f64, "rmse {rmse}");
+    let bad = tmp.path().join("bad.sct");
+    let o = relief(&[
+        os("compress"),
+        input.as_os_str(),
+        bad.as_os_str(),
+        os("--analytic-atoms"),
+        os("voronoi:4"),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("voronoi"), "{}", stderr(&o));
+    assert!(!bad.exists());
+}
