@@ -442,6 +442,23 @@ mod tests {
         assert_eq!(d.len(), 16 + 12);
         assert!(!d.is_data_only());
         assert_eq!(out.figures.report.n_atoms, 28);
+        // Storage counts the analytic atoms by their parameters, not K samples each.
+        let params: u64 = d.atoms()[16..]
+            .iter()
+            .map(|a| match a {
+                relief_sparse_core::dictionary::Atom::Function { func, .. } => {
+                    func.descriptor().params.len() as u64
+                }
+                relief_sparse_core::dictionary::Atom::Data(_) => panic!("data atom at the end"),
+            })
+            .sum();
+        let n = out.sct.layers()[0].len() as u64;
+        let s2 = out.sct.layers()[0].max_sparsity() as u64;
+        assert_eq!(
+            out.figures.report.t,
+            64 * 16 + params + n * (2 * s2 + 2) + 1
+        );
+        assert!(params < 64 * 12);
         assert!(
             out.figures.dictionary.contains("8 analytic RidgedSum"),
             "{}",

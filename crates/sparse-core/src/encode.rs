@@ -132,12 +132,32 @@ pub fn storage_values(k: usize, n_atoms: usize, n_patches: usize, sparsity: usiz
     (k as u64) * (n_atoms as u64) + (n_patches as u64) * (2 * sparsity as u64 + 2) + 1
 }
 
+/// Values a dictionary stores: `K` samples per data atom, and only the parameters of a
+/// function atom (its samples are computed, section 5.2). For a data-only dictionary this is
+/// the `K N` of [`storage_values`].
+pub fn dictionary_values(d: &crate::Dictionary) -> u64 {
+    d.atoms()
+        .iter()
+        .map(|a| match a {
+            crate::dictionary::Atom::Data(_) => d.dim() as u64,
+            crate::dictionary::Atom::Function { func, .. } => func.descriptor().params.len() as u64,
+        })
+        .sum()
+}
+
+/// Stored values of a layer: [`dictionary_values`] + `n (2 s + 2) + 1` (the paper's
+/// `t(s, N)` for data atoms, with analytic atoms counted by their parameters).
+pub fn layer_storage_values(d: &crate::Dictionary, n_patches: usize, sparsity: usize) -> u64 {
+    dictionary_values(d) + (n_patches as u64) * (2 * sparsity as u64 + 2) + 1
+}
+
 /// Measures of a compact representation (the columns of the paper's table 1 and more).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CompressionReport {
     /// Input samples `t0 = w h`.
     pub t0: u64,
-    /// Paper storage `t(s, N)` summed over the layers (s = largest per-primitive count).
+    /// Paper storage `t(s, N)` summed over the layers (s = largest per-primitive count); an
+    /// analytic atom counts its parameters, not `K` samples ([`layer_storage_values`]).
     pub t: u64,
     /// `rho = t / t0`.
     pub rho: f64,
@@ -177,7 +197,7 @@ pub fn compression_report(
     let (mut t, mut n_patches, mut n_atoms, mut k, mut s) = (0u64, 0, 0, 0, 0);
     for l in sct.layers() {
         let d = l.dictionary();
-        t += storage_values(d.dim(), d.len(), l.len(), l.max_sparsity());
+        t += layer_storage_values(d, l.len(), l.max_sparsity());
         n_patches += l.len();
         n_atoms += d.len();
         k = k.max(d.dim());

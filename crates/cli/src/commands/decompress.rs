@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use rayon::prelude::*;
 use relief_heightfield::metrics;
-use relief_sparse_core::{RasterSettings, Sct, Window, storage_values};
+use relief_sparse_core::{RasterSettings, Sct, Window, layer_storage_values};
 
 use super::compress::{read_model_bytes, registry};
 use crate::ctx::Ctx;
@@ -134,7 +134,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let (mut t, mut layers, mut s_max) = (0u64, 0usize, 0usize);
     for l in sct.layers() {
         let d = l.dictionary();
-        t += storage_values(d.dim(), d.len(), l.len(), l.max_sparsity());
+        t += layer_storage_values(d, l.len(), l.max_sparsity());
         layers += 1;
         s_max = s_max.max(l.max_sparsity());
     }
