@@ -530,9 +530,24 @@ fn tree_build_authors_a_river_valley_on_layers() {
     let lowered = a.iter().zip(b).filter(|(x, y)| **y < **x - 0.5).count();
     assert!(lowered > 100 && lowered < a.len() / 2, "{lowered}");
     assert_eq!(t.get(70, 2), hf.get(70, 2));
+    // A missing or corrupt tree file: exit 1, one line naming it, no output.
+    let bad = tmp.path().join("bad.sct");
+    let absent = tmp.path().join("absent.json");
+    let corrupt = tmp.path().join("corrupt.json");
+    std::fs::write(&corrupt, b"{\"root\": {\"layer\": ").unwrap();
+    for f in [&absent, &corrupt] {
+        let o = relief(&[os("tree"), os("build"), f.as_os_str(), bad.as_os_str()]);
+        assert_eq!(o.status.code(), Some(1));
+        let e = stderr(&o);
+        assert!(
+            e.starts_with("error: ") && e.trim_end().lines().count() == 1,
+            "{e}"
+        );
+        assert!(e.contains(f.file_name().unwrap().to_str().unwrap()), "{e}");
+        assert!(!bad.exists());
+    }
     // A missing layer: named, no output.
     std::fs::write(&spec, r#"{"root": {"layer": "missing.sct"}}"#).unwrap();
-    let bad = tmp.path().join("bad.sct");
     let o = relief(&[os("tree"), os("build"), spec.as_os_str(), bad.as_os_str()]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("missing.sct"), "{}", stderr(&o));
