@@ -23,7 +23,14 @@ pub(crate) struct OutputPlan {
     pub(crate) stream: bool,
     /// The flag that sets the number of x4 steps (`--factor`, `--steps`).
     pub(crate) steps_flag: &'static str,
+    /// Only the steps before the last run here (`relief tile plan`): the last step's input
+    /// raster is kept and its tasks compute the output window by window.
+    pub(crate) last_step_tasked: bool,
 }
+
+/// Bytes per cell of the last step's input kept by a tile plan (the raster, the intermediate
+/// model's rasterisation buffers, the serialised copy).
+const LAST_STEP_INPUT_BYTES_PER_CELL: f64 = 16.0;
 
 /// Working bytes per coarse cell of one x4 step (patch matrices of the coding and training
 /// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
@@ -82,7 +89,8 @@ pub(crate) fn preflight(
     );
     let coarse_cells = coarse.0 as f64 * coarse.1 as f64;
     let mut peaks: Vec<Vec<crate::memory::Part>> = Vec::new();
-    for t in 0..settings.steps {
+    let here = settings.steps - usize::from(out.last_step_tasked);
+    for t in 0..here {
         let c = coarse_cells * 16f64.powi(t as i32);
         peaks.push(vec![
             part(
@@ -93,6 +101,18 @@ pub(crate) fn preflight(
                     c as u64
                 ),
                 c * STEP_BYTES_PER_COARSE_CELL * shape.max(0.25),
+                format!("a smaller {} (or a smaller input)", out.steps_flag),
+            ),
+            exemplar_part.clone(),
+        ]);
+    }
+    if out.last_step_tasked {
+        // The last step's input as a raster, its serialised copy, and the dictionary.
+        let c = coarse_cells * 16f64.powi(here as i32);
+        peaks.push(vec![
+            part(
+                "the last step's input raster",
+                c * LAST_STEP_INPUT_BYTES_PER_CELL,
                 format!("a smaller {} (or a smaller input)", out.steps_flag),
             ),
             exemplar_part.clone(),

@@ -96,8 +96,9 @@ pub use ksvd::{
 };
 pub use multires::{
     AmplifyFigures, AmplifySettings, DIVERSE_CHOICES, DIVERSE_MAX_ATOMS, DIVERSE_TOLERANCE,
-    DictionaryChoice, MultiResDictionary, StepReport, StepScale, amplify, amplify_observed,
-    amplify_with_figures, box_resample, detail_gain, exemplar_plan,
+    DictionaryChoice, LastStep, MultiResDictionary, StepReport, StepScale, amplify,
+    amplify_observed, amplify_with_figures, box_resample, detail_gain, exemplar_plan,
+    prepare_last_step,
 };
 pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};

@@ -8,7 +8,10 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{AmplifySettings, DictionaryChoice, amplify_with_figures};
+use relief_dictionary_learning::{
+    AmplifySettings, DictionaryChoice, LastStep, amplify_with_figures, prepare_last_step,
+};
+use relief_heightfield::Heightfield;
 use relief_sparse_core::{Sct, Window};
 
 use crate::ctx::Ctx;
@@ -98,6 +101,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let out = OutputPlan {
+        last_step_tasked: false,
         sct: is_sct(&args.output),
         window,
         stream: relief_io::Format::from_extension(&args.output) == Some(relief_io::Format::GeoTiff),
@@ -138,8 +142,13 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
 
 /// Reads the inputs, checks the pre-flight estimate for the output `out`, and amplifies them
 /// into a model (`relief tile plan` stores it once for every tile task).
-pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
-    let settings = settings(args)?;
+/// Reads the input and the exemplar, checks them and the pre-flight estimate.
+fn inputs(
+    args: &Args,
+    settings: &AmplifySettings,
+    out: OutputPlan,
+    ctx: &Ctx,
+) -> Result<(Heightfield, Heightfield)> {
     let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
     let exemplar =
         super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
@@ -154,24 +163,55 @@ pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
         &format!("amplify x{}", args.factor),
         (coarse.width(), coarse.height()),
         (exemplar.width(), exemplar.height()),
-        &settings,
+        settings,
         out,
     )?;
+    Ok((coarse, exemplar))
+}
+
+fn failed(args: &Args) -> String {
+    format!(
+        "cannot amplify {} x{} with {}",
+        args.input.display(),
+        args.factor,
+        args.exemplar.display()
+    )
+}
+
+pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
+    let settings = settings(args)?;
+    let (coarse, exemplar) = inputs(args, &settings, out, ctx)?;
     let (sct, figures) = {
         let progress = ctx.progress();
-        amplify_with_figures(&coarse, &exemplar, &settings, &progress).with_context(|| {
-            format!(
-                "cannot amplify {} x{} with {}",
-                args.input.display(),
-                args.factor,
-                args.exemplar.display()
-            )
-        })?
+        amplify_with_figures(&coarse, &exemplar, &settings, &progress)
+            .with_context(|| failed(args))?
     };
     for step in &figures.steps {
         ctx.note(step.note.clone());
     }
     Ok(sct)
+}
+
+/// Every step but the last, and the last step's dictionary and input (`relief tile plan`:
+/// the tasks compute the last step window by window). Also returns the georeference of the
+/// amplified output.
+pub(crate) fn prepare_last(
+    args: &Args,
+    out: OutputPlan,
+    ctx: &Ctx,
+) -> Result<(LastStep, Option<relief_heightfield::GeoRef>)> {
+    let settings = settings(args)?;
+    let (coarse, exemplar) = inputs(args, &settings, out, ctx)?;
+    let (last, figures) = {
+        let progress = ctx.progress();
+        prepare_last_step(&coarse, &exemplar, &settings, &progress).with_context(|| failed(args))?
+    };
+    for step in &figures.steps {
+        ctx.note(step.note.clone());
+    }
+    let f = 1.0 / 4f64.powi(settings.steps as i32);
+    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
+    Ok((last, georef))
 }
 
 #[cfg(test)]

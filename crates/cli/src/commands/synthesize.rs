@@ -103,6 +103,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         (exemplar.width(), exemplar.height()),
         &settings.amplify,
         crate::sparse_model::OutputPlan {
+            last_step_tasked: false,
             sct: crate::sparse_model::is_sct(&args.output),
             window,
             stream: relief_io::Format::from_extension(&args.output)

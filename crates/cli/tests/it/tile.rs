@@ -185,6 +185,50 @@ fn amplify_plan_mosaics_into_the_single_run() {
     );
 }
 
+/// x16: the plan runs the first x4 step and keeps the last step's input and dictionary; the
+/// tasks code the last step window by window, and the mosaic is still the single run.
+#[test]
+fn amplify_x16_plan_codes_the_last_step_in_the_tasks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = fixture("grandcanyon.tif");
+    let full = relief_io::read(&gc, &relief_io::ReadOptions::default())
+        .unwrap()
+        .heightfield;
+    let crop = full.crop(200, 150, 72, 56).unwrap();
+    let input = tmp.path().join("crop.tif");
+    relief_io::write(&input, &crop, &relief_io::WriteOptions::default()).unwrap();
+    let single = tmp.path().join("single.tif");
+    let planned = tmp.path().join("tiled.tif");
+    let dir = tmp.path().join("plan");
+    let cmd = |out: &Path| {
+        vec![
+            "amplify".to_string(),
+            s(&input).to_string(),
+            s(out).to_string(),
+            "--exemplar".to_string(),
+            s(&gc).to_string(),
+            "--factor".to_string(),
+            "16".to_string(),
+            "--seed".to_string(),
+            "3".to_string(),
+        ]
+    };
+    let single_args = cmd(&single);
+    let refs: Vec<&str> = single_args.iter().map(String::as_str).collect();
+    ok(&relief(&refs), "single run");
+    let plan_cmd = cmd(&planned);
+    let mut plan: Vec<&str> = vec!["tile", "plan", s(&dir), "--tile", "288", "--"];
+    plan.extend(plan_cmd.iter().map(String::as_str));
+    ok(&relief(&plan), "plan");
+    assert!(dir.join("last-step.bin").exists());
+    assert!(!dir.join("model.sct").exists());
+    let n = tasks(&dir);
+    assert_eq!(n, 4 * 4, "1152 x 896 in tiles of 288");
+    run_all_two_at_a_time(&dir, n, 11);
+    ok(&relief(&["tile", "mosaic", s(&dir)]), "mosaic");
+    assert_same_raster(&single, &planned);
+}
+
 #[test]
 fn refine_plan_mosaics_into_the_single_run() {
     let tmp = tempfile::tempdir().unwrap();

@@ -56,15 +56,17 @@ use crate::noise::item_seed;
 
 mod build;
 mod kernels;
+mod last;
 mod plan;
 mod step;
 
 pub use self::kernels::detail_gain;
 pub(crate) use self::kernels::upsample4;
 use self::kernels::{back_project, box_down4};
+pub use self::last::LastStep;
 pub use self::plan::{
     AmplifyFigures, StepReport, StepScale, amplify, amplify_observed, amplify_with_figures,
-    box_resample, exemplar_plan,
+    box_resample, exemplar_plan, prepare_last_step,
 };
 pub(crate) use self::step::interpolation_layer;
 pub use self::step::{DIVERSE_CHOICES, DIVERSE_MAX_ATOMS, DIVERSE_MIN_PATCH, DIVERSE_TOLERANCE};

@@ -241,6 +241,46 @@ pub fn amplify_observed(
     progress: &dyn Progress,
     observe: &mut dyn FnMut(&StepReport<'_>),
 ) -> Result<Sct> {
+    let (last, scale) = run_until_last(coarse, exemplar, settings, progress, observe)?;
+    let sct = last.sct()?;
+    observe(&StepReport {
+        step: settings.steps - 1,
+        input: &last.input,
+        output: &sct,
+        exemplar: &scale,
+    });
+    // The result covers the coarse extent with cells 4^steps times smaller (pixel-is-area).
+    let f = 1.0 / STEP_FACTOR.pow(settings.steps as u32) as f64;
+    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
+    Ok(sct.with_georef(georef))
+}
+
+/// Runs every x4 step of an amplification but the last, and prepares the last one: its input
+/// raster and its dictionary ([`LastStep`]). Any window of the amplified output can then be
+/// computed alone ([`LastStep::render_window`]), equal bit for bit to the same window of
+/// [`amplify`]'s result; the figures say how every step used the exemplar.
+pub fn prepare_last_step(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+) -> Result<(LastStep, AmplifyFigures)> {
+    let mut steps = Vec::with_capacity(settings.steps);
+    let (last, scale) = run_until_last(coarse, exemplar, settings, progress, &mut |r| {
+        steps.push(r.exemplar.clone());
+    })?;
+    steps.push(scale);
+    Ok((last, AmplifyFigures { steps }))
+}
+
+/// The steps before the last (each observed), then the last step's dictionary and input.
+fn run_until_last(
+    coarse: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &AmplifySettings,
+    progress: &dyn Progress,
+    observe: &mut dyn FnMut(&StepReport<'_>),
+) -> Result<(LastStep, StepScale)> {
     settings.check()?;
     coarse.require_complete()?;
     exemplar.require_complete()?;
@@ -265,7 +305,6 @@ pub fn amplify_observed(
     let mut native = exemplar.clone();
     native.set_cell_size(exemplar_cell.0, exemplar_cell.1)?;
     let mut current = coarse.clone();
-    let mut result = None;
     let mut octave_ratio = None;
     for (t, scale) in plan.iter().enumerate() {
         let ex = if scale.exemplar_size == (native.width(), native.height()) {
@@ -273,10 +312,7 @@ pub fn amplify_observed(
         } else {
             box_resample(&native, scale.exemplar_size.0, scale.exemplar_size.1)?
         };
-        let step_settings = AmplifySettings {
-            seed: item_seed(settings.seed, 0x57e9, t as u64),
-            ..*settings
-        };
+        let step_settings = step_settings(settings, t);
         // Training signals for constrained learning (subsampled to `max_training` anyway):
         // patches one radius apart are as representative as the coding grid's, at a quarter
         // of the extraction cost.
@@ -309,6 +345,14 @@ pub fn amplify_observed(
             };
             dict.detail_rms = crate::sketch::x4_detail_rms(&ex).map(|r| r * gain);
         }
+        if t + 1 == settings.steps {
+            let last = LastStep {
+                input: current,
+                dictionary: dict,
+                settings: *settings,
+            };
+            return Ok((last, scale.clone()));
+        }
         let sct = dict.amplify_once(&current, &step_settings)?;
         observe(&StepReport {
             step: t,
@@ -316,15 +360,15 @@ pub fn amplify_observed(
             output: &sct,
             exemplar: scale,
         });
-        if t + 1 < settings.steps {
-            current = sct.rasterize(&RasterSettings::default())?;
-        }
-        result = Some(sct);
+        current = sct.rasterize(&RasterSettings::default())?;
     }
-    // The result covers the coarse extent with cells 4^steps times smaller (pixel-is-area).
-    let f = 1.0 / STEP_FACTOR.pow(settings.steps as u32) as f64;
-    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
-    result
-        .map(|s| s.with_georef(georef))
-        .ok_or(LearnError::param("steps", 0, "must be >= 1"))
+    Err(LearnError::param("steps", 0, "must be >= 1"))
+}
+
+/// The settings of step `t` (its own seed).
+pub(super) fn step_settings(settings: &AmplifySettings, t: usize) -> AmplifySettings {
+    AmplifySettings {
+        seed: item_seed(settings.seed, 0x57e9, t as u64),
+        ..*settings
+    }
 }

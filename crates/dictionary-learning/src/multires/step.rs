@@ -7,6 +7,18 @@ impl MultiResDictionary {
     /// One x4 step: codes `coarse` on `L`, rebuilds on `H`; the result covers
     /// `4 w x 4 h` pixels of cell size `cell / 4`.
     pub fn amplify_once(&self, coarse: &Heightfield, settings: &AmplifySettings) -> Result<Sct> {
+        self.amplify_once_in(coarse, settings, None)
+    }
+
+    /// [`Self::amplify_once`] on `coarse`, a crop of a larger step input placed by `frame`
+    /// (`None`: `coarse` is the whole input): the seeded choices of the primitives hash their
+    /// position in the whole input's grid, so a crop's primitives are those of the full run.
+    pub(super) fn amplify_once_in(
+        &self,
+        coarse: &Heightfield,
+        settings: &AmplifySettings,
+        frame: Option<GridFrame>,
+    ) -> Result<Sct> {
         settings.check()?;
         coarse.require_complete()?;
         let geom = settings.coarse_geometry();
@@ -27,6 +39,13 @@ impl MultiResDictionary {
             ny: g.ny,
         };
         if settings.exemplar_detail {
+            if frame.is_some() {
+                return Err(LearnError::param(
+                    "exemplar_detail",
+                    true,
+                    "a step computed by windows needs it off (its detail gain is global)",
+                ));
+            }
             return self.exemplar_detail_step(coarse, &patches, fine, settings);
         }
         let codes = if settings.diverse_atoms
@@ -34,7 +53,12 @@ impl MultiResDictionary {
             && settings.patch_size() >= DIVERSE_MIN_PATCH
             && self.len() <= DIVERSE_MAX_ATOMS
         {
-            self.diverse_codes(&patches.matrix, settings.seed)?
+            let nx = g.nx;
+            let global = |i: usize| match frame {
+                Some(f) => ((f.row0 + i / nx) * f.nx + f.col0 + i % nx) as u64,
+                None => i as u64,
+            };
+            self.diverse_codes_with(&patches.matrix, settings.seed, &global)?
         } else {
             batch_omp(
                 self.low.view(),
@@ -82,6 +106,15 @@ impl MultiResDictionary {
     }
 }
 
+/// Where a crop of a step input sits in the whole input's primitive grid: its first primitive
+/// is at column `col0`, row `row0` of a grid `nx` primitives wide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct GridFrame {
+    pub(super) col0: usize,
+    pub(super) row0: usize,
+    pub(super) nx: usize,
+}
+
 /// Largest dictionary coded with the diverse atom choice ([`AmplifySettings::diverse_atoms`]);
 /// larger ones keep the exact nearest-atom search.
 pub const DIVERSE_MAX_ATOMS: usize = 4096;
@@ -104,6 +137,16 @@ impl MultiResDictionary {
         &self,
         signals: &Array2<f32>,
         seed: u64,
+    ) -> Result<relief_sparse_core::SparseCodes<f32>> {
+        self.diverse_codes_with(signals, seed, &|i| i as u64)
+    }
+
+    /// [`Self::diverse_codes`] with the hashed index of signal `i` given by `index`.
+    fn diverse_codes_with(
+        &self,
+        signals: &Array2<f32>,
+        seed: u64,
+        index: &(dyn Fn(usize) -> u64 + Sync),
     ) -> Result<relief_sparse_core::SparseCodes<f32>> {
         use rayon::prelude::*;
         if signals.ncols() != self.low.ncols() {
@@ -139,7 +182,7 @@ impl MultiResDictionary {
                     );
                     near.sort_by(|p, q| q.0.abs().total_cmp(&p.0.abs()).then(p.1.cmp(&q.1)));
                     let k = near.len().min(DIVERSE_CHOICES);
-                    let (v, j) = near[(item_seed(seed, 0xd17e, i as u64) % k as u64) as usize];
+                    let (v, j) = near[(item_seed(seed, 0xd17e, index(i)) % k as u64) as usize];
                     let e: f32 = x.iter().map(|t| t * t).sum();
                     out.push(Some((j, v, (e - v * v).max(0.0))));
                 }

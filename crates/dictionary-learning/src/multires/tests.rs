@@ -54,3 +54,157 @@ fn exemplar_plan_relates_cell_sizes() {
     assert!((an[0].exemplar_cell_size.0 - 40.0).abs() < 1e-9);
     assert!((an[0].exemplar_cell_size.1 - 20.0).abs() < 1e-9);
 }
+
+/// A rough synthetic terrain (ridges plus hashed bumps).
+fn rough(w: usize, h: usize, cell: f64, salt: u64) -> Heightfield {
+    Heightfield::from_fn(w, h, cell, cell, |x, y| {
+        let n = crate::noise::item_seed(salt, x as u64, y as u64) % 1000;
+        (x as f32 * 0.31).sin() * 40.0
+            + (y as f32 * 0.17 + x as f32 * 0.05).cos() * 60.0
+            + ((x as f32 * 0.9).sin() * (y as f32 * 0.7).cos()).abs() * 25.0
+            + n as f32 * 0.01
+    })
+}
+
+#[test]
+fn last_step_windows_equal_the_full_run_bit_for_bit() {
+    let coarse = rough(45, 38, 64.0, 1);
+    let exemplar = rough(160, 160, 4.0, 2);
+    for (radius, steps, paper) in [(2.0, 2, false), (3.0, 1, false), (2.5, 1, true)] {
+        let base = if paper {
+            AmplifySettings::paper()
+        } else {
+            AmplifySettings::default()
+        };
+        let settings = AmplifySettings {
+            radius,
+            steps,
+            dictionary: DictionaryChoice::Learned {
+                n_atoms: 32,
+                iterations: 1,
+            },
+            seed: 7,
+            ..base
+        };
+        let full = amplify(
+            &coarse,
+            &exemplar,
+            &settings,
+            &relief_heightfield::NoProgress,
+        )
+        .unwrap()
+        .rasterize(&RasterSettings::default())
+        .unwrap();
+        let (last, figures) = prepare_last_step(
+            &coarse,
+            &exemplar,
+            &settings,
+            &relief_heightfield::NoProgress,
+        )
+        .unwrap();
+        assert_eq!(figures.steps.len(), steps);
+        assert_eq!(last.output_size(), (full.width(), full.height()));
+        // Through the byte stream, as a tiled task reads it.
+        let last = LastStep::from_bytes(&last.to_bytes().unwrap(), &settings).unwrap();
+        let (w, h) = last.output_size();
+        for win in [
+            relief_sparse_core::Window {
+                x: 0,
+                y: 0,
+                width: w,
+                height: h,
+            },
+            relief_sparse_core::Window {
+                x: 0,
+                y: 0,
+                width: 37,
+                height: 50,
+            },
+            relief_sparse_core::Window {
+                x: 61,
+                y: 45,
+                width: 70,
+                height: 33,
+            },
+            relief_sparse_core::Window {
+                x: w - 29,
+                y: h - 17,
+                width: 29,
+                height: 17,
+            },
+            relief_sparse_core::Window {
+                x: w / 2 + 3,
+                y: 1,
+                width: 5,
+                height: h - 1,
+            },
+            // Away from every border (for x16, the crop is inside the input on all sides).
+            relief_sparse_core::Window {
+                x: w / 2 - 61,
+                y: h / 2 - 53,
+                width: 41,
+                height: 37,
+            },
+        ] {
+            let got = last.render_window(win).unwrap();
+            let want = full.crop(win.x, win.y, win.width, win.height).unwrap();
+            let same = got
+                .as_slice()
+                .iter()
+                .zip(want.as_slice())
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(
+                same,
+                "R {radius} steps {steps} paper {paper}: window {win:?} differs"
+            );
+        }
+    }
+}
+
+#[test]
+fn last_step_bytes_reject_corruption() {
+    let coarse = rough(24, 24, 64.0, 3);
+    let exemplar = rough(100, 100, 16.0, 4);
+    let settings = AmplifySettings {
+        radius: 2.0,
+        dictionary: DictionaryChoice::Learned {
+            n_atoms: 16,
+            iterations: 1,
+        },
+        ..AmplifySettings::default()
+    };
+    let (last, _) = prepare_last_step(
+        &coarse,
+        &exemplar,
+        &settings,
+        &relief_heightfield::NoProgress,
+    )
+    .unwrap();
+    let bytes = last.to_bytes().unwrap();
+    assert!(LastStep::from_bytes(&bytes, &settings).is_ok());
+    // Another radius: the dictionary does not fit.
+    let other = AmplifySettings {
+        radius: 3.0,
+        ..settings
+    };
+    assert!(LastStep::from_bytes(&bytes, &other).is_err());
+    for cut in [0, 7, 20, bytes.len() / 2, bytes.len() - 1] {
+        assert!(
+            LastStep::from_bytes(&bytes[..cut], &settings).is_err(),
+            "cut {cut}"
+        );
+    }
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 3] ^= 0x10;
+    let e = LastStep::from_bytes(&flipped, &settings)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("checksum"), "{e}");
+    let win = relief_sparse_core::Window {
+        x: 90,
+        y: 0,
+        width: 10,
+        height: 4,
+    };
+    assert!(last.render_window(win).is_err());
+}

@@ -108,6 +108,19 @@ pub(super) fn render(m: &Manifest, prepared: &[u8], win: Window) -> Result<Heigh
     };
     let bad_job = || format!("the manifest's `job` is not valid {} settings", m.command);
     match m.command.as_str() {
+        "amplify" if m.prepared.path == super::plan::LAST_STEP => {
+            let settings: relief_dictionary_learning::AmplifySettings =
+                serde_json::from_value(m.job.clone()).with_context(bad_job)?;
+            let last = relief_dictionary_learning::LastStep::from_bytes(prepared, &settings)
+                .context("cannot read the prepared last step")?;
+            let hf = last.render_window(win)?;
+            let georef = m
+                .output
+                .georef
+                .as_ref()
+                .map(|g| g.window(win.x as f64, win.y as f64, 1.0, 1.0));
+            Ok(hf.with_georef(georef))
+        }
         "amplify" => sct_window(1.0),
         "decompress" => {
             let scale = m.job["scale"].as_f64().with_context(bad_job)?;
