@@ -17,6 +17,8 @@ fn main() {
             NoiseFamily::Perlin,
             NoiseFamily::RidgedMultifractal,
             NoiseFamily::RidgedSum,
+            NoiseFamily::PerlinField,
+            NoiseFamily::RidgedField,
         ] {
             for learned in [None, Some(64)] {
                 let s = ProceduralSettings {

@@ -77,19 +77,30 @@ pub struct AnalyticAtoms {
     pub perlin: usize,
     /// Ridged multifractal noise.
     pub ridged_multifractal: usize,
+    /// Windows of one fBm field at terrain scale ([`NoiseFamily::PerlinField`]).
+    pub perlin_field: usize,
+    /// Windows of one ridged multifractal field at terrain scale
+    /// ([`NoiseFamily::RidgedField`]).
+    pub ridged_field: usize,
 }
 
 impl AnalyticAtoms {
     /// Atoms in all.
     pub fn total(&self) -> usize {
-        self.ridged_sum + self.perlin + self.ridged_multifractal
+        self.ridged_sum
+            + self.perlin
+            + self.ridged_multifractal
+            + self.perlin_field
+            + self.ridged_field
     }
 
-    fn families(&self) -> [(NoiseFamily, usize); 3] {
+    fn families(&self) -> [(NoiseFamily, usize); 5] {
         [
             (NoiseFamily::RidgedSum, self.ridged_sum),
             (NoiseFamily::Perlin, self.perlin),
             (NoiseFamily::RidgedMultifractal, self.ridged_multifractal),
+            (NoiseFamily::PerlinField, self.perlin_field),
+            (NoiseFamily::RidgedField, self.ridged_field),
         ]
     }
 }

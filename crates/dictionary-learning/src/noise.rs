@@ -327,7 +327,26 @@ pub enum NoiseFamily {
     RidgedMultifractal,
     /// [`RidgedSumAtom`] (the paper's figure 4 atoms).
     RidgedSum,
+    /// Windows of ONE fBm field at terrain scale ([`PerlinAtom`]s sharing seed, frequency and
+    /// octaves; only the offset and the angle differ): see [`FIELD_FREQUENCY`].
+    PerlinField,
+    /// Windows of ONE ridged multifractal field at terrain scale
+    /// ([`RidgedMultifractalAtom`]s sharing all but the offset and the angle).
+    RidgedField,
 }
+
+/// Base frequency (cycles per patch half-width) of the field families
+/// ([`NoiseFamily::PerlinField`], [`NoiseFamily::RidgedField`]): a wavelength of about 12
+/// patch half-widths (60 pixels for the paper's 10-pixel patches), so a window sees the field
+/// at the scale of the terrain's landforms (a slope, a crest, a valley head) with the finer
+/// octaves as its detail. Independent random functions of frequency 0.5-3 (the other
+/// families) put 1-6 noise cells in a patch, finer than the relief of real terrain patches.
+pub const FIELD_FREQUENCY: f64 = 0.08;
+/// Octaves of the field families (lacunarity 2: the finest wavelength is about 2 pixels at
+/// the paper's patch size).
+pub const FIELD_OCTAVES: f64 = 5.0;
+/// Extent (noise lattice cells) over which the field windows' offsets are drawn.
+const FIELD_EXTENT: f64 = 64.0;
 
 /// `n` random atoms of `family` (the analytic dictionary `D~` of section 5.2), parameters drawn
 /// from a PCG seeded per atom by a counter-based hash of `(seed, atom)`.
@@ -336,6 +355,8 @@ pub fn random_function_atoms(
     n: usize,
     seed: u64,
 ) -> Vec<Arc<dyn FunctionAtom>> {
+    // The one field of the field families (its seed is shared by every window).
+    let field_seed = (item_seed(seed, 0xf1e1d, family as u64) % 65_536) as f64;
     (0..n)
         .map(|i| {
             let mut rng = Pcg64Mcg::seed_from_u64(item_seed(seed, family as u64 + 1, i as u64));
@@ -365,6 +386,30 @@ pub fn random_function_atoms(
                         ox,
                         oy,
                         angle,
+                    ])
+                    .expect("valid generated parameters"),
+                ),
+                NoiseFamily::PerlinField => Arc::new(
+                    PerlinAtom::from_params(&[
+                        field_seed,
+                        FIELD_FREQUENCY,
+                        FIELD_OCTAVES,
+                        FIELD_EXTENT * ox / 100.0,
+                        FIELD_EXTENT * oy / 100.0,
+                        angle * 2.0,
+                    ])
+                    .expect("valid generated parameters"),
+                ),
+                NoiseFamily::RidgedField => Arc::new(
+                    RidgedMultifractalAtom::from_params(&[
+                        field_seed,
+                        FIELD_FREQUENCY,
+                        FIELD_OCTAVES,
+                        2.0,
+                        1.0,
+                        FIELD_EXTENT * ox / 100.0,
+                        FIELD_EXTENT * oy / 100.0,
+                        angle * 2.0,
                     ])
                     .expect("valid generated parameters"),
                 ),

@@ -6,6 +6,11 @@
 //! the terrain is rebuilt analytically with `D~` (`F~ = D~ X`), so it can be evaluated at any
 //! resolution. Optionally constrained learning (problem (2)) first reduces `D~` to a few of its
 //! own atoms, keeping every atom an exact noise function (only parameters need storing).
+//!
+//! By default the atoms are windows of ONE noise field at the scale of the terrain's
+//! landforms ([`NoiseFamily::RidgedField`], see [`crate::noise::FIELD_FREQUENCY`]) rather than
+//! the paper's independent random functions: measured 4-8 dB better on real DEMs. The
+//! paper's atoms stay available ([`NoiseFamily::RidgedSum`], `--family ridged`).
 
 use std::sync::Arc;
 
@@ -23,7 +28,11 @@ use crate::noise::{NoiseFamily, random_function_atoms};
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ProceduralSettings {
-    /// Noise family of the analytic atoms.
+    /// Noise family of the analytic atoms. Default [`NoiseFamily::RidgedField`], a departure
+    /// from the paper (whose atoms are independent random functions, [`NoiseFamily::RidgedSum`]
+    /// in figure 4): windows of one ridged field at terrain scale fit real relief 4-8 dB
+    /// better at the same atom count (`examples/procedural_psnr.rs`: alps_dem 256^2, a = 10,
+    /// 2048 atoms: 46.0 dB against 38.2 dB for ridged sums and 41.0 dB for Perlin atoms).
     pub family: NoiseFamily,
     /// Size of the analytic dictionary `D~` (random parameters).
     pub n_candidates: usize,
@@ -42,7 +51,7 @@ pub struct ProceduralSettings {
 impl Default for ProceduralSettings {
     fn default() -> Self {
         Self {
-            family: NoiseFamily::RidgedSum,
+            family: NoiseFamily::RidgedField,
             n_candidates: 2048,
             learned_atoms: None,
             iterations: 3,

@@ -77,7 +77,8 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
     /// Append random analytic atoms to the data dictionary, `FAMILY:N,...` with FAMILY one of
-    /// `ridged` (sums of ridged noise, figure 4), `perlin`, `ridged-multifractal`: a mixed
+    /// `ridged` (sums of ridged noise, figure 4), `perlin`, `ridged-multifractal`,
+    /// `ridged-field`, `perlin-field` (windows of one noise field at terrain scale): a mixed
     /// dictionary whose OMP picks data or analytic atoms per primitive (figure 14).
     #[arg(long, value_name = "FAMILY:N,..", value_parser = parse_analytic_atoms)]
     pub(crate) analytic_atoms: Option<AnalyticAtoms>,
@@ -100,6 +101,8 @@ fn parse_analytic_atoms(spec: &str) -> std::result::Result<AnalyticAtoms, String
             NoiseFamily::RidgedSum => a.ridged_sum += n,
             NoiseFamily::Perlin => a.perlin += n,
             NoiseFamily::RidgedMultifractal => a.ridged_multifractal += n,
+            NoiseFamily::PerlinField => a.perlin_field += n,
+            NoiseFamily::RidgedField => a.ridged_field += n,
         }
     }
     Ok(a)

@@ -93,11 +93,13 @@ impl LastStep {
         let x1 = ((win.x + win.width).div_ceil(f) + halo).min(w);
         let y1 = ((win.y + win.height).div_ceil(f) + halo).min(h);
         let crop = self.input.crop(x0, y0, x1 - x0, y1 - y0)?;
-        let whole = st.coarse_geometry().grid(w, h)?;
+        // Columns of the whole input's grid (one row of it: the whole grid may exceed the
+        // primitive cap of one raster, which the crops do not).
+        let nx = st.coarse_geometry().grid(w, 1)?.nx;
         let frame = GridFrame {
             col0: x0 / s,
             row0: y0 / s,
-            nx: whole.nx,
+            nx,
         };
         let sct = self.dictionary.amplify_once_in(&crop, &st, Some(frame))?;
         let out = sct.rasterize(&RasterSettings {

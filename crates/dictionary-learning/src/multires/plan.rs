@@ -6,6 +6,10 @@ use super::*;
 /// Minimum exemplar side used at a step, in units of the fine patch side.
 const MIN_EXEMPLAR_PATCHES: usize = 6;
 
+/// Largest pool of training patches cut from a step's input before subsampling (2^18
+/// patches, 64 MiB at the default patch side).
+const MAX_TRAINING_POOL: usize = 1 << 18;
+
 /// Relative tolerance under which a cell-size ratio counts as 1 (no resampling).
 const SCALE_TOLERANCE: f64 = 1e-6;
 
@@ -313,19 +317,10 @@ fn run_until_last(
             box_resample(&native, scale.exemplar_size.0, scale.exemplar_size.1)?
         };
         let step_settings = step_settings(settings, t);
-        // Training signals for constrained learning (subsampled to `max_training` anyway):
-        // patches one radius apart are as representative as the coding grid's, at a quarter
-        // of the extraction cost.
-        let training = extract_patches(
-            &current,
-            &PatchGeometry {
-                step: settings.grid_step().max(settings.radius.floor().max(1.0)),
-                ..settings.coarse_geometry()
-            },
-        )?;
+        let training = training_patches(&current, settings)?;
         let mut dict = MultiResDictionary::from_exemplar(
             &ex,
-            Some(training.matrix.view()),
+            Some(training.view()),
             &step_settings,
             progress,
         )?;
@@ -363,6 +358,34 @@ fn run_until_last(
         current = sct.rasterize(&RasterSettings::default())?;
     }
     Err(LearnError::param("steps", 0, "must be >= 1"))
+}
+
+/// Training signals of a step's dictionary: the input's patches one radius apart (subsampled
+/// to `max_training` by the learning anyway: they are as representative as the coding grid's,
+/// at a quarter of the extraction cost). On very large inputs (a tiled plan's last step) only
+/// every `k`-th band of rows is cut, so the pool stays under [`MAX_TRAINING_POOL`] patches.
+fn training_patches(current: &Heightfield, settings: &AmplifySettings) -> Result<Array2<f32>> {
+    let geom = PatchGeometry {
+        step: settings.grid_step().max(settings.radius.floor().max(1.0)),
+        ..settings.coarse_geometry()
+    };
+    let (w, h) = (current.width(), current.height());
+    let pool = (w as f64 / geom.step).ceil() * (h as f64 / geom.step).ceil();
+    if pool <= MAX_TRAINING_POOL as f64 {
+        return Ok(extract_patches(current, &geom)?.matrix);
+    }
+    let k = (pool / MAX_TRAINING_POOL as f64).ceil() as usize;
+    let band = 16 * settings.patch_size();
+    let mut rows: Vec<f32> = Vec::new();
+    let mut y0 = 0;
+    while y0 < h {
+        let crop = current.crop(0, y0, w, band.min(h - y0))?;
+        rows.extend(extract_patches(&crop, &geom)?.matrix.iter());
+        y0 += band * k;
+    }
+    let dim = geom.patch_size * geom.patch_size;
+    Array2::from_shape_vec((rows.len() / dim, dim), rows)
+        .map_err(|_| LearnError::param("training", dim, "internal shape error"))
 }
 
 /// The settings of step `t` (its own seed).

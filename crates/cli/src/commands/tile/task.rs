@@ -63,7 +63,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
     let [x, y, w, h] = m.window(i);
     let hf = render(
         &m,
-        &prepared,
+        prepared,
         Window {
             x,
             y,
@@ -97,8 +97,10 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
 }
 
 /// One window of the planned output, from the prepared file and the manifest's job settings.
-pub(super) fn render(m: &Manifest, prepared: &[u8], win: Window) -> Result<Heightfield> {
-    let sct_window = |scale: f64| -> Result<Heightfield> {
+/// The prepared bytes are dropped as soon as they are decoded (a large last step's input is
+/// held once, not twice, while the window is computed).
+pub(super) fn render(m: &Manifest, prepared: Vec<u8>, win: Window) -> Result<Heightfield> {
+    let sct_window = |prepared: &[u8], scale: f64| -> Result<Heightfield> {
         let sct = Sct::from_bytes(prepared, &crate::commands::compress::registry())
             .context("cannot read the prepared model")?;
         Ok(sct.rasterize(&RasterSettings {
@@ -111,8 +113,9 @@ pub(super) fn render(m: &Manifest, prepared: &[u8], win: Window) -> Result<Heigh
         "amplify" if m.prepared.path == super::plan::LAST_STEP => {
             let settings: relief_dictionary_learning::AmplifySettings =
                 serde_json::from_value(m.job.clone()).with_context(bad_job)?;
-            let last = relief_dictionary_learning::LastStep::from_bytes(prepared, &settings)
+            let last = relief_dictionary_learning::LastStep::from_bytes(&prepared, &settings)
                 .context("cannot read the prepared last step")?;
+            drop(prepared);
             let hf = last.render_window(win)?;
             let georef = m
                 .output
@@ -121,16 +124,16 @@ pub(super) fn render(m: &Manifest, prepared: &[u8], win: Window) -> Result<Heigh
                 .map(|g| g.window(win.x as f64, win.y as f64, 1.0, 1.0));
             Ok(hf.with_georef(georef))
         }
-        "amplify" => sct_window(1.0),
+        "amplify" => sct_window(&prepared, 1.0),
         "decompress" => {
             let scale = m.job["scale"].as_f64().with_context(bad_job)?;
-            sct_window(scale)
+            sct_window(&prepared, scale)
         }
         "refine" => {
             let settings: relief_wavelet_lod::RefineSettings =
                 serde_json::from_value(m.job.clone()).with_context(bad_job)?;
             let hf = relief_io::read_bytes(
-                prepared,
+                &prepared,
                 Some(Path::new("input.tif")),
                 &relief_io::ReadOptions::default(),
             )
