@@ -200,6 +200,10 @@ impl FunctionAtom for PerlinAtom {
             params: self.params.to_vec(),
         }
     }
+    /// Seed, frequency and octaves describe the field; offset and angle the window.
+    fn field_params(&self) -> usize {
+        3
+    }
 }
 
 /// A ridged multifractal atom.
@@ -242,6 +246,11 @@ impl FunctionAtom for RidgedMultifractalAtom {
             kind: RIDGED_MULTIFRACTAL_KIND.into(),
             params: self.params.to_vec(),
         }
+    }
+    /// Seed, frequency, octaves, lacunarity and gain describe the field; offset and angle
+    /// the window.
+    fn field_params(&self) -> usize {
+        5
     }
 }
 

@@ -163,3 +163,20 @@ fn mixed_data_and_analytic_atoms_keep_fixed_atoms() {
     }
     assert!(r.trace.last().unwrap().rmse < r.trace[0].rmse);
 }
+
+#[test]
+fn field_windows_store_their_shared_field_once() {
+    let count = |family: NoiseFamily| {
+        let mut d = Dictionary::new(10, 1.0, 5.0).unwrap();
+        for atom in random_function_atoms(family, 50, 3) {
+            d.push_function(atom).unwrap();
+        }
+        (d.len() as u64, relief_sparse_core::dictionary_values(&d))
+    };
+    // Independent atoms: every parameter is their own.
+    assert_eq!(count(NoiseFamily::Perlin), (50, 50 * 6));
+    assert_eq!(count(NoiseFamily::RidgedMultifractal), (50, 50 * 8));
+    // Windows of one field: the field (3 or 5 values) once, then offset and angle each.
+    assert_eq!(count(NoiseFamily::PerlinField), (50, 3 + 50 * 3));
+    assert_eq!(count(NoiseFamily::RidgedField), (50, 5 + 50 * 3));
+}

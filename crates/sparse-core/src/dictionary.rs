@@ -40,6 +40,13 @@ pub trait FunctionAtom: Send + Sync + Debug {
     fn eval(&self, u: f64, v: f64) -> f64;
     /// Serialisable description (kind name + parameters) used by the `.sct` format.
     fn descriptor(&self) -> AtomDescriptor;
+    /// How many leading parameters describe a field that several atoms may share (windows
+    /// of one noise field differ only in the remaining ones: offset, angle). Atoms of one kind
+    /// with the same leading parameters store them once ([`crate::dictionary_values`]).
+    /// Default 0: every parameter is the atom's own.
+    fn field_params(&self) -> usize {
+        0
+    }
 }
 
 /// Constructor of a function atom from its parameters.

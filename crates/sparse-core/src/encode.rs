@@ -133,14 +133,27 @@ pub fn storage_values(k: usize, n_atoms: usize, n_patches: usize, sparsity: usiz
 }
 
 /// Values a dictionary stores: `K` samples per data atom, and only the parameters of a
-/// function atom (its samples are computed, section 5.2). For a data-only dictionary this is
-/// the `K N` of [`storage_values`].
+/// function atom (its samples are computed, section 5.2); the field parameters that function
+/// atoms of one kind share ([`crate::dictionary::FunctionAtom::field_params`]: windows of one
+/// noise field) are counted once. For a data-only dictionary this is the `K N` of
+/// [`storage_values`].
 pub fn dictionary_values(d: &crate::Dictionary) -> u64 {
+    let mut fields: std::collections::HashSet<(String, Vec<u64>)> = Default::default();
     d.atoms()
         .iter()
         .map(|a| match a {
             crate::dictionary::Atom::Data(_) => d.dim() as u64,
-            crate::dictionary::Atom::Function { func, .. } => func.descriptor().params.len() as u64,
+            crate::dictionary::Atom::Function { func, .. } => {
+                let desc = func.descriptor();
+                let k = func.field_params().min(desc.params.len());
+                let key = desc.params[..k].iter().map(|p| p.to_bits()).collect();
+                let shared = if k > 0 && !fields.insert((desc.kind, key)) {
+                    k
+                } else {
+                    0
+                };
+                (desc.params.len() - shared) as u64
+            }
         })
         .sum()
 }
