@@ -24,6 +24,8 @@ struct Basis<'a> {
     rho0: f32,
     /// Sea level of the shore features; `None` = no sea (they are skipped).
     sea_level: Option<f32>,
+    /// The level is the detected sea's: the shore is that of the border-connected sea only.
+    sea_detected: bool,
     /// Radius of the weathering spheres.
     wr: f32,
 }
@@ -66,6 +68,7 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
         None
     };
     basis.sea_level = recipe.sea_level.or(sea.map(|s| s.level));
+    basis.sea_detected = sea.is_some();
     basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
     dims.weathering_radius_m = basis.wr;
     let mut steps = Steps {
@@ -174,6 +177,7 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
         relief,
         rho0: 0.5,
         sea_level: None,
+        sea_detected: false,
         wr: 0.0,
     };
     Ok((basis, dims))
@@ -263,6 +267,7 @@ impl Steps<'_> {
                 radius: cr,
                 beta: 0.2,
                 seed: basis.sub(8),
+                border_connected: basis.sea_detected,
             };
             dims.cliff_retreat_m = c.retreat;
             effects.push((Feature::Cliffs, b.sea_cliffs(&c, region)?));
@@ -293,6 +298,7 @@ impl Steps<'_> {
                 caves: dims.cave_count,
                 cave_length: dims.cave_length_m,
                 iterations: 3,
+                border_connected: basis.sea_detected,
             };
             let rep = b.sea_erosion(&s, region)?;
             let f = if basis.has(Feature::Sea) {

@@ -27,8 +27,9 @@
 //! The shore features ([`Feature::Sea`], [`Feature::Caves`], [`Feature::Cliffs`]) need a sea
 //! level. [`Recipe::sea_level`] `Some(z)` puts the shore at `z` whatever the DEM (a lake shore
 //! in a canyon on purpose); `None` (the default) uses the sea the DEM has ([`detect_sea`]:
-//! border-connected samples at or below 0 m, or a large flat border-connected minimum). When
-//! the DEM has none (an inland DEM), the shore features place nothing, a note says so, and
+//! border-connected samples at or below 0 m, or a large flat border-connected minimum), and its
+//! shore is that of the border-connected sea only (a closed depression below the level inland
+//! is not eroded as a shore). When the DEM has none (an inland DEM), the shore features place nothing, a note says so, and
 //! [`RecipeReport::has_sea`] is false, so no water is drawn.
 
 use std::str::FromStr;
@@ -50,6 +51,7 @@ mod sea;
 pub use self::build::build_recipe;
 pub use self::closeups::render_closeups;
 use self::closeups::{best_section_line, densest_karst};
+pub(crate) use self::sea::border_connected;
 pub use self::sea::{
     SEA_MIN_CELLS, SEA_MIN_SHARE, SeaDetection, SeaKind, border_connected_at_or_below, detect_sea,
 };

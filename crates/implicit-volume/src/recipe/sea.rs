@@ -57,8 +57,11 @@ pub struct SeaDetection {
 /// The samples at or below `level` connected to the DEM's border by 4-neighbour steps through
 /// such samples (non-finite samples are never sea and block the fill).
 pub fn border_connected_at_or_below(hf: &Heightfield, level: f32) -> Vec<bool> {
-    let (w, h) = (hf.width(), hf.height());
-    let z = hf.as_slice();
+    border_connected(hf.as_slice(), hf.width(), hf.height(), level)
+}
+
+/// [`border_connected_at_or_below`] on a row-major `w x h` grid `z`.
+pub(crate) fn border_connected(z: &[f32], w: usize, h: usize, level: f32) -> Vec<bool> {
     let low = |k: usize| z[k].is_finite() && z[k] <= level;
     let mut sea = vec![false; w * h];
     let mut stack = Vec::new();
