@@ -107,6 +107,18 @@ fn main() {
             f.mesh_watertight_manifold,
         );
         println!("  nodes by kind {:?}", f.tree_nodes_by_kind);
+        println!(
+            "  sea level {:?} m, water drawn {}, effects (primitives, count) {:?}",
+            f.sea_level_m,
+            f.water_drawn,
+            f.effects
+                .iter()
+                .map(|(k, e)| (k.as_str(), e.primitives, e.count))
+                .collect::<Vec<_>>()
+        );
+        for n in &f.notes {
+            println!("  note: {n}");
+        }
         if std::env::var_os("LOOK").is_some() {
             let grid = f.mesh_grid.expect("grid");
             let ms = relief_implicit_volume::MeshSettings {

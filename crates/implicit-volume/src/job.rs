@@ -83,8 +83,12 @@ pub struct VolumeFigures {
     pub cell_size_m: [f64; 2],
     /// Seed.
     pub seed: u64,
-    /// Sea level used (m).
-    pub sea_level_m: f32,
+    /// Sea level of the shore features (m): the recipe's, else the DEM's detected sea; `None`
+    /// = no sea in the DEM and none set (shore features skipped, see `notes`).
+    pub sea_level_m: Option<f32>,
+    /// The sea detected in the DEM when the recipe sets no level
+    /// ([`crate::recipe::detect_sea`]: level, rule, samples and their share).
+    pub sea_detected: Option<crate::recipe::SeaDetection>,
     /// Whether the renders draw water (the scene has sea features).
     pub water_drawn: bool,
     /// Terrain tree nodes.
@@ -197,7 +201,7 @@ impl VolumeFigures {
     pub fn summary(&self) -> String {
         let d = &self.dimensions;
         let mut out = format!(
-            "dem:          {}x{} ({:.1} x {:.1} m cells, {:.2} km2, relief {:.0} m), sea level {:.1} m, voxel {:.2} m\n\
+            "dem:          {}x{} ({:.1} x {:.1} m cells, {:.2} km2, relief {:.0} m), {}, voxel {:.2} m\n\
              implicitise:  surface vs DEM max {:.4} m, mean {:.5} m, floor {:.0} m deep\n",
             self.width,
             self.height,
@@ -205,7 +209,14 @@ impl VolumeFigures {
             self.cell_size_m[1],
             d.area_km2,
             d.relief_m,
-            self.sea_level_m,
+            match (self.sea_level_m, self.sea_detected) {
+                (Some(z), Some(s)) => format!(
+                    "sea level {z:.1} m (detected: {:.1} % of the DEM)",
+                    100.0 * s.share
+                ),
+                (Some(z), None) => format!("sea level {z:.1} m"),
+                (None, _) => "no sea".to_string(),
+            },
             d.voxel_m,
             self.implicitisation_max_dev_m,
             self.implicitisation_mean_dev_m,
@@ -361,6 +372,7 @@ impl VolumeJob {
             cell_size_m: [hf.cell_size().0, hf.cell_size().1],
             seed: self.recipe.seed,
             sea_level_m: rep.sea_level,
+            sea_detected: rep.sea,
             water_drawn: rep.has_sea,
             tree_nodes: st.nodes,
             tree_primitives: st.primitives,
@@ -479,7 +491,7 @@ impl VolumeJob {
         let settings = RenderSettings {
             width: w,
             height: h,
-            sea_level: rep.has_sea.then_some(rep.sea_level),
+            sea_level: rep.sea_level.filter(|_| rep.has_sea),
             ..Default::default()
         };
         let mut overview = None;

@@ -73,8 +73,8 @@ pub use mesh::{
     sample_grid, topology,
 };
 pub use recipe::{
-    Densities, Deviation, Dimensions, Feature, Highlight, Recipe, RecipeReport, build_recipe,
-    render_closeups,
+    Densities, Deviation, Dimensions, Feature, Highlight, Recipe, RecipeReport, SeaDetection,
+    SeaKind, build_recipe, detect_sea, render_closeups,
 };
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{

@@ -425,8 +425,12 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
     let Some(hf) = dem_crop("grandcanyon", 200, 160, 32, 32) else {
         return;
     };
+    // An explicit shore at the 25th percentile (the canyon has no sea of its own), so every
+    // effect runs.
+    let q25 = relief_heightfield::metrics::quantile(hf.as_slice(), 0.25).unwrap();
     let recipe = Recipe {
         features: Feature::ALL.to_vec(),
+        sea_level: Some(q25),
         seed: 9,
         ..Default::default()
     };
@@ -452,7 +456,7 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
                 &RenderSettings {
                     width: 48,
                     height: 36,
-                    sea_level: Some(rep.sea_level),
+                    sea_level: rep.sea_level,
                     ..Default::default()
                 },
             )
@@ -550,7 +554,10 @@ fn recipe_sizes_are_physical_on_the_canyon_and_the_coast() {
             "{:?}",
             rep.effects
         );
-        assert!(rep.has_sea, "sea features present");
+        // The plateau has no sea (issue 19: no lake at the 25th percentile), the coast has.
+        let coast = name.starts_with("N57E011");
+        assert_eq!(rep.has_sea, coast, "{name}: {:?}", d.notes);
+        assert_eq!(rep.sea_level, coast.then_some(0.0), "{name}");
     }
 }
 
@@ -821,4 +828,138 @@ fn wind_and_rain_carve_grooves_not_pits() {
         "bubble-wrap: {added} small pits added, {look:?}"
     );
     assert!(look.downward_share > 0.002, "no undercut at all: {look:?}");
+}
+
+// ---- Issue 19: sea only where the DEM has sea ----
+
+/// [`detect_sea`] on whole real DEMs: the Kattegat coast (SRTM sea at 0 m) and the Salish Sea
+/// (bathymetry) have sea at 0 m; the inland DEMs have none, voids included (N47E011).
+#[test]
+fn sea_is_detected_on_coasts_only() {
+    let mut seen = 0;
+    for id in relief_testdata::DEM_IDS {
+        let Some(hf) = relief_testdata::load_dem(id) else {
+            return;
+        };
+        let s = detect_sea(&hf);
+        eprintln!("{id}: {s:?}");
+        match id {
+            "N57E011" => {
+                let s = s.expect("N57E011 has sea");
+                assert_eq!((s.level, s.kind), (0.0, SeaKind::Zero));
+                assert!((0.84..0.87).contains(&s.share), "{s:?}");
+            }
+            "topobathy" => {
+                let s = s.expect("topobathy has sea");
+                assert_eq!((s.level, s.kind), (0.0, SeaKind::Zero));
+                assert!((0.40..0.50).contains(&s.share), "{s:?}");
+            }
+            _ => assert_eq!(s, None, "{id}"),
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, relief_testdata::DEM_IDS.len());
+}
+
+/// With every feature on and no `sea_level`, the Grand Canyon gets no sea: no shore
+/// primitives, no water, a note (the old default flooded it at the 25th percentile); the
+/// coast gets its sea at 0 m with shore features; an explicit level on the canyon still
+/// carves a shore there (the old behaviour, on purpose).
+#[test]
+fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
+    let (Some(gc), Some(co)) = (dem_crop("grandcanyon", 200, 160, 48, 48), coast()) else {
+        return;
+    };
+    let shore = |rep: &RecipeReport| {
+        rep.effects
+            .iter()
+            .filter(|(f, _)| matches!(f, Feature::Sea | Feature::Caves | Feature::Cliffs))
+            .map(|(f, e)| (*f, e.primitives))
+            .collect::<Vec<_>>()
+    };
+    let job = VolumeJob {
+        recipe: Recipe {
+            features: Feature::ALL.to_vec(),
+            ..Default::default()
+        },
+        mesh: false,
+        ..Default::default()
+    };
+    // The canyon, default: no sea.
+    let built = job.build(&gc, &relief_heightfield::NoProgress).unwrap();
+    let rep = &built.report;
+    assert_eq!(shore(rep), vec![], "{:?}", rep.dims.notes);
+    assert!(!rep.has_sea);
+    assert_eq!((rep.sea_level, rep.sea), (None, None));
+    let note = rep
+        .dims
+        .notes
+        .iter()
+        .find(|n| n.contains("no sea in this DEM"))
+        .unwrap_or_else(|| panic!("no sea note: {:?}", rep.dims.notes));
+    assert!(
+        note.contains("cliffs, sea, caves") && note.contains("sea_level"),
+        "{note}"
+    );
+    assert!(
+        rep.highlights
+            .iter()
+            .all(|h| !matches!(h.feature, Feature::Sea | Feature::Caves | Feature::Cliffs)),
+        "{:?}",
+        rep.highlights
+    );
+    let f = &built.figures;
+    assert_eq!((f.sea_level_m, f.water_drawn), (None, false));
+    assert!(f.summary().contains("no sea"), "{}", f.summary());
+    let json = serde_json::to_value(f).unwrap();
+    assert!(json["sea_level_m"].is_null() && json["sea_detected"].is_null());
+    assert!(json["notes"].to_string().contains("no sea in this DEM"));
+    // The other features still run.
+    assert!(
+        rep.effects
+            .iter()
+            .any(|(f, e)| *f == Feature::Karst && e.primitives > 0),
+        "{:?}",
+        rep.effects
+    );
+
+    // The canyon with an explicit lake level: the shore is carved there, water drawn.
+    let q25 = relief_heightfield::metrics::quantile(gc.as_slice(), 0.25).unwrap();
+    let (_, rep) = build_recipe(
+        &gc,
+        &Recipe {
+            sea_level: Some(q25),
+            ..job.recipe.clone()
+        },
+    )
+    .unwrap();
+    let s = shore(&rep);
+    assert!(
+        s.len() == 2 && s.iter().all(|&(_, n)| n > 0),
+        "{s:?} {:?}",
+        rep.dims.notes
+    );
+    assert!(rep.has_sea && rep.sea_level == Some(q25) && rep.sea.is_none());
+    assert!(!rep.dims.notes.iter().any(|n| n.contains("no sea")));
+
+    // The coast, default: sea at 0 m, detected, shore features placed.
+    let built = job.build(&co, &relief_heightfield::NoProgress).unwrap();
+    let rep = &built.report;
+    let s = shore(rep);
+    assert!(
+        s.len() == 2 && s.iter().all(|&(_, n)| n > 0),
+        "{s:?} {:?}",
+        rep.dims.notes
+    );
+    assert!(rep.has_sea && rep.sea_level == Some(0.0));
+    let d = rep.sea.expect("detected");
+    assert_eq!(d.kind, SeaKind::Zero);
+    assert!(d.share > 0.3, "{d:?}");
+    assert!(built.figures.water_drawn);
+    assert!(
+        built
+            .figures
+            .summary()
+            .contains("sea level 0.0 m (detected")
+    );
 }

@@ -130,12 +130,13 @@ proptest! {
                      retreat in num(30.0)) {
         let mut b = builder();
         let sea = SeaErosion { weathering: w, sea_level: lvl, depth: d, height: h, peak,
-                               reach, caves, cave_length: len, iterations: iters };
+                               reach, caves, cave_length: len, iterations: iters,
+                               border_connected: iters % 2 == 0 };
         let mut f = WEATHERING.to_vec();
         f.extend(["sea_level", "depth", "height", "peak", "reach", "cave_length", "iterations"]);
         check(b.sea_erosion(&sea, &Region::everywhere()), &f)?;
         let cl = SeaCliffs { sea_level: lvl, depth: d, retreat, radius: w.radius, beta: w.beta,
-                             seed: 1 };
+                             seed: 1, border_connected: iters % 2 == 1 };
         check(b.sea_cliffs(&cl, &Region::everywhere()),
               &["sea_level", "depth", "retreat", "radius", "beta"])?;
         check(b.wind_erosion(&WindErosion { weathering: w, direction: [dir, 0.0] },

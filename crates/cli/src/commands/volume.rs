@@ -27,7 +27,10 @@ pub(crate) struct Args {
     /// Grey PNG (or any raster) of the DEM's size limiting every effect (0 = none, max = full).
     #[arg(long)]
     pub(crate) mask: Option<PathBuf>,
-    /// Sea level in metres (default: the 25th percentile of the elevations).
+    /// Sea level in metres of the shore features (cliffs, sea, caves). Default: the DEM's own
+    /// sea (border-connected ground at or below 0 m, or a large flat border-connected lowest
+    /// area); on a DEM without sea (inland) they are skipped with a note and no water is
+    /// drawn. Give a level to put a shore anywhere, e.g. a lake in a canyon.
     #[arg(long, allow_hyphen_values = true)]
     pub(crate) sea_level: Option<f32>,
     /// Write the polygonised scene (.glb, .ply or .obj).

@@ -150,8 +150,12 @@ impl Stage for VolumeStage {
                     out.render.as_ref(),
                     "volume_render.png",
                     format!(
-                        "sphere-traced implicit scene ({} nodes), sea level {:.0} m",
-                        out.figures.tree_nodes, out.figures.sea_level_m
+                        "sphere-traced implicit scene ({} nodes), {}",
+                        out.figures.tree_nodes,
+                        match out.figures.sea_level_m {
+                            Some(z) if out.figures.water_drawn => format!("sea level {z:.0} m"),
+                            _ => "no sea".to_string(),
+                        }
                     ),
                 ),
                 (
@@ -205,10 +209,20 @@ mod tests {
         eprintln!("volume stage on the golden crop: {secs:.2} s");
         assert_eq!(f["mesh_watertight_manifold"], true, "{f:?}");
         assert!(f["implicitisation_max_dev_m"].as_f64().unwrap() < 0.01);
-        // Every feature carved or added something, or a note says why it could not be
-        // resolved at one voxel per DEM cell (the golden run).
+        // The canyon has no sea (issue 19): sea and caves skipped with a note, no water.
         let notes = f["notes"].to_string();
-        for k in ["sea", "karst", "hoodoos", "arches", "islands"] {
+        assert!(
+            notes.contains("shore features skipped (sea, caves): no sea in this DEM"),
+            "{notes}"
+        );
+        assert!(
+            f["effects"]["sea"].is_null() && f["sea_level_m"].is_null(),
+            "{f:?}"
+        );
+        assert_eq!(f["water_drawn"], false);
+        // Every other feature carved or added something, or a note says why it could not be
+        // resolved at one voxel per DEM cell (the golden run).
+        for k in ["karst", "hoodoos", "arches", "islands"] {
             let n = f["effects"][k]["primitives"].as_u64().unwrap_or(0);
             assert!(
                 n > 0 || notes.contains(&format!("{k} skipped")),

@@ -92,9 +92,17 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
     ] {
         assert!(stdout.contains(key), "`{key}` missing:\n{stdout}");
     }
-    // Every requested feature added primitives to the tree, or a note says why it could not
-    // be resolved (at one voxel per 61.7 m cell, hoodoos of tens of metres cannot).
-    for f in ["sea", "karst", "overhangs", "hoodoos", "arches", "islands"] {
+    // The canyon has no sea (issue 19): the shore features are skipped with a note, no water.
+    assert!(
+        stdout.lines().any(|l| l.starts_with("note:")
+            && l.contains("shore features skipped (sea, caves): no sea in this DEM")),
+        "no sea note:\n{stdout}"
+    );
+    assert!(stdout.contains("no sea, voxel"), "{stdout}");
+    assert!(!stdout.lines().any(|l| l.starts_with("sea:")), "{stdout}");
+    // Every other requested feature added primitives to the tree, or a note says why it could
+    // not be resolved (at one voxel per 61.7 m cell, hoodoos of tens of metres cannot).
+    for f in ["karst", "overhangs", "hoodoos", "arches", "islands"] {
         match stdout.lines().find(|l| l.starts_with(&format!("{f}:"))) {
             Some(line) => {
                 let n: usize = line.split_whitespace().nth(1).unwrap().parse().unwrap();
@@ -124,7 +132,12 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
     assert!(r["mesh_triangles"].as_u64().unwrap() <= 20_000);
     assert_eq!(r["mesh_watertight_manifold"], true);
     assert!(r["build_s"].as_f64().is_some() && r["render_s"].as_f64().is_some());
-    assert_eq!(r["water_drawn"], true, "sea features draw water");
+    assert_eq!(r["water_drawn"], false, "no sea, no water");
+    assert!(
+        r["sea_level_m"].is_null() && r["sea_detected"].is_null(),
+        "{r}"
+    );
+    assert!(r["effects"]["sea"].is_null(), "{r}");
     let (cw, ch) = png_size(&close);
     assert!(ch == 24 && cw % 32 == 0 && cw >= 32, "{cw}x{ch}");
     let g = std::fs::read(&glb).unwrap();
@@ -336,6 +349,42 @@ fn glb_passes_the_khronos_validator() {
     let issues: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert_eq!(issues["numErrors"], 0, "{issues}");
     assert_eq!(issues["numWarnings"], 0, "{issues}");
+}
+
+/// `--sea-level` puts a shore in the canyon on purpose (the behaviour before issue 19's sea
+/// detection): sea erosion and caves carved, water drawn at that level.
+#[test]
+fn volume_sea_level_puts_a_lake_shore_in_the_canyon() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("r.json");
+    let out = relief(&[
+        "volume",
+        s(&fixture()),
+        "--crop",
+        "200,160,32,32",
+        "--features",
+        "sea,caves",
+        "--sea-level",
+        "685",
+        "--render",
+        s(&dir.path().join("r.png")),
+        "--image-size",
+        "32x24",
+        "--report",
+        s(&report),
+    ]);
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("sea level 685.0 m,"), "{stdout}");
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["sea_level_m"], 685.0, "{r}");
+    assert!(r["sea_detected"].is_null(), "{r}");
+    assert_eq!(r["water_drawn"], true, "{r}");
+    assert!(
+        r["effects"]["sea"]["primitives"].as_u64().unwrap() > 0,
+        "{r}"
+    );
+    assert!(!r["notes"].to_string().contains("no sea"), "{r}");
 }
 
 /// `--geology FILE.json` drives the strata (echoed in the report), a karst-only scene draws no

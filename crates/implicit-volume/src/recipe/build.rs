@@ -22,7 +22,10 @@ struct Basis<'a> {
     relief: f32,
     /// Resistance under which rock is soft.
     rho0: f32,
-    sea_level: f32,
+    /// Sea level of the shore features; `None` = no sea (they are skipped).
+    sea_level: Option<f32>,
+    /// The level is the detected sea's: the shore is that of the border-connected sea only.
+    sea_detected: bool,
     /// Radius of the weathering spheres.
     wr: f32,
 }
@@ -59,7 +62,13 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     };
     region.check(&b.frame())?;
     let deviation = b.implicitization_deviation(4096);
-    basis.sea_level = recipe.sea_level.unwrap_or_else(|| percentile(hf, 0.25));
+    let sea = if recipe.sea_level.is_none() {
+        detect_sea(hf)
+    } else {
+        None
+    };
+    basis.sea_level = recipe.sea_level.or(sea.map(|s| s.level));
+    basis.sea_detected = sea.is_some();
     basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
     dims.weathering_radius_m = basis.wr;
     let mut steps = Steps {
@@ -95,6 +104,7 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
         RecipeReport {
             effects,
             sea_level: basis.sea_level,
+            sea,
             has_sea,
             dims,
             geology,
@@ -166,7 +176,8 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
         voxel,
         relief,
         rho0: 0.5,
-        sea_level: 0.0,
+        sea_level: None,
+        sea_detected: false,
         wr: 0.0,
     };
     Ok((basis, dims))
@@ -229,16 +240,34 @@ impl Steps<'_> {
             effects,
         } = self;
         let (voxel, relief, wr) = (basis.voxel, basis.relief, basis.wr);
+        let shore: Vec<&str> = [Feature::Cliffs, Feature::Sea, Feature::Caves]
+            .into_iter()
+            .filter(|&f| basis.has(f))
+            .map(Feature::name)
+            .collect();
+        let Some(sea_level) = basis.sea_level else {
+            if !shore.is_empty() {
+                dims.notes.push(format!(
+                    "shore features skipped ({}): no sea in this DEM (no border-connected area \
+                     at or below 0 m, nor a flat border-connected lowest area, covering {:.0} % \
+                     of it); set sea_level (--sea-level) to place a shore",
+                    shore.join(", "),
+                    100.0 * SEA_MIN_SHARE
+                ));
+            }
+            return Ok(());
+        };
         if basis.has(Feature::Cliffs) {
             // Spheres finer than the soft strata, so hard ones survive as ledges.
             let cr = (1.5 * voxel).max(wr.min(0.4 * dims.soft_thickness_m.unwrap_or(wr)));
             let c = SeaCliffs {
-                sea_level: basis.sea_level,
+                sea_level,
                 depth: 0.3 * cr,
                 retreat: 6.0 * cr,
                 radius: cr,
                 beta: 0.2,
                 seed: basis.sub(8),
+                border_connected: basis.sea_detected,
             };
             dims.cliff_retreat_m = c.retreat;
             effects.push((Feature::Cliffs, b.sea_cliffs(&c, region)?));
@@ -261,7 +290,7 @@ impl Steps<'_> {
                     seed: basis.sub(1),
                     ..Default::default()
                 },
-                sea_level: basis.sea_level,
+                sea_level,
                 depth: 0.3 * r,
                 height: dims.sea_height_m,
                 peak: 0.2 * dims.sea_height_m,
@@ -269,6 +298,7 @@ impl Steps<'_> {
                 caves: dims.cave_count,
                 cave_length: dims.cave_length_m,
                 iterations: 3,
+                border_connected: basis.sea_detected,
             };
             let rep = b.sea_erosion(&s, region)?;
             let f = if basis.has(Feature::Sea) {

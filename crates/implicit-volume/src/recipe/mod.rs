@@ -22,6 +22,15 @@
 //!
 //! Each size is checked against the voxel and the relief; a feature that cannot be resolved is
 //! skipped and [`Dimensions::notes`] says why.
+//!
+//! # Sea
+//! The shore features ([`Feature::Sea`], [`Feature::Caves`], [`Feature::Cliffs`]) need a sea
+//! level. [`Recipe::sea_level`] `Some(z)` puts the shore at `z` whatever the DEM (a lake shore
+//! in a canyon on purpose); `None` (the default) uses the sea the DEM has ([`detect_sea`]:
+//! border-connected samples at or below 0 m, or a large flat border-connected minimum), and its
+//! shore is that of the border-connected sea only (a closed depression below the level inland
+//! is not eroded as a shore). When the DEM has none (an inland DEM), the shore features place nothing, a note says so, and
+//! [`RecipeReport::has_sea`] is false, so no water is drawn.
 
 use std::str::FromStr;
 
@@ -37,10 +46,15 @@ use crate::scene::{
 
 mod build;
 mod closeups;
+mod sea;
 
 pub use self::build::build_recipe;
 pub use self::closeups::render_closeups;
 use self::closeups::{best_section_line, densest_karst};
+pub(crate) use self::sea::border_connected;
+pub use self::sea::{
+    SEA_MIN_CELLS, SEA_MIN_SHARE, SeaDetection, SeaKind, border_connected_at_or_below, detect_sea,
+};
 
 /// One landform effect of a [`Recipe`].
 #[derive(
@@ -175,8 +189,11 @@ impl Default for Densities {
 pub struct Recipe {
     /// Effects to apply (any order; applied in [`Feature::ALL`] order).
     pub features: Vec<Feature>,
-    /// Sea level (m); `None` = the 25th percentile of the DEM's elevations, so an inland DEM
-    /// gets a lake shore to erode.
+    /// Sea level (m) of the shore features (sea, caves, cliffs). `None` = the DEM's own sea
+    /// ([`detect_sea`]: 0 m when enough border-connected samples are at or below 0 m, else a
+    /// large flat border-connected minimum); on a DEM without sea the shore features are
+    /// skipped with a note. `Some(z)` = a shore at `z` whatever the DEM (e.g. a lake in a
+    /// canyon).
     pub sea_level: Option<f32>,
     /// Per-cell weights in `[0, 1]` (row-major, DEM size) limiting every effect; `None` =
     /// everywhere.
@@ -301,9 +318,13 @@ pub struct Deviation {
 pub struct RecipeReport {
     /// One entry per applied feature.
     pub effects: Vec<(Feature, EffectReport)>,
-    /// Sea level used (m).
-    pub sea_level: f32,
-    /// Whether the scene has sea features (sea erosion or caves), i.e. water to draw.
+    /// Sea level of the shore features (m): the recipe's, else the detected one; `None` = the
+    /// DEM has no sea and the recipe sets none (shore features skipped).
+    pub sea_level: Option<f32>,
+    /// The sea found in the DEM when the recipe sets no level ([`detect_sea`]).
+    pub sea: Option<SeaDetection>,
+    /// Whether the scene has shore features (sea erosion, caves, cliffs placed primitives),
+    /// i.e. water to draw at `sea_level`.
     pub has_sea: bool,
     /// The derived sizes and counts.
     pub dims: Dimensions,
@@ -331,10 +352,6 @@ pub struct Highlight {
     pub from: Option<[f32; 3]>,
     /// Underground (karst): the close-up is a cut-away through `at`, facing the eye.
     pub cutaway: bool,
-}
-
-fn percentile(hf: &Heightfield, q: f32) -> f32 {
-    relief_heightfield::metrics::quantile(hf.as_slice(), q as f64).unwrap_or(0.0)
 }
 
 fn count(density: f32, area_km2: f32, cap: usize) -> usize {

@@ -7,7 +7,7 @@ impl SceneBuilder {
     /// samples near sea level.
     pub fn sea_erosion(&mut self, s: &SeaErosion, region: &Region) -> Result<EffectReport> {
         self.check_sea_erosion(s)?;
-        let dist = self.distance_to_sea(s.sea_level);
+        let dist = self.distance_to_sea(s.sea_level, s.border_connected);
         let frame = self.frame;
         let stress = |me: &Self, p: V3| {
             // A flat floor under water is not attacked by waves: only ground reaching up to the
@@ -234,7 +234,7 @@ impl SceneBuilder {
         }
         let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
         let mut best: Option<(f32, V3)> = None;
-        let dist = self.distance_to_sea(s.sea_level);
+        let dist = self.distance_to_sea(s.sea_level, s.border_connected);
         // Bilinear distance to the sea (m).
         let dist_at = |x: f32, y: f32| {
             let (u, v) = f.to_grid([x, y, 0.0]);

@@ -464,16 +464,22 @@ impl SceneBuilder {
         (add(c, mul(t, -half)), add(c, mul(t, half)))
     }
 
-    /// Horizontal distance (m) from every DEM cell to the nearest cell at or below `level` (sea)
-    /// (two-pass chamfer transform).
-    fn distance_to_sea(&self, level: f32) -> Vec<f32> {
+    /// Horizontal distance (m) from every DEM cell to the nearest cell at or below `level` (sea),
+    /// with `connected` only those connected to the DEM's border (two-pass chamfer transform).
+    fn distance_to_sea(&self, level: f32, connected: bool) -> Vec<f32> {
         let f = self.frame;
         let (w, h) = (f.width, f.height);
-        let mut d: Vec<f32> = self
-            .dem
-            .iter()
-            .map(|&z| if z <= level { 0.0 } else { f32::INFINITY })
-            .collect();
+        let mut d: Vec<f32> = if connected {
+            crate::recipe::border_connected(&self.dem, w, h, level)
+                .into_iter()
+                .map(|s| if s { 0.0 } else { f32::INFINITY })
+                .collect()
+        } else {
+            self.dem
+                .iter()
+                .map(|&z| if z <= level { 0.0 } else { f32::INFINITY })
+                .collect()
+        };
         let dd = (f.cx * f.cx + f.cy * f.cy).sqrt();
         let steps_fwd = [
             (-1i32, 0i32, f.cx),
@@ -673,5 +679,22 @@ mod tests {
             assert!((erosion_intensity(0.0, 1.0, beta) - 1.0).abs() < 1e-6);
         }
         assert!(erosion_intensity(0.2, 0.8, 0.2) > erosion_intensity(0.8, 0.8, 0.2));
+    }
+
+    /// With `connected`, a pit below the level inland is not sea (issue 19).
+    #[test]
+    fn distance_to_sea_skips_inland_pits_when_connected() {
+        // Sea (0 m) on the western 4 columns, land at 20 m, a pit at -5 m at (12, 8).
+        let hf = Heightfield::from_fn(16, 16, 10.0, 10.0, |x, y| match (x, y) {
+            (x, _) if x < 4 => 0.0,
+            (12, 8) => -5.0,
+            _ => 20.0,
+        });
+        let geo = Geology::layered_default([80.0, 80.0, 10.0], 10.0, 1).unwrap();
+        let b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+        let all = b.distance_to_sea(0.0, false);
+        let sea = b.distance_to_sea(0.0, true);
+        assert_eq!((all[8 * 16 + 12], sea[8 * 16 + 12]), (0.0, 90.0));
+        assert_eq!((all[3], sea[3], sea[4]), (0.0, 0.0, 10.0));
     }
 }

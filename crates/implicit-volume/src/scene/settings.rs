@@ -101,6 +101,10 @@ pub struct SeaErosion {
     /// passes' carvings) inland of the previous samples and carves there with the stress
     /// scaled by `0.8^(k-1)`, deepening notches into caves and arches (figure 4, left).
     pub iterations: usize,
+    /// The sea is only the ground at or below `sea_level` connected to the DEM's border
+    /// ([`crate::recipe::border_connected_at_or_below`]), not closed depressions inland;
+    /// `false` = every sample at or below `sea_level` (a lake level anywhere).
+    pub border_connected: bool,
 }
 impl Default for SeaErosion {
     fn default() -> Self {
@@ -114,6 +118,7 @@ impl Default for SeaErosion {
             caves: 8,
             cave_length: 60.0,
             iterations: 1,
+            border_connected: false,
         }
     }
 }
@@ -138,6 +143,9 @@ pub struct SeaCliffs {
     pub beta: f32,
     /// Seed.
     pub seed: u64,
+    /// The sea is only the ground at or below `sea_level` connected to the DEM's border, as
+    /// [`SeaErosion::border_connected`].
+    pub border_connected: bool,
 }
 impl Default for SeaCliffs {
     fn default() -> Self {
@@ -148,6 +156,7 @@ impl Default for SeaCliffs {
             radius: 10.0,
             beta: 0.2,
             seed: 13,
+            border_connected: false,
         }
     }
 }

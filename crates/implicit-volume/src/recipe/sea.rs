@@ -1,0 +1,241 @@
+//! Sea detection: where a DEM has sea, and at which level ([`detect_sea`]).
+//!
+//! A recipe without an explicit [`Recipe::sea_level`] places its shore features (sea erosion,
+//! caves, cliffs) only where the DEM itself has sea. The sea is what DEMs record as sea:
+//!
+//! * **connected to the DEM's border**: a flood fill (4-connected, through finite samples)
+//!   from the border samples at or below the level. A closed depression (a canyon floor, a
+//!   crater, a polder) is not sea, however low;
+//! * **flat or below zero**: the convention of SRTM-like products and ocean masks is sea at
+//!   exactly 0 m, and bathymetric DEMs (topobathy) go below 0 m. So the level is 0 m when
+//!   enough border-connected samples are at or below 0 m ([`SeaKind::Zero`]); otherwise, in a
+//!   DEM whose datum puts the water elsewhere, a large border-connected area at exactly the
+//!   DEM's lowest value (a flattened lake or sea surface, [`SeaKind::FlatMinimum`]);
+//! * **large enough to be a sea**: at least [`SEA_MIN_SHARE`] of the samples and at least
+//!   [`SEA_MIN_CELLS`] samples. A few border samples at 0 m (a river mouth on the edge of a
+//!   crop, a void filled with 0) or the last contour of a valley floor cut by the border
+//!   would otherwise draw a sea; 2 % keeps a coastal strip of one sample in 50 along a
+//!   border, and 16 samples (a 4 x 4 block) keeps tiny rasters from calling a single low
+//!   corner a sea.
+//!
+//! Anything else is no sea: the recipe skips its shore features and says so. Measured on the
+//! shared DEM set: N57E011 (Kattegat coast) 85.5 % border-connected at or below 0 m, topobathy
+//! 44 %; grandcanyon, alps_dem, carrizo, jacksboro_fault have no sample at or below 0 m and no
+//! flat minimum; maunga_whau's lowest contour (94 m, 1.0 % of the samples) is below the share.
+
+use relief_heightfield::Heightfield;
+
+/// Smallest share of the DEM's samples a sea covers ([`detect_sea`]).
+pub const SEA_MIN_SHARE: f32 = 0.02;
+/// Smallest number of samples a sea covers ([`detect_sea`]).
+pub const SEA_MIN_CELLS: usize = 16;
+
+/// Which rule found the sea.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SeaKind {
+    /// Border-connected samples at or below 0 m (SRTM sea at 0 m, bathymetry below).
+    Zero,
+    /// A border-connected area at exactly the DEM's lowest value (a flattened water surface in
+    /// a DEM without 0 m).
+    FlatMinimum,
+}
+
+/// The sea [`detect_sea`] found.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SeaDetection {
+    /// Sea level (m): 0 for [`SeaKind::Zero`], the DEM's lowest value otherwise.
+    pub level: f32,
+    /// Which rule found it.
+    pub kind: SeaKind,
+    /// Samples of the sea (border-connected, at or below `level`).
+    pub cells: usize,
+    /// `cells` over the DEM's sample count.
+    pub share: f32,
+}
+
+/// The samples at or below `level` connected to the DEM's border by 4-neighbour steps through
+/// such samples (non-finite samples are never sea and block the fill).
+pub fn border_connected_at_or_below(hf: &Heightfield, level: f32) -> Vec<bool> {
+    border_connected(hf.as_slice(), hf.width(), hf.height(), level)
+}
+
+/// [`border_connected_at_or_below`] on a row-major `w x h` grid `z`.
+pub(crate) fn border_connected(z: &[f32], w: usize, h: usize, level: f32) -> Vec<bool> {
+    let low = |k: usize| z[k].is_finite() && z[k] <= level;
+    let mut sea = vec![false; w * h];
+    let mut stack = Vec::new();
+    let seed = |k: usize, sea: &mut Vec<bool>, stack: &mut Vec<usize>| {
+        if !sea[k] && low(k) {
+            sea[k] = true;
+            stack.push(k);
+        }
+    };
+    for j in 0..w {
+        seed(j, &mut sea, &mut stack);
+        if h > 1 {
+            seed((h - 1) * w + j, &mut sea, &mut stack);
+        }
+    }
+    for i in 0..h {
+        seed(i * w, &mut sea, &mut stack);
+        if w > 1 {
+            seed(i * w + w - 1, &mut sea, &mut stack);
+        }
+    }
+    while let Some(k) = stack.pop() {
+        let (i, j) = (k / w, k % w);
+        if j > 0 {
+            seed(k - 1, &mut sea, &mut stack);
+        }
+        if j + 1 < w {
+            seed(k + 1, &mut sea, &mut stack);
+        }
+        if i > 0 {
+            seed(k - w, &mut sea, &mut stack);
+        }
+        if i + 1 < h {
+            seed(k + w, &mut sea, &mut stack);
+        }
+    }
+    sea
+}
+
+/// Detects the sea of a DEM (module docs): border-connected samples at or below 0 m, else a
+/// border-connected area at exactly the lowest value, each kept only when it covers at least
+/// [`SEA_MIN_SHARE`] of the samples and [`SEA_MIN_CELLS`] samples; `None` = no sea (an inland
+/// DEM). Pure and deterministic; non-finite samples are ignored.
+pub fn detect_sea(hf: &Heightfield) -> Option<SeaDetection> {
+    let n = hf.width() * hf.height();
+    let large =
+        |cells: usize| cells >= SEA_MIN_CELLS && cells as f64 >= SEA_MIN_SHARE as f64 * n as f64;
+    let found = |level: f32, kind: SeaKind| {
+        let cells = border_connected_at_or_below(hf, level)
+            .iter()
+            .filter(|&&s| s)
+            .count();
+        large(cells).then_some(SeaDetection {
+            level,
+            kind,
+            cells,
+            share: cells as f32 / n.max(1) as f32,
+        })
+    };
+    if let Some(s) = found(0.0, SeaKind::Zero) {
+        return Some(s);
+    }
+    let lo = hf
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .fold(f32::INFINITY, f32::min);
+    // At or below the minimum is exactly at it: the flat surface.
+    (lo.is_finite() && lo > 0.0)
+        .then(|| found(lo, SeaKind::FlatMinimum))
+        .flatten()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hf(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Heightfield {
+        Heightfield::from_fn(w, h, 30.0, 30.0, f)
+    }
+
+    #[test]
+    fn a_coast_at_zero_is_sea() {
+        // Sea (0 m) on the western 10 columns, land rising to the east.
+        let d = hf(
+            40,
+            30,
+            |x, _| if x < 10 { 0.0 } else { (x - 9) as f32 * 5.0 },
+        );
+        let s = detect_sea(&d).unwrap();
+        assert_eq!((s.level, s.kind, s.cells), (0.0, SeaKind::Zero, 300));
+        assert!((s.share - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bathymetry_below_zero_is_sea_at_zero() {
+        let d = hf(32, 32, |x, y| x as f32 * 10.0 - 100.0 + y as f32);
+        let s = detect_sea(&d).unwrap();
+        assert_eq!((s.level, s.kind), (0.0, SeaKind::Zero));
+        assert!(s.share > 0.2, "{s:?}");
+    }
+
+    #[test]
+    fn an_enclosed_depression_is_not_sea() {
+        // A bowl below 0 m in the middle, ringed by land that touches every border.
+        let d = hf(32, 32, |x, y| {
+            let r = ((x as f32 - 15.5).powi(2) + (y as f32 - 15.5).powi(2)).sqrt();
+            if r < 8.0 { -20.0 } else { 50.0 + r }
+        });
+        assert_eq!(detect_sea(&d), None);
+        assert!(!border_connected_at_or_below(&d, 0.0).contains(&true));
+    }
+
+    #[test]
+    fn an_inland_dem_has_no_sea() {
+        // A canyon (valley floor reaching the border) in a plateau, all above 0 m.
+        let d = hf(48, 48, |x, y| {
+            500.0 + (x as f32 - 24.0).abs() * 20.0 + (y as f32 * 0.7).sin() * 3.0
+        });
+        assert_eq!(detect_sea(&d), None);
+    }
+
+    #[test]
+    fn a_small_patch_at_zero_is_not_sea() {
+        // 12 samples at 0 m on the border of a 40 x 40 DEM: 0.75 %, under 2 %.
+        let d = hf(40, 40, |x, y| {
+            if x < 3 && y < 4 {
+                0.0
+            } else {
+                10.0 + x as f32 + y as f32
+            }
+        });
+        assert_eq!(detect_sea(&d), None);
+        // The same on an 8 x 8 DEM is over 2 % but under 16 samples.
+        let d = hf(8, 8, |x, y| if x < 3 && y < 4 { 0.0 } else { 10.0 });
+        assert_eq!(detect_sea(&d), None);
+    }
+
+    #[test]
+    fn a_flat_lake_surface_without_zero_is_sea_at_its_level() {
+        // A lake at exactly 372 m on the southern third, hills above; no sample at 0 m.
+        let d = hf(30, 30, |x, y| {
+            if y >= 20 {
+                372.0
+            } else {
+                380.0 + (20 - y) as f32 * 4.0 + (x % 5) as f32
+            }
+        });
+        let s = detect_sea(&d).unwrap();
+        assert_eq!(
+            (s.level, s.kind, s.cells),
+            (372.0, SeaKind::FlatMinimum, 300)
+        );
+        // A valley whose lowest value is a single sample is no lake.
+        let d = hf(30, 30, |x, y| {
+            372.0 + (x as f32 - 15.0).abs() + y as f32 * 0.5
+        });
+        assert_eq!(detect_sea(&d), None);
+    }
+
+    #[test]
+    fn voids_block_the_fill_and_are_never_sea() {
+        let mut v: Vec<f32> = (0..20 * 20)
+            .map(|k| if k % 20 < 10 { 0.0 } else { 30.0 })
+            .collect();
+        // A column of voids between the border column and the rest of the sea.
+        for i in 0..20 {
+            v[i * 20 + 1] = f32::NAN;
+        }
+        let d = Heightfield::new(20, 20, v, 30.0, 30.0).unwrap();
+        let m = border_connected_at_or_below(&d, 0.0);
+        // The western border column, and the rest through the top and bottom rows.
+        assert!(m[0] && !m[1] && m[5 * 20 + 5]);
+        assert_eq!(detect_sea(&d).unwrap().cells, 20 * 10 - 20);
+    }
+}
