@@ -325,6 +325,15 @@ impl SparseLayer {
                     }
                 }
                 scratch.all_exact = scratch.ctaps.iter().all(|(_, (_, wx))| is_exact(wx));
+                let nx = scratch.dx.len();
+                scratch.spans.clear();
+                scratch
+                    .spans
+                    .extend(scratch.alpha.chunks(nx.max(1)).map(|row| {
+                        let k0 = row.iter().position(|a| !a.is_nan()).unwrap_or(row.len());
+                        let k1 = row.iter().rposition(|a| !a.is_nan()).map_or(k0, |k| k + 1);
+                        row[k0..k1].iter().all(|a| !a.is_nan()).then_some((k0, k1))
+                    }));
                 scratch.key = Some(params);
                 scratch.key_dx.clone_from(&scratch.dx);
                 scratch.key_dy.clone_from(&scratch.dy);
@@ -356,6 +365,7 @@ impl SparseLayer {
                     h[r * w + k]
                 }
             };
+            let plain = direct && !self.has_functions[i];
             for ry in 0..hgt {
                 let yi = ya as usize + ry;
                 let dy = scratch.dy[ry];
@@ -363,6 +373,27 @@ impl SparseLayer {
                 let exact_row = is_exact(&wy);
                 let row_off = (yi - band.y0) * ncols + (xa as usize - band.x0);
                 let arow = &scratch.alpha[ry * w..ry * w + w];
+                if let (true, true, Some((k0, k1))) = (plain, exact_row, scratch.spans[ry]) {
+                    // Samples read straight from the patch, no function atoms: the same
+                    // operations as below on the support's run of the row, without the
+                    // per-pixel tests (the common case of amplification and decompression).
+                    let prow = &p[rows[1] * a..rows[1] * a + a];
+                    let (nrow, drow) = (
+                        &mut num[row_off + k0..row_off + k1],
+                        &mut den[row_off + k0..row_off + k1],
+                    );
+                    for (((n, d), &alpha), (_, (cols, _))) in nrow
+                        .iter_mut()
+                        .zip(drow.iter_mut())
+                        .zip(&arow[k0..k1])
+                        .zip(&ctaps[k0..k1])
+                    {
+                        let f = z + prow[cols[1]];
+                        *n += f * alpha;
+                        *d += alpha;
+                    }
+                    continue;
+                }
                 for (k, &alpha) in arow.iter().enumerate() {
                     if alpha.is_nan() {
                         continue;
@@ -515,4 +546,7 @@ pub(super) struct StampScratch {
     pub(super) key: Option<(f64, f64, usize)>,
     pub(super) key_dx: Vec<f64>,
     pub(super) key_dy: Vec<f64>,
+    /// Per cached row, the columns `k0..k1` inside the support (a disk: one run per row), or
+    /// `None` when a row's support is not one run (never for the disk weight; kept general).
+    pub(super) spans: Vec<Option<(usize, usize)>>,
 }

@@ -120,7 +120,7 @@ impl RasterSettings {
 }
 
 /// Rows per parallel band.
-const BAND_ROWS: usize = 16;
+const BAND_ROWS: usize = 64;
 
 /// A Sparse Construction Tree over a `width x height` terrain domain.
 #[derive(Debug, Clone)]
