@@ -962,4 +962,20 @@ fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
             .summary()
             .contains("sea level 0.0 m (detected")
     );
+
+    // The coast with karst only: no shore features, but its sea is still drawn.
+    let (_, rep) = build_recipe(
+        &co,
+        &Recipe {
+            features: vec![Feature::Karst],
+            ..job.recipe.clone()
+        },
+    )
+    .unwrap();
+    assert_eq!(shore(&rep), vec![]);
+    assert!(
+        rep.has_sea && rep.sea_level == Some(0.0),
+        "{:?}",
+        rep.dims.notes
+    );
 }

@@ -95,9 +95,9 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     } = steps;
     let section_line = best_section_line(&b);
     let highlights = highlights(&b, &effects);
-    let has_sea = effects.iter().any(|(f, e)| {
-        matches!(f, Feature::Sea | Feature::Caves | Feature::Cliffs) && e.primitives > 0
-    });
+    // Water wherever the scene has a sea level: the DEM's own sea (even when no shore feature
+    // is asked for: a karst-only coast still shows its sea) or the recipe's explicit level.
+    let has_sea = basis.sea_level.is_some();
     let scene = b.build(true)?;
     Ok((
         scene,

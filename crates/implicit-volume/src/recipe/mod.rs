@@ -323,8 +323,8 @@ pub struct RecipeReport {
     pub sea_level: Option<f32>,
     /// The sea found in the DEM when the recipe sets no level ([`detect_sea`]).
     pub sea: Option<SeaDetection>,
-    /// Whether the scene has shore features (sea erosion, caves, cliffs placed primitives),
-    /// i.e. water to draw at `sea_level`.
+    /// Whether the scene has a sea (`sea_level` is set: detected in the DEM or given by the
+    /// recipe), i.e. water to draw at `sea_level`, with or without shore features.
     pub has_sea: bool,
     /// The derived sizes and counts.
     pub dims: Dimensions,
