@@ -305,39 +305,7 @@ impl SparseLayer {
             scratch
                 .dy
                 .extend((ya..=yb).map(|yi| raster_coord(yi as usize, sc) - cy));
-            let params = (rr, delta, a);
-            if scratch.key != Some(params)
-                || scratch.key_dx != scratch.dx
-                || scratch.key_dy != scratch.dy
-            {
-                scratch.ctaps.clear();
-                scratch
-                    .ctaps
-                    .extend(scratch.dx.iter().map(|&dx| (dx, taps(dx, delta, a))));
-                scratch.rtaps.clear();
-                scratch
-                    .rtaps
-                    .extend(scratch.dy.iter().map(|&dy| taps(dy, delta, a)));
-                scratch.alpha.clear();
-                for &dy in &scratch.dy {
-                    for &dx in &scratch.dx {
-                        scratch.alpha.push(weight(dx, dy, rr).unwrap_or(f64::NAN));
-                    }
-                }
-                scratch.all_exact = scratch.ctaps.iter().all(|(_, (_, wx))| is_exact(wx));
-                let nx = scratch.dx.len();
-                scratch.spans.clear();
-                scratch
-                    .spans
-                    .extend(scratch.alpha.chunks(nx.max(1)).map(|row| {
-                        let k0 = row.iter().position(|a| !a.is_nan()).unwrap_or(row.len());
-                        let k1 = row.iter().rposition(|a| !a.is_nan()).map_or(k0, |k| k + 1);
-                        row[k0..k1].iter().all(|a| !a.is_nan()).then_some((k0, k1))
-                    }));
-                scratch.key = Some(params);
-                scratch.key_dx.clone_from(&scratch.dx);
-                scratch.key_dy.clone_from(&scratch.dy);
-            }
+            scratch.refresh((rr, delta, a));
             // h[r][k]: patch row r interpolated at column k. On patch samples (taps
             // (0, 1, 0, 0)) the sum is that sample exactly, so it is read directly: the same
             // value, only cheaper (scale 1 with pixel-aligned samples, e.g. amplification).
@@ -420,6 +388,40 @@ impl SparseLayer {
             }
         }
         scratch.candidates = candidates;
+    }
+}
+
+impl StampScratch {
+    /// Recomputes the cached taps, weights and support runs unless they were computed for
+    /// these parameters `(R^2, delta, a)` and the current offsets `dx`, `dy`.
+    fn refresh(&mut self, params: (f64, f64, usize)) {
+        let (rr, delta, a) = params;
+        if self.key == Some(params) && self.key_dx == self.dx && self.key_dy == self.dy {
+            return;
+        }
+        self.ctaps.clear();
+        self.ctaps
+            .extend(self.dx.iter().map(|&dx| (dx, taps(dx, delta, a))));
+        self.rtaps.clear();
+        self.rtaps
+            .extend(self.dy.iter().map(|&dy| taps(dy, delta, a)));
+        self.alpha.clear();
+        for &dy in &self.dy {
+            for &dx in &self.dx {
+                self.alpha.push(weight(dx, dy, rr).unwrap_or(f64::NAN));
+            }
+        }
+        self.all_exact = self.ctaps.iter().all(|(_, (_, wx))| is_exact(wx));
+        let nx = self.dx.len();
+        self.spans.clear();
+        self.spans.extend(self.alpha.chunks(nx.max(1)).map(|row| {
+            let k0 = row.iter().position(|a| !a.is_nan()).unwrap_or(row.len());
+            let k1 = row.iter().rposition(|a| !a.is_nan()).map_or(k0, |k| k + 1);
+            row[k0..k1].iter().all(|a| !a.is_nan()).then_some((k0, k1))
+        }));
+        self.key = Some(params);
+        self.key_dx.clone_from(&self.dx);
+        self.key_dy.clone_from(&self.dy);
     }
 }
 
