@@ -979,3 +979,80 @@ fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
         rep.dims.notes
     );
 }
+
+/// Hoodoos stand along rims and canyon walls (the breaks where caprock is undercut), not spread
+/// evenly over the plateau: their sites are mostly within three spacings of ground steeper
+/// than 35 degrees, more often than the gentle ground they are chosen from.
+#[test]
+fn hoodoos_line_the_rims() {
+    let Some(gc) = dem_crop("grandcanyon", 200, 160, 128, 128) else {
+        return;
+    };
+    let (_, rep) = build_recipe(
+        &gc,
+        &Recipe {
+            features: vec![Feature::Hoodoos],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let sites = &rep
+        .effects
+        .iter()
+        .find(|(f, _)| *f == Feature::Hoodoos)
+        .expect("hoodoos placed")
+        .1
+        .sites;
+    assert!(sites.len() >= 10, "{} hoodoos", sites.len());
+    let (cx, cy) = gc.cell_size();
+    let (cx, cy) = (cx as f32, cy as f32);
+    let (w, h) = (gc.width(), gc.height());
+    let slope = |j: usize, i: usize| {
+        let (j0, j1) = (j.saturating_sub(1), (j + 1).min(w - 1));
+        let (i0, i1) = (i.saturating_sub(1), (i + 1).min(h - 1));
+        let gx = (gc.get(j1, i) - gc.get(j0, i)) / ((j1 - j0) as f32 * cx);
+        let gy = (gc.get(j, i1) - gc.get(j, i0)) / ((i1 - i0) as f32 * cy);
+        (gx * gx + gy * gy).sqrt().atan().to_degrees()
+    };
+    let reach = 3.0 * 4.0 * rep.dims.hoodoo_radius_m;
+    let near = |j: usize, i: usize| {
+        let (rx, ry) = ((reach / cx).ceil() as isize, (reach / cy).ceil() as isize);
+        (-ry..=ry).any(|di| {
+            (-rx..=rx).any(|dj| {
+                let (x, y) = (j as isize + dj, i as isize + di);
+                let d2 = (dj as f32 * cx).powi(2) + (di as f32 * cy).powi(2);
+                x >= 0
+                    && y >= 0
+                    && (x as usize) < w
+                    && (y as usize) < h
+                    && d2 <= reach * reach
+                    && slope(x as usize, y as usize) > 35.0
+            })
+        })
+    };
+    // Site (x, y) in metres from the south-west node; row 0 of the DEM is north.
+    let cell = |p: &[f32; 3]| {
+        let j = (p[0] / cx).round() as usize;
+        let i = h - 1 - (p[1] / cy).round() as usize;
+        (j.min(w - 1), i.min(h - 1))
+    };
+    let share_sites = sites
+        .iter()
+        .filter(|p| {
+            let (j, i) = cell(p);
+            near(j, i)
+        })
+        .count() as f64
+        / sites.len() as f64;
+    let gentle: Vec<(usize, usize)> = (0..h)
+        .flat_map(|i| (0..w).map(move |j| (j, i)))
+        .filter(|&(j, i)| slope(j, i) < 25.0)
+        .collect();
+    let share_gentle =
+        gentle.iter().filter(|&&(j, i)| near(j, i)).count() as f64 / gentle.len() as f64;
+    eprintln!("hoodoos near rims {share_sites:.2}, gentle ground near rims {share_gentle:.2}");
+    assert!(
+        share_sites >= 0.8 && share_sites > share_gentle + 0.1,
+        "{share_sites:.2} vs {share_gentle:.2}"
+    );
+}

@@ -2,6 +2,9 @@
 
 use super::*;
 
+/// Slope (degrees) above which ground counts as a rim or wall for hoodoo sites.
+const RIM_SLOPE_DEG: f32 = 35.0;
+
 impl SceneBuilder {
     fn flat_sites(
         &self,
@@ -32,6 +35,39 @@ impl SceneBuilder {
         kept.into_iter().map(|k| pts[k]).collect()
     }
 
+    /// `sites` reordered so that those within `reach` of steep ground (slope above
+    /// [`RIM_SLOPE_DEG`]) come first, in their given order, then the others: hoodoos stand
+    /// in the breaks below and along plateau rims and canyon walls (where the caprock is being
+    /// undercut), not spread evenly over flat ground.
+    fn rims_first(&self, sites: Vec<V3>, reach: f32) -> Vec<V3> {
+        let f = self.frame;
+        let cos_rim = RIM_SLOPE_DEG.to_radians().cos();
+        let steep: Vec<bool> = (0..f.height)
+            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .map(|(j, i)| self.slope_normal(j, i)[2] < cos_rim)
+            .collect();
+        let (rx, ry) = (
+            (reach / f.cx).ceil().max(1.0) as isize,
+            (reach / f.cy).ceil().max(1.0) as isize,
+        );
+        let near_rim = |p: &V3| {
+            let (gj, gi) = f.to_grid(*p);
+            let (j0, i0) = (gj.round() as isize, gi.round() as isize);
+            (-ry..=ry).any(|di| {
+                (-rx..=rx).any(|dj| {
+                    let (j, i) = (j0 + dj, i0 + di);
+                    let inside =
+                        j >= 0 && i >= 0 && (j as usize) < f.width && (i as usize) < f.height;
+                    let d2 = (dj as f32 * f.cx).powi(2) + (di as f32 * f.cy).powi(2);
+                    inside && d2 <= reach * reach && steep[i as usize * f.width + j as usize]
+                })
+            })
+        };
+        let (mut first, rest): (Vec<V3>, Vec<V3>) = sites.into_iter().partition(near_rim);
+        first.extend(rest);
+        first
+    }
+
     /// Hoodoos (figure 3): a cone base blended with stacked perturbed spheres and a caprock,
     /// creased by a warp, unioned with the terrain on gentle ground.
     pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
@@ -54,6 +90,7 @@ impl SceneBuilder {
         }
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
+        let sites = self.rims_first(sites, 3.0 * s.spacing);
         let mut report = EffectReport {
             candidates: sites.len(),
             primitives: 0,
