@@ -38,10 +38,13 @@ const FIELDS: &[&str] = &[
     "survivors",
     "choice_tolerance",
     "min_candidates",
+    "min_candidates_share",
     "validation_tolerance",
     "exemplar_stride",
     "blend.radius",
     "blend.max_iterations",
+    "blend.decay",
+    "crease_passes",
     "seed",
 ];
 
