@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
-use crate::index::{ExemplarIndex, OverlapShape, PatchRef, features};
+use crate::index::{ExemplarIndex, OverlapShape, PatchRef, Sat, features};
 use crate::settings::{Blend, Settings};
 use crate::synth::{
     PoissonInput, poisson_blend, smooth_crease, smoothstep, translated_dist2, window_mean,
@@ -23,6 +23,8 @@ pub(crate) struct Shared<'a> {
     pub(crate) guide: Option<&'a [f32]>,
     pub(crate) block_rects: &'a [[usize; 4]],
     pub(crate) guide_rects: &'a [[usize; 4]],
+    /// The exemplars low-passed for the guide distance (`None`: their own cell means).
+    pub(crate) guide_sats: Option<&'a [Sat]>,
 }
 
 /// The working canvas (padded to whole patches).
@@ -337,7 +339,11 @@ pub(crate) fn score(sh: &Shared<'_>, cv: &Canvas, b: &Block, cands: &[u32]) -> V
                     .iter()
                     .zip(gc)
                     .map(|(r, &gv)| {
-                        let d = (index.box_mean(idu, r[0], r[1], r[2], r[3]) + hv - gv) as f64;
+                        let m = match sh.guide_sats {
+                            Some(sats) => index.box_mean_in(sats, idu, r[0], r[1], r[2], r[3]),
+                            None => index.box_mean(idu, r[0], r[1], r[2], r[3]),
+                        };
+                        let d = (m + hv - gv) as f64;
                         d * d
                     })
                     .sum();

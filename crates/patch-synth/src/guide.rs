@@ -1,6 +1,7 @@
 //! Guide construction (section 3.1): low-pass filtering of an existing DEM, or interpolation of
 //! painted seeds and sketch strokes.
 
+use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 use relief_heightfield::fill::{FillSettings, fill_voids};
 
@@ -42,28 +43,32 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
     let ksum: f64 = kernel.iter().sum();
     let (w, h) = (dem.width(), dem.height());
     let src = dem.as_slice();
+    // Rows in parallel, each cell summed in the same order: the bytes do not depend on the
+    // thread count.
     let mut tmp = vec![0.0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
+    tmp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, t) in row.iter_mut().enumerate() {
             let mut s = 0.0;
             for (k, &kv) in kernel.iter().enumerate() {
                 let xx = (x as isize + k as isize - r).clamp(0, w as isize - 1) as usize;
                 s += kv * src[y * w + xx] as f64;
             }
-            tmp[y * w + x] = (s / ksum) as f32;
+            *t = (s / ksum) as f32;
         }
-    }
+    });
     let mut out = vec![0.0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (k, &kv) in kernel.iter().enumerate() {
-                let yy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
-                s += kv * tmp[yy * w + x] as f64;
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let mut acc = vec![0.0f64; w];
+        for (k, &kv) in kernel.iter().enumerate() {
+            let yy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
+            for (a, &t) in acc.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+                *a += kv * t as f64;
             }
-            out[y * w + x] = (s / ksum) as f32;
         }
-    }
+        for (o, a) in row.iter_mut().zip(acc) {
+            *o = (a / ksum) as f32;
+        }
+    });
     Ok(dem.with_data(out)?)
 }
 
@@ -597,4 +602,36 @@ pub fn fit_to_grid(
             padded: fit.padded,
         },
     ))
+}
+
+/// Length scale in cells below which `guide` carries no detail:
+/// `sqrt(mean |grad g|^2 / mean (lap g)^2)` over the interior cells (central differences, the
+/// 5-point Laplacian). A field blurred by a Gaussian of `sigma` cells scores about `sigma / 1.4`
+/// for white noise and about `1.1 sigma` for real DEMs (alps, jacksboro at sigma 16: 19.5, 17.2);
+/// a guide without curvature (flat or a plane) scores infinity, a guide under 3 x 3 cells 0.
+pub fn smoothness_scale(guide: &Heightfield) -> f32 {
+    let (w, h) = (guide.width(), guide.height());
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let v = guide.as_slice();
+    let (mut g2, mut l2) = (0.0f64, 0.0f64);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let (l, r, u, d, c) = (v[i - 1], v[i + 1], v[i - w], v[i + w], v[i]);
+            if !(l.is_finite() && r.is_finite() && u.is_finite() && d.is_finite() && c.is_finite())
+            {
+                continue;
+            }
+            let (gx, gy) = (0.5 * (r - l) as f64, 0.5 * (d - u) as f64);
+            let lap = (l + r + u + d) as f64 - 4.0 * c as f64;
+            g2 += gx * gx + gy * gy;
+            l2 += lap * lap;
+        }
+    }
+    if l2 <= 0.0 {
+        return f32::INFINITY;
+    }
+    (g2 / l2).sqrt() as f32
 }

@@ -689,10 +689,31 @@ impl ExemplarIndex {
         let start = (pr.y as usize + y) * w + pr.x as usize;
         &hf.as_slice()[start..start + self.params.patch]
     }
+    /// Summed-area tables of the exemplars blurred by a Gaussian of `sigma` cells (what the
+    /// guide distance compares with [`Settings::guide_lowpass`]).
+    pub(crate) fn lowpassed_sats(&self, sigma: f32) -> Result<Vec<Sat>> {
+        self.exemplars
+            .par_iter()
+            .map(|e| crate::guide::gaussian_blur(&e.heightfield, sigma).map(|low| Sat::new(&low)))
+            .collect()
+    }
+    /// Box mean over a rectangle of patch `id` of the tables `sats` (one per exemplar).
+    #[inline]
+    pub(crate) fn box_mean_in(
+        &self,
+        sats: &[Sat],
+        id: usize,
+        x: usize,
+        y: usize,
+        w: usize,
+        h: usize,
+    ) -> f32 {
+        let pr = self.patches[id];
+        sats[pr.exemplar as usize].mean(pr.x as usize + x, pr.y as usize + y, w, h)
+    }
     /// Box mean over a rectangle of patch `id` (patch-local).
     #[inline]
     pub(crate) fn box_mean(&self, id: usize, x: usize, y: usize, w: usize, h: usize) -> f32 {
-        let pr = self.patches[id];
-        self.sats[pr.exemplar as usize].mean(pr.x as usize + x, pr.y as usize + y, w, h)
+        self.box_mean_in(&self.sats, id, x, y, w, h)
     }
 }

@@ -69,6 +69,16 @@ pub struct Settings {
     pub blocks: usize,
     /// The guide distance `G` compares `guide_cells x guide_cells` cell means of patch and guide.
     pub guide_cells: usize,
+    /// Gaussian sigma in cells of the low-pass the guide distance `G` sees of a candidate
+    /// patch (a departure from the paper, which compares the patch's own cell means). A guide
+    /// only carries the low frequencies, so comparing it with the patch's detail too favours
+    /// flat patches wherever the guide is smooth; with the low-pass, `G` measures only what the
+    /// guide says and the detail comes from the overlap term. `None` (the default): the
+    /// guide's own [`crate::guide::smoothness_scale`], at most `patch_size` (about 1.1 times
+    /// the sigma of a Gaussian-blurred guide, the right scale for blurred DEMs and sketches);
+    /// `Some(0.0)`: the paper, better for band-limited guides such as
+    /// [`crate::guide::lowpass_resample`]'s, whose smoothness scale over-estimates their blur.
+    pub guide_lowpass: Option<f32>,
     /// Number of k-means clusters keying the block-descriptor hash table (section 3.5).
     pub kmeans_clusters: usize,
     /// Lloyd iterations of every k-means run.
@@ -144,6 +154,7 @@ impl Default for Settings {
             lambda: 50.0,
             blocks: 3,
             guide_cells: 8,
+            guide_lowpass: None,
             kmeans_clusters: 16,
             kmeans_iterations: 12,
             pca_dims: 8,
@@ -213,6 +224,15 @@ impl Settings {
                 "guide_cells",
                 self.guide_cells,
                 "must be in 1..=patch_size",
+            ));
+        }
+        if let Some(s) = self.guide_lowpass
+            && !(s.is_finite() && (0.0..=1024.0).contains(&s))
+        {
+            return Err(PatchSynthError::setting(
+                "guide_lowpass",
+                s,
+                "must be in 0..=1024 cells",
             ));
         }
         if self.kmeans_clusters == 0 || self.kmeans_clusters > 4096 {

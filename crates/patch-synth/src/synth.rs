@@ -203,6 +203,8 @@ pub struct SynthesisStats {
     pub mean_cut_cost: f64,
     /// Mean conjugate-gradient iterations of the Poisson blending (0 if unused).
     pub mean_poisson_iterations: f64,
+    /// Sigma in cells of the low-pass the guide distance applied to the patches (0: none).
+    pub guide_lowpass: f32,
 }
 
 /// Result of [`synthesize`].
@@ -324,12 +326,23 @@ pub fn synthesize(
         .map(|m| pad(&m.ids, w, h, cw, ch));
     let block_rects = grid_rects(p, settings.blocks);
     let guide_rects = grid_rects(p, settings.guide_cells);
+    let guide_lowpass = control.guide.as_ref().map_or(0.0, |g| {
+        settings
+            .guide_lowpass
+            .unwrap_or_else(|| crate::guide::smoothness_scale(g).min(p as f32))
+    });
+    let guide_sats = if guide_lowpass > 0.0 {
+        Some(index.lowpassed_sats(guide_lowpass)?)
+    } else {
+        None
+    };
     let sh = Shared {
         index,
         settings,
         guide: guide.as_deref(),
         block_rects: &block_rects,
         guide_rects: &guide_rects,
+        guide_sats: guide_sats.as_deref(),
     };
     let mut cv = Canvas {
         values: vec![0.0f32; cw * ch],
@@ -342,6 +355,7 @@ pub fn synthesize(
     let mut placements: Vec<Placement> = Vec::with_capacity(nx * ny);
     let mut stats = SynthesisStats {
         grid: (nx, ny),
+        guide_lowpass,
         ..Default::default()
     };
     let mut poisson_iters = 0usize;

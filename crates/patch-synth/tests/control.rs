@@ -66,6 +66,35 @@ fn lowpass_guides_keep_the_coarse_shape_and_drop_detail() {
 }
 
 #[test]
+fn smoothness_scale_follows_the_blur_of_a_guide() {
+    let Some(dem) = dem_crop("jacksboro_fault", 0, 0, 256, 256) else {
+        return;
+    };
+    let scales: Vec<f32> = [4.0, 8.0, 16.0]
+        .iter()
+        .map(|&sigma| {
+            relief_patch_synth::guide::smoothness_scale(&gaussian_blur(&dem, sigma).unwrap())
+        })
+        .collect();
+    // About 1.1 sigma for a blurred DEM (the automatic `guide_lowpass`).
+    for (sigma, l) in [4.0f32, 8.0, 16.0].iter().zip(&scales) {
+        assert!(
+            (0.8 * sigma..1.6 * sigma).contains(l),
+            "sigma {sigma}: scale {l} ({scales:?})"
+        );
+    }
+    assert!(scales[0] < scales[1] && scales[1] < scales[2], "{scales:?}");
+    // A plane has no curvature: no detail at any scale.
+    let plane = dem
+        .with_data((0..256 * 256).map(|i| (i % 256) as f32).collect())
+        .unwrap();
+    assert_eq!(
+        relief_patch_synth::guide::smoothness_scale(&plane),
+        f32::INFINITY
+    );
+}
+
+#[test]
 fn sketch_guide_interpolates_seeds_and_strokes() {
     let seeds = [
         Seed {

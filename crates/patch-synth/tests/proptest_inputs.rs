@@ -26,6 +26,7 @@ const FIELDS: &[&str] = &[
     "lambda",
     "blocks",
     "guide_cells",
+    "guide_lowpass",
     "kmeans_clusters",
     "kmeans_iterations",
     "pca_dims",
@@ -164,6 +165,15 @@ fn settings() -> impl Strategy<Value = Settings> {
             min_candidates,
             // Sometimes set, sometimes out of (0, 1] (checked).
             min_candidates_share: (seed % 3 == 0).then(|| (seed % 100) as f32 / 50.0 - 0.5),
+            // Sometimes NaN, negative or too large (checked).
+            guide_lowpass: [
+                None,
+                Some(f32::NAN),
+                Some(-1.0),
+                Some(0.0),
+                Some(24.0),
+                Some(2000.0),
+            ][(seed >> 16) as usize % 6],
             validation_tolerance,
             enforce_validation,
             exemplar_stride,
@@ -261,6 +271,7 @@ fn valid_settings() -> impl Strategy<Value = Settings> {
             choice_tolerance,
             min_candidates,
             min_candidates_share: None,
+            guide_lowpass: [None, Some(0.0), Some(4.0), Some(24.0)][(seed >> 16) as usize % 4],
             validation_tolerance,
             enforce_validation,
             exemplar_stride,
