@@ -164,6 +164,28 @@ impl State {
             .context("no terrain yet: the `load` stage must come first")
     }
 
+    /// A copy of the current terrain, which the `stage` stage needs void-free.
+    pub fn complete_terrain(&self, stage: &str) -> Result<Heightfield> {
+        let terrain = self.terrain()?.clone();
+        terrain.require_complete().with_context(|| {
+            format!("the {stage} stage needs a void-free terrain (run fill_voids first)")
+        })?;
+        Ok(terrain)
+    }
+
+    /// The input DEM when it is void-free, else the current terrain (which the `stage` stage
+    /// needs void-free, as its `what`), and which of the two it is.
+    pub fn complete_source(&self, stage: &str, what: &str) -> Result<(Heightfield, &'static str)> {
+        let (terrain, which) = match &self.source {
+            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
+            _ => (self.terrain()?.clone(), "the current terrain"),
+        };
+        terrain
+            .require_complete()
+            .with_context(|| format!("the {stage} stage needs a void-free {what}"))?;
+        Ok((terrain, which))
+    }
+
     /// Replaces the current terrain; the next stage starts from it.
     pub fn set_terrain(&mut self, hf: Heightfield) {
         self.terrain = Some(hf);
