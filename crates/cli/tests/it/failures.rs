@@ -49,6 +49,14 @@ fn synthetic_tif(path: &Path, w: usize, h: usize) -> Heightfield {
     hf
 }
 
+/// A new temporary folder holding `name`, a [`synthetic_tif`] of `side x side` cells.
+fn synthetic_input(name: &str, side: usize) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    synthetic_tif(&path, side, side);
+    (dir, path)
+}
+
 /// The subcommands and the argument placeholders of their usage line, from `relief help`.
 fn subcommands() -> Vec<(String, Vec<String>)> {
     let help = Command::new(BIN).arg("help").output().unwrap();
@@ -250,9 +258,7 @@ impl Drop for ReadOnlyDir {
 
 #[test]
 fn read_only_output_directory_fails_without_partial_file() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (tmp, input) = synthetic_input("in.tif", 64);
     let Some(ro) = ReadOnlyDir::new(tmp.path().join("ro")) else {
         // Neither permissions nor chattr can make a directory read-only here.
         return;
@@ -305,9 +311,7 @@ fn read_only_output_directory_fails_without_partial_file() {
 
 #[test]
 fn output_path_through_a_file_fails_without_output() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 32, 32);
+    let (tmp, input) = synthetic_input("in.tif", 32);
     std::fs::write(tmp.path().join("file"), b"").unwrap();
     let out = tmp.path().join("file/o.tif");
     let o = relief!["convert", input, out];
@@ -438,9 +442,7 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
 
 #[test]
 fn max_input_cells_flag_limits_and_raises_the_input_size() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (tmp, input) = synthetic_input("in.tif", 64);
     let out = tmp.path().join("o.exr");
     let o = relief!["convert", input, out, "--max-input-cells", "4095"];
     assert_one_line_failure(&o, "--max-input-cells 4095");
@@ -511,9 +513,7 @@ fn no_command_overwrites_its_input() {
 /// any work, and an existing file is replaced only under `--force`.
 #[test]
 fn output_extension_and_existing_files() {
-    let dir = tempfile::tempdir().unwrap();
-    let tif = dir.path().join("dem.tif");
-    synthetic_tif(&tif, 64, 64);
+    let (dir, tif) = synthetic_input("dem.tif", 64);
     let mine = dir.path().join("mine.tif");
     synthetic_tif(&mine, 8, 8);
     let mine_before = bytes(&mine);
@@ -547,9 +547,7 @@ fn output_extension_and_existing_files() {
 /// overflow panic, an abort or an endless loop; hostile magnitudes read as voids.
 #[test]
 fn absurd_counts_and_magnitudes_fail_cleanly() {
-    let dir = tempfile::tempdir().unwrap();
-    let tif = dir.path().join("dem.tif");
-    synthetic_tif(&tif, 48, 48);
+    let (dir, tif) = synthetic_input("dem.tif", 48);
     let t = tif.display().to_string();
     for it in ["18446744073709551615", "18446744073709551614", "1000000000"] {
         let dict = dir.path().join("d.dict").display().to_string();
@@ -790,9 +788,7 @@ fn npz_bombs_are_refused_before_inflating() {
 /// temporary names of long output names stay legal; devices are never replaced.
 #[test]
 fn multi_output_commands_write_all_or_nothing() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.tif");
-    synthetic_tif(&input, 48, 48);
+    let (dir, input) = synthetic_input("in.tif", 48);
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let s = |p: &Path| p.display().to_string();
@@ -867,9 +863,7 @@ fn multi_output_commands_write_all_or_nothing() {
 /// and `relief info` describes them.
 #[test]
 fn models_are_checksummed_and_described_by_info() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (dir, input) = synthetic_input("in.tif", 64);
     let s = |p: &Path| p.display().to_string();
     let sct = dir.path().join("m.sct");
     let dict = dir.path().join("d.dict");
