@@ -4,6 +4,7 @@
 use std::io::IsTerminal;
 use std::time::Duration;
 
+use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use relief_heightfield::Progress;
 
@@ -30,6 +31,44 @@ pub(crate) struct Ctx {
     pub(crate) max_output: crate::memory::OutputLimit,
     /// `--max-time`: the longest estimated run a command starts (see `budget.rs`).
     pub(crate) max_time: crate::budget::TimeLimit,
+}
+
+/// Cells per band of a raster streamed into a GeoTIFF (16 MiB of f32: 256 rows of a
+/// 16384-wide output).
+pub(crate) const STREAM_BAND_CELLS: usize = 1 << 22;
+
+/// A GeoTIFF written band by band (`refine`, `amplify --stream`): memory is one band, never
+/// the whole raster. Dropped unfinished (on any error), it leaves no file.
+pub(crate) struct RowStream<'a> {
+    writer: relief_io::TiledGeoTiffWriter,
+    path: &'a std::path::Path,
+    /// Rows per band.
+    pub(crate) band: usize,
+    height: usize,
+}
+
+impl RowStream<'_> {
+    /// The bands `(first row, rows)`, north first.
+    pub(crate) fn bands(&self) -> impl Iterator<Item = (usize, usize)> + use<> {
+        let (band, height) = (self.band, self.height);
+        (0..height)
+            .step_by(band)
+            .map(move |y| (y, band.min(height - y)))
+    }
+
+    /// Appends rows (row-major, north first).
+    pub(crate) fn write(&mut self, rows: &[f32]) -> anyhow::Result<()> {
+        self.writer
+            .write_rows(rows)
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
+
+    /// Completes the file.
+    pub(crate) fn finish(self) -> anyhow::Result<()> {
+        self.writer
+            .finish()
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
 }
 
 /// Parses `--height-range LO,HI` (metres, LO < HI).
@@ -128,6 +167,28 @@ impl Ctx {
         )
     }
 
+    /// [`Ctx::geotiff_rows`] for a raster written in bands of [`RowStream::band`] rows.
+    pub(crate) fn row_stream<'a>(
+        &self,
+        path: &'a std::path::Path,
+        (width, height): (usize, usize),
+        cell_size: (f64, f64),
+        georef: Option<&relief_heightfield::GeoRef>,
+    ) -> anyhow::Result<RowStream<'a>> {
+        let writer = self
+            .geotiff_rows(path, (width, height), cell_size, georef)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let band = (STREAM_BAND_CELLS / width).clamp(1, height);
+        // Several bands even for small rasters, so `--stream` exercises the band seams.
+        let band = band.min(height.div_ceil(4)).max(1);
+        Ok(RowStream {
+            writer,
+            path,
+            band,
+            height,
+        })
+    }
+
     /// Write options of raster outputs (GeoTIFF compression from `--compress`).
     pub(crate) fn write_options(&self) -> relief_io::WriteOptions {
         relief_io::WriteOptions {
@@ -150,7 +211,6 @@ impl Ctx {
         path: &std::path::Path,
         hf: &relief_heightfield::Heightfield,
     ) -> anyhow::Result<()> {
-        use anyhow::Context;
         let mut opts = self.write_options();
         let corners;
         let hf = if self.size_plus_one && is_heightmap16(path) {

@@ -1,16 +1,34 @@
 //! What the commands that build a sparse model by x4 steps share (`amplify`, `synthesize`,
 //! `fit-procedural`, `tile plan`): the pre-flight estimate of the steps and of the output
 //! (issue 18), and writing the model as a `.sct` file or as a raster (whole, one window, or
-//! streamed in bands of rows).
+//! streamed in bands of rows); and reading a model or dictionary file with the function atoms
+//! every reader understands (`decompress`, `info`, `tree`, `tile`, `compress --dictionary`).
 
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{AmplifySettings, DictionaryChoice};
+use relief_dictionary_learning::{AmplifySettings, DictionaryChoice, register_function_atoms};
 use relief_heightfield::Progress;
-use relief_sparse_core::{RasterSettings, Sct, Window};
+use relief_sparse_core::{FunctionAtomRegistry, RasterSettings, Sct, Window};
 
 use crate::ctx::Ctx;
+
+/// The flags `amplify` and `synthesize` share, flattened into their arguments where the
+/// flags stand (`--help` lists them there).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub(crate) struct SeedArg {
+    /// Seed (candidate sampling and dictionary learning).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+}
+
+/// `--window` of `amplify` and `synthesize` (see [`SeedArg`]).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub(crate) struct WindowArg {
+    /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub(crate) window: Option<Window>,
+}
 
 /// How the result of an amplification is written (for [`preflight`]).
 #[derive(Debug, Clone, Copy)]
@@ -26,6 +44,33 @@ pub(crate) struct OutputPlan {
     /// Only the steps before the last run here (`relief tile plan`): the last step's input
     /// raster is kept and its tasks compute the output window by window.
     pub(crate) last_step_tasked: bool,
+}
+
+impl OutputPlan {
+    /// The plan of a command writing `output` (a `.sct`, or a raster streamed when it is a
+    /// GeoTIFF), whole or one `window`; `steps_flag` names its flag for x4 steps.
+    pub(crate) fn of(output: &Path, window: Option<Window>, steps_flag: &'static str) -> Self {
+        OutputPlan {
+            last_step_tasked: false,
+            sct: is_sct(output),
+            window,
+            stream: relief_io::Format::from_extension(output) == Some(relief_io::Format::GeoTiff),
+            steps_flag,
+        }
+    }
+}
+
+/// The dictionary of `--atoms N`: N learned atoms (3 learning iterations), 0 the complete
+/// dictionary (every exemplar patch).
+pub(crate) fn dictionary_choice(atoms: usize) -> DictionaryChoice {
+    if atoms == 0 {
+        DictionaryChoice::Complete
+    } else {
+        DictionaryChoice::Learned {
+            n_atoms: atoms,
+            iterations: 3,
+        }
+    }
 }
 
 /// Bytes per cell of the last step's input kept by a tile plan (the raster, the intermediate
@@ -131,7 +176,7 @@ pub(crate) fn preflight(
         };
         ctx.check_output_size("the output raster", written * 4.0, &change)?;
         let in_memory = if out.stream && written > STREAM_CELLS as f64 {
-            BAND_CELLS as f64
+            crate::ctx::STREAM_BAND_CELLS as f64
         } else {
             written
         };
@@ -235,29 +280,15 @@ pub(crate) fn write_model(
 /// Rasters larger than this many cells written as GeoTIFF are streamed band by band.
 const STREAM_CELLS: usize = 1 << 24;
 
-/// Cells per rasterised band when streaming.
-const BAND_CELLS: usize = 1 << 22;
-
 /// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
 /// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
 fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
     let georef = sct.raster_georef(1.0, win);
-    let mut out = ctx
-        .geotiff_rows(
-            path,
-            (win.width, win.height),
-            sct.cell_size(),
-            georef.as_ref(),
-        )
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    let band = (BAND_CELLS / win.width).clamp(1, win.height);
-    // Several bands even for small rasters, so `--stream` exercises the band seams.
-    let band = band.min(win.height.div_ceil(4)).max(1);
+    let size = (win.width, win.height);
+    let mut out = ctx.row_stream(path, size, sct.cell_size(), georef.as_ref())?;
     let progress = ctx.progress();
     progress.begin("rasterising and writing", win.height as u64);
-    let mut y = 0;
-    while y < win.height {
-        let rows = band.min(win.height - y);
+    for (y, rows) in out.bands() {
         let hf = sct
             .rasterize(&RasterSettings {
                 scale: 1.0,
@@ -269,13 +300,11 @@ fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> 
                 }),
             })
             .context("cannot rasterise the result")?;
-        out.write_rows(hf.as_slice())
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        out.write(hf.as_slice())?;
         progress.advance(rows as u64);
-        y += rows;
     }
-    out.finish()
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    let band = out.band;
+    out.finish()?;
     drop(progress);
     ctx.note(format!(
         "wrote {} ({} x {}, streamed in bands of {band} rows)",
@@ -284,6 +313,65 @@ fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> 
         win.height
     ));
     Ok(())
+}
+
+/// Function atoms every `.sct` / `.dict` reader of the CLI understands (the noise atoms of
+/// relief-dictionary-learning).
+pub(crate) fn registry() -> FunctionAtomRegistry {
+    let mut r = FunctionAtomRegistry::new();
+    register_function_atoms(&mut r);
+    r
+}
+
+/// Largest `.sct` / `.dict` file the CLI reads into memory.
+pub(crate) const MAX_MODEL_BYTES: u64 = 1 << 32;
+
+/// Reads a model file (`.sct` or `.dict`) into memory, refusing absurd sizes first: at most
+/// [`MAX_MODEL_BYTES`] and a third of `--max-memory` (the decoded model takes about twice the
+/// file). Devices and pipes (length 0) are read through the same cap, growing the buffer with
+/// `try_reserve` so an impossible allocation is an error.
+pub(crate) fn read_model_bytes(path: &Path, ctx: &Ctx) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    let cap = MAX_MODEL_BYTES.min(ctx.max_memory.bytes / 3);
+    let len = std::fs::metadata(path)
+        .with_context(|| format!("cannot read {}", path.display()))?
+        .len();
+    let too_big = |n: u64| {
+        anyhow::anyhow!(
+            "cannot read {}: {n} bytes or more, above the {} a model may take (a third of {})",
+            path.display(),
+            crate::memory::human(cap),
+            ctx.max_memory
+        )
+    };
+    if len > cap {
+        return Err(too_big(len));
+    }
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut r = file.take(cap + 1);
+    let mut bytes: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; 1 << 20];
+    loop {
+        let n = match r.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => {
+                return Err(
+                    anyhow::Error::new(e).context(format!("cannot read {}", path.display()))
+                );
+            }
+        };
+        if bytes.len() as u64 + n as u64 > cap {
+            return Err(too_big(cap + 1));
+        }
+        bytes
+            .try_reserve(n)
+            .map_err(|_| anyhow::anyhow!("cannot read {}: out of memory", path.display()))?;
+        bytes.extend_from_slice(&chunk[..n]);
+    }
+    Ok(bytes)
 }
 
 #[cfg(test)]

@@ -40,12 +40,52 @@ impl Outputs {
             .unwrap_or_else(|| target.to_path_buf())
     }
 
+    /// Stages the paths of `outputs` (as given to `Ctx::check_outputs`) and `extra` ones.
+    pub(crate) fn of(
+        outputs: &[(&Path, crate::outputs::OutKind)],
+        extra: Option<&Path>,
+    ) -> Result<Outputs> {
+        let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
+        targets.extend(extra);
+        Outputs::new(&targets)
+    }
+
+    /// Writes an RGB image (`rgb`: `width x height` triples) as the PNG `target`.
+    pub(crate) fn write_png(
+        &self,
+        target: &Path,
+        width: usize,
+        height: usize,
+        rgb: &[u8],
+    ) -> Result<()> {
+        relief_io::write_rgb_png(&self.path(target), width, height, rgb)
+            .with_context(|| format!("cannot write {}", target.display()))
+    }
+
+    /// Writes `value` as pretty JSON (one trailing newline) at `target`.
+    pub(crate) fn write_json(&self, target: &Path, value: &impl serde::Serialize) -> Result<()> {
+        let text = json_text(value)?;
+        relief_io::write_bytes_atomic(&self.path(target), text.as_bytes())
+            .with_context(|| format!("cannot write {}", target.display()))
+    }
+
     /// Moves every staged output into place.
     pub(crate) fn commit(self) -> Result<()> {
         self.stage
             .commit()
             .context("cannot move the outputs into place")
     }
+}
+
+/// `value` as pretty JSON ending in a newline (reports, `--json` output).
+pub(crate) fn json_text(value: &impl serde::Serialize) -> Result<String> {
+    Ok(serde_json::to_string_pretty(value).context("cannot encode the JSON")? + "\n")
+}
+
+/// Writes `text` on stdout (an error, not a panic, when stdout is closed).
+pub(crate) fn print(text: &str) -> Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    std::io::Write::write_all(&mut stdout, text.as_bytes()).context("cannot write to stdout")
 }
 
 /// The path to show for a file written at `path`: its target when `path` is staged.

@@ -9,13 +9,15 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use relief_dictionary_learning::{
-    AmplifySettings, DictionaryChoice, LastStep, amplify_with_figures, prepare_last_step,
+    AmplifySettings, LastStep, amplify_with_figures, prepare_last_step,
 };
 use relief_heightfield::Heightfield;
-use relief_sparse_core::{Sct, Window};
+use relief_sparse_core::Sct;
 
 use crate::ctx::Ctx;
-use crate::sparse_model::{OutputPlan, check_output_path, is_sct, preflight, write_model};
+use crate::sparse_model::{
+    OutputPlan, check_output_path, dictionary_choice, preflight, write_model,
+};
 
 /// Arguments of `relief amplify`.
 #[derive(Debug, clap::Args)]
@@ -38,9 +40,8 @@ pub(crate) struct Args {
     /// Amplification factor per axis: a power of 4 (4, 16, 64, 256, ...; 4 per step).
     #[arg(long)]
     pub(crate) factor: usize,
-    /// Seed (candidate sampling and dictionary learning).
-    #[arg(long, default_value_t = 0)]
-    pub(crate) seed: u64,
+    #[command(flatten)]
+    pub(crate) seed: crate::sparse_model::SeedArg,
     /// Support radius R in coarse pixels (figure 11): small follows the input, large imposes
     /// more of the exemplar.
     #[arg(long, default_value_t = 4.0)]
@@ -65,9 +66,8 @@ pub(crate) struct Args {
     /// for compatibility, not in the paper).
     #[arg(long)]
     pub(crate) residual_correction: bool,
-    /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
-    #[arg(long, value_name = "X,Y,W,H")]
-    pub(crate) window: Option<Window>,
+    #[command(flatten)]
+    pub(crate) window: crate::sparse_model::WindowArg,
     /// Stream a GeoTIFF output band by band instead of rasterising it whole (automatic above
     /// 16 M cells): memory stays at one band whatever the output size.
     #[arg(long)]
@@ -94,20 +94,13 @@ pub(crate) fn steps_of_factor(factor: usize) -> Result<usize> {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Every argument is checked before any file is touched, so a typo fails fast.
     settings(&args)?;
-    let window = args.window;
+    let window = args.window.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
         &[&args.input, &args.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
-    let out = OutputPlan {
-        last_step_tasked: false,
-        sct: is_sct(&args.output),
-        window,
-        stream: relief_io::Format::from_extension(&args.output) == Some(relief_io::Format::GeoTiff),
-        steps_flag: "--factor",
-    };
-    let sct = build(&args, out, ctx)?;
+    let sct = build(&args, OutputPlan::of(&args.output, window, "--factor"), ctx)?;
     write_model(&sct, &args.output, window, args.stream, ctx)
 }
 
@@ -124,15 +117,8 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
         step: args.step,
         steps,
         sparsity: args.sparsity,
-        dictionary: if args.atoms == 0 {
-            DictionaryChoice::Complete
-        } else {
-            DictionaryChoice::Learned {
-                n_atoms: args.atoms,
-                iterations: 3,
-            }
-        },
-        seed: args.seed,
+        dictionary: dictionary_choice(args.atoms),
+        seed: args.seed.seed,
         exemplar_cell_size: args.exemplar_cell_size,
         ..base
     };

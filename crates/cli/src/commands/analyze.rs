@@ -213,8 +213,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     );
     ctx.check_outputs(&[&args.input], &outputs)?;
     // The maps and the plot appear together or not at all.
-    let targets: Vec<&std::path::Path> = outputs.iter().map(|&(p, _)| p).collect();
-    let staged = crate::staging::Outputs::new(&targets)?;
+    let staged = crate::staging::Outputs::of(&outputs, None)?;
     // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
     let hf = super::read_void_free(&args.input, &args.read, ctx)?;
     // Pre-flight (issue 18): the DWT pyramid, and with --local the fitted maps of every band.
@@ -255,8 +254,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         progress.begin("plotting", 0);
         let (w, h) = (720, 440);
         let rgb = render_log_variance_plot(&result.figures.analysis, args.plot_levels, None, w, h);
-        relief_io::write_rgb_png(&staged.path(plot), w, h, &rgb)
-            .with_context(|| format!("cannot write {}", plot.display()))?;
+        staged.write_png(plot, w, h, &rgb)?;
     }
     staged.commit()?;
     drop(progress);
@@ -268,14 +266,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         figures: result.figures,
     };
     let out = if args.json {
-        let mut s = serde_json::to_string_pretty(&report).context("cannot encode JSON")?;
-        s.push('\n');
-        s
+        crate::staging::json_text(&report)?
     } else {
         text(&report)
     };
-    let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
+    crate::staging::print(&out)?;
     if let Some(plot) = &args.plot {
         written.push(plot.clone());
     }

@@ -10,16 +10,15 @@
 //! relief compress dem.tif dem.sct --dict complete --sparsity 1   # exact, large
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{
-    AnalyticAtoms, CompressSettings, DictionarySource, NoiseFamily, register_function_atoms,
-};
+use relief_dictionary_learning::{AnalyticAtoms, CompressSettings, DictionarySource, NoiseFamily};
 use relief_heightfield::Heightfield;
-use relief_sparse_core::{CompressionReport, Dictionary, FunctionAtomRegistry};
+use relief_sparse_core::{CompressionReport, Dictionary};
 
 use crate::ctx::Ctx;
+use crate::sparse_model::{read_model_bytes, registry};
 
 /// Where the dictionary comes from when no `--dictionary FILE` is given.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -106,65 +105,6 @@ fn parse_analytic_atoms(spec: &str) -> std::result::Result<AnalyticAtoms, String
         }
     }
     Ok(a)
-}
-
-/// Function atoms every `.sct` / `.dict` reader of the CLI understands (the noise atoms of
-/// relief-dictionary-learning).
-pub(crate) fn registry() -> FunctionAtomRegistry {
-    let mut r = FunctionAtomRegistry::new();
-    register_function_atoms(&mut r);
-    r
-}
-
-/// Largest `.sct` / `.dict` file the CLI reads into memory.
-pub(crate) const MAX_MODEL_BYTES: u64 = 1 << 32;
-
-/// Reads a model file (`.sct` or `.dict`) into memory, refusing absurd sizes first: at most
-/// [`MAX_MODEL_BYTES`] and a third of `--max-memory` (the decoded model takes about twice the
-/// file). Devices and pipes (length 0) are read through the same cap, growing the buffer with
-/// `try_reserve` so an impossible allocation is an error.
-pub(crate) fn read_model_bytes(path: &Path, ctx: &Ctx) -> Result<Vec<u8>> {
-    use std::io::Read as _;
-    let cap = MAX_MODEL_BYTES.min(ctx.max_memory.bytes / 3);
-    let len = std::fs::metadata(path)
-        .with_context(|| format!("cannot read {}", path.display()))?
-        .len();
-    let too_big = |n: u64| {
-        anyhow::anyhow!(
-            "cannot read {}: {n} bytes or more, above the {} a model may take (a third of {})",
-            path.display(),
-            crate::memory::human(cap),
-            ctx.max_memory
-        )
-    };
-    if len > cap {
-        return Err(too_big(len));
-    }
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut r = file.take(cap + 1);
-    let mut bytes: Vec<u8> = Vec::new();
-    let mut chunk = vec![0u8; 1 << 20];
-    loop {
-        let n = match r.read(&mut chunk) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => {
-                return Err(
-                    anyhow::Error::new(e).context(format!("cannot read {}", path.display()))
-                );
-            }
-        };
-        if bytes.len() as u64 + n as u64 > cap {
-            return Err(too_big(cap + 1));
-        }
-        bytes
-            .try_reserve(n)
-            .map_err(|_| anyhow::anyhow!("cannot read {}: out of memory", path.display()))?;
-        bytes.extend_from_slice(&chunk[..n]);
-    }
-    Ok(bytes)
 }
 
 impl Args {

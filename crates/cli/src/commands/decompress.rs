@@ -16,8 +16,8 @@ use rayon::prelude::*;
 use relief_heightfield::metrics;
 use relief_sparse_core::{RasterSettings, Sct, Window, layer_storage_values};
 
-use super::compress::{read_model_bytes, registry};
 use crate::ctx::Ctx;
+use crate::sparse_model::{read_model_bytes, registry};
 
 /// Arguments of `relief decompress`.
 #[derive(Debug, clap::Args)]

@@ -52,11 +52,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             "voids": hf.void_count(),
             "cells": hf.len(),
         });
-        let mut stdout = std::io::stdout().lock();
-        let text = serde_json::to_string_pretty(&v).context("cannot encode the JSON")?;
-        std::io::Write::write_all(&mut stdout, format!("{text}\n").as_bytes())
-            .context("cannot write to stdout")?;
-        return Ok(());
+        return crate::staging::print(&crate::staging::json_text(&v)?);
     }
     let mut out = String::new();
     out.push_str(&format!("file:        {}\n", args.file.display()));
@@ -123,9 +119,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         }
         None => out.push_str("georeference: none\n"),
     }
-    let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
-    Ok(())
+    crate::staging::print(&out)
 }
 
 /// Whether `path` starts with the magic of a `.sct` model or a `.dict` dictionary.
@@ -159,10 +153,10 @@ fn dictionary_json(d: &relief_sparse_core::Dictionary) -> serde_json::Value {
 /// cell size, georeference, and per layer the atoms, patch size and primitives.
 fn describe_model(args: &Args, ctx: &Ctx) -> Result<()> {
     let path = &args.file;
-    let bytes = super::compress::read_model_bytes(path, ctx)?;
+    let bytes = crate::sparse_model::read_model_bytes(path, ctx)?;
     let header = relief_sparse_core::format::stream_header(&bytes)
         .with_context(|| format!("cannot read {}: not a model", path.display()))?;
-    let reg = super::compress::registry();
+    let reg = crate::sparse_model::registry();
     let checksum = match header.checksum_ok {
         Some(true) => "CRC-32 ok",
         Some(false) => "CRC-32 MISMATCH",
@@ -207,13 +201,11 @@ fn describe_model(args: &Args, ctx: &Ctx) -> Result<()> {
         v
     };
     let text = if args.json {
-        serde_json::to_string_pretty(&v).context("cannot encode the JSON")? + "\n"
+        crate::staging::json_text(&v)?
     } else {
         model_text(&v)
     };
-    let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, text.as_bytes()).context("cannot write to stdout")?;
-    Ok(())
+    crate::staging::print(&text)
 }
 
 /// The text form of [`describe_model`]'s JSON.

@@ -185,7 +185,5 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         output.display(),
         bytes.len()
     ));
-    let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, out.as_bytes()).context("cannot write to stdout")?;
-    Ok(())
+    crate::staging::print(&out)
 }

@@ -3,7 +3,7 @@
 //! synthesis (Cruz et al. 2015, relief-patch-synth). The inputs shared with `relief validate`
 //! live in [`SynthArgs`] (`synth_args.rs`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use relief_heightfield::Progress;
@@ -102,8 +102,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .context("synthesis failed")?;
     progress.begin("writing", 0);
     // The terrain, the guide as used and the seam map appear together or not at all.
-    let targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
-    let staged = crate::staging::Outputs::new(&targets)?;
+    let staged = crate::staging::Outputs::of(&outputs, None)?;
     let hf = &out.synthesis.heightfield;
     ctx.write_raster(&staged.path(&args.output), hf)?;
     if let (Some(g), Some(p)) = (&out.guide, &args.synth.guide_out) {
@@ -111,8 +110,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     }
     if let Some(png) = &args.seam_map {
         let m = &out.synthesis.seam_map;
-        relief_io::write_rgb_png(&staged.path(png), m.width, m.height, &m.rgb())
-            .with_context(|| format!("cannot write {}", png.display()))?;
+        staged.write_png(png, m.width, m.height, &m.rgb())?;
     }
     staged.commit()?;
     drop(progress);

@@ -213,7 +213,7 @@ fn preflight(
         == Some(relief_io::Format::GeoTiff)
         && (args.stream || written > STREAM_CELLS as f64);
     let rendered = if streamed {
-        written.min(BAND_CELLS as f64 + 2.0 * ow)
+        written.min(crate::ctx::STREAM_BAND_CELLS as f64 + 2.0 * ow)
     } else {
         written
     };
@@ -242,9 +242,6 @@ fn preflight(
 /// GeoTIFF outputs larger than this many cells are streamed band by band.
 const STREAM_CELLS: usize = 1 << 24;
 
-/// Cells per synthesised band when streaming (16 MiB of f32: 256 rows of a 16384-wide output).
-const BAND_CELLS: usize = 1 << 22;
-
 /// Synthesises the window `(x, y, w, h)` of the refined terrain (inside the grid; the whole
 /// grid when `whole`) in bands of rows and streams them into a GeoTIFF at `path`: memory is one
 /// band plus the analysis, never the whole output. The whole grid goes through
@@ -264,31 +261,21 @@ fn stream_geotiff(
     let corner = refiner
         .render_window(x, y, 1, 1)
         .context("cannot synthesise")?;
-    let cannot_write = || format!("cannot write {}", path.display());
-    let mut out = ctx
-        .geotiff_rows(path, (w, h), corner.cell_size(), corner.georef())
-        .with_context(cannot_write)?;
-    let band = (BAND_CELLS / w).clamp(1, h);
-    // Several bands even for small outputs, so `--stream` exercises the band seams.
-    let band = band.min(h.div_ceil(4)).max(1);
+    let mut out = ctx.row_stream(path, (w, h), corner.cell_size(), corner.georef())?;
+    let band = out.band;
     let progress = ctx.progress();
     if whole {
-        refiner.render_strips(band, &progress, |_, rows| -> Result<()> {
-            out.write_rows(rows).with_context(cannot_write)
-        })?;
+        refiner.render_strips(band, &progress, |_, rows| out.write(rows))?;
     } else {
         progress.begin("synthesising and writing the window", h as u64);
-        let mut r = 0;
-        while r < h {
-            let rows = band.min(h - r);
+        for (r, rows) in out.bands() {
             let values = refiner
                 .render_window_values(x, y + r, w, rows)
                 .context("cannot synthesise")?;
-            out.write_rows(&values).with_context(cannot_write)?;
+            out.write(&values)?;
             progress.advance(rows as u64);
-            r += rows;
         }
     }
-    out.finish().with_context(cannot_write)?;
+    out.finish()?;
     Ok(band)
 }

@@ -5,12 +5,10 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use relief_dictionary_learning::{
-    AmplifySettings, DictionaryChoice, SynthesisSettings, synthesize,
-};
+use relief_dictionary_learning::{AmplifySettings, SynthesisSettings, synthesize};
 
 use crate::ctx::Ctx;
-use crate::sparse_model::{check_output_path, write_model};
+use crate::sparse_model::{OutputPlan, check_output_path, dictionary_choice, write_model};
 
 /// Arguments of `relief synthesize`.
 #[derive(Debug, clap::Args)]
@@ -30,9 +28,8 @@ pub(crate) struct Args {
     /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
     #[arg(long, default_value_t = 3)]
     pub(crate) steps: usize,
-    /// Seed (candidate sampling and dictionary learning).
-    #[arg(long, default_value_t = 0)]
-    pub(crate) seed: u64,
+    #[command(flatten)]
+    pub(crate) seed: crate::sparse_model::SeedArg,
     /// Support radius R in coarse pixels.
     #[arg(long, default_value_t = 4.0)]
     pub(crate) radius: f64,
@@ -47,9 +44,8 @@ pub(crate) struct Args {
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
-    /// Only write this window of the output raster, `X,Y,W,H` in output pixels.
-    #[arg(long, value_name = "X,Y,W,H")]
-    pub(crate) window: Option<relief_sparse_core::Window>,
+    #[command(flatten)]
+    pub(crate) window: crate::sparse_model::WindowArg,
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
@@ -59,15 +55,8 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
         amplify: AmplifySettings {
             radius: args.radius,
             steps: args.steps,
-            dictionary: if args.atoms == 0 {
-                DictionaryChoice::Complete
-            } else {
-                DictionaryChoice::Learned {
-                    n_atoms: args.atoms,
-                    iterations: 3,
-                }
-            },
-            seed: args.seed,
+            dictionary: dictionary_choice(args.atoms),
+            seed: args.seed.seed,
             step: args.step,
             normalize_detail: !args.paper,
             exemplar_detail: !args.paper,
@@ -87,7 +76,7 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
 
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let settings = settings(&args, ctx)?;
-    let window = args.window;
+    let window = args.window.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
         &[&args.sketch, &args.exemplar],
@@ -102,14 +91,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         (sketch.width(), sketch.height()),
         (exemplar.width(), exemplar.height()),
         &settings.amplify,
-        crate::sparse_model::OutputPlan {
-            last_step_tasked: false,
-            sct: crate::sparse_model::is_sct(&args.output),
-            window,
-            stream: relief_io::Format::from_extension(&args.output)
-                == Some(relief_io::Format::GeoTiff),
-            steps_flag: "--steps",
-        },
+        OutputPlan::of(&args.output, window, "--steps"),
     )?;
     let sct = {
         let progress = ctx.progress();

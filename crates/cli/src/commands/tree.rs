@@ -9,8 +9,8 @@ use anyhow::{Context, Result, bail};
 use relief_dictionary_learning::CompressSettings;
 use relief_sparse_core::{Sct, SparseError, TreeSpec};
 
-use super::compress::{read_model_bytes, registry};
 use crate::ctx::Ctx;
+use crate::sparse_model::{read_model_bytes, registry};
 
 /// Arguments of `relief tree`.
 #[derive(Debug, clap::Args)]

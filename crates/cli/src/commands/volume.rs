@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Heightfield;
-use relief_implicit_volume::{Feature, GeologySpec, Image, VolumeJob};
+use relief_implicit_volume::{Feature, GeologySpec, VolumeJob};
 
 use crate::ctx::Ctx;
 
@@ -152,18 +152,6 @@ fn read_geology(path: &Path) -> Result<GeologySpec> {
     Ok(spec)
 }
 
-fn write_png(
-    staged: &crate::staging::Outputs,
-    path: &Option<PathBuf>,
-    img: Option<&Image>,
-) -> Result<()> {
-    if let (Some(path), Some(img)) = (path, img) {
-        relief_io::write_rgb_png(&staged.path(path), img.width, img.height, &img.rgb)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-    }
-    Ok(())
-}
-
 /// Up axis of `relief volume --up`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum UpArg {
@@ -273,9 +261,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         job.check().context("invalid volume settings")?;
     }
     // The mesh, the images and the report appear together or not at all.
-    let mut targets: Vec<&Path> = outputs.iter().map(|&(p, _)| p).collect();
-    targets.extend(args.report.as_deref());
-    let staged = crate::staging::Outputs::new(&targets)?;
+    let staged = crate::staging::Outputs::of(&outputs, args.report.as_deref())?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if let Some((x, y, w, h)) = args.crop {
@@ -345,21 +331,22 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         let bytes = std::fs::metadata(staged.path(path)).map_or(0, |m| m.len());
         text += &format!("wrote {} ({:.1} MB)\n", path.display(), bytes as f64 / 1e6);
     }
-    write_png(&staged, &args.render, out.render.as_ref())?;
-    write_png(&staged, &args.closeups, out.closeups.as_ref())?;
-    write_png(&staged, &args.section, out.section.as_ref())?;
+    for (path, image) in [
+        (&args.render, &out.render),
+        (&args.closeups, &out.closeups),
+        (&args.section, &out.section),
+    ] {
+        if let (Some(path), Some(i)) = (path, image) {
+            staged.write_png(path, i.width, i.height, &i.rgb)?;
+        }
+    }
     if let Some(path) = &args.report {
         let mut v = serde_json::to_value(&out.figures).context("cannot encode the report")?;
         v["input"] = args.input.display().to_string().into();
-        let mut s = serde_json::to_string_pretty(&v).context("cannot encode the report")?;
-        s.push('\n');
-        relief_io::write_bytes_atomic(&staged.path(path), s.as_bytes())
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        staged.write_json(path, &v)?;
         text += &format!("report:       wrote {}\n", path.display());
     }
     staged.commit()?;
     drop(progress);
-    let mut stdout = std::io::stdout().lock();
-    std::io::Write::write_all(&mut stdout, text.as_bytes()).context("cannot write to stdout")?;
-    Ok(())
+    crate::staging::print(&text)
 }

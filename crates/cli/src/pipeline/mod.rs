@@ -164,6 +164,28 @@ impl State {
             .context("no terrain yet: the `load` stage must come first")
     }
 
+    /// A copy of the current terrain, which the `stage` stage needs void-free.
+    pub fn complete_terrain(&self, stage: &str) -> Result<Heightfield> {
+        let terrain = self.terrain()?.clone();
+        terrain.require_complete().with_context(|| {
+            format!("the {stage} stage needs a void-free terrain (run fill_voids first)")
+        })?;
+        Ok(terrain)
+    }
+
+    /// The input DEM when it is void-free, else the current terrain (which the `stage` stage
+    /// needs void-free, as its `what`), and which of the two it is.
+    pub fn complete_source(&self, stage: &str, what: &str) -> Result<(Heightfield, &'static str)> {
+        let (terrain, which) = match &self.source {
+            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
+            _ => (self.terrain()?.clone(), "the current terrain"),
+        };
+        terrain
+            .require_complete()
+            .with_context(|| format!("the {stage} stage needs a void-free {what}"))?;
+        Ok((terrain, which))
+    }
+
     /// Replaces the current terrain; the next stage starts from it.
     pub fn set_terrain(&mut self, hf: Heightfield) {
         self.terrain = Some(hf);
@@ -320,6 +342,22 @@ fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// For tests: the full run's settings, quiet, on `crop` of the bundled fixture (the whole of
+/// it for `None`), writing into a new temporary folder (removed when the guard is dropped).
+#[cfg(test)]
+pub(crate) fn test_config(
+    crop: Option<(usize, usize, usize, usize)>,
+) -> (PipelineConfig, tempfile::TempDir) {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = PipelineConfig {
+        crop,
+        out_dir: tmp.path().to_path_buf(),
+        verbose: false,
+        ..PipelineConfig::full(&crate::test_root())
+    };
+    (config, tmp)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -330,14 +368,7 @@ mod tests {
     /// lack candidates; the golden 128 x 128 crop passes): here it is reported, not enforced.
     #[test]
     fn pipeline_writes_report_on_crop() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            crop: Some((64, 64, 96, 80)),
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            ..PipelineConfig::full(&root)
-        };
+        let (config, tmp) = test_config(Some((64, 64, 96, 80)));
         let mut specs = spec::default_spec();
         for s in &mut specs {
             if s.stage == "quilt" {
@@ -387,13 +418,7 @@ mod tests {
 
     #[test]
     fn a_stage_before_load_is_an_error() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            ..PipelineConfig::full(&root)
-        };
+        let (config, _tmp) = test_config(None);
         let stages: Vec<Box<dyn Stage>> = vec![Box::new(fill::FillVoids)];
         let err = run(&config, &stages).unwrap_err();
         assert!(

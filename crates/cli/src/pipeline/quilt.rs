@@ -22,8 +22,8 @@ use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::metrics::{radial_power_spectrum, rmse, spectral_slope};
 use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{
-    ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, Settings, ValidateJob,
-    quality,
+    ANY_CATEGORY, CategoryMap, GuideRange, GuideSetup, JobInputs, QuiltJob, QuiltOutput, Settings,
+    ValidateJob, quality,
 };
 use serde::{Deserialize, Serialize};
 
@@ -207,21 +207,7 @@ fn volcano(
         let (cx_, cy_) = terrain.cell_size();
         vjob.guide.cell_size = Some((cx_ * k, cy_ * k));
     }
-    progress.begin("quilt: volcano", 0);
-    let t = std::time::Instant::now();
-    let out = vjob
-        .run(
-            JobInputs {
-                exemplars: quads.clone(),
-                guide: Some(volcano),
-                categories: None,
-                exemplar_regions: Vec::new(),
-            },
-            &progress,
-        )
-        .context("quilt (volcano guide)")?;
-    let secs = t.elapsed().as_secs_f64();
-    let g = out.guide.clone().context("the volcano run has a guide")?;
+    let (out, secs, g) = run_guided(&vjob, quads.clone(), volcano, &progress, "volcano")?;
     let pf = &out.figures.prepare;
     cx.section.figure(
         "volcano_exemplar_categories",
@@ -303,6 +289,39 @@ fn volcano(
     Ok((row, out.synthesis.heightfield))
 }
 
+/// Runs `job` on `exemplars` with `guide` (the `what` run: `volcano`, `holdout`); the output,
+/// its seconds and the guide as used.
+fn run_guided(
+    job: &QuiltJob,
+    exemplars: Vec<Heightfield>,
+    guide: Heightfield,
+    progress: &dyn Progress,
+    what: &str,
+) -> Result<(QuiltOutput, f64, Heightfield)> {
+    progress.begin(&format!("quilt: {what}"), 0);
+    let t = std::time::Instant::now();
+    let inputs = JobInputs {
+        exemplars,
+        guide: Some(guide),
+        categories: None,
+        exemplar_regions: Vec::new(),
+    };
+    let out = job.run(inputs, progress).with_context(|| {
+        let guide = if what == "volcano" {
+            "volcano guide"
+        } else {
+            what
+        };
+        format!("quilt ({guide})")
+    })?;
+    let secs = t.elapsed().as_secs_f64();
+    let g = out
+        .guide
+        .clone()
+        .with_context(|| format!("the {what} run has a guide"))?;
+    Ok((out, secs, g))
+}
+
 /// The holdout run: the left half as exemplar, the low-pass of the right half as guide.
 fn holdout(
     cx: &mut StageCx<'_>,
@@ -322,21 +341,7 @@ fn holdout(
     // golden crop 5-11 of 55 blocks have no match): the validation is reported, not
     // enforced, so that the protocol measures the method on what it has.
     hjob.settings.enforce_validation = false;
-    progress.begin("quilt: holdout", 0);
-    let t = std::time::Instant::now();
-    let out = hjob
-        .run(
-            JobInputs {
-                exemplars: vec![ex.clone()],
-                guide: Some(truth.clone()),
-                categories: None,
-                exemplar_regions: Vec::new(),
-            },
-            &progress,
-        )
-        .context("quilt (holdout)")?;
-    let secs = t.elapsed().as_secs_f64();
-    let g = out.guide.clone().context("the holdout run has a guide")?;
+    let (out, secs, g) = run_guided(&hjob, vec![ex.clone()], truth.clone(), &progress, "holdout")?;
     let report = out.report.as_ref().context("validation report")?;
     cx.section.figure("holdout_validation_ok", report.ok);
     cx.section.figure(

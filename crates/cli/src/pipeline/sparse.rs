@@ -96,10 +96,7 @@ impl Stage for SparseStage {
 
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        let terrain = cx.state.terrain()?.clone();
-        terrain
-            .require_complete()
-            .context("the sparse stage needs a void-free terrain (run fill_voids first)")?;
+        let terrain = cx.state.complete_terrain("sparse")?;
         let progress = cx.progress();
         let geometry = p.job.geometry();
         let patches = extract_patches(&terrain, &geometry)?;

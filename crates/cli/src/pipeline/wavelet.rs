@@ -531,8 +531,8 @@ fn quality(
 
 #[cfg(test)]
 mod tests {
+    use crate::pipeline::run;
     use crate::pipeline::spec::{StageSpec, build_stage};
-    use crate::pipeline::{PipelineConfig, run};
 
     #[test]
     fn bad_params_are_named() {
@@ -562,15 +562,8 @@ mod tests {
     /// crop (`max_cells`) never shrinks the terrain that is passed on.
     #[test]
     fn one_level_replaces_the_terrain_with_the_whole_refined_grid() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            crop: Some((40, 30, 72, 64)),
-            out_dir: tmp.path().to_path_buf(),
-            previews: false,
-            verbose: false,
-            ..PipelineConfig::full(&root)
-        };
+        let (mut config, _tmp) = crate::pipeline::test_config(Some((40, 30, 72, 64)));
+        config.previews = false;
         let specs = [
             StageSpec::named("load"),
             StageSpec::named("fill_voids"),

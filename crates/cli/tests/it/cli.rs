@@ -11,13 +11,7 @@ fn info_reports_srtm_size_and_voids() {
     let Some(hgt) = dem("N47E011.hgt") else {
         return;
     };
-    let out = relief(&[os("info"), hgt.as_os_str()]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = relief_ok!["info", hgt];
     assert!(stdout.contains("1201 x 1201"), "{stdout}");
     assert!(
         stdout.contains("voids:       54,278 of 1,442,401 cells"),
@@ -49,26 +43,16 @@ fn convert_round_trips_alps() {
     ];
     for (ext, tol) in cases {
         let out = tmp.path().join(format!("alps.{ext}"));
-        let res = relief(&[os("convert"), tiff.as_os_str(), out.as_os_str()]);
-        assert!(
-            res.status.success(),
-            "{ext}: {}",
-            String::from_utf8_lossy(&res.stderr)
-        );
+        relief_ok!["convert", tiff, out];
         // And back to GeoTIFF through the CLI, then compare.
         let back = tmp.path().join(format!("alps_from_{ext}.tif"));
-        let mut args = vec![os("convert"), out.as_os_str(), back.as_os_str()];
-        let size_arg;
-        if ext == "r32" {
-            size_arg = original.width().to_string();
-            args.extend([os("--width"), os(&size_arg)]);
-        }
-        let res = relief(&args);
-        assert!(
-            res.status.success(),
-            "{ext} back: {}",
-            String::from_utf8_lossy(&res.stderr)
-        );
+        let width = original.width().to_string();
+        let raw: &[&str] = if ext == "r32" {
+            &["--width", &width]
+        } else {
+            &[]
+        };
+        ok(&relief(&[&["convert", s(&out), s(&back)], raw].concat()));
         let got = read(&back);
         assert_eq!(
             (got.width(), got.height()),
@@ -87,13 +71,7 @@ fn convert_fill_voids_leaves_no_voids() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("filled.npy");
-    let res = relief(&[
-        os("convert"),
-        hgt.as_os_str(),
-        out.as_os_str(),
-        os("--fill-voids"),
-    ]);
-    ok(&res);
+    relief_ok!["convert", hgt, out, "--fill-voids"];
     let filled = read(&out);
     assert_eq!(filled.void_count(), 0);
     let original = read(&hgt);
@@ -112,8 +90,7 @@ fn preview_writes_png() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.png");
-    let res = relief(&[os("preview"), tif.as_os_str(), out.as_os_str()]);
-    ok(&res);
+    relief_ok!["preview", tif, out];
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     // N47E011: 1201 x 1201 samples of 62.8 m x 92.6 m: the preview is square on the ground.
@@ -121,13 +98,7 @@ fn preview_writes_png() {
         return;
     };
     let out = tmp.path().join("n47.png");
-    let res = relief(&[
-        os("preview"),
-        os("--fill-voids"),
-        hgt.as_os_str(),
-        out.as_os_str(),
-    ]);
-    ok(&res);
+    relief_ok!["preview", "--fill-voids", hgt, out];
     let b = std::fs::read(&out).unwrap();
     let (w, h) = (
         u32::from_be_bytes(b[16..20].try_into().unwrap()),
@@ -144,17 +115,9 @@ fn corrupt_input_fails_cleanly_without_output() {
     // A TIFF header whose first IFD offset points past the end of the file.
     std::fs::write(&bad, b"II*\0\xff\xff\xff\x00garbage").unwrap();
     let out = tmp.path().join("out.exr");
-    let res = relief(&[os("convert"), bad.as_os_str(), out.as_os_str()]);
-    assert!(!res.status.success());
-    let stderr = String::from_utf8_lossy(&res.stderr);
-    assert!(stderr.starts_with("error: cannot read"), "{stderr}");
-    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(!out.exists());
-    assert_eq!(
-        std::fs::read_dir(tmp.path()).unwrap().count(),
-        1,
-        "stray files left"
-    );
+    let e = fails_with(&relief!["convert", bad, out], &[], &[&out]);
+    assert!(e.starts_with("error: cannot read"), "{e}");
+    assert_eq!(files(tmp.path()), ["bad.tif"], "stray files left");
 }
 
 #[test]
@@ -165,21 +128,13 @@ fn unwritable_output_fails_cleanly_without_output() {
     let tmp = tempfile::tempdir().unwrap();
     // The output folder does not exist: the temporary file cannot be created.
     let out = tmp.path().join("missing/dir/gc.tif");
-    let res = relief(&[os("convert"), tif.as_os_str(), out.as_os_str()]);
-    assert!(!res.status.success());
-    let stderr = String::from_utf8_lossy(&res.stderr);
-    assert!(stderr.starts_with("error: cannot write"), "{stderr}");
+    let e = failed(&relief!["convert", tif, out]);
+    assert!(e.starts_with("error: cannot write"), "{e}");
     assert!(!out.exists());
     // An unknown extension is refused before anything is written.
     let out = tmp.path().join("gc.xyz");
-    let res = relief(&[os("convert"), tif.as_os_str(), out.as_os_str()]);
-    assert!(!res.status.success());
-    assert!(!out.exists());
-    assert_eq!(
-        std::fs::read_dir(tmp.path()).unwrap().count(),
-        0,
-        "stray files left"
-    );
+    fails_with(&relief!["convert", tif, out], &[], &[&out]);
+    assert!(files(tmp.path()).is_empty(), "stray files left");
 }
 
 #[test]
@@ -187,18 +142,12 @@ fn verbose_error_shows_cause_chain() {
     let tmp = tempfile::tempdir().unwrap();
     let missing = tmp.path().join("nope.tif");
     let out = tmp.path().join("o.tif");
-    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args([
-            os("--verbose"),
-            os("convert"),
-            missing.as_os_str(),
-            out.as_os_str(),
-        ])
+    let res = Command::new(BIN)
+        .args([os("--verbose"), os("convert"), os(&missing), os(&out)])
         .output()
         .unwrap();
-    assert!(!res.status.success());
-    let stderr = String::from_utf8_lossy(&res.stderr);
-    assert!(stderr.contains("caused by:"), "{stderr}");
+    let e = failed(&res);
+    assert!(e.contains("caused by:"), "{e}");
 }
 
 /// Every malformed file of `fixtures/bad/` fails with one `error:` line, a non-zero exit code
@@ -217,24 +166,16 @@ fn every_bad_fixture_fails_cleanly() {
             continue; // the generator script and its notes
         }
         let out = tmp.path().join("out.tif");
-        let res = relief(&[os("convert"), input.as_os_str(), out.as_os_str()]);
-        let stderr = String::from_utf8_lossy(&res.stderr);
-        assert!(!res.status.success(), "{} was accepted", input.display());
+        let e = fails_with(&relief!["convert", input, out], &[], &[&out]);
         assert!(
-            stderr.starts_with("error: cannot read"),
-            "{}: {stderr}",
+            e.starts_with("error: cannot read"),
+            "{}: {e}",
             input.display()
         );
-        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-        assert!(!out.exists());
         n += 1;
     }
     assert!(n >= 10, "only {n} bad fixtures");
-    assert_eq!(
-        std::fs::read_dir(tmp.path()).unwrap().count(),
-        0,
-        "stray files left"
-    );
+    assert!(files(tmp.path()).is_empty(), "stray files left");
 }
 
 /// `gdalinfo -json -checksum FILE`, or `None` (with a notice) when GDAL is not installed
@@ -293,22 +234,14 @@ fn gdal_reads_relief_outputs_in_place() {
     let mut files = vec![src.clone()];
     files.extend(dem("N47E011.hgt"));
     for f in &files {
-        let res = relief(&[os("info"), os("--json"), f.as_os_str()]);
-        ok(&res);
-        let mine: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+        let mine = relief_json!["info", "--json", f];
         let gdal = gdalinfo(f).unwrap();
         assert_eq!(mine["size"], gdal["size"], "{}", f.display());
         let (a, b) = (
             geo_transform_of(&mine["geotransform"]),
             geo_transform(&gdal),
         );
-        for (x, y) in a.iter().zip(&b) {
-            assert!(
-                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
-                "{}: {a:?} vs {b:?}",
-                f.display()
-            );
-        }
+        assert_close(&a, &b, 1e-9, &f.display().to_string());
         let epsg = mine["epsg"].as_u64().expect("an EPSG code");
         assert!(
             gdal["coordinateSystem"]["wkt"]
@@ -321,8 +254,7 @@ fn gdal_reads_relief_outputs_in_place() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.tif");
-    let res = relief(&[os("convert"), src.as_os_str(), out.as_os_str()]);
-    ok(&res);
+    relief_ok!["convert", src, out];
     let info = gdalinfo(&out).unwrap();
     assert_eq!(info["size"], orig["size"]);
     assert_eq!(
@@ -330,9 +262,7 @@ fn gdal_reads_relief_outputs_in_place() {
         "DEFLATE"
     );
     let (a, b) = (geo_transform(&info), geo_transform(&orig));
-    for (x, y) in a.iter().zip(&b) {
-        assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{a:?} vs {b:?}");
-    }
+    assert_close(&a, &b, 1e-9, "convert");
     assert!(
         info["coordinateSystem"]["wkt"]
             .as_str()
@@ -346,49 +276,33 @@ fn gdal_reads_relief_outputs_in_place() {
     // Amplify a georeferenced crop x4.
     let dem = read(&src);
     let coarse_p = tmp.path().join("coarse.tif");
-    relief_io::write(
+    save(
         &coarse_p,
         &dem.crop(64, 96, 128, 128)
             .unwrap()
             .resample(32, 32)
             .unwrap(),
-        &relief_io::WriteOptions::default(),
-    )
-    .unwrap();
+    );
     let ex = tmp.path().join("ex.tif");
-    relief_io::write(
-        &ex,
-        &dem.crop(256, 256, 256, 256).unwrap(),
-        &relief_io::WriteOptions::default(),
-    )
-    .unwrap();
+    save(&ex, &dem.crop(256, 256, 256, 256).unwrap());
     let amp = tmp.path().join("amp.tif");
-    let res = relief(&[
-        os("amplify"),
-        coarse_p.as_os_str(),
-        amp.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--factor"),
-        os("4"),
-        os("--atoms"),
-        os("32"),
-    ]);
-    ok(&res);
+    ok(&relief_line(
+        "amplify {} {} --exemplar {} --factor 4 --atoms 32",
+        &[&coarse_p, &amp, &ex],
+    ));
     let (ci, ai) = (gdalinfo(&coarse_p).unwrap(), gdalinfo(&amp).unwrap());
     assert_eq!(ai["size"], serde_json::json!([128, 128]));
     let (c, a) = (geo_transform(&ci), geo_transform(&ai));
-    for (k, (x, y)) in a.iter().zip(&c).enumerate() {
-        let want = if matches!(k, 1 | 2 | 4 | 5) {
-            y / 4.0
-        } else {
-            *y
-        };
-        assert!(
-            (x - want).abs() <= 1e-6 * want.abs().max(1.0),
-            "{a:?} vs {c:?} / 4"
-        );
-    }
+    let want: Vec<f64> = (c.iter().enumerate())
+        .map(|(k, y)| {
+            if matches!(k, 1 | 2 | 4 | 5) {
+                y / 4.0
+            } else {
+                *y
+            }
+        })
+        .collect();
+    assert_close(&a, &want, 1e-6, "amplify x4");
     assert_eq!(ai["coordinateSystem"], ci["coordinateSystem"]);
 }
 
@@ -400,48 +314,36 @@ fn ascii_grids_carry_their_crs_in_a_prj() {
     let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let asc = tmp.path().join("gc.asc");
-    let res = relief(&[os("convert"), src.as_os_str(), asc.as_os_str()]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    relief_ok!["convert", src, asc];
     let prj = std::fs::read_to_string(tmp.path().join("gc.prj")).expect("a .prj beside the .asc");
     assert!(
         prj.starts_with("PROJCS[\"WGS 84 / Pseudo-Mercator\""),
         "{prj}"
     );
     assert!(prj.ends_with("AUTHORITY[\"EPSG\",\"3857\"]]"), "{prj}");
-    let res = relief(&[os("info"), os("--json"), asc.as_os_str()]);
-    assert!(res.status.success(), "{}", stderr(&res));
-    let v: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    let v = relief_json!["info", "--json", asc];
     assert_eq!(v["epsg"], 3857);
     assert_eq!(v["wkt"].as_str(), Some(prj.as_str()));
     // The GeoTIFF input's WKT is reported too.
-    let res = relief(&[os("info"), os("--json"), src.as_os_str()]);
-    let t: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    let t = relief_json!["info", "--json", src];
     assert_eq!(t["wkt"], v["wkt"]);
     let (a, b) = (
         geo_transform_of(&v["geotransform"]),
         geo_transform_of(&t["geotransform"]),
     );
-    for (x, y) in a.iter().zip(&b) {
-        assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{a:?} vs {b:?}");
-    }
+    assert_close(&a, &b, 1e-9, "asc vs tif");
     // `gc.grd` would write `gc.prj`, which the input `gc.asc` reads: refused, even with --force.
     let grd = tmp.path().join("gc.grd");
-    let res = relief(&[
-        os("convert"),
-        asc.as_os_str(),
-        grd.as_os_str(),
-        os("--force"),
-    ]);
-    assert!(!res.status.success());
-    assert!(stderr(&res).contains("gc.prj"), "{}", stderr(&res));
-    assert!(!grd.exists());
+    fails_with(
+        &relief!["convert", asc, grd, "--force"],
+        &["gc.prj"],
+        &[&grd],
+    );
     if let Some(info) = gdalinfo(&asc) {
         let wkt = info["coordinateSystem"]["wkt"].as_str().unwrap();
         assert!(wkt.contains("ID[\"EPSG\",3857]"), "{wkt}");
         let (a, b) = (geo_transform(&info), geo_transform_of(&t["geotransform"]));
-        for (x, y) in a.iter().zip(&b) {
-            assert!((x - y).abs() <= 1e-6 * y.abs().max(1.0), "{a:?} vs {b:?}");
-        }
+        assert_close(&a, &b, 1e-6, "gdal");
     }
 }
 
@@ -497,27 +399,13 @@ fn gdal_made_geotiff_variants_read_correctly() {
             .arg(&out)
             .output()
             .expect("gdal_translate");
-        assert!(
-            o.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        ok(&o);
         let hf = read(&out);
         assert_eq!((hf.width(), hf.height()), (truth.width(), truth.height()));
-        let worst = hf
-            .as_slice()
-            .iter()
-            .zip(truth.as_slice())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = relief_heightfield::metrics::max_abs_diff(&hf, &truth).unwrap();
         assert!(worst < 1e-3, "{name}: values differ by up to {worst} m");
         let t = hf.georef().unwrap().geotransform.unwrap();
-        for (x, y) in t.iter().zip(&t0) {
-            assert!(
-                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
-                "{name}: {t:?} vs {t0:?}"
-            );
-        }
+        assert_close(&t, &t0, 1e-9, name);
     }
 }
 
@@ -530,10 +418,8 @@ fn heightmaps_state_their_height_range() {
     let truth = read(&src);
     let (lo, hi) = truth.min_max().unwrap();
     let r16 = tmp.path().join("h.r16");
-    let res = relief(&[os("convert"), src.as_os_str(), r16.as_os_str()]);
-    ok(&res);
-    let side: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(tmp.path().join("h.r16.json")).unwrap()).unwrap();
+    relief_ok!["convert", src, r16];
+    let side: serde_json::Value = json(&tmp.path().join("h.r16.json"));
     assert_eq!(side["height_min_m"].as_f64().unwrap(), lo as f64);
     assert_eq!(side["height_max_m"].as_f64().unwrap(), hi as f64);
     assert_eq!(side["width"], 512);
@@ -544,34 +430,18 @@ fn heightmaps_state_their_height_range() {
     assert!((lo as f64 + count * scale - truth.as_slice()[700] as f64).abs() <= scale);
     // A fixed range: PNG16 with 0..4000 m.
     let png = tmp.path().join("h.png");
-    let res = relief(&[
-        os("--height-range"),
-        os("0,4000"),
-        os("convert"),
-        src.as_os_str(),
-        png.as_os_str(),
-    ]);
-    ok(&res);
-    let side: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(tmp.path().join("h.png.json")).unwrap()).unwrap();
+    relief_ok!["--height-range", "0,4000", "convert", src, png];
+    let side: serde_json::Value = json(&tmp.path().join("h.png.json"));
     assert_eq!(side["height_range_m"].as_f64().unwrap(), 4000.0);
     // Voids are refused for heightmaps, and nothing is left behind.
     let mut holed = truth.clone();
     holed.set(10, 10, f32::NAN);
     let holed_p = tmp.path().join("holed.tif");
-    relief_io::write(&holed_p, &holed, &relief_io::WriteOptions::default()).unwrap();
+    save(&holed_p, &holed);
     let out = tmp.path().join("v.r16");
-    let res = relief(&[os("convert"), holed_p.as_os_str(), out.as_os_str()]);
-    assert!(!res.status.success());
-    assert!(String::from_utf8_lossy(&res.stderr).contains("--fill-voids"));
+    assert!(failed(&relief!["convert", holed_p, out]).contains("--fill-voids"));
     assert!(!out.exists() && !tmp.path().join("v.r16.json").exists());
-    let res = relief(&[
-        os("convert"),
-        os("--fill-voids"),
-        holed_p.as_os_str(),
-        out.as_os_str(),
-    ]);
-    ok(&res);
+    relief_ok!["convert", "--fill-voids", holed_p, out];
 }
 
 /// Issue 14: a Mapbox Terrain-RGB PNG (no relief marker) reads with `--png-encoding
@@ -587,22 +457,13 @@ fn terrain_rgb_png_reads_from_the_command_line() {
     }
     let p = tmp.path().join("tile.png");
     relief_io::write_rgb_png(&p, w, h, &rgb).unwrap();
-    let res = relief(&[os("info"), p.as_os_str()]);
-    assert!(!res.status.success());
-    let e = String::from_utf8_lossy(&res.stderr);
+    let res = relief!["info", p];
+    let e = failed(&res);
     assert!(
         e.contains("--png-encoding terrain-rgb") && !e.contains("PngMode"),
         "{e}"
     );
-    let res = relief(&[
-        os("info"),
-        os("--json"),
-        os("--png-encoding"),
-        os("terrain-rgb"),
-        p.as_os_str(),
-    ]);
-    ok(&res);
-    let v: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    let v = relief_json!["info", "--json", "--png-encoding", "terrain-rgb", p];
     assert!((v["statistics"]["min"].as_f64().unwrap() - 100.0).abs() < 0.06);
     assert!((v["statistics"]["max"].as_f64().unwrap() - 131.0).abs() < 0.06);
 }
@@ -630,13 +491,11 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
     )
     .unwrap();
     let out = tmp.path().join("out");
-    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), out.as_os_str()]);
-    ok(&o);
+    relief_ok!["run", spec, "--out", out];
     for f in ["summary.json", "report.html", "dem.tif", "dem.png"] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
-    let from_cli: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    let from_cli: serde_json::Value = json(&out.join("summary.json"));
 
     let lib_out = tmp.path().join("lib");
     let parsed = relief_cli::pipeline::spec::PipelineSpec::read(&spec).unwrap();
@@ -645,8 +504,7 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
     config.verbose = false;
     let stages = relief_cli::pipeline::spec::build_stages(&parsed.stages).unwrap();
     relief_cli::pipeline::run(&config, &stages).unwrap();
-    let from_lib: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(lib_out.join("summary.json")).unwrap()).unwrap();
+    let from_lib: serde_json::Value = json(&lib_out.join("summary.json"));
     let figures = |v: &serde_json::Value| -> Vec<(String, String, serde_json::Value)> {
         let mut all = Vec::new();
         for st in v["stages"].as_array().unwrap() {
@@ -664,34 +522,24 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
     assert_eq!(from_cli["stages"][0]["figures"]["width"], 96);
 
     // Re-running into the same (now non-empty) folder needs --force.
-    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), out.as_os_str()]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not empty"));
+    assert!(failed(&relief!["run", spec, "--out", out]).contains("not empty"));
     // The input inside the output folder is refused.
-    let o = relief(&[
-        os("--force"),
-        os("run"),
-        spec.as_os_str(),
-        os("--out"),
-        job.as_os_str(),
-    ]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("write over its inputs"));
+    assert!(
+        failed(&relief!["--force", "run", spec, "--out", job]).contains("write over its inputs")
+    );
     // A stage that fails leaves no output folder and no staging folder.
     std::fs::write(
         &spec,
         r#"{ "input": "canyon.tif", "stages": [ { "stage": "fill_voids" } ] }"#,
     )
     .unwrap();
-    let failed = tmp.path().join("failed");
-    let o = relief(&[os("run"), spec.as_os_str(), os("--out"), failed.as_os_str()]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("`load` stage must come first"));
+    let dead = tmp.path().join("failed");
+    assert!(failed(&relief!["run", spec, "--out", dead]).contains("`load` stage must come first"));
     let left: Vec<_> = std::fs::read_dir(tmp.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
-    assert!(!failed.exists());
+    assert!(!dead.exists());
     assert!(
         left.iter().all(|n| !n.starts_with(".relief-stage")),
         "{left:?}"
@@ -713,86 +561,37 @@ fn gdal_places_every_command_output_on_the_input_extent() {
     let tmp = tempfile::tempdir().unwrap();
     let dem = read(&src);
     let input = tmp.path().join("in.tif");
-    relief_io::write(
-        &input,
-        &dem.crop(64, 96, 128, 128).unwrap(),
-        &relief_io::WriteOptions::default(),
-    )
-    .unwrap();
+    save(&input, &dem.crop(64, 96, 128, 128).unwrap());
     let ex = tmp.path().join("ex.tif");
-    relief_io::write(
-        &ex,
-        &dem.crop(256, 256, 256, 256).unwrap(),
-        &relief_io::WriteOptions::default(),
-    )
-    .unwrap();
+    save(&ex, &dem.crop(256, 256, 256, 256).unwrap());
     let sct = tmp.path().join("in.sct");
-    let ok = |args: &[&std::ffi::OsStr]| {
-        let res = relief(args);
-        assert!(res.status.success(), "{args:?}: {}", stderr(&res));
-    };
-    ok(&[os("compress"), input.as_os_str(), sct.as_os_str()]);
+    relief_ok!["compress", input, sct];
     let base = gdalinfo(&input).unwrap();
     let t0 = geo_transform(&base);
-    let out = |name: &str| tmp.path().join(name);
-    let cases: Vec<(PathBuf, Vec<&str>, f64)> = vec![
-        (
-            out("refine.tif"),
-            vec!["refine", "IN", "OUT", "--levels", "2"],
-            4.0,
-        ),
-        (
-            out("paper.tif"),
-            vec!["refine", "IN", "OUT", "--levels", "2", "--model", "paper"],
-            4.0,
-        ),
-        (
-            out("dec.tif"),
-            vec!["decompress", "SCT", "OUT", "--scale", "2"],
-            2.0,
-        ),
-        (out("fit.tif"), vec!["fit-procedural", "IN", "OUT"], 1.0),
-        (
-            out("quilt.tif"),
-            vec![
-                "quilt",
-                "OUT",
-                "--guide",
-                "IN",
-                "--exemplar",
-                "EX",
-                "--no-validate",
-            ],
-            1.0,
-        ),
-        (
-            out("synth.tif"),
-            vec![
-                "synthesize",
-                "IN",
-                "OUT",
-                "--exemplar",
-                "EX",
-                "--steps",
-                "1",
-            ],
-            4.0,
-        ),
+    // Each command line with IN, EX, SCT and OUT standing for the files, and its factor.
+    let cases = [
+        ("refine IN OUT --levels 2", 4.0),
+        ("refine IN OUT --levels 2 --model paper", 4.0),
+        ("decompress SCT OUT --scale 2", 2.0),
+        ("fit-procedural IN OUT", 1.0),
+        ("quilt OUT --guide IN --exemplar EX --no-validate", 1.0),
+        ("synthesize IN OUT --exemplar EX --steps 1", 4.0),
     ];
-    for (o, args, f) in &cases {
-        let a: Vec<&std::ffi::OsStr> = args
-            .iter()
-            .map(|&a| match a {
-                "IN" => input.as_os_str(),
-                "OUT" => o.as_os_str(),
-                "SCT" => sct.as_os_str(),
-                "EX" => ex.as_os_str(),
-                a => os(a),
-            })
-            .collect();
-        ok(&a);
-        let info = gdalinfo(o).unwrap();
-        let what = format!("{args:?}");
+    for (i, (line, f)) in cases.into_iter().enumerate() {
+        let o = tmp.path().join(format!("out{i}.tif"));
+        let (input, ex, sct) = (s(&input), s(&ex), s(&sct));
+        let args = line.split(' ');
+        let args: Vec<&str> = (args.map(|a| match a {
+            "IN" => input,
+            "OUT" => s(&o),
+            "SCT" => sct,
+            "EX" => ex,
+            a => a,
+        }))
+        .collect();
+        ok(&relief(&args));
+        let info = gdalinfo(&o).unwrap();
+        let what = line;
         assert_eq!(
             info["size"],
             serde_json::json!([(128.0 * f) as u64, (128.0 * f) as u64]),
@@ -801,7 +600,7 @@ fn gdal_places_every_command_output_on_the_input_extent() {
         assert_eq!(info["coordinateSystem"], base["coordinateSystem"], "{what}");
         let t = geo_transform(&info);
         // The paper's lattice: 0.5 pixel of each new level, in the output's pixels 1.5.
-        let shift = if args.contains(&"paper") { 1.5 } else { 0.0 };
+        let shift = if line.ends_with("paper") { 1.5 } else { 0.0 };
         let want = [
             t0[0] + shift * t0[1] / f,
             t0[1] / f,
@@ -810,12 +609,7 @@ fn gdal_places_every_command_output_on_the_input_extent() {
             t0[4] / f,
             t0[5] / f,
         ];
-        for (x, y) in t.iter().zip(&want) {
-            assert!(
-                (x - y).abs() <= 1e-6 * y.abs().max(1.0),
-                "{what}: {t:?} vs {want:?}"
-            );
-        }
+        assert_close(&t, &want, 1e-6, what);
     }
 }
 
@@ -827,20 +621,11 @@ fn preview_light_flags_are_used_and_checked() {
     let tmp = tempfile::tempdir().unwrap();
     let a = tmp.path().join("a.png");
     let b = tmp.path().join("b.png");
-    let res = relief(&[os("preview"), src.as_os_str(), a.as_os_str()]);
-    assert!(res.status.success(), "{}", stderr(&res));
-    let res = relief(&[
-        os("preview"),
-        src.as_os_str(),
-        b.as_os_str(),
-        os("--azimuth"),
-        os("90"),
-        os("--altitude"),
-        os("20"),
-        os("--exaggeration"),
-        os("3"),
-    ]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    relief_ok!["preview", src, a];
+    ok(&relief_line(
+        "preview {} {} --azimuth 90 --altitude 20 --exaggeration 3",
+        &[&src, &b],
+    ));
     assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     for (flag, v) in [
         ("--altitude", "95"),
@@ -848,16 +633,7 @@ fn preview_light_flags_are_used_and_checked() {
         ("--azimuth", "nan"),
     ] {
         let c = tmp.path().join("c.png");
-        let res = relief(&[
-            os("preview"),
-            src.as_os_str(),
-            c.as_os_str(),
-            os(flag),
-            os(v),
-        ]);
-        assert!(!res.status.success());
-        assert!(stderr(&res).contains(flag), "{flag}: {}", stderr(&res));
-        assert!(!c.exists());
+        fails_with(&relief!["preview", src, c, flag, v], &[flag], &[&c]);
     }
 }
 
@@ -869,16 +645,9 @@ fn size_plus_one_writes_engine_heightmaps() {
     let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let r16 = tmp.path().join("h.r16");
-    let res = relief(&[
-        os("convert"),
-        src.as_os_str(),
-        r16.as_os_str(),
-        os("--size-plus-one"),
-    ]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    relief_ok!["convert", src, r16, "--size-plus-one"];
     assert_eq!(std::fs::metadata(&r16).unwrap().len(), 513 * 513 * 2);
-    let side: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(tmp.path().join("h.r16.json")).unwrap()).unwrap();
+    let side: serde_json::Value = json(&tmp.path().join("h.r16.json"));
     assert_eq!(side["width"], 513);
     assert_eq!(side["height"], 513);
     let cell = side["cell_size_m"][0].as_f64().unwrap();
@@ -895,15 +664,8 @@ fn size_plus_one_writes_engine_heightmaps() {
         "{h} vs {mean}"
     );
     let tif = tmp.path().join("h.tif");
-    let res = relief(&[
-        os("convert"),
-        src.as_os_str(),
-        tif.as_os_str(),
-        os("--size-plus-one"),
-    ]);
-    assert!(!res.status.success());
-    assert!(stderr(&res).contains("--size-plus-one"), "{}", stderr(&res));
-    assert!(!tif.exists());
+    let res = relief!["convert", src, tif, "--size-plus-one"];
+    fails_with(&res, &["--size-plus-one"], &[&tif]);
 }
 
 /// Issue 14: `--compress zstd|lzw` GeoTIFFs (with the floating-point predictor) read in GDAL
@@ -917,14 +679,7 @@ fn zstd_and_lzw_geotiffs_read_in_gdal_and_relief() {
     let mut sizes = Vec::new();
     for (codec, gdal_name) in [("deflate", "DEFLATE"), ("zstd", "ZSTD"), ("lzw", "LZW")] {
         let out = tmp.path().join(format!("{codec}.tif"));
-        let res = relief(&[
-            os("--compress"),
-            os(codec),
-            os("convert"),
-            src.as_os_str(),
-            out.as_os_str(),
-        ]);
-        assert!(res.status.success(), "{codec}: {}", stderr(&res));
+        relief_ok!["--compress", codec, "convert", src, out];
         assert_eq!(read(&out).as_slice(), dem.as_slice(), "{codec}");
         sizes.push(std::fs::metadata(&out).unwrap().len());
         if let (Some(info), Some(orig)) = (gdalinfo(&out), &orig) {
@@ -952,15 +707,7 @@ fn cog_flag_writes_cloud_optimized_geotiffs() {
     let src = relief_testdata::fixture("grandcanyon.tif");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("cog.tif");
-    let res = relief(&[
-        os("--cog"),
-        os("--compress"),
-        os("zstd"),
-        os("convert"),
-        src.as_os_str(),
-        out.as_os_str(),
-    ]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    relief_ok!["--cog", "--compress", "zstd", "convert", src, out];
     assert_eq!(read(&out).as_slice(), read(&src).as_slice());
     if let (Some(info), Some(orig)) = (gdalinfo(&out), gdalinfo(&src)) {
         assert_eq!(
@@ -978,7 +725,7 @@ fn cog_flag_writes_cloud_optimized_geotiffs() {
         assert_eq!(geo_transform(&info), geo_transform(&orig));
     }
     let png = tmp.path().join("x.png");
-    let res = relief(&[os("--cog"), os("convert"), src.as_os_str(), png.as_os_str()]);
+    let res = relief!["--cog", "convert", src, png];
     assert!(!res.status.success() && stderr(&res).contains("--cog"));
     assert!(!png.exists());
 }

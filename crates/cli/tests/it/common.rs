@@ -1,22 +1,106 @@
-//! Helpers shared by the test modules: run the binary, read and write rasters.
+//! Helpers shared by the test modules: run the binary (`relief![...]`), check how a run ended,
+//! read and write rasters, fixtures and temporary files.
 
 #![allow(dead_code)] // not every module uses every helper
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use relief_heightfield::Heightfield;
 
-pub(crate) fn relief(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
+/// The `relief` binary under test.
+pub(crate) const BIN: &str = env!("CARGO_BIN_EXE_relief");
+
+/// `relief --quiet`, with the scheduler variables of an enclosing job removed (they must not
+/// leak into `relief tile run`).
+pub(crate) fn command() -> Command {
+    let mut c = Command::new(BIN);
+    c.arg("--quiet");
+    for v in [
+        "SLURM_ARRAY_TASK_ID",
+        "JOB_COMPLETION_INDEX",
+        "AWS_BATCH_JOB_ARRAY_INDEX",
+    ] {
+        c.env_remove(v);
+    }
+    c
 }
 
-pub(crate) fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+/// Runs `relief --quiet ARGS`.
+pub(crate) fn relief<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    command().args(args).output().expect("run relief")
+}
+
+/// [`relief`] on the concatenation of `parts` (shared options plus per-run ones).
+pub(crate) fn relief_parts(parts: &[&[&str]]) -> Output {
+    relief(&parts.concat())
+}
+
+/// `line` split at whitespace, each `{}` replaced by the next of `files`.
+pub(crate) fn words<'a>(line: &'a str, files: &[&'a dyn AsRef<OsStr>]) -> Vec<&'a OsStr> {
+    let mut files = files.iter().copied();
+    let args = (line.split_whitespace())
+        .map(|w| match w {
+            "{}" => files.next().expect("a file for every {}").as_ref(),
+            w => OsStr::new(w),
+        })
+        .collect();
+    assert!(files.next().is_none(), "more files than {{}} in `{line}`");
+    args
+}
+
+/// [`relief`] on [`words`]: `relief_line("refine {} {} --levels 2", &[&input, &out])`.
+pub(crate) fn relief_line(line: &str, files: &[&dyn AsRef<OsStr>]) -> Output {
+    relief(&words(line, files))
+}
+
+/// [`relief_line`] plus `extra` words.
+pub(crate) fn relief_line_plus(line: &str, files: &[&dyn AsRef<OsStr>], extra: &[&str]) -> Output {
+    let mut args = words(line, files);
+    args.extend(extra.iter().map(OsStr::new));
+    relief(&args)
+}
+
+/// `relief ARGS` without `--quiet` (for the notes it prints on stderr).
+pub(crate) fn relief_loud<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    Command::new(BIN).args(args).output().expect("run relief")
+}
+
+/// `relief!["convert", input, &out, "--force"]`: [`relief`] on words of mixed types (strings,
+/// paths, anything `AsRef<OsStr>`).
+macro_rules! relief_words {
+    ($($a:expr),* $(,)?) => {
+        $crate::common::relief(&[$($crate::common::os(&$a)),*])
+    };
+}
+// Renamed so that the import brings only the macro (the function has the same name).
+pub(crate) use relief_words as relief;
+
+/// `relief_ok![...]`: [`relief!`] that must succeed; its stdout.
+macro_rules! relief_ok {
+    ($($a:expr),* $(,)?) => {
+        $crate::common::ok(&$crate::common::relief![$($a),*])
+    };
+}
+pub(crate) use relief_ok;
+
+/// `relief_json![...]`: [`relief_ok!`] whose stdout is one JSON value, parsed.
+macro_rules! relief_json {
+    ($($a:expr),* $(,)?) => {
+        serde_json::from_str::<serde_json::Value>(&$crate::common::relief_ok![$($a),*])
+            .expect("JSON on stdout")
+    };
+}
+pub(crate) use relief_json;
+
+pub(crate) fn os<S: AsRef<OsStr> + ?Sized>(s: &S) -> &OsStr {
     s.as_ref()
+}
+
+/// A path as UTF-8 (every test path is).
+pub(crate) fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
 }
 
 pub(crate) fn read(path: &Path) -> Heightfield {
@@ -25,28 +109,97 @@ pub(crate) fn read(path: &Path) -> Heightfield {
         .heightfield
 }
 
+/// Writes `hf` into `path` with the default options.
+pub(crate) fn save(path: &Path, hf: &Heightfield) {
+    relief_io::write(path, hf, &relief_io::WriteOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+}
+
 pub(crate) fn write(dir: &Path, name: &str, hf: &Heightfield) -> PathBuf {
     let p = dir.join(name);
-    relief_io::write(&p, hf, &relief_io::WriteOptions::default()).unwrap();
+    save(&p, hf);
     p
 }
 
+/// A JSON file, parsed.
+pub(crate) fn json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Asserts success; the stdout.
 pub(crate) fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "stderr: {}", stderr(out));
     String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Asserts failure; the stderr.
+pub(crate) fn failed(out: &Output) -> String {
+    assert!(!out.status.success(), "unexpected success: {}", stderr(out));
+    stderr(out)
+}
+
+/// Asserts a clean failure: exactly one stderr line containing every `needle`, and none of
+/// `outputs` written.
+pub(crate) fn fails_with(out: &Output, needles: &[&str], outputs: &[&Path]) -> String {
+    let e = failed(out);
+    assert_eq!(e.trim_end().lines().count(), 1, "one stderr line: {e}");
+    for n in needles {
+        assert!(e.contains(n), "`{n}` not in: {e}");
+    }
+    for f in outputs {
+        assert!(!f.exists(), "{} was written", f.display());
+        let dir = f.parent().filter(|d| d.is_dir());
+        let temps: Vec<String> = dir.map(files).unwrap_or_default();
+        let temps: Vec<&String> = temps.iter().filter(|n| n.contains(".tmp")).collect();
+        assert!(temps.is_empty(), "temporary files left: {temps:?}");
+    }
+    e
+}
+
+/// Asserts that stderr contains `needle`.
+pub(crate) fn assert_stderr_has(o: &Output, needle: &str) {
+    let e = stderr(o);
+    assert!(e.contains(needle), "`{needle}` not in: {e}");
 }
 
 pub(crate) fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Names of the files in `dir` (sorted).
+pub(crate) fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Asserts `a` and `b` agree element by element within `rel` of each value (absolute below 1).
+pub(crate) fn assert_close(a: &[f64], b: &[f64], rel: f64, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: {a:?} vs {b:?}");
+    for (x, y) in a.iter().zip(b) {
+        assert!(
+            (x - y).abs() <= rel * y.abs().max(1.0),
+            "{what}: {a:?} vs {b:?}"
+        );
+    }
+}
+
 pub(crate) fn fixture() -> Heightfield {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/grandcanyon.tif");
-    read(&p)
+    read(&relief_testdata::fixture("grandcanyon.tif"))
+}
+
+/// A crop of the fixture written as `name` into `dir`; its path and the crop.
+pub(crate) fn fixture_crop(
+    dir: &Path,
+    name: &str,
+    (x, y, w, h): (usize, usize, usize, usize),
+) -> (PathBuf, Heightfield) {
+    let hf = fixture().crop(x, y, w, h).unwrap();
+    (write(dir, name, &hf), hf)
 }
 
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
@@ -55,9 +208,9 @@ pub(crate) fn dem(name: &str) -> Option<PathBuf> {
 
 /// A malformed flag value is a usage error: clap's message (naming the flag) on stderr, exit
 /// code 2, and `output` is not written.
-pub(crate) fn usage_error(args: &[&std::ffi::OsStr], flag: &str, output: &Path) {
+pub(crate) fn usage_error(args: &[&OsStr], flag: &str, output: &Path) {
     let out = relief(args);
-    let e = String::from_utf8_lossy(&out.stderr);
+    let e = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{args:?}: {e}");
     assert!(
         e.starts_with("error: ") && e.contains(flag),

@@ -12,22 +12,9 @@ use relief_sparse_core::{FunctionAtomRegistry, RasterSettings, Sct};
 
 use crate::common::*;
 
-/// Asserts a failure with exactly one stderr line containing every `needle`, and no `output`.
+/// Asserts a clean failure naming every `needle`, and no `output`.
 fn fails(out: &Output, output: &Path, needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "unexpected success");
-    assert_eq!(stderr.trim_end().lines().count(), 1, "stderr: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "`{n}` not in: {stderr}");
-    }
-    assert!(!output.exists(), "{} was written", output.display());
-    let dir = output.parent().unwrap();
-    let stray: Vec<_> = std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
-        .collect();
-    assert!(stray.is_empty(), "temporary files left: {stray:?}");
+    fails_with(out, needles, &[output]);
 }
 
 /// x4: a 128^2 crop reduced to 32^2, amplified back with an exemplar from another part of the
@@ -45,21 +32,8 @@ fn amplify_x4_on_grand_canyon() {
     let ex = write(tmp.path(), "ex.tif", &exemplar);
     let out_tif = tmp.path().join("out.tif");
     let common = |out: &Path, extra: &[&str]| {
-        let mut a: Vec<&std::ffi::OsStr> = vec![
-            os("amplify"),
-            cin.as_os_str(),
-            out.as_os_str(),
-            os("--exemplar"),
-            ex.as_os_str(),
-            os("--factor"),
-            os("4"),
-            os("--seed"),
-            os("3"),
-            os("--atoms"),
-            os("64"),
-        ];
-        a.extend(extra.iter().map(os));
-        relief(&a)
+        let line = "amplify {} {} --exemplar {} --factor 4 --seed 3 --atoms 64";
+        relief_line_plus(line, &[&cin, &out, &ex], extra)
     };
     ok(&common(&out_tif, &[]));
     let out = read(&out_tif);
@@ -134,12 +108,7 @@ fn amplify_x4_on_grand_canyon() {
     let w = read(&win);
     assert_eq!((w.width(), w.height()), (50, 60));
     let crop = out.crop(40, 8, 50, 60).unwrap();
-    let max = w
-        .as_slice()
-        .iter()
-        .zip(crop.as_slice())
-        .map(|(a, b)| (a - b).abs())
-        .fold(0f32, f32::max);
+    let max = metrics::max_abs_diff(&w, &crop).unwrap();
     assert!(max < 1e-3, "{max}");
 }
 
@@ -153,19 +122,10 @@ fn amplify_x16_two_steps() {
     let cin = write(tmp.path(), "coarse.tif", &coarse);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 0, 256, 256).unwrap());
     let out_path = tmp.path().join("out.exr");
-    ok(&relief(&[
-        os("amplify"),
-        cin.as_os_str(),
-        out_path.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--factor"),
-        os("16"),
-        os("--radius"),
-        os("2"),
-        os("--atoms"),
-        os("0"),
-    ]));
+    ok(&relief_line(
+        "amplify {} {} --exemplar {} --factor 16 --radius 2 --atoms 0",
+        &[&cin, &out_path, &ex],
+    ));
     let out = read(&out_path);
     assert_eq!((out.width(), out.height()), (256, 256));
     let back = out.resample(16, 16).unwrap();
@@ -188,17 +148,10 @@ fn synthesize_from_painted_sketch() {
     let sk = write(tmp.path(), "sketch.png", &sketch);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 384, 384).unwrap());
     let out_path = tmp.path().join("terrain.tif");
-    ok(&relief(&[
-        os("synthesize"),
-        sk.as_os_str(),
-        out_path.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--steps"),
-        os("2"),
-        os("--height-range"),
-        os("500,2300"),
-    ]));
+    ok(&relief_line(
+        "synthesize {} {} --exemplar {} --steps 2 --height-range 500,2300",
+        &[&sk, &out_path, &ex],
+    ));
     let out = read(&out_path);
     assert_eq!((out.width(), out.height()), (256, 256));
     let (lo, hi) = out.min_max().unwrap();
@@ -217,17 +170,10 @@ fn synthesize_from_painted_sketch() {
         out.cell_size()
     );
     let scaled = tmp.path().join("scaled.tif");
-    ok(&relief(&[
-        os("synthesize"),
-        sk.as_os_str(),
-        scaled.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--steps"),
-        os("1"),
-        os("--exemplar-cell-size"),
-        os("30"),
-    ]));
+    ok(&relief_line(
+        "synthesize {} {} --exemplar {} --steps 1 --exemplar-cell-size 30",
+        &[&sk, &scaled, &ex],
+    ));
     let s = read(&scaled);
     assert_eq!((s.width(), s.height()), (64, 64));
     assert!((s.cell_size().0 - 30.0).abs() < 1e-6, "{:?}", s.cell_size());
@@ -254,15 +200,10 @@ fn fit_procedural_prints_psnr_and_writes_function_atoms() {
     let mut psnrs = Vec::new();
     for family in ["perlin", "ridged"] {
         let out_path = tmp.path().join(format!("{family}.sct"));
-        let stdout = ok(&relief(&[
-            os("fit-procedural"),
-            input.as_os_str(),
-            out_path.as_os_str(),
-            os("--family"),
-            os(family),
-            os("--candidates"),
-            os("256"),
-        ]));
+        let stdout = ok(&relief_line(
+            "fit-procedural {} {} --family {} --candidates 256",
+            &[&input, &out_path, &family],
+        ));
         let printed = psnr_of(&stdout);
         let sct = Sct::from_bytes(&std::fs::read(&out_path).unwrap(), &registry).unwrap();
         assert!(
@@ -301,17 +242,8 @@ fn bad_input_fails_cleanly() {
     let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 256, 256).unwrap());
     let out = tmp.path().join("out.tif");
     let amp_with = |input: &Path, ex: &Path, factor: &str, out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            os("amplify"),
-            input.as_os_str(),
-            out.as_os_str(),
-            os("--exemplar"),
-            ex.as_os_str(),
-            os("--factor"),
-            os(factor),
-        ];
-        args.extend(extra.iter().map(os));
-        relief(&args)
+        let line = "amplify {} {} --exemplar {} --factor {}";
+        relief_line_plus(line, &[&input, &out, &ex, &factor], extra)
     };
     let amp =
         |input: &Path, ex: &Path, factor: &str, out: &Path| amp_with(input, ex, factor, out, &[]);
@@ -341,26 +273,12 @@ fn bad_input_fails_cleanly() {
     let o = amp_with(&coarse, &ex, "4", &out, &["--radius", "NaN"]);
     fails(&o, &out, &["radius"]);
     // synthesize: zero steps; fit-procedural: unknown family and NaN input.
-    let o = relief(&[
-        os("synthesize"),
-        coarse.as_os_str(),
-        out.as_os_str(),
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--steps"),
-        os("0"),
-    ]);
+    let o = relief!["synthesize", coarse, out, "--exemplar", ex, "--steps", "0"];
     fails(&o, &out, &["steps"]);
     let sct = tmp.path().join("fit.sct");
-    let o = relief(&[
-        os("fit-procedural"),
-        coarse.as_os_str(),
-        sct.as_os_str(),
-        os("--family"),
-        os("simplex"),
-    ]);
+    let o = relief!["fit-procedural", coarse, sct, "--family", "simplex"];
     fails(&o, &sct, &["--family", "simplex"]);
-    let o = relief(&[os("fit-procedural"), holes.as_os_str(), sct.as_os_str()]);
+    let o = relief!["fit-procedural", holes, sct];
     fails(&o, &sct, &["holes.tif", "void"]);
 }
 
@@ -374,16 +292,10 @@ fn learn_writes_a_dictionary_compress_can_use() {
     let a = write(tmp.path(), "a.tif", &dem.crop(0, 0, 128, 128).unwrap());
     let b = write(tmp.path(), "b.tif", &dem.crop(256, 0, 128, 128).unwrap());
     let dict_path = tmp.path().join("canyon.dict");
-    let stdout = ok(&relief(&[
-        os("learn"),
-        a.as_os_str(),
-        b.as_os_str(),
-        dict_path.as_os_str(),
-        os("--atoms"),
-        os("48"),
-        os("--iterations"),
-        os("6"),
-    ]));
+    let stdout = ok(&relief_line(
+        "learn {} {} {} --atoms 48 --iterations 6",
+        &[&a, &b, &dict_path],
+    ));
     assert!(stdout.contains("N = 48 atoms of 8 x 8"), "{stdout}");
     let err = stdout.split("rmse ").nth(1).unwrap();
     let first: f64 = err.split(" m").next().unwrap().parse().unwrap();
@@ -406,18 +318,10 @@ fn learn_writes_a_dictionary_compress_can_use() {
 
     // Constrained learning: every atom is an exemplar patch (unit norm, data atoms).
     let cdict = tmp.path().join("constrained.dict");
-    ok(&relief(&[
-        os("learn"),
-        a.as_os_str(),
-        cdict.as_os_str(),
-        os("--atoms"),
-        os("32"),
-        os("--sparsity"),
-        os("1"),
-        os("--iterations"),
-        os("2"),
-        os("--constrained"),
-    ]));
+    ok(&relief_line(
+        "learn {} {} --atoms 32 --sparsity 1 --iterations 2 --constrained",
+        &[&a, &cdict],
+    ));
     let d = relief_sparse_core::Dictionary::from_bytes(
         &std::fs::read(&cdict).unwrap(),
         &FunctionAtomRegistry::new(),
@@ -428,15 +332,10 @@ fn learn_writes_a_dictionary_compress_can_use() {
     // The dictionary compresses unseen ground (another part of the canyon) well.
     let c = write(tmp.path(), "c.tif", &dem.crop(128, 300, 128, 128).unwrap());
     let sct = tmp.path().join("c.sct");
-    let stdout = ok(&relief(&[
-        os("compress"),
-        c.as_os_str(),
-        sct.as_os_str(),
-        os("--dictionary"),
-        dict_path.as_os_str(),
-        os("--sparsity"),
-        os("4"),
-    ]));
+    let stdout = ok(&relief_line(
+        "compress {} {} --dictionary {} --sparsity 4",
+        &[&c, &sct, &dict_path],
+    ));
     let model =
         Sct::from_bytes(&std::fs::read(&sct).unwrap(), &FunctionAtomRegistry::new()).unwrap();
     let psnr = metrics::psnr(
@@ -450,38 +349,18 @@ fn learn_writes_a_dictionary_compress_can_use() {
     let empty = tmp.path().join("empty.tif");
     std::fs::write(&empty, b"").unwrap();
     let out = tmp.path().join("bad.dict");
-    fails(
-        &relief(&[os("learn"), empty.as_os_str(), out.as_os_str()]),
-        &out,
-        &["empty.tif"],
-    );
+    fails(&relief!["learn", empty, out], &out, &["empty.tif"]);
     let mut holes = dem.crop(0, 0, 64, 64).unwrap();
     holes.set(1, 1, f32::NAN);
     let holes = write(tmp.path(), "holes.tif", &holes);
+    fails(&relief!["learn", holes, out], &out, &["holes.tif", "void"]);
     fails(
-        &relief(&[os("learn"), holes.as_os_str(), out.as_os_str()]),
-        &out,
-        &["holes.tif", "void"],
-    );
-    fails(
-        &relief(&[
-            os("learn"),
-            a.as_os_str(),
-            out.as_os_str(),
-            os("--atoms"),
-            os("0"),
-        ]),
+        &relief!["learn", a, out, "--atoms", "0"],
         &out,
         &["n_atoms"],
     );
     fails(
-        &relief(&[
-            os("learn"),
-            a.as_os_str(),
-            out.as_os_str(),
-            os("--variant"),
-            os("fast"),
-        ]),
+        &relief!["learn", a, out, "--variant", "fast"],
         &out,
         &["--variant"],
     );
@@ -540,19 +419,8 @@ fn method_outputs_keep_the_georeference() {
     let coarse = read(&cin);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 256, 256, 256).unwrap());
     let amp = |out: &Path, extra: &[&str]| {
-        let mut a: Vec<&std::ffi::OsStr> = vec![
-            os("amplify"),
-            cin.as_os_str(),
-            out.as_os_str(),
-            os("--exemplar"),
-            ex.as_os_str(),
-            os("--factor"),
-            os("4"),
-            os("--atoms"),
-            os("32"),
-        ];
-        a.extend(extra.iter().map(os));
-        ok(&relief(&a));
+        let line = "amplify {} {} --exemplar {} --factor 4 --atoms 32";
+        ok(&relief_line_plus(line, &[&cin, &out, &ex], extra));
     };
     let out_tif = tmp.path().join("a.tif");
     amp(&out_tif, &[]);
@@ -563,51 +431,23 @@ fn method_outputs_keep_the_georeference() {
     let out_sct = tmp.path().join("a.sct");
     amp(&out_sct, &[]);
     let dec = tmp.path().join("dec.tif");
-    ok(&relief(&[
-        os("decompress"),
-        out_sct.as_os_str(),
-        dec.as_os_str(),
-    ]));
+    relief_ok!["decompress", out_sct, dec];
     assert_georef_scaled(&read(&dec), &coarse, 4.0, "amplify .sct -> decompress");
     assert_eq!(read(&dec).as_slice(), read(&out_tif).as_slice());
     // compress -> decompress at scale 1 keeps the grid exactly.
     let c_sct = tmp.path().join("c.sct");
-    ok(&relief(&[
-        os("compress"),
-        cin.as_os_str(),
-        c_sct.as_os_str(),
-        os("--dict"),
-        os("sample"),
-        os("-n"),
-        os("16"),
-    ]));
+    relief_ok!["compress", cin, c_sct, "--dict", "sample", "-n", "16"];
     let c_dec = tmp.path().join("c.tif");
-    ok(&relief(&[
-        os("decompress"),
-        c_sct.as_os_str(),
-        c_dec.as_os_str(),
-    ]));
+    relief_ok!["decompress", c_sct, c_dec];
     assert_georef_scaled(&read(&c_dec), &coarse, 1.0, "compress -> decompress");
     // A window of a decompression starts at its own first cell.
     let w_dec = tmp.path().join("w.tif");
-    ok(&relief(&[
-        os("decompress"),
-        out_sct.as_os_str(),
-        w_dec.as_os_str(),
-        os("--window"),
-        os("8,4,16,16"),
-    ]));
+    relief_ok!["decompress", out_sct, w_dec, "--window", "8,4,16,16"];
     let gt = read(&dec).georef().unwrap().geotransform.unwrap();
     let gw = read(&w_dec).georef().unwrap().geotransform.unwrap();
     assert!((gw[0] - (gt[0] + 8.0 * gt[1])).abs() < 1e-6 * gt[1].abs());
     assert!((gw[3] - (gt[3] + 4.0 * gt[5])).abs() < 1e-6 * gt[5].abs());
     let fit = tmp.path().join("fit.tif");
-    ok(&relief(&[
-        os("fit-procedural"),
-        cin.as_os_str(),
-        fit.as_os_str(),
-        os("--candidates"),
-        os("64"),
-    ]));
+    relief_ok!["fit-procedural", cin, fit, "--candidates", "64"];
     assert_georef_scaled(&read(&fit), &coarse, 1.0, "fit-procedural");
 }

@@ -18,18 +18,6 @@ use relief_heightfield::Heightfield;
 
 use crate::common::*;
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_relief")
-}
-
-fn relief<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
-    Command::new(bin())
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
 /// Asserts a clean failure: exit code 1, exactly one non-empty line starting with `error:`.
 fn assert_one_line_failure(o: &Output, what: &str) {
     let e = stderr(o);
@@ -51,16 +39,6 @@ fn assert_one_line_failure(o: &Output, what: &str) {
     );
 }
 
-/// Names of the files in `dir` (sorted).
-fn files(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
-
 /// A smooth synthetic terrain (no voids) written as a float32 GeoTIFF.
 fn synthetic_tif(path: &Path, w: usize, h: usize) -> Heightfield {
     let hf = Heightfield::from_fn(w, h, 10.0, 10.0, |x, y| {
@@ -71,9 +49,17 @@ fn synthetic_tif(path: &Path, w: usize, h: usize) -> Heightfield {
     hf
 }
 
+/// A new temporary folder holding `name`, a [`synthetic_tif`] of `side x side` cells.
+fn synthetic_input(name: &str, side: usize) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    synthetic_tif(&path, side, side);
+    (dir, path)
+}
+
 /// The subcommands and the argument placeholders of their usage line, from `relief help`.
 fn subcommands() -> Vec<(String, Vec<String>)> {
-    let help = Command::new(bin()).arg("help").output().unwrap();
+    let help = Command::new(BIN).arg("help").output().unwrap();
     let text = String::from_utf8_lossy(&help.stdout).into_owned();
     let names: Vec<String> = text
         .lines()
@@ -90,7 +76,7 @@ fn subcommands() -> Vec<(String, Vec<String>)> {
     names
         .into_iter()
         .map(|n| {
-            let h = Command::new(bin()).args([&n, "--help"]).output().unwrap();
+            let h = Command::new(BIN).args([&n, "--help"]).output().unwrap();
             let h = String::from_utf8_lossy(&h.stdout).into_owned();
             let usage = h
                 .lines()
@@ -182,7 +168,7 @@ fn every_subcommand_fails_cleanly_on_missing_and_corrupt_input() {
                 "{args:?}: the error does not name the input: {e}"
             );
             // --verbose: the same first line, then the cause chain.
-            let v = Command::new(bin())
+            let v = Command::new(BIN)
                 .arg("--verbose")
                 .args(&args)
                 .output()
@@ -215,7 +201,7 @@ fn usage_errors_exit_2_and_start_with_error() {
         vec!["info", "x.tif", "--no-such-flag"],
         vec!["convert", "a.tif", "b.tif", "--cell-size", "-3"],
     ] {
-        let o = Command::new(bin()).args(&args).output().unwrap();
+        let o = Command::new(BIN).args(&args).output().unwrap();
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
         assert!(e.starts_with("error: "), "{args:?}: {e}");
@@ -272,9 +258,7 @@ impl Drop for ReadOnlyDir {
 
 #[test]
 fn read_only_output_directory_fails_without_partial_file() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (tmp, input) = synthetic_input("in.tif", 64);
     let Some(ro) = ReadOnlyDir::new(tmp.path().join("ro")) else {
         // Neither permissions nor chattr can make a directory read-only here.
         return;
@@ -319,11 +303,7 @@ fn read_only_output_directory_fails_without_partial_file() {
     let Some(ro) = ReadOnlyDir::new(dir) else {
         return;
     };
-    let o = relief(&[
-        "convert".into(),
-        inp,
-        ro.path.join("o.tif").display().to_string(),
-    ]);
+    let o = relief!["convert", inp, ro.path.join("o.tif")];
     assert_one_line_failure(&o, "convert over an existing file in a read-only directory");
     assert_eq!(std::fs::read(ro.path.join("o.tif")).unwrap(), b"previous");
     assert_eq!(files(&ro.path), ["o.tif"]);
@@ -331,14 +311,12 @@ fn read_only_output_directory_fails_without_partial_file() {
 
 #[test]
 fn output_path_through_a_file_fails_without_output() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 32, 32);
+    let (tmp, input) = synthetic_input("in.tif", 32);
     std::fs::write(tmp.path().join("file"), b"").unwrap();
     let out = tmp.path().join("file/o.tif");
-    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
+    let o = relief!["convert", input, out];
     assert_one_line_failure(&o, "output below a regular file");
-    assert!(stderr(&o).contains("file/o.tif"), "{}", stderr(&o));
+    assert_stderr_has(&o, "file/o.tif");
     assert_eq!(files(tmp.path()), ["file", "in.tif"]);
 }
 
@@ -349,7 +327,7 @@ fn convert_with_file_limit(input: &Path, out: &Path, blocks: u32, ignore_signal:
     Command::new("sh")
         .arg("-c")
         .arg(format!("{trap}ulimit -f {blocks} && exec \"$0\" \"$@\""))
-        .arg(bin())
+        .arg(BIN)
         .args([
             "--quiet".as_ref(),
             "convert".as_ref(),
@@ -374,7 +352,7 @@ fn a_write_stopped_by_the_file_size_limit_leaves_no_partial_output() {
     // EFBIG: an error, the temporary removed, one line naming the output.
     let o = convert_with_file_limit(&input, &out, 512, true);
     assert_one_line_failure(&o, "EFBIG");
-    assert!(stderr(&o).contains("o.tif"), "{}", stderr(&o));
+    assert_stderr_has(&o, "o.tif");
     assert!(files(&out_dir).is_empty(), "left {:?}", files(&out_dir));
 
     // SIGXFSZ kills the process in the middle of the write: no `o.tif`; at most a hidden
@@ -392,8 +370,7 @@ fn a_write_stopped_by_the_file_size_limit_leaves_no_partial_output() {
         left.iter().all(|f| f.starts_with(".o.tif.tmp-")),
         "visible leftovers {left:?}"
     );
-    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", input, out];
     assert_eq!(files(&out_dir), ["o.tif"], "stale temporary not cleaned");
     let back = relief_io::read(&out, &relief_io::ReadOptions::default()).unwrap();
     assert_eq!(back.heightfield.as_slice(), hf.as_slice());
@@ -410,15 +387,14 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
     // Time of a complete run, then kills spread over it.
     let t0 = Instant::now();
     let out = out_dir.join("full.exr");
-    let o = relief(&["convert".as_ref(), input.as_os_str(), out.as_os_str()]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", input, out];
     let full = t0.elapsed();
     std::fs::remove_file(&out).unwrap();
     let mut killed = 0;
     for i in 0..12u32 {
         let out = out_dir.join(format!("o{i}.exr"));
         let at = full.mul_f64(0.15 + 0.08 * i as f64);
-        let mut child = Command::new(bin())
+        let mut child = Command::new(BIN)
             .args([
                 "--quiet".as_ref(),
                 "convert".as_ref(),
@@ -455,13 +431,7 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
     // A later write of an output removes the hidden temporaries its killed runs left.
     for i in 0..12u32 {
         let out = out_dir.join(format!("o{i}.exr"));
-        let o = relief(&[
-            "--force".as_ref(),
-            "convert".as_ref(),
-            input.as_os_str(),
-            out.as_os_str(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        relief_ok!["--force", "convert", input, out];
     }
     let left: Vec<String> = files(&out_dir)
         .into_iter()
@@ -472,17 +442,9 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
 
 #[test]
 fn max_input_cells_flag_limits_and_raises_the_input_size() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (tmp, input) = synthetic_input("in.tif", 64);
     let out = tmp.path().join("o.exr");
-    let o = relief(&[
-        "convert".as_ref(),
-        input.as_os_str(),
-        out.as_os_str(),
-        "--max-input-cells".as_ref(),
-        "4095".as_ref(),
-    ]);
+    let o = relief!["convert", input, out, "--max-input-cells", "4095"];
     assert_one_line_failure(&o, "--max-input-cells 4095");
     let e = stderr(&o);
     // The declared size, and no library option name (`ReadOptions::max_cells`).
@@ -492,14 +454,7 @@ fn max_input_cells_flag_limits_and_raises_the_input_size() {
         "{e}"
     );
     assert!(!out.exists());
-    let o = relief(&[
-        "convert".as_ref(),
-        input.as_os_str(),
-        out.as_os_str(),
-        "--max-input-cells".as_ref(),
-        "4096".as_ref(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", input, out, "--max-input-cells", "4096"];
     assert!(out.exists());
 }
 
@@ -527,7 +482,7 @@ fn no_command_overwrites_its_input() {
         args.push(f32_out.display().to_string());
         let o = relief(&args);
         assert_one_line_failure(&o, "convert volcano.json volcano.f32");
-        assert!(stderr(&o).contains("overwrite the input"), "{}", stderr(&o));
+        assert_stderr_has(&o, "overwrite the input");
         assert_eq!(bytes(&volcano), before, "volcano.json changed");
         assert!(!f32_out.exists());
     }
@@ -558,9 +513,7 @@ fn no_command_overwrites_its_input() {
 /// any work, and an existing file is replaced only under `--force`.
 #[test]
 fn output_extension_and_existing_files() {
-    let dir = tempfile::tempdir().unwrap();
-    let tif = dir.path().join("dem.tif");
-    synthetic_tif(&tif, 64, 64);
+    let (dir, tif) = synthetic_input("dem.tif", 64);
     let mine = dir.path().join("mine.tif");
     synthetic_tif(&mine, 8, 8);
     let mine_before = bytes(&mine);
@@ -582,12 +535,11 @@ fn output_extension_and_existing_files() {
     // An existing output needs --force.
     let out = dir.path().join("out.tif");
     std::fs::write(&out, b"keep me").unwrap();
-    let o = relief(&["convert", &t, &out.display().to_string()]);
+    let o = relief!["convert", &t, &out.display().to_string()];
     assert_one_line_failure(&o, "convert onto an existing file");
-    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert_stderr_has(&o, "--force");
     assert_eq!(bytes(&out), b"keep me");
-    let o = relief(&["--force", "convert", &t, &out.display().to_string()]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["--force", "convert", &t, &out.display().to_string()];
     assert_ne!(bytes(&out), b"keep me");
 }
 
@@ -595,19 +547,17 @@ fn output_extension_and_existing_files() {
 /// overflow panic, an abort or an endless loop; hostile magnitudes read as voids.
 #[test]
 fn absurd_counts_and_magnitudes_fail_cleanly() {
-    let dir = tempfile::tempdir().unwrap();
-    let tif = dir.path().join("dem.tif");
-    synthetic_tif(&tif, 48, 48);
+    let (dir, tif) = synthetic_input("dem.tif", 48);
     let t = tif.display().to_string();
     for it in ["18446744073709551615", "18446744073709551614", "1000000000"] {
         let dict = dir.path().join("d.dict").display().to_string();
-        let o = relief(&["learn", &t, &dict, "--iterations", it, "-n", "8"]);
+        let o = relief!["learn", &t, &dict, "--iterations", it, "-n", "8"];
         assert_one_line_failure(&o, &format!("learn --iterations {it}"));
-        assert!(stderr(&o).contains("iterations"), "{}", stderr(&o));
+        assert_stderr_has(&o, "iterations");
         let sct = dir.path().join("c.sct").display().to_string();
-        let o = relief(&["compress", &t, &sct, "--iterations", it, "-n", "8"]);
+        let o = relief!["compress", &t, &sct, "--iterations", it, "-n", "8"];
         assert_one_line_failure(&o, &format!("compress --iterations {it}"));
-        assert!(stderr(&o).contains("iterations"), "{}", stderr(&o));
+        assert_stderr_has(&o, "iterations");
     }
     // A float DEM whose -3.4e38 nodata lost its tag: those cells are voids, and quilt runs.
     let mut hf = Heightfield::from_fn(96, 96, 10.0, 10.0, |x, y| {
@@ -617,23 +567,14 @@ fn absurd_counts_and_magnitudes_fail_cleanly() {
         hf.set(i, 3, -3.402_823_5e38);
     }
     let ex = dir.path().join("max.tif");
-    relief_io::write(&ex, &hf, &relief_io::WriteOptions::default()).unwrap();
+    save(&ex, &hf);
     let back = relief_io::read(&ex, &relief_io::ReadOptions::default()).unwrap();
     assert_eq!(back.heightfield.void_count(), 40);
     let out = dir.path().join("q.tif").display().to_string();
-    let o = relief(&[
-        "quilt",
-        &out,
-        "--exemplar",
-        &ex.display().to_string(),
-        "--size",
-        "64",
-        "--patch",
-        "16",
-        "--overlap",
-        "4",
-        "--no-validate",
-    ]);
+    let o = relief_line(
+        "quilt {} --exemplar {} --size 64 --patch 16 --overlap 4 --no-validate",
+        &[&out, &ex.display().to_string()],
+    );
     assert!(
         o.status.success() || stderr(&o).starts_with("error: "),
         "{}",
@@ -641,7 +582,7 @@ fn absurd_counts_and_magnitudes_fail_cleanly() {
     );
     // An endless device is refused at the cell limit, not read until memory runs out.
     if Path::new("/dev/zero").exists() {
-        let o = relief(&["info", "/dev/zero", "--max-input-cells", "1024"]);
+        let o = relief!["info", "/dev/zero", "--max-input-cells", "1024"];
         assert_one_line_failure(&o, "info /dev/zero");
     }
 }
@@ -656,7 +597,7 @@ fn relief_capped(kib: u64, args: &[String]) -> Output {
     Command::new("sh")
         .arg("-c")
         .arg(script)
-        .arg(bin())
+        .arg(BIN)
         .args(args)
         .output()
         .expect("run relief under ulimit")
@@ -761,19 +702,13 @@ fn absurd_requests_are_refused_up_front_naming_the_flag() {
         "a refused run left a file"
     );
     // The same refine fits once the output is a window.
-    let o = relief(&[
-        "refine",
-        &p("d128.tif"),
-        &p("w.tif"),
-        "--levels",
-        "8",
-        "--window",
-        "0,0,64,64",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    ok(&relief_line(
+        "refine {} {} --levels 8 --window 0,0,64,64",
+        &[&p("d128.tif"), &p("w.tif")],
+    ));
     // --max-memory takes sizes with units; nonsense is a usage error.
     for bad in ["lots", "0", "1k", "-5G"] {
-        let o = relief(&["--max-memory", bad, "info", &p("d128.tif")]);
+        let o = relief!["--max-memory", bad, "info", &p("d128.tif")];
         assert_eq!(
             o.status.code(),
             Some(2),
@@ -792,11 +727,10 @@ fn decompression_bombs_are_refused_from_the_header() {
     relief_io::write_gray_png(&png, 4096, 4096, &vec![0u8; 4096 * 4096]).unwrap();
     assert!(std::fs::metadata(&png).unwrap().len() < 1 << 20);
     let path = png.display().to_string();
-    let o = relief(&["--max-memory", "64M", "info", &path]);
+    let o = relief!["--max-memory", "64M", "info", &path];
     assert_one_line_failure(&o, "info bomb.png");
-    assert!(stderr(&o).contains("--max-memory"), "{}", stderr(&o));
-    let o = relief(&["--max-memory", "1G", "info", &path]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    assert_stderr_has(&o, "--max-memory");
+    relief_ok!["--max-memory", "1G", "info", &path];
     // A model read from an endless device stops at the model size limit.
     if Path::new("/dev/zero").exists() {
         let out = dir.path().join("z.tif").display().to_string();
@@ -835,22 +769,18 @@ fn npz_bombs_are_refused_before_inflating() {
     let len = std::fs::metadata(&npz).unwrap().len();
     assert!(len < 2 << 20, "the bomb is {len} bytes");
     let path = npz.display().to_string();
-    let o = relief(&["--max-memory", "64M", "info", &path]);
+    let o = relief!["--max-memory", "64M", "info", &path];
     assert_one_line_failure(&o, "info bomb.npz");
-    assert!(stderr(&o).contains("--max-memory"), "{}", stderr(&o));
+    assert_stderr_has(&o, "--max-memory");
     // The same file converts when the memory allows it; a refused conversion leaves nothing.
     let out = dir.path().join("out.tif");
-    let o = relief(&[
-        "--max-memory",
-        "64M",
-        "convert",
-        &path,
-        &out.display().to_string(),
-    ]);
+    let o = relief_line(
+        "--max-memory 64M convert {} {}",
+        &[&path, &out.display().to_string()],
+    );
     assert_one_line_failure(&o, "convert bomb.npz");
     assert!(!out.exists());
-    let o = relief(&["--max-memory", "2G", "info", &path]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["--max-memory", "2G", "info", &path];
 }
 
 /// Issue 18: commands with several outputs check every path before working and write all of
@@ -858,74 +788,47 @@ fn npz_bombs_are_refused_before_inflating() {
 /// temporary names of long output names stay legal; devices are never replaced.
 #[test]
 fn multi_output_commands_write_all_or_nothing() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.tif");
-    synthetic_tif(&input, 48, 48);
+    let (dir, input) = synthetic_input("in.tif", 48);
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let s = |p: &Path| p.display().to_string();
     let i = s(&input);
     // A render path that is a folder: no mesh either.
     std::fs::create_dir(out.join("r.png")).unwrap();
-    let o = relief(&[
-        "volume",
-        &i,
-        "--features",
-        "sea",
-        "--mesh",
-        &s(&out.join("m.ply")),
-        "--render",
-        &s(&out.join("r.png")),
-    ]);
+    let o = relief_line(
+        "volume {} --features sea --mesh {} --render {}",
+        &[&i, &s(&out.join("m.ply")), &s(&out.join("r.png"))],
+    );
     assert_one_line_failure(&o, "volume with a folder as render");
     assert_eq!(files(&out), ["r.png"]);
     std::fs::remove_dir(out.join("r.png")).unwrap();
     // A plot into a missing folder: no local maps either.
-    let o = relief(&[
-        "analyze",
-        &i,
-        "--local",
-        "3",
-        "--maps",
-        &s(&out.join("m")),
-        "--plot",
-        &s(&dir.path().join("missing/plot.png")),
-    ]);
+    let o = relief_line(
+        "analyze {} --local 3 --maps {} --plot {}",
+        &[
+            &i,
+            &s(&out.join("m")),
+            &s(&dir.path().join("missing/plot.png")),
+        ],
+    );
     assert_one_line_failure(&o, "analyze with an unwritable plot");
     assert!(files(&out).is_empty(), "{:?}", files(&out));
     // A seam map in a read-only folder: no terrain either.
     if let Some(ro) = ReadOnlyDir::new(dir.path().join("ro")) {
-        let o = relief(&[
-            "quilt",
-            &s(&out.join("q.tif")),
-            "--exemplar",
-            &i,
-            "--size",
-            "32",
-            "--patch-size",
-            "16",
-            "--overlap",
-            "4",
-            "--no-validate",
-            "--seam-map",
-            &s(&ro.path.join("seams.png")),
-        ]);
+        let o = relief_line(
+            "quilt {} --exemplar {} --size 32 --patch-size 16 --overlap 4 \
+             --no-validate --seam-map {}",
+            &[&s(&out.join("q.tif")), &i, &s(&ro.path.join("seams.png"))],
+        );
         assert_one_line_failure(&o, "quilt with an unwritable seam map");
         assert!(files(&out).is_empty(), "{:?}", files(&out));
         assert!(files(&ro.path).is_empty());
     }
     // Both outputs when everything is writable.
-    let o = relief(&[
-        "analyze",
-        &i,
-        "--local",
-        "3",
-        "--maps",
-        &s(&out.join("m")),
-        "--plot",
-        &s(&out.join("plot.png")),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    ok(&relief_line(
+        "analyze {} --local 3 --maps {} --plot {}",
+        &[&i, &s(&out.join("m")), &s(&out.join("plot.png"))],
+    ));
     assert_eq!(files(&out).len(), 8, "{:?}", files(&out));
     // Leftovers of killed runs (a temporary file and a staging folder of a dead process) go
     // with the next write of any output into the folder.
@@ -933,8 +836,7 @@ fn multi_output_commands_write_all_or_nothing() {
     std::fs::write(out.join(format!(".big.tif.tmp-{dead}-0")), b"half").unwrap();
     std::fs::create_dir(out.join(format!(".relief-stage-{dead}-1"))).unwrap();
     std::fs::write(out.join(format!(".relief-stage-{dead}-1/m.glb")), b"half").unwrap();
-    let o = relief(&["convert", &i, &s(&out.join("other.tif"))]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", &i, &s(&out.join("other.tif"))];
     assert!(
         !files(&out).iter().any(|f| f.starts_with('.')),
         "{:?}",
@@ -942,17 +844,16 @@ fn multi_output_commands_write_all_or_nothing() {
     );
     // A 250-byte output name: its temporary name must stay within the 255-byte limit.
     let long = format!("{}.tif", "n".repeat(246));
-    let o = relief(&["convert", &i, &s(&out.join(&long))]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", &i, &s(&out.join(&long))];
     assert!(out.join(&long).exists());
     // A symlink to a device is refused, --force or not, and the device stays a device.
     if Path::new("/dev/null").exists() {
         use std::os::unix::fs::FileTypeExt;
         let link = out.join("null.tif");
         std::os::unix::fs::symlink("/dev/null", &link).unwrap();
-        let o = relief(&["--force", "convert", &i, &s(&link)]);
+        let o = relief!["--force", "convert", &i, &s(&link)];
         assert_one_line_failure(&o, "convert onto /dev/null");
-        assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+        assert_stderr_has(&o, "not a regular file");
         let m = std::fs::metadata("/dev/null").unwrap();
         assert!(m.file_type().is_char_device());
     }
@@ -962,35 +863,19 @@ fn multi_output_commands_write_all_or_nothing() {
 /// and `relief info` describes them.
 #[test]
 fn models_are_checksummed_and_described_by_info() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.tif");
-    synthetic_tif(&input, 64, 64);
+    let (dir, input) = synthetic_input("in.tif", 64);
     let s = |p: &Path| p.display().to_string();
     let sct = dir.path().join("m.sct");
     let dict = dir.path().join("d.dict");
-    let o = relief(&[
-        "compress",
-        &s(&input),
-        &s(&sct),
-        "--atoms",
-        "16",
-        "--dict",
-        "sample",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = relief(&[
-        "learn",
-        &s(&input),
-        &s(&dict),
-        "--atoms",
-        "8",
-        "--iterations",
-        "2",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = relief(&["info", &s(&sct)]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    ok(&relief_line(
+        "compress {} {} --atoms 16 --dict sample",
+        &[&s(&input), &s(&sct)],
+    ));
+    ok(&relief_line(
+        "learn {} {} --atoms 8 --iterations 2",
+        &[&s(&input), &s(&dict)],
+    ));
+    let text = relief_ok!["info", sct];
     for want in [
         "version 3",
         "CRC-32 ok",
@@ -1000,9 +885,7 @@ fn models_are_checksummed_and_described_by_info() {
     ] {
         assert!(text.contains(want), "info .sct lacks {want:?}: {text}");
     }
-    let o = relief(&["info", "--json", &s(&dict)]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = relief_json!["info", "--json", dict];
     assert_eq!(v["atoms"], 8);
     assert_eq!(v["patch_size"], 8);
     assert_eq!(v["format"], "dict");
@@ -1033,7 +916,7 @@ fn models_are_checksummed_and_described_by_info() {
         std::fs::write(file, &b).unwrap();
         let o = relief(&run);
         assert_one_line_failure(&o, &format!("{run:?}"));
-        assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
+        assert_stderr_has(&o, "checksum");
     }
     assert!(!dir.path().join("x.tif").exists() && !dir.path().join("y.sct").exists());
 }
@@ -1043,34 +926,26 @@ fn models_are_checksummed_and_described_by_info() {
 #[test]
 fn absurd_header_values_are_refused_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
-    let s = |p: &Path| p.display().to_string();
     let check = |path: &Path, field: &str| {
-        let o = relief(&["info", &s(path)]);
-        assert_one_line_failure(&o, &s(path));
-        assert!(stderr(&o).contains(field), "{field}: {}", stderr(&o));
+        let o = relief!["info", path];
+        assert_one_line_failure(&o, s(path));
+        assert_stderr_has(&o, field);
     };
-    let asc = dir.path().join("inf.asc");
-    std::fs::write(
-        &asc,
-        "ncols 2\nnrows 2\nxllcorner inf\nyllcorner 0\ncellsize 30\n1 2\n3 4\n",
-    )
-    .unwrap();
-    check(&asc, "xllcorner");
-    let asc = dir.path().join("neg.asc");
-    std::fs::write(
-        &asc,
-        "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize -30\n1 2\n3 4\n",
-    )
-    .unwrap();
-    check(&asc, "cellsize");
-    let f32 = dir.path().join("s.f32");
-    std::fs::write(&f32, [0u8; 16]).unwrap();
-    std::fs::write(
-        dir.path().join("s.json"),
-        r#"{"width": 2, "height": 2, "cell_size_m": "30 m"}"#,
-    )
-    .unwrap();
-    check(&f32, "cell_size_m");
+    // (file written, its text, file read, the field named): two ESRI grids and the sidecar
+    // of an `.f32` raster.
+    std::fs::write(dir.path().join("s.f32"), [0u8; 16]).unwrap();
+    let grid = |corner: &str, cell: &str| {
+        format!("ncols 2\nnrows 2\nxllcorner {corner}\nyllcorner 0\ncellsize {cell}\n1 2\n3 4\n")
+    };
+    let sidecar = r#"{"width": 2, "height": 2, "cell_size_m": "30 m"}"#.to_string();
+    for (written, text, read, field) in [
+        ("inf.asc", grid("inf", "30"), "inf.asc", "xllcorner"),
+        ("neg.asc", grid("0", "-30"), "neg.asc", "cellsize"),
+        ("s.json", sidecar, "s.f32", "cell_size_m"),
+    ] {
+        std::fs::write(dir.path().join(written), text).unwrap();
+        check(&dir.path().join(read), field);
+    }
     // GeoTIFF with a NaN pixel scale.
     let hf = Heightfield::from_fn(4, 4, 30.0, 30.0, |x, y| (x + y) as f32).with_georef(Some(
         relief_heightfield::GeoRef {
@@ -1080,7 +955,7 @@ fn absurd_header_values_are_refused_naming_the_field() {
         },
     ));
     let tif = dir.path().join("nan.tif");
-    relief_io::write(&tif, &hf, &relief_io::WriteOptions::default()).unwrap();
+    save(&tif, &hf);
     check(&tif, "ModelPixelScale");
     // An SRTM tile named beyond the pole.
     let hgt = dir.path().join("N95E011.hgt");
@@ -1090,7 +965,7 @@ fn absurd_header_values_are_refused_naming_the_field() {
     let tif = dir.path().join("ok.tif");
     synthetic_tif(&tif, 8, 8);
     for bad in ["1e-320", "1e308", "nan", "inf"] {
-        let o = relief(&["info", &s(&tif), "--cell-size", bad]);
+        let o = relief!["info", tif, "--cell-size", bad];
         assert_eq!(
             o.status.code(),
             Some(2),
@@ -1100,14 +975,7 @@ fn absurd_header_values_are_refused_naming_the_field() {
     }
     // Negative heights parse in --height-range.
     let png = dir.path().join("h.png");
-    let o = relief(&["convert", &s(&tif), &s(&png), "--height-range", "-200,500"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = relief(&[
-        "--height-range",
-        "-200,500",
-        "convert",
-        &s(&tif),
-        &s(&dir.path().join("h2.png")),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    relief_ok!["convert", tif, png, "--height-range", "-200,500"];
+    let png = dir.path().join("h2.png");
+    relief_ok!["--height-range", "-200,500", "convert", tif, png];
 }

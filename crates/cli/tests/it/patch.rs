@@ -3,7 +3,6 @@
 //! ~62 m cells, 479..2347 m): one crop is the exemplar, another (low-passed) the guide.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use relief_heightfield::Heightfield;
 use relief_heightfield::metrics::{rmse, stats};
@@ -33,42 +32,26 @@ fn quilt_follows_a_guide_made_from_another_crop() {
     let src = write(tmp.path(), "src.tif", &target);
     let out = tmp.path().join("out.tif");
     let seams = tmp.path().join("seams.png");
-    let common = |out: &Path| -> Vec<std::ffi::OsString> {
-        [
-            "--exemplar",
-            ex.to_str().unwrap(),
-            "--guide-from",
-            src.to_str().unwrap(),
-            "--blur",
-            "4",
-            "--size",
-            "128x128",
-            "--patch",
-            "32",
-            "--overlap",
-            "8",
-            "--seed",
-            "11",
-            "--min-candidates",
-            "100",
-        ]
-        .iter()
-        .map(|s| s.into())
-        .chain([out.as_os_str().to_owned()])
-        .collect()
-    };
-    let args = |cmd: &str, out: &Path, extra: &[&Path]| -> Output {
-        let mut v: Vec<std::ffi::OsString> = vec![cmd.into()];
-        v.extend(common(out));
-        for e in extra {
-            v.push("--seam-map".into());
-            v.push(e.as_os_str().to_owned());
-        }
-        let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
-        relief(&refs)
-    };
-    let res = args("quilt", &out, &[&seams]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    let opts = [
+        "--exemplar",
+        s(&ex),
+        "--guide-from",
+        s(&src),
+        "--blur",
+        "4",
+        "--size",
+        "128x128",
+        "--patch",
+        "32",
+        "--overlap",
+        "8",
+        "--seed",
+        "11",
+        "--min-candidates",
+        "100",
+    ];
+    let quilt = |out: &Path, extra: &[&str]| relief_parts(&[&["quilt", s(out)], &opts, extra]);
+    ok(&quilt(&out, &["--seam-map", s(&seams)]));
     let hf = read(&out);
     assert_eq!((hf.width(), hf.height()), (128, 128));
     assert!(!hf.has_voids());
@@ -111,16 +94,10 @@ fn quilt_follows_a_guide_made_from_another_crop() {
     assert_eq!((png.width(), png.height()), (128, 128));
     // Same seed, same bytes.
     let out2 = tmp.path().join("out2.tif");
-    let res = args("quilt", &out2, &[]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    ok(&quilt(&out2, &[]));
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&out2).unwrap());
     // The input check alone passes and says so.
-    let mut v: Vec<std::ffi::OsString> = vec!["validate".into()];
-    v.extend(common(&out).into_iter().take(16));
-    let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
-    let res = relief(&refs);
-    let stdout = String::from_utf8_lossy(&res.stdout);
-    assert!(res.status.success(), "{}\n{stdout}", stderr(&res));
+    let stdout = ok(&relief_parts(&[&["validate"], &opts]));
     assert!(stdout.contains("result:          ok"), "{stdout}");
     assert!(stdout.contains("0 of 25 fail"), "{stdout}");
 }
@@ -141,22 +118,18 @@ fn validation_names_missing_heights_and_quilt_refuses() {
     }
     let g = write(tmp.path(), "guide.tif", &guide);
     let base = [
-        os("--exemplar"),
-        ex.as_os_str(),
-        os("--guide"),
-        g.as_os_str(),
-        os("--patch"),
-        os("32"),
-        os("--overlap"),
-        os("8"),
+        "--exemplar",
+        s(&ex),
+        "--guide",
+        s(&g),
+        "--patch",
+        "32",
+        "--overlap",
+        "8",
     ];
-    let mut v = vec![os("validate")];
-    v.extend(base);
-    let res = relief(&v);
+    let res = relief_parts(&[&["validate"], &base]);
     let stdout = String::from_utf8_lossy(&res.stdout);
-    let err = stderr(&res);
-    assert!(!res.status.success(), "{stdout}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = fails_with(&res, &[], &[]);
     assert!(err.starts_with("error: validation failed"), "{err}");
     assert!(stdout.contains("failing block:   (3, 0)"), "{stdout}");
     assert!(stdout.contains("result:          FAILED"), "{stdout}");
@@ -177,14 +150,36 @@ fn validation_names_missing_heights_and_quilt_refuses() {
     assert!(hi > ex_max + 1000.0, "{} vs {ex_max}", missing[0]);
 
     let out = tmp.path().join("out.tif");
-    let mut v = vec![os("quilt"), out.as_os_str()];
-    v.extend(base);
-    let res = relief(&v);
-    let err = stderr(&res);
-    assert!(!res.status.success());
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("validation failed"), "{err}");
-    assert!(!out.exists());
+    let res = relief_parts(&[&["quilt", s(&out)], &base]);
+    fails_with(&res, &["validation failed"], &[&out]);
+}
+
+/// The lowest and the highest 96 x 96 crops of `gc` (by mean height, on a 32-cell grid).
+fn lowest_and_highest_crops(gc: &Heightfield) -> (Heightfield, Heightfield) {
+    let mut crops: Vec<(f64, usize, usize)> = Vec::new();
+    for y in (0..=416).step_by(32) {
+        for x in (0..=416).step_by(32) {
+            let c = gc.crop(x, y, 96, 96).unwrap();
+            crops.push((stats(&c).unwrap().mean, x, y));
+        }
+    }
+    crops.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (lo, hi) = (crops[0], crops[crops.len() - 1]);
+    (
+        gc.crop(lo.1, lo.2, 96, 96).unwrap(),
+        gc.crop(hi.1, hi.2, 96, 96).unwrap(),
+    )
+}
+
+/// Asserts that columns well inside each half of `hf` (away from the patches straddling the
+/// border) have the mean height of their own exemplar: `low` on the left, `high` on the right.
+fn assert_halves_follow(hf: &Heightfield, low: &Heightfield, high: &Heightfield, what: &str) {
+    let (ml, mr) = (mean(hf, 0, 30), mean(hf, 82, 112));
+    let (el, er) = (stats(low).unwrap().mean, stats(high).unwrap().mean);
+    assert!(
+        (ml - el).abs() < 0.25 * (er - el) && (mr - er).abs() < 0.25 * (er - el),
+        "left {ml:.0} (low exemplar {el:.0}), right {mr:.0} (high exemplar {er:.0}); {what}"
+    );
 }
 
 /// Categorisation map: left half category 0 (exemplar from the low canyon floor), right half
@@ -194,18 +189,7 @@ fn validation_names_missing_heights_and_quilt_refuses() {
 fn categorisation_map_picks_the_exemplar_per_region() {
     let gc = fixture();
     let tmp = tempfile::tempdir().unwrap();
-    // Find a low and a high 96 x 96 crop of the fixture.
-    let mut crops: Vec<(f64, usize, usize)> = Vec::new();
-    for y in (0..=416).step_by(32) {
-        for x in (0..=416).step_by(32) {
-            let c = gc.crop(x, y, 96, 96).unwrap();
-            crops.push((stats(&c).unwrap().mean as f64, x, y));
-        }
-    }
-    crops.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (lo, hi) = (crops[0], crops[crops.len() - 1]);
-    let low = gc.crop(lo.1, lo.2, 96, 96).unwrap();
-    let high = gc.crop(hi.1, hi.2, 96, 96).unwrap();
+    let (low, high) = lowest_and_highest_crops(&gc);
     let (lo_max, hi_min) = (low.min_max().unwrap().1, high.min_max().unwrap().0);
     let a = write(tmp.path(), "low.tif", &low);
     let b = write(tmp.path(), "high.tif", &high);
@@ -216,41 +200,15 @@ fn categorisation_map_picks_the_exemplar_per_region() {
     let map_png = tmp.path().join("map.png");
     relief_io::write_gray_png(&map_png, w, h, &map).unwrap();
     let out = tmp.path().join("out.tif");
-    let res = relief(&[
-        os("quilt"),
-        out.as_os_str(),
-        os("--exemplar"),
-        a.as_os_str(),
-        os("--exemplar"),
-        b.as_os_str(),
-        os("--exemplar-categories"),
-        os("0,1"),
-        os("--categories"),
-        map_png.as_os_str(),
-        os("--size"),
-        os("112x64"),
-        os("--patch"),
-        os("24"),
-        os("--overlap"),
-        os("6"),
-        os("--lambda"),
-        os("0"),
-        os("--min-candidates"),
-        os("10"),
-    ]);
-    assert!(res.status.success(), "{}", stderr(&res));
+    ok(&relief_line(
+        "quilt {} --exemplar {} --exemplar {} --exemplar-categories 0,1 \
+         --categories {} --size 112x64 --patch 24 --overlap 6 --lambda 0 \
+         --min-candidates 10",
+        &[&out, &a, &b, &map_png],
+    ));
     let hf = read(&out);
     assert_eq!((hf.width(), hf.height()), (112, 64));
-    // Columns well inside each half (away from the patches straddling the border).
-    let (ml, mr) = (mean(&hf, 0, 30), mean(&hf, 82, 112));
-    let (el, er) = (
-        stats(&low).unwrap().mean as f64,
-        stats(&high).unwrap().mean as f64,
-    );
-    assert!(
-        (ml - el).abs() < 0.25 * (er - el) && (mr - er).abs() < 0.25 * (er - el),
-        "left {ml:.0} (low exemplar {el:.0}), right {mr:.0} (high exemplar {er:.0}); ranges ..{lo_max}, {hi_min}.."
-    );
+    assert_halves_follow(&hf, &low, &high, &format!("ranges ..{lo_max}, {hi_min}.."));
 }
 
 /// `--auto-categories 2`: the low and the high exemplar fall into categories 0 and 1 (ordered
@@ -260,17 +218,7 @@ fn categorisation_map_picks_the_exemplar_per_region() {
 fn auto_categories_cluster_exemplars_and_guide() {
     let gc = fixture();
     let tmp = tempfile::tempdir().unwrap();
-    let mut crops: Vec<(f64, usize, usize)> = Vec::new();
-    for y in (0..=416).step_by(32) {
-        for x in (0..=416).step_by(32) {
-            let c = gc.crop(x, y, 96, 96).unwrap();
-            crops.push((stats(&c).unwrap().mean, x, y));
-        }
-    }
-    crops.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (lo, hi) = (crops[0], crops[crops.len() - 1]);
-    let low = gc.crop(lo.1, lo.2, 96, 96).unwrap();
-    let high = gc.crop(hi.1, hi.2, 96, 96).unwrap();
+    let (low, high) = lowest_and_highest_crops(&gc);
     let a = write(tmp.path(), "low.tif", &low);
     let b = write(tmp.path(), "high.tif", &high);
     let guide = Heightfield::from_fn(112, 64, 61.7, 61.7, |x, y| {
@@ -282,43 +230,34 @@ fn auto_categories_cluster_exemplars_and_guide() {
     });
     let g = write(tmp.path(), "guide.tif", &guide);
     let out = tmp.path().join("out.tif");
-    let res = Command::new(env!("CARGO_BIN_EXE_relief"))
-        .args([
-            os("quilt"),
-            out.as_os_str(),
-            os("--exemplar"),
-            a.as_os_str(),
-            os("--exemplar"),
-            b.as_os_str(),
-            os("--guide-from"),
-            g.as_os_str(),
-            os("--blur"),
-            os("3"),
-            os("--auto-categories"),
-            os("2"),
-            os("--patch"),
-            os("24"),
-            os("--overlap"),
-            os("6"),
-            os("--lambda"),
-            os("0"),
-            os("--no-validate"),
-        ])
-        .output()
-        .unwrap();
+    let res = relief_loud(&[
+        "quilt",
+        s(&out),
+        "--exemplar",
+        s(&a),
+        "--exemplar",
+        s(&b),
+        "--guide-from",
+        s(&g),
+        "--blur",
+        "3",
+        "--auto-categories",
+        "2",
+        "--patch",
+        "24",
+        "--overlap",
+        "6",
+        "--lambda",
+        "0",
+        "--no-validate",
+    ]);
+    ok(&res);
     let err = stderr(&res);
-    assert!(res.status.success(), "{err}");
     assert!(
         err.contains("exemplar categories (clustered): 0,1"),
         "{err}"
     );
-    let hf = read(&out);
-    let (ml, mr) = (mean(&hf, 0, 30), mean(&hf, 82, 112));
-    let (el, er) = (stats(&low).unwrap().mean, stats(&high).unwrap().mean);
-    assert!(
-        (ml - el).abs() < 0.25 * (er - el) && (mr - er).abs() < 0.25 * (er - el),
-        "left {ml:.0} (low exemplar {el:.0}), right {mr:.0} (high exemplar {er:.0})"
-    );
+    assert_halves_follow(&read(&out), &low, &high, "");
 }
 
 /// Without a guide, `validate` checks the exemplars' mutual compatibility: a crop raised by
@@ -335,37 +274,18 @@ fn unguided_validation_flags_an_incompatible_exemplar() {
         &gc.crop(300, 100, 96, 96).unwrap().map(|v| v + 5000.0),
     );
     let run = |third: &Path| {
-        relief(&[
-            os("validate"),
-            os("--exemplar"),
-            a.as_os_str(),
-            os("--exemplar"),
-            b.as_os_str(),
-            os("--exemplar"),
-            third.as_os_str(),
-            os("--size"),
-            os("128x128"),
-            os("--patch"),
-            os("24"),
-            os("--overlap"),
-            os("6"),
-            os("--lambda"),
-            os("0"),
-            os("--min-candidates"),
-            os("50"),
-        ])
+        relief_line(
+            "validate --exemplar {} --exemplar {} --exemplar {} --size 128x128 \
+             --patch 24 --overlap 6 --lambda 0 --min-candidates 50",
+            &[&a, &b, &third],
+        )
     };
     let same = write(tmp.path(), "c.tif", &gc.crop(100, 300, 96, 96).unwrap());
-    let ok = run(&same);
-    let stdout = String::from_utf8_lossy(&ok.stdout);
-    assert!(ok.status.success(), "{}\n{stdout}", stderr(&ok));
+    let stdout = ok(&run(&same));
     assert_eq!(stdout.matches("compatibility:").count(), 3, "{stdout}");
     let bad = run(&raised);
     let stdout = String::from_utf8_lossy(&bad.stdout);
-    let err = stderr(&bad);
-    assert!(!bad.status.success(), "{stdout}");
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("incompatible"), "{err}");
+    fails_with(&bad, &["incompatible"], &[]);
     let line = stdout
         .lines()
         .find(|l| l.starts_with("compatibility:") && l.contains("raised.tif"))
@@ -384,90 +304,66 @@ fn bad_inputs_exit_non_zero_with_one_line() {
     let tmp = tempfile::tempdir().unwrap();
     let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 48, 48).unwrap());
     let out = tmp.path().join("out.tif");
-    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+    let ex = s(&ex);
+    let cases: [(&[&str], &str); 6] = [
         // patch larger than the exemplar
         (
-            vec![
-                os("--exemplar"),
-                ex.as_os_str(),
-                os("--size"),
-                os("64x64"),
-                os("--patch"),
-                os("64"),
-                os("--overlap"),
-                os("8"),
+            &[
+                "--exemplar",
+                ex,
+                "--size",
+                "64x64",
+                "--patch",
+                "64",
+                "--overlap",
+                "8",
             ],
             "smaller than patch_size 64",
         ),
         // overlap >= patch
         (
-            vec![
-                os("--exemplar"),
-                ex.as_os_str(),
-                os("--size"),
-                os("64x64"),
-                os("--patch"),
-                os("16"),
-                os("--overlap"),
-                os("16"),
+            &[
+                "--exemplar",
+                ex,
+                "--size",
+                "64x64",
+                "--patch",
+                "16",
+                "--overlap",
+                "16",
             ],
             "`overlap` = 16",
         ),
         // empty exemplar list
         (
-            vec![
-                os("--size"),
-                os("64x64"),
-                os("--patch"),
-                os("16"),
-                os("--overlap"),
-                os("4"),
-            ],
+            &["--size", "64x64", "--patch", "16", "--overlap", "4"],
             "no exemplar",
         ),
         // unreadable exemplar
         (
-            vec![
-                os("--exemplar"),
-                os("/nonexistent/dem.tif"),
-                os("--size"),
-                os("64x64"),
-            ],
+            &["--exemplar", "/nonexistent/dem.tif", "--size", "64x64"],
             "/nonexistent/dem.tif",
         ),
         // guide-from without blur
         (
-            vec![
-                os("--exemplar"),
-                ex.as_os_str(),
-                os("--guide-from"),
-                ex.as_os_str(),
-                os("--patch"),
-                os("16"),
-                os("--overlap"),
-                os("4"),
+            &[
+                "--exemplar",
+                ex,
+                "--guide-from",
+                ex,
+                "--patch",
+                "16",
+                "--overlap",
+                "4",
             ],
             "--blur",
         ),
         // bad size
-        (
-            vec![os("--exemplar"), ex.as_os_str(), os("--size"), os("64y")],
-            "--size `64y`",
-        ),
+        (&["--exemplar", ex, "--size", "64y"], "--size `64y`"),
     ];
     for (args, expect) in cases {
-        for cmd in ["quilt", "validate"] {
-            let mut v = vec![os(cmd)];
-            if cmd == "quilt" {
-                v.push(out.as_os_str());
-            }
-            v.extend(args.iter().copied());
-            let res = relief(&v);
-            let err = stderr(&res);
-            assert!(!res.status.success(), "{cmd} {args:?} succeeded");
-            assert_eq!(err.lines().count(), 1, "{cmd} {args:?}: {err}");
-            assert!(err.contains(expect), "{cmd} {args:?}: {err}");
-            assert!(!out.exists(), "{cmd} {args:?} left {}", out.display());
+        for cmd in [&["quilt", s(&out)][..], &["validate"]] {
+            fails_with(&relief_parts(&[cmd, args]), &[expect], &[&out]);
         }
     }
 }
@@ -497,24 +393,11 @@ fn guide_range_auto_and_guide_out() {
     let g_p = write(tmp.path(), "sketch.tif", &sketch);
     let out = tmp.path().join("q.tif");
     let used = tmp.path().join("guide_used.tif");
-    let o = relief(&[
-        os("quilt"),
-        out.as_os_str(),
-        os("--exemplar"),
-        ex_p.as_os_str(),
-        os("--guide"),
-        g_p.as_os_str(),
-        os("--guide-range"),
-        os("auto"),
-        os("--guide-out"),
-        used.as_os_str(),
-        os("--patch-size"),
-        os("32"),
-        os("--overlap"),
-        os("8"),
-        os("--no-validate"),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    ok(&relief_line(
+        "quilt {} --exemplar {} --guide {} --guide-range auto --guide-out {} \
+         --patch-size 32 --overlap 8 --no-validate",
+        &[&out, &ex_p, &g_p, &used],
+    ));
     let g = read(&used);
     // Twice the exemplar's cell: twice the cells, same ground.
     assert_eq!((g.width(), g.height()), (96, 80));
@@ -557,33 +440,28 @@ fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
     g.set_georef(None);
     g.set_cell_size(2.0 * cx, 2.0 * cy).unwrap();
     let g_p = write(tmp.path(), "g.tif", &g);
-    let run = |extra: &[&std::ffi::OsStr], out: &Path, used: &Path| {
-        let mut v = vec![
-            os("quilt"),
-            out.as_os_str(),
-            os("--exemplar"),
-            ex_p.as_os_str(),
-            os("--guide-out"),
-            used.as_os_str(),
-            os("--patch-size"),
-            os("32"),
-            os("--overlap"),
-            os("8"),
-            os("--no-validate"),
+    let run = |extra: &[&str], out: &Path, used: &Path| {
+        let (ex, out, used) = (s(&ex_p), s(out), s(used));
+        let base = [
+            "quilt",
+            out,
+            "--exemplar",
+            ex,
+            "--guide-out",
+            used,
+            "--patch-size",
+            "32",
         ];
-        v.extend_from_slice(extra);
-        relief(&v)
+        relief_parts(&[&base, &["--overlap", "8", "--no-validate"], extra])
     };
     let (full, full_g) = (tmp.path().join("full.tif"), tmp.path().join("full_g.tif"));
-    let o = run(&[os("--guide"), g_p.as_os_str()], &full, &full_g);
-    assert!(o.status.success(), "{}", stderr(&o));
+    ok(&run(&["--guide", s(&g_p)], &full, &full_g));
     let (crop, crop_g) = (tmp.path().join("crop.tif"), tmp.path().join("crop_g.tif"));
-    let o = run(
-        &[os("--guide"), g_p.as_os_str(), os("--size"), os("64x48")],
+    ok(&run(
+        &["--guide", s(&g_p), "--size", "64x48"],
         &crop,
         &crop_g,
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    ));
     let (a, b) = (read(&full_g), read(&crop_g));
     assert_eq!((a.width(), a.height()), (96, 80));
     assert_eq!((b.width(), b.height()), (64, 48));
@@ -605,24 +483,18 @@ fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
     let png = tmp.path().join("sketch.png");
     relief_io::write_gray_png(&png, 48, 40, &grey).unwrap();
     let (out, used) = (tmp.path().join("png.tif"), tmp.path().join("png_g.tif"));
-    let o = run(&[os("--guide"), png.as_os_str()], &out, &used);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("--guide-range"), "{}", stderr(&o));
-    assert!(!out.exists() && !used.exists());
+    let o = run(&["--guide", s(&png)], &out, &used);
+    fails_with(&o, &["--guide-range"], &[&out, &used]);
     let cell = format!("{},{}", 2.0 * cx, 2.0 * cy);
-    let o = run(
-        &[
-            os("--guide"),
-            png.as_os_str(),
-            os("--guide-range"),
-            os("auto"),
-            os("--guide-cell-size"),
-            os(&cell),
-        ],
-        &out,
-        &used,
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    let extra = [
+        "--guide",
+        s(&png),
+        "--guide-range",
+        "auto",
+        "--guide-cell-size",
+        &cell,
+    ];
+    ok(&run(&extra, &out, &used));
     let u = read(&used);
     assert_eq!((u.width(), u.height()), (96, 80));
 }
@@ -649,28 +521,16 @@ fn quilt_follows_a_sketch_guide_file() {
     .unwrap();
     let out = tmp.path().join("out.tif");
     let run = |extra: &[&str], out: &Path| {
-        let mut v: Vec<std::ffi::OsString> = vec!["quilt".into()];
-        for a in [
-            "--exemplar",
-            ex.to_str().unwrap(),
-            "--patch",
-            "32",
-            "--overlap",
-            "8",
-            "--min-candidates",
-            "40",
-            "--seed",
-            "5",
-        ] {
-            v.push(a.into());
-        }
-        v.extend(extra.iter().map(|s| std::ffi::OsString::from(*s)));
-        v.push(out.as_os_str().to_owned());
-        let refs: Vec<&std::ffi::OsStr> = v.iter().map(|s| s.as_os_str()).collect();
-        relief(&refs)
+        let opts = ["--exemplar", s(&ex), "--patch", "32", "--overlap", "8"];
+        relief_parts(&[
+            &["quilt"],
+            &opts,
+            &["--min-candidates", "40", "--seed", "5"],
+            extra,
+            &[s(out)],
+        ])
     };
-    let res = run(&["--guide-sketch", sketch.to_str().unwrap()], &out);
-    assert!(res.status.success(), "{}", stderr(&res));
+    ok(&run(&["--guide-sketch", s(&sketch)], &out));
     let hf = read(&out);
     assert_eq!((hf.width(), hf.height()), (96, 96));
     // The guide as the library rasterises it (the exemplar's cell size).
@@ -697,19 +557,8 @@ fn quilt_follows_a_sketch_guide_file() {
     let bad = tmp.path().join("bad.json");
     std::fs::write(&bad, r#"{"width": 96, "height": 96, "seedz": []}"#).unwrap();
     let out2 = tmp.path().join("out2.tif");
-    let res = run(&["--guide-sketch", bad.to_str().unwrap()], &out2);
-    assert!(!res.status.success());
-    assert!(stderr(&res).contains("bad.json"), "{}", stderr(&res));
-    let res = run(
-        &[
-            "--guide-sketch",
-            sketch.to_str().unwrap(),
-            "--guide",
-            ex.to_str().unwrap(),
-        ],
-        &out2,
-    );
-    assert!(!res.status.success());
-    assert!(stderr(&res).contains("--guide-sketch"), "{}", stderr(&res));
-    assert!(!out2.exists());
+    let res = run(&["--guide-sketch", s(&bad)], &out2);
+    fails_with(&res, &["bad.json"], &[&out2]);
+    let res = run(&["--guide-sketch", s(&sketch), "--guide", s(&ex)], &out2);
+    fails_with(&res, &["--guide-sketch"], &[&out2]);
 }

@@ -3,21 +3,12 @@
 //! rising with the sparsity, windows and scales, dictionary files, and bad input (truncated
 //! or corrupt `.sct`, s > N, absurd sizes): non-zero exit, one line on stderr, no output file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use relief_heightfield::{Heightfield, metrics};
+use relief_heightfield::metrics;
 use relief_sparse_core::{Dictionary, PatchGeometry, Sct, extract_patches};
 
 use crate::common::*;
-
-/// A crop of `fixtures/grandcanyon.tif` written as a GeoTIFF into `dir`.
-fn fixture_crop(dir: &Path, x: usize, y: usize, w: usize, h: usize) -> (PathBuf, Heightfield) {
-    let src = relief_testdata::fixture("grandcanyon.tif");
-    let hf = read(&src).crop(x, y, w, h).unwrap();
-    let path = dir.join(format!("gc_{x}_{y}_{w}x{h}.tif"));
-    relief_io::write(&path, &hf, &relief_io::WriteOptions::default()).unwrap();
-    (path, hf)
-}
 
 /// The number after `key` in the report (e.g. `"PSNR:"`).
 fn figure(stdout: &str, key: &str) -> f64 {
@@ -38,51 +29,29 @@ fn rho(stdout: &str) -> f64 {
     t.split_whitespace().next().unwrap().parse().unwrap()
 }
 
-/// A failing run: non-zero exit, exactly one line on stderr, no output file.
+/// A failing run: exactly one `error:` line on stderr, no output file (nor temporaries).
 fn fails(args: &[&std::ffi::OsStr], output: &Path, what: &str) -> String {
-    let out = relief(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "{what}: should fail");
-    assert_eq!(stderr.trim_end().lines().count(), 1, "{what}: {stderr}");
-    assert!(stderr.starts_with("error: "), "{what}: {stderr}");
-    assert!(!output.exists(), "{what}: output file left behind");
-    let dir = output.parent().unwrap();
-    let stray: Vec<_> = std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
-        .collect();
-    assert!(stray.is_empty(), "{what}: temporary files left: {stray:?}");
-    stderr
+    let e = fails_with(&relief(args), &["error: "], &[output]);
+    assert!(e.starts_with("error: "), "{what}: {e}");
+    e
 }
 
 #[test]
 fn complete_dictionary_s1_round_trip_is_exact() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), 200, 150, 72, 64);
+    let (input, hf) = fixture_crop(tmp.path(), "gc_200_150_72x64.tif", (200, 150, 72, 64));
     let sct = tmp.path().join("c.sct");
-    let stdout = ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        sct.as_os_str(),
-        os("--dict"),
-        os("complete"),
-        os("--sparsity"),
-        os("1"),
-    ]));
+    let stdout = ok(&relief_line(
+        "compress {} {} --dict complete --sparsity 1",
+        &[&input, &sct],
+    ));
     // The complete dictionary stores every patch: rho > 1 (no compression), exact terrain.
     assert!(rho(&stdout) > 100.0, "{stdout}");
     assert!(figure(&stdout, "PSNR:") > 90.0, "{stdout}");
     let bytes = std::fs::read(&sct).unwrap();
     assert_eq!(figure(&stdout, "bytes:") as usize, bytes.len());
     let out = tmp.path().join("c.tif");
-    let d = ok(&relief(&[
-        os("decompress"),
-        sct.as_os_str(),
-        out.as_os_str(),
-        os("--reference"),
-        input.as_os_str(),
-    ]));
+    let d = relief_ok!["decompress", sct, out, "--reference", input];
     assert_eq!(figure(&d, "bytes:") as usize, bytes.len());
     assert!(figure(&d, "PSNR:") > 90.0, "{d}");
     let rec = read(&out);
@@ -94,22 +63,15 @@ fn complete_dictionary_s1_round_trip_is_exact() {
 #[test]
 fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), 100, 240, 96, 80);
+    let (input, hf) = fixture_crop(tmp.path(), "gc_100_240_96x80.tif", (100, 240, 96, 80));
     let mut psnr = Vec::new();
     let mut sizes = Vec::new();
     for s in ["1", "2", "8"] {
         let sct = tmp.path().join(format!("s{s}.sct"));
-        let stdout = ok(&relief(&[
-            os("compress"),
-            input.as_os_str(),
-            sct.as_os_str(),
-            os("-s"),
-            os(s),
-            os("--atoms"),
-            os("48"),
-            os("--iterations"),
-            os("4"),
-        ]));
+        let stdout = ok(&relief_line(
+            "compress {} {} -s {} --atoms 48 --iterations 4",
+            &[&input, &sct, &s],
+        ));
         assert!(stdout.contains("K-SVD"), "{stdout}");
         // t(s, N) = KN + n(2s + 2) + 1 with K = 64, N = 48 and the printed n.
         let s: u64 = s.parse().unwrap();
@@ -133,23 +95,12 @@ fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
     // A window at scale 2.5 equals the same window of the full scale-2.5 raster, bit for bit.
     let sct = tmp.path().join("s8.sct");
     let full = tmp.path().join("full.tif");
-    ok(&relief(&[
-        os("decompress"),
-        sct.as_os_str(),
-        full.as_os_str(),
-        os("--scale"),
-        os("2.5"),
-    ]));
+    relief_ok!["decompress", sct, full, "--scale", "2.5"];
     let part = tmp.path().join("part.r32");
-    ok(&relief(&[
-        os("decompress"),
-        sct.as_os_str(),
-        part.as_os_str(),
-        os("--scale"),
-        os("2.5"),
-        os("--window"),
-        os("31,17,60,45"),
-    ]));
+    ok(&relief_line(
+        "decompress {} {} --scale 2.5 --window 31,17,60,45",
+        &[&sct, &part],
+    ));
     let full = read(&full);
     assert_eq!(
         (full.width(), full.height()),
@@ -187,18 +138,10 @@ fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
 
     // The quantised file is smaller and still close.
     let q = tmp.path().join("q.sct");
-    let stdout = ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        q.as_os_str(),
-        os("-s"),
-        os("8"),
-        os("--atoms"),
-        os("48"),
-        os("--iterations"),
-        os("4"),
-        os("--quantize"),
-    ]));
+    let stdout = ok(&relief_line(
+        "compress {} {} -s 8 --atoms 48 --iterations 4 --quantize",
+        &[&input, &q],
+    ));
     assert!(std::fs::metadata(&q).unwrap().len() < sizes[2]);
     assert!((figure(&stdout, "PSNR:") - psnr[2]).abs() < 1.0, "{stdout}");
 }
@@ -206,24 +149,16 @@ fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
 #[test]
 fn dictionary_file_is_used() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), 300, 300, 64, 64);
+    let (input, hf) = fixture_crop(tmp.path(), "gc_300_300_64x64.tif", (300, 300, 64, 64));
     // A dictionary of 6 x 6 patches from another part of the canyon.
-    let (_, other) = fixture_crop(tmp.path(), 20, 20, 64, 64);
+    let (_, other) = fixture_crop(tmp.path(), "gc_20_20_64x64.tif", (20, 20, 64, 64));
     let p = extract_patches(&other, &PatchGeometry::with_patch_size(6)).unwrap();
     let sel: Vec<usize> = (0..32).map(|k| k * 7 + 3).collect();
     let (dict, _) = Dictionary::from_patches(&p, Some(&sel)).unwrap();
     let dict_path = tmp.path().join("canyon.dict");
     std::fs::write(&dict_path, dict.to_bytes().unwrap()).unwrap();
     let sct = tmp.path().join("d.sct");
-    let stdout = ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        sct.as_os_str(),
-        os("--dictionary"),
-        dict_path.as_os_str(),
-        os("-s"),
-        os("4"),
-    ]));
+    let stdout = relief_ok!["compress", input, sct, "--dictionary", dict_path, "-s", "4"];
     assert!(
         stdout.contains(&format!("N = {} atoms of 6 x 6", dict.len())),
         "{stdout}"
@@ -271,17 +206,9 @@ fn dictionary_file_is_used() {
 #[test]
 fn bad_input_fails_cleanly() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, _) = fixture_crop(tmp.path(), 0, 0, 48, 40);
+    let (input, _) = fixture_crop(tmp.path(), "gc_0_0_48x40.tif", (0, 0, 48, 40));
     let good = tmp.path().join("good.sct");
-    ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        good.as_os_str(),
-        os("--dict"),
-        os("sample"),
-        os("--atoms"),
-        os("20"),
-    ]));
+    relief_ok!["compress", input, good, "--dict", "sample", "--atoms", "20"];
     let bytes = std::fs::read(&good).unwrap();
     let out = tmp.path().join("out.sct");
     let raster = tmp.path().join("out.tif");
@@ -352,21 +279,14 @@ fn bad_input_fails_cleanly() {
     let holes = tmp.path().join("holes.tif");
     let mut h = read(&input);
     h.set(10, 10, f32::NAN);
-    relief_io::write(&holes, &h, &relief_io::WriteOptions::default()).unwrap();
+    save(&holes, &h);
     let e = fails(
         &[os("compress"), holes.as_os_str(), out.as_os_str()],
         &out,
         "voids",
     );
     assert!(e.contains("--fill-voids"), "{e}");
-    ok(&relief(&[
-        os("compress"),
-        holes.as_os_str(),
-        out.as_os_str(),
-        os("--fill-voids"),
-        os("--dict"),
-        os("sample"),
-    ]));
+    relief_ok!["compress", holes, out, "--fill-voids", "--dict", "sample"];
     std::fs::remove_file(&out).unwrap();
 
     // Truncated and corrupt .sct files.
@@ -453,7 +373,7 @@ fn bad_input_fails_cleanly() {
         usage_error(&a, "--window", &raster);
     }
     // A reference of the wrong size.
-    let (other, _) = fixture_crop(tmp.path(), 5, 5, 30, 30);
+    let (other, _) = fixture_crop(tmp.path(), "gc_5_5_30x30.tif", (5, 5, 30, 30));
     fails(
         &[
             os("decompress"),
@@ -481,17 +401,12 @@ fn bad_input_fails_cleanly() {
 #[test]
 fn tree_build_authors_a_river_valley_on_layers() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), 200, 150, 72, 64);
+    let (input, hf) = fixture_crop(tmp.path(), "gc_200_150_72x64.tif", (200, 150, 72, 64));
     let exact = tmp.path().join("exact.sct");
-    ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        exact.as_os_str(),
-        os("--dict"),
-        os("complete"),
-        os("--sparsity"),
-        os("1"),
-    ]));
+    ok(&relief_line(
+        "compress {} {} --dict complete --sparsity 1",
+        &[&input, &exact],
+    ));
     let name = input.file_name().unwrap().to_str().unwrap();
     let spec = tmp.path().join("tree.json");
     let json = format!(
@@ -503,22 +418,13 @@ fn tree_build_authors_a_river_valley_on_layers() {
     );
     std::fs::write(&spec, json).unwrap();
     let sct = tmp.path().join("tree.sct");
-    let stdout = ok(&relief(&[
-        os("tree"),
-        os("build"),
-        spec.as_os_str(),
-        sct.as_os_str(),
-    ]));
+    let stdout = relief_ok!["tree", "build", spec, sct];
     assert!(
         stdout.contains("2 layer(s) (1 compressed from DEMs)"),
         "{stdout}"
     );
     let out = tmp.path().join("tree.tif");
-    ok(&relief(&[
-        os("decompress"),
-        sct.as_os_str(),
-        out.as_os_str(),
-    ]));
+    relief_ok!["decompress", sct, out];
     let t = read(&out);
     assert_eq!((t.width(), t.height()), (72, 64));
     let (a, b) = (hf.as_slice(), t.as_slice());
@@ -536,7 +442,7 @@ fn tree_build_authors_a_river_valley_on_layers() {
     let corrupt = tmp.path().join("corrupt.json");
     std::fs::write(&corrupt, b"{\"root\": {\"layer\": ").unwrap();
     for f in [&absent, &corrupt] {
-        let o = relief(&[os("tree"), os("build"), f.as_os_str(), bad.as_os_str()]);
+        let o = relief!["tree", "build", f, bad];
         assert_eq!(o.status.code(), Some(1));
         let e = stderr(&o);
         assert!(
@@ -548,14 +454,15 @@ fn tree_build_authors_a_river_valley_on_layers() {
     }
     // A missing layer: named, no output.
     std::fs::write(&spec, r#"{"root": {"layer": "missing.sct"}}"#).unwrap();
-    let o = relief(&[os("tree"), os("build"), spec.as_os_str(), bad.as_os_str()]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("missing.sct"), "{}", stderr(&o));
-    assert!(!bad.exists());
+    fails_with(
+        &relief!["tree", "build", spec, bad],
+        &["missing.sct"],
+        &[&bad],
+    );
     // The output may not overwrite a layer.
     std::fs::write(&spec, r#"{"root": {"layer": "exact.sct"}}"#).unwrap();
     let before = std::fs::read(&exact).unwrap();
-    let o = relief(&[os("tree"), os("build"), spec.as_os_str(), exact.as_os_str()]);
+    let o = relief!["tree", "build", spec, exact];
     assert!(!o.status.success(), "{}", stderr(&o));
     assert_eq!(std::fs::read(&exact).unwrap(), before);
 }
@@ -565,40 +472,23 @@ fn tree_build_authors_a_river_valley_on_layers() {
 #[test]
 fn compress_with_analytic_atoms_mixes_the_dictionary() {
     let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), 120, 60, 64, 56);
+    let (input, hf) = fixture_crop(tmp.path(), "gc_120_60_64x56.tif", (120, 60, 64, 56));
     let sct = tmp.path().join("mixed.sct");
-    let stdout = ok(&relief(&[
-        os("compress"),
-        input.as_os_str(),
-        sct.as_os_str(),
-        os("--atoms"),
-        os("32"),
-        os("--iterations"),
-        os("2"),
-        os("--analytic-atoms"),
-        os("ridged:16,perlin:8"),
-    ]));
+    let stdout = ok(&relief_line(
+        "compress {} {} --atoms 32 --iterations 2 \
+         --analytic-atoms ridged:16,perlin:8",
+        &[&input, &sct],
+    ));
     assert!(stdout.contains("N = 56 atoms"), "{stdout}");
     assert!(stdout.contains("16 analytic RidgedSum"), "{stdout}");
     let out = tmp.path().join("mixed.tif");
-    ok(&relief(&[
-        os("decompress"),
-        sct.as_os_str(),
-        out.as_os_str(),
-    ]));
+    relief_ok!["decompress", sct, out];
     let rec = read(&out);
     assert_eq!((rec.width(), rec.height()), (64, 56));
     let rmse = metrics::rmse(&hf, &rec).unwrap();
     assert!(rmse < 0.05 * hf.relief() as f64, "rmse {rmse}");
     let bad = tmp.path().join("bad.sct");
-    let o = relief(&[
-        os("compress"),
-        input.as_os_str(),
-        bad.as_os_str(),
-        os("--analytic-atoms"),
-        os("voronoi:4"),
-    ]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("voronoi"), "{}", stderr(&o));
+    let o = relief_line("compress {} {} --analytic-atoms voronoi:4", &[&input, &bad]);
+    assert!(failed(&o).contains("voronoi"), "{}", stderr(&o));
     assert!(!bad.exists());
 }

@@ -4,55 +4,18 @@
 
 #![allow(clippy::print_stderr)] // skip notices for missing tools
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output};
+use std::path::Path;
+use std::process::{Child, Command};
 
 use crate::common::*;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_relief"));
-    c.arg("--quiet");
-    // Scheduler variables of an enclosing job must not leak into the tests.
-    for v in [
-        "SLURM_ARRAY_TASK_ID",
-        "JOB_COMPLETION_INDEX",
-        "AWS_BATCH_JOB_ARRAY_INDEX",
-    ] {
-        c.env_remove(v);
-    }
-    c
-}
-
-fn relief(args: &[&str]) -> Output {
-    bin().args(args).output().expect("run relief")
-}
-
-fn ok(out: &Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(name)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 fn tasks(dir: &Path) -> usize {
-    let m: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    let m: serde_json::Value = json(&dir.join("manifest.json"));
     m["tasks"].as_u64().unwrap() as usize
 }
 
 fn spawn_task(dir: &Path, i: usize) -> Child {
-    bin()
+    command()
         .args(["tile", "run", s(dir), "--index", &i.to_string()])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
@@ -107,25 +70,33 @@ fn assert_same_raster(a: &Path, b: &Path) {
 }
 
 /// The whole cycle for one command: single run, plan, a killed task, shuffled tasks two at a
-/// time, a corrupted tile found and redone, mosaic equal to the single run.
-fn cycle(tmp: &Path, name: &str, command: &[&str]) {
+/// time, a corrupted tile found and redone, mosaic equal to the single run. `line` is the
+/// command without its output, `{}` standing for the fixture DEM.
+fn cycle(line: &str) {
+    let tmp = tempfile::tempdir().unwrap();
+    let tmp = tmp.path();
+    let gc = relief_testdata::fixture("grandcanyon.tif");
+    let command: Vec<&str> = (line.split(' '))
+        .map(|w| if w == "{}" { s(&gc) } else { w })
+        .collect();
+    let name = command[0];
     let single = tmp.join(format!("{name}-single.tif"));
     let planned = tmp.join(format!("{name}-tiled.tif"));
     let dir = tmp.join(format!("{name}-plan"));
     let mut args: Vec<&str> = command.to_vec();
     args.insert(2, s(&single));
-    ok(&relief(&args), "single run");
+    ok(&relief(&args));
     let mut plan: Vec<&str> = vec!["tile", "plan", s(&dir), "--tile", "512", "--"];
-    plan.extend_from_slice(command);
+    plan.extend_from_slice(&command);
     plan.insert(8, s(&planned));
-    ok(&relief(&plan), "plan");
+    ok(&relief(&plan));
     let n = tasks(&dir);
     assert!(n >= 4, "{n} tasks");
     // Mosaic and status refuse an incomplete plan.
-    let st = relief(&["tile", "status", s(&dir)]);
+    let st = relief!["tile", "status", &dir];
     assert!(!st.status.success());
     assert!(String::from_utf8_lossy(&st.stdout).contains(&format!("0/{n} tiles done")));
-    let mo = relief(&["tile", "mosaic", s(&dir)]);
+    let mo = relief!["tile", "mosaic", &dir];
     assert!(!mo.status.success());
     assert!(!planned.exists());
     // A task killed at some point of its run leaves no tile that counts as done.
@@ -134,55 +105,46 @@ fn cycle(tmp: &Path, name: &str, command: &[&str]) {
     let _ = c.kill();
     let _ = c.wait();
     run_all_two_at_a_time(&dir, n, 7);
-    ok(&relief(&["tile", "status", s(&dir)]), "status");
+    relief_ok!["tile", "status", &dir];
     // A re-run of a done task is a no-op.
-    let again = relief(&["tile", "run", s(&dir), "--index", "0"]);
-    ok(&again, "re-run");
+    let again = relief!["tile", "run", &dir, "--index", "0"];
+    ok(&again);
     // A damaged tile is reported, refused by the mosaic, and redone by its task.
     let t2 = dir.join("tiles/tile-000002.tif");
     let mut bytes = std::fs::read(&t2).unwrap();
     let mid = bytes.len() / 2;
     bytes[mid] ^= 0x55;
     std::fs::write(&t2, &bytes).unwrap();
-    let st = relief(&["tile", "status", s(&dir)]);
+    let st = relief!["tile", "status", &dir];
     assert!(!st.status.success());
     assert!(
         String::from_utf8_lossy(&st.stdout).contains("corrupt: 2"),
         "{}",
         String::from_utf8_lossy(&st.stdout)
     );
-    assert!(!relief(&["tile", "mosaic", s(&dir)]).status.success());
-    ok(&relief(&["tile", "run", s(&dir), "--index", "2"]), "redo");
-    ok(&relief(&["tile", "mosaic", s(&dir)]), "mosaic");
+    assert!(!relief!["tile", "mosaic", &dir].status.success());
+    relief_ok!["tile", "run", &dir, "--index", "2"];
+    relief_ok!["tile", "mosaic", &dir];
     assert_same_raster(&single, &planned);
     // The COG holds the same full-resolution values.
-    ok(
-        &relief(&["--force", "tile", "mosaic", s(&dir), "--cog"]),
-        "cog mosaic",
-    );
+    relief_ok!["--force", "tile", "mosaic", &dir, "--cog"];
     assert_same_raster(&single, &planned);
     // Out-of-range and absent indices are errors naming the problem.
-    let bad = relief(&["tile", "run", s(&dir), "--index", &n.to_string()]);
+    let bad = relief!["tile", "run", &dir, "--index", &n.to_string()];
     assert!(String::from_utf8_lossy(&bad.stderr).contains("out of range"));
-    let none = relief(&["tile", "run", s(&dir)]);
+    let none = relief!["tile", "run", &dir];
     assert!(String::from_utf8_lossy(&none.stderr).contains("SLURM_ARRAY_TASK_ID"));
-    let env = bin()
+    let env = crate::common::command()
         .args(["tile", "run", s(&dir)])
         .env("JOB_COMPLETION_INDEX", "3")
         .output()
         .unwrap();
-    ok(&env, "index from JOB_COMPLETION_INDEX");
+    ok(&env);
 }
 
 #[test]
 fn amplify_plan_mosaics_into_the_single_run() {
-    let tmp = tempfile::tempdir().unwrap();
-    let gc = fixture("grandcanyon.tif");
-    cycle(
-        tmp.path(),
-        "amplify",
-        &["amplify", s(&gc), "--exemplar", s(&gc), "--factor", "4"],
-    );
+    cycle("amplify {} --exemplar {} --factor 4");
 }
 
 /// x16: the plan runs the first x4 step and keeps the last step's input and dictionary; the
@@ -190,13 +152,13 @@ fn amplify_plan_mosaics_into_the_single_run() {
 #[test]
 fn amplify_x16_plan_codes_the_last_step_in_the_tasks() {
     let tmp = tempfile::tempdir().unwrap();
-    let gc = fixture("grandcanyon.tif");
+    let gc = relief_testdata::fixture("grandcanyon.tif");
     let full = relief_io::read(&gc, &relief_io::ReadOptions::default())
         .unwrap()
         .heightfield;
     let crop = full.crop(200, 150, 72, 56).unwrap();
     let input = tmp.path().join("crop.tif");
-    relief_io::write(&input, &crop, &relief_io::WriteOptions::default()).unwrap();
+    save(&input, &crop);
     let single = tmp.path().join("single.tif");
     let planned = tmp.path().join("tiled.tif");
     let dir = tmp.path().join("plan");
@@ -215,60 +177,43 @@ fn amplify_x16_plan_codes_the_last_step_in_the_tasks() {
     };
     let single_args = cmd(&single);
     let refs: Vec<&str> = single_args.iter().map(String::as_str).collect();
-    ok(&relief(&refs), "single run");
+    ok(&relief(&refs));
     let plan_cmd = cmd(&planned);
     let mut plan: Vec<&str> = vec!["tile", "plan", s(&dir), "--tile", "288", "--"];
     plan.extend(plan_cmd.iter().map(String::as_str));
-    ok(&relief(&plan), "plan");
+    ok(&relief(&plan));
     assert!(dir.join("last-step.bin").exists());
     assert!(!dir.join("model.sct").exists());
     let n = tasks(&dir);
     assert_eq!(n, 4 * 4, "1152 x 896 in tiles of 288");
     run_all_two_at_a_time(&dir, n, 11);
-    ok(&relief(&["tile", "mosaic", s(&dir)]), "mosaic");
+    relief_ok!["tile", "mosaic", &dir];
     assert_same_raster(&single, &planned);
 }
 
 #[test]
 fn refine_plan_mosaics_into_the_single_run() {
-    let tmp = tempfile::tempdir().unwrap();
-    let gc = fixture("grandcanyon.tif");
-    cycle(
-        tmp.path(),
-        "refine",
-        &["refine", s(&gc), "--levels", "2", "--seed", "5"],
-    );
+    cycle("refine {} --levels 2 --seed 5");
 }
 
 #[test]
 fn a_changed_input_or_prepared_file_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in.tif");
-    std::fs::copy(fixture("grandcanyon.tif"), &input).unwrap();
+    std::fs::copy(relief_testdata::fixture("grandcanyon.tif"), &input).unwrap();
     let dir = tmp.path().join("plan");
     let out = tmp.path().join("out.tif");
-    ok(
-        &relief(&[
-            "tile",
-            "plan",
-            s(&dir),
-            "--tile",
-            "256",
-            "--",
-            "refine",
-            s(&input),
-            s(&out),
-        ]),
-        "plan",
-    );
+    relief_ok![
+        "tile", "plan", &dir, "--tile", "256", "--", "refine", &input, &out
+    ];
     // A second plan into the same folder is refused.
-    let again = relief(&["tile", "plan", s(&dir), "--", "refine", s(&input), s(&out)]);
+    let again = relief!["tile", "plan", &dir, "--", "refine", &input, &out];
     assert!(String::from_utf8_lossy(&again.stderr).contains("not empty"));
     let mut bytes = std::fs::read(&input).unwrap();
     let last = bytes.len() - 1;
     bytes[last] ^= 1;
     std::fs::write(&input, &bytes).unwrap();
-    let r = relief(&["tile", "run", s(&dir), "--index", "0"]);
+    let r = relief!["tile", "run", &dir, "--index", "0"];
     assert!(!r.status.success());
     assert!(
         String::from_utf8_lossy(&r.stderr).contains("changed since the plan"),
@@ -278,15 +223,12 @@ fn a_changed_input_or_prepared_file_is_refused() {
     // With the input gone (a task on a node that does not see it), the prepared copy is used;
     // a damaged prepared copy is refused.
     std::fs::remove_file(&input).unwrap();
-    ok(
-        &relief(&["tile", "run", s(&dir), "--index", "0"]),
-        "run without input",
-    );
+    relief_ok!["tile", "run", &dir, "--index", "0"];
     let prepared = dir.join("input.tif");
     let mut p = std::fs::read(&prepared).unwrap();
     p[100] ^= 1;
     std::fs::write(&prepared, &p).unwrap();
-    let r = relief(&["tile", "run", s(&dir), "--index", "1"]);
+    let r = relief!["tile", "run", &dir, "--index", "1"];
     assert!(String::from_utf8_lossy(&r.stderr).contains("checksum"));
     // A hand-edited manifest is refused.
     let m = dir.join("manifest.json");
@@ -294,14 +236,14 @@ fn a_changed_input_or_prepared_file_is_refused() {
         .unwrap()
         .replace("\"tile\": 256", "\"tile\": 128");
     std::fs::write(&m, text).unwrap();
-    let r = relief(&["tile", "status", s(&dir)]);
+    let r = relief!["tile", "status", &dir];
     assert!(String::from_utf8_lossy(&r.stderr).contains("modified after planning"));
 }
 
 #[test]
 fn plans_refuse_what_they_cannot_tile() {
     let tmp = tempfile::tempdir().unwrap();
-    let gc = fixture("grandcanyon.tif");
+    let gc = relief_testdata::fixture("grandcanyon.tif");
     let d = tmp.path().join("p");
     let png = tmp.path().join("o.png");
     let tif = tmp.path().join("o.tif");
@@ -316,21 +258,12 @@ fn plans_refuse_what_they_cannot_tile() {
         let mut a = vec!["tile", "plan", s(&d), "--"];
         a.extend(args);
         let r = relief(&a);
-        assert!(!r.status.success());
-        let e = String::from_utf8_lossy(&r.stderr);
+        let e = failed(&r);
         assert!(e.contains(want), "{e}");
     }
-    let r = relief(&[
-        "tile",
-        "plan",
-        s(&d),
-        "--tile",
-        "100",
-        "--",
-        "refine",
-        s(&gc),
-        s(&tif),
-    ]);
+    let r = relief![
+        "tile", "plan", &d, "--tile", "100", "--", "refine", &gc, &tif
+    ];
     assert!(String::from_utf8_lossy(&r.stderr).contains("--tile"));
     assert!(!d.join("manifest.json").exists());
 }
@@ -348,30 +281,16 @@ fn gdal_reads_the_vrt_and_the_cog() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let gc = fixture("grandcanyon.tif");
+    let gc = relief_testdata::fixture("grandcanyon.tif");
     let dir = tmp.path().join("plan");
     let out = tmp.path().join("out.tif");
-    ok(
-        &relief(&[
-            "tile",
-            "plan",
-            s(&dir),
-            "--tile",
-            "256",
-            "--",
-            "refine",
-            s(&gc),
-            s(&out),
-        ]),
-        "plan",
-    );
+    relief_ok![
+        "tile", "plan", &dir, "--tile", "256", "--", "refine", &gc, &out
+    ];
     for i in 0..tasks(&dir) {
-        ok(
-            &relief(&["tile", "run", s(&dir), "--index", &i.to_string()]),
-            "run",
-        );
+        relief_ok!["tile", "run", &dir, "--index", &i.to_string()];
     }
-    ok(&relief(&["tile", "mosaic", s(&dir), "--cog"]), "mosaic");
+    relief_ok!["tile", "mosaic", &dir, "--cog"];
     let info = |p: &Path| {
         let o = Command::new("gdalinfo")
             .args(["-checksum", s(p)])
@@ -402,10 +321,7 @@ fn gdal_reads_the_vrt_and_the_cog() {
     assert!(b.contains("Overviews:"), "{b}");
     assert!(b.contains("COMPRESSION=DEFLATE"), "{b}");
     // A BigTIFF COG reads the same in GDAL.
-    ok(
-        &relief(&["--force", "tile", "mosaic", s(&dir), "--cog", "--bigtiff"]),
-        "bigtiff mosaic",
-    );
+    relief_ok!["--force", "tile", "mosaic", &dir, "--cog", "--bigtiff"];
     assert_eq!(std::fs::read(&out).unwrap()[2], 43, "BigTIFF magic");
     let big = info(&out);
     assert_eq!(checksum(&a), checksum(&big));

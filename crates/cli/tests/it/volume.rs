@@ -2,25 +2,9 @@
 //! (western Grand Canyon, 61.7 m cells): outputs, printed counts, masks and bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-use crate::common::ok;
-
-fn relief(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relief"))
-        .arg("--quiet")
-        .args(args)
-        .output()
-        .expect("run relief")
-}
-
-fn fixture() -> PathBuf {
-    relief_testdata::workspace_root().join("fixtures/grandcanyon.tif")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use crate::common::*;
 
 /// Width and height from a PNG's IHDR chunk.
 fn png_size(p: &Path) -> (u32, u32) {
@@ -30,14 +14,9 @@ fn png_size(p: &Path) -> (u32, u32) {
     (be(16), be(20))
 }
 
-fn assert_failed_cleanly(out: &Output, needle: &str, files: &[&Path]) {
-    assert!(!out.status.success(), "should fail");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim_end().lines().count(), 1, "one stderr line: {err}");
-    assert!(err.contains(needle), "`{needle}` not in: {err}");
-    for f in files {
-        assert!(!f.exists(), "{} was written", f.display());
-    }
+/// The bundled fixture DEM.
+fn gc() -> PathBuf {
+    relief_testdata::fixture("grandcanyon.tif")
 }
 
 #[test]
@@ -50,39 +29,16 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
         dir.path().join("close.png"),
         dir.path().join("report.json"),
     );
-    let input = fixture();
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--crop",
-        "200,160,32,32",
-        "--features",
-        "sea,caves,karst,hoodoos,arches,islands,overhangs",
-        "--mesh",
-        s(&glb),
-        "--render",
-        s(&png),
-        "--section",
-        s(&sec),
-        "--closeups",
-        s(&close),
-        "--report",
-        s(&report),
-        "--max-triangles",
-        "20000",
-        "--image-size",
-        "64x48",
-        "--resolution",
-        "1",
-        "--seed",
-        "3",
-    ]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\nstderr: {}",
-        String::from_utf8_lossy(&out.stderr)
+    let input = gc();
+    let out = relief_line(
+        "volume {} --crop 200,160,32,32 \
+         --features sea,caves,karst,hoodoos,arches,islands,overhangs --mesh {} \
+         --render {} --section {} --closeups {} --report {} --max-triangles 20000 \
+         --image-size 64x48 --resolution 1 --seed 3",
+        &[&input, &glb, &png, &sec, &close, &report],
     );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    ok(&out);
     for key in [
         "tree:",
         "nodes",
@@ -117,7 +73,7 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
         }
     }
     // The report: nodes in total and by kind, sizes in metres, the mesh within its budget.
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let r: serde_json::Value = json(&report);
     let nodes = r["tree_nodes"].as_u64().unwrap();
     let by_kind: u64 = r["tree_nodes_by_kind"]
         .as_object()
@@ -150,26 +106,17 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
 #[test]
 fn volume_mesh_formats_and_mask_limit_the_effects() {
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture();
+    let input = gc();
     // A mask of zeros switches the karst off; PLY and OBJ are written too.
     let mask = dir.path().join("mask.png");
     relief_io::write_gray_png(&mask, 24, 24, &[0u8; 24 * 24]).unwrap();
     for ext in ["ply", "obj"] {
         let mesh = dir.path().join(format!("m.{ext}"));
-        let out = relief(&[
-            "volume",
-            s(&input),
-            "--crop",
-            "100,100,24,24",
-            "--features",
-            "karst",
-            "--mask",
-            s(&mask),
-            "--mesh",
-            s(&mesh),
-            "--resolution",
-            "1",
-        ]);
+        let out = relief_line(
+            "volume {} --crop 100,100,24,24 --features karst --mask {} --mesh {} \
+             --resolution 1",
+            &[&input, &mask, &mesh],
+        );
         let stdout = String::from_utf8_lossy(&out.stdout);
         ok(&out);
         assert!(stdout.contains("karst:        0 primitives"), "{stdout}");
@@ -182,18 +129,10 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
     // A full mask lets it carve.
     let full = dir.path().join("full.png");
     relief_io::write_gray_png(&full, 24, 24, &[255u8; 24 * 24]).unwrap();
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--crop",
-        "100,100,24,24",
-        "--features",
-        "karst",
-        "--mask",
-        s(&full),
-        "--section",
-        s(&dir.path().join("full_section.png")),
-    ]);
+    let out = relief_line(
+        "volume {} --crop 100,100,24,24 --features karst --mask {} --section {}",
+        &[&input, &full, &s(&dir.path().join("full_section.png"))],
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     ok(&out);
     assert!(!stdout.contains("karst:        0 primitives"), "{stdout}");
@@ -204,7 +143,7 @@ fn volume_mesh_formats_and_mask_limit_the_effects() {
 #[test]
 fn volume_up_axis_rotates_obj_and_ply() {
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture();
+    let input = gc();
     let obj_vertices = |p: &Path| -> Vec<[f32; 3]> {
         std::fs::read_to_string(p)
             .unwrap()
@@ -217,19 +156,10 @@ fn volume_up_axis_rotates_obj_and_ply() {
             .collect()
     };
     let run = |up: &str, mesh: &Path| {
-        let out = relief(&[
-            "volume",
-            s(&input),
-            "--crop",
-            "100,100,24,24",
-            "--features",
-            "arches",
-            "--mesh",
-            s(mesh),
-            "--up",
-            up,
-        ]);
-        ok(&out);
+        ok(&relief_line(
+            "volume {} --crop 100,100,24,24 --features arches --mesh {} --up {}",
+            &[&input, &mesh, &up],
+        ));
         obj_vertices(mesh)
     };
     let z = run("z", &dir.path().join("z.obj"));
@@ -248,23 +178,17 @@ fn volume_up_axis_rotates_obj_and_ply() {
     };
     assert_eq!(span(&z, 2), span(&y, 1));
     let glb = dir.path().join("m.glb");
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--crop",
-        "100,100,24,24",
-        "--mesh",
-        s(&glb),
-        "--up",
-        "z",
-    ]);
-    assert_failed_cleanly(&out, "Y-up", &[&glb]);
+    let out = relief_line(
+        "volume {} --crop 100,100,24,24 --mesh {} --up z",
+        &[&input, &glb],
+    );
+    fails_with(&out, &["Y-up"], &[&glb]);
 }
 
 #[test]
 fn volume_rejects_bad_input_without_writing() {
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture();
+    let input = gc();
     let glb = dir.path().join("o.glb");
     let png = dir.path().join("o.png");
     let base = |extra: &[&str]| {
@@ -282,28 +206,28 @@ fn volume_rejects_bad_input_without_writing() {
         relief(&v)
     };
     let out = base(&["--features", "sea,volcano"]);
-    assert_failed_cleanly(&out, "volcano", &[&glb, &png]);
+    fails_with(&out, &["volcano"], &[&glb, &png]);
 
     let small = dir.path().join("small.png");
     relief_io::write_gray_png(&small, 8, 8, &[255u8; 64]).unwrap();
     let out = base(&["--mask", s(&small)]);
-    assert_failed_cleanly(&out, "8x8", &[&glb, &png]);
+    fails_with(&out, &["8x8"], &[&glb, &png]);
 
     let out = base(&["--sea-level", "NaN"]);
-    assert_failed_cleanly(&out, "sea_level", &[&glb, &png]);
+    fails_with(&out, &["sea_level"], &[&glb, &png]);
 
     // A DEM with a void (NaN) cannot be implicitised.
     let raster = relief_io::read(&input, &relief_io::ReadOptions::default()).unwrap();
     let mut hf = raster.heightfield.crop(0, 0, 16, 16).unwrap();
     hf.set(5, 5, f32::NAN);
     let holed = dir.path().join("holed.tif");
-    relief_io::write(&holed, &hf, &relief_io::WriteOptions::default()).unwrap();
-    let out = relief(&["volume", s(&holed), "--mesh", s(&glb), "--render", s(&png)]);
-    assert_failed_cleanly(&out, "void", &[&glb, &png]);
+    save(&holed, &hf);
+    let out = relief!["volume", &holed, "--mesh", &glb, "--render", &png];
+    fails_with(&out, &["void"], &[&glb, &png]);
 
     let bad_ext = dir.path().join("o.stl");
-    let out = relief(&["volume", s(&input), "--mesh", s(&bad_ext)]);
-    assert_failed_cleanly(&out, ".glb", &[&bad_ext]);
+    let out = relief!["volume", &input, "--mesh", &bad_ext];
+    fails_with(&out, &[".glb"], &[&bad_ext]);
 }
 
 /// Issue 14: the GLB of `relief volume` passes the Khronos glTF validator with no error and
@@ -326,15 +250,7 @@ fn glb_passes_the_khronos_validator() {
     }
     let dir = tempfile::tempdir().unwrap();
     let glb = dir.path().join("v.glb");
-    let out = relief(&[
-        "volume",
-        s(&fixture()),
-        "--crop",
-        "100,100,24,24",
-        "--mesh",
-        s(&glb),
-    ]);
-    ok(&out);
+    relief_ok!["volume", &gc(), "--crop", "100,100,24,24", "--mesh", &glb];
     let script = "const v=require('gltf-validator');const b=new Uint8Array(require('fs')\
                   .readFileSync(process.argv[1]));v.validateBytes(b).then(r=>{console.log(\
                   JSON.stringify(r.issues))}).catch(e=>{console.error(String(e));process.exit(2)})";
@@ -357,26 +273,13 @@ fn glb_passes_the_khronos_validator() {
 fn volume_sea_level_puts_a_lake_shore_in_the_canyon() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("r.json");
-    let out = relief(&[
-        "volume",
-        s(&fixture()),
-        "--crop",
-        "200,160,32,32",
-        "--features",
-        "sea,caves",
-        "--sea-level",
-        "685",
-        "--render",
-        s(&dir.path().join("r.png")),
-        "--image-size",
-        "32x24",
-        "--report",
-        s(&report),
-    ]);
-    ok(&out);
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = ok(&relief_line(
+        "volume {} --crop 200,160,32,32 --features sea,caves --sea-level 685 \
+         --render {} --image-size 32x24 --report {}",
+        &[&gc(), &s(&dir.path().join("r.png")), &report],
+    ));
     assert!(stdout.contains("sea level 685.0 m,"), "{stdout}");
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let r: serde_json::Value = json(&report);
     assert_eq!(r["sea_level_m"], 685.0, "{r}");
     assert!(r["sea_detected"].is_null(), "{r}");
     assert_eq!(r["water_drawn"], true, "{r}");
@@ -392,7 +295,7 @@ fn volume_sea_level_puts_a_lake_shore_in_the_canyon() {
 #[test]
 fn volume_reads_a_geology_and_draws_water_only_with_sea() {
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture();
+    let input = gc();
     let geo = dir.path().join("geo.json");
     std::fs::write(
         &geo,
@@ -402,24 +305,12 @@ fn volume_reads_a_geology_and_draws_water_only_with_sea() {
     .unwrap();
     let report = dir.path().join("r.json");
     let png = dir.path().join("r.png");
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--crop",
-        "100,100,24,24",
-        "--features",
-        "karst",
-        "--geology",
-        s(&geo),
-        "--render",
-        s(&png),
-        "--image-size",
-        "32x24",
-        "--report",
-        s(&report),
-    ]);
-    ok(&out);
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    ok(&relief_line(
+        "volume {} --crop 100,100,24,24 --features karst --geology {} --render {} \
+         --image-size 32x24 --report {}",
+        &[&input, &geo, &png, &report],
+    ));
+    let r: serde_json::Value = json(&report);
     assert_eq!(r["geology"]["type"], "strata", "{r}");
     assert!((r["geology"]["layers"][1]["hardness"].as_f64().unwrap() - 0.9).abs() < 1e-6);
     assert_eq!(r["water_drawn"], false);
@@ -430,26 +321,13 @@ fn volume_reads_a_geology_and_draws_water_only_with_sea() {
     std::fs::write(&bad, r#"{"type": "strata", "z0": 0, "layers": []}"#).unwrap();
     let out2 = dir.path().join("o.png");
     let rep2 = dir.path().join("o.json");
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--crop",
-        "100,100,24,24",
-        "--geology",
-        s(&bad),
-        "--render",
-        s(&out2),
-        "--report",
-        s(&rep2),
-    ]);
-    assert_failed_cleanly(&out, "layers", &[&out2, &rep2]);
-    let out = relief(&[
-        "volume",
-        s(&input),
-        "--report",
-        s(&dir.path().join("x.txt")),
-    ]);
-    assert_failed_cleanly(&out, ".json", &[]);
+    let out = relief_line(
+        "volume {} --crop 100,100,24,24 --geology {} --render {} --report {}",
+        &[&input, &bad, &out2, &rep2],
+    );
+    fails_with(&out, &["layers"], &[&out2, &rep2]);
+    let out = relief!["volume", &input, "--report", s(&dir.path().join("x.txt"))];
+    fails_with(&out, &[".json"], &[]);
 }
 
 #[test]
@@ -457,23 +335,12 @@ fn volume_renders_over_the_time_budget_are_refused_before_starting() {
     let dir = tempfile::tempdir().unwrap();
     let render = dir.path().join("r.png");
     let mesh = dir.path().join("m.obj");
-    let out = relief(&[
-        "volume",
-        s(&fixture()),
-        "--crop",
-        "100,100,24,24",
-        "--features",
-        "arches",
-        "--mesh",
-        s(&mesh),
-        "--render",
-        s(&render),
-        "--image-size",
-        "256x192",
-        "--max-time",
-        "0.001s",
-    ]);
-    assert_failed_cleanly(&out, "--max-time", &[&render, &mesh]);
+    let out = relief_line(
+        "volume {} --crop 100,100,24,24 --features arches --mesh {} --render {} \
+         --image-size 256x192 --max-time 0.001s",
+        &[&gc(), &mesh, &render],
+    );
+    fails_with(&out, &["--max-time"], &[&render, &mesh]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("rendering 256 x 192 images") && err.contains("estimated at"),

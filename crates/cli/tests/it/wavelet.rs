@@ -1,34 +1,12 @@
 //! End-to-end tests of `relief refine` and `relief analyze` (wavelet detail synthesis) on crops
 //! of the bundled real DEM `fixtures/grandcanyon.tif`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use relief_heightfield::Heightfield;
 
 use crate::common::*;
-
-fn fixture() -> Heightfield {
-    read(&relief_testdata::fixture("grandcanyon.tif"))
-}
-
-/// Writes a crop of the fixture as GeoTIFF into `dir`.
-fn crop_file(dir: &Path, name: &str, x: usize, y: usize, w: usize, h: usize) -> PathBuf {
-    let hf = fixture().crop(x, y, w, h).unwrap();
-    let p = dir.join(name);
-    relief_io::write(&p, &hf, &relief_io::WriteOptions::default()).unwrap();
-    p
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "exit {:?}, stderr: {}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn bits(v: &[f32]) -> Vec<u32> {
     v.iter().map(|x| x.to_bits()).collect()
@@ -37,7 +15,7 @@ fn bits(v: &[f32]) -> Vec<u32> {
 #[test]
 fn a_refined_window_equals_the_same_window_of_the_full_output() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 200, 160, 64, 48);
+    let input = fixture_crop(tmp.path(), "in.tif", (200, 160, 64, 48)).0;
     let src = read(&input);
     for (method, wavelet) in [("lsa", "cdf53"), ("gsa", "cdf97"), ("lsa", "db4")] {
         let full = tmp.path().join(format!("full-{method}-{wavelet}.tif"));
@@ -109,25 +87,12 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
             "{method}: rmse on the input lattice {rmse} m"
         );
         let bicubic = src.resample(256, 192).unwrap();
-        let diff = full
-            .as_slice()
-            .iter()
-            .zip(bicubic.as_slice())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let diff = relief_heightfield::metrics::max_abs_diff(&full, &bicubic).unwrap();
         assert!(diff > 0.5, "{method}: no detail added ({diff} m)");
     }
     // Another seed gives other detail.
     let other = tmp.path().join("other.tif");
-    ok(&relief(&[
-        os("refine"),
-        input.as_os_str(),
-        other.as_os_str(),
-        os("--seed"),
-        os("12"),
-        os("--levels"),
-        os("2"),
-    ]));
+    relief_ok!["refine", input, other, "--seed", "12", "--levels", "2"];
     let full = read(&tmp.path().join("full-lsa-cdf53.tif"));
     assert_ne!(bits(read(&other).as_slice()), bits(full.as_slice()));
 }
@@ -135,24 +100,13 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
 #[test]
 fn analyze_prints_fits_json_and_plot() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 0, 0, 256, 256);
-    let text = ok(&relief(&[
-        os("analyze"),
-        input.as_os_str(),
-        os("--local"),
-        os("3"),
-    ]));
+    let input = fixture_crop(tmp.path(), "in.tif", (0, 0, 256, 256)).0;
+    let text = relief_ok!["analyze", input, "--local", "3"];
     for needle in ["gamma", "fractal dimension", "local fit", "level"] {
         assert!(text.contains(needle), "{needle}: {text}");
     }
     let plot = tmp.path().join("plot.png");
-    let json = ok(&relief(&[
-        os("analyze"),
-        input.as_os_str(),
-        os("--json"),
-        os("--plot"),
-        plot.as_os_str(),
-    ]));
+    let json = relief_ok!["analyze", input, "--json", "--plot", plot];
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let fits = v["analysis"]["fits"].as_array().unwrap();
     assert_eq!(fits.len(), 3);
@@ -188,25 +142,14 @@ fn voids_need_fill_voids() {
         }
     }
     let input = tmp.path().join("holes.tif");
-    relief_io::write(&input, &hf, &relief_io::WriteOptions::default()).unwrap();
+    save(&input, &hf);
     assert!(read(&input).has_voids());
     let out = tmp.path().join("out.tif");
-    ok(&relief(&[
-        os("refine"),
-        input.as_os_str(),
-        out.as_os_str(),
-        os("--levels"),
-        os("1"),
-        os("--fill-voids"),
-    ]));
+    relief_ok!["refine", input, out, "--levels", "1", "--fill-voids"];
     let r = read(&out);
     assert_eq!((r.width(), r.height()), (128, 128));
     assert!(!r.has_voids());
-    ok(&relief(&[
-        os("analyze"),
-        input.as_os_str(),
-        os("--fill-voids"),
-    ]));
+    relief_ok!["analyze", input, "--fill-voids"];
 }
 
 /// Each bad invocation exits non-zero with exactly one line on stderr naming the problem and
@@ -214,12 +157,12 @@ fn voids_need_fill_voids() {
 #[test]
 fn bad_input_fails_cleanly() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 300, 300, 64, 64);
+    let input = fixture_crop(tmp.path(), "in.tif", (300, 300, 64, 64)).0;
     let mut holes = read(&input);
     holes.set(5, 5, f32::NAN);
     let holed = tmp.path().join("holes.tif");
-    relief_io::write(&holed, &holes, &relief_io::WriteOptions::default()).unwrap();
-    let tiny = crop_file(tmp.path(), "tiny.tif", 0, 0, 8, 8);
+    save(&holed, &holes);
+    let tiny = fixture_crop(tmp.path(), "tiny.tif", (0, 0, 8, 8)).0;
     let out = tmp.path().join("out.tif");
     let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
         (vec![os("--stats-window"), os("4")], "window"),
@@ -319,17 +262,9 @@ fn bad_input_fails_cleanly() {
 #[test]
 fn analyze_writes_the_local_maps() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 100, 200, 96, 80);
+    let input = fixture_crop(tmp.path(), "in.tif", (100, 200, 96, 80)).0;
     let prefix = tmp.path().join("lsa");
-    let json = ok(&relief(&[
-        os("analyze"),
-        input.as_os_str(),
-        os("--local"),
-        os("3"),
-        os("--maps"),
-        prefix.as_os_str(),
-        os("--json"),
-    ]));
+    let json = relief_ok!["analyze", input, "--local", "3", "--maps", prefix, "--json"];
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let local = v["local"].as_array().unwrap();
     assert_eq!(local.len(), 3);
@@ -359,12 +294,7 @@ fn analyze_writes_the_local_maps() {
         assert!((d.as_slice()[k] - (3.0 - g / 2.0)).abs() < 1e-5);
     }
     // --maps needs --local.
-    let res = relief(&[
-        os("analyze"),
-        input.as_os_str(),
-        os("--maps"),
-        prefix.as_os_str(),
-    ]);
+    let res = relief!["analyze", input, "--maps", prefix];
     assert!(!res.status.success());
 }
 
@@ -374,7 +304,7 @@ fn analyze_writes_the_local_maps() {
 #[test]
 fn streamed_output_equals_the_in_memory_output() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 220, 180, 64, 48);
+    let input = fixture_crop(tmp.path(), "in.tif", (220, 180, 64, 48)).0;
     let src = read(&input);
     assert!(src.georef().is_some(), "the fixture is georeferenced");
     for (method, wavelet, window) in [
@@ -471,7 +401,7 @@ fn temps(dir: &Path, name: &str) -> Vec<String> {
 #[test]
 fn a_failing_streamed_write_leaves_no_file() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 300, 100, 64, 64);
+    let input = fixture_crop(tmp.path(), "in.tif", (300, 100, 64, 64)).0;
     let args = |out: &Path| {
         vec![
             os("refine").to_owned(),
@@ -558,20 +488,12 @@ fn a_failing_streamed_write_leaves_no_file() {
 #[test]
 fn default_refinement_is_area_consistent() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = crop_file(tmp.path(), "in.tif", 200, 160, 64, 48);
+    let input = fixture_crop(tmp.path(), "in.tif", (200, 160, 64, 48)).0;
     let src = read(&input);
     let (lo, hi) = src.min_max().unwrap();
     let err = |model: &str| {
         let out = tmp.path().join(format!("out-{model}.tif"));
-        ok(&relief(&[
-            os("refine"),
-            input.as_os_str(),
-            out.as_os_str(),
-            os("--model"),
-            os(model),
-            os("--seed"),
-            os("3"),
-        ]));
+        relief_ok!["refine", input, out, "--model", model, "--seed", "3"];
         let down = read(&out).downsample_box(4).unwrap();
         let se: f64 = down
             .as_slice()

@@ -293,6 +293,15 @@ impl Manifest {
     }
 }
 
+/// `hf` as a DEFLATE GeoTIFF in memory (tiles and the planned refine input).
+fn deflate_geotiff(hf: &Heightfield) -> Result<Vec<u8>> {
+    let options = relief_io::WriteOptions {
+        compression: relief_io::TiffCompression::Deflate,
+        ..Default::default()
+    };
+    Ok(relief_io::encode(hf, relief_io::Format::GeoTiff, &options)?)
+}
+
 fn tile_name(i: usize) -> String {
     format!("tile-{i:06}.tif")
 }
@@ -378,7 +387,7 @@ mod tests {
             panic!("not amplify")
         };
         assert_eq!(a.factor, 4);
-        assert_eq!(a.seed, 3);
+        assert_eq!(a.seed.seed, 3);
     }
 
     #[test]

@@ -26,8 +26,7 @@ pub(super) fn status(a: StatusArgs, ctx: &Ctx) -> Result<()> {
     if !corrupt.is_empty() {
         text.push_str(&format!("corrupt: {}\n", ranges(&corrupt)));
     }
-    std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes())
-        .context("cannot write to stdout")?;
+    crate::staging::print(&text)?;
     if done < m.tasks {
         bail!(
             "the plan is incomplete: run tasks {} again",

@@ -95,7 +95,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     // The rewritten arguments must parse to the same command.
     Inner::try_parse_from(&args).context("cannot rewrite the command's paths")?;
     match &inner.command {
-        Windowable::Amplify(x) if x.window.is_some() => bail!(
+        Windowable::Amplify(x) if x.window.window.is_some() => bail!(
             "--window cannot be planned: a plan covers the whole output (the tiles are windows)"
         ),
         Windowable::Refine(x) if x.window_of.is_some() => bail!(
@@ -179,7 +179,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
         plan_id: String::new(),
     };
     m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m)?));
-    let json = serde_json::to_string_pretty(&m)? + "\n";
+    let json = crate::staging::json_text(&m)?;
     relief_io::write_bytes_atomic(&dir.join(MANIFEST), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
     ctx.note(format!(
@@ -238,8 +238,8 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
             (LAST_STEP, job, bytes, w, h, cell, georef)
         }
         Windowable::Decompress(x) => {
-            let bytes = crate::commands::compress::read_model_bytes(&x.input, ctx)?;
-            let sct = Sct::from_bytes(&bytes, &crate::commands::compress::registry())
+            let bytes = crate::sparse_model::read_model_bytes(&x.input, ctx)?;
+            let sct = Sct::from_bytes(&bytes, &crate::sparse_model::registry())
                 .with_context(|| format!("cannot read {}", x.input.display()))?;
             let (w, h) = sct
                 .raster_size(x.scale)
@@ -269,14 +269,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
                 .with_context(|| format!("cannot analyse {}", x.input.display()))?;
             let (w, h) = refiner.output_size();
             let corner = refiner.render_window(0, 0, 1, 1)?;
-            let bytes = relief_io::encode(
-                &hf,
-                relief_io::Format::GeoTiff,
-                &relief_io::WriteOptions {
-                    compression: relief_io::TiffCompression::Deflate,
-                    ..Default::default()
-                },
-            )?;
+            let bytes = deflate_geotiff(&hf)?;
             (
                 "input.tif",
                 serde_json::to_value(&settings)?,

@@ -53,7 +53,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
         }
     }
     let prepared_path = dir.join(&m.prepared.path);
-    let prepared = crate::commands::compress::read_model_bytes(&prepared_path, ctx)?;
+    let prepared = crate::sparse_model::read_model_bytes(&prepared_path, ctx)?;
     if bytes_sum(&prepared, m.prepared.path.clone()) != m.prepared {
         bail!(
             "{} does not match its checksum in the manifest (corrupt or replaced); plan again",
@@ -71,14 +71,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
             height: h,
         },
     )?;
-    let bytes = relief_io::encode(
-        &hf,
-        relief_io::Format::GeoTiff,
-        &relief_io::WriteOptions {
-            compression: relief_io::TiffCompression::Deflate,
-            ..Default::default()
-        },
-    )?;
+    let bytes = deflate_geotiff(&hf)?;
     let name = tile_name(i);
     let tile_path = dir.join("tiles").join(&name);
     relief_io::write_bytes_atomic(&tile_path, &bytes)
@@ -89,7 +82,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
         window: [x, y, w, h],
         file: bytes_sum(&bytes, name),
     };
-    let json = serde_json::to_string_pretty(&rec)? + "\n";
+    let json = crate::staging::json_text(&rec)?;
     relief_io::write_bytes_atomic(&record_path(&dir, i), json.as_bytes())
         .with_context(|| format!("cannot write the record of tile {i}"))?;
     ctx.note(format!("tile {i} done ({w} x {h} at {x},{y})"));
@@ -101,7 +94,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
 /// held once, not twice, while the window is computed).
 pub(super) fn render(m: &Manifest, prepared: Vec<u8>, win: Window) -> Result<Heightfield> {
     let sct_window = |prepared: &[u8], scale: f64| -> Result<Heightfield> {
-        let sct = Sct::from_bytes(prepared, &crate::commands::compress::registry())
+        let sct = Sct::from_bytes(prepared, &crate::sparse_model::registry())
             .context("cannot read the prepared model")?;
         Ok(sct.rasterize(&RasterSettings {
             scale,

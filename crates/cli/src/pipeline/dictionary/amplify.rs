@@ -125,10 +125,7 @@ impl Stage for AmplifyStage {
 
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        let terrain = cx.state.terrain()?.clone();
-        terrain
-            .require_complete()
-            .context("the amplify stage needs a void-free terrain (run fill_voids first)")?;
+        let terrain = cx.state.complete_terrain("amplify")?;
         let (w, h) = (terrain.width(), terrain.height());
         let half = w / 2;
         let exemplar = terrain.crop(half, 0, w - half, h)?;

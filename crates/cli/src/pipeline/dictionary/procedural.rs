@@ -62,13 +62,7 @@ impl Stage for ProceduralStage {
         // Fit the real DEM as loaded when it is complete (the comparison of atom families is
         // about real relief; earlier stages may have replaced the terrain by a synthetic one),
         // else the current terrain.
-        let (terrain, which) = match &cx.state.source {
-            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
-            _ => (cx.state.terrain()?.clone(), "the current terrain"),
-        };
-        terrain
-            .require_complete()
-            .context("the procedural stage needs a void-free terrain")?;
+        let (terrain, which) = cx.state.complete_source("procedural", "terrain")?;
         let (w, h) = (
             terrain.width().min(p.max_side),
             terrain.height().min(p.max_side),

@@ -80,13 +80,7 @@ impl Stage for SketchStage {
         // The real DEM as loaded when it is complete: earlier stages (amplify) may have made the
         // current terrain synthetic, and a sketch should get real relief; else the current
         // terrain.
-        let (exemplar, which) = match &cx.state.source {
-            Some(src) if src.require_complete().is_ok() => (src.clone(), "the input DEM"),
-            _ => (cx.state.terrain()?.clone(), "the current terrain"),
-        };
-        exemplar
-            .require_complete()
-            .context("the sketch stage needs a void-free exemplar terrain")?;
+        let (exemplar, which) = cx.state.complete_source("sketch", "exemplar terrain")?;
         let side = exemplar.width().min(exemplar.height());
         let mut radius = p.job.amplify.radius;
         if side < min_exemplar_side(radius) {

@@ -105,22 +105,21 @@ impl Plot {
     }
 
     /// Adds a solid line.
-    pub fn line(mut self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
-        self.series.push(Series {
-            label: label.to_string(),
-            points: points.into_iter().collect(),
-            dashed: false,
-        });
-        self
+    pub fn line(self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
+        self.series(label, points.into_iter().collect(), false)
     }
 
     /// Adds a dashed line (a fit, a target, a reference slope).
     #[allow(dead_code)] // for the method stages
-    pub fn dashed(mut self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
+    pub fn dashed(self, label: &str, points: impl IntoIterator<Item = (f64, f64)>) -> Self {
+        self.series(label, points.into_iter().collect(), true)
+    }
+
+    fn series(mut self, label: &str, points: Vec<(f64, f64)>, dashed: bool) -> Self {
         self.series.push(Series {
             label: label.to_string(),
-            points: points.into_iter().collect(),
-            dashed: true,
+            points,
+            dashed,
         });
         self
     }

@@ -107,12 +107,7 @@ mod model {
 
     #[test]
     fn huge_hillshades_are_reduced_and_pairs_recorded() {
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            ..PipelineConfig::full(&crate::test_root())
-        };
+        let (config, tmp) = crate::pipeline::test_config(None);
         let mut state = State::default();
         let mut section = Section::new("x");
         let mut cx = StageCx {
@@ -148,14 +143,7 @@ mod model {
     /// stage peak memory, and the figures in summary.json.
     #[test]
     fn overview_and_stage_memory_on_a_real_crop() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            crop: Some((100, 120, 96, 64)),
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            ..PipelineConfig::full(&root)
-        };
+        let (config, tmp) = crate::pipeline::test_config(Some((100, 120, 96, 64)));
         let stages = crate::pipeline::spec::build_stages(&[
             crate::pipeline::spec::StageSpec::named("load"),
             crate::pipeline::spec::StageSpec::named("fill_voids"),
