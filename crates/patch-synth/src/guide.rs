@@ -42,29 +42,52 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
     let ksum: f64 = kernel.iter().sum();
     let (w, h) = (dem.width(), dem.height());
     let src = dem.as_slice();
-    let mut tmp = vec![0.0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (k, &kv) in kernel.iter().enumerate() {
-                let xx = (x as isize + k as isize - r).clamp(0, w as isize - 1) as usize;
-                s += kv * src[y * w + xx] as f64;
-            }
-            tmp[y * w + x] = (s / ksum) as f32;
-        }
-    }
+    let tmp = blur_pass(src, w, h, &kernel, ksum, true);
+    let out = blur_pass(&tmp, w, h, &kernel, ksum, false);
+    Ok(dem.with_data(out)?)
+}
+
+/// One pass of the separable blur of [`gaussian_blur`], along rows (`along_x`) or columns,
+/// clamped at the border; `kernel` has `2r + 1` taps summing to `ksum`.
+fn blur_pass(
+    src: &[f32],
+    w: usize,
+    h: usize,
+    kernel: &[f64],
+    ksum: f64,
+    along_x: bool,
+) -> Vec<f32> {
+    let r = (kernel.len() / 2) as isize;
     let mut out = vec![0.0f32; w * h];
     for y in 0..h {
         for x in 0..w {
             let mut s = 0.0;
             for (k, &kv) in kernel.iter().enumerate() {
-                let yy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
-                s += kv * tmp[yy * w + x] as f64;
+                let d = k as isize - r;
+                let i = if along_x {
+                    y * w + (x as isize + d).clamp(0, w as isize - 1) as usize
+                } else {
+                    (y as isize + d).clamp(0, h as isize - 1) as usize * w + x
+                };
+                s += kv * src[i] as f64;
             }
             out[y * w + x] = (s / ksum) as f32;
         }
     }
-    Ok(dem.with_data(out)?)
+    out
+}
+
+/// Errs (`size`, with `reason`) unless `width x height` is a non-empty grid of at most
+/// [`crate::MAX_OUTPUT_CELLS`] cells.
+fn check_size(width: usize, height: usize, reason: impl FnOnce() -> String) -> Result<()> {
+    let cells = width.saturating_mul(height);
+    if width == 0 || height == 0 || cells > crate::synth::MAX_OUTPUT_CELLS {
+        return Err(PatchSynthError::InvalidControl {
+            name: "size",
+            reason: reason(),
+        });
+    }
+    Ok(())
 }
 
 /// Largest stroke vertex coordinate (cells) accepted by [`guide_from_sketch`].
@@ -105,17 +128,9 @@ pub fn guide_from_sketch(
     strokes: &[Stroke],
     smoothing: f32,
 ) -> Result<Heightfield> {
-    if width == 0
-        || height == 0
-        || width
-            .checked_mul(height)
-            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
-    {
-        return Err(PatchSynthError::InvalidControl {
-            name: "size",
-            reason: format!("a {width} x {height} guide is empty or too large"),
-        });
-    }
+    check_size(width, height, || {
+        format!("a {width} x {height} guide is empty or too large")
+    })?;
     if seeds.is_empty() && strokes.iter().all(|s| s.points.is_empty()) {
         return Err(PatchSynthError::InvalidControl {
             name: "seeds",
@@ -325,17 +340,9 @@ pub fn fit_to_size(
     height: usize,
 ) -> Result<(Heightfield, SizeFit)> {
     guide.require_complete()?;
-    if width == 0
-        || height == 0
-        || width
-            .checked_mul(height)
-            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
-    {
-        return Err(PatchSynthError::InvalidControl {
-            name: "size",
-            reason: format!("{width} x {height} is empty or too large"),
-        });
-    }
+    check_size(width, height, || {
+        format!("{width} x {height} is empty or too large")
+    })?;
     let (gw, gh) = (guide.width(), guide.height());
     let fit = SizeFit {
         cropped: (gw.saturating_sub(width), gh.saturating_sub(height)),
