@@ -7,28 +7,14 @@
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use relief_heightfield::{Heightfield, NoProgress};
-use relief_wavelet_lod::rng::{fill_normals, row_key};
 use relief_wavelet_lod::{
     Boundary, Grid, Method, RefineSettings, Refiner, Wavelet, WaveletError, wavedec2,
     waverec2_owned,
 };
 
-/// A random-walk surface (the same construction as the PyWavelets peer's input).
+/// The random-walk surface of the PyWavelets peer's input.
 fn surface(size: usize) -> Grid {
-    let mut data = vec![0.0f32; size * size];
-    for y in 0..size {
-        let row = &mut data[y * size..(y + 1) * size];
-        fill_normals(row_key(1, 0, 0, y), 0, row);
-        for x in 1..size {
-            row[x] += row[x - 1];
-        }
-    }
-    for y in 1..size {
-        for x in 0..size {
-            data[y * size + x] += data[(y - 1) * size + x];
-        }
-    }
-    Grid::new(size, size, data).expect("grid")
+    Grid::new(size, size, relief_benches::dwt_surface(size)).expect("grid")
 }
 
 fn dwt(c: &mut Criterion) {
@@ -49,9 +35,10 @@ fn dwt(c: &mut Criterion) {
     g.finish();
 }
 
-fn lod(c: &mut Criterion) {
-    let grid = surface(1024);
-    let hf = Heightfield::new(1024, 1024, grid.data, 30.0, 30.0).expect("heightfield");
+/// The `size^2` surface as a 30 m heightfield, and LSA 3x3 refinement by two levels (seed 1).
+fn lsa3_x4(size: usize) -> (Heightfield, RefineSettings) {
+    let grid = surface(size);
+    let hf = Heightfield::new(size, size, grid.data, 30.0, 30.0).expect("heightfield");
     let settings = RefineSettings {
         method: Method::Lsa,
         window: 3,
@@ -59,6 +46,11 @@ fn lod(c: &mut Criterion) {
         seed: 1,
         ..Default::default()
     };
+    (hf, settings)
+}
+
+fn lod(c: &mut Criterion) {
+    let (hf, settings) = lsa3_x4(1024);
     let refiner = Refiner::new(&hf, &settings).expect("analysis");
     let mut g = c.benchmark_group("wavelet_lod");
     g.sample_size(10);
@@ -98,15 +90,7 @@ fn lod(c: &mut Criterion) {
 /// receives), so the 1 GiB output is never held at once. Run with `RAYON_NUM_THREADS=2` for the
 /// goal's 2 threads.
 fn lod_big(c: &mut Criterion) {
-    let grid = surface(4096);
-    let hf = Heightfield::new(4096, 4096, grid.data, 30.0, 30.0).expect("heightfield");
-    let settings = RefineSettings {
-        method: Method::Lsa,
-        window: 3,
-        extra_levels: 2,
-        seed: 1,
-        ..Default::default()
-    };
+    let (hf, settings) = lsa3_x4(4096);
     let mut g = c.benchmark_group("wavelet_lod");
     g.sample_size(10);
     g.bench_function(BenchmarkId::new("lod_lsa3_x4_strips", 4096), |b| {

@@ -17,8 +17,6 @@
 //! `amplify/learned_n256/x16_32_to_512`, `amplify/learned_n256/x256_32_to_8192`,
 //! `amplify/sketch_n64/x64_64x128_to_4096x8192`.
 
-use std::io::Write;
-use std::path::PathBuf;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
@@ -31,36 +29,14 @@ use relief_dictionary_learning::{
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::{PatchGeometry, RasterSettings, extract_patches};
 
-/// Writes a C-order `f32` `.npy` file (format version 1.0).
-fn write_npy(path: &PathBuf, a: &Array2<f32>) -> std::io::Result<()> {
-    let (r, c) = a.dim();
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({r}, {c}), }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    f.write_all(b"\x93NUMPY\x01\x00")?;
-    f.write_all(&(header.len() as u16).to_le_bytes())?;
-    f.write_all(header.as_bytes())?;
-    for v in a.iter() {
-        f.write_all(&v.to_le_bytes())?;
-    }
-    f.flush()
-}
-
-fn fixture() -> Heightfield {
-    relief_benches::fixture_dem()
-        .ok()
-        .or_else(|| relief_testdata::load_dem("grandcanyon"))
-        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM")
-}
-
 /// The K-SVD training patches (see the module docs).
 fn ksvd_patches() -> Array2<f32> {
     let (hf, step) = match relief_testdata::load_dem("alps_dem") {
         Some(a) => (a, 8.0),
-        None => (fixture(), 3.0),
+        None => (
+            relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon")),
+            3.0,
+        ),
     };
     let g = PatchGeometry {
         step,
@@ -71,9 +47,13 @@ fn ksvd_patches() -> Array2<f32> {
 
 fn bench_ksvd(c: &mut Criterion) {
     let patches = ksvd_patches();
-    let dir = relief_testdata::workspace_root().join("target/bench-data");
-    if std::fs::create_dir_all(&dir).is_ok() {
-        let _ = write_npy(&dir.join("ksvd_patches.npy"), &patches);
+    if let Ok(dir) = relief_benches::bench_data_dir() {
+        let path = dir.join("ksvd_patches.npy");
+        let _ = relief_benches::write_npy(
+            &path,
+            &[patches.nrows(), patches.ncols()],
+            patches.iter().copied(),
+        );
     }
     let init = init_from_signals(patches.view(), 256, 1).expect("initial dictionary");
     let mut group = c.benchmark_group("ksvd");
@@ -102,7 +82,7 @@ fn bench_amplify(c: &mut Criterion) {
     ) {
         (Some(e), Some(s)) => (e, s),
         _ => {
-            let f = fixture();
+            let f = relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon"));
             (f.clone(), f)
         }
     };
@@ -112,10 +92,7 @@ fn bench_amplify(c: &mut Criterion) {
     for (steps, param, secs) in [(2usize, "x16_32_to_512", 10), (4, "x256_32_to_8192", 60)] {
         let s = AmplifySettings {
             steps,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 256,
-                iterations: 2,
-            },
+            dictionary: DictionaryChoice::learned(256, 2),
             ..Default::default()
         };
         group.measurement_time(Duration::from_secs(secs));
@@ -136,10 +113,7 @@ fn bench_amplify(c: &mut Criterion) {
     let ss = SynthesisSettings {
         amplify: AmplifySettings {
             steps: 3,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 64,
-                iterations: 2,
-            },
+            dictionary: DictionaryChoice::learned(64, 2),
             ..Default::default()
         },
         height_range: Some((800.0, 3800.0)),

@@ -14,39 +14,18 @@
 //! against today's 4096-atom Gram path on the same signals (`omp_large/batch_omp_f32/k64_n4096_s1`),
 //! timed in the same run so the per-signal ratio holds on a loaded machine.
 
-use std::io::Write;
-use std::path::PathBuf;
-
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
+};
 use ndarray::{Array2, s};
-use relief_sparse_core::omp::{OmpSettings, batch_omp};
+use relief_sparse_core::omp::{OmpFloat, OmpSettings, batch_omp};
 use relief_sparse_core::{PatchGeometry, extract_patches};
-
-/// Writes a C-order `f32` `.npy` file (format version 1.0).
-fn write_npy(path: &PathBuf, a: &Array2<f32>) -> std::io::Result<()> {
-    let (r, c) = a.dim();
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({r}, {c}), }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    f.write_all(b"\x93NUMPY\x01\x00")?;
-    f.write_all(&(header.len() as u16).to_le_bytes())?;
-    f.write_all(header.as_bytes())?;
-    for v in a.iter() {
-        f.write_all(&v.to_le_bytes())?;
-    }
-    f.flush()
-}
 
 /// Real mean-removed patches of side `a` of the fixture DEM (`n_signals` rows, evenly strided
 /// over all patches at step `step`) and a dictionary of `n_atoms` other patches, unit-norm rows.
 fn data(a: usize, step: f64, n_atoms: usize, n_signals: usize) -> (Array2<f32>, Array2<f32>) {
-    let dem = relief_benches::fixture_dem()
-        .ok()
-        .or_else(|| relief_testdata::load_dem("grandcanyon"))
-        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM");
+    let dem = relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon"));
     let g = PatchGeometry {
         step,
         ..PatchGeometry::with_patch_size(a)
@@ -67,15 +46,12 @@ fn data(a: usize, step: f64, n_atoms: usize, n_signals: usize) -> (Array2<f32>, 
         }
         i += n / n_atoms + 1;
     }
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/bench-data");
-    std::fs::create_dir_all(&dir).expect("target/bench-data");
+    let dir = relief_benches::bench_data_dir().expect("target/bench-data");
     let k = a * a;
-    write_npy(&dir.join(format!("omp_k{k}_n{n_atoms}_dict.npy")), &dict).expect("write npy");
-    write_npy(
-        &dir.join(format!("omp_k{k}_n{n_atoms}_signals.npy")),
-        &signals,
-    )
-    .expect("write npy");
+    for (name, m) in [("dict", &dict), ("signals", &signals)] {
+        let path = dir.join(format!("omp_k{k}_n{n_atoms}_{name}.npy"));
+        relief_benches::write_npy(&path, &[m.nrows(), k], m.iter().copied()).expect("write npy");
+    }
     (dict, signals)
 }
 
@@ -83,14 +59,7 @@ fn data(a: usize, step: f64, n_atoms: usize, n_signals: usize) -> (Array2<f32>, 
 fn omp_large(c: &mut Criterion) {
     let mut g = c.benchmark_group("omp_large");
     g.sample_size(10);
-    let st = OmpSettings {
-        sparsity: 1,
-        tolerance: None,
-    };
-    let dem = relief_benches::fixture_dem()
-        .ok()
-        .or_else(|| relief_testdata::load_dem("grandcanyon"))
-        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM");
+    let dem = relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon"));
     let (w, h) = (dem.width(), dem.height());
     // Atoms from the top half, signals from the bottom half (no signal is an atom).
     let geom = PatchGeometry::with_patch_size(8);
@@ -120,13 +89,28 @@ fn omp_large(c: &mut Criterion) {
     for n_atoms in [4096usize, 65_536] {
         let d = every(&top, n_atoms, true);
         g.throughput(Throughput::Elements(x.nrows() as u64));
-        g.bench_with_input(
-            BenchmarkId::new("batch_omp_f32", format!("k64_n{n_atoms}_s1")),
-            &st,
-            |b, st| b.iter(|| batch_omp(d.view(), x.view(), st).expect("omp")),
-        );
+        let param = format!("k64_n{n_atoms}_s1");
+        bench_omp(&mut g, ("batch_omp_f32", &param), &d, &x, 1);
     }
     g.finish();
+}
+
+/// Times `batch_omp` of the rows of `x` over the atoms `d` at sparsity `s`, as
+/// `<group>/<function>/<param>`.
+fn bench_omp<T: OmpFloat>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    (function, param): (&str, &str),
+    d: &Array2<T>,
+    x: &Array2<T>,
+    s: usize,
+) {
+    let st = OmpSettings {
+        sparsity: s,
+        tolerance: None,
+    };
+    g.bench_with_input(BenchmarkId::new(function, param), &st, |b, st| {
+        b.iter(|| batch_omp(d.view(), x.view(), st).expect("omp"))
+    });
 }
 
 fn omp(c: &mut Criterion) {
@@ -135,47 +119,21 @@ fn omp(c: &mut Criterion) {
     let (d, x) = data(8, 1.0, 256, 65_536);
     g.throughput(Throughput::Elements(x.nrows() as u64));
     for s in [1usize, 4, 8] {
-        let st = OmpSettings {
-            sparsity: s,
-            tolerance: None,
-        };
-        g.bench_with_input(
-            BenchmarkId::new("batch_omp_f32", format!("k64_n256_s{s}")),
-            &st,
-            |b, st| b.iter(|| batch_omp(d.view(), x.view(), st).expect("omp")),
-        );
+        let param = format!("k64_n256_s{s}");
+        bench_omp(&mut g, ("batch_omp_f32", &param), &d, &x, s);
     }
     let (d, x) = data(16, 2.0, 1024, 16_384);
     g.throughput(Throughput::Elements(x.nrows() as u64));
-    let st = OmpSettings {
-        sparsity: 8,
-        tolerance: None,
-    };
-    g.bench_with_input(
-        BenchmarkId::new("batch_omp_f32", "k256_n1024_s8"),
-        &st,
-        |b, st| b.iter(|| batch_omp(d.view(), x.view(), st).expect("omp")),
-    );
+    bench_omp(&mut g, ("batch_omp_f32", "k256_n1024_s8"), &d, &x, 8);
     // The f64 path on the same data (section 4.3 asks for both precisions).
     let (d64, x64) = (d.mapv(f64::from), x.mapv(f64::from));
-    g.bench_with_input(
-        BenchmarkId::new("batch_omp_f64", "k256_n1024_s8"),
-        &st,
-        |b, st| b.iter(|| batch_omp(d64.view(), x64.view(), st).expect("omp")),
-    );
+    bench_omp(&mut g, ("batch_omp_f64", "k256_n1024_s8"), &d64, &x64, 8);
     let (d, x) = data(8, 1.0, 256, 65_536);
     let (d64, x64) = (d.mapv(f64::from), x.mapv(f64::from));
     g.throughput(Throughput::Elements(x.nrows() as u64));
     for s in [1usize, 4, 8] {
-        let st = OmpSettings {
-            sparsity: s,
-            tolerance: None,
-        };
-        g.bench_with_input(
-            BenchmarkId::new("batch_omp_f64", format!("k64_n256_s{s}")),
-            &st,
-            |b, st| b.iter(|| batch_omp(d64.view(), x64.view(), st).expect("omp")),
-        );
+        let param = format!("k64_n256_s{s}");
+        bench_omp(&mut g, ("batch_omp_f64", &param), &d64, &x64, s);
     }
     g.finish();
 }

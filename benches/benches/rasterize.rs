@@ -14,10 +14,7 @@ use relief_sparse_core::{
 };
 
 fn rasterize(c: &mut Criterion) {
-    let dem = relief_benches::fixture_dem()
-        .ok()
-        .or_else(|| relief_testdata::load_dem("grandcanyon"))
-        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM");
+    let dem = relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon"));
     let patches = extract_patches(&dem, &PatchGeometry::with_patch_size(8)).expect("patches");
     let n = patches.matrix.nrows();
     let sel: Vec<usize> = (0..128).map(|k| k * n / 128 + 7).collect();

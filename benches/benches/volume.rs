@@ -3,8 +3,9 @@
 //! without the BVH, chunked meshing of a 256^3 sampling (field evaluation included) and marching
 //! tetrahedra on the same grid precomputed, meshing at 64^3 / 128^3 / 256^3 and with analytic
 //! gradient normals, gradient evaluation and a 320 x 240 render (compare
-//! `xtask/peers/skimage_mc.py`, which times scikit-image `marching_cubes` on the grid written
-//! by the crate's `bench_volume` example).
+//! `xtask/peers/skimage_mc.py`, which times scikit-image `marching_cubes` on the same 256^3
+//! grid, written here to `target/bench-data/volume256.npy`). The karst + sea scene's node
+//! count and tree memory are printed on stderr.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use relief_heightfield::Heightfield;
@@ -120,6 +121,19 @@ fn volume(c: &mut Criterion) {
         });
     }
     let scene = pool.install(|| build(&hf, true));
+    let st = scene.stats();
+    #[allow(clippy::print_stderr)]
+    {
+        eprintln!(
+            "karst + sea scene: {} tree nodes ({} primitives), node memory {:.2} MB (+ DEM {:.2} \
+             MB), geology {} B",
+            st.nodes,
+            st.primitives,
+            st.node_bytes as f64 / 1e6,
+            st.heightfield_bytes as f64 / 1e6,
+            scene.geology().memory_bytes()
+        );
+    }
     let flat = pool.install(|| build(&hf, false));
     let pts = points(&scene, 10_000);
     g.bench_function(BenchmarkId::new("field_10k_points", "bvh"), |b| {
@@ -173,6 +187,11 @@ fn volume(c: &mut Criterion) {
         b.iter(|| pool.install(|| render(&scene, &cam, &rs).expect("render")))
     });
     let grid = pool.install(|| sample_grid(&scene, &bbox, [256, 256, 256]).expect("grid"));
+    // The peer's input, numpy order (z, y, x): our buffer is x fastest.
+    if let Ok(dir) = relief_benches::bench_data_dir() {
+        let path = dir.join("volume256.npy");
+        relief_benches::write_npy(&path, &[256; 3], grid.iter().copied()).expect("write npy");
+    }
     let s = bbox.size();
     let sp = [s[0] / 255.0, s[1] / 255.0, s[2] / 255.0];
     g.bench_function(

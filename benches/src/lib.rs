@@ -7,7 +7,8 @@
 //! whose `criterion_id` is `<group>/<function>/<parameter>`.
 #![warn(missing_docs)]
 
-use std::path::PathBuf;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 use relief_heightfield::Heightfield;
 
@@ -19,6 +20,76 @@ pub fn fixture_path() -> PathBuf {
 /// Reads [`fixture_path`] through relief-io.
 pub fn fixture_dem() -> Result<Heightfield, relief_io::IoError> {
     Ok(relief_io::read(&fixture_path(), &relief_io::ReadOptions::default())?.heightfield)
+}
+
+/// The fixture DEM, else `fallback` (the benches pass the real set's `grandcanyon` DEM from
+/// relief-testdata, a dev-dependency).
+///
+/// # Panics
+/// Panics when neither can be read.
+pub fn fixture_or(fallback: impl FnOnce() -> Option<Heightfield>) -> Heightfield {
+    fixture_dem()
+        .ok()
+        .or_else(fallback)
+        .expect("fixtures/grandcanyon.tif or the grandcanyon DEM")
+}
+
+/// `target/bench-data/` of the workspace, where benches write the inputs their peers read
+/// (created here).
+pub fn bench_data_dir() -> std::io::Result<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/bench-data");
+    std::fs::create_dir_all(&dir)?;
+    Ok(dir)
+}
+
+/// Writes `data` as a C-order `f32` `.npy` file (format version 1.0) of the given `shape`.
+pub fn write_npy(
+    path: &Path,
+    shape: &[usize],
+    data: impl IntoIterator<Item = f32>,
+) -> std::io::Result<()> {
+    let dims: Vec<String> = shape.iter().map(|d| format!("{d}, ")).collect();
+    let dims = dims.concat();
+    // `(r, c)`, or `(n,)` for one dimension.
+    let dims = if shape.len() == 1 {
+        dims.trim_end()
+    } else {
+        dims.trim_end_matches(", ")
+    };
+    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({dims}), }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    f.write_all(b"\x93NUMPY\x01\x00")?;
+    f.write_all(&(header.len() as u16).to_le_bytes())?;
+    f.write_all(header.as_bytes())?;
+    for v in data {
+        f.write_all(&v.to_le_bytes())?;
+    }
+    f.flush()
+}
+
+/// The random-walk surface of the DWT benches and of the PyWavelets peer's input: per row,
+/// normals from the wavelet crate's counter-based generator (`row_key(1, 0, 0, y)`), summed
+/// along x, then the rows summed along y; `size * size` values, row-major.
+pub fn dwt_surface(size: usize) -> Vec<f32> {
+    use relief_wavelet_lod::rng::{fill_normals, row_key};
+    let mut data = vec![0.0f32; size * size];
+    for y in 0..size {
+        let row = &mut data[y * size..(y + 1) * size];
+        fill_normals(row_key(1, 0, 0, y), 0, row);
+        for x in 1..size {
+            row[x] += row[x - 1];
+        }
+    }
+    for y in 1..size {
+        for x in 0..size {
+            data[y * size + x] += data[(y - 1) * size + x];
+        }
+    }
+    data
 }
 
 /// Holes punched into `hf` for void-fill benchmarks: four discs of radius `min(w, h) / 14`
@@ -53,5 +124,17 @@ mod tests {
         assert!((0.05..0.08).contains(&frac), "{frac}");
         assert_eq!(holed.get(0, 0), 0.0);
         assert!(holed.get(128, 128).is_nan());
+    }
+
+    #[test]
+    fn dwt_surface_is_a_deterministic_random_walk() {
+        let a = dwt_surface(64);
+        assert_eq!(a, dwt_surface(64));
+        // Cumulative sums in both directions: the first cell is the first normal, and the
+        // surface wanders far further than one step.
+        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
+            - a.iter().cloned().fold(f32::INFINITY, f32::min);
+        assert!(spread > 20.0, "{spread}");
+        assert!(a.iter().all(|v| v.is_finite()));
     }
 }

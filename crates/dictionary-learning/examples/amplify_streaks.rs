@@ -15,21 +15,10 @@
 //! `AmplifySettings::diverse_atoms`), `no-residual`, `no-norm`.
 #![allow(clippy::print_stdout)]
 
-use std::io::Write;
-
 use relief_dictionary_learning::*;
-use relief_heightfield::terrain::hillshade;
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
-use relief_testdata::dem_crop;
-
-fn write_shade(path: &std::path::Path, hf: &Heightfield) {
-    let s = hillshade(hf, 315.0, 45.0, 1.0);
-    let mut f = std::fs::File::create(path).unwrap();
-    write!(f, "P5\n{} {}\n255\n", hf.width(), hf.height()).unwrap();
-    let bytes: Vec<u8> = s.iter().map(|v| (v * 255.0).round() as u8).collect();
-    f.write_all(&bytes).unwrap();
-}
+use relief_testdata::{dem_crop, write_shade};
 
 fn centre(hf: &Heightfield, side: usize) -> Heightfield {
     let (w, h) = (side.min(hf.width()), side.min(hf.height()));

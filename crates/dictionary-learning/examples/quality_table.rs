@@ -31,10 +31,7 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
             r.consistency, r.added_slope, r.truth_slope, r.slope_hist_distance, r.truth_rmse
         );
     };
-    let learned = DictionaryChoice::Learned {
-        n_atoms: 256,
-        iterations: 3,
-    };
+    let learned = DictionaryChoice::learned(256, 3);
     for (name, dict, s, rc) in [
         ("sparse learned N=256 s=1", learned, 1, false),
         ("sparse learned N=256 s=4", learned, 4, false),

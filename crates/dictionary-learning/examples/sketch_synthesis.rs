@@ -9,14 +9,12 @@
 //! and of a 1024 x 1024 centre crop into OUT_DIR (default `target/sketch_synthesis`).
 #![allow(clippy::print_stdout)]
 
-use std::io::Write;
 use std::time::Instant;
 
 use relief_dictionary_learning::*;
-use relief_heightfield::terrain::hillshade;
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
-use relief_testdata::dem_crop;
+use relief_testdata::{dem_crop, write_shade};
 
 /// A painted sketch in `[0, 1]` of `w x h` cells.
 fn sketch(w: usize, h: usize) -> Heightfield {
@@ -28,14 +26,6 @@ fn sketch(w: usize, h: usize) -> Heightfield {
         let valley = stroke((v - 0.85) + 0.3 * (u - 0.5), 0.05);
         (0.3 + 0.5 * ridge + 0.6 * peak - 0.25 * valley).clamp(0.0, 1.0)
     })
-}
-
-fn write_shade(path: &std::path::Path, hf: &Heightfield) {
-    let s = hillshade(hf, 315.0, 45.0, 1.0);
-    let mut f = std::fs::File::create(path).unwrap();
-    write!(f, "P5\n{} {}\n255\n", hf.width(), hf.height()).unwrap();
-    let bytes: Vec<u8> = s.iter().map(|v| (v * 255.0).round() as u8).collect();
-    f.write_all(&bytes).unwrap();
 }
 
 /// RMS of the detail (grid minus its x16 box-down up-sampled back) over cells where the sketch

@@ -119,23 +119,7 @@ pub fn constrained_learning(
     check_signals(&signals)?;
     check_signals(&candidates)?;
     let s = settings;
-    if s.n_atoms == 0 {
-        return Err(LearnError::param("n_atoms", s.n_atoms, "must be >= 1"));
-    }
-    if s.iterations > crate::ksvd::MAX_ITERATIONS {
-        return Err(LearnError::param(
-            "iterations",
-            s.iterations,
-            "must be at most 10000",
-        ));
-    }
-    if s.sparsity == 0 || s.sparsity > s.n_atoms || s.sparsity > 64 {
-        return Err(LearnError::param(
-            "sparsity",
-            s.sparsity,
-            "must be in 1..=min(64, n_atoms)",
-        ));
-    }
+    crate::ksvd::check_sizes(s.n_atoms, s.sparsity, s.iterations)?;
     if candidates.ncols() != signals.ncols() {
         return Err(LearnError::param(
             "candidates",

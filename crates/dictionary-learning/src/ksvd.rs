@@ -70,26 +70,33 @@ impl Default for KsvdSettings {
     }
 }
 
+/// The checks shared by K-SVD and the constrained variant: at least one atom, at most
+/// [`MAX_ITERATIONS`] iterations, a sparsity in `1..=min(64, n_atoms)`.
+pub(crate) fn check_sizes(n_atoms: usize, sparsity: usize, iterations: usize) -> Result<()> {
+    if n_atoms == 0 {
+        return Err(LearnError::param("n_atoms", n_atoms, "must be >= 1"));
+    }
+    if iterations > MAX_ITERATIONS {
+        return Err(LearnError::param(
+            "iterations",
+            iterations,
+            "must be at most 10000",
+        ));
+    }
+    if sparsity == 0 || sparsity > n_atoms || sparsity > 64 {
+        return Err(LearnError::param(
+            "sparsity",
+            sparsity,
+            "must be in 1..=min(64, n_atoms)",
+        ));
+    }
+    Ok(())
+}
+
 impl KsvdSettings {
     /// Validates the settings against `n` training signals.
     pub fn check(&self, n: usize) -> Result<()> {
-        if self.n_atoms == 0 {
-            return Err(LearnError::param("n_atoms", self.n_atoms, "must be >= 1"));
-        }
-        if self.iterations > MAX_ITERATIONS {
-            return Err(LearnError::param(
-                "iterations",
-                self.iterations,
-                "must be at most 10000",
-            ));
-        }
-        if self.sparsity == 0 || self.sparsity > self.n_atoms || self.sparsity > 64 {
-            return Err(LearnError::param(
-                "sparsity",
-                self.sparsity,
-                "must be in 1..=min(64, n_atoms)",
-            ));
-        }
+        check_sizes(self.n_atoms, self.sparsity, self.iterations)?;
         if !(self.duplicate_threshold > 0.0 && self.duplicate_threshold <= 1.0) {
             return Err(LearnError::param(
                 "duplicate_threshold",

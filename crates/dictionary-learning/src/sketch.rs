@@ -47,10 +47,7 @@ impl Default for SynthesisSettings {
         Self {
             amplify: AmplifySettings {
                 steps: 3,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: 64,
-                    iterations: 3,
-                },
+                dictionary: DictionaryChoice::learned(64, 3),
                 // A painted sketch is not a measurement: forcing the output to reduce to its
                 // pixels would reproduce them. The detail blend is still energy-normalised.
                 residual_correction: false,

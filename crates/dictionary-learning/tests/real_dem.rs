@@ -97,10 +97,7 @@ fn quality_rows(truth: &Heightfield, exemplar: &Heightfield, label: &str) -> [Qu
         .resample(truth.width() / 4, truth.height() / 4)
         .unwrap();
     let settings = AmplifySettings {
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 128,
-            iterations: 2,
-        },
+        dictionary: DictionaryChoice::learned(128, 2),
         max_candidates: 2048,
         ..Default::default()
     };
@@ -217,10 +214,7 @@ fn sketch_synthesis_puts_exemplar_relief_on_flat_sketch_parts() {
             amplify: AmplifySettings {
                 steps: 2,
                 radius: 2.0,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: 32,
-                    iterations: 1,
-                },
+                dictionary: DictionaryChoice::learned(32, 1),
                 exemplar_detail,
                 ..lib.amplify
             },
@@ -259,10 +253,7 @@ fn two_steps_and_sketch_synthesis() {
     let coarse = alps(1500, 100, 256, 256).unwrap().resample(16, 16).unwrap();
     let s = AmplifySettings {
         steps: 2,
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 32,
-            iterations: 1,
-        },
+        dictionary: DictionaryChoice::learned(32, 1),
         radius: 3.0,
         ..Default::default()
     };
@@ -284,10 +275,7 @@ fn two_steps_and_sketch_synthesis() {
             amplify: AmplifySettings {
                 steps: 2,
                 radius: 3.0,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: 32,
-                    iterations: 1,
-                },
+                dictionary: DictionaryChoice::learned(32, 1),
                 ..Default::default()
             },
             height_range: Some((1000.0, 3000.0)),
@@ -379,10 +367,7 @@ fn residual_correction_restores_consistency_on_alps() {
     };
     let coarse = truth.resample(64, 64).unwrap();
     let settings = AmplifySettings {
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 128,
-            iterations: 2,
-        },
+        dictionary: DictionaryChoice::learned(128, 2),
         max_candidates: 2048,
         residual_correction: true,
         ..Default::default()
@@ -405,11 +390,11 @@ fn residual_correction_restores_consistency_on_alps() {
 
 #[test]
 fn several_exemplars_at_once() {
-    let (Some(a), Some(b), Some(t)) = (
-        alps(0, 0, 200, 200),
-        alps(1800, 400, 200, 200),
-        alps(700, 300, 128, 128),
-    ) else {
+    let Some([a, b, t]) = relief_testdata::dem_crops([
+        ("alps_dem", 0, 0, 200, 200),
+        ("alps_dem", 1800, 400, 200, 200),
+        ("alps_dem", 700, 300, 128, 128),
+    ]) else {
         return;
     };
     let geom = PatchGeometry::with_patch_size(8);
@@ -454,10 +439,7 @@ fn larger_radius_follows_the_input_less() {
     let dev = |radius: f64| {
         let s = AmplifySettings {
             radius,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 64,
-                iterations: 1,
-            },
+            dictionary: DictionaryChoice::learned(64, 1),
             max_candidates: 1024,
             // The paper's plain method: the residual correction keeps every radius consistent.
             ..AmplifySettings::paper()
@@ -482,11 +464,7 @@ fn results_do_not_depend_on_thread_count() {
     };
     let p = patches_8(&hf);
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let k = ksvd(
                 p.matrix.view(),
                 &KsvdSettings {
@@ -513,10 +491,7 @@ fn results_do_not_depend_on_thread_count() {
             let coarse = hf.resample(24, 24).unwrap();
             let s = AmplifySettings {
                 radius: 3.0,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: 32,
-                    iterations: 1,
-                },
+                dictionary: DictionaryChoice::learned(32, 1),
                 ..Default::default()
             };
             let a = amplify(&coarse, &ex, &s, &NoProgress)
@@ -537,20 +512,13 @@ fn synthesis_noise_and_procedural_do_not_depend_on_thread_count() {
         return;
     };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let coarse = hf.resample(16, 16).unwrap();
             let s = AmplifySettings {
                 radius: 2.0,
                 steps: 1,
                 residual_correction: true,
-                dictionary: DictionaryChoice::Learned {
-                    n_atoms: 24,
-                    iterations: 2,
-                },
+                dictionary: DictionaryChoice::learned(24, 2),
                 seed: 9,
                 ..Default::default()
             };
@@ -627,10 +595,7 @@ fn x4_rows() -> Option<X4Rows> {
             .unwrap()
     };
     let small = |s: AmplifySettings| AmplifySettings {
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 128,
-            iterations: 2,
-        },
+        dictionary: DictionaryChoice::learned(128, 2),
         max_candidates: 2048,
         ..s
     };
@@ -717,10 +682,7 @@ fn default_amplification_window_equals_full_raster_bit_for_bit() {
     };
     let s = AmplifySettings {
         steps: 2,
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 32,
-            iterations: 1,
-        },
+        dictionary: DictionaryChoice::learned(32, 1),
         max_candidates: 1024,
         ..Default::default()
     };
@@ -761,10 +723,7 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
     let (cx, cy) = ex.cell_size();
     let coarse = truth.downsample_box(16).unwrap();
     assert_eq!(coarse.cell_size(), (16.0 * cx, 16.0 * cy));
-    let learned = DictionaryChoice::Learned {
-        n_atoms: 32,
-        iterations: 1,
-    };
+    let learned = DictionaryChoice::learned(32, 1);
     let s = AmplifySettings {
         steps: 2,
         radius: 2.0,
@@ -847,18 +806,15 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
 /// the fine grid step must stay low by default, and the test shows it detects the artifact.
 #[test]
 fn default_detail_is_not_repeated_on_the_grid() {
-    let (Some(input), Some(ex)) = (
-        dem_crop("grandcanyon", 32, 192, 64, 64),
-        dem_crop("grandcanyon", 256, 0, 256, 512),
-    ) else {
+    let Some([input, ex]) = relief_testdata::dem_crops([
+        ("grandcanyon", 32, 192, 64, 64),
+        ("grandcanyon", 256, 0, 256, 512),
+    ]) else {
         return;
     };
     let score = |diverse_atoms: bool| {
         let s = AmplifySettings {
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 128,
-                iterations: 2,
-            },
+            dictionary: DictionaryChoice::learned(128, 2),
             max_candidates: 2048,
             diverse_atoms,
             ..AmplifySettings::default()

@@ -223,7 +223,7 @@ proptest! {
             amplify: AmplifySettings {
                 radius: 1.0,
                 steps: 1,
-                dictionary: DictionaryChoice::Learned { n_atoms: 16, iterations: 1 },
+                dictionary: DictionaryChoice::learned(16, 1),
                 ..Default::default()
             },
             height_range: Some((lo, lo + span)),
@@ -260,10 +260,7 @@ fn small_entry_points_name_their_fields() {
     // A training matrix of the wrong width names `training`.
     let s = AmplifySettings {
         radius: 1.0,
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 8,
-            iterations: 1,
-        },
+        dictionary: DictionaryChoice::learned(8, 1),
         ..Default::default()
     };
     assert!(matches!(

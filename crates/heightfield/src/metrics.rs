@@ -151,18 +151,19 @@ pub fn radial_power_spectrum(hf: &Heightfield) -> Result<Vec<(f64, f64)>> {
     let nbins = ((0.5 / cx.max(cy)) / df).floor() as usize + 1;
     let mut power = vec![0.0f64; nbins];
     let mut count = vec![0usize; nbins];
-    for y in 0..h {
-        let ky = if y <= h / 2 {
-            y as f64
+    // The signed frequency of FFT index `i` of `n` over a side of length `l`.
+    let freq = |i: usize, n: usize, l: f64| {
+        let k = if i <= n / 2 {
+            i as f64
         } else {
-            y as f64 - h as f64
-        } / ly;
+            i as f64 - n as f64
+        };
+        k / l
+    };
+    for y in 0..h {
+        let ky = freq(y, h, ly);
         for x in 0..w {
-            let kx = if x <= w / 2 {
-                x as f64
-            } else {
-                x as f64 - w as f64
-            } / lx;
+            let kx = freq(x, w, lx);
             let r = ((kx * kx + ky * ky).sqrt() / df).round() as usize;
             if r < nbins {
                 power[r] += buf[y * w + x].norm_sqr();

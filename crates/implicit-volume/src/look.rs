@@ -119,13 +119,7 @@ pub fn surface_look(mesh: &Mesh, cell: f32, min_depth: f32, max_cells: usize) ->
         }
     }
     while let Some(Reverse((OrdF32(level), k))) = heap.pop() {
-        let (i, j) = (k / nx, k % nx);
-        for (dj, di) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-            let (jj, ii) = (j as i64 + dj, i as i64 + di);
-            if jj < 0 || ii < 0 || jj as usize >= nx || ii as usize >= ny {
-                continue;
-            }
-            let q = ii as usize * nx + jj as usize;
+        for q in neighbours4(k, nx, ny) {
             if !w[q].is_nan() {
                 continue;
             }
@@ -147,13 +141,7 @@ pub fn surface_look(mesh: &Mesh, cell: f32, min_depth: f32, max_cells: usize) ->
         while let Some(k) = stack.pop() {
             n += 1;
             deepest = deepest.max(w[k] - z[k]);
-            let (i, j) = (k / nx, k % nx);
-            for (dj, di) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                let (jj, ii) = (j as i64 + dj, i as i64 + di);
-                if jj < 0 || ii < 0 || jj as usize >= nx || ii as usize >= ny {
-                    continue;
-                }
-                let q = ii as usize * nx + jj as usize;
+            for q in neighbours4(k, nx, ny) {
                 if !seen[q] && w[q] - z[q] > 0.0 {
                     seen[q] = true;
                     stack.push(q);
@@ -183,6 +171,19 @@ impl Ord for OrdF32 {
     fn cmp(&self, o: &Self) -> std::cmp::Ordering {
         self.0.total_cmp(&o.0)
     }
+}
+
+/// The 4-neighbours of cell `k` of a row-major `nx x ny` grid that lie inside it (west, east,
+/// north, south).
+fn neighbours4(k: usize, nx: usize, ny: usize) -> impl Iterator<Item = usize> {
+    let (i, j) = (k / nx, k % nx);
+    [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+        .into_iter()
+        .filter_map(move |(dj, di)| {
+            let (jj, ii) = (j as i64 + dj, i as i64 + di);
+            let inside = jj >= 0 && ii >= 0 && (jj as usize) < nx && (ii as usize) < ny;
+            inside.then(|| ii as usize * nx + jj as usize)
+        })
 }
 
 #[cfg(test)]

@@ -82,31 +82,15 @@ impl Aabb {
     /// Smallest box holding both.
     pub fn union(&self, o: &Aabb) -> Aabb {
         Aabb {
-            min: [
-                self.min[0].min(o.min[0]),
-                self.min[1].min(o.min[1]),
-                self.min[2].min(o.min[2]),
-            ],
-            max: [
-                self.max[0].max(o.max[0]),
-                self.max[1].max(o.max[1]),
-                self.max[2].max(o.max[2]),
-            ],
+            min: zip3(self.min, o.min, f32::min),
+            max: zip3(self.max, o.max, f32::max),
         }
     }
     /// Overlap of both (may be empty).
     pub fn intersection(&self, o: &Aabb) -> Aabb {
         Aabb {
-            min: [
-                self.min[0].max(o.min[0]),
-                self.min[1].max(o.min[1]),
-                self.min[2].max(o.min[2]),
-            ],
-            max: [
-                self.max[0].min(o.max[0]),
-                self.max[1].min(o.max[1]),
-                self.max[2].min(o.max[2]),
-            ],
+            min: zip3(self.min, o.min, f32::max),
+            max: zip3(self.max, o.max, f32::min),
         }
     }
     /// Box grown by `d` on every side.
@@ -161,6 +145,12 @@ impl Aabb {
 /// Counter-based random source of a work item (`seed` and three counters) and its uniform
 /// `[0, 1)` value: the workspace's one implementation in [`relief_heightfield::rng`].
 pub use relief_heightfield::rng::{hash, unit_f32 as unit};
+
+/// `[f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2])]`.
+#[inline]
+fn zip3(a: V3, b: V3, f: impl Fn(f32, f32) -> f32) -> V3 {
+    [f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2])]
+}
 
 #[inline]
 fn lattice(seed: u64, x: i32, y: i32, z: i32) -> f32 {

@@ -62,15 +62,7 @@ fn implicitisation_matches_the_dem() {
     );
     assert!(max < 0.01, "{max}");
     // Mesh vertices of the top surface against the bilinear DEM.
-    let (mesh, rep) = polygonize(
-        &scene,
-        &MeshSettings {
-            cells: [80, 80, 60],
-            chunk: 16,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (mesh, rep) = mesh_of(&scene, [80, 80, 60]);
     let topo = topology(&mesh);
     assert_eq!((topo.bad_edges, topo.misoriented_edges), (0, 0), "{topo:?}");
     let (lo, _) = hf.min_max().unwrap();
@@ -243,47 +235,45 @@ fn scene_tunnels(scene: &Scene, _geo: &Geology, ks: &KarstSettings, hf: &Heightf
     n
 }
 
+/// The mesh of `scene` on a grid of `cells` (chunks of 16, the other settings default).
+fn mesh_of(scene: &Scene, cells: [usize; 3]) -> (Mesh, MeshReport) {
+    let settings = MeshSettings {
+        cells,
+        chunk: 16,
+        ..Default::default()
+    };
+    polygonize(scene, &settings).unwrap()
+}
+
 fn full_scene(hf: &Heightfield) -> Scene {
+    let all = Region::everywhere();
     let mut b =
         SceneBuilder::new(hf, geology_for(hf, 15.0), &ImplicitizeSettings::default()).unwrap();
-    b.sea_erosion(&sea_settings(), &Region::everywhere())
-        .unwrap();
-    b.karst(
-        &KarstSettings {
-            budget: 400,
-            ..Default::default()
-        },
-        &Region::everywhere(),
-    )
-    .unwrap();
-    b.wind_erosion(&WindErosion::default(), &Region::everywhere())
-        .unwrap();
-    b.rain_erosion(&RainErosion::default(), &Region::everywhere())
-        .unwrap();
-    b.hoodoos(
-        &HoodooSettings {
+    let karst = KarstSettings {
+        budget: 400,
+        ..Default::default()
+    };
+    let (hoodoos, arches, islands) = (
+        HoodooSettings {
             count: 3,
             ..Default::default()
         },
-        &Region::everywhere(),
-    )
-    .unwrap();
-    b.arches(
-        &ArchSettings {
+        ArchSettings {
             count: 1,
             ..Default::default()
         },
-        &Region::everywhere(),
-    )
-    .unwrap();
-    b.floating_islands(
-        &IslandSettings {
+        IslandSettings {
             count: 1,
             ..Default::default()
         },
-        &Region::everywhere(),
-    )
-    .unwrap();
+    );
+    b.sea_erosion(&sea_settings(), &all).unwrap();
+    b.karst(&karst, &all).unwrap();
+    b.wind_erosion(&WindErosion::default(), &all).unwrap();
+    b.rain_erosion(&RainErosion::default(), &all).unwrap();
+    b.hoodoos(&hoodoos, &all).unwrap();
+    b.arches(&arches, &all).unwrap();
+    b.floating_islands(&islands, &all).unwrap();
     b.build(true).unwrap()
 }
 
@@ -291,21 +281,9 @@ fn full_scene(hf: &Heightfield) -> Scene {
 fn all_effects_are_deterministic_across_thread_counts_and_mesh_watertight() {
     let Some(hf) = coast() else { return };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let scene = full_scene(&hf);
-            let (mesh, _) = polygonize(
-                &scene,
-                &MeshSettings {
-                    cells: [64, 64, 48],
-                    chunk: 16,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let (mesh, _) = mesh_of(&scene, [64, 64, 48]);
             let cam = Camera::overview(&scene.bbox());
             let img = render(
                 &scene,
@@ -435,21 +413,9 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
         ..Default::default()
     };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let (scene, rep) = build_recipe(&hf, &recipe).unwrap();
-            let (mesh, _) = polygonize(
-                &scene,
-                &MeshSettings {
-                    cells: [48, 48, 24],
-                    chunk: 16,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let (mesh, _) = mesh_of(&scene, [48, 48, 24]);
             let img = render(
                 &scene,
                 &Camera::overview(&scene.bbox()),
@@ -766,15 +732,7 @@ fn sea_cliffs_cut_back_the_shore_only() {
 fn simplified_scene_mesh_stays_watertight() {
     let Some(hf) = coast() else { return };
     let scene = full_scene(&hf);
-    let (mesh, _) = polygonize(
-        &scene,
-        &MeshSettings {
-            cells: [64, 64, 48],
-            chunk: 16,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (mesh, _) = mesh_of(&scene, [64, 64, 48]);
     let t0 = topology(&mesh);
     let (s, rep) = simplify(&mesh, mesh.triangles.len() / 4).unwrap();
     let t1 = topology(&s);

@@ -153,13 +153,8 @@ fn culled_chunked_mesh_equals_the_dense_grid_mesh() {
         close_boundary: true,
         normals: false,
     };
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| polygonize(&scene, &s).unwrap())
-    };
+    let run =
+        |threads: usize| relief_testdata::with_threads(threads, || polygonize(&scene, &s).unwrap());
     let (m, rep) = run(2);
     assert_eq!(run(1).0, m);
     let dims = [cells[0] + 1, cells[1] + 1, cells[2] + 1];

@@ -96,6 +96,16 @@ pub enum IoError {
 }
 
 impl IoError {
+    /// A `width x height` raster the format cannot hold, or refused for its size.
+    pub(crate) fn dimensions(format: Format, width: usize, height: usize, reason: &str) -> Self {
+        IoError::Dimensions {
+            format,
+            width: width as u64,
+            height: height as u64,
+            reason: reason.into(),
+        }
+    }
+
     pub(crate) fn malformed(format: Format, reason: impl Into<String>) -> Self {
         IoError::Malformed {
             format,

@@ -73,37 +73,32 @@ impl GeoTiffStripWriter {
         cell_size: (f64, f64),
         georef: Option<&GeoRef>,
     ) -> Result<Self> {
-        Self::create_as(path, width, height, cell_size, georef, false)
+        Self::create_as(path, (width, height), cell_size, georef, false)
     }
 
-    /// [`create`](Self::create), writing BigTIFF even below 4 GiB when `bigtiff` is set.
+    /// [`create`](Self::create) of a `(width, height)` raster, writing BigTIFF even below
+    /// 4 GiB when `bigtiff` is set.
     fn create_as(
         path: &Path,
-        width: usize,
-        height: usize,
+        (width, height): (usize, usize),
         cell_size: (f64, f64),
         georef: Option<&GeoRef>,
         bigtiff: bool,
     ) -> Result<Self> {
         if width == 0 || height == 0 {
-            return Err(IoError::Dimensions {
-                format: F,
-                width: width as u64,
-                height: height as u64,
-                reason: "zero size".into(),
-            });
+            return Err(IoError::dimensions(F, width, height, "zero size"));
         }
         let bytes = (width as u64)
             .checked_mul(height as u64)
             .and_then(|n| n.checked_mul(4))
             .unwrap_or(u64::MAX);
         if width > u32::MAX as usize || height > u32::MAX as usize || bytes == u64::MAX {
-            return Err(IoError::Dimensions {
-                format: F,
-                width: width as u64,
-                height: height as u64,
-                reason: "larger than a TIFF can describe".into(),
-            });
+            return Err(IoError::dimensions(
+                F,
+                width,
+                height,
+                "larger than a TIFF can describe",
+            ));
         }
         // BigTIFF (what GDAL writes with BIGTIFF=IF_NEEDED) once the samples pass 4 GiB.
         let big = bigtiff || bytes > u32::MAX as u64 - (1 << 20);
@@ -280,7 +275,7 @@ mod tests {
         for big in [false, true] {
             let path = dir.path().join(format!("s{big}.tif"));
             let mut out =
-                GeoTiffStripWriter::create_as(&path, w, h, (2.0, 3.0), None, big).unwrap();
+                GeoTiffStripWriter::create_as(&path, (w, h), (2.0, 3.0), None, big).unwrap();
             assert_eq!(out.big, big);
             for y in 0..h {
                 let row: Vec<f32> = (0..w)

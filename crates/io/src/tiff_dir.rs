@@ -141,22 +141,13 @@ pub(crate) fn encode_directories(big: bool, dirs: &[Vec<(u16, Value)>], at: u64)
 /// Appends the GeoTIFF tags of `g` (pixel scale, tie points, transformation, GeoKey
 /// directory, double and ASCII parameters), skipping those it does not have.
 pub(crate) fn georef_entries(g: &GeoRef, e: &mut Vec<(u16, Value)>) {
-    if let Some(v) = &g.pixel_scale {
-        e.push((33550, Value::Double(v.clone())));
-    }
-    if let Some(v) = &g.tiepoints {
-        e.push((33922, Value::Double(v.clone())));
-    }
-    if let Some(v) = &g.transformation {
-        e.push((34264, Value::Double(v.clone())));
-    }
-    if let Some(v) = &g.geo_key_directory {
-        e.push((34735, Value::Short(v.clone())));
-    }
-    if let Some(v) = &g.geo_double_params {
-        e.push((34736, Value::Double(v.clone())));
-    }
-    if let Some(v) = &g.geo_ascii_params {
-        e.push((34737, Value::Ascii(v.clone())));
-    }
+    let tags = [
+        (33550, g.pixel_scale.clone().map(Value::Double)),
+        (33922, g.tiepoints.clone().map(Value::Double)),
+        (34264, g.transformation.clone().map(Value::Double)),
+        (34735, g.geo_key_directory.clone().map(Value::Short)),
+        (34736, g.geo_double_params.clone().map(Value::Double)),
+        (34737, g.geo_ascii_params.clone().map(Value::Ascii)),
+    ];
+    e.extend(tags.into_iter().filter_map(|(tag, v)| Some((tag, v?))));
 }

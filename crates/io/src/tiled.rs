@@ -120,12 +120,12 @@ impl TiledGeoTiffWriter {
         opts: TiledOptions,
     ) -> Result<Self> {
         if width == 0 || height == 0 || u32::try_from(width.max(height)).is_err() {
-            return Err(IoError::Dimensions {
-                format: F,
-                width: width as u64,
-                height: height as u64,
-                reason: "zero size or a side beyond 2^32".into(),
-            });
+            return Err(IoError::dimensions(
+                F,
+                width,
+                height,
+                "zero size or a side beyond 2^32",
+            ));
         }
         if opts.tile < 16 || !opts.tile.is_multiple_of(16) || opts.tile > 1 << 14 {
             return Err(IoError::param(

@@ -132,6 +132,18 @@ mod limits {
         );
     }
 
+    /// A size error, or a malformed-file error where the decoder notices first.
+    fn assert_size_or_malformed(res: relief_io::Result<relief_io::Raster>, what: &str) {
+        let e = res.err().unwrap_or_else(|| panic!("{what}: accepted"));
+        assert!(
+            matches!(
+                root(&e),
+                IoError::Dimensions { .. } | IoError::Malformed { .. }
+            ),
+            "{what}: {e}"
+        );
+    }
+
     fn terrain(w: usize, h: usize) -> Heightfield {
         Heightfield::from_fn(w, h, 30.0, 30.0, |x, y| {
             (100.0 + 3.0 * x as f64 + 2.0 * (y as f64 * 0.3).sin()) as f32
@@ -239,14 +251,7 @@ mod limits {
             }
         }
         // The tiff crate itself notices that the strips cannot hold 4e9^2 samples.
-        let e = read_bytes(&tif, Some(Path::new("a.tif")), &o).unwrap_err();
-        assert!(
-            matches!(
-                root(&e),
-                IoError::Dimensions { .. } | IoError::Malformed { .. }
-            ),
-            "tif: {e}"
-        );
+        assert_size_or_malformed(read_bytes(&tif, Some(Path::new("a.tif")), &o), "tif");
         // PNG: IHDR width/height (checked before decoding, the CRC is not even looked at).
         let mut png = encode(&hf, Format::Png, &WriteOptions::default()).unwrap();
         png[16..20].copy_from_slice(&0x7fff_ffffu32.to_be_bytes());
@@ -270,14 +275,7 @@ mod limits {
             + 4;
         exr[at + 8..at + 12].copy_from_slice(&(1i32 << 30).to_le_bytes());
         exr[at + 12..at + 16].copy_from_slice(&(1i32 << 30).to_le_bytes());
-        let e = read_bytes(&exr, Some(Path::new("a.exr")), &o).unwrap_err();
-        assert!(
-            matches!(
-                root(&e),
-                IoError::Dimensions { .. } | IoError::Malformed { .. }
-            ),
-            "exr: {e}"
-        );
+        assert_size_or_malformed(read_bytes(&exr, Some(Path::new("a.exr")), &o), "exr");
         // ASCII grid.
         let asc = format!("ncols {huge}\nnrows {huge}\ncellsize 1\n1 2 3\n");
         assert_size_refused(read_bytes(asc.as_bytes(), None, &o), "asc");
@@ -326,32 +324,19 @@ mod limits {
 
     #[test]
     fn json_grid_counts_values_before_storing_them() {
-        // Declares 2 x 2 but holds 5 values, and values that are not numbers.
+        // Declares 2 x 2 but holds 5 values, values that are not numbers, not an array.
         let o = ReadOptions::default();
-        let e = read_bytes(br#"{"width":2,"height":2,"values":[1,2,3,4,5]}"#, None, &o)
-            .unwrap_err()
-            .to_string();
+        let err = |json: &[u8]| read_bytes(json, None, &o).unwrap_err().to_string();
+        let e = err(br#"{"width":2,"height":2,"values":[1,2,3,4,5]}"#);
         assert!(e.contains("holds 5"), "{e}");
-        let e = read_bytes(
-            br#"{"values":[1,"x",3,null],"width":2,"height":2}"#,
-            None,
-            &o,
-        )
-        .unwrap_err()
-        .to_string();
+        let e = err(br#"{"values":[1,"x",3,null],"width":2,"height":2}"#);
         assert!(e.contains("values[1]"), "{e}");
-        let r = read_bytes(
-            br#"{"values":[1,2.5,null,4],"width":2,"height":2,"cell_size":5}"#,
-            None,
-            &o,
-        )
-        .unwrap();
+        let json = br#"{"values":[1,2.5,null,4],"width":2,"height":2,"cell_size":5}"#;
+        let r = read_bytes(json, None, &o).unwrap();
         assert_eq!(r.heightfield.cell_size(), (5.0, 5.0));
         assert!(r.heightfield.as_slice()[2].is_nan());
         assert_eq!(r.heightfield.as_slice()[1], 2.5);
-        let e = read_bytes(br#"{"width":2,"height":2,"values":{"a":1}}"#, None, &o)
-            .unwrap_err()
-            .to_string();
+        let e = err(br#"{"width":2,"height":2,"values":{"a":1}}"#);
         assert!(e.contains("not an array"), "{e}");
     }
 }

@@ -393,7 +393,7 @@ pub(crate) fn cut_survivors(
                     .flat_map(|i| (0..o).map(move |j| if transposed { (j, i) } else { (i, j) }))
                     .map(|(r, c)| err(r, c))
                     .collect();
-                let cut = seam_cut(&e, p, o, margin, o - 1 - margin, settings.cut);
+                let cut = seam_cut(&e, o, margin, o - 1 - margin, settings.cut);
                 cost += cut.cost;
                 len += p;
                 cut.path

@@ -5,7 +5,7 @@ use relief_heightfield::Heightfield;
 
 use crate::error::{PatchSynthError, Result};
 use crate::index::{Sat, check_exemplars, grid_rects};
-use crate::kmeans::{kmeans, nearest};
+use crate::kmeans::{KMeans, kmeans, nearest};
 use crate::settings::Settings;
 
 /// Map value that allows every category.
@@ -112,12 +112,13 @@ impl CategoryMap {
 
 /// Block-average descriptors (`N x N` means, section 3.2) of the patches of every exemplar on
 /// a grid of step `max(overlap, exemplar_stride)` (bounded cost on large exemplars), one flat
-/// vector per exemplar; `settings` and `k` are checked here.
-fn grid_descriptors(
+/// vector per exemplar (`dim` values a patch), and their k-means clustering into `k` classes
+/// (at least ten iterations, seeded); `settings` and `k` are checked here.
+fn cluster_grid(
     exemplars: &[Heightfield],
     k: usize,
     settings: &Settings,
-) -> Result<(Vec<Vec<f32>>, usize)> {
+) -> Result<(Vec<Vec<f32>>, usize, KMeans)> {
     settings.check()?;
     if k == 0 || k > 1024 {
         return Err(PatchSynthError::setting("k", k, "must be in 1..=1024"));
@@ -147,7 +148,11 @@ fn grid_descriptors(
             d
         })
         .collect();
-    Ok((per, rects.len()))
+    let dim = rects.len();
+    let all: Vec<f32> = per.iter().flatten().copied().collect();
+    let iterations = settings.kmeans_iterations.max(10);
+    let km = kmeans(&all, dim, k, iterations, settings.seed);
+    Ok((per, dim, km))
 }
 
 /// Automatic exemplar categories (section 4): the patches of all exemplars are clustered into
@@ -160,15 +165,7 @@ pub fn categorize_exemplars(
     k: usize,
     settings: &Settings,
 ) -> Result<Vec<u16>> {
-    let (per, dim) = grid_descriptors(exemplars, k, settings)?;
-    let all: Vec<f32> = per.iter().flatten().copied().collect();
-    let km = kmeans(
-        &all,
-        dim,
-        k,
-        settings.kmeans_iterations.max(10),
-        settings.seed,
-    );
+    let (per, dim, km) = cluster_grid(exemplars, k, settings)?;
     let mut out = Vec::with_capacity(exemplars.len());
     let mut start = 0;
     for d in &per {
@@ -198,15 +195,7 @@ pub fn categorize_regions(
     k: usize,
     settings: &Settings,
 ) -> Result<Vec<Vec<u16>>> {
-    let (per, dim) = grid_descriptors(exemplars, k, settings)?;
-    let all: Vec<f32> = per.iter().flatten().copied().collect();
-    let km = kmeans(
-        &all,
-        dim,
-        k,
-        settings.kmeans_iterations.max(10),
-        settings.seed,
-    );
+    let (_, dim, km) = cluster_grid(exemplars, k, settings)?;
     let p = settings.patch_size;
     let rects = grid_rects(p, settings.blocks);
     Ok(exemplars

@@ -34,20 +34,14 @@ pub fn min_error_cut(
             reason: format!("{} error values for a {rows} x {cols} grid", errors.len()),
         });
     }
-    Ok(cut(errors, rows, cols, lo, hi, method))
+    Ok(cut(errors, cols, lo, hi, method))
 }
 
-/// [`min_error_cut`] for a grid whose size is known to match.
-pub(crate) fn cut(
-    errors: &[f32],
-    rows: usize,
-    cols: usize,
-    lo: usize,
-    hi: usize,
-    method: CutMethod,
-) -> Cut {
+/// [`min_error_cut`] of a grid known to be whole rows of `cols` errors.
+pub(crate) fn cut(errors: &[f32], cols: usize, lo: usize, hi: usize, method: CutMethod) -> Cut {
+    let rows = errors.len().checked_div(cols).unwrap_or(0);
     debug_assert_eq!(errors.len(), rows * cols);
-    if rows == 0 || cols == 0 {
+    if rows == 0 {
         return Cut {
             path: Vec::new(),
             cost: 0.0,

@@ -72,6 +72,19 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
     Ok(dem.with_data(out)?)
 }
 
+/// Errs (`size`, with `reason`) unless `width x height` is a non-empty grid of at most
+/// [`crate::MAX_OUTPUT_CELLS`] cells.
+fn check_size(width: usize, height: usize, reason: impl FnOnce() -> String) -> Result<()> {
+    let cells = width.saturating_mul(height);
+    if width == 0 || height == 0 || cells > crate::synth::MAX_OUTPUT_CELLS {
+        return Err(PatchSynthError::InvalidControl {
+            name: "size",
+            reason: reason(),
+        });
+    }
+    Ok(())
+}
+
 /// Largest stroke vertex coordinate (cells) accepted by [`guide_from_sketch`].
 const MAX_COORD: f32 = 1e7;
 
@@ -110,17 +123,9 @@ pub fn guide_from_sketch(
     strokes: &[Stroke],
     smoothing: f32,
 ) -> Result<Heightfield> {
-    if width == 0
-        || height == 0
-        || width
-            .checked_mul(height)
-            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
-    {
-        return Err(PatchSynthError::InvalidControl {
-            name: "size",
-            reason: format!("a {width} x {height} guide is empty or too large"),
-        });
-    }
+    check_size(width, height, || {
+        format!("a {width} x {height} guide is empty or too large")
+    })?;
     if seeds.is_empty() && strokes.iter().all(|s| s.points.is_empty()) {
         return Err(PatchSynthError::InvalidControl {
             name: "seeds",
@@ -330,17 +335,9 @@ pub fn fit_to_size(
     height: usize,
 ) -> Result<(Heightfield, SizeFit)> {
     guide.require_complete()?;
-    if width == 0
-        || height == 0
-        || width
-            .checked_mul(height)
-            .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS)
-    {
-        return Err(PatchSynthError::InvalidControl {
-            name: "size",
-            reason: format!("{width} x {height} is empty or too large"),
-        });
-    }
+    check_size(width, height, || {
+        format!("{width} x {height} is empty or too large")
+    })?;
     let (gw, gh) = (guide.width(), guide.height());
     let fit = SizeFit {
         cropped: (gw.saturating_sub(width), gh.saturating_sub(height)),

@@ -610,14 +610,7 @@ impl ExemplarIndex {
             });
         }
         let f = features(rects, |x, y, w, h| {
-            let mut sum = 0.0f64;
-            for yy in y..y + h {
-                sum += region[yy * p + x..yy * p + x + w]
-                    .iter()
-                    .map(|&v| v as f64)
-                    .sum::<f64>();
-            }
-            (sum / (w * h) as f64) as f32
+            crate::synth::window_mean(region, p, x, y, w, h)
         });
         let mut q = vec![0.0f32; self.params.pca_dims];
         self.pcas[sh].project(&f, &mut q);

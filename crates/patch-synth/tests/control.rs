@@ -128,11 +128,11 @@ fn sketch_guide_interpolates_seeds_and_strokes() {
 
 #[test]
 fn exemplar_categories_by_clustering_separate_low_and_high_terrain() {
-    let (Some(coast), Some(canyon), Some(alps)) = (
-        dem_crop("N57E011", 900, 100, 160, 160),
-        dem_crop("grandcanyon", 0, 0, 160, 160),
-        dem_crop("alps_dem", 1200, 250, 160, 160),
-    ) else {
+    let Some([coast, canyon, alps]) = relief_testdata::dem_crops([
+        ("N57E011", 900, 100, 160, 160),
+        ("grandcanyon", 0, 0, 160, 160),
+        ("alps_dem", 1200, 250, 160, 160),
+    ]) else {
         return;
     };
     let cats = categorize_exemplars(&[coast, canyon, alps], 3, &small()).unwrap();
@@ -161,10 +161,10 @@ fn category_map_from_guide_heights_is_ordered() {
 
 #[test]
 fn unguided_synthesis_with_compatibility_check_and_exemplar_cover() {
-    let (Some(a), Some(b)) = (
-        dem_crop("jacksboro_fault", 0, 0, 192, 192),
-        dem_crop("jacksboro_fault", 200, 140, 192, 192),
-    ) else {
+    let Some([a, b]) = relief_testdata::dem_crops([
+        ("jacksboro_fault", 0, 0, 192, 192),
+        ("jacksboro_fault", 200, 140, 192, 192),
+    ]) else {
         return;
     };
     let s = small();
@@ -193,11 +193,11 @@ fn unguided_synthesis_with_compatibility_check_and_exemplar_cover() {
 
 #[test]
 fn greedy_cover_picks_the_exemplar_that_matches_the_guide() {
-    let (Some(coast), Some(alps), Some(src)) = (
-        dem_crop("N57E011", 900, 100, 160, 160),
-        dem_crop("alps_dem", 450, 250, 256, 256),
-        dem_crop("alps_dem", 2150, 300, 128, 128),
-    ) else {
+    let Some([coast, alps, src]) = relief_testdata::dem_crops([
+        ("N57E011", 900, 100, 160, 160),
+        ("alps_dem", 450, 250, 256, 256),
+        ("alps_dem", 2150, 300, 128, 128),
+    ]) else {
         return;
     };
     let g = lowpass_resample(&src, 8).unwrap();
@@ -241,10 +241,10 @@ impl relief_heightfield::Progress for Counting {
 
 #[test]
 fn quilt_reports_progress_for_every_phase() {
-    let (Some(a), Some(src)) = (
-        dem_crop("grandcanyon", 100, 100, 160, 160),
-        dem_crop("grandcanyon", 300, 300, 80, 80),
-    ) else {
+    let Some([a, src]) = relief_testdata::dem_crops([
+        ("grandcanyon", 100, 100, 160, 160),
+        ("grandcanyon", 300, 300, 80, 80),
+    ]) else {
         return;
     };
     let g = gaussian_blur(&src, 4.0).unwrap();
@@ -274,10 +274,10 @@ fn quilt_reports_progress_for_every_phase() {
 /// the exemplars' (`LO,HI` exactly; `auto` checked by the validation).
 #[test]
 fn guide_keeps_its_scale_and_is_mapped_onto_the_exemplar_heights() {
-    let (Some(src), Some(ex)) = (
-        dem_crop("jacksboro_fault", 100, 80, 100, 80),
-        dem_crop("grandcanyon", 150, 150, 160, 160),
-    ) else {
+    let Some([src, ex]) = relief_testdata::dem_crops([
+        ("jacksboro_fault", 100, 80, 100, 80),
+        ("grandcanyon", 150, 150, 160, 160),
+    ]) else {
         return;
     };
     // 74.57 x 92.48 m cells onto 61.70 m: the same ground in more cells.
@@ -416,10 +416,10 @@ fn region_categories_split_one_exemplar_and_the_map_is_obeyed() {
 /// drops a redundant exemplar once the validation passes, and the subset still validates.
 #[test]
 fn jobs_take_region_categories_painted_regions_and_apply_the_exemplar_subset() {
-    let (Some(a), Some(b)) = (
-        dem_crop("grandcanyon", 0, 0, 160, 160),
-        dem_crop("grandcanyon", 300, 300, 160, 160),
-    ) else {
+    let Some([a, b]) = relief_testdata::dem_crops([
+        ("grandcanyon", 0, 0, 160, 160),
+        ("grandcanyon", 300, 300, 160, 160),
+    ]) else {
         return;
     };
     let s = Settings {

@@ -77,6 +77,25 @@ fn small(max: usize) -> impl Strategy<Value = usize> {
     prop_oneof![8 => 0..=max, 1 => Just(0usize), 1 => Just(100_000usize)]
 }
 
+/// Every kind of blend, with radii, iteration counts and decays drawn from the given strategies.
+fn blends(
+    radius: impl Strategy<Value = f32> + 'static,
+    iterations: std::ops::RangeInclusive<usize>,
+    decay: impl Strategy<Value = f32> + 'static,
+) -> impl Strategy<Value = Blend> {
+    prop_oneof![
+        Just(Blend::None),
+        radius.prop_map(|radius| Blend::Feather { radius }),
+        iterations
+            .clone()
+            .prop_map(|max_iterations| Blend::Poisson { max_iterations }),
+        (iterations, decay).prop_map(|(max_iterations, decay)| Blend::Screened {
+            max_iterations,
+            decay
+        }),
+    ]
+}
+
 fn settings() -> impl Strategy<Value = Settings> {
     let a = (
         prop_oneof![8 => 0usize..=40, 1 => Just(2000usize)],
@@ -112,59 +131,20 @@ fn settings() -> impl Strategy<Value = Settings> {
         any::<bool>(),
         0usize..=4,
         any::<bool>(),
-        prop_oneof![
-            Just(Blend::None),
-            any_f32().prop_map(|radius| Blend::Feather { radius }),
-            (0usize..=40).prop_map(|max_iterations| Blend::Poisson { max_iterations }),
-            (0usize..=40, any_f32()).prop_map(|(max_iterations, decay)| Blend::Screened {
-                max_iterations,
-                decay
-            }),
-        ],
+        blends(any_f32(), 0..=40, any_f32()),
         any::<u64>(),
     );
-    (a, b, c).prop_map(
-        |(
-            (patch_size, overlap, alpha, beta, gamma, lambda, blocks, guide_cells),
-            (
-                kmeans_clusters,
-                kmeans_iterations,
-                pca_dims,
-                pca_samples,
-                knn,
-                probe_candidates,
-                survivors,
-                choice_tolerance,
-            ),
-            (
-                min_candidates,
-                validation_tolerance,
-                enforce_validation,
-                exemplar_stride,
-                greedy,
-                blend,
-                seed,
-            ),
-        )| Settings {
-            patch_size,
-            overlap,
-            alpha,
-            beta,
-            gamma,
-            lambda,
-            blocks,
-            guide_cells,
-            kmeans_clusters,
-            kmeans_iterations,
-            pca_dims,
-            pca_samples,
-            knn,
-            probe_candidates,
-            survivors,
-            choice_tolerance,
-            min_candidates,
+    (a, b, c).prop_map(|d| {
+        let seed = d.2.6;
+        Settings {
             // Sometimes set, sometimes out of (0, 1] (checked).
             min_candidates_share: (seed % 3 == 0).then(|| (seed % 100) as f32 / 50.0 - 0.5),
+            // Drawn from the seed: the strategy tuples are full.
+            rerank: (seed % 12) as usize,
+            crease_passes: ((seed >> 8) % 4) as usize,
+            // Sometimes out of range (checked).
+            reuse_penalty: ((seed >> 12) % 7) as f32 * 40.0 - 40.0,
+            reuse_radius: ((seed >> 16) % 80) as usize,
             // Sometimes NaN, negative or too large (checked).
             guide_lowpass: [
                 None,
@@ -173,121 +153,99 @@ fn settings() -> impl Strategy<Value = Settings> {
                 Some(0.0),
                 Some(24.0),
                 Some(2000.0),
-            ][(seed >> 16) as usize % 6],
-            validation_tolerance,
-            enforce_validation,
-            exemplar_stride,
-            cut: if greedy {
-                CutMethod::Greedy
-            } else {
-                CutMethod::DynamicProgramming
-            },
-            blend,
-            // Drawn from the seed: the strategy tuples are full.
-            rerank: (seed % 12) as usize,
-            crease_passes: ((seed >> 8) % 4) as usize,
-            // Sometimes out of range (checked).
-            reuse_penalty: ((seed >> 12) % 7) as f32 * 40.0 - 40.0,
-            reuse_radius: ((seed >> 16) % 80) as usize,
-            seed,
+            ][(seed >> 24) as usize % 6],
+            ..drawn(d)
+        }
+    })
+}
+
+/// The settings fields both strategies draw, in the order they draw them.
+type Drawn = (
+    (usize, usize, f32, f32, f32, f32, usize, usize),
+    (usize, usize, usize, usize, usize, usize, usize, f32),
+    (usize, Option<f32>, bool, usize, bool, Blend, u64),
+);
+
+/// Settings of the drawn fields; the fields derived from the seed are the caller's (zero here).
+fn drawn((a, b, c): Drawn) -> Settings {
+    Settings {
+        patch_size: a.0,
+        overlap: a.1,
+        alpha: a.2,
+        beta: a.3,
+        gamma: a.4,
+        lambda: a.5,
+        blocks: a.6,
+        guide_cells: a.7,
+        kmeans_clusters: b.0,
+        kmeans_iterations: b.1,
+        pca_dims: b.2,
+        pca_samples: b.3,
+        knn: b.4,
+        probe_candidates: b.5,
+        survivors: b.6,
+        choice_tolerance: b.7,
+        min_candidates: c.0,
+        min_candidates_share: None,
+        guide_lowpass: None,
+        validation_tolerance: c.1,
+        enforce_validation: c.2,
+        exemplar_stride: c.3,
+        cut: if c.4 {
+            CutMethod::Greedy
+        } else {
+            CutMethod::DynamicProgramming
         },
-    )
+        blend: c.5,
+        rerank: 0,
+        crease_passes: 0,
+        reuse_penalty: 0.0,
+        reuse_radius: 0,
+        seed: c.6,
+    }
 }
 
 /// Settings drawn from the valid ranges (the synthesis path runs on most of them).
 fn valid_settings() -> impl Strategy<Value = Settings> {
+    // The same draws as `settings`, regrouped into its layout (regrouping draws nothing).
     let a = (
         (8usize..=40).prop_flat_map(|p| (Just(p), 1..p.div_ceil(2))),
         (0.0f32..8.0, 0.0f32..8.0, 0.01f32..8.0),
         0.0f32..200.0,
         1usize..=4,
         1usize..=8,
+    )
+        .prop_map(|((p, o), (al, be, ga), la, bl, gc)| (p, o, al, be, ga, la, bl, gc));
+    let b = (
         1usize..=24,
         1usize..=6,
-    );
-    let b = (
         prop_oneof![Just(4usize), Just(6), Just(8), Just(12), Just(16)],
         32usize..=600,
         1usize..=40,
         1usize..=600,
         1usize..=12,
         0.0f32..1.0,
-        1usize..=800,
-        prop_oneof![Just(None), (1.0f32..300.0).prop_map(Some)],
     );
     let c = (
+        1usize..=800,
+        prop_oneof![Just(None), (1.0f32..300.0).prop_map(Some)],
         any::<bool>(),
         1usize..=4,
         any::<bool>(),
-        prop_oneof![
-            Just(Blend::None),
-            (0.5f32..6.0).prop_map(|radius| Blend::Feather { radius }),
-            (1usize..=40).prop_map(|max_iterations| Blend::Poisson { max_iterations }),
-            (1usize..=40, 1.0f32..40.0).prop_map(|(max_iterations, decay)| Blend::Screened {
-                max_iterations,
-                decay
-            }),
-        ],
+        blends(0.5f32..6.0, 1..=40, 1.0f32..40.0),
         any::<u64>(),
     );
-    (a, b, c).prop_map(
-        |(
-            (
-                (patch_size, overlap),
-                (alpha, beta, gamma),
-                lambda,
-                blocks,
-                guide_cells,
-                kmeans_clusters,
-                kmeans_iterations,
-            ),
-            (
-                pca_dims,
-                pca_samples,
-                knn,
-                probe_candidates,
-                survivors,
-                choice_tolerance,
-                min_candidates,
-                validation_tolerance,
-            ),
-            (enforce_validation, exemplar_stride, greedy, blend, seed),
-        )| Settings {
-            patch_size,
-            overlap,
-            alpha,
-            beta,
-            gamma,
-            lambda,
-            blocks,
-            guide_cells,
-            kmeans_clusters,
-            kmeans_iterations,
-            pca_dims,
-            pca_samples,
-            knn,
-            probe_candidates,
-            survivors,
-            choice_tolerance,
-            min_candidates,
-            min_candidates_share: None,
-            guide_lowpass: [None, Some(0.0), Some(4.0), Some(24.0)][(seed >> 16) as usize % 4],
-            validation_tolerance,
-            enforce_validation,
-            exemplar_stride,
-            cut: if greedy {
-                CutMethod::Greedy
-            } else {
-                CutMethod::DynamicProgramming
-            },
-            blend,
+    (a, b, c).prop_map(|d| {
+        let seed = d.2.6;
+        Settings {
             rerank: 1 + (seed % 12) as usize,
             crease_passes: ((seed >> 8) % 3) as usize,
             reuse_penalty: ((seed >> 12) % 4) as f32 * 0.5,
             reuse_radius: ((seed >> 16) % 5) as usize,
-            seed,
-        },
-    )
+            guide_lowpass: [None, Some(0.0), Some(4.0), Some(24.0)][(seed >> 24) as usize % 4],
+            ..drawn(d)
+        }
+    })
 }
 
 /// Half valid settings, half anything (mostly invalid).
@@ -509,8 +467,7 @@ proptest! {
         };
         let control = Control::guided(lowpass_resample(g, 4).unwrap());
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| {
+            relief_testdata::with_threads(threads, || {
                 quilt(
                     vec![Exemplar::new(a.clone(), 0), Exemplar::new(b.clone(), 0)],
                     &control,

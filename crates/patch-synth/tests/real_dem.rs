@@ -212,11 +212,7 @@ fn deterministic_across_thread_counts() {
         ..settings()
     };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let index = ExemplarIndex::build(ex.clone(), &s, &NoProgress).unwrap();
             synthesize(&index, &Control::guided(g.clone()), &s, &NoProgress).unwrap()
         })
@@ -336,30 +332,20 @@ fn settings_errors_name_field_and_value() {
     );
     let e = err(&Settings::default(), vec![]);
     assert!(e.contains("empty exemplar set"), "{e}");
-    let e = err(
-        &Settings {
-            overlap: 32,
-            ..Default::default()
-        },
-        vec![],
-    );
-    assert!(e.contains("`overlap` = 32"), "{e}");
-    let e = err(
-        &Settings {
-            pca_dims: 5,
-            ..Default::default()
-        },
-        vec![],
-    );
-    assert!(e.contains("`pca_dims` = 5"), "{e}");
-    let e = err(
-        &Settings {
-            lambda: f32::NAN,
-            ..Default::default()
-        },
-        vec![],
-    );
-    assert!(e.contains("`lambda` = NaN"), "{e}");
+    // Settings errors name the field and its value (no exemplar needed).
+    let with = |f: fn(&mut Settings)| {
+        let mut s = Settings::default();
+        f(&mut s);
+        s
+    };
+    for (s, want) in [
+        (with(|s| s.overlap = 32), "`overlap` = 32"),
+        (with(|s| s.pca_dims = 5), "`pca_dims` = 5"),
+        (with(|s| s.lambda = f32::NAN), "`lambda` = NaN"),
+    ] {
+        let e = err(&s, vec![]);
+        assert!(e.contains(want), "{e}");
+    }
     let mut void = small.clone();
     void.set(3, 3, f32::NAN);
     let e = err(

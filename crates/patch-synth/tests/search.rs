@@ -4,18 +4,23 @@ use relief_heightfield::NoProgress;
 use relief_patch_synth::{Exemplar, ExemplarIndex, OverlapShape, PatchSynthError, Settings};
 use relief_testdata::dem_crop;
 
-#[test]
-fn nearest_overlaps_finds_the_patch_itself_and_ranks_by_overlap() {
-    let Some(ex) = dem_crop("grandcanyon", 100, 120, 160, 160) else {
-        return;
-    };
-    let s = Settings {
+/// 32-cell patches, 8-cell overlaps, 8 clusters, PCA on 1500 samples.
+fn search_settings() -> Settings {
+    Settings {
         patch_size: 32,
         overlap: 8,
         kmeans_clusters: 8,
         pca_samples: 1500,
         ..Default::default()
+    }
+}
+
+#[test]
+fn nearest_overlaps_finds_the_patch_itself_and_ranks_by_overlap() {
+    let Some(ex) = dem_crop("grandcanyon", 100, 120, 160, 160) else {
+        return;
     };
+    let s = search_settings();
     let index = ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &s, &NoProgress).unwrap();
     let p = s.patch_size;
     for (x, y) in [(0usize, 0usize), (57, 91), (128, 13)] {
@@ -77,19 +82,13 @@ fn nearest_overlaps_finds_the_patch_itself_and_ranks_by_overlap() {
 /// the kd-tree's own 24 (`rerank = 1`).
 #[test]
 fn reranked_search_recovers_the_exhaustive_best() {
-    let (Some(ex), Some(other)) = (
-        dem_crop("grandcanyon", 100, 120, 200, 200),
-        dem_crop("alps_dem", 900, 200, 200, 200),
-    ) else {
+    let Some([ex, other]) = relief_testdata::dem_crops([
+        ("grandcanyon", 100, 120, 200, 200),
+        ("alps_dem", 900, 200, 200, 200),
+    ]) else {
         return;
     };
-    let s = Settings {
-        patch_size: 32,
-        overlap: 8,
-        kmeans_clusters: 8,
-        pca_samples: 1500,
-        ..Default::default()
-    };
+    let s = search_settings();
     let index = ExemplarIndex::build(vec![Exemplar::new(ex, 0)], &s, &NoProgress).unwrap();
     let p = s.patch_size;
     let n = index.patches().len();

@@ -172,11 +172,7 @@ fn thread_count_and_batch_do_not_change_the_codes() {
     let d = gaussian(6000, 32, 5, true);
     let x = gaussian(700, 32, 6, false);
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| batch_omp(d.view(), x.view(), &S1).unwrap())
+        relief_testdata::with_threads(threads, || batch_omp(d.view(), x.view(), &S1).unwrap())
     };
     let one = run(1);
     assert_eq!(one, run(3));

@@ -8,6 +8,14 @@ use rand_pcg::Pcg64;
 use relief_sparse_core::omp::{OmpFloat, OmpSettings, SparseCodes, batch_omp, omp_reference};
 use relief_sparse_core::{PatchGeometry, SparseError, extract_patches};
 
+/// Asserts that `res` is the error of a non-finite value in row `row` of input `what`.
+fn assert_non_finite<C: std::fmt::Debug>(res: Result<C, SparseError>, what: &str, row: usize) {
+    assert!(
+        matches!(&res, Err(SparseError::NonFinite { what: w, row: r }) if *w == what && *r == row),
+        "{res:?}"
+    );
+}
+
 /// Random unit-norm Gaussian dictionary (well conditioned: low mutual coherence).
 fn gaussian_dict(n_atoms: usize, dim: usize, seed: u64) -> Array2<f64> {
     let mut rng = Pcg64::seed_from_u64(seed);
@@ -123,22 +131,10 @@ macro_rules! solver_suite {
                 ));
                 let mut nan = x.clone();
                 nan[(1, 3)] = <T>::NAN;
-                assert!(matches!(
-                    $solver(d.view(), nan.view(), &st(2)),
-                    Err(SparseError::NonFinite {
-                        what: "signals",
-                        row: 1
-                    })
-                ));
+                assert_non_finite($solver(d.view(), nan.view(), &st(2)), "signals", 1);
                 let mut dnan = d.clone();
                 dnan[(4, 0)] = <T>::INFINITY;
-                assert!(matches!(
-                    $solver(dnan.view(), x.view(), &st(2)),
-                    Err(SparseError::NonFinite {
-                        what: "dictionary",
-                        row: 4
-                    })
-                ));
+                assert_non_finite($solver(dnan.view(), x.view(), &st(2)), "dictionary", 4);
                 let short = Array2::<T>::zeros((3, 7));
                 assert!(matches!(
                     $solver(d.view(), short.view(), &st(2)),
@@ -393,11 +389,7 @@ fn batch_is_independent_of_threads_and_batching() {
         tolerance: None,
     };
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| batch_omp(d.view(), x.view(), &st).unwrap())
+        relief_testdata::with_threads(threads, || batch_omp(d.view(), x.view(), &st).unwrap())
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(a, b);

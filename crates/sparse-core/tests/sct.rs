@@ -8,13 +8,29 @@ use rand_pcg::Pcg64;
 use relief_heightfield::{Heightfield, metrics};
 use relief_sparse_core::dictionary::{AtomDescriptor, FunctionAtom};
 use relief_sparse_core::{
-    Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, Node, PatchGeometry,
-    Placement, RasterSettings, Region, River, RiverMode, Sct, SparseError, SparseLayer, Window,
-    compression_report, encode, extract_patches, raster_coord, storage_values,
+    CompressionReport, Dictionary, EncodeSettings, FormatOptions, FunctionAtomRegistry, Node,
+    PatchGeometry, Placement, RasterSettings, Region, River, RiverMode, Sct, SparseError,
+    SparseLayer, Window, compression_report, encode, extract_patches, raster_coord, storage_values,
 };
 
 fn crop(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
     relief_testdata::dem_crop(id, x, y, w, h)
+}
+
+/// Encoding settings of sparsity `s`, the rest default.
+fn sparsity(s: usize) -> EncodeSettings {
+    EncodeSettings {
+        sparsity: s,
+        ..Default::default()
+    }
+}
+
+/// The compression report of `sct` against `hf` (no function atoms).
+fn report(hf: &Heightfield, sct: &Sct, quantize_coefficients: bool) -> CompressionReport {
+    let options = FormatOptions {
+        quantize_coefficients,
+    };
+    compression_report(hf, sct, &options, &FunctionAtomRegistry::new()).unwrap()
 }
 
 /// A dictionary of `n` patches of `hf` picked at random (seeded), as the paper's K-SVD starts.
@@ -43,15 +59,7 @@ fn complete_dictionary_s1_reconstructs_exactly() {
         };
         let p = extract_patches(&hf, &PatchGeometry::with_patch_size(8)).unwrap();
         let (dict, _) = Dictionary::from_patches(&p, None).unwrap();
-        let sct = encode(
-            &hf,
-            &dict,
-            &EncodeSettings {
-                sparsity: 1,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let sct = encode(&hf, &dict, &sparsity(1)).unwrap();
         let rec = sct.rasterize(&RasterSettings::default()).unwrap();
         let err = metrics::max_abs_diff(&hf, &rec).unwrap();
         let relief = hf.relief() as f64;
@@ -72,22 +80,8 @@ fn compression_psnr_increases_with_sparsity() {
     let mut last = f64::NEG_INFINITY;
     let mut last_rho = 0.0;
     for s in [1usize, 2, 8] {
-        let sct = encode(
-            &hf,
-            &dict,
-            &EncodeSettings {
-                sparsity: s,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let r = compression_report(
-            &hf,
-            &sct,
-            &FormatOptions::default(),
-            &FunctionAtomRegistry::new(),
-        )
-        .unwrap();
+        let sct = encode(&hf, &dict, &sparsity(s)).unwrap();
+        let r = report(&hf, &sct, false);
         let layer = sct.layers()[0];
         assert_eq!(r.t, storage_values(64, 128, layer.len(), s));
         assert_eq!(r.t0, 128 * 128);
@@ -100,31 +94,9 @@ fn compression_psnr_increases_with_sparsity() {
         last_rho = r.rho;
     }
     // Quantised coefficients: smaller and almost as good.
-    let sct = encode(
-        &hf,
-        &dict,
-        &EncodeSettings {
-            sparsity: 2,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let f = compression_report(
-        &hf,
-        &sct,
-        &FormatOptions::default(),
-        &FunctionAtomRegistry::new(),
-    )
-    .unwrap();
-    let q = compression_report(
-        &hf,
-        &sct,
-        &FormatOptions {
-            quantize_coefficients: true,
-        },
-        &FunctionAtomRegistry::new(),
-    )
-    .unwrap();
+    let sct = encode(&hf, &dict, &sparsity(2)).unwrap();
+    let f = report(&hf, &sct, false);
+    let q = report(&hf, &sct, true);
     assert!(q.bytes < f.bytes);
     assert!(q.psnr > f.psnr - 1.0, "{} vs {}", q.psnr, f.psnr);
 }
@@ -132,15 +104,7 @@ fn compression_psnr_increases_with_sparsity() {
 fn alps_sct(s: usize) -> Option<(Heightfield, Sct)> {
     let hf = crop("alps_dem", 600, 200, 90, 70)?;
     let dict = random_patch_dictionary(&hf, 8, 64, 9);
-    let sct = encode(
-        &hf,
-        &dict,
-        &EncodeSettings {
-            sparsity: s,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let sct = encode(&hf, &dict, &sparsity(s)).unwrap();
     Some((hf, sct))
 }
 
@@ -192,17 +156,13 @@ fn window_alone_equals_full_raster_bit_for_bit() {
     }
     // Independent of the number of threads.
     let run = |t| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build()
-            .unwrap()
-            .install(|| {
-                sct.rasterize(&RasterSettings {
-                    scale: 1.7,
-                    window: None,
-                })
-                .unwrap()
+        relief_testdata::with_threads(t, || {
+            sct.rasterize(&RasterSettings {
+                scale: 1.7,
+                window: None,
             })
+            .unwrap()
+        })
     };
     assert_eq!(run(1).as_slice(), run(2).as_slice());
 }
@@ -408,11 +368,12 @@ impl FunctionAtom for Ridge {
     }
 }
 
+/// The fuzz target's registry: one `ridge` kind with two finite parameters.
 fn registry() -> FunctionAtomRegistry {
     let mut r = FunctionAtomRegistry::new();
     r.register("ridge", |p: &[f64]| {
-        if p.len() != 2 {
-            return Err(SparseError::param("ridge params", p.len(), "need 2"));
+        if p.len() != 2 || !p.iter().all(|x| x.is_finite()) {
+            return Err(SparseError::param("ridge params", p.len(), "need 2 finite"));
         }
         Ok(Arc::new(Ridge {
             freq: p[0],
@@ -439,15 +400,7 @@ fn mixed_dictionary_and_format_round_trip() {
     for row in d.outer_iter() {
         assert!((row.dot(&row) - 1.0).abs() < 1e-4);
     }
-    let sct = encode(
-        &hf,
-        &dict,
-        &EncodeSettings {
-            sparsity: 4,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let sct = encode(&hf, &dict, &sparsity(4)).unwrap();
     let layer = sct.layers()[0];
     assert!(
         layer.atom_indices().iter().any(|&j| j >= 4),
@@ -673,15 +626,7 @@ fn non_unit_spacing_and_tolerance() {
     assert!(psnr > 35.0, "PSNR {psnr}");
     // A residual tolerance uses fewer coefficients than the sparsity cap, at a bounded error.
     let dict = random_patch_dictionary(&hf, 8, 96, 4);
-    let capped = encode(
-        &hf,
-        &dict,
-        &EncodeSettings {
-            sparsity: 12,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let capped = encode(&hf, &dict, &sparsity(12)).unwrap();
     let tol = 8.0 * 64.0; // mean squared error of 8 m^2 per sample over a patch
     let tolerant = encode(
         &hf,
@@ -820,4 +765,36 @@ fn sct_geo_bytes_v2(sct: &Sct) -> Vec<u8> {
     b.truncate(b.len() - 4);
     b[8..10].copy_from_slice(&2u16.to_le_bytes());
     b
+}
+
+/// Regression inputs found by fuzzing `Sct::from_bytes` (+ re-encode + rasterise), the
+/// `fuzz/fuzz_targets/sct.rs` target: each file in `tests/fuzz_regressions/` once made the
+/// decoder or the rasteriser overflow (huge centres, tiny spacings). They must now decode to an
+/// error, or to a tree that re-encodes identically and rasterises without panicking.
+#[test]
+fn fuzz_crash_inputs_are_handled() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert!(files.len() >= 16, "{} files", files.len());
+    let reg = registry();
+    for f in files {
+        let data = std::fs::read(&f).unwrap();
+        if let Ok(sct) = Sct::from_bytes(&data, &reg) {
+            let again = sct.to_bytes().unwrap();
+            let back = Sct::from_bytes(&again, &reg).unwrap();
+            assert_eq!(back.to_bytes().unwrap(), again, "{}", f.display());
+            if sct.width() * sct.height() <= 4096 {
+                let _ = sct.rasterize(&RasterSettings::default());
+                let _ = sct.rasterize(&RasterSettings {
+                    scale: 2.5,
+                    window: None,
+                });
+            }
+            let _ = sct.eval(0.5, 0.5);
+        }
+    }
 }

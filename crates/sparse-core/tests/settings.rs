@@ -14,6 +14,19 @@ use relief_sparse_core::{
     compression_report, encode, encode_shared, extract_patches, omp_reference,
 };
 
+/// Scale 1, a `width` x `height` window at the origin.
+fn window_at_origin(width: usize, height: usize) -> RasterSettings {
+    RasterSettings {
+        scale: 1.0,
+        window: Some(Window {
+            x: 0,
+            y: 0,
+            width,
+            height,
+        }),
+    }
+}
+
 /// Asserts that `r` is an error naming `field` (and, for parameter errors, its value).
 fn names<T: std::fmt::Debug>(r: Result<T, SparseError>, field: &str, what: &str) {
     match r {
@@ -141,31 +154,9 @@ fn invalid_settings_name_field_and_value() {
             "scale",
         );
     }
+    names(window_at_origin(0, 3).check(), "window", "empty window");
     names(
-        RasterSettings {
-            scale: 1.0,
-            window: Some(Window {
-                x: 0,
-                y: 0,
-                width: 0,
-                height: 3,
-            }),
-        }
-        .check(),
-        "window",
-        "empty window",
-    );
-    names(
-        RasterSettings {
-            scale: 1.0,
-            window: Some(Window {
-                x: 0,
-                y: 0,
-                width: usize::MAX,
-                height: usize::MAX,
-            }),
-        }
-        .check(),
+        window_at_origin(usize::MAX, usize::MAX).check(),
         "window",
         "huge window",
     );
@@ -293,24 +284,20 @@ fn encode_is_identical_on_one_and_two_threads() {
     let sel: Vec<usize> = (0..64).map(|k| k * n / 64).collect();
     let dict = Arc::new(Dictionary::from_patches(&p, Some(&sel)).unwrap().0);
     let run = |threads: usize, s: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let sct = encode_shared(
-                    &hf,
-                    dict.clone(),
-                    &EncodeSettings {
-                        sparsity: s,
-                        tolerance: Some(1.0),
-                        ..Default::default()
-                    },
-                )
-                .unwrap();
-                let r = sct.rasterize(&RasterSettings::default()).unwrap();
-                (sct.to_bytes().unwrap(), r)
-            })
+        relief_testdata::with_threads(threads, || {
+            let sct = encode_shared(
+                &hf,
+                dict.clone(),
+                &EncodeSettings {
+                    sparsity: s,
+                    tolerance: Some(1.0),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let r = sct.rasterize(&RasterSettings::default()).unwrap();
+            (sct.to_bytes().unwrap(), r)
+        })
     };
     for s in [1, 4, 8] {
         let (a, ra) = run(1, s);

@@ -270,17 +270,13 @@ fn tree_raster_is_independent_of_threads() {
     )
     .unwrap();
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                t.rasterize(&RasterSettings {
-                    scale: 3.3,
-                    window: None,
-                })
-                .unwrap()
+        relief_testdata::with_threads(threads, || {
+            t.rasterize(&RasterSettings {
+                scale: 3.3,
+                window: None,
             })
+            .unwrap()
+        })
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(

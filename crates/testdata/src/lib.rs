@@ -89,6 +89,43 @@ pub fn dem_crop(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heig
     load_dem(id).map(|d| d.crop(x, y, w, h).expect("crop inside the DEM"))
 }
 
+/// Writes the hillshade of `hf` (sun at 315 degrees azimuth, 45 degrees altitude) as an 8-bit
+/// binary PGM image (the measurement examples' pictures).
+///
+/// # Panics
+/// Panics when the file cannot be written.
+pub fn write_shade(path: &Path, hf: &Heightfield) {
+    let s = relief_heightfield::terrain::hillshade(hf, 315.0, 45.0, 1.0);
+    let mut bytes = format!("P5\n{} {}\n255\n", hf.width(), hf.height()).into_bytes();
+    bytes.extend(s.iter().map(|v| (v * 255.0).round() as u8));
+    std::fs::write(path, bytes).expect("write the PGM image");
+}
+
+/// Runs `f` on a rayon pool of `threads` workers (the determinism tests compare runs on
+/// different thread counts).
+///
+/// # Panics
+/// Panics when the pool cannot be built.
+pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+        .install(f)
+}
+
+/// Several crops at once (`(id, x, y, w, h)` each, see [`dem_crop`]), or `None` when the DEM
+/// folder is absent: `let Some([a, b]) = dem_crops([..]) else { return };` skips a test.
+pub fn dem_crops<const N: usize>(
+    crops: [(&str, usize, usize, usize, usize); N],
+) -> Option<[Heightfield; N]> {
+    let all: Option<Vec<Heightfield>> = crops
+        .map(|(id, x, y, w, h)| dem_crop(id, x, y, w, h))
+        .into_iter()
+        .collect();
+    all?.try_into().ok()
+}
+
 /// The ids of the real DEM set.
 pub const DEM_IDS: [&str; 8] = [
     "alps_dem",

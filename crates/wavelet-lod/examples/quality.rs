@@ -27,16 +27,9 @@ use relief_wavelet_lod::quality::{Protocol, Scores};
 use relief_wavelet_lod::{Method, RefineSettings, Refiner};
 
 fn row(name: &str, s: &Scores) {
+    let [c, slope, dslope, slope_emd, curv_emd, swing, place, flat] = s.row();
     println!(
-        "  {name:<14} consistency {:>6.3} %  slope {:>6.2}  dslope {:>5.2}  slope_emd {:>5.2}  curv_emd {:>6.3}  swing {:>5.2}  place {:>5.2}  flat {:>+5.2}",
-        100.0 * s.consistency,
-        s.spectral_slope,
-        s.dslope,
-        s.slope_emd,
-        s.curv_emd,
-        s.swing,
-        s.placement,
-        s.flat_excess
+        "  {name:<14} consistency {c:>6.3} %  slope {slope:>6.2}  dslope {dslope:>5.2}  slope_emd {slope_emd:>5.2}  curv_emd {curv_emd:>6.3}  swing {swing:>5.2}  place {place:>5.2}  flat {flat:>+5.2}"
     );
 }
 

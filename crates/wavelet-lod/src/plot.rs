@@ -160,25 +160,15 @@ impl LogVariancePlot {
                 .map(|(p, _)| p.0)
                 .fold(f64::MAX, f64::min)
                 .min(last_meas);
+            // The fitted line from `x0` to `x1` (dashed with `dash > 0`).
             let line = |x: f64| s.a - x * s.gamma;
-            c.line(
-                sx(first_fit),
-                sy(line(first_fit)),
-                sx(last_meas),
-                sy(line(last_meas)),
-                col,
-                0,
-            );
+            let mut segment = |x0: f64, x1: f64, dash| {
+                c.line(sx(x0), sy(line(x0)), sx(x1), sy(line(x1)), col, dash);
+            };
+            segment(first_fit, last_meas, 0);
             let end = self.first_new_level as f64 + self.extra_levels as f64 - 1.0;
             if end > last_meas {
-                c.line(
-                    sx(last_meas),
-                    sy(line(last_meas)),
-                    sx(end),
-                    sy(line(end)),
-                    col,
-                    4,
-                );
+                segment(last_meas, end, 4);
             }
             for (p, f) in s.measured.iter().zip(&s.fitted) {
                 let (x, y) = (sx(p.0) as i64, sy(p.1) as i64);

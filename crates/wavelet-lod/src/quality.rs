@@ -65,6 +65,23 @@ pub struct Scores {
     pub flat_excess: f64,
 }
 
+impl Scores {
+    /// The scores in table order: consistency in %, spectral slope, slope error, slope- and
+    /// curvature-histogram distances, swing, placement, flat excess.
+    pub fn row(&self) -> [f64; 8] {
+        [
+            100.0 * self.consistency,
+            self.spectral_slope,
+            self.dslope,
+            self.slope_emd,
+            self.curv_emd,
+            self.swing,
+            self.placement,
+            self.flat_excess,
+        ]
+    }
+}
+
 /// The truth, its coarse version and the references the scores need.
 #[derive(Debug, Clone)]
 pub struct Protocol {

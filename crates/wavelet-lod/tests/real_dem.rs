@@ -238,11 +238,7 @@ fn one_and_two_threads_give_identical_bytes_on_the_alps() {
         return;
     };
     let run = |threads: usize, wavelet: Wavelet, method: Method, model: Model| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             let s = RefineSettings {
                 model,
                 wavelet: Some(wavelet),

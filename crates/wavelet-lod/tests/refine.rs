@@ -86,11 +86,7 @@ fn tile_size_and_thread_count_do_not_change_the_result() {
         ..Default::default()
     };
     let run = |threads: usize, tile: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        relief_testdata::with_threads(threads, || {
             refine(
                 &hf,
                 &RefineSettings {
@@ -558,11 +554,7 @@ fn parent_conditioning_keeps_windows_threads_and_consistency() {
                 "+{extra} {x},{y},{w},{h}"
             );
         }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let one = pool.install(|| {
+        let one = relief_testdata::with_threads(1, || {
             refine(
                 &hf,
                 &RefineSettings {

@@ -340,7 +340,7 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         peer: None,
         goal: Goal::SecondsAtMost(3.0),
         units: None,
-        note: "tree memory (<= 10 MB) is reported by the crate's bench_volume example",
+        note: "tree memory (<= 10 MB) is printed by the bench",
     },
     WorkItem {
         name: "tree build, default recipe (karst, sea, cliffs, caves, landforms) on a 128^2 \

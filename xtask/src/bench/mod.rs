@@ -8,8 +8,9 @@
 //! `<venv>/bin/python xtask/peers/<script> <data dir>` and prints one JSON object
 //! `{"<key>": seconds, ...}` (median of its repeats) on stdout; non-numeric values are ignored.
 //! The data dir is `target/bench-data/`: the criterion benches write the inputs their peers read
-//! there (`omp_*.npy`), and [`write_peer_data`] adds the rest before the peers run. The venv
-//! `target/peers-venv` is created with the packages of [`PEER_PACKAGES`] when missing.
+//! there (`omp_*.npy`, `ksvd_patches.npy`, `volume256.npy`), and [`write_peer_data`] adds the
+//! rest before the peers run. The venv `target/peers-venv` is created with the packages of
+//! [`PEER_PACKAGES`] when missing.
 //!
 //! `cargo bench` runs with `RAYON_NUM_THREADS=2` (the issues' goals are for 2 threads); the
 //! load average before and after the run is recorded in the dashboard because the machine is
@@ -333,7 +334,7 @@ fn load_average() -> Option<String> {
 
 /// Inputs the Python peers read that no criterion bench writes, as `.npy` in `dir`: the fixture
 /// DEM and its holed copy (the heightfield benches' data) and the DWT bench's 4096^2 surface
-/// (built with the same construction and counter-based generator as `benches/benches/dwt.rs`).
+/// (`relief_benches::dwt_surface`, the input of `benches/benches/dwt.rs`).
 fn write_peer_data(dir: &Path) -> Result<()> {
     let dem = relief_benches::fixture_dem()?;
     let holes = relief_benches::with_holes(&dem);
@@ -343,33 +344,12 @@ fn write_peer_data(dir: &Path) -> Result<()> {
             .with_context(|| format!("cannot write {}", p.display()))?;
     }
     let size = 4096;
-    let surface = dwt_surface(size);
+    let surface = relief_benches::dwt_surface(size);
     let hf = relief_heightfield::Heightfield::new(size, size, surface, 1.0, 1.0)?;
     let p = dir.join(format!("dwt_surface_{size}.npy"));
     relief_io::write(&p, &hf, &relief_io::WriteOptions::default())
         .with_context(|| format!("cannot write {}", p.display()))?;
     Ok(())
-}
-
-/// The random-walk surface of `benches/benches/dwt.rs` (`surface(size)`): per row, normals from
-/// the wavelet crate's counter-based generator (`row_key(1, 0, 0, y)`), summed along x, then the
-/// rows summed along y.
-fn dwt_surface(size: usize) -> Vec<f32> {
-    use relief_wavelet_lod::rng::{fill_normals, row_key};
-    let mut data = vec![0.0f32; size * size];
-    for y in 0..size {
-        let row = &mut data[y * size..(y + 1) * size];
-        fill_normals(row_key(1, 0, 0, y), 0, row);
-        for x in 1..size {
-            row[x] += row[x - 1];
-        }
-    }
-    for y in 1..size {
-        for x in 0..size {
-            data[y * size + x] += data[(y - 1) * size + x];
-        }
-    }
-    data
 }
 
 /// The venv's python, creating the venv when missing.
@@ -623,17 +603,5 @@ mod tests {
             "peer traindl_3ep_rmse = 3.250"
         );
         assert_eq!(peer_extras(&m, "other_s"), "");
-    }
-
-    #[test]
-    fn dwt_surface_is_a_deterministic_random_walk() {
-        let a = dwt_surface(64);
-        assert_eq!(a, dwt_surface(64));
-        // Cumulative sums in both directions: the first cell is the first normal, and the
-        // surface wanders far further than one step.
-        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
-            - a.iter().cloned().fold(f32::INFINITY, f32::min);
-        assert!(spread > 20.0, "{spread}");
-        assert!(a.iter().all(|v| v.is_finite()));
     }
 }

@@ -290,23 +290,25 @@ impl<'a> Cursor<'a> {
         Ok(f64::from_bits(self.u64()?))
     }
 
-    fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
-        let s = self.take(n.checked_mul(4).ok_or(LearnError::param(
+    /// The bytes of `n` values of `width` bytes each.
+    fn take_values(&mut self, n: usize, width: usize) -> Result<&'a [u8]> {
+        let len = n.checked_mul(width).ok_or(LearnError::param(
             "last step bytes",
             n,
             "size overflows",
-        ))?)?;
+        ))?;
+        self.take(len)
+    }
+
+    fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
+        let s = self.take_values(n, 4)?;
         Ok(s.chunks_exact(4)
             .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect())
     }
 
     fn f64s(&mut self, n: usize) -> Result<Vec<f64>> {
-        let s = self.take(n.checked_mul(8).ok_or(LearnError::param(
-            "last step bytes",
-            n,
-            "size overflows",
-        ))?)?;
+        let s = self.take_values(n, 8)?;
         Ok(s.chunks_exact(8)
             .map(|c| {
                 let mut a = [0u8; 8];

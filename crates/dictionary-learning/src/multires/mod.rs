@@ -90,6 +90,16 @@ pub enum DictionaryChoice {
     },
 }
 
+impl DictionaryChoice {
+    /// [`DictionaryChoice::Learned`]: `n_atoms` atoms learned in `iterations` iterations.
+    pub const fn learned(n_atoms: usize, iterations: usize) -> Self {
+        DictionaryChoice::Learned {
+            n_atoms,
+            iterations,
+        }
+    }
+}
+
 /// Settings of the amplify job ([`amplify`], [`MultiResDictionary::from_exemplar`]): the one
 /// definition of its parameters, read by the CLI's flags, the pipeline spec (JSON, missing
 /// fields take these defaults, unknown fields are an error) and tiled-run manifests.
@@ -178,10 +188,7 @@ impl Default for AmplifySettings {
             step: None,
             steps: 1,
             sparsity: 1,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 256,
-                iterations: 3,
-            },
+            dictionary: DictionaryChoice::learned(256, 3),
             candidate_step: 1,
             max_candidates: 65_536,
             max_learning_pool: 4096,

@@ -79,10 +79,7 @@ fn last_step_windows_equal_the_full_run_bit_for_bit() {
         let settings = AmplifySettings {
             radius,
             steps,
-            dictionary: DictionaryChoice::Learned {
-                n_atoms: 32,
-                iterations: 1,
-            },
+            dictionary: DictionaryChoice::learned(32, 1),
             seed: 7,
             ..base
         };
@@ -167,10 +164,7 @@ fn last_step_bytes_reject_corruption() {
     let exemplar = rough(100, 100, 16.0, 4);
     let settings = AmplifySettings {
         radius: 2.0,
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 16,
-            iterations: 1,
-        },
+        dictionary: DictionaryChoice::learned(16, 1),
         ..AmplifySettings::default()
     };
     let (last, _) = prepare_last_step(

@@ -71,28 +71,29 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     basis.sea_detected = sea.is_some();
     basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
     dims.weathering_radius_m = basis.wr;
-    let mut steps = Steps {
-        basis,
+    let mut out = Out {
         b,
         region,
         dims,
         effects: Vec::new(),
     };
-    steps.coast()?;
-    steps.karst()?;
-    steps.weathering()?;
-    steps.hoodoos()?;
-    if steps.basis.has(Feature::Arches) {
-        steps.arches()?;
+    basis.coast(&mut out)?;
+    basis.karst(&mut out)?;
+    basis.weathering(&mut out)?;
+    // The landforms, each when asked for.
+    let landforms: [(Feature, Step<'_>); 3] = [
+        (Feature::Hoodoos, Basis::hoodoos),
+        (Feature::Arches, Basis::arches),
+        (Feature::Islands, Basis::islands),
+    ];
+    for (feature, step) in landforms {
+        if basis.has(feature) {
+            step(&basis, &mut out)?;
+        }
     }
-    steps.islands()?;
-    let Steps {
-        basis,
-        b,
-        dims,
-        effects,
-        ..
-    } = steps;
+    let Out {
+        b, dims, effects, ..
+    } = out;
     let section_line = best_section_line(&b);
     let highlights = highlights(&b, &effects);
     // Water wherever the scene has a sea level: the DEM's own sea (even when no shore feature
@@ -219,35 +220,30 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
     Ok((geology, geo))
 }
 
-/// The steps after the implicitised DEM: each adds its effects to the scene builder, its
-/// sizes to the dimensions and its report to the effects.
-struct Steps<'a> {
-    basis: Basis<'a>,
+/// What the steps after the implicitised DEM add to: each step (a method of [`Basis`]) adds
+/// its effects to the scene builder, its sizes to the dimensions and its report to the effects.
+struct Out {
     b: SceneBuilder,
     region: Region,
     dims: Dimensions,
     effects: Vec<(Feature, EffectReport)>,
 }
 
-impl Steps<'_> {
+/// A step: adds what it builds to the output.
+type Step<'a> = fn(&Basis<'a>, &mut Out) -> Result<()>;
+
+impl Basis<'_> {
     /// Sea cliffs, and sea erosion with or without caves.
-    fn coast(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            dims,
-            effects,
-        } = self;
-        let (voxel, relief, wr) = (basis.voxel, basis.relief, basis.wr);
+    fn coast(&self, o: &mut Out) -> Result<()> {
+        let (voxel, relief, wr) = (self.voxel, self.relief, self.wr);
         let shore: Vec<&str> = [Feature::Cliffs, Feature::Sea, Feature::Caves]
             .into_iter()
-            .filter(|&f| basis.has(f))
+            .filter(|&f| self.has(f))
             .map(Feature::name)
             .collect();
-        let Some(sea_level) = basis.sea_level else {
+        let Some(sea_level) = self.sea_level else {
             if !shore.is_empty() {
-                dims.notes.push(format!(
+                o.dims.notes.push(format!(
                     "shore features skipped ({}): no sea in this DEM (no border-connected area \
                      at or below 0 m, nor a flat border-connected lowest area, covering {:.0} % \
                      of it); set sea_level (--sea-level) to place a shore",
@@ -257,81 +253,77 @@ impl Steps<'_> {
             }
             return Ok(());
         };
-        if basis.has(Feature::Cliffs) {
+        if self.has(Feature::Cliffs) {
             // Spheres finer than the soft strata, so hard ones survive as ledges.
-            let cr = (1.5 * voxel).max(wr.min(0.4 * dims.soft_thickness_m.unwrap_or(wr)));
+            let cr = (1.5 * voxel).max(wr.min(0.4 * o.dims.soft_thickness_m.unwrap_or(wr)));
             let c = SeaCliffs {
                 sea_level,
                 depth: 0.3 * cr,
                 retreat: 6.0 * cr,
                 radius: cr,
                 beta: 0.2,
-                seed: basis.sub(8),
-                border_connected: basis.sea_detected,
+                seed: self.sub(8),
+                border_connected: self.sea_detected,
             };
-            dims.cliff_retreat_m = c.retreat;
-            effects.push((Feature::Cliffs, b.sea_cliffs(&c, region)?));
+            o.dims.cliff_retreat_m = c.retreat;
+            o.effects
+                .push((Feature::Cliffs, o.b.sea_cliffs(&c, &o.region)?));
         }
-        if basis.has(Feature::Sea) || basis.has(Feature::Caves) {
+        if self.has(Feature::Sea) || self.has(Feature::Caves) {
             let r = wr;
+            let dims = &mut o.dims;
             dims.sea_radius_m = r;
             dims.sea_height_m = (0.15 * relief).max(2.0 * r);
-            dims.cave_count = if basis.has(Feature::Caves) {
-                count(basis.recipe.densities.caves_per_km2, basis.area_km2, 64)
+            dims.cave_count = if self.has(Feature::Caves) {
+                count(self.recipe.densities.caves_per_km2, self.area_km2, 64)
             } else {
                 0
             };
-            dims.cave_length_m = (12.0 * r).min(0.25 * basis.ex.min(basis.ey));
+            dims.cave_length_m = (12.0 * r).min(0.25 * self.ex.min(self.ey));
             let s = SeaErosion {
                 weathering: Weathering {
                     spacing: 0.4 * r,
                     radius: r,
                     energy: 3.0,
-                    seed: basis.sub(1),
+                    seed: self.sub(1),
                     ..Default::default()
                 },
                 sea_level,
                 depth: 0.3 * r,
                 height: dims.sea_height_m,
                 peak: 0.2 * dims.sea_height_m,
-                reach: (6.0 * r).max(2.0 * basis.l),
+                reach: (6.0 * r).max(2.0 * self.l),
                 caves: dims.cave_count,
                 cave_length: dims.cave_length_m,
                 iterations: 3,
-                border_connected: basis.sea_detected,
+                border_connected: self.sea_detected,
             };
-            let rep = b.sea_erosion(&s, region)?;
-            let f = if basis.has(Feature::Sea) {
+            let rep = o.b.sea_erosion(&s, &o.region)?;
+            let f = if self.has(Feature::Sea) {
                 Feature::Sea
             } else {
                 Feature::Caves
             };
-            effects.push((f, rep));
+            o.effects.push((f, rep));
         }
         Ok(())
     }
 
     /// Karst passages in the soft strata, when they are at least two voxels thick.
-    fn karst(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            dims,
-            effects,
-        } = self;
-        if !basis.has(Feature::Karst) {
+    fn karst(&self, o: &mut Out) -> Result<()> {
+        if !self.has(Feature::Karst) {
             return Ok(());
         }
-        let (voxel, k, area_km2) = (basis.voxel, basis.recipe.scale, basis.area_km2);
-        let d = &basis.recipe.densities;
+        let (voxel, k, area_km2) = (self.voxel, self.recipe.scale, self.area_km2);
+        let d = &self.recipe.densities;
+        let dims = &mut o.dims;
         match dims.soft_thickness_m {
             Some(t) if 0.5 * t >= voxel => {
                 let a = (0.4 * t * k).clamp(voxel, 0.5 * t);
                 let step = a;
                 dims.karst_radius_m = a;
                 dims.karst_step_m = step;
-                dims.karst_budget = basis.recipe.karst_budget.unwrap_or(
+                dims.karst_budget = self.recipe.karst_budget.unwrap_or(
                     ((d.karst_km_per_km2 * area_km2 * 1000.0 / step).round() as usize).min(1 << 22),
                 );
                 let ks = KarstSettings {
@@ -344,12 +336,12 @@ impl Steps<'_> {
                     max_sinkholes: 256,
                     cliff_seeds: (d.karst_cliff_seeds_per_km2 * area_km2).round() as usize,
                     cliff_spacing: 10.0 * a,
-                    rho0: basis.rho0,
+                    rho0: self.rho0,
                     rho_stop: 0.7,
-                    seed: basis.sub(2),
+                    seed: self.sub(2),
                     ..Default::default()
                 };
-                effects.push((Feature::Karst, b.karst(&ks, region)?));
+                o.effects.push((Feature::Karst, o.b.karst(&ks, &o.region)?));
             }
             Some(t) => dims.notes.push(format!(
                 "karst skipped: soft strata {t:.1} m thick, under two voxels of {voxel:.1} m \
@@ -363,153 +355,112 @@ impl Steps<'_> {
     }
 
     /// Wind and rain erosion; together they are the overhangs feature (one report).
-    fn weathering(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            effects,
-            ..
-        } = self;
-        let recipe = basis.recipe;
-        let wind = basis.has(Feature::Wind) || basis.has(Feature::Overhangs);
-        let rain = basis.has(Feature::Rain) || basis.has(Feature::Overhangs);
+    fn weathering(&self, o: &mut Out) -> Result<()> {
+        let recipe = self.recipe;
+        let wind = self.has(Feature::Wind) || self.has(Feature::Overhangs);
+        let rain = self.has(Feature::Rain) || self.has(Feature::Overhangs);
         let w = Weathering {
-            spacing: 0.5 * basis.wr,
-            radius: basis.wr,
+            spacing: 0.5 * self.wr,
+            radius: self.wr,
             energy: recipe.wind_strength,
             threshold: 0.45,
-            seed: basis.sub(3),
+            seed: self.sub(3),
             ..Default::default()
         };
         let mut overhangs: Option<EffectReport> = None;
         if wind {
-            let rep = b.wind_erosion(
+            let rep = o.b.wind_erosion(
                 &WindErosion {
                     weathering: w,
                     direction: recipe.wind,
                 },
-                region,
+                &o.region,
             )?;
-            if basis.has(Feature::Overhangs) {
+            if self.has(Feature::Overhangs) {
                 overhangs = Some(rep);
             } else {
-                effects.push((Feature::Wind, rep));
+                o.effects.push((Feature::Wind, rep));
             }
         }
         if rain {
-            let rep = b.rain_erosion(
+            let rep = o.b.rain_erosion(
                 &RainErosion {
                     weathering: Weathering {
-                        seed: basis.sub(4),
+                        seed: self.sub(4),
                         energy: recipe.rain_strength,
                         ..w
                     },
                     full_slope_deg: 40.0,
                 },
-                region,
+                &o.region,
             )?;
             match overhangs.as_mut() {
-                Some(o) => {
-                    o.candidates += rep.candidates;
-                    o.primitives += rep.primitives;
+                Some(h) => {
+                    h.candidates += rep.candidates;
+                    h.primitives += rep.primitives;
                 }
-                None => effects.push((Feature::Rain, rep)),
+                None => o.effects.push((Feature::Rain, rep)),
             }
         }
-        if let Some(o) = overhangs {
-            effects.push((Feature::Overhangs, o));
+        if let Some(h) = overhangs {
+            o.effects.push((Feature::Overhangs, h));
         }
         Ok(())
     }
 
     /// Hoodoos, skipped (with a note) when the voxel or the relief cannot hold them.
-    fn hoodoos(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            dims,
-            effects,
-        } = self;
-        let (voxel, relief, k, area_km2) = (
-            basis.voxel,
-            basis.relief,
-            basis.recipe.scale,
-            basis.area_km2,
-        );
-        let d = &basis.recipe.densities;
-        if basis.has(Feature::Hoodoos) {
-            let height = (0.12 * relief).clamp(15.0, 250.0) * k;
-            let radius = (height / 6.0).max(voxel);
-            dims.hoodoo_height_m = height;
-            dims.hoodoo_radius_m = radius;
-            if height > 0.45 * relief || height < 4.0 * voxel {
-                dims.notes.push(format!(
-                    "hoodoos skipped: {height:.0} m tall is not between four voxels ({:.0} m) and \
-                     0.45 of the relief ({:.0} m)",
-                    4.0 * voxel,
-                    0.45 * relief
-                ));
-            } else {
-                dims.hoodoo_count = count(d.hoodoos_per_km2, area_km2, 256);
-                let h = HoodooSettings {
-                    count: dims.hoodoo_count,
-                    height,
-                    radius,
-                    spacing: 4.0 * radius,
-                    max_slope_deg: 25.0,
-                    cap_rho: 0.55,
-                    seed: basis.sub(5),
-                };
-                effects.push((Feature::Hoodoos, b.hoodoos(&h, region)?));
-            }
+    fn hoodoos(&self, o: &mut Out) -> Result<()> {
+        let height = (0.12 * self.relief).clamp(15.0, 250.0) * self.recipe.scale;
+        let radius = (height / 6.0).max(self.voxel);
+        let dims = &mut o.dims;
+        (dims.hoodoo_height_m, dims.hoodoo_radius_m) = (height, radius);
+        if height > 0.45 * self.relief || height < 4.0 * self.voxel {
+            dims.notes.push(format!(
+                "hoodoos skipped: {height:.0} m tall is not between four voxels ({:.0} m) and \
+                 0.45 of the relief ({:.0} m)",
+                4.0 * self.voxel,
+                0.45 * self.relief
+            ));
+            return Ok(());
         }
+        dims.hoodoo_count = count(self.recipe.densities.hoodoos_per_km2, self.area_km2, 256);
+        let h = HoodooSettings {
+            count: dims.hoodoo_count,
+            height,
+            radius,
+            spacing: 4.0 * radius,
+            max_slope_deg: 25.0,
+            cap_rho: 0.55,
+            seed: self.sub(5),
+        };
+        o.effects
+            .push((Feature::Hoodoos, o.b.hoodoos(&h, &o.region)?));
         Ok(())
     }
 
     /// Floating islands.
-    fn islands(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            dims,
-            effects,
-        } = self;
-        let (voxel, relief, k, area_km2) = (
-            basis.voxel,
-            basis.relief,
-            basis.recipe.scale,
-            basis.area_km2,
-        );
-        let d = &basis.recipe.densities;
-        if basis.has(Feature::Islands) {
-            let radius = (0.1 * relief).clamp(20.0, 300.0) * k;
-            dims.island_radius_m = radius.max(2.0 * voxel);
-            dims.island_altitude_m = (0.3 * relief).max(4.0 * dims.island_radius_m);
-            dims.island_count = count(d.islands_per_km2, area_km2, 16);
-            let i = IslandSettings {
-                count: dims.island_count,
-                radius: dims.island_radius_m,
-                altitude: dims.island_altitude_m,
-                seed: basis.sub(7),
-            };
-            effects.push((Feature::Islands, b.floating_islands(&i, region)?));
-        }
+    fn islands(&self, o: &mut Out) -> Result<()> {
+        let dims = &mut o.dims;
+        let radius = (0.1 * self.relief).clamp(20.0, 300.0) * self.recipe.scale;
+        dims.island_radius_m = radius.max(2.0 * self.voxel);
+        dims.island_altitude_m = (0.3 * self.relief).max(4.0 * dims.island_radius_m);
+        dims.island_count = count(self.recipe.densities.islands_per_km2, self.area_km2, 16);
+        let i = IslandSettings {
+            count: dims.island_count,
+            radius: dims.island_radius_m,
+            altitude: dims.island_altitude_m,
+            seed: self.sub(7),
+        };
+        o.effects
+            .push((Feature::Islands, o.b.floating_islands(&i, &o.region)?));
         Ok(())
     }
 
-    fn arches(&mut self) -> Result<()> {
-        let Steps {
-            basis,
-            b,
-            region,
-            dims,
-            effects,
-        } = self;
-        let (voxel, relief, k) = (basis.voxel, basis.relief, basis.recipe.scale);
-        let span = (0.2 * relief).clamp(30.0, 300.0) * k;
+    /// Arches, skipped (with a note) when the voxel or the relief cannot hold them, or when
+    /// no ridge can carry one.
+    fn arches(&self, o: &mut Out) -> Result<()> {
+        let (voxel, relief, dims) = (self.voxel, self.relief, &mut o.dims);
+        let span = (0.2 * relief).clamp(30.0, 300.0) * self.recipe.scale;
         let thickness = (span / 4.0).max(voxel);
         dims.arch_span_m = span;
         dims.arch_height_m = 0.6 * span;
@@ -522,24 +473,24 @@ impl Steps<'_> {
             ));
             return Ok(());
         }
-        dims.arch_count = count(basis.recipe.densities.arches_per_km2, basis.area_km2, 64);
+        dims.arch_count = count(self.recipe.densities.arches_per_km2, self.area_km2, 64);
         let a = ArchSettings {
             count: dims.arch_count,
             span,
             height: dims.arch_height_m,
             thickness,
-            max_length: (5.0 * span).max(3.0 * basis.l),
-            seed: basis.sub(6),
+            max_length: (5.0 * span).max(3.0 * self.l),
+            seed: self.sub(6),
         };
-        let rep = b.arches(&a, region)?;
+        let rep = o.b.arches(&a, &o.region)?;
         if rep.features == 0 {
-            dims.notes.push(format!(
+            o.dims.notes.push(format!(
                 "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
                 a.height + a.thickness,
                 a.max_length
             ));
         } else {
-            effects.push((Feature::Arches, rep));
+            o.effects.push((Feature::Arches, rep));
         }
         Ok(())
     }

@@ -120,14 +120,12 @@ impl SceneBuilder {
 
     /// Checks the settings of [`SceneBuilder::sea_erosion`].
     fn check_sea_erosion(&self, s: &SeaErosion) -> Result<()> {
-        for (n, v) in [
+        self.check_lens(&[
             ("depth", s.depth),
             ("height", s.height),
             ("reach", s.reach),
             ("cave_length", s.cave_length),
-        ] {
-            self.check_len(n, v)?;
-        }
+        ])?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
@@ -208,13 +206,11 @@ impl SceneBuilder {
 
     /// Sea cliffs ([`SeaCliffs`]).
     pub fn sea_cliffs(&mut self, s: &SeaCliffs, region: &Region) -> Result<EffectReport> {
-        for (n, v) in [
+        self.check_lens(&[
             ("depth", s.depth),
             ("retreat", s.retreat),
             ("radius", s.radius),
-        ] {
-            self.check_len(n, v)?;
-        }
+        ])?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }

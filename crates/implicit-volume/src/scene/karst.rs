@@ -127,16 +127,14 @@ impl SceneBuilder {
                 return Err(Error::param(n, v, "must be in [0, 1]"));
             }
         }
-        for (n, v) in [
+        self.check_lens(&[
             ("radius", s.radius),
             ("min_radius", s.min_radius),
             ("energy", s.energy),
             ("step", s.step),
             ("poisson_radius", s.poisson_radius),
             ("cliff_spacing", s.cliff_spacing),
-        ] {
-            self.check_len(n, v)?;
-        }
+        ])?;
         if s.min_radius > s.radius {
             return Err(Error::param(
                 "min_radius",

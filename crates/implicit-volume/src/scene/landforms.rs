@@ -35,6 +35,15 @@ impl SceneBuilder {
         kept.into_iter().map(|k| pts[k]).collect()
     }
 
+    /// Adds the blend of `parts`, warped by noise of amplitude `amp` and wavelength
+    /// `wavelength` (seeded), to the positive landforms.
+    fn add_warped(&mut self, parts: &[NodeId], amp: f32, wavelength: f32, seed: u32) -> Result<()> {
+        let b = self.tree.blend(parts)?;
+        let w = self.tree.warp(b, amp, 1.0 / wavelength, seed)?;
+        self.positives.push(w);
+        Ok(())
+    }
+
     /// `sites` reordered so that those within `reach` of steep ground (slope above
     /// [`RIM_SLOPE_DEG`]) come first, in their given order, then the others: hoodoos stand
     /// in the breaks below and along plateau rims and canyon walls (where the caprock is being
@@ -71,13 +80,11 @@ impl SceneBuilder {
     /// Hoodoos (figure 3): a cone base blended with stacked perturbed spheres and a caprock,
     /// creased by a warp, unioned with the terrain on gentle ground.
     pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
-        for (n, v) in [
+        self.check_lens(&[
             ("height", s.height),
             ("radius", s.radius),
             ("spacing", s.spacing),
-        ] {
-            self.check_len(n, v)?;
-        }
+        ])?;
         if !(0.0..=90.0).contains(&s.max_slope_deg) {
             return Err(Error::param(
                 "max_slope_deg",
@@ -147,14 +154,8 @@ impl SceneBuilder {
             report.primitives += parts.len();
             report.features += 1;
             report.sites.push(p);
-            let b = self.tree.blend(&parts)?;
-            let w = self.tree.warp(
-                b,
-                0.12 * s.radius,
-                1.0 / (0.6 * s.radius),
-                (s.seed as u32).wrapping_add(k as u32),
-            )?;
-            self.positives.push(w);
+            let seed = (s.seed as u32).wrapping_add(k as u32);
+            self.add_warped(&parts, 0.12 * s.radius, 0.6 * s.radius, seed)?;
         }
         Ok(report)
     }
@@ -211,14 +212,12 @@ impl SceneBuilder {
     /// (`e(rho, sigma)` of section 4.1), so the opening follows the strata. Ridges are taken
     /// thinnest first, `max(2 max_length, 4 span)` apart.
     pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
-        for (n, v) in [
+        self.check_lens(&[
             ("span", s.span),
             ("height", s.height),
             ("thickness", s.thickness),
             ("max_length", s.max_length),
-        ] {
-            self.check_len(n, v)?;
-        }
+        ])?;
         if s.max_length < s.span {
             return Err(Error::param(
                 "max_length",
@@ -411,14 +410,8 @@ impl SceneBuilder {
                 0.25 * s.radius,
                 1.0,
             )?;
-            let b = self.tree.blend(&[top, cone])?;
-            let w = self.tree.warp(
-                b,
-                0.15 * s.radius,
-                1.0 / (0.5 * s.radius),
-                (s.seed as u32).wrapping_add(k as u32),
-            )?;
-            self.positives.push(w);
+            let seed = (s.seed as u32).wrapping_add(k as u32);
+            self.add_warped(&[top, cone], 0.15 * s.radius, 0.5 * s.radius, seed)?;
             report.primitives += 2;
             report.features += 1;
             report.sites.push(c);

@@ -157,6 +157,11 @@ fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) ->
 }
 
 impl SceneBuilder {
+    /// [`check_len`](Self::check_len) of every `(name, value)` in turn.
+    fn check_lens(&self, lens: &[(&'static str, f32)]) -> Result<()> {
+        lens.iter().try_for_each(|&(n, v)| self.check_len(n, v))
+    }
+
     fn check_len(&self, name: &'static str, v: f32) -> Result<()> {
         check_pos(name, v)?;
         if name != "energy" && v < self.min_len {
