@@ -507,7 +507,8 @@ pub(crate) fn windowed_log_variance(g: &Grid, w: usize, floor: f64) -> Grid {
         });
     // Vertical sums, then the floored log2 mean.
     let inv = 1.0 / (wx * wy) as f32;
-    let floor = floor as f32;
+    // A floor under the smallest normal f32 (e.g. 1e-300) would round to 0 and give -inf.
+    let floor = (floor as f32).max(f32::MIN_POSITIVE);
     let mut data = vec![0.0f32; gw * gh];
     data.par_chunks_mut(gw).enumerate().for_each(|(y, o)| {
         let st = window_start(y, gh, w);
