@@ -269,6 +269,16 @@ mod tests {
             .unwrap()
             .unwrap();
         assert!((v["settings"]["min_candidates_share"].as_f64().unwrap() - 0.05).abs() < 1e-6);
+        let lowpass = |flag: &str| {
+            settings(&format!("quilt /o.tif --guide /g --exemplar /e {flag}"))
+                .unwrap()
+                .unwrap()["settings"]["guide_lowpass"]
+                .clone()
+        };
+        assert!(lowpass("").is_null());
+        assert!(lowpass("--guide-lowpass auto").is_null());
+        assert_eq!(lowpass("--guide-lowpass 0"), 0.0);
+        assert_eq!(lowpass("--guide-lowpass 12.5"), 12.5);
         // The seed command lines of the fuzz target `cli_args` (fuzz/seeds/cli_args).
         for good in [
             "amplify /a.tif /o.sct --exemplar /b.tif --factor 4 --paper --atoms 64",
@@ -295,6 +305,8 @@ mod tests {
             "analyze /a --plot-levels 99",
             "quilt --guide /g --exemplar /e /o.tif --patch-size 0",
             "validate --guide /g --exemplar /e --min-candidates-share 1.5",
+            "quilt --guide /g --exemplar /e /o.tif --guide-lowpass -3",
+            "quilt --guide /g --exemplar /e /o.tif --guide-lowpass wide",
         ] {
             let e = format!("{:#}", settings(bad).unwrap_err());
             assert!(!e.contains(MAPPING_BUG), "{bad}: {e}");

@@ -129,11 +129,35 @@ pub(crate) struct SynthArgs {
     /// so one source region does not wallpaper an area (0 = off, as in the paper).
     #[arg(long, value_name = "PENALTY", default_value_t = Settings::default().reuse_penalty)]
     pub(crate) reuse_penalty: f32,
+    /// Low-pass of the exemplar that the guide distance G compares with the guide: `auto`
+    /// (a Gaussian of the guide's own smoothness scale, about 1.1x the blur of a blurred DEM;
+    /// smooth guides then no longer pick the flattest patches), SIGMA cells, or 0 (the paper's
+    /// raw cell means; better for band-limited guides and tiny enlarged DEMs).
+    #[arg(long, value_name = "auto|SIGMA", value_parser = parse_guide_lowpass)]
+    pub(crate) guide_lowpass: Option<GuideLowpass>,
     /// Exemplar patches are taken every STRIDE cells (1 = every position).
     #[arg(long, default_value_t = Settings::default().exemplar_stride)]
     pub(crate) stride: usize,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
+}
+
+/// A `--guide-lowpass` value: automatic or a sigma in cells.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum GuideLowpass {
+    Auto,
+    Sigma(f32),
+}
+
+/// `--guide-lowpass` value parser: `auto` or a sigma in cells (0 = the paper's distance).
+fn parse_guide_lowpass(spec: &str) -> std::result::Result<GuideLowpass, String> {
+    let spec = spec.trim();
+    if spec.eq_ignore_ascii_case("auto") {
+        return Ok(GuideLowpass::Auto);
+    }
+    spec.parse::<f32>()
+        .map(GuideLowpass::Sigma)
+        .map_err(|_| format!("`{spec}` is neither auto nor a sigma in cells"))
 }
 
 /// `--guide-range` value parser: `auto` or `LO,HI` metres.
@@ -239,6 +263,10 @@ impl SynthArgs {
                 beta: self.beta,
                 gamma: self.gamma,
                 reuse_penalty: self.reuse_penalty,
+                guide_lowpass: match self.guide_lowpass {
+                    None | Some(GuideLowpass::Auto) => None,
+                    Some(GuideLowpass::Sigma(s)) => Some(s),
+                },
                 exemplar_stride: self.stride,
                 ..Settings::default()
             },
