@@ -127,39 +127,37 @@ pub(crate) fn step_1d(
         let len = (f1 - f0) as usize;
         let tgt = &mut target[(f0 - t0) as usize..(f0 - t0) as usize + len];
         let sa = (f0 + taps[0].0 - smap.seg0) as usize;
-        let sb = taps.get(1).map(|t| (f0 + t.0 - smap.seg0) as usize);
-        let b = sb.map(|sb| &src[sb..sb + len]);
-        apply_taps(tgt, &src[sa..sa + len], b, taps, subtract);
-    }
-}
-
-/// `target -= / += c0 a (+ c1 b)` element-wise for one tap (`b` = `None`) or two (`c0 (a + b)`
-/// when both weights are equal); the one kernel of [`step_1d`] and [`step_rows`], inlined
-/// into both so each keeps its vectorised loops.
-#[inline(always)]
-fn apply_taps(
-    target: &mut [f32],
-    a: &[f32],
-    b: Option<&[f32]>,
-    taps: &[(isize, f32)],
-    subtract: bool,
-) {
-    let Some(b) = b else {
-        let c = taps[0].1;
-        if subtract {
-            target.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
+        let a = &src[sa..sa + len];
+        if taps.len() == 1 {
+            let c = taps[0].1;
+            if subtract {
+                tgt.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
+            } else {
+                tgt.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
+            }
         } else {
-            target.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
+            let sb = (f0 + taps[1].0 - smap.seg0) as usize;
+            let b = &src[sb..sb + len];
+            let (c0, c1) = (taps[0].1, taps[1].1);
+            match (c0 == c1, subtract) {
+                (true, false) => tgt
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t += c0 * (a + b)),
+                (true, true) => tgt
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t -= c0 * (a + b)),
+                (false, false) => tgt
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
+                (false, true) => tgt
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
+            }
         }
-        return;
-    };
-    let (c0, c1) = (taps[0].1, taps[1].1);
-    let ab = target.iter_mut().zip(a.iter().zip(b));
-    match (c0 == c1, subtract) {
-        (true, false) => ab.for_each(|(t, (a, b))| *t += c0 * (a + b)),
-        (true, true) => ab.for_each(|(t, (a, b))| *t -= c0 * (a + b)),
-        (false, false) => ab.for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
-        (false, true) => ab.for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
     }
 }
 
@@ -181,9 +179,37 @@ pub(crate) fn step_rows(
     let body = |(r, row): (usize, &mut [f32])| {
         let i = t0 + r as isize;
         let ra = smap.local(i + taps[0].0) * width;
-        let rb = taps.get(1).map(|t| smap.local(i + t.0) * width);
-        let b = rb.map(|rb| &src[rb..rb + width]);
-        apply_taps(row, &src[ra..ra + width], b, taps, subtract);
+        let a = &src[ra..ra + width];
+        if taps.len() == 1 {
+            let c = taps[0].1;
+            if subtract {
+                row.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
+            } else {
+                row.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
+            }
+        } else {
+            let rb = smap.local(i + taps[1].0) * width;
+            let b = &src[rb..rb + width];
+            let (c0, c1) = (taps[0].1, taps[1].1);
+            match (c0 == c1, subtract) {
+                (true, false) => row
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t += c0 * (a + b)),
+                (true, true) => row
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t -= c0 * (a + b)),
+                (false, false) => row
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
+                (false, true) => row
+                    .iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
+            }
+        }
     };
     if par {
         target.par_chunks_mut(width).enumerate().for_each(body);
