@@ -23,8 +23,9 @@ pub(crate) struct Shared<'a> {
     pub(crate) guide: Option<&'a [f32]>,
     pub(crate) block_rects: &'a [[usize; 4]],
     pub(crate) guide_rects: &'a [[usize; 4]],
-    /// The exemplars low-passed for the guide distance (`None`: their own cell means).
-    pub(crate) guide_sats: Option<&'a [Sat]>,
+    /// Summed-area tables the guide distance reads (the exemplars low-passed by
+    /// `guide_lowpass`, or their own tables when it is 0).
+    pub(crate) guide_sats: &'a [Sat],
 }
 
 /// The working canvas (padded to whole patches).
@@ -339,10 +340,7 @@ pub(crate) fn score(sh: &Shared<'_>, cv: &Canvas, b: &Block, cands: &[u32]) -> V
                     .iter()
                     .zip(gc)
                     .map(|(r, &gv)| {
-                        let m = match sh.guide_sats {
-                            Some(sats) => index.box_mean_in(sats, idu, r[0], r[1], r[2], r[3]),
-                            None => index.box_mean(idu, r[0], r[1], r[2], r[3]),
-                        };
+                        let m = index.box_mean_in(sh.guide_sats, idu, r[0], r[1], r[2], r[3]);
                         let d = (m + hv - gv) as f64;
                         d * d
                     })

@@ -331,7 +331,7 @@ pub fn synthesize(
             .guide_lowpass
             .unwrap_or_else(|| crate::guide::smoothness_scale(g).min(p as f32))
     });
-    let guide_sats = if guide_lowpass > 0.0 {
+    let lowpassed = if guide_lowpass > 0.0 {
         Some(index.lowpassed_sats(guide_lowpass)?)
     } else {
         None
@@ -342,7 +342,7 @@ pub fn synthesize(
         guide: guide.as_deref(),
         block_rects: &block_rects,
         guide_rects: &guide_rects,
-        guide_sats: guide_sats.as_deref(),
+        guide_sats: lowpassed.as_deref().unwrap_or(&index.sats),
     };
     let mut cv = Canvas {
         values: vec![0.0f32; cw * ch],
