@@ -88,6 +88,74 @@ impl Sat {
     }
 }
 
+/// Box means of one exemplar at every top-left position, one image per box size a layout uses:
+/// the index build reads each feature with one load instead of four summed-area reads. The
+/// values are [`Sat::mean`]'s, so the index does not change. Lives only during the build
+/// (`4 W H` bytes per box size).
+struct BoxMeans {
+    /// Exemplar width (row stride of every image).
+    w: usize,
+    /// `(box width, box height, image)`; image cell `y * w + x` is the mean of the box at
+    /// `(x, y)` (0 where the box would leave the exemplar).
+    images: Vec<(usize, usize, Vec<f32>)>,
+}
+
+impl BoxMeans {
+    fn new(sat: &Sat, w: usize, h: usize, sizes: &[(usize, usize)]) -> Self {
+        let images = sizes
+            .iter()
+            .map(|&(bw, bh)| {
+                let mut img = vec![0.0f32; w * h];
+                if bw <= w && bh <= h {
+                    img.par_chunks_mut(w)
+                        .take(h - bh + 1)
+                        .enumerate()
+                        .for_each(|(y, row)| {
+                            for (x, v) in row[..=w - bw].iter_mut().enumerate() {
+                                *v = sat.mean(x, y, bw, bh);
+                            }
+                        });
+                }
+                (bw, bh, img)
+            })
+            .collect();
+        Self { w, images }
+    }
+
+    /// `(image, offset)` of every rectangle (patch coordinates): a patch at `(px, py)` reads
+    /// rectangle `i` at `images[plan[i].0][py * w + px + plan[i].1]`. `None` when a size has no
+    /// image (never for the sizes the build asked for).
+    fn plan(&self, rects: &[[usize; 4]]) -> Option<Vec<(usize, usize)>> {
+        rects
+            .iter()
+            .map(|r| {
+                let i = self
+                    .images
+                    .iter()
+                    .position(|i| i.0 == r[2] && i.1 == r[3])?;
+                Some((i, r[1] * self.w + r[0]))
+            })
+            .collect()
+    }
+
+    /// The box means of `plan`'s rectangles for the patch at `(px, py)`.
+    #[inline]
+    fn gather(&self, plan: &[(usize, usize)], px: usize, py: usize) -> Vec<f32> {
+        let base = py * self.w + px;
+        plan.iter()
+            .map(|&(i, off)| self.images[i].2[base + off])
+            .collect()
+    }
+}
+
+/// The distinct box sizes of a set of rectangles.
+fn box_sizes<'a>(rects: impl IntoIterator<Item = &'a [usize; 4]>) -> Vec<(usize, usize)> {
+    let mut sizes: Vec<(usize, usize)> = rects.into_iter().map(|r| (r[2], r[3])).collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    sizes
+}
+
 /// Cell boundaries splitting `len` into `n` nearly equal parts.
 pub(crate) fn bounds(len: usize, n: usize) -> Vec<(usize, usize)> {
     (0..n)
@@ -152,7 +220,11 @@ pub(crate) fn features(
     rects: &[[usize; 4]],
     mean: impl Fn(usize, usize, usize, usize) -> f32,
 ) -> Vec<f32> {
-    let mut f: Vec<f32> = rects.iter().map(|r| mean(r[0], r[1], r[2], r[3])).collect();
+    remove_mean(rects.iter().map(|r| mean(r[0], r[1], r[2], r[3])).collect())
+}
+
+/// `f` minus its mean.
+fn remove_mean(mut f: Vec<f32>) -> Vec<f32> {
     let m = f.iter().sum::<f32>() / f.len() as f32;
     f.iter_mut().for_each(|v| *v -= m);
     f
@@ -326,15 +398,36 @@ impl ExemplarIndex {
         progress.begin("patch-synth: descriptors", patches.len() as u64);
         let n = settings.blocks;
         let block_rects = grid_rects(p, n);
+        let layouts = Layouts::new(p, settings.overlap);
+        let sizes = box_sizes(block_rects.iter().chain(layouts.rects.iter().flatten()));
+        let boxes: Vec<BoxMeans> = exemplars
+            .iter()
+            .zip(&sats)
+            .map(|(e, sat)| {
+                let hf = &e.heightfield;
+                BoxMeans::new(sat, hf.width(), hf.height(), &sizes)
+            })
+            .collect();
+        // Per exemplar: the plans of the descriptor cells and of the three overlap shapes.
+        let plans: Vec<[Vec<(usize, usize)>; 4]> = boxes
+            .iter()
+            .map(|b| {
+                let plan = |rects: &[[usize; 4]]| b.plan(rects).unwrap_or_default();
+                [
+                    plan(&block_rects),
+                    plan(&layouts.rects[0]),
+                    plan(&layouts.rects[1]),
+                    plan(&layouts.rects[2]),
+                ]
+            })
+            .collect();
+        let gather = |pr: PatchRef, set: usize| {
+            let e = pr.exemplar as usize;
+            boxes[e].gather(&plans[e][set], pr.x as usize, pr.y as usize)
+        };
         let descriptors: Vec<f32> = patches
             .par_iter()
-            .flat_map_iter(|pr| {
-                let sat = &sats[pr.exemplar as usize];
-                let (px, py) = (pr.x as usize, pr.y as usize);
-                block_rects
-                    .iter()
-                    .map(move |r| sat.mean(px + r[0], py + r[1], r[2], r[3]))
-            })
+            .flat_map_iter(|&pr| gather(pr, 0))
             .collect();
         progress.advance(patches.len() as u64);
         progress.begin("patch-synth: k-means", settings.kmeans_iterations as u64);
@@ -358,15 +451,7 @@ impl ExemplarIndex {
         categories.dedup();
         let ncat = categories.len();
 
-        let layouts = Layouts::new(p, settings.overlap);
-        let feat = |pid: usize, shape: usize| {
-            let pr = patches[pid];
-            let sat = &sats[pr.exemplar as usize];
-            let (px, py) = (pr.x as usize, pr.y as usize);
-            features(&layouts.rects[shape], |x, y, w, h| {
-                sat.mean(px + x, py + y, w, h)
-            })
-        };
+        let feat = |pid: usize, shape: usize| remove_mean(gather(patches[pid], shape + 1));
         progress.begin("patch-synth: pca", 3);
         let pcas = fit_pcas(&layouts, patches.len(), settings, &feat, progress)?;
 
