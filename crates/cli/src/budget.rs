@@ -9,6 +9,8 @@
 //! lifts the limit. The estimate never changes an output: only whether the run starts.
 
 use anyhow::{Result, bail};
+use rayon::prelude::*;
+use relief_sparse_core::{RasterSettings, Sct, Window};
 
 /// Default `--max-time`: 30 minutes.
 pub(crate) const DEFAULT_MAX_TIME_S: f64 = 1800.0;
@@ -111,6 +113,56 @@ impl crate::ctx::Ctx {
         }
         Ok(())
     }
+}
+
+/// Rasters of at least this many cells get a time estimate (smaller ones take seconds).
+const PILOT_FROM_CELLS: usize = 1 << 20;
+/// The pilot rasterises this many evenly spaced row strips ...
+const PILOT_STRIPS: usize = 16;
+/// ... covering about 1/this of the window's rows.
+const PILOT_SHARE: usize = 64;
+
+/// Estimated seconds to rasterise `settings`' window: times [`PILOT_STRIPS`] evenly spaced
+/// full-width row strips covering about 1/[`PILOT_SHARE`] of it, in parallel as the run is,
+/// and scales by the cell count (the cost of a cell is the atoms over it, which the strips
+/// sample across the whole model). `None` for small windows. Returns the pilot's description.
+pub(crate) fn sct_raster_seconds(
+    sct: &Sct,
+    settings: &RasterSettings,
+) -> Result<Option<(f64, String)>> {
+    let Some(win) = settings.window else {
+        return Ok(None);
+    };
+    let cells = win.width * win.height;
+    if cells < PILOT_FROM_CELLS {
+        return Ok(None);
+    }
+    let rows = win.height.div_ceil(PILOT_SHARE * PILOT_STRIPS).max(1);
+    let strips: Vec<Window> = (0..PILOT_STRIPS)
+        .map(|i| Window {
+            x: win.x,
+            y: win.y + (i * (win.height - rows)) / (PILOT_STRIPS - 1),
+            width: win.width,
+            height: rows,
+        })
+        .collect();
+    let t = std::time::Instant::now();
+    strips.par_iter().try_for_each(|&w| {
+        sct.rasterize(&RasterSettings {
+            scale: settings.scale,
+            window: Some(w),
+        })
+        .map(drop)
+    })?;
+    let pilot_cells = (PILOT_STRIPS * rows * win.width) as f64;
+    let est = t.elapsed().as_secs_f64() * cells as f64 / pilot_cells;
+    Ok(Some((
+        est,
+        format!(
+            "from {PILOT_STRIPS} strips of {rows} rows, {:.1} % of the cells",
+            100.0 * pilot_cells / cells as f64
+        ),
+    )))
 }
 
 #[cfg(test)]

@@ -33,6 +33,10 @@ pub(crate) struct Ctx {
     pub(crate) max_time: crate::budget::TimeLimit,
 }
 
+/// GeoTIFF outputs larger than this many cells are streamed band by band (`refine` and the
+/// sparse models), unless `--stream` asks for it at any size.
+pub(crate) const STREAM_CELLS: usize = 1 << 24;
+
 /// Cells per band of a raster streamed into a GeoTIFF (16 MiB of f32: 256 rows of a
 /// 16384-wide output).
 pub(crate) const STREAM_BAND_CELLS: usize = 1 << 22;
@@ -187,6 +191,32 @@ impl Ctx {
             band,
             height,
         })
+    }
+
+    /// Streams a `width x height` raster into a GeoTIFF at `path` band by band (see
+    /// [`Ctx::row_stream`]): `rows_of(y, n)` computes rows `y..y + n` (row-major, north first)
+    /// while a progress bar says `what`. Memory is one band, never the whole raster; on any
+    /// error the file is not written. Returns the band height.
+    pub(crate) fn stream_bands(
+        &self,
+        path: &std::path::Path,
+        size: (usize, usize),
+        cell_size: (f64, f64),
+        georef: Option<&relief_heightfield::GeoRef>,
+        what: &str,
+        mut rows_of: impl FnMut(usize, usize) -> anyhow::Result<Vec<f32>>,
+    ) -> anyhow::Result<usize> {
+        use relief_heightfield::Progress as _;
+        let mut out = self.row_stream(path, size, cell_size, georef)?;
+        let progress = self.progress();
+        progress.begin(what, size.1 as u64);
+        for (y, rows) in out.bands() {
+            out.write(&rows_of(y, rows)?)?;
+            progress.advance(rows as u64);
+        }
+        let band = out.band;
+        out.finish()?;
+        Ok(band)
     }
 
     /// Write options of raster outputs (GeoTIFF compression from `--compress`).

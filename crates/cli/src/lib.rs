@@ -9,13 +9,19 @@
 pub mod app;
 pub mod pipeline;
 
+mod args;
 mod budget;
 mod commands;
 mod ctx;
+mod describe;
 mod memory;
 mod outputs;
+mod preflight;
 mod sparse_model;
 mod staging;
+mod synth_args;
+mod tile_manifest;
+mod volume_io;
 
 use std::path::{Path, PathBuf};
 

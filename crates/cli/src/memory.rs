@@ -8,11 +8,7 @@
 //! to a cgroup `memory.max` and to three quarters of an address-space limit (`ulimit -v`) when
 //! those are smaller; [`FALLBACK_MEMORY`] where none can be read.
 
-use std::path::Path;
-
 use anyhow::{Result, bail};
-
-use crate::ctx::Ctx;
 
 /// One gibibyte.
 pub(crate) const GIB: u64 = 1 << 30;
@@ -308,67 +304,6 @@ pub(crate) fn readable_cells(limit: Limit, file_len: u64) -> usize {
 /// in their stored type (at most 8 bytes, f64) and the f32 heightfield, plus a copy made by
 /// the commands that crop or fill (4).
 pub(crate) const READ_BYTES_PER_CELL: u64 = 16;
-
-/// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
-/// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
-/// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
-/// case).
-const TRIANGLES_PER_COLUMN: f64 = 24.0;
-
-/// Peak bytes per triangle while meshing and writing: positions and normals of about half a
-/// vertex (24 B), the triangle (12 B), the vertex map of the chunked polygoniser and the
-/// encoded file built in memory before the atomic write (measured: 69-81 B at 1.5-6 M
-/// triangles, release build).
-const MESH_BYTES_PER_TRIANGLE: f64 = 90.0;
-
-/// Bytes per file triangle (binary PLY/GLB: 12 B of indices plus half a vertex of 24 B).
-const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
-
-/// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
-const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
-
-/// Pre-flight estimate of the mesh of `relief volume` (issue 18): triangles from the polygonisation grid, memory
-/// against `--max-memory` and file size against `--max-output-size`, both naming
-/// `--resolution`.
-pub(crate) fn preflight_volume_mesh(
-    ctx: &Ctx,
-    path: &Path,
-    cells: [usize; 3],
-    voxel_m: f64,
-) -> Result<()> {
-    let columns = cells[0] as f64 * cells[1] as f64;
-    let triangles = columns * TRIANGLES_PER_COLUMN;
-    let change = format!(
-        "a larger --voxel or a smaller --resolution (the voxel is now {voxel_m:.3} m; the grid is \
-         {}x{}x{}) or a --crop",
-        cells[0], cells[1], cells[2]
-    );
-    ctx.check_output_size(
-        &format!("the mesh {}", path.display()),
-        triangles * FILE_BYTES_PER_TRIANGLE,
-        &change,
-    )?;
-    ctx.check_memory(
-        &format!("volume with {voxel_m:.3} m voxels"),
-        &[&[part(
-            format!("the mesh (about {:.0} M triangles)", triangles / 1e6),
-            triangles * MESH_BYTES_PER_TRIANGLE,
-            change,
-        )]],
-    )
-}
-
-/// Pre-flight estimate of the render and section images of `relief volume` (`w x h`).
-pub(crate) fn preflight_volume_images(ctx: &Ctx, (w, h): (usize, usize)) -> Result<()> {
-    ctx.check_memory(
-        "volume",
-        &[&[part(
-            "the render and section images",
-            w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
-            "a smaller --image-size",
-        )]],
-    )
-}
 
 #[cfg(test)]
 mod tests {

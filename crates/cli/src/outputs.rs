@@ -266,11 +266,17 @@ mod tests {
         std::fs::write(p, b"x").unwrap();
     }
 
+    /// A one-byte file `name` in `dir`.
+    fn touched(dir: &Path, name: &str) -> PathBuf {
+        let p = dir.join(name);
+        touch(&p);
+        p
+    }
+
     #[test]
     fn refuses_input_as_output_and_sidecar_of_input() {
         let d = tempfile::tempdir().unwrap();
-        let inp = d.path().join("volcano.json");
-        touch(&inp);
+        let inp = touched(d.path(), "volcano.json");
         // `convert volcano.json volcano.f32` would write volcano.json as the sidecar.
         let out = d.path().join("volcano.f32");
         let e = check_outputs(&[&inp], &[(&out, OutKind::Raster)], true).unwrap_err();
@@ -279,8 +285,7 @@ mod tests {
         let other = d.path().join(".").join("volcano.json");
         let e = check_outputs(&[&inp], &[(&other, OutKind::Raster)], true);
         assert!(e.is_err());
-        let tif = d.path().join("in.tif");
-        touch(&tif);
+        let tif = touched(d.path(), "in.tif");
         let e = check_outputs(&[&tif], &[(&tif, OutKind::Raster)], true).unwrap_err();
         assert!(e.to_string().contains("is the input"), "{e}");
     }
@@ -288,8 +293,7 @@ mod tests {
     #[test]
     fn hard_link_to_input_is_refused() {
         let d = tempfile::tempdir().unwrap();
-        let inp = d.path().join("a.tif");
-        touch(&inp);
+        let inp = touched(d.path(), "a.tif");
         let link = d.path().join("b.tif");
         std::fs::hard_link(&inp, &link).unwrap();
         assert!(check_outputs(&[&inp], &[(&link, OutKind::Raster)], true).is_err());

@@ -175,7 +175,7 @@ pub(crate) fn preflight(
             format!("--window, a .sct output or a smaller {}", out.steps_flag)
         };
         ctx.check_output_size("the output raster", written * 4.0, &change)?;
-        let in_memory = if out.stream && written > STREAM_CELLS as f64 {
+        let in_memory = if out.stream && written > crate::ctx::STREAM_CELLS as f64 {
             crate::ctx::STREAM_BAND_CELLS as f64
         } else {
             written
@@ -255,7 +255,7 @@ pub(crate) fn write_model(
         height: fh,
     });
     if relief_io::Format::from_extension(path) == Some(relief_io::Format::GeoTiff)
-        && (stream || win.width.saturating_mul(win.height) > STREAM_CELLS)
+        && (stream || win.width.saturating_mul(win.height) > crate::ctx::STREAM_CELLS)
     {
         return stream_geotiff(sct, path, win, ctx);
     }
@@ -277,35 +277,32 @@ pub(crate) fn write_model(
     Ok(())
 }
 
-/// Rasters larger than this many cells written as GeoTIFF are streamed band by band.
-const STREAM_CELLS: usize = 1 << 24;
-
 /// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
 /// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
 fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
     let georef = sct.raster_georef(1.0, win);
     let size = (win.width, win.height);
-    let mut out = ctx.row_stream(path, size, sct.cell_size(), georef.as_ref())?;
-    let progress = ctx.progress();
-    progress.begin("rasterising and writing", win.height as u64);
-    for (y, rows) in out.bands() {
-        let hf = sct
-            .rasterize(&RasterSettings {
-                scale: 1.0,
-                window: Some(Window {
-                    x: win.x,
-                    y: win.y + y,
-                    width: win.width,
-                    height: rows,
-                }),
-            })
-            .context("cannot rasterise the result")?;
-        out.write(hf.as_slice())?;
-        progress.advance(rows as u64);
-    }
-    let band = out.band;
-    out.finish()?;
-    drop(progress);
+    let band = ctx.stream_bands(
+        path,
+        size,
+        sct.cell_size(),
+        georef.as_ref(),
+        "rasterising and writing",
+        |y, rows| {
+            let window = Window {
+                y: win.y + y,
+                height: rows,
+                ..win
+            };
+            let hf = sct
+                .rasterize(&RasterSettings {
+                    scale: 1.0,
+                    window: Some(window),
+                })
+                .context("cannot rasterise the result")?;
+            Ok(hf.as_slice().to_vec())
+        },
+    )?;
     ctx.note(format!(
         "wrote {} ({} x {}, streamed in bands of {band} rows)",
         path.display(),
@@ -372,6 +369,29 @@ pub(crate) fn read_model_bytes(path: &Path, ctx: &Ctx) -> Result<Vec<u8>> {
         bytes.extend_from_slice(&chunk[..n]);
     }
     Ok(bytes)
+}
+
+/// The storage figures of a model, as `relief decompress` prints them: its size and layers,
+/// `t` against the `t0` samples of the terrain (rho) and the file size.
+pub(crate) fn storage_text(path: &Path, sct: &Sct, bytes: usize) -> String {
+    let (mut t, mut layers, mut s_max) = (0u64, 0usize, 0usize);
+    for l in sct.layers() {
+        t += relief_sparse_core::layer_storage_values(l.dictionary(), l.len(), l.max_sparsity());
+        layers += 1;
+        s_max = s_max.max(l.max_sparsity());
+    }
+    let t0 = (sct.width() * sct.height()) as u64;
+    format!(
+        "model:       {} ({} x {} terrain, {layers} sparse layer(s), s = {s_max})\n\
+         storage:     t = {t} values for t0 = {t0} samples: rho = {:.2} %\n\
+         bytes:       {} ({:.2} % of the terrain as f32)\n",
+        path.display(),
+        sct.width(),
+        sct.height(),
+        100.0 * t as f64 / t0 as f64,
+        bytes,
+        100.0 * bytes as f64 / (4.0 * t0 as f64),
+    )
 }
 
 #[cfg(test)]

@@ -28,23 +28,6 @@ fn sketch(w: usize, h: usize) -> Heightfield {
     })
 }
 
-/// RMS of the detail (grid minus its x16 box-down up-sampled back) over cells where the sketch
-/// is flat, in metres.
-fn detail_rms(hf: &Heightfield, k: usize) -> f64 {
-    let low = hf
-        .downsample_box(k)
-        .unwrap()
-        .resample(hf.width(), hf.height())
-        .unwrap();
-    let d: Vec<f64> = hf
-        .as_slice()
-        .iter()
-        .zip(low.as_slice())
-        .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
-        .collect();
-    (d.iter().sum::<f64>() / d.len() as f64).sqrt()
-}
-
 fn main() {
     let out_dir = std::env::args()
         .skip(1)
@@ -82,22 +65,22 @@ fn main() {
         out.height()
     );
     // The exemplar's detail at the same cell size, for scale.
-    let ex_detail = detail_rms(&exemplar, 16);
+    let ex_detail = relief_testdata::detail_rms(&exemplar, 16);
     // A plateau of the sketch (top-left corner, away from strokes), in output cells.
     let plateau = out.crop(0, 6000, 1024, 1024).unwrap();
     println!(
         "x16 detail RMS: plateau {:.1} m, whole {:.1} m, exemplar {:.1} m; slope EMD to the \
          exemplar {:.2} deg",
-        detail_rms(&plateau, 16),
-        detail_rms(&out, 16),
+        relief_testdata::detail_rms(&plateau, 16),
+        relief_testdata::detail_rms(&out, 16),
         ex_detail,
         relief_heightfield::metrics::slope_histogram_distance(&out, &exemplar)
     );
     for k in [4, 16, 64] {
         println!(
             "  detail finer than {k} cells: output {:.1} m, exemplar {:.1} m",
-            detail_rms(&out, k),
-            detail_rms(&exemplar, k)
+            relief_testdata::detail_rms(&out, k),
+            relief_testdata::detail_rms(&exemplar, k)
         );
     }
     write_shade(&out_dir.join("whole.pgm"), &out.downsample_box(4).unwrap());

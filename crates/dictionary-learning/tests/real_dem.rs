@@ -180,17 +180,6 @@ fn amplified_sct_windows_match_full_raster() {
     assert_eq!(big.width(), 2 * full.width());
 }
 
-/// RMS (metres) of the detail finer than `k` cells: the grid minus its box x`k` reduction
-/// up-sampled back.
-fn detail_rms(hf: &Heightfield, k: usize) -> f64 {
-    let low = hf
-        .downsample_box(k)
-        .unwrap()
-        .resample(hf.width(), hf.height())
-        .unwrap();
-    metrics::rmse(hf, &low).unwrap()
-}
-
 /// Sketch synthesis gives exemplar-like relief on the flat parts of a painted sketch (figure
 /// 12), not a smooth blob that follows the sketch pixels: the detail finer than a sketch cell
 /// on a flat plateau has at least a third of the exemplar's at the same cell size, while the
@@ -227,9 +216,10 @@ fn sketch_synthesis_puts_exemplar_relief_on_flat_sketch_parts() {
     };
     let out = run(true);
     assert_eq!((out.width(), out.height()), (256, 256));
-    let reference = detail_rms(&ex, 16);
+    let reference = relief_testdata::detail_rms(&ex, 16);
     // The plateau, one sketch cell away from the borders and the stroke.
-    let plateau = |hf: &Heightfield| detail_rms(&hf.crop(16, 16, 96, 224).unwrap(), 16);
+    let plateau =
+        |hf: &Heightfield| relief_testdata::detail_rms(&hf.crop(16, 16, 96, 224).unwrap(), 16);
     let (new, paper) = (plateau(&out), plateau(&run(false)));
     assert!(
         new > reference / 3.0,
@@ -773,7 +763,7 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
             .unwrap()
             .rasterize(&RasterSettings::default())
             .unwrap();
-        detail_rms(&out, 4)
+        relief_testdata::detail_rms(&out, 4)
     };
     let at_scale = added(&one);
     let native = added(&AmplifySettings {
@@ -781,8 +771,8 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
         ..one
     });
     let (ex_scale, ex_native) = (
-        detail_rms(&ex.downsample_box(4).unwrap(), 4),
-        detail_rms(&ex, 4),
+        relief_testdata::detail_rms(&ex.downsample_box(4).unwrap(), 4),
+        relief_testdata::detail_rms(&ex, 4),
     );
     eprintln!(
         "added detail {at_scale:.2} m at scale, {native:.2} m with the exemplar at native \

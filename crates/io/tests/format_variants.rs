@@ -255,50 +255,22 @@ fn npz_selects_named_or_first_grid_and_flips_ascending_latitude() {
         let mut z = zip::ZipWriter::new(f);
         let opt = zip::write::SimpleFileOptions::default();
         use std::io::Write;
-        z.start_file("latitude.npy", opt).unwrap();
-        z.write_all(&npy(
-            "<f8",
-            "(2,)",
-            false,
-            &[10.0f64, 10.1]
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        ))
-        .unwrap();
-        z.start_file("longitude.npy", opt).unwrap();
-        z.write_all(&npy(
-            "<f8",
-            "(3,)",
-            false,
-            &[0.0f64, 0.1, 0.2]
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        ))
-        .unwrap();
-        z.start_file("grid.npy", opt).unwrap();
-        z.write_all(&npy(
-            "<f4",
-            "(2, 3)",
-            false,
-            &[1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0]
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        ))
-        .unwrap();
-        z.start_file("other.npy", opt).unwrap();
-        z.write_all(&npy(
-            "<f4",
-            "(1, 2)",
-            false,
-            &[7.0f32, 8.0]
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect::<Vec<_>>(),
-        ))
-        .unwrap();
+        let le = |v: &[f64]| v.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>();
+        let le32 = |v: &[f32]| v.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>();
+        for (name, descr, shape, data) in [
+            ("latitude.npy", "<f8", "(2,)", le(&[10.0, 10.1])),
+            ("longitude.npy", "<f8", "(3,)", le(&[0.0, 0.1, 0.2])),
+            (
+                "grid.npy",
+                "<f4",
+                "(2, 3)",
+                le32(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]),
+            ),
+            ("other.npy", "<f4", "(1, 2)", le32(&[7.0, 8.0])),
+        ] {
+            z.start_file(name, opt).unwrap();
+            z.write_all(&npy(descr, shape, false, &data)).unwrap();
+        }
         z.finish().unwrap();
     }
     let r = read(&p, &ReadOptions::default()).unwrap();

@@ -29,13 +29,20 @@ fn u32_at(b: &[u8], o: usize) -> u32 {
     u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
 }
 
-#[test]
-fn obj_parses_back() {
+/// The bytes of [`tetra`] written with normals as `name` (format from the extension), and its
+/// triangles.
+fn written_tetra(name: &str) -> (Vec<u8>, Vec<[u32; 3]>) {
     let (p, t, n) = tetra();
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("m.obj");
+    let path = dir.path().join(name);
     write_mesh(&path, &p, &t, Some(&n)).unwrap();
-    let text = std::fs::read_to_string(&path).unwrap();
+    (std::fs::read(&path).unwrap(), t)
+}
+
+#[test]
+fn obj_parses_back() {
+    let (bytes, t) = written_tetra("m.obj");
+    let text = String::from_utf8(bytes).unwrap();
     let verts: Vec<Vec<f32>> = text
         .lines()
         .filter(|l| l.starts_with("v "))
@@ -70,11 +77,7 @@ fn obj_parses_back() {
 
 #[test]
 fn ply_parses_back() {
-    let (p, t, n) = tetra();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("m.ply");
-    write_mesh(&path, &p, &t, Some(&n)).unwrap();
-    let b = std::fs::read(&path).unwrap();
+    let (b, t) = written_tetra("m.ply");
     let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
     let header = std::str::from_utf8(&b[..end]).unwrap();
     assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
@@ -235,63 +238,33 @@ fn preview_style_draws_the_sea_and_moves_the_light() {
         let i = (y * 40 + x) * 3;
         [rgb[i], rgb[i + 1], rgb[i + 2]]
     };
-    let sea = preview_rgb_with(&hf, &PreviewStyle::default()).unwrap();
+    // The preview in the default style changed by `set`.
+    let styled = |set: fn(&mut PreviewStyle)| {
+        let mut style = PreviewStyle::default();
+        set(&mut style);
+        preview_rgb_with(&hf, &style)
+    };
+    let sea = styled(|_| {}).unwrap();
     let [r, g, b] = px(&sea, 2, 10);
     assert!(b > r + 40 && b > g, "sea pixel {r},{g},{b} is not blue");
     let [r, g, b] = px(&sea, 30, 10);
     assert!(!(b > r + 40 && b > g), "land pixel {r},{g},{b} is blue");
-    let no_sea = preview_rgb_with(
-        &hf,
-        &PreviewStyle {
-            sea: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let no_sea = styled(|s| s.sea = false).unwrap();
     let [r, g, b] = px(&no_sea, 2, 10);
     assert!(!(b > r + 40 && b > g), "--no-sea pixel {r},{g},{b} is blue");
     // Light from the east instead of the north-west: the east-rising slope darkens.
-    let east = preview_rgb_with(
-        &hf,
-        &PreviewStyle {
-            azimuth_deg: 90.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let east = styled(|s| s.azimuth_deg = 90.0).unwrap();
     let lum = |p: [u8; 3]| p.iter().map(|&c| c as u32).sum::<u32>();
     assert!(lum(px(&east, 30, 10)) < lum(px(&sea, 30, 10)));
-    for (bad, field) in [
-        (
-            PreviewStyle {
-                altitude_deg: 0.0,
-                ..Default::default()
-            },
-            "altitude",
-        ),
-        (
-            PreviewStyle {
-                altitude_deg: 95.0,
-                ..Default::default()
-            },
-            "altitude",
-        ),
-        (
-            PreviewStyle {
-                exaggeration: -1.0,
-                ..Default::default()
-            },
-            "exaggeration",
-        ),
-        (
-            PreviewStyle {
-                azimuth_deg: f32::NAN,
-                ..Default::default()
-            },
-            "azimuth",
-        ),
-    ] {
-        let e = preview_rgb_with(&hf, &bad).unwrap_err().to_string();
+    type Change = fn(&mut PreviewStyle);
+    let bad: [(Change, &str); 4] = [
+        (|s| s.altitude_deg = 0.0, "altitude"),
+        (|s| s.altitude_deg = 95.0, "altitude"),
+        (|s| s.exaggeration = -1.0, "exaggeration"),
+        (|s| s.azimuth_deg = f32::NAN, "azimuth"),
+    ];
+    for (set, field) in bad {
+        let e = styled(set).unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
 }

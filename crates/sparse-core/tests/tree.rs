@@ -10,8 +10,17 @@ use relief_sparse_core::{
     Window, encode, extract_patches, raster_coord,
 };
 
-fn crop() -> Option<Heightfield> {
-    relief_testdata::dem_crop("grandcanyon", 150, 220, 80, 64)
+/// The crop the tests build on and its s = 3 tree ([`layer`]), or `None` without the DEM set.
+fn crop_and_layer() -> Option<(Heightfield, Node)> {
+    let hf = relief_testdata::dem_crop("grandcanyon", 150, 220, 80, 64)?;
+    let base = layer(&hf);
+    Some((hf, base))
+}
+
+/// The river of [`river_path`] carving 3 m deep and 15 m wide all along.
+fn plain_carve() -> River {
+    let n = river_path().len();
+    River::new(river_path(), vec![3.0; n], vec![15.0; n], RiverMode::Carve).unwrap()
 }
 
 /// The s = 3 tree of the crop over 48 sampled patches (8 x 8).
@@ -89,8 +98,9 @@ fn river_path() -> Vec<[f64; 2]> {
 
 #[test]
 fn every_node_kind_rasterises_like_point_evaluation() {
-    let Some(hf) = crop() else { return };
-    let base = layer(&hf);
+    let Some((hf, base)) = crop_and_layer() else {
+        return;
+    };
     let (w, h) = (hf.width(), hf.height());
     let path = river_path();
     let n = path.len();
@@ -193,12 +203,12 @@ fn every_node_kind_rasterises_like_point_evaluation() {
 
 #[test]
 fn river_carve_and_replace_change_only_their_support() {
-    let Some(hf) = crop() else { return };
-    let base = layer(&hf);
+    let Some((hf, base)) = crop_and_layer() else {
+        return;
+    };
     let (w, h) = (hf.width(), hf.height());
     let path = river_path();
-    let n = path.len();
-    let carve = River::new(path.clone(), vec![3.0; n], vec![15.0; n], RiverMode::Carve).unwrap();
+    let carve = plain_carve();
     let plain = Sct::new(base.clone(), w, h, hf.cell_size()).unwrap();
     let carved = Sct::new(
         Node::Add(vec![base.clone(), Node::River(carve.clone())]),
@@ -247,11 +257,10 @@ fn river_carve_and_replace_change_only_their_support() {
 
 #[test]
 fn tree_raster_is_independent_of_threads() {
-    let Some(hf) = crop() else { return };
-    let base = layer(&hf);
-    let path = river_path();
-    let n = path.len();
-    let carve = River::new(path, vec![3.0; n], vec![15.0; n], RiverMode::Carve).unwrap();
+    let Some((hf, base)) = crop_and_layer() else {
+        return;
+    };
+    let carve = plain_carve();
     let t = Sct::new(
         Node::Replace {
             base: Box::new(Node::Add(vec![base.clone(), Node::River(carve)])),

@@ -101,6 +101,20 @@ pub fn write_shade(path: &Path, hf: &Heightfield) {
     std::fs::write(path, bytes).expect("write the PGM image");
 }
 
+/// RMS (metres) of the detail finer than `k` cells: the grid minus its box x`k` reduction
+/// up-sampled back.
+///
+/// # Panics
+/// Panics when `hf` cannot be reduced by `k` (smaller than `k` cells) or has only voids.
+pub fn detail_rms(hf: &Heightfield, k: usize) -> f64 {
+    let low = hf
+        .downsample_box(k)
+        .expect("box reduction")
+        .resample(hf.width(), hf.height())
+        .expect("resampling back");
+    relief_heightfield::metrics::rmse(hf, &low).expect("rmse")
+}
+
 /// Runs `f` on a rayon pool of `threads` workers (the determinism tests compare runs on
 /// different thread counts).
 ///

@@ -4,6 +4,8 @@
 //! their [`AnalyzeFigures`]. The CLI (`relief refine`, `relief analyze`), the pipeline's
 //! `wavelet` stage and tiled runs all go through these types, so a parameter is defined once.
 
+use std::fmt::Write as _;
+
 use relief_heightfield::{Heightfield, Progress};
 use serde::{Deserialize, Serialize};
 
@@ -158,6 +160,106 @@ pub struct AnalyzeFigures {
     /// The local fits summarised per band (empty without `local_window`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub local: Vec<LocalBand>,
+}
+
+impl AnalyzeFigures {
+    /// The figures as text, as `relief analyze` prints them: the fit of equation (3) per band
+    /// with its fractal dimension, the log2 variance per level (equation (2)) and, with a local
+    /// window, the summary of the local fits (equation (4)).
+    pub fn summary(&self) -> String {
+        let f = self;
+        let a = &f.analysis;
+        let mut s = String::new();
+        let used = a.levels.iter().filter(|l| l.fitted).count();
+        let _ = writeln!(
+            s,
+            "wavelet:     {} (input = level {}, {} levels analysed, {} fitted from level {})",
+            a.wavelet,
+            a.top_level,
+            a.levels.len(),
+            used,
+            a.settings.min_level
+        );
+        let _ = writeln!(s, "fit log2 Var = -j gamma + a (equation 3):");
+        let _ = writeln!(s, "  band  gamma     a         r2      D (3 - gamma/2)");
+        for (b, f) in Band::ALL.iter().zip(&a.fits) {
+            let _ = writeln!(
+                s,
+                "  {:<4}  {:<8.4}  {:<8.3}  {:<6.4}  {:.4}{}",
+                b.name(),
+                f.gamma,
+                f.a,
+                f.r_squared,
+                f.fractal_dimension(),
+                if f.clamped {
+                    format!("  (clamped; unconstrained gamma {:.4})", f.gamma_fit)
+                } else {
+                    String::new()
+                }
+            );
+        }
+        let _ = writeln!(
+            s,
+            "fractal dimension (mean of bands): {:.4}",
+            f.fractal_dimension
+        );
+        if !f.fbm_holds {
+            // gamma > 2 means H > 1: no fractional Brownian surface decays that fast, so the
+            // fBm reading of section 4 does not hold over the fitted levels.
+            let _ = writeln!(
+                s,
+                "warning: D < 2 (gamma > 2): the fBm assumption fails over the fitted levels; the \
+             terrain is smoother than any fractal surface there and D is only a roughness index"
+            );
+        }
+        let _ = writeln!(s, "log2 variance per level (equation 2):");
+        let _ = writeln!(s, "  level  depth  h         v         d         fitted");
+        for l in &a.levels {
+            let lg = |v: f64| {
+                if v > 0.0 {
+                    format!("{:<8.3}", v.log2())
+                } else {
+                    "-inf    ".to_string()
+                }
+            };
+            let _ = writeln!(
+                s,
+                "  {:<5}  {:<5}  {}  {}  {}  {}",
+                l.level,
+                l.depth,
+                lg(l.variance[0]),
+                lg(l.variance[1]),
+                lg(l.variance[2]),
+                if l.fitted { "yes" } else { "no" }
+            );
+        }
+        if let Some(w) = f.local_window {
+            let _ = writeln!(
+                s,
+                "local fit (equation 4), {w}x{w} window, over all locations:"
+            );
+            let _ = writeln!(
+                s,
+                "  band  gamma mean/p5/p50/p95          D mean/p5/p50/p95"
+            );
+            for l in &f.local {
+                let _ = writeln!(
+                    s,
+                    "  {:<4}  {:.3}/{:.3}/{:.3}/{:.3}  {:.3}/{:.3}/{:.3}/{:.3}",
+                    l.band.name(),
+                    l.gamma.mean,
+                    l.gamma.p5,
+                    l.gamma.p50,
+                    l.gamma.p95,
+                    l.fractal_dimension.mean,
+                    l.fractal_dimension.p5,
+                    l.fractal_dimension.p50,
+                    l.fractal_dimension.p95
+                );
+            }
+        }
+        s
+    }
 }
 
 /// Result of [`AnalyzeSettings::run`].

@@ -1,7 +1,7 @@
 //! Refinement on synthetic inputs: windows equal the full run bit for bit, results do not depend
 //! on the thread count, the synthesised levels follow equation (5), and bad settings are errors.
 
-use relief_heightfield::{Heightfield, NoProgress};
+use relief_heightfield::{Heightfield, NoProgress, metrics};
 use relief_wavelet_lod::{
     Boundary, FitSettings, Grid, Method, RefineSettings, Refiner, Wavelet, WaveletError, analyze,
     analyze_local, max_levels, refine, wavedec2,
@@ -209,48 +209,20 @@ fn zero_detail_lsa_on_flat_input_is_finite_and_flat() {
 #[test]
 fn bad_settings_and_inputs_are_errors() {
     let hf = rough(64, 64, 5);
-    let bad = [
-        RefineSettings {
-            window: 4,
-            ..Default::default()
-        },
-        RefineSettings {
-            window: 0,
-            ..Default::default()
-        },
-        RefineSettings {
-            extra_levels: 13,
-            ..Default::default()
-        },
-        RefineSettings {
-            tile: 2,
-            ..Default::default()
-        },
-        RefineSettings {
-            fit: FitSettings {
-                variance_floor: 0.0,
-                ..Default::default()
-            },
-            ..Default::default()
-        },
-        RefineSettings {
-            fit: FitSettings {
-                gamma_min: 3.0,
-                gamma_max: 1.0,
-                ..Default::default()
-            },
-            ..Default::default()
-        },
-        RefineSettings {
-            fine_levels: 1,
-            ..Default::default()
-        },
-        RefineSettings {
-            min_gamma: f64::NAN,
-            ..Default::default()
-        },
+    // One field out of range per case, the others at their defaults.
+    let bad: [fn(&mut RefineSettings); 8] = [
+        |s| s.window = 4,
+        |s| s.window = 0,
+        |s| s.extra_levels = 13,
+        |s| s.tile = 2,
+        |s| s.fit.variance_floor = 0.0,
+        |s| (s.fit.gamma_min, s.fit.gamma_max) = (3.0, 1.0),
+        |s| s.fine_levels = 1,
+        |s| s.min_gamma = f64::NAN,
     ];
-    for s in bad {
+    for set in bad {
+        let mut s = RefineSettings::default();
+        set(&mut s);
         let e = Refiner::new(&hf, &s).unwrap_err();
         assert!(!e.to_string().is_empty());
     }
@@ -430,13 +402,7 @@ fn spectral_model_is_area_consistent() {
         let out = refine(&hf, &s).unwrap();
         let f = 1usize << levels;
         let down = out.downsample_box(f).unwrap();
-        let se: f64 = down
-            .as_slice()
-            .iter()
-            .zip(hf.as_slice())
-            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
-            .sum();
-        let rel = (se / hf.len() as f64).sqrt() / hf.relief() as f64;
+        let rel = metrics::rmse(&down, &hf).unwrap() / hf.relief() as f64;
         // Without the correction step the same run is noticeably less consistent.
         let raw = refine(
             &hf,
@@ -448,13 +414,7 @@ fn spectral_model_is_area_consistent() {
         .unwrap()
         .downsample_box(f)
         .unwrap();
-        let se_raw: f64 = raw
-            .as_slice()
-            .iter()
-            .zip(hf.as_slice())
-            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
-            .sum();
-        let rel_raw = (se_raw / hf.len() as f64).sqrt() / hf.relief() as f64;
+        let rel_raw = metrics::rmse(&raw, &hf).unwrap() / hf.relief() as f64;
         // The smooth part inverts box-down(cubic(.)) exactly (up to f32 rounding), borders
         // included: every block mean is its input cell.
         assert!(

@@ -62,8 +62,6 @@ pub(crate) struct Report {
 }
 
 fn text(r: &Report) -> String {
-    let f = &r.figures;
-    let a = &f.analysis;
     let mut s = String::new();
     let _ = writeln!(s, "file:        {}", r.file);
     let _ = writeln!(
@@ -71,95 +69,7 @@ fn text(r: &Report) -> String {
         "size:        {} x {} (cell {:.3} x {:.3} m)",
         r.width, r.height, r.cell_size.0, r.cell_size.1
     );
-    let used = a.levels.iter().filter(|l| l.fitted).count();
-    let _ = writeln!(
-        s,
-        "wavelet:     {} (input = level {}, {} levels analysed, {} fitted from level {})",
-        a.wavelet,
-        a.top_level,
-        a.levels.len(),
-        used,
-        a.settings.min_level
-    );
-    let _ = writeln!(s, "fit log2 Var = -j gamma + a (equation 3):");
-    let _ = writeln!(s, "  band  gamma     a         r2      D (3 - gamma/2)");
-    for (b, f) in Band::ALL.iter().zip(&a.fits) {
-        let _ = writeln!(
-            s,
-            "  {:<4}  {:<8.4}  {:<8.3}  {:<6.4}  {:.4}{}",
-            b.name(),
-            f.gamma,
-            f.a,
-            f.r_squared,
-            f.fractal_dimension(),
-            if f.clamped {
-                format!("  (clamped; unconstrained gamma {:.4})", f.gamma_fit)
-            } else {
-                String::new()
-            }
-        );
-    }
-    let _ = writeln!(
-        s,
-        "fractal dimension (mean of bands): {:.4}",
-        f.fractal_dimension
-    );
-    if !f.fbm_holds {
-        // gamma > 2 means H > 1: no fractional Brownian surface decays that fast, so the
-        // fBm reading of section 4 does not hold over the fitted levels.
-        let _ = writeln!(
-            s,
-            "warning: D < 2 (gamma > 2): the fBm assumption fails over the fitted levels; the \
-             terrain is smoother than any fractal surface there and D is only a roughness index"
-        );
-    }
-    let _ = writeln!(s, "log2 variance per level (equation 2):");
-    let _ = writeln!(s, "  level  depth  h         v         d         fitted");
-    for l in &a.levels {
-        let lg = |v: f64| {
-            if v > 0.0 {
-                format!("{:<8.3}", v.log2())
-            } else {
-                "-inf    ".to_string()
-            }
-        };
-        let _ = writeln!(
-            s,
-            "  {:<5}  {:<5}  {}  {}  {}  {}",
-            l.level,
-            l.depth,
-            lg(l.variance[0]),
-            lg(l.variance[1]),
-            lg(l.variance[2]),
-            if l.fitted { "yes" } else { "no" }
-        );
-    }
-    if let Some(w) = f.local_window {
-        let _ = writeln!(
-            s,
-            "local fit (equation 4), {w}x{w} window, over all locations:"
-        );
-        let _ = writeln!(
-            s,
-            "  band  gamma mean/p5/p50/p95          D mean/p5/p50/p95"
-        );
-        for l in &f.local {
-            let _ = writeln!(
-                s,
-                "  {:<4}  {:.3}/{:.3}/{:.3}/{:.3}  {:.3}/{:.3}/{:.3}/{:.3}",
-                l.band.name(),
-                l.gamma.mean,
-                l.gamma.p5,
-                l.gamma.p50,
-                l.gamma.p95,
-                l.fractal_dimension.mean,
-                l.fractal_dimension.p5,
-                l.fractal_dimension.p50,
-                l.fractal_dimension.p95
-            );
-        }
-    }
-    s
+    s + &r.figures.summary()
 }
 
 /// The file of one local map: `PREFIX_<suffix>.tif`.
@@ -216,15 +126,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let staged = crate::staging::Outputs::of(&outputs, None)?;
     // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
     let hf = super::read_void_free(&args.input, &args.read, ctx)?;
-    // Pre-flight (issue 18): the DWT pyramid, and with --local the fitted maps of every band.
-    ctx.check_memory(
-        "analyze",
-        &[&[crate::memory::part(
-            format!("the analysis of {} cells", hf.len()),
-            hf.len() as f64 * if args.local.is_some() { 96.0 } else { 48.0 },
-            "a smaller input (crop it)",
-        )]],
-    )?;
+    crate::preflight::analyze(&hf, args.local.is_some(), ctx)?;
     let progress = ctx.progress();
     let result = settings
         .run(&hf, &progress)

@@ -13,11 +13,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{AnalyticAtoms, CompressSettings, DictionarySource, NoiseFamily};
-use relief_heightfield::Heightfield;
-use relief_sparse_core::{CompressionReport, Dictionary};
+use relief_dictionary_learning::{AnalyticAtoms, CompressSettings, DictionarySource};
+use relief_sparse_core::Dictionary;
 
 use crate::ctx::Ctx;
+use crate::describe;
 use crate::sparse_model::{read_model_bytes, registry};
 
 /// Where the dictionary comes from when no `--dictionary FILE` is given.
@@ -79,32 +79,10 @@ pub(crate) struct Args {
     /// `ridged` (sums of ridged noise, figure 4), `perlin`, `ridged-multifractal`,
     /// `ridged-field`, `perlin-field` (windows of one noise field at terrain scale): a mixed
     /// dictionary whose OMP picks data or analytic atoms per primitive (figure 14).
-    #[arg(long, value_name = "FAMILY:N,..", value_parser = parse_analytic_atoms)]
+    #[arg(long, value_name = "FAMILY:N,..", value_parser = crate::args::parse_analytic_atoms)]
     pub(crate) analytic_atoms: Option<AnalyticAtoms>,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
-}
-
-/// `--analytic-atoms` value parser.
-fn parse_analytic_atoms(spec: &str) -> std::result::Result<AnalyticAtoms, String> {
-    let mut a = AnalyticAtoms::default();
-    for item in spec.split(',') {
-        let (name, n) = item
-            .split_once(':')
-            .ok_or_else(|| format!("`{item}`: expected FAMILY:N"))?;
-        let n: usize = n
-            .trim()
-            .parse()
-            .map_err(|_| format!("`{item}`: N must be a count"))?;
-        match super::fit_procedural::family(name.trim()).map_err(|e| e.to_string())? {
-            NoiseFamily::RidgedSum => a.ridged_sum += n,
-            NoiseFamily::Perlin => a.perlin += n,
-            NoiseFamily::RidgedMultifractal => a.ridged_multifractal += n,
-            NoiseFamily::PerlinField => a.perlin_field += n,
-            NoiseFamily::RidgedField => a.ridged_field += n,
-        }
-    }
-    Ok(a)
 }
 
 impl Args {
@@ -164,71 +142,6 @@ fn given_dictionary(args: &Args, ctx: &Ctx) -> Result<Option<(Dictionary, String
     Ok(Some((d, format!("file {}", path.display()))))
 }
 
-/// Pre-flight estimate of `compress` (issue 18), before any patch is cut: the patch matrix
-/// (f32 rows of `a^2`, with the working copies of K-SVD), the dictionary and its Gram matrix
-/// (K^2: with `--dict complete`, K is the number of patches; none at `--sparsity 1` above 4096
-/// atoms, where the exact nearest-atom search codes without it), the codes and the model.
-fn preflight(args: &Args, hf: &Heightfield, ctx: &Ctx) -> Result<()> {
-    use crate::memory::part;
-    let a = args.patch_size.unwrap_or(8) as f64;
-    let spacing = args.spacing.unwrap_or(1.0);
-    let step = args.step.unwrap_or(a * spacing / 2.0).max(0.25);
-    let cells = hf.len() as f64;
-    let patches = (hf.width() as f64 / step).ceil() * (hf.height() as f64 / step).ceil();
-    let k = match (&args.dictionary, args.dict.unwrap_or(DictSource::Ksvd)) {
-        (Some(_), _) => args.atoms as f64,
-        (None, DictSource::Complete) => patches,
-        (None, _) => args.atoms as f64,
-    };
-    let change_k = if matches!(args.dict, Some(DictSource::Complete)) && args.dictionary.is_none() {
-        "--dict ksvd or sample with --atoms (the complete dictionary has one atom per patch), \
-         or a smaller input"
-    } else {
-        "fewer --atoms"
-    };
-    let gram = if args.sparsity == 1 && k > relief_sparse_core::omp::NEAREST_MIN_ATOMS as f64 {
-        // One 256 x 4096 correlation buffer per worker.
-        8.0 * 256.0 * 4096.0 * 4.0
-    } else {
-        k * k * 4.0
-    };
-    ctx.check_memory(
-        "compress",
-        &[&[
-            part(
-                format!(
-                    "the {} patches of {} cells",
-                    patches as u64,
-                    a as u64 * a as u64
-                ),
-                patches * a * a * 4.0 * 4.0 + cells * 16.0,
-                "a larger --step or --spacing, or a smaller input",
-            ),
-            part(
-                format!("the dictionary of {} atoms and its Gram matrix", k as u64),
-                k * a * a * 4.0 * 2.0 + gram,
-                change_k,
-            ),
-        ]],
-    )
-}
-
-/// The report lines: storage, bytes, PSNR.
-fn report_lines(f: &CompressionReport) -> String {
-    format!(
-        "storage:     t(s, N) = KN + n(2s + 2) + 1 = {} values for t0 = {} samples: rho = {:.2} %\n\
-         bytes:       {} ({:.2} % of the input as f32)\n\
-         PSNR:        {:.2} dB (RMSE {:.3} m)\n",
-        f.t,
-        f.t0,
-        100.0 * f.rho,
-        f.bytes,
-        100.0 * f.byte_ratio,
-        f.psnr,
-        f.rmse
-    )
-}
-
 /// Reads, (fills,) learns or loads a dictionary, encodes, writes the `.sct`, prints the figures.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let job = args.settings()?;
@@ -245,7 +158,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             hf.void_count()
         );
     }
-    preflight(&args, &hf, ctx)?;
+    crate::preflight::compress(&args, &hf, ctx)?;
     let given = given_dictionary(&args, ctx)?;
     let progress = ctx.progress();
     let out = job
@@ -254,37 +167,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     drop(progress);
     relief_io::write_bytes_atomic(&args.output, &out.bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    let f = &out.figures;
-    let mut text = format!(
-        "input:       {} ({} x {})\n",
-        args.input.display(),
-        hf.width(),
-        hf.height()
-    );
-    text.push_str(&format!(
-        "dictionary:  N = {} atoms of {a} x {a} (K = {}), delta {}, R {}: {}\n",
-        f.report.n_atoms,
-        f.report.k,
-        f.spacing,
-        f.radius,
-        f.dictionary,
-        a = f.patch_size
-    ));
-    text.push_str(&format!(
-        "primitives:  n = {}, s = {}{}\n",
-        f.report.n_patches,
-        job.sparsity,
-        if job.quantize {
-            ", 16-bit coefficients"
-        } else {
-            ""
-        }
-    ));
-    text.push_str(&report_lines(&f.report));
-    text.push_str(&format!(
-        "time:        dictionary {:.2} s, encode {:.2} s\n",
-        f.dictionary_seconds, f.encode_seconds
-    ));
+    let mut text = describe::compression(&args.input, &hf, &job, &out.figures);
     text.push_str(&format!("wrote:       {}\n", args.output.display()));
     #[allow(clippy::print_stdout)]
     {

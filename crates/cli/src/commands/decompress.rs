@@ -12,9 +12,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use rayon::prelude::*;
 use relief_heightfield::metrics;
-use relief_sparse_core::{RasterSettings, Sct, Window, layer_storage_values};
+use relief_sparse_core::{RasterSettings, Sct, Window};
 
 use crate::ctx::Ctx;
 use crate::sparse_model::{read_model_bytes, registry};
@@ -74,25 +73,12 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             args.max_cells
         );
     }
-    // Pre-flight (issue 18): the raster in memory and its encoding, and the file size.
-    let out_cells = cells as f64;
     let change = if args.window.is_some() {
         "a smaller --window"
     } else {
         "a smaller --scale or --window"
     };
-    ctx.check_output_size("the output raster", out_cells * 4.0, change)?;
-    ctx.check_memory(
-        &format!("decompress --scale {}", args.scale),
-        &[&[
-            crate::memory::part(
-                format!("the {} x {} output raster", win.width, win.height),
-                out_cells * crate::sparse_model::RASTER_OUT_BYTES_PER_CELL,
-                change,
-            ),
-            crate::memory::part("the model", bytes.len() as f64 * 3.0, "a smaller model"),
-        ]],
-    )?;
+    crate::preflight::decompress(win, args.scale, bytes.len(), change, ctx)?;
     let reference = match &args.reference {
         Some(p) => Some(super::read_raster(p, &args.read, ctx)?.heightfield),
         None => None,
@@ -101,7 +87,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         scale: args.scale,
         window: Some(win),
     };
-    if let Some((est, how)) = estimate_seconds(&sct, &settings)? {
+    if let Some((est, how)) = crate::budget::sct_raster_seconds(&sct, &settings)? {
         ctx.check_time(
             &format!("rasterising {} x {}", win.width, win.height),
             est,
@@ -131,25 +117,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         _ => None,
     };
     ctx.write_raster(&args.output, &hf)?;
-    let (mut t, mut layers, mut s_max) = (0u64, 0usize, 0usize);
-    for l in sct.layers() {
-        let d = l.dictionary();
-        t += layer_storage_values(d, l.len(), l.max_sparsity());
-        layers += 1;
-        s_max = s_max.max(l.max_sparsity());
-    }
-    let t0 = (sct.width() * sct.height()) as u64;
-    let mut out = format!(
-        "model:       {} ({} x {} terrain, {layers} sparse layer(s), s = {s_max})\n\
-         storage:     t = {t} values for t0 = {t0} samples: rho = {:.2} %\n\
-         bytes:       {} ({:.2} % of the terrain as f32)\n\
-         output:      {} x {} at scale {} (window {},{},{},{})\n",
-        args.input.display(),
-        sct.width(),
-        sct.height(),
-        100.0 * t as f64 / t0 as f64,
-        bytes.len(),
-        100.0 * bytes.len() as f64 / (4.0 * t0 as f64),
+    let mut out = crate::sparse_model::storage_text(&args.input, &sct, bytes.len());
+    out.push_str(&format!(
+        "output:      {} x {} at scale {} (window {},{},{},{})\n",
         hf.width(),
         hf.height(),
         args.scale,
@@ -157,7 +127,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         win.y,
         win.width,
         win.height,
-    );
+    ));
     if let Some((psnr, rmse)) = quality {
         out.push_str(&format!("PSNR:        {psnr:.2} dB (RMSE {rmse:.3} m)\n"));
     }
@@ -167,54 +137,4 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         print!("{out}");
     }
     Ok(())
-}
-
-/// Rasters of at least this many cells get a time estimate (smaller ones take seconds).
-const PILOT_FROM_CELLS: usize = 1 << 20;
-/// The pilot rasterises this many evenly spaced row strips ...
-const PILOT_STRIPS: usize = 16;
-/// ... covering about 1/this of the window's rows.
-const PILOT_SHARE: usize = 64;
-
-/// Estimated seconds to rasterise `settings`' window: times [`PILOT_STRIPS`] evenly spaced
-/// full-width row strips covering about 1/[`PILOT_SHARE`] of it, in parallel as the run is,
-/// and scales by the cell count (the cost of a cell is the atoms over it, which the strips
-/// sample across the whole model). `None` for small windows. Returns the pilot's description.
-pub(crate) fn estimate_seconds(
-    sct: &Sct,
-    settings: &RasterSettings,
-) -> Result<Option<(f64, String)>> {
-    let Some(win) = settings.window else {
-        return Ok(None);
-    };
-    let cells = win.width * win.height;
-    if cells < PILOT_FROM_CELLS {
-        return Ok(None);
-    }
-    let rows = win.height.div_ceil(PILOT_SHARE * PILOT_STRIPS).max(1);
-    let strips: Vec<Window> = (0..PILOT_STRIPS)
-        .map(|i| Window {
-            x: win.x,
-            y: win.y + (i * (win.height - rows)) / (PILOT_STRIPS - 1),
-            width: win.width,
-            height: rows,
-        })
-        .collect();
-    let t = std::time::Instant::now();
-    strips.par_iter().try_for_each(|&w| {
-        sct.rasterize(&RasterSettings {
-            scale: settings.scale,
-            window: Some(w),
-        })
-        .map(drop)
-    })?;
-    let pilot_cells = (PILOT_STRIPS * rows * win.width) as f64;
-    let est = t.elapsed().as_secs_f64() * cells as f64 / pilot_cells;
-    Ok(Some((
-        est,
-        format!(
-            "from {PILOT_STRIPS} strips of {rows} rows, {:.1} % of the cells",
-            100.0 * pilot_cells / cells as f64
-        ),
-    )))
 }

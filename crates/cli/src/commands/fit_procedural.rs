@@ -5,8 +5,8 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
-use relief_dictionary_learning::{NoiseFamily, ProceduralSettings, fit_procedural};
+use anyhow::{Context, Result};
+use relief_dictionary_learning::{ProceduralSettings, fit_procedural};
 
 use crate::ctx::Ctx;
 use crate::sparse_model::{check_output_path, is_sct, write_model};
@@ -43,26 +43,11 @@ pub(crate) struct Args {
     pub(crate) read: super::ReadArgs,
 }
 
-/// The atom family a name denotes.
-pub(crate) fn family(name: &str) -> Result<NoiseFamily> {
-    Ok(match name.to_ascii_lowercase().as_str() {
-        "ridged" | "ridged-sum" => NoiseFamily::RidgedSum,
-        "perlin" => NoiseFamily::Perlin,
-        "ridged-multifractal" | "multifractal" => NoiseFamily::RidgedMultifractal,
-        "ridged-field" => NoiseFamily::RidgedField,
-        "perlin-field" => NoiseFamily::PerlinField,
-        _ => bail!(
-            "invalid --family `{name}`: must be ridged-field, perlin-field, ridged, perlin or \
-             ridged-multifractal"
-        ),
-    })
-}
-
 /// Reads, fits, prints the PSNR, writes.
 /// The library settings of the arguments (checked).
 pub(crate) fn settings(args: &Args) -> Result<ProceduralSettings> {
     let settings = ProceduralSettings {
-        family: family(&args.family)?,
+        family: crate::args::family(&args.family)?,
         n_candidates: args.candidates,
         learned_atoms: (args.learned > 0).then_some(args.learned),
         patch_size: args.patch_size,
@@ -129,17 +114,4 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     );
     std::io::Write::write_all(&mut stdout, line.as_bytes()).context("cannot write to stdout")?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn families() {
-        assert_eq!(family("perlin").unwrap(), NoiseFamily::Perlin);
-        assert_eq!(family("Ridged").unwrap(), NoiseFamily::RidgedSum);
-        let e = family("simplex").unwrap_err().to_string();
-        assert!(e.contains("--family") && e.contains("simplex"), "{e}");
-    }
 }

@@ -81,36 +81,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .with_context(|| format!("cannot learn from {}", path.display()))?;
         terrains.push(hf);
     }
-    // Pre-flight (issue 18): every training patch is cut before the subsampling.
-    {
-        use crate::memory::part;
-        let a = args.patch_size as f64;
-        let step = geometry.step.max(0.25);
-        let all: f64 = terrains
-            .iter()
-            .map(|t| (t.width() as f64 / step).ceil() * (t.height() as f64 / step).ceil())
-            .sum();
-        let kept = all.min(args.max_patches as f64);
-        let k = args.atoms as f64;
-        // Several exemplars' patch matrices are joined into one (a second copy).
-        let copies = if terrains.len() > 1 { 2.0 } else { 1.0 };
-        let cells: f64 = terrains.iter().map(|t| t.len() as f64).sum();
-        ctx.check_memory(
-            "learn",
-            &[&[
-                part(
-                    format!("the {} training patches", all as u64),
-                    cells * 4.0 + all * a * a * 4.0 * copies + kept * a * a * 4.0 * 3.0,
-                    "a larger --step, smaller exemplars or fewer --max-patches",
-                ),
-                part(
-                    format!("the {} atoms and their Gram matrix", k as u64),
-                    k * a * a * 8.0 + k * k * 8.0 + kept * args.sparsity as f64 * 16.0,
-                    "fewer --atoms",
-                ),
-            ]],
-        )?;
-    }
+    crate::preflight::learn(&terrains, &geometry, &args, ctx)?;
     let refs: Vec<&Heightfield> = terrains.iter().collect();
     let all =
         training_patches(&refs, &geometry).context("cannot cut the exemplars into patches")?;

@@ -9,8 +9,8 @@ use anyhow::{Context, Result};
 use relief_heightfield::Progress;
 use relief_patch_synth::{Blend, CutMethod, QuiltJob, Settings, ValidateJob};
 
-use super::synth_args::SynthArgs;
 use crate::ctx::Ctx;
+use crate::synth_args::SynthArgs;
 
 /// Seam blending of `relief quilt`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

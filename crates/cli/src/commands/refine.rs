@@ -124,7 +124,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     )?;
     // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
     let hf = super::read_void_free(&args.input, &args.read, ctx)?;
-    preflight(&args, &settings, &hf, window, ctx)?;
+    crate::preflight::refine(&args, &settings, &hf, window, ctx)?;
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);
     let refiner = Refiner::new(&hf, &settings)
@@ -136,7 +136,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let (x, y, w, h) = window.unwrap_or((0, 0, ow, oh));
     let streamed = relief_io::Format::from_extension(&args.output)
         == Some(relief_io::Format::GeoTiff)
-        && (args.stream || w.saturating_mul(h) > STREAM_CELLS);
+        && (args.stream || w.saturating_mul(h) > crate::ctx::STREAM_CELLS);
     let band = if streamed {
         if x.checked_add(w).is_none_or(|e| e > ow) || y.checked_add(h).is_none_or(|e| e > oh) {
             bail!("invalid --window {x},{y},{w},{h}: outside the refined grid ({ow} x {oh})");
@@ -180,68 +180,6 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     Ok(())
 }
 
-/// Working bytes per input cell of the analysis (the DWT pyramid and the fitted statistics
-/// maps of every band and level); calibrated on measured peak RSS (issue 18).
-const ANALYSIS_BYTES_PER_CELL: f64 = 80.0;
-
-/// Working bytes per output cell synthesised in memory (the synthesis pyramid, the f32 result
-/// and its encoding).
-const RENDER_BYTES_PER_CELL: f64 = 24.0;
-
-/// Pre-flight estimate (issue 18): the analysis of the input and the synthesis of the output
-/// (whole, one window, or one streamed band), checked against `--max-memory`, and the output
-/// size against `--max-output-size`, before the analysis starts.
-fn preflight(
-    args: &Args,
-    settings: &RefineSettings,
-    hf: &relief_heightfield::Heightfield,
-    window: Option<(usize, usize, usize, usize)>,
-    ctx: &Ctx,
-) -> Result<()> {
-    use crate::memory::part;
-    let n = hf.width() as f64 * hf.height() as f64;
-    let f = 2f64.powi(settings.extra_levels as i32);
-    let (ow, oh) = (hf.width() as f64 * f, hf.height() as f64 * f);
-    let written = window.map_or(ow * oh, |(_, _, w, h)| w as f64 * h as f64);
-    let change = if window.is_some() {
-        "a smaller --window"
-    } else {
-        "fewer --levels or --window"
-    };
-    ctx.check_output_size("the refined raster", written * 4.0, change)?;
-    let streamed = relief_io::Format::from_extension(&args.output)
-        == Some(relief_io::Format::GeoTiff)
-        && (args.stream || written > STREAM_CELLS as f64);
-    let rendered = if streamed {
-        written.min(crate::ctx::STREAM_BAND_CELLS as f64 + 2.0 * ow)
-    } else {
-        written
-    };
-    let analysis = part(
-        format!("the wavelet analysis of {} input cells", n as u64),
-        n * ANALYSIS_BYTES_PER_CELL,
-        "a smaller input (crop it)",
-    );
-    let synthesis = part(
-        format!("the synthesis of {} output cells", rendered as u64),
-        rendered * RENDER_BYTES_PER_CELL,
-        if streamed {
-            "fewer --levels"
-        } else if window.is_some() {
-            "a smaller --window (or a .tif output, streamed)"
-        } else {
-            "fewer --levels, --window or a .tif output (streamed)"
-        },
-    );
-    ctx.check_memory(
-        &format!("refine --levels {}", settings.extra_levels),
-        &[&[analysis, synthesis]],
-    )
-}
-
-/// GeoTIFF outputs larger than this many cells are streamed band by band.
-const STREAM_CELLS: usize = 1 << 24;
-
 /// Synthesises the window `(x, y, w, h)` of the refined terrain (inside the grid; the whole
 /// grid when `whole`) in bands of rows and streams them into a GeoTIFF at `path`: memory is one
 /// band plus the analysis, never the whole output. The whole grid goes through
@@ -261,21 +199,24 @@ fn stream_geotiff(
     let corner = refiner
         .render_window(x, y, 1, 1)
         .context("cannot synthesise")?;
+    if !whole {
+        return ctx.stream_bands(
+            path,
+            (w, h),
+            corner.cell_size(),
+            corner.georef(),
+            "synthesising and writing the window",
+            |r, rows| {
+                refiner
+                    .render_window_values(x, y + r, w, rows)
+                    .context("cannot synthesise")
+            },
+        );
+    }
     let mut out = ctx.row_stream(path, (w, h), corner.cell_size(), corner.georef())?;
     let band = out.band;
     let progress = ctx.progress();
-    if whole {
-        refiner.render_strips(band, &progress, |_, rows| out.write(rows))?;
-    } else {
-        progress.begin("synthesising and writing the window", h as u64);
-        for (r, rows) in out.bands() {
-            let values = refiner
-                .render_window_values(x, y + r, w, rows)
-                .context("cannot synthesise")?;
-            out.write(&values)?;
-            progress.advance(rows as u64);
-        }
-    }
+    refiner.render_strips(band, &progress, |_, rows| out.write(rows))?;
     out.finish()?;
     Ok(band)
 }

@@ -13,7 +13,7 @@ use crate::ctx::Ctx;
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     #[command(flatten)]
-    pub(crate) synth: super::synth_args::SynthArgs,
+    pub(crate) synth: crate::synth_args::SynthArgs,
 }
 
 /// The report as printed on stdout.

@@ -7,11 +7,10 @@
 //! vertical section. Prints node counts, sizes, mesh size and timings on stdout; `--report`
 //! writes them as JSON.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::Heightfield;
-use relief_implicit_volume::{Feature, GeologySpec, VolumeJob};
+use relief_implicit_volume::{Feature, VolumeJob};
 
 use crate::ctx::Ctx;
 
@@ -95,63 +94,6 @@ pub(crate) struct Args {
     pub(crate) read: super::ReadArgs,
 }
 
-/// Reads a mask raster and maps it to `[0, 1]`: values already in `[0, 1]` are kept, 8-bit
-/// counts are divided by 255 and 16-bit counts by 65535.
-fn read_mask(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Vec<f32>> {
-    let raster = super::read_raster(path, &super::ReadArgs::default(), ctx)?;
-    let m = raster.heightfield;
-    if (m.width(), m.height()) != (dem.width(), dem.height()) {
-        bail!(
-            "mask {} is {}x{}, the DEM is {}x{}: they must match",
-            path.display(),
-            m.width(),
-            m.height(),
-            dem.width(),
-            dem.height()
-        );
-    }
-    let v = m.as_slice();
-    if let Some(bad) = v.iter().find(|x| !x.is_finite() || **x < 0.0) {
-        bail!(
-            "mask {}: value {bad} is not a finite non-negative weight",
-            path.display()
-        );
-    }
-    let max = v.iter().cloned().fold(0.0f32, f32::max);
-    let div = if max <= 1.0 {
-        1.0
-    } else if max <= 255.0 {
-        255.0
-    } else if max <= 65535.0 {
-        65535.0
-    } else {
-        bail!(
-            "mask {}: values up to {max}; expected [0, 1], 8-bit or 16-bit counts",
-            path.display()
-        );
-    };
-    Ok(v.iter().map(|x| x / div).collect())
-}
-
-fn read_geology(path: &Path) -> Result<GeologySpec> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
-    if meta.len() > 16 << 20 {
-        bail!(
-            "--geology {}: {} bytes, at most 16 MiB",
-            path.display(),
-            meta.len()
-        );
-    }
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let spec: GeologySpec = serde_json::from_str(&text)
-        .with_context(|| format!("--geology {}: not a geology tree", path.display()))?;
-    spec.build()
-        .with_context(|| format!("--geology {}: invalid geology", path.display()))?;
-    Ok(spec)
-}
-
 /// Up axis of `relief volume --up`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum UpArg {
@@ -220,48 +162,22 @@ pub(crate) fn job(args: &Args) -> Result<VolumeJob> {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     // Everything that can be checked without work is checked before any output is written.
     let mut job = job(&args)?;
-    for (p, flag) in [
-        (&args.render, "render"),
-        (&args.closeups, "closeups"),
-        (&args.section, "section"),
-    ] {
-        crate::outputs::check_png_flag(p.as_deref(), flag)?;
-    }
+    let files = crate::volume_io::Files {
+        mesh: args.mesh.as_deref(),
+        render: args.render.as_deref(),
+        closeups: args.closeups.as_deref(),
+        section: args.section.as_deref(),
+        report: args.report.as_deref(),
+    };
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(args.mask.as_deref());
     inputs.extend(args.geology.as_deref());
-    let mut outputs: Vec<(&Path, crate::outputs::OutKind)> = Vec::new();
-    outputs.extend(
-        args.mesh
-            .as_deref()
-            .map(|p| (p, crate::outputs::OutKind::Mesh)),
-    );
-    for p in [&args.render, &args.closeups, &args.section]
-        .into_iter()
-        .flatten()
-    {
-        outputs.push((p.as_path(), crate::outputs::OutKind::Png));
-    }
-    if outputs.is_empty() && args.report.is_none() {
-        bail!(
-            "nothing to write for {}: give at least one of --mesh, --render, --closeups, \
-             --section or --report",
-            args.input.display()
-        );
-    }
-    ctx.check_outputs(&inputs, &outputs)?;
-    if let Some(r) = &args.report {
-        crate::outputs::check_report_path(r, &args.input, ctx.force)?;
-        if outputs.iter().any(|(p, _)| *p == r.as_path()) {
-            bail!("--report {}: also named as another output", r.display());
-        }
-    }
+    files.check(&inputs, ctx)?;
     if let Some(p) = &args.geology {
-        job.recipe.geology = Some(read_geology(p)?);
+        job.recipe.geology = Some(crate::volume_io::read_geology(p)?);
         job.check().context("invalid volume settings")?;
     }
-    // The mesh, the images and the report appear together or not at all.
-    let staged = crate::staging::Outputs::of(&outputs, args.report.as_deref())?;
+    let staged = files.stage()?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
     if let Some((x, y, w, h)) = args.crop {
@@ -272,7 +188,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     hf.require_complete()
         .with_context(|| format!("{} cannot be implicitised", args.input.display()))?;
     if let Some(p) = &args.mask {
-        job.recipe.mask = Some(read_mask(p, &hf, ctx)?);
+        job.recipe.mask = Some(crate::volume_io::read_mask(p, &hf, ctx)?);
     }
     let (cx, cy) = hf.cell_size();
     job.recipe.voxel = args
@@ -282,70 +198,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let built = job
         .build(&hf, &progress)
         .context("cannot build the scene")?;
-    if let Some(path) = &args.mesh {
-        crate::memory::preflight_volume_mesh(
-            ctx,
-            path,
-            built.mesh_grid(&job),
-            built.report.dims.voxel_m as f64,
-        )?;
-    }
-    if job.render || job.section || job.closeups {
-        crate::memory::preflight_volume_images(ctx, args.image_size)?;
-    }
-    if let Some(est) = job
-        .estimate_image_seconds(&built)
-        .context("cannot time the pilot render")?
-    {
-        let (w, h) = args.image_size;
-        ctx.check_time(
-            &format!("rendering {w} x {h} images"),
-            est,
-            &format!(
-                "from the same images at 1/{} of the size",
-                relief_implicit_volume::job::PILOT_DIVISOR
-            ),
-            "a smaller --image-size",
-        )?;
-    }
+    crate::preflight::volume(ctx, &job, &built, args.mesh.as_deref(), args.image_size)?;
     let out = job
         .finish(built, &progress)
         .context("cannot mesh or render the scene")?;
-    let y_up = args.up == Some(UpArg::Y);
-    let mut text = out.figures.summary();
-    if let (Some(path), Some(mesh)) = (&args.mesh, &out.mesh) {
-        let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-        let glb = relief_io::MeshFormat::from_extension(path) == Some(relief_io::MeshFormat::Glb);
-        let rotated = (y_up && !glb).then(|| {
-            let r = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
-                v.iter().map(relief_io::z_up_to_y_up).collect()
-            };
-            (r(&mesh.positions), normals.map(r))
-        });
-        let (positions, normals) = match &rotated {
-            Some((p, n)) => (&p[..], n.as_deref()),
-            None => (&mesh.positions[..], normals),
-        };
-        relief_io::write_mesh(&staged.path(path), positions, &mesh.triangles, normals)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        let bytes = std::fs::metadata(staged.path(path)).map_or(0, |m| m.len());
-        text += &format!("wrote {} ({:.1} MB)\n", path.display(), bytes as f64 / 1e6);
-    }
-    for (path, image) in [
-        (&args.render, &out.render),
-        (&args.closeups, &out.closeups),
-        (&args.section, &out.section),
-    ] {
-        if let (Some(path), Some(i)) = (path, image) {
-            staged.write_png(path, i.width, i.height, &i.rgb)?;
-        }
-    }
-    if let Some(path) = &args.report {
-        let mut v = serde_json::to_value(&out.figures).context("cannot encode the report")?;
-        v["input"] = args.input.display().to_string().into();
-        staged.write_json(path, &v)?;
-        text += &format!("report:       wrote {}\n", path.display());
-    }
+    let text = files.write(&out, &args.input, args.up == Some(UpArg::Y), &staged)?;
     staged.commit()?;
     drop(progress);
     crate::staging::print(&text)

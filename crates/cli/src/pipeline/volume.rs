@@ -126,14 +126,10 @@ impl Stage for VolumeStage {
         );
         if let Some(mesh) = out.mesh.as_ref().filter(|m| !m.triangles.is_empty()) {
             let glb = cx.config.out_dir.join("volume.glb");
-            let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-            relief_io::write_mesh(&glb, &mesh.positions, &mesh.triangles, normals)
+            let bytes = crate::volume_io::write_mesh(&glb, mesh, false)
                 .with_context(|| format!("cannot write {}", glb.display()))?;
             cx.section.file("volume.glb");
-            cx.section.figure(
-                "glb_bytes",
-                std::fs::metadata(&glb).map(|m| m.len()).unwrap_or(0),
-            );
+            cx.section.figure("glb_bytes", bytes);
         }
         if cx.config.previews {
             let y = out.figures.section_y_m.unwrap_or(0.0);

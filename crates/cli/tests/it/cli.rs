@@ -208,6 +208,13 @@ fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
     Some(serde_json::from_slice(&out.stdout).expect("gdalinfo -json"))
 }
 
+/// The bundled fixture and a scratch folder, or `None` (the test is skipped) without GDAL.
+fn gdal_fixture() -> Option<(PathBuf, tempfile::TempDir)> {
+    let src = relief_testdata::fixture("grandcanyon.tif");
+    gdalinfo(&src)?;
+    Some((src, tempfile::tempdir().unwrap()))
+}
+
 fn geo_transform(info: &serde_json::Value) -> Vec<f64> {
     geo_transform_of(&info["geoTransform"])
 }
@@ -351,11 +358,9 @@ fn ascii_grids_carry_their_crs_in_a_prj() {
 /// scale/offset) read with the source's values and placement.
 #[test]
 fn gdal_made_geotiff_variants_read_correctly() {
-    let src = relief_testdata::fixture("grandcanyon.tif");
-    if gdalinfo(&src).is_none() {
+    let Some((src, tmp)) = gdal_fixture() else {
         return;
-    }
-    let tmp = tempfile::tempdir().unwrap();
+    };
     let truth = read(&src);
     let t0 = truth.georef().unwrap().geotransform.unwrap();
     let variants: &[(&str, &[&str])] = &[
@@ -554,11 +559,9 @@ fn run_spec_matches_the_library_pipeline_and_is_all_or_nothing() {
 /// after two levels, 0.5 per level in that level's pixels), and says so.
 #[test]
 fn gdal_places_every_command_output_on_the_input_extent() {
-    let src = relief_testdata::fixture("grandcanyon.tif");
-    if gdalinfo(&src).is_none() {
+    let Some((src, tmp)) = gdal_fixture() else {
         return;
-    }
-    let tmp = tempfile::tempdir().unwrap();
+    };
     let dem = read(&src);
     let input = tmp.path().join("in.tif");
     save(&input, &dem.crop(64, 96, 128, 128).unwrap());

@@ -55,6 +55,13 @@ pub(crate) fn relief_line(line: &str, files: &[&dyn AsRef<OsStr>]) -> Output {
     relief(&words(line, files))
 }
 
+/// [`relief_line`] of a command that must succeed and writes a raster as its second file
+/// (`files[1]`), read back.
+pub(crate) fn ok_read(line: &str, files: &[&dyn AsRef<OsStr>]) -> Heightfield {
+    ok(&relief_line(line, files));
+    read(Path::new(files[1]))
+}
+
 /// [`relief_line`] plus `extra` words.
 pub(crate) fn relief_line_plus(line: &str, files: &[&dyn AsRef<OsStr>], extra: &[&str]) -> Output {
     let mut args = words(line, files);

@@ -112,6 +112,13 @@ fn amplify_x4_on_grand_canyon() {
     assert!(max < 1e-3, "{max}");
 }
 
+/// The correlation of `out` resampled to the size of `small` with `small`: how well a result
+/// follows its coarse input or sketch at large scale.
+fn correlation_at(out: &Heightfield, small: &Heightfield) -> f64 {
+    let back = out.resample(small.width(), small.height()).unwrap();
+    relief_heightfield::metrics::pearson(back.as_slice(), small.as_slice())
+}
+
 /// x16 in two steps from 16^2 to 256^2 with a small radius.
 #[test]
 fn amplify_x16_two_steps() {
@@ -122,14 +129,12 @@ fn amplify_x16_two_steps() {
     let cin = write(tmp.path(), "coarse.tif", &coarse);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 0, 256, 256).unwrap());
     let out_path = tmp.path().join("out.exr");
-    ok(&relief_line(
+    let out = ok_read(
         "amplify {} {} --exemplar {} --factor 16 --radius 2 --atoms 0",
         &[&cin, &out_path, &ex],
-    ));
-    let out = read(&out_path);
+    );
     assert_eq!((out.width(), out.height()), (256, 256));
-    let back = out.resample(16, 16).unwrap();
-    let c = relief_heightfield::metrics::pearson(back.as_slice(), coarse.as_slice());
+    let c = correlation_at(&out, &coarse);
     assert!(c > 0.95, "correlation with the input {c}");
 }
 
@@ -148,18 +153,16 @@ fn synthesize_from_painted_sketch() {
     let sk = write(tmp.path(), "sketch.png", &sketch);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 384, 384).unwrap());
     let out_path = tmp.path().join("terrain.tif");
-    ok(&relief_line(
+    let out = ok_read(
         "synthesize {} {} --exemplar {} --steps 2 --height-range 500,2300",
         &[&sk, &out_path, &ex],
-    ));
-    let out = read(&out_path);
+    );
     assert_eq!((out.width(), out.height()), (256, 256));
     let (lo, hi) = out.min_max().unwrap();
     // The detail (the exemplar's, at the canyon's own amplitude of a few hundred metres)
     // reaches beyond the sketch's 500-2300 m, but not by more than that.
     assert!(lo > 0.0 && hi < 2800.0 && hi - lo > 1200.0, "{lo}..{hi}");
-    let back = out.resample(16, 16).unwrap();
-    let c = relief_heightfield::metrics::pearson(back.as_slice(), read(&sk).as_slice());
+    let c = correlation_at(&out, &read(&sk));
     assert!(c > 0.95, "correlation with the sketch {c}");
     // The output has the exemplar's cell size (as read back: EPSG:3857 metres at the crop's
     // latitude); --exemplar-cell-size overrides it.
@@ -170,11 +173,10 @@ fn synthesize_from_painted_sketch() {
         out.cell_size()
     );
     let scaled = tmp.path().join("scaled.tif");
-    ok(&relief_line(
+    let s = ok_read(
         "synthesize {} {} --exemplar {} --steps 1 --exemplar-cell-size 30",
         &[&sk, &scaled, &ex],
-    ));
-    let s = read(&scaled);
+    );
     assert_eq!((s.width(), s.height()), (64, 64));
     assert!((s.cell_size().0 - 30.0).abs() < 1e-6, "{:?}", s.cell_size());
 }

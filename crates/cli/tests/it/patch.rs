@@ -2,7 +2,7 @@
 //! cruz2015) on crops of the bundled Grand Canyon fixture (`fixtures/grandcanyon.tif`, 512 x 512,
 //! ~62 m cells, 479..2347 m): one crop is the exemplar, another (low-passed) the guide.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use relief_heightfield::Heightfield;
 use relief_heightfield::metrics::{rmse, stats};
@@ -374,6 +374,15 @@ fn quantile(v: &[f32], p: f64) -> f64 {
     s[((s.len() - 1) as f64 * p).round() as usize] as f64
 }
 
+/// The fixture's north-west 160 x 160 crop written as `ex.tif` in `dir`: the crop, its path and
+/// its cell size as read back (its georeference gives the ground size at the crop).
+fn exemplar_160(dir: &Path) -> (Heightfield, PathBuf, (f64, f64)) {
+    let ex = fixture().crop(0, 0, 160, 160).unwrap();
+    let ex_p = write(dir, "ex.tif", &ex);
+    let cell = read(&ex_p).cell_size();
+    (ex, ex_p, cell)
+}
+
 /// Issue 17: a guide in other units (a 0-255 sketch at twice the exemplar's cell size) is
 /// mapped onto the exemplar's heights by `--guide-range auto` and resampled to the exemplar's
 /// cells over its own extent (no squashing); `--guide-out` writes it exactly as used.
@@ -382,11 +391,7 @@ fn quantile(v: &[f32], p: f64) -> f64 {
 #[test]
 fn guide_range_auto_and_guide_out() {
     let tmp = tempfile::tempdir().unwrap();
-    let dem = fixture();
-    let ex = dem.crop(0, 0, 160, 160).unwrap();
-    let ex_p = write(tmp.path(), "ex.tif", &ex);
-    // The cell size as read back (its georeference gives the ground size at the crop).
-    let (cx, cy) = read(&ex_p).cell_size();
+    let (ex, ex_p, (cx, cy)) = exemplar_160(tmp.path());
     let sketch = Heightfield::from_fn(48, 40, 2.0 * cx, 2.0 * cy, |x, y| {
         (127.0 + 120.0 * ((x as f32) * 0.15).sin() * ((y as f32) * 0.11).cos()).round()
     });
@@ -426,10 +431,7 @@ fn guide_range_auto_and_guide_out() {
 fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
     let tmp = tempfile::tempdir().unwrap();
     let dem = fixture();
-    let ex = dem.crop(0, 0, 160, 160).unwrap();
-    let ex_p = write(tmp.path(), "ex.tif", &ex);
-    // The cell size as read back (its georeference gives the ground size at the crop).
-    let (cx, cy) = read(&ex_p).cell_size();
+    let (_, ex_p, (cx, cy)) = exemplar_160(tmp.path());
     // A guide in metres at twice the exemplar's cells: 96 x 80 cells on the exemplar's grid.
     let g = dem
         .crop(200, 200, 48, 40)

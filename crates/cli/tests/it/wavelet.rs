@@ -495,13 +495,7 @@ fn default_refinement_is_area_consistent() {
         let out = tmp.path().join(format!("out-{model}.tif"));
         relief_ok!["refine", input, out, "--model", model, "--seed", "3"];
         let down = read(&out).downsample_box(4).unwrap();
-        let se: f64 = down
-            .as_slice()
-            .iter()
-            .zip(src.as_slice())
-            .map(|(a, b)| (*a as f64 - *b as f64).powi(2))
-            .sum();
-        (se / src.len() as f64).sqrt() / (hi - lo) as f64
+        relief_heightfield::metrics::rmse(&down, &src).unwrap() / (hi - lo) as f64
     };
     let spectral = err("spectral");
     let paper = err("paper");

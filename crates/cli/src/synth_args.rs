@@ -79,7 +79,7 @@ pub(crate) struct SynthArgs {
     pub(crate) guide_out: Option<PathBuf>,
     /// Cell size in metres of the guide, `X` or `X,Y`, for a guide that stores none (PNG, NPY)
     /// or a wrong one; the guide is resampled from it to the exemplars' cell size.
-    #[arg(long, value_name = "X[,Y]", value_parser = super::parse_cell_size)]
+    #[arg(long, value_name = "X[,Y]", value_parser = crate::commands::parse_cell_size)]
     pub(crate) guide_cell_size: Option<(f64, f64)>,
     /// Categorisation map (e.g. an 8-bit grey PNG): each cell's value is the exemplar category
     /// allowed there (65535 = any). Resampled (nearest) to the output size.
@@ -139,7 +139,7 @@ pub(crate) struct SynthArgs {
     #[arg(long, default_value_t = Settings::default().exemplar_stride)]
     pub(crate) stride: usize,
     #[command(flatten)]
-    pub(crate) read: super::ReadArgs,
+    pub(crate) read: crate::commands::ReadArgs,
 }
 
 /// A `--guide-lowpass` value: automatic or a sigma in cells.
@@ -298,7 +298,7 @@ impl SynthArgs {
     /// the categorisation map (raw grey counts).
     pub(crate) fn inputs(&self, ctx: &Ctx) -> Result<JobInputs> {
         let read = |path: &Path, what: &str| -> Result<Heightfield> {
-            Ok(super::read_raster(path, &self.read, ctx)
+            Ok(crate::commands::read_raster(path, &self.read, ctx)
                 .with_context(|| format!("{what} {}", path.display()))?
                 .heightfield)
         };
