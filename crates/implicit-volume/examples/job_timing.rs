@@ -4,7 +4,9 @@
 //! (default: N57E011 888 72 48 48, then grandcanyon 200 160 128 128, 200000 triangles).
 //! `FEATURES=wind,rain` builds only those features (default: all); `LOOK=1` meshes the scene at
 //! the recipe's grid and prints its [`relief_implicit_volume::surface_look`] (downward-facing
-//! area share, small closed pits of the top surface at the meshing voxel).
+//! area share, small closed pits of the top surface at the meshing voxel). `OPENINGS=1` prints
+//! the carvings' openings through the DEM surface ([`relief_implicit_volume::surface_openings`]:
+//! count, elongation).
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::NoProgress;
@@ -107,6 +109,21 @@ fn main() {
             f.mesh_watertight_manifold,
         );
         println!("  nodes by kind {:?}", f.tree_nodes_by_kind);
+        for (feat, e) in &out.report.effects {
+            if *feat == Feature::Islands {
+                let mut r = e.sizes_m.clone();
+                r.sort_by(f32::total_cmp);
+                println!(
+                    "  islands: radii {:?} m, nearest-neighbour spacing cv {:?}, tops {:?}",
+                    r.iter().map(|x| x.round()).collect::<Vec<_>>(),
+                    relief_implicit_volume::scene::nearest_neighbour_cv(&e.sites),
+                    e.sites
+                        .iter()
+                        .map(|p| p.map(f32::round))
+                        .collect::<Vec<_>>()
+                );
+            }
+        }
         println!(
             "  sea level {:?} m, water drawn {}, effects (primitives, count) {:?}",
             f.sea_level_m,
@@ -118,6 +135,29 @@ fn main() {
         );
         for n in &f.notes {
             println!("  note: {n}");
+        }
+        if std::env::var_os("OPENINGS").is_some() {
+            // Carvings through the surface: samples a quarter voxel apart, a quarter voxel under
+            // it; openings of at least 8 samples.
+            let v = out.report.dims.voxel_m;
+            let t = std::time::Instant::now();
+            let o = pool
+                .install(|| {
+                    relief_implicit_volume::surface_openings(&out.scene, 0.25 * v, 0.25 * v, 8)
+                })
+                .expect("dem");
+            let round = o.aspects.iter().filter(|&&a| a < 1.5).count();
+            println!(
+                "  openings: {} (round, aspect < 1.5: {round}), median aspect {:?}, median samples {:?} ({:.1} s)",
+                o.count,
+                o.median_aspect(),
+                {
+                    let mut s = o.samples.clone();
+                    s.sort();
+                    s.get(s.len() / 2).copied()
+                },
+                t.elapsed().as_secs_f64()
+            );
         }
         if std::env::var_os("LOOK").is_some() {
             let grid = f.mesh_grid.expect("grid");
