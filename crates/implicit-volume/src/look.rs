@@ -374,8 +374,19 @@ mod tests {
             .unwrap();
         b.add_carving(round);
         b.add_carving(slot);
-        let o = surface_openings(&b.build(true).unwrap(), 1.0, 0.5, 4).unwrap();
+        let scene = b.build(true).unwrap();
+        let o = surface_openings(&scene, 1.0, 0.5, 4).unwrap();
         assert_eq!(o.count, 2, "{o:?}");
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            assert_eq!(
+                pool.install(|| surface_openings(&scene, 1.0, 0.5, 4)),
+                Some(o.clone())
+            );
+        }
         assert!((o.aspects[0] - 1.0).abs() < 0.15, "{o:?}");
         assert!(o.aspects[1] > 2.5, "{o:?}");
         assert_eq!(o.median_aspect(), Some(o.aspects[1]));
