@@ -4,7 +4,9 @@
 //! (default: N57E011 888 72 48 48, then grandcanyon 200 160 128 128, 200000 triangles).
 //! `FEATURES=wind,rain` builds only those features (default: all); `LOOK=1` meshes the scene at
 //! the recipe's grid and prints its [`relief_implicit_volume::surface_look`] (downward-facing
-//! area share, small closed pits of the top surface at the meshing voxel).
+//! area share, small closed pits of the top surface at the meshing voxel). `OPENINGS=1` prints
+//! the carvings' openings through the DEM surface ([`relief_implicit_volume::surface_openings`]:
+//! count, elongation).
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::NoProgress;
@@ -88,7 +90,12 @@ fn main() {
                     println!("wrote {}", path.display());
                 }
             }
-            println!("  closeups {:?}", f.closeups);
+            println!(
+                "  closeups {:?}, render {:.2} s, closeups {:.2} s",
+                f.closeups,
+                f.render_s.unwrap_or(0.0),
+                f.closeups_s.unwrap_or(0.0)
+            );
             for h in &out.report.highlights {
                 println!("  highlight {h:?}");
             }
@@ -107,6 +114,35 @@ fn main() {
             f.mesh_watertight_manifold,
         );
         println!("  nodes by kind {:?}", f.tree_nodes_by_kind);
+        for (feat, e) in &out.report.effects {
+            if *feat == Feature::Islands {
+                let mut r = e.sizes_m.clone();
+                r.sort_by(f32::total_cmp);
+                // Clark-Evans ratio: mean nearest-neighbour distance over that of a Poisson
+                // process of the same density (1 random, < 1 clustered, > 1 regular).
+                let n = e.sites.len() as f32;
+                let nn = |i: usize| {
+                    let p = e.sites[i];
+                    e.sites
+                        .iter()
+                        .enumerate()
+                        .filter(|&(j, _)| j != i)
+                        .map(|(_, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+                        .fold(f32::INFINITY, f32::min)
+                };
+                let area = 1e6 * out.report.dims.area_km2;
+                let ce = (0..e.sites.len()).map(nn).sum::<f32>() / n / (0.5 / (n / area).sqrt());
+                println!(
+                    "  islands: radii {:?} m, nearest-neighbour spacing cv {:?}, clark-evans {ce:.2}, tops {:?}",
+                    r.iter().map(|x| x.round()).collect::<Vec<_>>(),
+                    relief_implicit_volume::scene::nearest_neighbour_cv(&e.sites),
+                    e.sites
+                        .iter()
+                        .map(|p| p.map(f32::round))
+                        .collect::<Vec<_>>()
+                );
+            }
+        }
         println!(
             "  sea level {:?} m, water drawn {}, effects (primitives, count) {:?}",
             f.sea_level_m,
@@ -118,6 +154,29 @@ fn main() {
         );
         for n in &f.notes {
             println!("  note: {n}");
+        }
+        if std::env::var_os("OPENINGS").is_some() {
+            // Carvings through the surface: samples a quarter voxel apart, a quarter voxel under
+            // it; openings of at least 8 samples.
+            let v = out.report.dims.voxel_m;
+            let t = std::time::Instant::now();
+            let o = pool
+                .install(|| {
+                    relief_implicit_volume::surface_openings(&out.scene, 0.25 * v, 0.25 * v, 8)
+                })
+                .expect("dem");
+            let round = o.aspects.iter().filter(|&&a| a < 1.5).count();
+            println!(
+                "  openings: {} (round, aspect < 1.5: {round}), median aspect {:?}, median samples {:?} ({:.1} s)",
+                o.count,
+                o.median_aspect(),
+                {
+                    let mut s = o.samples.clone();
+                    s.sort();
+                    s.get(s.len() / 2).copied()
+                },
+                t.elapsed().as_secs_f64()
+            );
         }
         if std::env::var_os("LOOK").is_some() {
             let grid = f.mesh_grid.expect("grid");

@@ -243,7 +243,20 @@ impl VolumeFigures {
                      bridges {:.0} m thick, tunnels {:.0} m long in all",
                     e.count, d.arch_span_m, d.arch_height_m, d.arch_thickness_m, e.length_m
                 ),
-                "islands" => format!(", {} islands of radius {:.0} m", e.count, d.island_radius_m),
+                "islands" => {
+                    let r = &d.island_radii_m;
+                    let (lo, hi) = r
+                        .iter()
+                        .fold((f32::INFINITY, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
+                    if r.is_empty() {
+                        ", no room for an island".to_string()
+                    } else {
+                        format!(
+                            ", {} islands in clusters, radii {lo:.0} to {hi:.0} m, {:.0} m up",
+                            e.count, d.island_altitude_m
+                        )
+                    }
+                }
                 "cliffs" => format!(
                     ", {} columns, shore cut back {:.0} m",
                     e.count, d.cliff_retreat_m

@@ -17,7 +17,10 @@
 //!   sea, plus sea caves), wind and rain. Karst (4.2): modified invasion percolation from the
 //!   DEM's sinkholes, least resistance first with a random perturbation `epsilon`, carving only
 //!   where `rho < rho0`, new candidates on the lower hemisphere, Poisson rejection, stop on a
-//!   resistance threshold or a budget. Landforms: hoodoos (figure 3), arches, floating islands.
+//!   resistance threshold or a budget; passages are ellipsoids flattened along the bedding with
+//!   radii varying step to step (slots, not round holes, where they meet a cliff). Landforms:
+//!   hoodoos (figure 3), arches, floating islands (clusters grown from high-relief sites, flat
+//!   tops over jagged strata-ledged undersides).
 //!   Every effect takes a [`Region`] (painted per-cell mask and/or 3D box) and a seed.
 //! * [`mesh`]: chunked marching tetrahedra with edge-key welding (watertight, manifold) and
 //!   normals from the analytic field gradient; plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
@@ -66,7 +69,7 @@ pub mod tree;
 pub use error::{Error, Result};
 pub use geology::{GeoId, Geology, GeologySpec, Layer};
 pub use job::{Built, EffectFigures, VolumeFigures, VolumeJob, VolumeOutput};
-pub use look::{SurfaceLook, surface_look};
+pub use look::{Openings, SurfaceLook, surface_look, surface_openings};
 pub use math::{Aabb, V3};
 pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,

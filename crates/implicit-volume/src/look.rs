@@ -1,11 +1,16 @@
 //! Measures of how a carved surface looks, to catch artefacts a hillshade shows: the share of
 //! downward-facing area (overhangs and undercuts) and the small closed pits of the top surface
-//! ("bubble-wrap" of isolated round carvings).
+//! ("bubble-wrap" of isolated round carvings), and the openings carvings make through the
+//! DEM's surface with their elongation ([`surface_openings`]: round holes versus slots).
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use rayon::prelude::*;
+
+use crate::math::{V3, mul, normalize, sub};
 use crate::mesh::Mesh;
+use crate::scene::Scene;
 
 /// Look of a mesh's surface ([`surface_look`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -175,6 +180,150 @@ impl Ord for OrdF32 {
 
 /// The 4-neighbours of cell `k` of a row-major `nx x ny` grid that lie inside it (west, east,
 /// north, south).
+/// Openings of a carved scene through its DEM's surface ([`surface_openings`]).
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct Openings {
+    /// Openings of at least the requested number of samples.
+    pub count: usize,
+    /// Per opening (in raster order of their first sample): its elongation, the square root of
+    /// the ratio of the two largest eigenvalues of its samples' 3D covariance (1 = round, 2 =
+    /// twice as long as wide).
+    pub aspects: Vec<f32>,
+    /// Per opening: its number of samples.
+    pub samples: Vec<usize>,
+}
+
+impl Openings {
+    /// Median of [`Openings::aspects`] (`None` without openings).
+    pub fn median_aspect(&self) -> Option<f32> {
+        let mut a = self.aspects.clone();
+        a.sort_by(f32::total_cmp);
+        a.get(a.len() / 2).copied()
+    }
+}
+
+/// Where `scene` is air `depth` metres under its DEM's surface (along the surface normal, so
+/// cliffs count), sampled every `step` metres in x and y: the openings a carving makes in the
+/// surface, as 4-connected patches of at least `min_samples` samples, with their elongation.
+/// `None` when the scene has no DEM. Deterministic (rows in parallel, collected in order).
+pub fn surface_openings(
+    scene: &Scene,
+    step: f32,
+    depth: f32,
+    min_samples: usize,
+) -> Option<Openings> {
+    let f = scene.dem_frame()?;
+    let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+    if !(step.is_finite() && step > 0.0) {
+        return Some(Openings::default());
+    }
+    let nx = ((xm / step) as usize + 1).min(8192);
+    let ny = ((ym / step) as usize + 1).min(8192);
+    let g = |x: f32, y: f32| scene.dem_height(x.clamp(0.0, xm), y.clamp(0.0, ym));
+    // The sample under the surface point above (x, y), or None on the DEM's border (its
+    // walls are the slab's sides, not the surface).
+    let point = |x: f32, y: f32| -> Option<V3> {
+        if x < step || y < step || x > xm - step || y > ym - step {
+            return None;
+        }
+        let z = g(x, y)?;
+        let dzdx = (g(x + step, y)? - g(x - step, y)?) / (2.0 * step);
+        let dzdy = (g(x, y + step)? - g(x, y - step)?) / (2.0 * step);
+        let n = normalize([-dzdx, -dzdy, 1.0]);
+        Some(sub([x, y, z], mul(n, depth)))
+    };
+    let pts: Vec<Option<V3>> = (0..ny)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            (0..nx).map(move |j| {
+                let p = point(j as f32 * step, i as f32 * step)?;
+                (!scene.inside(p)).then_some(p)
+            })
+        })
+        .collect();
+    let mut seen = vec![false; nx * ny];
+    let mut out = Openings::default();
+    for k0 in 0..nx * ny {
+        if seen[k0] || pts[k0].is_none() {
+            continue;
+        }
+        seen[k0] = true;
+        let (mut stack, mut patch) = (vec![k0], Vec::new());
+        while let Some(k) = stack.pop() {
+            patch.push(pts[k].unwrap_or_default());
+            for q in neighbours4(k, nx, ny) {
+                if !seen[q] && pts[q].is_some() {
+                    seen[q] = true;
+                    stack.push(q);
+                }
+            }
+        }
+        if patch.len() >= min_samples.max(3) {
+            out.count += 1;
+            out.aspects.push(elongation(&patch));
+            out.samples.push(patch.len());
+        }
+    }
+    Some(out)
+}
+
+/// Square root of the ratio of the two largest eigenvalues of the points' covariance.
+fn elongation(pts: &[V3]) -> f32 {
+    let n = pts.len() as f64;
+    let mut m = [0.0f64; 3];
+    for p in pts {
+        for k in 0..3 {
+            m[k] += p[k] as f64 / n;
+        }
+    }
+    let mut c = [[0.0f64; 3]; 3];
+    for p in pts {
+        let d = [0, 1, 2].map(|k| p[k] as f64 - m[k]);
+        for a in 0..3 {
+            for b in 0..3 {
+                c[a][b] += d[a] * d[b] / n;
+            }
+        }
+    }
+    let mut e = sym3_eigenvalues(c);
+    e.sort_by(|a, b| b.total_cmp(a));
+    if e[1] <= 1e-12 * e[0].max(1e-30) {
+        return f32::INFINITY;
+    }
+    (e[0] / e[1]).sqrt() as f32
+}
+
+/// Eigenvalues of a symmetric 3 x 3 matrix by cyclic Jacobi rotations.
+fn sym3_eigenvalues(mut a: [[f64; 3]; 3]) -> [f64; 3] {
+    for _ in 0..32 {
+        let off = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
+        if off < 1e-24 * (a[0][0].powi(2) + a[1][1].powi(2) + a[2][2].powi(2)).max(1e-300) {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q].abs() < 1e-300 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
+            // a <- J^T a J with the rotation J in the (p, q) plane.
+            for k in 0..3 {
+                let (akp, akq) = (a[k][p], a[k][q]);
+                a[k][p] = c * akp - s * akq;
+                a[k][q] = s * akp + c * akq;
+            }
+            for k in 0..3 {
+                let (apk, aqk) = (a[p][k], a[q][k]);
+                a[p][k] = c * apk - s * aqk;
+                a[q][k] = s * apk + c * aqk;
+            }
+        }
+    }
+    [a[0][0], a[1][1], a[2][2]]
+}
+
 fn neighbours4(k: usize, nx: usize, ny: usize) -> impl Iterator<Item = usize> {
     let (i, j) = (k / nx, k % nx);
     [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
@@ -208,6 +357,39 @@ mod tests {
             }
         }
         m
+    }
+
+    #[test]
+    fn openings_tell_a_round_hole_from_a_slot() {
+        use crate::scene::{ImplicitizeSettings, SceneBuilder};
+        let hf = relief_heightfield::Heightfield::from_fn(41, 41, 5.0, 5.0, |_, _| 50.0);
+        let geo = crate::geology::Geology::layered_default([100.0, 100.0, 40.0], 10.0, 1).unwrap();
+        let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+        let none = surface_openings(&b.clone().build(true).unwrap(), 1.0, 0.5, 4).unwrap();
+        assert_eq!(none.count, 0);
+        let t = b.tree_mut();
+        let round = t.sphere([50.0, 50.0, 50.0], 12.0, -3.0).unwrap();
+        let slot = t
+            .ellipsoid([140.0, 140.0, 50.0], [24.0, 8.0, 8.0], -3.0)
+            .unwrap();
+        b.add_carving(round);
+        b.add_carving(slot);
+        let scene = b.build(true).unwrap();
+        let o = surface_openings(&scene, 1.0, 0.5, 4).unwrap();
+        assert_eq!(o.count, 2, "{o:?}");
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            assert_eq!(
+                pool.install(|| surface_openings(&scene, 1.0, 0.5, 4)),
+                Some(o.clone())
+            );
+        }
+        assert!((o.aspects[0] - 1.0).abs() < 0.15, "{o:?}");
+        assert!(o.aspects[1] > 2.5, "{o:?}");
+        assert_eq!(o.median_aspect(), Some(o.aspects[1]));
     }
 
     #[test]

@@ -156,10 +156,11 @@ proptest! {
         let k = KarstSettings { rho0, rho_stop: stop, epsilon: eps, radius, min_radius: minr,
                                 energy, beta, sigma, step, poisson_radius: pr, directions: dirs,
                                 vertical: vert, sub_spheres: subs, budget, max_sinkholes: sinks,
-                                cliff_seeds: cliffs, cliff_spacing: csp, seed };
+                                cliff_seeds: cliffs, cliff_spacing: csp,
+                                flatten: vert, radius_jitter: 0.9 * eps, seed };
         check(b.karst(&k, &Region::everywhere()), &["rho0", "rho_stop", "epsilon", "radius",
             "energy", "beta", "sigma", "step", "poisson_radius", "directions", "sub_spheres",
-            "budget", "min_radius", "vertical", "cliff_spacing"])?;
+            "budget", "min_radius", "vertical", "cliff_spacing", "flatten"])?;
     }
 
     #[test]
@@ -172,14 +173,15 @@ proptest! {
             bbox: Some(Aabb::new([lo, lo, lo], [hi, hi, hi])),
         };
         let names = ["region", "height", "radius", "spacing", "count", "span", "thickness",
-                     "altitude", "max_slope_deg", "arch feet", "cap_rho", "max_length"];
+                     "altitude", "per_cluster", "spread", "max_slope_deg", "arch feet", "cap_rho", "max_length"];
         check(b.hoodoos(&HoodooSettings { count: n, height: h, radius: r, spacing: sp,
                                           max_slope_deg: slope, cap_rho: mv, seed }, &region),
               &names)?;
         check(b.arches(&ArchSettings { count: n, span: sp, height: h, thickness: r,
                                        max_length: 4.0 * sp, seed },
                        &Region::everywhere()), &names)?;
-        check(b.floating_islands(&IslandSettings { count: n, radius: r, altitude: h, seed },
+        check(b.floating_islands(&IslandSettings { count: n, radius: r, altitude: h,
+                                                   per_cluster: n % 20, spread: sp, seed },
                                  &Region::everywhere()), &names)?;
         check(b.arch([lo, 10.0], [hi, 20.0], h, r, 1), &names)?;
         check(b.build(true), &["bbox"])?;

@@ -328,7 +328,8 @@ impl Basis<'_> {
                 );
                 let ks = KarstSettings {
                     radius: a,
-                    min_radius: voxel.min(a),
+                    // The flattened passage is at least a voxel high where it narrows.
+                    min_radius: (voxel / KarstSettings::default().axes().1).min(a),
                     step,
                     poisson_radius: 0.8 * step,
                     sub_spheres: 4,
@@ -438,7 +439,8 @@ impl Basis<'_> {
         Ok(())
     }
 
-    /// Floating islands.
+    /// Floating islands: clusters of three, main radii `clamp(0.1 R, 20, 300) s`, down to a
+    /// third of that, floating `max(0.3 R, 4 radius)` above the ground.
     fn islands(&self, o: &mut Out) -> Result<()> {
         let dims = &mut o.dims;
         let radius = (0.1 * self.relief).clamp(20.0, 300.0) * self.recipe.scale;
@@ -449,10 +451,14 @@ impl Basis<'_> {
             count: dims.island_count,
             radius: dims.island_radius_m,
             altitude: dims.island_altitude_m,
+            per_cluster: 3,
+            // The smallest island at least two voxels wide.
+            spread: (dims.island_radius_m / (2.0 * self.voxel)).clamp(1.0, 3.0),
             seed: self.sub(7),
         };
-        o.effects
-            .push((Feature::Islands, o.b.floating_islands(&i, &o.region)?));
+        let rep = o.b.floating_islands(&i, &o.region)?;
+        dims.island_radii_m = rep.sizes_m.clone();
+        o.effects.push((Feature::Islands, rep));
         Ok(())
     }
 

@@ -65,7 +65,7 @@ pub fn render_closeups(
         let size = match h.feature {
             Feature::Hoodoos => d.hoodoo_height_m * 3.5,
             Feature::Arches => d.arch_span_m * 3.0,
-            Feature::Islands => d.island_radius_m * 8.0,
+            Feature::Islands => d.island_radius_m * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,
             _ => d.sea_height_m * 6.0,
         };
@@ -90,10 +90,11 @@ pub fn render_closeups(
             continue;
         }
         // Hoodoos are placed by their foot: aim at mid-height.
-        let at = if h.feature == Feature::Hoodoos {
-            [h.at[0], h.at[1], h.at[2] + 0.5 * d.hoodoo_height_m]
-        } else {
-            h.at
+        let at = match h.feature {
+            Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.5 * d.hoodoo_height_m],
+            // Islands are placed by their top: aim below it, at the underside.
+            Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
+            _ => h.at,
         };
         let cam = match h.from {
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),

@@ -15,7 +15,9 @@
 //!   ([`Densities::karst_km_per_km2`]); skipped (with a note) when `0.5 t < v`;
 //! * hoodoos `clamp(0.12 R, 15, 250) s` tall (at most `0.45 R`), radius a sixth of that (at
 //!   least `v`); arches spanning `clamp(0.2 R, 30, 300) s` (at most `0.5 R`), rising half their
-//!   span, a seventh of it thick; islands of radius `clamp(0.1 R, 20, 300) s`;
+//!   span, a seventh of it thick; floating islands in clusters of three, main radius
+//!   `clamp(0.1 R, 20, 300) s`, the others down to a third of it (never under two voxels),
+//!   `max(0.3 R, 4 radius)` above the ground;
 //! * sea and weathering spheres of radius `max(2.5 v, 0.05 R)`, `0.4` radius apart; sea
 //!   cliffs cut `6 c` back with spheres of `c = max(1.5 v, min(that, 0.4 t))`;
 //! * counts from densities per km^2 ([`Densities`]) over the DEM's area (at least one).
@@ -53,7 +55,8 @@ pub use self::closeups::render_closeups;
 use self::closeups::{best_section_line, densest_karst};
 pub(crate) use self::sea::border_connected;
 pub use self::sea::{
-    SEA_MIN_CELLS, SEA_MIN_SHARE, SeaDetection, SeaKind, border_connected_at_or_below, detect_sea,
+    SEA_FLAT_NOISE_M, SEA_MIN_CELLS, SEA_MIN_SHARE, SEA_PITS, SeaDetection, SeaKind,
+    border_connected_at_or_below, detect_sea, sea_flat_tolerance,
 };
 
 /// One landform effect of a [`Recipe`].
@@ -280,8 +283,10 @@ pub struct Dimensions {
     pub arch_thickness_m: f32,
     /// Arches asked for.
     pub arch_count: usize,
-    /// Floating island radius (m).
+    /// Floating island radius (m): a cluster's main island, the others down to a third.
     pub island_radius_m: f32,
+    /// The placed floating islands' radii (m).
+    pub island_radii_m: Vec<f32>,
     /// Floating island height above the ground (m).
     pub island_altitude_m: f32,
     /// Islands asked for.

@@ -9,8 +9,17 @@
 //! * **flat or below zero**: the convention of SRTM-like products and ocean masks is sea at
 //!   exactly 0 m, and bathymetric DEMs (topobathy) go below 0 m. So the level is 0 m when
 //!   enough border-connected samples are at or below 0 m ([`SeaKind::Zero`]); otherwise, in a
-//!   DEM whose datum puts the water elsewhere, a large border-connected area at exactly the
-//!   DEM's lowest value (a flattened lake or sea surface, [`SeaKind::FlatMinimum`]);
+//!   DEM whose datum puts the water elsewhere, a large border-connected area within a flatness
+//!   tolerance of the DEM's lowest value (but [`SEA_PITS`] samples, so a few pits under the
+//!   water do not set it), and flat rather than a gentle slope (doubling the tolerance adds
+//!   less than half the area again): a lake or sea surface ([`SeaKind::FlatMinimum`]);
+//! * **flat within the DEM's noise**: water in a real DEM is flat only up to its vertical
+//!   noise and quantisation (SRTM-like products leave a few decimetres of speckle on
+//!   unflattened water). The tolerance is [`sea_flat_tolerance`]: `max(SEA_FLAT_NOISE_M,
+//!   1.5 q)` with `q` the DEM's vertical quantum (the smallest step between distinct
+//!   sample values: 1 m for integer DEMs, so a water surface stored as two adjacent integers is
+//!   still flat). The sea is the border-connected area at or below `lowest + tolerance` and
+//!   its level is that area's median height;
 //! * **large enough to be a sea**: at least [`SEA_MIN_SHARE`] of the samples and at least
 //!   [`SEA_MIN_CELLS`] samples. A few border samples at 0 m (a river mouth on the edge of a
 //!   crop, a void filled with 0) or the last contour of a valley floor cut by the border
@@ -29,6 +38,36 @@ use relief_heightfield::Heightfield;
 pub const SEA_MIN_SHARE: f32 = 0.02;
 /// Smallest number of samples a sea covers ([`detect_sea`]).
 pub const SEA_MIN_CELLS: usize = 16;
+/// Samples allowed below a flat water surface's lowest value ([`detect_sea`]): pits of
+/// speckle or voids filled low.
+pub const SEA_PITS: usize = 4;
+/// Peak-to-peak vertical noise (m) a water surface may have and still be flat
+/// ([`sea_flat_tolerance`]): a few decimetres either side of its level.
+pub const SEA_FLAT_NOISE_M: f32 = 1.0;
+
+/// The flatness tolerance of a water surface in `hf` ([`detect_sea`], module docs):
+/// `max(SEA_FLAT_NOISE_M, 1.5 q)` with `q` the smallest positive difference between two
+/// distinct finite sample values (the DEM's vertical quantum), `q` capped at 10 m.
+pub fn sea_flat_tolerance(hf: &Heightfield) -> f32 {
+    let mut v: Vec<f32> = hf
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .collect();
+    v.sort_by(f32::total_cmp);
+    v.dedup();
+    let q = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f32::INFINITY, f32::min)
+        .min(10.0);
+    if q.is_finite() {
+        SEA_FLAT_NOISE_M.max(1.5 * q)
+    } else {
+        SEA_FLAT_NOISE_M
+    }
+}
 
 /// Which rule found the sea.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -36,19 +75,20 @@ pub const SEA_MIN_CELLS: usize = 16;
 pub enum SeaKind {
     /// Border-connected samples at or below 0 m (SRTM sea at 0 m, bathymetry below).
     Zero,
-    /// A border-connected area at exactly the DEM's lowest value (a flattened water surface in
-    /// a DEM without 0 m).
+    /// A border-connected area within [`sea_flat_tolerance`] of the DEM's lowest value (a
+    /// water surface, flat within the DEM's noise, in a DEM without 0 m).
     FlatMinimum,
 }
 
 /// The sea [`detect_sea`] found.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SeaDetection {
-    /// Sea level (m): 0 for [`SeaKind::Zero`], the DEM's lowest value otherwise.
+    /// Sea level (m): 0 for [`SeaKind::Zero`], the median height of the flat area otherwise.
     pub level: f32,
     /// Which rule found it.
     pub kind: SeaKind,
-    /// Samples of the sea (border-connected, at or below `level`).
+    /// Samples of the sea (border-connected, at or below `level`; for
+    /// [`SeaKind::FlatMinimum`] at or below the lowest value plus the tolerance).
     pub cells: usize,
     /// `cells` over the DEM's sample count.
     pub share: f32,
@@ -102,38 +142,66 @@ pub(crate) fn border_connected(z: &[f32], w: usize, h: usize, level: f32) -> Vec
 }
 
 /// Detects the sea of a DEM (module docs): border-connected samples at or below 0 m, else a
-/// border-connected area at exactly the lowest value, each kept only when it covers at least
-/// [`SEA_MIN_SHARE`] of the samples and [`SEA_MIN_CELLS`] samples; `None` = no sea (an inland
-/// DEM). Pure and deterministic; non-finite samples are ignored.
+/// border-connected area within [`sea_flat_tolerance`] of the lowest value, each kept only
+/// when it covers at least [`SEA_MIN_SHARE`] of the samples and [`SEA_MIN_CELLS`] samples;
+/// `None` = no sea (an inland DEM). Pure and deterministic; non-finite samples are ignored.
 pub fn detect_sea(hf: &Heightfield) -> Option<SeaDetection> {
     let n = hf.width() * hf.height();
     let large =
         |cells: usize| cells >= SEA_MIN_CELLS && cells as f64 >= SEA_MIN_SHARE as f64 * n as f64;
-    let found = |level: f32, kind: SeaKind| {
-        let cells = border_connected_at_or_below(hf, level)
-            .iter()
-            .filter(|&&s| s)
-            .count();
-        large(cells).then_some(SeaDetection {
-            level,
-            kind,
+    let zero = border_connected_at_or_below(hf, 0.0);
+    let cells = zero.iter().filter(|&&s| s).count();
+    if large(cells) {
+        return Some(SeaDetection {
+            level: 0.0,
+            kind: SeaKind::Zero,
             cells,
             share: cells as f32 / n.max(1) as f32,
-        })
-    };
-    if let Some(s) = found(0.0, SeaKind::Zero) {
-        return Some(s);
+        });
     }
-    let lo = hf
+    // The water's lowest value: the lowest sample but `SEA_PITS`, so that a few pits below
+    // the water (speckle, voids filled low) do not set it.
+    let mut low: Vec<f32> = hf
         .as_slice()
         .iter()
         .copied()
         .filter(|z| z.is_finite())
-        .fold(f32::INFINITY, f32::min);
-    // At or below the minimum is exactly at it: the flat surface.
-    (lo.is_finite() && lo > 0.0)
-        .then(|| found(lo, SeaKind::FlatMinimum))
-        .flatten()
+        .collect();
+    let k = (SEA_PITS + 1).min(low.len()).checked_sub(1)?;
+    let (_, &mut lo, _) = low.select_nth_unstable_by(k, f32::total_cmp);
+    if lo <= 0.0 {
+        return None;
+    }
+    let tol = sea_flat_tolerance(hf);
+    let count = |level: f32| {
+        border_connected_at_or_below(hf, level)
+            .iter()
+            .filter(|&&s| s)
+            .count()
+    };
+    // Flat, not a gentle slope: doubling the tolerance must not add half as much area again
+    // (on a uniform slope the area doubles; water ends at a shore that rises).
+    if 2 * count(lo + 2.0 * tol) > 3 * count(lo + tol) {
+        return None;
+    }
+    let mask = border_connected_at_or_below(hf, lo + tol);
+    let mut z: Vec<f32> = hf
+        .as_slice()
+        .iter()
+        .zip(&mask)
+        .filter(|x| *x.1)
+        .map(|x| *x.0)
+        .collect();
+    if !large(z.len()) {
+        return None;
+    }
+    z.sort_by(f32::total_cmp);
+    Some(SeaDetection {
+        level: z[z.len() / 2],
+        kind: SeaKind::FlatMinimum,
+        cells: z.len(),
+        share: z.len() as f32 / n.max(1) as f32,
+    })
 }
 
 #[cfg(test)]
@@ -219,6 +287,42 @@ mod tests {
         // A valley whose lowest value is a single sample is no lake.
         let d = hf(30, 30, |x, y| {
             372.0 + (x as f32 - 15.0).abs() + y as f32 * 0.5
+        });
+        assert_eq!(detect_sea(&d), None);
+    }
+
+    /// A lake surface with +-0.3 m of hashed speckle (no two samples equal, as on unflattened
+    /// SRTM water): flat within the noise, so sea at its median level; a valley whose floor
+    /// rises 2 m per sample stays no sea.
+    #[test]
+    fn a_noisy_lake_surface_is_sea_at_its_median_level() {
+        let noise = |x: usize, y: usize| {
+            let h = crate::math::hash(5, x as u64, y as u64, 0);
+            crate::math::unit(h) * 0.6 - 0.3
+        };
+        let d = hf(40, 40, |x, y| {
+            if y >= 26 {
+                372.0 + noise(x, y)
+            } else {
+                380.0 + (26 - y) as f32 * 4.0 + (x % 5) as f32 + noise(x, y)
+            }
+        });
+        assert!((sea_flat_tolerance(&d) - SEA_FLAT_NOISE_M).abs() < 1e-6);
+        let s = detect_sea(&d).unwrap();
+        assert_eq!((s.kind, s.cells), (SeaKind::FlatMinimum, 14 * 40));
+        assert!((s.level - 372.0).abs() < 0.1, "{s:?}");
+        // Integer metres: the lake stored as 372 and 373 is still flat (quantum 1 m).
+        let d = hf(40, 40, |x, y| {
+            if y >= 26 {
+                372.0 + ((x + y) % 2) as f32
+            } else {
+                380.0 + (26 - y) as f32 * 4.0 + (x % 5) as f32
+            }
+        });
+        assert_eq!(sea_flat_tolerance(&d), 1.5);
+        assert_eq!(detect_sea(&d).unwrap().cells, 14 * 40);
+        let d = hf(40, 40, |x, y| {
+            372.0 + (x as f32 - 20.0).abs() * 2.0 + y as f32 * 0.5 + noise(x, y)
         });
         assert_eq!(detect_sea(&d), None);
     }

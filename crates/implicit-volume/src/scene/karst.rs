@@ -75,9 +75,10 @@ impl SceneBuilder {
             report.candidates += 1;
             let wgt = region.weight(&frame, p);
             let rho = self.geology.resistance(p);
+            let jitter = 1.0 + s.radius_jitter * (2.0 * unit(hash(seed, idx as u64, 3, 0)) - 1.0);
             if rho < s.rho0
                 && wgt > 0.0
-                && let Some(a) = soft_radius(&geo, s, p)
+                && let Some(a) = soft_radius(&geo, s, p, (s.radius * jitter).max(s.min_radius))
             {
                 let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
                 if e > 0.0 {
@@ -126,6 +127,16 @@ impl SceneBuilder {
             if !(0.0..=1.0).contains(&v) {
                 return Err(Error::param(n, v, "must be in [0, 1]"));
             }
+        }
+        if !(s.flatten > 0.0 && s.flatten <= 1.0) {
+            return Err(Error::param("flatten", s.flatten, "must be in (0, 1]"));
+        }
+        if !(0.0..=0.9).contains(&s.radius_jitter) {
+            return Err(Error::param(
+                "radius_jitter",
+                s.radius_jitter,
+                "must be in [0, 0.9]",
+            ));
         }
         self.check_lens(&[
             ("radius", s.radius),
@@ -232,8 +243,9 @@ impl SceneBuilder {
         }
     }
 
-    /// Carves the passage at candidate `idx` (position `p`, visible radius `a`, intensity `e`)
-    /// and its sub-spheres; returns the number of primitives added.
+    /// Carves the passage at candidate `idx` (position `p`, visible radius `a`, intensity `e`):
+    /// an ellipsoid flattened along the bedding and its sub-ellipsoids; returns the number of
+    /// primitives added.
     fn karst_passage(
         &mut self,
         s: &KarstSettings,
@@ -244,9 +256,12 @@ impl SceneBuilder {
         idx: u32,
     ) -> Result<usize> {
         let r = s.support_radius(a, e);
-        let id = self.tree.sphere(p, r, -s.energy * e)?;
+        let (wide, high) = s.axes();
+        let id = self
+            .tree
+            .ellipsoid(p, [wide * r, wide * r, high * r], -s.energy * e)?;
         self.negatives.push(id);
-        self.carved.push((p, r, true));
+        self.carved.push((p, wide * r, true));
         let mut primitives = 1;
         for m in 0..s.sub_spheres {
             let h = |c: u64| unit(hash(s.seed, idx as u64, 100 + m as u64, c)) * 2.0 - 1.0;
@@ -256,9 +271,11 @@ impl SceneBuilder {
             if rq < s.rho0 {
                 let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
                 let rr = 0.7 * s.support_radius(a, eq);
-                let id = self.tree.sphere(q, rr, -s.energy * eq)?;
+                let id =
+                    self.tree
+                        .ellipsoid(q, [wide * rr, wide * rr, high * rr], -s.energy * eq)?;
                 self.negatives.push(id);
-                self.carved.push((q, rr, true));
+                self.carved.push((q, wide * rr, true));
                 primitives += 1;
             }
         }
@@ -320,7 +337,8 @@ impl<'a> Percolation<'a> {
     }
 }
 
-/// Test points of a passage sphere: its six poles and eight diagonal points.
+/// Test points of a passage (unit sphere, scaled to the ellipsoid): six poles and eight
+/// diagonal points.
 const D: f32 = 0.577_350_26;
 const DIRS: [V3; 14] = [
     [1.0, 0.0, 0.0],
@@ -339,15 +357,16 @@ const DIRS: [V3; 14] = [
     [-D, -D, -D],
 ];
 
-/// The largest passage radius from `s.radius` down to `s.min_radius` (steps of 3/4) whose
-/// sphere lies in rock softer than `rho0`.
-fn soft_radius(geo: &Geology, s: &KarstSettings, p: V3) -> Option<f32> {
-    let mut a = s.radius;
+/// The largest passage radius from `start` down to `s.min_radius` (steps of 3/4) whose
+/// passage ellipsoid ([`KarstSettings::flatten`]) lies in rock softer than `rho0`.
+fn soft_radius(geo: &Geology, s: &KarstSettings, p: V3, start: f32) -> Option<f32> {
+    let mut a = start;
+    let (wide, high) = s.axes();
     loop {
-        if DIRS
-            .iter()
-            .all(|d| geo.resistance(add(p, mul(*d, a))) < s.rho0)
-        {
+        if DIRS.iter().all(|d| {
+            let q = [d[0] * wide * a, d[1] * wide * a, d[2] * high * a];
+            geo.resistance(add(p, q)) < s.rho0
+        }) {
             return Some(a);
         }
         if a <= s.min_radius {

@@ -1,4 +1,5 @@
-//! Landforms placed on the terrain: hoodoos, arches and floating islands (paper section 4).
+//! Landforms placed on the terrain: hoodoos and arches (paper section 4); floating islands are
+//! in `islands.rs`.
 
 use super::*;
 
@@ -380,43 +381,6 @@ impl SceneBuilder {
                 Some((len, (i * f.width + j) as u64, d, m0, m1))
             })
             .collect()
-    }
-
-    /// Floating islands: an ellipsoidal top blended with an inverted cone, warped, hovering
-    /// `altitude` metres above the ground.
-    pub fn floating_islands(
-        &mut self,
-        s: &IslandSettings,
-        region: &Region,
-    ) -> Result<EffectReport> {
-        self.check_len("radius", s.radius)?;
-        self.check_len("altitude", s.altitude)?;
-        region.check(&self.frame)?;
-        let sites = self.flat_sites(3.0 * s.radius, 90.0, s.seed, region, s.radius);
-        let mut report = EffectReport {
-            candidates: sites.len(),
-            primitives: 0,
-            ..Default::default()
-        };
-        for (k, &p) in sites.iter().take(s.count).enumerate() {
-            let c = add(p, [0.0, 0.0, s.altitude]);
-            let top =
-                self.tree
-                    .ellipsoid(c, [s.radius * 1.6, s.radius * 1.4, s.radius * 0.5], 1.0)?;
-            let cone = self.tree.cone(
-                add(c, [0.0, 0.0, -0.1 * s.radius]),
-                add(c, [0.0, 0.0, -1.6 * s.radius]),
-                1.2 * s.radius,
-                0.25 * s.radius,
-                1.0,
-            )?;
-            let seed = (s.seed as u32).wrapping_add(k as u32);
-            self.add_warped(&[top, cone], 0.15 * s.radius, 0.5 * s.radius, seed)?;
-            report.primitives += 2;
-            report.features += 1;
-            report.sites.push(c);
-        }
-        Ok(report)
     }
 }
 

@@ -3,13 +3,16 @@
 //!
 //! The builder's core (implicitisation, surface samples, weathering) is here; its effects live
 //! in `erosion.rs` (sea caves, sea cliffs, wind, rain), `karst.rs` (invasion percolation) and
-//! `landforms.rs` (hoodoos, arches, floating islands); their settings in `settings.rs`.
+//! `landforms.rs` (hoodoos, arches), `islands.rs` (floating islands); their settings in
+//! `settings.rs`.
 
 mod erosion;
+mod islands;
 mod karst;
 mod landforms;
 mod settings;
 
+pub use islands::nearest_neighbour_cv;
 pub use settings::*;
 
 use std::cmp::Reverse;

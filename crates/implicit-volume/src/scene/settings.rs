@@ -198,11 +198,12 @@ impl Default for RainErosion {
 
 /// Karst by modified invasion percolation (paper section 4.2, figure 6).
 ///
-/// Lengths are in metres. A carved step places a negative sphere whose *visible* passage
-/// radius is `radius` (the support radius follows from the energy, see
-/// [`KarstSettings::support_radius`]), shrunk down to `min_radius` until every test point on
-/// the passage sphere lies in soft rock (`rho < rho0`), so passages follow the soft strata;
-/// `sub_spheres` smaller spheres widen it horizontally. New candidates are `step` away in
+/// Lengths are in metres. A carved step places a negative ellipsoid, flattened along the
+/// bedding (`flatten`), whose *visible* passage radius is `radius` varied by `radius_jitter`
+/// (the support radius follows from the energy, see [`KarstSettings::support_radius`]),
+/// shrunk down to `min_radius` until every test point on the passage ellipsoid lies in soft
+/// rock (`rho < rho0`), so passages follow the soft strata; `sub_spheres` smaller ellipsoids
+/// widen it horizontally. New candidates are `step` away in
 /// directions of the lower hemisphere flattened to at most `vertical` (the sine of the dip),
 /// following bedding planes as the authors' reference code does.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -246,6 +247,14 @@ pub struct KarstSettings {
     pub cliff_seeds: usize,
     /// Spacing of the cliff seeds (m).
     pub cliff_spacing: f32,
+    /// Flattening of the passages along the bedding: a carved step is an ellipsoid
+    /// `1 / sqrt(flatten)` times the passage radius wide and `sqrt(flatten)` times it high
+    /// (the cross-section of a sphere of that radius), in `(0, 1]` (1 = spheres). Where a
+    /// passage meets a cliff, its opening is a slot along the strata, not a round hole.
+    pub flatten: f32,
+    /// Relative variation of the passage radius from step to step, in `[0, 0.9]`: radius
+    /// `radius (1 + radius_jitter (2 u - 1))` with `u` hashed per step.
+    pub radius_jitter: f32,
     /// Seed.
     pub seed: u64,
 }
@@ -269,12 +278,21 @@ impl Default for KarstSettings {
             max_sinkholes: 64,
             cliff_seeds: 32,
             cliff_spacing: 50.0,
+            flatten: 0.45,
+            radius_jitter: 0.3,
             seed: 7,
         }
     }
 }
 
 impl KarstSettings {
+    /// Horizontal and vertical scale of a passage ellipsoid's axes relative to its radius:
+    /// `(1 / sqrt(flatten), sqrt(flatten))`.
+    pub fn axes(&self) -> (f32, f32) {
+        let f = self.flatten.clamp(1e-3, 1.0);
+        (1.0 / f.sqrt(), f.sqrt())
+    }
+
     /// Support radius of the sphere whose carved hole in solid rock (field `2T`) has the
     /// visible radius `a` at energy `energy * e`: `-energy e g(d^2/R^2) + 2T = T` at `d = a`.
     pub fn support_radius(&self, a: f32, e: f32) -> f32 {
@@ -358,15 +376,21 @@ impl Default for ArchSettings {
     }
 }
 
-/// Floating islands: an ellipsoidal top over an inverted cone, warped.
+/// Floating islands ([`SceneBuilder::floating_islands`]): clusters grown from high-relief
+/// sites, each island a lobed flat-ish top over a jagged inverted mountain, warped.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IslandSettings {
-    /// Number of islands.
+    /// Number of islands (all clusters together; fewer when the DEM has no room).
     pub count: usize,
-    /// Radius (m).
+    /// Radius of a cluster's main island (m): each main island is `[0.8, 1.2]` times it.
     pub radius: f32,
-    /// Height of the island top above the local ground (m).
+    /// Height of a cluster's tops above the local ground (m): `[0.8, 1.2]` times it, each
+    /// island a further `+-15 %`, and always clear of the ground under it.
     pub altitude: f32,
+    /// Islands per cluster, in `1..=16` (1 = lone islands).
+    pub per_cluster: usize,
+    /// Ratio of a cluster's main island radius to its smallest, in `[1, 10]`.
+    pub spread: f32,
     /// Seed.
     pub seed: u64,
 }
@@ -376,6 +400,8 @@ impl Default for IslandSettings {
             count: 2,
             radius: 40.0,
             altitude: 120.0,
+            per_cluster: 3,
+            spread: 3.0,
             seed: 11,
         }
     }
@@ -398,6 +424,10 @@ pub struct EffectReport {
     /// mouths; karst: the seeds).
     pub sites: Vec<V3>,
     /// Per site, the horizontal direction to look along to see it best (arches: the tunnel's
-    /// axis, so a camera sees through the opening); empty for the other effects.
+    /// axis, so a camera sees through the opening; floating islands: towards the lowest ground
+    /// around, so a camera sees the underside); empty for the other effects.
     pub axes: Vec<V3>,
+    /// Per site, the landform's size (m): floating islands' radii; empty for the other
+    /// effects.
+    pub sizes_m: Vec<f32>,
 }

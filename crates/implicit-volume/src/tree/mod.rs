@@ -399,9 +399,12 @@ impl TerrainTree {
                 .iter()
                 .fold(Aabb::empty(), |b, &c| b.union(&self.bbox_of(c))),
             Node::Bvh { bbox, .. } => bbox,
-            Node::Union { a, b } | Node::Intersection { a, b } | Node::SmoothBlend { a, b, .. } => {
+            Node::Union { a, b } | Node::SmoothBlend { a, b, .. } => {
                 self.bbox_of(a).union(&self.bbox_of(b))
             }
+            // `min(a, b)` is at most 0 (air) outside either box: a flat cap cutting a body
+            // keeps the body's box, not the cap's.
+            Node::Intersection { a, b } => self.bbox_of(a).intersection(&self.bbox_of(b)),
             Node::Difference { a, .. } => self.bbox_of(a),
             Node::Warp { bx, .. } => self.warp_boxes[bx as usize],
         }
