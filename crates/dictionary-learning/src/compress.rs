@@ -381,53 +381,18 @@ mod tests {
 
     #[test]
     fn bad_settings_are_named() {
-        for (s, name) in [
-            (
-                CompressSettings {
-                    sparsity: 0,
-                    ..Default::default()
-                },
-                "sparsity",
-            ),
-            (
-                CompressSettings {
-                    patch_size: 1,
-                    ..Default::default()
-                },
-                "patch_size",
-            ),
-            (
-                CompressSettings {
-                    spacing: f64::NAN,
-                    ..Default::default()
-                },
-                "spacing",
-            ),
-            (
-                CompressSettings {
-                    step: Some(-1.0),
-                    ..Default::default()
-                },
-                "step",
-            ),
-            (
-                CompressSettings {
-                    iterations: usize::MAX,
-                    ..Default::default()
-                },
-                "iterations",
-            ),
-            (
-                CompressSettings {
-                    analytic_atoms: AnalyticAtoms {
-                        perlin: 70_000,
-                        ..Default::default()
-                    },
-                    ..Default::default()
-                },
-                "analytic_atoms",
-            ),
-        ] {
+        type Spoil = fn(&mut CompressSettings);
+        let cases: [(&str, Spoil); 6] = [
+            ("sparsity", |s| s.sparsity = 0),
+            ("patch_size", |s| s.patch_size = 1),
+            ("spacing", |s| s.spacing = f64::NAN),
+            ("step", |s| s.step = Some(-1.0)),
+            ("iterations", |s| s.iterations = usize::MAX),
+            ("analytic_atoms", |s| s.analytic_atoms.perlin = 70_000),
+        ];
+        for (name, spoil) in cases {
+            let mut s = CompressSettings::default();
+            spoil(&mut s);
             let e = s.check().unwrap_err().to_string();
             assert!(e.contains(name), "{name}: {e}");
         }

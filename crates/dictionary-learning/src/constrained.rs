@@ -23,7 +23,8 @@ use relief_sparse_core::{OmpSettings, batch_omp};
 
 use crate::error::{LearnError, Result};
 use crate::ksvd::{
-    CodeTable, IterationStats, LearnedDictionary, check_signals, codes_rmse, row_norms_sq,
+    CodeTable, IterationStats, LearnedDictionary, check_signals, codes_rmse, finish_learning,
+    row_norms_sq,
 };
 use crate::noise::item_seed;
 
@@ -218,17 +219,8 @@ pub fn constrained_learning(
         trace.push(IterationStats { rmse, replaced });
         progress.advance(1);
     }
-    let codes = batch_omp(atoms.view(), signals, &omp)?;
-    trace.push(IterationStats {
-        rmse: codes_rmse(&codes, k),
-        replaced: 0,
-    });
-    Ok(LearnedDictionary {
-        atoms,
-        codes,
-        trace,
-        sources: chosen.iter().map(|&c| usable[c]).collect(),
-    })
+    let sources = chosen.iter().map(|&c| usable[c]).collect();
+    finish_learning(atoms, signals, &omp, trace, sources)
 }
 
 #[cfg(test)]

@@ -238,6 +238,28 @@ pub(crate) fn codes_rmse(codes: &SparseCodes<f32>, dim: usize) -> f64 {
     (s / (n * dim).max(1) as f64).sqrt()
 }
 
+/// The last step of every learner: codes the signals on the final atoms, closes the trace with
+/// their error and assembles the result.
+pub(crate) fn finish_learning(
+    atoms: Array2<f32>,
+    signals: ArrayView2<f32>,
+    omp: &OmpSettings,
+    mut trace: Vec<IterationStats>,
+    sources: Vec<usize>,
+) -> Result<LearnedDictionary> {
+    let codes = batch_omp(atoms.view(), signals, omp)?;
+    trace.push(IterationStats {
+        rmse: codes_rmse(&codes, signals.ncols()),
+        replaced: 0,
+    });
+    Ok(LearnedDictionary {
+        atoms,
+        codes,
+        trace,
+        sources,
+    })
+}
+
 /// Indices of signals sorted by decreasing OMP residual (ties: lower index first).
 pub(crate) fn worst_signals(codes: &SparseCodes<f32>, norms_sq: &[f64]) -> Vec<usize> {
     let mut order: Vec<usize> = (0..codes.n_signals())
@@ -487,15 +509,5 @@ pub fn ksvd_with_fixed(
         trace.push(IterationStats { rmse, replaced });
         progress.advance(1);
     }
-    let codes = batch_omp(atoms.view(), signals, &omp)?;
-    trace.push(IterationStats {
-        rmse: codes_rmse(&codes, dim),
-        replaced: 0,
-    });
-    Ok(LearnedDictionary {
-        atoms,
-        codes,
-        trace,
-        sources: Vec::new(),
-    })
+    finish_learning(atoms, signals, &omp, trace, Vec::new())
 }

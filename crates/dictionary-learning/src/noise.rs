@@ -152,6 +152,17 @@ fn check_params(kind: &'static str, params: &[f64], n: usize) -> relief_sparse_c
     Ok(())
 }
 
+/// [`check_params`] for a fixed count, returning the parameters as an array.
+fn param_array<const N: usize>(
+    kind: &'static str,
+    params: &[f64],
+) -> relief_sparse_core::Result<[f64; N]> {
+    check_params(kind, params, N)?;
+    let mut out = [0.0; N];
+    out.copy_from_slice(params);
+    Ok(out)
+}
+
 /// Kind name of [`PerlinAtom`].
 pub const PERLIN_KIND: &str = "perlin";
 /// Kind name of [`RidgedMultifractalAtom`].
@@ -170,7 +181,7 @@ pub struct PerlinAtom {
 impl PerlinAtom {
     /// Builds the atom from its 6 parameters (see the type docs).
     pub fn from_params(p: &[f64]) -> relief_sparse_core::Result<Self> {
-        check_params(PERLIN_KIND, p, 6)?;
+        let params: [f64; 6] = param_array(PERLIN_KIND, p)?;
         if p[1] <= 0.0 || !(1.0..=12.0).contains(&p[2]) {
             return Err(SparseError::param(
                 "perlin frequency/octaves",
@@ -178,8 +189,6 @@ impl PerlinAtom {
                 "frequency > 0, octaves in 1..=12",
             ));
         }
-        let mut params = [0.0; 6];
-        params.copy_from_slice(p);
         Ok(Self {
             noise: Perlin::new(p[0] as u64),
             params,
@@ -217,7 +226,7 @@ pub struct RidgedMultifractalAtom {
 impl RidgedMultifractalAtom {
     /// Builds the atom from its 8 parameters (see the type docs).
     pub fn from_params(p: &[f64]) -> relief_sparse_core::Result<Self> {
-        check_params(RIDGED_MULTIFRACTAL_KIND, p, 8)?;
+        let params: [f64; 8] = param_array(RIDGED_MULTIFRACTAL_KIND, p)?;
         if p[1] <= 0.0 || !(1.0..=12.0).contains(&p[2]) || p[3] <= 1.0 || p[4] <= 0.0 {
             return Err(SparseError::param(
                 "ridged_multifractal parameters",
@@ -225,8 +234,6 @@ impl RidgedMultifractalAtom {
                 "frequency > 0, octaves in 1..=12, lacunarity > 1, gain > 0",
             ));
         }
-        let mut params = [0.0; 8];
-        params.copy_from_slice(p);
         Ok(Self {
             noise: Perlin::new(p[0] as u64),
             params,

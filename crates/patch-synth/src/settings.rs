@@ -289,9 +289,7 @@ impl Settings {
             ("beta", self.beta),
             ("gamma", self.gamma),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(PatchSynthError::setting(name, v, "must be finite and >= 0"));
-            }
+            check_non_negative(name, v)?;
         }
         if self.alpha + self.beta + self.gamma <= 0.0 {
             return Err(PatchSynthError::setting(
@@ -300,14 +298,7 @@ impl Settings {
                 "alpha, beta and gamma are all zero",
             ));
         }
-        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return Err(PatchSynthError::setting(
-                "lambda",
-                self.lambda,
-                "must be finite and >= 0",
-            ));
-        }
-        Ok(())
+        check_non_negative("lambda", self.lambda)
     }
 
     /// Counts of the candidate search, the reuse penalty and the validation thresholds.
@@ -324,13 +315,7 @@ impl Settings {
                 return Err(PatchSynthError::setting(name, v, "must be >= 1"));
             }
         }
-        if !(self.choice_tolerance.is_finite() && self.choice_tolerance >= 0.0) {
-            return Err(PatchSynthError::setting(
-                "choice_tolerance",
-                self.choice_tolerance,
-                "must be finite and >= 0",
-            ));
-        }
+        check_non_negative("choice_tolerance", self.choice_tolerance)?;
         if !(self.reuse_penalty.is_finite() && (0.0..=100.0).contains(&self.reuse_penalty)) {
             return Err(PatchSynthError::setting(
                 "reuse_penalty",
@@ -412,5 +397,14 @@ impl Settings {
     /// Step between patch origins on the synthesis grid (`patch_size - overlap`).
     pub fn step(&self) -> usize {
         self.patch_size - self.overlap
+    }
+}
+
+/// A weight or tolerance: finite and >= 0.
+fn check_non_negative(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(PatchSynthError::setting(name, v, "must be finite and >= 0"))
     }
 }

@@ -263,12 +263,7 @@ impl MultiResDictionary {
         settings: &AmplifySettings,
     ) -> Result<SparseLayer> {
         let rec = self.footprint_raster(coarse, patches, codes)?;
-        let d: Vec<f64> = coarse
-            .as_slice()
-            .iter()
-            .zip(rec.as_slice())
-            .map(|(a, b)| *a as f64 - *b as f64)
-            .collect();
+        let (d, _) = relief_heightfield::metrics::difference_field(coarse, &rec)?;
         let r = back_project(&d, coarse.width(), coarse.height());
         let res = coarse.with_data(r.iter().map(|&v| v as f32).collect())?;
         interpolation_layer(&res, settings)

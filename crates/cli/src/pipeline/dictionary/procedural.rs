@@ -63,11 +63,8 @@ impl Stage for ProceduralStage {
         // about real relief; earlier stages may have replaced the terrain by a synthetic one),
         // else the current terrain.
         let (terrain, which) = cx.state.complete_source("procedural", "terrain")?;
-        let (w, h) = (
-            terrain.width().min(p.max_side),
-            terrain.height().min(p.max_side),
-        );
-        let crop = terrain.crop((terrain.width() - w) / 2, (terrain.height() - h) / 2, w, h)?;
+        let crop = centre_crop(&terrain, p.max_side)?;
+        let (w, h) = (crop.width(), crop.height());
         // Scale the dictionary down on small crops: full size from 128^2 up, fewer below.
         let n = p.job.n_candidates;
         let candidates = (n * w * h / (128 * 128)).clamp(64, n.max(64));

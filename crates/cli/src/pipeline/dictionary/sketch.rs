@@ -149,8 +149,7 @@ impl Stage for SketchStage {
             None,
         )?;
         // The golden is a centre window (at most 128 x 128) so the fixture stays small.
-        let (gw, gh) = (out.width().min(128), out.height().min(128));
-        let window = out.crop((out.width() - gw) / 2, (out.height() - gh) / 2, gw, gh)?;
+        let window = centre_crop(&out, 128)?;
         cx.save_raster(
             "sketch_synthesis_window",
             "centre window of the synthesis",
