@@ -8,9 +8,9 @@
 //!   images, so its input has lost the precision of the DEM. Its output is not a terrain of
 //!   comparable fidelity; the comparison is of running time only. The same output size
 //!   (1024 x 1024) is timed once before the criterion groups and printed: it takes about 150 s,
-//!   too long for criterion's ten samples. Measured 2026-12-03 (2 threads, single runs):
-//!   relief-patch-synth 1024^2 5.2 s (the machine busy with a build), texture-synthesis
-//!   1024^2 148.2 s.
+//!   too long for criterion's ten samples. Measured 2026-12-03 on a quiet machine (2 threads,
+//!   single runs): relief-patch-synth 1024^2 2.94 s, texture-synthesis 1024^2 63.6 s; the
+//!   criterion row `quilt/relief_patch_synth_1024_from_512_2threads` 2.40 s (2.22-2.60).
 //!
 //! Parts of the method, same inputs, 2 threads:
 //! * `quilt_search/pca_kdtree/<shape>_knn24`: the patch search of section 3.5 for one overlap

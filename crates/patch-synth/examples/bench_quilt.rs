@@ -1,6 +1,7 @@
 //! Release timing harness: a 1024 x 1024 guided synthesis from one 512 x 512 exemplar on 2
-//! threads (goal <= 4 s; measured 2026-12-03 after the box-mean images: 3.60 s wall, index 1.71 s
-//! and synthesis 1.88 s, with two builds running beside it; 2.46 s of CPU in all, 4.9 s before),
+//! threads (goal <= 4 s; measured 2026-12-03 on a quiet machine after the box-mean images and
+//! the preconditioned blend: 2.13-2.75 s, index 0.76-1.01 s and synthesis 1.35-1.74 s; 3.42 s
+//! before them),
 //! where texture-synthesis 0.8 takes 148 s for the same output size, `benches/benches/quilt.rs`).
 //! The exemplar is the Grand Canyon DEM; the guide is the low-pass (factor 16) of a 512 x 512
 //! alps crop enlarged to 1024 x 1024.
