@@ -33,10 +33,6 @@ const FORMATS: &[(&str, Precision)] = &[
 ];
 
 impl Stage for ConvertRoundTrips {
-    fn name(&self) -> &'static str {
-        "convert"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let hf = cx.state.terrain()?.clone();
         let (lo, hi) = hf.min_max().context("terrain has no valid cell")?;

@@ -20,10 +20,6 @@ const FILL_TOLERANCE: Tolerance = Tolerance {
 pub(crate) struct FillVoids;
 
 impl Stage for FillVoids {
-    fn name(&self) -> &'static str {
-        "fill_voids"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let settings = FillSettings::default();
         let mut hf = cx.state.terrain()?.clone();

@@ -11,10 +11,6 @@ use super::{Stage, StageCx, Tolerance};
 pub(crate) struct Load;
 
 impl Stage for Load {
-    fn name(&self) -> &'static str {
-        "load"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let input = &cx.config.input;
         let raster = relief_io::read(input, &relief_io::ReadOptions::default())

@@ -2,14 +2,14 @@
 //! previews, figures and tables into a shared [`Report`].
 //!
 //! # Adding a stage
-//! 1. Create `crates/cli/src/pipeline/<name>.rs` with a unit struct implementing [`Stage`]: `name()` and
+//! 1. Create `crates/cli/src/pipeline/<name>.rs` with a struct implementing [`Stage`]:
 //!    `run(&self, cx: &mut StageCx)`. Read the current terrain with [`State::terrain`], replace
 //!    it with [`State::set_terrain`] when the stage produces the next terrain (stages compose:
 //!    the output of one is the input of the next), save every raster with
 //!    [`StageCx::save_raster`] (GeoTIFF f32 + preview PNG, and a golden candidate with its
 //!    tolerance), and put numbers into `cx.section` (`figure`, `table`, `image`).
-//! 2. Add `mod <name>;` below and register it in `spec.rs` (one arm of `build_stage`, its name
-//!    in `STAGE_NAMES`, the default run's list). A stage with parameters derives
+//! 2. Add `mod <name>;` below and register it in `spec.rs` (one entry of its `REGISTRY`: the
+//!    stage's name, at its place in the default run, and how it is built). A stage with parameters derives
 //!    `Serialize + Deserialize + Default` (`#[serde(default, deny_unknown_fields)]`, its method
 //!    settings in a `job` field of the method crate's serde type) so a user's JSON spec can set
 //!    them; the spec is merged onto its defaults.
@@ -37,6 +37,7 @@ mod volume;
 mod wavelet;
 
 pub use report::{Report, Section};
+pub use spec::NamedStage;
 
 /// What to run on and where to write.
 #[derive(Debug, Clone)]
@@ -262,15 +263,13 @@ impl Progress for StageProgress {
 
 /// One step of the pipeline.
 pub trait Stage {
-    /// Short identifier (`load`, `fill_voids`, ...): the report section and the progress line.
-    fn name(&self) -> &'static str;
     /// Runs the stage: reads `cx.state`, writes files under `cx.config.out_dir`, fills
     /// `cx.section`.
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()>;
 }
 
 /// The stages of the default run, in order (see [`spec::default_spec`]).
-pub fn default_stages() -> Vec<Box<dyn Stage>> {
+pub fn default_stages() -> Vec<NamedStage> {
     spec::build_stages(&spec::default_spec())
         .expect("the default spec names registered stages with valid parameters (tested)")
 }
@@ -287,19 +286,19 @@ pub struct PipelineRun {
 }
 
 /// Runs `stages` in order, then writes `summary.json` and `report.html` into the output folder.
-pub fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<PipelineRun> {
+pub fn run(config: &PipelineConfig, stages: &[NamedStage]) -> Result<PipelineRun> {
     std::fs::create_dir_all(&config.out_dir)
         .with_context(|| format!("cannot create {}", config.out_dir.display()))?;
     let mut report = Report::new("relief pipeline", &config.input, config.seed);
     let mut state = State::default();
     let t_all = Instant::now();
     let n = stages.len();
-    for (i, stage) in stages.iter().enumerate() {
+    for (i, NamedStage { name, stage }) in stages.iter().enumerate() {
         if config.verbose {
-            eprintln!("[{}/{n}] {} ...", i + 1, stage.name());
+            eprintln!("[{}/{n}] {name} ...", i + 1);
         }
         let t = Instant::now();
-        let mut section = Section::new(stage.name());
+        let mut section = Section::new(name);
         let mut cx = StageCx {
             config,
             state: &mut state,
@@ -307,15 +306,10 @@ pub fn run(config: &PipelineConfig, stages: &[Box<dyn Stage>]) -> Result<Pipelin
         };
         stage
             .run(&mut cx)
-            .with_context(|| format!("pipeline stage `{}` failed", stage.name()))?;
+            .with_context(|| format!("pipeline stage `{name}` failed"))?;
         section.seconds = t.elapsed().as_secs_f64();
         if config.verbose {
-            eprintln!(
-                "[{}/{n}] {} done in {:.2} s",
-                i + 1,
-                stage.name(),
-                section.seconds
-            );
+            eprintln!("[{}/{n}] {name} done in {:.2} s", i + 1, section.seconds);
         }
         report.push(section);
     }
@@ -419,7 +413,7 @@ mod tests {
     #[test]
     fn a_stage_before_load_is_an_error() {
         let (config, _tmp) = test_config(None);
-        let stages: Vec<Box<dyn Stage>> = vec![Box::new(fill::FillVoids)];
+        let stages = spec::build_stages(&[spec::StageSpec::named("fill_voids")]).unwrap();
         let err = run(&config, &stages).unwrap_err();
         assert!(
             format!("{err:#}").contains("`load` stage must come first"),

@@ -161,10 +161,6 @@ fn category_rgb(map: &CategoryMap) -> Vec<u8> {
 }
 
 impl Stage for Quilt {
-    fn name(&self) -> &'static str {
-        "quilt"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let mut terrain = cx.state.terrain()?.clone();
         if terrain.has_voids() {

@@ -90,10 +90,6 @@ impl SparseStage {
 }
 
 impl Stage for SparseStage {
-    fn name(&self) -> &'static str {
-        "sparse"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let terrain = cx.state.complete_terrain("sparse")?;

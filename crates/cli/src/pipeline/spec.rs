@@ -22,10 +22,10 @@
 //! from the terrain the previous one produced.
 //!
 //! # Registering a stage
-//! Add one arm to [`build_stage`] (`"name" => boxed(params::<YourStage>(p)?)` for a stage with
-//! parameters, which must implement `Serialize + Deserialize + Default`; `Box::new(YourStage)`
-//! for one without) and its name to [`STAGE_NAMES`] (in the order of the default run,
-//! [`default_spec`]). The test below checks that every listed name builds and reports that name.
+//! Add one entry to `REGISTRY`: its name and how it is built (`|p| Ok(Box::new(YourStage::new(
+//! params(p)?)?))` for a stage with parameters, which must implement `Serialize + Deserialize +
+//! Default`; `|p| no_params(p, Box::new(YourStage))` for one without), at its place in the
+//! default run ([`default_spec`]). The test below checks that every name builds.
 
 use std::path::{Path, PathBuf};
 
@@ -41,7 +41,7 @@ use super::{
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StageSpec {
-    /// Stage name (one of [`STAGE_NAMES`]).
+    /// Stage name (one of [`stage_names`]).
     pub stage: String,
     /// The stage's parameters (an object; `null` or absent = defaults).
     #[serde(default)]
@@ -116,50 +116,81 @@ impl PipelineSpec {
     }
 }
 
-/// Every stage name a spec may use.
-pub const STAGE_NAMES: &[&str] = &[
-    "load",
-    "fill_voids",
-    "convert",
-    "sparse",
-    "quilt",
-    "wavelet",
-    "amplify",
-    "sketch",
-    "procedural",
-    "volume",
+/// A stage built from its spec entry, with the name it was registered under (the report
+/// section and the progress line).
+pub struct NamedStage {
+    /// The registered name (one of [`stage_names`]).
+    pub name: &'static str,
+    /// The stage.
+    pub stage: Box<dyn Stage>,
+}
+
+impl std::fmt::Debug for NamedStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NamedStage")
+            .field("name", &self.name)
+            .finish()
+    }
+}
+
+/// How a registered stage is built from its `params`.
+type Build = fn(&serde_json::Value) -> Result<Box<dyn Stage>>;
+
+/// The stage registry: every stage a spec may use, in the order of the default run, and how
+/// each one is built from its `params`. The one list of stage names.
+const REGISTRY: [(&str, Build); 10] = [
+    ("load", |p| no_params(p, Box::new(load::Load))),
+    ("fill_voids", |p| no_params(p, Box::new(fill::FillVoids))),
+    ("convert", |p| {
+        no_params(p, Box::new(convert::ConvertRoundTrips))
+    }),
+    ("sparse", |p| {
+        Ok(Box::new(sparse::SparseStage::new(params(p)?)?))
+    }),
+    ("quilt", |p| Ok(Box::new(quilt::Quilt(params(p)?)))),
+    ("wavelet", |p| {
+        Ok(Box::new(wavelet::WaveletStage::new(params(p)?)?))
+    }),
+    ("amplify", |p| {
+        Ok(Box::new(dictionary::AmplifyStage::new(params(p)?)?))
+    }),
+    ("sketch", |p| {
+        Ok(Box::new(dictionary::SketchStage::new(params(p)?)?))
+    }),
+    ("procedural", |p| {
+        Ok(Box::new(dictionary::ProceduralStage::new(params(p)?)?))
+    }),
+    ("volume", |p| {
+        Ok(Box::new(volume::VolumeStage::new(params(p)?)?))
+    }),
 ];
 
-/// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run).
-/// Every stage of [`STAGE_NAMES`], in that order, with its defaults.
+/// Every stage name a spec may use, in the order of the default run.
+pub fn stage_names() -> impl Iterator<Item = &'static str> {
+    REGISTRY.iter().map(|(name, _)| *name)
+}
+
+/// The stages of the default run (`cargo xtask pipeline` without a spec, and the golden run):
+/// every registered stage, in registry order, with its defaults.
 pub fn default_spec() -> Vec<StageSpec> {
-    STAGE_NAMES.iter().map(|s| StageSpec::named(s)).collect()
+    stage_names().map(StageSpec::named).collect()
 }
 
 /// Builds one stage from its spec entry.
-pub fn build_stage(spec: &StageSpec) -> Result<Box<dyn Stage>> {
-    let p = &spec.params;
-    let stage: Box<dyn Stage> = match spec.stage.as_str() {
-        "load" => no_params(p, "load", Box::new(load::Load))?,
-        "fill_voids" => no_params(p, "fill_voids", Box::new(fill::FillVoids))?,
-        "convert" => no_params(p, "convert", Box::new(convert::ConvertRoundTrips))?,
-        "sparse" => Box::new(sparse::SparseStage::new(params(p)?)?),
-        "quilt" => Box::new(quilt::Quilt(params(p)?)),
-        "wavelet" => Box::new(wavelet::WaveletStage::new(params(p)?)?),
-        "amplify" => Box::new(dictionary::AmplifyStage::new(params(p)?)?),
-        "sketch" => Box::new(dictionary::SketchStage::new(params(p)?)?),
-        "procedural" => Box::new(dictionary::ProceduralStage::new(params(p)?)?),
-        "volume" => Box::new(volume::VolumeStage::new(params(p)?)?),
-        other => bail!(
-            "unknown stage `{other}`; known stages: {}",
-            STAGE_NAMES.join(", ")
-        ),
+pub fn build_stage(spec: &StageSpec) -> Result<NamedStage> {
+    let Some(&(name, build)) = REGISTRY.iter().find(|(n, _)| *n == spec.stage) else {
+        bail!(
+            "unknown stage `{}`; known stages: {}",
+            spec.stage,
+            stage_names().collect::<Vec<_>>().join(", ")
+        );
     };
-    Ok(stage)
+    let stage = build(&spec.params).with_context(|| format!("stage `{name}`"))?;
+    Ok(NamedStage { name, stage })
 }
 
 /// Builds every stage of a list, naming the first one that fails.
-pub fn build_stages(specs: &[StageSpec]) -> Result<Vec<Box<dyn Stage>>> {
+pub fn build_stages(specs: &[StageSpec]) -> Result<Vec<NamedStage>> {
     specs
         .iter()
         .enumerate()
@@ -201,15 +232,12 @@ fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
     }
 }
 
-fn no_params(
-    value: &serde_json::Value,
-    name: &str,
-    stage: Box<dyn Stage>,
-) -> Result<Box<dyn Stage>> {
+/// A stage without parameters: `params` must be absent, `null` or `{}`.
+fn no_params(value: &serde_json::Value, stage: Box<dyn Stage>) -> Result<Box<dyn Stage>> {
     match value {
         serde_json::Value::Null => Ok(stage),
         serde_json::Value::Object(m) if m.is_empty() => Ok(stage),
-        _ => bail!("stage `{name}` takes no parameters"),
+        _ => bail!("this stage takes no parameters"),
     }
 }
 
@@ -219,13 +247,21 @@ mod tests {
 
     #[test]
     fn every_listed_stage_builds_and_reports_its_name() {
-        for name in STAGE_NAMES {
+        for name in stage_names() {
             let stage = build_stage(&StageSpec::named(name)).unwrap();
-            assert_eq!(stage.name(), *name);
+            assert_eq!(stage.name, name);
         }
-        for s in default_spec() {
-            assert!(STAGE_NAMES.contains(&s.stage.as_str()), "{}", s.stage);
-        }
+        let names: Vec<_> = stage_names().collect();
+        let default: Vec<_> = default_spec().into_iter().map(|s| s.stage).collect();
+        assert_eq!(default, names);
+        let mut unique = names.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(
+            unique.len(),
+            names.len(),
+            "a stage name is registered twice"
+        );
     }
 
     #[test]

@@ -70,10 +70,6 @@ impl VolumeStage {
 }
 
 impl Stage for VolumeStage {
-    fn name(&self) -> &'static str {
-        "volume"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let terrain = cx.state.terrain()?;

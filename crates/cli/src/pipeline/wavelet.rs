@@ -108,10 +108,6 @@ fn label(method: Method, window: usize) -> String {
 }
 
 impl Stage for WaveletStage {
-    fn name(&self) -> &'static str {
-        "wavelet"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let seed = cx.config.seed ^ 0x5741_5645_4c45_5400; // "WAVELET"
@@ -553,7 +549,7 @@ mod tests {
                 stage: "wavelet".into(),
                 params,
             };
-            let err = build_stage(&spec).err().expect("bad params must fail");
+            let err = build_stage(&spec).expect_err("bad params must fail");
             assert!(format!("{err:#}").contains(needle), "{needle}: {err:#}");
         }
     }

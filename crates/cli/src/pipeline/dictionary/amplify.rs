@@ -119,10 +119,6 @@ impl StageCx<'_> {
 }
 
 impl Stage for AmplifyStage {
-    fn name(&self) -> &'static str {
-        "amplify"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let terrain = cx.state.complete_terrain("amplify")?;

@@ -53,10 +53,6 @@ impl ProceduralStage {
 pub(crate) struct ProceduralStage(pub(crate) ProceduralParams);
 
 impl Stage for ProceduralStage {
-    fn name(&self) -> &'static str {
-        "procedural"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         // Fit the real DEM as loaded when it is complete (the comparison of atom families is

@@ -70,10 +70,6 @@ pub(crate) fn painted_sketch(n: usize) -> Heightfield {
 }
 
 impl Stage for SketchStage {
-    fn name(&self) -> &'static str {
-        "sketch"
-    }
-
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let steps = p.job.amplify.steps;
