@@ -44,7 +44,7 @@ struct Cli {
     compress: ctx::CompressArg,
     /// Heights LO,HI (metres) mapped to counts 0 and 65535 in 16-bit heightmaps (.png, .r16);
     /// default: the data range. The range used is printed and written to OUT.json beside them.
-    #[arg(long, global = true, value_name = "LO,HI", value_parser = ctx::parse_height_range, allow_hyphen_values = true)]
+    #[arg(long, global = true, value_name = "LO,HI", value_parser = crate::args::parse_height_range, allow_hyphen_values = true)]
     height_range: Option<(f64, f64)>,
     /// Write 16-bit heightmaps (.png, .r16) with one more row and column: the heights at the
     /// cell corners (the mean of the cells around each), over the same extent, so a 2^n x 2^n

@@ -1,10 +1,11 @@
 //! Flag groups and value parsers shared by the subcommands: [`ReadArgs`] (flattened into
 //! every command that reads a raster) and the parsers of structured flag values (cell sizes,
-//! crops, pairs, image sizes, noise families, analytic atoms), so one flag parses the same
-//! everywhere.
+//! crops, pairs, image and output sizes, height ranges, noise families, analytic atoms), so one
+//! flag parses the same everywhere.
 
 use anyhow::{Result, bail};
 use relief_dictionary_learning::{AnalyticAtoms, NoiseFamily};
+use relief_heightfield::Window;
 
 /// Input options shared by every subcommand that reads a raster (`#[command(flatten)]`).
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -62,63 +63,68 @@ impl ReadArgs {
     }
 }
 
+/// The numbers of a structured flag value: `s` split at any of `seps`, each part trimmed and
+/// parsed as `T`; `None` when a part does not parse. The count is the caller's to check.
+fn numbers<T: std::str::FromStr>(s: &str, seps: &[char]) -> Option<Vec<T>> {
+    s.split(seps).map(|t| t.trim().parse::<T>().ok()).collect()
+}
+
+/// `X` or `X,Y`: a cell size in metres, each in `1e-6..=1e7` (as relief-io accepts from files:
+/// `1e-320` or `1e308` are typos, and would overflow extents).
 pub(crate) fn parse_cell_size(s: &str) -> std::result::Result<(f64, f64), String> {
-    // 1 micrometre to 10 000 km, as relief-io accepts from files: `1e-320` or `1e308` are
-    // typos, and would overflow extents.
-    let parse = |t: &str| {
-        t.trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite() && (1e-6..=1e7).contains(v))
-            .ok_or_else(|| format!("`{t}` is not a cell size in metres between 1e-6 and 1e7"))
-    };
-    match s.split_once(',') {
-        Some((x, y)) => Ok((parse(x)?, parse(y)?)),
-        None => parse(s).map(|v| (v, v)),
+    let v = numbers::<f64>(s, &[','])
+        .filter(|v| v.iter().all(|x| x.is_finite() && (1e-6..=1e7).contains(x)));
+    match v.as_deref() {
+        Some(&[x]) => Ok((x, x)),
+        Some(&[x, y]) => Ok((x, y)),
+        _ => Err(format!(
+            "`{s}` is not a cell size in metres (X or X,Y, each between 1e-6 and 1e7)"
+        )),
     }
 }
 
-/// `X,Y,W,H` crop of `relief volume --crop` (W, H >= 3).
-pub(crate) fn parse_crop(s: &str) -> std::result::Result<(usize, usize, usize, usize), String> {
-    let v: Vec<usize> = s
-        .split(',')
-        .map(|t| t.trim().parse::<usize>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| format!("`{s}` is not X,Y,W,H (four non-negative integers)"))?;
-    match v[..] {
-        [x, y, w, h] if w >= 3 && h >= 3 => Ok((x, y, w, h)),
-        _ => Err(format!("`{s}` is not X,Y,W,H with W, H >= 3")),
+/// `X,Y,W,H` crop of `relief volume --crop` (the shared [`Window`] syntax, with W, H >= 3).
+pub(crate) fn parse_crop(s: &str) -> std::result::Result<Window, String> {
+    let w: Window = s.parse()?;
+    if w.width < 3 || w.height < 3 {
+        return Err(format!("`{s}` is not X,Y,W,H with W, H >= 3"));
     }
+    Ok(w)
 }
 
 /// `X,Y`: two finite numbers.
 pub(crate) fn parse_pair(s: &str) -> std::result::Result<(f32, f32), String> {
-    let (a, b) = s
-        .split_once(',')
-        .ok_or_else(|| format!("`{s}` is not X,Y"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<f32>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("`{s}` is not X,Y (two finite numbers)"))
-    };
-    Ok((p(a)?, p(b)?))
+    match numbers::<f32>(s, &[',']).as_deref() {
+        Some(&[x, y]) if x.is_finite() && y.is_finite() => Ok((x, y)),
+        _ => Err(format!("`{s}` is not X,Y (two finite numbers)")),
+    }
 }
 
 /// `WxH` image size, each side in 1..=8192.
 pub(crate) fn parse_image_size(s: &str) -> std::result::Result<(usize, usize), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not WxH"))?;
-    let p = |t: &str| {
-        t.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|v| (1..=8192).contains(v))
-            .ok_or_else(|| format!("`{s}`: each size must be in 1..=8192"))
-    };
-    Ok((p(w)?, p(h)?))
+    match numbers::<usize>(s, &['x', 'X']).as_deref() {
+        Some(&[w, h]) if (1..=8192).contains(&w) && (1..=8192).contains(&h) => Ok((w, h)),
+        _ => Err(format!("`{s}` is not WxH with each size in 1..=8192")),
+    }
+}
+
+/// `WxH` or `N` (square): an output size in cells, both positive.
+pub(crate) fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
+    match numbers::<usize>(s, &['x', 'X']).as_deref() {
+        Some(&[n]) if n > 0 => Ok((n, n)),
+        Some(&[w, h]) if w > 0 && h > 0 => Ok((w, h)),
+        _ => Err(format!("`{s}`: expected WxH (or N) with positive integers")),
+    }
+}
+
+/// `LO,HI`: a height range in metres, finite, LO < HI.
+pub(crate) fn parse_height_range(s: &str) -> std::result::Result<(f64, f64), String> {
+    match numbers::<f64>(s, &[',']).as_deref() {
+        Some(&[lo, hi]) if lo.is_finite() && hi.is_finite() && lo < hi => Ok((lo, hi)),
+        _ => Err(format!(
+            "`{s}`: expected two finite heights LO,HI in metres with LO < HI"
+        )),
+    }
 }
 
 /// The atom family a name denotes.
@@ -170,6 +176,34 @@ mod tests {
         assert!(parse_cell_size("x,1").is_err());
         for bad in ["1e-320", "1e308", "inf", "NaN", "-30", "30 m"] {
             assert!(parse_cell_size(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn number_lists() {
+        assert_eq!(parse_size("128x96"), Ok((128, 96)));
+        assert_eq!(parse_size("64"), Ok((64, 64)));
+        for bad in ["0x4", "axb", "1x2x3", ""] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_height_range("-10,2500"), Ok((-10.0, 2500.0)));
+        for bad in ["5,5", "x,5", "5", "1,nan", "1,2,3"] {
+            assert!(parse_height_range(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_pair("1, -0.5"), Ok((1.0, -0.5)));
+        for bad in ["1", "1,inf", "a,b", "1,2,3"] {
+            assert!(parse_pair(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_image_size("640x480"), Ok((640, 480)));
+        for bad in ["0x10", "9000x10", "640", "640x480x2"] {
+            assert!(parse_image_size(bad).is_err(), "{bad}");
+        }
+        assert_eq!(
+            parse_crop("1,2,30,40").map(|w| w.as_tuple()),
+            Ok((1, 2, 30, 40))
+        );
+        for bad in ["1,2,2,40", "1,2,30", "-1,2,30,40"] {
+            assert!(parse_crop(bad).is_err(), "{bad}");
         }
     }
 

@@ -75,21 +75,6 @@ impl RowStream<'_> {
     }
 }
 
-/// Parses `--height-range LO,HI` (metres, LO < HI).
-pub(crate) fn parse_height_range(s: &str) -> Result<(f64, f64), String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| t.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("`{s}`: expected LO,HI in metres"))?;
-    match v[..] {
-        [lo, hi] if lo.is_finite() && hi.is_finite() && lo < hi => Ok((lo, hi)),
-        _ => Err(format!(
-            "`{s}`: expected two finite heights LO,HI with LO < HI"
-        )),
-    }
-}
-
 /// The file beside a 16-bit heightmap that states its vertical mapping (`OUT.png.json`).
 pub(crate) fn heightmap_sidecar(path: &std::path::Path) -> std::path::PathBuf {
     let mut s = path.as_os_str().to_owned();
@@ -552,15 +537,6 @@ impl Drop for CliProgress {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn height_range_argument() {
-        assert_eq!(parse_height_range("-10,2500"), Ok((-10.0, 2500.0)));
-        assert!(parse_height_range("5,5").is_err());
-        assert!(parse_height_range("x,5").is_err());
-        assert!(parse_height_range("5").is_err());
-        assert!(parse_height_range("1,nan").is_err());
-    }
 
     #[test]
     fn one_line_error_names_root_cause() {

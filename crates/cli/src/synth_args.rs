@@ -86,8 +86,8 @@ pub(crate) struct SynthArgs {
     #[arg(long, value_name = "MAP")]
     pub(crate) categories: Option<PathBuf>,
     /// Output size `WxH` (or `N` for square); defaults to the guide's size.
-    #[arg(long, value_name = "WxH")]
-    pub(crate) size: Option<String>,
+    #[arg(long, value_name = "WxH", value_parser = crate::args::parse_size)]
+    pub(crate) size: Option<(usize, usize)>,
     /// Patch side in cells.
     #[arg(long = "patch-size", alias = "patch", default_value_t = Settings::default().patch_size)]
     pub(crate) patch: usize,
@@ -165,7 +165,7 @@ fn parse_guide_range(spec: &str) -> std::result::Result<GuideRange, String> {
     if spec.trim().eq_ignore_ascii_case("auto") {
         return Ok(GuideRange::Auto);
     }
-    let (lo, hi) = crate::ctx::parse_height_range(spec).map_err(|e| format!("{e} (or auto)"))?;
+    let (lo, hi) = crate::args::parse_height_range(spec).map_err(|e| format!("{e} (or auto)"))?;
     Ok(GuideRange::Metres(lo as f32, hi as f32))
 }
 
@@ -178,21 +178,6 @@ fn png_counts(path: &Path, g: &Heightfield) -> bool {
         && g.as_slice()
             .iter()
             .all(|&v| !v.is_finite() || (v.fract() == 0.0 && (0.0..=65535.0).contains(&v)))
-}
-
-/// Parses `WxH` or `N`.
-pub(crate) fn parse_size(s: &str) -> Result<(usize, usize)> {
-    let num = |t: &str| -> Result<usize> {
-        t.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|&v| v > 0)
-            .with_context(|| format!("invalid --size `{s}`: expected WxH with positive integers"))
-    };
-    match s.split_once(['x', 'X']) {
-        Some((w, h)) => Ok((num(w)?, num(h)?)),
-        None => num(s).map(|v| (v, v)),
-    }
 }
 
 impl SynthArgs {
@@ -270,7 +255,7 @@ impl SynthArgs {
                 exemplar_stride: self.stride,
                 ..Settings::default()
             },
-            size: self.size.as_deref().map(parse_size).transpose()?,
+            size: self.size,
             guide: GuideSetup {
                 cell_size: self.guide_cell_size,
                 blur: self.blur,
@@ -478,17 +463,4 @@ fn read_sketch(path: &Path, exemplars: &[Heightfield]) -> Result<Heightfield> {
     sketch
         .render(cell)
         .with_context(|| format!("sketch {}", path.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_size;
-
-    #[test]
-    fn size_argument() {
-        assert_eq!(parse_size("128x96").unwrap(), (128, 96));
-        assert_eq!(parse_size("64").unwrap(), (64, 64));
-        assert!(parse_size("0x4").is_err());
-        assert!(parse_size("axb").is_err());
-    }
 }

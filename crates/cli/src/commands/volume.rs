@@ -66,7 +66,7 @@ pub(crate) struct Args {
     pub(crate) geology: Option<PathBuf>,
     /// Crop `X,Y,W,H` (columns, rows) applied after reading.
     #[arg(long, value_parser = super::parse_crop)]
-    pub(crate) crop: Option<(usize, usize, usize, usize)>,
+    pub(crate) crop: Option<relief_heightfield::Window>,
     /// Meshing voxel edge in metres; feature sizes are checked against it (default: derived
     /// from the DEM's cell size, relief and extent).
     #[arg(long, conflicts_with = "resolution")]
@@ -180,7 +180,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let staged = files.stage()?;
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let mut hf = raster.heightfield;
-    if let Some((x, y, w, h)) = args.crop {
+    if let Some((x, y, w, h)) = args.crop.map(|w| w.as_tuple()) {
         hf = hf
             .crop(x, y, w, h)
             .with_context(|| format!("cannot crop {}", args.input.display()))?;
