@@ -209,6 +209,17 @@ pub(crate) fn fixture_crop(
     (write(dir, name, &hf), hf)
 }
 
+/// A fresh temporary folder with the crop `window` of the fixture written into it as `name`:
+/// the folder, that file and the crop.
+pub(crate) fn tmp_with_crop(
+    name: &str,
+    window: (usize, usize, usize, usize),
+) -> (tempfile::TempDir, PathBuf, Heightfield) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (path, hf) = fixture_crop(tmp.path(), name, window);
+    (tmp, path, hf)
+}
+
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
 }
