@@ -224,6 +224,12 @@ pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
 }
 
+/// A file of the real DEM set and a fresh temporary folder, or `None` when the set is absent
+/// (the test then returns early, see `relief_testdata::dem_dir`).
+pub(crate) fn dem_and_tmp(name: &str) -> Option<(PathBuf, tempfile::TempDir)> {
+    Some((dem(name)?, tempfile::tempdir().unwrap()))
+}
+
 /// A malformed flag value is a usage error: clap's message (naming the flag) on stderr, exit
 /// code 2, and `output` is not written.
 pub(crate) fn usage_error(args: &[&OsStr], flag: &str, output: &Path) {
