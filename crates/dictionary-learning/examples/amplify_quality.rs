@@ -14,13 +14,11 @@
 //! `--quick` skips the x256 run.
 #![allow(clippy::print_stdout)]
 
-use std::time::Instant;
-
 use relief_dictionary_learning::*;
 use relief_heightfield::fill::{FillSettings, fill_voids};
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
-use relief_testdata::dem_crop;
+use relief_testdata::{dem_crop, timed};
 
 fn row(name: &str, r: &BoxProtocolRow, (p8, rep): (f64, f64), secs: Option<f64>) {
     println!(
@@ -32,6 +30,29 @@ fn row(name: &str, r: &BoxProtocolRow, (p8, rep): (f64, f64), secs: Option<f64>)
         r.swing,
         secs.map_or("-".to_string(), |s| format!("{s:.1}"))
     );
+}
+
+/// The settings compared: the default, the paper's method, and the default without each of
+/// its detail normalisation and diverse atom choice (the x256 run leaves the last out).
+fn variants() -> [(&'static str, AmplifySettings); 4] {
+    [
+        ("default", AmplifySettings::default()),
+        ("--paper", AmplifySettings::paper()),
+        (
+            "default w/o detail norm.",
+            AmplifySettings {
+                normalize_detail: false,
+                ..AmplifySettings::default()
+            },
+        ),
+        (
+            "default, best atom only",
+            AmplifySettings {
+                diverse_atoms: false,
+                ..AmplifySettings::default()
+            },
+        ),
+    ]
 }
 
 fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize) {
@@ -73,31 +94,14 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
         "| method                   | consist % | dslope (signed) | slopeEMD | curvEMD | swing | swing8 | repeat | s |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for (name, base) in [
-        ("default", AmplifySettings::default()),
-        ("--paper", AmplifySettings::paper()),
-        (
-            "default w/o detail norm.",
-            AmplifySettings {
-                normalize_detail: false,
-                ..AmplifySettings::default()
-            },
-        ),
-        (
-            "default, best atom only",
-            AmplifySettings {
-                diverse_atoms: false,
-                ..AmplifySettings::default()
-            },
-        ),
-    ] {
+    for (name, base) in variants() {
         let st = AmplifySettings { steps, ..base };
-        let t = Instant::now();
-        let out = amplify(&input, exemplar, &st, &NoProgress)
-            .unwrap()
-            .rasterize(&RasterSettings::default())
-            .unwrap();
-        let secs = t.elapsed().as_secs_f64();
+        let (out, secs) = timed(|| {
+            amplify(&input, exemplar, &st, &NoProgress)
+                .unwrap()
+                .rasterize(&RasterSettings::default())
+                .unwrap()
+        });
         row(
             name,
             &box_protocol(truth, &input, &out, f).unwrap(),
@@ -141,42 +145,40 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
         steps: 4,
         ..*settings
     };
-    let t = Instant::now();
     let mut swings = Vec::new();
-    let sct = amplify_observed(&input, exemplar, &st, &NoProgress, &mut |r| {
-        let (w, h) = (r.input.width(), r.input.height());
-        let side = (4 * w).min(4 * h).min(2048);
-        let win = relief_sparse_core::Window {
-            x: 0,
-            y: 0,
-            width: side,
-            height: side,
-        };
-        let out = r
-            .output
-            .rasterize(&RasterSettings {
-                scale: 1.0,
-                window: Some(win),
-            })
-            .unwrap();
-        let bic = corner_bicubic(r.input, 4 * w, 4 * h)
-            .unwrap()
-            .crop(0, 0, side, side)
-            .unwrap();
-        swings.push((
-            r.step,
-            4 * w,
-            detail_swing(&out, &bic).unwrap(),
-            phase_swing(&out, &bic, 8).unwrap(),
-            r.exemplar.reduction,
-            r.exemplar.self_similar,
-        ));
-    })
-    .unwrap();
-    let model = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let out = sct.rasterize(&RasterSettings::default()).unwrap();
-    let raster = t.elapsed().as_secs_f64();
+    let (sct, model) = timed(|| {
+        amplify_observed(&input, exemplar, &st, &NoProgress, &mut |r| {
+            let (w, h) = (r.input.width(), r.input.height());
+            let side = (4 * w).min(4 * h).min(2048);
+            let win = relief_sparse_core::Window {
+                x: 0,
+                y: 0,
+                width: side,
+                height: side,
+            };
+            let out = r
+                .output
+                .rasterize(&RasterSettings {
+                    scale: 1.0,
+                    window: Some(win),
+                })
+                .unwrap();
+            let bic = corner_bicubic(r.input, 4 * w, 4 * h)
+                .unwrap()
+                .crop(0, 0, side, side)
+                .unwrap();
+            swings.push((
+                r.step,
+                4 * w,
+                detail_swing(&out, &bic).unwrap(),
+                phase_swing(&out, &bic, 8).unwrap(),
+                r.exemplar.reduction,
+                r.exemplar.self_similar,
+            ));
+        })
+        .unwrap()
+    });
+    let (out, raster) = timed(|| sct.rasterize(&RasterSettings::default()).unwrap());
     println!(
         "x256 {}^2 -> {}^2: model {model:.1} s, rasterise {raster:.1} s",
         input.width(),
@@ -215,17 +217,7 @@ fn main() {
     }
     if !quick {
         println!();
-        for (name, s) in [
-            ("default", AmplifySettings::default()),
-            ("--paper", AmplifySettings::paper()),
-            (
-                "residual correction without detail normalisation",
-                AmplifySettings {
-                    normalize_detail: false,
-                    ..AmplifySettings::default()
-                },
-            ),
-        ] {
+        for (name, s) in variants().into_iter().take(3) {
             println!("{name}:");
             x256_steps(&alps, &alps_ex, &s);
         }

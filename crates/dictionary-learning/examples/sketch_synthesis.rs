@@ -9,12 +9,10 @@
 //! and of a 1024 x 1024 centre crop into OUT_DIR (default `target/sketch_synthesis`).
 #![allow(clippy::print_stdout)]
 
-use std::time::Instant;
-
 use relief_dictionary_learning::*;
 use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
-use relief_testdata::{dem_crop, write_shade};
+use relief_testdata::{dem_crop, timed, write_shade};
 
 /// A painted sketch in `[0, 1]` of `w x h` cells.
 fn sketch(w: usize, h: usize) -> Heightfield {
@@ -51,12 +49,8 @@ fn main() {
         },
         ..lib
     };
-    let t = Instant::now();
-    let sct = synthesize(&sk, &exemplar, &settings, &NoProgress).unwrap();
-    let model = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let out = sct.rasterize(&RasterSettings::default()).unwrap();
-    let raster = t.elapsed().as_secs_f64();
+    let (sct, model) = timed(|| synthesize(&sk, &exemplar, &settings, &NoProgress).unwrap());
+    let (out, raster) = timed(|| sct.rasterize(&RasterSettings::default()).unwrap());
     println!(
         "sketch {}x{} -> {}x{}: model {model:.2} s, rasterise {raster:.2} s",
         sk.width(),

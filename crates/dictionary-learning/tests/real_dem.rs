@@ -12,6 +12,38 @@ fn alps(x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
     dem_crop("alps_dem", x, y, w, h)
 }
 
+/// A 256 x 256 alps crop at `(x, y)` as the ground truth, and the 512 x 400 alps exemplar the
+/// quality tests share.
+fn truth_and_exemplar(x: usize, y: usize) -> Option<(Heightfield, Heightfield)> {
+    Some((alps(x, y, 256, 256)?, alps(1400, 300, 512, 400)?))
+}
+
+/// The amplification of `coarse` with `ex`, rasterised at its own scale.
+fn amplified(coarse: &Heightfield, ex: &Heightfield, s: &AmplifySettings) -> Heightfield {
+    amplify(coarse, ex, s, &NoProgress)
+        .unwrap()
+        .rasterize(&RasterSettings::default())
+        .unwrap()
+}
+
+/// The raster of `sct` at its own scale in the window `x, y, width, height` alone.
+fn window_raster(
+    sct: &relief_sparse_core::Sct,
+    x: usize,
+    y: usize,
+    width: usize,
+    height: usize,
+) -> Heightfield {
+    let window = Some(relief_sparse_core::Window {
+        x,
+        y,
+        width,
+        height,
+    });
+    sct.rasterize(&RasterSettings { scale: 1.0, window })
+        .unwrap()
+}
+
 /// The `8 x 8` patches of `hf` at step 2.
 fn patches_8(hf: &Heightfield) -> relief_sparse_core::Patches {
     extract_patches(
@@ -101,8 +133,7 @@ fn quality_rows(truth: &Heightfield, exemplar: &Heightfield, label: &str) -> [Qu
         max_candidates: 2048,
         ..Default::default()
     };
-    let sct = amplify(&coarse, exemplar, &settings, &NoProgress).unwrap();
-    let out = sct.rasterize(&RasterSettings::default()).unwrap();
+    let out = amplified(&coarse, exemplar, &settings);
     let bicubic = coarse.resample(truth.width(), truth.height()).unwrap();
     let noise = noise_amplify(&coarse, &NoiseBaselineSettings::default()).unwrap();
     let rows = [
@@ -118,7 +149,7 @@ fn quality_rows(truth: &Heightfield, exemplar: &Heightfield, label: &str) -> [Qu
 
 #[test]
 fn amplification_quality_on_real_dems() {
-    let (Some(truth), Some(ex)) = (alps(100, 200, 256, 256), alps(1400, 300, 512, 400)) else {
+    let Some((truth, ex)) = truth_and_exemplar(100, 200) else {
         return;
     };
     let [sparse, bicubic, noise] = quality_rows(&truth, &ex, "alps");
@@ -157,18 +188,7 @@ fn amplified_sct_windows_match_full_raster() {
     let sct = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
     let full = sct.rasterize(&RasterSettings::default()).unwrap();
     assert_eq!((full.width(), full.height()), (64, 64));
-    let win = relief_sparse_core::Window {
-        x: 10,
-        y: 20,
-        width: 30,
-        height: 17,
-    };
-    let part = sct
-        .rasterize(&RasterSettings {
-            scale: 1.0,
-            window: Some(win),
-        })
-        .unwrap();
+    let part = window_raster(&sct, 10, 20, 30, 17);
     assert_eq!(part, full.crop(10, 20, 30, 17).unwrap());
     let big = sct
         .rasterize(&RasterSettings {
@@ -247,8 +267,7 @@ fn two_steps_and_sketch_synthesis() {
         radius: 3.0,
         ..Default::default()
     };
-    let sct = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
-    let out = sct.rasterize(&RasterSettings::default()).unwrap();
+    let out = amplified(&coarse, &ex, &s);
     assert_eq!((out.width(), out.height()), (256, 256));
     let back = out.resample(16, 16).unwrap();
     let rel = metrics::rmse(&back, &coarse).unwrap() / coarse.relief() as f64;
@@ -352,7 +371,7 @@ fn inverse_procedural_fits_every_family() {
 
 #[test]
 fn residual_correction_restores_consistency_on_alps() {
-    let (Some(truth), Some(ex)) = (alps(100, 200, 256, 256), alps(1400, 300, 512, 400)) else {
+    let Some((truth, ex)) = truth_and_exemplar(100, 200) else {
         return;
     };
     let coarse = truth.resample(64, 64).unwrap();
@@ -362,10 +381,7 @@ fn residual_correction_restores_consistency_on_alps() {
         residual_correction: true,
         ..Default::default()
     };
-    let out = amplify(&coarse, &ex, &settings, &NoProgress)
-        .unwrap()
-        .rasterize(&RasterSettings::default())
-        .unwrap();
+    let out = amplified(&coarse, &ex, &settings);
     let bicubic = coarse.resample(256, 256).unwrap();
     let r = evaluate(&truth, &coarse, &out).unwrap();
     let b = evaluate(&truth, &coarse, &bicubic).unwrap();
@@ -422,7 +438,7 @@ fn several_exemplars_at_once() {
 #[test]
 fn larger_radius_follows_the_input_less() {
     // Figure 11: as R grows, the input's influence decreases and the exemplar's increases.
-    let (Some(truth), Some(ex)) = (alps(300, 250, 256, 256), alps(1400, 300, 512, 400)) else {
+    let Some((truth, ex)) = truth_and_exemplar(300, 250) else {
         return;
     };
     let coarse = truth.resample(64, 64).unwrap();
@@ -434,12 +450,7 @@ fn larger_radius_follows_the_input_less() {
             // The paper's plain method: the residual correction keeps every radius consistent.
             ..AmplifySettings::paper()
         };
-        let out = amplify(&coarse, &ex, &s, &NoProgress).unwrap();
-        let back = out
-            .rasterize(&RasterSettings::default())
-            .unwrap()
-            .resample(64, 64)
-            .unwrap();
+        let back = amplified(&coarse, &ex, &s).resample(64, 64).unwrap();
         metrics::rmse(&back, &coarse).unwrap()
     };
     let (small, large) = (dev(2.0), dev(6.0));
@@ -484,10 +495,7 @@ fn results_do_not_depend_on_thread_count() {
                 dictionary: DictionaryChoice::learned(32, 1),
                 ..Default::default()
             };
-            let a = amplify(&coarse, &ex, &s, &NoProgress)
-                .unwrap()
-                .rasterize(&RasterSettings::default())
-                .unwrap();
+            let a = amplified(&coarse, &ex, &s);
             (k.atoms, c.sources, a)
         })
     };
@@ -512,10 +520,7 @@ fn synthesis_noise_and_procedural_do_not_depend_on_thread_count() {
                 seed: 9,
                 ..Default::default()
             };
-            let a = amplify(&coarse, &ex, &s, &NoProgress)
-                .unwrap()
-                .rasterize(&RasterSettings::default())
-                .unwrap();
+            let a = amplified(&coarse, &ex, &s);
             let sketch = hf.resample(6, 6).unwrap();
             let syn = synthesize(
                 &sketch,
@@ -578,12 +583,7 @@ type X4Rows = (
 fn x4_rows() -> Option<X4Rows> {
     let (truth, ex) = (alps(100, 200, 256, 256)?, alps(1300, 100, 640, 512)?);
     let input = truth.downsample_box(4).unwrap();
-    let run = |s: AmplifySettings| {
-        amplify(&input, &ex, &s, &NoProgress)
-            .unwrap()
-            .rasterize(&RasterSettings::default())
-            .unwrap()
-    };
+    let run = |s: AmplifySettings| amplified(&input, &ex, &s);
     let small = |s: AmplifySettings| AmplifySettings {
         dictionary: DictionaryChoice::learned(128, 2),
         max_candidates: 2048,
@@ -678,19 +678,8 @@ fn default_amplification_window_equals_full_raster_bit_for_bit() {
     };
     let sct = amplify(&hf, &ex, &s, &NoProgress).unwrap();
     let full = sct.rasterize(&RasterSettings::default()).unwrap();
-    let win = relief_sparse_core::Window {
-        x: 101,
-        y: 37,
-        width: 333,
-        height: 77,
-    };
-    let part = sct
-        .rasterize(&RasterSettings {
-            scale: 1.0,
-            window: Some(win),
-        })
-        .unwrap();
-    let crop = full.crop(win.x, win.y, win.width, win.height).unwrap();
+    let part = window_raster(&sct, 101, 37, 333, 77);
+    let crop = full.crop(101, 37, 333, 77).unwrap();
     assert!(
         part.as_slice()
             .iter()
@@ -759,10 +748,7 @@ fn each_step_uses_the_exemplar_at_its_target_cell_size() {
     };
     // Added detail: the output's detail finer than 4 of its cells.
     let added = |settings: &AmplifySettings| {
-        let out = amplify(&coarse, &ex, settings, &NoProgress)
-            .unwrap()
-            .rasterize(&RasterSettings::default())
-            .unwrap();
+        let out = amplified(&coarse, &ex, settings);
         relief_testdata::detail_rms(&out, 4)
     };
     let at_scale = added(&one);
@@ -809,10 +795,7 @@ fn default_detail_is_not_repeated_on_the_grid() {
             diverse_atoms,
             ..AmplifySettings::default()
         };
-        let out = amplify(&input, &ex, &s, &NoProgress)
-            .unwrap()
-            .rasterize(&RasterSettings::default())
-            .unwrap();
+        let out = amplified(&input, &ex, &s);
         let bic = corner_bicubic(&input, out.width(), out.height()).unwrap();
         repeat_score(&out, &bic, 4 * s.grid_step() as usize).unwrap()
     };

@@ -2,7 +2,6 @@
 //! `cargo run --release -p relief-implicit-volume --example render_prof`
 #![allow(clippy::print_stdout)]
 use relief_implicit_volume::*;
-use std::time::Instant;
 fn main() {
     let hf = relief_testdata::dem_crop("grandcanyon", 200, 160, 48, 48).expect("DEM set");
     let recipe = Recipe {
@@ -11,19 +10,15 @@ fn main() {
         ..Default::default()
     };
     let (scene, _) = build_recipe(&hf, &recipe).unwrap();
+    let camera = Camera::overview(&scene.bbox());
     for shadows in [false, true] {
-        let t = Instant::now();
-        let _ = render(
-            &scene,
-            &Camera::overview(&scene.bbox()),
-            &RenderSettings {
-                width: 160,
-                height: 120,
-                shadows,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        println!("shadows {shadows}: {:.3} s", t.elapsed().as_secs_f64());
+        let settings = RenderSettings {
+            width: 160,
+            height: 120,
+            shadows,
+            ..Default::default()
+        };
+        let (_, secs) = relief_testdata::timed(|| render(&scene, &camera, &settings).unwrap());
+        println!("shadows {shadows}: {secs:.3} s");
     }
 }

@@ -245,6 +245,17 @@ fn mesh_of(scene: &Scene, cells: [usize; 3]) -> (Mesh, MeshReport) {
     polygonize(scene, &settings).unwrap()
 }
 
+/// The overview render of `scene`, `width x height` pixels, with a sea at `sea_level`.
+fn overview(scene: &Scene, width: usize, height: usize, sea_level: Option<f32>) -> Image {
+    let settings = RenderSettings {
+        width,
+        height,
+        sea_level,
+        ..Default::default()
+    };
+    render(scene, &Camera::overview(&scene.bbox()), &settings).unwrap()
+}
+
 fn full_scene(hf: &Heightfield) -> Scene {
     let all = Region::everywhere();
     let mut b =
@@ -284,18 +295,7 @@ fn all_effects_are_deterministic_across_thread_counts_and_mesh_watertight() {
         relief_testdata::with_threads(threads, || {
             let scene = full_scene(&hf);
             let (mesh, _) = mesh_of(&scene, [64, 64, 48]);
-            let cam = Camera::overview(&scene.bbox());
-            let img = render(
-                &scene,
-                &cam,
-                &RenderSettings {
-                    width: 64,
-                    height: 48,
-                    sea_level: Some(0.0),
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let img = overview(&scene, 64, 48, Some(0.0));
             (scene.stats(), mesh, img)
         })
     };
@@ -420,17 +420,7 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
         relief_testdata::with_threads(threads, || {
             let (scene, rep) = build_recipe(&hf, &recipe).unwrap();
             let (mesh, _) = mesh_of(&scene, [48, 48, 24]);
-            let img = render(
-                &scene,
-                &Camera::overview(&scene.bbox()),
-                &RenderSettings {
-                    width: 48,
-                    height: 36,
-                    sea_level: rep.sea_level,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let img = overview(&scene, 48, 36, rep.sea_level);
             let (start, end) = rep.section_line;
             let (sec, st) = section(
                 &scene,

@@ -11,6 +11,20 @@ fn mesh_of(tree: TerrainTree, root: NodeId, cells: usize) -> Mesh {
     polygonize(&scene, &s).unwrap().0
 }
 
+/// A ring of `n` blended spheres (blend 1): the one at angle `a` has the centre and radius
+/// `sphere(a)`.
+fn blended_ring(n: usize, sphere: impl Fn(f32) -> ([f32; 3], f32)) -> (TerrainTree, NodeId) {
+    let mut t = TerrainTree::new();
+    let ids: Vec<NodeId> = (0..n)
+        .map(|k| {
+            let (c, r) = sphere(k as f32 / n as f32 * std::f32::consts::TAU);
+            t.sphere(c, r, 1.0).unwrap()
+        })
+        .collect();
+    let root = t.bvh_blend(&ids).unwrap();
+    (t, root)
+}
+
 #[test]
 fn sphere_is_a_closed_genus_0_surface() {
     let mut t = TerrainTree::new();
@@ -33,15 +47,7 @@ fn sphere_is_a_closed_genus_0_surface() {
 
 #[test]
 fn torus_of_blended_spheres_has_euler_0_and_chunks_weld() {
-    let mut t = TerrainTree::new();
-    let ids: Vec<NodeId> = (0..32)
-        .map(|k| {
-            let a = k as f32 / 32.0 * std::f32::consts::TAU;
-            t.sphere([20.0 * a.cos(), 20.0 * a.sin(), 0.0], 8.0, 1.0)
-                .unwrap()
-        })
-        .collect();
-    let root = t.bvh_blend(&ids).unwrap();
+    let (t, root) = blended_ring(32, |a| ([20.0 * a.cos(), 20.0 * a.sin(), 0.0], 8.0));
     let m = mesh_of(t, root, 48);
     let topo = topology(&m);
     assert_eq!(topo.bad_edges, 0, "{topo:?}");
@@ -133,16 +139,10 @@ fn iso_values_on_grid_nodes_keep_the_orientation_consistent() {
 /// the mesh of marching tetrahedra on the dense grid, and the same on 1 and 2 threads.
 #[test]
 fn culled_chunked_mesh_equals_the_dense_grid_mesh() {
-    let mut t = TerrainTree::new();
-    let ids: Vec<NodeId> = (0..40)
-        .map(|k| {
-            let a = k as f32 / 40.0 * std::f32::consts::TAU;
-            let r = 4.0 + 3.0 * (3.0 * a).sin().abs();
-            t.sphere([20.0 * a.cos(), 20.0 * a.sin(), 2.0 * a.cos()], r, 1.0)
-                .unwrap()
-        })
-        .collect();
-    let root = t.bvh_blend(&ids).unwrap();
+    let (t, root) = blended_ring(40, |a| {
+        let r = 4.0 + 3.0 * (3.0 * a).sin().abs();
+        ([20.0 * a.cos(), 20.0 * a.sin(), 2.0 * a.cos()], r)
+    });
     let scene = Scene::new(t, root, Geology::new(), None).unwrap();
     let b = Aabb::new([-32.0, -32.0, -12.0], [32.0, 32.0, 12.0]);
     let cells = [70, 66, 30];

@@ -1,7 +1,8 @@
 //! Control structures and unguided synthesis on real DEM crops: guides from a DEM and from a
 //! sketch, exemplar categories by clustering (per exemplar and per region of one exemplar), the
 //! categorisation map from guide heights, the compatibility check and greedy exemplar
-//! selection (reported, and applied by `auto_subset`).
+//! selection (reported, and applied by `auto_subset`), and the public patch search (PCA +
+//! kd-tree, section 3.5).
 
 use relief_heightfield::metrics::{rmse, stats};
 use relief_heightfield::{Heightfield, NoProgress};
@@ -11,21 +12,44 @@ use relief_patch_synth::guide::{
 };
 use relief_patch_synth::quality::seam_visibility;
 use relief_patch_synth::{
-    CategoryMap, Control, Exemplar, ExemplarIndex, GuideSetup, JobInputs, QuiltJob, Settings,
-    ValidateJob, categorize_exemplars, categorize_regions, synthesize, validate,
+    CategoryMap, Control, Exemplar, ExemplarIndex, GuideSetup, JobInputs, OverlapShape,
+    PatchSynthError, QuiltJob, Settings, ValidateJob, categorize_exemplars, categorize_regions,
+    synthesize, validate,
 };
-use relief_testdata::dem_crop;
+use relief_testdata::{Crop, dem_crop, dem_crops, dem_windows};
 
-fn small() -> Settings {
+/// The low, flat coast of N57E011 (it matches no alpine guide).
+const COAST: Crop<'static> = ("N57E011", 900, 100, 160, 160);
+/// An alpine exemplar, and the source of an alpine guide from another part of the alps.
+const ALPS: Crop<'static> = ("alps_dem", 450, 250, 256, 256);
+const ALPS_GUIDE: Crop<'static> = ("alps_dem", 2150, 300, 128, 128);
+/// Jacksboro fault's 74.57 x 92.48 m cells (a guide for 61.70 m Grand Canyon exemplars).
+const JACKSBORO: Crop<'static> = ("jacksboro_fault", 100, 80, 100, 80);
+
+/// 32-cell patches, 8-cell overlaps, 8 clusters, PCA on 1500 samples (the patch search).
+fn search_settings() -> Settings {
     Settings {
         patch_size: 32,
         overlap: 8,
         kmeans_clusters: 8,
         pca_samples: 1500,
-        exemplar_stride: 2,
-        min_candidates: 150,
         ..Default::default()
     }
+}
+
+/// The search settings at every second patch position, with 150 candidates (synthesis).
+fn small() -> Settings {
+    Settings {
+        exemplar_stride: 2,
+        min_candidates: 150,
+        ..search_settings()
+    }
+}
+
+/// The index of `exemplars`, all in category 0.
+fn index_of(exemplars: impl IntoIterator<Item = Heightfield>, s: &Settings) -> ExemplarIndex {
+    let exemplars = exemplars.into_iter().map(|e| Exemplar::new(e, 0)).collect();
+    ExemplarIndex::build(exemplars, s, &NoProgress).unwrap()
 }
 
 #[test]
@@ -128,8 +152,8 @@ fn sketch_guide_interpolates_seeds_and_strokes() {
 
 #[test]
 fn exemplar_categories_by_clustering_separate_low_and_high_terrain() {
-    let Some([coast, canyon, alps]) = relief_testdata::dem_crops([
-        ("N57E011", 900, 100, 160, 160),
+    let Some([coast, canyon, alps]) = dem_crops([
+        COAST,
         ("grandcanyon", 0, 0, 160, 160),
         ("alps_dem", 1200, 250, 160, 160),
     ]) else {
@@ -161,19 +185,12 @@ fn category_map_from_guide_heights_is_ordered() {
 
 #[test]
 fn unguided_synthesis_with_compatibility_check_and_exemplar_cover() {
-    let Some([a, b]) = relief_testdata::dem_crops([
-        ("jacksboro_fault", 0, 0, 192, 192),
-        ("jacksboro_fault", 200, 140, 192, 192),
-    ]) else {
+    let Some([a, b]) = dem_windows("jacksboro_fault", [(0, 0, 192, 192), (200, 140, 192, 192)])
+    else {
         return;
     };
     let s = small();
-    let index = ExemplarIndex::build(
-        vec![Exemplar::new(a, 0), Exemplar::new(b, 0)],
-        &s,
-        &NoProgress,
-    )
-    .unwrap();
+    let index = index_of([a, b], &s);
     let control = Control::unguided(128, 96);
     let report = validate(&index, &control, &s).unwrap();
     assert_eq!(report.compatibility.len(), 2);
@@ -193,11 +210,7 @@ fn unguided_synthesis_with_compatibility_check_and_exemplar_cover() {
 
 #[test]
 fn greedy_cover_picks_the_exemplar_that_matches_the_guide() {
-    let Some([coast, alps, src]) = relief_testdata::dem_crops([
-        ("N57E011", 900, 100, 160, 160),
-        ("alps_dem", 450, 250, 256, 256),
-        ("alps_dem", 2150, 300, 128, 128),
-    ]) else {
+    let Some([coast, alps, src]) = dem_crops([COAST, ALPS, ALPS_GUIDE]) else {
         return;
     };
     let g = lowpass_resample(&src, 8).unwrap();
@@ -205,12 +218,7 @@ fn greedy_cover_picks_the_exemplar_that_matches_the_guide() {
         lambda: 60.0,
         ..small()
     };
-    let index = ExemplarIndex::build(
-        vec![Exemplar::new(coast, 0), Exemplar::new(alps, 0)],
-        &s,
-        &NoProgress,
-    )
-    .unwrap();
+    let index = index_of([coast, alps], &s);
     let report = validate(&index, &Control::guided(g), &s).unwrap();
     assert_eq!(
         report.cover.first(),
@@ -241,10 +249,8 @@ impl relief_heightfield::Progress for Counting {
 
 #[test]
 fn quilt_reports_progress_for_every_phase() {
-    let Some([a, src]) = relief_testdata::dem_crops([
-        ("grandcanyon", 100, 100, 160, 160),
-        ("grandcanyon", 300, 300, 80, 80),
-    ]) else {
+    let Some([a, src]) = dem_windows("grandcanyon", [(100, 100, 160, 160), (300, 300, 80, 80)])
+    else {
         return;
     };
     let g = gaussian_blur(&src, 4.0).unwrap();
@@ -274,10 +280,7 @@ fn quilt_reports_progress_for_every_phase() {
 /// the exemplars' (`LO,HI` exactly; `auto` checked by the validation).
 #[test]
 fn guide_keeps_its_scale_and_is_mapped_onto_the_exemplar_heights() {
-    let Some([src, ex]) = relief_testdata::dem_crops([
-        ("jacksboro_fault", 100, 80, 100, 80),
-        ("grandcanyon", 150, 150, 160, 160),
-    ]) else {
+    let Some([src, ex]) = dem_crops([JACKSBORO, ("grandcanyon", 150, 150, 160, 160)]) else {
         return;
     };
     // 74.57 x 92.48 m cells onto 61.70 m: the same ground in more cells.
@@ -312,7 +315,7 @@ fn guide_keeps_its_scale_and_is_mapped_onto_the_exemplar_heights() {
     assert!(fit_to_size(&g, 0, 4).is_err());
 
     let s = small();
-    let index = ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &s, &NoProgress).unwrap();
+    let index = index_of([ex.clone()], &s);
     let (guide, _) = fit_to_size(&gaussian_blur(&g, 4.0).unwrap(), 96, 96).unwrap();
     // LO,HI: the extremes of the patch-window means land on LO and HI.
     let (m, map) = map_range(&guide, &index, GuideRange::Metres(1000.0, 1500.0)).unwrap();
@@ -416,10 +419,7 @@ fn region_categories_split_one_exemplar_and_the_map_is_obeyed() {
 /// drops a redundant exemplar once the validation passes, and the subset still validates.
 #[test]
 fn jobs_take_region_categories_painted_regions_and_apply_the_exemplar_subset() {
-    let Some([a, b]) = relief_testdata::dem_crops([
-        ("grandcanyon", 0, 0, 160, 160),
-        ("grandcanyon", 300, 300, 160, 160),
-    ]) else {
+    let Some([a, b]) = dem_windows("grandcanyon", [(0, 0, 160, 160), (300, 300, 160, 160)]) else {
         return;
     };
     let s = Settings {
@@ -509,6 +509,109 @@ fn jobs_take_region_categories_painted_regions_and_apply_the_exemplar_subset() {
     let out = v.run(three, &NoProgress).unwrap();
     assert!(out.report.ok, "{}", out.report);
     assert_eq!(out.figures.exemplar_subset, Some(vec![1]));
-    let one = ExemplarIndex::build(vec![Exemplar::new(a, 0)], &small(), &NoProgress).unwrap();
+    let one = index_of([a], &small());
     assert_eq!(out.figures.candidate_patches, one.patches().len());
+}
+
+// The public patch search (PCA + kd-tree, section 3.5).
+
+#[test]
+fn nearest_overlaps_finds_the_patch_itself_and_ranks_by_overlap() {
+    let Some(ex) = dem_crop("grandcanyon", 100, 120, 160, 160) else {
+        return;
+    };
+    let s = search_settings();
+    let index = index_of([ex.clone()], &s);
+    let p = s.patch_size;
+    for (x, y) in [(0usize, 0usize), (57, 91), (128, 13)] {
+        let region: Vec<f32> = (0..p)
+            .flat_map(|r| (0..p).map(move |c| (r, c)))
+            .map(|(r, c)| ex.get(x + c, y + r))
+            .collect();
+        let id = index
+            .patches()
+            .iter()
+            .position(|q| (q.x as usize, q.y as usize) == (x, y))
+            .unwrap();
+        for shape in [OverlapShape::Left, OverlapShape::Top, OverlapShape::Both] {
+            let near = index.nearest_overlaps(shape, &region, 24, 10).unwrap();
+            assert_eq!(near.len(), 24);
+            assert!(near.windows(2).all(|w| w[0].0 <= w[1].0));
+            // The patch itself has overlap error 0 (vertical offsets do not matter: the
+            // error is mean-removed).
+            assert!(near[0].0 < 1e-3, "{shape:?} {:?}", &near[..3]);
+            assert!(
+                near.iter().any(|&(_, i)| i == id),
+                "{shape:?} at ({x}, {y})"
+            );
+            let shifted: Vec<f32> = region.iter().map(|v| v + 250.0).collect();
+            let near2 = index.nearest_overlaps(shape, &shifted, 24, 10).unwrap();
+            assert!(near2.iter().any(|&(_, i)| i == id));
+            // Far patches of the exemplar rank behind the true neighbours: the 24th error is
+            // small compared with the errors of all patches (every patch fetched: exact).
+            let all = index
+                .nearest_overlaps(shape, &region, index.patches().len(), 1)
+                .unwrap();
+            assert_eq!(all.len(), index.patches().len());
+            let median = all[all.len() / 2].0;
+            assert!(near[23].0 < median, "{} vs median {median}", near[23].0);
+        }
+    }
+    let e = index
+        .nearest_overlaps(OverlapShape::Left, &[0.0; 10], 4, 10)
+        .unwrap_err();
+    assert!(
+        matches!(e, PatchSynthError::InvalidControl { name: "region", .. }),
+        "{e}"
+    );
+    let e = index
+        .nearest_overlaps(OverlapShape::Left, &vec![0.0; p * p], 0, 10)
+        .unwrap_err();
+    assert!(e.to_string().contains("`knn` = 0"), "{e}");
+    let mut bad = vec![1.0; p * p];
+    bad[p + 1] = f32::NAN;
+    assert!(
+        index
+            .nearest_overlaps(OverlapShape::Left, &bad, 4, 10)
+            .is_err()
+    );
+}
+
+/// Re-ranking the kd-tree's neighbours by the exact overlap error (issue 17): the 24 returned
+/// hold most of the exhaustive best 24 for an overlap from another DEM, and more of them than
+/// the kd-tree's own 24 (`rerank = 1`).
+#[test]
+fn reranked_search_recovers_the_exhaustive_best() {
+    let Some([ex, other]) = dem_crops([
+        ("grandcanyon", 100, 120, 200, 200),
+        ("alps_dem", 900, 200, 200, 200),
+    ]) else {
+        return;
+    };
+    let s = search_settings();
+    let index = index_of([ex], &s);
+    let p = s.patch_size;
+    let n = index.patches().len();
+    let (mut hit1, mut hit10) = (0usize, 0usize);
+    for (x, y) in [(10usize, 20usize), (70, 130), (150, 40), (120, 150)] {
+        let region: Vec<f32> = (0..p)
+            .flat_map(|r| (0..p).map(move |c| (r, c)))
+            .map(|(r, c)| 0.5 * other.get(x + c, y + r))
+            .collect();
+        let exact: Vec<usize> = index
+            .nearest_overlaps(OverlapShape::Both, &region, n, 1)
+            .unwrap()
+            .into_iter()
+            .take(24)
+            .map(|v| v.1)
+            .collect();
+        for (rerank, hits) in [(1, &mut hit1), (10, &mut hit10)] {
+            let got = index
+                .nearest_overlaps(OverlapShape::Both, &region, 24, rerank)
+                .unwrap();
+            *hits += got.iter().filter(|v| exact.contains(&v.1)).count();
+        }
+    }
+    assert!(hit10 * 10 >= 9 * 4 * 24, "recall {hit10} of 96");
+    assert!(hit10 > hit1, "rerank 10: {hit10}, rerank 1: {hit1}");
 }

@@ -16,13 +16,15 @@ fn assert_non_finite<C: std::fmt::Debug>(res: Result<C, SparseError>, what: &str
     );
 }
 
+/// A `rows x cols` matrix of independent standard normal samples.
+fn gaussian_matrix(rows: usize, cols: usize, seed: u64) -> Array2<f64> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    Array2::from_shape_fn((rows, cols), |_| StandardNormal.sample(&mut rng))
+}
+
 /// Random unit-norm Gaussian dictionary (well conditioned: low mutual coherence).
 fn gaussian_dict(n_atoms: usize, dim: usize, seed: u64) -> Array2<f64> {
-    let mut rng = Pcg64::seed_from_u64(seed);
-    let mut d = Array2::from_shape_fn((n_atoms, dim), |_| {
-        let v: f64 = StandardNormal.sample(&mut rng);
-        v
-    });
+    let mut d = gaussian_matrix(n_atoms, dim, seed);
     for mut row in d.outer_iter_mut() {
         let n = row.dot(&row).sqrt();
         row.mapv_inplace(|v| v / n);
@@ -184,11 +186,7 @@ macro_rules! solver_suite {
             #[test]
             fn residual_non_increasing_in_sparsity() {
                 let d = conv(&gaussian_dict(64, 32, 11));
-                let mut rng = Pcg64::seed_from_u64(12);
-                let x = Array2::from_shape_fn((40, 32), |_| {
-                    let v: f64 = StandardNormal.sample(&mut rng);
-                    <T as OmpFloat>::from_f64(v)
-                });
+                let x = conv(&gaussian_matrix(40, 32, 12));
                 let mut prev = vec![f64::INFINITY; 40];
                 for s in 1..=12 {
                     let c = $solver(
@@ -218,11 +216,7 @@ macro_rules! solver_suite {
             #[test]
             fn stops_on_tolerance() {
                 let d = conv(&gaussian_dict(64, 32, 21));
-                let mut rng = Pcg64::seed_from_u64(22);
-                let x = Array2::from_shape_fn((30, 32), |_| {
-                    let v: f64 = StandardNormal.sample(&mut rng);
-                    <T as OmpFloat>::from_f64(v)
-                });
+                let x = conv(&gaussian_matrix(30, 32, 22));
                 let tol = 8.0;
                 let st = OmpSettings {
                     sparsity: 32,

@@ -18,6 +18,15 @@ fn crop(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield>
 }
 
 /// Encoding settings of sparsity `s`, the rest default.
+/// The whole raster of `sct` at `scale`.
+fn raster(sct: &Sct, scale: f64) -> Heightfield {
+    sct.rasterize(&RasterSettings {
+        scale,
+        window: None,
+    })
+    .unwrap()
+}
+
 fn sparsity(s: usize) -> EncodeSettings {
     EncodeSettings {
         sparsity: s,
@@ -112,12 +121,7 @@ fn alps_sct(s: usize) -> Option<(Heightfield, Sct)> {
 fn window_alone_equals_full_raster_bit_for_bit() {
     let Some((_, sct)) = alps_sct(4) else { return };
     for scale in [1.0, 2.5, 0.5, 3.0] {
-        let full = sct
-            .rasterize(&RasterSettings {
-                scale,
-                window: None,
-            })
-            .unwrap();
+        let full = raster(&sct, scale);
         let (w, h) = sct.raster_size(scale).unwrap();
         assert_eq!((full.width(), full.height()), (w, h));
         assert!(!full.has_voids(), "the weights cover the whole domain");
@@ -155,27 +159,14 @@ fn window_alone_equals_full_raster_bit_for_bit() {
         }
     }
     // Independent of the number of threads.
-    let run = |t| {
-        relief_testdata::with_threads(t, || {
-            sct.rasterize(&RasterSettings {
-                scale: 1.7,
-                window: None,
-            })
-            .unwrap()
-        })
-    };
+    let run = |t| relief_testdata::with_threads(t, || raster(&sct, 1.7));
     assert_eq!(run(1).as_slice(), run(2).as_slice());
 }
 
 #[test]
 fn upscaled_raster_is_continuous_and_consistent() {
     let Some((hf, sct)) = alps_sct(8) else { return };
-    let big = sct
-        .rasterize(&RasterSettings {
-            scale: 4.0,
-            window: None,
-        })
-        .unwrap();
+    let big = raster(&sct, 4.0);
     // Pixel-is-area: the x4 raster covers the same extent with 4 x 4 cells per input cell.
     let one = sct.rasterize(&RasterSettings::default()).unwrap();
     assert_eq!(
@@ -432,31 +423,20 @@ fn mixed_dictionary_and_format_round_trip() {
     let bytes = t.to_bytes().unwrap();
     let back = Sct::from_bytes(&bytes, &registry()).unwrap();
     assert_eq!(back.to_bytes().unwrap(), bytes);
-    let a = t
-        .rasterize(&RasterSettings {
-            scale: 1.5,
-            window: None,
-        })
-        .unwrap();
-    let b = back
-        .rasterize(&RasterSettings {
-            scale: 1.5,
-            window: None,
-        })
-        .unwrap();
+    let a = raster(&t, 1.5);
+    let b = raster(&back, 1.5);
     assert_eq!(a.as_slice(), b.as_slice());
     // Without the registry the function atoms cannot be rebuilt.
     assert!(matches!(
         Sct::from_bytes(&bytes, &FunctionAtomRegistry::new()),
         Err(SparseError::Format { .. })
     ));
-    // Every truncation is an error, never a panic.
-    for n in (0..bytes.len()).step_by(7).chain([bytes.len() - 1]) {
-        assert!(
-            Sct::from_bytes(&bytes[..n], &registry()).is_err(),
-            "prefix {n}"
-        );
-    }
+    // Every truncation is an error, never a panic, and every single-byte change is caught by
+    // the checksum (format version 3), never decoded into a model with other values.
+    let prefixes = (0..bytes.len()).step_by(7).chain([bytes.len() - 1]);
+    relief_testdata::assert_truncations_and_flips_refused(&bytes, prefixes, 0x5a, |b| {
+        Sct::from_bytes(b, &registry())
+    });
     // Trailing garbage, bad magic, bad version.
     let mut long = bytes.clone();
     long.push(0);
@@ -467,16 +447,6 @@ fn mixed_dictionary_and_format_round_trip() {
     let mut bad = bytes.clone();
     bad[8] = 9;
     assert!(Sct::from_bytes(&bad, &registry()).is_err());
-    // Every single-byte change is caught by the checksum (format version 3), never decoded
-    // into a model with other values.
-    for i in 0..bytes.len() {
-        let mut c = bytes.clone();
-        c[i] ^= 0x5a;
-        assert!(
-            Sct::from_bytes(&c, &registry()).is_err(),
-            "byte {i} flipped"
-        );
-    }
     // Random byte flips never panic.
     let mut rng = Pcg64::seed_from_u64(77);
     for _ in 0..300 {
@@ -729,12 +699,7 @@ fn georeference_round_trips_and_reaches_rasters() {
     let t = r.georef().unwrap().geotransform.unwrap();
     assert_eq!(t, [500_060.0, 30.0, 0.0, 3_999_910.0, 0.0, -30.0]);
     // Scale 2 (pixel-is-area): cells of 15 m tiling the same extent from the same corner.
-    let r2 = back
-        .rasterize(&RasterSettings {
-            scale: 2.0,
-            window: None,
-        })
-        .unwrap();
+    let r2 = raster(&back, 2.0);
     let t2 = r2.georef().unwrap().geotransform.unwrap();
     assert_eq!(t2, [500_000.0, 15.0, 0.0, 4_000_000.0, 0.0, -15.0]);
     assert_eq!(

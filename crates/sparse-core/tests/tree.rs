@@ -17,6 +17,27 @@ fn crop_and_layer() -> Option<(Heightfield, Node)> {
     Some((hf, base))
 }
 
+/// The model of `tree` over the grid of the crop `hf`.
+fn on_crop(hf: &Heightfield, tree: Node) -> Sct {
+    Sct::new(tree, hf.width(), hf.height(), hf.cell_size()).unwrap()
+}
+
+/// `base` carved by `carve`, replaced by the constant `overlay` inside `region`.
+fn carved_and_replaced(
+    base: &Node,
+    carve: River,
+    overlay: f64,
+    region: Region,
+    falloff: f64,
+) -> Node {
+    Node::Replace {
+        base: Box::new(Node::Add(vec![base.clone(), Node::River(carve)])),
+        overlay: Box::new(Node::Constant(overlay)),
+        region,
+        falloff,
+    }
+}
+
 /// The river of [`river_path`] carving 3 m deep and 15 m wide all along.
 fn plain_carve() -> River {
     let n = river_path().len();
@@ -41,14 +62,18 @@ fn layer(hf: &Heightfield) -> Node {
     sct.root().clone()
 }
 
+/// The whole raster of `t` at `scale`.
+fn raster(t: &Sct, scale: f64) -> Heightfield {
+    t.rasterize(&RasterSettings {
+        scale,
+        window: None,
+    })
+    .unwrap()
+}
+
 /// Asserts raster == eval at every pixel of the full raster and of a window, at `scale`.
 fn assert_raster_is_eval(t: &Sct, scale: f64, what: &str) {
-    let full = t
-        .rasterize(&RasterSettings {
-            scale,
-            window: None,
-        })
-        .unwrap();
+    let full = raster(t, scale);
     for r in 0..full.height() {
         for c in 0..full.width() {
             let v = t.eval(raster_coord(c, scale), raster_coord(r, scale)) as f32;
@@ -101,7 +126,6 @@ fn every_node_kind_rasterises_like_point_evaluation() {
     let Some((hf, base)) = crop_and_layer() else {
         return;
     };
-    let (w, h) = (hf.width(), hf.height());
     let path = river_path();
     let n = path.len();
     let carve = River::new(
@@ -179,22 +203,23 @@ fn every_node_kind_rasterises_like_point_evaluation() {
         (
             "nested",
             Node::Blend(vec![
-                Node::Replace {
-                    base: Box::new(Node::Add(vec![base.clone(), Node::River(carve)])),
-                    overlay: Box::new(Node::Constant(0.0)),
-                    region: Region::Disk {
+                carved_and_replaced(
+                    &base,
+                    carve,
+                    0.0,
+                    Region::Disk {
                         cx: 70.0,
                         cy: 10.0,
                         r: 5.0,
                     },
-                    falloff: 3.0,
-                },
+                    3.0,
+                ),
                 base,
             ]),
         ),
     ];
     for (what, tree) in trees {
-        let t = Sct::new(tree, w, h, hf.cell_size()).unwrap();
+        let t = on_crop(&hf, tree);
         for scale in [1.0, 2.5, 0.37] {
             assert_raster_is_eval(&t, scale, what);
         }
@@ -209,14 +234,8 @@ fn river_carve_and_replace_change_only_their_support() {
     let (w, h) = (hf.width(), hf.height());
     let path = river_path();
     let carve = plain_carve();
-    let plain = Sct::new(base.clone(), w, h, hf.cell_size()).unwrap();
-    let carved = Sct::new(
-        Node::Add(vec![base.clone(), Node::River(carve.clone())]),
-        w,
-        h,
-        hf.cell_size(),
-    )
-    .unwrap();
+    let plain = on_crop(&hf, base.clone());
+    let carved = on_crop(&hf, Node::Add(vec![base, Node::River(carve.clone())]));
     let a = plain.rasterize(&RasterSettings::default()).unwrap();
     let b = carved.rasterize(&RasterSettings::default()).unwrap();
     let dist = |x: f64, y: f64| {
@@ -261,32 +280,14 @@ fn tree_raster_is_independent_of_threads() {
         return;
     };
     let carve = plain_carve();
-    let t = Sct::new(
-        Node::Replace {
-            base: Box::new(Node::Add(vec![base.clone(), Node::River(carve)])),
-            overlay: Box::new(Node::Constant(500.0)),
-            region: Region::Rect {
-                x0: 10.0,
-                y0: 10.0,
-                x1: 30.0,
-                y1: 20.0,
-            },
-            falloff: 4.0,
-        },
-        hf.width(),
-        hf.height(),
-        hf.cell_size(),
-    )
-    .unwrap();
-    let run = |threads| {
-        relief_testdata::with_threads(threads, || {
-            t.rasterize(&RasterSettings {
-                scale: 3.3,
-                window: None,
-            })
-            .unwrap()
-        })
+    let region = Region::Rect {
+        x0: 10.0,
+        y0: 10.0,
+        x1: 30.0,
+        y1: 20.0,
     };
+    let t = on_crop(&hf, carved_and_replaced(&base, carve, 500.0, region, 4.0));
+    let run = |threads| relief_testdata::with_threads(threads, || raster(&t, 3.3));
     let (a, b) = (run(1), run(2));
     assert_eq!(
         a.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>(),

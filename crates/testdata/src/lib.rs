@@ -128,16 +128,80 @@ pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T 
         .install(f)
 }
 
-/// Several crops at once (`(id, x, y, w, h)` each, see [`dem_crop`]), or `None` when the DEM
-/// folder is absent: `let Some([a, b]) = dem_crops([..]) else { return };` skips a test.
-pub fn dem_crops<const N: usize>(
-    crops: [(&str, usize, usize, usize, usize); N],
-) -> Option<[Heightfield; N]> {
+/// A window of a real DEM, `(id, x, y, w, h)` (see [`dem_crop`]): test files name the crops
+/// they share as constants.
+pub type Crop<'a> = (&'a str, usize, usize, usize, usize);
+
+/// Several crops at once (see [`dem_crop`]), or `None` when the DEM folder is absent:
+/// `let Some([a, b]) = dem_crops([..]) else { return };` skips a test.
+pub fn dem_crops<const N: usize>(crops: [Crop<'_>; N]) -> Option<[Heightfield; N]> {
     let all: Option<Vec<Heightfield>> = crops
         .map(|(id, x, y, w, h)| dem_crop(id, x, y, w, h))
         .into_iter()
         .collect();
     all?.try_into().ok()
+}
+
+/// Several windows `(x, y, w, h)` of one real DEM, read once (see [`dem_crop`]), or `None` when
+/// the DEM folder is absent.
+pub fn dem_windows<const N: usize>(
+    id: &str,
+    windows: [(usize, usize, usize, usize); N],
+) -> Option<[Heightfield; N]> {
+    let dem = load_dem(id)?;
+    Some(windows.map(|(x, y, w, h)| dem.crop(x, y, w, h).expect("crop inside the DEM")))
+}
+
+/// Checks the JSON contract of a job settings type (issue 13): `value` round-trips through
+/// JSON whose text contains every one of `fragments`, and `{}` reads as `T::default()`.
+/// Returns the JSON text.
+///
+/// # Panics
+/// Panics when one of these does not hold.
+pub fn assert_json_round_trip<T>(value: &T, fragments: &[&str]) -> String
+where
+    T: serde::Serialize + serde::de::DeserializeOwned + PartialEq + Default + std::fmt::Debug,
+{
+    let json = serde_json::to_string(value).expect("serialise");
+    for f in fragments {
+        assert!(json.contains(f), "{f} not in {json}");
+    }
+    assert_eq!(&serde_json::from_str::<T>(&json).expect("read back"), value);
+    assert_eq!(
+        serde_json::from_str::<T>("{}").expect("read {}"),
+        T::default()
+    );
+    json
+}
+
+/// The value of `f` and the seconds it took (the measurement examples' timings).
+pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = std::time::Instant::now();
+    let v = f();
+    (v, t.elapsed().as_secs_f64())
+}
+
+/// The damage contract of a checksummed stream (`.dict`, `.sct`): reading (`read`) the prefix
+/// `bytes[..n]` for every `n` in `prefixes`, or a copy of `bytes` with any one byte changed
+/// (`bytes[i] ^ flip`), is an error, never a panic nor a value.
+///
+/// # Panics
+/// Panics when one of them reads.
+pub fn assert_truncations_and_flips_refused<T, E>(
+    bytes: &[u8],
+    prefixes: impl IntoIterator<Item = usize>,
+    flip: u8,
+    read: impl Fn(&[u8]) -> Result<T, E>,
+) {
+    for n in prefixes {
+        assert!(read(&bytes[..n]).is_err(), "prefix {n}");
+    }
+    let mut c = bytes.to_vec();
+    for i in 0..bytes.len() {
+        c[i] ^= flip;
+        assert!(read(&c).is_err(), "byte {i} flipped");
+        c[i] ^= flip;
+    }
 }
 
 /// The ids of the real DEM set.

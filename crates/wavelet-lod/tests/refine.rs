@@ -38,6 +38,39 @@ fn bits(v: &[f32]) -> Vec<u32> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
+/// The refiner of `hf` with `s` and its whole output.
+fn refiner_and_output(hf: &Heightfield, s: &RefineSettings) -> (Refiner, Heightfield) {
+    let r = Refiner::new(hf, s).unwrap();
+    let full = r.render(&NoProgress).unwrap();
+    (r, full)
+}
+
+/// Asserts that every window `(x, y, w, h)` rendered alone equals that part of `full`, bit
+/// for bit.
+fn assert_windows_match(r: &Refiner, full: &Heightfield, windows: &[[usize; 4]], what: &str) {
+    for &[x, y, w, h] in windows {
+        let win = r.render_window(x, y, w, h).unwrap();
+        let want = full.crop(x, y, w, h).unwrap();
+        assert_eq!(
+            bits(win.as_slice()),
+            bits(want.as_slice()),
+            "{what} window {x},{y},{w},{h}"
+        );
+    }
+}
+
+/// The largest difference (m) between a cell of `hf` and the mean of its `f x f` block of
+/// `out` (area consistency).
+fn worst_block_mean_error(out: &Heightfield, hf: &Heightfield, f: usize) -> f32 {
+    out.downsample_box(f)
+        .unwrap()
+        .as_slice()
+        .iter()
+        .zip(hf.as_slice())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+}
+
 #[test]
 fn windows_equal_the_full_run_bit_for_bit() {
     let hf = rough(45, 37, 1);
@@ -53,26 +86,19 @@ fn windows_equal_the_full_run_bit_for_bit() {
                     tile: 64,
                     ..Default::default()
                 };
-                let r = Refiner::new(&hf, &s).unwrap();
-                let full = r.render(&NoProgress).unwrap();
+                let (r, full) = refiner_and_output(&hf, &s);
                 let (ow, oh) = r.output_size();
                 assert_eq!((full.width(), full.height()), (45 << extra, 37 << extra));
-                for (x, y, w, h) in [
-                    (0, 0, 1, 1),
-                    (0, 0, ow, oh),
-                    (ow - 3, oh - 5, 3, 5),
-                    (7, 11, 33, 17),
-                    (ow / 2 + 1, 3, ow / 2 - 1, oh / 3),
-                    (13, oh - 1, 1, 1),
-                ] {
-                    let win = r.render_window(x, y, w, h).unwrap();
-                    let want = full.crop(x, y, w, h).unwrap();
-                    assert_eq!(
-                        bits(win.as_slice()),
-                        bits(want.as_slice()),
-                        "{wavelet} {method:?} w{window} +{extra} window {x},{y},{w},{h}"
-                    );
-                }
+                let windows = [
+                    [0, 0, 1, 1],
+                    [0, 0, ow, oh],
+                    [ow - 3, oh - 5, 3, 5],
+                    [7, 11, 33, 17],
+                    [ow / 2 + 1, 3, ow / 2 - 1, oh / 3],
+                    [13, oh - 1, 1, 1],
+                ];
+                let what = format!("{wavelet} {method:?} w{window} +{extra}");
+                assert_windows_match(&r, &full, &windows, &what);
             }
         }
     }
@@ -116,8 +142,7 @@ fn refined_terrain_keeps_the_input_as_its_coarse_levels_and_follows_equation_5()
         seed: 11,
         ..RefineSettings::paper()
     };
-    let r = Refiner::new(&hf, &s).unwrap();
-    let out = r.render(&NoProgress).unwrap();
+    let (r, out) = refiner_and_output(&hf, &s);
     // Cell size divided by 4.
     assert_eq!(out.cell_size(), (7.5, 7.5));
     // Two forward levels of the refined terrain give back the input (the refinement only adds
@@ -317,8 +342,7 @@ fn strips_equal_the_full_run_and_sink_errors_stop_it() {
             seed: 3,
             ..Default::default()
         };
-        let r = Refiner::new(&hf, &s).unwrap();
-        let full = r.render(&NoProgress).unwrap();
+        let (r, full) = refiner_and_output(&hf, &s);
         let (ow, oh) = r.output_size();
         for strip in [1, 7, 64, 1000] {
             let mut got = Vec::with_capacity(ow * oh);
@@ -421,12 +445,7 @@ fn spectral_model_is_area_consistent() {
             rel < 1e-6,
             "x{f}: box-down differs from the input by {rel} of the relief"
         );
-        let worst = down
-            .as_slice()
-            .iter()
-            .zip(hf.as_slice())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = worst_block_mean_error(&out, &hf, f);
         assert!(worst < 1e-4 * hf.relief(), "x{f}: worst cell {worst} m");
         assert!(
             rel < rel_raw,
@@ -497,23 +516,15 @@ fn parent_conditioning_keeps_windows_threads_and_consistency() {
             parent_conditioning: 1.0,
             ..Default::default()
         };
-        let r = Refiner::new(&hf, &s).unwrap();
-        let full = r.render(&NoProgress).unwrap();
+        let (r, full) = refiner_and_output(&hf, &s);
         let (ow, oh) = r.output_size();
-        for (x, y, w, h) in [
-            (0, 0, 1, 1),
-            (ow - 3, oh - 5, 3, 5),
-            (7, 11, 33, 17),
-            (ow / 2 + 1, 3, 20, 9),
-        ] {
-            let win = r.render_window(x, y, w, h).unwrap();
-            let want = full.crop(x, y, w, h).unwrap();
-            assert_eq!(
-                bits(win.as_slice()),
-                bits(want.as_slice()),
-                "+{extra} {x},{y},{w},{h}"
-            );
-        }
+        let windows = [
+            [0, 0, 1, 1],
+            [ow - 3, oh - 5, 3, 5],
+            [7, 11, 33, 17],
+            [ow / 2 + 1, 3, 20, 9],
+        ];
+        assert_windows_match(&r, &full, &windows, &format!("+{extra}"));
         let one = relief_testdata::with_threads(1, || {
             refine(
                 &hf,
@@ -527,14 +538,7 @@ fn parent_conditioning_keeps_windows_threads_and_consistency() {
         assert_eq!(bits(one.as_slice()), bits(full.as_slice()));
         // Area consistency is untouched, and the setting acts.
         let f = 1usize << extra;
-        let worst = full
-            .downsample_box(f)
-            .unwrap()
-            .as_slice()
-            .iter()
-            .zip(hf.as_slice())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = worst_block_mean_error(&full, &hf, f);
         assert!(worst < 1e-4 * hf.relief(), "+{extra}: worst cell {worst} m");
         let free = refine(
             &hf,

@@ -66,10 +66,9 @@ fn convert_round_trips_alps() {
 
 #[test]
 fn convert_fill_voids_leaves_no_voids() {
-    let Some(hgt) = dem("N47E011.hgt") else {
+    let Some((hgt, tmp)) = dem_and_tmp("N47E011.hgt") else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("filled.npy");
     relief_ok!["convert", hgt, out, "--fill-voids"];
     let filled = read(&out);
@@ -85,10 +84,9 @@ fn convert_fill_voids_leaves_no_voids() {
 
 #[test]
 fn preview_writes_png() {
-    let Some(tif) = dem("grandcanyon.tif") else {
+    let Some((tif, tmp)) = dem_and_tmp("grandcanyon.tif") else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("gc.png");
     relief_ok!["preview", tif, out];
     let bytes = std::fs::read(&out).unwrap();
@@ -122,10 +120,9 @@ fn corrupt_input_fails_cleanly_without_output() {
 
 #[test]
 fn unwritable_output_fails_cleanly_without_output() {
-    let Some(tif) = dem("grandcanyon.tif") else {
+    let Some((tif, tmp)) = dem_and_tmp("grandcanyon.tif") else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
     // The output folder does not exist: the temporary file cannot be created.
     let out = tmp.path().join("missing/dir/gc.tif");
     let e = failed(&relief!["convert", tif, out]);

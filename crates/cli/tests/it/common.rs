@@ -209,8 +209,25 @@ pub(crate) fn fixture_crop(
     (write(dir, name, &hf), hf)
 }
 
+/// A fresh temporary folder with the crop `window` of the fixture written into it as `name`:
+/// the folder, that file and the crop.
+pub(crate) fn tmp_with_crop(
+    name: &str,
+    window: (usize, usize, usize, usize),
+) -> (tempfile::TempDir, PathBuf, Heightfield) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (path, hf) = fixture_crop(tmp.path(), name, window);
+    (tmp, path, hf)
+}
+
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
+}
+
+/// A file of the real DEM set and a fresh temporary folder, or `None` when the set is absent
+/// (the test then returns early, see `relief_testdata::dem_dir`).
+pub(crate) fn dem_and_tmp(name: &str) -> Option<(PathBuf, tempfile::TempDir)> {
+    Some((dem(name)?, tempfile::tempdir().unwrap()))
 }
 
 /// A malformed flag value is a usage error: clap's message (naming the flag) on stderr, exit

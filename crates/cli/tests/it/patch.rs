@@ -26,8 +26,7 @@ fn mean(hf: &Heightfield, x0: usize, x1: usize) -> f64 {
 #[test]
 fn quilt_follows_a_guide_made_from_another_crop() {
     let gc = fixture();
-    let tmp = tempfile::tempdir().unwrap();
-    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 256, 256).unwrap());
+    let (tmp, ex, _) = tmp_with_crop("ex.tif", (0, 0, 256, 256));
     let target = gc.crop(300, 300, 128, 128).unwrap();
     let src = write(tmp.path(), "src.tif", &target);
     let out = tmp.path().join("out.tif");
@@ -107,8 +106,7 @@ fn quilt_follows_a_guide_made_from_another_crop() {
 #[test]
 fn validation_names_missing_heights_and_quilt_refuses() {
     let gc = fixture();
-    let tmp = tempfile::tempdir().unwrap();
-    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 192, 192).unwrap());
+    let (tmp, ex, _) = tmp_with_crop("ex.tif", (0, 0, 192, 192));
     let mut guide = gc.crop(256, 256, 96, 96).unwrap().map(|v| v + 3000.0);
     // Left third at the exemplar's heights: only the other blocks fail.
     for y in 0..96 {
@@ -265,8 +263,7 @@ fn auto_categories_cluster_exemplars_and_guide() {
 #[test]
 fn unguided_validation_flags_an_incompatible_exemplar() {
     let gc = fixture();
-    let tmp = tempfile::tempdir().unwrap();
-    let a = write(tmp.path(), "a.tif", &gc.crop(0, 0, 96, 96).unwrap());
+    let (tmp, a, _) = tmp_with_crop("a.tif", (0, 0, 96, 96));
     let b = write(tmp.path(), "b.tif", &gc.crop(200, 200, 96, 96).unwrap());
     let raised = write(
         tmp.path(),
@@ -300,9 +297,7 @@ fn unguided_validation_flags_an_incompatible_exemplar() {
 /// Bad inputs fail with one stderr line naming the problem, and leave no output file.
 #[test]
 fn bad_inputs_exit_non_zero_with_one_line() {
-    let gc = fixture();
-    let tmp = tempfile::tempdir().unwrap();
-    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 48, 48).unwrap());
+    let (tmp, ex, _) = tmp_with_crop("ex.tif", (0, 0, 48, 48));
     let out = tmp.path().join("out.tif");
     let ex = s(&ex);
     let cases: [(&[&str], &str); 6] = [
@@ -507,8 +502,7 @@ fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
 #[test]
 fn quilt_follows_a_sketch_guide_file() {
     let gc = fixture();
-    let tmp = tempfile::tempdir().unwrap();
-    let ex = write(tmp.path(), "ex.tif", &gc.crop(0, 0, 256, 256).unwrap());
+    let (tmp, ex, _) = tmp_with_crop("ex.tif", (0, 0, 256, 256));
     let sketch = tmp.path().join("sketch.json");
     // A high ridge along the middle row, low corners.
     std::fs::write(

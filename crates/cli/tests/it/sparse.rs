@@ -38,8 +38,7 @@ fn fails(args: &[&std::ffi::OsStr], output: &Path, what: &str) -> String {
 
 #[test]
 fn complete_dictionary_s1_round_trip_is_exact() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), "gc_200_150_72x64.tif", (200, 150, 72, 64));
+    let (tmp, input, hf) = tmp_with_crop("in.tif", (200, 150, 72, 64));
     let sct = tmp.path().join("c.sct");
     let stdout = ok(&relief_line(
         "compress {} {} --dict complete --sparsity 1",
@@ -62,8 +61,7 @@ fn complete_dictionary_s1_round_trip_is_exact() {
 
 #[test]
 fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), "gc_100_240_96x80.tif", (100, 240, 96, 80));
+    let (tmp, input, hf) = tmp_with_crop("in.tif", (100, 240, 96, 80));
     let mut psnr = Vec::new();
     let mut sizes = Vec::new();
     for s in ["1", "2", "8"] {
@@ -148,8 +146,7 @@ fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
 
 #[test]
 fn dictionary_file_is_used() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), "gc_300_300_64x64.tif", (300, 300, 64, 64));
+    let (tmp, input, hf) = tmp_with_crop("in.tif", (300, 300, 64, 64));
     // A dictionary of 6 x 6 patches from another part of the canyon.
     let (_, other) = fixture_crop(tmp.path(), "gc_20_20_64x64.tif", (20, 20, 64, 64));
     let p = extract_patches(&other, &PatchGeometry::with_patch_size(6)).unwrap();
@@ -205,8 +202,7 @@ fn dictionary_file_is_used() {
 
 #[test]
 fn bad_input_fails_cleanly() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, _) = fixture_crop(tmp.path(), "gc_0_0_48x40.tif", (0, 0, 48, 40));
+    let (tmp, input, _) = tmp_with_crop("in.tif", (0, 0, 48, 40));
     let good = tmp.path().join("good.sct");
     relief_ok!["compress", input, good, "--dict", "sample", "--atoms", "20"];
     let bytes = std::fs::read(&good).unwrap();
@@ -400,8 +396,7 @@ fn bad_input_fails_cleanly() {
 /// from the river; a missing layer and an output that is one of its inputs are refused.
 #[test]
 fn tree_build_authors_a_river_valley_on_layers() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), "gc_200_150_72x64.tif", (200, 150, 72, 64));
+    let (tmp, input, hf) = tmp_with_crop("in.tif", (200, 150, 72, 64));
     let exact = tmp.path().join("exact.sct");
     ok(&relief_line(
         "compress {} {} --dict complete --sparsity 1",
@@ -471,8 +466,7 @@ fn tree_build_authors_a_river_valley_on_layers() {
 /// unknown family is a usage error naming it.
 #[test]
 fn compress_with_analytic_atoms_mixes_the_dictionary() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (input, hf) = fixture_crop(tmp.path(), "gc_120_60_64x56.tif", (120, 60, 64, 56));
+    let (tmp, input, hf) = tmp_with_crop("in.tif", (120, 60, 64, 56));
     let sct = tmp.path().join("mixed.sct");
     let stdout = ok(&relief_line(
         "compress {} {} --atoms 32 --iterations 2 \

@@ -14,8 +14,7 @@ fn bits(v: &[f32]) -> Vec<u32> {
 
 #[test]
 fn a_refined_window_equals_the_same_window_of_the_full_output() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (200, 160, 64, 48)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (200, 160, 64, 48));
     let src = read(&input);
     for (method, wavelet) in [("lsa", "cdf53"), ("gsa", "cdf97"), ("lsa", "db4")] {
         let full = tmp.path().join(format!("full-{method}-{wavelet}.tif"));
@@ -99,8 +98,7 @@ fn a_refined_window_equals_the_same_window_of_the_full_output() {
 
 #[test]
 fn analyze_prints_fits_json_and_plot() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (0, 0, 256, 256)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (0, 0, 256, 256));
     let text = relief_ok!["analyze", input, "--local", "3"];
     for needle in ["gamma", "fractal dimension", "local fit", "level"] {
         assert!(text.contains(needle), "{needle}: {text}");
@@ -156,8 +154,7 @@ fn voids_need_fill_voids() {
 /// leaves no output file.
 #[test]
 fn bad_input_fails_cleanly() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (300, 300, 64, 64)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (300, 300, 64, 64));
     let mut holes = read(&input);
     holes.set(5, 5, f32::NAN);
     let holed = tmp.path().join("holes.tif");
@@ -261,8 +258,7 @@ fn bad_input_fails_cleanly() {
 
 #[test]
 fn analyze_writes_the_local_maps() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (100, 200, 96, 80)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (100, 200, 96, 80));
     let prefix = tmp.path().join("lsa");
     let json = relief_ok!["analyze", input, "--local", "3", "--maps", prefix, "--json"];
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -303,8 +299,7 @@ fn analyze_writes_the_local_maps() {
 /// for the whole grid (render_strips) and for a window (band by band), over several band seams.
 #[test]
 fn streamed_output_equals_the_in_memory_output() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (220, 180, 64, 48)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (220, 180, 64, 48));
     let src = read(&input);
     assert!(src.georef().is_some(), "the fixture is georeferenced");
     for (method, wavelet, window) in [
@@ -400,8 +395,7 @@ fn temps(dir: &Path, name: &str) -> Vec<String> {
 #[cfg(target_os = "linux")]
 #[test]
 fn a_failing_streamed_write_leaves_no_file() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (300, 100, 64, 64)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (300, 100, 64, 64));
     let args = |out: &Path| {
         vec![
             os("refine").to_owned(),
@@ -487,8 +481,7 @@ fn a_failing_streamed_write_leaves_no_file() {
 /// terrain are the input cells, within a small fraction of the relief; `--model paper` is not.
 #[test]
 fn default_refinement_is_area_consistent() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = fixture_crop(tmp.path(), "in.tif", (200, 160, 64, 48)).0;
+    let (tmp, input, _) = tmp_with_crop("in.tif", (200, 160, 64, 48));
     let src = read(&input);
     let (lo, hi) = src.min_max().unwrap();
     let err = |model: &str| {

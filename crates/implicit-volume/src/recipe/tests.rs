@@ -16,22 +16,24 @@ fn feature_lists_parse_and_reject_unknown_names() {
 #[test]
 fn recipe_rejects_bad_settings() {
     let hf = Heightfield::from_fn(8, 8, 10.0, 10.0, |x, y| (x + y) as f32);
-    let e = build_recipe(
-        &hf,
-        &Recipe {
-            scale: f32::NAN,
-            ..Default::default()
-        },
-    )
-    .unwrap_err();
-    assert!(e.to_string().contains("scale"), "{e}");
-    let e = build_recipe(
-        &hf,
-        &Recipe {
-            mask: Some(vec![1.0; 3]),
-            ..Default::default()
-        },
-    )
-    .unwrap_err();
-    assert!(e.to_string().contains("mask"), "{e}");
+    let bad = [
+        (
+            "scale",
+            Recipe {
+                scale: f32::NAN,
+                ..Default::default()
+            },
+        ),
+        (
+            "mask",
+            Recipe {
+                mask: Some(vec![1.0; 3]),
+                ..Default::default()
+            },
+        ),
+    ];
+    for (field, recipe) in bad {
+        let e = build_recipe(&hf, &recipe).unwrap_err();
+        assert!(e.to_string().contains(field), "{field}: {e}");
+    }
 }

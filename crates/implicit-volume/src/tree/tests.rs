@@ -42,8 +42,9 @@ fn bvh_equals_flat_blend_and_lipschitz_bounds_hold() {
     }
 }
 
-#[test]
-fn intervals_contain_the_field() {
+/// The tree of a wavy 300 x 200 m ground with a sphere and an ellipsoid above it, and their
+/// nodes `(ground, sphere, ellipsoid)`.
+fn ground_sphere_ellipsoid() -> (TerrainTree, [NodeId; 3]) {
     let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
         50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
     });
@@ -53,6 +54,12 @@ fn intervals_contain_the_field() {
     let e1 = t
         .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
         .unwrap();
+    (t, [h, s1, e1])
+}
+
+#[test]
+fn intervals_contain_the_field() {
+    let (mut t, [h, s1, e1]) = ground_sphere_ellipsoid();
     let bv = t.bvh_blend(&[s1, e1]).unwrap();
     let bl = t.blend(&[h, bv]).unwrap();
     let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
@@ -104,17 +111,9 @@ fn warp_skips_the_noise_outside_its_box_without_changing_the_field() {
 
 #[test]
 fn analytic_gradient_matches_central_differences() {
-    let hf = Heightfield::from_fn(30, 20, 10.0, 10.0, |x, y| {
-        50.0 + 20.0 * ((x as f32) * 0.3).sin() + y as f32
-    });
-    let mut t = TerrainTree::new();
-    let (h, _) = t.heightfield(&hf, 15.0, 30.0).unwrap();
-    let s1 = t.sphere([100.0, 100.0, 60.0], 30.0, -2.0).unwrap();
+    let (mut t, [h, s1, e1]) = ground_sphere_ellipsoid();
     let c1 = t
         .capsule([50.0, 50.0, 60.0], [120.0, 80.0, 70.0], 12.0, -1.5)
-        .unwrap();
-    let e1 = t
-        .ellipsoid([150.0, 80.0, 90.0], [20.0, 10.0, 15.0], 1.0)
         .unwrap();
     let k1 = t
         .cone([200.0, 60.0, 60.0], [200.0, 60.0, 100.0], 15.0, 5.0, 1.0)
