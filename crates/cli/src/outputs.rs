@@ -137,27 +137,26 @@ fn same_name(a: &Path, b: &Path) -> bool {
     abs(a) == abs(b)
 }
 
+/// Whether `path` ends in `.ext` (ASCII case ignored).
+pub(crate) fn has_extension(path: &Path, ext: &str) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+}
+
 /// Refuses a `--<what>` image path that does not end in `.png`.
 pub(crate) fn check_png_flag(p: Option<&Path>, what: &str) -> Result<()> {
-    if let Some(p) = p {
-        let ok = p
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-        if !ok {
-            bail!("--{what} {}: the file must end in .png", p.display());
-        }
+    if let Some(p) = p
+        && !has_extension(p, "png")
+    {
+        bail!("--{what} {}: the file must end in .png", p.display());
     }
     Ok(())
 }
 
 /// Refuses a `--report` path that is not `.json`, is the input, or exists without `--force`.
 pub(crate) fn check_report_path(report: &Path, input: &Path, force: bool) -> Result<()> {
-    let ok = report
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    if !ok {
+    if !has_extension(report, "json") {
         bail!("--report {}: the file must end in .json", report.display());
     }
     if report.exists() {

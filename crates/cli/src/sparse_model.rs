@@ -199,9 +199,7 @@ pub(crate) fn preflight(
 
 /// Whether `path` names a `.sct` model (by extension).
 pub(crate) fn is_sct(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("sct"))
+    crate::outputs::has_extension(path, "sct")
 }
 
 /// Refuses an output path we could not write before any work is done: a window with a `.sct`

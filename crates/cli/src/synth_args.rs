@@ -172,9 +172,7 @@ fn parse_guide_range(spec: &str) -> std::result::Result<GuideRange, String> {
 /// True for a PNG read as raw grey counts (no relief vertical mapping): whole numbers that fit
 /// 16 bits, which are grey levels rather than metres.
 fn png_counts(path: &Path, g: &Heightfield) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    crate::outputs::has_extension(path, "png")
         && g.as_slice()
             .iter()
             .all(|&v| !v.is_finite() || (v.fract() == 0.0 && (0.0..=65535.0).contains(&v)))

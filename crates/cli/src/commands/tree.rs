@@ -106,11 +106,7 @@ fn build(args: BuildArgs, ctx: &Ctx) -> Result<()> {
 
 /// A layer: a `.sct` read as it is, any other file read as a DEM and compressed.
 fn layer(path: &Path, read: &super::ReadArgs, ctx: &Ctx, compressed: &mut usize) -> Result<Sct> {
-    let is_sct = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("sct"));
-    if is_sct {
+    if crate::sparse_model::is_sct(path) {
         let bytes = read_model_bytes(path, ctx)?;
         return Sct::from_bytes(&bytes, &registry()).context("not a readable .sct");
     }
