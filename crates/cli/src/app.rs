@@ -93,7 +93,9 @@ enum Command {
     /// Learn a dictionary (K-SVD or constrained) from exemplar DEMs; `compress --dictionary`
     /// reads it.
     Learn(commands::learn::Args),
-    /// Synthesise a terrain from a painted sketch and an exemplar (x4 steps, figure 12).
+    /// Synthesise a terrain from a painted sketch and an exemplar (x4 steps, figure 12). By
+    /// default the output takes the exemplar's elevation range and cell size (the sketch is
+    /// 4^steps times coarser).
     Synthesize(commands::synthesize::Args),
     /// Fit an analytic (noise-atom) model to a terrain, write it as .sct and print its PSNR.
     FitProcedural(commands::fit_procedural::Args),

@@ -22,6 +22,33 @@ pub(crate) struct SeedArg {
     pub(crate) seed: u64,
 }
 
+/// `--exemplar` and `--exemplar-cell-size` of `amplify` and `synthesize` (see [`SeedArg`]).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub(crate) struct ExemplarArg {
+    /// Exemplar DEM whose details are transferred (must have no voids). Each x4 step cuts its
+    /// atoms from the exemplar box-down-sampled to the step's target cell size; a step finer
+    /// than the exemplar uses it at native resolution (self-similarity), and says so.
+    #[arg(long)]
+    pub(crate) exemplar: std::path::PathBuf,
+    /// Cell size of the exemplar in metres, `X` or `X,Y`, for an exemplar that does not store
+    /// one (PNG, EXR, raw, NPY) or to override a stored one (GeoTIFF, sidecar).
+    #[arg(long, value_parser = crate::args::parse_cell_size, value_name = "X[,Y]")]
+    pub(crate) exemplar_cell_size: Option<(f64, f64)>,
+}
+
+impl ExemplarArg {
+    /// Reads the exemplar; voids are an error naming it.
+    pub(crate) fn read(&self, ctx: &Ctx) -> Result<relief_heightfield::Heightfield> {
+        let raster =
+            crate::commands::read_raster(&self.exemplar, &crate::args::ReadArgs::default(), ctx)?;
+        raster
+            .heightfield
+            .require_complete()
+            .with_context(|| format!("cannot use {} as exemplar", self.exemplar.display()))?;
+        Ok(raster.heightfield)
+    }
+}
+
 /// `--window` of `amplify` and `synthesize` (see [`SeedArg`]).
 #[derive(Debug, Clone, Copy, Default, clap::Args)]
 pub(crate) struct WindowArg {

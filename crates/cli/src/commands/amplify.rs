@@ -26,17 +26,8 @@ pub(crate) struct Args {
     pub(crate) input: PathBuf,
     /// Output: a raster (.tif, .png, .exr, .npy, .r16, .r32) or a `.sct` model.
     pub(crate) output: PathBuf,
-    /// High-resolution exemplar whose details are transferred (its cell size should be about
-    /// the input's divided by the factor).
-    #[arg(long)]
-    pub(crate) exemplar: PathBuf,
-    /// Cell size of the exemplar in metres, `X` or `X,Y`, for an exemplar that does not store
-    /// one (PNG, EXR, raw, NPY) or to override a stored one (GeoTIFF, sidecar). Each x4 step
-    /// cuts its atoms from the exemplar box-down-sampled to the step's cell size (the input's
-    /// over 4, 16, ...); a step finer than the exemplar uses it at native resolution
-    /// (self-similarity), and says so.
-    #[arg(long, value_parser = super::parse_cell_size, value_name = "X[,Y]")]
-    pub(crate) exemplar_cell_size: Option<(f64, f64)>,
+    #[command(flatten)]
+    pub(crate) exemplar: crate::sparse_model::ExemplarArg,
     /// Amplification factor per axis: a power of 4 (4, 16, 64, 256, ...; 4 per step).
     #[arg(long)]
     pub(crate) factor: usize,
@@ -97,7 +88,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let window = args.window.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
-        &[&args.input, &args.exemplar],
+        &[&args.input, &args.exemplar.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let sct = build(&args, OutputPlan::of(&args.output, window, "--factor"), ctx)?;
@@ -119,7 +110,7 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
         sparsity: args.sparsity,
         dictionary: dictionary_choice(args.atoms),
         seed: args.seed.seed,
-        exemplar_cell_size: args.exemplar_cell_size,
+        exemplar_cell_size: args.exemplar.exemplar_cell_size,
         ..base
     };
     settings.check().context("invalid amplification settings")?;
@@ -136,14 +127,10 @@ fn inputs(
     ctx: &Ctx,
 ) -> Result<(Heightfield, Heightfield)> {
     let coarse = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
-    let exemplar =
-        super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
     coarse
         .require_complete()
         .with_context(|| format!("cannot amplify {}", args.input.display()))?;
-    exemplar
-        .require_complete()
-        .with_context(|| format!("cannot use {} as exemplar", args.exemplar.display()))?;
+    let exemplar = args.exemplar.read(ctx)?;
     preflight(
         ctx,
         &format!("amplify x{}", args.factor),
@@ -160,7 +147,7 @@ fn failed(args: &Args) -> String {
         "cannot amplify {} x{} with {}",
         args.input.display(),
         args.factor,
-        args.exemplar.display()
+        args.exemplar.exemplar.display()
     )
 }
 

@@ -17,14 +17,8 @@ pub(crate) struct Args {
     pub(crate) sketch: PathBuf,
     /// Output: a raster (.tif, .png, .exr, .npy, .r16, .r32) or a `.sct` model.
     pub(crate) output: PathBuf,
-    /// Exemplar DEM whose details (and, by default, elevation range and cell size) are used.
-    #[arg(long)]
-    pub(crate) exemplar: PathBuf,
-    /// Cell size of the exemplar in metres, `X` or `X,Y`, for an exemplar that does not store
-    /// one (PNG, EXR, raw, NPY) or to override a stored one; the output has this cell size and
-    /// the sketch 4^steps times it.
-    #[arg(long, value_parser = super::parse_cell_size, value_name = "X[,Y]")]
-    pub(crate) exemplar_cell_size: Option<(f64, f64)>,
+    #[command(flatten)]
+    pub(crate) exemplar: crate::sparse_model::ExemplarArg,
     /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
     #[arg(long, default_value_t = 3)]
     pub(crate) steps: usize,
@@ -60,7 +54,7 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
             step: args.step,
             normalize_detail: !args.paper,
             exemplar_detail: !args.paper,
-            exemplar_cell_size: args.exemplar_cell_size,
+            exemplar_cell_size: args.exemplar.exemplar_cell_size,
             ..SynthesisSettings::default().amplify
         },
         // The global --height-range: the sketch is mapped onto it (default: the exemplar's
@@ -79,12 +73,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let window = args.window.window;
     check_output_path(&args.output, window)?;
     ctx.check_outputs(
-        &[&args.sketch, &args.exemplar],
+        &[&args.sketch, &args.exemplar.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
-    let exemplar =
-        super::read_raster(&args.exemplar, &super::ReadArgs::default(), ctx)?.heightfield;
+    let exemplar = args.exemplar.read(ctx)?;
     crate::sparse_model::preflight(
         ctx,
         &format!("synthesize ({} steps)", settings.amplify.steps),
@@ -99,7 +92,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             format!(
                 "cannot synthesise from {} with {}",
                 args.sketch.display(),
-                args.exemplar.display()
+                args.exemplar.exemplar.display()
             )
         })?
     };

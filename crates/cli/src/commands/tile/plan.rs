@@ -14,8 +14,11 @@ pub(super) fn absolutise(cmd: &mut Windowable) -> Result<(Vec<PathBuf>, PathBuf)
         Windowable::Amplify(a) => {
             a.input = absolute(&a.input)?;
             a.output = absolute(&a.output)?;
-            a.exemplar = absolute(&a.exemplar)?;
-            (vec![a.input.clone(), a.exemplar.clone()], a.output.clone())
+            a.exemplar.exemplar = absolute(&a.exemplar.exemplar)?;
+            (
+                vec![a.input.clone(), a.exemplar.exemplar.clone()],
+                a.output.clone(),
+            )
         }
         Windowable::Refine(a) => {
             a.input = absolute(&a.input)?;
