@@ -139,11 +139,15 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
     let mag = [ex, ey, lo.abs(), hi.abs(), 1.0]
         .into_iter()
         .fold(0.0f32, f32::max);
-    if !(1e-3 * mag..=5.0 * mag).contains(&(l * k)) {
+    // The derived sizes are multiples of `l k`: `k` far from 1 or sizes beyond the DEM's
+    // extent are typos. (A bound relative to the extent from below would refuse every DEM of
+    // more than 1000 cells per side at `scale` 1.)
+    if !(1e-3..=1e3).contains(&k) || l * k > 5.0 * mag {
         return Err(Error::param(
             "scale",
             recipe.scale,
-            "makes the feature sizes out of scale with the DEM (1e-3 to 5 times its extent)",
+            "must be in [0.001, 1000] and keep the feature sizes (scale x cell size) under 5 \
+             times the DEM's extent",
         ));
     }
     let voxel = match recipe.voxel {

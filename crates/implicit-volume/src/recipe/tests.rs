@@ -13,6 +13,23 @@ fn feature_lists_parse_and_reject_unknown_names() {
     }
 }
 
+/// The scale check bounds the scale, not the DEM's size: a DEM of more than 1000 cells per side
+/// is accepted at scale 1 (it was refused), absurd scales are refused.
+#[test]
+fn scale_check_accepts_large_dems() {
+    let hf = Heightfield::from_fn(1500, 4, 10.0, 10.0, |x, y| ((x * 7 + y * 3) % 50) as f32);
+    let recipe = |scale| Recipe {
+        scale,
+        features: vec![],
+        ..Default::default()
+    };
+    build_recipe(&hf, &recipe(1.0)).unwrap();
+    for scale in [1e-4, 2e3] {
+        let e = build_recipe(&hf, &recipe(scale)).err().unwrap().to_string();
+        assert!(e.contains("scale"), "{scale}: {e}");
+    }
+}
+
 #[test]
 fn recipe_rejects_bad_settings() {
     let hf = Heightfield::from_fn(8, 8, 10.0, 10.0, |x, y| (x + y) as f32);
