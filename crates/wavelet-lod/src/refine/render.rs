@@ -287,37 +287,41 @@ impl Refiner {
         let (iw, ih) = (self.input.width, self.input.height);
         // Plans from the finest level down to the input.
         let mut plans = Vec::with_capacity(n as usize);
-        let (mut ax, mut bx, mut ay, mut by) = (x, x + w, y, y + h);
+        let (mut xs, mut ys) = (x..x + w, y..y + h);
         for t in (1..=n).rev() {
-            let px = AxisPlan::new(iw << t, ax, bx, margin);
-            let py = AxisPlan::new(ih << t, ay, by, margin);
-            (ax, bx, ay, by) = (px.e0, px.e1, py.e0, py.e1);
+            let px = AxisPlan::new(iw << t, xs, margin);
+            let py = AxisPlan::new(ih << t, ys, margin);
+            (xs, ys) = (px.even.clone(), py.even.clone());
             plans.push((px, py));
         }
         plans.reverse();
         // Level 0: the input itself is the approximation at level J (zero for the spectral
         // model's detail).
-        let mut cur = Vec::with_capacity((bx - ax) * (by - ay));
-        for r in ay..by {
+        let mut cur = Vec::with_capacity(xs.len() * ys.len());
+        for r in ys.clone() {
             if with_input {
-                cur.extend_from_slice(&self.input.data[r * iw + ax..r * iw + bx]);
+                cur.extend_from_slice(&self.input.data[r * iw + xs.start..r * iw + xs.end]);
             } else {
-                cur.resize(cur.len() + bx - ax, 0.0);
+                cur.resize(cur.len() + xs.len(), 0.0);
             }
         }
-        let (lx0, ly0, lw, lh) = (ax, ay, bx - ax, by - ay);
+        let (lx0, ly0, lw, lh) = (xs.start, ys.start, xs.len(), ys.len());
         let scheme = wavelet.scheme();
         let sigmas = self.sigma_maps(lx0, ly0, lw, lh);
         for (t, (px, py)) in plans.iter().enumerate() {
             let sig = &sigmas[t];
             let t = t as u32;
             let level = self.global.top_level + t as i64;
-            let make_band = |band: Band, xs: (usize, usize), ys: (usize, usize)| -> Vec<f32> {
-                let (cw, ch) = (xs.1 - xs.0, ys.1.max(ys.0) - ys.0);
+            let make_band = |band: Band, xs: &Range<usize>, ys: &Range<usize>| -> Vec<f32> {
+                let (cw, ch) = (xs.len(), ys.len());
                 let s = &sig[band.index()];
                 if self.spectral.is_some() {
-                    let dims = (iw << t, ih << t);
-                    let mut out = self.texture(t, band, (xs.0, xs.1), (ys.0, ys.0 + ch), dims);
+                    let region = BandRegion {
+                        xs: xs.clone(),
+                        ys: ys.start..ys.start + ch,
+                        dims: (iw << t, ih << t),
+                    };
+                    let mut out = self.texture(t, band, &region);
                     let sigma = s.first().copied().unwrap_or(0.0);
                     match &self.amplitude {
                         None => out.iter_mut().for_each(|v| *v *= sigma),
@@ -329,10 +333,10 @@ impl Refiner {
                             let inv = 1.0 / (1u64 << t) as f32;
                             let coord = |k: usize| ((k as f32 + 0.5) * inv - 0.5) * 0.5 - 0.25;
                             let xw: Vec<(usize, usize, f32)> = (0..cw)
-                                .map(|k| lerp_index(coord(xs.0 + k), map.width))
+                                .map(|k| lerp_index(coord(xs.start + k), map.width))
                                 .collect();
                             for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
-                                let (y0, y1, fy) = lerp_index(coord(ys.0 + r), map.height);
+                                let (y0, y1, fy) = lerp_index(coord(ys.start + r), map.height);
                                 let (r0, r1) = (
                                     &map.data[y0 * map.width..(y0 + 1) * map.width],
                                     &map.data[y1 * map.width..(y1 + 1) * map.width],
@@ -349,20 +353,20 @@ impl Refiner {
                 }
                 let mut out = vec![0.0f32; cw * ch];
                 for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
-                    let gy = ys.0 + r;
+                    let gy = ys.start + r;
                     let key = row_key(self.settings.seed, band.index(), level, gy);
-                    fill_normals(key, xs.0, row);
+                    fill_normals(key, xs.start, row);
                     let sy = ((gy >> t) - ly0) * lw;
                     for (k, v) in row.iter_mut().enumerate() {
-                        let sx = ((xs.0 + k) >> t) - lx0;
+                        let sx = ((xs.start + k) >> t) - lx0;
                         *v *= s[sy + sx];
                     }
                 }
                 out
             };
-            let hb = make_band(Band::H, (px.e0, px.e1), (py.o0, py.o1));
-            let vb = make_band(Band::V, (px.o0, px.o1), (py.e0, py.e1));
-            let db = make_band(Band::D, (px.o0, px.o1), (py.o0, py.o1));
+            let hb = make_band(Band::H, &px.even, &py.odd);
+            let vb = make_band(Band::V, &px.odd, &py.even);
+            let db = make_band(Band::D, &px.odd, &py.odd);
             cur = inverse_level_window(scheme, Boundary::Symmetric, px, py, cur, hb, vb, db, false);
         }
         cur
