@@ -1,6 +1,8 @@
 //! Rendering a prepared refinement: windows, tiles and strips, the paper model's inverse DWT
 //! of new levels and the spectral model's smooth part plus coloured detail.
 
+use relief_heightfield::Window;
+
 use super::*;
 
 impl Refiner {
@@ -19,7 +21,7 @@ impl Refiner {
                 "must be non-empty and inside the refined grid",
             ));
         }
-        Ok(self.render_region(x, y, w, h))
+        Ok(self.render_region(Window::new(x, y, w, h)))
     }
 
     /// [`Refiner::render_window_values`] as a heightfield (cell size divided by
@@ -63,7 +65,7 @@ impl Refiner {
                 for tx in 0..tiles_x {
                     let x0 = tx * t;
                     let tw = t.min(ow - x0);
-                    let tile = self.render_region(x0, y0, tw, th);
+                    let tile = self.render_region(Window::new(x0, y0, tw, th));
                     for (r, row) in tile.chunks(tw).enumerate() {
                         strip[r * ow + x0..r * ow + x0 + tw].copy_from_slice(row);
                     }
@@ -107,7 +109,7 @@ impl Refiner {
                 .into_par_iter()
                 .map(|tx| {
                     let x0 = tx * t;
-                    self.render_region(x0, y0, t.min(ow - x0), sh)
+                    self.render_region(Window::new(x0, y0, t.min(ow - x0), sh))
                 })
                 .collect();
             // Row by row in parallel (a serial copy would leave the other threads idle).
@@ -129,10 +131,10 @@ impl Refiner {
 
     /// The window at the finest level, computed from the input through every new level with
     /// only the lanes each inverse step needs (section 5, "generated when needed").
-    fn render_region(&self, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
+    fn render_region(&self, win: Window) -> Vec<f32> {
         match &self.spectral {
-            Some(plan) if self.settings.extra_levels > 0 => self.render_spectral(plan, x, y, w, h),
-            _ => self.render_pass(x, y, w, h, true),
+            Some(plan) if self.settings.extra_levels > 0 => self.render_spectral(plan, win),
+            _ => self.render_pass(win, true),
         }
     }
 
@@ -142,14 +144,8 @@ impl Refiner {
     /// rounding): the detail's own block means are taken out through the smooth part, as in a
     /// conditional simulation. Every value depends only on its position (fixed summation
     /// orders), so windows stay bit-identical to the full run.
-    fn render_spectral(
-        &self,
-        plan: &SpectralPlan,
-        x: usize,
-        y: usize,
-        w: usize,
-        h: usize,
-    ) -> Vec<f32> {
+    fn render_spectral(&self, plan: &SpectralPlan, win: Window) -> Vec<f32> {
+        let (x, y, w, h) = win.as_tuple();
         let up = &plan.cubic;
         let f = up.factor;
         let (iw, ih) = (self.input.width, self.input.height);
@@ -182,7 +178,7 @@ impl Refiner {
             (x, x + w, y, y + h)
         };
         let dw = dx1 - dx0;
-        let detail = self.render_pass(dx0, dy0, dw, dy1 - dy0, false);
+        let detail = self.render_pass(Window::new(dx0, dy0, dw, dy1 - dy0), false);
         // Coarse residual s = input - box-down(D) over [rx0, rx1) x [ry0, ry1).
         let sw = rx1 - rx0;
         let mut s = vec![0.0f32; sw * (ry1 - ry0)];
@@ -271,7 +267,8 @@ impl Refiner {
 
     /// The inverse DWT of the new levels over the approximation `input` (`with_input`) or over
     /// a zero approximation (the spectral model's detail alone).
-    fn render_pass(&self, x: usize, y: usize, w: usize, h: usize, with_input: bool) -> Vec<f32> {
+    fn render_pass(&self, win: Window, with_input: bool) -> Vec<f32> {
+        let (x, y, w, h) = win.as_tuple();
         let n = self.settings.extra_levels;
         if n == 0 {
             let mut out = Vec::with_capacity(w * h);
