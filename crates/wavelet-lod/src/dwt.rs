@@ -340,8 +340,7 @@ pub(crate) struct AxisPlan {
     pub(crate) out: Range<usize>,
     /// Even-lane (low-pass) range.
     pub(crate) even: Range<usize>,
-    /// Odd-lane (high-pass) range; empty (its end may then lie before its start) when the
-    /// window reaches the end of an axis of length 1.
+    /// Odd-lane (high-pass) range (empty on an axis of length 1).
     pub(crate) odd: Range<usize>,
 }
 
