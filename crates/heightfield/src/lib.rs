@@ -39,6 +39,7 @@ mod error;
 pub mod fill;
 mod grid;
 pub mod metrics;
+pub mod param;
 mod progress;
 mod resample;
 pub mod rng;
@@ -48,6 +49,7 @@ mod window;
 
 pub use error::{HeightfieldError, Result};
 pub use grid::{GeoRef, Heightfield, MAX_CELLS};
+pub use param::ParamError;
 pub use progress::{NoProgress, Progress};
 pub use sample::{cubic_weights, cubic_weights_f64};
 pub use window::Window;

@@ -24,6 +24,16 @@ pub struct Window {
 }
 
 impl Window {
+    /// The window of `width x height` pixels whose first column is `x` and first row `y`.
+    pub const fn new(x: usize, y: usize, width: usize, height: usize) -> Self {
+        Self {
+            x,
+            y,
+            width,
+            height,
+        }
+    }
+
     /// `(x, y, width, height)`.
     pub fn as_tuple(&self) -> (usize, usize, usize, usize) {
         (self.x, self.y, self.width, self.height)

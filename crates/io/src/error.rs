@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use relief_heightfield::HeightfieldError;
+use relief_heightfield::{HeightfieldError, ParamError};
 
 use crate::Format;
 
@@ -166,3 +166,9 @@ impl IoError {
 
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, IoError>;
+
+impl From<ParamError> for IoError {
+    fn from(e: ParamError) -> Self {
+        Self::param(e.name, e.value, e.reason)
+    }
+}

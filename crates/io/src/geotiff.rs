@@ -608,36 +608,34 @@ fn write_geo_tags<W: std::io::Write + std::io::Seek, K: tiff::encoder::TiffKind>
     d: &mut tiff::encoder::DirectoryEncoder<'_, W, K>,
     hf: &Heightfield,
 ) -> Result<()> {
-    let tags = georef_tags(hf.cell_size(), hf.georef());
-    let g = &tags;
-    if let Some(v) = &g.pixel_scale {
-        d.write_tag(Tag::ModelPixelScaleTag, v.as_slice())
-            .map_err(terr)?;
-    }
-    if let Some(v) = &g.tiepoints {
-        d.write_tag(Tag::ModelTiepointTag, v.as_slice())
-            .map_err(terr)?;
-    }
-    if let Some(v) = &g.transformation {
-        d.write_tag(Tag::ModelTransformationTag, v.as_slice())
-            .map_err(terr)?;
-    }
-    if let Some(v) = &g.geo_key_directory {
-        d.write_tag(Tag::GeoKeyDirectoryTag, v.as_slice())
-            .map_err(terr)?;
-    }
-    if let Some(v) = &g.geo_double_params {
-        d.write_tag(Tag::GeoDoubleParamsTag, v.as_slice())
-            .map_err(terr)?;
-    }
-    if let Some(v) = &g.geo_ascii_params {
-        d.write_tag(Tag::GeoAsciiParamsTag, v.as_str())
-            .map_err(terr)?;
-    }
+    let g = georef_tags(hf.cell_size(), hf.georef());
+    write_opt_tag(d, Tag::ModelPixelScaleTag, g.pixel_scale.as_deref())?;
+    write_opt_tag(d, Tag::ModelTiepointTag, g.tiepoints.as_deref())?;
+    write_opt_tag(d, Tag::ModelTransformationTag, g.transformation.as_deref())?;
+    write_opt_tag(d, Tag::GeoKeyDirectoryTag, g.geo_key_directory.as_deref())?;
+    write_opt_tag(d, Tag::GeoDoubleParamsTag, g.geo_double_params.as_deref())?;
+    write_opt_tag(d, Tag::GeoAsciiParamsTag, g.geo_ascii_params.as_deref())?;
     if hf.has_voids() {
         d.write_tag(Tag::GdalNodata, "nan").map_err(terr)?;
     }
     Ok(())
+}
+
+/// Writes `tag` into a directory when `value` is set.
+fn write_opt_tag<W, K, T>(
+    d: &mut tiff::encoder::DirectoryEncoder<'_, W, K>,
+    tag: Tag,
+    value: Option<&T>,
+) -> Result<()>
+where
+    W: std::io::Write + std::io::Seek,
+    K: tiff::encoder::TiffKind,
+    T: tiff::encoder::TiffValue + ?Sized,
+{
+    match value {
+        Some(v) => d.write_tag(tag, v).map_err(terr),
+        None => Ok(()),
+    }
 }
 
 /// Encodes `hf` as a float32 GeoTIFF with DEFLATE + floating-point predictor strips

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use relief_heightfield::Heightfield;
+use relief_heightfield::param::ensure;
 use relief_heightfield::terrain::hillshade;
 
 use crate::png_io::encode_8bit;
@@ -62,27 +63,12 @@ impl Default for PreviewStyle {
 impl PreviewStyle {
     /// Checks the fields, naming the first invalid one.
     pub fn check(&self) -> Result<()> {
-        if !self.azimuth_deg.is_finite() {
-            return Err(IoError::param(
-                "azimuth",
-                self.azimuth_deg,
-                "must be finite",
-            ));
-        }
-        if !(self.altitude_deg > 0.0 && self.altitude_deg <= 90.0) {
-            return Err(IoError::param(
-                "altitude",
-                self.altitude_deg,
-                "must be in (0, 90] degrees",
-            ));
-        }
-        if !(self.exaggeration.is_finite() && self.exaggeration > 0.0 && self.exaggeration <= 1e4) {
-            return Err(IoError::param(
-                "exaggeration",
-                self.exaggeration,
-                "must be in (0, 10000]",
-            ));
-        }
+        let (az, alt, ex) = (self.azimuth_deg, self.altitude_deg, self.exaggeration);
+        ensure(az.is_finite(), "azimuth", az, "must be finite")?;
+        let ok = alt > 0.0 && alt <= 90.0;
+        ensure(ok, "altitude", alt, "must be in (0, 90] degrees")?;
+        let ok = ex > 0.0 && ex <= 1e4;
+        ensure(ok, "exaggeration", ex, "must be in (0, 10000]")?;
         Ok(())
     }
 }

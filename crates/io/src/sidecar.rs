@@ -158,11 +158,11 @@ fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
 
 /// A `.json` file: a `{width, height, values}` grid, or a sidecar whose `.f32` is read.
 pub(crate) fn read_json_any(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    let shape = grid_shape(bytes)?;
+    let shape: GridShape = parse_json(bytes)?;
     if shape.values.is_some() {
         return read_json_grid(bytes, opts);
     }
-    let v = parse_json(bytes)?;
+    let v: Value = parse_json(bytes)?;
     let side = parse_sidecar(&v)?;
     let data_name = v
         .get("data_file")
@@ -202,7 +202,8 @@ pub(crate) fn read_json_any(path: &Path, bytes: &[u8], opts: &ReadOptions) -> Re
     read_f32_bytes(&data, Some(side), opts)
 }
 
-fn parse_json(bytes: &[u8]) -> Result<Value> {
+/// Decodes a JSON document (a [`Value`], or the [`GridShape`] first pass of a JSON grid).
+fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T> {
     serde_json::from_slice(bytes)
         .map_err(|e| IoError::malformed(Format::JsonGrid, format!("invalid JSON: {e}")))
 }
@@ -270,11 +271,6 @@ impl<'de> serde::Deserialize<'de> for ValueCount {
     }
 }
 
-fn grid_shape(bytes: &[u8]) -> Result<GridShape> {
-    serde_json::from_slice(bytes)
-        .map_err(|e| IoError::malformed(Format::JsonGrid, format!("invalid JSON: {e}")))
-}
-
 /// Second pass: the grid with its values decoded straight to f32 (`null` = NaN).
 #[derive(serde::Deserialize)]
 struct GridBody {
@@ -324,7 +320,7 @@ impl<'de> serde::Deserialize<'de> for GridValues {
 /// values are stored.
 pub(crate) fn read_json_grid(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let f = Format::JsonGrid;
-    let shape = grid_shape(bytes)?;
+    let shape: GridShape = parse_json(bytes)?;
     let dim = |v: &Option<Value>, key: &str| -> Result<u64> {
         v.as_ref().and_then(Value::as_u64).ok_or_else(|| {
             IoError::malformed(

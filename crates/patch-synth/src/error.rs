@@ -1,4 +1,4 @@
-use relief_heightfield::HeightfieldError;
+use relief_heightfield::{HeightfieldError, ParamError};
 use thiserror::Error;
 
 use crate::validate::ValidationReport;
@@ -83,6 +83,12 @@ impl PatchSynthError {
             value: value.to_string(),
             reason: reason.into(),
         }
+    }
+}
+
+impl From<ParamError> for PatchSynthError {
+    fn from(e: ParamError) -> Self {
+        Self::setting(e.name, e.value, e.reason)
     }
 }
 

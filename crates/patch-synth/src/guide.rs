@@ -480,7 +480,7 @@ fn map_range_q(
     exemplar_q: (f64, f64),
 ) -> Result<(Heightfield, RangeMapping)> {
     guide.require_complete()?;
-    let b = index.params.patch;
+    let b = index.built_with.patch_size;
     let (w, h) = (guide.width(), guide.height());
     let (bw, bh) = (b.min(w), b.min(h));
     let step = (b / 4).max(1);

@@ -283,22 +283,12 @@ pub struct PatchRef {
     pub y: u32,
 }
 
-/// Settings the index was built with (checked against the synthesis settings).
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct IndexParams {
-    pub(crate) patch: usize,
-    pub(crate) overlap: usize,
-    pub(crate) blocks: usize,
-    pub(crate) stride: usize,
-    pub(crate) clusters: usize,
-    pub(crate) pca_dims: usize,
-    pub(crate) seed: u64,
-}
-
 /// The preprocessed exemplar set: descriptors, hash table, PCA bases and kd-trees (built once,
 /// reusable for many syntheses with the same patch geometry).
 pub struct ExemplarIndex {
-    pub(crate) params: IndexParams,
+    /// The settings the index was built with (its patch geometry is checked against the
+    /// synthesis settings, [`ExemplarIndex::check_settings`]).
+    pub(crate) built_with: Settings,
     pub(crate) exemplars: Vec<Exemplar>,
     pub(crate) sats: Vec<Sat>,
     pub(crate) patches: Vec<PatchRef>,
@@ -474,15 +464,7 @@ impl ExemplarIndex {
             .collect();
         by_mean.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         Ok(Self {
-            params: IndexParams {
-                patch: p,
-                overlap: settings.overlap,
-                blocks: n,
-                stride,
-                clusters: settings.kmeans_clusters,
-                pca_dims: settings.pca_dims,
-                seed: settings.seed,
-            },
+            built_with: settings.clone(),
             exemplars,
             sats,
             patches,
@@ -605,14 +587,14 @@ fn build_buckets(
 impl ExemplarIndex {
     /// Checks that `settings` use the patch geometry this index was built with.
     pub(crate) fn check_settings(&self, s: &Settings) -> Result<()> {
-        let p = &self.params;
+        let b = &self.built_with;
         let pairs = [
-            ("patch_size", s.patch_size, p.patch),
-            ("overlap", s.overlap, p.overlap),
-            ("blocks", s.blocks, p.blocks),
-            ("exemplar_stride", s.exemplar_stride, p.stride),
-            ("kmeans_clusters", s.kmeans_clusters, p.clusters),
-            ("pca_dims", s.pca_dims, p.pca_dims),
+            ("patch_size", s.patch_size, b.patch_size),
+            ("overlap", s.overlap, b.overlap),
+            ("blocks", s.blocks, b.blocks),
+            ("exemplar_stride", s.exemplar_stride, b.exemplar_stride),
+            ("kmeans_clusters", s.kmeans_clusters, b.kmeans_clusters),
+            ("pca_dims", s.pca_dims, b.pca_dims),
         ];
         for (name, v, iv) in pairs {
             if v != iv {
@@ -636,7 +618,7 @@ impl ExemplarIndex {
     }
     /// Block-average descriptor (`N * N` values) of patch `id`.
     pub fn descriptor(&self, id: usize) -> &[f32] {
-        let nn = self.params.blocks * self.params.blocks;
+        let nn = self.built_with.blocks * self.built_with.blocks;
         &self.descriptors[id * nn..(id + 1) * nn]
     }
     /// The k-means clustering of the descriptors (the hash-table keys).
@@ -670,7 +652,7 @@ impl ExemplarIndex {
         knn: usize,
         rerank: usize,
     ) -> Result<Vec<(f32, usize)>> {
-        let p = self.params.patch;
+        let p = self.built_with.patch_size;
         if region.len() != p * p {
             return Err(PatchSynthError::InvalidControl {
                 name: "region",
@@ -697,7 +679,7 @@ impl ExemplarIndex {
         let f = features(rects, |x, y, w, h| {
             crate::synth::window_mean(region, p, x, y, w, h)
         });
-        let mut q = vec![0.0f32; self.params.pca_dims];
+        let mut q = vec![0.0f32; self.built_with.pca_dims];
         self.pcas[sh].project(&f, &mut q);
         let fetch = knn.saturating_mul(rerank.max(1));
         let mut out: Vec<(f32, usize)> = self
@@ -729,7 +711,7 @@ impl ExemplarIndex {
         shape: OverlapShape,
         target: impl Fn(usize, usize) -> f32,
     ) -> f32 {
-        let (p, o) = (self.params.patch, self.params.overlap);
+        let (p, o) = (self.built_with.patch_size, self.built_with.overlap);
         let (mut sd, mut sd2, mut n) = (0.0f64, 0.0f64, 0usize);
         for r in 0..p {
             let nc = match shape {
@@ -765,7 +747,7 @@ impl ExemplarIndex {
         let hf = &self.exemplars[pr.exemplar as usize].heightfield;
         let w = hf.width();
         let start = (pr.y as usize + y) * w + pr.x as usize;
-        &hf.as_slice()[start..start + self.params.patch]
+        &hf.as_slice()[start..start + self.built_with.patch_size]
     }
     /// Summed-area tables of the exemplars blurred by a Gaussian of `sigma` cells (what the
     /// guide distance compares with [`Settings::guide_lowpass`]).

@@ -2,6 +2,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use relief_heightfield::check_field;
+use relief_heightfield::param::{ensure, in_range};
+
 use crate::error::{PatchSynthError, Result};
 
 /// How the seam through an overlap region is found (section 3.3).
@@ -195,13 +198,7 @@ impl Settings {
 
     /// Patch, overlap, descriptor blocks, k-means and PCA sizes.
     fn check_geometry(&self) -> Result<()> {
-        if self.patch_size < 8 || self.patch_size > 1024 {
-            return Err(PatchSynthError::setting(
-                "patch_size",
-                self.patch_size,
-                "must be in 8..=1024",
-            ));
-        }
+        check_field!(self, patch_size, 8..=1024, "must be in 8..=1024")?;
         if self.overlap == 0 || 2 * self.overlap >= self.patch_size {
             return Err(PatchSynthError::setting(
                 "overlap",
@@ -212,50 +209,22 @@ impl Settings {
                 ),
             ));
         }
-        if self.blocks == 0 || self.blocks > self.patch_size {
-            return Err(PatchSynthError::setting(
-                "blocks",
-                self.blocks,
-                "must be in 1..=patch_size",
-            ));
-        }
-        if self.guide_cells == 0 || self.guide_cells > self.patch_size {
-            return Err(PatchSynthError::setting(
-                "guide_cells",
-                self.guide_cells,
-                "must be in 1..=patch_size",
-            ));
-        }
-        if let Some(s) = self.guide_lowpass
-            && !(s.is_finite() && (0.0..=1024.0).contains(&s))
-        {
-            return Err(PatchSynthError::setting(
+        let p = self.patch_size;
+        check_field!(self, blocks, 1..=p, "must be in 1..=patch_size")?;
+        check_field!(self, guide_cells, 1..=p, "must be in 1..=patch_size")?;
+        if let Some(s) = self.guide_lowpass {
+            in_range(
                 "guide_lowpass",
                 s,
+                0.0..=1024.0,
                 "must be in 0..=1024 cells",
-            ));
+            )?;
         }
-        if self.kmeans_clusters == 0 || self.kmeans_clusters > 4096 {
-            return Err(PatchSynthError::setting(
-                "kmeans_clusters",
-                self.kmeans_clusters,
-                "must be in 1..=4096",
-            ));
-        }
-        if self.kmeans_iterations == 0 {
-            return Err(PatchSynthError::setting(
-                "kmeans_iterations",
-                0,
-                "must be >= 1",
-            ));
-        }
-        if !SUPPORTED_PCA_DIMS.contains(&self.pca_dims) {
-            return Err(PatchSynthError::setting(
-                "pca_dims",
-                self.pca_dims,
-                "must be one of 4, 6, 8, 12, 16",
-            ));
-        }
+        check_field!(self, kmeans_clusters, 1..=4096, "must be in 1..=4096")?;
+        check_field!(self, kmeans_iterations, 1.., "must be >= 1")?;
+        let dims = self.pca_dims;
+        let ok = SUPPORTED_PCA_DIMS.contains(&dims);
+        ensure(ok, "pca_dims", dims, "must be one of 4, 6, 8, 12, 16")?;
         let features = crate::index::Layouts::new(self.patch_size, self.overlap)
             .rects
             .iter()
@@ -272,13 +241,7 @@ impl Settings {
                 ),
             ));
         }
-        if self.pca_samples < 2 * self.pca_dims {
-            return Err(PatchSynthError::setting(
-                "pca_samples",
-                self.pca_samples,
-                "must be >= 2 * pca_dims",
-            ));
-        }
+        check_field!(self, pca_samples, 2 * dims.., "must be >= 2 * pca_dims")?;
         Ok(())
     }
 
@@ -291,13 +254,14 @@ impl Settings {
         ] {
             check_non_negative(name, v)?;
         }
-        if self.alpha + self.beta + self.gamma <= 0.0 {
-            return Err(PatchSynthError::setting(
-                "alpha",
-                self.alpha,
-                "alpha, beta and gamma are all zero",
-            ));
-        }
+        // The weights are finite and >= 0 here, so a sum that is not > 0 means all zero.
+        let any = self.alpha + self.beta + self.gamma > 0.0;
+        ensure(
+            any,
+            "alpha",
+            self.alpha,
+            "alpha, beta and gamma are all zero",
+        )?;
         check_non_negative("lambda", self.lambda)
     }
 
@@ -311,42 +275,22 @@ impl Settings {
             ("min_candidates", self.min_candidates),
             ("exemplar_stride", self.exemplar_stride),
         ] {
-            if v == 0 {
-                return Err(PatchSynthError::setting(name, v, "must be >= 1"));
-            }
+            in_range(name, v, 1.., "must be >= 1")?;
         }
         check_non_negative("choice_tolerance", self.choice_tolerance)?;
-        if !(self.reuse_penalty.is_finite() && (0.0..=100.0).contains(&self.reuse_penalty)) {
-            return Err(PatchSynthError::setting(
-                "reuse_penalty",
-                self.reuse_penalty,
-                "must be in [0, 100]",
-            ));
-        }
-        if self.reuse_radius > 64 {
-            return Err(PatchSynthError::setting(
-                "reuse_radius",
-                self.reuse_radius,
-                "must be <= 64 blocks",
-            ));
-        }
-        if let Some(f) = self.min_candidates_share
-            && !(f.is_finite() && f > 0.0 && f <= 1.0)
-        {
-            return Err(PatchSynthError::setting(
+        check_field!(self, reuse_penalty, 0.0..=100.0, "must be in [0, 100]")?;
+        check_field!(self, reuse_radius, ..=64, "must be <= 64 blocks")?;
+        if let Some(f) = self.min_candidates_share {
+            ensure(
+                f > 0.0 && f <= 1.0,
                 "min_candidates_share",
                 f,
                 "must be in (0, 1]",
-            ));
+            )?;
         }
-        if let Some(t) = self.validation_tolerance
-            && !(t.is_finite() && t > 0.0)
-        {
-            return Err(PatchSynthError::setting(
-                "validation_tolerance",
-                t,
-                "must be finite and > 0",
-            ));
+        if let Some(t) = self.validation_tolerance {
+            let ok = t.is_finite() && t > 0.0;
+            ensure(ok, "validation_tolerance", t, "must be finite and > 0")?;
         }
         Ok(())
     }
@@ -402,9 +346,10 @@ impl Settings {
 
 /// A weight or tolerance: finite and >= 0.
 fn check_non_negative(name: &'static str, v: f32) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(PatchSynthError::setting(name, v, "must be finite and >= 0"))
-    }
+    Ok(ensure(
+        v.is_finite() && v >= 0.0,
+        name,
+        v,
+        "must be finite and >= 0",
+    )?)
 }

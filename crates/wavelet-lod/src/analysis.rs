@@ -1,7 +1,8 @@
 //! Detail statistics and the power-law fit of section 5: equations (2)-(4).
 
 use rayon::prelude::*;
-use relief_heightfield::Heightfield;
+use relief_heightfield::param::ensure;
+use relief_heightfield::{Heightfield, check_field};
 use serde::{Deserialize, Serialize};
 
 use crate::dwt::{Band, Decomposition, Grid, max_levels, wavedec2};
@@ -56,36 +57,16 @@ impl Default for FitSettings {
 impl FitSettings {
     /// Checks the settings.
     pub fn check(&self) -> Result<()> {
-        if !(self.variance_floor > 0.0 && self.variance_floor <= MAX_VARIANCE_FLOOR) {
-            return Err(WaveletError::param(
-                "variance_floor",
-                self.variance_floor,
-                "must be in (0, 1e12] m^2",
-            ));
-        }
+        let floor = self.variance_floor;
+        let ok = floor > 0.0 && floor <= MAX_VARIANCE_FLOOR;
+        ensure(ok, "variance_floor", floor, "must be in (0, 1e12] m^2")?;
         // Bounded so that the variances of equation (5) stay finite in f32 for every level the
         // refinement can add (12 levels of growth at gamma = -2 multiply a variance by 2^24).
-        if !(self.gamma_min >= GAMMA_MIN_LOWEST && self.gamma_min <= GAMMA_MAX_HIGHEST) {
-            return Err(WaveletError::param(
-                "gamma_min",
-                self.gamma_min,
-                "must be in [-2, 16]",
-            ));
-        }
-        if !(self.gamma_max >= self.gamma_min && self.gamma_max <= GAMMA_MAX_HIGHEST) {
-            return Err(WaveletError::param(
-                "gamma_max",
-                self.gamma_max,
-                "must be in [gamma_min, 16]",
-            ));
-        }
-        if self.min_level > 40 {
-            return Err(WaveletError::param(
-                "min_level",
-                self.min_level,
-                "must be <= 40",
-            ));
-        }
+        let gammas = GAMMA_MIN_LOWEST..=GAMMA_MAX_HIGHEST;
+        check_field!(self, gamma_min, gammas, "must be in [-2, 16]")?;
+        let gammas = self.gamma_min..=GAMMA_MAX_HIGHEST;
+        check_field!(self, gamma_max, gammas, "must be in [gamma_min, 16]")?;
+        check_field!(self, min_level, ..=40, "must be <= 40")?;
         Ok(())
     }
 
@@ -294,15 +275,7 @@ pub(crate) fn global_from(
         });
     }
     let used: Vec<&LevelVariance> = out.iter().filter(|l| l.fitted).collect();
-    if used.len() < 2 {
-        return Err(WaveletError::TooFewLevels {
-            min_level: settings.min_level,
-            available: used.len(),
-            levels,
-            width: dec.width,
-            height: dec.height,
-        });
-    }
+    require_fit_levels(used.len(), dec, settings)?;
     let fits = fit_levels(&used, settings);
     Ok(GlobalAnalysis {
         wavelet: dec.wavelet,
@@ -313,6 +286,20 @@ pub(crate) fn global_from(
         fits,
         settings: settings.clone(),
     })
+}
+
+/// The fit of equation (3) needs at least 2 of the levels of `dec` (`available` take part).
+fn require_fit_levels(available: usize, dec: &Decomposition, settings: &FitSettings) -> Result<()> {
+    if available < 2 {
+        return Err(WaveletError::TooFewLevels {
+            min_level: settings.min_level,
+            available,
+            levels: dec.levels(),
+            width: dec.width,
+            height: dec.height,
+        });
+    }
+    Ok(())
 }
 
 /// Equation (3) per band through the given levels (at least 2), clamped.
@@ -562,15 +549,7 @@ impl LocalStats {
             ];
             out.push((j, depth, grids));
         }
-        if out.len() < 2 {
-            return Err(WaveletError::TooFewLevels {
-                min_level: settings.min_level,
-                available: out.len(),
-                levels,
-                width: dec.width,
-                height: dec.height,
-            });
-        }
+        require_fit_levels(out.len(), dec, settings)?;
         let js: Vec<f64> = out.iter().map(|l| l.0 as f64).collect();
         let mean_j = js.iter().sum::<f64>() / js.len() as f64;
         let sxx: f64 = js.iter().map(|j| (j - mean_j).powi(2)).sum();

@@ -13,6 +13,8 @@
 //!
 //! `H` responds to horizontal edges (elevation changing from row to row).
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 use serde::{Deserialize, Serialize};
@@ -330,47 +332,36 @@ pub(crate) fn forward_level(
 }
 
 /// The lane ranges one axis of a windowed inverse level needs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct AxisPlan {
     /// Full length of the axis at the finer level.
     pub(crate) n: usize,
-    /// Requested output range `[a, b)`.
-    pub(crate) a: usize,
-    pub(crate) b: usize,
-    /// Even-lane (low-pass) range `[e0, e1)` and odd-lane (high-pass) range `[o0, o1)`.
-    pub(crate) e0: usize,
-    pub(crate) e1: usize,
-    pub(crate) o0: usize,
-    pub(crate) o1: usize,
+    /// Requested output range.
+    pub(crate) out: Range<usize>,
+    /// Even-lane (low-pass) range.
+    pub(crate) even: Range<usize>,
+    /// Odd-lane (high-pass) range (empty on an axis of length 1).
+    pub(crate) odd: Range<usize>,
 }
 
 impl AxisPlan {
-    pub(crate) fn new(n: usize, a: usize, b: usize, margin: usize) -> Self {
-        let p0 = a.saturating_sub(margin) & !1;
-        let p1 = (b + margin).min(n);
+    /// The lanes the output range `out` of an axis of length `n` needs, with `margin` samples
+    /// of the synthesis filter on each side.
+    pub(crate) fn new(n: usize, out: Range<usize>, margin: usize) -> Self {
+        let p0 = out.start.saturating_sub(margin) & !1;
+        let p1 = (out.end + margin).min(n);
         Self {
             n,
-            a,
-            b,
-            e0: p0 / 2,
-            e1: p1.div_ceil(2),
-            o0: p0 / 2,
-            o1: p1 / 2,
+            out,
+            even: p0 / 2..p1.div_ceil(2),
+            odd: p0 / 2..p1 / 2,
         }
-    }
-
-    pub(crate) fn elen(&self) -> usize {
-        self.e1 - self.e0
-    }
-
-    pub(crate) fn olen(&self) -> usize {
-        self.o1.max(self.o0) - self.o0
     }
 }
 
-/// Inverse of one level on a window: returns the `(bx - ax) x (by - ay)` window of the finer
-/// level from the lane regions of the four inputs given by the plans (approximation
-/// `elen_x x elen_y`, `H` `elen_x x olen_y`, `V` `olen_x x elen_y`, `D` `olen_x x olen_y`).
+/// Inverse of one level on a window: returns the `px.out x py.out` window of the finer level
+/// from the lane regions of the four inputs given by the plans (approximation `even x even`,
+/// `H` `x even, y odd`, `V` `x odd, y even`, `D` `odd x odd`).
 pub(crate) fn inverse_level_window(
     scheme: &Scheme,
     boundary: Boundary,
@@ -382,32 +373,33 @@ pub(crate) fn inverse_level_window(
     db: Vec<f32>,
     par: bool,
 ) -> Vec<f32> {
-    let (ex, ox, ey, oy) = (px.elen(), px.olen(), py.elen(), py.olen());
+    let (ex, ox) = (px.even.len(), px.odd.len());
+    let (ey, oy) = (py.even.len(), py.odd.len());
     debug_assert_eq!(approx.len(), ex * ey);
     debug_assert_eq!(hb.len(), ex * oy);
     debug_assert_eq!(vb.len(), ox * ey);
     debug_assert_eq!(db.len(), ox * oy);
-    let (emy, omy) = lane_maps(py.n, boundary, py.e0, ey, py.o0, oy);
+    let (emy, omy) = lane_maps(py.n, boundary, py.even.start, ey, py.odd.start, oy);
     let (mut s1, mut d1) = (approx, hb);
     inverse_rows(scheme, &mut s1, &mut d1, &emy, &omy, ex, par);
     let (mut s2, mut d2) = (vb, db);
     if ox > 0 {
         inverse_rows(scheme, &mut s2, &mut d2, &emy, &omy, ox, par);
     }
-    let (emx, omx) = lane_maps(px.n, boundary, px.e0, ex, px.o0, ox);
-    let ow = px.b - px.a;
-    let mut out = vec![0.0f32; ow * (py.b - py.a)];
-    let lane_row = |y: usize, width: usize| -> std::ops::Range<usize> {
+    let (emx, omx) = lane_maps(px.n, boundary, px.even.start, ex, px.odd.start, ox);
+    let ow = px.out.len();
+    let mut out = vec![0.0f32; ow * py.out.len()];
+    let lane_row = |y: usize, width: usize| -> Range<usize> {
         if y.is_multiple_of(2) {
-            let r = y / 2 - py.e0;
+            let r = y / 2 - py.even.start;
             r * width..(r + 1) * width
         } else {
-            let r = (y - 1) / 2 - py.o0;
+            let r = (y - 1) / 2 - py.odd.start;
             r * width..(r + 1) * width
         }
     };
     let body = |(e, o): &mut (Vec<f32>, Vec<f32>), (r, orow): (usize, &mut [f32])| {
-        let y = py.a + r;
+        let y = py.out.start + r;
         let (lo_src, hi_src) = if y.is_multiple_of(2) {
             (&s1, &s2)
         } else {
@@ -421,11 +413,11 @@ pub(crate) fn inverse_level_window(
         }
         inverse_1d(scheme, e, o, &emx, &omx);
         for (k, v) in orow.iter_mut().enumerate() {
-            let x = px.a + k;
+            let x = px.out.start + k;
             *v = if x.is_multiple_of(2) {
-                e[x / 2 - px.e0]
+                e[x / 2 - px.even.start]
             } else {
-                o[(x - 1) / 2 - px.o0]
+                o[(x - 1) / 2 - px.odd.start]
             };
         }
     };
@@ -561,8 +553,8 @@ fn inverse_all(
     for (i, (hb, vb, db)) in details.enumerate() {
         let depth = levels - i - 1;
         let (w, h) = (size_at_depth(width, depth), size_at_depth(height, depth));
-        let px = AxisPlan::new(w, 0, w, 0);
-        let py = AxisPlan::new(h, 0, h, 0);
+        let px = AxisPlan::new(w, 0..w, 0);
+        let py = AxisPlan::new(h, 0..h, 0);
         let data = inverse_level_window(
             scheme,
             boundary,

@@ -1,4 +1,4 @@
-use relief_heightfield::HeightfieldError;
+use relief_heightfield::{HeightfieldError, ParamError};
 use thiserror::Error;
 
 /// Errors of the wavelet transform, the statistics fit and the refinement.
@@ -69,6 +69,16 @@ impl WaveletError {
             name,
             value: value.to_string(),
             reason,
+        }
+    }
+}
+
+impl From<ParamError> for WaveletError {
+    fn from(e: ParamError) -> Self {
+        Self::InvalidParameter {
+            name: e.name,
+            value: e.value,
+            reason: e.reason,
         }
     }
 }

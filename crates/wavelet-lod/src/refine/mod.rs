@@ -1,6 +1,9 @@
 //! New levels of detail: GSA (section 5.1) and LSA (section 5.2), generated on demand.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
+use relief_heightfield::check_field;
 use relief_heightfield::{Heightfield, MAX_CELLS, NoProgress, Progress};
 use serde::{Deserialize, Serialize};
 
@@ -20,6 +23,7 @@ mod parent;
 mod render;
 
 use self::amplitude::{BROAD_WINDOW, amplitude_maps, blend_amplitude, colour_noise, lerp_index};
+use self::parent::BandRegion;
 
 /// Which statistics drive the synthesis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -182,55 +186,13 @@ impl RefineSettings {
         if self.method == Method::Lsa {
             check_window(self.window)?;
         }
-        if !(1..=12).contains(&self.extra_levels) {
-            return Err(WaveletError::param(
-                "extra_levels",
-                self.extra_levels,
-                "must be in 1..=12",
-            ));
-        }
-        if !(2..=8).contains(&self.fine_levels) {
-            return Err(WaveletError::param(
-                "fine_levels",
-                self.fine_levels,
-                "must be in 2..=8",
-            ));
-        }
-        if !(0.0..=8.0).contains(&self.min_gamma) {
-            return Err(WaveletError::param(
-                "min_gamma",
-                self.min_gamma,
-                "must be in [0, 8]",
-            ));
-        }
-        if !(0.0..=4.0).contains(&self.amplitude_power) {
-            return Err(WaveletError::param(
-                "amplitude_power",
-                self.amplitude_power,
-                "must be in [0, 4]",
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.amplitude_persistence) {
-            return Err(WaveletError::param(
-                "amplitude_persistence",
-                self.amplitude_persistence,
-                "must be in [0, 1]",
-            ));
-        }
-        if !(0.0..=2.0).contains(&self.parent_conditioning) {
-            return Err(WaveletError::param(
-                "parent_conditioning",
-                self.parent_conditioning,
-                "must be in [0, 2]",
-            ));
-        }
-        if !(16..=65_536).contains(&self.tile) {
-            return Err(WaveletError::param(
-                "tile",
-                self.tile,
-                "must be in 16..=65536",
-            ));
-        }
+        check_field!(self, extra_levels, 1..=12, "must be in 1..=12")?;
+        check_field!(self, fine_levels, 2..=8, "must be in 2..=8")?;
+        check_field!(self, min_gamma, 0.0..=8.0, "must be in [0, 8]")?;
+        check_field!(self, amplitude_power, 0.0..=4.0, "must be in [0, 4]")?;
+        check_field!(self, amplitude_persistence, 0.0..=1.0, "must be in [0, 1]")?;
+        check_field!(self, parent_conditioning, 0.0..=2.0, "must be in [0, 2]")?;
+        check_field!(self, tile, 16..=65_536, "must be in 16..=65536")?;
         Ok(())
     }
 }

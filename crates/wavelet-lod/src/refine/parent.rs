@@ -24,6 +24,17 @@ const NORM_SIDE: usize = 256;
 /// conditioned level) large enough to have no edge near it at any level.
 const NORM_OFFSET: usize = 1 << 20;
 
+/// A region of a band grid of a new level: the coefficients `xs x ys` of a grid of `dims`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct BandRegion {
+    /// Columns.
+    pub(super) xs: Range<usize>,
+    /// Rows.
+    pub(super) ys: Range<usize>,
+    /// Size of the whole band grid (columns, rows).
+    pub(super) dims: (usize, usize),
+}
+
 /// Bilinear parent coordinate of child coefficient `k`: children `2i` and `2i + 1` lie at
 /// `i - 1/4` and `i + 1/4` on the parent grid.
 #[inline]
@@ -41,10 +52,15 @@ impl Refiner {
             return;
         }
         let big = 1usize << 30;
+        let range = NORM_OFFSET..NORM_OFFSET + NORM_SIDE;
+        let region = BandRegion {
+            xs: range.clone(),
+            ys: range,
+            dims: (big, big),
+        };
         for t in 1..n {
-            let range = (NORM_OFFSET, NORM_OFFSET + NORM_SIDE);
             let norms = Band::ALL.map(|b| {
-                let f = self.parent_factor(t, b, range, range, (big, big), 1.0);
+                let f = self.parent_factor(t, b, &region, 1.0);
                 let ms = f.iter().map(|&v| v as f64 * v as f64).sum::<f64>() / f.len() as f64;
                 if ms > 0.0 && ms.is_finite() {
                     ms.sqrt().recip() as f32
@@ -56,18 +72,10 @@ impl Refiner {
         }
     }
 
-    /// The unit texture of new level `t` and `band` over the band region `xs x ys` of a band
-    /// grid of `dims` coefficients: coloured noise, times the parent factor for `t >= 1` with
-    /// parent conditioning.
-    pub(super) fn texture(
-        &self,
-        t: u32,
-        band: Band,
-        xs: (usize, usize),
-        ys: (usize, usize),
-        dims: (usize, usize),
-    ) -> Vec<f32> {
-        let (cw, ch) = (xs.1.saturating_sub(xs.0), ys.1.saturating_sub(ys.0));
+    /// The unit texture of new level `t` and `band` over `region` of its band grid: coloured
+    /// noise, times the parent factor for `t >= 1` with parent conditioning.
+    pub(super) fn texture(&self, t: u32, band: Band, region: &BandRegion) -> Vec<f32> {
+        let (cw, ch) = (region.xs.len(), region.ys.len());
         let mut out = vec![0.0f32; cw * ch];
         let Some(plan) = &self.spectral else {
             return out;
@@ -78,8 +86,8 @@ impl Refiner {
             self.settings.seed,
             band,
             level,
-            xs.0,
-            ys.0,
+            region.xs.start,
+            region.ys.start,
             cw,
             ch,
             kern,
@@ -92,38 +100,38 @@ impl Refiner {
             .parent_norm
             .get(t as usize)
             .map_or(1.0, |n| n[band.index()]);
-        let f = self.parent_factor(t, band, xs, ys, dims, norm);
+        let f = self.parent_factor(t, band, region, norm);
         for (o, v) in out.iter_mut().zip(&f) {
             *o *= v;
         }
         out
     }
 
-    /// The parent factor `F_t` (times `norm`) at the coefficients `xs x ys` of new level `t`.
-    fn parent_factor(
-        &self,
-        t: u32,
-        band: Band,
-        xs: (usize, usize),
-        ys: (usize, usize),
-        dims: (usize, usize),
-        norm: f32,
-    ) -> Vec<f32> {
-        let (pw, ph) = (dims.0.div_ceil(2).max(1), dims.1.div_ceil(2).max(1));
-        let xw: Vec<(usize, usize, f32)> = (xs.0..xs.1)
+    /// The parent factor `F_t` (times `norm`) at the coefficients of `region` of new level `t`.
+    fn parent_factor(&self, t: u32, band: Band, region: &BandRegion, norm: f32) -> Vec<f32> {
+        let (dw, dh) = region.dims;
+        let (pw, ph) = (dw.div_ceil(2).max(1), dh.div_ceil(2).max(1));
+        let xw: Vec<(usize, usize, f32)> = region
+            .xs
+            .clone()
             .map(|k| lerp_index(parent_coord(k), pw))
             .collect();
-        let yw: Vec<(usize, usize, f32)> = (ys.0..ys.1)
+        let yw: Vec<(usize, usize, f32)> = region
+            .ys
+            .clone()
             .map(|k| lerp_index(parent_coord(k), ph))
             .collect();
         let (Some(fx), Some(fy)) = (span_of(&xw), span_of(&yw)) else {
             return Vec::new();
         };
         // Parents the windows of [fx) x [fy) read.
-        let qx = (fx.0.saturating_sub(PARENT_R), (fx.1 + PARENT_R).min(pw));
-        let qy = (fy.0.saturating_sub(PARENT_R), (fy.1 + PARENT_R).min(ph));
-        let parent = self.texture(t - 1, band, qx, qy, (pw, ph));
-        let qw = qx.1 - qx.0;
+        let parents = BandRegion {
+            xs: fx.0.saturating_sub(PARENT_R)..(fx.1 + PARENT_R).min(pw),
+            ys: fy.0.saturating_sub(PARENT_R)..(fy.1 + PARENT_R).min(ph),
+            dims: (pw, ph),
+        };
+        let parent = self.texture(t - 1, band, &parents);
+        let (qx, qy, qw) = (parents.xs.start, parents.ys.start, parents.xs.len());
         let kappa = 0.5 * self.settings.parent_conditioning as f32;
         let fw = fx.1 - fx.0;
         let mut f = vec![0.0f32; fw * (fy.1 - fy.0)];
@@ -135,8 +143,8 @@ impl Refiner {
                 let (x0, x1) = (px.saturating_sub(PARENT_R), (px + PARENT_R + 1).min(pw));
                 let mut s = 0.0f32;
                 for yy in y0..y1 {
-                    let prow = &parent[(yy - qy.0) * qw..(yy - qy.0 + 1) * qw];
-                    for u in &prow[x0 - qx.0..x1 - qx.0] {
+                    let prow = &parent[(yy - qy) * qw..(yy - qy + 1) * qw];
+                    for u in &prow[x0 - qx..x1 - qx] {
                         s += u * u;
                     }
                 }
@@ -191,8 +199,13 @@ mod tests {
         let (mut sp, mut sc, mut spp, mut scc, mut spc, mut ms) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let mut count = 0.0;
         for band in Band::ALL {
-            let parent = r.texture(0, band, (0, n), (0, n), (n, n));
-            let child = r.texture(1, band, (0, 2 * n), (0, 2 * n), (2 * n, 2 * n));
+            let square = |side: usize| BandRegion {
+                xs: 0..side,
+                ys: 0..side,
+                dims: (side, side),
+            };
+            let parent = r.texture(0, band, &square(n));
+            let child = r.texture(1, band, &square(2 * n));
             ms += child.iter().map(|&v| (v * v) as f64).sum::<f64>();
             for y in 1..n - 1 {
                 for x in 1..n - 1 {

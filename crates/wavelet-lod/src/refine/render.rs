@@ -1,6 +1,8 @@
 //! Rendering a prepared refinement: windows, tiles and strips, the paper model's inverse DWT
 //! of new levels and the spectral model's smooth part plus coloured detail.
 
+use relief_heightfield::Window;
+
 use super::*;
 
 impl Refiner {
@@ -19,7 +21,7 @@ impl Refiner {
                 "must be non-empty and inside the refined grid",
             ));
         }
-        Ok(self.render_region(x, y, w, h))
+        Ok(self.render_region(Window::new(x, y, w, h)))
     }
 
     /// [`Refiner::render_window_values`] as a heightfield (cell size divided by
@@ -63,7 +65,7 @@ impl Refiner {
                 for tx in 0..tiles_x {
                     let x0 = tx * t;
                     let tw = t.min(ow - x0);
-                    let tile = self.render_region(x0, y0, tw, th);
+                    let tile = self.render_region(Window::new(x0, y0, tw, th));
                     for (r, row) in tile.chunks(tw).enumerate() {
                         strip[r * ow + x0..r * ow + x0 + tw].copy_from_slice(row);
                     }
@@ -107,7 +109,7 @@ impl Refiner {
                 .into_par_iter()
                 .map(|tx| {
                     let x0 = tx * t;
-                    self.render_region(x0, y0, t.min(ow - x0), sh)
+                    self.render_region(Window::new(x0, y0, t.min(ow - x0), sh))
                 })
                 .collect();
             // Row by row in parallel (a serial copy would leave the other threads idle).
@@ -129,10 +131,10 @@ impl Refiner {
 
     /// The window at the finest level, computed from the input through every new level with
     /// only the lanes each inverse step needs (section 5, "generated when needed").
-    fn render_region(&self, x: usize, y: usize, w: usize, h: usize) -> Vec<f32> {
+    fn render_region(&self, win: Window) -> Vec<f32> {
         match &self.spectral {
-            Some(plan) if self.settings.extra_levels > 0 => self.render_spectral(plan, x, y, w, h),
-            _ => self.render_pass(x, y, w, h, true),
+            Some(plan) if self.settings.extra_levels > 0 => self.render_spectral(plan, win),
+            _ => self.render_pass(win, true),
         }
     }
 
@@ -142,14 +144,8 @@ impl Refiner {
     /// rounding): the detail's own block means are taken out through the smooth part, as in a
     /// conditional simulation. Every value depends only on its position (fixed summation
     /// orders), so windows stay bit-identical to the full run.
-    fn render_spectral(
-        &self,
-        plan: &SpectralPlan,
-        x: usize,
-        y: usize,
-        w: usize,
-        h: usize,
-    ) -> Vec<f32> {
+    fn render_spectral(&self, plan: &SpectralPlan, win: Window) -> Vec<f32> {
+        let (x, y, w, h) = win.as_tuple();
         let up = &plan.cubic;
         let f = up.factor;
         let (iw, ih) = (self.input.width, self.input.height);
@@ -182,7 +178,7 @@ impl Refiner {
             (x, x + w, y, y + h)
         };
         let dw = dx1 - dx0;
-        let detail = self.render_pass(dx0, dy0, dw, dy1 - dy0, false);
+        let detail = self.render_pass(Window::new(dx0, dy0, dw, dy1 - dy0), false);
         // Coarse residual s = input - box-down(D) over [rx0, rx1) x [ry0, ry1).
         let sw = rx1 - rx0;
         let mut s = vec![0.0f32; sw * (ry1 - ry0)];
@@ -271,7 +267,8 @@ impl Refiner {
 
     /// The inverse DWT of the new levels over the approximation `input` (`with_input`) or over
     /// a zero approximation (the spectral model's detail alone).
-    fn render_pass(&self, x: usize, y: usize, w: usize, h: usize, with_input: bool) -> Vec<f32> {
+    fn render_pass(&self, win: Window, with_input: bool) -> Vec<f32> {
+        let (x, y, w, h) = win.as_tuple();
         let n = self.settings.extra_levels;
         if n == 0 {
             let mut out = Vec::with_capacity(w * h);
@@ -287,37 +284,41 @@ impl Refiner {
         let (iw, ih) = (self.input.width, self.input.height);
         // Plans from the finest level down to the input.
         let mut plans = Vec::with_capacity(n as usize);
-        let (mut ax, mut bx, mut ay, mut by) = (x, x + w, y, y + h);
+        let (mut xs, mut ys) = (x..x + w, y..y + h);
         for t in (1..=n).rev() {
-            let px = AxisPlan::new(iw << t, ax, bx, margin);
-            let py = AxisPlan::new(ih << t, ay, by, margin);
-            (ax, bx, ay, by) = (px.e0, px.e1, py.e0, py.e1);
+            let px = AxisPlan::new(iw << t, xs, margin);
+            let py = AxisPlan::new(ih << t, ys, margin);
+            (xs, ys) = (px.even.clone(), py.even.clone());
             plans.push((px, py));
         }
         plans.reverse();
         // Level 0: the input itself is the approximation at level J (zero for the spectral
         // model's detail).
-        let mut cur = Vec::with_capacity((bx - ax) * (by - ay));
-        for r in ay..by {
+        let mut cur = Vec::with_capacity(xs.len() * ys.len());
+        for r in ys.clone() {
             if with_input {
-                cur.extend_from_slice(&self.input.data[r * iw + ax..r * iw + bx]);
+                cur.extend_from_slice(&self.input.data[r * iw + xs.start..r * iw + xs.end]);
             } else {
-                cur.resize(cur.len() + bx - ax, 0.0);
+                cur.resize(cur.len() + xs.len(), 0.0);
             }
         }
-        let (lx0, ly0, lw, lh) = (ax, ay, bx - ax, by - ay);
+        let (lx0, ly0, lw, lh) = (xs.start, ys.start, xs.len(), ys.len());
         let scheme = wavelet.scheme();
         let sigmas = self.sigma_maps(lx0, ly0, lw, lh);
         for (t, (px, py)) in plans.iter().enumerate() {
             let sig = &sigmas[t];
             let t = t as u32;
             let level = self.global.top_level + t as i64;
-            let make_band = |band: Band, xs: (usize, usize), ys: (usize, usize)| -> Vec<f32> {
-                let (cw, ch) = (xs.1 - xs.0, ys.1.max(ys.0) - ys.0);
+            let make_band = |band: Band, xs: &Range<usize>, ys: &Range<usize>| -> Vec<f32> {
+                let (cw, ch) = (xs.len(), ys.len());
                 let s = &sig[band.index()];
                 if self.spectral.is_some() {
-                    let dims = (iw << t, ih << t);
-                    let mut out = self.texture(t, band, (xs.0, xs.1), (ys.0, ys.0 + ch), dims);
+                    let region = BandRegion {
+                        xs: xs.clone(),
+                        ys: ys.start..ys.start + ch,
+                        dims: (iw << t, ih << t),
+                    };
+                    let mut out = self.texture(t, band, &region);
                     let sigma = s.first().copied().unwrap_or(0.0);
                     match &self.amplitude {
                         None => out.iter_mut().for_each(|v| *v *= sigma),
@@ -329,10 +330,10 @@ impl Refiner {
                             let inv = 1.0 / (1u64 << t) as f32;
                             let coord = |k: usize| ((k as f32 + 0.5) * inv - 0.5) * 0.5 - 0.25;
                             let xw: Vec<(usize, usize, f32)> = (0..cw)
-                                .map(|k| lerp_index(coord(xs.0 + k), map.width))
+                                .map(|k| lerp_index(coord(xs.start + k), map.width))
                                 .collect();
                             for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
-                                let (y0, y1, fy) = lerp_index(coord(ys.0 + r), map.height);
+                                let (y0, y1, fy) = lerp_index(coord(ys.start + r), map.height);
                                 let (r0, r1) = (
                                     &map.data[y0 * map.width..(y0 + 1) * map.width],
                                     &map.data[y1 * map.width..(y1 + 1) * map.width],
@@ -349,20 +350,20 @@ impl Refiner {
                 }
                 let mut out = vec![0.0f32; cw * ch];
                 for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
-                    let gy = ys.0 + r;
+                    let gy = ys.start + r;
                     let key = row_key(self.settings.seed, band.index(), level, gy);
-                    fill_normals(key, xs.0, row);
+                    fill_normals(key, xs.start, row);
                     let sy = ((gy >> t) - ly0) * lw;
                     for (k, v) in row.iter_mut().enumerate() {
-                        let sx = ((xs.0 + k) >> t) - lx0;
+                        let sx = ((xs.start + k) >> t) - lx0;
                         *v *= s[sy + sx];
                     }
                 }
                 out
             };
-            let hb = make_band(Band::H, (px.e0, px.e1), (py.o0, py.o1));
-            let vb = make_band(Band::V, (px.o0, px.o1), (py.e0, py.e1));
-            let db = make_band(Band::D, (px.o0, px.o1), (py.o0, py.o1));
+            let hb = make_band(Band::H, &px.even, &py.odd);
+            let vb = make_band(Band::V, &px.odd, &py.even);
+            let db = make_band(Band::D, &px.odd, &py.odd);
             cur = inverse_level_window(scheme, Boundary::Symmetric, px, py, cur, hb, vb, db, false);
         }
         cur
