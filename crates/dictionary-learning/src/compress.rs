@@ -159,23 +159,11 @@ pub struct Compressed {
 impl CompressSettings {
     /// Validates the settings (the dictionary-dependent checks run in [`Self::run`]).
     pub fn check(&self) -> Result<()> {
-        if !(1..=64).contains(&self.sparsity) {
-            return Err(LearnError::param(
-                "sparsity",
-                self.sparsity,
-                "must be in 1..=64",
-            ));
-        }
+        LearnError::check_in("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
         if self.source != DictionarySource::Complete && self.atoms == 0 {
             return Err(LearnError::param("atoms", 0, "must be >= 1"));
         }
-        if !(2..=64).contains(&self.patch_size) {
-            return Err(LearnError::param(
-                "patch_size",
-                self.patch_size,
-                "must be in 2..=64",
-            ));
-        }
+        LearnError::check_in("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
             return Err(LearnError::param(
                 "spacing",

@@ -1,3 +1,5 @@
+use std::ops::RangeInclusive;
+
 use thiserror::Error;
 
 /// Errors of this crate.
@@ -28,6 +30,38 @@ impl Error {
             name,
             value: value.to_string(),
             reason,
+        }
+    }
+
+    /// [`Error::param`] naming `name` unless `range` holds `value` (a NaN never is).
+    pub(crate) fn check_in<T: PartialOrd + std::fmt::Display>(
+        name: &'static str,
+        value: T,
+        range: RangeInclusive<T>,
+        reason: &'static str,
+    ) -> Result<()> {
+        if range.contains(&value) {
+            Ok(())
+        } else {
+            Err(Self::param(name, value, reason))
+        }
+    }
+
+    /// [`Error::check_in`] of every `(name, value)` in turn, against one range.
+    pub(crate) fn check_all_in<T: PartialOrd + std::fmt::Display + Copy>(
+        values: &[(&'static str, T)],
+        range: RangeInclusive<T>,
+        reason: &'static str,
+    ) -> Result<()> {
+        (values.iter()).try_for_each(|&(n, v)| Self::check_in(n, v, range.clone(), reason))
+    }
+
+    /// [`Error::param`] naming `name` unless `value` is finite and > 0.
+    pub(crate) fn check_positive(name: &'static str, value: f32) -> Result<()> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(Self::param(name, value, "must be finite and > 0"))
         }
     }
 }

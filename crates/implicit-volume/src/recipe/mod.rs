@@ -384,22 +384,17 @@ impl Recipe {
             }
         }
         let d = &self.densities;
-        for (n, v) in [
+        let densities = [
             ("hoodoos_per_km2", d.hoodoos_per_km2),
             ("arches_per_km2", d.arches_per_km2),
             ("islands_per_km2", d.islands_per_km2),
             ("caves_per_km2", d.caves_per_km2),
             ("karst_km_per_km2", d.karst_km_per_km2),
             ("karst_cliff_seeds_per_km2", d.karst_cliff_seeds_per_km2),
-        ] {
-            if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
-                return Err(Error::param(n, v, "must be in [0, 10000]"));
-            }
-        }
-        if let Some(v) = self.voxel
-            && !(v.is_finite() && v > 0.0)
-        {
-            return Err(Error::param("voxel", v, "must be finite and > 0"));
+        ];
+        Error::check_all_in(&densities, 0.0..=1e4, "must be in [0, 10000]")?;
+        if let Some(v) = self.voxel {
+            Error::check_positive("voxel", v)?;
         }
         if let Some(n) = self.karst_budget
             && n > 1 << 22

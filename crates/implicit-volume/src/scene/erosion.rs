@@ -139,10 +139,7 @@ impl SceneBuilder {
                 "must be at most 2048 weathering radii",
             ));
         }
-        if !(1..=8).contains(&s.iterations) {
-            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
-        }
-        Ok(())
+        Error::check_in("iterations", s.iterations, 1..=8, "must be in 1..=8")
     }
 
     /// Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient,
@@ -214,9 +211,7 @@ impl SceneBuilder {
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
-        if !(0.0..=1.0).contains(&s.beta) {
-            return Err(Error::param("beta", s.beta, "must be in [0, 1]"));
-        }
+        Error::check_in("beta", s.beta, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let f = self.frame;
         let spacing = 0.75 * s.radius;

@@ -76,16 +76,8 @@ impl SceneBuilder {
     ) -> Result<EffectReport> {
         self.check_len("radius", s.radius)?;
         self.check_len("altitude", s.altitude)?;
-        if !(1..=16).contains(&s.per_cluster) {
-            return Err(Error::param(
-                "per_cluster",
-                s.per_cluster,
-                "must be in 1..=16",
-            ));
-        }
-        if !(s.spread.is_finite() && (1.0..=10.0).contains(&s.spread)) {
-            return Err(Error::param("spread", s.spread, "must be in [1, 10]"));
-        }
+        Error::check_in("per_cluster", s.per_cluster, 1..=16, "must be in 1..=16")?;
+        Error::check_in("spread", s.spread, 1.0..=10.0, "must be in [1, 10]")?;
         region.check(&self.frame)?;
         let (islands, candidates) = self.island_sites(s, region);
         let mut report = EffectReport {

@@ -86,16 +86,13 @@ impl SceneBuilder {
             ("radius", s.radius),
             ("spacing", s.spacing),
         ])?;
-        if !(0.0..=90.0).contains(&s.max_slope_deg) {
-            return Err(Error::param(
-                "max_slope_deg",
-                s.max_slope_deg,
-                "must be in [0, 90]",
-            ));
-        }
-        if !(0.0..=1.0).contains(&s.cap_rho) {
-            return Err(Error::param("cap_rho", s.cap_rho, "must be in [0, 1]"));
-        }
+        Error::check_in(
+            "max_slope_deg",
+            s.max_slope_deg,
+            0.0..=90.0,
+            "must be in [0, 90]",
+        )?;
+        Error::check_in("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
         let sites = self.rims_first(sites, 3.0 * s.spacing);

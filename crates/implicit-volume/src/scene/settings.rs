@@ -67,12 +67,8 @@ impl Weathering {
                 ));
             }
         }
-        for (n, v) in [("beta", self.beta), ("threshold", self.threshold)] {
-            if !(0.0..=1.0).contains(&v) {
-                return Err(Error::param(n, v, "must be in [0, 1]"));
-            }
-        }
-        Ok(())
+        let unit = [("beta", self.beta), ("threshold", self.threshold)];
+        Error::check_all_in(&unit, 0.0..=1.0, "must be in [0, 1]")
     }
 }
 
