@@ -349,6 +349,15 @@ mod tests {
         })
     }
 
+    /// A K-SVD dictionary of 16 atoms learned in `iterations` (small and quick).
+    fn sixteen_atoms(iterations: usize) -> CompressSettings {
+        CompressSettings {
+            atoms: 16,
+            iterations,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn settings_round_trip_and_refuse_unknown_fields() {
         let s = CompressSettings {
@@ -392,14 +401,12 @@ mod tests {
     fn analytic_atoms_join_the_dictionary() {
         let hf = terrain();
         let s = CompressSettings {
-            atoms: 16,
-            iterations: 2,
             analytic_atoms: AnalyticAtoms {
                 ridged_sum: 8,
                 perlin: 4,
                 ..Default::default()
             },
-            ..Default::default()
+            ..sixteen_atoms(2)
         };
         let out = s.run(&hf, None, &NoProgress).unwrap();
         let d = out.sct.layers()[0].dictionary().clone();
@@ -442,11 +449,9 @@ mod tests {
     fn run_reports_the_tree_it_returns() {
         let hf = terrain();
         let s = CompressSettings {
-            atoms: 16,
             sparsity: 2,
-            iterations: 3,
             seed: 5,
-            ..Default::default()
+            ..sixteen_atoms(3)
         };
         let out = s.run(&hf, None, &NoProgress).unwrap();
         let f = &out.figures;

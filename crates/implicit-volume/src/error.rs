@@ -2,6 +2,14 @@ use std::ops::RangeInclusive;
 
 use thiserror::Error;
 
+/// `[("a", s.a), ("b", s.b)]`: fields of `s` paired with their own names, for the checks
+/// whose errors name the offending field (so a name cannot drift from its field).
+macro_rules! named_fields {
+    ($s:expr; $($f:ident),+ $(,)?) => {
+        [$((stringify!($f), $s.$f)),+]
+    };
+}
+
 /// Errors of this crate.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum Error {
@@ -54,6 +62,15 @@ impl Error {
         reason: &'static str,
     ) -> Result<()> {
         (values.iter()).try_for_each(|&(n, v)| Self::check_in(n, v, range.clone(), reason))
+    }
+
+    /// `id` when it is the index of one of `len` nodes, else [`Error::param`] naming `name`.
+    pub(crate) fn check_node(name: &'static str, id: u32, len: usize) -> Result<u32> {
+        if (id as usize) < len {
+            Ok(id)
+        } else {
+            Err(Self::param(name, id, "not a node of this tree"))
+        }
     }
 
     /// [`Error::param`] naming `name` unless `value` is finite and > 0.

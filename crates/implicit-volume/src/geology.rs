@@ -93,15 +93,7 @@ impl Geology {
         GeoId(self.nodes.len() as u32 - 1)
     }
     fn check_id(&self, id: GeoId) -> Result<u32> {
-        if (id.0 as usize) < self.nodes.len() {
-            Ok(id.0)
-        } else {
-            Err(Error::param(
-                "geology node id",
-                id.0,
-                "not a node of this tree",
-            ))
-        }
+        Error::check_node("geology node id", id.0, self.nodes.len())
     }
 
     /// Constant resistance.

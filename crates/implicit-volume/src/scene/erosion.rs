@@ -120,12 +120,7 @@ impl SceneBuilder {
 
     /// Checks the settings of [`SceneBuilder::sea_erosion`].
     fn check_sea_erosion(&self, s: &SeaErosion) -> Result<()> {
-        self.check_lens(&[
-            ("depth", s.depth),
-            ("height", s.height),
-            ("reach", s.reach),
-            ("cave_length", s.cave_length),
-        ])?;
+        self.check_lens(&named_fields!(s; depth, height, reach, cave_length))?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
@@ -203,11 +198,7 @@ impl SceneBuilder {
 
     /// Sea cliffs ([`SeaCliffs`]).
     pub fn sea_cliffs(&mut self, s: &SeaCliffs, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("depth", s.depth),
-            ("retreat", s.retreat),
-            ("radius", s.radius),
-        ])?;
+        self.check_lens(&named_fields!(s; depth, retreat, radius))?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }

@@ -116,14 +116,7 @@ impl SceneBuilder {
 
     /// Checks the settings of [`SceneBuilder::karst`] and the region.
     fn check_karst(&self, s: &KarstSettings, region: &Region) -> Result<()> {
-        let unit = [
-            ("rho0", s.rho0),
-            ("rho_stop", s.rho_stop),
-            ("epsilon", s.epsilon),
-            ("beta", s.beta),
-            ("sigma", s.sigma),
-            ("vertical", s.vertical),
-        ];
+        let unit = named_fields!(s; rho0, rho_stop, epsilon, beta, sigma, vertical);
         Error::check_all_in(&unit, 0.0..=1.0, "must be in [0, 1]")?;
         if !(s.flatten > 0.0 && s.flatten <= 1.0) {
             return Err(Error::param("flatten", s.flatten, "must be in (0, 1]"));
@@ -134,14 +127,9 @@ impl SceneBuilder {
             0.0..=0.9,
             "must be in [0, 0.9]",
         )?;
-        self.check_lens(&[
-            ("radius", s.radius),
-            ("min_radius", s.min_radius),
-            ("energy", s.energy),
-            ("step", s.step),
-            ("poisson_radius", s.poisson_radius),
-            ("cliff_spacing", s.cliff_spacing),
-        ])?;
+        let lens =
+            named_fields!(s; radius, min_radius, energy, step, poisson_radius, cliff_spacing);
+        self.check_lens(&lens)?;
         if s.min_radius > s.radius {
             return Err(Error::param(
                 "min_radius",

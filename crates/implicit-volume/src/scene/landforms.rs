@@ -81,11 +81,7 @@ impl SceneBuilder {
     /// Hoodoos (figure 3): a cone base blended with stacked perturbed spheres and a caprock,
     /// creased by a warp, unioned with the terrain on gentle ground.
     pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("height", s.height),
-            ("radius", s.radius),
-            ("spacing", s.spacing),
-        ])?;
+        self.check_lens(&named_fields!(s; height, radius, spacing))?;
         Error::check_in(
             "max_slope_deg",
             s.max_slope_deg,
@@ -210,12 +206,7 @@ impl SceneBuilder {
     /// (`e(rho, sigma)` of section 4.1), so the opening follows the strata. Ridges are taken
     /// thinnest first, `max(2 max_length, 4 span)` apart.
     pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("span", s.span),
-            ("height", s.height),
-            ("thickness", s.thickness),
-            ("max_length", s.max_length),
-        ])?;
+        self.check_lens(&named_fields!(s; span, height, thickness, max_length))?;
         if s.max_length < s.span {
             return Err(Error::param(
                 "max_length",

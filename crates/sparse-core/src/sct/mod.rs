@@ -57,7 +57,7 @@ pub use spec::{NodeSpec, Profile, RegionSpec, RiverSpec, RiverValleySpec, TreeSp
 
 use index::SpatialIndex;
 pub use layer::raster_coord;
-use layer::{Band, StampScratch, hi_pixel, lo_pixel};
+use layer::{Band, StampScratch};
 
 use std::sync::Arc;
 
@@ -302,11 +302,10 @@ impl Sct {
             .enumerate()
             .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
                 let rows = chunk.len() / win.width;
+                let y0 = win.y + b * BAND_ROWS;
                 let band = Band {
-                    x0: win.x,
-                    x1: win.x + win.width,
-                    y0: win.y + b * BAND_ROWS,
-                    y1: win.y + b * BAND_ROWS + rows,
+                    cols: win.x..win.x + win.width,
+                    rows: y0..y0 + rows,
                     scale: settings.scale,
                 };
                 let mut val = vec![0.0; chunk.len()];
