@@ -159,23 +159,11 @@ pub struct Compressed {
 impl CompressSettings {
     /// Validates the settings (the dictionary-dependent checks run in [`Self::run`]).
     pub fn check(&self) -> Result<()> {
-        if !(1..=64).contains(&self.sparsity) {
-            return Err(LearnError::param(
-                "sparsity",
-                self.sparsity,
-                "must be in 1..=64",
-            ));
-        }
+        LearnError::check_in("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
         if self.source != DictionarySource::Complete && self.atoms == 0 {
             return Err(LearnError::param("atoms", 0, "must be >= 1"));
         }
-        if !(2..=64).contains(&self.patch_size) {
-            return Err(LearnError::param(
-                "patch_size",
-                self.patch_size,
-                "must be in 2..=64",
-            ));
-        }
+        LearnError::check_in("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
             return Err(LearnError::param(
                 "spacing",
@@ -361,6 +349,15 @@ mod tests {
         })
     }
 
+    /// A K-SVD dictionary of 16 atoms learned in `iterations` (small and quick).
+    fn sixteen_atoms(iterations: usize) -> CompressSettings {
+        CompressSettings {
+            atoms: 16,
+            iterations,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn settings_round_trip_and_refuse_unknown_fields() {
         let s = CompressSettings {
@@ -404,14 +401,12 @@ mod tests {
     fn analytic_atoms_join_the_dictionary() {
         let hf = terrain();
         let s = CompressSettings {
-            atoms: 16,
-            iterations: 2,
             analytic_atoms: AnalyticAtoms {
                 ridged_sum: 8,
                 perlin: 4,
                 ..Default::default()
             },
-            ..Default::default()
+            ..sixteen_atoms(2)
         };
         let out = s.run(&hf, None, &NoProgress).unwrap();
         let d = out.sct.layers()[0].dictionary().clone();
@@ -454,11 +449,9 @@ mod tests {
     fn run_reports_the_tree_it_returns() {
         let hf = terrain();
         let s = CompressSettings {
-            atoms: 16,
             sparsity: 2,
-            iterations: 3,
             seed: 5,
-            ..Default::default()
+            ..sixteen_atoms(3)
         };
         let out = s.run(&hf, None, &NoProgress).unwrap();
         let f = &out.figures;

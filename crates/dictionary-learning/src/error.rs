@@ -56,6 +56,22 @@ impl LearnError {
             reason,
         }
     }
+
+    /// [`LearnError::param`] naming `name` unless `range` holds `value`.
+    pub(crate) fn check_in<T>(
+        name: &'static str,
+        value: T,
+        range: std::ops::RangeInclusive<T>,
+        reason: &'static str,
+    ) -> Result<()>
+    where
+        T: PartialOrd + std::fmt::Display,
+    {
+        match range.contains(&value) {
+            true => Ok(()),
+            false => Err(Self::param(name, value, reason)),
+        }
+    }
 }
 
 /// Result alias of this crate.

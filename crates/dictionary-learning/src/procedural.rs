@@ -72,13 +72,7 @@ impl ProceduralSettings {
                 "must be in 1..=65536",
             ));
         }
-        if self.patch_size < 2 || self.patch_size > 64 {
-            return Err(LearnError::param(
-                "patch_size",
-                self.patch_size,
-                "must be in 2..=64",
-            ));
-        }
+        LearnError::check_in("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
         if let Some(n) = self.learned_atoms
             && (n == 0 || n > self.n_candidates)
         {

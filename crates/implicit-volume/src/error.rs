@@ -1,4 +1,14 @@
+use std::ops::RangeInclusive;
+
 use thiserror::Error;
+
+/// `[("a", s.a), ("b", s.b)]`: fields of `s` paired with their own names, for the checks
+/// whose errors name the offending field (so a name cannot drift from its field).
+macro_rules! named_fields {
+    ($s:expr; $($f:ident),+ $(,)?) => {
+        [$((stringify!($f), $s.$f)),+]
+    };
+}
 
 /// Errors of this crate.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -28,6 +38,47 @@ impl Error {
             name,
             value: value.to_string(),
             reason,
+        }
+    }
+
+    /// [`Error::param`] naming `name` unless `range` holds `value` (a NaN never is).
+    pub(crate) fn check_in<T: PartialOrd + std::fmt::Display>(
+        name: &'static str,
+        value: T,
+        range: RangeInclusive<T>,
+        reason: &'static str,
+    ) -> Result<()> {
+        if range.contains(&value) {
+            Ok(())
+        } else {
+            Err(Self::param(name, value, reason))
+        }
+    }
+
+    /// [`Error::check_in`] of every `(name, value)` in turn, against one range.
+    pub(crate) fn check_all_in<T: PartialOrd + std::fmt::Display + Copy>(
+        values: &[(&'static str, T)],
+        range: RangeInclusive<T>,
+        reason: &'static str,
+    ) -> Result<()> {
+        (values.iter()).try_for_each(|&(n, v)| Self::check_in(n, v, range.clone(), reason))
+    }
+
+    /// `id` when it is the index of one of `len` nodes, else [`Error::param`] naming `name`.
+    pub(crate) fn check_node(name: &'static str, id: u32, len: usize) -> Result<u32> {
+        if (id as usize) < len {
+            Ok(id)
+        } else {
+            Err(Self::param(name, id, "not a node of this tree"))
+        }
+    }
+
+    /// [`Error::param`] naming `name` unless `value` is finite and > 0.
+    pub(crate) fn check_positive(name: &'static str, value: f32) -> Result<()> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(Self::param(name, value, "must be finite and > 0"))
         }
     }
 }

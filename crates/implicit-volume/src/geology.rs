@@ -79,16 +79,7 @@ pub struct Geology {
 }
 
 fn check01(name: &'static str, v: f32) -> Result<()> {
-    if !(0.0..=1.0).contains(&v) {
-        return Err(Error::param(name, v, "must be in [0, 1]"));
-    }
-    Ok(())
-}
-fn check_pos(name: &'static str, v: f32) -> Result<()> {
-    if !(v.is_finite() && v > 0.0) {
-        return Err(Error::param(name, v, "must be finite and > 0"));
-    }
-    Ok(())
+    Error::check_in(name, v, 0.0..=1.0, "must be in [0, 1]")
 }
 
 impl Geology {
@@ -102,15 +93,7 @@ impl Geology {
         GeoId(self.nodes.len() as u32 - 1)
     }
     fn check_id(&self, id: GeoId) -> Result<u32> {
-        if (id.0 as usize) < self.nodes.len() {
-            Ok(id.0)
-        } else {
-            Err(Error::param(
-                "geology node id",
-                id.0,
-                "not a node of this tree",
-            ))
-        }
+        Error::check_node("geology node id", id.0, self.nodes.len())
     }
 
     /// Constant resistance.
@@ -129,7 +112,7 @@ impl Geology {
         }
         let mut period = 0.0;
         for l in layers {
-            check_pos("layer.thickness", l.thickness)?;
+            Error::check_positive("layer.thickness", l.thickness)?;
             check01("layer.hardness", l.hardness)?;
             period += l.thickness;
         }
@@ -154,7 +137,7 @@ impl Geology {
     ) -> Result<GeoId> {
         check01("base", base)?;
         check01("amp", amp)?;
-        check_pos("freq", freq)?;
+        Error::check_positive("freq", freq)?;
         if octaves == 0 || octaves > 12 {
             return Err(Error::param("octaves", octaves, "must be in 1..=12"));
         }
@@ -185,8 +168,8 @@ impl Geology {
     }
     /// Noise warp: the child is evaluated at `p + amp * fbm3(p * freq)`.
     pub fn warp(&mut self, child: GeoId, amp: f32, freq: f32, seed: u64) -> Result<GeoId> {
-        check_pos("amp", amp)?;
-        check_pos("freq", freq)?;
+        Error::check_positive("amp", amp)?;
+        Error::check_positive("freq", freq)?;
         let child = self.check_id(child)?;
         Ok(self.push(GeoNode::Warp {
             child,
@@ -204,8 +187,8 @@ impl Geology {
         wavelength: f32,
         direction: [f32; 2],
     ) -> Result<GeoId> {
-        check_pos("amp", amp)?;
-        check_pos("wavelength", wavelength)?;
+        Error::check_positive("amp", amp)?;
+        Error::check_positive("wavelength", wavelength)?;
         let n = (direction[0] * direction[0] + direction[1] * direction[1]).sqrt();
         if !(n.is_finite() && n > 0.0) {
             return Err(Error::param(
@@ -503,7 +486,7 @@ impl GeologySpec {
                 octaves,
                 seed,
             } => {
-                check_pos("noise.wavelength", *wavelength)?;
+                Error::check_positive("noise.wavelength", *wavelength)?;
                 g.noise(*base, *amp, 1.0 / wavelength, *octaves, *seed)
             }
             GeologySpec::Blend { a, b, t } => {
@@ -524,7 +507,7 @@ impl GeologySpec {
                 wavelength,
                 seed,
             } => {
-                check_pos("warp.wavelength", *wavelength)?;
+                Error::check_positive("warp.wavelength", *wavelength)?;
                 let c = child.add(g, d)?;
                 g.warp(c, *amp, 1.0 / wavelength, *seed)
             }
@@ -554,7 +537,7 @@ impl GeologySpec {
     /// (amplitude 0.3 `period`, wavelength 20 `period`), blended 25 % with noise and cut by a
     /// fault through `center` with a throw of 0.4 `period`.
     pub fn layered_default(center: V3, period: f32, seed: u64) -> Result<Self> {
-        check_pos("period", period)?;
+        Error::check_positive("period", period)?;
         if !center.iter().all(|v| v.is_finite()) {
             return Err(Error::param(
                 "center",

@@ -338,13 +338,12 @@ impl VolumeJob {
         if self.max_triangles == Some(0) {
             return Err(Error::param("max_triangles", 0, "must be at least 1"));
         }
-        if !(2..=8192).contains(&self.max_mesh_cells) {
-            return Err(Error::param(
-                "max_mesh_cells",
-                self.max_mesh_cells,
-                "must be in 2..=8192",
-            ));
-        }
+        Error::check_in(
+            "max_mesh_cells",
+            self.max_mesh_cells,
+            2..=8192,
+            "must be in 2..=8192",
+        )?;
         if self.image_size.iter().any(|&v| !(1..=8192).contains(&v)) {
             return Err(Error::param(
                 "image_size",

@@ -54,6 +54,7 @@
 //! ```
 #![warn(missing_docs)]
 
+#[macro_use]
 mod error;
 pub mod geology;
 pub mod job;

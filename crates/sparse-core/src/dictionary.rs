@@ -247,10 +247,7 @@ impl Dictionary {
             });
         }
         if samples.iter().any(|v| !v.is_finite()) {
-            return Err(SparseError::NonFinite {
-                what: "data atom",
-                row: self.atoms.len(),
-            });
+            return Err(SparseError::non_finite("data atom", self.atoms.len()));
         }
         let mut v: Vec<f64> = samples.iter().map(|&x| x as f64).collect();
         normalise(&mut v, &self.mask).ok_or(SparseError::DegenerateAtom {
@@ -265,10 +262,7 @@ impl Dictionary {
     pub fn push_function(&mut self, func: Arc<dyn FunctionAtom>) -> Result<usize> {
         let mut v = self.discretize_raw(func.as_ref());
         if v.iter().any(|x| !x.is_finite()) {
-            return Err(SparseError::NonFinite {
-                what: "function atom",
-                row: self.atoms.len(),
-            });
+            return Err(SparseError::non_finite("function atom", self.atoms.len()));
         }
         let (mean, scale) = normalise(&mut v, &self.mask).ok_or(SparseError::DegenerateAtom {
             atom: self.atoms.len(),

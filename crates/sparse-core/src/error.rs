@@ -90,6 +90,23 @@ impl SparseError {
             reason,
         }
     }
+
+    /// Shorthand for [`SparseError::NonFinite`].
+    pub fn non_finite(what: &'static str, row: usize) -> Self {
+        Self::NonFinite { what, row }
+    }
+
+    /// [`SparseError::NonFinite`] naming `what` and the first of `points` with a coordinate
+    /// that is not finite.
+    pub(crate) fn check_points(what: &'static str, points: &[[f64; 2]]) -> Result<()> {
+        match points
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
+            Some(i) => Err(Self::non_finite(what, i)),
+            None => Ok(()),
+        }
+    }
 }
 
 /// Result alias of this crate.

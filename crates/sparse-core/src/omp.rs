@@ -284,10 +284,7 @@ pub(crate) fn validate_limit<T: OmpFloat>(
         let mut n2 = 0.0f64;
         for &v in row.iter() {
             if !v.is_finite() {
-                return Err(SparseError::NonFinite {
-                    what: "dictionary",
-                    row: i,
-                });
+                return Err(SparseError::non_finite("dictionary", i));
             }
             n2 += v.to_f64() * v.to_f64();
         }
@@ -298,10 +295,7 @@ pub(crate) fn validate_limit<T: OmpFloat>(
     }
     for (i, row) in signals.outer_iter().enumerate() {
         if row.iter().any(|v| !v.is_finite()) {
-            return Err(SparseError::NonFinite {
-                what: "signals",
-                row: i,
-            });
+            return Err(SparseError::non_finite("signals", i));
         }
     }
     Ok(())

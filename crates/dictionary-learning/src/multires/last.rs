@@ -24,6 +24,7 @@
 
 use super::step::GridFrame;
 use super::*;
+use relief_sparse_core::sct::window_outside;
 use relief_sparse_core::{FunctionAtomRegistry, Window};
 
 const MAGIC: &[u8; 8] = b"RLFLAST1";
@@ -67,18 +68,10 @@ impl LastStep {
     pub fn render_window(&self, win: Window) -> Result<Heightfield> {
         let st = self.step_settings();
         st.check()?;
-        let (ow, oh) = self.output_size();
-        if win.width == 0
-            || win.height == 0
-            || win.x.checked_add(win.width).is_none_or(|e| e > ow)
-            || win.y.checked_add(win.height).is_none_or(|e| e > oh)
-        {
+        if let Some(v) = window_outside(&win, self.output_size(), "output") {
             return Err(LearnError::param(
                 "window",
-                format!(
-                    "{},{},{},{} (output {ow} x {oh})",
-                    win.x, win.y, win.width, win.height
-                ),
+                v,
                 "must be non-empty and inside the output",
             ));
         }

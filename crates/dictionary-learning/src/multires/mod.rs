@@ -245,16 +245,8 @@ impl AmplifySettings {
                 "must be < radius * sqrt(2)",
             ));
         }
-        if self.steps == 0 || self.steps > 6 {
-            return Err(LearnError::param("steps", self.steps, "must be in 1..=6"));
-        }
-        if self.sparsity == 0 || self.sparsity > 64 {
-            return Err(LearnError::param(
-                "sparsity",
-                self.sparsity,
-                "must be in 1..=64",
-            ));
-        }
+        LearnError::check_in("steps", self.steps, 1..=6, "must be in 1..=6")?;
+        LearnError::check_in("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
         if self.candidate_step == 0 {
             return Err(LearnError::param("candidate_step", 0, "must be >= 1"));
         }

@@ -217,11 +217,9 @@ pub fn amplify_with_figures(
     settings: &AmplifySettings,
     progress: &dyn Progress,
 ) -> Result<(Sct, AmplifyFigures)> {
-    let mut steps = Vec::with_capacity(settings.steps);
-    let sct = amplify_observed(coarse, exemplar, settings, progress, &mut |r| {
-        steps.push(r.exemplar.clone());
-    })?;
-    Ok((sct, AmplifyFigures { steps }))
+    let (last, figures) = prepare_last_step(coarse, exemplar, settings, progress)?;
+    let sct = last.sct()?;
+    Ok((amplified_georef(sct, coarse, settings), figures))
 }
 
 /// What one x4 step of [`amplify_observed`] did.
@@ -253,10 +251,14 @@ pub fn amplify_observed(
         output: &sct,
         exemplar: &scale,
     });
-    // The result covers the coarse extent with cells 4^steps times smaller (pixel-is-area).
+    Ok(amplified_georef(sct, coarse, settings))
+}
+
+/// `sct` with the georeference of the amplified `coarse`: its extent with cells `4^steps`
+/// times smaller (pixel-is-area).
+fn amplified_georef(sct: Sct, coarse: &Heightfield, settings: &AmplifySettings) -> Sct {
     let f = 1.0 / STEP_FACTOR.pow(settings.steps as u32) as f64;
-    let georef = coarse.georef().map(|g| g.window(0.0, 0.0, f, f));
-    Ok(sct.with_georef(georef))
+    sct.with_georef(coarse.georef().map(|g| g.window(0.0, 0.0, f, f)))
 }
 
 /// Runs every x4 step of an amplification but the last, and prepares the last one: its input

@@ -375,31 +375,18 @@ impl Recipe {
         {
             return Err(Error::param("sea_level", s, "must be finite"));
         }
-        for (n, v) in [
-            ("wind_strength", self.wind_strength),
-            ("rain_strength", self.rain_strength),
-        ] {
+        for (n, v) in named_fields!(self; wind_strength, rain_strength) {
             if !(v.is_finite() && v > 0.0 && v <= 100.0) {
                 return Err(Error::param(n, v, "must be in (0, 100]"));
             }
         }
-        let d = &self.densities;
-        for (n, v) in [
-            ("hoodoos_per_km2", d.hoodoos_per_km2),
-            ("arches_per_km2", d.arches_per_km2),
-            ("islands_per_km2", d.islands_per_km2),
-            ("caves_per_km2", d.caves_per_km2),
-            ("karst_km_per_km2", d.karst_km_per_km2),
-            ("karst_cliff_seeds_per_km2", d.karst_cliff_seeds_per_km2),
-        ] {
-            if !(v.is_finite() && (0.0..=1e4).contains(&v)) {
-                return Err(Error::param(n, v, "must be in [0, 10000]"));
-            }
-        }
-        if let Some(v) = self.voxel
-            && !(v.is_finite() && v > 0.0)
-        {
-            return Err(Error::param("voxel", v, "must be finite and > 0"));
+        let densities = named_fields!(self.densities;
+            hoodoos_per_km2, arches_per_km2, islands_per_km2,
+            caves_per_km2, karst_km_per_km2, karst_cliff_seeds_per_km2,
+        );
+        Error::check_all_in(&densities, 0.0..=1e4, "must be in [0, 10000]")?;
+        if let Some(v) = self.voxel {
+            Error::check_positive("voxel", v)?;
         }
         if let Some(n) = self.karst_budget
             && n > 1 << 22

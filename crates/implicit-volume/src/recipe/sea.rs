@@ -49,12 +49,7 @@ pub const SEA_FLAT_NOISE_M: f32 = 1.0;
 /// `max(SEA_FLAT_NOISE_M, 1.5 q)` with `q` the smallest positive difference between two
 /// distinct finite sample values (the DEM's vertical quantum), `q` capped at 10 m.
 pub fn sea_flat_tolerance(hf: &Heightfield) -> f32 {
-    let mut v: Vec<f32> = hf
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
+    let mut v = finite_samples(hf);
     v.sort_by(f32::total_cmp);
     v.dedup();
     let q = v
@@ -67,6 +62,15 @@ pub fn sea_flat_tolerance(hf: &Heightfield) -> f32 {
     } else {
         SEA_FLAT_NOISE_M
     }
+}
+
+/// The finite samples of `hf`, in row-major order.
+fn finite_samples(hf: &Heightfield) -> Vec<f32> {
+    hf.as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .collect()
 }
 
 /// Which rule found the sea.
@@ -161,12 +165,7 @@ pub fn detect_sea(hf: &Heightfield) -> Option<SeaDetection> {
     }
     // The water's lowest value: the lowest sample but `SEA_PITS`, so that a few pits below
     // the water (speckle, voids filled low) do not set it.
-    let mut low: Vec<f32> = hf
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
+    let mut low = finite_samples(hf);
     let k = (SEA_PITS + 1).min(low.len()).checked_sub(1)?;
     let (_, &mut lo, _) = low.select_nth_unstable_by(k, f32::total_cmp);
     if lo <= 0.0 {

@@ -120,12 +120,7 @@ impl SceneBuilder {
 
     /// Checks the settings of [`SceneBuilder::sea_erosion`].
     fn check_sea_erosion(&self, s: &SeaErosion) -> Result<()> {
-        self.check_lens(&[
-            ("depth", s.depth),
-            ("height", s.height),
-            ("reach", s.reach),
-            ("cave_length", s.cave_length),
-        ])?;
+        self.check_lens(&named_fields!(s; depth, height, reach, cave_length))?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
@@ -139,10 +134,7 @@ impl SceneBuilder {
                 "must be at most 2048 weathering radii",
             ));
         }
-        if !(1..=8).contains(&s.iterations) {
-            return Err(Error::param("iterations", s.iterations, "must be in 1..=8"));
-        }
-        Ok(())
+        Error::check_in("iterations", s.iterations, 1..=8, "must be in 1..=8")
     }
 
     /// Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient,
@@ -206,17 +198,11 @@ impl SceneBuilder {
 
     /// Sea cliffs ([`SeaCliffs`]).
     pub fn sea_cliffs(&mut self, s: &SeaCliffs, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("depth", s.depth),
-            ("retreat", s.retreat),
-            ("radius", s.radius),
-        ])?;
+        self.check_lens(&named_fields!(s; depth, retreat, radius))?;
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
-        if !(0.0..=1.0).contains(&s.beta) {
-            return Err(Error::param("beta", s.beta, "must be in [0, 1]"));
-        }
+        Error::check_in("beta", s.beta, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let f = self.frame;
         let spacing = 0.75 * s.radius;

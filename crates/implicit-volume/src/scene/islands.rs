@@ -76,16 +76,8 @@ impl SceneBuilder {
     ) -> Result<EffectReport> {
         self.check_len("radius", s.radius)?;
         self.check_len("altitude", s.altitude)?;
-        if !(1..=16).contains(&s.per_cluster) {
-            return Err(Error::param(
-                "per_cluster",
-                s.per_cluster,
-                "must be in 1..=16",
-            ));
-        }
-        if !(s.spread.is_finite() && (1.0..=10.0).contains(&s.spread)) {
-            return Err(Error::param("spread", s.spread, "must be in [1, 10]"));
-        }
+        Error::check_in("per_cluster", s.per_cluster, 1..=16, "must be in 1..=16")?;
+        Error::check_in("spread", s.spread, 1.0..=10.0, "must be in [1, 10]")?;
         region.check(&self.frame)?;
         let (islands, candidates) = self.island_sites(s, region);
         let mut report = EffectReport {
@@ -326,16 +318,24 @@ mod tests {
         SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap()
     }
 
+    /// `count` islands of 60 m radius 150 m over the ground of [`cliff_scene`], from `seed`.
+    fn islands(count: usize, seed: u64) -> IslandSettings {
+        IslandSettings {
+            count,
+            radius: 60.0,
+            altitude: 150.0,
+            seed,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn islands_cluster_by_the_cliff_with_varied_sizes() {
         let mut b = cliff_scene();
         let s = IslandSettings {
-            count: 6,
-            radius: 60.0,
-            altitude: 150.0,
             per_cluster: 3,
             spread: 3.0,
-            seed: 4,
+            ..islands(6, 4)
         };
         let rep = b.floating_islands(&s, &Region::everywhere()).unwrap();
         assert_eq!(rep.features, 6, "{rep:?}");
@@ -377,14 +377,9 @@ mod tests {
     #[test]
     fn an_island_has_a_flat_top_and_a_tapering_underside_clear_of_the_ground() {
         let mut b = cliff_scene();
-        let s = IslandSettings {
-            count: 1,
-            radius: 60.0,
-            altitude: 150.0,
-            seed: 2,
-            ..Default::default()
-        };
-        let rep = b.floating_islands(&s, &Region::everywhere()).unwrap();
+        let rep = b
+            .floating_islands(&islands(1, 2), &Region::everywhere())
+            .unwrap();
         let (c, r) = (rep.sites[0], rep.sizes_m[0]);
         let scene = b.build(true).unwrap();
         // Share of rock on a horizontal disc of radius 1.5 r at height z.

@@ -116,36 +116,20 @@ impl SceneBuilder {
 
     /// Checks the settings of [`SceneBuilder::karst`] and the region.
     fn check_karst(&self, s: &KarstSettings, region: &Region) -> Result<()> {
-        for (n, v) in [
-            ("rho0", s.rho0),
-            ("rho_stop", s.rho_stop),
-            ("epsilon", s.epsilon),
-            ("beta", s.beta),
-            ("sigma", s.sigma),
-            ("vertical", s.vertical),
-        ] {
-            if !(0.0..=1.0).contains(&v) {
-                return Err(Error::param(n, v, "must be in [0, 1]"));
-            }
-        }
+        let unit = named_fields!(s; rho0, rho_stop, epsilon, beta, sigma, vertical);
+        Error::check_all_in(&unit, 0.0..=1.0, "must be in [0, 1]")?;
         if !(s.flatten > 0.0 && s.flatten <= 1.0) {
             return Err(Error::param("flatten", s.flatten, "must be in (0, 1]"));
         }
-        if !(0.0..=0.9).contains(&s.radius_jitter) {
-            return Err(Error::param(
-                "radius_jitter",
-                s.radius_jitter,
-                "must be in [0, 0.9]",
-            ));
-        }
-        self.check_lens(&[
-            ("radius", s.radius),
-            ("min_radius", s.min_radius),
-            ("energy", s.energy),
-            ("step", s.step),
-            ("poisson_radius", s.poisson_radius),
-            ("cliff_spacing", s.cliff_spacing),
-        ])?;
+        Error::check_in(
+            "radius_jitter",
+            s.radius_jitter,
+            0.0..=0.9,
+            "must be in [0, 0.9]",
+        )?;
+        let lens =
+            named_fields!(s; radius, min_radius, energy, step, poisson_radius, cliff_spacing);
+        self.check_lens(&lens)?;
         if s.min_radius > s.radius {
             return Err(Error::param(
                 "min_radius",
@@ -153,13 +137,7 @@ impl SceneBuilder {
                 "must be <= radius",
             ));
         }
-        if !(1..=64).contains(&s.directions) {
-            return Err(Error::param(
-                "directions",
-                s.directions,
-                "must be in 1..=64",
-            ));
-        }
+        Error::check_in("directions", s.directions, 1..=64, "must be in 1..=64")?;
         if s.sub_spheres > 16 {
             return Err(Error::param("sub_spheres", s.sub_spheres, "must be <= 16"));
         }

@@ -81,21 +81,14 @@ impl SceneBuilder {
     /// Hoodoos (figure 3): a cone base blended with stacked perturbed spheres and a caprock,
     /// creased by a warp, unioned with the terrain on gentle ground.
     pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("height", s.height),
-            ("radius", s.radius),
-            ("spacing", s.spacing),
-        ])?;
-        if !(0.0..=90.0).contains(&s.max_slope_deg) {
-            return Err(Error::param(
-                "max_slope_deg",
-                s.max_slope_deg,
-                "must be in [0, 90]",
-            ));
-        }
-        if !(0.0..=1.0).contains(&s.cap_rho) {
-            return Err(Error::param("cap_rho", s.cap_rho, "must be in [0, 1]"));
-        }
+        self.check_lens(&named_fields!(s; height, radius, spacing))?;
+        Error::check_in(
+            "max_slope_deg",
+            s.max_slope_deg,
+            0.0..=90.0,
+            "must be in [0, 90]",
+        )?;
+        Error::check_in("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
         let sites = self.rims_first(sites, 3.0 * s.spacing);
@@ -213,12 +206,7 @@ impl SceneBuilder {
     /// (`e(rho, sigma)` of section 4.1), so the opening follows the strata. Ridges are taken
     /// thinnest first, `max(2 max_length, 4 span)` apart.
     pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
-        self.check_lens(&[
-            ("span", s.span),
-            ("height", s.height),
-            ("thickness", s.thickness),
-            ("max_length", s.max_length),
-        ])?;
+        self.check_lens(&named_fields!(s; span, height, thickness, max_length))?;
         if s.max_length < s.span {
             return Err(Error::param(
                 "max_length",

@@ -112,14 +112,6 @@ pub struct SceneBuilder {
     min_len: f32,
 }
 
-fn check_pos(name: &'static str, v: f32) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::param(name, v, "must be finite and > 0"))
-    }
-}
-
 /// Length of a wind or rain weathering groove in support radii (see
 /// [`SceneBuilder::groove_axis`]): samples about one radius apart along a contour overlap into
 /// one continuous groove.
@@ -166,7 +158,7 @@ impl SceneBuilder {
     }
 
     fn check_len(&self, name: &'static str, v: f32) -> Result<()> {
-        check_pos(name, v)?;
+        Error::check_positive(name, v)?;
         if name != "energy" && v < self.min_len {
             return Err(Error::param(
                 name,

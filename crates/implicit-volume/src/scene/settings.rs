@@ -51,11 +51,7 @@ impl Default for Weathering {
 
 impl Weathering {
     pub(super) fn check(&self, min_len: f32) -> Result<()> {
-        for (n, v) in [
-            ("spacing", self.spacing),
-            ("radius", self.radius),
-            ("energy", self.energy),
-        ] {
+        for (n, v) in named_fields!(self; spacing, radius, energy) {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::param(n, v, "must be finite and > 0"));
             }
@@ -67,12 +63,8 @@ impl Weathering {
                 ));
             }
         }
-        for (n, v) in [("beta", self.beta), ("threshold", self.threshold)] {
-            if !(0.0..=1.0).contains(&v) {
-                return Err(Error::param(n, v, "must be in [0, 1]"));
-            }
-        }
-        Ok(())
+        let unit = named_fields!(self; beta, threshold);
+        Error::check_all_in(&unit, 0.0..=1.0, "must be in [0, 1]")
     }
 }
 

@@ -135,13 +135,6 @@ pub struct TerrainTree {
     warp_boxes: Vec<Aabb>,
 }
 
-fn pos(name: &'static str, v: f32) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::param(name, v, "must be finite and > 0"))
-    }
-}
 fn fin(name: &'static str, v: &[f32]) -> Result<()> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(())
@@ -161,39 +154,35 @@ impl TerrainTree {
         NodeId(self.nodes.len() as u32 - 1)
     }
     fn id(&self, id: NodeId) -> Result<u32> {
-        if (id.0 as usize) < self.nodes.len() {
-            Ok(id.0)
-        } else {
-            Err(Error::param("node id", id.0, "not a node of this tree"))
-        }
+        Error::check_node("node id", id.0, self.nodes.len())
     }
 
     /// Sphere primitive: centre `c`, support radius `r`, energy `e` (negative carves).
     pub fn sphere(&mut self, c: V3, r: f32, e: f32) -> Result<NodeId> {
         fin("sphere.center", &c)?;
-        pos("sphere.radius", r)?;
+        Error::check_positive("sphere.radius", r)?;
         fin("sphere.energy", &[e])?;
         Ok(self.push(Node::Sphere { c, r, e }))
     }
     /// Capsule primitive: segment `a`-`b`, support radius `r`, energy `e`.
     pub fn capsule(&mut self, a: V3, b: V3, r: f32, e: f32) -> Result<NodeId> {
         fin("capsule.ends", &[a[0], a[1], a[2], b[0], b[1], b[2], e])?;
-        pos("capsule.radius", r)?;
+        Error::check_positive("capsule.radius", r)?;
         Ok(self.push(Node::Capsule { a, b, r, e }))
     }
     /// Cone primitive: axis `a`-`b` with support radius `ra` at `a` and `rb` at `b`.
     pub fn cone(&mut self, a: V3, b: V3, ra: f32, rb: f32, e: f32) -> Result<NodeId> {
         fin("cone.ends", &[a[0], a[1], a[2], b[0], b[1], b[2], e])?;
-        pos("cone.ra", ra)?;
-        pos("cone.rb", rb)?;
-        pos("cone.length", crate::math::norm(sub(b, a)))?;
+        Error::check_positive("cone.ra", ra)?;
+        Error::check_positive("cone.rb", rb)?;
+        Error::check_positive("cone.length", crate::math::norm(sub(b, a)))?;
         Ok(self.push(Node::Cone { a, b, ra, rb, e }))
     }
     /// Axis-aligned ellipsoid primitive: centre `c`, support semi-axes `axes`, energy `e`.
     pub fn ellipsoid(&mut self, c: V3, axes: V3, e: f32) -> Result<NodeId> {
         fin("ellipsoid.center", &c)?;
         for a in axes {
-            pos("ellipsoid.axes", a)?;
+            Error::check_positive("ellipsoid.axes", a)?;
         }
         fin("ellipsoid.energy", &[e])?;
         Ok(self.push(Node::Ellipsoid { c, axes, e }))
@@ -210,8 +199,8 @@ impl TerrainTree {
         depth: f32,
     ) -> Result<(NodeId, DemFrame)> {
         hf.require_complete()?;
-        pos("transition", transition)?;
-        pos("depth", depth)?;
+        Error::check_positive("transition", transition)?;
+        Error::check_positive("depth", depth)?;
         if hf.width() < 2 || hf.height() < 2 {
             return Err(Error::param(
                 "heightfield size",
@@ -366,8 +355,8 @@ impl TerrainTree {
     }
     /// Noise warp: the child is evaluated at `p + amp * fbm3(p * freq)` (creases, cracks).
     pub fn warp(&mut self, child: NodeId, amp: f32, freq: f32, seed: u32) -> Result<NodeId> {
-        pos("warp.amp", amp)?;
-        pos("warp.freq", freq)?;
+        Error::check_positive("warp.amp", amp)?;
+        Error::check_positive("warp.freq", freq)?;
         let child = self.id(child)?;
         let bx = self.warp_boxes.len() as u32;
         self.warp_boxes

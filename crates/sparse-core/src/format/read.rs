@@ -10,6 +10,36 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
+    fn new(b: &'a [u8], registry: &'a FunctionAtomRegistry) -> Self {
+        Self {
+            b,
+            pos: 0,
+            quantized: false,
+            registry,
+        }
+    }
+    /// Reads the magic and the version, which must be `magic` and one of `versions`; errors
+    /// name the stream (`stream`: "a .sct stream") and the version (`version`: "version").
+    fn header(
+        &mut self,
+        magic: &[u8; 8],
+        versions: std::ops::RangeInclusive<u16>,
+        stream: &str,
+        version: &str,
+    ) -> Result<u16> {
+        if self.take(8)? != magic {
+            return Err(SparseError::Format {
+                offset: 0,
+                reason: format!("bad magic (not {stream})"),
+            });
+        }
+        let v = self.u16()?;
+        if !versions.contains(&v) {
+            let (lo, hi) = (versions.start(), versions.end());
+            return Err(self.err(format!("unsupported {version} {v} (expected {lo} to {hi})")));
+        }
+        Ok(v)
+    }
     fn err(&self, reason: impl Into<String>) -> SparseError {
         SparseError::Format {
             offset: self.pos,
@@ -356,24 +386,8 @@ impl Sct {
         // The checksum is verified before anything is decoded: a flipped byte is an error
         // naming the checksum, never a model with other values.
         let bytes = checked_body(bytes, MAGIC, FIRST_CHECKSUMMED, "the .sct")?;
-        let mut r = Reader {
-            b: bytes,
-            pos: 0,
-            quantized: false,
-            registry,
-        };
-        if r.take(8)? != MAGIC {
-            return Err(SparseError::Format {
-                offset: 0,
-                reason: "bad magic (not a .sct stream)".into(),
-            });
-        }
-        let version = r.u16()?;
-        if !(OLDEST_VERSION..=VERSION).contains(&version) {
-            return Err(r.err(format!(
-                "unsupported version {version} (expected {OLDEST_VERSION} to {VERSION})"
-            )));
-        }
+        let mut r = Reader::new(bytes, registry);
+        let version = r.header(MAGIC, OLDEST_VERSION..=VERSION, "a .sct stream", "version")?;
         let flags = r.u16()?;
         if flags & !FLAG_QUANTIZED != 0 {
             return Err(r.err(format!("unknown flags {flags:#x}")));
@@ -403,25 +417,13 @@ impl Dictionary {
             FIRST_CHECKSUMMED_DICTIONARY,
             "the dictionary",
         )?;
-        let mut r = Reader {
-            b: bytes,
-            pos: 0,
-            quantized: false,
-            registry,
-        };
-        if r.take(8)? != DICTIONARY_MAGIC {
-            return Err(SparseError::Format {
-                offset: 0,
-                reason: "bad magic (not a relief dictionary stream)".into(),
-            });
-        }
-        let version = r.u16()?;
-        if !(OLDEST_DICTIONARY_VERSION..=DICTIONARY_VERSION).contains(&version) {
-            return Err(r.err(format!(
-                "unsupported dictionary version {version} (expected \
-                 {OLDEST_DICTIONARY_VERSION} to {DICTIONARY_VERSION})"
-            )));
-        }
+        let mut r = Reader::new(bytes, registry);
+        r.header(
+            DICTIONARY_MAGIC,
+            OLDEST_DICTIONARY_VERSION..=DICTIONARY_VERSION,
+            "a relief dictionary stream",
+            "dictionary version",
+        )?;
         let flags = r.u16()?;
         if flags != 0 {
             return Err(r.err(format!("unknown flags {flags:#x}")));

@@ -1,6 +1,8 @@
 //! Sparse layers (section 4.1): primitives blended by their weights, evaluated at a point or
 //! stamped into a band of rows.
 
+use std::ops::Range;
+
 use super::*;
 
 /// A set of sparse primitives over one dictionary, blended by the normalised weighted sum
@@ -56,24 +58,13 @@ impl SparseLayer {
             ));
         }
         if let Some(i) = z.iter().position(|v| !v.is_finite()) {
-            return Err(SparseError::NonFinite { what: "z", row: i });
+            return Err(SparseError::non_finite("z", i));
         }
         if let Some(i) = coeffs.iter().position(|v| !v.is_finite()) {
-            return Err(SparseError::NonFinite {
-                what: "coefficients",
-                row: i,
-            });
+            return Err(SparseError::non_finite("coefficients", i));
         }
         let centres: Vec<[f64; 2]> = (0..n).map(|k| placement.centre(k)).collect();
-        if let Some(i) = centres
-            .iter()
-            .position(|c| !(c[0].is_finite() && c[1].is_finite()))
-        {
-            return Err(SparseError::NonFinite {
-                what: "centres",
-                row: i,
-            });
-        }
+        SparseError::check_points("centres", &centres)?;
         let has_functions = (0..n)
             .map(|k| {
                 atoms[offsets[k] as usize..offsets[k + 1] as usize]
@@ -273,21 +264,27 @@ impl SparseLayer {
         let radius = self.dictionary.support_radius();
         let rr = radius * radius;
         let sc = band.scale;
-        let (wx0, wx1) = (raster_coord(band.x0, sc), raster_coord(band.x1 - 1, sc));
-        let (wy0, wy1) = (raster_coord(band.y0, sc), raster_coord(band.y1 - 1, sc));
+        let (wx0, wx1) = (
+            raster_coord(band.cols.start, sc),
+            raster_coord(band.cols.end - 1, sc),
+        );
+        let (wy0, wy1) = (
+            raster_coord(band.rows.start, sc),
+            raster_coord(band.rows.end - 1, sc),
+        );
         self.index
             .query_rect(wx0, wy0, wx1, wy1, &mut scratch.candidates);
         scratch.p.resize(a * a, 0.0);
-        let ncols = band.x1 - band.x0;
+        let ncols = band.cols.len();
         let candidates = std::mem::take(&mut scratch.candidates);
         for &id in &candidates {
             let i = id as usize;
             let [cx, cy] = self.centres[i];
             // Conservative pixel ranges of the support (exact test per pixel below).
-            let xa = lo_pixel(cx - radius, sc, band.x0);
-            let xb = hi_pixel(cx + radius, sc, band.x1);
-            let ya = lo_pixel(cy - radius, sc, band.y0);
-            let yb = hi_pixel(cy + radius, sc, band.y1);
+            let xa = lo_pixel(cx - radius, sc, band.cols.start);
+            let xb = hi_pixel(cx + radius, sc, band.cols.end);
+            let ya = lo_pixel(cy - radius, sc, band.rows.start);
+            let yb = hi_pixel(cy + radius, sc, band.rows.end);
             if xa > xb || ya > yb {
                 continue;
             }
@@ -339,7 +336,7 @@ impl SparseLayer {
                 let dy = scratch.dy[ry];
                 let (rows, wy) = scratch.rtaps[ry];
                 let exact_row = is_exact(&wy);
-                let row_off = (yi - band.y0) * ncols + (xa as usize - band.x0);
+                let row_off = (yi - band.rows.start) * ncols + (xa as usize - band.cols.start);
                 let arow = &scratch.alpha[ry * w..ry * w + w];
                 if let (true, true, Some((k0, k1))) = (plain, exact_row, scratch.spans[ry]) {
                     // Samples read straight from the patch, no function atoms: the same
@@ -521,14 +518,30 @@ pub(super) fn vpass(h: &[f64; 4], wy: &[f64; 4]) -> f64 {
     acc
 }
 
-/// A rectangle of output pixels `[x0, x1) x [y0, y1)` at a scale factor.
-#[derive(Debug, Clone, Copy)]
+/// A rectangle of output pixels (`cols x rows`) at a scale factor.
+#[derive(Debug, Clone)]
 pub(super) struct Band {
-    pub(super) x0: usize,
-    pub(super) x1: usize,
-    pub(super) y0: usize,
-    pub(super) y1: usize,
+    pub(super) cols: Range<usize>,
+    pub(super) rows: Range<usize>,
     pub(super) scale: f64,
+}
+
+impl Band {
+    /// Inclusive pixel ranges `[xa, xb, ya, yb]` of the band that may see the terrain box
+    /// `[x0, y0, x1, y1]` (conservative: a pixel more on each side), or `None` when empty.
+    #[inline]
+    pub(super) fn pixels_over(&self, [x0, y0, x1, y1]: [f64; 4]) -> Option<[i64; 4]> {
+        let sc = self.scale;
+        let (xa, xb) = (
+            lo_pixel(x0, sc, self.cols.start),
+            hi_pixel(x1, sc, self.cols.end),
+        );
+        let (ya, yb) = (
+            lo_pixel(y0, sc, self.rows.start),
+            hi_pixel(y1, sc, self.rows.end),
+        );
+        (xa <= xb && ya <= yb).then_some([xa, xb, ya, yb])
+    }
 }
 
 #[derive(Debug, Default)]

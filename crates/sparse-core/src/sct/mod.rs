@@ -57,7 +57,7 @@ pub use spec::{NodeSpec, Profile, RegionSpec, RiverSpec, RiverValleySpec, TreeSp
 
 use index::SpatialIndex;
 pub use layer::raster_coord;
-use layer::{Band, StampScratch, hi_pixel, lo_pixel};
+use layer::{Band, StampScratch};
 
 use std::sync::Arc;
 
@@ -72,6 +72,19 @@ use crate::patches::{CentreGrid, cubic_weights};
 /// A window of the output raster, in output pixels at the requested scale (the workspace's one
 /// window type, from `relief-heightfield`).
 pub use relief_heightfield::Window;
+
+/// `None` when `win` is non-empty and inside a `width x height` raster (whatever its numbers,
+/// without overflow), else the value an error names: `x,y,w,h (<of> width x height)`.
+pub fn window_outside(win: &Window, (width, height): (usize, usize), of: &str) -> Option<String> {
+    let fits = |start: usize, len: usize, end: usize| {
+        len > 0 && start.checked_add(len).is_some_and(|e| e <= end)
+    };
+    if fits(win.x, win.width, width) && fits(win.y, win.height, height) {
+        return None;
+    }
+    let (x, y, w, h) = win.as_tuple();
+    Some(format!("{x},{y},{w},{h} ({of} {width} x {height})"))
+}
 
 /// Settings of [`Sct::rasterize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -275,17 +288,10 @@ impl Sct {
             width: fw,
             height: fh,
         });
-        if win.width == 0
-            || win.height == 0
-            || win.x.checked_add(win.width).is_none_or(|e| e > fw)
-            || win.y.checked_add(win.height).is_none_or(|e| e > fh)
-        {
+        if let Some(v) = window_outside(&win, (fw, fh), "raster") {
             return Err(SparseError::param(
                 "window",
-                format!(
-                    "{},{},{},{} (raster {fw} x {fh})",
-                    win.x, win.y, win.width, win.height
-                ),
+                v,
                 "must be non-empty and inside the raster",
             ));
         }
@@ -302,11 +308,10 @@ impl Sct {
             .enumerate()
             .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
                 let rows = chunk.len() / win.width;
+                let y0 = win.y + b * BAND_ROWS;
                 let band = Band {
-                    x0: win.x,
-                    x1: win.x + win.width,
-                    y0: win.y + b * BAND_ROWS,
-                    y1: win.y + b * BAND_ROWS + rows,
+                    cols: win.x..win.x + win.width,
+                    rows: y0..y0 + rows,
                     scale: settings.scale,
                 };
                 let mut val = vec![0.0; chunk.len()];

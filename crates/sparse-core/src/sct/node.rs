@@ -190,7 +190,7 @@ impl Node {
         wt: &mut [f64],
         scratch: &mut StampScratch,
     ) {
-        let ncols = band.x1 - band.x0;
+        let ncols = band.cols.len();
         if let Some((kind, c)) = self.children_kind() {
             // Children are stamped one after the other into one scratch pair and folded into
             // the running value held in `val`/`wt` (memory: two buffers whatever the arity).
@@ -242,32 +242,25 @@ impl Node {
                 // The overlay is only rasterised (stamped) on the part of the band where the
                 // region's weight can be > 0: its box grown by the fall-off (and a pixel).
                 // Elsewhere the weight is 0 and the base value is kept, as in `eval`.
-                let [bx0, by0, bx1, by1] = region.bounds(*falloff);
-                let sc = band.scale;
-                let xa = lo_pixel(bx0, sc, band.x0);
-                let xb = hi_pixel(bx1, sc, band.x1);
-                let ya = lo_pixel(by0, sc, band.y0);
-                let yb = hi_pixel(by1, sc, band.y1);
-                if xa > xb || ya > yb {
+                let Some([xa, xb, ya, yb]) = band.pixels_over(region.bounds(*falloff)) else {
                     return;
-                }
+                };
+                let sc = band.scale;
                 let sub = Band {
-                    x0: xa as usize,
-                    x1: xb as usize + 1,
-                    y0: ya as usize,
-                    y1: yb as usize + 1,
+                    cols: xa as usize..xb as usize + 1,
+                    rows: ya as usize..yb as usize + 1,
                     scale: sc,
                 };
-                let sw = sub.x1 - sub.x0;
-                let sn = sw * (sub.y1 - sub.y0);
+                let sw = sub.cols.len();
+                let sn = sw * sub.rows.len();
                 let mut ov = vec![0.0; sn];
                 let mut ow = vec![0.0; sn];
                 overlay.raster(&sub, &mut ov, &mut ow, scratch);
                 for j in 0..sn {
-                    let (xi, yi) = (sub.x0 + j % sw, sub.y0 + j / sw);
+                    let (xi, yi) = (sub.cols.start + j % sw, sub.rows.start + j / sw);
                     let (x, y) = (raster_coord(xi, sc), raster_coord(yi, sc));
                     let t = region.weight(x, y, *falloff);
-                    let k = (yi - band.y0) * ncols + (xi - band.x0);
+                    let k = (yi - band.rows.start) * ncols + (xi - band.cols.start);
                     let (v, w) = replace_combine((val[k], wt[k]), (ov[j], ow[j]), t);
                     val[k] = v;
                     wt[k] = w;

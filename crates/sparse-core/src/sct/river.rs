@@ -157,21 +157,10 @@ impl River {
                 });
             }
             if let Some(i) = b.iter().position(|v| !v.is_finite()) {
-                return Err(SparseError::NonFinite {
-                    what: "bed elevations",
-                    row: i,
-                });
+                return Err(SparseError::non_finite("bed elevations", i));
             }
         }
-        if let Some(i) = path
-            .iter()
-            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
-        {
-            return Err(SparseError::NonFinite {
-                what: "river path",
-                row: i,
-            });
-        }
+        SparseError::check_points("river path", &path)?;
         if let Some(&w) = half_width.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
             return Err(SparseError::param(
                 "half_width",
@@ -350,35 +339,30 @@ impl River {
     /// [`River::profile`]. Same arithmetic and tie rule as [`River::eval`], so equal bit for
     /// bit.
     pub(super) fn stamp(&self, band: &Band, val: &mut [f64]) {
-        let ncols = band.x1 - band.x0;
+        let ncols = band.cols.len();
         let sc = band.scale;
         let n = val.len();
         let mut best: Vec<Option<(f64, usize, f64)>> = vec![None; n];
         let carve = matches!(self.mode, RiverMode::Carve);
+        // A bed takes every pixel of the band.
+        let (c, r) = (&band.cols, &band.rows);
+        let whole = Some([
+            c.start as i64,
+            c.end as i64 - 1,
+            r.start as i64,
+            r.end as i64 - 1,
+        ]);
         for (s, b) in self.seg_boxes.iter().enumerate() {
-            let (xa, xb, ya, yb) = if carve {
-                let xa = lo_pixel(b[0], sc, band.x0);
-                let xb = hi_pixel(b[2], sc, band.x1);
-                let ya = lo_pixel(b[1], sc, band.y0);
-                let yb = hi_pixel(b[3], sc, band.y1);
-                (xa, xb, ya, yb)
-            } else {
-                (
-                    band.x0 as i64,
-                    band.x1 as i64 - 1,
-                    band.y0 as i64,
-                    band.y1 as i64 - 1,
-                )
-            };
-            if xa > xb || ya > yb {
+            let pixels = if carve { band.pixels_over(*b) } else { whole };
+            let Some([xa, xb, ya, yb]) = pixels else {
                 continue;
-            }
+            };
             for yi in ya..=yb {
                 let y = raster_coord(yi as usize, sc);
-                let row = (yi as usize - band.y0) * ncols;
+                let row = (yi as usize - band.rows.start) * ncols;
                 for xi in xa..=xb {
                     let x = raster_coord(xi as usize, sc);
-                    let o = row + (xi as usize - band.x0);
+                    let o = row + (xi as usize - band.cols.start);
                     let (d2, t) = self.segment_d2(s, x, y);
                     if best[o].is_none_or(|p| d2 < p.0) {
                         best[o] = Some((d2, s, t));
@@ -388,8 +372,8 @@ impl River {
         }
         for (k, (v, b)) in val.iter_mut().zip(&best).enumerate() {
             if carve {
-                let x = raster_coord(band.x0 + k % ncols, sc);
-                let y = raster_coord(band.y0 + k / ncols, sc);
+                let x = raster_coord(band.cols.start + k % ncols, sc);
+                let y = raster_coord(band.rows.start + k / ncols, sc);
                 if self.outside_bbox(x, y) {
                     *v = 0.0;
                     continue;
