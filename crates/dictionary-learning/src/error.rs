@@ -67,12 +67,21 @@ impl LearnError {
     where
         T: PartialOrd + std::fmt::Display,
     {
-        match range.contains(&value) {
-            true => Ok(()),
-            false => Err(Self::param(name, value, reason)),
-        }
+        Ok(relief_heightfield::param::in_range(
+            name, value, range, reason,
+        )?)
     }
 }
 
 /// Result alias of this crate.
 pub type Result<T, E = LearnError> = std::result::Result<T, E>;
+
+impl From<relief_heightfield::ParamError> for LearnError {
+    fn from(e: relief_heightfield::ParamError) -> Self {
+        Self::InvalidParameter {
+            name: e.name,
+            value: e.value,
+            reason: e.reason,
+        }
+    }
+}

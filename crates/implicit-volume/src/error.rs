@@ -48,11 +48,9 @@ impl Error {
         range: RangeInclusive<T>,
         reason: &'static str,
     ) -> Result<()> {
-        if range.contains(&value) {
-            Ok(())
-        } else {
-            Err(Self::param(name, value, reason))
-        }
+        Ok(relief_heightfield::param::in_range(
+            name, value, range, reason,
+        )?)
     }
 
     /// [`Error::check_in`] of every `(name, value)` in turn, against one range.
@@ -75,10 +73,22 @@ impl Error {
 
     /// [`Error::param`] naming `name` unless `value` is finite and > 0.
     pub(crate) fn check_positive(name: &'static str, value: f32) -> Result<()> {
-        if value.is_finite() && value > 0.0 {
-            Ok(())
-        } else {
-            Err(Self::param(name, value, "must be finite and > 0"))
+        let ok = value.is_finite() && value > 0.0;
+        Ok(relief_heightfield::param::ensure(
+            ok,
+            name,
+            value,
+            "must be finite and > 0",
+        )?)
+    }
+}
+
+impl From<relief_heightfield::ParamError> for Error {
+    fn from(e: relief_heightfield::ParamError) -> Self {
+        Self::InvalidParameter {
+            name: e.name,
+            value: e.value,
+            reason: e.reason,
         }
     }
 }

@@ -111,3 +111,13 @@ impl SparseError {
 
 /// Result alias of this crate.
 pub type Result<T, E = SparseError> = std::result::Result<T, E>;
+
+impl From<relief_heightfield::ParamError> for SparseError {
+    fn from(e: relief_heightfield::ParamError) -> Self {
+        Self::InvalidParameter {
+            name: e.name,
+            value: e.value,
+            reason: e.reason,
+        }
+    }
+}
