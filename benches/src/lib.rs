@@ -7,7 +7,6 @@
 //! whose `criterion_id` is `<group>/<function>/<parameter>`.
 #![warn(missing_docs)]
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use relief_heightfield::Heightfield;
@@ -42,33 +41,14 @@ pub fn bench_data_dir() -> std::io::Result<PathBuf> {
     Ok(dir)
 }
 
-/// Writes `data` as a C-order `f32` `.npy` file (format version 1.0) of the given `shape`.
+/// Writes `data` as a C-order `f32` `.npy` file (format version 1.0) of the given `shape`
+/// ([`relief_io::npy_f32`]).
 pub fn write_npy(
     path: &Path,
     shape: &[usize],
     data: impl IntoIterator<Item = f32>,
 ) -> std::io::Result<()> {
-    let dims: Vec<String> = shape.iter().map(|d| format!("{d}, ")).collect();
-    let dims = dims.concat();
-    // `(r, c)`, or `(n,)` for one dimension.
-    let dims = if shape.len() == 1 {
-        dims.trim_end()
-    } else {
-        dims.trim_end_matches(", ")
-    };
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({dims}), }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    f.write_all(b"\x93NUMPY\x01\x00")?;
-    f.write_all(&(header.len() as u16).to_le_bytes())?;
-    f.write_all(header.as_bytes())?;
-    for v in data {
-        f.write_all(&v.to_le_bytes())?;
-    }
-    f.flush()
+    std::fs::write(path, relief_io::npy_f32(shape, data))
 }
 
 /// The random-walk surface of the DWT benches and of the PyWavelets peer's input: per row,

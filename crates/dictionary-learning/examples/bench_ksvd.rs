@@ -7,30 +7,11 @@
 //! `target/peers-venv/bin/python` when that venv exists.
 #![allow(clippy::print_stdout)]
 
-use std::io::Write;
-use std::path::PathBuf;
 use std::time::Instant;
 
 use relief_dictionary_learning::{KsvdSettings, KsvdVariant, ksvd};
 use relief_heightfield::NoProgress;
 use relief_sparse_core::{PatchGeometry, extract_patches};
-
-fn write_npy(path: &PathBuf, rows: usize, cols: usize, data: &[f32]) -> std::io::Result<()> {
-    let mut header =
-        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::fs::File::create(path)?;
-    f.write_all(b"\x93NUMPY\x01\x00")?;
-    f.write_all(&(header.len() as u16).to_le_bytes())?;
-    f.write_all(header.as_bytes())?;
-    for v in data {
-        f.write_all(&v.to_le_bytes())?;
-    }
-    Ok(())
-}
 
 fn main() {
     let Some(hf) = relief_testdata::load_dem("alps_dem") else {
@@ -70,7 +51,7 @@ fn main() {
     std::fs::create_dir_all(&dir).unwrap();
     let npy = dir.join("ksvd_patches.npy");
     let flat: Vec<f32> = p.matrix.iter().copied().collect();
-    write_npy(&npy, n, k, &flat).unwrap();
+    std::fs::write(&npy, relief_io::npy_f32(&[n, k], flat.iter().copied())).unwrap();
     let py = root.join("target/peers-venv/bin/python");
     if py.exists() {
         let out = std::process::Command::new(py)

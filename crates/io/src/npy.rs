@@ -401,20 +401,73 @@ pub(crate) fn read_npz(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 
 /// `.npy` v1.0, `<f4`, C order, shape `(height, width)`; voids stay NaN.
 pub(crate) fn write_npy(hf: &Heightfield) -> Vec<u8> {
-    let mut header = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
-        hf.height(),
-        hf.width()
-    );
-    // Pad so that magic (6) + version (2) + length (2) + header is a multiple of 64.
+    let mut out = npy_header(&[hf.height(), hf.width()]);
+    out.extend_from_slice(&crate::raw::f32_le_bytes(hf));
+    out
+}
+
+/// A C-order little-endian `float32` array of any `shape` (`.npy` v1.0), for arrays that are
+/// not heightfields (patch matrices, voxel grids): the values, row-major, must number the
+/// product of the shape (not checked: the bytes are what `values` yields).
+pub fn npy_f32(shape: &[usize], values: impl IntoIterator<Item = f32>) -> Vec<u8> {
+    let mut out = npy_header(shape);
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// Magic, version 1.0, header length and the header dictionary of a C-order `<f4` array,
+/// padded so that the data starts at a multiple of 64 bytes.
+fn npy_header(shape: &[usize]) -> Vec<u8> {
+    // `(r, c)`, `(d0, d1, d2)`, or `(n,)` for one dimension.
+    let dims = match shape {
+        [n] => format!("{n},"),
+        _ => shape
+            .iter()
+            .map(|d| d.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+    };
+    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({dims}), }}");
     while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + hf.len() * 4);
+    let mut out = Vec::with_capacity(10 + header.len());
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
-    out.extend_from_slice(&crate::raw::f32_le_bytes(hf));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The header of every shape is the dictionary NumPy writes, padded so that the data
+    /// starts at a multiple of 64; a 2-D array reads back as the same heightfield.
+    #[test]
+    fn npy_f32_headers_and_round_trip() {
+        for (shape, text) in [
+            (&[5usize][..], "(5,)"),
+            (&[2, 3][..], "(2, 3)"),
+            (&[2, 2, 2][..], "(2, 2, 2)"),
+        ] {
+            let n: usize = shape.iter().product();
+            let bytes = npy_f32(shape, (0..n).map(|v| v as f32));
+            let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+            assert_eq!((10 + hlen) % 64, 0, "{shape:?}");
+            let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+            assert!(header.contains(&format!("'shape': {text}")), "{header}");
+            assert_eq!(bytes.len(), 10 + hlen + 4 * n);
+        }
+        let bytes = npy_f32(&[2, 3], [1.0, 2.0, 3.0, 4.0, 5.0, f32::NAN]);
+        let r = read_npy(&bytes, &crate::ReadOptions::default()).unwrap();
+        let hf = r.heightfield;
+        assert_eq!((hf.width(), hf.height()), (3, 2));
+        assert_eq!(hf.get(2, 0), 3.0);
+        assert!(hf.get(2, 1).is_nan());
+        assert_eq!(write_npy(&hf), bytes);
+    }
 }

@@ -367,22 +367,8 @@ fn npy_dir(args: &[String]) -> Option<&str> {
     args.iter().find_map(|a| a.strip_prefix("npy="))
 }
 
-/// Writes a heightfield as a 2-D little-endian `float32` `.npy` file (format version 1.0).
+/// Writes a heightfield as a 2-D little-endian `float32` `.npy` file ([`relief_io::npy_f32`]).
 fn write_npy(path: &str, hf: &Heightfield) {
-    let header = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
-        hf.height(),
-        hf.width()
-    );
-    // Magic (6) + version (2) + header length (2) + header + newline, padded to 64 bytes.
-    let total = (10 + header.len() + 1).div_ceil(64) * 64;
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend_from_slice(&((total - 10) as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    bytes.resize(total - 1, b' ');
-    bytes.push(b'\n');
-    for v in hf.as_slice() {
-        bytes.extend_from_slice(&v.to_le_bytes());
-    }
+    let bytes = relief_io::npy_f32(&[hf.height(), hf.width()], hf.as_slice().iter().copied());
     std::fs::write(path, bytes).expect("write npy");
 }
