@@ -17,30 +17,10 @@
 //! shared by exactly two consistently oriented triangles (when `close_boundary` makes the grid
 //! border air).
 
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
-
-/// Multiplicative hash for integer keys (edge keys are already well spread; SipHash was a
-/// third of the meshing time).
-#[derive(Default)]
-struct IntHasher(u64);
-impl Hasher for IntHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x517c_c1b7_2722_0a95);
-    }
-    fn write_u32(&mut self, v: u32) {
-        self.write_u64(v as u64);
-    }
-}
-type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<IntHasher>>;
+// Edge keys are already well spread integers: FxHash instead of SipHash (which was a third of
+// the meshing time). The map is only looked up, never iterated, so the hash does not change
+// the output.
+use rustc_hash::FxHashMap;
 
 use rayon::prelude::*;
 
@@ -375,7 +355,7 @@ fn chunks_of(n: [usize; 3], c: usize) -> Vec<([usize; 3], [usize; 3])> {
 }
 
 fn weld(chunks: Vec<ChunkOut>) -> Mesh {
-    let mut map: FastMap<u64, u32> = FastMap::default();
+    let mut map: FxHashMap<u64, u32> = FxHashMap::default();
     let mut mesh = Mesh::default();
     for ch in chunks {
         let remap: Vec<u32> = ch

@@ -268,7 +268,7 @@ struct Percolation<'a> {
     geo: &'a Geology,
     cands: Vec<V3>,
     heap: BinaryHeap<Reverse<(u32, u32)>>,
-    grid: HashMap<(i32, i32, i32), Vec<u32>>,
+    grid: FxHashMap<(i32, i32, i32), Vec<u32>>,
 }
 
 impl<'a> Percolation<'a> {
@@ -278,7 +278,7 @@ impl<'a> Percolation<'a> {
             geo,
             cands: Vec::new(),
             heap: BinaryHeap::new(),
-            grid: HashMap::new(),
+            grid: FxHashMap::default(),
         }
     }
 

@@ -16,7 +16,9 @@ pub use islands::nearest_neighbour_cv;
 pub use settings::*;
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::BinaryHeap;
+
+use rustc_hash::FxHashMap;
 
 use rayon::prelude::*;
 use relief_heightfield::Heightfield;
@@ -119,7 +121,7 @@ const GROOVE_LENGTH: f32 = 2.5;
 
 /// Poisson elimination in order: keeps a point if no kept point is closer than `r`.
 fn poisson_filter(points: &[V3], r: f32, mut keep: impl FnMut(usize) -> bool) -> Vec<usize> {
-    let mut grid: HashMap<(i32, i32, i32), Vec<V3>> = HashMap::new();
+    let mut grid: FxHashMap<(i32, i32, i32), Vec<V3>> = FxHashMap::default();
     let key = |p: V3| {
         (
             (p[0] / r).floor() as i32,
