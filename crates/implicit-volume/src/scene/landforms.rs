@@ -277,7 +277,11 @@ impl SceneBuilder {
                     let c = add(p, [side[0] * off * 0.8 * a, side[1] * off * 0.8 * a, dz]);
                     let rho = self.geology.resistance(c);
                     let e = erosion_intensity(rho, 1.0, 0.1);
-                    if rho < 0.5 && c[2] + 0.6 * a < crest - s.thickness {
+                    // Under the crest's bridge and under the ground above the notch itself:
+                    // near the mouths, where the ground falls below the crest, a notch would
+                    // otherwise pit the hillside beside the opening.
+                    let cover = crest.min(self.ground(c[0], c[1])) - s.thickness;
+                    if rho < 0.5 && c[2] + 0.6 * a < cover {
                         let id = self.tree.sphere(c, 0.6 * a, -energy * e)?;
                         self.negatives.push(id);
                         self.carved.push((c, 0.6 * a, false));
