@@ -3,6 +3,7 @@
 //! Sparse Construction Tree and its [`CompressFigures`]. `relief compress` and the pipeline's
 //! `sparse` stage both go through it, so a parameter is defined once.
 
+use relief_heightfield::param::in_range;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -159,11 +160,11 @@ pub struct Compressed {
 impl CompressSettings {
     /// Validates the settings (the dictionary-dependent checks run in [`Self::run`]).
     pub fn check(&self) -> Result<()> {
-        LearnError::check_in("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
+        in_range("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
         if self.source != DictionarySource::Complete && self.atoms == 0 {
             return Err(LearnError::param("atoms", 0, "must be >= 1"));
         }
-        LearnError::check_in("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
+        in_range("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
             return Err(LearnError::param(
                 "spacing",

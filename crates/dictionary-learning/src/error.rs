@@ -56,21 +56,6 @@ impl LearnError {
             reason,
         }
     }
-
-    /// [`LearnError::param`] naming `name` unless `range` holds `value`.
-    pub(crate) fn check_in<T>(
-        name: &'static str,
-        value: T,
-        range: std::ops::RangeInclusive<T>,
-        reason: &'static str,
-    ) -> Result<()>
-    where
-        T: PartialOrd + std::fmt::Display,
-    {
-        Ok(relief_heightfield::param::in_range(
-            name, value, range, reason,
-        )?)
-    }
 }
 
 /// Result alias of this crate.

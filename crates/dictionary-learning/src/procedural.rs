@@ -12,6 +12,7 @@
 //! the paper's independent random functions: measured 4-8 dB better on real DEMs. The
 //! paper's atoms stay available ([`NoiseFamily::RidgedSum`], `--family ridged`).
 
+use relief_heightfield::param::in_range;
 use std::sync::Arc;
 
 use relief_heightfield::{Heightfield, Progress, metrics};
@@ -72,7 +73,7 @@ impl ProceduralSettings {
                 "must be in 1..=65536",
             ));
         }
-        LearnError::check_in("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
+        in_range("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
         if let Some(n) = self.learned_atoms
             && (n == 0 || n > self.n_candidates)
         {

@@ -41,25 +41,17 @@ impl Error {
         }
     }
 
-    /// [`Error::param`] naming `name` unless `range` holds `value` (a NaN never is).
-    pub(crate) fn check_in<T: PartialOrd + std::fmt::Display>(
-        name: &'static str,
-        value: T,
-        range: RangeInclusive<T>,
-        reason: &'static str,
-    ) -> Result<()> {
-        Ok(relief_heightfield::param::in_range(
-            name, value, range, reason,
-        )?)
-    }
-
-    /// [`Error::check_in`] of every `(name, value)` in turn, against one range.
+    /// [`in_range`](relief_heightfield::param::in_range) of every `(name, value)` in turn,
+    /// against one range.
     pub(crate) fn check_all_in<T: PartialOrd + std::fmt::Display + Copy>(
         values: &[(&'static str, T)],
         range: RangeInclusive<T>,
         reason: &'static str,
     ) -> Result<()> {
-        (values.iter()).try_for_each(|&(n, v)| Self::check_in(n, v, range.clone(), reason))
+        for &(n, v) in values {
+            relief_heightfield::param::in_range(n, v, range.clone(), reason)?;
+        }
+        Ok(())
     }
 
     /// `id` when it is the index of one of `len` nodes, else [`Error::param`] naming `name`.

@@ -5,6 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{V3, add, dot, fbm, fbm3, mul, normalize, sub};
+use relief_heightfield::param::in_range;
 
 /// Index of a node in a [`Geology`] arena.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -79,7 +80,7 @@ pub struct Geology {
 }
 
 fn check01(name: &'static str, v: f32) -> Result<()> {
-    Error::check_in(name, v, 0.0..=1.0, "must be in [0, 1]")
+    Ok(in_range(name, v, 0.0..=1.0, "must be in [0, 1]")?)
 }
 
 impl Geology {

@@ -4,6 +4,7 @@
 //! [`VolumeJob::run`] returns the products and the [`VolumeFigures`] a user wants (node
 //! counts by kind, sizes in metres, counts, karst length, mesh size and topology, timings).
 
+use relief_heightfield::param::in_range;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -338,7 +339,7 @@ impl VolumeJob {
         if self.max_triangles == Some(0) {
             return Err(Error::param("max_triangles", 0, "must be at least 1"));
         }
-        Error::check_in(
+        in_range(
             "max_mesh_cells",
             self.max_mesh_cells,
             2..=8192,

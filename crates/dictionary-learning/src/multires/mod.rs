@@ -37,6 +37,7 @@
 //! The radius `R` (figure 11) sets the patch size `a = 2 ceil(R)` and the support: small `R`
 //! follows the input closely, large `R` imposes more of the exemplar.
 
+use relief_heightfield::param::in_range;
 use std::sync::Arc;
 
 use ndarray::Array2;
@@ -245,8 +246,8 @@ impl AmplifySettings {
                 "must be < radius * sqrt(2)",
             ));
         }
-        LearnError::check_in("steps", self.steps, 1..=6, "must be in 1..=6")?;
-        LearnError::check_in("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
+        in_range("steps", self.steps, 1..=6, "must be in 1..=6")?;
+        in_range("sparsity", self.sparsity, 1..=64, "must be in 1..=64")?;
         if self.candidate_step == 0 {
             return Err(LearnError::param("candidate_step", 0, "must be >= 1"));
         }

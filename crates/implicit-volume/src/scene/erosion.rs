@@ -1,6 +1,7 @@
 //! Erosion effects of paper section 4: sea caves along the shore, sea cliffs, wind and rain.
 
 use super::*;
+use relief_heightfield::param::in_range;
 
 impl SceneBuilder {
     /// Sea erosion (section 4.1, figure 5), plus sea caves dug inland from the most eroded
@@ -134,7 +135,12 @@ impl SceneBuilder {
                 "must be at most 2048 weathering radii",
             ));
         }
-        Error::check_in("iterations", s.iterations, 1..=8, "must be in 1..=8")
+        Ok(in_range(
+            "iterations",
+            s.iterations,
+            1..=8,
+            "must be in 1..=8",
+        )?)
     }
 
     /// Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient,
@@ -202,7 +208,7 @@ impl SceneBuilder {
         if !s.sea_level.is_finite() {
             return Err(Error::param("sea_level", s.sea_level, "must be finite"));
         }
-        Error::check_in("beta", s.beta, 0.0..=1.0, "must be in [0, 1]")?;
+        in_range("beta", s.beta, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let f = self.frame;
         let spacing = 0.75 * s.radius;

@@ -27,6 +27,7 @@
 //! * two noise warps (large and small wavelength) make the outline irregular.
 
 use super::*;
+use relief_heightfield::param::in_range;
 
 /// One island placed by [`SceneBuilder::floating_islands`]: centre of its top `(x, y, z)` and
 /// visible radius.
@@ -76,8 +77,8 @@ impl SceneBuilder {
     ) -> Result<EffectReport> {
         self.check_len("radius", s.radius)?;
         self.check_len("altitude", s.altitude)?;
-        Error::check_in("per_cluster", s.per_cluster, 1..=16, "must be in 1..=16")?;
-        Error::check_in("spread", s.spread, 1.0..=10.0, "must be in [1, 10]")?;
+        in_range("per_cluster", s.per_cluster, 1..=16, "must be in 1..=16")?;
+        in_range("spread", s.spread, 1.0..=10.0, "must be in [1, 10]")?;
         region.check(&self.frame)?;
         let (islands, candidates) = self.island_sites(s, region);
         let mut report = EffectReport {

@@ -1,6 +1,7 @@
 //! Karst networks by invasion percolation from sinkholes (paper section 4.2).
 
 use super::*;
+use relief_heightfield::param::in_range;
 
 impl SceneBuilder {
     /// Sinkholes of the DEM: strict local minima over the 8-neighbourhood (ties broken by index),
@@ -121,7 +122,7 @@ impl SceneBuilder {
         if !(s.flatten > 0.0 && s.flatten <= 1.0) {
             return Err(Error::param("flatten", s.flatten, "must be in (0, 1]"));
         }
-        Error::check_in(
+        in_range(
             "radius_jitter",
             s.radius_jitter,
             0.0..=0.9,
@@ -137,7 +138,7 @@ impl SceneBuilder {
                 "must be <= radius",
             ));
         }
-        Error::check_in("directions", s.directions, 1..=64, "must be in 1..=64")?;
+        in_range("directions", s.directions, 1..=64, "must be in 1..=64")?;
         if s.sub_spheres > 16 {
             return Err(Error::param("sub_spheres", s.sub_spheres, "must be <= 16"));
         }

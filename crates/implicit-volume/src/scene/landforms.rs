@@ -2,6 +2,7 @@
 //! in `islands.rs`.
 
 use super::*;
+use relief_heightfield::param::in_range;
 
 /// Slope (degrees) above which ground counts as a rim or wall for hoodoo sites.
 const RIM_SLOPE_DEG: f32 = 35.0;
@@ -82,13 +83,13 @@ impl SceneBuilder {
     /// creased by a warp, unioned with the terrain on gentle ground.
     pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
         self.check_lens(&named_fields!(s; height, radius, spacing))?;
-        Error::check_in(
+        in_range(
             "max_slope_deg",
             s.max_slope_deg,
             0.0..=90.0,
             "must be in [0, 90]",
         )?;
-        Error::check_in("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
+        in_range("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
         region.check(&self.frame)?;
         let sites = self.flat_sites(s.spacing, s.max_slope_deg, s.seed, region, 2.0 * s.radius);
         let sites = self.rims_first(sites, 3.0 * s.spacing);
