@@ -12,14 +12,20 @@
 //! Large dictionaries (guerin2016 section 5.3, issue 15): `s = 1` coding of 16,384 patches
 //! (K = 64) with 65,536 atoms (the exact nearest-atom search, `omp_large/batch_omp_f32/k64_n65536_s1`)
 //! against today's 4096-atom Gram path on the same signals (`omp_large/batch_omp_f32/k64_n4096_s1`),
-//! timed in the same run so the per-signal ratio holds on a loaded machine.
+//! timed in the same run so the per-signal ratio holds on a loaded machine. The inverted-list
+//! index of `relief_sparse_core::nearest::AtomIndex` (default settings: 256 lists, 8 probes) is
+//! timed as `omp_large/atom_index_build_f32/k64_n65536_s1` (once per dictionary) and
+//! `omp_large/atom_index_code_f32/k64_n65536_s1` (the same 16,384 signals); its recall against
+//! the exact search is printed by `cargo run --release -p relief-benches --example
+//! nearest_index`.
 
 use criterion::measurement::WallTime;
 use criterion::{
     BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
 };
 use ndarray::{Array2, s};
-use relief_sparse_core::omp::{OmpFloat, OmpSettings, batch_omp};
+use relief_sparse_core::nearest::{AtomIndex, AtomIndexSettings};
+use relief_sparse_core::omp::{NEAREST_MIN_ATOMS, OmpFloat, OmpSettings, batch_omp};
 use relief_sparse_core::{PatchGeometry, extract_patches};
 
 /// Real mean-removed patches of side `a` of the fixture DEM (`n_signals` rows, evenly strided
@@ -59,38 +65,22 @@ fn data(a: usize, step: f64, n_atoms: usize, n_signals: usize) -> (Array2<f32>, 
 fn omp_large(c: &mut Criterion) {
     let mut g = c.benchmark_group("omp_large");
     g.sample_size(10);
-    let dem = relief_benches::fixture_or(|| relief_testdata::load_dem("grandcanyon"));
-    let (w, h) = (dem.width(), dem.height());
-    // Atoms from the top half, signals from the bottom half (no signal is an atom).
-    let geom = PatchGeometry::with_patch_size(8);
-    let top = extract_patches(&dem.crop(0, 0, w, h / 2).expect("crop"), &geom)
-        .expect("patches")
-        .matrix;
-    let bottom = extract_patches(&dem.crop(0, h / 2, w, h - h / 2).expect("crop"), &geom)
-        .expect("patches")
-        .matrix;
-    let every = |m: &Array2<f32>, n: usize, unit: bool| {
-        let mut out = Array2::zeros((n, m.ncols()));
-        let mut k = 0;
-        let mut i = 0;
-        while k < n {
-            let row = m.row(i * m.nrows() / n % m.nrows());
-            let norm = row.dot(&row).sqrt();
-            if norm > 1e-3 {
-                out.row_mut(k)
-                    .assign(&row.mapv(|v| if unit { v / norm } else { v }));
-                k += 1;
-            }
-            i += 1;
-        }
-        out
-    };
-    let x = every(&bottom, 16_384, false);
     for n_atoms in [4096usize, 65_536] {
-        let d = every(&top, n_atoms, true);
+        let (d, x) = relief_benches::large_dictionary_data(n_atoms, 16_384);
         g.throughput(Throughput::Elements(x.nrows() as u64));
         let param = format!("k64_n{n_atoms}_s1");
         bench_omp(&mut g, ("batch_omp_f32", &param), &d, &x, 1);
+        if n_atoms > NEAREST_MIN_ATOMS {
+            // The inverted-list index: built once per dictionary, then coding.
+            let st = AtomIndexSettings::default();
+            g.bench_function(BenchmarkId::new("atom_index_build_f32", &param), |b| {
+                b.iter(|| AtomIndex::build(d.view(), &st).expect("index"))
+            });
+            let index = AtomIndex::build(d.view(), &st).expect("index");
+            g.bench_function(BenchmarkId::new("atom_index_code_f32", &param), |b| {
+                b.iter(|| index.code(x.view(), None).expect("code"))
+            });
+        }
     }
     g.finish();
 }

@@ -92,6 +92,43 @@ pub fn with_holes(hf: &Heightfield) -> Heightfield {
     out
 }
 
+/// The large-dictionary data of the `omp_large` bench and the `nearest_index` example
+/// (guerin2016 section 5.3, issue 15): `n_atoms` unit-norm mean-removed 8 x 8 patches of the top
+/// half of the fixture DEM and `n_signals` patches of its bottom half (no signal is an atom),
+/// both evenly strided over the patches with a norm above 1e-3.
+pub fn large_dictionary_data(
+    n_atoms: usize,
+    n_signals: usize,
+) -> (ndarray::Array2<f32>, ndarray::Array2<f32>) {
+    use relief_sparse_core::{PatchGeometry, extract_patches};
+    let dem = fixture_or(|| relief_testdata::load_dem("grandcanyon"));
+    let (w, h) = (dem.width(), dem.height());
+    let geom = PatchGeometry::with_patch_size(8);
+    let top = extract_patches(&dem.crop(0, 0, w, h / 2).expect("crop"), &geom)
+        .expect("patches")
+        .matrix;
+    let bottom = extract_patches(&dem.crop(0, h / 2, w, h - h / 2).expect("crop"), &geom)
+        .expect("patches")
+        .matrix;
+    let every = |m: &ndarray::Array2<f32>, n: usize, unit: bool| {
+        let mut out = ndarray::Array2::zeros((n, m.ncols()));
+        let mut k = 0;
+        let mut i = 0;
+        while k < n {
+            let row = m.row(i * m.nrows() / n % m.nrows());
+            let norm = row.dot(&row).sqrt();
+            if norm > 1e-3 {
+                out.row_mut(k)
+                    .assign(&row.mapv(|v| if unit { v / norm } else { v }));
+                k += 1;
+            }
+            i += 1;
+        }
+        out
+    };
+    (every(&top, n_atoms, true), every(&bottom, n_signals, false))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

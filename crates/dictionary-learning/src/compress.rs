@@ -66,6 +66,10 @@ pub struct CompressSettings {
     /// primitive's OMP chooses freely between data and analytic atoms (the paper's mixed
     /// dictionaries, figure 14). Not used with a given dictionary.
     pub analytic_atoms: AnalyticAtoms,
+    /// With `s = 1` and more than 4096 atoms (e.g. a complete dictionary): clusters of the
+    /// inverted-list atom index searched per patch (0 = the exact search). See
+    /// [`relief_sparse_core::DEFAULT_INDEX_PROBES`].
+    pub index_probes: usize,
 }
 
 /// How many random analytic atoms of each family [`CompressSettings::analytic_atoms`] adds.
@@ -121,6 +125,7 @@ impl Default for CompressSettings {
             iterations: 10,
             seed: 0,
             analytic_atoms: AnalyticAtoms::default(),
+            index_probes: relief_sparse_core::DEFAULT_INDEX_PROBES,
         }
     }
 }
@@ -165,6 +170,12 @@ impl CompressSettings {
             return Err(LearnError::param("atoms", 0, "must be >= 1"));
         }
         in_range("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
+        in_range(
+            "index_probes",
+            self.index_probes,
+            0..=65_536,
+            "must be in 0..=65536",
+        )?;
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
             return Err(LearnError::param(
                 "spacing",
@@ -309,6 +320,7 @@ impl CompressSettings {
                 sparsity: self.sparsity,
                 tolerance: self.tolerance,
                 step: self.step,
+                index_probes: self.index_probes,
             },
             progress,
         )?;

@@ -804,3 +804,40 @@ fn default_detail_is_not_repeated_on_the_grid() {
     assert!(on < 0.02, "{on}");
     assert!(off > 2.0 * on, "{off} vs {on}");
 }
+
+/// A complete dictionary of more than 4096 atoms (11,685 here) is coded through the atom index
+/// (issue 15): nearly the terrain of the exact search (closer with more probes), and a window
+/// of the model is the same window of the full raster.
+#[test]
+fn large_complete_dictionary_codes_through_the_atom_index() {
+    let (Some(truth), Some(ex)) = (alps(900, 100, 128, 128), alps(1400, 300, 512, 400)) else {
+        return;
+    };
+    let coarse = truth.resample(32, 32).unwrap();
+    let s = |index_probes| AmplifySettings {
+        dictionary: DictionaryChoice::Complete,
+        radius: 3.0,
+        index_probes,
+        ..Default::default()
+    };
+    let exact = amplified(&coarse, &ex, &s(0));
+    let sct = amplify(&coarse, &ex, &s(8), &NoProgress).unwrap();
+    let indexed = sct.rasterize(&RasterSettings::default()).unwrap();
+    let one = amplified(&coarse, &ex, &s(1));
+    let rms = |a: &Heightfield, b: &Heightfield| {
+        let n = a.as_slice().len() as f64;
+        let ss: f64 = a
+            .as_slice()
+            .iter()
+            .zip(b.as_slice())
+            .map(|(x, y)| f64::from(x - y).powi(2))
+            .sum();
+        (ss / n).sqrt()
+    };
+    let detail = rms(&exact, &coarse.resample(128, 128).unwrap());
+    let (d8, d1) = (rms(&exact, &indexed), rms(&exact, &one));
+    eprintln!("detail {detail:.3} m, indexed (8 probes) vs exact {d8:.4} m, 1 probe {d1:.4} m");
+    assert!(d8 < 0.1 * detail && d1 > 3.0 * d8, "{detail} {d8} {d1}");
+    let part = window_raster(&sct, 40, 20, 50, 33);
+    assert_eq!(part, indexed.crop(40, 20, 50, 33).unwrap());
+}

@@ -183,7 +183,7 @@ proptest! {
         let s = AmplifySettings {
             radius, step, steps, sparsity, dictionary, candidate_step, max_candidates,
             max_learning_pool: 4096, max_training, seed, residual_correction: residual, normalize_detail: residual,
-            exemplar_detail: false, diverse_atoms: residual, exemplar_cell_size: None,
+            exemplar_detail: false, diverse_atoms: residual, exemplar_cell_size: None, index_probes: 8,
         };
         let st = step.unwrap_or((radius / 2.0).floor().max(1.0));
         let radius_bad = !(radius.is_finite() && (1.0..=32.0).contains(&radius));

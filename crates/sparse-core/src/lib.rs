@@ -71,8 +71,8 @@ pub mod sct;
 
 pub use dictionary::{AtomDescriptor, Dictionary, FunctionAtom, FunctionAtomRegistry};
 pub use encode::{
-    CompressionReport, EncodeSettings, compression_report, dictionary_values, encode,
-    encode_shared, encode_with_progress, layer_storage_values, storage_values,
+    CompressionReport, DEFAULT_INDEX_PROBES, EncodeSettings, compression_report, dictionary_values,
+    encode, encode_shared, encode_with_progress, layer_storage_values, storage_values,
 };
 pub use error::{Result, SparseError};
 pub use format::FormatOptions;

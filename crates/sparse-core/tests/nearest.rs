@@ -1,12 +1,13 @@
 //! The exact `s = 1` search for large dictionaries (`nearest_atom`) against the literal OMP of
 //! the paper (`omp_reference`) and Batch-OMP's Gram path, on random data and on real DEM
-//! patches; thread-count independence; `batch_omp`'s dispatch above 4096 atoms.
+//! patches; thread-count independence; `batch_omp`'s dispatch above 4096 atoms; the
+//! inverted-list `AtomIndex` (exact when every list is probed, recall on real patches, errors).
 
 use ndarray::{Array2, s};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64;
-use relief_sparse_core::nearest::nearest_atom;
+use relief_sparse_core::nearest::{AtomIndex, AtomIndexSettings, nearest_atom};
 use relief_sparse_core::omp::{
     NEAREST_MIN_ATOMS, OmpSettings, SparseCodes, batch_omp, omp_reference,
 };
@@ -216,4 +217,123 @@ fn tolerance_and_zero_signals_give_no_atom() {
     assert_eq!(c.signal(2).0.len(), 0);
     let bad = d.mapv(|v| 2.0 * v);
     assert!(nearest_atom(bad.view(), x.view(), &S1).is_err());
+}
+
+fn index_settings(lists: usize, probes: usize) -> AtomIndexSettings {
+    AtomIndexSettings {
+        lists,
+        probes,
+        ..AtomIndexSettings::default()
+    }
+}
+
+#[test]
+fn index_probing_every_list_is_the_exact_search() {
+    let d = gaussian(6000, 16, 11, true);
+    let x = gaussian(400, 16, 12, false);
+    let index = AtomIndex::build(d.view(), &index_settings(32, 32)).unwrap();
+    assert_eq!((index.lists(), index.probes(), index.len()), (32, 32, 6000));
+    let fast = index.code(x.view(), None).unwrap();
+    let exact = nearest_atom(d.view(), x.view(), &S1).unwrap();
+    assert!(agree(&fast, &exact, &d, &x) >= 380);
+    let zero = Array2::<f32>::zeros((1, 16));
+    assert_eq!(index.code(zero.view(), None).unwrap().signal(0).0.len(), 0);
+    // Ties still go to the smallest index across lists.
+    let mut d = d;
+    let a = d.row(7).to_owned();
+    d.row_mut(4000).assign(&a.mapv(|v| -v));
+    let index = AtomIndex::build(d.view(), &index_settings(32, 32)).unwrap();
+    let x = a.mapv(|v| 2.0 * v).insert_axis(ndarray::Axis(0));
+    assert_eq!(index.code(x.view(), None).unwrap().signal(0).0, [7]);
+}
+
+#[test]
+fn index_recall_on_real_dem_patches() {
+    let Some(dem) = relief_testdata::dem_crop("grandcanyon", 0, 0, 256, 256) else {
+        return;
+    };
+    let geom = PatchGeometry::with_patch_size(8);
+    let top = extract_patches(&dem.crop(0, 0, 256, 128).unwrap(), &geom)
+        .unwrap()
+        .matrix;
+    let bottom = extract_patches(&dem.crop(0, 128, 256, 128).unwrap(), &geom)
+        .unwrap()
+        .matrix;
+    let mut d = top.select(
+        ndarray::Axis(0),
+        &(0..top.nrows())
+            .filter(|&i| top.row(i).dot(&top.row(i)) > 1e-6)
+            .collect::<Vec<_>>(),
+    );
+    normalise(&mut d);
+    let x = bottom.slice(s![..;3, ..]).to_owned();
+    let probes = |p| {
+        let index = AtomIndex::build(d.view(), &index_settings(0, p)).unwrap();
+        index.recall(d.view(), x.view()).unwrap()
+    };
+    // About 7,400 atoms: 64 lists. Recall grows with the probes and the coefficient found is
+    // within a fraction of a percent of the exact one.
+    let (r2, q2) = probes(2);
+    let (r8, q8) = probes(8);
+    let (r64, q64) = probes(64);
+    assert!(r2 < r8 && r8 >= 0.95 && q8 >= 0.999, "{r2} {r8} {q8}");
+    assert!(q2 < q8 && q2 > 0.98, "{q2}");
+    assert!(r64 > 0.99 && q64 > 0.99999, "{r64} {q64}");
+}
+
+#[test]
+fn index_codes_do_not_depend_on_threads_or_batch() {
+    let d = gaussian(9000, 16, 13, true);
+    let x = gaussian(2500, 16, 14, false);
+    let st = index_settings(0, 4);
+    let run = |threads: usize| {
+        relief_testdata::with_threads(threads, || {
+            let index = AtomIndex::build(d.view(), &st).unwrap();
+            index.code(x.view(), None).unwrap()
+        })
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    let index = AtomIndex::build(d.view(), &st).unwrap();
+    let single = index.code(x.slice(s![2100..2101, ..]), None).unwrap();
+    assert_eq!(single.signal(0), one.signal(2100));
+}
+
+#[test]
+fn index_refuses_bad_input() {
+    let d = gaussian(500, 8, 15, true);
+    let x = gaussian(5, 8, 16, false);
+    let ok = AtomIndexSettings::default();
+    for bad in [
+        index_settings(0, 0),
+        AtomIndexSettings {
+            sample_per_list: 0,
+            ..ok
+        },
+        AtomIndexSettings {
+            iterations: 1000,
+            ..ok
+        },
+    ] {
+        assert!(AtomIndex::build(d.view(), &bad).is_err(), "{bad:?}");
+    }
+    assert!(AtomIndex::build(d.mapv(|v| 2.0 * v).view(), &ok).is_err());
+    assert!(AtomIndex::build(Array2::<f32>::zeros((0, 8)).view(), &ok).is_err());
+    let mut nan = d.clone();
+    nan[[3, 3]] = f32::NAN;
+    assert!(AtomIndex::build(nan.view(), &ok).is_err());
+    let index = AtomIndex::build(d.view(), &ok).unwrap();
+    assert_eq!(index.lists(), 16);
+    assert!(index.code(gaussian(5, 9, 17, false).view(), None).is_err());
+    let mut xn = x.clone();
+    xn[[2, 0]] = f32::INFINITY;
+    assert!(index.code(xn.view(), None).is_err());
+    assert!(index.code(x.view(), Some(-1.0)).is_err());
+    // Tolerance honoured: a signal within it gets no atom.
+    let tol = Some(f64::from(x.row(0).dot(&x.row(0))) * 1.01);
+    let c = index.code(x.slice(s![..1, ..]), tol).unwrap();
+    assert_eq!(c.signal(0).0.len(), 0);
+    assert_eq!(ok.lists_for(65_536), 256);
+    assert_eq!(ok.lists_for(4096), 64);
+    assert_eq!(ok.lists_for(1), 1);
 }

@@ -371,7 +371,7 @@ proptest! {
             prop_assert_eq!(p.matrix.ncols(), a * a);
             prop_assert!(p.matrix.iter().all(|v| v.is_finite()));
             if let Ok((dict, _)) = Dictionary::from_patches(&p, None) {
-                let s = EncodeSettings { sparsity, tolerance, step: Some(step) };
+                let s = EncodeSettings { sparsity, tolerance, step: Some(step), ..EncodeSettings::default() };
                 if let Ok(sct) = encode(&hf, &dict, &s) {
                     prop_assert!((1..=64).contains(&sparsity) && sparsity <= dict.len());
                     let r = sct.rasterize(&RasterSettings::default()).unwrap();

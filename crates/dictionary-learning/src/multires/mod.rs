@@ -47,7 +47,7 @@ use rand_pcg::Pcg64Mcg;
 use relief_heightfield::{Heightfield, Progress};
 use relief_sparse_core::{
     CentreGrid, Dictionary, Node, OmpSettings, PatchGeometry, Placement, RasterSettings, Sct,
-    SparseLayer, batch_omp, extract_patches,
+    SparseLayer, extract_patches,
 };
 use serde::{Deserialize, Serialize};
 
@@ -180,6 +180,12 @@ pub struct AmplifySettings {
     /// fine. A step finer than the exemplar uses it at native resolution and relies on the
     /// self-similarity of relief across scales ([`StepScale::self_similar`], [`StepScale::note`]).
     pub exemplar_cell_size: Option<(f64, f64)>,
+    /// With `s = 1` and more than 4096 atoms (a complete dictionary of a large exemplar, when
+    /// [`Self::diverse_atoms`] does not apply): clusters of the inverted-list atom index
+    /// searched per primitive (`relief_sparse_core::nearest::code_indexed`; 0 = the exact
+    /// search, about 15x slower at 65,536 atoms). Default
+    /// [`relief_sparse_core::DEFAULT_INDEX_PROBES`].
+    pub index_probes: usize,
 }
 
 impl Default for AmplifySettings {
@@ -200,6 +206,7 @@ impl Default for AmplifySettings {
             exemplar_detail: false,
             diverse_atoms: true,
             exemplar_cell_size: None,
+            index_probes: relief_sparse_core::DEFAULT_INDEX_PROBES,
         }
     }
 }
@@ -224,6 +231,12 @@ impl AmplifySettings {
 
     /// Validates the settings.
     pub fn check(&self) -> Result<()> {
+        in_range(
+            "index_probes",
+            self.index_probes,
+            0..=65_536,
+            "must be in 0..=65536",
+        )?;
         if !(self.radius.is_finite() && self.radius >= 1.0 && self.radius <= 32.0) {
             return Err(LearnError::param(
                 "radius",

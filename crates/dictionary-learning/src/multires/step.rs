@@ -60,13 +60,15 @@ impl MultiResDictionary {
             };
             self.diverse_codes_with(&patches.matrix, settings.seed, &global)?
         } else {
-            batch_omp(
+            relief_sparse_core::nearest::code_indexed(
                 self.low.view(),
                 patches.matrix.view(),
                 &OmpSettings {
                     sparsity: settings.sparsity.min(self.len()),
                     tolerance: None,
                 },
+                settings.index_probes,
+                &relief_heightfield::NoProgress,
             )?
         };
         let n = codes.n_signals();

@@ -23,7 +23,10 @@ use rayon::prelude::*;
 use relief_heightfield::Progress;
 
 use crate::error::Result;
+
+mod index;
 use crate::omp::{OmpFloat, OmpSettings, SparseCodes, argmax_abs, validate_limit};
+pub use index::{AtomIndex, AtomIndexSettings};
 
 /// Largest dictionary [`nearest_atom`] accepts (2^22 atoms; indices stay exact in `f32`).
 pub const MAX_NEAREST_ATOMS: usize = 1 << 22;
@@ -35,7 +38,7 @@ const SIG_BLOCK: usize = 256;
 const ATOM_BLOCK: usize = 4096;
 
 /// Per-signal output: `(atom, coefficient)` or none, and the squared residual.
-type Coded<T> = (Option<(u32, T)>, T);
+pub(super) type Coded<T> = (Option<(u32, T)>, T);
 
 /// Codes one block of signals.
 fn code_block<T: OmpFloat>(
@@ -74,29 +77,89 @@ fn code_block<T: OmpFloat>(
         }
         a0 = a1;
     }
-    let tol_t = tol.map(T::from_f64);
     x.outer_iter()
         .zip(best)
         .map(|(row, (_, j, alpha))| {
-            let xx = row.iter().fold(T::zero(), |acc, &v| acc + v * v);
-            let floor = T::from_f64(T::RESIDUAL_FLOOR) * xx;
-            if xx <= floor || tol_t.is_some_and(|t| xx <= t) || j == usize::MAX {
-                return (None, xx);
-            }
-            let gjj = norm2[j];
-            if gjj <= T::from_f64(T::PIVOT_FLOOR) * gjj {
-                return (None, xx);
-            }
-            // Same arithmetic as Batch-OMP's first iteration.
-            let lkk = gjj.sqrt();
-            let cv = alpha / lkk;
-            let mut res = xx - cv * cv;
-            if res < T::zero() {
-                res = T::zero();
-            }
-            (Some((j as u32, cv / lkk)), res)
+            let j = (j != usize::MAX).then_some(j);
+            finish_code(row, j.map(|j| (j, alpha, norm2[j])), tol)
         })
         .collect()
+}
+
+/// The code of one signal `row` from its best atom `(index, <d, x>, ||d||^2)` (none when no atom
+/// correlates), with Batch-OMP's first-iteration arithmetic; no atom when the signal is already
+/// within the tolerance or vanishes.
+pub(super) fn finish_code<T: OmpFloat>(
+    row: ndarray::ArrayView1<T>,
+    best: Option<(usize, T, T)>,
+    tol: Option<f64>,
+) -> Coded<T> {
+    let xx = row.iter().fold(T::zero(), |acc, &v| acc + v * v);
+    let floor = T::from_f64(T::RESIDUAL_FLOOR) * xx;
+    let Some((j, alpha, gjj)) = best else {
+        return (None, xx);
+    };
+    if xx <= floor || tol.is_some_and(|t| xx <= T::from_f64(t)) {
+        return (None, xx);
+    }
+    if gjj <= T::from_f64(T::PIVOT_FLOOR) * gjj {
+        return (None, xx);
+    }
+    // Same arithmetic as Batch-OMP's first iteration.
+    let lkk = gjj.sqrt();
+    let cv = alpha / lkk;
+    let mut res = xx - cv * cv;
+    if res < T::zero() {
+        res = T::zero();
+    }
+    (Some((j as u32, cv / lkk)), res)
+}
+
+/// Sparse codes from the per-signal results, in signal order.
+pub(super) fn assemble<T: OmpFloat>(
+    coded: impl Iterator<Item = Coded<T>>,
+) -> Result<SparseCodes<T>> {
+    let (lo, _) = coded.size_hint();
+    let mut offsets = Vec::with_capacity(lo + 1);
+    offsets.push(0usize);
+    let mut indices = Vec::with_capacity(lo);
+    let mut values = Vec::with_capacity(lo);
+    let mut residuals = Vec::with_capacity(lo);
+    for (atom, res) in coded {
+        if let Some((j, v)) = atom {
+            indices.push(j);
+            values.push(v);
+        }
+        offsets.push(indices.len());
+        residuals.push(res);
+    }
+    SparseCodes::from_parts(offsets, indices, values, residuals)
+}
+
+/// `s = 1`-aware coding: with `settings.sparsity == 1`, more than
+/// [`crate::omp::NEAREST_MIN_ATOMS`] atoms and `probes > 0`, the inverted-list [`AtomIndex`]
+/// (default clustering, `probes` clusters searched per signal) built for `dict`; otherwise
+/// [`crate::omp::batch_omp_with_progress`] (the Gram path, or the exact [`nearest_atom`] above
+/// 4096 atoms at `s = 1`). The index is a function of the dictionary alone, so the codes of a
+/// signal do not depend on the batch it is coded in.
+pub fn code_indexed<T: OmpFloat>(
+    dict: ArrayView2<T>,
+    signals: ArrayView2<T>,
+    settings: &OmpSettings,
+    probes: usize,
+    progress: &dyn Progress,
+) -> Result<SparseCodes<T>> {
+    if settings.sparsity != 1 || dict.nrows() <= crate::omp::NEAREST_MIN_ATOMS || probes == 0 {
+        return crate::omp::batch_omp_with_progress(dict, signals, settings, progress);
+    }
+    let index = AtomIndex::build(
+        dict,
+        &AtomIndexSettings {
+            probes,
+            ..AtomIndexSettings::default()
+        },
+    )?;
+    index.code_with_progress(signals, settings.tolerance, progress)
 }
 
 /// Exact `s = 1` OMP for dictionaries of any size up to [`MAX_NEAREST_ATOMS`]: for each signal
@@ -150,18 +213,5 @@ pub fn nearest_atom_with_progress<T: OmpFloat>(
             },
         )
         .collect();
-    let mut offsets = Vec::with_capacity(n + 1);
-    offsets.push(0usize);
-    let mut indices = Vec::with_capacity(n);
-    let mut values = Vec::with_capacity(n);
-    let mut residuals = Vec::with_capacity(n);
-    for (atom, res) in blocks.into_iter().flatten() {
-        if let Some((j, v)) = atom {
-            indices.push(j);
-            values.push(v);
-        }
-        offsets.push(indices.len());
-        residuals.push(res);
-    }
-    SparseCodes::from_parts(offsets, indices, values, residuals)
+    assemble(blocks.into_iter().flatten())
 }
