@@ -2,6 +2,11 @@
 //! (on-demand) synthesis. Every output value is computed by the same sequence of floating-point
 //! operations whatever the segment, which is what makes a window bit-identical to the same
 //! window of a full run.
+//!
+//! Along columns the steps are row-pipelined ([`Pipeline`]): one sweep over the rows applies
+//! every step, each one row behind the one before, so each lane row passes through the cache
+//! once per level instead of once per step. The schedule is only used when it provably reads
+//! every value at the stage the step-by-step order would, so it is an exact reordering.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
