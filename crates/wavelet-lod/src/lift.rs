@@ -548,6 +548,29 @@ fn scale_par(v: &mut [f32], k: f32, par: bool) {
     }
 }
 
+/// The column lifting of one level step by step, sequentially (the reference order the
+/// pipelined schedule must reproduce), for tests.
+#[cfg(test)]
+pub(crate) fn rows_stepwise(
+    scheme: &Scheme,
+    forward: bool,
+    even: &mut [f32],
+    odd: &mut [f32],
+    em: &LaneMap,
+    om: &LaneMap,
+    width: usize,
+) {
+    if odd.is_empty() || width == 0 {
+        return;
+    }
+    let ops = if forward {
+        forward_ops(scheme)
+    } else {
+        inverse_ops(scheme)
+    };
+    column_ops_stepwise(&ops, even, odd, em, om, width, false);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
