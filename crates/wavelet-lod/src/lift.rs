@@ -2,6 +2,11 @@
 //! (on-demand) synthesis. Every output value is computed by the same sequence of floating-point
 //! operations whatever the segment, which is what makes a window bit-identical to the same
 //! window of a full run.
+//!
+//! Along columns the steps are row-pipelined ([`Pipeline`]): one sweep over the rows applies
+//! every step, each one row behind the one before, so each lane row passes through the cache
+//! once per level instead of once per step. The schedule is only used when it provably reads
+//! every value at the stage the step-by-step order would, so it is an exact reordering.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -161,6 +166,42 @@ pub(crate) fn step_1d(
     }
 }
 
+/// `row (+|-)= taps . (a, b)` over one row, in the forms of [`combine`] (`c * (a + b)` for equal
+/// weights), written as plain slice loops so they vectorise.
+#[inline(always)]
+fn row_op(row: &mut [f32], a: &[f32], b: &[f32], taps: &[(isize, f32)], subtract: bool) {
+    if taps.len() == 1 {
+        let c = taps[0].1;
+        let a = &a[..row.len()];
+        if subtract {
+            row.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
+        } else {
+            row.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
+        }
+        return;
+    }
+    let (a, b) = (&a[..row.len()], &b[..row.len()]);
+    let (c0, c1) = (taps[0].1, taps[1].1);
+    match (c0 == c1, subtract) {
+        (true, false) => row
+            .iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(t, (a, b))| *t += c0 * (a + b)),
+        (true, true) => row
+            .iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(t, (a, b))| *t -= c0 * (a + b)),
+        (false, false) => row
+            .iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
+        (false, true) => row
+            .iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
+    }
+}
+
 /// Applies one lifting step along columns: lanes are whole rows of `width` values; `target`
 /// holds rows of the target lane starting at global lane row `t0`.
 pub(crate) fn step_rows(
@@ -179,37 +220,14 @@ pub(crate) fn step_rows(
     let body = |(r, row): (usize, &mut [f32])| {
         let i = t0 + r as isize;
         let ra = smap.local(i + taps[0].0) * width;
-        let a = &src[ra..ra + width];
-        if taps.len() == 1 {
-            let c = taps[0].1;
-            if subtract {
-                row.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
-            } else {
-                row.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
-            }
-        } else {
-            let rb = smap.local(i + taps[1].0) * width;
-            let b = &src[rb..rb + width];
-            let (c0, c1) = (taps[0].1, taps[1].1);
-            match (c0 == c1, subtract) {
-                (true, false) => row
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t += c0 * (a + b)),
-                (true, true) => row
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t -= c0 * (a + b)),
-                (false, false) => row
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
-                (false, true) => row
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
-            }
-        }
+        let rb = smap.local(i + taps[taps.len() - 1].0) * width;
+        row_op(
+            row,
+            &src[ra..ra + width],
+            &src[rb..rb + width],
+            taps,
+            subtract,
+        );
     };
     if par {
         target.par_chunks_mut(width).enumerate().for_each(body);
@@ -296,6 +314,196 @@ pub(crate) fn inverse_1d(
     }
 }
 
+/// One operation of a column sweep: a lifting step (`taps` not empty) or a scaling of the
+/// target lane by `k` (`taps` empty).
+#[derive(Debug, Clone, Copy)]
+struct ColOp {
+    target: Lane,
+    taps: &'static [(isize, f32)],
+    subtract: bool,
+    k: f32,
+}
+
+/// The column operations of a forward (analysis) sweep: the steps, then the scalings that
+/// are not 1.
+fn forward_ops(scheme: &Scheme) -> Vec<ColOp> {
+    let mut ops: Vec<ColOp> = scheme
+        .steps
+        .iter()
+        .map(|s| ColOp {
+            target: s.target,
+            taps: s.taps,
+            subtract: false,
+            k: 1.0,
+        })
+        .collect();
+    ops.extend(scale_ops(scheme.scale_even, scheme.scale_odd));
+    ops
+}
+
+/// The column operations of an inverse sweep: the unscalings that are not 1, then the steps
+/// reversed, subtracting.
+fn inverse_ops(scheme: &Scheme) -> Vec<ColOp> {
+    let mut ops = scale_ops(1.0 / scheme.scale_even, 1.0 / scheme.scale_odd);
+    ops.extend(scheme.steps.iter().rev().map(|s| ColOp {
+        target: s.target,
+        taps: s.taps,
+        subtract: true,
+        k: 1.0,
+    }));
+    ops
+}
+
+fn scale_ops(ke: f32, ko: f32) -> Vec<ColOp> {
+    [(Lane::Even, ke), (Lane::Odd, ko)]
+        .into_iter()
+        .filter(|&(_, k)| k != 1.0)
+        .map(|(target, k)| ColOp {
+            target,
+            taps: &[],
+            subtract: false,
+            k,
+        })
+        .collect()
+}
+
+/// A row-pipelined schedule of column operations: in sweep `r`, operation `s` processes
+/// target lane row `r - s` (global index), so every operation runs one row behind the one
+/// before it and the whole transform is one pass over the rows (each row is loaded once
+/// into cache instead of once per step). `rows[s][i]` are the local source rows of the taps
+/// of operation `s` at local target row `i`.
+///
+/// The schedule is used only when every source row read by operation `s` is, at that point of
+/// the sweep, already written by the last earlier operation on the source lane and not yet
+/// overwritten by the next one, so every value goes through exactly the operations of the
+/// step-by-step order (bit-identical, margins included). That holds for the symmetric boundary
+/// (mirrored rows stay within one row of the target) and fails for periodic lanes, whose wrap
+/// reaches the other end of the lane; those use the step-by-step order.
+struct Pipeline {
+    rows: Vec<Vec<[usize; 2]>>,
+}
+
+impl Pipeline {
+    fn new(ops: &[ColOp], em: &LaneMap, om: &LaneMap) -> Option<Self> {
+        let map = |l: Lane| if l == Lane::Even { em } else { om };
+        let mut rows = Vec::with_capacity(ops.len());
+        for (s, op) in ops.iter().enumerate() {
+            let src_lane = if op.target == Lane::Even {
+                Lane::Odd
+            } else {
+                Lane::Even
+            };
+            let (tm, sm) = (map(op.target), map(src_lane));
+            let prev = ops[..s].iter().rposition(|o| o.target == src_lane);
+            let next = ops[s + 1..]
+                .iter()
+                .position(|o| o.target == src_lane)
+                .map(|p| p + s + 1);
+            let mut table = Vec::with_capacity(if op.taps.is_empty() { 0 } else { tm.seglen });
+            for i in 0..if op.taps.is_empty() { 0 } else { tm.seglen } {
+                let ig = tm.seg0 + i as isize;
+                let mut js = [0usize; 2];
+                for (k, t) in op.taps.iter().enumerate() {
+                    let j = sm.local(ig + t.0);
+                    let jg = sm.seg0 + j as isize;
+                    let late = prev.is_some_and(|p| jg > ig + (s - p) as isize);
+                    let early = next.is_some_and(|n| jg < ig + s as isize - n as isize);
+                    if late || early {
+                        return None;
+                    }
+                    js[k] = j;
+                }
+                if op.taps.len() == 1 {
+                    js[1] = js[0];
+                }
+                table.push(js);
+            }
+            rows.push(table);
+        }
+        Some(Self { rows })
+    }
+
+    /// Runs the schedule over row-lane buffers `width` wide.
+    fn run(
+        &self,
+        ops: &[ColOp],
+        even: &mut [f32],
+        odd: &mut [f32],
+        em: &LaneMap,
+        om: &LaneMap,
+        width: usize,
+    ) {
+        let g0 = em.seg0.min(om.seg0);
+        let g1 = (em.seg0 + em.seglen as isize).max(om.seg0 + om.seglen as isize);
+        for r in g0..g1 + ops.len() as isize {
+            for (s, op) in ops.iter().enumerate() {
+                let (tgt, src, tm) = match op.target {
+                    Lane::Even => (&mut *even, &*odd, em),
+                    Lane::Odd => (&mut *odd, &*even, om),
+                };
+                let i = r - s as isize - tm.seg0;
+                if i < 0 || i >= tm.seglen as isize {
+                    continue;
+                }
+                let i = i as usize;
+                let row = &mut tgt[i * width..(i + 1) * width];
+                if op.taps.is_empty() {
+                    scale(row, op.k);
+                    continue;
+                }
+                let [ja, jb] = self.rows[s][i];
+                let a = &src[ja * width..(ja + 1) * width];
+                let b = &src[jb * width..(jb + 1) * width];
+                row_op(row, a, b, op.taps, op.subtract);
+            }
+        }
+    }
+}
+
+/// Applies column operations to row-lane buffers in place: row-pipelined when the schedule
+/// allows it ([`Pipeline`]), else step by step (each step parallel over rows when `par`).
+fn column_ops(
+    ops: &[ColOp],
+    even: &mut [f32],
+    odd: &mut [f32],
+    em: &LaneMap,
+    om: &LaneMap,
+    width: usize,
+    par: bool,
+) {
+    if odd.is_empty() || width == 0 {
+        return;
+    }
+    if let Some(p) = Pipeline::new(ops, em, om) {
+        p.run(ops, even, odd, em, om, width);
+        return;
+    }
+    column_ops_stepwise(ops, even, odd, em, om, width, par);
+}
+
+/// [`column_ops`] one whole operation after the other (the reference order).
+fn column_ops_stepwise(
+    ops: &[ColOp],
+    even: &mut [f32],
+    odd: &mut [f32],
+    em: &LaneMap,
+    om: &LaneMap,
+    width: usize,
+    par: bool,
+) {
+    for op in ops {
+        let (tgt, t0, src, sm) = match op.target {
+            Lane::Even => (&mut *even, em.seg0, &*odd, om),
+            Lane::Odd => (&mut *odd, om.seg0, &*even, em),
+        };
+        if op.taps.is_empty() {
+            scale_par(tgt, op.k, par);
+        } else {
+            step_rows(tgt, t0, src, sm, width, op.taps, op.subtract, par);
+        }
+    }
+}
+
 /// Forward lifting along columns of row-lane buffers (each `width` wide) in place.
 pub(crate) fn forward_rows(
     scheme: &Scheme,
@@ -306,15 +514,7 @@ pub(crate) fn forward_rows(
     width: usize,
     par: bool,
 ) {
-    if odd.is_empty() {
-        return;
-    }
-    for step in scheme.steps {
-        let (t, t0, s, sm) = step_parts(step, even, odd, em, om);
-        step_rows(t, t0, s, sm, width, step.taps, false, par);
-    }
-    scale_par(even, scheme.scale_even, par);
-    scale_par(odd, scheme.scale_odd, par);
+    column_ops(&forward_ops(scheme), even, odd, em, om, width, par);
 }
 
 /// Inverse lifting along columns of row-lane buffers in place.
@@ -327,15 +527,7 @@ pub(crate) fn inverse_rows(
     width: usize,
     par: bool,
 ) {
-    if odd.is_empty() {
-        return;
-    }
-    scale_par(even, 1.0 / scheme.scale_even, par);
-    scale_par(odd, 1.0 / scheme.scale_odd, par);
-    for step in scheme.steps.iter().rev() {
-        let (t, t0, s, sm) = step_parts(step, even, odd, em, om);
-        step_rows(t, t0, s, sm, width, step.taps, true, par);
-    }
+    column_ops(&inverse_ops(scheme), even, odd, em, om, width, par);
 }
 
 #[inline]
@@ -353,5 +545,102 @@ fn scale_par(v: &mut [f32], k: f32, par: bool) {
         v.par_chunks_mut(1 << 14).for_each(|c| scale(c, k));
     } else {
         scale(v, k);
+    }
+}
+
+/// The column lifting of one level step by step, sequentially (the reference order the
+/// pipelined schedule must reproduce), for tests.
+#[cfg(test)]
+pub(crate) fn rows_stepwise(
+    scheme: &Scheme,
+    forward: bool,
+    even: &mut [f32],
+    odd: &mut [f32],
+    em: &LaneMap,
+    om: &LaneMap,
+    width: usize,
+) {
+    if odd.is_empty() || width == 0 {
+        return;
+    }
+    let ops = if forward {
+        forward_ops(scheme)
+    } else {
+        inverse_ops(scheme)
+    };
+    column_ops_stepwise(&ops, even, odd, em, om, width, false);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dwt::AxisPlan;
+    use crate::wavelet::Wavelet;
+
+    /// Deterministic values in [-500, 500).
+    fn values(len: usize, seed: u64) -> Vec<f32> {
+        let mut s = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+        (0..len)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 40) as f32 / (1u64 << 24) as f32 * 1000.0 - 500.0
+            })
+            .collect()
+    }
+
+    /// The lane segments of a full axis and of windows with the synthesis margin.
+    fn segments(n: usize, margin: usize) -> Vec<(usize, usize, usize, usize)> {
+        let mut segs = vec![(0, n.div_ceil(2), 0, n / 2)];
+        for a in 0..n {
+            for b in [a + 1, a + 3, n] {
+                if b <= n && b > a {
+                    let p = AxisPlan::new(n, a..b, margin);
+                    segs.push((p.even.start, p.even.len(), p.odd.start, p.odd.len()));
+                }
+            }
+        }
+        segs
+    }
+
+    /// The row-pipelined column sweep gives the step-by-step values bit for bit (every row,
+    /// margins included), for every basis, both directions and both boundaries, on full lanes
+    /// and window segments; and the symmetric boundary always gets the pipelined schedule.
+    #[test]
+    fn pipelined_columns_equal_stepwise() {
+        let mut seed = 1;
+        for w in Wavelet::ALL {
+            let scheme = w.scheme();
+            for ops in [forward_ops(scheme), inverse_ops(scheme)] {
+                for boundary in [Boundary::Symmetric, Boundary::Periodic] {
+                    for n in 2..=24 {
+                        if boundary == Boundary::Periodic && n % 2 == 1 {
+                            continue;
+                        }
+                        for (e0, el, o0, ol) in segments(n, w.synthesis_margin()) {
+                            let (em, om) = lane_maps(n, boundary, e0, el, o0, ol);
+                            let pipe = Pipeline::new(&ops, &em, &om);
+                            if boundary == Boundary::Symmetric {
+                                assert!(pipe.is_some(), "{w} n {n} seg {e0} {el} {o0} {ol}");
+                            }
+                            for width in [1, 3] {
+                                seed += 1;
+                                let even = values(el * width, seed);
+                                let odd = values(ol * width, seed + 1000);
+                                let (mut e1, mut o1) = (even.clone(), odd.clone());
+                                let (mut e2, mut o2) = (even, odd);
+                                column_ops(&ops, &mut e1, &mut o1, &em, &om, width, false);
+                                column_ops_stepwise(&ops, &mut e2, &mut o2, &em, &om, width, true);
+                                let bits =
+                                    |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                                assert_eq!(bits(&e1), bits(&e2), "{w} {boundary:?} n {n}");
+                                assert_eq!(bits(&o1), bits(&o2), "{w} {boundary:?} n {n}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 }
