@@ -135,18 +135,17 @@ fn ties_go_to_the_smallest_index() {
     assert_eq!(fast.signal(0).0, [7]);
 }
 
-#[test]
-fn real_dem_patches_match_gram_path() {
-    let Some(dem) = relief_testdata::dem_crop("grandcanyon", 100, 100, 96, 128) else {
-        return;
-    };
+/// Unit-norm 8 x 8 patches (with relief) of the top half of the `w x h` Grand Canyon crop at
+/// `(x, y)` as atoms, and the patches of its bottom half as signals.
+fn atoms_and_signals(x: usize, y: usize, w: usize, h: usize) -> Option<(Array2<f32>, Array2<f32>)> {
+    let dem = relief_testdata::dem_crop("grandcanyon", x, y, w, h)?;
     let geom = PatchGeometry::with_patch_size(8);
-    let top = extract_patches(&dem.crop(0, 0, 96, 64).unwrap(), &geom)
-        .unwrap()
-        .matrix;
-    let bottom = extract_patches(&dem.crop(0, 64, 96, 64).unwrap(), &geom)
-        .unwrap()
-        .matrix;
+    let half = |y0| {
+        extract_patches(&dem.crop(0, y0, w, h / 2).unwrap(), &geom)
+            .unwrap()
+            .matrix
+    };
+    let (top, bottom) = (half(0), half(h / 2));
     let mut d = top.select(
         ndarray::Axis(0),
         &(0..top.nrows())
@@ -154,6 +153,14 @@ fn real_dem_patches_match_gram_path() {
             .collect::<Vec<_>>(),
     );
     normalise(&mut d);
+    Some((d, bottom))
+}
+
+#[test]
+fn real_dem_patches_match_gram_path() {
+    let Some((d, bottom)) = atoms_and_signals(100, 100, 96, 128) else {
+        return;
+    };
     let x = bottom.slice(s![..;5, ..]).to_owned();
     let fast = nearest_atom(d.view(), x.view(), &S1).unwrap();
     let gram = batch_omp(d.view(), x.view(), &S1).unwrap();
@@ -249,23 +256,9 @@ fn index_probing_every_list_is_the_exact_search() {
 
 #[test]
 fn index_recall_on_real_dem_patches() {
-    let Some(dem) = relief_testdata::dem_crop("grandcanyon", 0, 0, 256, 256) else {
+    let Some((d, bottom)) = atoms_and_signals(0, 0, 256, 256) else {
         return;
     };
-    let geom = PatchGeometry::with_patch_size(8);
-    let top = extract_patches(&dem.crop(0, 0, 256, 128).unwrap(), &geom)
-        .unwrap()
-        .matrix;
-    let bottom = extract_patches(&dem.crop(0, 128, 256, 128).unwrap(), &geom)
-        .unwrap()
-        .matrix;
-    let mut d = top.select(
-        ndarray::Axis(0),
-        &(0..top.nrows())
-            .filter(|&i| top.row(i).dot(&top.row(i)) > 1e-6)
-            .collect::<Vec<_>>(),
-    );
-    normalise(&mut d);
     let x = bottom.slice(s![..;3, ..]).to_owned();
     let probes = |p| {
         let index = AtomIndex::build(d.view(), &index_settings(0, p)).unwrap();
