@@ -67,7 +67,7 @@ pub struct CompressSettings {
     /// dictionaries, figure 14). Not used with a given dictionary.
     pub analytic_atoms: AnalyticAtoms,
     /// With `s = 1` and more than 4096 atoms (e.g. a complete dictionary): clusters of the
-    /// inverted-list atom index searched per patch (0 = the exact search). See
+    /// inverted-list atom index searched per patch (0 = the exact search; any count at or above the number of clusters searches them all). See
     /// [`relief_sparse_core::DEFAULT_INDEX_PROBES`].
     pub index_probes: usize,
 }
@@ -170,12 +170,6 @@ impl CompressSettings {
             return Err(LearnError::param("atoms", 0, "must be >= 1"));
         }
         in_range("patch_size", self.patch_size, 2..=64, "must be in 2..=64")?;
-        in_range(
-            "index_probes",
-            self.index_probes,
-            0..=65_536,
-            "must be in 0..=65536",
-        )?;
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1e3) {
             return Err(LearnError::param(
                 "spacing",

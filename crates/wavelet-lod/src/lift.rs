@@ -133,36 +133,14 @@ pub(crate) fn step_1d(
         let tgt = &mut target[(f0 - t0) as usize..(f0 - t0) as usize + len];
         let sa = (f0 + taps[0].0 - smap.seg0) as usize;
         let a = &src[sa..sa + len];
-        if taps.len() == 1 {
-            let c = taps[0].1;
-            if subtract {
-                tgt.iter_mut().zip(a).for_each(|(t, a)| *t -= c * a);
-            } else {
-                tgt.iter_mut().zip(a).for_each(|(t, a)| *t += c * a);
+        let b = match taps.get(1) {
+            Some(t) => {
+                let sb = (f0 + t.0 - smap.seg0) as usize;
+                &src[sb..sb + len]
             }
-        } else {
-            let sb = (f0 + taps[1].0 - smap.seg0) as usize;
-            let b = &src[sb..sb + len];
-            let (c0, c1) = (taps[0].1, taps[1].1);
-            match (c0 == c1, subtract) {
-                (true, false) => tgt
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t += c0 * (a + b)),
-                (true, true) => tgt
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t -= c0 * (a + b)),
-                (false, false) => tgt
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t += c0 * a + c1 * b),
-                (false, true) => tgt
-                    .iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(t, (a, b))| *t -= c0 * a + c1 * b),
-            }
-        }
+            None => a,
+        };
+        row_op(tgt, a, b, taps, subtract);
     }
 }
 

@@ -231,12 +231,6 @@ impl AmplifySettings {
 
     /// Validates the settings.
     pub fn check(&self) -> Result<()> {
-        in_range(
-            "index_probes",
-            self.index_probes,
-            0..=65_536,
-            "must be in 0..=65536",
-        )?;
         if !(self.radius.is_finite() && self.radius >= 1.0 && self.radius <= 32.0) {
             return Err(LearnError::param(
                 "radius",
