@@ -26,6 +26,9 @@ pub(crate) struct Shared<'a> {
     /// Summed-area tables the guide distance reads (the exemplars low-passed by
     /// `guide_lowpass`, or their own tables when it is 0).
     pub(crate) guide_sats: &'a [Sat],
+    /// Block descriptors of every patch read from `guide_sats` (patch-major, `blocks^2` each)
+    /// and the clusters' means of them, when the guide distance uses a low-pass.
+    pub(crate) guide_desc: Option<(Vec<f32>, Vec<f32>)>,
 }
 
 /// The working canvas (padded to whole patches).
@@ -123,10 +126,11 @@ pub(crate) fn cluster_order(
     let mut order: Vec<(f32, usize)> = if let Some(d) = target_desc {
         (0..k)
             .map(|c| {
-                (
-                    translated_dist2(d, index.clusters.centroid(c), sh.settings.lambda),
-                    c,
-                )
+                let cen = match &sh.guide_desc {
+                    Some((_, cens)) => &cens[c * d.len()..(c + 1) * d.len()],
+                    None => index.clusters.centroid(c),
+                };
+                (translated_dist2(d, cen, sh.settings.lambda), c)
             })
             .collect()
     } else if b.n_overlap() > 0 {
@@ -253,10 +257,11 @@ pub(crate) fn candidates(
             .iter()
             .flat_map(|&bi| index.buckets[bi].patches.iter().copied())
             .map(|id| {
-                (
-                    translated_dist2(dg, index.descriptor(id as usize), lambda),
-                    id,
-                )
+                let desc = match &sh.guide_desc {
+                    Some((all, _)) => &all[id as usize * dg.len()..(id as usize + 1) * dg.len()],
+                    None => index.descriptor(id as usize),
+                };
+                (translated_dist2(dg, desc, lambda), id)
             })
             .collect();
         let keep = (settings.knn * probed.len()).min(by_guide.len());

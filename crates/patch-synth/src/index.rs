@@ -757,6 +757,49 @@ impl ExemplarIndex {
             .map(|e| crate::guide::gaussian_blur(&e.heightfield, sigma).map(|low| Sat::new(&low)))
             .collect()
     }
+    /// Block descriptors of every patch read from `sats` (patch-major, one value per
+    /// rectangle of `rects`) and their means over the patches of every cluster (cluster-major).
+    pub(crate) fn lowpassed_descriptors(
+        &self,
+        sats: &[Sat],
+        rects: &[[usize; 4]],
+    ) -> (Vec<f32>, Vec<f32>) {
+        let n = rects.len();
+        let all: Vec<f32> = (0..self.patches.len())
+            .into_par_iter()
+            .flat_map_iter(|id| {
+                rects
+                    .iter()
+                    .map(move |r| self.box_mean_in(sats, id, r[0], r[1], r[2], r[3]))
+            })
+            .collect();
+        let k = self.clusters.k();
+        let ncat = self.categories.len();
+        let mut cens = vec![0.0f32; k * n];
+        for c in 0..k {
+            let mut sum = vec![0.0f64; n];
+            let mut count = 0usize;
+            for ci in 0..ncat {
+                for &id in &self.buckets[c * ncat + ci].patches {
+                    for (s, v) in sum
+                        .iter_mut()
+                        .zip(&all[id as usize * n..(id as usize + 1) * n])
+                    {
+                        *s += *v as f64;
+                    }
+                    count += 1;
+                }
+            }
+            if count == 0 {
+                cens[c * n..(c + 1) * n].copy_from_slice(self.clusters.centroid(c));
+            } else {
+                for (o, s) in cens[c * n..(c + 1) * n].iter_mut().zip(&sum) {
+                    *o = (s / count as f64) as f32;
+                }
+            }
+        }
+        (all, cens)
+    }
     /// Box mean over a rectangle of patch `id` of the tables `sats` (one per exemplar).
     #[inline]
     pub(crate) fn box_mean_in(

@@ -336,6 +336,9 @@ pub fn synthesize(
     } else {
         None
     };
+    let guide_desc = lowpassed
+        .as_deref()
+        .map(|sats| index.lowpassed_descriptors(sats, &block_rects));
     let sh = Shared {
         index,
         settings,
@@ -343,6 +346,7 @@ pub fn synthesize(
         block_rects: &block_rects,
         guide_rects: &guide_rects,
         guide_sats: lowpassed.as_deref().unwrap_or(&index.sats),
+        guide_desc,
     };
     let mut cv = Canvas {
         values: vec![0.0f32; cw * ch],
