@@ -290,7 +290,6 @@ impl Refiner {
                 Err(e) => return Err(e),
             };
         }
-        let input = Grid::from_heightfield(hf);
         let (synthesis_fits, spectral) = match settings.model {
             Model::Paper => (global.fits, None),
             Model::Spectral => {
@@ -318,15 +317,21 @@ impl Refiner {
             let wide = (r < 1.0 && n > 1)
                 .then(|| maps(BROAD_WINDOW * settings.window))
                 .flatten();
-            let mut per_level = vec![narrow.clone()];
-            if let Some(wide) = wide {
-                per_level.extend((1..n).map(|t| {
-                    let keep = r.powi(t as i32);
-                    std::array::from_fn(|b| blend_amplitude(&narrow[b], &wide[b], keep))
-                }));
-            }
-            per_level
+            // The blends first, so that `narrow` moves in without a copy (peak memory).
+            let blends: Vec<[Grid; 3]> = wide.map_or_else(Vec::new, |wide| {
+                (1..n)
+                    .map(|t| {
+                        let keep = r.powi(t as i32);
+                        std::array::from_fn(|b| blend_amplitude(&narrow[b], &wide[b], keep))
+                    })
+                    .collect()
+            });
+            std::iter::once(narrow).chain(blends).collect()
         });
+        // The coefficients are not needed past the fits and maps: free them before the input
+        // is copied (the peak of a large analysis).
+        drop(dec);
+        let input = Grid::from_heightfield(hf);
         let mut refiner = Self {
             input,
             amplitude,

@@ -332,15 +332,27 @@ impl Refiner {
                             let xw: Vec<(usize, usize, f32)> = (0..cw)
                                 .map(|k| lerp_index(coord(xs.start + k), map.width))
                                 .collect();
+                            // The two x-interpolated map rows `a` and `b` depend only on the
+                            // map rows (y0, y1), shared by consecutive coefficient rows: kept
+                            // until they change.
+                            let (mut av, mut bv) = (vec![0.0f32; cw], vec![0.0f32; cw]);
+                            let mut rows_of = None;
                             for (r, row) in out.chunks_mut(cw.max(1)).enumerate().take(ch) {
                                 let (y0, y1, fy) = lerp_index(coord(ys.start + r), map.height);
-                                let (r0, r1) = (
-                                    &map.data[y0 * map.width..(y0 + 1) * map.width],
-                                    &map.data[y1 * map.width..(y1 + 1) * map.width],
-                                );
-                                for (v, &(x0, x1, fx)) in row.iter_mut().zip(&xw) {
-                                    let a = r0[x0] + fx * (r0[x1] - r0[x0]);
-                                    let b = r1[x0] + fx * (r1[x1] - r1[x0]);
+                                if rows_of != Some((y0, y1)) {
+                                    rows_of = Some((y0, y1));
+                                    let (r0, r1) = (
+                                        &map.data[y0 * map.width..(y0 + 1) * map.width],
+                                        &map.data[y1 * map.width..(y1 + 1) * map.width],
+                                    );
+                                    for ((a, b), &(x0, x1, fx)) in
+                                        av.iter_mut().zip(bv.iter_mut()).zip(&xw)
+                                    {
+                                        *a = r0[x0] + fx * (r0[x1] - r0[x0]);
+                                        *b = r1[x0] + fx * (r1[x1] - r1[x0]);
+                                    }
+                                }
+                                for ((v, &a), &b) in row.iter_mut().zip(&av).zip(&bv) {
                                     *v *= sigma * (a + fy * (b - a));
                                 }
                             }
