@@ -78,7 +78,9 @@ pub(crate) struct SynthArgs {
     #[arg(long, value_name = "FILE")]
     pub(crate) guide_out: Option<PathBuf>,
     /// Cell size in metres of the guide, `X` or `X,Y`, for a guide that stores none (PNG, NPY)
-    /// or a wrong one; the guide is resampled from it to the exemplars' cell size.
+    /// or a wrong one; the guide is resampled from it to the exemplars' cell size. Without it,
+    /// a guide that stores none is taken at the exemplars' cell size (one guide cell per output
+    /// cell), and a 16-bit PNG relief wrote reads its cell size from its `.png.json` sidecar.
     #[arg(long, value_name = "X[,Y]", value_parser = crate::commands::parse_cell_size)]
     pub(crate) guide_cell_size: Option<(f64, f64)>,
     /// Categorisation map (e.g. an 8-bit grey PNG): each cell's value is the exemplar category
@@ -290,7 +292,25 @@ impl SynthArgs {
             inputs.exemplars.push(read(p, "exemplar")?);
         }
         if let Some(path) = self.guide.as_deref().or(self.guide_from.as_deref()) {
-            let g = read(path, "guide")?;
+            let raster = crate::commands::read_raster(path, &self.read, ctx)
+                .with_context(|| format!("guide {}", path.display()))?;
+            let mut g = raster.heightfield.clone();
+            // A painted guide (PNG, raw, EXR, NPY) stores no cell size: it is drawn on the
+            // output grid, so it takes the exemplars' cell size rather than the reader's 1 m
+            // (which would shrink it 60 times against a 60 m exemplar).
+            if self.guide_cell_size.is_none()
+                && self.read.cell_size.is_none()
+                && !crate::commands::cell_size_stored(path, &raster)
+                && let Some(e) = inputs.exemplars.first()
+            {
+                let (cx, cy) = e.cell_size();
+                g.set_cell_size(cx, cy)?;
+                ctx.note(format!(
+                    "guide {}: the file stores no cell size; taken at the exemplars' ({cx:.3} x {cy:.3} m, one guide cell per output cell; \
+                     --guide-cell-size sets another)",
+                    path.display()
+                ));
+            }
             if self.guide_range.is_none() && png_counts(path, &g) {
                 bail!(
                     "guide {}: a PNG of grey levels (no relief vertical mapping) holds no \

@@ -118,6 +118,18 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
             other => anyhow::anyhow!("{what}: {other}"),
         }
     })?;
+    if read.cell_size.is_none()
+        && let Some(cell) = heightmap_sidecar_cell(path, &raster.heightfield)
+    {
+        raster.heightfield.set_cell_size(cell.0, cell.1)?;
+        ctx.note(format!(
+            "{}: cell size {:.3} x {:.3} m from its sidecar {}",
+            path.display(),
+            cell.0,
+            cell.1,
+            crate::ctx::heightmap_sidecar(path).display()
+        ));
+    }
     if read.fill_voids && raster.heightfield.has_voids() {
         progress.begin("filling voids", 0);
         let rep = relief_heightfield::fill::fill_voids(
@@ -135,4 +147,44 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
         ));
     }
     Ok(raster)
+}
+
+/// The cell size stated by the `FILE.png.json` / `FILE.r16.json` sidecar relief writes beside a
+/// 16-bit heightmap (fields `cell_size_x_m`/`cell_size_y_m`, or `cell_size_m` as a number or
+/// `[x, y]`), when the file is such a heightmap, the sidecar's `width`/`height` match it and
+/// the cell size is positive and finite. These formats store no cell size of their own.
+pub(crate) fn heightmap_sidecar_cell(path: &Path, hf: &Heightfield) -> Option<(f64, f64)> {
+    if !crate::ctx::is_heightmap16(path) {
+        return None;
+    }
+    let text = std::fs::read(crate::ctx::heightmap_sidecar(path)).ok()?;
+    if text.len() > 1 << 20 {
+        return None;
+    }
+    let v: serde_json::Value = serde_json::from_slice(&text).ok()?;
+    let dim = |k: &str| v.get(k).and_then(serde_json::Value::as_u64);
+    if dim("width")? != hf.width() as u64 || dim("height")? != hf.height() as u64 {
+        return None;
+    }
+    let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
+    let both = v.get("cell_size_m").and_then(|c| match c {
+        serde_json::Value::Array(a) if a.len() == 2 => Some((a[0].as_f64()?, a[1].as_f64()?)),
+        c => c.as_f64().map(|x| (x, x)),
+    });
+    let cell = match (num("cell_size_x_m"), num("cell_size_y_m")) {
+        (Some(x), Some(y)) => (x, y),
+        _ => both?,
+    };
+    (cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0).then_some(cell)
+}
+
+/// Whether a raster read from `path` came with a cell size of its own: formats that store one,
+/// or a 16-bit heightmap with relief's sidecar. PNG, Terrain-RGB, EXR, raw and NPY files
+/// otherwise get 1 m cells from the reader.
+pub(crate) fn cell_size_stored(path: &Path, raster: &relief_io::Raster) -> bool {
+    use relief_io::Format;
+    !matches!(
+        raster.format,
+        Format::Png | Format::TerrainRgb | Format::Exr | Format::R16 | Format::R32 | Format::Npy
+    ) || heightmap_sidecar_cell(path, &raster.heightfield).is_some()
 }

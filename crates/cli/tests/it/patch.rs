@@ -499,6 +499,31 @@ fn guide_is_cropped_not_rescaled_and_png_needs_a_range() {
     ok(&run(&extra, &out, &used));
     let u = read(&used);
     assert_eq!((u.width(), u.height()), (96, 80));
+    // Without --guide-cell-size the painted PNG is taken at the exemplar's cells (one guide
+    // cell per output cell, with a note), not at the reader's 1 m, which shrank it to a
+    // cell or two and mirror-padded that over the output.
+    let (out, used) = (tmp.path().join("png1.tif"), tmp.path().join("png1_g.tif"));
+    ok(&run(
+        &["--guide", s(&png), "--guide-range", "auto"],
+        &out,
+        &used,
+    ));
+    let u = read(&used);
+    assert_eq!((u.width(), u.height()), (48, 40));
+    let corr = relief_heightfield::metrics::pearson(
+        u.as_slice(),
+        &grey.iter().map(|&v| v as f32).collect::<Vec<_>>(),
+    );
+    assert!(corr > 0.95, "guide as used vs the painted PNG: {corr}");
+    // A 16-bit PNG relief wrote keeps its cell size through its `.png.json` sidecar.
+    let (first, used_png) = (tmp.path().join("first.tif"), tmp.path().join("used.png"));
+    ok(&run(&["--guide", s(&g_p)], &first, &used_png));
+    let (again, used) = (tmp.path().join("again.tif"), tmp.path().join("again_g.tif"));
+    ok(&run(&["--guide", s(&used_png)], &again, &used));
+    let u = read(&used);
+    assert_eq!((u.width(), u.height()), (96, 80));
+    let (ux, uy) = u.cell_size();
+    assert!((ux / cx - 1.0).abs() < 1e-6 && (uy / cy - 1.0).abs() < 1e-6);
 }
 
 /// `--guide-sketch FILE.json`: a ridge stroke (high) across a low seed field gives an output
