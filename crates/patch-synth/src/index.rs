@@ -757,6 +757,22 @@ impl ExemplarIndex {
             .map(|e| crate::guide::gaussian_blur(&e.heightfield, sigma).map(|low| Sat::new(&low)))
             .collect()
     }
+    /// With a guide low-pass `sigma > 0`: the low-passed exemplars' tables
+    /// ([`Self::lowpassed_sats`]) and the block descriptors read from them
+    /// ([`Self::lowpassed_descriptors`]); `None` for the paper's distance (`sigma == 0`).
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn lowpassed_guide_tables(
+        &self,
+        sigma: f32,
+        rects: &[[usize; 4]],
+    ) -> Result<Option<(Vec<Sat>, (Vec<f32>, Vec<f32>))>> {
+        if sigma <= 0.0 {
+            return Ok(None);
+        }
+        let sats = self.lowpassed_sats(sigma)?;
+        let desc = self.lowpassed_descriptors(&sats, rects);
+        Ok(Some((sats, desc)))
+    }
     /// Block descriptors of every patch read from `sats` (patch-major, one value per
     /// rectangle of `rects`) and their means over the patches of every cluster (cluster-major).
     pub(crate) fn lowpassed_descriptors(

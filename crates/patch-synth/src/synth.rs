@@ -331,14 +331,8 @@ pub fn synthesize(
             .guide_lowpass
             .unwrap_or_else(|| crate::guide::smoothness_scale(g).min(p as f32))
     });
-    let lowpassed = if guide_lowpass > 0.0 {
-        Some(index.lowpassed_sats(guide_lowpass)?)
-    } else {
-        None
-    };
-    let guide_desc = lowpassed
-        .as_deref()
-        .map(|sats| index.lowpassed_descriptors(sats, &block_rects));
+    let lowpassed = index.lowpassed_guide_tables(guide_lowpass, &block_rects)?;
+    let (lowpassed, guide_desc) = lowpassed.map_or((None, None), |(s, d)| (Some(s), Some(d)));
     let sh = Shared {
         index,
         settings,
