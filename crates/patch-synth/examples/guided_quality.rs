@@ -82,16 +82,7 @@ use relief_testdata::load_dem;
 /// line across the top third rising to a summit, a valley stroke winding down to a low basin
 /// in the bottom right, and a plateau seed on the left.
 fn sketch() -> guide::SketchGuide {
-    serde_json::from_str(
-        r#"{"width": 512, "height": 512, "smoothing": 4,
-            "seeds": [{"x": 110, "y": 330, "height": 1700, "radius": 40},
-                      {"x": 430, "y": 440, "height": 700, "radius": 30}],
-            "strokes": [{"points": [[20, 150, 1500], [200, 120, 1900], [330, 170, 2300],
-                                    [490, 110, 1800]]},
-                        {"points": [[250, 260, 1300], [300, 350, 1000], [380, 400, 850],
-                                    [430, 440, 700]]}]}"#,
-    )
-    .expect("sketch JSON")
+    serde_json::from_str(relief_testdata::PAINTED_SKETCH_JSON).expect("sketch JSON")
 }
 
 fn main() {

@@ -451,16 +451,8 @@ fn painted_sketch_gives_the_exemplars_slopes() {
     let Some(ex) = relief_testdata::load_dem("grandcanyon") else {
         return;
     };
-    let sketch: guide::SketchGuide = serde_json::from_str(
-        r#"{"width": 512, "height": 512, "smoothing": 4,
-            "seeds": [{"x": 110, "y": 330, "height": 1700, "radius": 40},
-                      {"x": 430, "y": 440, "height": 700, "radius": 30}],
-            "strokes": [{"points": [[20, 150, 1500], [200, 120, 1900], [330, 170, 2300],
-                                    [490, 110, 1800]]},
-                        {"points": [[250, 260, 1300], [300, 350, 1000], [380, 400, 850],
-                                    [430, 440, 700]]}]}"#,
-    )
-    .unwrap();
+    let sketch: guide::SketchGuide =
+        serde_json::from_str(relief_testdata::PAINTED_SKETCH_JSON).unwrap();
     let g = guide::gaussian_blur(&sketch.render(ex.cell_size()).unwrap(), 16.0).unwrap();
     let d = Settings::default();
     let index = ExemplarIndex::build(vec![Exemplar::new(ex.clone(), 0)], &d, &NoProgress).unwrap();

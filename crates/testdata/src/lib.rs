@@ -215,3 +215,15 @@ pub const DEM_IDS: [&str; 8] = [
     "topobathy",
     "N57E011",
 ];
+
+/// Issue 17's painted sketch guide in the JSON `relief quilt --guide-sketch` reads: 512 x 512
+/// cells (at the exemplar's cell size), a ridge stroke across the top third rising to a
+/// 2300 m summit, a valley stroke winding down to a 700 m basin in the bottom right, and a
+/// 1700 m plateau seed on the left (heights in metres).
+pub const PAINTED_SKETCH_JSON: &str = r#"{"width": 512, "height": 512, "smoothing": 4,
+    "seeds": [{"x": 110, "y": 330, "height": 1700, "radius": 40},
+              {"x": 430, "y": 440, "height": 700, "radius": 30}],
+    "strokes": [{"points": [[20, 150, 1500], [200, 120, 1900], [330, 170, 2300],
+                            [490, 110, 1800]]},
+                {"points": [[250, 260, 1300], [300, 350, 1000], [380, 400, 850],
+                            [430, 440, 700]]}]}"#;
