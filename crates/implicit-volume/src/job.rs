@@ -71,6 +71,8 @@ pub struct EffectFigures {
     pub length_m: f32,
     /// Karst: why the percolation ended (`budget`, `threshold`, `exhausted`).
     pub stop: Option<String>,
+    /// Karst: soft-rock steps left uncarved because the rock above them is too thin.
+    pub thin_cover: usize,
 }
 
 /// The figures of a [`VolumeJob`] run.
@@ -229,11 +231,13 @@ impl VolumeFigures {
         for (f, e) in &self.effects {
             let extra = match f.as_str() {
                 "karst" => format!(
-                    ", {} steps, {:.2} km of passages of radius {:.1} m ({})",
+                    ", {} steps, {:.2} km of passages of radius {:.1} m ({}; {} steps under \
+                     too thin a roof left uncarved)",
                     e.count,
                     e.length_m / 1000.0,
                     d.karst_radius_m,
-                    e.stop.as_deref().unwrap_or("-")
+                    e.stop.as_deref().unwrap_or("-"),
+                    e.thin_cover
                 ),
                 "hoodoos" => format!(
                     ", {} hoodoos {:.0} m tall, radius {:.0} m",
@@ -375,6 +379,7 @@ impl VolumeJob {
                         count: e.features,
                         length_m: e.length_m,
                         stop: e.stop.map(|s| format!("{s:?}").to_lowercase()),
+                        thin_cover: e.thin_cover,
                     },
                 )
             })

@@ -213,6 +213,50 @@ fn karst_carves_soft_rock_below_the_surface_and_respects_masks() {
     assert!(e.to_string().contains("region.mask"));
 }
 
+#[test]
+fn karst_passages_stay_under_the_ground() {
+    // Passages in thin soft rock near the surface used to dent the ground above them or break
+    // through it as pits (the carving's support reached above the ground). Every point a few
+    // metres under the ground that is rock without the karst stays rock with it.
+    let Some(hf) = alps() else { return };
+    let geo = geology_for(&hf, 40.0);
+    let ks = KarstSettings {
+        budget: 1500,
+        radius: 10.0,
+        step: 8.0,
+        poisson_radius: 5.0,
+        ..Default::default()
+    };
+    let plain = SceneBuilder::new(&hf, geo.clone(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+    let rep = b.karst(&ks, &Region::everywhere()).unwrap();
+    let scene = b.build(true).unwrap();
+    let (cx, cy) = hf.cell_size();
+    let (mut checked, mut lost) = (0, 0);
+    for i in 0..hf.height() * 2 {
+        for j in 0..hf.width() * 2 {
+            let (x, y) = (j as f32 * cx as f32 / 2.0, i as f32 * cy as f32 / 2.0);
+            let g = plain.dem_height(x, y).unwrap();
+            for d in [0.5, 1.0, 2.0] {
+                let p = [x, y, g - d];
+                if plain.inside(p) {
+                    checked += 1;
+                    if !scene.inside(p) {
+                        lost += 1;
+                    }
+                }
+            }
+        }
+    }
+    eprintln!("karst under the ground: {rep:?}; {lost} of {checked} shallow rock points lost");
+    assert!(rep.features > 100 && rep.thin_cover > 0, "{rep:?}");
+    assert!(checked > 10_000);
+    assert_eq!(lost, 0, "shallow rock points turned to air by the karst");
+}
+
 fn scene_tunnels(scene: &Scene, _geo: &Geology, ks: &KarstSettings, hf: &Heightfield) -> usize {
     let (cx, cy) = hf.cell_size();
     let (cx, cy) = (cx as f32, cy as f32);

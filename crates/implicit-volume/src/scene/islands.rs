@@ -127,14 +127,28 @@ impl SceneBuilder {
 
     /// Highest ground within `r` of `(x, y)` (centre and two rings).
     fn ground_max(&self, x: f32, y: f32, r: f32) -> f32 {
-        let mut hi = self.ground_clamped(x, y);
+        self.ground_over(x, y, r, f32::max)
+    }
+
+    /// Lowest ground within `r` of `(x, y)` (centre and two rings).
+    pub(super) fn ground_min(&self, x: f32, y: f32, r: f32) -> f32 {
+        self.ground_over(x, y, r, f32::min)
+    }
+
+    /// `pick` folded over the ground at `(x, y)` and on two rings of 12 points, at `r / 2` and
+    /// `r`.
+    fn ground_over(&self, x: f32, y: f32, r: f32, pick: fn(f32, f32) -> f32) -> f32 {
+        let mut v = self.ground_clamped(x, y);
         for ring in [0.5 * r, r] {
             for k in 0..12 {
                 let a = k as f32 * std::f32::consts::TAU / 12.0;
-                hi = hi.max(self.ground_clamped(x + ring * a.cos(), y + ring * a.sin()));
+                v = pick(
+                    v,
+                    self.ground_clamped(x + ring * a.cos(), y + ring * a.sin()),
+                );
             }
         }
-        hi
+        v
     }
 
     /// The islands' positions, radii and heights, and the number of candidate sites.

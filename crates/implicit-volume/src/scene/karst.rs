@@ -43,9 +43,11 @@ impl SceneBuilder {
 
     /// Karst network by modified invasion percolation (section 4.2): seeds at the DEM's
     /// sinkholes and on steep faces, least (perturbed) resistance first, carving only where the
-    /// passage sphere lies in rock softer than `rho0`, new candidates on the flattened lower
-    /// hemisphere, Poisson rejection; ends on the budget, the `rho_stop` threshold or an empty
-    /// queue ([`EffectReport::stop`]).
+    /// passage sphere lies in rock softer than `rho0` and its support stays under the ground
+    /// (the radius shrinks to fit under a thin roof; [`EffectReport::thin_cover`] counts the
+    /// steps where even the smallest would reach the surface), new candidates on the flattened
+    /// lower hemisphere, Poisson rejection; ends on the budget, the `rho_stop` threshold or an
+    /// empty queue ([`EffectReport::stop`]).
     pub fn karst(&mut self, s: &KarstSettings, region: &Region) -> Result<EffectReport> {
         self.check_karst(s, region)?;
         let frame = self.frame;
@@ -83,8 +85,13 @@ impl SceneBuilder {
             {
                 let e = erosion_intensity(rho, s.sigma * wgt, s.beta);
                 if e > 0.0 {
-                    steps += 1;
-                    report.primitives += self.karst_passage(s, p, a, e, wgt, idx)?;
+                    match self.covered_radius(s, p, a, e) {
+                        Some(a) => {
+                            steps += 1;
+                            report.primitives += self.karst_passage(s, p, a, e, wgt, idx)?;
+                        }
+                        None => report.thin_cover += 1,
+                    }
                 }
             }
             // New candidates on the lower hemisphere, flattened towards the horizontal.
@@ -250,6 +257,9 @@ impl SceneBuilder {
             if rq < s.rho0 {
                 let eq = erosion_intensity(rq, s.sigma * wgt, s.beta);
                 let rr = 0.7 * s.support_radius(a, eq);
+                if !self.under_cover(q, wide * rr, high * rr) {
+                    continue;
+                }
                 let id =
                     self.tree
                         .ellipsoid(q, [wide * rr, wide * rr, high * rr], -s.energy * eq)?;
@@ -259,6 +269,32 @@ impl SceneBuilder {
             }
         }
         Ok(primitives)
+    }
+}
+
+impl SceneBuilder {
+    /// The largest passage radius from `a` down to `s.min_radius` (steps of 3/4) whose whole
+    /// support (the ellipsoid where the carving lowers the field, [`KarstSettings::support_radius`])
+    /// stays under the ground: a passage in thin rock would otherwise dent the surface above it
+    /// or break through it as a pit. `None` when even the smallest does not fit.
+    fn covered_radius(&self, s: &KarstSettings, p: V3, mut a: f32, e: f32) -> Option<f32> {
+        let (wide, high) = s.axes();
+        loop {
+            let r = s.support_radius(a, e);
+            if self.under_cover(p, wide * r, high * r) {
+                return Some(a);
+            }
+            if a <= s.min_radius {
+                return None;
+            }
+            a = (a * 0.75).max(s.min_radius);
+        }
+    }
+
+    /// Whether an ellipsoid at `p` with horizontal semi-axis `h` and vertical semi-axis `v`
+    /// lies under the lowest ground within `h` of its centre.
+    fn under_cover(&self, p: V3, h: f32, v: f32) -> bool {
+        p[2] + v <= self.ground_min(p[0], p[1], h)
     }
 }
 

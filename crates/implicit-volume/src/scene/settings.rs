@@ -412,6 +412,10 @@ pub struct EffectReport {
     pub length_m: f32,
     /// Karst: why the percolation ended.
     pub stop: Option<KarstStop>,
+    /// Karst: soft-rock steps left uncarved because even the smallest passage would reach
+    /// the surface (its support above the lowest ground around it); the percolation goes on
+    /// through them.
+    pub thin_cover: usize,
     /// Where the landforms were placed (hoodoo bases, arch openings, island centres, cave
     /// mouths; karst: the seeds).
     pub sites: Vec<V3>,
