@@ -14,6 +14,7 @@
 //! (the transpose of the paper's `K x n` matrix `F`).
 
 use ndarray::Array2;
+use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 
 use crate::dictionary::support_mask;
@@ -199,30 +200,37 @@ pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Pat
     let a = geometry.patch_size;
     let half = (a as f64 - 1.0) / 2.0;
     let n = grid.len();
-    let mut matrix = Array2::<f32>::zeros((n, a * a));
+    // Every patch on its own (rows in parallel, each computed alike whatever the thread).
+    let mut data = vec![0f32; n * a * a];
     let mut means = vec![0f32; n];
-    let mut buf = vec![0f64; a * a];
-    for k in 0..n {
-        let [cx, cy] = grid.centre(k);
-        for r in 0..a {
-            for c in 0..a {
-                let x = cx + (c as f64 - half) * geometry.spacing;
-                let y = cy + (r as f64 - half) * geometry.spacing;
-                buf[r * a + c] = sample(hf, x, y);
-            }
-        }
-        let (s, cnt) = buf
-            .iter()
-            .zip(&mask)
-            .filter(|(_, m)| **m)
-            .fold((0.0, 0usize), |(s, c), (v, _)| (s + v, c + 1));
-        let z = (s / cnt as f64) as f32;
-        means[k] = z;
-        let mut row = matrix.row_mut(k);
-        for (o, v) in row.iter_mut().zip(&buf) {
-            *o = (v - z as f64) as f32;
-        }
-    }
+    data.par_chunks_mut((a * a).max(1))
+        .zip(means.par_iter_mut())
+        .enumerate()
+        .for_each_init(
+            || vec![0f64; a * a],
+            |buf, (k, (row, mean))| {
+                let [cx, cy] = grid.centre(k);
+                for r in 0..a {
+                    for c in 0..a {
+                        let x = cx + (c as f64 - half) * geometry.spacing;
+                        let y = cy + (r as f64 - half) * geometry.spacing;
+                        buf[r * a + c] = sample(hf, x, y);
+                    }
+                }
+                let (s, cnt) = buf
+                    .iter()
+                    .zip(&mask)
+                    .filter(|(_, m)| **m)
+                    .fold((0.0, 0usize), |(s, c), (v, _)| (s + v, c + 1));
+                let z = (s / cnt as f64) as f32;
+                *mean = z;
+                for (o, v) in row.iter_mut().zip(buf.iter()) {
+                    *o = (v - z as f64) as f32;
+                }
+            },
+        );
+    let matrix = Array2::from_shape_vec((n, a * a), data)
+        .map_err(|_| SparseError::param("patch_size", a, "patch matrix shape mismatch"))?;
     Ok(Patches {
         matrix,
         centres: grid.centres(),
