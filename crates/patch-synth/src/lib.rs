@@ -46,7 +46,11 @@
 //!   seeds 0 / 1 / 2), slope-histogram EMD to the exemplar in degrees, paper -> low-pass:
 //!   jacksboro guide 1.75 / 1.48 / 1.98 -> 0.62 / 0.74 / 0.44, alps 2.03 / 2.38 / 2.39 -> 1.47 /
 //!   1.47 / 1.65, painted sketch 4.14 / 4.08 / 3.58 -> 2.83 / 2.77 / 3.32; the low-pass of the
-//!   output still correlates >= 0.957 with the guide (0.971 before). Where it loses: guides
+//!   output still correlates >= 0.957 with the guide (0.971 before). The block descriptors
+//!   that rank the clusters against the guide and pick the guide's own candidates are read
+//!   from the same low-passed exemplar (with the raw ones a smooth guide probes only clusters
+//!   of flat patches): painted sketch 2.83 / 2.77 / 3.32 -> 0.64 / 0.85 / 1.28 (seeds 3 / 4:
+//!   3.59 / 3.48 -> 0.76 / 0.96), jacksboro 0.87-1.46, alps 1.05-1.17. Where it loses: guides
 //!   that are band-limited rather than blurred ([`guide::lowpass_resample`]) and a tiny DEM
 //!   enlarged 6x under 16-cell patches (the pipeline's volcano run keeps the paper's `G`).
 //! * Patch-reuse penalty (a departure from the paper, `Settings::reuse_penalty`, 0 = the
