@@ -294,13 +294,14 @@ impl SynthArgs {
         if let Some(path) = self.guide.as_deref().or(self.guide_from.as_deref()) {
             let raster = crate::commands::read_raster(path, &self.read, ctx)
                 .with_context(|| format!("guide {}", path.display()))?;
-            let mut g = raster.heightfield.clone();
+            let stored = crate::commands::cell_size_stored(path, &raster);
+            let mut g = raster.heightfield;
             // A painted guide (PNG, raw, EXR, NPY) stores no cell size: it is drawn on the
             // output grid, so it takes the exemplars' cell size rather than the reader's 1 m
             // (which would shrink it 60 times against a 60 m exemplar).
             if self.guide_cell_size.is_none()
                 && self.read.cell_size.is_none()
-                && !crate::commands::cell_size_stored(path, &raster)
+                && !stored
                 && let Some(e) = inputs.exemplars.first()
             {
                 let (cx, cy) = e.cell_size();

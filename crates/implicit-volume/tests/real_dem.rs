@@ -152,18 +152,23 @@ fn sea_erosion_carves_only_near_sea_level_and_makes_overhangs() {
     assert!(overhang > 0, "sea erosion must create overhangs or caves");
 }
 
-#[test]
-fn karst_carves_soft_rock_below_the_surface_and_respects_masks() {
-    let Some(hf) = alps() else { return };
-    let geo = geology_for(&hf, 40.0);
-    let mut b = SceneBuilder::new(&hf, geo.clone(), &ImplicitizeSettings::default()).unwrap();
-    let ks = KarstSettings {
+/// The karst of the alps-crop tests: passages of 10 m, steps of 8 m, 1500 steps at most.
+fn alps_karst() -> KarstSettings {
+    KarstSettings {
         budget: 1500,
         radius: 10.0,
         step: 8.0,
         poisson_radius: 5.0,
         ..Default::default()
-    };
+    }
+}
+
+#[test]
+fn karst_carves_soft_rock_below_the_surface_and_respects_masks() {
+    let Some(hf) = alps() else { return };
+    let geo = geology_for(&hf, 40.0);
+    let mut b = SceneBuilder::new(&hf, geo.clone(), &ImplicitizeSettings::default()).unwrap();
+    let ks = alps_karst();
     let rep = b.karst(&ks, &Region::everywhere()).unwrap();
     assert!(rep.primitives > 50, "{rep:?}");
     let mut deep = 0;
@@ -220,13 +225,7 @@ fn karst_passages_stay_under_the_ground() {
     // metres under the ground that is rock without the karst stays rock with it.
     let Some(hf) = alps() else { return };
     let geo = geology_for(&hf, 40.0);
-    let ks = KarstSettings {
-        budget: 1500,
-        radius: 10.0,
-        step: 8.0,
-        poisson_radius: 5.0,
-        ..Default::default()
-    };
+    let ks = alps_karst();
     let plain = SceneBuilder::new(&hf, geo.clone(), &ImplicitizeSettings::default())
         .unwrap()
         .build(true)
