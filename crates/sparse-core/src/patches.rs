@@ -188,6 +188,36 @@ fn sample(hf: &Heightfield, x: f64, y: f64) -> f64 {
     acc
 }
 
+/// The whole pixel `(x, y)` when the spacing is 1 and `(x, y)` is within `sample`'s
+/// tolerance of a pixel: every sample of the patch is then that pixel plus `(c, r)`.
+fn integral_corner(x: f64, y: f64, spacing: f64) -> Option<(isize, isize)> {
+    let (rx, ry) = (x.round(), y.round());
+    let near = (x - rx).abs() < 1e-9 && (y - ry).abs() < 1e-9 && rx.abs() < 1e15 && ry.abs() < 1e15;
+    (spacing == 1.0 && near).then_some((rx as isize, ry as isize))
+}
+
+/// The `a x a` pixels from `(x0, y0)` into `buf`, clamped at the borders like
+/// [`Heightfield::get_clamped`].
+fn copy_clamped(hf: &Heightfield, (x0, y0): (isize, isize), a: usize, buf: &mut [f64]) {
+    let (w, h) = (hf.width() as isize, hf.height() as isize);
+    let data = hf.as_slice();
+    let inside = x0 >= 0 && x0 + a as isize <= w;
+    for (r, out) in buf.chunks_exact_mut(a).enumerate() {
+        let y = (y0 + r as isize).clamp(0, h - 1) as usize;
+        let row = &data[y * w as usize..(y + 1) * w as usize];
+        if inside {
+            let x0 = x0 as usize;
+            for (o, &v) in out.iter_mut().zip(&row[x0..x0 + a]) {
+                *o = v as f64;
+            }
+        } else {
+            for (c, o) in out.iter_mut().enumerate() {
+                *o = row[(x0 + c as isize).clamp(0, w - 1) as usize] as f64;
+            }
+        }
+    }
+}
+
 /// Extracts the patches `T_i` of a void-free heightfield (section 4.2).
 pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Patches> {
     hf.require_complete()?;
@@ -210,11 +240,17 @@ pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Pat
             || vec![0f64; a * a],
             |buf, (k, (row, mean))| {
                 let [cx, cy] = grid.centre(k);
-                for r in 0..a {
-                    for c in 0..a {
-                        let x = cx + (c as f64 - half) * geometry.spacing;
-                        let y = cy + (r as f64 - half) * geometry.spacing;
-                        buf[r * a + c] = sample(hf, x, y);
+                if let Some((x0, y0)) = integral_corner(cx - half, cy - half, geometry.spacing) {
+                    // Unit spacing from a whole pixel: every sample is a pixel (what
+                    // `sample` returns there), read row by row.
+                    copy_clamped(hf, (x0, y0), a, buf);
+                } else {
+                    for r in 0..a {
+                        for c in 0..a {
+                            let x = cx + (c as f64 - half) * geometry.spacing;
+                            let y = cy + (r as f64 - half) * geometry.spacing;
+                            buf[r * a + c] = sample(hf, x, y);
+                        }
                     }
                 }
                 let (s, cnt) = buf

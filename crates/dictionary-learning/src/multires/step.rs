@@ -182,7 +182,16 @@ impl MultiResDictionary {
                             .filter(|(_, v)| v.abs() >= DIVERSE_TOLERANCE * best)
                             .map(|(j, &v)| (v, j as u32)),
                     );
-                    near.sort_by(|p, q| q.0.abs().total_cmp(&p.0.abs()).then(p.1.cmp(&q.1)));
+                    // Strongest first, ties by atom: a total order, so keeping only the
+                    // first DIVERSE_CHOICES before sorting gives the same list.
+                    let order = |p: &(f32, u32), q: &(f32, u32)| {
+                        q.0.abs().total_cmp(&p.0.abs()).then(p.1.cmp(&q.1))
+                    };
+                    if near.len() > DIVERSE_CHOICES {
+                        near.select_nth_unstable_by(DIVERSE_CHOICES - 1, order);
+                        near.truncate(DIVERSE_CHOICES);
+                    }
+                    near.sort_unstable_by(order);
                     let k = near.len().min(DIVERSE_CHOICES);
                     let (v, j) = near[(item_seed(seed, 0xd17e, index(i)) % k as u64) as usize];
                     let e: f32 = x.iter().map(|t| t * t).sum();

@@ -280,28 +280,44 @@ impl SparseLayer {
         for &id in &candidates {
             let i = id as usize;
             let [cx, cy] = self.centres[i];
-            // Conservative pixel ranges of the support (exact test per pixel below).
-            let xa = lo_pixel(cx - radius, sc, band.cols.start);
-            let xb = hi_pixel(cx + radius, sc, band.cols.end);
-            let ya = lo_pixel(cy - radius, sc, band.rows.start);
-            let yb = hi_pixel(cy + radius, sc, band.rows.end);
-            if xa > xb || ya > yb {
+            // Conservative pixel ranges of the support (exact test per pixel below), whole
+            // (`f`) and inside the band (`v`).
+            let (fx, fy) = (
+                support_pixels(cx, radius, sc),
+                support_pixels(cy, radius, sc),
+            );
+            let vx = (
+                fx.0.max(band.cols.start as i64),
+                fx.1.min(band.cols.end as i64 - 1),
+            );
+            let vy = (
+                fy.0.max(band.rows.start as i64),
+                fy.1.min(band.rows.end as i64 - 1),
+            );
+            if vx.0 > vx.1 || vy.0 > vy.1 {
                 continue;
             }
             self.patch(i, &mut scratch.p);
-            let w = (xb - xa + 1) as usize;
-            let hgt = (yb - ya + 1) as usize;
+            // The frame of the cached offsets: the whole support when it is small, so that
+            // primitives cut by the band's edges reuse the cache too; else the visible part.
+            let span_of = |r: (i64, i64)| r.1.saturating_sub(r.0).saturating_add(1);
+            let whole = span_of(fx).saturating_mul(span_of(fy)) <= MAX_FRAME_CELLS;
+            let (ex, ey) = if whole { (fx, fy) } else { (vx, vy) };
+            let w = (ex.1 - ex.0 + 1) as usize;
+            // Visible columns `kx.0..kx.1` and rows of the frame.
+            let kx = ((vx.0 - ex.0) as usize, (vx.1 - ex.0 + 1) as usize);
+            let ky = ((vy.0 - ey.0) as usize, (vy.1 - ey.0 + 1) as usize);
             // Offsets of the pixels from the centre. On a regular grid at a whole scale they
             // repeat from one primitive to the next: the weights and row taps are then reused
             // (the same values, computed by the same function, so bit for bit the same).
             scratch.dx.clear();
             scratch
                 .dx
-                .extend((xa..=xb).map(|xi| raster_coord(xi as usize, sc) - cx));
+                .extend((ex.0..=ex.1).map(|xi| raster_coord_i(xi, sc) - cx));
             scratch.dy.clear();
             scratch
                 .dy
-                .extend((ya..=yb).map(|yi| raster_coord(yi as usize, sc) - cy));
+                .extend((ey.0..=ey.1).map(|yi| raster_coord_i(yi, sc) - cy));
             scratch.refresh((rr, delta, a));
             // h[r][k]: patch row r interpolated at column k. On patch samples (taps
             // (0, 1, 0, 0)) the sum is that sample exactly, so it is read directly: the same
@@ -311,8 +327,8 @@ impl SparseLayer {
                 scratch.h.resize(a * w, 0.0);
                 for r in 0..a {
                     let prow = &scratch.p[r * a..r * a + a];
-                    let hrow = &mut scratch.h[r * w..r * w + w];
-                    for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps) {
+                    let hrow = &mut scratch.h[r * w + kx.0..r * w + kx.1];
+                    for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps[kx.0..kx.1]) {
                         *o = if is_exact(wx) {
                             prow[cols[1]]
                         } else {
@@ -331,22 +347,45 @@ impl SparseLayer {
                 }
             };
             let plain = direct && !self.has_functions[i];
-            for ry in 0..hgt {
-                let yi = ya as usize + ry;
+            for ry in ky.0..ky.1 {
+                let yi = (ey.0 + ry as i64) as usize;
                 let dy = scratch.dy[ry];
                 let (rows, wy) = scratch.rtaps[ry];
                 let exact_row = is_exact(&wy);
-                let row_off = (yi - band.rows.start) * ncols + (xa as usize - band.cols.start);
+                // `row_off + k` is the band cell of frame column `k` (visible columns only).
+                let row_off = ((yi - band.rows.start) * ncols + vx.0 as usize - band.cols.start)
+                    .wrapping_sub(kx.0);
                 let arow = &scratch.alpha[ry * w..ry * w + w];
-                if let (true, true, Some((k0, k1))) = (plain, exact_row, scratch.spans[ry]) {
+                let span = scratch.spans[ry].map(|(k0, k1)| (k0.max(kx.0), k1.min(kx.1)));
+                if span.is_some_and(|(k0, k1)| k0 >= k1) {
+                    // No pixel of the support in the visible part of this row.
+                    continue;
+                }
+                if let (true, true, Some((k0, k1))) = (plain, exact_row, span) {
                     // Samples read straight from the patch, no function atoms: the same
                     // operations as below on the support's run of the row, without the
                     // per-pixel tests (the common case of amplification and decompression).
                     let prow = &p[rows[1] * a..rows[1] * a + a];
                     let (nrow, drow) = (
-                        &mut num[row_off + k0..row_off + k1],
-                        &mut den[row_off + k0..row_off + k1],
+                        &mut num[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
+                        &mut den[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
                     );
+                    if let Some(c0) = scratch.col0 {
+                        // Consecutive pixels read consecutive samples: plain slices, which
+                        // the compiler vectorises.
+                        let c0 = c0.wrapping_add(k0);
+                        for (((n, d), &alpha), &pv) in nrow
+                            .iter_mut()
+                            .zip(drow.iter_mut())
+                            .zip(&arow[k0..k1])
+                            .zip(&prow[c0..c0 + (k1 - k0)])
+                        {
+                            let f = z + pv;
+                            *n += f * alpha;
+                            *d += alpha;
+                        }
+                        continue;
+                    }
                     for (((n, d), &alpha), (_, (cols, _))) in nrow
                         .iter_mut()
                         .zip(drow.iter_mut())
@@ -359,7 +398,43 @@ impl SparseLayer {
                     }
                     continue;
                 }
-                for (k, &alpha) in arow.iter().enumerate() {
+                if let (false, false, Some((k0, k1))) = (direct, self.has_functions[i], span) {
+                    // Interpolated rows (e.g. the x4 residual layer of amplification): the
+                    // same vertical pass as below, over the support's run of the row.
+                    let (nrow, drow) = (
+                        &mut num[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
+                        &mut den[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
+                    );
+                    let hrow = |r: usize| &h[r * w + k0..r * w + k1];
+                    if exact_row {
+                        for (((n, d), &alpha), &v) in nrow
+                            .iter_mut()
+                            .zip(drow.iter_mut())
+                            .zip(&arow[k0..k1])
+                            .zip(hrow(rows[1]))
+                        {
+                            let f = z + v;
+                            *n += f * alpha;
+                            *d += alpha;
+                        }
+                    } else {
+                        let (h0, h1, h2, h3) =
+                            (hrow(rows[0]), hrow(rows[1]), hrow(rows[2]), hrow(rows[3]));
+                        for (k, ((n, d), &alpha)) in nrow
+                            .iter_mut()
+                            .zip(drow.iter_mut())
+                            .zip(&arow[k0..k1])
+                            .enumerate()
+                        {
+                            let v = vpass(&[h0[k], h1[k], h2[k], h3[k]], &wy);
+                            let f = z + v;
+                            *n += f * alpha;
+                            *d += alpha;
+                        }
+                    }
+                    continue;
+                }
+                for (k, &alpha) in arow.iter().enumerate().take(kx.1).skip(kx.0) {
                     if alpha.is_nan() {
                         continue;
                     }
@@ -378,7 +453,7 @@ impl SparseLayer {
                         v += self.functions(i, ctaps[k].0, dy);
                     }
                     let f = z + v;
-                    let o = row_off + k;
+                    let o = row_off.wrapping_add(k);
                     num[o] += f * alpha;
                     den[o] += alpha;
                 }
@@ -416,6 +491,22 @@ impl StampScratch {
             let k1 = row.iter().rposition(|a| !a.is_nan()).map_or(k0, |k| k + 1);
             row[k0..k1].iter().all(|a| !a.is_nan()).then_some((k0, k1))
         }));
+        // Columns inside the support in some row: `k` reads patch column `col0 + k` there
+        // when they are consecutive (the frame's outer columns may be clamped).
+        let (kmin, kmax) =
+            self.spans
+                .iter()
+                .flatten()
+                .fold((usize::MAX, 0), |(lo, hi), &(k0, k1)| {
+                    if k0 < k1 {
+                        (lo.min(k0), hi.max(k1))
+                    } else {
+                        (lo, hi)
+                    }
+                });
+        self.col0 = (self.all_exact && kmin < kmax)
+            .then(|| self.ctaps[kmin].1.0[1].wrapping_sub(kmin))
+            .filter(|&c0| (kmin..kmax).all(|k| self.ctaps[k].1.0[1] == c0.wrapping_add(k)));
         self.key = Some(params);
         self.key_dx.clone_from(&self.dx);
         self.key_dy.clone_from(&self.dy);
@@ -431,6 +522,30 @@ pub(super) fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
         Some(q * q * q)
     } else {
         None
+    }
+}
+
+/// Largest frame (in pixels) of the cached offsets of a primitive's whole support: above,
+/// only the part inside the band is cached (very large scales).
+const MAX_FRAME_CELLS: i64 = 1 << 16;
+
+/// Conservative pixel range `(first, last)` of the support `[c - radius, c + radius]` at scale
+/// `sc` (one more pixel each side; the exact test is the weight).
+#[inline]
+fn support_pixels(c: f64, radius: f64, sc: f64) -> (i64, i64) {
+    (
+        (raster_pixel(c - radius, sc).floor() as i64).saturating_sub(1),
+        (raster_pixel(c + radius, sc).ceil() as i64).saturating_add(1),
+    )
+}
+
+/// [`raster_coord`] of a pixel index that may lie outside the raster.
+#[inline]
+fn raster_coord_i(i: i64, sc: f64) -> f64 {
+    if sc == 1.0 {
+        i as f64
+    } else {
+        (i as f64 + 0.5) / sc - 0.5
     }
 }
 
@@ -557,6 +672,9 @@ pub(super) struct StampScratch {
     pub(super) alpha: Vec<f64>,
     /// Whether every cached column tap set is a sample position.
     pub(super) all_exact: bool,
+    /// With `all_exact`, `c0` (wrapping) such that offset `k` reads patch column `c0 + k`
+    /// wherever a row's support holds it, when the columns are consecutive there.
+    pub(super) col0: Option<usize>,
     /// `(R^2, delta, a)` and the offsets the cached taps and weights were computed for.
     pub(super) key: Option<(f64, f64, usize)>,
     pub(super) key_dx: Vec<f64>,

@@ -134,6 +134,10 @@ impl RasterSettings {
 
 /// Rows per parallel band.
 const BAND_ROWS: usize = 64;
+/// Columns per block of a band: a band is stamped block by block so that the stamping
+/// buffers (four `f64` per cell) stay in the core's cache. A pixel's value does not depend on
+/// the block (the primitives are visited in the index's order whatever the window).
+const BLOCK_COLS: usize = 512;
 
 /// A Sparse Construction Tree over a `width x height` terrain domain.
 #[derive(Debug, Clone)]
@@ -309,16 +313,22 @@ impl Sct {
             .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
                 let rows = chunk.len() / win.width;
                 let y0 = win.y + b * BAND_ROWS;
-                let band = Band {
-                    cols: win.x..win.x + win.width,
-                    rows: y0..y0 + rows,
-                    scale: settings.scale,
-                };
-                let mut val = vec![0.0; chunk.len()];
-                let mut wt = vec![0.0; chunk.len()];
-                self.root.raster(&band, &mut val, &mut wt, scratch);
-                for (o, v) in chunk.iter_mut().zip(&val) {
-                    *o = *v as f32;
+                let cells = rows * BLOCK_COLS.min(win.width);
+                let (mut val, mut wt) = (vec![0.0; cells], vec![0.0; cells]);
+                for x0 in (0..win.width).step_by(BLOCK_COLS) {
+                    let bw = BLOCK_COLS.min(win.width - x0);
+                    let band = Band {
+                        cols: win.x + x0..win.x + x0 + bw,
+                        rows: y0..y0 + rows,
+                        scale: settings.scale,
+                    };
+                    let (val, wt) = (&mut val[..rows * bw], &mut wt[..rows * bw]);
+                    self.root.raster(&band, val, wt, scratch);
+                    for (orow, vrow) in chunk.chunks_mut(win.width).zip(val.chunks(bw)) {
+                        for (o, v) in orow[x0..x0 + bw].iter_mut().zip(vrow) {
+                            *o = *v as f32;
+                        }
+                    }
                 }
                 progress.advance(rows as u64);
             });
