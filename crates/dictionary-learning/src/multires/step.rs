@@ -108,6 +108,23 @@ impl MultiResDictionary {
     }
 }
 
+/// Largest `|v|` of `v` (0 for an empty slice; NaNs ignored, as by `f32::max`), in eight
+/// lanes so that it vectorises: max is exact, so the lanes give the sequential fold's value.
+fn max_abs(v: &[f32]) -> f32 {
+    let mut lanes = [0.0f32; 8];
+    let chunks = v.chunks_exact(8);
+    let tail = chunks
+        .remainder()
+        .iter()
+        .fold(0.0f32, |m, x| m.max(x.abs()));
+    for ch in chunks {
+        for (l, x) in lanes.iter_mut().zip(ch) {
+            *l = l.max(x.abs());
+        }
+    }
+    lanes.iter().fold(tail, |m, &l| m.max(l))
+}
+
 /// Where a crop of a step input sits in the whole input's primitive grid: its first primitive
 /// is at column `col0`, row `row0` of a grid `nx` primitives wide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -170,7 +187,9 @@ impl MultiResDictionary {
                 let mut near: Vec<(f32, u32)> = Vec::new();
                 for (r, (c, x)) in corr.outer_iter().zip(rows.outer_iter()).enumerate() {
                     let i = b * BLOCK + r;
-                    let best = c.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+                    let best = c
+                        .as_slice()
+                        .map_or_else(|| c.iter().fold(0.0f32, |m, v| m.max(v.abs())), max_abs);
                     if !(best > 0.0 && best.is_finite()) {
                         out.push(None);
                         continue;
