@@ -280,33 +280,11 @@ impl SparseLayer {
         for &id in &candidates {
             let i = id as usize;
             let [cx, cy] = self.centres[i];
-            // Conservative pixel ranges of the support (exact test per pixel below), whole
-            // (`f`) and inside the band (`v`).
-            let (fx, fy) = (
-                support_pixels(cx, radius, sc),
-                support_pixels(cy, radius, sc),
-            );
-            let vx = (
-                fx.0.max(band.cols.start as i64),
-                fx.1.min(band.cols.end as i64 - 1),
-            );
-            let vy = (
-                fy.0.max(band.rows.start as i64),
-                fy.1.min(band.rows.end as i64 - 1),
-            );
-            if vx.0 > vx.1 || vy.0 > vy.1 {
+            let Some(Frame { ex, ey, vx, kx, ky }) = Frame::of([cx, cy], radius, band) else {
                 continue;
-            }
+            };
             self.patch(i, &mut scratch.p);
-            // The frame of the cached offsets: the whole support when it is small, so that
-            // primitives cut by the band's edges reuse the cache too; else the visible part.
-            let span_of = |r: (i64, i64)| r.1.saturating_sub(r.0).saturating_add(1);
-            let whole = span_of(fx).saturating_mul(span_of(fy)) <= MAX_FRAME_CELLS;
-            let (ex, ey) = if whole { (fx, fy) } else { (vx, vy) };
             let w = (ex.1 - ex.0 + 1) as usize;
-            // Visible columns `kx.0..kx.1` and rows of the frame.
-            let kx = ((vx.0 - ex.0) as usize, (vx.1 - ex.0 + 1) as usize);
-            let ky = ((vy.0 - ey.0) as usize, (vy.1 - ey.0 + 1) as usize);
             // Offsets of the pixels from the centre. On a regular grid at a whole scale they
             // repeat from one primitive to the next: the weights and row taps are then reused
             // (the same values, computed by the same function, so bit for bit the same).
@@ -319,23 +297,11 @@ impl SparseLayer {
                 .dy
                 .extend((ey.0..=ey.1).map(|yi| raster_coord_i(yi, sc) - cy));
             scratch.refresh((rr, delta, a));
-            // h[r][k]: patch row r interpolated at column k. On patch samples (taps
-            // (0, 1, 0, 0)) the sum is that sample exactly, so it is read directly: the same
-            // value, only cheaper (scale 1 with pixel-aligned samples, e.g. amplification).
+            // Every column on a patch sample (scale 1 with pixel-aligned samples, e.g.
+            // amplification): the samples are read directly, else interpolated rows first.
             let direct = scratch.all_exact;
             if !direct {
-                scratch.h.resize(a * w, 0.0);
-                for r in 0..a {
-                    let prow = &scratch.p[r * a..r * a + a];
-                    let hrow = &mut scratch.h[r * w + kx.0..r * w + kx.1];
-                    for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&scratch.ctaps[kx.0..kx.1]) {
-                        *o = if is_exact(wx) {
-                            prow[cols[1]]
-                        } else {
-                            hpass(prow, cols, wx)
-                        };
-                    }
-                }
+                scratch.interpolate_rows(a, w, kx);
             }
             let z = self.z[i] as f64;
             let (p, h, ctaps) = (&scratch.p, &scratch.h, &scratch.ctaps);
@@ -361,76 +327,36 @@ impl SparseLayer {
                     // No pixel of the support in the visible part of this row.
                     continue;
                 }
-                if let (true, true, Some((k0, k1))) = (plain, exact_row, span) {
+                if let Some((k0, k1)) = span.filter(|_| plain && exact_row) {
                     // Samples read straight from the patch, no function atoms: the same
                     // operations as below on the support's run of the row, without the
                     // per-pixel tests (the common case of amplification and decompression).
                     let prow = &p[rows[1] * a..rows[1] * a + a];
-                    let (nrow, drow) = (
-                        &mut num[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
-                        &mut den[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
-                    );
+                    let (o0, o1) = (row_off.wrapping_add(k0), row_off.wrapping_add(k1));
+                    let (n, d, al) = (&mut num[o0..o1], &mut den[o0..o1], &arow[k0..k1]);
                     if let Some(c0) = scratch.col0 {
                         // Consecutive pixels read consecutive samples: plain slices, which
                         // the compiler vectorises.
                         let c0 = c0.wrapping_add(k0);
-                        for (((n, d), &alpha), &pv) in nrow
-                            .iter_mut()
-                            .zip(drow.iter_mut())
-                            .zip(&arow[k0..k1])
-                            .zip(&prow[c0..c0 + (k1 - k0)])
-                        {
-                            let f = z + pv;
-                            *n += f * alpha;
-                            *d += alpha;
-                        }
-                        continue;
-                    }
-                    for (((n, d), &alpha), (_, (cols, _))) in nrow
-                        .iter_mut()
-                        .zip(drow.iter_mut())
-                        .zip(&arow[k0..k1])
-                        .zip(&ctaps[k0..k1])
-                    {
-                        let f = z + prow[cols[1]];
-                        *n += f * alpha;
-                        *d += alpha;
+                        accumulate(n, d, al, z, prow[c0..c0 + (k1 - k0)].iter().copied());
+                    } else {
+                        let gather = ctaps[k0..k1].iter().map(|(_, (cols, _))| prow[cols[1]]);
+                        accumulate(n, d, al, z, gather);
                     }
                     continue;
                 }
-                if let (false, false, Some((k0, k1))) = (direct, self.has_functions[i], span) {
+                if let Some((k0, k1)) = span.filter(|_| !direct && !self.has_functions[i]) {
                     // Interpolated rows (e.g. the x4 residual layer of amplification): the
                     // same vertical pass as below, over the support's run of the row.
-                    let (nrow, drow) = (
-                        &mut num[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
-                        &mut den[row_off.wrapping_add(k0)..row_off.wrapping_add(k1)],
-                    );
+                    let (o0, o1) = (row_off.wrapping_add(k0), row_off.wrapping_add(k1));
+                    let (n, d, al) = (&mut num[o0..o1], &mut den[o0..o1], &arow[k0..k1]);
                     let hrow = |r: usize| &h[r * w + k0..r * w + k1];
                     if exact_row {
-                        for (((n, d), &alpha), &v) in nrow
-                            .iter_mut()
-                            .zip(drow.iter_mut())
-                            .zip(&arow[k0..k1])
-                            .zip(hrow(rows[1]))
-                        {
-                            let f = z + v;
-                            *n += f * alpha;
-                            *d += alpha;
-                        }
+                        accumulate(n, d, al, z, hrow(rows[1]).iter().copied());
                     } else {
-                        let (h0, h1, h2, h3) =
-                            (hrow(rows[0]), hrow(rows[1]), hrow(rows[2]), hrow(rows[3]));
-                        for (k, ((n, d), &alpha)) in nrow
-                            .iter_mut()
-                            .zip(drow.iter_mut())
-                            .zip(&arow[k0..k1])
-                            .enumerate()
-                        {
-                            let v = vpass(&[h0[k], h1[k], h2[k], h3[k]], &wy);
-                            let f = z + v;
-                            *n += f * alpha;
-                            *d += alpha;
-                        }
+                        let hs = [hrow(rows[0]), hrow(rows[1]), hrow(rows[2]), hrow(rows[3])];
+                        let v = (0..k1 - k0).map(|k| vpass(&hs.map(|r| r[k]), &wy));
+                        accumulate(n, d, al, z, v);
                     }
                     continue;
                 }
@@ -463,7 +389,67 @@ impl SparseLayer {
     }
 }
 
+/// Where a primitive's support meets a band, in pixels: the frame of its cached offsets
+/// (`ex`, `ey`: the whole support when it is small, so that primitives cut by the band's
+/// edges reuse the cache too; else the part in the band), its columns inside the band (`vx`),
+/// and the frame's visible columns `kx.0..kx.1` and rows `ky.0..ky.1`.
+struct Frame {
+    ex: (i64, i64),
+    ey: (i64, i64),
+    vx: (i64, i64),
+    kx: (usize, usize),
+    ky: (usize, usize),
+}
+
+impl Frame {
+    /// The frame of the support of radius `radius` centred on `c` in `band`; `None` when it
+    /// misses the band. The pixel ranges are conservative (the weight is the exact test).
+    fn of(c: [f64; 2], radius: f64, band: &Band) -> Option<Self> {
+        let sc = band.scale;
+        let (fx, fy) = (
+            support_pixels(c[0], radius, sc),
+            support_pixels(c[1], radius, sc),
+        );
+        let clip = |f: (i64, i64), r: &std::ops::Range<usize>| {
+            (f.0.max(r.start as i64), f.1.min(r.end as i64 - 1))
+        };
+        let (vx, vy) = (clip(fx, &band.cols), clip(fy, &band.rows));
+        if vx.0 > vx.1 || vy.0 > vy.1 {
+            return None;
+        }
+        let span_of = |r: (i64, i64)| r.1.saturating_sub(r.0).saturating_add(1);
+        let whole = span_of(fx).saturating_mul(span_of(fy)) <= MAX_FRAME_CELLS;
+        let (ex, ey) = if whole { (fx, fy) } else { (vx, vy) };
+        let k = |v: (i64, i64), e: (i64, i64)| ((v.0 - e.0) as usize, (v.1 - e.0 + 1) as usize);
+        Some(Frame {
+            ex,
+            ey,
+            vx,
+            kx: k(vx, ex),
+            ky: k(vy, ey),
+        })
+    }
+}
+
 impl StampScratch {
+    /// `h[r][k]`: patch row `r` of `p` (`a x a`) interpolated at the cached column `k`, for
+    /// the visible columns `kx` of a frame `w` wide. On patch samples (taps (0, 1, 0, 0)) the
+    /// sum is that sample exactly, so it is read directly.
+    fn interpolate_rows(&mut self, a: usize, w: usize, kx: (usize, usize)) {
+        self.h.resize(a * w, 0.0);
+        for r in 0..a {
+            let prow = &self.p[r * a..r * a + a];
+            let hrow = &mut self.h[r * w + kx.0..r * w + kx.1];
+            for (o, (_, (cols, wx))) in hrow.iter_mut().zip(&self.ctaps[kx.0..kx.1]) {
+                *o = if is_exact(wx) {
+                    prow[cols[1]]
+                } else {
+                    hpass(prow, cols, wx)
+                };
+            }
+        }
+    }
+
     /// Recomputes the cached taps, weights and support runs unless they were computed for
     /// these parameters `(R^2, delta, a)` and the current offsets `dx`, `dy`.
     fn refresh(&mut self, params: (f64, f64, usize)) {
@@ -522,6 +508,22 @@ pub(super) fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
         Some(q * q * q)
     } else {
         None
+    }
+}
+
+/// `num += (z + v) * alpha` and `den += alpha` over a run of pixels with values `v`.
+#[inline]
+fn accumulate(
+    num: &mut [f64],
+    den: &mut [f64],
+    alpha: &[f64],
+    z: f64,
+    values: impl Iterator<Item = f64>,
+) {
+    for (((n, d), &a), v) in num.iter_mut().zip(den.iter_mut()).zip(alpha).zip(values) {
+        let f = z + v;
+        *n += f * a;
+        *d += a;
     }
 }
 
