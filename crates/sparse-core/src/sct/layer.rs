@@ -532,16 +532,14 @@ fn accumulate(
 const MAX_FRAME_CELLS: i64 = 1 << 16;
 
 /// Conservative pixel range `(first, last)` of the support `[c - radius, c + radius]` at scale
-/// `sc` (one more pixel each side; the exact test is the weight).
+/// `sc`, unclamped ([`lo_pixel`] and [`hi_pixel`] clamp the same bounds to a band).
 #[inline]
 fn support_pixels(c: f64, radius: f64, sc: f64) -> (i64, i64) {
-    (
-        (raster_pixel(c - radius, sc).floor() as i64).saturating_sub(1),
-        (raster_pixel(c + radius, sc).ceil() as i64).saturating_add(1),
-    )
+    (first_pixel(c - radius, sc), last_pixel(c + radius, sc))
 }
 
-/// [`raster_coord`] of a pixel index that may lie outside the raster.
+/// [`raster_coord`] of a pixel index that may lie outside the raster (`raster_coord` of a
+/// non-negative index, bit for bit).
 #[inline]
 fn raster_coord_i(i: i64, sc: f64) -> f64 {
     if sc == 1.0 {
@@ -551,13 +549,24 @@ fn raster_coord_i(i: i64, sc: f64) -> f64 {
     }
 }
 
+/// First pixel (conservative: one before) whose coordinate at scale `sc` may be `>= v`.
+/// Saturating, so huge or infinite extents cannot overflow.
+#[inline]
+fn first_pixel(v: f64, sc: f64) -> i64 {
+    (raster_pixel(v, sc).floor() as i64).saturating_sub(1)
+}
+
+/// Last pixel (conservative: one after) whose coordinate at scale `sc` may be `<= v`.
+#[inline]
+fn last_pixel(v: f64, sc: f64) -> i64 {
+    (raster_pixel(v, sc).ceil() as i64).saturating_add(1)
+}
+
 /// First pixel (conservative: one before, clamped to the band start `b0`) whose coordinate at
 /// scale `sc` may be `>= v`. Saturating, so huge or infinite extents cannot overflow.
 #[inline]
 pub(super) fn lo_pixel(v: f64, sc: f64, b0: usize) -> i64 {
-    (raster_pixel(v, sc).floor() as i64)
-        .saturating_sub(1)
-        .max(b0 as i64)
+    first_pixel(v, sc).max(b0 as i64)
 }
 
 /// Terrain pixel coordinate sampled by raster pixel `i` at scale `sc`. Pixel-is-area: the
@@ -565,11 +574,7 @@ pub(super) fn lo_pixel(v: f64, sc: f64, b0: usize) -> i64 {
 /// at scale 1 this is exactly `i`.
 #[inline]
 pub fn raster_coord(i: usize, sc: f64) -> f64 {
-    if sc == 1.0 {
-        i as f64
-    } else {
-        (i as f64 + 0.5) / sc - 0.5
-    }
+    raster_coord_i(i as i64, sc)
 }
 
 /// The (fractional) raster pixel of terrain coordinate `v` at scale `sc`: the inverse of
@@ -583,9 +588,7 @@ fn raster_pixel(v: f64, sc: f64) -> f64 {
 /// scale `sc` may be `<= v`.
 #[inline]
 pub(super) fn hi_pixel(v: f64, sc: f64, b1: usize) -> i64 {
-    (raster_pixel(v, sc).ceil() as i64)
-        .saturating_add(1)
-        .min(b1 as i64 - 1)
+    last_pixel(v, sc).min(b1 as i64 - 1)
 }
 
 /// Clamped sample indices and weights of a bicubic tap set.
