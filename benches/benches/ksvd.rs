@@ -170,6 +170,7 @@ fn bench_amplify(c: &mut Criterion) {
             ..Default::default()
         },
         height_range: Some((800.0, 3800.0)),
+        ..Default::default()
     };
     group.measurement_time(Duration::from_secs(30));
     group.bench_function(

@@ -10,6 +10,10 @@
 //! detail at the exemplar's own amplitude (ridges and valleys everywhere), scaled by the
 //! exemplar's measured octave ratio for steps finer than the exemplar allows. `--paper` (CLI)
 //! restores the coded amplitude.
+//!
+//! Before the x4 steps, [`crate::structure::exemplar_structure`] gives the sketch the
+//! exemplar's landforms between its cell and its strokes (valleys and spurs a few sketch cells
+//! apart), which no x4 step adds; see [`SynthesisSettings::structure`].
 
 use std::sync::Arc;
 
@@ -23,10 +27,11 @@ use rayon::prelude::*;
 
 use crate::error::{LearnError, Result};
 use crate::multires::{
-    AmplifySettings, DictionaryChoice, MultiResDictionary, STEP_FACTOR, amplify, detail_gain,
-    interpolation_layer, upsample4,
+    AmplifySettings, DictionaryChoice, MultiResDictionary, STEP_FACTOR, StepScale,
+    amplify_with_figures, detail_gain, interpolation_layer, upsample4,
 };
 use crate::noise::item_seed;
+use crate::structure::{StructureReport, StructureSettings, exemplar_structure};
 
 /// Settings of the sketch-synthesis job ([`synthesize`]); serde as [`AmplifySettings`] (fields
 /// missing inside a JSON `amplify` object take [`AmplifySettings`]' defaults, not the ones
@@ -40,6 +45,10 @@ pub struct SynthesisSettings {
     pub amplify: AmplifySettings,
     /// Elevation range the sketch's `[min, max]` is mapped to (`None`: the exemplar's range).
     pub height_range: Option<(f32, f32)>,
+    /// The exemplar's landforms between the sketch's cell and its strokes, added at the
+    /// sketch's resolution before the x4 steps ([`exemplar_structure`]; radius 0: off, the
+    /// paper's method). The radius is capped at an eighth of the sketch's shorter side.
+    pub structure: StructureSettings,
 }
 
 impl Default for SynthesisSettings {
@@ -55,8 +64,18 @@ impl Default for SynthesisSettings {
                 ..Default::default()
             },
             height_range: None,
+            structure: StructureSettings::default(),
         }
     }
+}
+
+/// Figures of a synthesis ([`synthesize_with_figures`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SynthesisFigures {
+    /// What the structure step did (`None`: off).
+    pub structure: Option<StructureReport>,
+    /// How every x4 step used the exemplar.
+    pub steps: Vec<StepScale>,
 }
 
 /// Terrain synthesis from a painted coarse sketch (section 5.3, figures 1, 9 and 12): the sketch
@@ -68,7 +87,19 @@ pub fn synthesize(
     settings: &SynthesisSettings,
     progress: &dyn Progress,
 ) -> Result<Sct> {
+    Ok(synthesize_with_figures(sketch, exemplar, settings, progress)?.0)
+}
+
+/// [`synthesize`], also returning what the structure step and every x4 step did with the
+/// exemplar.
+pub fn synthesize_with_figures(
+    sketch: &Heightfield,
+    exemplar: &Heightfield,
+    settings: &SynthesisSettings,
+    progress: &dyn Progress,
+) -> Result<(Sct, SynthesisFigures)> {
     settings.amplify.check()?;
+    settings.structure.check()?;
     sketch.require_complete()?;
     exemplar.require_complete()?;
     let (smin, smax) =
@@ -96,7 +127,28 @@ pub fn synthesize(
         .exemplar_cell_size
         .unwrap_or_else(|| exemplar.cell_size());
     s.set_cell_size(cx * f, cy * f)?;
-    amplify(&s, exemplar, &settings.amplify, progress)
+    let structure = if settings.structure.radius > 0.0 {
+        // Patches at most half the sketch wide: a larger radius would paste one exemplar
+        // patch over the whole sketch.
+        let cap = (s.width().min(s.height()) / 8).max(1) as f64;
+        let st = StructureSettings {
+            radius: settings.structure.radius.min(cap),
+            seed: settings.amplify.seed ^ settings.structure.seed,
+        };
+        let (enriched, report) = exemplar_structure(&s, exemplar, (cx, cy), (lo, hi), &st)?;
+        s = enriched;
+        Some(report)
+    } else {
+        None
+    };
+    let (sct, figures) = amplify_with_figures(&s, exemplar, &settings.amplify, progress)?;
+    Ok((
+        sct,
+        SynthesisFigures {
+            structure,
+            steps: figures.steps,
+        },
+    ))
 }
 
 /// Ratio of an exemplar's detail amplitude one x4 octave coarser to its own (RMS of the grid

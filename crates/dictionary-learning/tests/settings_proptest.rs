@@ -168,6 +168,7 @@ proptest! {
         residual in any::<bool>(),
         poison in 0u8..6,
         seed in any::<u64>(),
+        structure_radius in prop_oneof![2 => Just(0.0), 3 => Just(4.0), 1 => Just(f64::NAN), 1 => Just(0.5), 1 => Just(100.0), 2 => 1f64..6.0],
     ) {
         let mut coarse = alps(300, 300, 12, 12);
         let mut exemplar = alps(1200, 200, 112, 112);
@@ -207,8 +208,13 @@ proptest! {
             let f = 4usize.pow(steps as u32);
             prop_assert_eq!((sct.width(), sct.height()), (12 * f, 12 * f));
         }
-        let syn = SynthesisSettings { amplify: s, height_range: None };
+        let structure = StructureSettings { radius: structure_radius, seed };
+        let syn = SynthesisSettings { amplify: s, height_range: None, structure };
         let r = synthesize(&coarse, &exemplar, &syn, &NoProgress);
+        let structure_bad =
+            !(structure_radius == 0.0 || (1.0..=64.0).contains(&structure_radius));
+        let mut invalid = invalid.to_vec();
+        invalid.push(("structure radius", structure_bad));
         check(&r, &invalid)?;
     }
 
@@ -227,6 +233,7 @@ proptest! {
                 ..Default::default()
             },
             height_range: Some((lo, lo + span)),
+            ..Default::default()
         };
         let r = synthesize(&sketch, &exemplar, &s, &NoProgress);
         check(&r, &[("height_range", !(lo.is_finite() && span >= 0.0))])?;

@@ -142,6 +142,53 @@ impl Heightfield {
         self.resample(w, h)
     }
 
+    /// Separable Gaussian blur with standard deviation `sigma` cells (edges clamped; voids spread
+    /// into their neighbourhood). Deterministic: every cell is summed in the same order whatever
+    /// the thread count.
+    pub fn gaussian_blur(&self, sigma: f32) -> Result<Heightfield> {
+        if !(sigma.is_finite() && sigma > 0.0 && sigma < 1e4) {
+            return Err(HeightfieldError::param(
+                "sigma",
+                sigma,
+                "must be in (0, 1e4)",
+            ));
+        }
+        let r = (3.0 * sigma).ceil() as isize;
+        let kernel: Vec<f64> = (-r..=r)
+            .map(|i| (-(i * i) as f64 / (2.0 * (sigma as f64).powi(2))).exp())
+            .collect();
+        let ksum: f64 = kernel.iter().sum();
+        let (w, h) = (self.width(), self.height());
+        let src = self.as_slice();
+        // Rows in parallel, each cell summed in the same order: the bytes do not depend on the
+        // thread count.
+        let mut tmp = vec![0.0f32; w * h];
+        tmp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, t) in row.iter_mut().enumerate() {
+                let mut s = 0.0;
+                for (k, &kv) in kernel.iter().enumerate() {
+                    let xx = (x as isize + k as isize - r).clamp(0, w as isize - 1) as usize;
+                    s += kv * src[y * w + xx] as f64;
+                }
+                *t = (s / ksum) as f32;
+            }
+        });
+        let mut out = vec![0.0f32; w * h];
+        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let mut acc = vec![0.0f64; w];
+            for (k, &kv) in kernel.iter().enumerate() {
+                let yy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
+                for (a, &t) in acc.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+                    *a += kv * t as f64;
+                }
+            }
+            for (o, a) in row.iter_mut().zip(acc) {
+                *o = (a / ksum) as f32;
+            }
+        });
+        self.with_data(out)
+    }
+
     /// Integer box-average reduction by `k` (exact area average of k x k blocks; trailing cells
     /// that do not fill a block are dropped). A cheaper, cruder low-pass than [`Self::resample`].
     pub fn downsample_box(&self, k: usize) -> Result<Self> {

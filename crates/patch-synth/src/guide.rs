@@ -1,7 +1,6 @@
 //! Guide construction (section 3.1): low-pass filtering of an existing DEM, or interpolation of
 //! painted seeds and sketch strokes.
 
-use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 use relief_heightfield::fill::{FillSettings, fill_voids};
 
@@ -26,7 +25,8 @@ pub fn lowpass_resample(dem: &Heightfield, factor: usize) -> Result<Heightfield>
     Ok(out)
 }
 
-/// Separable Gaussian blur with standard deviation `sigma` cells (edges clamped).
+/// Separable Gaussian blur with standard deviation `sigma` cells (edges clamped); see
+/// [`Heightfield::gaussian_blur`].
 pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
     dem.require_complete()?;
     if !(sigma.is_finite() && sigma > 0.0 && sigma < 1e4) {
@@ -36,40 +36,7 @@ pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
             "must be in (0, 1e4)",
         ));
     }
-    let r = (3.0 * sigma).ceil() as isize;
-    let kernel: Vec<f64> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * (sigma as f64).powi(2))).exp())
-        .collect();
-    let ksum: f64 = kernel.iter().sum();
-    let (w, h) = (dem.width(), dem.height());
-    let src = dem.as_slice();
-    // Rows in parallel, each cell summed in the same order: the bytes do not depend on the
-    // thread count.
-    let mut tmp = vec![0.0f32; w * h];
-    tmp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, t) in row.iter_mut().enumerate() {
-            let mut s = 0.0;
-            for (k, &kv) in kernel.iter().enumerate() {
-                let xx = (x as isize + k as isize - r).clamp(0, w as isize - 1) as usize;
-                s += kv * src[y * w + xx] as f64;
-            }
-            *t = (s / ksum) as f32;
-        }
-    });
-    let mut out = vec![0.0f32; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let mut acc = vec![0.0f64; w];
-        for (k, &kv) in kernel.iter().enumerate() {
-            let yy = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
-            for (a, &t) in acc.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
-                *a += kv * t as f64;
-            }
-        }
-        for (o, a) in row.iter_mut().zip(acc) {
-            *o = (a / ksum) as f32;
-        }
-    });
-    Ok(dem.with_data(out)?)
+    Ok(dem.gaussian_blur(sigma)?)
 }
 
 /// Errs (`size`, with `reason`) unless `width x height` is a non-empty grid of at most

@@ -5,7 +5,9 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use relief_dictionary_learning::{AmplifySettings, SynthesisSettings, synthesize};
+use relief_dictionary_learning::{
+    AmplifySettings, StructureSettings, SynthesisSettings, synthesize_with_figures,
+};
 
 use crate::ctx::Ctx;
 use crate::sparse_model::{OutputPlan, check_output_path, dictionary_choice, write_model};
@@ -35,6 +37,12 @@ pub(crate) struct Args {
     /// residual correction (a sketch's pixels are not to be reproduced).
     #[arg(long)]
     pub(crate) paper: bool,
+    /// Radius (sketch cells) of the exemplar patches that give the sketch its landforms before
+    /// the x4 steps: patches 4R cells wide whose smooth part matches the sketch's, continued
+    /// coherently from patch to patch. 0 turns the step off (the paper's method; `--paper`
+    /// does too).
+    #[arg(long, default_value_t = 4.0)]
+    pub(crate) structure_radius: f64,
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
@@ -60,9 +68,21 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
         // The global --height-range: the sketch is mapped onto it (default: the exemplar's
         // range), and a 16-bit heightmap output uses the same mapping.
         height_range: ctx.height_range.map(|(lo, hi)| (lo as f32, hi as f32)),
+        structure: StructureSettings {
+            radius: if args.paper {
+                0.0
+            } else {
+                args.structure_radius
+            },
+            ..Default::default()
+        },
     };
     settings
         .amplify
+        .check()
+        .context("invalid synthesis settings")?;
+    settings
+        .structure
         .check()
         .context("invalid synthesis settings")?;
     Ok(settings)
@@ -86,9 +106,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &settings.amplify,
         OutputPlan::of(&args.output, window, "--steps"),
     )?;
-    let sct = {
+    let (sct, figures) = {
         let progress = ctx.progress();
-        synthesize(&sketch, &exemplar, &settings, &progress).with_context(|| {
+        synthesize_with_figures(&sketch, &exemplar, &settings, &progress).with_context(|| {
             format!(
                 "cannot synthesise from {} with {}",
                 args.sketch.display(),
@@ -96,5 +116,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             )
         })?
     };
+    if let Some(st) = &figures.structure {
+        ctx.note(st.note.clone());
+    }
+    for step in &figures.steps {
+        ctx.note(step.note.clone());
+    }
     write_model(&sct, &args.output, window, false, ctx)
 }

@@ -14,7 +14,8 @@ pub(crate) struct SketchParams {
     /// (figure 12: three x4 steps, 64 learned atoms) with `R` = 2. The stage lowers the radius
     /// to 1 on small exemplars, caps
     /// the atoms at a quarter of the candidate patches and mixes `amplify.seed` with the
-    /// spec's. `amplify.steps` must be 1..=3.
+    /// spec's (the library caps the structure radius at an eighth of the sketch's side).
+    /// `amplify.steps` must be 1..=3.
     pub(crate) job: SynthesisSettings,
 }
 
@@ -112,7 +113,7 @@ impl Stage for SketchStage {
         let progress = cx.progress();
         progress.begin(&format!("sketch synthesis {n} x {n} -> x{f}"), 0);
         let t = Instant::now();
-        let sct = synthesize(&sketch, &exemplar, &settings, &progress)?;
+        let (sct, figures) = synthesize_with_figures(&sketch, &exemplar, &settings, &progress)?;
         let out = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
         let secs = t.elapsed().as_secs_f64();
         let back = out.resample(n, n)?;
@@ -122,6 +123,17 @@ impl Stage for SketchStage {
         cx.section.figure("steps", steps);
         cx.section.figure("radius", radius);
         cx.section.figure("atoms", atoms);
+        if let Some(st) = &figures.structure {
+            cx.section
+                .figure("structure_radius", settings.structure.radius);
+            cx.section.figure("structure_band_rms_m", st.band_rms);
+            cx.section
+                .figure("structure_continued_fraction", st.continued);
+            cx.section.note(&st.note);
+        }
+        for step in &figures.steps {
+            cx.section.note(&step.note);
+        }
         cx.section
             .figure("output_size", [out.width(), out.height()]);
         cx.section.figure("seconds", secs);
