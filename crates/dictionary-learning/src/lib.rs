@@ -57,10 +57,15 @@
 //!   made and a painted ridge came out as a textured blob. Coherent exemplar patches (the
 //!   paper's `s = 1` over a complete dictionary, matched on smooth parts, each continuing its
 //!   neighbours' exemplar region where it can) add them at the sketch's resolution. Measured
-//!   on a 64 x 128 painted sketch, two x4 steps: slope-histogram distance to the exemplar
-//!   10.33 -> 4.55 deg on alps_dem (correlation with the sketch 0.958); 5.41 -> 5.91 deg on
-//!   grandcanyon, whose bimodal plateau-and-wall slopes the blend does not reproduce
-//!   (correlation 0.921). Radius 0 (`--structure-radius 0`, `--paper`) is the paper's method.
+//!   on a 64 x 128 painted sketch, slope-histogram distance to the exemplar without -> with
+//!   (correlation of the output with the sketch): alps_dem two x4 steps 10.33 -> 4.55 deg
+//!   (0.958), three steps 7.41 -> 6.67 deg (0.899); grandcanyon two steps 5.41 -> 5.91 deg
+//!   (0.921), three steps 6.36 -> 6.32 deg (0.878): its bimodal plateau-and-wall slopes are
+//!   not reproduced, but the hillshades show valleys and spurs where there was texture.
+//!   Where the exemplar does not reach the sketch's scale its landforms stand in by
+//!   self-similarity, with their band capped at a tenth of the sketch's range;
+//!   [`SynthesisSettings::sketch_cell_size`] (`--sketch-cell-size`) avoids that. Radius 0
+//!   (`--structure-radius 0`, `--paper`) is the paper's method.
 //!
 //! Exemplar scale: every x4 step cuts its atoms from the exemplar box-down-sampled to the
 //! step's target cell size (the exemplar's cell size is its grid's, or

@@ -49,6 +49,12 @@ pub struct SynthesisSettings {
     /// sketch's resolution before the x4 steps ([`exemplar_structure`]; radius 0: off, the
     /// paper's method). The radius is capped at an eighth of the sketch's shorter side.
     pub structure: StructureSettings,
+    /// Cell size `(x, y)` in metres of a sketch pixel, i.e. the sketch's extent on the ground
+    /// (`None`: the exemplar's cell size times `4^steps`, so the last step is at the
+    /// exemplar's resolution). A sketch of landform-sized strokes over an extent the
+    /// exemplar covers takes the exemplar's landforms at their own scale instead of by
+    /// self-similarity.
+    pub sketch_cell_size: Option<(f64, f64)>,
 }
 
 impl Default for SynthesisSettings {
@@ -65,6 +71,7 @@ impl Default for SynthesisSettings {
             },
             height_range: None,
             structure: StructureSettings::default(),
+            sketch_cell_size: None,
         }
     }
 }
@@ -126,7 +133,18 @@ pub fn synthesize_with_figures(
         .amplify
         .exemplar_cell_size
         .unwrap_or_else(|| exemplar.cell_size());
-    s.set_cell_size(cx * f, cy * f)?;
+    let (sx, sy) = match settings.sketch_cell_size {
+        Some((x, y)) if x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0 => (x, y),
+        Some((x, y)) => {
+            return Err(LearnError::param(
+                "sketch_cell_size",
+                format!("{x},{y}"),
+                "must be finite and > 0",
+            ));
+        }
+        None => (cx * f, cy * f),
+    };
+    s.set_cell_size(sx, sy)?;
     let structure = if settings.structure.radius > 0.0 {
         // Patches at most half the sketch wide: a larger radius would paste one exemplar
         // patch over the whole sketch.

@@ -196,3 +196,46 @@ fn structure_rejects_bad_settings_and_inputs() {
         .is_err()
     );
 }
+
+/// `sketch_cell_size` sets the sketch's extent: the output cell is it over `4^steps`, the
+/// structure comes from the exemplar at that cell without self-similarity when the exemplar
+/// covers it; a non-positive or non-finite one is an error naming it.
+#[test]
+fn sketch_cell_size_sets_the_extent() {
+    let ex = noise_exemplar(160, 160);
+    let sketch = Heightfield::from_fn(32, 16, 1.0, 1.0, |x, y| (x + y) as f32);
+    let run = |cell: Option<(f64, f64)>| {
+        let s = SynthesisSettings {
+            amplify: AmplifySettings {
+                steps: 1,
+                radius: 2.0,
+                dictionary: DictionaryChoice::learned(16, 1),
+                ..SynthesisSettings::default().amplify
+            },
+            structure: StructureSettings {
+                radius: 2.0,
+                ..Default::default()
+            },
+            sketch_cell_size: cell,
+            ..Default::default()
+        };
+        synthesize_with_figures(&sketch, &ex, &s, &NoProgress)
+    };
+    let (sct, fig) = run(Some((60.0, 60.0))).unwrap();
+    assert_eq!(sct.cell_size(), (15.0, 15.0));
+    let st = fig.structure.unwrap();
+    assert!(!st.self_similar, "{st:?}");
+    assert!((st.exemplar_cell_size.0 - 60.0).abs() < 1.0, "{st:?}");
+    // The default: the exemplar's 30 m cells times 4 per step, so the output has its cells.
+    let (sct, _) = run(None).unwrap();
+    assert_eq!(sct.cell_size(), (30.0, 30.0));
+    for bad in [
+        (0.0, 1.0),
+        (f64::NAN, 5.0),
+        (-3.0, -3.0),
+        (f64::INFINITY, 1.0),
+    ] {
+        let e = run(Some(bad)).unwrap_err();
+        assert!(e.to_string().contains("sketch_cell_size"), "{e}");
+    }
+}

@@ -43,6 +43,13 @@ pub(crate) struct Args {
     /// does too).
     #[arg(long, default_value_t = 4.0)]
     pub(crate) structure_radius: f64,
+    /// Ground size of a sketch pixel in metres, `X` or `X,Y` (the sketch's extent over its
+    /// size). Default: the exemplar's cell size times 4^steps, so the output has the
+    /// exemplar's cell size. Set it so the strokes are landform-sized and the sketch covers
+    /// about what the exemplar does: the landforms then come at their own scale rather than by
+    /// self-similarity (the notes say which).
+    #[arg(long, value_parser = crate::args::parse_cell_size, value_name = "X[,Y]")]
+    pub(crate) sketch_cell_size: Option<(f64, f64)>,
     /// Number of learned atoms N; 0 = the complete dictionary.
     #[arg(long, default_value_t = 64)]
     pub(crate) atoms: usize,
@@ -76,6 +83,7 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
             },
             ..Default::default()
         },
+        sketch_cell_size: args.sketch_cell_size,
     };
     settings
         .amplify
