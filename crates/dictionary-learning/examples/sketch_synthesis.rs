@@ -1,12 +1,17 @@
 //! Sketch synthesis (guerin2016 figure 12) on a real exemplar, release build:
 //!
-//! `cargo run --release -p relief-dictionary-learning --example sketch_synthesis [OUT_DIR] [--paper]`
+//! `cargo run --release -p relief-dictionary-learning --example sketch_synthesis [OUT_DIR]
+//! [--grandcanyon] [--steps N] [--sketch-cell M]`
 //!
 //! A 64 x 128 painted sketch (ridge strokes, a peak, a valley, flat plateaus) is synthesised in
-//! three x4 steps to 4096 x 8192 with alps_dem as exemplar. Prints the time and measures of the
-//! result (fine-scale relief on the sketch's plateaus relative to the exemplar's, slope-histogram
-//! distance to the exemplar), and writes hillshades (PGM) of the whole result (box-reduced x4)
-//! and of a 1024 x 1024 centre crop into OUT_DIR (default `target/sketch_synthesis`).
+//! `N` x4 steps (default 3: 4096 x 8192) with an alps_dem crop (or the grandcanyon fixture) as
+//! exemplar, three ways: the paper's method (`--paper`), the exemplar detail without the
+//! structure step (`--structure-radius 0`), and the default. Prints, per way, the time, the
+//! slope-histogram distance to the exemplar (EMD, degrees; the output has the exemplar's cell
+//! size unless `--sketch-cell` sets the sketch's) and the correlation of the output reduced to
+//! the sketch's size with the sketch; writes hillshades (PGM) of the default result (box-reduced
+//! to 1024 rows) and of a 1024 x 1024 centre crop into OUT_DIR (default
+//! `target/sketch_synthesis`).
 #![allow(clippy::print_stdout)]
 
 use relief_dictionary_learning::*;
@@ -27,61 +32,96 @@ fn sketch(w: usize, h: usize) -> Heightfield {
 }
 
 fn main() {
-    let out_dir = std::env::args()
-        .skip(1)
-        .find(|a| !a.starts_with("--"))
-        .map(std::path::PathBuf::from)
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let value = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+            .map(|v| v.parse::<f64>().expect("a number"))
+    };
+    let out_dir = args
+        .iter()
+        .enumerate()
+        .find(|(i, a)| !a.starts_with("--") && (*i == 0 || !args[i - 1].starts_with("--")))
+        .map(|(_, a)| std::path::PathBuf::from(a))
         .unwrap_or_else(|| relief_testdata::workspace_root().join("target/sketch_synthesis"));
     std::fs::create_dir_all(&out_dir).unwrap();
-    let Some(exemplar) = dem_crop("alps_dem", 1300, 100, 1024, 640) else {
-        println!("alps_dem absent");
-        return;
+    let exemplar = if args.iter().any(|a| a == "--grandcanyon") {
+        relief_io::read(
+            &relief_testdata::fixture("grandcanyon.tif"),
+            &relief_io::ReadOptions::default(),
+        )
+        .expect("fixture")
+        .heightfield
+    } else {
+        let Some(e) = dem_crop("alps_dem", 1300, 100, 1024, 640) else {
+            println!("alps_dem absent");
+            return;
+        };
+        e
     };
+    let steps = value("--steps").map_or(3, |v| v as usize);
+    let sketch_cell_size = value("--sketch-cell").map(|c| (c, c));
     let sk = sketch(64, 128);
-    // `--paper`: the paper's coded detail amplitude (the smooth blob this example documents).
-    let paper = std::env::args().any(|a| a == "--paper");
     let lib = SynthesisSettings::default();
-    let settings = SynthesisSettings {
+    let base = SynthesisSettings {
         amplify: AmplifySettings {
-            exemplar_detail: !paper,
-            normalize_detail: !paper,
+            steps,
             ..lib.amplify
         },
+        sketch_cell_size,
         ..lib
     };
-    let (sct, model) = timed(|| synthesize(&sk, &exemplar, &settings, &NoProgress).unwrap());
-    let (out, raster) = timed(|| sct.rasterize(&RasterSettings::default()).unwrap());
-    println!(
-        "sketch {}x{} -> {}x{}: model {model:.2} s, rasterise {raster:.2} s",
-        sk.width(),
-        sk.height(),
-        out.width(),
-        out.height()
-    );
-    // The exemplar's detail at the same cell size, for scale.
-    let ex_detail = relief_testdata::detail_rms(&exemplar, 16);
-    // A plateau of the sketch (top-left corner, away from strokes), in output cells.
-    let plateau = out.crop(0, 6000, 1024, 1024).unwrap();
-    println!(
-        "x16 detail RMS: plateau {:.1} m, whole {:.1} m, exemplar {:.1} m; slope EMD to the \
-         exemplar {:.2} deg",
-        relief_testdata::detail_rms(&plateau, 16),
-        relief_testdata::detail_rms(&out, 16),
-        ex_detail,
-        relief_heightfield::metrics::slope_histogram_distance(&out, &exemplar)
-    );
-    for k in [4, 16, 64] {
-        println!(
-            "  detail finer than {k} cells: output {:.1} m, exemplar {:.1} m",
-            relief_testdata::detail_rms(&out, k),
-            relief_testdata::detail_rms(&exemplar, k)
-        );
+    let off = StructureSettings {
+        radius: 0.0,
+        ..Default::default()
+    };
+    let ways = [
+        (
+            "paper",
+            SynthesisSettings {
+                amplify: AmplifySettings {
+                    exemplar_detail: false,
+                    normalize_detail: false,
+                    ..base.amplify
+                },
+                structure: off,
+                ..base
+            },
+        ),
+        (
+            "no structure",
+            SynthesisSettings {
+                structure: off,
+                ..base
+            },
+        ),
+        ("default", base),
+    ];
+    println!("| way | seconds | slope EMD (deg) | correlation with the sketch |");
+    println!("|---|---|---|---|");
+    for (name, settings) in ways {
+        let ((sct, figures), secs) =
+            timed(|| synthesize_with_figures(&sk, &exemplar, &settings, &NoProgress).unwrap());
+        let out = sct.rasterize(&RasterSettings::default()).unwrap();
+        let back = out.resample(sk.width(), sk.height()).unwrap();
+        let r = relief_heightfield::metrics::pearson(back.as_slice(), sk.as_slice());
+        let emd = relief_heightfield::metrics::slope_histogram_distance(&out, &exemplar);
+        println!("| {name} | {secs:.2} | {emd:.2} | {r:.3} |");
+        if name == "default" {
+            if let Some(st) = &figures.structure {
+                println!("{}", st.note);
+            }
+            let k = (out.height() / 1024).max(1);
+            write_shade(&out_dir.join("whole.pgm"), &out.downsample_box(k).unwrap());
+            let (cx, cy) = (out.width() / 2, out.height() / 2);
+            let side = 1024.min(out.width()).min(out.height());
+            write_shade(
+                &out_dir.join("crop.pgm"),
+                &out.crop(cx - side / 2, cy - side / 2, side, side).unwrap(),
+            );
+        }
     }
-    write_shade(&out_dir.join("whole.pgm"), &out.downsample_box(4).unwrap());
-    write_shade(
-        &out_dir.join("crop.pgm"),
-        &out.crop(1536, 3584, 1024, 1024).unwrap(),
-    );
     write_shade(&out_dir.join("exemplar.pgm"), &exemplar);
     println!("hillshades in {}", out_dir.display());
 }
