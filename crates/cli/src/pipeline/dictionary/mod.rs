@@ -113,7 +113,7 @@ mod tests {
 
     #[test]
     fn painted_sketch_has_relief() {
-        let s = painted_sketch(8);
+        let s = painted_sketch(16, 8);
         let (lo, hi) = s.min_max().unwrap();
         assert!(lo >= 0.0 && hi <= 1.0 && hi - lo > 0.4, "{lo} {hi}");
     }

@@ -6,8 +6,8 @@ use super::*;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub(crate) struct SketchParams {
-    /// Side of the painted sketch in cells (capped so the output is at most the exemplar's
-    /// largest side times two); the output is `4^steps x` that.
+    /// Rows of the painted sketch (it is twice as wide), capped so the output is at most four
+    /// times the exemplar's largest side; the output is `4^steps x` that.
     pub(crate) sketch_size: usize,
     /// The sketch-synthesis job, the same settings as `relief synthesize`
     /// ([`SynthesisSettings`]); the spec's fields are merged onto the library's defaults
@@ -23,10 +23,11 @@ impl Default for SketchParams {
     fn default() -> Self {
         let lib = SynthesisSettings::default();
         Self {
-            sketch_size: 8,
+            sketch_size: 64,
             job: SynthesisSettings {
                 amplify: AmplifySettings {
                     radius: 2.0,
+                    steps: 2,
                     ..lib.amplify
                 },
                 ..lib
@@ -56,12 +57,12 @@ impl SketchStage {
     }
 }
 
-/// A "painted" sketch in `[0, 1]`: a diagonal ridge stroke, a round peak and a valley stroke,
-/// the kind of coarse drawing figure 12 starts from.
-pub(crate) fn painted_sketch(n: usize) -> Heightfield {
-    let s = n as f32;
-    Heightfield::from_fn(n, n, 1.0, 1.0, |x, y| {
-        let (u, v) = ((x as f32 + 0.5) / s, (y as f32 + 0.5) / s);
+/// A "painted" sketch in `[0, 1]` of `w x h` cells: a diagonal ridge stroke, a round peak and
+/// a valley stroke, the kind of coarse drawing figure 12 starts from.
+pub(crate) fn painted_sketch(w: usize, h: usize) -> Heightfield {
+    let (sw, sh) = (w as f32, h as f32);
+    Heightfield::from_fn(w, h, 1.0, 1.0, |x, y| {
+        let (u, v) = ((x as f32 + 0.5) / sw, (y as f32 + 0.5) / sh);
         let stroke = |d: f32, w: f32| (-(d * d) / (w * w)).exp();
         let ridge = stroke((u - 0.2) - 0.9 * (v - 0.1), 0.18) * (1.0 - 0.6 * u);
         let peak = stroke(((u - 0.7).powi(2) + (v - 0.3).powi(2)).sqrt(), 0.15);
@@ -93,10 +94,15 @@ impl Stage for SketchStage {
         }
         let f = 4usize.pow(steps as u32);
         let a = 2 * radius.ceil() as usize;
-        // Output at most twice the exemplar's largest side; the sketch holds >= one patch.
+        // Output at most four times the exemplar's largest side; the sketch (n x 2n) holds
+        // at least one patch.
         let cap = 2 * exemplar.width().max(exemplar.height()) / f;
         let n = p.sketch_size.min(cap).max(a);
-        let sketch = painted_sketch(n);
+        let sketch = painted_sketch(2 * n, n);
+        // The sketch spans the exemplar's width (its landforms at their own scale), unless the
+        // spec sets the sketch's cell size.
+        let (ecx, _) = exemplar.cell_size();
+        let cell = ecx * exemplar.width() as f64 / (2 * n) as f64;
         let (dictionary, atoms) = capped_dictionary(
             p.job.amplify.dictionary,
             candidate_count((exemplar.width(), exemplar.height()), a) / 4,
@@ -108,24 +114,27 @@ impl Stage for SketchStage {
                 seed: cx.config.seed ^ 0x5e7c ^ p.job.amplify.seed,
                 ..p.job.amplify
             },
+            sketch_cell_size: p.job.sketch_cell_size.or(Some((cell, cell))),
             ..p.job
         };
+        let cell = settings.sketch_cell_size.map_or(cell, |c| c.0);
         let progress = cx.progress();
-        progress.begin(&format!("sketch synthesis {n} x {n} -> x{f}"), 0);
+        progress.begin(&format!("sketch synthesis {} x {n} -> x{f}", 2 * n), 0);
         let t = Instant::now();
         let (sct, figures) = synthesize_with_figures(&sketch, &exemplar, &settings, &progress)?;
         let out = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
         let secs = t.elapsed().as_secs_f64();
-        let back = out.resample(n, n)?;
+        let back = out.resample(2 * n, n)?;
         let fidelity = relief_heightfield::metrics::pearson(back.as_slice(), sketch.as_slice());
         let (lo, hi) = out.min_max().unwrap_or((0.0, 0.0));
-        cx.section.figure("sketch_size", n);
+        cx.section.figure("sketch_size", [2 * n, n]);
+        cx.section
+            .figure("sketch_cell_size_m", settings.sketch_cell_size.map(|c| c.0));
         cx.section.figure("steps", steps);
         cx.section.figure("radius", radius);
         cx.section.figure("atoms", atoms);
         if let Some(st) = &figures.structure {
-            cx.section
-                .figure("structure_radius", settings.structure.radius);
+            cx.section.figure("structure_radius", st.radius);
             cx.section.figure("structure_band_rms_m", st.band_rms);
             cx.section
                 .figure("structure_continued_fraction", st.continued);
@@ -140,10 +149,13 @@ impl Stage for SketchStage {
         cx.section.figure("elevation_range_m", [lo, hi]);
         cx.section.headline("sketch_correlation", fidelity);
         cx.section.note(&format!(
-            "a {n} x {n} painted sketch (ridge stroke, peak, valley) mapped to the exemplar's \
-             elevation range and amplified in {} x4 steps (figure 12) to {} x {} with \
-             {which} ({} x {}) as exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; \
-             correlation of the output reduced to the sketch size with the sketch: {fidelity:.3}",
+            "a {} x {n} painted sketch (ridge stroke, peak, valley) of {cell:.1} m cells \
+             (by default it spans the exemplar's width) mapped to the exemplar's elevation \
+             range, given the exemplar's landforms between its cells and its strokes, and \
+             amplified in {} x4 steps (figure 12) to {} x {} with {which} ({} x {}) as \
+             exemplar, N = {atoms}, R = {radius}, in {secs:.2} s; correlation of the output \
+             reduced to the sketch size with the sketch: {fidelity:.3}",
+            2 * n,
             steps,
             out.width(),
             out.height(),
@@ -166,9 +178,11 @@ impl Stage for SketchStage {
         )?;
         if cx.config.previews {
             let (elo, ehi) = exemplar.min_max().unwrap_or((0.0, 1.0));
-            let shown = sketch
+            // At the output's cell size, so both hillshades use the same slopes.
+            let mut shown = sketch
                 .map(|v| elo + v * (ehi - elo))
                 .resample(out.width(), out.height())?;
+            shown.set_cell_size(out.cell_size().0, out.cell_size().1)?;
             cx.before_after(
                 "sketch",
                 "painted sketch (bicubic, for display) and the synthesis",
