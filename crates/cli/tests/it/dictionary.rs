@@ -179,6 +179,57 @@ fn synthesize_from_painted_sketch() {
     );
     assert_eq!((s.width(), s.height()), (64, 64));
     assert!((s.cell_size().0 - 30.0).abs() < 1e-6, "{:?}", s.cell_size());
+    // --sketch-cell-size sets the sketch's extent: 16 cells of 400 m, one x4 step -> 100 m.
+    let sized = tmp.path().join("sized.tif");
+    let z = ok_read(
+        "synthesize {} {} --exemplar {} --steps 1 --sketch-cell-size 400",
+        &[&sk, &sized, &ex],
+    );
+    assert!(
+        (z.cell_size().0 - 100.0).abs() < 1e-6,
+        "{:?}",
+        z.cell_size()
+    );
+    // The structure step differs from --structure-radius 0 (the x4 steps alone), which keeps
+    // the sketch's shape more closely.
+    let off = tmp.path().join("off.tif");
+    let o = ok_read(
+        "synthesize {} {} --exemplar {} --steps 1 --sketch-cell-size 400 --structure-radius 0",
+        &[&sk, &off, &ex],
+    );
+    let (cz, co) = (
+        correlation_at(&z, &read(&sk)),
+        correlation_at(&o, &read(&sk)),
+    );
+    assert!(z.as_slice() != o.as_slice());
+    assert!(
+        co > cz && cz > 0.8,
+        "correlation with the sketch {cz} (structure), {co} (off)"
+    );
+    // Bad values are refused before anything is written: a structure radius by the library
+    // (one line naming it), a cell size already by the argument parser.
+    let bad = tmp.path().join("bad.tif");
+    for value in ["0.5", "nan", "65"] {
+        let out = relief_line_plus(
+            "synthesize {} {} --exemplar {} --steps 1",
+            &[&sk, &bad, &ex],
+            &["--structure-radius", value],
+        );
+        fails(&out, &bad, &["structure radius"]);
+    }
+    for value in ["0", "-5", "inf"] {
+        let arg = format!("--sketch-cell-size={value}");
+        let out = relief_line_plus(
+            "synthesize {} {} --exemplar {} --steps 1",
+            &[&sk, &bad, &ex],
+            &[&arg],
+        );
+        assert!(
+            !out.status.success() && !bad.exists(),
+            "--sketch-cell-size {value}"
+        );
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--sketch-cell-size"));
+    }
 }
 
 fn psnr_of(stdout: &str) -> f64 {
