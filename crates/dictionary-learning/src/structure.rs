@@ -33,7 +33,7 @@ use relief_heightfield::Heightfield;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{LearnError, Result};
-use crate::multires::{STEP_FACTOR, box_resample};
+use crate::multires::{STEP_FACTOR, box_resample, grid_at};
 use crate::noise::item_seed;
 use crate::sketch::octave_ratio;
 
@@ -158,25 +158,22 @@ fn exemplar_grid(
         return Err(LearnError::param(
             "exemplar size",
             format!("{w}x{h}"),
-            "too small for the sketch structure (needs 6 patch sides; lower the structure radius)",
+            "too small for the sketch structure (needs 3 patch sides; lower the structure radius)",
         ));
     }
-    let (ex, ey) = exemplar_cell;
-    let (rx, ry) = (sketch_cell.0 / ex, sketch_cell.1 / ey);
-    // The largest reduction that keeps min_side cells, and the one the sketch asks for.
-    let limit = w.min(h) as f64 / min_side as f64;
-    let wanted = rx.max(ry);
-    let k = wanted.min(limit).max(1.0);
-    // Within SCALE_TOLERANCE of the sketch's cell counts as the sketch's scale.
-    let self_similar = wanted > limit * (1.0 + SCALE_TOLERANCE) || wanted < 1.0 - SCALE_TOLERANCE;
-    if k <= 1.0 + 1e-9 {
-        return Ok((exemplar.clone(), self_similar));
-    }
-    let (nw, nh) = (
-        ((w as f64 / k).round() as usize).clamp(min_side, w),
-        ((h as f64 / k).round() as usize).clamp(min_side, h),
+    let g = grid_at(
+        sketch_cell,
+        (w, h),
+        exemplar_cell,
+        min_side as f64,
+        SCALE_TOLERANCE,
     );
-    Ok((box_resample(exemplar, nw, nh)?, self_similar))
+    let grid = if g.reduced {
+        box_resample(exemplar, g.size.0, g.size.1)?
+    } else {
+        exemplar.clone()
+    };
+    Ok((grid, g.self_similar))
 }
 
 /// Hann window of side `n`: `sin^2(pi (u + 1/2) / n)`; copies shifted by `n / 2` sum to 1.

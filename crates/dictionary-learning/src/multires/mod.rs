@@ -65,6 +65,7 @@ pub use self::kernels::detail_gain;
 pub(crate) use self::kernels::upsample4;
 use self::kernels::{back_project, box_down4};
 pub use self::last::LastStep;
+pub(crate) use self::plan::grid_at;
 pub use self::plan::{
     AmplifyFigures, StepReport, StepScale, amplify, amplify_observed, amplify_with_figures,
     box_resample, exemplar_plan, prepare_last_step,

@@ -62,67 +62,43 @@ pub fn exemplar_plan(
     settings: &AmplifySettings,
 ) -> Vec<StepScale> {
     let min_side = (MIN_EXEMPLAR_PATCHES * settings.patch_size() * STEP_FACTOR) as f64;
-    let (w, h) = (exemplar_size.0 as f64, exemplar_size.1 as f64);
     (0..settings.steps)
         .map(|t| {
             let f = STEP_FACTOR.pow((t + 1) as u32) as f64;
             let target = (coarse_cell.0 / f, coarse_cell.1 / f);
-            let (rx, ry) = (target.0 / exemplar_cell.0, target.1 / exemplar_cell.1);
-            let fine_enough = rx >= 1.0 - SCALE_TOLERANCE && ry >= 1.0 - SCALE_TOLERANCE;
-            let native = |note: String| StepScale {
-                step: t,
-                target_cell_size: target,
-                exemplar_cell_size: exemplar_cell,
+            let g = grid_at(
+                target,
                 exemplar_size,
-                reduction: 1.0,
-                self_similar: true,
-                note,
-            };
-            if !fine_enough {
-                return native(format!(
+                exemplar_cell,
+                min_side,
+                SCALE_TOLERANCE,
+            );
+            let note = if !g.fine_enough {
+                format!(
                     "step {}: target cell {} is finer than the exemplar's {}: exemplar used at \
                      native resolution (self-similarity across scales)",
                     t + 1,
                     fmt_cell(target),
                     fmt_cell(exemplar_cell)
-                ));
-            }
-            let (rx, ry) = (rx.max(1.0), ry.max(1.0));
-            // The largest reduction that keeps the exemplar `min_side` cells wide.
-            let limit = (w / min_side).min(h / min_side).max(1.0);
-            let shrink = (limit / rx.max(ry)).min(1.0);
-            let (kx, ky) = ((rx * shrink).max(1.0), (ry * shrink).max(1.0));
-            let size = (
-                ((w / kx).round() as usize).max(1),
-                ((h / ky).round() as usize).max(1),
-            );
-            let cell = (
-                exemplar_cell.0 * w / size.0 as f64,
-                exemplar_cell.1 * h / size.1 as f64,
-            );
-            let reduced = kx > 1.0 + SCALE_TOLERANCE || ky > 1.0 + SCALE_TOLERANCE;
-            let (size, cell) = if reduced {
-                (size, cell)
-            } else {
-                (exemplar_size, exemplar_cell)
-            };
-            let self_similar = shrink < 1.0 - SCALE_TOLERANCE;
-            let note = if self_similar {
+                )
+            } else if g.self_similar {
                 format!(
                     "step {}: target cell {}, exemplar too small to be reduced that far: \
-                     box-down-sampled x{kx:.3} to {} only (self-similarity across scales)",
+                     box-down-sampled x{:.3} to {} only (self-similarity across scales)",
                     t + 1,
                     fmt_cell(target),
-                    fmt_cell(cell)
+                    g.kx,
+                    fmt_cell(g.cell)
                 )
-            } else if reduced {
+            } else if g.reduced {
                 format!(
-                    "step {}: target cell {}: exemplar box-down-sampled x{kx:.3} to {} ({} x {})",
+                    "step {}: target cell {}: exemplar box-down-sampled x{:.3} to {} ({} x {})",
                     t + 1,
                     fmt_cell(target),
-                    fmt_cell(cell),
-                    size.0,
-                    size.1
+                    g.kx,
+                    fmt_cell(g.cell),
+                    g.size.0,
+                    g.size.1
                 )
             } else {
                 format!(
@@ -134,14 +110,86 @@ pub fn exemplar_plan(
             StepScale {
                 step: t,
                 target_cell_size: target,
-                exemplar_cell_size: cell,
-                exemplar_size: size,
-                reduction: if reduced { kx } else { 1.0 },
-                self_similar,
+                exemplar_cell_size: g.cell,
+                exemplar_size: g.size,
+                reduction: if g.reduced { g.kx } else { 1.0 },
+                self_similar: g.self_similar,
                 note,
             }
         })
         .collect()
+}
+
+/// The exemplar grid nearest a target cell size ([`grid_at`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct GridAt {
+    /// Size `(width, height)` of the grid (the exemplar's own when not reduced).
+    pub(crate) size: (usize, usize),
+    /// Its cell size `(x, y)` in metres.
+    pub(crate) cell: (f64, f64),
+    /// Reduction factor along x (meaningful when `reduced`).
+    pub(crate) kx: f64,
+    /// The exemplar is box-down-sampled (else used at native resolution).
+    pub(crate) reduced: bool,
+    /// The exemplar is at least as fine as the target along both axes.
+    pub(crate) fine_enough: bool,
+    /// The grid is not at the target cell size: the exemplar is coarser than the target, or
+    /// too small to be reduced that far.
+    pub(crate) self_similar: bool,
+}
+
+/// The exemplar (`exemplar_size` cells of `exemplar_cell` metres) brought to the `target`
+/// cell size: box-down-sampled to it when it is at least that fine along both axes, as far as
+/// it stays `min_side` cells wide; otherwise used at native resolution. Ratios within
+/// `tolerance` of 1 count as equal. The one rule behind every x4 step's exemplar
+/// ([`exemplar_plan`]) and the sketch structure's ([`crate::exemplar_structure`]).
+pub(crate) fn grid_at(
+    target: (f64, f64),
+    exemplar_size: (usize, usize),
+    exemplar_cell: (f64, f64),
+    min_side: f64,
+    tolerance: f64,
+) -> GridAt {
+    let (w, h) = (exemplar_size.0 as f64, exemplar_size.1 as f64);
+    let (rx, ry) = (target.0 / exemplar_cell.0, target.1 / exemplar_cell.1);
+    let native = GridAt {
+        size: exemplar_size,
+        cell: exemplar_cell,
+        kx: 1.0,
+        reduced: false,
+        fine_enough: false,
+        self_similar: true,
+    };
+    if !(rx >= 1.0 - tolerance && ry >= 1.0 - tolerance) {
+        return native;
+    }
+    let (rx, ry) = (rx.max(1.0), ry.max(1.0));
+    // The largest reduction that keeps the exemplar `min_side` cells wide.
+    let limit = (w / min_side).min(h / min_side).max(1.0);
+    let shrink = (limit / rx.max(ry)).min(1.0);
+    let (kx, ky) = ((rx * shrink).max(1.0), (ry * shrink).max(1.0));
+    let reduced = kx > 1.0 + tolerance || ky > 1.0 + tolerance;
+    let (size, cell) = if reduced {
+        let size = (
+            ((w / kx).round() as usize).max(1),
+            ((h / ky).round() as usize).max(1),
+        );
+        let cell = (
+            exemplar_cell.0 * w / size.0 as f64,
+            exemplar_cell.1 * h / size.1 as f64,
+        );
+        (size, cell)
+    } else {
+        (exemplar_size, exemplar_cell)
+    };
+    GridAt {
+        size,
+        cell,
+        kx,
+        reduced,
+        fine_enough: true,
+        self_similar: shrink < 1.0 - tolerance,
+    }
 }
 
 /// Area-consistent box down-sampling of `hf` to `w x h` cells: every output cell is the

@@ -102,7 +102,9 @@ impl Stage for SketchStage {
         // The sketch spans the exemplar's width (its landforms at their own scale), unless the
         // spec sets the sketch's cell size.
         let (ecx, _) = exemplar.cell_size();
-        let cell = ecx * exemplar.width() as f64 / (2 * n) as f64;
+        let spanning = ecx * exemplar.width() as f64 / (2 * n) as f64;
+        let sketch_cell = p.job.sketch_cell_size.unwrap_or((spanning, spanning));
+        let cell = sketch_cell.0;
         let (dictionary, atoms) = capped_dictionary(
             p.job.amplify.dictionary,
             candidate_count((exemplar.width(), exemplar.height()), a) / 4,
@@ -114,10 +116,9 @@ impl Stage for SketchStage {
                 seed: cx.config.seed ^ 0x5e7c ^ p.job.amplify.seed,
                 ..p.job.amplify
             },
-            sketch_cell_size: p.job.sketch_cell_size.or(Some((cell, cell))),
+            sketch_cell_size: Some(sketch_cell),
             ..p.job
         };
-        let cell = settings.sketch_cell_size.map_or(cell, |c| c.0);
         let progress = cx.progress();
         progress.begin(&format!("sketch synthesis {} x {n} -> x{f}", 2 * n), 0);
         let t = Instant::now();
@@ -128,8 +129,7 @@ impl Stage for SketchStage {
         let fidelity = relief_heightfield::metrics::pearson(back.as_slice(), sketch.as_slice());
         let (lo, hi) = out.min_max().unwrap_or((0.0, 0.0));
         cx.section.figure("sketch_size", [2 * n, n]);
-        cx.section
-            .figure("sketch_cell_size_m", settings.sketch_cell_size.map(|c| c.0));
+        cx.section.figure("sketch_cell_size_m", cell);
         cx.section.figure("steps", steps);
         cx.section.figure("radius", radius);
         cx.section.figure("atoms", atoms);
