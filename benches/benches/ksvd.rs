@@ -138,20 +138,34 @@ fn bench_amplify(c: &mut Criterion) {
                         options,
                     )
                     .expect("writer");
-                    for y in (0..h).step_by(512) {
+                    // As the CLI: band k is written while band k + 1 is rasterised.
+                    let band_at = |y: usize| {
                         let window = relief_heightfield::Window {
                             x: 0,
                             y,
                             width: w,
                             height: 512.min(h - y),
                         };
-                        let band = sct
-                            .rasterize(&RasterSettings {
-                                scale: 1.0,
-                                window: Some(window),
-                            })
-                            .expect("band");
-                        out.write_rows(band.as_slice()).expect("rows");
+                        sct.rasterize(&RasterSettings {
+                            scale: 1.0,
+                            window: Some(window),
+                        })
+                        .expect("band")
+                    };
+                    let mut pending: Option<relief_heightfield::Heightfield> = None;
+                    for y in (0..h).step_by(512) {
+                        let (_, next) = rayon::join(
+                            || {
+                                if let Some(p) = pending.take() {
+                                    out.write_rows(p.as_slice()).expect("rows");
+                                }
+                            },
+                            || band_at(y),
+                        );
+                        pending = Some(next);
+                    }
+                    if let Some(p) = pending {
+                        out.write_rows(p.as_slice()).expect("rows");
                     }
                     out.finish().expect("file");
                 })

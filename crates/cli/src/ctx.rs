@@ -41,7 +41,7 @@ pub(crate) const STREAM_CELLS: usize = 1 << 24;
 /// 16384-wide output).
 pub(crate) const STREAM_BAND_CELLS: usize = 1 << 22;
 
-/// A GeoTIFF written band by band (`refine`, `amplify --stream`): memory is one band, never
+/// A GeoTIFF written band by band (`refine`, `amplify --stream`): memory is a band or two, never
 /// the whole raster. Dropped unfinished (on any error), it leaves no file.
 pub(crate) struct RowStream<'a> {
     writer: relief_io::TiledGeoTiffWriter,
@@ -180,8 +180,9 @@ impl Ctx {
 
     /// Streams a `width x height` raster into a GeoTIFF at `path` band by band (see
     /// [`Ctx::row_stream`]): `rows_of(y, n)` computes rows `y..y + n` (row-major, north first)
-    /// while a progress bar says `what`. Memory is one band, never the whole raster; on any
-    /// error the file is not written. Returns the band height.
+    /// while a progress bar says `what`. Memory is two bands (one computed while the other is
+    /// written), never the whole raster; on any error the file is not written. Returns the
+    /// band height.
     pub(crate) fn stream_bands(
         &self,
         path: &std::path::Path,
@@ -189,15 +190,30 @@ impl Ctx {
         cell_size: (f64, f64),
         georef: Option<&relief_heightfield::GeoRef>,
         what: &str,
-        mut rows_of: impl FnMut(usize, usize) -> anyhow::Result<Vec<f32>>,
+        mut rows_of: impl FnMut(usize, usize) -> anyhow::Result<Vec<f32>> + Send,
     ) -> anyhow::Result<usize> {
         use relief_heightfield::Progress as _;
         let mut out = self.row_stream(path, size, cell_size, georef)?;
         let progress = self.progress();
         progress.begin(what, size.1 as u64);
-        for (y, rows) in out.bands() {
-            out.write(&rows_of(y, rows)?)?;
-            progress.advance(rows as u64);
+        // Band k is compressed and written while band k + 1 is computed: both are parallel,
+        // and running them together lets the workers of one take up the other's idle time
+        // (rows still arrive in order, so the file is the same).
+        let mut pending: Option<(Vec<f32>, usize)> = None;
+        for (y, rows) in out.bands().collect::<Vec<_>>() {
+            let (written, next) = rayon::join(
+                || match pending.take() {
+                    Some((p, n)) => out.write(&p).map(|()| n),
+                    None => Ok(0),
+                },
+                || rows_of(y, rows),
+            );
+            progress.advance(written? as u64);
+            pending = Some((next?, rows));
+        }
+        if let Some((p, n)) = pending {
+            out.write(&p)?;
+            progress.advance(n as u64);
         }
         let band = out.band;
         out.finish()?;

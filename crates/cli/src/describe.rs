@@ -163,6 +163,18 @@ pub(crate) fn model(path: &Path, json: bool, ctx: &Ctx) -> Result<String> {
                 d
             })
             .collect();
+        let fields: Vec<serde_json::Value> = sct
+            .fields()
+            .iter()
+            .map(|f| {
+                serde_json::json!({
+                    "size": [f.width(), f.height()],
+                    "origin": f.origin(),
+                    "step": f.step(),
+                    "kernel": f.kernel().name(),
+                })
+            })
+            .collect();
         let g = sct.georef();
         serde_json::json!({
             "file": path.display().to_string(),
@@ -175,6 +187,7 @@ pub(crate) fn model(path: &Path, json: bool, ctx: &Ctx) -> Result<String> {
             "crs": g.and_then(|g| g.crs.clone()),
             "geotransform": g.and_then(|g| g.geotransform),
             "layers": layers,
+            "fields": fields,
         })
     } else {
         let d = relief_sparse_core::Dictionary::from_bytes(&bytes, &reg)
@@ -239,6 +252,15 @@ fn model_text(v: &serde_json::Value) -> String {
                 l["primitives"], l["coefficients"], l["max_sparsity"]
             ));
             dict_lines(&mut out, l, "    ");
+        }
+        for (i, f) in v["fields"].as_array().into_iter().flatten().enumerate() {
+            out.push_str(&format!(
+                "  field {i}: {} x {} samples every {} pixels, {} interpolation\n",
+                f["size"][0],
+                f["size"][1],
+                f["step"],
+                f["kernel"].as_str().unwrap_or("?")
+            ));
         }
         match (&v["crs"], &v["geotransform"]) {
             (serde_json::Value::Null, serde_json::Value::Null) => {

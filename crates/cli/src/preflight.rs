@@ -111,7 +111,7 @@ pub(crate) fn refine(
         == Some(relief_io::Format::GeoTiff)
         && (args.stream || written > crate::ctx::STREAM_CELLS as f64);
     let rendered = if streamed {
-        written.min(crate::ctx::STREAM_BAND_CELLS as f64 + 2.0 * ow)
+        written.min(2.0 * crate::ctx::STREAM_BAND_CELLS as f64 + 2.0 * ow)
     } else {
         written
     };

@@ -203,7 +203,8 @@ pub(crate) fn preflight(
         };
         ctx.check_output_size("the output raster", written * 4.0, &change)?;
         let in_memory = if out.stream && written > crate::ctx::STREAM_CELLS as f64 {
-            crate::ctx::STREAM_BAND_CELLS as f64
+            // One band computed while the previous one is written.
+            2.0 * crate::ctx::STREAM_BAND_CELLS as f64
         } else {
             written
         };
@@ -303,7 +304,7 @@ pub(crate) fn write_model(
 }
 
 /// Rasterises `win` of `sct` in bands of rows and streams them into a GeoTIFF, so the whole
-/// raster never exists in memory (a 16384^2 output needs one 16 MiB band, not 1 GiB).
+/// raster never exists in memory (a 16384^2 output needs two 16 MiB bands, not 1 GiB).
 fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> {
     let georef = sct.raster_georef(1.0, win);
     let size = (win.width, win.height);
@@ -405,9 +406,18 @@ pub(crate) fn storage_text(path: &Path, sct: &Sct, bytes: usize) -> String {
         layers += 1;
         s_max = s_max.max(l.max_sparsity());
     }
+    let fields = sct.fields();
+    t += fields
+        .iter()
+        .map(|f| (f.width() * f.height()) as u64)
+        .sum::<u64>();
+    let fields = match fields.len() {
+        0 => String::new(),
+        n => format!(", {n} field(s)"),
+    };
     let t0 = (sct.width() * sct.height()) as u64;
     format!(
-        "model:       {} ({} x {} terrain, {layers} sparse layer(s), s = {s_max})\n\
+        "model:       {} ({} x {} terrain, {layers} sparse layer(s){fields}, s = {s_max})\n\
          storage:     t = {t} values for t0 = {t0} samples: rho = {:.2} %\n\
          bytes:       {} ({:.2} % of the terrain as f32)\n",
         path.display(),

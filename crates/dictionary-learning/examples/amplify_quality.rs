@@ -20,12 +20,8 @@ use relief_heightfield::{Heightfield, NoProgress};
 use relief_sparse_core::RasterSettings;
 use relief_testdata::{dem_crop, timed};
 
-/// Phase swing of the output's own high-pass detail (the output minus its Gaussian blur of 2
-/// cells; [`detail_swing`] against that): no interpolated reference whose error depends on the
-/// phase modulo the input's cells, so real terrain scores about 1.0-1.1 and a grid of
-/// primitives shows alone.
 fn hp_swing(o: &Heightfield) -> f64 {
-    detail_swing(o, &o.gaussian_blur(2.0).unwrap()).unwrap()
+    highpass_swing(o).unwrap()
 }
 
 fn row(name: &str, r: &BoxProtocolRow, (p8, rep, hp): (f64, f64, f64), secs: Option<f64>) {

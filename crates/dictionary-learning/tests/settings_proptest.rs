@@ -5,7 +5,7 @@
 
 use proptest::prelude::*;
 use relief_dictionary_learning::*;
-use relief_heightfield::{Heightfield, NoProgress};
+use relief_heightfield::{Heightfield, Kernel, NoProgress};
 use relief_sparse_core::{PatchGeometry, extract_patches};
 use relief_testdata::dem_crop;
 
@@ -185,6 +185,7 @@ proptest! {
             radius, step, steps, sparsity, dictionary, candidate_step, max_candidates,
             max_learning_pool: 4096, max_training, seed, residual_correction: residual, normalize_detail: residual,
             exemplar_detail: false, diverse_atoms: residual, exemplar_cell_size: None, index_probes: 8,
+            residual_kernel: if seed % 2 == 0 { Kernel::Lanczos3 } else { Kernel::Keys },
         };
         let st = step.unwrap_or((radius / 2.0).floor().max(1.0));
         let radius_bad = !(radius.is_finite() && (1.0..=32.0).contains(&radius));

@@ -51,5 +51,5 @@ pub use error::{HeightfieldError, Result};
 pub use grid::{GeoRef, Heightfield, MAX_CELLS};
 pub use param::ParamError;
 pub use progress::{NoProgress, Progress};
-pub use sample::{cubic_weights, cubic_weights_f64};
+pub use sample::{Kernel, cubic_weights, cubic_weights_f64};
 pub use window::Window;

@@ -3,24 +3,12 @@ use rayon::prelude::*;
 
 use crate::error::{HeightfieldError, Result};
 use crate::grid::{Heightfield, check_dims};
-use crate::sample::cubic_weights;
+use crate::sample::{cubic_weights, lanczos3};
 
 /// Sparse 1-D resampling weights: for each output index, the first input index and the weights.
 struct Weights {
     start: Vec<usize>,
     taps: Vec<Vec<f32>>,
-}
-
-fn lanczos3(x: f64) -> f64 {
-    let x = x.abs();
-    if x < 1e-9 {
-        1.0
-    } else if x >= 3.0 {
-        0.0
-    } else {
-        let px = std::f64::consts::PI * x;
-        3.0 * px.sin() * (px / 3.0).sin() / (px * px)
-    }
 }
 
 /// Weights mapping `n_in` samples to `n_out` with the extent kept (cell-centre alignment).

@@ -29,6 +29,85 @@ pub fn cubic_weights_f64(t: f64) -> [f64; 4] {
     keys_weights!(t)
 }
 
+/// Lanczos-3 kernel `sinc(x) sinc(x / 3)` on `|x| < 3` (0 outside).
+pub(crate) fn lanczos3(x: f64) -> f64 {
+    let x = x.abs();
+    if x < 1e-9 {
+        1.0
+    } else if x >= 3.0 {
+        0.0
+    } else {
+        let px = std::f64::consts::PI * x;
+        3.0 * px.sin() * (px / 3.0).sin() / (px * px)
+    }
+}
+
+/// An interpolation kernel on a regular grid of samples (separable, applied along each axis).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Kernel {
+    /// Keys cubic convolution (a = -1/2, Catmull-Rom): 4 taps, interpolating, reproduces
+    /// quadratics ([`cubic_weights_f64`]).
+    Keys,
+    /// Lanczos-3 (`sinc(x) sinc(x / 3)`, 6 taps), weights normalised to sum 1: interpolating,
+    /// closer to the ideal band-limited interpolation than Keys, so content near the grid's
+    /// Nyquist frequency keeps about the same energy at every phase between the samples
+    /// (Keys keeps it at the samples and smooths it between them).
+    #[default]
+    Lanczos3,
+}
+
+impl Kernel {
+    /// Largest number of taps of any kernel.
+    pub const MAX_TAPS: usize = 6;
+
+    /// Number of taps `n`: the weights of [`Self::weights`] apply to the samples at offsets
+    /// `1 - n / 2 ..= n / 2` from the integer part of the position.
+    #[inline]
+    pub const fn taps(self) -> usize {
+        match self {
+            Kernel::Keys => 4,
+            Kernel::Lanczos3 => 6,
+        }
+    }
+
+    /// For a position `u` in sample units: the index of the first tap (`floor(u) + 1 -
+    /// taps / 2`) and the fractional position `t = u - floor(u)` that [`Self::weights`] takes.
+    #[inline]
+    pub fn position(self, u: f64) -> (i64, f64) {
+        let f = u.floor();
+        (f as i64 + 1 - (self.taps() / 2) as i64, u - f)
+    }
+
+    /// The weights of the [`Self::taps`] samples around a fractional position `t` in
+    /// `[0, 1)` (unused entries are 0).
+    #[inline]
+    pub fn weights(self, t: f64) -> [f64; Self::MAX_TAPS] {
+        let mut w = [0.0; Self::MAX_TAPS];
+        match self {
+            Kernel::Keys => w[..4].copy_from_slice(&cubic_weights_f64(t)),
+            Kernel::Lanczos3 => {
+                for (k, wk) in w.iter_mut().enumerate() {
+                    *wk = lanczos3(t - (k as f64 - 2.0));
+                }
+                let s: f64 = w.iter().sum();
+                w.iter_mut().for_each(|v| *v /= s);
+            }
+        }
+        w
+    }
+
+    /// The name used in settings and on the command line (`"keys"`, `"lanczos3"`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Kernel::Keys => "keys",
+            Kernel::Lanczos3 => "lanczos3",
+        }
+    }
+}
+
 impl Heightfield {
     /// Bilinear sample at pixel coordinates `(x, y)` (column, row); coordinates outside the grid
     /// are clamped to its edge. Exact at grid nodes.

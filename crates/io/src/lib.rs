@@ -87,7 +87,7 @@ use relief_heightfield::{GeoRef, Heightfield};
 
 pub use atomic::Staging;
 pub use error::{IoError, Result};
-pub use geotiff::TiffCompression;
+pub use geotiff::{DEFLATE_LEVEL, TiffCompression};
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as, z_up_to_y_up};
 pub use npy::npy_f32;
 pub use preview::{

@@ -81,6 +81,6 @@ pub use omp::{
 };
 pub use patches::{CentreGrid, PatchGeometry, Patches, extract_patches};
 pub use sct::{
-    Node, NodeSpec, Placement, Profile, RasterSettings, Region, RegionSpec, River, RiverMode,
-    RiverSpec, RiverValleySpec, Sct, SparseLayer, TreeSpec, Window, raster_coord,
+    Field, Node, NodeSpec, Placement, Profile, RasterSettings, Region, RegionSpec, River,
+    RiverMode, RiverSpec, RiverValleySpec, Sct, SparseLayer, TreeSpec, Window, raster_coord,
 };

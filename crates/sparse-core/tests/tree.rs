@@ -1,13 +1,13 @@
 //! Construction-tree nodes (guerin2016 section 5.4) on a real DEM crop: every node kind
-//! (layer, constant, river carve and bed, blend, add, max, min, replace in a rectangle and in a
-//! disk) is rasterised by stamping, and the raster equals point evaluation `f(p)` at every pixel,
+//! (layer, constant, river carve and bed, field with each kernel, blend, add, max, min, replace
+//! in a rectangle and in a disk) is rasterised by stamping, and the raster equals point evaluation `f(p)` at every pixel,
 //! bit for bit, for any window, scale and thread count. Random trees (proptest) too.
 
 use proptest::prelude::*;
-use relief_heightfield::Heightfield;
+use relief_heightfield::{Heightfield, Kernel};
 use relief_sparse_core::{
-    Dictionary, EncodeSettings, Node, PatchGeometry, RasterSettings, Region, River, RiverMode, Sct,
-    Window, encode, extract_patches, raster_coord,
+    Dictionary, EncodeSettings, Field, Node, PatchGeometry, RasterSettings, Region, River,
+    RiverMode, Sct, Window, encode, extract_patches, raster_coord,
 };
 
 /// The crop the tests build on and its s = 3 tree ([`layer`]), or `None` without the DEM set.
@@ -149,8 +149,29 @@ fn every_node_kind_rasterises_like_point_evaluation() {
         RiverMode::Bed(bed_z),
     )
     .unwrap();
+    // The crop reduced x4 as a field placed like an amplification step's residual.
+    let coarse = hf.downsample_box(4).unwrap();
+    let field = |kernel| {
+        Node::Field(
+            Field::new(
+                coarse.width(),
+                coarse.height(),
+                coarse.as_slice().to_vec(),
+                [1.5, 1.5],
+                4.0,
+                kernel,
+            )
+            .unwrap(),
+        )
+    };
     let trees: Vec<(&str, Node)> = vec![
         ("layer", base.clone()),
+        ("field keys", field(Kernel::Keys)),
+        ("field lanczos3", field(Kernel::Lanczos3)),
+        (
+            "add field",
+            Node::Add(vec![base.clone(), field(Kernel::Lanczos3)]),
+        ),
         ("constant", Node::Constant(1234.5)),
         ("river carve", Node::River(carve.clone())),
         ("river bed", Node::River(bed.clone())),
@@ -300,6 +321,19 @@ fn arb_leaf() -> impl Strategy<Value = Node> {
     let coord = -10.0f64..50.0;
     prop_oneof![
         (-100.0f64..100.0).prop_map(Node::Constant),
+        (
+            1usize..7,
+            1usize..6,
+            prop::collection::vec(-50.0f32..50.0, 36),
+            (-5.0f64..5.0, -5.0f64..5.0),
+            0.5f64..9.0,
+            any::<bool>(),
+        )
+            .prop_map(|(w, h, v, (ox, oy), step, keys)| {
+                let kernel = if keys { Kernel::Keys } else { Kernel::Lanczos3 };
+                let f = Field::new(w, h, v[..w * h].to_vec(), [ox, oy], step, kernel);
+                Node::Field(f.unwrap())
+            }),
         (
             prop::collection::vec((coord.clone(), coord.clone()), 2..6),
             0.5f64..6.0,

@@ -57,6 +57,12 @@ pub(crate) struct Args {
     /// for compatibility, not in the paper).
     #[arg(long)]
     pub(crate) residual_correction: bool,
+    /// Interpolation of the residual layer (not with --paper): lanczos3 (the default) keeps
+    /// the input's finest relief at the same energy between its samples as on them; keys (the
+    /// Keys cubic) keeps it on the samples and smooths it between them, a faint row-and-column
+    /// pattern in the shaded relief.
+    #[arg(long, value_enum, default_value_t = ResidualKernel::Lanczos3)]
+    pub(crate) residual_kernel: ResidualKernel,
     /// With `--sparsity 1` and a complete dictionary of more than 4096 atoms (`--atoms 0`):
     /// clusters of the atom index searched per primitive; 0 = the exact search (about 15x
     /// slower at 65,536 atoms).
@@ -65,11 +71,29 @@ pub(crate) struct Args {
     #[command(flatten)]
     pub(crate) window: crate::sparse_model::WindowArg,
     /// Stream a GeoTIFF output band by band instead of rasterising it whole (automatic above
-    /// 16 M cells): memory stays at one band whatever the output size.
+    /// 16 M cells): memory stays at two bands whatever the output size.
     #[arg(long)]
     pub(crate) stream: bool,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
+}
+
+/// `--residual-kernel` values ([`relief_heightfield::Kernel`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum ResidualKernel {
+    /// Lanczos-3 (6 taps).
+    Lanczos3,
+    /// Keys cubic (4 taps).
+    Keys,
+}
+
+impl From<ResidualKernel> for relief_heightfield::Kernel {
+    fn from(k: ResidualKernel) -> Self {
+        match k {
+            ResidualKernel::Lanczos3 => relief_heightfield::Kernel::Lanczos3,
+            ResidualKernel::Keys => relief_heightfield::Kernel::Keys,
+        }
+    }
 }
 
 /// Number of x4 steps of a factor, or an error naming it.
@@ -117,6 +141,7 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
         seed: args.seed.seed,
         exemplar_cell_size: args.exemplar.exemplar_cell_size,
         index_probes: args.index_probes,
+        residual_kernel: args.residual_kernel.into(),
         ..base
     };
     settings.check().context("invalid amplification settings")?;

@@ -8,7 +8,7 @@
 //!
 //! Large GeoTIFF outputs (above 16 M cells, or any size with `--stream`) are synthesised in
 //! bands of rows and streamed to the file through [`relief_io::GeoTiffStripWriter`], so the
-//! refined terrain never exists whole in memory (a 16384^2 output needs one band of 256 rows,
+//! refined terrain never exists whole in memory (a 16384^2 output needs two bands of 256 rows,
 //! not 1 GiB); the values are bit-identical to the in-memory path. Other formats are written
 //! from memory.
 
@@ -72,7 +72,7 @@ pub(crate) struct Args {
     #[arg(long = "window", value_name = "X,Y,W,H")]
     pub(crate) window_of: Option<relief_heightfield::Window>,
     /// Stream a GeoTIFF output band by band instead of synthesising it whole (automatic above
-    /// 16 M cells): memory stays at one band of rows whatever the output size.
+    /// 16 M cells): memory stays at two bands of rows whatever the output size.
     #[arg(long)]
     pub(crate) stream: bool,
     #[command(flatten)]

@@ -17,6 +17,11 @@ fn fails(out: &Output, output: &Path, needles: &[&str]) {
     fails_with(out, needles, &[output]);
 }
 
+/// The `.sct` model at `path` (data atoms only).
+fn read_model(path: &Path) -> Sct {
+    Sct::from_bytes(&std::fs::read(path).unwrap(), &FunctionAtomRegistry::new()).unwrap()
+}
+
 /// x4: a 128^2 crop reduced to 32^2, amplified back with an exemplar from another part of the
 /// DEM. The output has the right size and cell size, stays consistent with its input, is
 /// closer to the truth than the input's relief, and the `.sct` and `--window` outputs agree
@@ -79,14 +84,32 @@ fn amplify_x4_on_grand_canyon() {
     // The .sct model rasterises to the same terrain.
     let sct_path = tmp.path().join("out.sct");
     ok(&common(&sct_path, &[]));
-    let sct = Sct::from_bytes(
-        &std::fs::read(&sct_path).unwrap(),
-        &FunctionAtomRegistry::new(),
-    )
-    .unwrap();
+    let sct = read_model(&sct_path);
     assert_eq!((sct.width(), sct.height()), (128, 128));
     let r = sct.rasterize(&RasterSettings::default()).unwrap();
     assert!(metrics::rmse(&r, &out).unwrap() < 1e-3);
+    // Its residual is a Lanczos-3 field on the input's grid, and `info` says so;
+    // `--residual-kernel keys` stores a Keys field and changes the terrain.
+    assert_eq!(sct.fields().len(), 1);
+    assert_eq!(
+        sct.fields()[0].kernel(),
+        relief_heightfield::Kernel::Lanczos3
+    );
+    let text = relief_ok!["info", sct_path];
+    assert!(
+        text.contains("field 0: 32 x 32 samples every 4.0 pixels, lanczos3"),
+        "{text}"
+    );
+    let keys_path = tmp.path().join("keys.sct");
+    ok(&common(&keys_path, &["--residual-kernel", "keys"]));
+    let keys = read_model(&keys_path);
+    assert_eq!(keys.fields()[0].kernel(), relief_heightfield::Kernel::Keys);
+    let rk = keys.rasterize(&RasterSettings::default()).unwrap();
+    let d = metrics::rmse(&rk, &r).unwrap();
+    assert!(
+        d > 0.01,
+        "Keys and Lanczos-3 residuals give the same terrain ({d} m)"
+    );
 
     // Streamed band by band (GeoTIFF strip writer): the same raster.
     let streamed = tmp.path().join("streamed.tif");
@@ -389,8 +412,7 @@ fn learn_writes_a_dictionary_compress_can_use() {
         "compress {} {} --dictionary {} --sparsity 4",
         &[&c, &sct, &dict_path],
     ));
-    let model =
-        Sct::from_bytes(&std::fs::read(&sct).unwrap(), &FunctionAtomRegistry::new()).unwrap();
+    let model = read_model(&sct);
     let psnr = metrics::psnr(
         &read(&c),
         &model.rasterize(&RasterSettings::default()).unwrap(),

@@ -877,7 +877,7 @@ fn models_are_checksummed_and_described_by_info() {
     ));
     let text = relief_ok!["info", sct];
     for want in [
-        "version 3",
+        "version 4",
         "CRC-32 ok",
         "64 x 64",
         "primitives",

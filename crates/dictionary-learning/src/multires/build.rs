@@ -288,30 +288,40 @@ fn choose_atoms(
                 });
             }
             let cands = cand.low.select(ndarray::Axis(0), usable);
-            let mut train_rows: Vec<f32> = Vec::new();
             let k = cands.ncols();
-            if let Some(t) = training {
-                if t.ncols() != k {
+            let t = match training {
+                Some(t) if t.ncols() != k => {
                     return Err(LearnError::param(
                         "training",
                         t.ncols(),
                         "dimension differs from the coarse patch",
                     ));
                 }
-                train_rows.extend(t.iter().copied());
-            }
-            train_rows.extend(cands.iter().copied());
-            let all = Array2::from_shape_vec((train_rows.len() / k, k), train_rows)
-                .map_err(|_| LearnError::param("training", k, "internal shape error"))?;
-            let train = if all.nrows() > settings.max_training {
-                let mut rng =
-                    Pcg64Mcg::seed_from_u64(item_seed(settings.seed, 0x7a, all.nrows() as u64));
-                let mut pick = sample(&mut rng, all.nrows(), settings.max_training).into_vec();
-                pick.sort_unstable();
-                all.select(ndarray::Axis(0), &pick)
-            } else {
-                all
+                Some(t) => t,
+                None => cands.slice(ndarray::s![0..0, ..]),
             };
+            // The training signals then the candidates, sampled down to `max_training` rows
+            // (the picked rows are gathered; the pool itself is never copied).
+            let n_all = t.nrows() + cands.nrows();
+            let pick: Vec<usize> = if n_all > settings.max_training {
+                let mut rng = Pcg64Mcg::seed_from_u64(item_seed(settings.seed, 0x7a, n_all as u64));
+                let mut pick = sample(&mut rng, n_all, settings.max_training).into_vec();
+                pick.sort_unstable();
+                pick
+            } else {
+                (0..n_all).collect()
+            };
+            let mut train_rows: Vec<f32> = Vec::with_capacity(pick.len() * k);
+            for &i in &pick {
+                let row = if i < t.nrows() {
+                    t.row(i)
+                } else {
+                    cands.row(i - t.nrows())
+                };
+                train_rows.extend(row.iter().copied());
+            }
+            let train = Array2::from_shape_vec((pick.len(), k), train_rows)
+                .map_err(|_| LearnError::param("training", k, "internal shape error"))?;
             let learned = constrained_learning(
                 train.view(),
                 cands.view(),

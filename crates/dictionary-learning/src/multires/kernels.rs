@@ -1,7 +1,8 @@
 //! The x4 kernels of a step: Keys bicubic up-sampling, the detail gain of a primitive
-//! lattice, the box x4 reduction and the back-projection through bicubic interpolation.
+//! lattice, the box x4 reduction and the back-projection through an interpolation kernel.
 
 use super::*;
+use relief_heightfield::Kernel;
 
 // Keys cubic (Catmull-Rom) weights of the four taps around a fractional offset `t`.
 use relief_heightfield::cubic_weights_f64 as keys;
@@ -88,19 +89,19 @@ pub(super) fn box_down4(p: &[f32], a: usize) -> Vec<f64> {
     out
 }
 
-/// Taps of `box-down4(bicubic-up4(line))` for a line of `n` samples (the 1-D factor of the
-/// separable operator): for each output, the (clamped) input indices and weights.
-fn box_of_bicubic_taps(n: usize) -> Vec<Vec<(usize, f64)>> {
+/// Taps of `box-down4(interp-up4(line))` for a line of `n` samples (the 1-D factor of the
+/// separable operator, `kernel` the interpolation): for each output, the (clamped) input
+/// indices and weights.
+fn box_of_interp_taps(n: usize, kernel: Kernel) -> Vec<Vec<(usize, f64)>> {
     (0..n)
         .map(|i| {
-            let mut taps: Vec<(usize, f64)> = Vec::with_capacity(6);
+            let mut taps: Vec<(usize, f64)> = Vec::with_capacity(8);
             for j in 0..STEP_FACTOR {
                 let u = i as f64
                     + (2.0 * j as f64 + 1.0 - STEP_FACTOR as f64) / (2.0 * STEP_FACTOR as f64);
-                let f = u.floor();
-                let w = keys(u - f);
-                let b = f as i64 - 1;
-                for (k, wk) in w.iter().enumerate() {
+                let (b, t) = kernel.position(u);
+                let w = kernel.weights(t);
+                for (k, wk) in w.iter().enumerate().take(kernel.taps()) {
                     let idx = (b + k as i64).clamp(0, n as i64 - 1) as usize;
                     let wk = wk / STEP_FACTOR as f64;
                     match taps.iter_mut().find(|t| t.0 == idx) {
@@ -117,13 +118,14 @@ fn box_of_bicubic_taps(n: usize) -> Vec<Vec<(usize, f64)>> {
 /// Back-projection iterations of [`back_project`].
 const BACK_PROJECTION_ITERATIONS: usize = 4;
 
-/// Approximately solves `box-down4(bicubic-up4(r)) = d` on the coarse grid (`w x h`,
-/// row-major) by fixed-point iterations `r += d - BU(r)` from `r = d`: the bicubic
-/// interpolation of `r` then reduces (box average of the 4 x 4 fine cells) to `d`, so the
-/// output's box reduction matches the input closely instead of a low-passed copy of it.
-pub(super) fn back_project(d: &[f64], w: usize, h: usize) -> Vec<f64> {
+/// Approximately solves `box-down4(interp-up4(r)) = d` on the coarse grid (`w x h`,
+/// row-major; `kernel` the interpolation) by fixed-point iterations `r += d - BU(r)` from
+/// `r = d`: the interpolation of `r` then reduces (box average of the 4 x 4 fine cells) to
+/// `d`, so the output's box reduction matches the input closely instead of a low-passed copy
+/// of it.
+pub(super) fn back_project(d: &[f64], w: usize, h: usize, kernel: Kernel) -> Vec<f64> {
     use rayon::prelude::*;
-    let (tx, ty) = (box_of_bicubic_taps(w), box_of_bicubic_taps(h));
+    let (tx, ty) = (box_of_interp_taps(w, kernel), box_of_interp_taps(h, kernel));
     let mut r = d.to_vec();
     let mut tmp = vec![0.0; w * h];
     for _ in 0..BACK_PROJECTION_ITERATIONS {

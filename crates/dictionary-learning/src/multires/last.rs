@@ -5,10 +5,11 @@
 //!
 //! # Why a window equals the full run
 //! Every part of a step is local: a primitive's code depends on its coarse patch (radius
-//! `R`), the residual layer's back-projection is a 4-iteration stencil of radius 2, and the
-//! primitives' grids start at the same origin whatever the raster size. A window is computed on
-//! a crop of the input whose corner is a multiple of both grid steps, with a halo of
-//! `4 ceil(R) + 12` coarse pixels (more than the `2R + 2 ceil(R) + 9` the dependencies reach) so that no
+//! `R`), the residual's back-projection is a 4-iteration stencil of radius 3 (Lanczos-3; 2 with
+//! Keys) and its interpolation reaches 3 samples, and the primitives' grids start at the same
+//! origin whatever the raster size. A window is computed on a crop of the input whose corner is
+//! a multiple of both grid steps, with a halo of `4 ceil(R) + 16` coarse pixels (at least the
+//! `2R + 2 ceil(R) + 14` the dependencies reach) so that no
 //! sample of the window sees the crop's clamped border; the seeded atom choice hashes each
 //! primitive's position in the whole grid ([`GridFrame`]). The same floating-point operations
 //! then run in the same order, so the window is bit-identical (tested).
@@ -79,7 +80,7 @@ impl LastStep {
         let s = st.grid_step() as usize;
         let r = st.radius.floor().max(1.0) as usize;
         let align = s / gcd(s, r) * r;
-        let halo = 4 * st.radius.ceil() as usize + 12;
+        let halo = 4 * st.radius.ceil() as usize + 16;
         let f = STEP_FACTOR;
         let x0 = (win.x / f).saturating_sub(halo) / align * align;
         let y0 = (win.y / f).saturating_sub(halo) / align * align;

@@ -1,5 +1,5 @@
 //! One x4 step: coarse patches coded on `L` (Batch-OMP or the diverse atom choice), the codes
-//! placed on `H`, and the residual layer that makes the box reduction match the input.
+//! placed on `H`, and the residual field that makes the box reduction match the input.
 
 use super::*;
 
@@ -94,8 +94,8 @@ impl MultiResDictionary {
         )?;
         let (cx, cy) = coarse.cell_size();
         let root = if settings.residual_correction {
-            let res = self.residual_layer(coarse, &patches, &codes, settings)?;
-            Node::Add(vec![Node::Layer(layer), Node::Layer(res)])
+            let res = self.residual_field(coarse, &patches, &codes, settings)?;
+            Node::Add(vec![Node::Layer(layer), Node::Field(res)])
         } else {
             Node::Layer(layer)
         };
@@ -123,6 +123,29 @@ fn max_abs(v: &[f32]) -> f32 {
         }
     }
     lanes.iter().fold(tail, |m, &l| m.max(l))
+}
+
+/// Appends `(v, j)` for every `v = cs[j]` with `|v| >= thr`, in increasing `j` (what the
+/// plain filter gives), testing eight values at a time first: few atoms come within the
+/// tolerance of the best, so most blocks are skipped by one vectorised comparison.
+fn near_atoms(cs: &[f32], thr: f32, near: &mut Vec<(f32, u32)>) {
+    let chunks = cs.chunks_exact(8);
+    let tail = chunks.remainder();
+    for (b, ch) in chunks.enumerate() {
+        if ch.iter().fold(false, |any, v| any | (v.abs() >= thr)) {
+            for (k, &v) in ch.iter().enumerate() {
+                if v.abs() >= thr {
+                    near.push((v, (8 * b + k) as u32));
+                }
+            }
+        }
+    }
+    let base = cs.len() - tail.len();
+    for (k, &v) in tail.iter().enumerate() {
+        if v.abs() >= thr {
+            near.push((v, (base + k) as u32));
+        }
+    }
 }
 
 /// Where a crop of a step input sits in the whole input's primitive grid: its first primitive
@@ -195,12 +218,16 @@ impl MultiResDictionary {
                         continue;
                     }
                     near.clear();
-                    near.extend(
-                        c.iter()
-                            .enumerate()
-                            .filter(|(_, v)| v.abs() >= DIVERSE_TOLERANCE * best)
-                            .map(|(j, &v)| (v, j as u32)),
-                    );
+                    let thr = DIVERSE_TOLERANCE * best;
+                    match c.as_slice() {
+                        Some(cs) => near_atoms(cs, thr, &mut near),
+                        None => near.extend(
+                            c.iter()
+                                .enumerate()
+                                .filter(|(_, v)| v.abs() >= thr)
+                                .map(|(j, &v)| (v, j as u32)),
+                        ),
+                    }
                     // Strongest first, ties by atom: a total order, so keeping only the
                     // first DIVERSE_CHOICES before sorting gives the same list.
                     let order = |p: &(f32, u32), q: &(f32, u32)| {
@@ -282,27 +309,36 @@ impl MultiResDictionary {
         .rasterize(&RasterSettings::default())?)
     }
 
-    /// The residual layer (see [`AmplifySettings::residual_correction`]): the difference
-    /// between the input and the predicted `box-down` of the detail layer, back-projected so
-    /// that its bicubic x4 interpolation reduces (box) to it, placed as a fine-grid layer.
-    fn residual_layer(
+    /// The residual (see [`AmplifySettings::residual_correction`]): the difference between
+    /// the input and the predicted `box-down` of the detail layer, back-projected so that its
+    /// x4 interpolation reduces (box) to it, as a field node on the coarse grid (sample `k`
+    /// at fine pixel `4 k + 1.5`).
+    fn residual_field(
         &self,
         coarse: &Heightfield,
         patches: &relief_sparse_core::Patches,
         codes: &relief_sparse_core::SparseCodes<f32>,
         settings: &AmplifySettings,
-    ) -> Result<SparseLayer> {
+    ) -> Result<Field> {
         let rec = self.footprint_raster(coarse, patches, codes)?;
         let (d, _) = relief_heightfield::metrics::difference_field(coarse, &rec)?;
-        let r = back_project(&d, coarse.width(), coarse.height());
-        let res = coarse.with_data(r.iter().map(|&v| v as f32).collect())?;
-        interpolation_layer(&res, settings)
+        let kernel = settings.residual_kernel;
+        let r = back_project(&d, coarse.width(), coarse.height(), kernel);
+        let f = STEP_FACTOR as f64;
+        Ok(Field::new(
+            coarse.width(),
+            coarse.height(),
+            r.iter().map(|&v| v as f32).collect(),
+            [1.5, 1.5],
+            f,
+            kernel,
+        )?)
     }
 }
 
 /// A smooth field interpolated x4 as a fine-grid layer of its own patches (complete
 /// dictionary, atoms sampled every 4 fine pixels, centres every `R` coarse pixels): the
-/// residual layer, and the low part of [`AmplifySettings::exemplar_detail`].
+/// low part of [`AmplifySettings::exemplar_detail`].
 pub(crate) fn interpolation_layer(
     field: &Heightfield,
     settings: &AmplifySettings,

@@ -2,7 +2,7 @@
 //!
 //! Layout (all little-endian):
 //! ```text
-//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 3)   flags u16 (bit 0: 16-bit coefficients)
+//! magic  "RLFSCT\r\n" (8 bytes)   version u16 (= 4)   flags u16 (bit 0: 16-bit coefficients)
 //! width u32  height u32  cell_x f64  cell_y f64
 //! georef (version 2 only; version 1 streams are still read, without it):
 //!   present u8 (0 | 1), then when 1, each optional field as flag u8 + value:
@@ -11,6 +11,7 @@
 //!   geotransform: 6 f64
 //! node (recursive):
 //!   tag u8: 0 layer | 1 constant | 2 river | 3 blend | 4 add | 5 max | 6 min | 7 replace
+//!           | 8 field (version 4)
 //!   layer:    dictionary, placement, z (n f32), counts (n u8), indices (nnz u16 if N <= 65536
 //!             else u32), coefficients (nnz f32, or lo f32 + hi f32 + nnz u16 when quantised)
 //!   dictionary: a u16, delta f64, R f64, N u32, N atoms:
@@ -21,10 +22,12 @@
 //!   river:    n u32, n x (x, y, half width, depth) f64, mode u8 (0 carve | 1 bed + n f64)
 //!   blend/add/max/min: count u32, children
 //!   replace:  region u8 (0 rect: 4 f64 | 1 disk: 3 f64), falloff f64, base, overlay
+//!   field:    kernel u8 (0 keys | 1 lanczos3), width u32, height u32, origin 2 f64, step f64,
+//!             width*height f32
 //! checksum (version 3): CRC-32 (IEEE, as zlib's `crc32`) u32 of every byte before it
 //! ```
 //!
-//! Versions 1 (no georeference) and 2 (no checksum) are still read.
+//! Versions 1 (no georeference), 2 (no checksum) and 3 (no field node) are still read.
 //!
 //! A dictionary alone (`.dict` files of `relief learn`, [`Dictionary::to_bytes`]) is
 //! ```text
@@ -40,17 +43,17 @@
 
 use std::sync::Arc;
 
-use relief_heightfield::GeoRef;
+use relief_heightfield::{GeoRef, Kernel};
 
 use crate::dictionary::{Atom, AtomDescriptor, Dictionary, FunctionAtomRegistry};
 use crate::error::{Result, SparseError};
 use crate::patches::CentreGrid;
-use crate::sct::{Node, Placement, Region, River, RiverMode, Sct, SparseLayer};
+use crate::sct::{Field, Node, Placement, Region, River, RiverMode, Sct, SparseLayer};
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RLFSCT\r\n";
 /// Current format version.
-pub const VERSION: u16 = 3;
+pub const VERSION: u16 = 4;
 /// First `.sct` version that ends with a CRC-32 of the stream.
 const FIRST_CHECKSUMMED: u16 = 3;
 /// First dictionary version that ends with a CRC-32 of the stream.

@@ -239,6 +239,26 @@ impl<'a> Reader<'a> {
                     falloff,
                 })
             }
+            8 => {
+                let kernel = match self.u8()? {
+                    0 => Kernel::Keys,
+                    1 => Kernel::Lanczos3,
+                    k => return Err(self.err(format!("unknown field kernel {k}"))),
+                };
+                let (w, h) = (self.u32()? as usize, self.u32()? as usize);
+                let origin = [self.f64()?, self.f64()?];
+                let step = self.f64()?;
+                let n = w
+                    .checked_mul(h)
+                    .ok_or_else(|| self.err(format!("field size {w} x {h} overflows")))?;
+                self.need(n, 4, "field sample")?;
+                let mut v = Vec::with_capacity(n);
+                for _ in 0..n {
+                    v.push(self.f32()?);
+                }
+                let f = Field::new(w, h, v, origin, step, kernel);
+                Ok(Node::Field(self.wrap(f)?))
+            }
             t => Err(self.err(format!("unknown node tag {t}"))),
         }
     }

@@ -97,6 +97,20 @@ impl Writer {
                 }
                 Ok(())
             }
+            Node::Field(f) => {
+                self.u8(8);
+                self.u8(match f.kernel() {
+                    Kernel::Keys => 0,
+                    Kernel::Lanczos3 => 1,
+                });
+                self.len32(f.width(), "field width")?;
+                self.len32(f.height(), "field height")?;
+                self.f64(f.origin()[0]);
+                self.f64(f.origin()[1]);
+                self.f64(f.step());
+                f.samples().iter().for_each(|&v| self.f32(v));
+                Ok(())
+            }
             Node::Blend(c) | Node::Add(c) | Node::Max(c) | Node::Min(c) => {
                 self.u8(match node {
                     Node::Blend(_) => 3,

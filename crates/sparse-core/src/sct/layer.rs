@@ -200,6 +200,18 @@ impl SparseLayer {
         }
     }
 
+    /// `(coefficient, samples)` of primitive `i` when it is one data atom.
+    #[inline]
+    fn single_atom(&self, i: usize) -> Option<(f64, &[f32])> {
+        match self.primitive(i) {
+            ([j], [x]) => match &self.dictionary.atoms()[*j as usize] {
+                Atom::Data(d) => Some((*x as f64, &d[..])),
+                Atom::Function { .. } => None,
+            },
+            _ => None,
+        }
+    }
+
     /// Function-atom part of primitive `i` at offset `(dx, dy)`.
     pub(super) fn functions(&self, i: usize, dx: f64, dy: f64) -> f64 {
         let (idx, val) = self.primitive(i);
@@ -283,7 +295,6 @@ impl SparseLayer {
             let Some(Frame { ex, ey, vx, kx, ky }) = Frame::of([cx, cy], radius, band) else {
                 continue;
             };
-            self.patch(i, &mut scratch.p);
             let w = (ex.1 - ex.0 + 1) as usize;
             // Offsets of the pixels from the centre. On a regular grid at a whole scale they
             // repeat from one primitive to the next: the weights and row taps are then reused
@@ -300,6 +311,18 @@ impl SparseLayer {
             // Every column on a patch sample (scale 1 with pixel-aligned samples, e.g.
             // amplification): the samples are read directly, else interpolated rows first.
             let direct = scratch.all_exact;
+            // One data atom, every row and column on a sample, no function atom (amplification
+            // at s = 1): its samples times the coefficient are read straight from the atom,
+            // as `0.0 + x d`, the value `patch` would hold, so the patch is not summed.
+            let single = self.single_atom(i).filter(|_| {
+                direct
+                    && !self.has_functions[i]
+                    && scratch.rtaps[ky.0..ky.1].iter().all(|(_, wy)| is_exact(wy))
+                    && scratch.spans[ky.0..ky.1].iter().all(Option::is_some)
+            });
+            if single.is_none() {
+                self.patch(i, &mut scratch.p);
+            }
             if !direct {
                 scratch.interpolate_rows(a, w, kx);
             }
@@ -327,6 +350,14 @@ impl SparseLayer {
                     // No pixel of the support in the visible part of this row.
                     continue;
                 }
+                if let (Some((k0, k1)), Some((x, atom))) = (span, single) {
+                    // The single-atom case above: the same operations as the run below.
+                    let (o0, o1) = (row_off.wrapping_add(k0), row_off.wrapping_add(k1));
+                    let run = (&mut num[o0..o1], &mut den[o0..o1], &arow[k0..k1]);
+                    let src = (x, &atom[rows[1] * a..rows[1] * a + a]);
+                    atom_run(run, z, src, (scratch.col0, &ctaps[k0..k1]), k0);
+                    continue;
+                }
                 if let Some((k0, k1)) = span.filter(|_| plain && exact_row) {
                     // Samples read straight from the patch, no function atoms: the same
                     // operations as below on the support's run of the row, without the
@@ -346,8 +377,9 @@ impl SparseLayer {
                     continue;
                 }
                 if let Some((k0, k1)) = span.filter(|_| !direct && !self.has_functions[i]) {
-                    // Interpolated rows (e.g. the x4 residual layer of amplification): the
-                    // same vertical pass as below, over the support's run of the row.
+                    // Interpolated rows (atoms sampled more coarsely than the raster, e.g. the
+                    // low layer of sketch synthesis, spacing 4): the same vertical pass as
+                    // below, over the support's run of the row.
                     let (o0, o1) = (row_off.wrapping_add(k0), row_off.wrapping_add(k1));
                     let (n, d, al) = (&mut num[o0..o1], &mut den[o0..o1], &arow[k0..k1]);
                     let hrow = |r: usize| &h[r * w + k0..r * w + k1];
@@ -508,6 +540,32 @@ pub(super) fn weight(dx: f64, dy: f64, rr: f64) -> Option<f64> {
         Some(q * q * q)
     } else {
         None
+    }
+}
+
+/// [`accumulate`] over a run of pixels (frame columns from `k0`) whose values are the samples
+/// of one atom row `row` times the coefficient `x`, computed as `0.0 + x s` (what
+/// [`SparseLayer::patch`] holds for a single atom); `col0` as in [`StampScratch::col0`], else
+/// the run's column taps.
+#[inline]
+fn atom_run(
+    (n, d, al): (&mut [f64], &mut [f64], &[f64]),
+    z: f64,
+    (x, row): (f64, &[f32]),
+    (col0, ctaps): (Option<usize>, &[(f64, Taps)]),
+    k0: usize,
+) {
+    if let Some(c0) = col0 {
+        let c0 = c0.wrapping_add(k0);
+        let v = row[c0..c0 + ctaps.len()]
+            .iter()
+            .map(|&s| 0.0 + x * s as f64);
+        accumulate(n, d, al, z, v);
+    } else {
+        let v = ctaps
+            .iter()
+            .map(|(_, (cols, _))| 0.0 + x * row[cols[1]] as f64);
+        accumulate(n, d, al, z, v);
     }
 }
 

@@ -43,12 +43,14 @@
 //! `spec.rs` (trees authored from a JSON description),
 //! this file (windows, raster settings and [`Sct`]).
 
+mod field;
 mod index;
 mod layer;
 mod node;
 mod river;
 mod spec;
 
+pub use field::Field;
 pub use index::Placement;
 pub use layer::SparseLayer;
 pub use node::Node;
@@ -243,7 +245,22 @@ impl Sct {
     /// Every sparse layer of the tree (depth-first order).
     pub fn layers(&self) -> Vec<&SparseLayer> {
         let mut v = Vec::new();
-        self.root.collect_layers(&mut v);
+        self.root.visit_leaves(&mut |n| {
+            if let Node::Layer(l) = n {
+                v.push(l);
+            }
+        });
+        v
+    }
+
+    /// Every field node of the tree (depth-first order).
+    pub fn fields(&self) -> Vec<&Field> {
+        let mut v = Vec::new();
+        self.root.visit_leaves(&mut |n| {
+            if let Node::Field(f) = n {
+                v.push(f);
+            }
+        });
         v
     }
 

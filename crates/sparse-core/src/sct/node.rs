@@ -12,6 +12,8 @@ pub enum Node {
     Constant(f64),
     /// A procedural river (weight 1).
     River(River),
+    /// A raster of samples interpolated with a kernel (weight 1).
+    Field(Field),
     /// Normalised weighted sum of the children (value NaN where every weight is 0).
     Blend(Vec<Node>),
     /// Sum of the children's values; weight of the first child.
@@ -163,6 +165,7 @@ impl Node {
             }
             Node::Constant(v) => (*v, 1.0),
             Node::River(r) => (r.eval(x, y), 1.0),
+            Node::Field(f) => (f.eval(x, y), 1.0),
             Node::Replace {
                 base,
                 overlay,
@@ -232,6 +235,10 @@ impl Node {
                 r.stamp(band, val);
                 wt.iter_mut().for_each(|v| *v = 1.0);
             }
+            Node::Field(f) => {
+                f.raster(band, val);
+                wt.iter_mut().for_each(|v| *v = 1.0);
+            }
             Node::Replace {
                 base,
                 overlay,
@@ -270,18 +277,19 @@ impl Node {
         }
     }
 
-    pub(super) fn collect_layers<'a>(&'a self, out: &mut Vec<&'a SparseLayer>) {
+    /// Visits the leaves of the tree depth first (operator children in order, then a
+    /// replace node's base before its overlay).
+    pub(super) fn visit_leaves<'a>(&'a self, f: &mut impl FnMut(&'a Node)) {
         if let Some((_, c)) = self.children_kind() {
-            c.iter().for_each(|n| n.collect_layers(out));
+            c.iter().for_each(|n| n.visit_leaves(f));
             return;
         }
         match self {
-            Node::Layer(l) => out.push(l),
             Node::Replace { base, overlay, .. } => {
-                base.collect_layers(out);
-                overlay.collect_layers(out);
+                base.visit_leaves(f);
+                overlay.visit_leaves(f);
             }
-            _ => {}
+            leaf => f(leaf),
         }
     }
 }

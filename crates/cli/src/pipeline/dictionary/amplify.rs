@@ -83,16 +83,18 @@ impl AmplifyStage {
 }
 
 /// One table row of the box protocol: consistency (% of relief), signed spectral-slope error
-/// over the added octaves, slope EMD (degrees), Laplacian EMD, detail phase swing, seconds.
-fn quality_cells(r: &BoxProtocolRow, seconds: f64) -> Vec<f64> {
-    vec![
+/// over the added octaves, slope EMD (degrees), Laplacian EMD, detail phase swing, high-pass
+/// phase swing of the output `out`, seconds.
+fn quality_cells(r: &BoxProtocolRow, out: &Heightfield, seconds: f64) -> Result<Vec<f64>> {
+    Ok(vec![
         100.0 * r.consistency,
         r.slope_signed,
         r.slope_emd,
         r.curvature_emd,
         r.swing,
+        highpass_swing(out)?,
         seconds,
-    ]
+    ])
 }
 
 impl StageCx<'_> {
@@ -277,8 +279,10 @@ impl AmplifyStage {
         // without any grid (the swing of a small crop is far from 1).
         let mut rows: Vec<(String, Vec<f64>)> = vec![(
             format!("truth (reference) (x{fac})"),
-            quality_cells(&box_protocol(truth, &coarse, truth, fac)?, 0.0),
+            quality_cells(&box_protocol(truth, &coarse, truth, fac)?, truth, 0.0)?,
         )];
+        cx.section
+            .figure(&format!("hp_swing_truth_x{fac}"), rows[0].1[5]);
         // `true`: the library default; `false`: the paper's plain method (`--paper`).
         let residual_options: &[bool] = if p.residual_rows {
             &[true, false]
@@ -310,9 +314,11 @@ impl AmplifyStage {
             } else {
                 format!("sparse --paper (plain method) (x{fac})")
             };
-            rows.push((label, quality_cells(&q, secs)));
+            rows.push((label, quality_cells(&q, &out, secs)?));
             if residual {
                 let tag = format!("x{fac}");
+                cx.section
+                    .figure(&format!("hp_swing_{tag}"), rows[rows.len() - 1].1[5]);
                 cx.section
                     .figure(&format!("consistency_{tag}"), q.consistency);
                 cx.section
@@ -336,7 +342,11 @@ impl AmplifyStage {
         let secs = t.elapsed().as_secs_f64();
         rows.push((
             format!("bicubic (x{fac})"),
-            quality_cells(&box_protocol(truth, &coarse, &bicubic, fac)?, secs),
+            quality_cells(
+                &box_protocol(truth, &coarse, &bicubic, fac)?,
+                &bicubic,
+                secs,
+            )?,
         ));
         let t = Instant::now();
         let noise = noise_amplify(
@@ -350,7 +360,7 @@ impl AmplifyStage {
         let secs = t.elapsed().as_secs_f64();
         rows.push((
             format!("noise baseline, fig. 15 (x{fac})"),
-            quality_cells(&box_protocol(truth, &coarse, &noise, fac)?, secs),
+            quality_cells(&box_protocol(truth, &coarse, &noise, fac)?, &noise, secs)?,
         ));
         if st == steps {
             spectra.push(("bicubic".into(), bicubic));
@@ -370,7 +380,9 @@ impl AmplifyStage {
                  between slope-angle histograms (degrees); Laplacian EMD: distance between \
                  5-point Laplacian histograms (relative to the truth's 99th percentile); \
                  phase swing: max / min detail energy of output - bicubic per phase modulo \
-                 4-32 pixels (1 = no grid; the truth row gives the crop's own value)",
+                 4-32 pixels (1 = no grid; the truth row gives the crop's own value); \
+                 high-pass swing: the same of the output minus its 2-pixel Gaussian blur (no \
+                 interpolated reference, whose own error depends on the phase)",
                 coarse.width(),
                 coarse.height(),
                 exemplar.width(),
@@ -383,6 +395,7 @@ impl AmplifyStage {
                 "slope EMD (deg)",
                 "Laplacian EMD",
                 "phase swing",
+                "high-pass swing",
                 "time (s)",
             ],
             &rows_ref,
@@ -501,6 +514,7 @@ impl AmplifyStage {
                     w as f64,
                     detail_swing(&out, &bic)?,
                     phase_swing(&out, &bic, 8)?,
+                    highpass_swing(&out)?,
                     r.exemplar.reduction,
                     f64::from(u8::from(r.exemplar.self_similar)),
                 ])
@@ -519,6 +533,8 @@ impl AmplifyStage {
         let out = sct.rasterize_with_progress(&RasterSettings::default(), &progress)?;
         let raster = t.elapsed().as_secs_f64();
         let worst = steps.iter().map(|r| r[2].max(r[3])).fold(1.0, f64::max);
+        let worst_hp = steps.iter().map(|r| r[4]).fold(1.0, f64::max);
+        cx.section.figure("x256_worst_hp_swing", worst_hp);
         cx.section.figure("x256_size", [out.width(), out.height()]);
         cx.section.figure("x256_model_seconds", model);
         cx.section.figure("x256_raster_seconds", raster);
@@ -543,7 +559,8 @@ impl AmplifyStage {
                  (model {model:.1} s, raster {raster:.1} s), right half as exemplar. swing: as \
                  in the table above (periods 4-32); swing8: block-normalised swing at period 8 \
                  (robust to non-stationary relief), both of the step's output minus the \
-                 corner-aligned bicubic of its input in a window of at most 2048^2; bar: <= 1.15. \
+                 corner-aligned bicubic of its input in a window of at most 2048^2; bar: <= 1.15; \
+                 high-pass swing: of the output minus its 2-pixel Gaussian blur. \
                  exemplar reduction: the x4^k reduction of the exemplar the step used; \
                  self-similar = 1 when the exemplar was not fine enough for the step's cell size",
                 out.width(),
@@ -554,6 +571,7 @@ impl AmplifyStage {
                 "output side",
                 "swing",
                 "swing8",
+                "high-pass swing",
                 "exemplar reduction",
                 "self-similar",
             ],
