@@ -11,7 +11,11 @@
 //! figure-15 noise baseline. `repeat`: [`repeat_score`] of the detail at the fine grid step
 //! (8 px), one atom's detail repeated along rows of primitives (truth: about 0). Then the swing
 //! of every step of a x256 run (32^2 -> 8192^2).
-//! `--quick` skips the x256 run.
+//! `--quick` skips the x256 run. With `AMPLIFY_QUALITY_NPY=DIR`, every table's truth and
+//! default output are written to `DIR` as `.npy` (`alps_dem_x4_truth.npy`,
+//! `alps_dem_x4_default.npy`, ...) for the reference tool:
+//! `python ../shared/tools/terrain_quality.py DIR/alps_dem_x4_truth.npy
+//! DIR/alps_dem_x4_default.npy 4 CELL`.
 #![allow(clippy::print_stdout)]
 
 use relief_dictionary_learning::*;
@@ -108,6 +112,9 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
                 .rasterize(&RasterSettings::default())
                 .unwrap()
         });
+        if name == "default" {
+            dump(label, f, &[("truth", truth), ("default", &out)]);
+        }
         row(
             name,
             &box_protocol(truth, &input, &out, f).unwrap(),
@@ -137,6 +144,20 @@ fn table(label: &str, truth: &Heightfield, exemplar: &Heightfield, steps: usize)
     );
 }
 
+/// Writes `rasters` as `DIR/{first word of label}_x{f}_{name}.npy` when
+/// `AMPLIFY_QUALITY_NPY=DIR` is set.
+fn dump(label: &str, f: usize, rasters: &[(&str, &Heightfield)]) {
+    let Some(dir) = std::env::var_os("AMPLIFY_QUALITY_NPY") else {
+        return;
+    };
+    let stem = label.split_whitespace().next().unwrap_or("dem");
+    for (name, hf) in rasters {
+        let bytes = relief_io::npy_f32(&[hf.height(), hf.width()], hf.as_slice().iter().copied());
+        let path = std::path::Path::new(&dir).join(format!("{stem}_x{f}_{name}.npy"));
+        std::fs::write(&path, bytes).unwrap();
+    }
+}
+
 fn filled(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfield> {
     let mut t = dem_crop(id, x, y, w, h)?;
     fill_voids(&mut t, &FillSettings::default()).ok()?;
@@ -144,7 +165,8 @@ fn filled(id: &str, x: usize, y: usize, w: usize, h: usize) -> Option<Heightfiel
 }
 
 /// Swing of the detail added by every step of a x256 run (each step's output minus the bicubic
-/// up-sampling of its input), in a 2048^2 window of the step's output.
+/// up-sampling of its input), in a 2048^2 window of the step's output, beside the exemplar's
+/// own swing at that size ([`swing_floor`]: no truth exists at the finer steps' cell sizes).
 fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySettings) {
     let input = truth.downsample_box(truth.width() / 32).unwrap();
     let st = AmplifySettings {
@@ -179,6 +201,7 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
                 detail_swing(&out, &bic).unwrap(),
                 phase_swing(&out, &bic, 8).unwrap(),
                 hp_swing(&out),
+                swing_floor(exemplar, side, 4).unwrap(),
                 r.exemplar.reduction,
                 r.exemplar.self_similar,
             ));
@@ -191,10 +214,11 @@ fn x256_steps(truth: &Heightfield, exemplar: &Heightfield, settings: &AmplifySet
         input.width(),
         out.width()
     );
-    for (step, side, s, s8, hp, red, ss) in swings {
+    for (step, side, s, s8, hp, floor, red, ss) in swings {
         println!(
-            "  step {} (-> {side}^2): swing {s:.3}, swing8 {s8:.3}, hp swing {hp:.3}, exemplar reduced x{red}{}",
+            "  step {} (-> {side}^2): swing {s:.3} (exemplar's own at that size {floor:.3}, ratio {:.2}), swing8 {s8:.3}, hp swing {hp:.3}, exemplar reduced x{red:.2}{}",
             step + 1,
+            s / floor,
             if ss { " (self-similarity)" } else { "" }
         );
     }

@@ -125,7 +125,7 @@ pub use noise::{NoiseFamily, register_function_atoms};
 pub use procedural::{ProceduralFit, ProceduralSettings, fit_procedural};
 pub use quality::{
     BoxProtocolRow, QualityRow, box_protocol, corner_bicubic, detail_swing, evaluate,
-    highpass_swing, laplacian_histogram_distance, phase_swing, repeat_score,
+    highpass_swing, laplacian_histogram_distance, phase_swing, repeat_score, swing_floor,
 };
 pub use sketch::{SynthesisFigures, SynthesisSettings, synthesize, synthesize_with_figures};
 pub use structure::{StructureReport, StructureSettings, exemplar_structure};

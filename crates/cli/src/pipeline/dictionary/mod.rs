@@ -32,7 +32,7 @@ use anyhow::{Context, Result, bail};
 use relief_dictionary_learning::{
     AmplifySettings, BoxProtocolRow, DictionaryChoice, NoiseBaselineSettings, NoiseFamily,
     ProceduralSettings, SynthesisSettings, amplify, amplify_observed, box_protocol, corner_bicubic,
-    detail_swing, fit_procedural, highpass_swing, noise_amplify, phase_swing,
+    detail_swing, fit_procedural, highpass_swing, noise_amplify, phase_swing, swing_floor,
     synthesize_with_figures,
 };
 use relief_heightfield::{Heightfield, Progress, metrics};
