@@ -10,7 +10,10 @@
 //! (about 2.5x fewer evaluations than 8^3 blocks alone, the same mesh as the dense grid).
 //! Edge-vertex slots are kept for two node layers only, and only vertices on a chunk face go
 //! through the weld hash map.
-//! Vertex normals come from the analytic field gradient ([`crate::TerrainTree::eval_grad`]). Vertices lie on lattice edges and are welded across chunk borders by a
+//! Vertex normals come from the analytic field gradient
+//! ([`crate::TerrainTree::eval_shading_grad`]: the DEM surface's slopes interpolated from its
+//! nodes, so the relief shades smoothly). Vertices lie on lattice edges and are welded across
+//! chunk borders by a
 //! global edge key (lower node index, edge direction), so the mesh is watertight. Because the
 //! Kuhn triangulation is consistent between neighbouring cubes and the sign test is strict
 //! (`inside <=> f > T`), the piecewise-linear iso-surface is a closed 2-manifold: every edge is
@@ -474,19 +477,20 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
         mesh.normals = mesh
             .positions
             .par_iter()
-            .map(|&p| scene.normal(p, h))
+            .map(|&p| scene.shading_normal(p, h))
             .collect();
     }
     Ok((mesh, report))
 }
 
 /// Outward unit normals of `mesh`'s vertices from the scene's field gradient (central
-/// differences of step `h` metres where the gradient is not analytic), in parallel.
+/// differences of step `h` metres where the gradient is not analytic; the DEM surface's
+/// slopes interpolated from its nodes, [`Scene::shading_normal`]), in parallel.
 pub fn field_normals(scene: &Scene, mesh: &mut Mesh, h: f32) {
     mesh.normals = mesh
         .positions
         .par_iter()
-        .map(|&p| scene.normal(p, h))
+        .map(|&p| scene.shading_normal(p, h))
         .collect();
 }
 

@@ -477,7 +477,7 @@ pub fn render_with_progress(
                         let p = add(cam.eye, mul(d, t));
                         let n = match cut {
                             Some((_, cn)) if on_cut => cn,
-                            _ => scene.normal(p, h),
+                            _ => scene.shading_normal(p, h),
                         };
                         let mut lam = dot(n, light).max(0.0);
                         // Shadow rays stop at the cut-away plane (the removed rock casts none).

@@ -626,6 +626,12 @@ impl Scene {
     pub fn normal(&self, p: V3, h: f32) -> V3 {
         normalize(mul(self.gradient(p, h), -1.0))
     }
+    /// Outward unit shading normal: [`Self::normal`] with the DEM surface's slopes
+    /// interpolated from its nodes ([`TerrainTree::eval_shading_grad`]), so a render or a mesh
+    /// shades the relief smoothly instead of as one facet per DEM cell.
+    pub fn shading_normal(&self, p: V3, h: f32) -> V3 {
+        normalize(mul(self.tree.eval_shading_grad(self.root, p, h).1, -1.0))
+    }
     /// Conservative range of `f` over `region` (interval arithmetic through the tree).
     pub fn interval(&self, region: &Aabb) -> (f32, f32) {
         self.tree.interval(self.root, region)

@@ -83,7 +83,16 @@ impl TerrainTree {
     /// differences with step `h` only for cones and noise warps (their analytic Jacobians are
     /// not worth the cost).
     pub fn eval_grad(&self, id: NodeId, p: V3, h: f32) -> (f32, V3) {
-        self.evg(id.0, p, h)
+        self.evg(id.0, p, h, false)
+    }
+
+    /// [`Self::eval_grad`] with the heightfield primitive's shading gradient: its slopes
+    /// interpolated from the DEM nodes' central differences, continuous across cell edges (the
+    /// bilinear patches' own slopes jump there, which shades every DEM cell as a facet). The
+    /// field value is the same; use it for normals (renders, mesh vertex normals), not where
+    /// the exact gradient matters.
+    pub fn eval_shading_grad(&self, id: NodeId, p: V3, h: f32) -> (f32, V3) {
+        self.evg(id.0, p, h, true)
     }
 
     fn fd(&self, id: u32, p: V3, h: f32) -> (f32, V3) {
@@ -97,7 +106,7 @@ impl TerrainTree {
         (self.ev(id, p), g)
     }
 
-    fn evg(&self, id: u32, p: V3, h: f32) -> (f32, V3) {
+    fn evg(&self, id: u32, p: V3, h: f32, smooth: bool) -> (f32, V3) {
         // Falloff e g(q) with q = |d|^2 / r^2: gradient e g'(q) dq/dp, g'(q) = -3 (1 - q)^2.
         let radial = |e: f32, q: f32, dq: V3| {
             if q >= 1.0 {
@@ -137,33 +146,33 @@ impl TerrainTree {
                     (0.0, [0.0; 3])
                 }
             }
-            Node::Heightfield(k) => self.hfs[k as usize].field_grad(p),
+            Node::Heightfield(k) => self.hfs[k as usize].field_grad_with(p, smooth),
             Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
                 .iter()
                 .fold((0.0, [0.0; 3]), |acc, &c| {
-                    let (v, g) = self.evg(c, p, h);
+                    let (v, g) = self.evg(c, p, h, smooth);
                     (acc.0 + v, add(acc.1, g))
                 }),
             Node::Bvh { bbox, left, right } => {
                 if bbox.contains(p) {
-                    let (a, ga) = self.evg(left, p, h);
-                    let (b, gb) = self.evg(right, p, h);
+                    let (a, ga) = self.evg(left, p, h, smooth);
+                    let (b, gb) = self.evg(right, p, h, smooth);
                     (a + b, add(ga, gb))
                 } else {
                     (0.0, [0.0; 3])
                 }
             }
             Node::Union { a, b } => {
-                let (x, y) = (self.evg(a, p, h), self.evg(b, p, h));
+                let (x, y) = (self.evg(a, p, h, smooth), self.evg(b, p, h, smooth));
                 if x.0 >= y.0 { x } else { y }
             }
             Node::Intersection { a, b } => {
-                let (x, y) = (self.evg(a, p, h), self.evg(b, p, h));
+                let (x, y) = (self.evg(a, p, h, smooth), self.evg(b, p, h, smooth));
                 if x.0 <= y.0 { x } else { y }
             }
             Node::Difference { a, b } => {
-                let x = self.evg(a, p, h);
-                let y = self.evg(b, p, h);
+                let x = self.evg(a, p, h, smooth);
+                let y = self.evg(b, p, h, smooth);
                 let c = 2.0 * THRESHOLD - y.0;
                 if c <= 0.0 {
                     if x.0 <= 0.0 { x } else { (0.0, [0.0; 3]) }
@@ -174,8 +183,8 @@ impl TerrainTree {
                 }
             }
             Node::SmoothBlend { a, b, n } => {
-                let (x, gx) = self.evg(a, p, h);
-                let (y, gy) = self.evg(b, p, h);
+                let (x, gx) = self.evg(a, p, h, smooth);
+                let (y, gy) = self.evg(b, p, h, smooth);
                 let (x, y) = (x.max(0.0), y.max(0.0));
                 let (gx, gy) = (
                     if x > 0.0 { gx } else { [0.0; 3] },

@@ -30,10 +30,34 @@ impl HfPrim {
         let dt = self.height(p[0], p[1]) - p[2];
         THRESHOLD + THRESHOLD * cubic_step(dt.min(db) / self.r)
     }
-    /// Field and analytic gradient (the gradient of the active branch of the `min`, and of
-    /// the bilinear patch of `H`).
+    /// Slopes `(dH/du, dH/dv)` per grid unit at node `(j, i)` by central differences (one-sided
+    /// at the grid's edges).
     #[inline]
-    pub(super) fn field_grad(&self, p: V3) -> (f32, V3) {
+    fn node_slopes(&self, j: usize, i: usize) -> (f32, f32) {
+        let d = &self.data;
+        let (jm, jp) = (j.saturating_sub(1), (j + 1).min(self.w - 1));
+        let (im, ip) = (i.saturating_sub(1), (i + 1).min(self.h - 1));
+        let su = if jp > jm {
+            (d[i * self.w + jp] - d[i * self.w + jm]) / (jp - jm) as f32
+        } else {
+            0.0
+        };
+        let sv = if ip > im {
+            (d[ip * self.w + j] - d[im * self.w + j]) / (ip - im) as f32
+        } else {
+            0.0
+        };
+        (su, sv)
+    }
+
+    /// Field and analytic gradient (the gradient of the active branch of the `min`, and of
+    /// the bilinear patch of `H`), or with `smooth` the shading gradient: the same field value, and
+    /// where the DEM surface is the active branch, the bilinear interpolation of the nodes'
+    /// central-difference slopes in place of the bilinear patch's own (piecewise-constant
+    /// across cells) slopes. The geometry is unchanged; normals become continuous across
+    /// cell edges, so renders and mesh normals show the relief instead of one facet per cell.
+    #[inline]
+    pub(super) fn field_grad_with(&self, p: V3, smooth: bool) -> (f32, V3) {
         let (xm, ym) = self.extent();
         let cands = [
             (p[0], [1.0, 0.0, 0.0]),
@@ -64,9 +88,21 @@ impl HfPrim {
         let (val, g) = if dt <= m.0 {
             let inside_x = p[0] > 0.0 && p[0] < xm;
             let inside_y = p[1] > 0.0 && p[1] < ym;
-            let dhdu = ((z01 - z00) * (1.0 - ty) + (z11 - z10) * ty) / self.cx;
-            // v grows southwards, y northwards.
-            let dhdv = -(b - a) / self.cy;
+            let (dhdu, dhdv) = if smooth {
+                let lerp = |p: (f32, f32), q: (f32, f32), t: f32| {
+                    (p.0 + (q.0 - p.0) * t, p.1 + (q.1 - p.1) * t)
+                };
+                let top = lerp(self.node_slopes(j0, i0), self.node_slopes(j1, i0), tx);
+                let bottom = lerp(self.node_slopes(j0, i1), self.node_slopes(j1, i1), tx);
+                let (su, sv) = lerp(top, bottom, ty);
+                // v grows southwards, y northwards.
+                (su / self.cx, -sv / self.cy)
+            } else {
+                (
+                    ((z01 - z00) * (1.0 - ty) + (z11 - z10) * ty) / self.cx,
+                    -(b - a) / self.cy,
+                )
+            };
             (
                 dt,
                 [

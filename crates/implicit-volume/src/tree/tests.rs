@@ -158,3 +158,29 @@ fn errors_name_the_parameter() {
     assert!(t.union(NodeId(5), NodeId(6)).is_err());
     assert!(t.smooth_blend(NodeId(0), NodeId(0), 0.5).is_err());
 }
+
+/// The shading gradient of the DEM surface is continuous across cell edges (the bilinear
+/// patches' own gradient jumps there, which shades each cell as a facet), equals the node
+/// slopes' central differences at the nodes, and leaves the field value unchanged.
+#[test]
+fn shading_gradient_is_continuous_across_dem_cells() {
+    // z = 0.002 x^2 on 10 m cells: the bilinear slope is constant per cell and jumps by
+    // 0.04 at every cell edge; the smooth slope is 0.004 x up to the edges' rounding.
+    let hf = Heightfield::from_fn(16, 8, 10.0, 10.0, |x, _| 0.002 * (10.0 * x as f32).powi(2));
+    let mut t = TerrainTree::new();
+    let (id, _) = t.heightfield(&hf, 5.0, 50.0).unwrap();
+    let slope = |g: V3| -g[0] / g[2];
+    for x in [30.0f32, 50.0, 70.0, 90.0] {
+        let z = t.dem_height(id, x, 35.0).unwrap();
+        let (l, r) = ([x - 1e-2, 35.0, z], [x + 1e-2, 35.0, z]);
+        let (exact_l, exact_r) = (t.eval_grad(id, l, 1e-3), t.eval_grad(id, r, 1e-3));
+        let (smooth_l, smooth_r) = (
+            t.eval_shading_grad(id, l, 1e-3),
+            t.eval_shading_grad(id, r, 1e-3),
+        );
+        assert_eq!(exact_l.0, smooth_l.0);
+        assert!((slope(exact_r.1) - slope(exact_l.1) - 0.04).abs() < 1e-3);
+        assert!((slope(smooth_r.1) - slope(smooth_l.1)).abs() < 1e-3);
+        assert!((slope(smooth_l.1) - 0.004 * x).abs() < 1e-3, "{x}");
+    }
+}
