@@ -425,6 +425,7 @@ pub fn render_with_progress(
     let right = normalize(cross(fwd, cam.up));
     let up = cross(right, fwd);
     let light = normalize(s.light);
+    let fill = normalize([-light[0], -light[1], 0.3]);
     let th = (0.5 * cam.fov_deg.to_radians()).tan();
     let aspect = s.width as f32 / s.height as f32;
     let cone = th / s.height as f32;
@@ -520,7 +521,13 @@ pub fn render_with_progress(
                         let grass = [0.35 + 0.3 * hgt, 0.45 + 0.2 * hgt, 0.25 + 0.3 * hgt];
                         let k = (steep * 2.5).min(1.0);
                         let base = add(mul(grass, 1.0 - k), mul(rock, k));
-                        let shade = 0.25 + 0.75 * lam;
+                        // Sun, plus two unshadowed fills so that faces away from the sun keep
+                        // their shape (an island's underside, an overhang's roof): light
+                        // bounced off the ground onto downward faces, and sky light from the
+                        // side opposite the sun.
+                        let bounce = 0.2 * (-n[2]).max(0.0);
+                        let sky_fill = 0.12 * dot(n, fill).max(0.0);
+                        let shade = 0.2 + 0.75 * lam + bounce + sky_fill;
                         let fog = (t / (3.0 * diag)).min(0.6);
                         add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog))
                     }
