@@ -23,10 +23,12 @@
 //!   tops over jagged strata-ledged undersides).
 //!   Every effect takes a [`Region`] (painted per-cell mask and/or 3D box) and a seed.
 //! * [`mesh`]: chunked marching tetrahedra with edge-key welding (watertight, manifold) and
-//!   normals from the analytic field gradient; plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
+//!   normals from the analytic field gradient (the DEM surface's slopes interpolated from its
+//!   nodes, [`Scene::shading_normal`], so the relief shades smoothly rather than one facet per
+//!   DEM cell); plain `Vec<[f32; 3]>` / `Vec<[u32; 3]>` output.
 //! * [`mod@render`]: Lipschitz sphere tracing (interval-proven empty balls skipped, the carving-free
-//!   tree bounding steps in air, cone-limited minimum step) to an RGB8 buffer, and vertical
-//!   sections.
+//!   tree bounding steps in air, cone-limited minimum step) to an RGB8 buffer (sun with shadows,
+//!   ground-bounce and sky fill lights, the same shading normals), and vertical sections.
 //! * [`mod@simplify`]: quadric edge-collapse simplification to a triangle budget that keeps the
 //!   mesh watertight and manifold.
 //! * [`job`]: the `volume` job (recipe + mesh + render settings, serde) run by `relief volume`
