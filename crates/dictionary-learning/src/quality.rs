@@ -448,14 +448,19 @@ pub fn repeat_score(output: &Heightfield, reference: &Heightfield, lag: usize) -
 mod tests {
     use super::*;
 
+    /// Hash noise in `[-0.5, 0.5)`, one stream per `seed`.
+    fn noise(seed: u64) -> impl Fn(usize, usize) -> f32 + Copy {
+        move |x, y| {
+            relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                0x5eed, x as u64, y as u64, seed,
+            )) - 0.5
+        }
+    }
+
     #[test]
     fn repeat_score_sees_a_detail_repeated_on_the_grid() {
         // Hash noise (no structure) against the same noise plus one bump repeated every 8 px.
-        let noise = |x: usize, y: usize| {
-            relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
-                0x5eed, x as u64, y as u64, 0,
-            )) - 0.5
-        };
+        let noise = noise(0);
         let flat = Heightfield::from_fn(96, 96, 1.0, 1.0, |_, _| 0.0);
         let n = Heightfield::from_fn(96, 96, 1.0, 1.0, noise);
         let bump = |x: usize| {
@@ -499,11 +504,7 @@ mod tests {
 
     #[test]
     fn swing_floor_of_stationary_noise_is_near_one_and_sees_blocks() {
-        let noise = |x: usize, y: usize| {
-            relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
-                0x5eed, x as u64, y as u64, 1,
-            )) - 0.5
-        };
+        let noise = noise(1);
         let flat = Heightfield::from_fn(320, 256, 1.0, 1.0, noise);
         let f = swing_floor(&flat, 192, 4).unwrap();
         assert!((1.0..1.15).contains(&f), "{f}");

@@ -346,6 +346,16 @@ mod tests {
         SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap()
     }
 
+    /// The scene of one island (seed 2) over [`cliff_scene`], its top's centre and radius.
+    fn one_island() -> (Scene, V3, f32) {
+        let mut b = cliff_scene();
+        let rep = b
+            .floating_islands(&islands(1, 2), &Region::everywhere())
+            .unwrap();
+        let (c, r) = (rep.sites[0], rep.sizes_m[0]);
+        (b.build(true).unwrap(), c, r)
+    }
+
     /// `count` islands of 60 m radius 150 m over the ground of [`cliff_scene`], from `seed`.
     fn islands(count: usize, seed: u64) -> IslandSettings {
         IslandSettings {
@@ -404,12 +414,7 @@ mod tests {
 
     #[test]
     fn an_island_has_a_flat_top_and_a_tapering_underside_clear_of_the_ground() {
-        let mut b = cliff_scene();
-        let rep = b
-            .floating_islands(&islands(1, 2), &Region::everywhere())
-            .unwrap();
-        let (c, r) = (rep.sites[0], rep.sizes_m[0]);
-        let scene = b.build(true).unwrap();
+        let (scene, c, r) = one_island();
         // Share of rock on a horizontal disc of radius 1.5 r at height z.
         let solid = |z: f32| {
             let mut n = 0;
@@ -450,12 +455,7 @@ mod tests {
     /// the rock at that height (hard strata stick out as ledges, soft ones are recessed).
     #[test]
     fn an_island_underside_is_ledged_by_the_strata() {
-        let mut b = cliff_scene();
-        let rep = b
-            .floating_islands(&islands(1, 2), &Region::everywhere())
-            .unwrap();
-        let (c, r) = (rep.sites[0], rep.sizes_m[0]);
-        let scene = b.build(true).unwrap();
+        let (scene, c, r) = one_island();
         let (mut share, mut rho, mut zs) = (Vec::new(), Vec::new(), Vec::new());
         for k in 0..48 {
             let z = c[2] - 0.2 * r - k as f32 * 0.02 * r;
