@@ -536,7 +536,11 @@ pub fn render_with_progress(
                     && d[2] < 0.0
                 {
                     let ts = (sea - cam.eye[2]) / d[2];
-                    if ts > 0.0 && hit.is_none_or(|t| t > ts) {
+                    // Ground within SEA_TOLERANCE of the level is under water: a DEM whose sea
+                    // is stored as a flat surface at the level (SRTM) would otherwise fight
+                    // with the water plane (speckles) and show its coast as cell-edge steps.
+                    let te = (sea + SEA_TOLERANCE - cam.eye[2]) / d[2];
+                    if ts > 0.0 && hit.is_none_or(|t| t > te) {
                         col = add(mul(col, 0.35), [0.05, 0.2, 0.4]);
                     }
                 }
@@ -552,6 +556,11 @@ pub fn render_with_progress(
         rgb,
     })
 }
+
+/// Height above the sea level (scene units, metres) up to which ground is drawn under water:
+/// half the 1 m step of integer DEMs, so the coast of a DEM that stores its sea as a flat
+/// surface at the level is drawn along the half-metre contour between sea and land samples.
+pub const SEA_TOLERANCE: f32 = 0.5;
 
 /// A vertical cut-away section along a horizontal segment.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -238,3 +238,70 @@ fn cameras_stay_over_the_scene_and_in_front_of_occluders() {
     let cam = Camera::closeup(&open, [30.0, 30.0, 110.0], far);
     assert!(cam.eye[0] >= -1e-3 && cam.eye[1] >= -1e-3, "{cam:?}");
 }
+
+/// A DEM that stores its sea as a flat surface at the sea level (SRTM: 0 m) and its land in
+/// whole metres: the render draws all of that flat sea under water (no speckles where the
+/// ground and the water plane coincide) and its coast along the half-metre contour, not
+/// along the cells' edges.
+#[test]
+fn a_flat_sea_at_the_level_is_all_water_and_its_coast_follows_the_half_metre_contour() {
+    // West half sea at 0 m, east half land rising 1 m per cell from 1 m.
+    let hf = relief_heightfield::Heightfield::from_fn(40, 40, 10.0, 10.0, |x, _| {
+        if x < 20 { 0.0 } else { (x - 19) as f32 }
+    });
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let (w, h) = (64, 48);
+    let render = |sea: Option<f32>| {
+        let s = RenderSettings {
+            width: w,
+            height: h,
+            sea_level: sea,
+            shadows: false,
+            ..Default::default()
+        };
+        let cam = Camera {
+            eye: [190.0, 200.0, 100.0],
+            target: [190.0, 200.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 40.0,
+        };
+        render(&scene, &cam, &s).unwrap()
+    };
+    let (dry, wet) = (render(None), render(Some(0.0)));
+    // Straight down from 100 m: pixel column x sees the ground at world x = 190 + 100 u
+    // (1.5 m per pixel); the last sea node is at 190 m, the first land node (1 m) at 200 m.
+    let th = 20f32.to_radians().tan();
+    let world_x = |x: usize| {
+        190.0 + 100.0 * ((x as f32 + 0.5) / w as f32 * 2.0 - 1.0) * th * w as f32 / h as f32
+    };
+    // Under water: the water plane keeps 35 % of the ground's colour (its red drops by
+    // more than 30 levels here); dry ground is drawn exactly as without the sea.
+    let px = |img: &Image, x: usize, y: usize| {
+        let k = 3 * (y * w + x);
+        [img.rgb[k], img.rgb[k + 1], img.rgb[k + 2]]
+    };
+    let (mut sea, mut land) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let wx = world_x(x);
+            let (d, v) = (px(&dry, x, y), px(&wet, x, y));
+            if (145.0..189.0).contains(&wx) || (190.5..194.5).contains(&wx) {
+                // The flat sea, all under water (no speckle of ground fighting the plane),
+                // and the ground rising from it up to the half-metre contour at 195 m.
+                assert!(
+                    i32::from(v[0]) + 30 < i32::from(d[0]),
+                    "sea pixel {x}, {y} (x = {wx} m) not under water: {v:?} vs {d:?}"
+                );
+                sea += 1;
+            } else if (196.0..235.0).contains(&wx) {
+                // Land above the contour: drawn dry.
+                assert_eq!(v, d, "land pixel {x}, {y} (x = {wx} m) under water");
+                land += 1;
+            }
+        }
+    }
+    assert!(sea > w * h / 3 && land > w * h / 4, "{sea} {land}");
+}
