@@ -305,3 +305,48 @@ fn a_flat_sea_at_the_level_is_all_water_and_its_coast_follows_the_half_metre_con
     }
     assert!(sea > w * h / 3 && land > w * h / 4, "{sea} {land}");
 }
+
+/// A low coastal fringe (1 m cells between a flat 0 m sea and a 30 m headland, as SRTM
+/// stores coasts) is planed by sea cliffs and sea erosion to a platform just under the water
+/// (`depth` below the sea), not dug into trenches a sphere radius deeper.
+#[test]
+fn shore_erosion_planes_a_low_fringe_to_a_platform_under_the_water() {
+    let hf = relief_heightfield::Heightfield::from_fn(40, 40, 10.0, 10.0, |x, _| match x {
+        0..15 => 0.0,
+        15..20 => 1.0,
+        _ => 30.0,
+    });
+    // The default transition (twice the cell), as in `relief volume`: the rock is weak for
+    // 20 m under the surface, where the spheres cut most of their support.
+    let settings = ImplicitizeSettings::default();
+    let fringe_is_rock_at = |scene: &Scene, z: f32| {
+        (16..=19)
+            .all(|j| (10..30).all(|i| scene.inside([j as f32 * 10.0 - 5.0, i as f32 * 10.0, z])))
+    };
+    // Sea cliffs: the cut stops within `depth` (3 m) under the sea (it reached 7 m when the
+    // lowest sphere was centred `depth` under the sea).
+    let mut b = SceneBuilder::new(&hf, Geology::new(), &settings).unwrap();
+    let cliffs = SeaCliffs {
+        depth: 3.0,
+        retreat: 60.0,
+        radius: 10.0,
+        ..Default::default()
+    };
+    let rep = b.sea_cliffs(&cliffs, &Region::everywhere()).unwrap();
+    assert!(rep.primitives > 0);
+    let scene = b.build(true).unwrap();
+    assert!(fringe_is_rock_at(&scene, -3.0 - 1.0));
+    // The fringe itself is cut away down to the water.
+    assert!(!scene.inside([175.0, 200.0, 0.5]));
+    // Sea erosion: its holes stop at about the band's floor, `depth` (4 m) under the sea (they
+    // reached 6 m with the spheres centred on the fringe's surface).
+    let mut b = SceneBuilder::new(&hf, Geology::new(), &settings).unwrap();
+    let sea = SeaErosion {
+        caves: 0,
+        ..Default::default()
+    };
+    let rep = b.sea_erosion(&sea, &Region::everywhere()).unwrap();
+    assert!(rep.primitives > 0);
+    let scene = b.build(true).unwrap();
+    assert!(fringe_is_rock_at(&scene, -4.0 - 1.0));
+}

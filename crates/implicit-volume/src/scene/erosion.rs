@@ -288,7 +288,13 @@ impl SceneBuilder {
                 continue;
             }
             let sigma = (1.0 - d / s.retreat).sqrt();
-            let mut z = s.sea_level - s.depth;
+            // The lowest sphere is centred 0.8 radius above `sea_level - depth`: in the weak
+            // rock of the heightfield transition under the surface, where a sphere cuts most
+            // of its support, the cut stops within `depth` under the sea (a wave-cut platform
+            // just under the water). Centred at `sea_level - depth` it cut most of a radius
+            // deeper, and the DEM's low coastal fringe (SRTM runs of 1-2 m cells next to its
+            // flat 0 m sea) became straight trenches under the water.
+            let mut z = s.sea_level - s.depth + 0.8 * s.radius;
             let mut any = false;
             while z < ground + 0.5 * s.radius {
                 let p = [x, y, z];

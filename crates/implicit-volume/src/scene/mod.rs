@@ -426,6 +426,14 @@ impl SceneBuilder {
                 self.carved.push((mul(add(a, b), 0.5), w.radius, false));
                 self.tree.capsule(a, b, w.radius, -w.energy * e)?
             } else {
+                // With a height band (sea erosion), the sphere's nominal hole (0.7 of its
+                // support) stops at the band's floor: a low shore (the 1-2 m coastal fringe of
+                // SRTM next to its flat 0 m sea) is planed down to a platform just under the
+                // water, not dug into trenches a radius deep under it.
+                let p = match zband {
+                    Some((lo, _)) => [p[0], p[1], p[2].max(lo + 0.7 * w.radius)],
+                    None => p,
+                };
                 self.carved.push((p, w.radius, false));
                 self.tree.sphere(p, w.radius, -w.energy * e)?
             };
