@@ -305,19 +305,21 @@ pub fn detail_swing(output: &Heightfield, reference: &Heightfield) -> Result<f64
 /// floor at the same size when no truth exists (the finer steps of a x256 run). `side` is
 /// clamped to the terrain and rounded down to a multiple of `factor`.
 pub fn swing_floor(terrain: &Heightfield, side: usize, factor: usize) -> Result<f64> {
-    let side = side.min(terrain.width()).min(terrain.height()) / factor.max(1) * factor.max(1);
-    if factor < 2 || side < 2 * factor {
+    if factor < 2 {
+        return Err(LearnError::param("factor", factor, "must be at least 2"));
+    }
+    let side = side.min(terrain.width()).min(terrain.height()) / factor * factor;
+    if side < 2 * factor {
         return Err(LearnError::param(
             "side",
             side,
-            "must hold at least 2 x 2 cells of the factor (factor >= 2)",
+            "must hold at least 2 x 2 cells of the factor",
         ));
     }
     let at = |n: usize, k: usize| (n - side) * k / 2;
     let mut corners: Vec<(usize, usize)> = (0..9)
         .map(|k| (at(terrain.width(), k % 3), at(terrain.height(), k / 3)))
         .collect();
-    corners.dedup();
     corners.sort_unstable();
     corners.dedup();
     let mut swings = Vec::with_capacity(corners.len());

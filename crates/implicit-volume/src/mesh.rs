@@ -474,11 +474,7 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
     let mut mesh = weld(outs);
     if s.normals {
         let h = 0.5 * g.step.iter().cloned().fold(f32::INFINITY, f32::min);
-        mesh.normals = mesh
-            .positions
-            .par_iter()
-            .map(|&p| scene.shading_normal(p, h))
-            .collect();
+        field_normals(scene, &mut mesh, h);
     }
     Ok((mesh, report))
 }
