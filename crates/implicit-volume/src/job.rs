@@ -67,7 +67,7 @@ pub struct EffectFigures {
     pub primitives: usize,
     /// Landforms placed (karst: carved steps).
     pub count: usize,
-    /// Karst passages / arch tunnels: total length (m).
+    /// Karst passages / arch gaps: total length (m).
     pub length_m: f32,
     /// Karst: why the percolation ended (`budget`, `threshold`, `exhausted`).
     pub stop: Option<String>,
@@ -244,8 +244,8 @@ impl VolumeFigures {
                     e.count, d.hoodoo_height_m, d.hoodoo_radius_m
                 ),
                 "arches" => format!(
-                    ", {} arches carved through ridges: openings {:.0} m wide, {:.0} m high, \
-                     bridges {:.0} m thick, tunnels {:.0} m long in all",
+                    ", {} arches left standing in gaps cut through ridges: openings {:.0} m wide, \
+                     up to {:.0} m high, bridges {:.0} m thick, gaps {:.0} m long in all",
                     e.count, d.arch_span_m, d.arch_height_m, d.arch_thickness_m, e.length_m
                 ),
                 "islands" => {

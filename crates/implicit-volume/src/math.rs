@@ -127,6 +127,40 @@ impl Aabb {
     pub fn size(&self) -> V3 {
         sub(self.max, self.min)
     }
+    /// Squared distance between two boxes (0 when they overlap).
+    pub fn dist_sq_box(&self, o: &Aabb) -> f32 {
+        let mut d = 0.0;
+        for k in 0..3 {
+            let v = (self.min[k] - o.max[k])
+                .max(0.0)
+                .max(o.min[k] - self.max[k]);
+            d += v * v;
+        }
+        d
+    }
+    /// Largest squared distance from a point of the box to the segment `a`-`b` (reached at a
+    /// corner: the distance to a segment is convex).
+    pub fn max_dist_sq_to_segment(&self, a: V3, b: V3) -> f32 {
+        let ab = sub(b, a);
+        let len2 = dot(ab, ab);
+        let mut m = 0.0f32;
+        for c in 0..8 {
+            let p = [
+                if c & 1 == 0 { self.min[0] } else { self.max[0] },
+                if c & 2 == 0 { self.min[1] } else { self.max[1] },
+                if c & 4 == 0 { self.min[2] } else { self.max[2] },
+            ];
+            let ap = sub(p, a);
+            let t = if len2 > 0.0 {
+                (dot(ap, ab) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let d = sub(ap, mul(ab, t));
+            m = m.max(dot(d, d));
+        }
+        m
+    }
     /// Squared distance from `p` to the box (0 inside).
     #[inline]
     pub fn dist_sq(&self, p: V3) -> f32 {

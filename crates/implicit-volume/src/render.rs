@@ -325,6 +325,8 @@ fn trace(
                     .map_or(1e-9, |x| x.1);
                 (THRESHOLD - u) / l.max(1e-9)
             }
+            Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,
+            Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,
             _ => {
                 let f = scene.field(p);
                 if f > THRESHOLD {

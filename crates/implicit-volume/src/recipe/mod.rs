@@ -14,8 +14,8 @@
 //!   thickness measured on the geology, step = radius, budget from a passage density
 //!   ([`Densities::karst_km_per_km2`]); skipped (with a note) when `0.5 t < v`;
 //! * hoodoos `clamp(0.12 R, 15, 250) s` tall (at most `0.45 R`), radius a sixth of that (at
-//!   least `v`); arches spanning `clamp(0.2 R, 30, 300) s` (at most `0.5 R`), rising half their
-//!   span, a seventh of it thick; floating islands in clusters of three, main radius
+//!   least `v`); arches spanning `clamp(0.2 R, 30, 300) s` (at most `0.5 R`), opening 0.6 of their
+//!   span high under a bridge a quarter of it thick; floating islands in clusters of three, main radius
 //!   `clamp(0.1 R, 20, 300) s`, the others down to a third of it (never under two voxels),
 //!   `max(0.3 R, 4 radius)` above the ground;
 //! * sea and weathering spheres of radius `max(2.5 v, 0.05 R)`, `0.4` radius apart; sea
@@ -352,7 +352,7 @@ pub struct Highlight {
     pub feature: Feature,
     /// Where to look (scene coordinates).
     pub at: [f32; 3],
-    /// Horizontal direction from `at` towards a good eye position (arches: along the tunnel,
+    /// Horizontal direction from `at` towards a good eye position (arches: along the gap,
     /// to see through the opening); `None` = the default oblique view from the south-west.
     pub from: Option<[f32; 3]>,
     /// Underground (karst): the close-up is a cut-away through `at`, facing the eye.

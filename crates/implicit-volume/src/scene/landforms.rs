@@ -7,6 +7,26 @@ use relief_heightfield::param::in_range;
 /// Slope (degrees) above which ground counts as a rim or wall for hoodoo sites.
 const RIM_SLOPE_DEG: f32 = 35.0;
 
+/// The ring of rock an arch leaves (see [`SceneBuilder::arches`]): a half-ellipse standing on
+/// the gap's floor at `centre`, in the vertical plane along `side`.
+#[derive(Debug, Clone, Copy)]
+struct ArchFit {
+    /// Floor under the middle of the opening.
+    centre: V3,
+    /// Horizontal unit vector along the ridge (the ring's plane).
+    side: V3,
+    /// Horizontal unit vector across the ridge (through the opening).
+    across: V3,
+    /// Half-width of the ring's centre line at the floor: half the opening plus half a leg.
+    half: f32,
+    /// Height of the ring's centre line at the crown: the opening plus half the bridge.
+    rise: f32,
+    /// Width of a leg at the floor.
+    leg: f32,
+    /// Thickness of the bridge at the crown.
+    bridge: f32,
+}
+
 impl SceneBuilder {
     fn flat_sites(
         &self,
@@ -199,13 +219,17 @@ impl SceneBuilder {
         Ok(w)
     }
 
-    /// Natural arches carved out of the rock ([`ArchSettings`]): the narrowest ridges of the
+    /// Natural arches eroded out of the rock ([`ArchSettings`]): the narrowest ridges of the
     /// DEM (at every node, eight horizontal directions; the ridge must drop by the opening
-    /// plus the bridge on both sides within `max_length`) are bored through by a negative
-    /// capsule whose support stays under the ridge's crest, so the crest survives as the
-    /// bridge; the tunnel's walls are widened by smaller spheres where the rock is soft
-    /// (`e(rho, sigma)` of section 4.1), so the opening follows the strata. Ridges are taken
-    /// thinnest first, `max(2 max_length, 4 span)` apart.
+    /// plus the bridge on both sides within `max_length`) are cut through by a gap down to
+    /// the higher mouth's ground, its walls flaring upwards and roughened by a warp, and in
+    /// the gap a ring of the original rock is left standing in the ridge's plane: two legs
+    /// and a bridge (a warped chain of cones along a half-ellipse, necked where the strata
+    /// are soft, section 4.1's resistance), intersected with the DEM's rock so nothing is
+    /// added. Seen along the gap, the arch stands free against the sky, like the fins and
+    /// ridge-top arches of canyon country, instead of a tunnel mouth in a wall. Ridges
+    /// whose ground cannot hold the ring are passed over; ridges are taken thinnest first,
+    /// `max(2 max_length, 4 span)` apart.
     pub fn arches(&mut self, s: &ArchSettings, region: &Region) -> Result<EffectReport> {
         self.check_lens(&named_fields!(s; span, height, thickness, max_length))?;
         if s.max_length < s.span {
@@ -216,84 +240,40 @@ impl SceneBuilder {
             ));
         }
         region.check(&self.frame)?;
-        let a = 0.5 * s.span;
-        // The tunnel's axis sits `height - a` above the floor (a round opening when the height
-        // is the span, a low flat-floored one below that).
-        let lift = s.height - a;
         let mut cands = self.arch_candidates(s, region);
         cands.sort_by(|x, y| {
             x.0.total_cmp(&y.0)
                 .then(hash(s.seed, x.1, 2, 0).cmp(&hash(s.seed, y.1, 2, 0)))
         });
-        let pts: Vec<V3> = cands
+        let total = cands.len();
+        let fits: Vec<(ArchFit, V3, V3, V3, u64)> = cands
             .iter()
-            .map(|x| {
-                let c = mul(add(x.3, x.4), 0.5);
-                [c[0], c[1], 0.0]
+            .filter_map(|&(_, idx, d, m0, m1)| {
+                self.arch_fits(s, d, m0, m1).map(|f| (f, d, m0, m1, idx))
             })
+            .collect();
+        let pts: Vec<V3> = fits
+            .iter()
+            .map(|x| [x.0.centre[0], x.0.centre[1], 0.0])
             .collect();
         let spacing = (2.0 * s.max_length).max(4.0 * s.span);
         let kept = poisson_filter(&pts, spacing, |_| true);
         let mut report = EffectReport {
-            candidates: cands.len(),
+            candidates: total,
             ..Default::default()
         };
-        // Saturated rock (field 2T) keeps 0.8 of the support radius at this energy; in the
-        // weaker rock of the heightfield's transition under the surface the hole is wider.
-        let energy = 20.0 * THRESHOLD;
         for k in kept {
             if report.features >= s.count {
                 break;
             }
-            let (_, idx, d, m0, m1) = cands[k];
-            let floor = m0[2].max(m1[2]);
-            let z = floor + lift;
-            // The crest along the tunnel's middle third: the support must stay under it.
-            let crest = (1..=5)
-                .map(|q| {
-                    let t = 1.0 / 3.0 + q as f32 / 18.0;
-                    let p = add(m0, mul(sub(m1, m0), t));
-                    self.ground(p[0], p[1])
-                })
-                .fold(f32::INFINITY, f32::min);
-            let r = (a / 0.8).min(crest - s.thickness - z);
-            if r < 0.5 * a {
-                continue;
-            }
-            let e0 = add([m0[0], m0[1], z], mul(d, a));
-            let e1 = add([m1[0], m1[1], z], mul(d, -a));
-            let id = self.tree.capsule(e0, e1, r, -energy)?;
-            self.negatives.push(id);
-            self.carved.push((mul(add(e0, e1), 0.5), r, false));
-            report.primitives += 1;
-            // Soft strata along the walls and the floor widen the opening (notches).
-            let len = norm(sub(e1, e0));
-            let n = ((len / (0.5 * a)).ceil() as usize).clamp(2, 256);
-            let side = [-d[1], d[0], 0.0];
-            for q in 0..=n {
-                let p = add(e0, mul(sub(e1, e0), q as f32 / n as f32));
-                for (w, off) in [(0u64, 1.0f32), (1, -1.0)] {
-                    let h = |c: u64| unit(hash(s.seed, idx, (q * 4) as u64 + w, c));
-                    let dz = (h(0) - 0.7) * a;
-                    let c = add(p, [side[0] * off * 0.8 * a, side[1] * off * 0.8 * a, dz]);
-                    let rho = self.geology.resistance(c);
-                    let e = erosion_intensity(rho, 1.0, 0.1);
-                    // Under the crest's bridge and under the ground above the notch itself:
-                    // near the mouths, where the ground falls below the crest, a notch would
-                    // otherwise pit the hillside beside the opening.
-                    let cover = crest.min(self.ground(c[0], c[1])) - s.thickness;
-                    if rho < 0.5 && c[2] + 0.6 * a < cover {
-                        let id = self.tree.sphere(c, 0.6 * a, -energy * e)?;
-                        self.negatives.push(id);
-                        self.carved.push((c, 0.6 * a, false));
-                        report.primitives += 1;
-                    }
-                }
-            }
+            let (arch, d, m0, m1, idx) = fits[k];
+            let seed = (s.seed as u32).wrapping_add(idx as u32);
+            report.primitives += self.carve_gap(&arch, d, m0, m1, seed)?;
+            report.primitives += self.keep_ring(&arch, seed)?;
             report.features += 1;
-            report.length_m += len;
-            let mid = mul(add(e0, e1), 0.5);
-            report.sites.push([mid[0], mid[1], z]);
+            report.length_m += norm(sub(m1, m0));
+            let c = arch.centre;
+            report.sites.push([c[0], c[1], c[2] + 0.5 * s.height]);
             // Look through the opening from the lower side.
             let look = if m0[2] <= m1[2] { d } else { mul(d, -1.0) };
             report.axes.push(look);
@@ -301,7 +281,138 @@ impl SceneBuilder {
         Ok(report)
     }
 
-    /// Arch candidates, one per DEM node whose ridge is thin enough in some direction: (tunnel
+    /// The ring an arch between the mouths `m0`, `m1` (across the ridge along `d`) would
+    /// leave, when the original ground along the ridge holds all of it.
+    fn arch_fits(&self, s: &ArchSettings, d: V3, m0: V3, m1: V3) -> Option<ArchFit> {
+        let floor = m0[2].max(m1[2]);
+        let mid = mul(add(m0, m1), 0.5);
+        let fit = ArchFit {
+            centre: [mid[0], mid[1], floor],
+            side: [-d[1], d[0], 0.0],
+            across: d,
+            half: 0.5 * s.span + 0.6 * s.thickness,
+            rise: s.height + 0.5 * s.thickness,
+            leg: 1.2 * s.thickness,
+            bridge: s.thickness,
+        };
+        let outer = fit.half + 0.5 * fit.leg;
+        let top = fit.rise + 0.5 * fit.bridge;
+        // The ring's height is scaled down to the ground where the ridge sags (to 0.7 at most).
+        let scale = (-8..=8)
+            .map(|q| {
+                let u = q as f32 / 8.0 * fit.half;
+                let p = add(fit.centre, mul(fit.side, u));
+                let need = top * (1.0 - (u / outer).powi(2)).max(0.0).sqrt();
+                (self.ground(p[0], p[1]) - floor) / need
+            })
+            .fold(1.0f32, f32::min);
+        (scale >= 0.7).then_some(ArchFit {
+            rise: scale * top - 0.5 * fit.bridge,
+            ..fit
+        })
+    }
+
+    /// The gap through the ridge around an arch: negative capsules along `d` from beyond
+    /// one mouth to beyond the other, three side by side at the floor (a flat bottom as wide
+    /// as the ring plus half the opening on each side), then wider ones stacked up to the
+    /// highest ground over the gap (walls flaring outwards), warped. Returns the primitives.
+    fn carve_gap(&mut self, f: &ArchFit, d: V3, m0: V3, m1: V3, seed: u32) -> Result<usize> {
+        // Saturated rock (field 2T) loses 0.76 of the support radius at this energy.
+        let energy = 20.0 * THRESHOLD;
+        let hole = |r: f32| r / 0.76;
+        let w = f.half + 0.5 * f.leg + 0.5 * (f.half - 0.5 * f.leg);
+        let (e0, e1) = (add(m0, mul(d, -0.5 * w)), add(m1, mul(d, 0.5 * w)));
+        let crest = (0..=16)
+            .flat_map(|q| [-1.0f32, 0.0, 1.0].map(move |u| (q, u)))
+            .map(|(q, u)| {
+                let p = add(
+                    add(e0, mul(sub(e1, e0), q as f32 / 16.0)),
+                    mul(f.side, u * w),
+                );
+                self.ground(p[0], p[1])
+            })
+            .fold(f.centre[2], f32::max);
+        let floor = f.centre[2];
+        let at = |p: V3, u: f32, z: f32| [p[0] + f.side[0] * u, p[1] + f.side[1] * u, z];
+        let mut parts = Vec::new();
+        let r0 = 0.55 * w;
+        for u in [-0.5 * w, 0.0, 0.5 * w] {
+            let (a, b) = (at(e0, u, floor + r0), at(e1, u, floor + r0));
+            parts.push(self.tree.capsule(a, b, hole(r0), -energy)?);
+            self.carved.push((mul(add(a, b), 0.5), hole(r0), false));
+        }
+        for k in 1..8 {
+            let (z, r) = (floor + r0 + 0.7 * w * k as f32, w * (1.0 + 0.35 * k as f32));
+            if z - r > crest {
+                break;
+            }
+            let (a, b) = (at(e0, 0.0, z), at(e1, 0.0, z));
+            parts.push(self.tree.capsule(a, b, hole(r), -energy)?);
+            self.carved.push((mul(add(a, b), 0.5), hole(r), false));
+        }
+        let n = parts.len();
+        let bl = self.tree.blend(&parts)?;
+        let warped = self.tree.warp(bl, 0.12 * w, 1.0 / (0.8 * w), seed)?;
+        self.negatives.push(warped);
+        Ok(n)
+    }
+
+    /// The ring left standing in the gap: cones along the half-ellipse of `f` (legs
+    /// `f.leg` wide at the floor, the bridge `f.bridge` thick at the crown, necked by soft
+    /// strata), sunk into the floor at both feet, warped, and intersected with the DEM's rock.
+    fn keep_ring(&mut self, f: &ArchFit, seed: u32) -> Result<usize> {
+        use std::f32::consts::PI;
+        // Support radius for a solid of half-thickness `r` at energy 2: (1 - q)^3 = 1/4.
+        let support = |r: f32| r / 0.608;
+        let n = 12;
+        let (a, h) = (f.half - 0.5 * f.leg, f.rise - 0.5 * f.bridge);
+        // The crown is as thick as the rock over the opening allows (up to two bridges): the
+        // DEM's surface then trims it flat, so the bridge's top is the ridge's own.
+        let over = self.ground(f.centre[0], f.centre[1]) - (f.centre[2] + h);
+        let crown = (0.5 * over).clamp(0.5 * f.bridge, f.bridge);
+        let foot = 0.6 * f.leg;
+        // Inner edge of the opening (a half-ellipse) pushed out along its normal by the
+        // tube's radius: the opening stays `2a` wide and `h` high.
+        let ring = |t: f32, off: f32| {
+            let th = PI * t;
+            let (c, sn) = (th.cos(), th.sin());
+            let nrm = {
+                let (nu, nz) = (c / a, sn / h.max(1e-3));
+                let l = (nu * nu + nz * nz).sqrt();
+                (nu / l, nz / l)
+            };
+            let q = add(f.centre, mul(f.across, off));
+            let q = add(q, mul(f.side, a * c));
+            let q = [q[0], q[1], q[2] + h * sn];
+            let r0 = crown + (foot - crown) * c * c;
+            let r = r0 * (0.8 + 0.4 * self.geology.resistance(q));
+            let p = add(add(q, mul(f.side, nrm.0 * r)), [0.0, 0.0, nrm.1 * r]);
+            (p, r)
+        };
+        let mut parts = Vec::new();
+        for off in [-0.3 * f.leg, 0.3 * f.leg] {
+            for t in [0.0f32, 1.0] {
+                let (p, r) = ring(t, off);
+                let base = [p[0], p[1], p[2] - f.leg];
+                parts.push(self.tree.cone(base, p, support(1.2 * r), support(r), 2.0)?);
+            }
+            for k in 0..n {
+                let (p0, r0) = ring(k as f32 / n as f32, off);
+                let (p1, r1) = ring((k + 1) as f32 / n as f32, off);
+                parts.push(self.tree.cone(p0, p1, support(r0), support(r1), 2.0)?);
+            }
+        }
+        let mut kept = parts[0];
+        for &p in &parts[1..] {
+            kept = self.tree.union(kept, p)?;
+        }
+        let warped = self.tree.warp(kept, 0.12 * f.leg, 1.0 / f.leg, seed)?;
+        let kept = self.tree.intersection(self.hf, warped)?;
+        self.positives.push(kept);
+        Ok(parts.len())
+    }
+
+    /// Arch candidates, one per DEM node whose ridge is thin enough in some direction: (gap
     /// length, node index, direction, the two mouths).
     fn arch_candidates(&self, s: &ArchSettings, region: &Region) -> Vec<(f32, u64, V3, V3, V3)> {
         let f = self.frame;
@@ -382,13 +493,14 @@ mod tests {
     use super::*;
     use crate::geology::Geology;
 
-    /// A north-south fin 30 m wide and 50 m high: the arch is a tunnel through it (air at the
-    /// opening's middle, which was rock) under a bridge of rock (still matter), seen along the
-    /// tunnel's east-west axis.
+    /// A north-south fin 50 m wide and 50 m high: the arch is a gap cut through it (air at
+    /// the opening's middle, which was rock, and before and behind the bridge, where the fin
+    /// stood) with a ring of rock left standing in it (the bridge and both legs still
+    /// matter), seen along the gap's east-west axis.
     #[test]
-    fn arches_bore_through_a_fin_under_a_bridge() {
+    fn arches_leave_a_ring_of_rock_standing_in_a_gap_through_a_fin() {
         let hf = Heightfield::from_fn(40, 40, 5.0, 5.0, |x, _| {
-            if (x as f32 - 20.0).abs() <= 3.0 {
+            if (x as f32 - 20.0).abs() <= 5.0 {
                 60.0
             } else {
                 10.0
@@ -409,14 +521,31 @@ mod tests {
         assert_eq!(rep.features, 1, "{rep:?}");
         let site = rep.sites[0];
         let axis = rep.axes[0];
-        assert!(axis[0].abs() > 0.9, "the tunnel crosses the fin: {axis:?}");
+        assert!(axis[0].abs() > 0.9, "the gap crosses the fin: {axis:?}");
         assert!((site[0] - 100.0).abs() < 10.0, "{site:?}");
         let scene = b.build(true).unwrap();
         assert!(before.inside(site), "the opening was rock");
         assert!(!scene.inside(site), "the opening is air");
-        let bridge = [site[0], site[1], 56.0];
+        // The floor is the higher mouth's ground (the site is half the opening above it); the
+        // bridge is 8-16 m thick over the 15 m opening, trimmed by the warp (1.2 m).
+        let floor = site[2] - 7.5;
+        let bridge = [site[0], site[1], floor + 15.0 + 4.0];
         assert!(scene.inside(bridge), "the bridge stands");
-        // Air all the way through the fin along the axis.
+        for sign in [-1.0f32, 1.0] {
+            let p = add(bridge, mul(axis, sign * 18.0));
+            assert!(before.inside(p), "the fin stood at {p:?}");
+            assert!(!scene.inside(p), "the fin is cut away at {p:?}");
+        }
+        // The legs, half a leg out from the opening's sides, on the floor.
+        let side = [-axis[1], axis[0], 0.0];
+        for sign in [-1.0f32, 1.0] {
+            let foot = add(
+                [site[0], site[1], floor + 2.0],
+                mul(side, sign * (6.0 + 0.6 * 9.6)),
+            );
+            assert!(scene.inside(foot), "a leg at {foot:?}");
+        }
+        // Air all the way through the opening along the axis.
         for k in -4..=4 {
             let p = add(site, mul(axis, 4.0 * k as f32));
             assert!(!scene.inside(p), "rock at {p:?}");

@@ -612,6 +612,11 @@ impl Scene {
             .interval(self.upper.unwrap_or(self.root), region)
             .1
     }
+    /// Upper end of a conservative range of `f` over `region` from the whole tree, carvings
+    /// included: `<= T` proves `region` is air inside a carved hollow.
+    pub fn root_max_over(&self, region: &Aabb) -> f32 {
+        self.tree.interval(self.root, region).1
+    }
     /// Value of the carving-free upper bound at `p` (see [`Scene::upper_bound`]).
     pub fn upper_field(&self, p: V3) -> Option<f32> {
         self.upper.map(|u| self.tree.eval(u, p))

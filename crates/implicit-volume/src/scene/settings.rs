@@ -337,20 +337,22 @@ impl Default for HoodooSettings {
     }
 }
 
-/// Natural arches carved out of the rock: a tunnel bored through a narrow ridge (a fin, a
-/// headland between two coves, a wall between two canyons) under a bridge of rock left above
-/// it, its walls widened where the strata are soft (see [`SceneBuilder::arches`]).
+/// Natural arches eroded out of the rock: a gap cut through a narrow ridge (a fin, a headland
+/// between two coves, a wall between two canyons) around a ring of the ridge's rock left
+/// standing in it, two legs and a bridge, necked where the strata are soft (see
+/// [`SceneBuilder::arches`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArchSettings {
     /// Number of arches (fewer when the DEM has no ridge narrow and high enough).
     pub count: usize,
-    /// Width of the opening (m): the tunnel's diameter.
+    /// Width of the opening (m).
     pub span: f32,
     /// Height of the opening above its floor, the higher ground at the two mouths (m).
     pub height: f32,
-    /// Rock left above the opening (the bridge, m).
+    /// Thickness of the bridge over the opening (m; up to twice that where the ridge has
+    /// more rock over it, trimmed by the DEM's surface); the legs are 1.2 times as wide.
     pub thickness: f32,
-    /// Thickest ridge bored through (the tunnel's length between its mouths, m).
+    /// Thickest ridge cut through (the gap's length between its mouths, m).
     pub max_length: f32,
     /// Seed.
     pub seed: u64,
@@ -419,7 +421,7 @@ pub struct EffectReport {
     /// Where the landforms were placed (hoodoo bases, arch openings, island centres, cave
     /// mouths; karst: the seeds).
     pub sites: Vec<V3>,
-    /// Per site, the horizontal direction to look along to see it best (arches: the tunnel's
+    /// Per site, the horizontal direction to look along to see it best (arches: the gap's
     /// axis, so a camera sees through the opening; floating islands: towards the lowest ground
     /// around, so a camera sees the underside); empty for the other effects.
     pub axes: Vec<V3>,

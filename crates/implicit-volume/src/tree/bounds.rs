@@ -70,6 +70,28 @@ impl TerrainTree {
         self.iv(id.0, region)
     }
 
+    /// A lower bound of node `id`'s field anywhere (no region: cheap for leaves).
+    fn field_min(&self, id: u32) -> f32 {
+        match self.nodes[id as usize] {
+            Node::Sphere { e, .. }
+            | Node::Capsule { e, .. }
+            | Node::Cone { e, .. }
+            | Node::Ellipsoid { e, .. } => e.min(0.0),
+            Node::Heightfield(_) => 0.0,
+            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+                .iter()
+                .map(|&c| self.field_min(c))
+                .sum(),
+            Node::Bvh { left, right, .. } => self.field_min(left) + self.field_min(right),
+            Node::Union { a, b } => self.field_min(a).max(self.field_min(b)),
+            Node::Intersection { a, b } | Node::SmoothBlend { a, b, .. } => {
+                self.field_min(a).min(self.field_min(b)).min(0.0)
+            }
+            Node::Difference { a, .. } => self.field_min(a).min(0.0),
+            Node::Warp { child, .. } => self.field_min(child),
+        }
+    }
+
     fn iv(&self, id: u32, region: &Aabb) -> (f32, f32) {
         let node = self.nodes[id as usize];
         let span = |e: f32, gmax: f32| {
@@ -89,13 +111,8 @@ impl TerrainTree {
                 }
                 span(e, falloff(q))
             }
-            Node::Capsule { e, .. } | Node::Cone { e, .. } => {
-                if self.bbox_of(id).intersects(region) {
-                    span(e, 1.0)
-                } else {
-                    (0.0, 0.0)
-                }
-            }
+            Node::Capsule { a, b, r, e } => seg_range(a, b, r, r, e, region),
+            Node::Cone { a, b, ra, rb, e } => seg_range(a, b, ra.min(rb), ra.max(rb), e, region),
             Node::Heightfield(k) => {
                 let h = &self.hfs[k as usize];
                 if !h.bbox().intersects(region) {
@@ -139,8 +156,14 @@ impl TerrainTree {
                 (a.0.max(b.0), a.1.max(b.1))
             }
             Node::Intersection { a, b } => {
-                let (a, b) = (self.iv(a, region), self.iv(b, region));
-                (a.0.min(b.0), a.1.min(b.1))
+                // `b` first: where it is at most 0 (e.g. a landform's shape missing the region)
+                // so is the intersection, and `a`'s range (a DEM scan) is not needed.
+                let bv = self.iv(b, region);
+                if bv.1 <= 0.0 {
+                    return (self.field_min(a).min(bv.0), bv.1);
+                }
+                let av = self.iv(a, region);
+                (av.0.min(bv.0), av.1.min(bv.1))
             }
             Node::Difference { a, b } => {
                 let (a, b) = (self.iv(a, region), self.iv(b, region));
@@ -161,5 +184,22 @@ impl TerrainTree {
                 self.iv(child, &region.inflate(0.75 * amp))
             }
         }
+    }
+}
+
+/// Range over `region` of `e falloff(d^2 / r^2)`, `d` the distance to the segment `a`-`b` and
+/// `r` between `rmin` and `rmax` (capsules, cones): the distance is at least the one to the
+/// segment's box and at most the largest over the region's corners.
+fn seg_range(a: V3, b: V3, rmin: f32, rmax: f32, e: f32, region: &Aabb) -> (f32, f32) {
+    let near = region.dist_sq_box(&Aabb::new(a, b));
+    if near >= rmax * rmax {
+        return (0.0, 0.0);
+    }
+    let far = region.max_dist_sq_to_segment(a, b);
+    let (gmax, gmin) = (falloff(near / (rmax * rmax)), falloff(far / (rmin * rmin)));
+    if e >= 0.0 {
+        (e * gmin, e * gmax)
+    } else {
+        (e * gmax, e * gmin)
     }
 }

@@ -127,6 +127,9 @@ impl HfPrim {
     }
 
     /// Range of the bilinear DEM over the xy footprint of `b` (clamped to the grid).
+    /// Range of the DEM nodes under the box `b` (the bilinear surface stays within it), or of
+    /// a few more: read from the pyramid level where the box spans at most four blocks a
+    /// side, so a query costs at most 16 block reads whatever the box's size.
     pub(super) fn height_range(&self, b: &Aabb) -> (f32, f32) {
         let u0 = ((b.min[0] / self.cx).floor().max(0.0) as usize).min(self.w - 1);
         let u1 = ((b.max[0] / self.cx).ceil().max(0.0) as usize).min(self.w - 1);
@@ -134,13 +137,69 @@ impl HfPrim {
         let v0 = ((top - b.max[1] / self.cy).floor().max(0.0) as usize).min(self.h - 1);
         let v1 = ((top - b.min[1] / self.cy).ceil().max(0.0) as usize).min(self.h - 1);
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for i in v0..=v1 {
-            for &z in &self.data[i * self.w + u0..=i * self.w + u1] {
-                lo = lo.min(z);
-                hi = hi.max(z);
+        let mut k = 0;
+        while k < self.mip.len() && ((u1 >> k) - (u0 >> k) > 3 || (v1 >> k) - (v0 >> k) > 3) {
+            k += 1;
+        }
+        if k == 0 {
+            for i in v0..=v1 {
+                for &z in &self.data[i * self.w + u0..=i * self.w + u1] {
+                    lo = lo.min(z);
+                    hi = hi.max(z);
+                }
+            }
+            return (lo, hi);
+        }
+        let m = &self.mip[k - 1];
+        for i in (v0 >> k)..=(v1 >> k).min(m.h - 1) {
+            for &(a, b) in &m.range[i * m.w + (u0 >> k)..=i * m.w + (u1 >> k).min(m.w - 1)] {
+                lo = lo.min(a);
+                hi = hi.max(b);
             }
         }
         (lo, hi)
+    }
+    /// This primitive with its min/max pyramid built: level `k` (1-based, `mip[k - 1]`) holds
+    /// the range of each `2^k x 2^k` block of nodes, down to a single block.
+    pub(super) fn with_mip(mut self) -> Self {
+        let mut levels: Vec<MipLevel> = Vec::new();
+        let (mut w, mut h) = (self.w, self.h);
+        while w > 1 || h > 1 {
+            let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+            let at = |i: usize, j: usize| match levels.last() {
+                Some(l) => l.range[i * l.w + j],
+                None => {
+                    let z = self.data[i * self.w + j];
+                    (z, z)
+                }
+            };
+            let mut range = Vec::with_capacity(nw * nh);
+            for i in 0..nh {
+                for j in 0..nw {
+                    let mut r = (f32::INFINITY, f32::NEG_INFINITY);
+                    for (di, dj) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        let (ii, jj) = (2 * i + di, 2 * j + dj);
+                        if ii < h && jj < w {
+                            let v = at(ii, jj);
+                            r = (r.0.min(v.0), r.1.max(v.1));
+                        }
+                    }
+                    range.push(r);
+                }
+            }
+            levels.push(MipLevel {
+                w: nw,
+                h: nh,
+                range,
+            });
+            (w, h) = (nw, nh);
+        }
+        self.mip = levels;
+        self
+    }
+    /// Bytes of the samples and the pyramid.
+    pub(super) fn bytes(&self) -> usize {
+        self.data.len() * 4 + self.mip.iter().map(|l| l.range.len() * 8).sum::<usize>()
     }
     pub(super) fn bbox(&self) -> Aabb {
         let (xm, ym) = self.extent();

@@ -111,6 +111,16 @@ struct HfPrim {
     z_max: f32,
     /// Lipschitz constant of `min(H - z, d_box)`: `sqrt(1 + sx^2 + sy^2)`.
     slope_lip: f32,
+    /// Min/max pyramid of `data` for range queries over boxes (see [`HfPrim::height_range`]).
+    mip: Vec<MipLevel>,
+}
+
+/// One level of a min/max pyramid: `(min, max)` over blocks of `2^k x 2^k` DEM nodes.
+#[derive(Debug, Clone)]
+struct MipLevel {
+    w: usize,
+    h: usize,
+    range: Vec<(f32, f32)>,
 }
 
 /// Node count and memory of a tree.
@@ -237,7 +247,9 @@ impl TerrainTree {
             z_bottom: lo - depth,
             z_max: hi,
             slope_lip: (1.0 + sx * sx + sy * sy).sqrt(),
-        };
+            mip: Vec::new(),
+        }
+        .with_mip();
         self.hfs.push(prim);
         let id = self.push(Node::Heightfield(self.hfs.len() as u32 - 1));
         Ok((
@@ -419,7 +431,7 @@ impl TerrainTree {
             nodes: self.nodes.len(),
             primitives,
             node_bytes: self.nodes.len() * std::mem::size_of::<Node>() + self.children.len() * 4,
-            heightfield_bytes: self.hfs.iter().map(|h| h.data.len() * 4).sum(),
+            heightfield_bytes: self.hfs.iter().map(HfPrim::bytes).sum(),
         }
     }
 

@@ -63,11 +63,23 @@ fn intervals_contain_the_field() {
     let bv = t.bvh_blend(&[s1, e1]).unwrap();
     let bl = t.blend(&[h, bv]).unwrap();
     let w = t.warp(e1, 3.0, 0.1, 1).unwrap();
-    let root = t.union(bl, w).unwrap();
-    for k in 0..300u64 {
+    // A slanted carving capsule and a cone of matter kept inside the ground.
+    let cap = t
+        .capsule([40.0, 30.0, 40.0], [200.0, 150.0, 70.0], 25.0, -10.0)
+        .unwrap();
+    let cone = t
+        .cone([220.0, 40.0, 20.0], [250.0, 160.0, 90.0], 30.0, 10.0, 2.0)
+        .unwrap();
+    let kept = t.intersection(h, cone).unwrap();
+    let carved = t.blend(&[bl, cap]).unwrap();
+    let root = t.union(carved, w).unwrap();
+    let root = t.union(root, kept).unwrap();
+    for k in 0..600u64 {
         let r = |s| crate::math::unit(crate::math::hash(5, k, s, 0));
         let c = [r(0) * 290.0, r(1) * 190.0, r(2) * 150.0];
-        let b = Aabb::new(c, add(c, [r(3) * 40.0, r(4) * 40.0, r(5) * 40.0]));
+        // Boxes from a few metres to most of the DEM (the pyramid's coarse levels).
+        let size = if k % 3 == 0 { 250.0 } else { 40.0 };
+        let b = Aabb::new(c, add(c, [r(3) * size, r(4) * size, r(5) * size]));
         let (lo, hi) = t.interval(root, &b);
         for m in 0..20u64 {
             let q = |s| crate::math::unit(crate::math::hash(6, k, m, s));
@@ -78,6 +90,49 @@ fn intervals_contain_the_field() {
             ];
             let v = t.eval(root, p);
             assert!(v >= lo - 1e-5 && v <= hi + 1e-5, "{v} not in [{lo}, {hi}]");
+        }
+    }
+    // A box around the carving's axis is proven below zero (a box-to-bbox test could not).
+    let core = Aabb::sphere([120.0, 90.0, 55.0], 5.0);
+    let (lo, hi) = t.interval(cap, &core);
+    assert!(hi < -5.0 && lo >= -10.0, "[{lo}, {hi}]");
+    // Beside the cone, inside its bounding box: proven air (a box-to-bbox test gives `e`).
+    let beside = Aabb::sphere([271.0, 100.0, 95.0], 1.0);
+    assert!(t.bbox(cone).intersects(&beside));
+    let (lo, hi) = t.interval(cone, &beside);
+    assert!(lo >= 0.0 && hi < THRESHOLD, "[{lo}, {hi}]");
+}
+
+/// The min/max pyramid's ranges hold every DEM node under the box and come from at most a
+/// few blocks: exact for boxes of a couple of cells, never narrower for any.
+#[test]
+fn height_ranges_from_the_pyramid_hold_the_nodes_under_the_box() {
+    let hf = Heightfield::from_fn(37, 23, 10.0, 10.0, |x, y| {
+        ((x * 7 + y * 13) % 17) as f32 + 0.1 * (x as f32)
+    });
+    let mut t = TerrainTree::new();
+    t.heightfield(&hf, 5.0, 10.0).unwrap();
+    let p = &t.hfs[0];
+    for k in 0..400u64 {
+        let r = |s| crate::math::unit(crate::math::hash(9, k, s, 0));
+        let c = [r(0) * 360.0, r(1) * 220.0, 0.0];
+        let size = [10.0, 30.0, 400.0][k as usize % 3] * r(2);
+        let b = Aabb::new(c, add(c, [size, size * r(3), 1.0]));
+        let (lo, hi) = p.height_range(&b);
+        let u0 = ((b.min[0] / 10.0).floor().max(0.0) as usize).min(36);
+        let u1 = ((b.max[0] / 10.0).ceil().max(0.0) as usize).min(36);
+        let v0 = ((22.0 - b.max[1] / 10.0).floor().max(0.0) as usize).min(22);
+        let v1 = ((22.0 - b.min[1] / 10.0).ceil().max(0.0) as usize).min(22);
+        let (mut el, mut eh) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in v0..=v1 {
+            for j in u0..=u1 {
+                el = el.min(hf.get(j, i));
+                eh = eh.max(hf.get(j, i));
+            }
+        }
+        assert!(lo <= el && hi >= eh, "[{lo}, {hi}] misses [{el}, {eh}]");
+        if u1 - u0 <= 3 && v1 - v0 <= 3 {
+            assert_eq!((lo, hi), (el, eh), "a small box reads the nodes");
         }
     }
 }
