@@ -92,6 +92,9 @@ pub struct VolumeFigures {
     /// The sea detected in the DEM when the recipe sets no level
     /// ([`crate::recipe::detect_sea`]: level, rule, samples and their share).
     pub sea_detected: Option<crate::recipe::SeaDetection>,
+    /// The floor given to the DEM's flat sea ([`crate::recipe::seabed`]: shore slope, depth,
+    /// deepest sample, samples lowered); `None` = none (no flat sea, or `recipe.seabed` off).
+    pub seabed: Option<crate::recipe::Seabed>,
     /// Whether the renders draw water (the scene has sea features).
     pub water_drawn: bool,
     /// Terrain tree nodes.
@@ -391,6 +394,7 @@ impl VolumeJob {
             seed: self.recipe.seed,
             sea_level_m: rep.sea_level,
             sea_detected: rep.sea,
+            seabed: rep.seabed,
             water_drawn: rep.has_sea,
             tree_nodes: st.nodes,
             tree_primitives: st.primitives,

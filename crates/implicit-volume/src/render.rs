@@ -543,7 +543,15 @@ pub fn render_with_progress(
                     // with the water plane (speckles) and show its coast as cell-edge steps.
                     let te = (sea + SEA_TOLERANCE - cam.eye[2]) / d[2];
                     if ts > 0.0 && hit.is_none_or(|t| t > te) {
-                        col = add(mul(col, 0.35), [0.05, 0.2, 0.4]);
+                        // The ground shows through the water by its depth (a shelf reads as
+                        // bathymetry, whatever the view's angle).
+                        let depth =
+                            hit.map_or(f32::INFINITY, |t| (sea - (cam.eye[2] + d[2] * t)).max(0.0));
+                        let clear = (-depth / (WATER_CLARITY * (zhi - zlo).max(1e-3))).exp();
+                        col = add(
+                            mul(col, 0.25 + 0.5 * clear),
+                            mul([0.05, 0.2, 0.4], 1.0 - 0.5 * clear),
+                        );
                     }
                 }
                 for c in 0..3 {
@@ -558,6 +566,10 @@ pub fn render_with_progress(
         rgb,
     })
 }
+
+/// Depth of water, as a share of the scene's height range, under which the ground's light
+/// falls to `1/e` in [`render`]'s water tint.
+pub const WATER_CLARITY: f32 = 0.05;
 
 /// Height above the sea level (scene units, metres) up to which ground is drawn under water:
 /// half the 1 m step of integer DEMs, so the coast of a DEM that stores its sea as a flat

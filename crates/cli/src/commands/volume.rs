@@ -32,6 +32,11 @@ pub(crate) struct Args {
     /// drawn. Give a level to put a shore anywhere, e.g. a lake in a canyon.
     #[arg(long, allow_hyphen_values = true)]
     pub(crate) sea_level: Option<f32>,
+    /// Keep the DEM's own sea flat when it is stored as a flat surface (SRTM's 0 m). Default:
+    /// it gets a floor, the coast's slope continued under the water down to a tenth of the
+    /// relief (at most 200 m), so the mesh has a seabed and the water shows its depth.
+    #[arg(long)]
+    pub(crate) flat_sea: bool,
     /// Write the polygonised scene (.glb, .ply or .obj).
     #[arg(long)]
     pub(crate) mesh: Option<PathBuf>,
@@ -110,6 +115,7 @@ pub(crate) fn job(args: &Args) -> Result<VolumeJob> {
     let r = &mut job.recipe;
     r.features = Feature::parse_list(&args.features).context("bad --features")?;
     r.sea_level = args.sea_level;
+    r.seabed = !args.flat_sea;
     r.scale = args.scale;
     r.karst_budget = args.karst_budget;
     r.wind = [args.wind.0, args.wind.1];

@@ -46,6 +46,25 @@ impl Basis<'_> {
 pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeReport)> {
     let (mut basis, mut dims) = sizes(hf, recipe)?;
     let (geology, geo) = geology(&basis, &mut dims)?;
+    let sea = if recipe.sea_level.is_none() {
+        detect_sea(hf)
+    } else {
+        None
+    };
+    let floor = match sea {
+        Some(s) if recipe.seabed => seabed(hf, &s, basis.relief),
+        _ => None,
+    };
+    if let Some((_, f)) = &floor {
+        dims.notes.push(format!(
+            "flat sea given a floor: {} samples lowered, sloping {:.1} % from the coast to \
+             {:.0} m deep (seabed = false keeps the DEM's flat sea)",
+            f.cells,
+            100.0 * f.shore_slope,
+            f.deepest_m
+        ));
+    }
+    let hf = floor.as_ref().map_or(hf, |f| &f.0);
     let b = SceneBuilder::new(
         hf,
         geo,
@@ -62,11 +81,6 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     };
     region.check(&b.frame())?;
     let deviation = b.implicitization_deviation(4096);
-    let sea = if recipe.sea_level.is_none() {
-        detect_sea(hf)
-    } else {
-        None
-    };
     basis.sea_level = recipe.sea_level.or(sea.map(|s| s.level));
     basis.sea_detected = sea.is_some();
     basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
@@ -106,6 +120,7 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
             effects,
             sea_level: basis.sea_level,
             sea,
+            seabed: floor.map(|f| f.1),
             has_sea,
             dims,
             geology,

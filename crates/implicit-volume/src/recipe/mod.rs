@@ -55,8 +55,8 @@ pub use self::closeups::render_closeups;
 use self::closeups::{best_section_line, densest_karst};
 pub(crate) use self::sea::border_connected;
 pub use self::sea::{
-    SEA_FLAT_NOISE_M, SEA_MIN_CELLS, SEA_MIN_SHARE, SEA_PITS, SeaDetection, SeaKind,
-    border_connected_at_or_below, detect_sea, sea_flat_tolerance,
+    FLAT_SEA_SHARE, SEA_FLAT_NOISE_M, SEA_MIN_CELLS, SEA_MIN_SHARE, SEA_PITS, SeaDetection,
+    SeaKind, Seabed, border_connected_at_or_below, detect_sea, sea_flat_tolerance, seabed,
 };
 
 /// One landform effect of a [`Recipe`].
@@ -198,6 +198,10 @@ pub struct Recipe {
     /// skipped with a note. `Some(z)` = a shore at `z` whatever the DEM (e.g. a lake in a
     /// canyon).
     pub sea_level: Option<f32>,
+    /// Give the DEM's own sea a floor when it is stored flat (SRTM's 0 m; [`seabed`]): the
+    /// coast's slope continued under the water down to a depth from the relief. `false` keeps
+    /// the flat surface (the DEM exactly).
+    pub seabed: bool,
     /// Per-cell weights in `[0, 1]` (row-major, DEM size) limiting every effect; `None` =
     /// everywhere.
     pub mask: Option<Vec<f32>>,
@@ -232,6 +236,7 @@ impl Default for Recipe {
                 Feature::Islands,
             ],
             sea_level: None,
+            seabed: true,
             mask: None,
             scale: 1.0,
             voxel: None,
@@ -328,6 +333,8 @@ pub struct RecipeReport {
     pub sea_level: Option<f32>,
     /// The sea found in the DEM when the recipe sets no level ([`detect_sea`]).
     pub sea: Option<SeaDetection>,
+    /// The floor given to a flat sea ([`Recipe::seabed`]), when one was.
+    pub seabed: Option<Seabed>,
     /// Whether the scene has a sea (`sea_level` is set: detected in the DEM or given by the
     /// recipe), i.e. water to draw at `sea_level`, with or without shore features.
     pub has_sea: bool,

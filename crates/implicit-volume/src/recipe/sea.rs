@@ -203,12 +203,179 @@ pub fn detect_sea(hf: &Heightfield) -> Option<SeaDetection> {
     })
 }
 
+/// Share of a sea's samples that must sit at its level (within 1 cm) for it to be a flat sea
+/// surface with no bathymetry (SRTM's 0 m), which [`seabed`] replaces.
+pub const FLAT_SEA_SHARE: f32 = 0.9;
+
+/// The seabed [`seabed`] gave a flat sea.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Seabed {
+    /// Slope of the sea floor at the coast (m/m): the median slope of the coast's land.
+    pub shore_slope: f32,
+    /// Depth the floor tends to offshore (m).
+    pub depth_m: f32,
+    /// Deepest sample of the new floor below the level (m).
+    pub deepest_m: f32,
+    /// Samples lowered.
+    pub cells: usize,
+}
+
+/// A seabed under a sea stored as a flat surface (at least [`FLAT_SEA_SHARE`] of the detected
+/// sea's samples at its level, as SRTM stores the sea at 0 m): without one, the implicit
+/// terrain is a flat plate at the water line, shore erosion has nothing to undercut below it
+/// and a mesh has no sea floor. Each sea sample is lowered to `level - D (1 - exp(-s d / D))`
+/// (never raised), `d` its distance (m, chamfer over the 8 neighbours) to the nearest land
+/// sample, `s` the median slope of the land samples next to the sea (clamped to
+/// `[0.005, 0.2]`: the coast's own slope continues under the water) and `D = clamp(0.1
+/// relief, 5, 200)` m the depth the floor levels out at. `None` when the sea already has a
+/// floor (bathymetry) or there is no land. Deterministic.
+pub fn seabed(hf: &Heightfield, sea: &SeaDetection, relief: f32) -> Option<(Heightfield, Seabed)> {
+    let (w, h) = (hf.width(), hf.height());
+    let tol = match sea.kind {
+        SeaKind::Zero => 0.0,
+        SeaKind::FlatMinimum => sea_flat_tolerance(hf),
+    };
+    let mask = border_connected_at_or_below(hf, sea.level + tol);
+    let z = hf.as_slice();
+    let n = mask.iter().filter(|&&m| m).count();
+    let flat = mask
+        .iter()
+        .zip(z)
+        .filter(|(m, v)| **m && (**v - sea.level).abs() <= 0.01)
+        .count();
+    if n == 0 || n == w * h || (flat as f32) < FLAT_SEA_SHARE * n as f32 {
+        return None;
+    }
+    let (cx, cy) = hf.cell_size();
+    let (cx, cy) = (cx as f32, cy as f32);
+    // The coast's slope: land samples with a sea neighbour, central differences.
+    let at = |i: usize, j: usize| z[i * w + j];
+    let mut slopes = Vec::new();
+    for i in 0..h {
+        for j in 0..w {
+            let k = i * w + j;
+            let near_sea = (j > 0 && mask[k - 1])
+                || (j + 1 < w && mask[k + 1])
+                || (i > 0 && mask[k - w])
+                || (i + 1 < h && mask[k + w]);
+            if mask[k] || !near_sea || !z[k].is_finite() {
+                continue;
+            }
+            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(w - 1));
+            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(h - 1));
+            let sx = (at(i, j1) - at(i, j0)) / ((j1 - j0).max(1) as f32 * cx);
+            let sy = (at(i1, j) - at(i0, j)) / ((i1 - i0).max(1) as f32 * cy);
+            let g = (sx * sx + sy * sy).sqrt();
+            if g.is_finite() {
+                slopes.push(g);
+            }
+        }
+    }
+    if slopes.is_empty() {
+        return None;
+    }
+    let mid = slopes.len() / 2;
+    let (_, &mut s, _) = slopes.select_nth_unstable_by(mid, f32::total_cmp);
+    let s = s.clamp(0.005, 0.2);
+    let depth = (0.1 * relief).clamp(5.0, 200.0);
+    let dist = distance_to_land(&mask, w, h, cx, cy);
+    let mut out = z.to_vec();
+    let mut deepest = 0.0f32;
+    for k in 0..w * h {
+        if mask[k] {
+            let dz = depth * (1.0 - (-s * dist[k] / depth).exp());
+            out[k] = out[k].min(sea.level - dz);
+            deepest = deepest.max(sea.level - out[k]);
+        }
+    }
+    let (ccx, ccy) = hf.cell_size();
+    let floor = Heightfield::new(w, h, out, ccx, ccy)
+        .ok()?
+        .with_georef(hf.georef().cloned());
+    Some((
+        floor,
+        Seabed {
+            shore_slope: s,
+            depth_m: depth,
+            deepest_m: deepest,
+            cells: n,
+        },
+    ))
+}
+
+/// Distance (m) from each `mask` sample to the nearest sample outside it: two chamfer passes
+/// over the 8 neighbours with the cell's edge and diagonal lengths (within 8 % of Euclidean).
+fn distance_to_land(mask: &[bool], w: usize, h: usize, cx: f32, cy: f32) -> Vec<f32> {
+    let diag = (cx * cx + cy * cy).sqrt();
+    let mut d: Vec<f32> = mask
+        .iter()
+        .map(|&m| if m { f32::INFINITY } else { 0.0 })
+        .collect();
+    let fwd: [(isize, isize, f32); 4] = [(-1, -1, diag), (-1, 0, cy), (-1, 1, diag), (0, -1, cx)];
+    for pass in 0..2 {
+        for step in 0..w * h {
+            let k = if pass == 0 { step } else { w * h - 1 - step };
+            let (i, j) = ((k / w) as isize, (k % w) as isize);
+            for &(di, dj, c) in &fwd {
+                let (di, dj) = if pass == 0 { (di, dj) } else { (-di, -dj) };
+                let (ii, jj) = (i + di, j + dj);
+                if ii >= 0 && jj >= 0 && (ii as usize) < h && (jj as usize) < w {
+                    let v = d[ii as usize * w + jj as usize] + c;
+                    if v < d[k] {
+                        d[k] = v;
+                    }
+                }
+            }
+        }
+    }
+    d
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn hf(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Heightfield {
         Heightfield::from_fn(w, h, 30.0, 30.0, f)
+    }
+
+    /// SRTM's coast: a flat 0 m sea west of land rising 2 m per 30 m cell (6.7 %). The floor
+    /// continues the coast's slope under the water and levels out at a tenth of the relief;
+    /// land is untouched. A sea with bathymetry keeps its floor.
+    #[test]
+    fn a_flat_sea_gets_a_floor_continuing_the_coast() {
+        let d = hf(
+            60,
+            20,
+            |x, _| {
+                if x < 40 { 0.0 } else { (x - 39) as f32 * 2.0 }
+            },
+        );
+        let sea = detect_sea(&d).unwrap();
+        let (floor, bed) = seabed(&d, &sea, 400.0).unwrap();
+        assert_eq!(bed.cells, 40 * 20);
+        assert!((bed.shore_slope - 2.0 / 30.0).abs() < 0.02, "{bed:?}");
+        assert_eq!(bed.depth_m, 40.0);
+        for y in 0..20 {
+            // Deeper with every cell offshore, under the level, above the limit.
+            let mut last = 0.0;
+            for x in (0..40).rev() {
+                let z = floor.get(x, y);
+                assert!(z < last && z > -40.0, "({x}, {y}): {z} after {last}");
+                last = z;
+            }
+            // The first cell off the coast: the coast's slope over one cell.
+            let first = -floor.get(39, y);
+            assert!((first - 30.0 * bed.shore_slope).abs() < 0.2, "{first}");
+            for x in 40..60 {
+                assert_eq!(floor.get(x, y), d.get(x, y));
+            }
+        }
+        assert!((bed.deepest_m - -floor.get(0, 10)).abs() < 1e-3);
+        // A sea whose floor is already surveyed (below 0 m, varied): no floor is made.
+        let bathy = hf(40, 30, |x, y| x as f32 * 10.0 - 100.0 + y as f32);
+        let s = detect_sea(&bathy).unwrap();
+        assert!(seabed(&bathy, &s, 400.0).is_none());
     }
 
     #[test]
