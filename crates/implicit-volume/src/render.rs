@@ -549,8 +549,8 @@ pub fn render_with_progress(
                             hit.map_or(f32::INFINITY, |t| (sea - (cam.eye[2] + d[2] * t)).max(0.0));
                         let clear = (-depth / (WATER_CLARITY * (zhi - zlo).max(1e-3))).exp();
                         col = add(
-                            mul(col, 0.25 + 0.5 * clear),
-                            mul([0.05, 0.2, 0.4], 1.0 - 0.5 * clear),
+                            mul(col, 0.2 + 0.35 * clear),
+                            mul([0.05, 0.2, 0.4], 1.0 - 0.3 * clear),
                         );
                     }
                 }
@@ -569,7 +569,7 @@ pub fn render_with_progress(
 
 /// Depth of water, as a share of the scene's height range, under which the ground's light
 /// falls to `1/e` in [`render`]'s water tint.
-pub const WATER_CLARITY: f32 = 0.05;
+pub const WATER_CLARITY: f32 = 0.03;
 
 /// Height above the sea level (scene units, metres) up to which ground is drawn under water:
 /// half the 1 m step of integer DEMs, so the coast of a DEM that stores its sea as a flat

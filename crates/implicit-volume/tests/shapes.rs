@@ -351,3 +351,48 @@ fn shore_erosion_planes_a_low_fringe_to_a_platform_under_the_water() {
     let scene = b.build(true).unwrap();
     assert!(fringe_is_rock_at(&scene, -4.0 - 1.0));
 }
+
+/// Water tints the ground by its depth: under a seabed sloping from 1 m to 40 m deep, the share
+/// of the ground's own red that shows through falls offshore.
+#[test]
+fn deeper_ground_shows_less_through_the_water() {
+    let hf = relief_heightfield::Heightfield::from_fn(40, 40, 10.0, 10.0, |x, _| -1.0 - x as f32);
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let (w, h) = (64, 48);
+    let shot = |sea: Option<f32>| {
+        let s = RenderSettings {
+            width: w,
+            height: h,
+            sea_level: sea,
+            shadows: false,
+            ..Default::default()
+        };
+        let cam = Camera {
+            eye: [195.0, 195.0, 400.0],
+            target: [195.0, 195.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 40.0,
+        };
+        render(&scene, &cam, &s).unwrap()
+    };
+    let (dry, wet) = (shot(None), shot(Some(0.0)));
+    // Share of the dry red left under water, averaged over each pixel column (x grows east,
+    // deeper).
+    let share = |x: usize| {
+        (0..h)
+            .map(|y| {
+                let k = 3 * (y * w + x);
+                f32::from(wet.rgb[k]) / f32::from(dry.rgb[k]).max(1.0)
+            })
+            .sum::<f32>()
+            / h as f32
+    };
+    let (shallow, deep) = (share(4), share(w - 5));
+    assert!(
+        shallow > deep + 0.1,
+        "shallow {shallow} vs deep {deep}: the tint ignores depth"
+    );
+}
