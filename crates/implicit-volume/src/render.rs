@@ -348,7 +348,10 @@ fn trace(
             r = (2.0 * s).max(4.0 * eps);
         }
     }
-    None
+    // Out of steps inside the scene: the ray has been creeping along a surface it grazes
+    // (the far ground from a low camera, a gap's walls); drawing it as a hit there beats a
+    // hole of sky in the ground.
+    (t <= t1).then_some(t)
 }
 
 /// Checks the image size, the camera and the settings; returns the cut-away plane with a unit

@@ -396,3 +396,43 @@ fn deeper_ground_shows_less_through_the_water() {
         "shallow {shallow} vs deep {deep}: the tint ignores depth"
     );
 }
+
+/// A ray that runs out of steps inside the scene (creeping along ground it grazes) is drawn as
+/// ground, not as a hole of sky: a low camera over a plain with a 6-step budget.
+#[test]
+fn rays_out_of_steps_are_ground_not_sky() {
+    let hf = relief_heightfield::Heightfield::from_fn(64, 64, 10.0, 10.0, |x, y| {
+        ((x as f32) * 0.7).sin() + ((y as f32) * 0.5).cos()
+    });
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let (w, h) = (48, 32);
+    let s = RenderSettings {
+        width: w,
+        height: h,
+        max_steps: 6,
+        shadows: false,
+        ..Default::default()
+    };
+    let cam = Camera {
+        eye: [20.0, 20.0, 6.0],
+        target: [600.0, 600.0, 0.0],
+        up: [0.0, 0.0, 1.0],
+        fov_deg: 40.0,
+    };
+    let img = render(&scene, &cam, &s).unwrap();
+    // The lower rows look down at the plain: ground colours (red over blue), no sky.
+    for y in h * 3 / 4..h {
+        for x in 0..w {
+            let k = 3 * (y * w + x);
+            let (r, b) = (img.rgb[k], img.rgb[k + 2]);
+            assert!(
+                r > b,
+                "pixel {x}, {y} is sky-blue: {:?}",
+                &img.rgb[k..k + 3]
+            );
+        }
+    }
+}

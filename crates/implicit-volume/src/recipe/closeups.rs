@@ -96,7 +96,14 @@ pub fn render_closeups(
             Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
             _ => h.at,
         };
-        let cam = match h.from {
+        // An arch is seen through its gap from either side: the sunlit one.
+        let from = match (h.feature, h.from) {
+            (Feature::Arches, Some(v)) if v[0] * tile.light[0] + v[1] * tile.light[1] < 0.0 => {
+                Some([-v[0], -v[1], v[2]])
+            }
+            (_, v) => v,
+        };
+        let cam = match from {
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),
         };
