@@ -326,7 +326,6 @@ fn trace(
                 (THRESHOLD - u) / l.max(1e-9)
             }
             Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,
-            Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,
             _ => {
                 let f = scene.field(p);
                 if f > THRESHOLD {
