@@ -504,6 +504,76 @@ fn canyon() -> Option<Heightfield> {
     dem_crop("grandcanyon", 200, 160, 64, 64)
 }
 
+/// Arches on the grandcanyon plateau (a 7.9 km crop): each opening, under the ridge before,
+/// is air; a bridge of rock spans it; the ridge's rock before and behind the bridge is cut
+/// away (the arch stands free in its gap, not a tunnel through a wall); both legs stand on
+/// the floor.
+#[test]
+fn arches_on_the_plateau_stand_free_in_their_gaps() {
+    let Some(hf) = dem_crop("grandcanyon", 0, 0, 128, 128) else {
+        return;
+    };
+    let recipe = Recipe {
+        features: vec![Feature::Arches],
+        ..Default::default()
+    };
+    let (scene, rep) = build_recipe(&hf, &recipe).unwrap();
+    let d = &rep.dims;
+    let arches = rep
+        .effects
+        .iter()
+        .find(|(f, _)| *f == Feature::Arches)
+        .map(|(_, e)| e)
+        .expect("arches on the plateau");
+    eprintln!("arches: {arches:?}; span {} m", d.arch_span_m);
+    assert!(arches.features >= 2, "{arches:?}");
+    let (a, leg, th) = (
+        0.5 * d.arch_span_m,
+        1.2 * d.arch_thickness_m,
+        d.arch_thickness_m,
+    );
+    let mut cut = 0;
+    for (site, axis) in arches.sites.iter().zip(&arches.axes) {
+        let ground = |x: f32, y: f32| scene.dem_height(x, y).unwrap();
+        let top = ground(site[0], site[1]);
+        assert!(
+            top > site[2] + 0.5 * d.arch_height_m,
+            "{site:?} was under the ridge"
+        );
+        assert!(!scene.inside(*site), "the opening at {site:?} is air");
+        let bridge = (1..=40)
+            .map(|k| site[2] + k as f32 * (top - site[2]) / 40.0)
+            .find(|&z| scene.inside([site[0], site[1], z]))
+            .expect("a bridge over the opening");
+        for sign in [-1.0f32, 1.0] {
+            let p = [
+                site[0] + axis[0] * sign * 2.5 * th,
+                site[1] + axis[1] * sign * 2.5 * th,
+                bridge,
+            ];
+            assert!(!scene.inside(p), "rock beside the bridge at {p:?}");
+            if ground(p[0], p[1]) > p[2] {
+                cut += 1;
+            }
+        }
+        let floor = site[2] - 0.5 * d.arch_height_m;
+        let side = [-axis[1], axis[0]];
+        for sign in [-1.0f32, 1.0] {
+            let u = sign * (a + 0.6 * leg);
+            let foot = [
+                site[0] + side[0] * u,
+                site[1] + side[1] * u,
+                floor + 0.3 * leg,
+            ];
+            assert!(scene.inside(foot), "a leg at {foot:?}");
+        }
+    }
+    assert!(
+        cut >= arches.features,
+        "the ridge beside the bridges was rock: {cut}"
+    );
+}
+
 /// Default recipes on a plateau (grandcanyon) and a coast (N57E011): sizes in metres within
 /// the ranges of the issue, counts from densities, karst passages between one voxel and half
 /// the soft strata, the percolation ended by its threshold or an empty queue (not the budget).
