@@ -508,11 +508,19 @@ impl Basis<'_> {
             seed: self.sub(6),
         };
         let rep = o.b.arches(&a, &o.region)?;
-        if rep.features == 0 {
+        if rep.features == 0 && rep.candidates == 0 {
             o.dims.notes.push(format!(
                 "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
                 a.height + a.thickness,
                 a.max_length
+            ));
+        } else if rep.features == 0 {
+            o.dims.notes.push(format!(
+                "arches skipped: {} ridges are narrow enough, but none keeps {:.0} m of rock \
+                 (at least 0.7 of it) along {:.0} m of its crest for the ring",
+                rep.candidates,
+                a.height + a.thickness,
+                a.span + 2.4 * a.thickness
             ));
         } else {
             o.effects.push((Feature::Arches, rep));
