@@ -30,7 +30,7 @@ impl TerrainTree {
             Node::Heightfield(k) => {
                 let h = &self.hfs[k as usize];
                 if h.bbox().intersects(region) {
-                    h.lipschitz()
+                    h.lipschitz_over(region)
                 } else {
                     0.0
                 }

@@ -126,7 +126,6 @@ impl HfPrim {
         )
     }
 
-    /// Range of the bilinear DEM over the xy footprint of `b` (clamped to the grid).
     /// Range of the DEM nodes under the box `b` (the bilinear surface stays within it), or of
     /// a few more: read from the pyramid level where the box spans at most four blocks a
     /// side, so a query costs at most 16 block reads whatever the box's size.
@@ -195,11 +194,61 @@ impl HfPrim {
             (w, h) = (nw, nh);
         }
         self.mip = levels;
+        // Per cell, a bound of the bilinear patch's slope: each partial derivative is linear
+        // across the cell, so at most its larger edge difference.
+        if self.w >= 2 && self.h >= 2 {
+            let (cw, ch) = (self.w - 1, self.h - 1);
+            let z = |i: usize, j: usize| self.data[i * self.w + j];
+            let mut base = Vec::with_capacity(cw * ch);
+            for i in 0..ch {
+                for j in 0..cw {
+                    let sx = (z(i, j + 1) - z(i, j))
+                        .abs()
+                        .max((z(i + 1, j + 1) - z(i + 1, j)).abs())
+                        / self.cx;
+                    let sy = (z(i + 1, j) - z(i, j))
+                        .abs()
+                        .max((z(i + 1, j + 1) - z(i, j + 1)).abs())
+                        / self.cy;
+                    base.push((sx * sx + sy * sy).sqrt());
+                }
+            }
+            self.slopes = MaxPyramid::new(base, cw, ch);
+        }
         self
     }
-    /// Bytes of the samples and the pyramid.
+    /// Lipschitz constant of the field over `region`: [`HfPrim::lipschitz`] with the steepest
+    /// cell under the region's footprint (clamped to the grid: beyond it the walls have slope
+    /// 1) instead of the DEM's steepest, so gentle ground far from a cliff is traced with long
+    /// steps.
+    pub(super) fn lipschitz_over(&self, region: &Aabb) -> f32 {
+        if self.slopes.levels.is_empty() {
+            return self.lipschitz();
+        }
+        let (cw, ch) = (self.w - 2, self.h - 2);
+        let top = (self.h - 1) as f32;
+        let cell = |v: f32, n: usize| (v.floor().max(0.0) as usize).min(n);
+        let (u0, u1) = (
+            cell(region.min[0] / self.cx, cw),
+            cell(region.max[0] / self.cx, cw),
+        );
+        let (v0, v1) = (
+            cell(top - region.max[1] / self.cy, ch),
+            cell(top - region.min[1] / self.cy, ch),
+        );
+        let s = self.slopes.max(u0, u1, v0, v1);
+        THRESHOLD * 1.5 / self.r * (1.0 + s * s).sqrt()
+    }
+    /// Bytes of the samples and the pyramids.
     pub(super) fn bytes(&self) -> usize {
-        self.data.len() * 4 + self.mip.iter().map(|l| l.range.len() * 8).sum::<usize>()
+        self.data.len() * 4
+            + self.mip.iter().map(|l| l.range.len() * 8).sum::<usize>()
+            + self
+                .slopes
+                .levels
+                .iter()
+                .map(|l| l.2.len() * 4)
+                .sum::<usize>()
     }
     pub(super) fn bbox(&self) -> Aabb {
         let (xm, ym) = self.extent();
@@ -249,5 +298,50 @@ impl DemFrame {
         } else {
             None
         }
+    }
+}
+
+impl MaxPyramid {
+    /// The pyramid of `base` (`w x h`, row-major), down to a single block.
+    pub(super) fn new(base: Vec<f32>, w: usize, h: usize) -> Self {
+        let mut levels = vec![(w, h, base)];
+        while let Some(&(w, h, ref v)) = levels.last() {
+            if w <= 1 && h <= 1 {
+                break;
+            }
+            let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+            let mut next = Vec::with_capacity(nw * nh);
+            for i in 0..nh {
+                for j in 0..nw {
+                    let mut m = f32::NEG_INFINITY;
+                    for (di, dj) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        let (ii, jj) = (2 * i + di, 2 * j + dj);
+                        if ii < h && jj < w {
+                            m = m.max(v[ii * w + jj]);
+                        }
+                    }
+                    next.push(m);
+                }
+            }
+            levels.push((nw, nh, next));
+        }
+        Self { levels }
+    }
+    /// Max over the inclusive index ranges (or over a few more values): from the level where
+    /// the ranges span at most four blocks a side.
+    pub(super) fn max(&self, u0: usize, u1: usize, v0: usize, v1: usize) -> f32 {
+        let mut k = 0;
+        while k + 1 < self.levels.len() && ((u1 >> k) - (u0 >> k) > 3 || (v1 >> k) - (v0 >> k) > 3)
+        {
+            k += 1;
+        }
+        let (w, h, v) = &self.levels[k];
+        let mut m = f32::NEG_INFINITY;
+        for i in (v0 >> k)..=(v1 >> k).min(h - 1) {
+            for &x in &v[i * w + (u0 >> k)..=i * w + (u1 >> k).min(w - 1)] {
+                m = m.max(x);
+            }
+        }
+        m
     }
 }

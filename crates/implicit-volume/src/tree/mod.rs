@@ -113,6 +113,15 @@ struct HfPrim {
     slope_lip: f32,
     /// Min/max pyramid of `data` for range queries over boxes (see [`HfPrim::height_range`]).
     mip: Vec<MipLevel>,
+    /// Max pyramid of the cells' slope bounds (see [`HfPrim::lipschitz_over`]).
+    slopes: MaxPyramid,
+}
+
+/// A max pyramid over a grid: `levels[0]` the values, `levels[k]` the max of each
+/// `2^k x 2^k` block.
+#[derive(Debug, Clone, Default)]
+struct MaxPyramid {
+    levels: Vec<(usize, usize, Vec<f32>)>,
 }
 
 /// One level of a min/max pyramid: `(min, max)` over blocks of `2^k x 2^k` DEM nodes.
@@ -248,6 +257,7 @@ impl TerrainTree {
             z_max: hi,
             slope_lip: (1.0 + sx * sx + sy * sy).sqrt(),
             mip: Vec::new(),
+            slopes: MaxPyramid::default(),
         }
         .with_mip();
         self.hfs.push(prim);

@@ -239,3 +239,39 @@ fn shading_gradient_is_continuous_across_dem_cells() {
         assert!((slope(smooth_l.1) - 0.004 * x).abs() < 1e-3, "{x}");
     }
 }
+
+/// The heightfield's Lipschitz bound over a region follows the steepest cell under it: it holds
+/// for pairs of points in the region (a DEM with a 60 m cliff and gentle ground), and on the
+/// gentle side it is far below the DEM-wide bound set by the cliff.
+#[test]
+fn heightfield_lipschitz_follows_the_local_slope() {
+    let hf = Heightfield::from_fn(48, 32, 10.0, 10.0, |x, y| {
+        let gentle = 0.3 * x as f32 + 0.2 * y as f32;
+        if x >= 30 { gentle + 60.0 } else { gentle }
+    });
+    let mut t = TerrainTree::new();
+    let (h, _) = t.heightfield(&hf, 8.0, 20.0).unwrap();
+    let whole = t.lipschitz(h, &t.bbox(h));
+    // West of the cliff (x < 290 m; row 0 is the north edge, y up).
+    let gentle = Aabb::new([20.0, 20.0, -10.0], [200.0, 290.0, 40.0]);
+    let local = t.lipschitz(h, &gentle);
+    assert!(local < 0.2 * whole, "{local} vs {whole}");
+    for (k, region) in [gentle, t.bbox(h)].iter().enumerate() {
+        let l = t.lipschitz(h, region);
+        for m in 0..2000u64 {
+            let r = |s| crate::math::unit(crate::math::hash(11, k as u64, m, s));
+            let pt = |o: u64| {
+                [
+                    region.min[0] + r(o) * (region.max[0] - region.min[0]),
+                    region.min[1] + r(o + 1) * (region.max[1] - region.min[1]),
+                    region.min[2] + r(o + 2) * (region.max[2] - region.min[2]),
+                ]
+            };
+            let (p, q) = (pt(0), pt(3));
+            let q = add(p, mul(sub(q, p), 0.05));
+            let d = crate::math::norm(sub(q, p));
+            let df = (t.eval(h, q) - t.eval(h, p)).abs();
+            assert!(df <= l * d + 1e-5, "{df} > {l} * {d}");
+        }
+    }
+}
