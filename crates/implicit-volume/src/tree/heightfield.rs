@@ -218,9 +218,9 @@ impl HfPrim {
         self
     }
     /// Lipschitz constant of the field over `region`: [`HfPrim::lipschitz`] with the steepest
-    /// cell under the region's footprint (clamped to the grid: beyond it the walls have slope
-    /// 1) instead of the DEM's steepest, so gentle ground far from a cliff is traced with long
-    /// steps.
+    /// cell under the region's footprint instead of the DEM's steepest (clamped to the grid,
+    /// beyond which the walls have unit slope), so gentle ground far from a cliff is traced
+    /// with long steps.
     pub(super) fn lipschitz_over(&self, region: &Aabb) -> f32 {
         if self.slopes.levels.is_empty() {
             return self.lipschitz();
