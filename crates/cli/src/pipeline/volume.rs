@@ -1,6 +1,9 @@
 //! Stage `volume`: 3D landforms on an implicit construction tree (Paris et al. 2018,
-//! relief-implicit-volume). The current terrain (its centre cropped to `max_size` cells per
-//! side so the stage fits its budget) runs the [`VolumeJob`] of `params.job`, the same settings
+//! relief-implicit-volume). The input DEM as loaded (`input: "source"`, the default: the
+//! landforms at the real terrain's own scale, with room for arches, islands and a karst
+//! network) or the current terrain (`input: "terrain"`, e.g. the amplified DEM), its centre
+//! cropped to `max_size` cells per side so the stage fits its budget, runs the [`VolumeJob`]
+//! of `params.job`, the same settings
 //! type `relief volume` fills from its flags: the features are generated, the scene is
 //! polygonised (and simplified) and written as GLB, cut by a vertical section through the most
 //! carved row and, in runs with previews, rendered (overview and close-ups). Reports the job's
@@ -26,6 +29,19 @@ pub(crate) struct VolumeParams {
     pub(crate) job: VolumeJob,
     /// The terrain's centre is cropped to at most this many cells per side (0 = no crop).
     pub(crate) max_size: usize,
+    /// Which terrain the scene is built on.
+    pub(crate) input: VolumeInput,
+}
+
+/// The terrain the `volume` stage builds on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub(crate) enum VolumeInput {
+    /// The input DEM as loaded, when void-free (else the current terrain).
+    #[default]
+    Source,
+    /// The current terrain: the previous stage's output.
+    Terrain,
 }
 
 impl Default for VolumeParams {
@@ -50,6 +66,7 @@ impl Default for VolumeParams {
                 ..Default::default()
             },
             max_size: 128,
+            input: VolumeInput::Source,
         }
     }
 }
@@ -72,7 +89,12 @@ impl VolumeStage {
 impl Stage for VolumeStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        let terrain = cx.state.terrain()?;
+        let (terrain, which) = match p.input {
+            VolumeInput::Source => cx.state.complete_source("volume", "terrain")?,
+            VolumeInput::Terrain => (cx.state.terrain()?.clone(), "the current terrain"),
+        };
+        cx.section.figure("input", which);
+        let terrain = &terrain;
         let (w, h) = (terrain.width(), terrain.height());
         let hf = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
             let (cw, ch) = (w.min(p.max_size), h.min(p.max_size));
@@ -228,6 +250,49 @@ mod tests {
         assert!(f["tree_nodes"].as_u64().unwrap() > 500);
         assert!(f["section"]["carved"].as_u64().unwrap() > 0);
         assert!(tmp.path().join("volume.glb").is_file());
+    }
+
+    /// `input` chooses the DEM as loaded (the default) or the current terrain: a 24-cell
+    /// source and a 16-cell "amplified" terrain of half the cell size give scenes of their own
+    /// cell size.
+    #[test]
+    fn input_chooses_the_loaded_dem_or_the_current_terrain() {
+        let root = crate::test_root();
+        let tmp = tempfile::tempdir().unwrap();
+        let config = PipelineConfig::golden(&root, tmp.path().to_path_buf());
+        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
+        let source = raster.heightfield.crop(200, 160, 24, 24).unwrap();
+        let (cx0, _) = source.cell_size();
+        let current =
+            relief_heightfield::Heightfield::from_fn(16, 16, cx0 / 2.0, cx0 / 2.0, |x, y| {
+                1000.0 + (x * y) as f32
+            });
+        for (input, cell, which) in [
+            (VolumeInput::Source, cx0, "the input DEM"),
+            (VolumeInput::Terrain, cx0 / 2.0, "the current terrain"),
+        ] {
+            let mut state = State {
+                source: Some(source.clone()),
+                ..Default::default()
+            };
+            state.set_terrain(current.clone());
+            let mut section = Section::new("volume");
+            let mut cx = StageCx {
+                config: &config,
+                state: &mut state,
+                section: &mut section,
+            };
+            let mut p = VolumeParams {
+                input,
+                ..Default::default()
+            };
+            p.job.recipe.features = vec![Feature::Karst];
+            VolumeStage::new(p).unwrap().run(&mut cx).unwrap();
+            let f = &section.figures;
+            assert_eq!(f["input"], which);
+            let got = f["cell_size_m"][0].as_f64().unwrap();
+            assert!((got - cell).abs() < 1e-6, "{input:?}: {got} vs {cell}");
+        }
     }
 
     #[test]
