@@ -249,28 +249,8 @@ fn a_flat_sea_at_the_level_is_all_water_and_its_coast_follows_the_half_metre_con
     let hf = relief_heightfield::Heightfield::from_fn(40, 40, 10.0, 10.0, |x, _| {
         if x < 20 { 0.0 } else { (x - 19) as f32 }
     });
-    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
     let (w, h) = (64, 48);
-    let render = |sea: Option<f32>| {
-        let s = RenderSettings {
-            width: w,
-            height: h,
-            sea_level: sea,
-            shadows: false,
-            ..Default::default()
-        };
-        let cam = Camera {
-            eye: [190.0, 200.0, 100.0],
-            target: [190.0, 200.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 40.0,
-        };
-        render(&scene, &cam, &s).unwrap()
-    };
-    let (dry, wet) = (render(None), render(Some(0.0)));
+    let (dry, wet) = dry_and_wet(&hf, [190.0, 200.0, 100.0], (w, h));
     // Straight down from 100 m: pixel column x sees the ground at world x = 190 + 100 u
     // (1.5 m per pixel); the last sea node is at 190 m, the first land node (1 m) at 200 m.
     let th = 20f32.to_radians().tan();
@@ -352,33 +332,43 @@ fn shore_erosion_planes_a_low_fringe_to_a_platform_under_the_water() {
     assert!(fringe_is_rock_at(&scene, -4.0 - 1.0));
 }
 
+/// Straight-down renders (40 degrees, no shadows, north up) of `hf`'s scene from `eye`: without
+/// water and with a sea at 0 m.
+fn dry_and_wet(
+    hf: &relief_heightfield::Heightfield,
+    eye: [f32; 3],
+    (width, height): (usize, usize),
+) -> (Image, Image) {
+    let scene = SceneBuilder::new(hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let cam = Camera {
+        eye,
+        target: [eye[0], eye[1], 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_deg: 40.0,
+    };
+    let shot = |sea_level: Option<f32>| {
+        let s = RenderSettings {
+            width,
+            height,
+            sea_level,
+            shadows: false,
+            ..Default::default()
+        };
+        render(&scene, &cam, &s).unwrap()
+    };
+    (shot(None), shot(Some(0.0)))
+}
+
 /// Water tints the ground by its depth: under a seabed sloping from 1 m to 40 m deep, the share
 /// of the ground's own red that shows through falls offshore.
 #[test]
 fn deeper_ground_shows_less_through_the_water() {
     let hf = relief_heightfield::Heightfield::from_fn(40, 40, 10.0, 10.0, |x, _| -1.0 - x as f32);
-    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
     let (w, h) = (64, 48);
-    let shot = |sea: Option<f32>| {
-        let s = RenderSettings {
-            width: w,
-            height: h,
-            sea_level: sea,
-            shadows: false,
-            ..Default::default()
-        };
-        let cam = Camera {
-            eye: [195.0, 195.0, 400.0],
-            target: [195.0, 195.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 40.0,
-        };
-        render(&scene, &cam, &s).unwrap()
-    };
-    let (dry, wet) = (shot(None), shot(Some(0.0)));
+    let (dry, wet) = dry_and_wet(&hf, [195.0, 195.0, 400.0], (w, h));
     // Share of the dry red left under water, averaged over each pixel column (x grows east,
     // deeper).
     let share = |x: usize| {
