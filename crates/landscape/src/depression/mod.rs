@@ -1,0 +1,10 @@
+//! Depression handling: priority-flood filling (plain or epsilon), least-cost breaching, and
+//! drainage across the flats that filling leaves.
+
+pub mod breach;
+pub mod fill;
+pub mod flats;
+
+pub use breach::{BreachLimits, BreachReport, breach};
+pub use fill::{FillMode, NO_PARENT, is_outlet, priority_flood};
+pub use flats::resolve_flats;

@@ -1,0 +1,84 @@
+//! Elevation types the routing works on: `f32` rasters as read, `f64` for the erosion models
+//! (whose implicit solvers compare with fastscapelib's double precision).
+
+/// An elevation type: ordered keys for the priority queues, the next representable value
+/// upward (the epsilon of Priority-Flood+epsilon), voids.
+pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
+    /// An integer key whose order is the numeric order of non-NaN values.
+    type Key: Ord + Copy + std::fmt::Debug;
+    /// The order-preserving key of `self`.
+    fn key(self) -> Self::Key;
+    /// The smallest representable value above `self`.
+    fn up(self) -> Self;
+    /// True for a void (NaN).
+    fn is_void(self) -> bool;
+    /// As `f64`.
+    fn to_f64(self) -> f64;
+    /// From `f64` (rounded).
+    fn from_f64(v: f64) -> Self;
+}
+
+impl Elev for f32 {
+    type Key = u32;
+    #[inline]
+    fn key(self) -> u32 {
+        let b = self.to_bits();
+        if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
+    }
+    #[inline]
+    fn up(self) -> f32 {
+        self.next_up()
+    }
+    #[inline]
+    fn is_void(self) -> bool {
+        self.is_nan()
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    #[inline]
+    fn from_f64(v: f64) -> f32 {
+        v as f32
+    }
+}
+
+impl Elev for f64 {
+    type Key = u64;
+    #[inline]
+    fn key(self) -> u64 {
+        let b = self.to_bits();
+        if b >> 63 == 1 { !b } else { b | 0x8000_0000_0000_0000 }
+    }
+    #[inline]
+    fn up(self) -> f64 {
+        self.next_up()
+    }
+    #[inline]
+    fn is_void(self) -> bool {
+        self.is_nan()
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn from_f64(v: f64) -> f64 {
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_sort_like_the_values() {
+        let v = [-1e30f32, -2.5, -0.0, 0.0, 1e-40, 1.0, 3000.5, f32::INFINITY];
+        for w in v.windows(2) {
+            assert!(w[0].key() <= w[1].key(), "{w:?}");
+            assert!((w[0] as f64).key() <= (w[1] as f64).key());
+        }
+        assert!(1.0f32.up() > 1.0 && 1.0f64.up() > 1.0);
+    }
+}
