@@ -4,6 +4,7 @@
 //! ([`network`]: Strahler order, channels as GeoJSON; [`basins`]: watersheds, HAND).
 
 pub mod basins;
+pub mod job;
 pub mod network;
 
 use serde::{Deserialize, Serialize};
