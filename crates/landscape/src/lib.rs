@@ -10,7 +10,8 @@
 //!
 //! ```
 //! use relief_landscape::{flow, grid::Grid};
-//! // A tilted plane with a pit: filled, routed, every cell drains to the west edge.
+//! // A tilted plane with a pit: filled, routed, every cell drains to an edge (the edges are
+//! // outlets), most of them to the west edge.
 //! let (w, h) = (8, 5);
 //! let mut z: Vec<f32> = (0..w * h).map(|i| (i % w) as f32).collect();
 //! z[2 * w + 4] = -5.0;
@@ -19,7 +20,9 @@
 //! assert_eq!(r.sinks(), 0);
 //! let area = r.accumulation(None);
 //! let west: f64 = (0..h).map(|y| area[y * w]).sum();
-//! assert_eq!(west, 100.0 * (w * h) as f64);
+//! let total: f64 = (0..w * h).filter(|&i| r.outlet[i]).map(|i| area[i]).sum();
+//! assert_eq!(total, 100.0 * (w * h) as f64);
+//! assert!(west > 0.5 * total);
 //! ```
 #![warn(missing_docs)]
 
@@ -28,5 +31,7 @@ pub mod elev;
 mod error;
 pub mod flow;
 pub mod grid;
+pub mod masks;
+pub mod stats;
 
 pub use error::{LandscapeError, Result};

@@ -117,13 +117,15 @@ pub fn route(mut z: Vec<f32>, grid: Grid, opts: &RouteOptions) -> Routing {
 }
 
 /// The D8 direction of steepest descent of every valid cell (drop over centre distance; the
-/// first of [`D8`] wins a tie); [`NO_FLOW`] where no neighbour is strictly lower.
-pub fn steepest_descent<T: Elev>(z: &[T], grid: &Grid, _outlet: &[bool]) -> Vec<u8> {
+/// first of [`D8`] wins a tie); [`NO_FLOW`] where no neighbour is strictly lower and on the
+/// outlets (cells on the edge or beside a void drain off the map, as in RichDEM and
+/// fastscapelib, whose router this rule equals).
+pub fn steepest_descent<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool]) -> Vec<u8> {
     let dist = grid.distances();
     let inv: [f64; 8] = dist.map(|d| 1.0 / d);
     let mut dir = vec![NO_FLOW; grid.len()];
     dir.iter_mut().enumerate().for_each(|(i, d)| {
-        if z[i].is_void() {
+        if z[i].is_void() || outlet[i] {
             return;
         }
         let zi = z[i].to_f64();
@@ -209,8 +211,8 @@ impl Routing {
     /// Multiple-flow-direction drainage area (m^2): each cell splits its water among its
     /// strictly lower neighbours in proportion to `(tan slope)^p * L`, with the contour length
     /// `L` 0.5 of a cell side for the four sides and 0.354 for the diagonals (Quinn et al.
-    /// 1991); cells without a lower neighbour (flats, outlets) pass all of it along their D8
-    /// direction.
+    /// 1991); cells without a lower neighbour (flats) pass all of it along their D8 direction,
+    /// outlets keep it.
     pub fn accumulation_mfd(&self, exponent: f64) -> Vec<f64> {
         let g = &self.grid;
         let z = &self.surface;
@@ -223,7 +225,7 @@ impl Routing {
         let mut donors = vec![0u8; n];
         let mut splits = vec![false; n];
         for i in 0..n {
-            if z[i].is_nan() {
+            if z[i].is_nan() || self.outlet[i] {
                 continue;
             }
             let mut any = false;

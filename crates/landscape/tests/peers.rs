@@ -1,0 +1,124 @@
+//! Exactness against the peers a GIS user checks with (RichDEM, fastscapelib), on a crop of a
+//! real DEM with non-square cells. The reference files were written once by
+//! `xtask/peers/landscape_reference.py` (its docstring says how) and are committed under
+//! `tests/data/`, so this test needs no Python.
+
+use std::path::Path;
+
+use relief_landscape::depression::{FillMode, priority_flood};
+use relief_landscape::flow::{self, Depressions, RouteOptions};
+use relief_landscape::grid::Grid;
+
+const CELL: (f64, f64) = (74.573, 92.475);
+
+/// A C-order little-endian `.npy` of `<f4` or `<f8` as f64 (the tests' own 20-line reader: the
+/// crate does not depend on relief-io).
+fn npy(name: &str) -> (Vec<f64>, usize, usize) {
+    let bytes = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name))
+        .expect("reference file");
+    let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+    let shape: Vec<usize> = header
+        .split("'shape': (")
+        .nth(1)
+        .unwrap()
+        .split(')')
+        .next()
+        .unwrap()
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect();
+    let data = &bytes[10 + hlen..];
+    let v: Vec<f64> = if header.contains("<f4") {
+        data.chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64)
+            .collect()
+    } else {
+        assert!(header.contains("<f8"));
+        data.chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    assert!(header.contains("'fortran_order': False"));
+    (v, shape[1], shape[0])
+}
+
+fn f32s(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|&x| x as f32).collect()
+}
+
+#[test]
+fn plain_fill_equals_richdem_cell_for_cell() {
+    let (dem, w, h) = npy("dem.npy");
+    let (reference, _, _) = npy("rd_fill.npy");
+    let g = Grid {
+        width: w,
+        height: h,
+        cell_x: CELL.0,
+        cell_y: CELL.1,
+    };
+    let mut z = f32s(&dem);
+    let raised = priority_flood(&mut z, &g, FillMode::Plain, None);
+    assert_eq!(raised, 1332);
+    assert_eq!(z, f32s(&reference));
+}
+
+#[test]
+fn epsilon_fill_differs_from_richdem_only_by_the_order_of_equal_cells() {
+    // Both raise each cell one float32 step above the cell the flood reached it from; which
+    // equal cell comes first is the heap's business (RichDEM: GCC's std::priority_queue; here:
+    // the cell index), so the steps taken inside a filled flat may differ, never the level.
+    let (dem, w, h) = npy("dem.npy");
+    let (plain, _, _) = npy("rd_fill.npy");
+    let (reference, _, _) = npy("rd_fill_eps.npy");
+    let g = Grid {
+        width: w,
+        height: h,
+        cell_x: CELL.0,
+        cell_y: CELL.1,
+    };
+    let mut z = f32s(&dem);
+    priority_flood(&mut z, &g, FillMode::Epsilon, None);
+    let mut differ = 0;
+    for i in 0..g.len() {
+        if z[i] != reference[i] as f32 {
+            differ += 1;
+            // Only on cells the epsilon raises (a filled depression or a flat, where the
+            // level is the plain fill's), by a few float32 steps above that level.
+            assert!(reference[i] > dem[i] || z[i] as f64 > dem[i], "cell {i}");
+            assert!((z[i] as f64 - plain[i]).abs() < 0.01 && (reference[i] - plain[i]).abs() < 0.01);
+        }
+    }
+    eprintln!("epsilon fill: {differ} of {} cells differ from RichDEM", g.len());
+    assert!(differ <= 40, "{differ} cells differ (17 when written)");
+}
+
+#[test]
+fn d8_area_equals_fastscapelib_on_the_same_drained_surface() {
+    // fastscapelib's SingleFlowRouter is the same rule (steepest drop over centre distance, the
+    // first neighbour in row-major order winning ties, edges as outlets); routed on RichDEM's
+    // epsilon-filled surface, where every interior cell has a lower neighbour.
+    let (eps, w, h) = npy("rd_fill_eps.npy");
+    let (area, _, _) = npy("fs_area.npy");
+    let g = Grid {
+        width: w,
+        height: h,
+        cell_x: CELL.0,
+        cell_y: CELL.1,
+    };
+    let r = flow::route(
+        f32s(&eps),
+        g,
+        &RouteOptions {
+            depressions: Depressions::None,
+            ..Default::default()
+        },
+    );
+    assert_eq!(r.sinks(), 0);
+    let ours = r.accumulation(None);
+    let mut worst = 0f64;
+    for i in 0..g.len() {
+        worst = worst.max((ours[i] - area[i]).abs() / area[i]);
+    }
+    assert!(worst < 1e-12, "largest relative difference {worst}");
+}

@@ -1,0 +1,51 @@
+"""Reference outputs of the peers for relief-landscape's exactness tests.
+
+Usage: python landscape_reference.py DEM.npy CELL_X_M CELL_Y_M OUTDIR
+Writes into OUTDIR (float32 / float64 .npy, C order):
+  dem.npy          the input (float32)
+  rd_fill.npy      RichDEM FillDepressions(epsilon=False)                (float32)
+  rd_fill_eps.npy  RichDEM FillDepressions(epsilon=True)                 (float32)
+  fs_area.npy      fastscapelib FlowGraph([SingleFlowRouter()]) drainage area (m^2, float64)
+                   on rd_fill_eps (a surface on which every interior cell drains), all four
+                   edges fixed-value (outlets)
+The committed copies under crates/landscape/tests/data/ were made with richdem2 2.4.3 and
+fastscapelib 0.3.0 (`cargo xtask bench`'s peers venv) from jacksboro_fault rows 64..192,
+columns 192..320 (`shared/data/dem/jacksboro_fault.f32`, 74.573 m x 92.475 m cells: non-square,
+1,332 cells in closed depressions; matplotlib's sample data `jacksboro_fault_dem.npz`,
+Matplotlib License).
+"""
+import os
+import sys
+
+import numpy as np
+
+
+def main():
+    dem = np.load(sys.argv[1]).astype(np.float32)
+    cell_x, cell_y = float(sys.argv[2]), float(sys.argv[3])
+    out = sys.argv[4]
+    os.makedirs(out, exist_ok=True)
+    saved = os.dup(1)
+    os.dup2(2, 1)  # RichDEM prints its progress on stdout
+    try:
+        import richdem as rd
+        r = rd.rdarray(dem.copy(), no_data=-9999.0)
+        fill = np.asarray(rd.FillDepressions(r), dtype=np.float32)
+        eps = np.asarray(rd.FillDepressions(rd.rdarray(dem.copy(), no_data=-9999.0), epsilon=True),
+                         dtype=np.float32)
+    finally:
+        os.dup2(saved, 1)
+    import fastscapelib as fs
+    grid = fs.RasterGrid(list(eps.shape), [cell_y, cell_x], fs.NodeStatus.FIXED_VALUE)
+    graph = fs.FlowGraph(grid, [fs.SingleFlowRouter()])
+    graph.update_routes(eps.astype(np.float64))
+    area = np.asarray(graph.accumulate(1.0), dtype=np.float64).reshape(eps.shape)
+    np.save(f"{out}/dem.npy", dem)
+    np.save(f"{out}/rd_fill.npy", fill)
+    np.save(f"{out}/rd_fill_eps.npy", eps)
+    np.save(f"{out}/fs_area.npy", area)
+    print({"changed_by_fill": int((fill != dem).sum()), "eps_vs_plain": int((eps != fill).sum())})
+
+
+if __name__ == "__main__":
+    main()
