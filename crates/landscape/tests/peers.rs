@@ -122,3 +122,16 @@ fn d8_area_equals_fastscapelib_on_the_same_drained_surface() {
     }
     assert!(worst < 1e-12, "largest relative difference {worst}");
 }
+
+#[test]
+fn drainage_stats_equal_the_reference_tool() {
+    // `shared/tools/terrain_quality.py`'s drainage(z, 80.0) on the same crop (square 80 m
+    // cells: the reference tool has one cell size): (2.02178955078125, 0.46583093872066983,
+    // 0.5430709163880191).
+    let (dem, w, h) = npy("dem.npy");
+    let hf = relief_heightfield::Heightfield::new(w, h, f32s(&dem), 80.0, 80.0).unwrap();
+    let s = relief_landscape::stats::drainage(&hf);
+    assert!((s.pits_per_km2 - 2.02178955078125).abs() < 1e-9, "{s:?}");
+    assert!((s.fill_depth_m - 0.46583093872066983).abs() < 1e-9, "{s:?}");
+    assert!((s.beta - 0.5430709163880191).abs() < 1e-9, "{s:?}");
+}
