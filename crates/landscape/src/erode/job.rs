@@ -1,0 +1,522 @@
+//! The `relief erode` job: a preset (a landscape type a user starts from) and the fields that
+//! override it, resolved into up to three processes run in order: stream-power incision with
+//! uplift and hillslope diffusion over geological time (the drainage network), hydraulic erosion
+//! (gullies and fans at the grid's scale), thermal relaxation (talus below cliffs).
+
+use std::time::Instant;
+
+use relief_heightfield::param::{ensure, in_range};
+use relief_heightfield::{Heightfield, ParamError, Progress};
+use serde::{Deserialize, Serialize};
+
+use super::hydraulic::{HydraulicFigures, HydraulicParams, hydraulic};
+use super::stream_power::{self, RunFigures, StreamPowerParams, Uplift, base_level_mask};
+use super::thermal::{ThermalFigures, ThermalParams, thermal};
+use crate::grid::Grid;
+use crate::{LandscapeError, Result};
+
+/// A landscape type to start from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Soil-mantled rolling hills: weak incision, strong hillslope diffusion, light rain wash.
+    Gentle,
+    /// Alpine relief: channel incision over 50 kyr, moderate diffusion, gullies, 35 degree
+    /// scree below cliffs.
+    #[default]
+    Mountain,
+    /// Soft rock under heavy storms: dense gullies, fast incision, little diffusion.
+    Badlands,
+    /// Arid ranges: rare flash floods that build fans, long talus aprons at 33 degrees.
+    Desert,
+}
+
+impl Preset {
+    /// Every preset, in the order of the documentation.
+    pub const ALL: [Preset; 4] = [Self::Gentle, Self::Mountain, Self::Badlands, Self::Desert];
+
+    /// The preset's name (`gentle`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gentle => "gentle",
+            Self::Mountain => "mountain",
+            Self::Badlands => "badlands",
+            Self::Desert => "desert",
+        }
+    }
+
+    /// The processes of the preset.
+    pub fn plan(self) -> Plan {
+        let sp = |k: f64, diffusion: f64, years: f64| StreamPowerStage {
+            params: StreamPowerParams {
+                k,
+                diffusion,
+                dt: 1_000.0,
+                ..StreamPowerParams::default()
+            },
+            years,
+            uplift: 0.0,
+        };
+        let hy = |iterations: u32, rain_m: f64, capacity: f64, evaporation: f64| HydraulicParams {
+            iterations,
+            rain_m,
+            capacity,
+            evaporation,
+            ..HydraulicParams::default()
+        };
+        let th = |talus_angle_deg: f64, iterations: u32| ThermalParams {
+            talus_angle_deg,
+            iterations,
+            ..ThermalParams::default()
+        };
+        match self {
+            Self::Gentle => Plan {
+                stream_power: Some(sp(5e-6, 0.05, 50_000.0)),
+                hydraulic: Some(hy(60, 0.005, 0.03, 0.03)),
+                thermal: Some(th(30.0, 30)),
+            },
+            Self::Mountain => Plan {
+                stream_power: Some(sp(2e-5, 0.01, 50_000.0)),
+                hydraulic: Some(hy(120, 0.01, 0.05, 0.02)),
+                thermal: Some(th(35.0, 50)),
+            },
+            Self::Badlands => Plan {
+                stream_power: Some(sp(1e-4, 0.002, 20_000.0)),
+                hydraulic: Some(hy(200, 0.015, 0.08, 0.015)),
+                thermal: Some(th(38.0, 30)),
+            },
+            Self::Desert => Plan {
+                stream_power: Some(sp(5e-6, 0.005, 20_000.0)),
+                hydraulic: Some(hy(150, 0.02, 0.06, 0.04)),
+                thermal: Some(th(33.0, 80)),
+            },
+        }
+    }
+}
+
+/// Stream power over geological time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StreamPowerStage {
+    /// Parameters (K, m, n, D, dt).
+    pub params: StreamPowerParams,
+    /// Duration (yr); the number of steps is `ceil(years / dt)`.
+    pub years: f64,
+    /// Rock uplift (m/yr) away from the base levels (the edges and voids), unless an uplift
+    /// raster is given to the run.
+    pub uplift: f64,
+}
+
+/// The resolved processes of a run, in the order they run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    /// Stream power with diffusion, first.
+    pub stream_power: Option<StreamPowerStage>,
+    /// Hydraulic erosion, second.
+    pub hydraulic: Option<HydraulicParams>,
+    /// Thermal relaxation, last.
+    pub thermal: Option<ThermalParams>,
+}
+
+/// Settings of `relief erode` (and the pipeline's `erode` stage): the preset and the fields
+/// that override it (`None`: the preset's value).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ErodeSettings {
+    /// The landscape type to start from.
+    pub preset: Preset,
+    /// Stream-power duration (yr); 0 skips stream power.
+    pub years: Option<f64>,
+    /// Stream-power time step (yr).
+    pub dt: Option<f64>,
+    /// Uplift rate (m/yr).
+    pub uplift: Option<f64>,
+    /// Erodibility `K` (m^(1-2m)/yr).
+    pub k: Option<f64>,
+    /// Drainage-area exponent `m`.
+    pub m: Option<f64>,
+    /// Slope exponent `n`.
+    pub n: Option<f64>,
+    /// Hillslope diffusivity (m^2/yr).
+    pub diffusion: Option<f64>,
+    /// Hydraulic iterations; 0 skips hydraulic erosion.
+    pub hydraulic_iterations: Option<u32>,
+    /// Rain per hydraulic iteration (m of water).
+    pub rain: Option<f64>,
+    /// Sediment capacity of the hydraulic model (dimensionless).
+    pub capacity: Option<f64>,
+    /// Angle of repose of the thermal relaxation (degrees).
+    pub talus_angle: Option<f64>,
+    /// Thermal iterations; 0 skips thermal relaxation.
+    pub thermal_iterations: Option<u32>,
+    /// Seed of the random rain (used when the rain is not uniform).
+    pub seed: u64,
+}
+
+impl ErodeSettings {
+    /// The settings of a preset without overrides.
+    pub fn preset(preset: Preset) -> Self {
+        Self {
+            preset,
+            ..Self::default()
+        }
+    }
+
+    /// The preset with the overrides applied.
+    pub fn plan(&self) -> Plan {
+        let mut plan = self.preset.plan();
+        if let Some(sp) = plan.stream_power.as_mut() {
+            let p = &mut sp.params;
+            p.k = self.k.unwrap_or(p.k);
+            p.m = self.m.unwrap_or(p.m);
+            p.n = self.n.unwrap_or(p.n);
+            p.diffusion = self.diffusion.unwrap_or(p.diffusion);
+            p.dt = self.dt.unwrap_or(p.dt);
+            sp.years = self.years.unwrap_or(sp.years);
+            sp.uplift = self.uplift.unwrap_or(sp.uplift);
+        }
+        if plan.stream_power.is_some_and(|s| s.years == 0.0) {
+            plan.stream_power = None;
+        }
+        if let Some(h) = plan.hydraulic.as_mut() {
+            h.iterations = self.hydraulic_iterations.unwrap_or(h.iterations);
+            h.rain_m = self.rain.unwrap_or(h.rain_m);
+            h.capacity = self.capacity.unwrap_or(h.capacity);
+            h.seed = self.seed;
+        }
+        if plan.hydraulic.is_some_and(|h| h.iterations == 0) {
+            plan.hydraulic = None;
+        }
+        if let Some(t) = plan.thermal.as_mut() {
+            t.talus_angle_deg = self.talus_angle.unwrap_or(t.talus_angle_deg);
+            t.iterations = self.thermal_iterations.unwrap_or(t.iterations);
+        }
+        if plan.thermal.is_some_and(|t| t.iterations == 0) {
+            plan.thermal = None;
+        }
+        plan
+    }
+
+    /// Checks every field (through the resolved plan, so an override is checked by the
+    /// process that takes it, under its own name).
+    pub fn check(&self) -> std::result::Result<(), ParamError> {
+        if let Some(y) = self.years {
+            in_range("years", y, 0.0..=1e8, "must be in [0, 1e8] years")?;
+        }
+        if let Some(u) = self.uplift {
+            in_range("uplift", u, -0.1..=0.1, "must be in [-0.1, 0.1] m/yr")?;
+        }
+        let plan = self.plan();
+        if let Some(sp) = plan.stream_power {
+            sp.params.check()?;
+            ensure(
+                sp.years / sp.params.dt <= 1e6,
+                "years",
+                sp.years,
+                "needs at most 1e6 steps of dt",
+            )?;
+        }
+        if let Some(h) = plan.hydraulic {
+            h.check()?;
+            in_range(
+                "hydraulic_iterations",
+                h.iterations,
+                0..=1_000_000,
+                "must be at most 1e6",
+            )?;
+        }
+        if let Some(t) = plan.thermal {
+            t.check()?;
+        }
+        Ok(())
+    }
+
+    /// Bytes of working memory per cell of a run: the f64 surface, its copy and the stream-power
+    /// buffers (about 60 B), the hydraulic model's eight f32 fields and two buffers (40 B), the
+    /// input and outputs (12 B).
+    pub const BYTES_PER_CELL: u64 = 120;
+
+    /// Seconds the run will take on `dem`, timed on a pilot: each process on a centre crop of
+    /// at most 256 x 256 cells for a few steps, scaled by cells and steps.
+    pub fn estimate_seconds(&self, dem: &Heightfield) -> Result<f64> {
+        self.check()?;
+        let (w, h) = (dem.width().min(256), dem.height().min(256));
+        let crop = dem.crop((dem.width() - w) / 2, (dem.height() - h) / 2, w, h)?;
+        let scale = dem.len() as f64 / crop.len() as f64;
+        let plan = self.plan();
+        let pilot = Plan {
+            stream_power: plan.stream_power.map(|s| StreamPowerStage {
+                years: s.params.dt * 3.0,
+                ..s
+            }),
+            hydraulic: plan.hydraulic.map(|p| HydraulicParams {
+                iterations: p.iterations.min(6),
+                ..p
+            }),
+            thermal: plan.thermal.map(|p| ThermalParams {
+                iterations: p.iterations.min(6),
+                ..p
+            }),
+        };
+        let t0 = Instant::now();
+        run_plan(&pilot, &crop, None, &relief_heightfield::NoProgress, &|| false)?;
+        let per_unit = t0.elapsed().as_secs_f64() * scale;
+        let units = |full: f64, done: f64| if done > 0.0 { full / done } else { 0.0 };
+        let steps = |p: &Plan| {
+            (
+                p.stream_power.map_or(0.0, |s| (s.years / s.params.dt).ceil()),
+                p.hydraulic.map_or(0.0, |h| h.iterations as f64),
+                p.thermal.map_or(0.0, |t| t.iterations as f64),
+            )
+        };
+        let (a, b, c) = steps(&plan);
+        let (pa, pb, pc) = steps(&pilot);
+        // The pilot's time split evenly over its processes is pessimistic enough for a
+        // budget check; each process scales with its own step count.
+        let parts = [(a, pa), (b, pb), (c, pc)]
+            .iter()
+            .filter(|(_, p)| *p > 0.0)
+            .count()
+            .max(1) as f64;
+        Ok(per_unit / parts * (units(a, pa) + units(b, pb) + units(c, pc)))
+    }
+
+    /// Runs the job. `uplift` (m/yr per cell, the DEM's grid) replaces the constant uplift.
+    /// `stop` is asked between steps; when it returns true the run ends with
+    /// [`LandscapeError::Stopped`].
+    pub fn run(
+        &self,
+        dem: &Heightfield,
+        uplift: Option<&Heightfield>,
+        progress: &dyn Progress,
+        stop: &dyn Fn() -> bool,
+    ) -> Result<ErodeOutput> {
+        self.check()?;
+        if let Some(u) = uplift {
+            if (u.width(), u.height()) != (dem.width(), dem.height()) {
+                return Err(LandscapeError::InvalidInput(format!(
+                    "the uplift raster is {}x{}, the DEM {}x{}",
+                    u.width(),
+                    u.height(),
+                    dem.width(),
+                    dem.height()
+                )));
+            }
+            if u.as_slice().iter().any(|v| !v.is_nan() && v.abs() > 0.1) {
+                return Err(LandscapeError::InvalidInput(
+                    "the uplift raster has rates beyond 0.1 m/yr".into(),
+                ));
+            }
+        }
+        if dem.as_slice().iter().all(|v| v.is_nan()) {
+            return Err(LandscapeError::InvalidInput("the DEM has no valid cell".into()));
+        }
+        run_plan(&self.plan(), dem, uplift, progress, stop)
+    }
+}
+
+fn run_plan(
+    plan: &Plan,
+    dem: &Heightfield,
+    uplift: Option<&Heightfield>,
+    progress: &dyn Progress,
+    stop: &dyn Fn() -> bool,
+) -> Result<ErodeOutput> {
+    let grid = Grid::of(dem);
+    let mut figures = ErodeFigures {
+        plan: *plan,
+        ..ErodeFigures::default()
+    };
+    let mut z: Vec<f32> = dem.as_slice().to_vec();
+    // The uplift each cell received, so that erosion and deposition are net of it.
+    let mut uplifted = vec![0f64; grid.len()];
+    if let Some(sp) = plan.stream_power {
+        let mut zz: Vec<f64> = z.iter().map(|&v| v as f64).collect();
+        let base = base_level_mask(&zz, &grid);
+        let rates: Option<Vec<f64>> =
+            uplift.map(|u| u.as_slice().iter().map(|&v| if v.is_nan() { 0.0 } else { v as f64 }).collect());
+        let up = match rates.as_deref() {
+            Some(r) => Uplift::Raster(r),
+            None => Uplift::Constant(sp.uplift),
+        };
+        let steps = (sp.years / sp.params.dt).ceil() as usize;
+        let f = stream_power::run(&mut zz, &grid, &base, &sp.params, up, steps, progress, stop)?;
+        if f.stopped {
+            return Err(LandscapeError::Stopped("stream power".into()));
+        }
+        let years = f.steps as f64 * sp.params.dt;
+        for i in 0..grid.len() {
+            if !base[i] {
+                uplifted[i] = years * rates.as_ref().map_or(sp.uplift, |r| r[i]);
+            }
+        }
+        for (a, b) in z.iter_mut().zip(&zz) {
+            *a = *b as f32;
+        }
+        figures.stream_power = Some(f);
+    }
+    if let Some(p) = plan.hydraulic {
+        let out = hydraulic(&mut z, &grid, &p, progress, stop)?;
+        figures.hydraulic = Some(out.figures);
+    }
+    if let Some(p) = plan.thermal {
+        figures.thermal = Some(thermal(&mut z, &grid, &p, progress, stop)?);
+    }
+    let input = dem.as_slice();
+    let mut erosion = vec![f32::NAN; grid.len()];
+    let mut deposition = vec![f32::NAN; grid.len()];
+    let a0 = grid.cell_area();
+    for i in 0..grid.len() {
+        if input[i].is_nan() {
+            continue;
+        }
+        let change = z[i] as f64 - input[i] as f64 - uplifted[i];
+        erosion[i] = (-change).max(0.0) as f32;
+        deposition[i] = change.max(0.0) as f32;
+        figures.eroded_m3 += (-change).max(0.0) * a0;
+        figures.deposited_m3 += change.max(0.0) * a0;
+        figures.max_erosion_m = figures.max_erosion_m.max(-change);
+        figures.max_deposition_m = figures.max_deposition_m.max(change);
+    }
+    let georef = dem.georef().cloned();
+    Ok(ErodeOutput {
+        terrain: dem.with_data(z)?.with_georef(georef.clone()),
+        erosion: dem.with_data(erosion)?.with_georef(georef.clone()),
+        deposition: dem.with_data(deposition)?.with_georef(georef),
+        figures,
+    })
+}
+
+/// The result of an erosion run, on the DEM's grid and georeference.
+#[derive(Debug, Clone)]
+pub struct ErodeOutput {
+    /// The eroded terrain.
+    pub terrain: Heightfield,
+    /// Net lowering (m, >= 0), uplift left out.
+    pub erosion: Heightfield,
+    /// Net raising (m, >= 0), uplift left out.
+    pub deposition: Heightfield,
+    /// Figures of the run.
+    pub figures: ErodeFigures,
+}
+
+/// Figures of an erosion run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ErodeFigures {
+    /// The processes that ran, with their parameters.
+    pub plan: Plan,
+    /// Stream power's figures.
+    pub stream_power: Option<RunFigures>,
+    /// Hydraulic erosion's figures.
+    pub hydraulic: Option<HydraulicFigures>,
+    /// Thermal relaxation's figures.
+    pub thermal: Option<ThermalFigures>,
+    /// Volume lowered (m^3), uplift left out.
+    pub eroded_m3: f64,
+    /// Volume raised (m^3).
+    pub deposited_m3: f64,
+    /// Deepest net lowering (m).
+    pub max_erosion_m: f64,
+    /// Highest net raising (m).
+    pub max_deposition_m: f64,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Preset::default().plan()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_replace_the_preset_and_zero_skips_a_process() {
+        let s = ErodeSettings {
+            preset: Preset::Badlands,
+            k: Some(3e-5),
+            hydraulic_iterations: Some(0),
+            talus_angle: Some(31.0),
+            ..Default::default()
+        };
+        let p = s.plan();
+        assert_eq!(p.stream_power.unwrap().params.k, 3e-5);
+        assert_eq!(p.stream_power.unwrap().params.diffusion, 0.002);
+        assert!(p.hydraulic.is_none());
+        assert_eq!(p.thermal.unwrap().talus_angle_deg, 31.0);
+        for preset in Preset::ALL {
+            ErodeSettings::preset(preset).check().unwrap();
+        }
+        let json = serde_json::to_string(&s).unwrap();
+        assert_eq!(serde_json::from_str::<ErodeSettings>(&json).unwrap(), s);
+        assert_eq!(
+            serde_json::from_str::<ErodeSettings>("{}").unwrap(),
+            ErodeSettings::default()
+        );
+    }
+
+    #[test]
+    fn bad_overrides_are_refused_by_name() {
+        for (s, name) in [
+            (
+                ErodeSettings {
+                    k: Some(f64::NAN),
+                    ..Default::default()
+                },
+                "k",
+            ),
+            (
+                ErodeSettings {
+                    years: Some(-5.0),
+                    ..Default::default()
+                },
+                "years",
+            ),
+            (
+                ErodeSettings {
+                    talus_angle: Some(95.0),
+                    ..Default::default()
+                },
+                "talus_angle_deg",
+            ),
+        ] {
+            assert_eq!(s.check().unwrap_err().name, name, "{s:?}");
+        }
+    }
+
+    #[test]
+    fn erosion_and_deposition_balance_the_change_net_of_uplift() {
+        let dem = Heightfield::from_fn(48, 40, 50.0, 60.0, |x, y| {
+            let (dx, dy) = (x as f32 - 24.0, y as f32 - 20.0);
+            400.0 - (dx * dx + dy * dy).sqrt() * 9.0
+                + relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(1, (y * 48 + x) as u64, 0, 0))
+        });
+        let s = ErodeSettings {
+            years: Some(5_000.0),
+            uplift: Some(1e-3),
+            hydraulic_iterations: Some(20),
+            thermal_iterations: Some(5),
+            ..Default::default()
+        };
+        let out = s
+            .run(&dem, None, &relief_heightfield::NoProgress, &|| false)
+            .unwrap();
+        let f = &out.figures;
+        assert!(f.eroded_m3 > 0.0 && f.stream_power.unwrap().steps == 5);
+        for i in 0..dem.len() {
+            let (a, b, e, d) = (
+                dem.as_slice()[i] as f64,
+                out.terrain.as_slice()[i] as f64,
+                out.erosion.as_slice()[i] as f64,
+                out.deposition.as_slice()[i] as f64,
+            );
+            assert!(e >= 0.0 && d >= 0.0 && e * d == 0.0);
+            let (x, y) = (i % 48, i / 48);
+            let edge = x == 0 || y == 0 || x == 47 || y == 39;
+            let up = if edge { 0.0 } else { 5.0 };
+            assert!((b - a - up - (d - e)).abs() < 1e-3, "cell {i}");
+        }
+        let stopped = s.run(&dem, None, &relief_heightfield::NoProgress, &|| true);
+        assert!(matches!(stopped, Err(LandscapeError::Stopped(_))));
+    }
+}
