@@ -113,6 +113,9 @@ enum Command {
     /// Author a construction tree from JSON (layers, blend/add/max/min/replace, rivers and the
     /// paper's river sub-tree) into a .sct that `decompress` rasterises.
     Tree(commands::tree::Args),
+    /// Drainage of a DEM: depressions filled or breached, flow directions, drainage area,
+    /// Strahler order, watersheds, HAND and the channel network, written into a folder.
+    Flow(commands::flow::Args),
     /// Run a pipeline spec (JSON: input, stages, parameters) and write its rasters, previews,
     /// summary.json and report.html, as `cargo xtask pipeline SPEC.json` does.
     Run(commands::run::Args),
@@ -159,6 +162,7 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => commands::validate::run(args, &ctx),
         Command::Tile(args) => commands::tile::run(args, &ctx),
         Command::Tree(args) => commands::tree::run(args, &ctx),
+        Command::Flow(args) => commands::flow::run(args, &ctx),
         Command::Run(args) => commands::run::run(args, &ctx),
     };
     match result {
@@ -177,7 +181,7 @@ pub const MAPPING_BUG: &str = "argument-to-settings bug";
 /// Parses a `relief` command line (`args[0]` is the program name) and maps it onto the checked
 /// library settings its subcommand would run, without reading a file or starting any work:
 /// the argument-to-settings path of every job command (amplify, synthesize, compress,
-/// fit-procedural, refine, analyze, quilt, validate, volume). Returns the settings as JSON,
+/// fit-procedural, refine, analyze, quilt, validate, volume, flow). Returns the settings as JSON,
 /// `Ok(None)` for a command without job settings (info, convert, tile, ...), and an error for
 /// arguments a user can get wrong. Every settings value is also sent through its JSON form
 /// (what a `relief run` spec holds) and checked again: a value the command line accepts but
@@ -224,6 +228,7 @@ where
         Command::Quilt(a) => json(commands::quilt::job(&a)?, |s| Ok(s.check()?))?,
         Command::Validate(a) => json(a.synth.job()?, |s| Ok(s.check()?))?,
         Command::Volume(a) => json(commands::volume::job(&a)?, |s| Ok(s.check()?))?,
+        Command::Flow(a) => json(commands::flow::settings(&a)?, |s| Ok(s.check()?))?,
         Command::Info(_)
         | Command::Convert(_)
         | Command::Preview(_)
@@ -292,6 +297,7 @@ mod tests {
             "quilt /o.tif --guide /g.tif --exemplar /e.tif --patch-size 32 --reuse-penalty 0.5",
             "validate --guide /g.tif --exemplar /e.tif",
             "volume /a.tif --features karst,arches,sea --render /r.png --image-size 640x480",
+            "flow /a.tif -o /out --depressions breach --directions mfd --channel-area 2e5",
         ] {
             let v = settings(good)
                 .map_err(|e| format!("{good}: {e:#}"))
@@ -309,6 +315,8 @@ mod tests {
             "validate --guide /g --exemplar /e --min-candidates-share 1.5",
             "quilt --guide /g --exemplar /e /o.tif --guide-lowpass -3",
             "quilt --guide /g --exemplar /e /o.tif --guide-lowpass wide",
+            "flow /a -o /out --channel-area -1",
+            "flow /a -o /out --depressions lake",
         ] {
             let e = format!("{:#}", settings(bad).unwrap_err());
             assert!(!e.contains(MAPPING_BUG), "{bad}: {e}");

@@ -215,3 +215,45 @@ mod tests {
         assert!(e.contains("--family") && e.contains("simplex"), "{e}");
     }
 }
+
+/// A flag value that is one of a library's serde enums (`--depressions breach`): parsed and
+/// shown by the library's own names (its serde spelling), so the command line, a pipeline spec
+/// and a tile manifest name a value the same way, and a flag's default comes from the
+/// library's `Default` (`default_value_t = LibEnum(Settings::default().field)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct LibEnum<T>(pub(crate) T);
+
+impl<T: serde::de::DeserializeOwned> std::str::FromStr for LibEnum<T> {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        serde_json::from_value(serde_json::Value::String(s.trim().to_string()))
+            .map(LibEnum)
+            .map_err(|e| {
+                // serde: "unknown variant `x`, expected one of `a`, `b`": keep its list.
+                let e = e.to_string();
+                e.split(" at line").next().unwrap_or(&e).to_string()
+            })
+    }
+}
+
+impl<T: serde::Serialize> std::fmt::Display for LibEnum<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match serde_json::to_value(&self.0) {
+            Ok(serde_json::Value::String(s)) => f.write_str(&s),
+            Ok(v) => write!(f, "{v}"),
+            Err(_) => f.write_str("?"),
+        }
+    }
+}
+
+/// A library `check()` error as the flag it comes from: the field `channel_area` is the flag
+/// `--channel-area` (flags map one-to-one onto the job's fields).
+pub(crate) fn flag_error(e: relief_heightfield::ParamError) -> anyhow::Error {
+    anyhow::anyhow!(
+        "invalid --{} {}: {}",
+        e.name.replace('_', "-"),
+        e.value,
+        e.reason
+    )
+}

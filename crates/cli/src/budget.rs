@@ -165,6 +165,38 @@ pub(crate) fn sct_raster_seconds(
     )))
 }
 
+/// Estimated seconds of a job on a whole grid of `width x height` cells whose cost grows as
+/// `n log n` (priority floods, sorts): times `run` on a centred crop of about
+/// 1/[`PILOT_SHARE`] of the cells (`crop(x, y, w, h)` makes it) and scales. `None` for grids
+/// under [`PILOT_FROM_CELLS`]. Returns the pilot's description too.
+pub(crate) fn crop_pilot_seconds(
+    (width, height): (usize, usize),
+    run: impl FnOnce(usize, usize, usize, usize) -> Result<()>,
+) -> Result<Option<(f64, String)>> {
+    let cells = width * height;
+    if cells < PILOT_FROM_CELLS {
+        return Ok(None);
+    }
+    let side = (PILOT_SHARE as f64).sqrt();
+    let (w, h) = (
+        ((width as f64 / side).ceil() as usize).clamp(1, width),
+        ((height as f64 / side).ceil() as usize).clamp(1, height),
+    );
+    let (x, y) = ((width - w) / 2, (height - h) / 2);
+    let t = std::time::Instant::now();
+    run(x, y, w, h)?;
+    let pilot = (w * h) as f64;
+    let n = cells as f64;
+    let est = t.elapsed().as_secs_f64() * (n / pilot) * (n.ln() / pilot.ln().max(1.0));
+    Ok(Some((
+        est,
+        format!(
+            "from a {w} x {h} crop, {:.1} % of the cells",
+            100.0 * pilot / n
+        ),
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

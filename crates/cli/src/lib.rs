@@ -11,9 +11,11 @@ pub mod pipeline;
 
 mod args;
 mod budget;
+mod channels;
 mod commands;
 mod ctx;
 mod describe;
+mod folder;
 mod memory;
 mod outputs;
 mod preflight;

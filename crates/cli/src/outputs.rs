@@ -24,6 +24,8 @@ pub(crate) enum OutKind {
     Png,
     /// A mesh (`.obj`, `.ply`, `.glb`).
     Mesh,
+    /// A JSON document (`.json`, `.geojson`: reports, channel networks).
+    Json,
 }
 
 fn ext_of(path: &Path) -> String {
@@ -54,7 +56,7 @@ fn is_writable_raster(path: &Path) -> bool {
 const RASTER_EXTS: &str = ".tif, .asc, .png, .exr, .npy, .r16, .r32, .f32, .hgt";
 
 /// Refuses `path` when its extension does not name what `kind` writes.
-fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
+pub(crate) fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
     let ext = ext_of(path);
     let ok = match kind {
         OutKind::Raster => is_writable_raster(path),
@@ -63,6 +65,7 @@ fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
         OutKind::Dict => ext == "dict",
         OutKind::Png => ext == "png",
         OutKind::Mesh => matches!(ext.as_str(), "obj" | "ply" | "glb"),
+        OutKind::Json => matches!(ext.as_str(), "json" | "geojson"),
     };
     if ok {
         return Ok(());
@@ -74,6 +77,7 @@ fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
         OutKind::Dict => ".dict (this command writes a dictionary)".into(),
         OutKind::Png => ".png (this command writes a PNG image)".into(),
         OutKind::Mesh => ".obj, .ply or .glb (this command writes a mesh)".into(),
+        OutKind::Json => ".json or .geojson (this command writes JSON)".into(),
     };
     bail!("output {}: the name must end in {expected}", path.display())
 }

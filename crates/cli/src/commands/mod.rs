@@ -8,6 +8,7 @@ pub(crate) mod compress;
 pub(crate) mod convert;
 pub(crate) mod decompress;
 pub(crate) mod fit_procedural;
+pub(crate) mod flow;
 pub(crate) mod info;
 pub(crate) mod learn;
 pub(crate) mod preview;
@@ -49,6 +50,61 @@ pub(crate) fn read_void_free(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<
 
 /// Reads any raster relief-io knows, with a progress indicator, naming the file on error.
 pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<relief_io::Raster> {
+    read_raster_for(path, read, ctx, None)
+}
+
+/// The working memory per cell of the job a raster is read for (`relief flow`, `masks`,
+/// `erode`: a fixed number of grids of the input's size), so that [`read_raster_for`] refuses
+/// a file whose header declares more cells than the job can hold under `--max-memory` before
+/// decoding it, with the pre-flight message of [`crate::memory::check_memory`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct JobCells<'a> {
+    /// The command ("flow").
+    pub(crate) command: &'a str,
+    /// What the memory is for ("the flow rasters").
+    pub(crate) what: &'a str,
+    /// Bytes of the job per input cell.
+    pub(crate) bytes_per_cell: u64,
+    /// Bytes the job writes per input cell (checked against `--max-output-size`).
+    pub(crate) output_bytes_per_cell: u64,
+}
+
+impl JobCells<'_> {
+    /// The pre-flight check of the job on `width x height` cells against `--max-memory` (and
+    /// its outputs against `--max-output-size`).
+    pub(crate) fn check(&self, width: u64, height: u64, ctx: &Ctx) -> Result<()> {
+        let cells = width as f64 * height as f64;
+        ctx.check_output_size(
+            &format!("the outputs of {}", self.command),
+            cells * self.output_bytes_per_cell as f64,
+            "a smaller input (crop it)",
+        )?;
+        ctx.check_memory(
+            self.command,
+            &[&[crate::memory::part(
+                format!("{} of {width} x {height} cells", self.what),
+                cells * self.bytes_per_cell as f64,
+                "a smaller input (crop it)",
+            )]],
+        )
+    }
+
+    /// The most cells the job holds under `--max-memory`.
+    fn cells(&self, ctx: &Ctx) -> usize {
+        usize::try_from(ctx.max_memory.bytes / self.bytes_per_cell.max(1)).unwrap_or(usize::MAX)
+    }
+}
+
+/// [`read_raster`] for a job of `job` bytes per cell: a header declaring more cells than the
+/// job holds under `--max-memory` is refused before the raster is decoded (the reader checks
+/// declared sizes first), with the job's pre-flight message; the size read is checked again
+/// (formats without a header size).
+pub(crate) fn read_raster_for(
+    path: &Path,
+    read: &ReadArgs,
+    ctx: &Ctx,
+    job: Option<JobCells<'_>>,
+) -> Result<relief_io::Raster> {
     let progress = ctx.progress();
     progress.begin(&format!("reading {}", path.display()), 0);
     // Pre-flight: the cells a read may decode are bounded by --max-input-cells and by what
@@ -72,9 +128,19 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
     if by_memory {
         opts.max_cells = memory_cells;
     }
+    let by_job = job.is_some_and(|j| j.cells(ctx).max(1) < opts.max_cells);
+    if let (true, Some(j)) = (by_job, job) {
+        opts.max_cells = j.cells(ctx).max(1);
+    }
     let mut raster = relief_io::read(path, &opts).map_err(|e| {
         let text = e.to_string();
         let limit_hit = text.contains("max_cells") || text.contains("cell limit");
+        if let (true, true, Some(j)) = (limit_hit, by_job, job)
+            && let Some((w, h)) = declared_size(&e)
+            && let Err(refused) = j.check(w, h, ctx)
+        {
+            return refused;
+        }
         let what = if !limit_hit {
             format!("cannot read {}", path.display())
         } else if by_memory {
@@ -118,6 +184,10 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
             other => anyhow::anyhow!("{what}: {other}"),
         }
     })?;
+    if let Some(j) = job {
+        let hf = &raster.heightfield;
+        j.check(hf.width() as u64, hf.height() as u64, ctx)?;
+    }
     if read.cell_size.is_none()
         && let Some(cell) = heightmap_sidecar_cell(path, &raster.heightfield)
     {
@@ -147,6 +217,18 @@ pub(crate) fn read_raster(path: &Path, read: &ReadArgs, ctx: &Ctx) -> Result<rel
         ));
     }
     Ok(raster)
+}
+
+/// The width and height a file declares, from a reader's size error.
+fn declared_size(e: &relief_io::IoError) -> Option<(u64, u64)> {
+    let mut root = e;
+    while let relief_io::IoError::InFile { source, .. } = root {
+        root = source;
+    }
+    match root {
+        relief_io::IoError::Dimensions { width, height, .. } => Some((*width, *height)),
+        _ => None,
+    }
 }
 
 /// The cell size stated by the `FILE.png.json` / `FILE.r16.json` sidecar relief writes beside a

@@ -177,7 +177,7 @@ fn every_bad_fixture_fails_cleanly() {
 
 /// `gdalinfo -json -checksum FILE`, or `None` (with a notice) when GDAL is not installed
 /// (`.ci/run` installs Debian's gdal-bin, so CI always runs these checks).
-fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
+pub(crate) fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
     let out = match Command::new("gdalinfo")
         .args(["-json", "-checksum"])
         .arg(path)

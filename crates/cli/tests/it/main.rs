@@ -6,6 +6,7 @@ mod common;
 mod cli;
 mod dictionary;
 mod failures;
+mod landscape;
 mod patch;
 mod sparse;
 mod tile;

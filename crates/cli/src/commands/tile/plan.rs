@@ -83,11 +83,26 @@ pub(super) fn takes_value(prev: &str) -> bool {
     })
 }
 
+/// Commands that route flow over the whole DEM: a window of their output depends on every
+/// cell upstream of it, so they are not windowable.
+pub(super) const GLOBAL_DRAINAGE: [&str; 2] = ["flow", "erode"];
+
 pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     if a.tile < 16 || !a.tile.is_multiple_of(16) || a.tile > 1 << 15 {
         bail!(
             "invalid --tile {}: must be a multiple of 16 between 16 and 32768",
             a.tile
+        );
+    }
+    if let Some(global) = a
+        .command
+        .first()
+        .filter(|c| GLOBAL_DRAINAGE.contains(&c.as_str()))
+    {
+        bail!(
+            "`relief {global}` cannot be planned as tiles: drainage is global, a tile cannot \
+             know the area that drains into it from upstream (an exact multi-phase plan will \
+             do it later); run `relief {global}` on the whole DEM"
         );
     }
     let mut inner = Inner::try_parse_from(&a.command)

@@ -1,0 +1,235 @@
+//! `relief flow` (and the drainage commands' refusal by `tile plan`): outputs, georeference,
+//! the GeoJSON network, clean failures.
+
+use std::path::Path;
+
+use crate::cli::gdalinfo;
+use crate::common::*;
+
+/// The files `relief flow` writes.
+const FLOW_FILES: [&str; 9] = [
+    "area.tif",
+    "channels.geojson",
+    "channels.png",
+    "direction.tif",
+    "filled.tif",
+    "flow.json",
+    "hand.tif",
+    "strahler.tif",
+    "watersheds.tif",
+];
+
+const FLOW_RASTERS: [&str; 6] = [
+    "filled.tif",
+    "direction.tif",
+    "area.tif",
+    "strahler.tif",
+    "watersheds.tif",
+    "hand.tif",
+];
+
+/// Width and height of a PNG from its IHDR chunk.
+fn png_size(path: &Path) -> (u32, u32) {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[1..4], b"PNG", "{}", path.display());
+    let be = |i: usize| u32::from_be_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    (be(16), be(20))
+}
+
+/// Every coordinate pair of a GeoJSON geometry.
+fn coordinates(v: &serde_json::Value, out: &mut Vec<[f64; 2]>) {
+    match v.as_array() {
+        Some(a) if a.len() == 2 && a.iter().all(serde_json::Value::is_number) => {
+            out.push([a[0].as_f64().unwrap(), a[1].as_f64().unwrap()]);
+        }
+        Some(a) => a.iter().for_each(|x| coordinates(x, out)),
+        None => {}
+    }
+}
+
+/// `relief flow` on a crop of the fixture writes every output into a new folder, each raster
+/// on the input's grid with its georeference (checked with GDAL when present), a GeoJSON
+/// network whose coordinates fall inside the raster's extent, the preview at the input's size,
+/// and `flow.json`, which `--json` prints.
+#[test]
+fn flow_writes_every_output_with_the_georeference() {
+    let (tmp, input, hf) = tmp_with_crop("crop.tif", (96, 64, 192, 160));
+    let out = tmp.path().join("flow");
+    let printed = relief_json![
+        "flow",
+        &input,
+        "-o",
+        &out,
+        "--channel-area",
+        "5e5",
+        "--json"
+    ];
+    assert_eq!(files(&out), FLOW_FILES);
+    let report = json(&out.join("flow.json"));
+    assert_eq!(printed, report);
+    assert_eq!(report["settings"]["channel_area"], 5e5);
+    assert_eq!(report["settings"]["depressions"], "fill");
+    assert_eq!(report["figures"]["cells"], 192 * 160);
+    assert!(
+        report["figures"]["reaches"].as_u64().unwrap() > 0,
+        "{report}"
+    );
+    let g_in = hf.georef().expect("the fixture is georeferenced");
+    let t = g_in.geotransform.expect("a geotransform");
+    for name in FLOW_RASTERS {
+        let r = read(&out.join(name));
+        assert_eq!((r.width(), r.height()), (192, 160), "{name}");
+        assert_eq!(r.georef().and_then(|g| g.geotransform), Some(t), "{name}");
+        assert_eq!(r.georef().and_then(|g| g.crs.clone()), g_in.crs, "{name}");
+    }
+    let dir = read(&out.join("direction.tif"));
+    assert!(
+        dir.as_slice()
+            .iter()
+            .all(|&d| [0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0].contains(&d)),
+        "ESRI codes"
+    );
+    let strahler = read(&out.join("strahler.tif"));
+    let max_order = strahler.as_slice().iter().fold(0f32, |a, &b| a.max(b));
+    assert_eq!(f64::from(max_order), report["figures"]["max_order"]);
+    let filled = read(&out.join("filled.tif"));
+    assert!(
+        filled
+            .as_slice()
+            .iter()
+            .zip(hf.as_slice())
+            .all(|(f, i)| f >= i)
+    );
+    assert_eq!(png_size(&out.join("channels.png")), (192, 160));
+
+    // The network: line strings whose every point lies inside the raster's extent.
+    let gj = json(&out.join("channels.geojson"));
+    assert_eq!(gj["type"], "FeatureCollection");
+    let features = gj["features"].as_array().unwrap();
+    assert_eq!(features.len() as u64, report["figures"]["reaches"]);
+    let (xa, xb) = (t[0], t[0] + 192.0 * t[1]);
+    let (ya, yb) = (t[3] + 160.0 * t[5], t[3]);
+    let mut points = Vec::new();
+    for f in features {
+        assert_eq!(f["geometry"]["type"], "LineString");
+        assert!(f["properties"]["order"].as_u64().unwrap() >= 1);
+        coordinates(&f["geometry"]["coordinates"], &mut points);
+    }
+    assert!(!points.is_empty());
+    for [x, y] in points {
+        assert!(x > xa.min(xb) && x < xa.max(xb), "x {x} outside {xa}..{xb}");
+        assert!(y > ya.min(yb) && y < ya.max(yb), "y {y} outside {ya}..{yb}");
+    }
+
+    // GDAL reads the rasters with the input's CRS and geotransform.
+    let Some(src) = gdalinfo(&input) else {
+        return;
+    };
+    for name in ["filled.tif", "direction.tif", "hand.tif"] {
+        let info = gdalinfo(&out.join(name)).unwrap();
+        assert_eq!(info["size"], src["size"], "{name}");
+        assert_eq!(info["geoTransform"], src["geoTransform"], "{name}");
+        assert_eq!(
+            info["coordinateSystem"]["wkt"], src["coordinateSystem"]["wkt"],
+            "{name}"
+        );
+    }
+}
+
+/// Into an existing folder: the outputs join what is there, and a second run needs --force.
+#[test]
+fn flow_into_an_existing_folder_needs_force_to_replace() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 96, 80));
+    let out = tmp.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    relief_ok!["flow", &input, "-o", &out, "--depressions", "breach"];
+    let mut want: Vec<&str> = FLOW_FILES.to_vec();
+    want.push("notes.txt");
+    want.sort_unstable();
+    assert_eq!(files(&out), want);
+    fails_with(
+        &relief!["flow", &input, "-o", &out],
+        &["filled.tif already exists", "--force"],
+        &[],
+    );
+    relief_ok!["flow", &input, "-o", &out, "--force"];
+    assert_eq!(files(&out), want, "no staging folder left");
+}
+
+/// Bad parameters fail cleanly, naming the flag, before anything is written.
+#[test]
+fn flow_bad_parameters_fail_naming_the_flag() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
+    let out = tmp.path().join("out");
+    for (flag, value) in [
+        ("--channel-area", "-5"),
+        ("--channel-area", "nan"),
+        ("--breach-depth", "-1"),
+        ("--breach-length", "1e9"),
+        ("--mfd-exponent", "0"),
+    ] {
+        fails_with(
+            &relief!["flow", &input, "-o", &out, flag, value],
+            &[&format!("invalid {flag}")],
+            &[&out],
+        );
+        assert!(!out.exists(), "{flag} {value}: {} created", out.display());
+    }
+    usage_error(
+        &words("flow {} -o {} --depressions lake", &[&input, &out]),
+        "--depressions",
+        &out,
+    );
+    usage_error(
+        &words("flow {} -o {} --directions d16", &[&input, &out]),
+        "--directions",
+        &out,
+    );
+    // A folder whose parent is missing, and a file named as the folder.
+    fails_with(
+        &relief!["flow", &input, "-o", tmp.path().join("no/such")],
+        &["cannot create the output folder"],
+        &[],
+    );
+    fails_with(
+        &relief!["flow", &input, "-o", &input],
+        &["exists and is not a folder"],
+        &[],
+    );
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
+}
+
+/// The pre-flight estimate refuses a DEM whose flow rasters do not fit in --max-memory.
+#[test]
+fn flow_over_max_memory_is_refused_before_the_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let input = relief_testdata::fixture("grandcanyon.tif");
+    fails_with(
+        &relief!["--max-memory", "16M", "flow", &input, "-o", &out],
+        &["flow would need", "512 x 512", "--max-memory"],
+        &[&out],
+    );
+    assert!(!out.exists());
+}
+
+/// `tile plan` refuses the drainage commands, saying why, and writes no plan.
+#[test]
+fn tile_plan_refuses_drainage_commands() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
+    let plan = tmp.path().join("plan");
+    for cmd in [
+        words("flow {} -o {}", &[&input, &tmp.path().join("f")]),
+        words("erode {} -o {}", &[&input, &tmp.path().join("e.tif")]),
+    ] {
+        let mut args = words("tile plan {} --", &[&plan]);
+        args.extend(cmd);
+        fails_with(
+            &relief(&args),
+            &["drainage is global", "upstream", "multi-phase"],
+            &[&plan],
+        );
+    }
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
+}
