@@ -28,6 +28,7 @@
 
 pub mod depression;
 pub mod elev;
+pub mod erode;
 mod error;
 pub mod flow;
 pub mod grid;

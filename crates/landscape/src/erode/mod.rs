@@ -1,0 +1,14 @@
+//! Landscape evolution: stream-power incision with uplift ([`stream_power`], Braun and Willett
+//! 2013) and linear hillslope diffusion ([`diffusion`], the ADI scheme of fastscapelib).
+
+pub mod diffusion;
+pub mod stream_power;
+
+#[cfg(test)]
+mod tests;
+
+pub use diffusion::{DiffusionScratch, diffuse};
+pub use stream_power::{
+    RunFigures, StepFigures, StreamPowerParams, StreamPowerScratch, Uplift, base_level_mask, run,
+    step,
+};
