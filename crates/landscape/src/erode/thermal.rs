@@ -135,7 +135,10 @@ pub fn thermal(
                 p.iterations
             )));
         }
-        (share_out.par_chunks_mut(band), share_in.par_chunks_mut(band))
+        (
+            share_out.par_chunks_mut(band),
+            share_in.par_chunks_mut(band),
+        )
             .into_par_iter()
             .enumerate()
             .for_each(|(b, (so, si))| {
@@ -143,14 +146,12 @@ pub fn thermal(
                     (*o, *s) = shares(&cur, grid, b * band + j, &talus);
                 }
             });
-        next.par_chunks_mut(band)
-            .enumerate()
-            .for_each(|(b, out)| {
-                for (j, v) in out.iter_mut().enumerate() {
-                    let i = b * band + j;
-                    *v = relax(&cur, grid, i, &talus, rate, &share_out, &share_in);
-                }
-            });
+        next.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
+            for (j, v) in out.iter_mut().enumerate() {
+                let i = b * band + j;
+                *v = relax(&cur, grid, i, &talus, rate, &share_out, &share_in);
+            }
+        });
         std::mem::swap(&mut cur, &mut next);
         progress.advance(1);
     }
@@ -190,7 +191,12 @@ pub(crate) fn check_input(z: &[f32], grid: &Grid) -> Result<(), LandscapeError> 
         )));
     }
     for (name, v) in [("cell_x", grid.cell_x), ("cell_y", grid.cell_y)] {
-        ensure(v.is_finite() && v > 0.0, name, v, "must be a positive cell size")?;
+        ensure(
+            v.is_finite() && v > 0.0,
+            name,
+            v,
+            "must be a positive cell size",
+        )?;
     }
     if z.iter().all(|v| v.is_nan()) {
         return Err(LandscapeError::InvalidInput(

@@ -98,8 +98,16 @@ fn one_and_two_threads_give_the_same_bytes() {
             .num_threads(k)
             .build()
             .unwrap();
-        pool.install(|| thermal(&mut z, &grid, &ThermalParams::default(), &NoProgress, &never))
-            .unwrap();
+        pool.install(|| {
+            thermal(
+                &mut z,
+                &grid,
+                &ThermalParams::default(),
+                &NoProgress,
+                &never,
+            )
+        })
+        .unwrap();
         z.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     };
     assert_eq!(run(1), run(2));
@@ -115,7 +123,13 @@ fn stopping_leaves_the_input_alone() {
     };
     let mut z = rough(&grid, 1);
     let before = z.clone();
-    let e = thermal(&mut z, &grid, &ThermalParams::default(), &NoProgress, &|| true);
+    let e = thermal(
+        &mut z,
+        &grid,
+        &ThermalParams::default(),
+        &NoProgress,
+        &|| true,
+    );
     assert!(matches!(e, Err(LandscapeError::Stopped(_))));
     assert_eq!(z, before);
 }
@@ -140,7 +154,13 @@ fn bad_settings_and_inputs_are_rejected_by_name() {
         "talus_angle_deg"
     );
     assert_eq!(name(ThermalParams { rate: -0.1, ..d }), "rate");
-    assert_eq!(name(ThermalParams { rate: f64::NAN, ..d }), "rate");
+    assert_eq!(
+        name(ThermalParams {
+            rate: f64::NAN,
+            ..d
+        }),
+        "rate"
+    );
     assert_eq!(name(ThermalParams { rate: 0.6, ..d }), "rate");
     let grid = Grid {
         width: 4,
@@ -151,7 +171,10 @@ fn bad_settings_and_inputs_are_rejected_by_name() {
     let mut z = vec![0.0f32; 16];
     let e = thermal(&mut z, &grid, &d, &NoProgress, &never).unwrap_err();
     assert!(e.to_string().contains("cell_y"), "{e}");
-    let grid = Grid { cell_y: 1.0, ..grid };
+    let grid = Grid {
+        cell_y: 1.0,
+        ..grid
+    };
     let e = thermal(&mut z[..15], &grid, &d, &NoProgress, &never).unwrap_err();
     assert!(matches!(e, LandscapeError::InvalidInput(_)));
     let mut voids = vec![f32::NAN; 16];

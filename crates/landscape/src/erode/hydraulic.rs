@@ -1,0 +1,795 @@
+//! Hydraulic erosion on the shallow-water "virtual pipe" model of Mei, Decaudin and Hu 2007
+//! ("Fast hydraulic erosion simulation and visualization on GPU", section 3), with the
+//! depth-limited transport capacity of Št'ava et al. 2008 ("Interactive terrain modeling using
+//! hydraulic erosion", section 4.2).
+//!
+//! Every cell holds a water depth `d`, suspended sediment `s` (metres of material over the
+//! cell) and four outflow fluxes (m^3/s) to its west, east, north and south neighbours. One
+//! iteration of `dt` seconds is, as in Mei et al. section 3.1:
+//!
+//! 1. **Rain**: `rain_m` of water on every cell, or on a seeded random `rain_fraction` of the
+//!    cells (`relief_heightfield::rng::hash(seed, cell, iteration, 0)`) with `rain_m /
+//!    rain_fraction` each, so the mean is the same.
+//! 2. **Flow** (eq. 2-5): each pipe's flux grows by `dt A g dh / l` (`dh` the difference of
+//!    water surfaces, `l` the centre distance along that axis, `A` the pipe cross-section), is
+//!    kept `>= 0`, and the four are scaled down together when they would drain more than the
+//!    cell holds (eq. 4). The depth changes by the net inflow (eq. 6-7) and the velocity is
+//!    the mean flux through the cell over its cross-section (eq. 8-9).
+//! 3. **Erosion and deposition** (eq. 10-12, Št'ava eq. 4): the capacity is
+//!    `C = Kc max(sin a, min_tilt) |v| dt min(1, d / full_depth_m)`, `a` the ground's tilt.
+//!    Where `s < C`, `erosion_rate (C - s)` is lifted into the water, scaled by
+//!    `1 / (1 + removed / hardness_depth_m)` where the ground has already lost `removed` metres
+//!    (older, harder layers under the surface); where `s > C`, `deposition_rate (s - C)` is laid
+//!    down.
+//! 4. **Evaporation** (eq. 15): `d <- d (1 - evaporation)`, then the next iteration's rain
+//!    (transport does not read the water, so this can come before it).
+//! 5. **Transport** (eq. 14): sediment is advected semi-Lagrangian, `s(x) <- s(x - v dt)`
+//!    sampled bilinearly with the position clamped to the map, in the same sweep as the next
+//!    iteration's fluxes. Semi-Lagrangian advection does not conserve mass, so the advected
+//!    field is rescaled to the total before it (a global mass fixer, Priestley 1993); the
+//!    largest correction is reported as `max_mass_fix`. The last iteration's load is not
+//!    advected: it settles (or is reported) where the last erosion step left it.
+//!
+//! One safeguard departs from the paper: erosion never takes a cell below its lowest
+//! neighbour, since the frictionless pipe model's water sloshing in a pit would otherwise dig a
+//! hole there, ever deeper.
+//!
+//! **Units and scale.** Lengths are metres and `dt` seconds. Mei's `Kc` (seconds) is written
+//! `capacity * dt` here, so `capacity` is dimensionless: a column can carry `capacity sin a`
+//! times the distance its water travels in a step. Water moves at most one cell per step (the
+//! outflow limit of eq. 4), so in flowing water `|v| dt` is about one cell: the capacity, and
+//! with it every erosion and deposition depth, scales with the cell size, and the same settings
+//! give the same landforms (in cells) on a 2 m lidar grid as on a 90 m SRTM one. The time step
+//! defaults to half the stability limit of the pipe model's gravity waves on the grid,
+//! `dt = 0.5 / sqrt(A g (1/(lx^2 ly) + 1/(ly^2 lx)))` (from the linearised pipe equations:
+//! symplectic Euler is stable while `omega dt < 2`), which for square cells and `A = l^2` is
+//! `0.5 sqrt(l / (2 g))`: 0.87 s on 60 m cells. Water depths do not depend on the cell size:
+//! a channel holds the rain of the cells that drain into it within the distance water travels
+//! in the run (one cell per iteration at most, and `1 / evaporation` iterations on average),
+//! so `full_depth_m` is best read in units of `rain_m`: the default, 200 `rain_m`, keeps the
+//! capacity growing with the water gathered over the whole run (sheet flow on the hillslopes
+//! carries a few per cent of what a gully does), which is what carves gullies along the flow
+//! lines instead of lowering every slope alike.
+//!
+//! **Boundaries.** Voids (`NaN`) are untouched and, like the outer edge, open: a pipe towards a
+//! void or off the map drains into a virtual cell whose surface continues the slope of the
+//! opposite side, and the water and sediment leaving through it are gone (`left_m3`).
+//!
+//! **Determinism.** Every pass is a Jacobi step: each cell's new values are a fixed-order
+//! function of the previous buffers, computed in bands of rows in parallel, and the only sums
+//! (the mass fixer, the figures) add per-band partial sums in band order, so the output bytes do
+//! not depend on the thread count.
+
+use rayon::prelude::*;
+use relief_heightfield::param::{ensure, in_range};
+use relief_heightfield::rng::{hash, unit_f32};
+use relief_heightfield::{ParamError, Progress};
+use serde::{Deserialize, Serialize};
+
+use crate::LandscapeError;
+use crate::grid::Grid;
+
+use super::thermal::check_input;
+
+/// Gravity (m/s^2).
+const G: f64 = 9.81;
+
+/// Settings of [`hydraulic`]. The defaults give visible gullies and fans on real DEMs at any
+/// cell size (see the module docs for how each scales).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct HydraulicParams {
+    /// Number of steps. Water travels at most one cell per step, so this bounds the length of
+    /// the flow paths that gather water (in cells).
+    pub iterations: u32,
+    /// Time step (s); `None`: half the stability limit of the pipe model on the grid's cells.
+    pub dt_s: Option<f64>,
+    /// Rain per iteration (m of water), the mean over the cells.
+    pub rain_m: f64,
+    /// Fraction of the cells rained on per iteration, in `(0, 1]`: 1 is uniform rain; below 1
+    /// the cells are drawn per iteration from `seed` (droplets of `rain_m / rain_fraction`).
+    pub rain_fraction: f64,
+    /// Fraction of the water depth that evaporates per iteration, in `[0, 1)` (Mei's `Ke dt`).
+    pub evaporation: f64,
+    /// Sediment capacity `Kc` (dimensionless: Mei's `Kc` in seconds is `capacity * dt`).
+    pub capacity: f64,
+    /// Fraction of the missing load `C - s` eroded per iteration, in `[0, 1]` (Mei's `Ks`).
+    pub erosion_rate: f64,
+    /// Fraction of the excess load `s - C` deposited per iteration, in `[0, 1]` (Mei's `Kd`).
+    pub deposition_rate: f64,
+    /// Lower bound of `sin(tilt)` in the capacity, in `[0, 1]`, so water on flat ground still
+    /// carries some sediment (and flat valley floors are not all deposition).
+    pub min_tilt: f64,
+    /// Water depth (m) at which the capacity reaches its full value (Št'ava's `K_dmax`):
+    /// shallower water carries proportionally less, so sheet flow on hillslopes erodes little
+    /// and channels much.
+    pub full_depth_m: f64,
+    /// Cross-section of a pipe (m^2); `None`: the cell's area `lx ly`, which makes the flow
+    /// independent of the cell size.
+    pub pipe_area_m2: Option<f64>,
+    /// Depth (m) of removed ground over which erodibility halves (`1 / (1 + removed / depth)`);
+    /// 0 disables hardening.
+    pub hardness_depth_m: f64,
+    /// Lay the sediment still suspended at the end down where it is (true), or report it as
+    /// `suspended_m3` and drop it (false).
+    pub settle: bool,
+    /// Seed of the random rain.
+    pub seed: u64,
+}
+
+impl Default for HydraulicParams {
+    fn default() -> Self {
+        Self {
+            iterations: 80,
+            dt_s: None,
+            rain_m: 0.01,
+            rain_fraction: 1.0,
+            evaporation: 0.02,
+            capacity: 0.5,
+            erosion_rate: 0.3,
+            deposition_rate: 0.3,
+            min_tilt: 0.02,
+            full_depth_m: 2.0,
+            pipe_area_m2: None,
+            hardness_depth_m: 0.0,
+            settle: true,
+            seed: 0,
+        }
+    }
+}
+
+impl HydraulicParams {
+    /// Checks every field (names the first one out of range).
+    pub fn check(&self) -> Result<(), ParamError> {
+        ensure(
+            self.iterations <= 1_000_000,
+            "iterations",
+            self.iterations,
+            "must be at most 1000000",
+        )?;
+        if let Some(dt) = self.dt_s {
+            ensure(dt > 0.0 && dt <= 1e6, "dt_s", dt, "must be in (0, 1e6] s")?;
+        }
+        in_range("rain_m", self.rain_m, 0.0..=10.0, "must be in [0, 10] m")?;
+        ensure(
+            self.rain_fraction > 0.0 && self.rain_fraction <= 1.0,
+            "rain_fraction",
+            self.rain_fraction,
+            "must be in (0, 1]",
+        )?;
+        in_range(
+            "evaporation",
+            self.evaporation,
+            0.0..1.0,
+            "must be in [0, 1)",
+        )?;
+        in_range("capacity", self.capacity, 0.0..=1e3, "must be in [0, 1000]")?;
+        in_range(
+            "erosion_rate",
+            self.erosion_rate,
+            0.0..=1.0,
+            "must be in [0, 1]",
+        )?;
+        in_range(
+            "deposition_rate",
+            self.deposition_rate,
+            0.0..=1.0,
+            "must be in [0, 1]",
+        )?;
+        in_range("min_tilt", self.min_tilt, 0.0..=1.0, "must be in [0, 1]")?;
+        ensure(
+            self.full_depth_m > 0.0 && self.full_depth_m <= 1e4,
+            "full_depth_m",
+            self.full_depth_m,
+            "must be in (0, 1e4] m",
+        )?;
+        if let Some(a) = self.pipe_area_m2 {
+            ensure(
+                a > 0.0 && a <= 1e12,
+                "pipe_area_m2",
+                a,
+                "must be in (0, 1e12] m^2",
+            )?;
+        }
+        in_range(
+            "hardness_depth_m",
+            self.hardness_depth_m,
+            0.0..=1e6,
+            "must be in [0, 1e6] m (0: off)",
+        )
+    }
+
+    /// The time step (s) on `grid`: `dt_s`, or half the pipe model's stability limit.
+    pub fn time_step(&self, grid: &Grid) -> f64 {
+        self.dt_s.unwrap_or_else(|| {
+            let (lx, ly) = (grid.cell_x, grid.cell_y);
+            let a = self.pipe_area(grid);
+            0.5 / (a * G * (1.0 / (lx * lx * ly) + 1.0 / (ly * ly * lx))).sqrt()
+        })
+    }
+
+    fn pipe_area(&self, grid: &Grid) -> f64 {
+        self.pipe_area_m2.unwrap_or(grid.cell_x * grid.cell_y)
+    }
+}
+
+/// What a [`hydraulic`] run did. Volumes are of ground material (m^3); the budget
+/// `eroded_m3 - deposited_m3 = suspended_m3 + left_m3` holds up to rounding.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct HydraulicFigures {
+    /// Iterations run.
+    pub iterations: u32,
+    /// The time step used (s).
+    pub dt_s: f64,
+    /// Volume of the ground lowered (sum of the erosion raster times the cell area).
+    pub eroded_m3: f64,
+    /// Volume of the ground raised (sum of the deposition raster times the cell area).
+    pub deposited_m3: f64,
+    /// Deepest erosion (m).
+    pub max_erosion_m: f64,
+    /// Thickest deposit (m).
+    pub max_deposition_m: f64,
+    /// Sediment still in the water at the end and dropped with it (0 with `settle`).
+    pub suspended_m3: f64,
+    /// Sediment laid down at the end where it was (part of `deposited_m3`; 0 without `settle`).
+    pub settled_m3: f64,
+    /// Sediment carried off the map or into voids by the water leaving.
+    pub left_m3: f64,
+    /// Water rained on the map (m^3).
+    pub rain_m3: f64,
+    /// Largest relative correction of the advection's mass fixer in one step.
+    pub max_mass_fix: f64,
+}
+
+/// The result of [`hydraulic`] beside the new surface (written into the caller's raster).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HydraulicOutput {
+    /// Depth of ground removed per cell (m, `>= 0`; 0 on voids).
+    pub erosion: Vec<f32>,
+    /// Thickness of sediment laid down per cell (m, `>= 0`; 0 on voids).
+    pub deposition: Vec<f32>,
+    /// Figures of the run.
+    pub figures: HydraulicFigures,
+}
+
+/// Erodes `z` (row-major on `grid`, voids `NaN`) with `p.iterations` steps of rain, flow,
+/// erosion, transport and evaporation. `z` is changed only on success: when `stop()` returns
+/// true (checked once per iteration) the run ends with [`LandscapeError::Stopped`] and `z` as
+/// given.
+pub fn hydraulic(
+    z: &mut [f32],
+    grid: &Grid,
+    p: &HydraulicParams,
+    progress: &dyn Progress,
+    stop: &dyn Fn() -> bool,
+) -> Result<HydraulicOutput, LandscapeError> {
+    p.check()?;
+    check_input(z, grid)?;
+    let consts = Consts::new(grid, p);
+    let mut sim = Sim::new(z, &consts);
+    let mut figures = HydraulicFigures {
+        iterations: p.iterations,
+        dt_s: consts.dt as f64,
+        ..Default::default()
+    };
+    if p.iterations > 0 {
+        figures.rain_m3 += sim.rain(&consts, 0);
+    }
+    progress.begin("hydraulic erosion", p.iterations as u64);
+    let mut suspended = 0.0f64;
+    for it in 0..p.iterations {
+        if stop() {
+            return Err(LandscapeError::Stopped(format!(
+                "hydraulic erosion after {it} of {} iterations",
+                p.iterations
+            )));
+        }
+        // Transport of the previous step's load (steps 4) and the new fluxes (step 2a) in one
+        // sweep: both read what the erosion pass wrote and write different buffers.
+        let advected = sim.flow_transport(&consts, it > 0);
+        if it > 0 {
+            // The global mass fixer: the advected field is scaled to the load before the
+            // transport, lazily (the erosion pass multiplies the load it reads by the factor).
+            if advected > 0.0 {
+                sim.scale = (suspended / advected) as f32;
+                figures.max_mass_fix = figures.max_mass_fix.max((suspended / advected - 1.0).abs());
+            }
+        }
+        let next = (it + 1 < p.iterations).then_some(it + 1);
+        let (load, left, rain) = sim.erode(z, &consts, next);
+        suspended = load;
+        figures.left_m3 += left;
+        figures.rain_m3 += rain;
+        progress.advance(1);
+    }
+    let area = grid.cell_area();
+    let load = sim.load();
+    if p.settle {
+        figures.settled_m3 = sim.settle() * area;
+    } else {
+        figures.suspended_m3 = load * area;
+    }
+    figures.left_m3 *= area;
+    figures.rain_m3 *= area;
+
+    let mut erosion = vec![0.0f32; z.len()];
+    let mut deposition = vec![0.0f32; z.len()];
+    (z.par_iter_mut(), &sim.b, &mut erosion, &mut deposition)
+        .into_par_iter()
+        .for_each(|(z0, &b, e, dep)| {
+            if z0.is_nan() {
+                return;
+            }
+            *e = (*z0 - b).max(0.0);
+            *dep = (b - *z0).max(0.0);
+            *z0 = b;
+        });
+    // Fixed-order sums (the map's rows one after the other).
+    for (e, dep) in erosion
+        .chunks(grid.width)
+        .zip(deposition.chunks(grid.width))
+    {
+        figures.eroded_m3 += e.iter().map(|&v| v as f64).sum::<f64>() * area;
+        figures.deposited_m3 += dep.iter().map(|&v| v as f64).sum::<f64>() * area;
+        let max = |v: &[f32]| v.iter().fold(0.0f32, |m, &x| m.max(x)) as f64;
+        figures.max_erosion_m = figures.max_erosion_m.max(max(e));
+        figures.max_deposition_m = figures.max_deposition_m.max(max(dep));
+    }
+    Ok(HydraulicOutput {
+        erosion,
+        deposition,
+        figures,
+    })
+}
+
+/// Rows per parallel work item (a fixed decomposition: results do not depend on it).
+const BAND_ROWS: usize = 16;
+
+/// Pipe directions: west, east, north, south.
+const W: usize = 0;
+const E: usize = 1;
+const N: usize = 2;
+const S: usize = 3;
+/// The opposite of each direction.
+const OPP: [usize; 4] = [E, W, S, N];
+
+/// The settings resolved on the grid, as the `f32` the passes compute in.
+struct Consts {
+    width: usize,
+    height: usize,
+    dt: f32,
+    /// Cell area (m^2).
+    area: f32,
+    /// `dt A g / l` per direction (m^2 s: flux gained per metre of head).
+    kflux: [f32; 4],
+    lx: f32,
+    ly: f32,
+    rain: f32,
+    rain_fraction: f32,
+    seed: u64,
+    keep: f32,
+    ks: f32,
+    kd: f32,
+    min_tilt: f32,
+    inv_full_depth: f32,
+    inv_hardness: f32,
+    /// `dt / area`, `1 / lx`, `1 / ly`, `capacity dt`, the velocity limits (a cell per step).
+    dt_area: f32,
+    inv_lx: f32,
+    inv_ly: f32,
+    kc_dt: f32,
+    max_u: f32,
+    max_v: f32,
+}
+
+impl Consts {
+    fn new(grid: &Grid, p: &HydraulicParams) -> Self {
+        let dt = p.time_step(grid);
+        let a = p.pipe_area(grid);
+        let (lx, ly) = (grid.cell_x, grid.cell_y);
+        let k = |l: f64| (dt * a * G / l) as f32;
+        Self {
+            width: grid.width,
+            height: grid.height,
+            dt: dt as f32,
+            area: (lx * ly) as f32,
+            kflux: [k(lx), k(lx), k(ly), k(ly)],
+            lx: lx as f32,
+            ly: ly as f32,
+            rain: p.rain_m as f32,
+            rain_fraction: p.rain_fraction as f32,
+            seed: p.seed,
+            keep: (1.0 - p.evaporation) as f32,
+            ks: p.erosion_rate as f32,
+            kd: p.deposition_rate as f32,
+            min_tilt: p.min_tilt as f32,
+            inv_full_depth: (1.0 / p.full_depth_m) as f32,
+            inv_hardness: if p.hardness_depth_m > 0.0 {
+                (1.0 / p.hardness_depth_m) as f32
+            } else {
+                0.0
+            },
+            dt_area: (dt / (lx * ly)) as f32,
+            inv_lx: (1.0 / lx) as f32,
+            inv_ly: (1.0 / ly) as f32,
+            kc_dt: (p.capacity * dt) as f32,
+            max_u: (lx / dt) as f32,
+            max_v: (ly / dt) as f32,
+        }
+    }
+
+    /// Rain on cell `i` at iteration `it` (m).
+    #[inline]
+    fn rain_at(&self, i: usize, it: u32) -> f32 {
+        if self.rain_fraction >= 1.0 {
+            self.rain
+        } else if unit_f32(hash(self.seed, i as u64, it as u64, 0)) < self.rain_fraction {
+            self.rain / self.rain_fraction
+        } else {
+            0.0
+        }
+    }
+
+    /// The indices of the west, east, north and south neighbours of cell `i` at `(x, y)`,
+    /// the cell itself for a side off the map.
+    #[inline(always)]
+    fn neighbours(&self, x: usize, y: usize, i: usize) -> [usize; 4] {
+        let w = self.width;
+        [
+            i - (x > 0) as usize,
+            i + (x + 1 < w) as usize,
+            i - if y > 0 { w } else { 0 },
+            i + if y + 1 < self.height { w } else { 0 },
+        ]
+    }
+}
+
+/// Bit of [`Sim::mask`] set for a valid cell; bits 0-3 are set for its valid neighbours (on the
+/// map and not void) in the order west, east, north, south.
+const VALID: u8 = 16;
+
+/// True when `mask` says neighbour `k` is valid.
+#[inline(always)]
+fn ok(mask: u8, k: usize) -> bool {
+    mask >> k & 1 != 0
+}
+
+/// The simulation state: ground, water, load, fluxes and velocities (all `f32`).
+struct Sim {
+    /// Ground (m), voids `NaN`.
+    b: Vec<f32>,
+    /// The ground being written by the erosion pass.
+    b_next: Vec<f32>,
+    /// Water depth (m).
+    d: Vec<f32>,
+    /// Suspended load (m of material), to be multiplied by `scale`.
+    s: Vec<f32>,
+    /// The load being written by the transport pass.
+    s_next: Vec<f32>,
+    /// Outflow fluxes (m^3/s) to the west, east, north and south.
+    f: Vec<[f32; 4]>,
+    /// Velocity (m/s) east and south.
+    uv: Vec<[f32; 2]>,
+    /// Per cell: [`VALID`] and the valid neighbours (voids never change).
+    mask: Vec<u8>,
+    /// The mass fixer's factor, applied when `s` is next read.
+    scale: f32,
+}
+
+impl Sim {
+    fn new(z: &[f32], c: &Consts) -> Self {
+        let n = z.len();
+        let zero = || vec![0.0f32; n];
+        let mask = (0..n)
+            .map(|i| {
+                if z[i].is_nan() {
+                    return 0;
+                }
+                let (x, y) = (i % c.width, i / c.width);
+                let nb = c.neighbours(x, y, i);
+                (0..4).fold(VALID, |m, k| {
+                    m | (((nb[k] != i) && !z[nb[k]].is_nan()) as u8) << k
+                })
+            })
+            .collect();
+        Self {
+            mask,
+            b: z.to_vec(),
+            b_next: z.to_vec(),
+            d: zero(),
+            s: zero(),
+            s_next: zero(),
+            f: vec![[0.0; 4]; n],
+            uv: vec![[0.0; 2]; n],
+            scale: 1.0,
+        }
+    }
+
+    /// Rains on every valid cell for iteration `it`; returns the depth summed over the cells.
+    fn rain(&mut self, c: &Consts, it: u32) -> f64 {
+        let band = BAND_ROWS * c.width;
+        let b = &self.b;
+        let sums: Vec<f64> = self
+            .d
+            .par_chunks_mut(band)
+            .enumerate()
+            .map(|(k, d)| {
+                let mut sum = 0.0f64;
+                for (j, d) in d.iter_mut().enumerate() {
+                    let i = k * band + j;
+                    if !b[i].is_nan() {
+                        let r = c.rain_at(i, it);
+                        *d += r;
+                        sum += r as f64;
+                    }
+                }
+                sum
+            })
+            .collect();
+        sums.iter().sum()
+    }
+
+    /// Step 4 of the previous iteration when `advect` (semi-Lagrangian transport of the load,
+    /// into `s_next`, then swapped) and step 2a (the outflow fluxes, Mei et al. eq. 2-5, in
+    /// place: each cell's fluxes depend on its own fluxes and on the water surfaces, which this
+    /// pass does not change); returns the advected load (m summed over the cells).
+    fn flow_transport(&mut self, c: &Consts, advect: bool) -> f64 {
+        let band = BAND_ROWS * c.width;
+        let (b, d, s, uv, mask) = (&self.b, &self.d, &self.s, &self.uv, &self.mask);
+        let (xmax, ymax) = ((c.width - 1) as f32, (c.height - 1) as f32);
+        let (kx, ky) = (c.dt / c.lx, c.dt / c.ly);
+        let sums: Vec<f64> = (
+            self.f.par_chunks_mut(band),
+            self.s_next.par_chunks_mut(band),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, (f, sn))| {
+                let mut load = 0.0f64;
+                for (r, y) in (k * BAND_ROWS..).take(f.len() / c.width).enumerate() {
+                    for x in 0..c.width {
+                        let (j, i) = (r * c.width + x, y * c.width + x);
+                        let m = mask[i];
+                        if m & VALID == 0 {
+                            continue;
+                        }
+                        f[j] = flux_cell(c, b, d, m, x, y, i, f[j]);
+                        if advect {
+                            let sx = (x as f32 - uv[i][0] * kx).clamp(0.0, xmax);
+                            let sy = (y as f32 - uv[i][1] * ky).clamp(0.0, ymax);
+                            sn[j] = bilinear(s, c.width, c.height, sx, sy);
+                            load += sn[j] as f64;
+                        }
+                    }
+                }
+                load
+            })
+            .collect();
+        if advect {
+            std::mem::swap(&mut self.s, &mut self.s_next);
+        }
+        sums.iter().sum()
+    }
+
+    /// Steps 2b, 3 and 5 (and the rain of iteration `next`): water depth, velocity, erosion and
+    /// deposition, evaporation (which transport does not depend on, so it can come before it);
+    /// returns the load after the step, the load carried off the map and the rain (m summed
+    /// over the cells).
+    fn erode(&mut self, z0: &[f32], c: &Consts, next: Option<u32>) -> (f64, f64, f64) {
+        let band = BAND_ROWS * c.width;
+        let (b, f, scale, mask) = (&self.b, &self.f, self.scale, &self.mask);
+        let hardening = c.inv_hardness > 0.0;
+        let sums: Vec<[f64; 3]> = (
+            self.b_next.par_chunks_mut(band),
+            self.d.par_chunks_mut(band),
+            self.s.par_chunks_mut(band),
+            self.uv.par_chunks_mut(band),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, (bn, d, s, uv))| {
+                let (mut load, mut left, mut rain) = (0.0f64, 0.0f64, 0.0f64);
+                for (r, y) in (k * BAND_ROWS..).take(bn.len() / c.width).enumerate() {
+                    for x in 0..c.width {
+                        let (j, i) = (r * c.width + x, y * c.width + x);
+                        let m = mask[i];
+                        if m & VALID == 0 {
+                            (d[j], s[j], uv[j]) = (0.0, 0.0, [0.0; 2]);
+                            continue;
+                        }
+                        let nb = c.neighbours(x, y, i);
+                        let z0 = if hardening { z0[i] } else { 0.0 };
+                        let out = erode_cell(c, b, f, z0, m, i, nb, d[j], s[j] * scale);
+                        let wet = next.map_or(0.0, |it| c.rain_at(i, it));
+                        (bn[j], d[j], s[j], uv[j]) = (out.b, out.d * c.keep + wet, out.s, out.uv);
+                        load += out.s as f64;
+                        left += out.left as f64;
+                        rain += wet as f64;
+                    }
+                }
+                [load, left, rain]
+            })
+            .collect();
+        std::mem::swap(&mut self.b, &mut self.b_next);
+        self.scale = 1.0;
+        let t = sums
+            .iter()
+            .fold([0.0; 3], |a, s| [a[0] + s[0], a[1] + s[1], a[2] + s[2]]);
+        (t[0], t[1], t[2])
+    }
+
+    /// The suspended load (m summed over the cells).
+    fn load(&self) -> f64 {
+        self.s.iter().map(|&v| v as f64).sum::<f64>() * self.scale as f64
+    }
+
+    /// Lays the suspended load down where it is; returns it (m summed over the cells).
+    fn settle(&mut self) -> f64 {
+        let load = self.load();
+        let scale = self.scale;
+        for (b, s) in self.b.iter_mut().zip(&mut self.s) {
+            if !b.is_nan() {
+                *b += *s * scale;
+            }
+            *s = 0.0;
+        }
+        load
+    }
+}
+
+/// The new outflow fluxes of cell `i` at `(x, y)` from its fluxes `f` (Mei et al. eq. 2-5).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn flux_cell(
+    c: &Consts,
+    b: &[f32],
+    d: &[f32],
+    m: u8,
+    x: usize,
+    y: usize,
+    i: usize,
+    f: [f32; 4],
+) -> [f32; 4] {
+    if m & VALID == 0 {
+        return [0.0; 4];
+    }
+    let nb = c.neighbours(x, y, i);
+    let (di, hi) = (d[i], b[i] + d[i]);
+    // Water surfaces of the neighbours (garbage where `m` says a side is open).
+    let h = nb.map(|n| b[n] + d[n]);
+    let mut new = [0.0f32; 4];
+    let mut sum = 0.0f32;
+    for k in 0..4 {
+        // An open side drains into a dry virtual cell continuing the opposite side's slope.
+        let dh = if ok(m, k) {
+            hi - h[k]
+        } else if ok(m, OPP[k]) {
+            di + (h[OPP[k]] - hi).max(0.0)
+        } else {
+            di
+        };
+        new[k] = (f[k] + c.kflux[k] * dh).max(0.0);
+        sum += new[k];
+    }
+    // Eq. 4: never drain more than the cell holds.
+    let volume = di * c.area;
+    if sum * c.dt > volume {
+        let scale = volume / (sum * c.dt);
+        new.map(|v| v * scale)
+    } else {
+        new
+    }
+}
+
+/// The state of one cell after the erosion pass.
+struct CellOut {
+    b: f32,
+    d: f32,
+    s: f32,
+    uv: [f32; 2],
+    left: f32,
+}
+
+/// Water update, velocity, erosion and deposition of the valid cell `i` (mask `m`, neighbours
+/// `nb`; Mei et al. eq. 6-12), from the fluxes of the cell and its neighbours, the ground
+/// around it, its depth `d1` and load `s`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn erode_cell(
+    c: &Consts,
+    b: &[f32],
+    f: &[[f32; 4]],
+    z0: f32,
+    m: u8,
+    i: usize,
+    nb: [usize; 4],
+    d1: f32,
+    mut s: f32,
+) -> CellOut {
+    let bi = b[i];
+    // Inflow from each side: the neighbour's flux towards this cell (0 from voids, whose
+    // fluxes are 0, and from off the map, where `nb` points at the cell itself).
+    let inflow = [W, E, N, S].map(|k| if nb[k] != i { f[nb[k]][OPP[k]] } else { 0.0 });
+    let out = f[i];
+    let (mut sum_in, mut sum_out, mut open_out) = (0.0f32, 0.0f32, 0.0f32);
+    for k in 0..4 {
+        sum_in += inflow[k];
+        sum_out += out[k];
+        if !ok(m, k) {
+            open_out += out[k];
+        }
+    }
+    let d2 = (d1 + c.dt_area * (sum_in - sum_out)).max(0.0);
+    // The water leaving through open sides takes its share of the load with it.
+    let left = if open_out > 0.0 && d1 > 0.0 {
+        s * (open_out * c.dt_area / d1).min(1.0)
+    } else {
+        0.0
+    };
+    s -= left;
+    // Eq. 8-9: mean flux through the cell over its cross-section, at most a cell per step.
+    let mean = 0.5 * (d1 + d2);
+    let (mut u, mut v) = (0.0f32, 0.0f32);
+    if mean > 1e-6 {
+        let inv = 0.5 / mean;
+        let wx = inflow[W] - out[W] + out[E] - inflow[E];
+        let wy = inflow[N] - out[N] + out[S] - inflow[S];
+        u = (wx * inv * c.inv_ly).clamp(-c.max_u, c.max_u);
+        v = (wy * inv * c.inv_lx).clamp(-c.max_v, c.max_v);
+    }
+    // The ground's tilt from central differences (one-sided beside an edge or a void).
+    let diff = |lo: usize, hi: usize, inv_l: f32| match (ok(m, lo), ok(m, hi)) {
+        (true, true) => (b[nb[hi]] - b[nb[lo]]) * 0.5 * inv_l,
+        (true, false) => (bi - b[nb[lo]]) * inv_l,
+        (false, true) => (b[nb[hi]] - bi) * inv_l,
+        (false, false) => 0.0,
+    };
+    let gx = diff(W, E, c.inv_lx);
+    let gy = diff(N, S, c.inv_ly);
+    let g2 = gx * gx + gy * gy;
+    let sin = (g2 / (1.0 + g2)).sqrt().max(c.min_tilt);
+    let speed = (u * u + v * v).sqrt();
+    let capacity = c.kc_dt * sin * speed * (d2 * c.inv_full_depth).min(1.0);
+    let hard = if c.inv_hardness > 0.0 {
+        1.0 / (1.0 + (z0 - bi).max(0.0) * c.inv_hardness)
+    } else {
+        1.0
+    };
+    // Erosion (positive) or deposition (negative), without a branch on the sign. Erosion never
+    // takes a cell below its lowest neighbour: the pipe model's water sloshing in a pit would
+    // otherwise dig it ever deeper (a hole, not a landform).
+    let gap = capacity - s;
+    let rate = if gap > 0.0 { c.ks * hard } else { c.kd };
+    let mut lowest = bi;
+    for k in 0..4 {
+        if ok(m, k) {
+            lowest = lowest.min(b[nb[k]]);
+        }
+    }
+    let change = (rate * gap).min(bi - lowest);
+    CellOut {
+        b: bi - change,
+        d: d2,
+        s: s + change,
+        uv: [u, v],
+        left,
+    }
+}
+
+/// Bilinear sample of `s` at `(x, y)` (cell units, inside the map).
+#[inline]
+fn bilinear(s: &[f32], width: usize, height: usize, x: f32, y: f32) -> f32 {
+    // Truncation is the floor here: the position is clamped to the map (no libm call).
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
+    let (tx, ty) = (x - x0 as f32, y - y0 as f32);
+    let row = |yy: usize| {
+        let r = yy * width;
+        s[r + x0] + (s[r + x1] - s[r + x0]) * tx
+    };
+    let (a, b) = (row(y0), row(y1));
+    a + (b - a) * ty
+}
+
+#[cfg(test)]
+mod tests;
