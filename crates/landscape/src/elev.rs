@@ -8,6 +8,12 @@ pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
     type Key: Ord + Copy + std::fmt::Debug;
     /// The order-preserving key of `self`.
     fn key(self) -> Self::Key;
+    /// A priority-queue entry: the key of `self` and a cell index, ordered by key, then index.
+    type Entry: crate::depression::radix::RadixKey;
+    /// The entry of `self` at cell `i`.
+    fn entry(self, i: u32) -> Self::Entry;
+    /// The cell of an entry.
+    fn cell(e: Self::Entry) -> u32;
     /// The smallest representable value above `self`.
     fn up(self) -> Self;
     /// True for a void (NaN).
@@ -20,6 +26,15 @@ pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
 
 impl Elev for f32 {
     type Key = u32;
+    type Entry = u64;
+    #[inline]
+    fn entry(self, i: u32) -> u64 {
+        ((self.key() as u64) << 32) | i as u64
+    }
+    #[inline]
+    fn cell(e: u64) -> u32 {
+        e as u32
+    }
     #[inline]
     fn key(self) -> u32 {
         let b = self.to_bits();
@@ -45,10 +60,23 @@ impl Elev for f32 {
 
 impl Elev for f64 {
     type Key = u64;
+    type Entry = u128;
+    #[inline]
+    fn entry(self, i: u32) -> u128 {
+        ((self.key() as u128) << 32) | i as u128
+    }
+    #[inline]
+    fn cell(e: u128) -> u32 {
+        e as u32
+    }
     #[inline]
     fn key(self) -> u64 {
         let b = self.to_bits();
-        if b >> 63 == 1 { !b } else { b | 0x8000_0000_0000_0000 }
+        if b >> 63 == 1 {
+            !b
+        } else {
+            b | 0x8000_0000_0000_0000
+        }
     }
     #[inline]
     fn up(self) -> f64 {

@@ -6,8 +6,9 @@
 //! above the cell it was reached from, so that every cell has a strictly lower neighbour and
 //! drains).
 
-use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
+use std::collections::VecDeque;
+
+use crate::depression::radix::RadixHeap;
 
 use crate::elev::Elev;
 use crate::grid::Grid;
@@ -52,7 +53,7 @@ pub fn priority_flood<T: Elev>(
     let n = grid.len();
     debug_assert_eq!(z.len(), n);
     let mut closed = vec![false; n];
-    let mut open: BinaryHeap<Reverse<(T::Key, u32)>> = BinaryHeap::new();
+    let mut open: RadixHeap<T::Entry> = RadixHeap::new();
     let mut pit: VecDeque<u32> = VecDeque::new();
     if let Some(p) = parent.as_deref_mut() {
         p.fill(NO_PARENT);
@@ -62,21 +63,17 @@ pub fn priority_flood<T: Elev>(
             closed[i] = true;
         } else if is_outlet(z, grid, i) {
             closed[i] = true;
-            open.push(Reverse((z[i].key(), i as u32)));
+            open.push(z[i].entry(i as u32));
         }
     }
     let mut raised = 0usize;
-    // Elevation of the depression being filled from the pit queue (algorithm 3's PitTop).
     loop {
-        let c = match (pit.front(), open.peek()) {
-            (Some(&p), Some(Reverse((k, _))))
-                if mode == FillMode::Epsilon && z[p as usize].key() == *k =>
-            {
-                open.pop().map(|Reverse((_, c))| c)
-            }
-            (Some(_), _) => pit.pop_front(),
-            (None, Some(_)) => open.pop().map(|Reverse((_, c))| c),
-            (None, None) => None,
+        // The plain queue first (algorithms 2 and 3 of the paper): every cell it holds is
+        // at or above the level last taken from the priority queue, so the priority queue
+        // stays monotone (a radix heap).
+        let c = match pit.pop_front() {
+            Some(c) => Some(c),
+            None => open.pop().map(T::cell),
         };
         let Some(c) = c else { break };
         let c = c as usize;
@@ -100,7 +97,7 @@ pub fn priority_flood<T: Elev>(
                 z[m] = spill;
                 pit.push_back(m as u32);
             } else {
-                open.push(Reverse((z[m].key(), m as u32)));
+                open.push(z[m].entry(m as u32));
             }
         });
     }
@@ -158,7 +155,9 @@ mod tests {
     fn hash_dem(w: usize, h: usize, seed: u64, voids: bool) -> Vec<f32> {
         (0..w * h)
             .map(|i| {
-                let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(seed, i as u64, 0, 0));
+                let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                    seed, i as u64, 0, 0,
+                ));
                 if voids && u < 0.05 {
                     f32::NAN
                 } else {

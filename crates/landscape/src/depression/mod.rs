@@ -4,6 +4,7 @@
 pub mod breach;
 pub mod fill;
 pub mod flats;
+pub mod radix;
 
 pub use breach::{BreachLimits, BreachReport, breach};
 pub use fill::{FillMode, NO_PARENT, is_outlet, priority_flood};
