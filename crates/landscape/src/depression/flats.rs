@@ -8,6 +8,8 @@
 
 use std::collections::VecDeque;
 
+use rayon::prelude::*;
+
 use crate::elev::Elev;
 use crate::grid::{Grid, NO_FLOW};
 
@@ -18,37 +20,36 @@ use crate::grid::{Grid, NO_FLOW};
 pub fn resolve_flats<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool], dir: &mut [u8]) -> usize {
     let n = grid.len();
     let flat: Vec<bool> = (0..n)
+        .into_par_iter()
         .map(|i| !z[i].is_void() && !outlet[i] && dir[i] == NO_FLOW)
         .collect();
     let is_flat = |i: usize| flat[i];
     // Low edges: draining cells beside a flat cell of the same elevation; high edges: flat
     // cells beside higher ground.
-    let mut low = VecDeque::new();
-    let mut high = VecDeque::new();
-    for i in 0..n {
-        if z[i].is_void() {
-            continue;
-        }
-        let flat_i = is_flat(i);
-        let (mut low_edge, mut high_edge) = (false, false);
-        grid.for_neighbours(i, |_, m| {
-            if z[m].is_void() {
-                return;
+    let edges: Vec<(u32, bool, bool)> = (0..n)
+        .into_par_iter()
+        .filter_map(|i| {
+            if z[i].is_void() {
+                return None;
             }
-            if !flat_i && is_flat(m) && z[m] == z[i] {
-                low_edge = true;
-            }
-            if flat_i && z[m] > z[i] {
-                high_edge = true;
-            }
-        });
-        if low_edge {
-            low.push_back(i as u32);
-        }
-        if high_edge {
-            high.push_back(i as u32);
-        }
-    }
+            let flat_i = flat[i];
+            let (mut low_edge, mut high_edge) = (false, false);
+            grid.for_neighbours(i, |_, m| {
+                if z[m].is_void() {
+                    return;
+                }
+                if !flat_i && flat[m] && z[m] == z[i] {
+                    low_edge = true;
+                }
+                if flat_i && z[m] > z[i] {
+                    high_edge = true;
+                }
+            });
+            (low_edge || high_edge).then_some((i as u32, low_edge, high_edge))
+        })
+        .collect();
+    let mut low: VecDeque<u32> = edges.iter().filter(|e| e.1).map(|e| e.0).collect();
+    let mut high: VecDeque<u32> = edges.iter().filter(|e| e.2).map(|e| e.0).collect();
     if low.is_empty() {
         return 0;
     }

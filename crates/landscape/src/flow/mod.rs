@@ -7,6 +7,7 @@ pub mod basins;
 pub mod job;
 pub mod network;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::depression::{self, BreachLimits, FillMode};
@@ -100,6 +101,7 @@ pub fn route(mut z: Vec<f32>, grid: Grid, opts: &RouteOptions) -> Routing {
         Depressions::None => {}
     }
     let outlet: Vec<bool> = (0..grid.len())
+        .into_par_iter()
         .map(|i| !z[i].is_nan() && depression::is_outlet(&z, &grid, i))
         .collect();
     let mut dir = steepest_descent(&z, &grid, &outlet);
@@ -124,7 +126,7 @@ pub fn steepest_descent<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool]) -> Vec<u
     let dist = grid.distances();
     let inv: [f64; 8] = dist.map(|d| 1.0 / d);
     let mut dir = vec![NO_FLOW; grid.len()];
-    dir.iter_mut().enumerate().for_each(|(i, d)| {
+    dir.par_iter_mut().enumerate().for_each(|(i, d)| {
         if z[i].is_void() || outlet[i] {
             return;
         }
