@@ -155,3 +155,33 @@ mod tests {
         assert!(a.iter().all(|v| v.is_finite()));
     }
 }
+
+/// The 4096 x 4096 DEM of the drainage benches (`landscape/fill_d8/4096`) and of their peers
+/// (`xtask/peers/drainage.py`, `flow_4096.npy`): the fixture DEM mirrored into an 8 x 8 mosaic
+/// (continuous at every seam, so its depressions and flats are the real DEM's), 30 m cells.
+pub fn flow_surface() -> Result<Heightfield, relief_io::IoError> {
+    let dem = fixture_dem()?;
+    let (w, h) = (dem.width(), dem.height());
+    let n = 4096;
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            let (tx, ty) = (x / w, y / h);
+            let sx = if tx % 2 == 0 { x % w } else { w - 1 - x % w };
+            let sy = if ty % 2 == 0 { y % h } else { h - 1 - y % h };
+            dem.get(sx, sy)
+        })
+        .collect();
+    Ok(Heightfield::new(n, n, data, 30.0, 30.0).expect("a 4096^2 grid"))
+}
+
+/// The 1024 x 1024 initial surface of the stream-power benches and of their peer
+/// (`xtask/peers/stream_power.py`, `spl_1024.npy`): a flat block with 1 m of uniform noise
+/// (`relief_heightfield::rng::hash(7, cell, 0, 0)`), 100 m cells, uplifted at 1 mm/yr.
+pub fn spl_surface() -> Heightfield {
+    let n = 1024;
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(7, i as u64, 0, 0)))
+        .collect();
+    Heightfield::new(n, n, data, 100.0, 100.0).expect("a 1024^2 grid")
+}

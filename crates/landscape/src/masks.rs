@@ -45,8 +45,18 @@ impl MasksSettings {
     /// Checks every field.
     pub fn check(&self) -> std::result::Result<(), ParamError> {
         self.flow.check()?;
-        in_range("rock_slope", self.rock_slope, 1.0..=89.0, "must be in [1, 89] degrees")?;
-        in_range("wet_index", self.wet_index, 0.0..=50.0, "must be in [0, 50]")?;
+        in_range(
+            "rock_slope",
+            self.rock_slope,
+            1.0..=89.0,
+            "must be in [1, 89] degrees",
+        )?;
+        in_range(
+            "wet_index",
+            self.wet_index,
+            0.0..=50.0,
+            "must be in [0, 50]",
+        )?;
         for w in self.height_bands.windows(2) {
             relief_heightfield::param::ensure(
                 w[0] < w[1],
@@ -56,7 +66,12 @@ impl MasksSettings {
             )?;
         }
         for &b in &self.height_bands {
-            in_range("height_bands", b, -1e5..=1e5, "must be finite heights in metres")?;
+            in_range(
+                "height_bands",
+                b,
+                -1e5..=1e5,
+                "must be finite heights in metres",
+            )?;
         }
         Ok(())
     }
@@ -72,22 +87,22 @@ impl MasksSettings {
     ) -> Result<Masks> {
         self.check()?;
         for (name, r) in [("erosion", erosion), ("deposition", deposition)] {
-            if let Some(r) = r {
-                if (r.width(), r.height()) != (dem.width(), dem.height()) {
-                    return Err(LandscapeError::InvalidInput(format!(
-                        "the {name} raster is {}x{}, the DEM {}x{}",
-                        r.width(),
-                        r.height(),
-                        dem.width(),
-                        dem.height()
-                    )));
-                }
+            if let Some(r) = r.filter(|r| (r.width(), r.height()) != (dem.width(), dem.height())) {
+                return Err(LandscapeError::InvalidInput(format!(
+                    "the {name} raster is {}x{}, the DEM {}x{}",
+                    r.width(),
+                    r.height(),
+                    dem.width(),
+                    dem.height()
+                )));
             }
         }
         let g = Grid::of(dem);
         let z = dem.as_slice();
         if z.iter().all(|v| v.is_nan()) {
-            return Err(LandscapeError::InvalidInput("the DEM has no valid cell".into()));
+            return Err(LandscapeError::InvalidInput(
+                "the DEM has no valid cell".into(),
+            ));
         }
         progress.begin("masks", 3);
         let (slope, profile, plan) = derivatives(z, &g);
@@ -152,7 +167,12 @@ impl MasksSettings {
         if !self.height_bands.is_empty() {
             return self.height_bands.clone();
         }
-        let mut v: Vec<f32> = dem.as_slice().iter().copied().filter(|v| !v.is_nan()).collect();
+        let mut v: Vec<f32> = dem
+            .as_slice()
+            .iter()
+            .copied()
+            .filter(|v| !v.is_nan())
+            .collect();
         v.sort_by(f32::total_cmp);
         [0.25, 0.5, 0.75]
             .iter()
@@ -177,7 +197,11 @@ impl MasksSettings {
                 if slope[i].is_nan() {
                     return [0.0; 4];
                 }
-                let rock = smoothstep(self.rock_slope - 5.0, self.rock_slope + 5.0, slope[i] as f64);
+                let rock = smoothstep(
+                    self.rock_slope - 5.0,
+                    self.rock_slope + 5.0,
+                    slope[i] as f64,
+                );
                 let wet_w = smoothstep(self.wet_index - 1.0, self.wet_index + 1.0, wet[i] as f64);
                 let sed = match deposition {
                     Some(d) => smoothstep(0.05, 1.0, d.as_slice()[i] as f64),
@@ -192,7 +216,12 @@ impl MasksSettings {
                 let g = rock;
                 let r = (1.0 - a - b - g).max(0.0);
                 let s = r + g + b + a;
-                [(r / s) as f32, (g / s) as f32, (b / s) as f32, (a / s) as f32]
+                [
+                    (r / s) as f32,
+                    (g / s) as f32,
+                    (b / s) as f32,
+                    (a / s) as f32,
+                ]
             })
             .collect()
     }
@@ -204,7 +233,11 @@ fn smoothstep(lo: f64, hi: f64, v: f64) -> f64 {
 }
 
 fn percentile_abs(v: &[f32], q: f64) -> f64 {
-    let mut a: Vec<f32> = v.iter().filter(|x| x.is_finite()).map(|x| x.abs()).collect();
+    let mut a: Vec<f32> = v
+        .iter()
+        .filter(|x| x.is_finite())
+        .map(|x| x.abs())
+        .collect();
     if a.is_empty() {
         return 0.0;
     }
@@ -344,7 +377,13 @@ impl Mask {
         };
         values
             .iter()
-            .map(|&v| if v.is_finite() { f(v as f64).clamp(0.0, 1.0) as f32 } else { 0.0 })
+            .map(|&v| {
+                if v.is_finite() {
+                    f(v as f64).clamp(0.0, 1.0) as f32
+                } else {
+                    0.0
+                }
+            })
             .collect()
     }
 }
@@ -374,7 +413,11 @@ pub fn splat_rgba8(splat: &[[f32; 4]]) -> Vec<u8> {
         let mut q = scaled.map(|v| v.floor() as u8);
         let mut left = 255 - q.iter().map(|&v| v as u32).sum::<u32>();
         let mut order = [0usize, 1, 2, 3];
-        order.sort_by(|&a, &b| (scaled[b] - q[b] as f32).total_cmp(&(scaled[a] - q[a] as f32)).then(a.cmp(&b)));
+        order.sort_by(|&a, &b| {
+            (scaled[b] - q[b] as f32)
+                .total_cmp(&(scaled[a] - q[a] as f32))
+                .then(a.cmp(&b))
+        });
         for &k in &order {
             if left == 0 {
                 break;
@@ -406,7 +449,12 @@ mod tests {
         let i = 20 * 41 + 30;
         assert!((s[i] - 38.66).abs() < 0.3, "{}", s[i]);
         // A cone's flanks are straight downhill and divergent (a nose) across.
-        assert!(prof[i].abs() < 1e-4 && plan[i] < 0.0, "{} {}", prof[i], plan[i]);
+        assert!(
+            prof[i].abs() < 1e-4 && plan[i] < 0.0,
+            "{} {}",
+            prof[i],
+            plan[i]
+        );
         let bowl = hf.map(|v| 1000.0 - v);
         let (_, _, plan) = derivatives(bowl.as_slice(), &Grid::of(&bowl));
         assert!(plan[i] > 0.0);
@@ -415,7 +463,11 @@ mod tests {
     #[test]
     fn splat_weights_sum_to_one_and_rock_is_on_steep_ground() {
         let hf = Heightfield::from_fn(48, 48, 10.0, 10.0, |x, _| {
-            if x < 24 { x as f32 * 0.5 } else { 12.0 + (x as f32 - 24.0) * 12.0 }
+            if x < 24 {
+                x as f32 * 0.5
+            } else {
+                12.0 + (x as f32 - 24.0) * 12.0
+            }
         });
         let m = MasksSettings::default()
             .run(&hf, None, None, &relief_heightfield::NoProgress)

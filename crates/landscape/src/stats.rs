@@ -112,7 +112,9 @@ pub fn d8_cells(f: &[f64], g: &Grid) -> Vec<f64> {
             }
         });
     }
-    let mut idx: Vec<u32> = (0..g.len() as u32).filter(|&i| !f[i as usize].is_nan()).collect();
+    let mut idx: Vec<u32> = (0..g.len() as u32)
+        .filter(|&i| !f[i as usize].is_nan())
+        .collect();
     idx.sort_by(|&a, &b| f[b as usize].total_cmp(&f[a as usize]).then(a.cmp(&b)));
     let mut acc = vec![1.0f64; g.len()];
     for &i in &idx {
@@ -175,8 +177,11 @@ mod tests {
         let v: Vec<f32> = (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
-                (x - 31.5).abs() * 2.0 + (h as f32 - y) * 0.5
-                    + relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(3, i as u64, 0, 0))
+                (x - 31.5).abs() * 2.0
+                    + (h as f32 - y) * 0.5
+                    + relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                        3, i as u64, 0, 0,
+                    ))
             })
             .collect();
         let hf = Heightfield::new(w, h, v, 30.0, 30.0).unwrap();

@@ -14,8 +14,12 @@ const CELL: (f64, f64) = (74.573, 92.475);
 /// A C-order little-endian `.npy` of `<f4` or `<f8` as f64 (the tests' own 20-line reader: the
 /// crate does not depend on relief-io).
 fn npy(name: &str) -> (Vec<f64>, usize, usize) {
-    let bytes = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name))
-        .expect("reference file");
+    let bytes = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name),
+    )
+    .expect("reference file");
     let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
     let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
     let shape: Vec<usize> = header
@@ -86,10 +90,15 @@ fn epsilon_fill_differs_from_richdem_only_by_the_order_of_equal_cells() {
             // Only on cells the epsilon raises (a filled depression or a flat, where the
             // level is the plain fill's), by a few float32 steps above that level.
             assert!(reference[i] > dem[i] || z[i] as f64 > dem[i], "cell {i}");
-            assert!((z[i] as f64 - plain[i]).abs() < 0.01 && (reference[i] - plain[i]).abs() < 0.01);
+            assert!(
+                (z[i] as f64 - plain[i]).abs() < 0.01 && (reference[i] - plain[i]).abs() < 0.01
+            );
         }
     }
-    eprintln!("epsilon fill: {differ} of {} cells differ from RichDEM", g.len());
+    eprintln!(
+        "epsilon fill: {differ} of {} cells differ from RichDEM",
+        g.len()
+    );
     assert!(differ <= 40, "{differ} cells differ (17 when written)");
 }
 

@@ -436,4 +436,63 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         units: None,
         note: "",
     },
+    // Drainage and erosion (relief-landscape): priority-flood + D8 accumulation of a 4096^2
+    // DEM faster than RichDEM and pysheds; stream power + diffusion at least 2x faster per
+    // step than fastscapelib; hydraulic erosion of 2048^2 with the default preset <= 10 s.
+    WorkItem {
+        name: "priority-flood fill + flats + D8 area, 4096^2 (grandcanyon mirrored, 30 m)",
+        criterion_id: "landscape/fill_d8/4096",
+        peer: script(
+            "drainage.py",
+            "richdem_fill_d8_4096_s",
+            "RichDEM FillDepressions(epsilon) + FlowAccumulation(D8) (richdem2, same DEM)",
+        ),
+        goal: Goal::RatioAtMost(1.0),
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "priority-flood fill + flats + D8 area, 4096^2, against pysheds",
+        criterion_id: "landscape/fill_d8/4096",
+        peer: script(
+            "drainage.py",
+            "pysheds_fill_d8_4096_s",
+            "pysheds fill_depressions + resolve_flats + flowdir + accumulation (same DEM)",
+        ),
+        goal: Goal::RatioAtMost(1.0),
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "Priority-Flood+epsilon + D8 area, 4096^2 (RichDEM's own method)",
+        criterion_id: "landscape/fill_eps_d8/4096",
+        peer: script(
+            "drainage.py",
+            "richdem_fill_d8_4096_s",
+            "RichDEM FillDepressions(epsilon) + FlowAccumulation(D8) (richdem2, same DEM)",
+        ),
+        goal: Goal::RatioAtMost(1.0),
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "stream power + diffusion, one step of 1024^2 (K 2e-4, m 0.4, n 1, D 0.01, 2 threads)",
+        criterion_id: "landscape/stream_power_step/1024",
+        peer: script(
+            "stream_power.py",
+            "fastscapelib_spl_diffusion_step_1024_s",
+            "fastscapelib 0.3 SPLEroder + DiffusionADIEroder + MST sink resolver, per step",
+        ),
+        goal: Goal::SpeedupAtLeast(2.0),
+        units: None,
+        note: "",
+    },
+    WorkItem {
+        name: "hydraulic erosion 2048^2, default settings (120 iterations), 2 threads",
+        criterion_id: "landscape/hydraulic/2048",
+        peer: None,
+        goal: Goal::SecondsAtMost(10.0),
+        units: None,
+        note: "",
+    },
 ];

@@ -28,13 +28,18 @@ mod items;
 
 use relief_cli::pipeline::report::esc;
 
-/// Packages installed into the peers venv.
+/// Packages installed into the peers venv. `richdem2` is a maintained build of RichDEM (it
+/// installs the `richdem` module): the `richdem` 0.3.4 sdist on PyPI bundles a pybind11 that
+/// does not compile against CPython 3.11.
 pub(crate) const PEER_PACKAGES: &[&str] = &[
     "spams-bin",
     "PyWavelets",
     "scikit-image",
     "scikit-learn",
     "imagecodecs",
+    "richdem2",
+    "pysheds",
+    "fastscapelib",
     "numpy",
 ];
 
@@ -339,6 +344,13 @@ fn write_peer_data(dir: &Path) -> Result<()> {
     let dem = relief_benches::fixture_dem()?;
     let holes = relief_benches::with_holes(&dem);
     for (name, hf) in [("grandcanyon_512", &dem), ("grandcanyon_512_holes", &holes)] {
+        let p = dir.join(format!("{name}.npy"));
+        relief_io::write(&p, hf, &relief_io::WriteOptions::default())
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    let flow = relief_benches::flow_surface()?;
+    let spl = relief_benches::spl_surface();
+    for (name, hf) in [("flow_4096", &flow), ("spl_1024", &spl)] {
         let p = dir.join(format!("{name}.npy"));
         relief_io::write(&p, hf, &relief_io::WriteOptions::default())
             .with_context(|| format!("cannot write {}", p.display()))?;

@@ -47,11 +47,15 @@ impl Preset {
 
     /// The processes of the preset.
     pub fn plan(self) -> Plan {
+        // Stream power takes 10 kyr steps (both solvers are implicit, stable at any step),
+        // so a preset's geological time costs a handful of routings; the hydraulic model's
+        // capacity is the hydraulic defaults' (0.5, full capacity at 2 m of water) scaled
+        // per preset.
         let sp = |k: f64, diffusion: f64, years: f64| StreamPowerStage {
             params: StreamPowerParams {
                 k,
                 diffusion,
-                dt: 1_000.0,
+                dt: 10_000.0,
                 ..StreamPowerParams::default()
             },
             years,
@@ -72,23 +76,23 @@ impl Preset {
         match self {
             Self::Gentle => Plan {
                 stream_power: Some(sp(5e-6, 0.05, 50_000.0)),
-                hydraulic: Some(hy(60, 0.005, 0.03, 0.03)),
+                hydraulic: Some(hy(50, 0.01, 0.3, 0.03)),
                 thermal: Some(th(30.0, 30)),
             },
             Self::Mountain => Plan {
                 stream_power: Some(sp(2e-5, 0.01, 50_000.0)),
-                hydraulic: Some(hy(120, 0.01, 0.05, 0.02)),
-                thermal: Some(th(35.0, 50)),
+                hydraulic: Some(hy(80, 0.01, 0.5, 0.02)),
+                thermal: Some(th(38.0, 20)),
             },
             Self::Badlands => Plan {
                 stream_power: Some(sp(1e-4, 0.002, 20_000.0)),
-                hydraulic: Some(hy(200, 0.015, 0.08, 0.015)),
-                thermal: Some(th(38.0, 30)),
+                hydraulic: Some(hy(120, 0.015, 0.8, 0.015)),
+                thermal: Some(th(40.0, 20)),
             },
             Self::Desert => Plan {
                 stream_power: Some(sp(5e-6, 0.005, 20_000.0)),
-                hydraulic: Some(hy(150, 0.02, 0.06, 0.04)),
-                thermal: Some(th(33.0, 80)),
+                hydraulic: Some(hy(100, 0.02, 0.6, 0.04)),
+                thermal: Some(th(33.0, 60)),
             },
         }
     }
@@ -258,12 +262,19 @@ impl ErodeSettings {
             }),
         };
         let t0 = Instant::now();
-        run_plan(&pilot, &crop, None, &relief_heightfield::NoProgress, &|| false)?;
+        run_plan(
+            &pilot,
+            &crop,
+            None,
+            &relief_heightfield::NoProgress,
+            &|| false,
+        )?;
         let per_unit = t0.elapsed().as_secs_f64() * scale;
         let units = |full: f64, done: f64| if done > 0.0 { full / done } else { 0.0 };
         let steps = |p: &Plan| {
             (
-                p.stream_power.map_or(0.0, |s| (s.years / s.params.dt).ceil()),
+                p.stream_power
+                    .map_or(0.0, |s| (s.years / s.params.dt).ceil()),
                 p.hydraulic.map_or(0.0, |h| h.iterations as f64),
                 p.thermal.map_or(0.0, |t| t.iterations as f64),
             )
@@ -308,7 +319,9 @@ impl ErodeSettings {
             }
         }
         if dem.as_slice().iter().all(|v| v.is_nan()) {
-            return Err(LandscapeError::InvalidInput("the DEM has no valid cell".into()));
+            return Err(LandscapeError::InvalidInput(
+                "the DEM has no valid cell".into(),
+            ));
         }
         run_plan(&self.plan(), dem, uplift, progress, stop)
     }
@@ -332,8 +345,12 @@ fn run_plan(
     if let Some(sp) = plan.stream_power {
         let mut zz: Vec<f64> = z.iter().map(|&v| v as f64).collect();
         let base = base_level_mask(&zz, &grid);
-        let rates: Option<Vec<f64>> =
-            uplift.map(|u| u.as_slice().iter().map(|&v| if v.is_nan() { 0.0 } else { v as f64 }).collect());
+        let rates: Option<Vec<f64>> = uplift.map(|u| {
+            u.as_slice()
+                .iter()
+                .map(|&v| if v.is_nan() { 0.0 } else { v as f64 })
+                .collect()
+        });
         let up = match rates.as_deref() {
             Some(r) => Uplift::Raster(r),
             None => Uplift::Constant(sp.uplift),
@@ -489,10 +506,16 @@ mod tests {
         let dem = Heightfield::from_fn(48, 40, 50.0, 60.0, |x, y| {
             let (dx, dy) = (x as f32 - 24.0, y as f32 - 20.0);
             400.0 - (dx * dx + dy * dy).sqrt() * 9.0
-                + relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(1, (y * 48 + x) as u64, 0, 0))
+                + relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                    1,
+                    (y * 48 + x) as u64,
+                    0,
+                    0,
+                ))
         });
         let s = ErodeSettings {
             years: Some(5_000.0),
+            dt: Some(1_000.0),
             uplift: Some(1e-3),
             hydraulic_iterations: Some(20),
             thermal_iterations: Some(5),

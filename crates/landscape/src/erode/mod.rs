@@ -2,7 +2,10 @@
 //! 2013) and linear hillslope diffusion ([`diffusion`], the ADI scheme of fastscapelib).
 
 pub mod diffusion;
+pub mod hydraulic;
+pub mod job;
 pub mod stream_power;
+pub mod thermal;
 
 #[cfg(test)]
 mod tests;

@@ -179,7 +179,11 @@ impl FlowSettings {
             conditioned: raster(r.surface.clone())?,
             direction: raster(dir)?,
             area: raster(area.iter().map(|&a| a as f32).collect())?,
-            strahler: raster((0..grid.len()).map(|i| nan_or(i, order[i] as f32)).collect())?,
+            strahler: raster(
+                (0..grid.len())
+                    .map(|i| nan_or(i, order[i] as f32))
+                    .collect(),
+            )?,
             watersheds: raster(
                 (0..grid.len())
                     .map(|i| nan_or(i, basins[i] as f32))

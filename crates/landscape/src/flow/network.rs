@@ -57,12 +57,11 @@ pub fn reaches(r: &Routing, area: &[f64], strahler: &[u8]) -> Vec<Reach> {
     let n = r.grid.len();
     let mut channel_donors = vec![0u8; n];
     for i in 0..n {
-        if strahler[i] > 0 {
-            if let Some(d) = receiver(&r.grid, i, r.dir[i]) {
-                if strahler[d] > 0 {
-                    channel_donors[d] = channel_donors[d].saturating_add(1);
-                }
-            }
+        if strahler[i] == 0 {
+            continue;
+        }
+        if let Some(d) = receiver(&r.grid, i, r.dir[i]).filter(|&d| strahler[d] > 0) {
+            channel_donors[d] = channel_donors[d].saturating_add(1);
         }
     }
     let mut out = Vec::new();
@@ -108,7 +107,10 @@ pub fn epsg(georef: &GeoRef) -> Option<u16> {
 /// Map coordinates of a cell centre: through the georeference's affine transform, else metres
 /// from the north-west corner (x east, y north, so the first row has y = -cell_y / 2).
 pub fn cell_centre(r: &Routing, georef: Option<&GeoRef>, i: usize) -> [f64; 2] {
-    let (x, y) = ((i % r.grid.width) as f64 + 0.5, (i / r.grid.width) as f64 + 0.5);
+    let (x, y) = (
+        (i % r.grid.width) as f64 + 0.5,
+        (i / r.grid.width) as f64 + 0.5,
+    );
     match georef.and_then(|g| g.geotransform) {
         Some(t) => [t[0] + x * t[1] + y * t[2], t[3] + x * t[4] + y * t[5]],
         None => [x * r.grid.cell_x, -y * r.grid.cell_y],

@@ -5,7 +5,9 @@ use crate::flow::network::{geojson, reaches, strahler};
 fn hash_dem(w: usize, h: usize, seed: u64) -> Vec<f32> {
     (0..w * h)
         .map(|i| {
-            let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(seed, i as u64, 0, 0));
+            let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                seed, i as u64, 0, 0,
+            ));
             let (x, y) = ((i % w) as f32, (i / w) as f32);
             u * 8.0 + ((x - w as f32 / 2.0).abs() + (y - h as f32 / 2.0).abs()) * 0.5
         })
@@ -23,11 +25,7 @@ fn grid(w: usize, h: usize, cx: f64, cy: f64) -> Grid {
 
 #[test]
 fn every_cell_drains_and_area_is_conserved() {
-    for depressions in [
-        Depressions::Fill,
-        Depressions::Epsilon,
-        Depressions::Breach,
-    ] {
+    for depressions in [Depressions::Fill, Depressions::Epsilon, Depressions::Breach] {
         let g = grid(40, 33, 30.0, 20.0);
         let mut z = hash_dem(40, 33, 11);
         z[500] = f32::NAN;
@@ -47,7 +45,10 @@ fn every_cell_drains_and_area_is_conserved() {
             .filter(|&i| r.dir[i] == NO_FLOW && !r.surface[i].is_nan())
             .map(|i| acc[i])
             .sum();
-        assert!((total - 600.0 * (g.len() - 2) as f64).abs() < 1e-6, "{depressions:?}");
+        assert!(
+            (total - 600.0 * (g.len() - 2) as f64).abs() < 1e-6,
+            "{depressions:?}"
+        );
         let mfd = r.accumulation_mfd(1.1);
         let total: f64 = (0..g.len())
             .filter(|&i| r.dir[i] == NO_FLOW && !r.surface[i].is_nan())

@@ -1,0 +1,77 @@
+//! Benchmarks of relief-landscape against the peers of `cargo xtask bench`
+//! (`xtask/peers/drainage.py`: RichDEM and pysheds; `xtask/peers/stream_power.py`:
+//! fastscapelib), on the same data (`relief_benches::flow_surface`, `spl_surface`).
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use relief_landscape::erode::hydraulic::{HydraulicParams, hydraulic};
+use relief_landscape::erode::{StreamPowerParams, StreamPowerScratch, Uplift, base_level_mask};
+use relief_landscape::flow::{Depressions, RouteOptions, route};
+use relief_landscape::grid::Grid;
+
+fn fill_d8(c: &mut Criterion) {
+    let dem = relief_benches::flow_surface().expect("fixtures/grandcanyon.tif");
+    let grid = Grid::of(&dem);
+    let mut g = c.benchmark_group("landscape");
+    g.sample_size(10);
+    for (name, depressions) in [("fill_d8", Depressions::Fill), ("fill_eps_d8", Depressions::Epsilon)] {
+        let opts = RouteOptions {
+            depressions,
+            ..Default::default()
+        };
+        g.bench_with_input(BenchmarkId::new(name, 4096), &dem, |b, hf| {
+            b.iter(|| {
+                let r = route(hf.as_slice().to_vec(), grid, &opts);
+                r.accumulation(None)
+            })
+        });
+    }
+    g.finish();
+}
+
+fn stream_power(c: &mut Criterion) {
+    let hf = relief_benches::spl_surface();
+    let grid = Grid::of(&hf);
+    let z0: Vec<f64> = hf.as_slice().iter().map(|&v| v as f64).collect();
+    let base = base_level_mask(&z0, &grid);
+    // The peer's parameters (fastscapelib's Mountain example): K 2e-4, m 0.4, n 1, D 0.01,
+    // dt 1 kyr, U 1 mm/yr.
+    let params = StreamPowerParams {
+        k: 2e-4,
+        m: 0.4,
+        n: 1.0,
+        diffusion: 0.01,
+        dt: 1e3,
+        ..StreamPowerParams::default()
+    };
+    let mut g = c.benchmark_group("landscape");
+    g.sample_size(20);
+    let mut z = z0.clone();
+    let mut scratch = StreamPowerScratch::new();
+    g.bench_function(BenchmarkId::new("stream_power_step", 1024), |b| {
+        b.iter(|| {
+            scratch
+                .step(&mut z, &grid, &base, &params, Uplift::Constant(1e-3))
+                .expect("step")
+        })
+    });
+    g.finish();
+}
+
+fn hydraulic_default(c: &mut Criterion) {
+    let dem = relief_benches::flow_surface().expect("fixtures/grandcanyon.tif");
+    let dem = dem.crop(0, 0, 2048, 2048).expect("crop");
+    let grid = Grid::of(&dem);
+    let p = HydraulicParams::default();
+    let mut g = c.benchmark_group("landscape");
+    g.sample_size(10);
+    g.bench_with_input(BenchmarkId::new("hydraulic", 2048), &dem, |b, hf| {
+        b.iter(|| {
+            let mut z = hf.as_slice().to_vec();
+            hydraulic(&mut z, &grid, &p, &relief_heightfield::NoProgress, &|| false).expect("run")
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, fill_d8, stream_power, hydraulic_default);
+criterion_main!(benches);
