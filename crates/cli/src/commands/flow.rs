@@ -24,8 +24,7 @@ use crate::args::{LibEnum, flag_error};
 use crate::ctx::Ctx;
 use crate::outputs::OutKind;
 
-/// Arguments of `relief flow`: one flag per [`FlowSettings`] field, defaults from
-/// `FlowSettings::default()`.
+/// Arguments of `relief flow`: one flag per [`FlowSettings`] field ([`FlowArgs`]).
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// Input DEM (format detected from its content); voids are flow off the map.
@@ -35,6 +34,19 @@ pub(crate) struct Args {
     /// flow.json.
     #[arg(short = 'o', long = "out", value_name = "OUT_DIR")]
     pub(crate) out: PathBuf,
+    #[command(flatten)]
+    pub(crate) flow: FlowArgs,
+    /// Print the figures (flow.json) as JSON instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
+    #[command(flatten)]
+    pub(crate) read: super::ReadArgs,
+}
+
+/// The flags of [`FlowSettings`], one per field, defaults from `FlowSettings::default()`
+/// (shared by `relief flow` and `relief masks`, whose drainage masks route the same way).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct FlowArgs {
     /// Closed depressions: fill (priority-flood to the spill level, then drainage across the
     /// flats), epsilon (filled with a rising epsilon step), breach (least-cost channels within
     /// --breach-depth and --breach-length, the rest filled) or none (pits stay sinks).
@@ -57,11 +69,20 @@ pub(crate) struct Args {
     /// and HAND start there).
     #[arg(long, value_name = "M2", allow_hyphen_values = true, default_value_t = FlowSettings::default().channel_area)]
     pub(crate) channel_area: f64,
-    /// Print the figures (flow.json) as JSON instead of text.
-    #[arg(long)]
-    pub(crate) json: bool,
-    #[command(flatten)]
-    pub(crate) read: super::ReadArgs,
+}
+
+impl FlowArgs {
+    /// The flags as [`FlowSettings`] (unchecked).
+    pub(crate) fn settings(&self) -> FlowSettings {
+        FlowSettings {
+            depressions: self.depressions.0,
+            breach_depth: self.breach_depth,
+            breach_length: self.breach_length,
+            directions: self.directions.0,
+            mfd_exponent: self.mfd_exponent,
+            channel_area: self.channel_area,
+        }
+    }
 }
 
 /// The files `relief flow` writes into its folder.
@@ -94,14 +115,7 @@ pub(crate) fn job_cells() -> super::JobCells<'static> {
 
 /// The flags as checked [`FlowSettings`] (an error names the flag).
 pub(crate) fn settings(args: &Args) -> Result<FlowSettings> {
-    let s = FlowSettings {
-        depressions: args.depressions.0,
-        breach_depth: args.breach_depth,
-        breach_length: args.breach_length,
-        directions: args.directions.0,
-        mfd_exponent: args.mfd_exponent,
-        channel_area: args.channel_area,
-    };
+    let s = args.flow.settings();
     s.check().map_err(flag_error)?;
     Ok(s)
 }

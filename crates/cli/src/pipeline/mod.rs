@@ -28,6 +28,7 @@ use relief_heightfield::{Heightfield, Progress};
 mod convert;
 mod dictionary;
 mod fill;
+mod flow;
 mod load;
 mod quilt;
 pub mod report;
