@@ -57,7 +57,9 @@
 //! let figures = erode::run(&mut z, &grid, &base, &params, Uplift::Constant(1e-3), 20,
 //!     &NoProgress, &|| false).unwrap();
 //! assert_eq!(figures.steps, 20);
-//! assert!(z.iter().all(|v| (0.0..20.0).contains(v)));
+//! // Incision keeps every cell below the 20 m of uplift; the fixed edge does not move.
+//! assert!(z.iter().all(|v| *v < 20.2) && figures.last.mean_elevation < 20.0);
+//! assert_eq!(z[0], 0.0);
 //! ```
 
 mod routing;
@@ -265,8 +267,15 @@ impl StreamPowerScratch {
         self.dir.resize(n, NO_FLOW);
         figures.pits = routing::receivers(z, grid, kind, &mut self.dir);
         if figures.pits > 0 {
-            figures.lake_cells =
-                routing::route_lakes(z, grid, kind, &mut self.dir, &mut self.lakes);
+            figures.lake_cells = routing::route_lakes(
+                z,
+                grid,
+                kind,
+                &mut self.dir,
+                &mut self.stack,
+                &mut self.donors,
+                &mut self.lakes,
+            );
         }
         routing::stack_order(grid, kind, &self.dir, &mut self.donors, &mut self.stack);
         self.count.resize(n, 0);
