@@ -130,6 +130,13 @@ pub fn write_rgb_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Re
     atomic::write_atomic(path, &bytes)
 }
 
+/// Writes an 8-bit RGBA PNG from row-major `rgba` (4 bytes per pixel) atomically: colour
+/// images with alpha, and four-channel weight maps (splat maps).
+pub fn write_rgba_png(path: &Path, width: usize, height: usize, rgba: &[u8]) -> Result<()> {
+    let bytes = encode_8bit(width, height, 4, rgba).map_err(|e| e.in_file(path))?;
+    atomic::write_atomic(path, &bytes)
+}
+
 /// Writes an 8-bit grey PNG from row-major `grey` (1 byte per pixel) atomically.
 pub fn write_gray_png(path: &Path, width: usize, height: usize, grey: &[u8]) -> Result<()> {
     let bytes = encode_8bit(width, height, 1, grey).map_err(|e| e.in_file(path))?;

@@ -11,6 +11,7 @@ pub(crate) mod fit_procedural;
 pub(crate) mod flow;
 pub(crate) mod info;
 pub(crate) mod learn;
+pub(crate) mod masks;
 pub(crate) mod preview;
 pub(crate) mod quilt;
 pub(crate) mod refine;

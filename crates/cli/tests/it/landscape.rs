@@ -233,3 +233,118 @@ fn tile_plan_refuses_drainage_commands() {
     }
     assert_eq!(files(tmp.path()), ["crop.tif"]);
 }
+
+/// The masks of `relief masks` (no erosion run).
+const MASKS: [&str; 7] = [
+    "area",
+    "hand",
+    "height_band",
+    "plan_curvature",
+    "profile_curvature",
+    "slope",
+    "wetness",
+];
+
+/// A PNG's bit depth, colour type and pixels.
+fn png_pixels(path: &Path) -> (png::BitDepth, png::ColorType, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    (info.bit_depth, info.color_type, buf)
+}
+
+/// `relief masks` writes every mask as a GeoTIFF on the input's grid and georeference (PNGs
+/// of the normalised masks with `--format png8|png16`), and an RGBA splat map whose four
+/// weights sum to 255 in every pixel.
+#[test]
+fn masks_write_each_mask_and_a_splat_map() {
+    let (tmp, input, hf) = tmp_with_crop("crop.tif", (160, 96, 120, 100));
+    let out = tmp.path().join("m");
+    let report = relief_json!["masks", &input, "-o", &out, "--json"];
+    let mut want: Vec<String> = MASKS.iter().map(|m| format!("{m}.tif")).collect();
+    want.extend(["masks.json".into(), "splat.png".into()]);
+    want.sort();
+    assert_eq!(files(&out), want);
+    assert_eq!(json(&out.join("masks.json")), report);
+    assert_eq!(
+        report["bands"].as_array().unwrap().len(),
+        3,
+        "quartiles: {report}"
+    );
+    let t = hf.georef().and_then(|g| g.geotransform);
+    for m in MASKS {
+        let r = read(&out.join(format!("{m}.tif")));
+        assert_eq!((r.width(), r.height()), (120, 100), "{m}");
+        assert_eq!(r.georef().and_then(|g| g.geotransform), t, "{m}");
+    }
+    let slope = read(&out.join("slope.tif"));
+    assert!(slope.as_slice().iter().all(|&s| (0.0..=90.0).contains(&s)));
+    let (depth, colour, px) = png_pixels(&out.join("splat.png"));
+    assert_eq!(
+        (depth, colour),
+        (png::BitDepth::Eight, png::ColorType::Rgba)
+    );
+    assert_eq!(px.len(), 120 * 100 * 4);
+    assert!(
+        px.chunks(4)
+            .all(|p| p.iter().map(|&v| u32::from(v)).sum::<u32>() == 255)
+    );
+    assert!(
+        px.chunks(4).any(|p| p[1] > 128),
+        "some rock on the canyon walls"
+    );
+
+    for (format, bits) in [
+        ("png8", png::BitDepth::Eight),
+        ("png16", png::BitDepth::Sixteen),
+    ] {
+        let out = tmp.path().join(format);
+        relief_ok![
+            "masks",
+            &input,
+            "-o",
+            &out,
+            "--format",
+            format,
+            "--height-bands",
+            "1200,1600"
+        ];
+        let (depth, colour, _) = png_pixels(&out.join("slope.png"));
+        assert_eq!(
+            (depth, colour),
+            (bits, png::ColorType::Grayscale),
+            "{format}"
+        );
+        assert_eq!(
+            json(&out.join("masks.json"))["bands"],
+            serde_json::json!([1200.0, 1600.0])
+        );
+    }
+}
+
+/// Bad mask parameters fail naming the flag and write nothing.
+#[test]
+fn masks_bad_parameters_fail_naming_the_flag() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
+    let out = tmp.path().join("m");
+    for (flag, value) in [
+        ("--rock-slope", "95"),
+        ("--wet-index", "-1"),
+        ("--height-bands", "1500,1000"),
+        ("--channel-area", "0"),
+    ] {
+        fails_with(
+            &relief!["masks", &input, "-o", &out, flag, value],
+            &[&format!("invalid {flag}")],
+            &[&out],
+        );
+    }
+    usage_error(
+        &words("masks {} -o {} --format jpg", &[&input, &out]),
+        "--format",
+        &out,
+    );
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
+}
