@@ -119,6 +119,10 @@ enum Command {
     /// Texturing masks of a DEM (slope, curvatures, drainage area, wetness, HAND, height bands,
     /// erosion/deposition) as GeoTIFFs or PNGs, and an RGBA splat map of four weights.
     Masks(commands::masks::Args),
+    /// Erode a DEM (stream power with uplift and diffusion, hydraulic, thermal) from a preset
+    /// whose values every flag overrides; writes the terrain and optionally the net erosion and
+    /// deposition depths.
+    Erode(commands::erode::Args),
     /// Run a pipeline spec (JSON: input, stages, parameters) and write its rasters, previews,
     /// summary.json and report.html, as `cargo xtask pipeline SPEC.json` does.
     Run(commands::run::Args),
@@ -167,6 +171,7 @@ pub fn main() -> ExitCode {
         Command::Tree(args) => commands::tree::run(args, &ctx),
         Command::Flow(args) => commands::flow::run(args, &ctx),
         Command::Masks(args) => commands::masks::run(args, &ctx),
+        Command::Erode(args) => commands::erode::run(args, &ctx),
         Command::Run(args) => commands::run::run(args, &ctx),
     };
     match result {
@@ -185,7 +190,7 @@ pub const MAPPING_BUG: &str = "argument-to-settings bug";
 /// Parses a `relief` command line (`args[0]` is the program name) and maps it onto the checked
 /// library settings its subcommand would run, without reading a file or starting any work:
 /// the argument-to-settings path of every job command (amplify, synthesize, compress,
-/// fit-procedural, refine, analyze, quilt, validate, volume, flow, masks). Returns the settings as JSON,
+/// fit-procedural, refine, analyze, quilt, validate, volume, flow, masks, erode). Returns the settings as JSON,
 /// `Ok(None)` for a command without job settings (info, convert, tile, ...), and an error for
 /// arguments a user can get wrong. Every settings value is also sent through its JSON form
 /// (what a `relief run` spec holds) and checked again: a value the command line accepts but
@@ -234,6 +239,7 @@ where
         Command::Volume(a) => json(commands::volume::job(&a)?, |s| Ok(s.check()?))?,
         Command::Flow(a) => json(commands::flow::settings(&a)?, |s| Ok(s.check()?))?,
         Command::Masks(a) => json(commands::masks::settings(&a)?, |s| Ok(s.check()?))?,
+        Command::Erode(a) => json(commands::erode::settings(&a)?, |s| Ok(s.check()?))?,
         Command::Info(_)
         | Command::Convert(_)
         | Command::Preview(_)
@@ -304,6 +310,7 @@ mod tests {
             "volume /a.tif --features karst,arches,sea --render /r.png --image-size 640x480",
             "flow /a.tif -o /out --depressions breach --directions mfd --channel-area 2e5",
             "masks /a.tif -o /out --format png16 --height-bands 1000,2000 --rock-slope 40",
+            "erode /a.tif -o /o.tif --preset badlands --years 2e4 --uplift 1e-4 --talus-angle 30",
         ] {
             let v = settings(good)
                 .map_err(|e| format!("{good}: {e:#}"))
@@ -325,6 +332,10 @@ mod tests {
             "flow /a -o /out --depressions lake",
             "masks /a -o /out --height-bands 2000,1000",
             "masks /a -o /out --rock-slope 95",
+            "erode /a -o /o.tif --talus-angle 95",
+            "erode /a -o /o.tif --rain -1",
+            "erode /a -o /o.tif --preset glacier",
+            "erode /a -o /o.tif --uplift 0.5",
         ] {
             let e = format!("{:#}", settings(bad).unwrap_err());
             assert!(!e.contains(MAPPING_BUG), "{bad}: {e}");

@@ -117,6 +117,7 @@ impl Ctx {
                 start: *RUN_START.get_or_init(std::time::Instant::now),
                 last: None,
                 phase: String::new(),
+                phase_start: std::time::Instant::now(),
                 total: 0,
                 done: 0,
             })
@@ -449,6 +450,8 @@ struct LogState {
     start: std::time::Instant,
     last: Option<std::time::Instant>,
     phase: String,
+    /// When the current phase began (its ETA is extrapolated from its own pace).
+    phase_start: std::time::Instant,
     total: u64,
     done: u64,
 }
@@ -473,8 +476,16 @@ impl LogState {
         } else {
             String::new()
         };
+        // The phase's remaining time at its pace so far (as the terminal bar's {eta}).
+        let eta = if self.total > 0 && self.done > 0 && self.done < self.total {
+            let spent = now.duration_since(self.phase_start).as_secs_f64();
+            let left = spent * (self.total - self.done) as f64 / self.done as f64;
+            format!(", about {} left", crate::budget::human_secs(left))
+        } else {
+            String::new()
+        };
         Some(format!(
-            "progress: {}{pct} ({:.0} s)",
+            "progress: {}{pct} ({:.0} s{eta})",
             self.phase,
             elapsed.as_secs_f64()
         ))
@@ -522,6 +533,7 @@ impl Progress for CliProgress {
         self.log_line(
             |s| {
                 s.phase = phase.to_string();
+                s.phase_start = std::time::Instant::now();
                 s.total = total;
                 s.done = 0;
             },
@@ -597,13 +609,19 @@ mod tests {
             start: t0,
             last: None,
             phase: "k-svd".into(),
+            phase_start: t0,
             total: 4,
             done: 1,
         };
         assert_eq!(s.line(true), None, "short runs stay silent");
         s.start = t0 - LOG_AFTER - Duration::from_secs(1);
+        s.phase_start = t0 - Duration::from_secs(20);
         let l = s.line(false).expect("a line once the run is long");
         assert!(l.starts_with("progress: k-svd 25%"), "{l}");
+        assert!(
+            l.contains("about 60 s left"),
+            "the ETA at the phase's pace: {l}"
+        );
         assert_eq!(s.line(false), None, "rate-limited");
         assert!(s.line(true).is_some(), "a new phase is always shown");
     }

@@ -7,6 +7,7 @@ pub(crate) mod analyze;
 pub(crate) mod compress;
 pub(crate) mod convert;
 pub(crate) mod decompress;
+pub(crate) mod erode;
 pub(crate) mod fit_procedural;
 pub(crate) mod flow;
 pub(crate) mod info;

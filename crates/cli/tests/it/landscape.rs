@@ -348,3 +348,125 @@ fn masks_bad_parameters_fail_naming_the_flag() {
     );
     assert_eq!(files(tmp.path()), ["crop.tif"]);
 }
+
+/// A short run of every process: few steps on a small crop.
+const SHORT_ERODE: [&str; 8] = [
+    "--years",
+    "2e4",
+    "--dt",
+    "1e4",
+    "--hydraulic-iterations",
+    "8",
+    "--thermal-iterations",
+    "4",
+];
+
+/// `relief erode` writes the eroded terrain and the net erosion and deposition depths, all on
+/// the input's grid and georeference; `--uplift` takes a rate or a raster of rates; `--json`
+/// prints the settings (the preset with the flags over it) and the figures.
+#[test]
+fn erode_writes_the_terrain_and_the_depths_with_the_georeference() {
+    let (tmp, input, hf) = tmp_with_crop("crop.tif", (200, 160, 96, 80));
+    let (out, e, d) = (
+        tmp.path().join("eroded.tif"),
+        tmp.path().join("erosion.tif"),
+        tmp.path().join("deposition.tif"),
+    );
+    let mut args = words(
+        "erode {} -o {} --erosion {} --deposition {} --preset badlands --json",
+        &[&input, &out, &e, &d],
+    );
+    args.extend(SHORT_ERODE.iter().map(std::ffi::OsStr::new));
+    let report: serde_json::Value = serde_json::from_str(&ok(&relief(&args))).unwrap();
+    assert_eq!(report["settings"]["preset"], "badlands");
+    assert_eq!(report["settings"]["years"], 2e4);
+    assert_eq!(report["settings"]["hydraulic_iterations"], 8);
+    assert!(
+        report["figures"]["eroded_m3"].as_f64().unwrap() > 0.0,
+        "{report}"
+    );
+    let t = hf.georef().and_then(|g| g.geotransform);
+    let [eroded, erosion, deposition] = [&out, &e, &d].map(|p| read(p));
+    for r in [&eroded, &erosion, &deposition] {
+        assert_eq!((r.width(), r.height()), (96, 80));
+        assert_eq!(r.georef().and_then(|g| g.geotransform), t);
+    }
+    assert!(erosion.as_slice().iter().all(|&v| v >= 0.0));
+    assert!(deposition.as_slice().iter().all(|&v| v >= 0.0));
+    let changed = (eroded.as_slice().iter().zip(hf.as_slice()))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > 96 * 80 / 2, "{changed} cells changed");
+    let max_e = erosion.as_slice().iter().fold(0f32, |a, &b| a.max(b));
+    let want = report["figures"]["max_erosion_m"].as_f64().unwrap();
+    assert!(
+        (f64::from(max_e) - want).abs() < 1e-3 * want.max(1.0),
+        "{max_e} vs {want}"
+    );
+
+    // A raster of uplift rates on the DEM's grid, and one on another grid.
+    let rates = write(
+        tmp.path(),
+        "uplift.tif",
+        &hf.with_data(vec![1e-4; 96 * 80]).unwrap(),
+    );
+    let out2 = tmp.path().join("uplifted.tif");
+    let mut args = words("erode {} -o {} --uplift {}", &[&input, &out2, &rates]);
+    args.extend(SHORT_ERODE.iter().map(std::ffi::OsStr::new));
+    ok(&relief(&args));
+    assert_eq!(read(&out2).width(), 96);
+    let small = write(tmp.path(), "small.tif", &hf.crop(0, 0, 32, 32).unwrap());
+    let out3 = tmp.path().join("never.tif");
+    fails_with(
+        &relief(&words(
+            "erode {} -o {} --uplift {}",
+            &[&input, &out3, &small],
+        )),
+        &["--uplift", "32 x 32", "must match"],
+        &[&out3],
+    );
+}
+
+/// Bad erosion parameters fail naming the flag (the preset's processes check the overrides
+/// under their own names) and write nothing; an estimate over `--max-time` is refused before
+/// the run.
+#[test]
+fn erode_refuses_bad_parameters_and_runs_over_max_time() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
+    let (out, e) = (tmp.path().join("o.tif"), tmp.path().join("e.tif"));
+    for (flag, value) in [
+        ("--talus-angle", "95"),
+        ("--rain", "-1"),
+        ("--uplift", "0.5"),
+        ("--years", "-3"),
+        ("--k", "-1"),
+        ("--hydraulic-iterations", "2000000"),
+        ("--thermal-iterations", "2000000"),
+    ] {
+        fails_with(
+            &relief!["erode", &input, "-o", &out, "--erosion", &e, flag, value],
+            &[&format!("invalid {flag} ")],
+            &[&out, &e],
+        );
+    }
+    usage_error(
+        &words("erode {} -o {} --preset glacier", &[&input, &out]),
+        "--preset",
+        &out,
+    );
+    fails_with(
+        &relief![
+            "--max-time",
+            "0.000001s",
+            "erode",
+            &input,
+            "-o",
+            &out,
+            "--erosion",
+            &e
+        ],
+        &["the erosion is estimated at", "--max-time"],
+        &[&out, &e],
+    );
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
+}
