@@ -1,6 +1,8 @@
 //! Times the steps of `relief flow`'s routing on a raw float32 raster:
 //! `cargo run --release -p relief-landscape --example flow_timing -- FILE.f32 WIDTH HEIGHT CELL`.
 
+#![allow(clippy::print_stdout)]
+
 use std::time::Instant;
 
 use relief_landscape::depression::{self, FillMode};

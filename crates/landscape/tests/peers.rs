@@ -95,10 +95,6 @@ fn epsilon_fill_differs_from_richdem_only_by_the_order_of_equal_cells() {
             );
         }
     }
-    eprintln!(
-        "epsilon fill: {differ} of {} cells differ from RichDEM",
-        g.len()
-    );
     assert!(differ <= 40, "{differ} cells differ (17 when written)");
 }
 

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::hydraulic::{HydraulicFigures, HydraulicParams, hydraulic};
 use super::stream_power::{self, RunFigures, StreamPowerParams, Uplift, base_level_mask};
 use super::thermal::{ThermalFigures, ThermalParams, thermal};
+use crate::depression::{FillMode, priority_flood};
 use crate::grid::Grid;
 use crate::{LandscapeError, Result};
 
@@ -68,31 +69,38 @@ impl Preset {
             evaporation,
             ..HydraulicParams::default()
         };
-        let th = |talus_angle_deg: f64, iterations: u32| ThermalParams {
+        // Bedrock weathers into at most `weathering_m` of loose material over the run, so
+        // cliffs keep their faces and shed talus aprons instead of being levelled.
+        let th = |talus_angle_deg: f64, iterations: u32, weathering_m: f64| ThermalParams {
             talus_angle_deg,
             iterations,
+            weathering_m: Some(weathering_m),
             ..ThermalParams::default()
         };
         match self {
             Self::Gentle => Plan {
-                stream_power: Some(sp(5e-6, 0.05, 50_000.0)),
+                stream_power: Some(sp(1e-5, 0.02, 50_000.0)),
                 hydraulic: Some(hy(50, 0.01, 0.3, 0.03)),
-                thermal: Some(th(30.0, 30)),
+                thermal: Some(th(30.0, 30, 5.0)),
+                fill_pits: true,
             },
             Self::Mountain => Plan {
                 stream_power: Some(sp(2e-5, 0.01, 50_000.0)),
                 hydraulic: Some(hy(80, 0.01, 0.5, 0.02)),
-                thermal: Some(th(38.0, 20)),
+                thermal: Some(th(38.0, 20, 10.0)),
+                fill_pits: true,
             },
             Self::Badlands => Plan {
                 stream_power: Some(sp(1e-4, 0.002, 20_000.0)),
                 hydraulic: Some(hy(120, 0.015, 0.8, 0.015)),
-                thermal: Some(th(40.0, 20)),
+                thermal: Some(th(40.0, 20, 5.0)),
+                fill_pits: true,
             },
             Self::Desert => Plan {
                 stream_power: Some(sp(5e-6, 0.005, 20_000.0)),
                 hydraulic: Some(hy(100, 0.02, 0.6, 0.04)),
-                thermal: Some(th(33.0, 60)),
+                thermal: Some(th(33.0, 60, 20.0)),
+                fill_pits: true,
             },
         }
     }
@@ -119,6 +127,10 @@ pub struct Plan {
     pub hydraulic: Option<HydraulicParams>,
     /// Thermal relaxation, last.
     pub thermal: Option<ThermalParams>,
+    /// Fill the closed depressions the processes dug or dammed (sediment settling in the
+    /// ponds): the result keeps the input's own closed depressions, no deeper than they were,
+    /// and no others, so it drains like the input.
+    pub fill_pits: bool,
 }
 
 /// Settings of `relief erode` (and the pipeline's `erode` stage): the preset and the fields
@@ -152,6 +164,11 @@ pub struct ErodeSettings {
     pub talus_angle: Option<f64>,
     /// Thermal iterations; 0 skips thermal relaxation.
     pub thermal_iterations: Option<u32>,
+    /// Bedrock depth (m) each cell can weather into loose material for the thermal
+    /// relaxation; a negative value makes the whole surface loose (cliffs levelled).
+    pub weathering: Option<f64>,
+    /// Fill the closed depressions the erosion made (see [`Plan::fill_pits`]).
+    pub fill_pits: Option<bool>,
     /// Seed of the random rain (used when the rain is not uniform).
     pub seed: u64,
 }
@@ -193,7 +210,11 @@ impl ErodeSettings {
         if let Some(t) = plan.thermal.as_mut() {
             t.talus_angle_deg = self.talus_angle.unwrap_or(t.talus_angle_deg);
             t.iterations = self.thermal_iterations.unwrap_or(t.iterations);
+            if let Some(w) = self.weathering {
+                t.weathering_m = (w >= 0.0).then_some(w);
+            }
         }
+        plan.fill_pits = self.fill_pits.unwrap_or(plan.fill_pits);
         if plan.thermal.is_some_and(|t| t.iterations == 0) {
             plan.thermal = None;
         }
@@ -260,6 +281,7 @@ impl ErodeSettings {
                 iterations: p.iterations.min(6),
                 ..p
             }),
+            fill_pits: plan.fill_pits,
         };
         let t0 = Instant::now();
         run_plan(
@@ -379,6 +401,9 @@ fn run_plan(
         figures.thermal = Some(thermal(&mut z, &grid, &p, progress, stop)?);
     }
     let input = dem.as_slice();
+    if plan.fill_pits {
+        fill_new_pits(input, &mut z, &grid);
+    }
     let mut erosion = vec![f32::NAN; grid.len()];
     let mut deposition = vec![f32::NAN; grid.len()];
     let a0 = grid.cell_area();
@@ -401,6 +426,22 @@ fn run_plan(
         deposition: dem.with_data(deposition)?.with_georef(georef),
         figures,
     })
+}
+
+/// Raises the cells of `z` that lie in a closed depression to the depression's spill level,
+/// less the depth the input had there: the input's own depressions stay (no deeper), those the
+/// erosion made are filled.
+fn fill_new_pits(input: &[f32], z: &mut [f32], grid: &Grid) {
+    let mut before = input.to_vec();
+    priority_flood(&mut before, grid, FillMode::Plain, None);
+    let mut after = z.to_vec();
+    priority_flood(&mut after, grid, FillMode::Plain, None);
+    for i in 0..grid.len() {
+        if after[i] > z[i] {
+            let kept = before[i] - input[i];
+            z[i] = z[i].max(after[i] - kept);
+        }
+    }
 }
 
 /// The result of an erosion run, on the DEM's grid and georeference.
@@ -539,6 +580,9 @@ mod tests {
             let up = if edge { 0.0 } else { 5.0 };
             assert!((b - a - up - (d - e)).abs() < 1e-3, "cell {i}");
         }
+        // The erosion leaves no closed depression the input did not have.
+        let pits = crate::stats::drainage(&out.terrain).pits_per_km2;
+        assert!(pits <= crate::stats::drainage(&dem).pits_per_km2, "{pits}");
         let stopped = s.run(&dem, None, &relief_heightfield::NoProgress, &|| true);
         assert!(matches!(stopped, Err(LandscapeError::Stopped(_))));
     }

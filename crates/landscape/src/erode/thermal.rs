@@ -46,6 +46,11 @@ pub struct ThermalParams {
     /// Fraction of the excess moved per iteration, in `(0, 0.5]`: 0.5 is the fastest stable
     /// value, smaller values relax more gently (and need more iterations).
     pub rate: f64,
+    /// Depth of bedrock (m) each cell can weather into loose material over the run; `None`:
+    /// the whole surface is loose (Musgrave's model, which levels cliffs to the talus angle).
+    /// With a depth, a cliff gives at most that much and keeps its face, while what it sheds
+    /// (loose from then on) slides on and builds talus aprons at the angle of repose.
+    pub weathering_m: Option<f64>,
 }
 
 impl Default for ThermalParams {
@@ -54,6 +59,7 @@ impl Default for ThermalParams {
             talus_angle_deg: 35.0,
             iterations: 50,
             rate: 0.5,
+            weathering_m: None,
         }
     }
 }
@@ -78,7 +84,11 @@ impl ThermalParams {
             "rate",
             self.rate,
             "must be in (0, 0.5]",
-        )
+        )?;
+        if let Some(w) = self.weathering_m {
+            in_range("weathering_m", w, 0.0..=1e4, "must be in [0, 10000] m")?;
+        }
+        Ok(())
     }
 }
 
@@ -127,6 +137,12 @@ pub fn thermal(
     let mut share_out = vec![0.0f32; n];
     let mut share_in = vec![0.0f32; n];
     let band = BAND_ROWS * grid.width;
+    let mut loose: Option<Vec<f32>> = p.weathering_m.map(|w| vec![w as f32; n]);
+    let mut scale = if loose.is_some() {
+        vec![1.0f32; n]
+    } else {
+        Vec::new()
+    };
     progress.begin("thermal erosion", p.iterations as u64);
     for it in 0..p.iterations {
         if stop() {
@@ -146,12 +162,41 @@ pub fn thermal(
                     (*o, *s) = shares(&cur, grid, b * band + j, &talus);
                 }
             });
-        next.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
-            for (j, v) in out.iter_mut().enumerate() {
-                let i = b * band + j;
-                *v = relax(&cur, grid, i, &talus, rate, &share_out, &share_in);
-            }
-        });
+        if let Some(loose) = loose.as_mut() {
+            // Each cell gives at most its loose material: the pair transfers out of a cell are
+            // scaled by `min(1, loose / loss)` (the giver's factor, seen alike from both cells).
+            scale.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
+                for (j, v) in out.iter_mut().enumerate() {
+                    let i = b * band + j;
+                    let loss = relax(&cur, grid, i, &talus, rate, &share_out, &share_in, None).1;
+                    *v = if loss > loose[i] {
+                        loose[i] / loss
+                    } else {
+                        1.0
+                    };
+                }
+            });
+            let sc = &scale;
+            (next.par_chunks_mut(band), loose.par_chunks_mut(band))
+                .into_par_iter()
+                .enumerate()
+                .for_each(|(b, (out, lo))| {
+                    for (j, (v, l)) in out.iter_mut().zip(lo.iter_mut()).enumerate() {
+                        let i = b * band + j;
+                        let (zi, loss, gain) =
+                            relax(&cur, grid, i, &talus, rate, &share_out, &share_in, Some(sc));
+                        *v = zi;
+                        *l = (*l - loss + gain).max(0.0);
+                    }
+                });
+        } else {
+            next.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
+                for (j, v) in out.iter_mut().enumerate() {
+                    let i = b * band + j;
+                    *v = relax(&cur, grid, i, &talus, rate, &share_out, &share_in, None).0;
+                }
+            });
+        }
         std::mem::swap(&mut cur, &mut next);
         progress.advance(1);
     }
@@ -233,8 +278,10 @@ fn shares(z: &[f32], grid: &Grid, i: usize, talus: &[f32; 8]) -> (f32, f32) {
     (ratio(max_out, sum_out), ratio(max_in, sum_in))
 }
 
-/// The height of cell `i` after one relaxation step.
+/// The height of cell `i` after one relaxation step, with what it lost and gained. With
+/// `scale` (the givers' loose-material factors) each transfer is scaled by its giver's.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 fn relax(
     z: &[f32],
     grid: &Grid,
@@ -243,29 +290,31 @@ fn relax(
     rate: f32,
     share_out: &[f32],
     share_in: &[f32],
-) -> f32 {
+    scale: Option<&[f32]>,
+) -> (f32, f32, f32) {
     let zi = z[i];
     if zi.is_nan() {
-        return zi;
+        return (zi, 0.0, 0.0);
     }
+    let factor = |c: usize| scale.map_or(1.0, |s| s[c]);
     let mut gain = 0.0f32;
     let mut loss = 0.0f32;
     grid.for_neighbours(i, |k, m| {
         let zm = z[m];
         // The transfer of a pair is computed with the same operands from both sides (the
         // higher cell's excess, the higher cell's outgoing share, the lower one's incoming
-        // share): `talus[k] == talus[OPPOSITE[k]]`.
+        // share, the higher cell's factor): `talus[k] == talus[OPPOSITE[k]]`.
         debug_assert_eq!(talus[k], talus[OPPOSITE[k] as usize]);
         let e_out = zi - zm - talus[k];
         if e_out > 0.0 {
-            loss += rate * e_out * share_out[i].min(share_in[m]);
+            loss += rate * e_out * share_out[i].min(share_in[m]) * factor(i);
         }
         let e_in = zm - zi - talus[k];
         if e_in > 0.0 {
-            gain += rate * e_in * share_out[m].min(share_in[i]);
+            gain += rate * e_in * share_out[m].min(share_in[i]) * factor(m);
         }
     });
-    zi - loss + gain
+    (zi - loss + gain, loss, gain)
 }
 
 /// Cells with a neighbour lower by more than `limit[k]`.

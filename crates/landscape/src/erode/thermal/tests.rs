@@ -61,6 +61,7 @@ fn a_cliff_relaxes_to_the_talus_angle_on_non_square_cells() {
         talus_angle_deg: 35.0,
         iterations: 3000,
         rate: 0.5,
+        weathering_m: None,
     };
     let f = thermal(&mut z, &grid, &p, &NoProgress, &never).unwrap();
     assert_eq!(f.steep_cells_after, 0, "{f:?}");
@@ -82,6 +83,48 @@ fn a_cliff_relaxes_to_the_talus_angle_on_non_square_cells() {
             assert!((a - b).abs() < 0.5, "row {y}: {a} vs {b}");
         }
     }
+}
+
+#[test]
+fn a_weathering_depth_keeps_the_cliff_and_builds_an_apron() {
+    let grid = Grid {
+        width: 40,
+        height: 5,
+        cell_x: 10.0,
+        cell_y: 10.0,
+    };
+    let z0: Vec<f32> = (0..grid.len())
+        .map(|i| if i % grid.width < 20 { 100.0 } else { 0.0 })
+        .collect();
+    let mut z = z0.clone();
+    let p = ThermalParams {
+        talus_angle_deg: 35.0,
+        iterations: 500,
+        rate: 0.5,
+        weathering_m: Some(5.0),
+    };
+    thermal(&mut z, &grid, &p, &NoProgress, &never).unwrap();
+    assert!((total(&z) - total(&z0)).abs() < 1e-2);
+    let row = &z[2 * grid.width..3 * grid.width];
+    // The top loses at most its 5 m (plus nothing: what it sheds moves on), the face still
+    // drops most of the 100 m within a few cells, and the foot gained an apron.
+    assert!(row.iter().all(|&v| (-1e-3..=100.0).contains(&v)));
+    assert!(row[..20].iter().all(|&v| v >= 95.0 - 1e-3), "{row:?}");
+    assert!(row[20] > 0.5 && row[20] < 40.0, "{row:?}");
+    let mut loose = z0.clone();
+    thermal(
+        &mut loose,
+        &grid,
+        &ThermalParams {
+            weathering_m: None,
+            ..p
+        },
+        &NoProgress,
+        &never,
+    )
+    .unwrap();
+    // Without the limit the same run cuts the cliff top down much further.
+    assert!(loose[2 * grid.width + 19] < row[19] - 10.0);
 }
 
 #[test]
