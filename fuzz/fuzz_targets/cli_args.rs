@@ -8,7 +8,7 @@
 
 use libfuzzer_sys::fuzz_target;
 
-const COMMANDS: [&str; 10] = [
+const COMMANDS: [&str; 13] = [
     "amplify",
     "synthesize",
     "compress",
@@ -19,6 +19,9 @@ const COMMANDS: [&str; 10] = [
     "validate",
     "volume",
     "decompress",
+    "flow",
+    "masks",
+    "erode",
 ];
 
 fuzz_target!(|data: &[u8]| {

@@ -117,6 +117,15 @@ fn fill_args(cmd: &str, usage: &[String], input: &Path, out_dir: &Path) -> Vec<S
                 .any(|n| v.contains(n))
             {
                 args.push("4".into());
+            } else if v.contains("OUT") {
+                // A required output flag (`flow -o OUT_DIR`, `erode -o OUT`).
+                k += 1;
+                let name = if v.contains("DIR") {
+                    format!("out{k}")
+                } else {
+                    format!("out{k}.tif")
+                };
+                args.push(out_dir.join(name).display().to_string());
             } else {
                 args.push(input.display().to_string());
             }
