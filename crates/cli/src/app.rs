@@ -310,7 +310,8 @@ mod tests {
             "volume /a.tif --features karst,arches,sea --render /r.png --image-size 640x480",
             "flow /a.tif -o /out --depressions breach --directions mfd --channel-area 2e5",
             "masks /a.tif -o /out --format png16 --height-bands 1000,2000 --rock-slope 40",
-            "erode /a.tif -o /o.tif --preset badlands --years 2e4 --uplift 1e-4 --talus-angle 30",
+            "erode /a.tif -o /o.tif --preset badlands --years 2e4 --uplift 1e-4 --weathering -1",
+            "erode /a.tif -o /o.tif --talus-angle 30 --fill-pits false",
         ] {
             let v = settings(good)
                 .map_err(|e| format!("{good}: {e:#}"))

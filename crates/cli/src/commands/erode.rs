@@ -94,6 +94,15 @@ pub(crate) struct Args {
     /// Thermal relaxation iterations (0 skips it; default: the preset's).
     #[arg(long, value_name = "N")]
     pub(crate) thermal_iterations: Option<u32>,
+    /// Bedrock depth in metres each cell can weather into loose material for the thermal
+    /// relaxation (cliffs keep their faces and shed talus); negative: the whole surface is
+    /// loose, cliffs are levelled (default: the preset's).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub(crate) weathering: Option<f64>,
+    /// Fill the closed depressions the erosion dug or dammed (the input's own stay, no
+    /// deeper), so the result drains like the input: true or false (default: the preset's).
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub(crate) fill_pits: Option<bool>,
     /// Seed of the random rain.
     #[arg(long, default_value_t = ErodeSettings::default().seed)]
     pub(crate) seed: u64,
@@ -113,7 +122,7 @@ pub(crate) struct Args {
 /// The flags as checked [`ErodeSettings`] (an error names the flag; a `--uplift RASTER` is
 /// given to the run, not to the settings).
 pub(crate) fn settings(args: &Args) -> Result<ErodeSettings> {
-    // Field by field onto the preset's settings (a field without a flag keeps its default).
+    // Field by field onto the preset's settings.
     let mut s = ErodeSettings::preset(args.preset.0);
     s.years = args.years;
     s.dt = args.dt;
@@ -130,6 +139,8 @@ pub(crate) fn settings(args: &Args) -> Result<ErodeSettings> {
     s.capacity = args.capacity;
     s.talus_angle = args.talus_angle;
     s.thermal_iterations = args.thermal_iterations;
+    s.weathering = args.weathering;
+    s.fill_pits = args.fill_pits;
     s.seed = args.seed;
     s.check().map_err(|e| flag_error(erode_flag(&s, e)))?;
     Ok(s)
@@ -142,6 +153,7 @@ fn erode_flag(s: &ErodeSettings, mut e: ParamError) -> ParamError {
     e.name = match e.name {
         "rain_m" => "rain",
         "talus_angle_deg" => "talus_angle",
+        "weathering_m" => "weathering",
         "iterations" if plan.hydraulic.is_some_and(|h| h.check().is_err()) => {
             "hydraulic_iterations"
         }

@@ -373,7 +373,8 @@ fn erode_writes_the_terrain_and_the_depths_with_the_georeference() {
         tmp.path().join("deposition.tif"),
     );
     let mut args = words(
-        "erode {} -o {} --erosion {} --deposition {} --preset badlands --json",
+        "erode {} -o {} --erosion {} --deposition {} --preset badlands --json --fill-pits false \
+         --weathering 2",
         &[&input, &out, &e, &d],
     );
     args.extend(SHORT_ERODE.iter().map(std::ffi::OsStr::new));
@@ -381,6 +382,8 @@ fn erode_writes_the_terrain_and_the_depths_with_the_georeference() {
     assert_eq!(report["settings"]["preset"], "badlands");
     assert_eq!(report["settings"]["years"], 2e4);
     assert_eq!(report["settings"]["hydraulic_iterations"], 8);
+    assert_eq!(report["settings"]["fill_pits"], false);
+    assert_eq!(report["settings"]["weathering"], 2.0);
     assert!(
         report["figures"]["eroded_m3"].as_f64().unwrap() > 0.0,
         "{report}"
@@ -442,6 +445,7 @@ fn erode_refuses_bad_parameters_and_runs_over_max_time() {
         ("--k", "-1"),
         ("--hydraulic-iterations", "2000000"),
         ("--thermal-iterations", "2000000"),
+        ("--weathering", "1e9"),
     ] {
         fails_with(
             &relief!["erode", &input, "-o", &out, "--erosion", &e, flag, value],
