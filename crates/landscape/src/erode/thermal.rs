@@ -293,7 +293,9 @@ fn relax(
     scale: Option<&[f32]>,
 ) -> (f32, f32, f32) {
     let zi = z[i];
-    if zi.is_nan() {
+    // A cell with no excess towards or from any neighbour neither gives nor takes (most cells:
+    // slopes under the angle of repose).
+    if zi.is_nan() || (share_out[i] == 0.0 && share_in[i] == 0.0) {
         return (zi, 0.0, 0.0);
     }
     let factor = |c: usize| scale.map_or(1.0, |s| s[c]);
