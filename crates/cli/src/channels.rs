@@ -1,7 +1,7 @@
 //! The channel network drawn over a hillshade preview (`relief flow`'s `channels.png` and the
 //! pipeline's `flow` stage): every channel cell's D8 step to its receiver is a blue segment,
 //! wider and darker with its Strahler order, anti-aliased into the RGB preview of
-//! `relief_io::preview_rgb`.
+//! `relief_io::preview_rgb` (of a box-reduced grid for images of bounded size).
 
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Heightfield;
@@ -40,13 +40,36 @@ pub(crate) fn channel_map(
     direction: &Heightfield,
     strahler: &Heightfield,
 ) -> Result<Vec<u8>> {
-    let (w, h) = (dem.width(), dem.height());
+    Ok(channel_map_within(dem, direction, strahler, usize::MAX)?.2)
+}
+
+/// [`channel_map`] of at most `max_side` pixels a side: a larger grid's preview is drawn from
+/// its box-averaged reduction by the smallest integer factor that fits, the channels at
+/// their positions scaled by it (line widths unchanged). Returns the image's width, height
+/// and RGB bytes.
+pub(crate) fn channel_map_within(
+    dem: &Heightfield,
+    direction: &Heightfield,
+    strahler: &Heightfield,
+    max_side: usize,
+) -> Result<(usize, usize, Vec<u8>)> {
+    let (gw, gh) = (dem.width(), dem.height());
     for g in [direction, strahler] {
-        if (g.width(), g.height()) != (w, h) {
+        if (g.width(), g.height()) != (gw, gh) {
             bail!("the channel rasters are not on the DEM's grid");
         }
     }
-    let mut rgb = relief_io::preview_rgb(dem).context("cannot draw the hillshade preview")?;
+    let k = gw.max(gh).div_ceil(max_side.max(1)).max(1);
+    let small;
+    let base = if k > 1 {
+        small = dem.downsample_box(k)?;
+        &small
+    } else {
+        dem
+    };
+    let (w, h) = (base.width(), base.height());
+    let scale = 1.0 / k as f32;
+    let mut rgb = relief_io::preview_rgb(base).context("cannot draw the hillshade preview")?;
     // Per pixel: the largest coverage of any segment, and the highest order covering it.
     let mut cover = vec![0f32; w * h];
     let mut top = vec![0u8; w * h];
@@ -56,7 +79,7 @@ pub(crate) fn channel_map(
         .filter(|o| o.is_finite())
         .fold(0f32, |a, &b| a.max(b))
         .clamp(0.0, 255.0) as u8;
-    for i in 0..w * h {
+    for i in 0..gw * gh {
         let (o, d) = (ord[i], dir[i]);
         if !(o >= 1.0 && d.is_finite()) {
             continue;
@@ -65,8 +88,9 @@ pub(crate) fn channel_map(
             continue;
         };
         let order = o.min(255.0) as u8;
-        let (x0, y0) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-        let (x1, y1) = (x0 + dx as f32, y0 + dy as f32);
+        let (cx, cy) = ((i % gw) as f32 + 0.5, (i / gw) as f32 + 0.5);
+        let (x0, y0) = (cx * scale, cy * scale);
+        let (x1, y1) = ((cx + dx as f32) * scale, (cy + dy as f32) * scale);
         let r = 0.5 * line_width(order);
         let reach = r + 1.0;
         let px0 = ((x0.min(x1) - reach).floor().max(0.0)) as usize;
@@ -100,7 +124,7 @@ pub(crate) fn channel_map(
             rgb[3 * p + k] = (v + cover[p] * (blue - v)).round().clamp(0.0, 255.0) as u8;
         }
     }
-    Ok(rgb)
+    Ok((w, h, rgb))
 }
 
 /// Distance from `p` to the segment `a`-`b`.
@@ -155,5 +179,15 @@ mod tests {
         );
         let (_, thick) = painted(5.0);
         assert!(thick > thin, "order 5: {thick} rows, order 1: {thin}");
+        // At most 16 pixels a side: halved, the channel on the middle row (row 4 of 8).
+        let mut s = vec![0f32; w * h];
+        for x in 0..w - 1 {
+            s[8 * w + x] = 1.0;
+        }
+        let s = dem.with_data(s).unwrap();
+        let (sw, sh, rgb) = channel_map_within(&dem, &dir, &s, 16).unwrap();
+        assert_eq!((sw, sh), (16, 8));
+        let p = 3 * (4 * sw + sw / 2);
+        assert!(rgb[p + 2] > rgb[p] + 60, "{:?}", &rgb[p..p + 3]);
     }
 }

@@ -24,6 +24,9 @@ const FLOW_TOLERANCE: Tolerance = Tolerance {
 /// Side of the golden window of the conditioned terrain.
 const WINDOW: usize = 128;
 
+/// Largest side of the channel map in the report (a larger terrain is drawn reduced).
+const CHANNEL_MAP_SIDE: usize = 2048;
+
 /// The `flow` stage.
 #[derive(Debug)]
 pub(crate) struct FlowStage(pub(crate) FlowSettings);
@@ -72,7 +75,12 @@ impl Stage for FlowStage {
             &out.conditioned,
         )?;
         if cx.config.previews {
-            let rgb = crate::channels::channel_map(&terrain, &out.direction, &out.strahler)?;
+            let (iw, ih, rgb) = crate::channels::channel_map_within(
+                &terrain,
+                &out.direction,
+                &out.strahler,
+                CHANNEL_MAP_SIDE,
+            )?;
             cx.save_rgb(
                 "flow_channels",
                 &format!(
@@ -81,8 +89,8 @@ impl Stage for FlowStage {
                     fmt_num(self.0.channel_area / 1e6),
                     out.figures.max_order
                 ),
-                w,
-                h,
+                iw,
+                ih,
                 &rgb,
             )?;
         }
