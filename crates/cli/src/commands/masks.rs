@@ -163,12 +163,49 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         output_bytes_per_cell: kinds.len() as u64 * 4 + 4,
     };
     let dem = super::read_raster_for(&args.input, &args.read, ctx, Some(job))?.heightfield;
-    let side = |p: &Option<PathBuf>| -> Result<Option<relief_heightfield::Heightfield>> {
-        p.as_ref()
-            .map(|p| super::read_raster(p, &super::ReadArgs::default(), ctx).map(|r| r.heightfield))
-            .transpose()
-    };
-    let (erosion, deposition) = (side(&args.erosion_depth)?, side(&args.deposition_depth)?);
+    let side =
+        |p: &Option<PathBuf>, flag: &str| -> Result<Option<relief_heightfield::Heightfield>> {
+            let Some(p) = p else {
+                return Ok(None);
+            };
+            let r = super::read_raster(p, &super::ReadArgs::default(), ctx)?.heightfield;
+            if (r.width(), r.height()) != (dem.width(), dem.height()) {
+                bail!(
+                    "--{flag} {} is {} x {}, the DEM {} x {}: they must match",
+                    p.display(),
+                    r.width(),
+                    r.height(),
+                    dem.width(),
+                    dem.height()
+                );
+            }
+            Ok(Some(r))
+        };
+    let (erosion, deposition) = (
+        side(&args.erosion_depth, "erosion-depth")?,
+        side(&args.deposition_depth, "deposition-depth")?,
+    );
+    if let Some((est, how)) =
+        crate::budget::crop_pilot_seconds((dem.width(), dem.height()), |x, y, w, h| {
+            let crop = |r: &relief_heightfield::Heightfield| r.crop(x, y, w, h);
+            let (e, d) = (
+                erosion.as_ref().map(crop).transpose()?,
+                deposition.as_ref().map(crop).transpose()?,
+            );
+            // A crop of voids only has nothing to route: the pilot then times nothing.
+            match settings.run(
+                &crop(&dem)?,
+                e.as_ref(),
+                d.as_ref(),
+                &relief_heightfield::NoProgress,
+            ) {
+                Ok(_) | Err(relief_landscape::LandscapeError::InvalidInput(_)) => Ok(()),
+                Err(e) => Err(e.into()),
+            }
+        })?
+    {
+        ctx.check_time("the masks", est, &how, "a smaller input (crop it)")?;
+    }
     let progress = ctx.progress();
     let masks = settings
         .run(&dem, erosion.as_ref(), deposition.as_ref(), &progress)

@@ -222,6 +222,7 @@ fn tile_plan_refuses_drainage_commands() {
     for cmd in [
         words("flow {} -o {}", &[&input, &tmp.path().join("f")]),
         words("erode {} -o {}", &[&input, &tmp.path().join("e.tif")]),
+        words("masks {} -o {}", &[&input, &tmp.path().join("m")]),
     ] {
         let mut args = words("tile plan {} --", &[&plan]);
         args.extend(cmd);
@@ -346,6 +347,20 @@ fn masks_bad_parameters_fail_naming_the_flag() {
         "--format",
         &out,
     );
+    let small = write(
+        tmp.path(),
+        "small.tif",
+        &read(&input).crop(0, 0, 16, 16).unwrap(),
+    );
+    fails_with(
+        &relief(&words(
+            "masks {} -o {} --deposition-depth {}",
+            &[&input, &out, &small],
+        )),
+        &["--deposition-depth", "16 x 16", "must match"],
+        &[&out],
+    );
+    std::fs::remove_file(&small).unwrap();
     assert_eq!(files(tmp.path()), ["crop.tif"]);
 }
 

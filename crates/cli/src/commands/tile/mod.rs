@@ -79,8 +79,8 @@ struct PlanArgs {
     #[arg(long, default_value_t = 2048)]
     tile: usize,
     /// The command to split, after `--`: amplify, refine or decompress with its arguments;
-    /// its output must be a GeoTIFF (.tif) and it must not have --window. flow and erode are
-    /// refused: drainage is global, a tile cannot know the area upstream of it.
+    /// its output must be a GeoTIFF (.tif) and it must not have --window. flow, masks and erode
+    /// are refused: drainage is global, a tile cannot know the area upstream of it.
     #[arg(last = true, required = true, value_name = "COMMAND")]
     command: Vec<String>,
 }

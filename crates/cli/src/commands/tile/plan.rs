@@ -85,7 +85,7 @@ pub(super) fn takes_value(prev: &str) -> bool {
 
 /// Commands that route flow over the whole DEM: a window of their output depends on every
 /// cell upstream of it, so they are not windowable.
-pub(super) const GLOBAL_DRAINAGE: [&str; 2] = ["flow", "erode"];
+pub(super) const GLOBAL_DRAINAGE: [&str; 3] = ["flow", "masks", "erode"];
 
 pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     if a.tile < 16 || !a.tile.is_multiple_of(16) || a.tile > 1 << 15 {
