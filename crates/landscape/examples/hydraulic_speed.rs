@@ -1,22 +1,20 @@
 //! Times [`hydraulic`] with the default settings on a 2048 x 2048 grid (the grandcanyon DEM of
-//! the shared set mirrored 4 x 4, 61.7 m cells) on 1 and 2 threads, and checks that both give
-//! the same bytes.
+//! the shared set, found by `relief_testdata::load_dem`, mirrored 4 x 4, 61.7 m cells) on 1 and
+//! 2 threads, and checks that both give the same bytes. Without the DEM set it prints a notice
+//! and exits.
 //!
 //! ```text
 //! cargo run --release -p relief-landscape --example hydraulic_speed -- [SIZE] [ITERATIONS] [THREADS]
 //! ```
 //! With `THREADS`, only that thread count is timed.
 
-#![allow(clippy::print_stdout)]
+#![allow(clippy::print_stdout, clippy::print_stderr)]
 
 use std::time::Instant;
 
 use relief_heightfield::NoProgress;
 use relief_landscape::erode::hydraulic::{HydraulicParams, hydraulic};
 use relief_landscape::grid::Grid;
-
-const DEM: &str = "/work/shared/data/dem/grandcanyon.f32";
-const DEM_SIZE: usize = 512;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -25,24 +23,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(it) = args.get(1) {
         p.iterations = it.parse()?;
     }
-    let bytes = std::fs::read(DEM)?;
-    let dem: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let Some(hf) = relief_testdata::load_dem("grandcanyon") else {
+        eprintln!("notice: the grandcanyon DEM is absent; nothing to time");
+        return Ok(());
+    };
+    let (dw, dh) = (hf.width(), hf.height());
+    let (cell_x, cell_y) = hf.cell_size();
+    let dem = hf.as_slice();
     // Mirrored tiling keeps the surface continuous across tile seams.
-    let mirror = |v: usize| {
-        let (t, r) = (v / DEM_SIZE, v % DEM_SIZE);
-        if t % 2 == 0 { r } else { DEM_SIZE - 1 - r }
+    let mirror = |v: usize, n: usize| {
+        let (t, r) = (v / n, v % n);
+        if t % 2 == 0 { r } else { n - 1 - r }
     };
     let z: Vec<f32> = (0..size * size)
-        .map(|i| dem[mirror(i / size) * DEM_SIZE + mirror(i % size)])
+        .map(|i| dem[mirror(i / size, dh) * dw + mirror(i % size, dw)])
         .collect();
     let grid = Grid {
         width: size,
         height: size,
-        cell_x: 61.703,
-        cell_y: 61.703,
+        cell_x,
+        cell_y,
     };
     let counts = match args.get(2) {
         Some(t) => vec![t.parse()?],

@@ -59,6 +59,12 @@
 //! function of the previous buffers, computed in bands of rows in parallel, and the only sums
 //! (the mass fixer, the figures) add per-band partial sums in band order, so the output bytes do
 //! not depend on the thread count.
+//!
+//! **Speed.** The fluxes, the advection and the erosion are computed row by row on separate
+//! rasters per quantity (the four fluxes, the two velocities): the runs of cells whose four
+//! neighbours are valid (most of the map) take branch-free loops over row slices that LLVM
+//! vectorises, with the same arithmetic as the per-cell code kept for the cells beside an edge
+//! or a void, so both give the same bytes.
 
 use rayon::prelude::*;
 use relief_heightfield::param::{ensure, in_range};
@@ -447,11 +453,22 @@ impl Consts {
 /// Bit of [`Sim::mask`] set for a valid cell; bits 0-3 are set for its valid neighbours (on the
 /// map and not void) in the order west, east, north, south.
 const VALID: u8 = 16;
+/// The mask of a valid cell whose four neighbours are valid: the passes compute runs of these
+/// (most of the map) without the edge and void branches.
+const FULL: u8 = VALID | 15;
 
 /// True when `mask` says neighbour `k` is valid.
 #[inline(always)]
 fn ok(mask: u8, k: usize) -> bool {
     mask >> k & 1 != 0
+}
+
+/// `x.clamp(lo, hi)` (the same comparisons) without the check of the bounds, so a loop using it
+/// can be vectorised.
+#[inline(always)]
+fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
+    let x = if x < lo { lo } else { x };
+    if x > hi { hi } else { x }
 }
 
 /// The simulation state: ground, water, load, fluxes and velocities (all `f32`).
@@ -466,21 +483,54 @@ struct Sim {
     s: Vec<f32>,
     /// The load being written by the transport pass.
     s_next: Vec<f32>,
-    /// Outflow fluxes (m^3/s) to the west, east, north and south.
-    f: Vec<[f32; 4]>,
-    /// Velocity (m/s) east and south.
-    uv: Vec<[f32; 2]>,
+    /// Outflow fluxes (m^3/s) to the west, east, north and south, a raster per direction.
+    f: [Vec<f32>; 4],
+    /// Velocity (m/s) east.
+    u: Vec<f32>,
+    /// Velocity (m/s) south.
+    v: Vec<f32>,
     /// Per cell: [`VALID`] and the valid neighbours (voids never change).
     mask: Vec<u8>,
+    /// Per row, the runs `[start, end)` of columns of [`FULL`] cells.
+    runs: Vec<Vec<(usize, usize)>>,
     /// The mass fixer's factor, applied when `s` is next read.
     scale: f32,
+}
+
+/// The runs `[start, end)` of [`FULL`] cells in a row of the mask, then `(width, width)`, so
+/// that the cells before each run's start (and after the last run) are the others.
+fn full_runs(row: &[u8]) -> Vec<(usize, usize)> {
+    let mut runs = Vec::new();
+    let mut x = 0;
+    while x < row.len() {
+        if row[x] == FULL {
+            let start = x;
+            while x < row.len() && row[x] == FULL {
+                x += 1;
+            }
+            runs.push((start, x));
+        } else {
+            x += 1;
+        }
+    }
+    runs.push((row.len(), row.len()));
+    runs
+}
+
+/// One row of the erosion pass's outputs.
+struct RowOut<'a> {
+    b: &'a mut [f32],
+    d: &'a mut [f32],
+    s: &'a mut [f32],
+    u: &'a mut [f32],
+    v: &'a mut [f32],
 }
 
 impl Sim {
     fn new(z: &[f32], c: &Consts) -> Self {
         let n = z.len();
         let zero = || vec![0.0f32; n];
-        let mask = (0..n)
+        let mask: Vec<u8> = (0..n)
             .map(|i| {
                 if z[i].is_nan() {
                     return 0;
@@ -492,15 +542,18 @@ impl Sim {
                 })
             })
             .collect();
+        let runs = mask.chunks(c.width).map(full_runs).collect();
         Self {
             mask,
+            runs,
             b: z.to_vec(),
             b_next: z.to_vec(),
             d: zero(),
             s: zero(),
             s_next: zero(),
-            f: vec![[0.0; 4]; n],
-            uv: vec![[0.0; 2]; n],
+            f: [zero(), zero(), zero(), zero()],
+            u: zero(),
+            v: zero(),
             scale: 1.0,
         }
     }
@@ -534,31 +587,56 @@ impl Sim {
     /// place: each cell's fluxes depend on its own fluxes and on the water surfaces, which this
     /// pass does not change); returns the advected load (m summed over the cells).
     fn flow_transport(&mut self, c: &Consts, advect: bool) -> f64 {
-        let band = BAND_ROWS * c.width;
-        let (b, d, s, uv, mask) = (&self.b, &self.d, &self.s, &self.uv, &self.mask);
-        let (xmax, ymax) = ((c.width - 1) as f32, (c.height - 1) as f32);
-        let (kx, ky) = (c.dt / c.lx, c.dt / c.ly);
+        let w = c.width;
+        let band = BAND_ROWS * w;
+        let (b, d, s, u, v) = (&self.b, &self.d, &self.s, &self.u, &self.v);
+        let (mask, runs) = (&self.mask, &self.runs);
+        let [fw, fe, fnn, fs] = &mut self.f;
         let sums: Vec<f64> = (
-            self.f.par_chunks_mut(band),
+            fw.par_chunks_mut(band),
+            fe.par_chunks_mut(band),
+            fnn.par_chunks_mut(band),
+            fs.par_chunks_mut(band),
             self.s_next.par_chunks_mut(band),
         )
             .into_par_iter()
             .enumerate()
-            .map(|(k, (f, sn))| {
+            .map(|(k, (fw, fe, fnn, fs, sn))| {
                 let mut load = 0.0f64;
-                for (r, y) in (k * BAND_ROWS..).take(f.len() / c.width).enumerate() {
-                    for x in 0..c.width {
-                        let (j, i) = (r * c.width + x, y * c.width + x);
-                        let m = mask[i];
-                        if m & VALID == 0 {
-                            continue;
+                let mut at = Positions::default();
+                for (r, y) in (k * BAND_ROWS..).take(sn.len() / w).enumerate() {
+                    let (row, cols) = (y * w, r * w..(r + 1) * w);
+                    let mut f = [
+                        &mut fw[cols.clone()],
+                        &mut fe[cols.clone()],
+                        &mut fnn[cols.clone()],
+                        &mut fs[cols.clone()],
+                    ];
+                    let m = &mask[row..row + w];
+                    let mut x = 0;
+                    for &(start, end) in &runs[y] {
+                        for x in x..start {
+                            if m[x] & VALID == 0 {
+                                continue;
+                            }
+                            let old = [f[0][x], f[1][x], f[2][x], f[3][x]];
+                            let new = flux_cell(c, b, d, m[x], x, y, row + x, old);
+                            for (f, new) in f.iter_mut().zip(new) {
+                                f[x] = new;
+                            }
                         }
-                        f[j] = flux_cell(c, b, d, m, x, y, i, f[j]);
-                        if advect {
-                            let sx = (x as f32 - uv[i][0] * kx).clamp(0.0, xmax);
-                            let sy = (y as f32 - uv[i][1] * ky).clamp(0.0, ymax);
-                            sn[j] = bilinear(s, c.width, c.height, sx, sy);
-                            load += sn[j] as f64;
+                        if start < end {
+                            flux_run(c, b, d, row, start, end, &mut f);
+                        }
+                        x = end;
+                    }
+                    if advect {
+                        let sn = &mut sn[cols];
+                        let (u, v) = (&u[row..row + w], &v[row..row + w]);
+                        advect_row(c, s, y, m, u, v, sn, &mut at);
+                        // In the order of the cells (voids, never written, hold 0).
+                        for &v in sn.iter() {
+                            load += v as f64;
                         }
                     }
                 }
@@ -576,35 +654,70 @@ impl Sim {
     /// returns the load after the step, the load carried off the map and the rain (m summed
     /// over the cells).
     fn erode(&mut self, z0: &[f32], c: &Consts, next: Option<u32>) -> (f64, f64, f64) {
-        let band = BAND_ROWS * c.width;
-        let (b, f, scale, mask) = (&self.b, &self.f, self.scale, &self.mask);
+        let w = c.width;
+        let band = BAND_ROWS * w;
+        let (b, f, scale, mask, runs) = (&self.b, &self.f, self.scale, &self.mask, &self.runs);
         let hardening = c.inv_hardness > 0.0;
         let sums: Vec<[f64; 3]> = (
             self.b_next.par_chunks_mut(band),
             self.d.par_chunks_mut(band),
             self.s.par_chunks_mut(band),
-            self.uv.par_chunks_mut(band),
+            self.u.par_chunks_mut(band),
+            self.v.par_chunks_mut(band),
         )
             .into_par_iter()
             .enumerate()
-            .map(|(k, (bn, d, s, uv))| {
+            .map(|(k, (bn, d, s, u, v))| {
                 let (mut load, mut left, mut rain) = (0.0f64, 0.0f64, 0.0f64);
-                for (r, y) in (k * BAND_ROWS..).take(bn.len() / c.width).enumerate() {
-                    for x in 0..c.width {
-                        let (j, i) = (r * c.width + x, y * c.width + x);
-                        let m = mask[i];
-                        if m & VALID == 0 {
-                            (d[j], s[j], uv[j]) = (0.0, 0.0, [0.0; 2]);
-                            continue;
+                let mut wet = vec![0.0f32; w];
+                for (r, y) in (k * BAND_ROWS..).take(bn.len() / w).enumerate() {
+                    let (row, cols) = (y * w, r * w..(r + 1) * w);
+                    let m = &mask[row..row + w];
+                    for (x, wet) in wet.iter_mut().enumerate() {
+                        *wet = match next {
+                            Some(it) if m[x] & VALID != 0 => c.rain_at(row + x, it),
+                            _ => 0.0,
+                        };
+                    }
+                    let mut out = RowOut {
+                        b: &mut bn[cols.clone()],
+                        d: &mut d[cols.clone()],
+                        s: &mut s[cols.clone()],
+                        u: &mut u[cols.clone()],
+                        v: &mut v[cols],
+                    };
+                    let mut x = 0;
+                    for &(start, end) in &runs[y] {
+                        for x in x..start {
+                            if m[x] & VALID == 0 {
+                                (out.d[x], out.s[x], out.u[x], out.v[x]) = (0.0, 0.0, 0.0, 0.0);
+                                continue;
+                            }
+                            let i = row + x;
+                            let nb = c.neighbours(x, y, i);
+                            let z0 = if hardening { z0[i] } else { 0.0 };
+                            let s0 = out.s[x] * scale;
+                            let cell = erode_cell(c, b, f, z0, m[x], i, nb, out.d[x], s0);
+                            out.b[x] = cell.b;
+                            out.d[x] = cell.d * c.keep + wet[x];
+                            out.s[x] = cell.s;
+                            [out.u[x], out.v[x]] = cell.uv;
+                            left += cell.left as f64;
                         }
-                        let nb = c.neighbours(x, y, i);
-                        let z0 = if hardening { z0[i] } else { 0.0 };
-                        let out = erode_cell(c, b, f, z0, m, i, nb, d[j], s[j] * scale);
-                        let wet = next.map_or(0.0, |it| c.rain_at(i, it));
-                        (bn[j], d[j], s[j], uv[j]) = (out.b, out.d * c.keep + wet, out.s, out.uv);
-                        load += out.s as f64;
-                        left += out.left as f64;
-                        rain += wet as f64;
+                        if start < end {
+                            let args = (c, &b[..], f, z0, row, start, end, scale, &wet[..]);
+                            if hardening {
+                                erode_run::<true>(args, &mut out);
+                            } else {
+                                erode_run::<false>(args, &mut out);
+                            }
+                        }
+                        x = end;
+                    }
+                    // In the order of the cells (voids add 0).
+                    for (&s, &r) in out.s.iter().zip(&wet) {
+                        load += s as f64;
+                        rain += r as f64;
                     }
                 }
                 [load, left, rain]
@@ -681,6 +794,77 @@ fn flux_cell(
     }
 }
 
+/// [`flux_cell`] on the [`FULL`] cells `start..end` of the row beginning at cell `row`, without
+/// the edge and void branches (the same arithmetic, in a loop LLVM vectorises); `f` is the row
+/// of each direction's fluxes.
+#[inline(always)]
+fn flux_run(
+    c: &Consts,
+    b: &[f32],
+    d: &[f32],
+    row: usize,
+    start: usize,
+    end: usize,
+    f: &mut [&mut [f32]; 4],
+) {
+    let [fw, fe, fnn, fs] = f;
+    let f = [
+        &mut fw[start..end],
+        &mut fe[start..end],
+        &mut fnn[start..end],
+        &mut fs[start..end],
+    ];
+    flux_cells(c, b, d, row + start, f);
+}
+
+/// The loop of [`flux_run`] from cell `i` on, the rows of fluxes as separate slices (so LLVM
+/// knows they do not alias).
+#[inline(never)]
+fn flux_cells(c: &Consts, b: &[f32], d: &[f32], i: usize, [fw, fe, fnn, fs]: [&mut [f32]; 4]) {
+    let (n, w) = (fw.len(), c.width);
+    // The cells and their west, east, north and south neighbours.
+    let at = |v, j| window(v, j, n);
+    let (bc, bw, be, bn, bs) = (
+        at(b, i),
+        at(b, i - 1),
+        at(b, i + 1),
+        at(b, i - w),
+        at(b, i + w),
+    );
+    let (dc, dw, de, dn, ds) = (
+        at(d, i),
+        at(d, i - 1),
+        at(d, i + 1),
+        at(d, i - w),
+        at(d, i + w),
+    );
+    let (fe, fnn, fs) = (&mut fe[..n], &mut fnn[..n], &mut fs[..n]);
+    let [kw, ke, kn, ks] = c.kflux;
+    let (area, dt) = (c.area, c.dt);
+    for x in 0..n {
+        let (di, hi) = (dc[x], bc[x] + dc[x]);
+        let nw = (fw[x] + kw * (hi - (bw[x] + dw[x]))).max(0.0);
+        let ne = (fe[x] + ke * (hi - (be[x] + de[x]))).max(0.0);
+        let nn = (fnn[x] + kn * (hi - (bn[x] + dn[x]))).max(0.0);
+        let ns = (fs[x] + ks * (hi - (bs[x] + ds[x]))).max(0.0);
+        let sum = 0.0 + nw + ne + nn + ns;
+        // Eq. 4: never drain more than the cell holds (a factor of 1 changes nothing).
+        let volume = di * area;
+        let scale = if sum * dt > volume {
+            volume / (sum * dt)
+        } else {
+            1.0
+        };
+        (fw[x], fe[x], fnn[x], fs[x]) = (nw * scale, ne * scale, nn * scale, ns * scale);
+    }
+}
+
+/// The `n` values of `v` from `j`.
+#[inline(always)]
+fn window(v: &[f32], j: usize, n: usize) -> &[f32] {
+    &v[j..j + n]
+}
+
 /// The state of one cell after the erosion pass.
 struct CellOut {
     b: f32,
@@ -698,7 +882,7 @@ struct CellOut {
 fn erode_cell(
     c: &Consts,
     b: &[f32],
-    f: &[[f32; 4]],
+    f: &[Vec<f32>; 4],
     z0: f32,
     m: u8,
     i: usize,
@@ -709,8 +893,8 @@ fn erode_cell(
     let bi = b[i];
     // Inflow from each side: the neighbour's flux towards this cell (0 from voids, whose
     // fluxes are 0, and from off the map, where `nb` points at the cell itself).
-    let inflow = [W, E, N, S].map(|k| if nb[k] != i { f[nb[k]][OPP[k]] } else { 0.0 });
-    let out = f[i];
+    let inflow = [W, E, N, S].map(|k| if nb[k] != i { f[OPP[k]][nb[k]] } else { 0.0 });
+    let out = [W, E, N, S].map(|k| f[k][i]);
     let (mut sum_in, mut sum_out, mut open_out) = (0.0f32, 0.0f32, 0.0f32);
     for k in 0..4 {
         sum_in += inflow[k];
@@ -776,11 +960,225 @@ fn erode_cell(
     }
 }
 
+/// What [`erode_run`] reads: the constants, the ground, the fluxes, the initial ground, the
+/// row's first cell, the run's columns `start..end`, the load's factor and the row's rain.
+type RunArgs<'a> = (
+    &'a Consts,
+    &'a [f32],
+    &'a [Vec<f32>; 4],
+    &'a [f32],
+    usize,
+    usize,
+    usize,
+    f32,
+    &'a [f32],
+);
+
+/// [`erode_cell`] on the [`FULL`] cells `start..end` of a row (with hardening when `HARD`),
+/// without the edge and void branches (the same arithmetic, in a loop LLVM vectorises): no
+/// side is open, so no load leaves.
+#[inline(always)]
+fn erode_run<const HARD: bool>(args: RunArgs<'_>, out: &mut RowOut<'_>) {
+    let (c, b, f, z0, row, start, end, scale, wet) = args;
+    let (n, w, i) = (end - start, c.width, row + start);
+    let at = |v, j| window(v, j, n);
+    let [fw, fe, fnn, fs] = f;
+    let cells = RunIn {
+        c,
+        scale,
+        b: [
+            at(b, i),
+            at(b, i - 1),
+            at(b, i + 1),
+            at(b, i - w),
+            at(b, i + w),
+        ],
+        // The cell's outflows and the inflows: each neighbour's flux towards the cell.
+        out: [at(fw, i), at(fe, i), at(fnn, i), at(fs, i)],
+        inflow: [at(fe, i - 1), at(fw, i + 1), at(fs, i - w), at(fnn, i + w)],
+        z0: at(z0, i),
+        wet: &wet[start..end],
+    };
+    erode_cells::<HARD>(
+        &cells,
+        &mut out.b[start..end],
+        &mut out.d[start..end],
+        &mut out.s[start..end],
+        &mut out.u[start..end],
+        &mut out.v[start..end],
+    );
+}
+
+/// The inputs of [`erode_cells`], each slice over the run's cells.
+struct RunIn<'a> {
+    c: &'a Consts,
+    scale: f32,
+    /// The ground of the cells and of their west, east, north and south neighbours.
+    b: [&'a [f32]; 5],
+    /// The cells' outflows to the west, east, north and south.
+    out: [&'a [f32]; 4],
+    /// The inflows from the west, east, north and south.
+    inflow: [&'a [f32]; 4],
+    z0: &'a [f32],
+    wet: &'a [f32],
+}
+
+/// The loop of [`erode_run`], the outputs (ground, depth, load, velocity) as separate slices so
+/// that LLVM knows they do not alias the inputs.
+#[inline(never)]
+fn erode_cells<const HARD: bool>(
+    k: &RunIn<'_>,
+    bo: &mut [f32],
+    d: &mut [f32],
+    s: &mut [f32],
+    u: &mut [f32],
+    v: &mut [f32],
+) {
+    let n = bo.len();
+    let at = |v| window(v, 0, n);
+    let (d, s, u, v) = (&mut d[..n], &mut s[..n], &mut u[..n], &mut v[..n]);
+    let [bc, bw, be, bn, bs] = k.b.map(at);
+    let [ow, oe, on, os] = k.out.map(at);
+    let [iw, ie, inn, is] = k.inflow.map(at);
+    let (z0, wet, scale) = (at(k.z0), at(k.wet), k.scale);
+    let c = k.c;
+    let (dt_area, inv_lx, inv_ly, max_u, max_v) = (c.dt_area, c.inv_lx, c.inv_ly, c.max_u, c.max_v);
+    let (min_tilt, kc_dt, inv_full_depth) = (c.min_tilt, c.kc_dt, c.inv_full_depth);
+    let (ks, kd, keep, inv_hardness) = (c.ks, c.kd, c.keep, c.inv_hardness);
+    let (half_inv_lx, half_inv_ly) = (0.5 * inv_lx, 0.5 * inv_ly);
+    for x in 0..n {
+        let (bi, d1, load) = (bc[x], d[x], s[x] * scale);
+        let sum_in = 0.0 + iw[x] + ie[x] + inn[x] + is[x];
+        let sum_out = 0.0 + ow[x] + oe[x] + on[x] + os[x];
+        let d2 = (d1 + dt_area * (sum_in - sum_out)).max(0.0);
+        let mean = 0.5 * (d1 + d2);
+        let inv = 0.5 / mean;
+        let wx = iw[x] - ow[x] + oe[x] - ie[x];
+        let wy = inn[x] - on[x] + os[x] - is[x];
+        let moving = mean > 1e-6;
+        let ux = if moving {
+            clamp(wx * inv * inv_ly, -max_u, max_u)
+        } else {
+            0.0
+        };
+        let vy = if moving {
+            clamp(wy * inv * inv_lx, -max_v, max_v)
+        } else {
+            0.0
+        };
+        // `(hi - lo) * 0.5 * inv_l` with the exact factor `0.5 inv_l`.
+        let gx = (be[x] - bw[x]) * half_inv_lx;
+        let gy = (bs[x] - bn[x]) * half_inv_ly;
+        let g2 = gx * gx + gy * gy;
+        let sin = (g2 / (1.0 + g2)).sqrt().max(min_tilt);
+        let speed = (ux * ux + vy * vy).sqrt();
+        let capacity = kc_dt * sin * speed * (d2 * inv_full_depth).min(1.0);
+        let gap = capacity - load;
+        let erode = if HARD {
+            ks * (1.0 / (1.0 + (z0[x] - bi).max(0.0) * inv_hardness))
+        } else {
+            ks
+        };
+        let rate = if gap > 0.0 { erode } else { kd };
+        let lowest = bi.min(bw[x]).min(be[x]).min(bn[x]).min(bs[x]);
+        let change = (rate * gap).min(bi - lowest);
+        bo[x] = bi - change;
+        d[x] = d2 * keep + wet[x];
+        s[x] = load + change;
+        (u[x], v[x]) = (ux, vy);
+    }
+}
+
+/// Step 4 on row `y` (mask `m`, velocities `u` and `v`): the load `s` carried to each valid
+/// cell, `s(x - v dt)` sampled bilinearly with the position clamped to the map, into `sn`.
+/// `at` is scratch space: the sample positions are computed first (in a loop LLVM vectorises),
+/// then the samples.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn advect_row(
+    c: &Consts,
+    s: &[f32],
+    y: usize,
+    m: &[u8],
+    u: &[f32],
+    v: &[f32],
+    sn: &mut [f32],
+    at: &mut Positions,
+) {
+    let (w, h) = (c.width, c.height);
+    let (m, u, v, sn) = (&m[..w], &u[..w], &v[..w], &mut sn[..w]);
+    let (xmax, ymax) = ((w - 1) as f32, (h - 1) as f32);
+    let (kx, ky, yf) = (c.dt / c.lx, c.dt / c.ly, y as f32);
+    if w > i32::MAX as usize || h > i32::MAX as usize {
+        for x in 0..w {
+            if m[x] & VALID != 0 {
+                let sx = clamp(x as f32 - u[x] * kx, 0.0, xmax);
+                let sy = clamp(yf - v[x] * ky, 0.0, ymax);
+                sn[x] = bilinear(s, w, h, sx, sy);
+            }
+        }
+        return;
+    }
+    at.resize(w);
+    let Positions {
+        x0,
+        x1,
+        y0,
+        y1,
+        tx,
+        ty,
+    } = at;
+    let (x0, x1, y0, y1) = (&mut x0[..w], &mut x1[..w], &mut y0[..w], &mut y1[..w]);
+    let (tx, ty) = (&mut tx[..w], &mut ty[..w]);
+    let (wm, hm) = (w as i32 - 1, h as i32 - 1);
+    for x in 0..w {
+        let sx = clamp(x as i32 as f32 - u[x] * kx, 0.0, xmax);
+        let sy = clamp(yf - v[x] * ky, 0.0, ymax);
+        // Truncation is the floor here: the position is clamped to the map.
+        let (ix, iy) = (sx as i32, sy as i32);
+        (x0[x], y0[x]) = (ix, iy);
+        (x1[x], y1[x]) = ((ix + 1).min(wm), (iy + 1).min(hm));
+        (tx[x], ty[x]) = (sx - ix as f32, sy - iy as f32);
+    }
+    for x in 0..w {
+        if m[x] & VALID == 0 {
+            continue;
+        }
+        let (r0, r1) = (y0[x] as usize * w, y1[x] as usize * w);
+        let (a, b) = (x0[x] as usize, x1[x] as usize);
+        let (s00, s01, s10, s11) = (s[r0 + a], s[r0 + b], s[r1 + a], s[r1 + b]);
+        let top = s00 + (s01 - s00) * tx[x];
+        let bottom = s10 + (s11 - s10) * tx[x];
+        sn[x] = top + (bottom - top) * ty[x];
+    }
+}
+
+/// Per column of a row: the sample's columns and rows either side and its fractions.
+#[derive(Default)]
+struct Positions {
+    x0: Vec<i32>,
+    x1: Vec<i32>,
+    y0: Vec<i32>,
+    y1: Vec<i32>,
+    tx: Vec<f32>,
+    ty: Vec<f32>,
+}
+
+impl Positions {
+    fn resize(&mut self, n: usize) {
+        for v in [&mut self.x0, &mut self.x1, &mut self.y0, &mut self.y1] {
+            v.resize(n, 0);
+        }
+        self.tx.resize(n, 0.0);
+        self.ty.resize(n, 0.0);
+    }
+}
+
 /// Bilinear sample of `s` at `(x, y)` (cell units, inside the map).
 #[inline]
 fn bilinear(s: &[f32], width: usize, height: usize, x: f32, y: f32) -> f32 {
     // Truncation is the floor here: the position is clamped to the map (no libm call).
-    let (x0, y0) = (x as usize, y as usize);
+    let (x0, y0) = (x as i32 as usize, y as i32 as usize);
     let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
     let (tx, ty) = (x - x0 as f32, y - y0 as f32);
     let row = |yy: usize| {
