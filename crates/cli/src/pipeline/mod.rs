@@ -27,6 +27,7 @@ use relief_heightfield::{Heightfield, Progress};
 
 mod convert;
 mod dictionary;
+mod erode;
 mod fill;
 mod flow;
 mod load;

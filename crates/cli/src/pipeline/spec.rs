@@ -34,7 +34,8 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use super::{
-    PipelineConfig, Stage, convert, dictionary, fill, flow, load, quilt, sparse, volume, wavelet,
+    PipelineConfig, Stage, convert, dictionary, erode, fill, flow, load, quilt, sparse, volume,
+    wavelet,
 };
 
 /// One entry of a spec's `stages` list.
@@ -138,7 +139,7 @@ type Build = fn(&serde_json::Value) -> Result<Box<dyn Stage>>;
 
 /// The stage registry: every stage a spec may use, in the order of the default run, and how
 /// each one is built from its `params`. The one list of stage names.
-const REGISTRY: [(&str, Build); 11] = [
+const REGISTRY: [(&str, Build); 12] = [
     ("load", |p| no_params(p, Box::new(load::Load))),
     ("fill_voids", |p| no_params(p, Box::new(fill::FillVoids))),
     ("convert", |p| {
@@ -166,6 +167,10 @@ const REGISTRY: [(&str, Build); 11] = [
     // After every stage that changes the terrain (the last is `amplify`; sketch, procedural
     // and volume leave it as it is): the drainage of the final terrain.
     ("flow", |p| Ok(Box::new(flow::FlowStage::new(params(p)?)?))),
+    // Erosion of the input DEM at its own cell size (or of the terrain, `input: "terrain"`).
+    ("erode", |p| {
+        Ok(Box::new(erode::ErodeStage::new(params(p)?)?))
+    }),
 ];
 
 /// Every stage name a spec may use, in the order of the default run.

@@ -1,0 +1,275 @@
+//! Stage `erode`: relief-landscape's erode job (`relief erode`'s code; params `job` =
+//! [`ErodeSettings`]) on the input DEM as loaded (`input: "source"`, the default: erosion at
+//! the real terrain's own cell size, shown beside it; the pipeline's terrain is left as it is)
+//! or on the current terrain (`input: "terrain"`: the eroded terrain is handed on). The report
+//! shows the terrain before and after, the channel network of the result over its hillshade,
+//! the drainage statistics of terrain_quality.py before and after, and (`presets`, default on)
+//! every preset's result beside the input, with its time and statistics.
+
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use relief_heightfield::{Heightfield, NoProgress};
+use relief_landscape::erode::job::{ErodeOutput, ErodeSettings, Preset};
+use relief_landscape::flow::job::FlowSettings;
+use relief_landscape::stats::{DrainageStats, drainage};
+use serde::{Deserialize, Serialize};
+
+use super::report::fmt_num;
+use super::{Stage, StageCx};
+
+/// The terrain the `erode` stage works on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub(crate) enum ErodeInput {
+    /// The input DEM as loaded (void-filled when it has voids); the terrain is not changed.
+    #[default]
+    Source,
+    /// The current terrain, replaced by the eroded one.
+    Terrain,
+}
+
+/// Parameters of the `erode` stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub(crate) struct ErodeParams {
+    /// The job, exactly as `relief erode` builds it (`preset` and its overrides).
+    pub(crate) job: ErodeSettings,
+    /// Which terrain is eroded.
+    pub(crate) input: ErodeInput,
+    /// The terrain's centre is cropped to at most this many cells per side (0 = no crop).
+    pub(crate) max_size: usize,
+    /// Also run every preset and show each beside the input.
+    pub(crate) presets: bool,
+}
+
+impl Default for ErodeParams {
+    fn default() -> Self {
+        Self {
+            job: ErodeSettings::default(),
+            input: ErodeInput::Source,
+            max_size: 1024,
+            presets: true,
+        }
+    }
+}
+
+/// The `erode` stage.
+#[derive(Debug)]
+pub(crate) struct ErodeStage(pub(crate) ErodeParams);
+
+impl ErodeStage {
+    /// Checks the parameters when the spec is read.
+    pub(crate) fn new(p: ErodeParams) -> Result<Self> {
+        p.job.check().context("invalid `job`")?;
+        if p.max_size != 0 && p.max_size < 16 {
+            bail!("`max_size` = {} must be 0 or >= 16", p.max_size);
+        }
+        Ok(Self(p))
+    }
+}
+
+impl Stage for ErodeStage {
+    fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
+        let p = &self.0;
+        let (terrain, which) = match p.input {
+            ErodeInput::Source => cx.state.complete_source("erode", "terrain")?,
+            ErodeInput::Terrain => (cx.state.terrain()?.clone(), "the current terrain"),
+        };
+        cx.section.figure("input", which);
+        let (w, h) = (terrain.width(), terrain.height());
+        let dem = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
+            let (cw, ch) = (w.min(p.max_size), h.min(p.max_size));
+            let (x, y) = ((w - cw) / 2, (h - ch) / 2);
+            cx.section.figure("crop", [x, y, cw, ch]);
+            terrain.crop(x, y, cw, ch)?
+        } else {
+            terrain
+        };
+        let mut job = p.job.clone();
+        job.seed ^= cx.config.seed;
+        let t0 = Instant::now();
+        let out = job
+            .run(&dem, None, &cx.progress(), &|| false)
+            .context("cannot erode the terrain")?;
+        let seconds = t0.elapsed().as_secs_f64();
+        cx.section.figure("seconds", seconds);
+        cx.section.figure("preset", job.preset.name());
+        for (k, v) in [
+            ("eroded_m3", out.figures.eroded_m3),
+            ("deposited_m3", out.figures.deposited_m3),
+            ("max_erosion_m", out.figures.max_erosion_m),
+            ("max_deposition_m", out.figures.max_deposition_m),
+        ] {
+            cx.section.figure(k, v);
+        }
+        cx.section
+            .figure("plan", serde_json::to_value(out.figures.plan)?);
+        cx.save_raster(
+            "erode_terrain",
+            &format!("the terrain after the `{}` preset", job.preset.name()),
+            &out.terrain,
+            None,
+        )?;
+        cx.before_after(
+            "erode",
+            &format!(
+                "the terrain before (left) and after (right) the `{}` preset: stream power, \
+                 hydraulic erosion, talus",
+                job.preset.name()
+            ),
+            &dem,
+            &out.terrain,
+        )?;
+        self.channels(cx, &out)?;
+        let before = drainage(&dem);
+        let after = drainage(&out.terrain);
+        cx.section.headline("pits_per_km2", after.pits_per_km2);
+        cx.section.headline("beta", after.beta);
+        cx.section.figure("input_beta", before.beta);
+        let mut rows = vec![
+            row("input", None, before),
+            row(job.preset.name(), Some(seconds), after),
+        ];
+        if p.presets && cx.config.previews {
+            for preset in Preset::ALL.into_iter().filter(|&q| q != job.preset) {
+                let s = ErodeSettings {
+                    preset,
+                    seed: job.seed,
+                    ..ErodeSettings::default()
+                };
+                let t = Instant::now();
+                let o = s
+                    .run(&dem, None, &NoProgress, &|| false)
+                    .with_context(|| format!("cannot erode with the `{}` preset", preset.name()))?;
+                let secs = t.elapsed().as_secs_f64();
+                cx.before_after(
+                    &format!("erode_{}", preset.name()),
+                    &format!(
+                        "the `{}` preset (right) beside the input (left)",
+                        preset.name()
+                    ),
+                    &dem,
+                    &o.terrain,
+                )?;
+                rows.push(row(preset.name(), Some(secs), drainage(&o.terrain)));
+            }
+        }
+        cx.section.table(
+            "drainage statistics (terrain_quality.py) of the input and of each preset's result: \
+             pits, mean closed-depression fill depth, drainage-area exponent beta",
+            &["surface", "seconds", "pits / km2", "fill depth (m)", "beta"],
+            rows,
+        );
+        if p.input == ErodeInput::Terrain && (w, h) == (dem.width(), dem.height()) {
+            cx.state.set_terrain(out.terrain);
+        }
+        Ok(())
+    }
+}
+
+fn row(name: &str, seconds: Option<f64>, s: DrainageStats) -> Vec<String> {
+    vec![
+        name.to_string(),
+        seconds.map_or("-".into(), fmt_num),
+        fmt_num(s.pits_per_km2),
+        fmt_num(s.fill_depth_m),
+        fmt_num(s.beta),
+    ]
+}
+
+impl ErodeStage {
+    /// The channel network of the eroded terrain over its hillshade.
+    fn channels(&self, cx: &mut StageCx<'_>, out: &ErodeOutput) -> Result<()> {
+        if !cx.config.previews {
+            return Ok(());
+        }
+        let flow = FlowSettings::default()
+            .run(&out.terrain, &NoProgress)
+            .context("cannot route the eroded terrain")?;
+        let (iw, ih, rgb) = crate::channels::channel_map_within(
+            &out.terrain,
+            &flow.direction,
+            &flow.strahler,
+            2048,
+        )?;
+        cx.save_rgb(
+            "erode_channels",
+            &format!(
+                "channels of the eroded terrain (from 1 km2 of drainage area), wider by Strahler \
+                 order (highest {})",
+                flow.figures.max_order
+            ),
+            iw,
+            ih,
+            &rgb,
+        )
+    }
+}
+
+/// The eroded terrain of `hf` under the default job (for tests).
+#[cfg(test)]
+fn eroded(hf: &Heightfield) -> Heightfield {
+    ErodeSettings::default()
+        .run(hf, None, &NoProgress, &|| false)
+        .unwrap()
+        .terrain
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{PipelineConfig, Section, State};
+    use super::*;
+
+    /// On a crop of the fixture: the eroded terrain is saved, the figures and the drainage
+    /// table are there, the terrain is left alone with `input: source` and replaced with
+    /// `input: terrain`.
+    #[test]
+    fn stage_erodes_the_source_or_the_terrain() {
+        let root = crate::test_root();
+        let tmp = tempfile::tempdir().unwrap();
+        let config = PipelineConfig {
+            out_dir: tmp.path().to_path_buf(),
+            verbose: false,
+            previews: false,
+            ..PipelineConfig::full(&root)
+        };
+        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
+        let src = raster.heightfield.crop(100, 100, 96, 80).unwrap();
+        for input in [ErodeInput::Source, ErodeInput::Terrain] {
+            let mut state = State {
+                source: Some(src.clone()),
+                ..Default::default()
+            };
+            state.set_terrain(src.clone());
+            let mut section = Section::new("erode");
+            let mut cx = StageCx {
+                config: &config,
+                state: &mut state,
+                section: &mut section,
+            };
+            let stage = ErodeStage::new(ErodeParams {
+                input,
+                ..Default::default()
+            })
+            .unwrap();
+            stage.run(&mut cx).unwrap();
+            assert!(section.figures.get("eroded_m3").unwrap().as_f64().unwrap() > 0.0);
+            assert!(section.figures.get("beta").is_some());
+            let expected = eroded(&src);
+            assert_eq!(state.outputs[0].raster.as_slice(), expected.as_slice());
+            let t = state.terrain().unwrap();
+            match input {
+                ErodeInput::Source => assert_eq!(t.as_slice(), src.as_slice()),
+                ErodeInput::Terrain => assert_eq!(t.as_slice(), expected.as_slice()),
+            }
+        }
+        assert!(
+            ErodeStage::new(ErodeParams {
+                max_size: 3,
+                ..Default::default()
+            })
+            .is_err()
+        );
+    }
+}
