@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use relief_heightfield::{Heightfield, NoProgress};
+use relief_heightfield::NoProgress;
 use relief_landscape::erode::job::{ErodeOutput, ErodeSettings, Preset};
 use relief_landscape::flow::job::FlowSettings;
 use relief_landscape::stats::{DrainageStats, drainage};
@@ -209,7 +209,7 @@ impl ErodeStage {
 
 /// The eroded terrain of `hf` under the default job (for tests).
 #[cfg(test)]
-fn eroded(hf: &Heightfield) -> Heightfield {
+fn eroded(hf: &relief_heightfield::Heightfield) -> relief_heightfield::Heightfield {
     ErodeSettings::default()
         .run(hf, None, &NoProgress, &|| false)
         .unwrap()
@@ -255,7 +255,7 @@ mod tests {
             .unwrap();
             stage.run(&mut cx).unwrap();
             assert!(section.figures.get("eroded_m3").unwrap().as_f64().unwrap() > 0.0);
-            assert!(section.figures.get("beta").is_some());
+            assert!(section.figures.contains_key("beta"));
             let expected = eroded(&src);
             assert_eq!(state.outputs[0].raster.as_slice(), expected.as_slice());
             let t = state.terrain().unwrap();
