@@ -67,6 +67,10 @@ pub(crate) struct Args {
     /// DEM's grid (an existing file is read as a raster; default: the preset's rate).
     #[arg(long, value_name = "RATE|RASTER", value_parser = parse_uplift, allow_hyphen_values = true)]
     pub(crate) uplift: Option<UpliftArg>,
+    /// With a `--uplift RASTER`: read it as a painted map in any units (an 8-bit PNG, say),
+    /// scaled so that its highest value is this rate in m/yr and 0 stays 0.
+    #[arg(long, value_name = "RATE", allow_hyphen_values = true)]
+    pub(crate) uplift_max: Option<f64>,
     /// Erodibility K of the stream-power law (m^(1-2m)/yr; default: the preset's).
     #[arg(long, value_name = "K", allow_hyphen_values = true)]
     pub(crate) k: Option<f64>,
@@ -143,6 +147,9 @@ pub(crate) fn settings(args: &Args) -> Result<ErodeSettings> {
     s.fill_pits = args.fill_pits;
     s.seed = args.seed;
     s.check().map_err(|e| flag_error(erode_flag(&s, e)))?;
+    if args.uplift_max.is_some() && !matches!(args.uplift, Some(UpliftArg::Raster(_))) {
+        anyhow::bail!("--uplift-max scales a painted --uplift RASTER; give the raster too");
+    }
     Ok(s)
 }
 
@@ -201,7 +208,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     };
     let dem = super::read_raster_for(&args.input, &args.read, ctx, Some(job))?.heightfield;
     let uplift = match uplift_path {
-        Some(p) => Some(read_uplift(p, &dem, ctx)?),
+        Some(p) => Some(read_uplift(p, &dem, args.uplift_max, ctx)?),
         None => None,
     };
     let est = settings
@@ -300,7 +307,7 @@ fn processes(f: &ErodeFigures) -> String {
 }
 
 /// Reads a `--uplift` raster, which must be on the DEM's grid.
-fn read_uplift(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Heightfield> {
+fn read_uplift(path: &Path, dem: &Heightfield, max: Option<f64>, ctx: &Ctx) -> Result<Heightfield> {
     let u = super::read_raster(path, &super::ReadArgs::default(), ctx)
         .with_context(|| format!("--uplift {}: not a readable raster", path.display()))?
         .heightfield;
@@ -314,5 +321,20 @@ fn read_uplift(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Heightfield>
             dem.height()
         );
     }
-    Ok(u)
+    let Some(rate) = max else { return Ok(u) };
+    if !(rate.is_finite() && rate.abs() <= 0.1) {
+        anyhow::bail!("invalid --uplift-max {rate}: must be a rate in [-0.1, 0.1] m/yr");
+    }
+    let top = u
+        .as_slice()
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold(0.0f32, |m, &v| m.max(v.abs()));
+    if top == 0.0 {
+        anyhow::bail!(
+            "--uplift {}: the painted map is 0 everywhere",
+            path.display()
+        );
+    }
+    Ok(u.map(|v| (v as f64 / top as f64 * rate) as f32))
 }

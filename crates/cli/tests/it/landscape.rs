@@ -489,3 +489,54 @@ fn erode_refuses_bad_parameters_and_runs_over_max_time() {
     );
     assert_eq!(files(tmp.path()), ["crop.tif"]);
 }
+
+/// A painted uplift map in any units (here the DEM itself, metres) is refused as rates, taken
+/// with `--uplift-max` (its highest value becomes that rate), and `--uplift-max` without a
+/// raster is an error.
+#[test]
+fn erode_takes_a_painted_uplift_map_scaled_by_uplift_max() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 48, 48));
+    let out = tmp.path().join("o.tif");
+    let p = tmp.path().join("p.tif");
+    let (h, t) = ("--hydraulic-iterations", "--thermal-iterations");
+    fails_with(
+        &relief![
+            "erode", &input, "-o", &out, "--uplift", &input, "--years", "2e4", h, "0", t, "0"
+        ],
+        &["0.1 m/yr"],
+        &[&out],
+    );
+    relief_ok![
+        "erode",
+        &input,
+        "-o",
+        &out,
+        "--uplift",
+        &input,
+        "--uplift-max",
+        "0.001",
+        "--years",
+        "2e4",
+        h,
+        "0",
+        t,
+        "0"
+    ];
+    assert!(out.is_file());
+    fails_with(
+        &relief![
+            "erode",
+            &input,
+            "-o",
+            &p,
+            "--uplift-max",
+            "0.001",
+            h,
+            "0",
+            t,
+            "0"
+        ],
+        &["--uplift-max"],
+        &[&p],
+    );
+}
