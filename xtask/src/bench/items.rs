@@ -488,7 +488,7 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "",
     },
     WorkItem {
-        name: "hydraulic erosion 2048^2, default settings (120 iterations), 2 threads",
+        name: "hydraulic erosion 2048^2, default settings (80 iterations), 2 threads",
         criterion_id: "landscape/hydraulic/2048",
         peer: None,
         goal: Goal::SecondsAtMost(10.0),
