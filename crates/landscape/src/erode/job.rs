@@ -221,6 +221,27 @@ impl ErodeSettings {
         plan
     }
 
+    /// The plan on a grid of `cell_x` by `cell_y` metres. Unless `years` is set, a preset's
+    /// stream-power time is capped so that hillslope diffusion spreads no further than a cell,
+    /// `sqrt(D t) <= min(cell_x, cell_y)`: what the grid can show. An SRTM grid (30-90 m) gets
+    /// the preset's tens of millennia, a 2 m lidar grid a few centuries (over 50 kyr the
+    /// diffusion alone would smooth a 2 m grid's scarps over 10 cells and the incision would
+    /// cut rills every cell wide, finer than channel heads are).
+    pub fn plan_for(&self, cell_x: f64, cell_y: f64) -> Plan {
+        let mut plan = self.plan();
+        if self.years.is_none() {
+            if let Some(sp) = plan.stream_power.as_mut() {
+                let d = sp.params.diffusion;
+                let cell = cell_x.min(cell_y);
+                if d > 0.0 && cell * cell / d < sp.years {
+                    sp.years = cell * cell / d;
+                    sp.params.dt = sp.params.dt.min(sp.years);
+                }
+            }
+        }
+        plan
+    }
+
     /// Checks every field (through the resolved plan, so an override is checked by the
     /// process that takes it, under its own name).
     pub fn check(&self) -> std::result::Result<(), ParamError> {
@@ -267,7 +288,8 @@ impl ErodeSettings {
         let (w, h) = (dem.width().min(256), dem.height().min(256));
         let crop = dem.crop((dem.width() - w) / 2, (dem.height() - h) / 2, w, h)?;
         let scale = dem.len() as f64 / crop.len() as f64;
-        let plan = self.plan();
+        let (cx, cy) = dem.cell_size();
+        let plan = self.plan_for(cx, cy);
         let pilot = Plan {
             stream_power: plan.stream_power.map(|s| StreamPowerStage {
                 years: s.params.dt * 3.0,
@@ -345,7 +367,8 @@ impl ErodeSettings {
                 "the DEM has no valid cell".into(),
             ));
         }
-        run_plan(&self.plan(), dem, uplift, progress, stop)
+        let (cx, cy) = dem.cell_size();
+        run_plan(&self.plan_for(cx, cy), dem, uplift, progress, stop)
     }
 }
 
@@ -584,6 +607,19 @@ mod tests {
         let pits = crate::stats::drainage(&out.terrain).pits_per_km2;
         assert!(pits <= crate::stats::drainage(&dem).pits_per_km2, "{pits}");
         let stopped = s.run(&dem, None, &relief_heightfield::NoProgress, &|| true);
+        // On a 2 m grid the preset's 50 kyr are capped at cell^2 / D (400 yr at D = 0.01);
+        // an explicit `years` is kept.
+        let fine = ErodeSettings::default().plan_for(2.0, 2.0);
+        assert_eq!(fine.stream_power.unwrap().years, 400.0);
+        assert_eq!(
+            ErodeSettings::default()
+                .plan_for(60.0, 90.0)
+                .stream_power
+                .unwrap()
+                .years,
+            50_000.0
+        );
+        assert_eq!(s.plan_for(2.0, 2.0).stream_power.unwrap().years, 5_000.0);
         assert!(matches!(stopped, Err(LandscapeError::Stopped(_))));
     }
 }
