@@ -229,14 +229,12 @@ impl ErodeSettings {
     /// cut rills every cell wide, finer than channel heads are).
     pub fn plan_for(&self, cell_x: f64, cell_y: f64) -> Plan {
         let mut plan = self.plan();
-        if self.years.is_none() {
-            if let Some(sp) = plan.stream_power.as_mut() {
-                let d = sp.params.diffusion;
-                let cell = cell_x.min(cell_y);
-                if d > 0.0 && cell * cell / d < sp.years {
-                    sp.years = cell * cell / d;
-                    sp.params.dt = sp.params.dt.min(sp.years);
-                }
+        let cell = cell_x.min(cell_y);
+        if let Some(sp) = plan.stream_power.as_mut().filter(|_| self.years.is_none()) {
+            let d = sp.params.diffusion;
+            if d > 0.0 && cell * cell / d < sp.years {
+                sp.years = cell * cell / d;
+                sp.params.dt = sp.params.dt.min(sp.years);
             }
         }
         plan
