@@ -13,7 +13,10 @@ fn fill_d8(c: &mut Criterion) {
     let grid = Grid::of(&dem);
     let mut g = c.benchmark_group("landscape");
     g.sample_size(10);
-    for (name, depressions) in [("fill_d8", Depressions::Fill), ("fill_eps_d8", Depressions::Epsilon)] {
+    for (name, depressions) in [
+        ("fill_d8", Depressions::Fill),
+        ("fill_eps_d8", Depressions::Epsilon),
+    ] {
         let opts = RouteOptions {
             depressions,
             ..Default::default()
@@ -67,7 +70,10 @@ fn hydraulic_default(c: &mut Criterion) {
     g.bench_with_input(BenchmarkId::new("hydraulic", 2048), &dem, |b, hf| {
         b.iter(|| {
             let mut z = hf.as_slice().to_vec();
-            hydraulic(&mut z, &grid, &p, &relief_heightfield::NoProgress, &|| false).expect("run")
+            hydraulic(&mut z, &grid, &p, &relief_heightfield::NoProgress, &|| {
+                false
+            })
+            .expect("run")
         })
     });
     g.finish();

@@ -181,7 +181,9 @@ pub fn flow_surface() -> Result<Heightfield, relief_io::IoError> {
 pub fn spl_surface() -> Heightfield {
     let n = 1024;
     let data: Vec<f32> = (0..n * n)
-        .map(|i| relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(7, i as u64, 0, 0)))
+        .map(|i| {
+            relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(7, i as u64, 0, 0))
+        })
         .collect();
     Heightfield::new(n, n, data, 100.0, 100.0).expect("a 1024^2 grid")
 }
