@@ -129,33 +129,6 @@ pub fn large_dictionary_data(
     (every(&top, n_atoms, true), every(&bottom, n_signals, false))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn holes_cover_about_seven_percent() {
-        let hf = Heightfield::from_fn(512, 512, 1.0, 1.0, |x, y| (x + y) as f32);
-        let holed = with_holes(&hf);
-        let frac = holed.void_count() as f64 / holed.len() as f64;
-        assert!((0.05..0.08).contains(&frac), "{frac}");
-        assert_eq!(holed.get(0, 0), 0.0);
-        assert!(holed.get(128, 128).is_nan());
-    }
-
-    #[test]
-    fn dwt_surface_is_a_deterministic_random_walk() {
-        let a = dwt_surface(64);
-        assert_eq!(a, dwt_surface(64));
-        // Cumulative sums in both directions: the first cell is the first normal, and the
-        // surface wanders far further than one step.
-        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
-            - a.iter().cloned().fold(f32::INFINITY, f32::min);
-        assert!(spread > 20.0, "{spread}");
-        assert!(a.iter().all(|v| v.is_finite()));
-    }
-}
-
 /// The 4096 x 4096 DEM of the drainage benches (`landscape/fill_d8/4096`) and of their peers
 /// (`xtask/peers/drainage.py`, `flow_4096.npy`): the fixture DEM mirrored into an 8 x 8 mosaic
 /// (continuous at every seam, so its depressions and flats are the real DEM's), 30 m cells.
@@ -186,4 +159,31 @@ pub fn spl_surface() -> Heightfield {
         })
         .collect();
     Heightfield::new(n, n, data, 100.0, 100.0).expect("a 1024^2 grid")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn holes_cover_about_seven_percent() {
+        let hf = Heightfield::from_fn(512, 512, 1.0, 1.0, |x, y| (x + y) as f32);
+        let holed = with_holes(&hf);
+        let frac = holed.void_count() as f64 / holed.len() as f64;
+        assert!((0.05..0.08).contains(&frac), "{frac}");
+        assert_eq!(holed.get(0, 0), 0.0);
+        assert!(holed.get(128, 128).is_nan());
+    }
+
+    #[test]
+    fn dwt_surface_is_a_deterministic_random_walk() {
+        let a = dwt_surface(64);
+        assert_eq!(a, dwt_surface(64));
+        // Cumulative sums in both directions: the first cell is the first normal, and the
+        // surface wanders far further than one step.
+        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
+            - a.iter().cloned().fold(f32::INFINITY, f32::min);
+        assert!(spread > 20.0, "{spread}");
+        assert!(a.iter().all(|v| v.is_finite()));
+    }
 }
