@@ -437,22 +437,11 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         note: "",
     },
     // Drainage and erosion (relief-landscape): priority-flood + D8 accumulation of a 4096^2
-    // DEM faster than RichDEM and pysheds; stream power + diffusion at least 2x faster per
+    // DEM faster than RichDEM and pysheds (each against the same method: pysheds fills and
+    // resolves flats, RichDEM fills with epsilon); stream power + diffusion at least 2x faster per
     // step than fastscapelib; hydraulic erosion of 2048^2 with the default preset <= 10 s.
     WorkItem {
         name: "priority-flood fill + flats + D8 area, 4096^2 (grandcanyon mirrored, 30 m)",
-        criterion_id: "landscape/fill_d8/4096",
-        peer: script(
-            "drainage.py",
-            "richdem_fill_d8_4096_s",
-            "RichDEM FillDepressions(epsilon) + FlowAccumulation(D8) (richdem2, same DEM)",
-        ),
-        goal: Goal::RatioAtMost(1.0),
-        units: None,
-        note: "",
-    },
-    WorkItem {
-        name: "priority-flood fill + flats + D8 area, 4096^2, against pysheds",
         criterion_id: "landscape/fill_d8/4096",
         peer: script(
             "drainage.py",
