@@ -95,7 +95,7 @@ impl ThermalParams {
 /// What a [`thermal`] run did.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct ThermalFigures {
-    /// Iterations run.
+    /// Iterations run (fewer than asked when the slopes settled earlier).
     pub iterations: u32,
     /// Volume of material that ended lower than it started (m^3): the net volume moved.
     pub moved_m3: f64,
@@ -144,6 +144,7 @@ pub fn thermal(
         Vec::new()
     };
     progress.begin("thermal erosion", p.iterations as u64);
+    let mut done = 0;
     for it in 0..p.iterations {
         if stop() {
             return Err(LandscapeError::Stopped(format!(
@@ -197,12 +198,22 @@ pub fn thermal(
                 }
             });
         }
+        // Settled (no cell changed): the remaining iterations would change nothing either.
+        let settled = next
+            .par_chunks(band)
+            .zip(cur.par_chunks(band))
+            .all(|(a, b)| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
         std::mem::swap(&mut cur, &mut next);
         progress.advance(1);
+        done += 1;
+        if settled {
+            progress.advance((p.iterations - it - 1) as u64);
+            break;
+        }
     }
 
     let mut figures = ThermalFigures {
-        iterations: p.iterations,
+        iterations: done,
         steep_cells_before,
         steep_cells_after: count_steep(&cur, grid, &steep_talus),
         ..Default::default()
