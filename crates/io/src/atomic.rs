@@ -2,7 +2,9 @@
 //! mid-write leaves at most a hidden `.<name>.tmp-<pid>-<n>` file (or a `.relief-stage-<pid>-<n>`
 //! folder of a [`Staging`]), never a partial `<name>`; the next write into the same folder
 //! removes such leftovers of dead processes. An existing target that is not a regular file
-//! (`/dev/null`, a pipe) is never replaced.
+//! (`/dev/null`, a pipe) is never replaced. Temporary names carry an unpredictable number and
+//! are created exclusively (`O_CREAT | O_EXCL`, [`create_temp`]), staging folders with an
+//! exclusive `mkdir`: a link planted in a shared folder is refused, never followed.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -16,9 +18,7 @@ const NAME_MAX: usize = 255;
 /// (on a character boundary) so that the temporary name never exceeds [`NAME_MAX`] bytes
 /// when the output name itself is legal.
 pub(crate) fn temp_path(path: &Path) -> PathBuf {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let n = unique_number();
     let name = path
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
@@ -30,6 +30,37 @@ pub(crate) fn temp_path(path: &Path) -> PathBuf {
         cut -= 1;
     }
     path.with_file_name(format!(".{}{tail}", &name[..cut]))
+}
+
+/// A number no other temporary name of this process uses and no other process can predict:
+/// a per-process counter mixed with the clock, the process id and the address of a stack
+/// value (the name is created exclusively anyway, [`create_temp`]; unpredictable names keep a
+/// hostile folder from planting anything at them in advance).
+pub(crate) fn unique_number() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    let local = 0u8;
+    let addr = &local as *const u8 as u64;
+    let mut z = n ^ t.rotate_left(17) ^ (std::process::id() as u64).rotate_left(41) ^ addr;
+    // splitmix64 finaliser.
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Creates the temporary file `tmp` exclusively (`O_CREAT | O_EXCL`): it fails when anything
+/// already has that name, a symbolic link included (which is then not followed), so a planted
+/// link can never redirect a write outside the folder.
+pub(crate) fn create_temp(tmp: &Path) -> std::io::Result<std::fs::File> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .read(true)
+        .create_new(true)
+        .open(tmp)
 }
 
 /// A short tag of this machine (8 hex digits of a hash of the host name), part of every
@@ -190,9 +221,7 @@ impl Staging {
             return Ok(stage.join(name));
         }
         remove_stale_temps_in(&dir);
-        use std::sync::atomic::{AtomicU64, Ordering};
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let n = unique_number();
         let stage = dir.join(format!(
             "{STAGE_PREFIX}{}-{n}-{}",
             std::process::id(),
@@ -239,6 +268,22 @@ impl Drop for Staging {
     }
 }
 
+/// Creates a new, empty, hidden staging folder in `parent` (`.relief-stage-<pid>-<n>-<host>`,
+/// `n` unpredictable) with an exclusive `mkdir`: an existing folder or a planted link of that
+/// name is an error, never adopted. Dead runs' folders are removed by the next write into
+/// `parent`, like the writers' temporaries.
+pub fn create_staging_dir(parent: &Path) -> Result<PathBuf> {
+    remove_stale_temps_in(parent);
+    let stage = parent.join(format!(
+        "{STAGE_PREFIX}{}-{}-{}",
+        std::process::id(),
+        unique_number(),
+        host_tag()
+    ));
+    std::fs::create_dir(&stage).map_err(|e| IoError::os(&stage, e))?;
+    Ok(stage)
+}
+
 fn same_dir(a: &Path, b: &Path) -> bool {
     a == b
         || matches!(
@@ -255,7 +300,7 @@ fn write_temp(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
     remove_stale_temps(path);
     let tmp = temp_path(path);
     let res = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+        let mut f = create_temp(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()
     })();
@@ -383,6 +428,39 @@ mod tests {
         // A folder that does not exist fails at `path`, before any work.
         let mut s = Staging::new();
         assert!(s.path(&d.path().join("no/such/dir/x.png")).is_err());
+    }
+
+    #[test]
+    fn a_planted_link_at_a_temporary_name_is_never_followed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let victim = tmp.path().join("victim.txt");
+        std::fs::write(&victim, b"keep me").unwrap();
+        let out = tmp.path().join("out.bin");
+        // Names are unpredictable: two temporaries of the same target differ.
+        assert_ne!(temp_path(&out), temp_path(&out));
+        // And a link planted at whatever name is used is refused, not followed.
+        let planted = temp_path(&out);
+        std::os::unix::fs::symlink(&victim, &planted).unwrap();
+        assert!(create_temp(&planted).is_err());
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+        write_atomic(&out, b"data").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"data");
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+    }
+
+    #[test]
+    fn staging_folders_are_new_unpredictable_and_known_to_the_cleaner() {
+        let tmp = tempfile::tempdir().unwrap();
+        let a = create_staging_dir(tmp.path()).unwrap();
+        let b = create_staging_dir(tmp.path()).unwrap();
+        assert_ne!(a, b);
+        for d in [&a, &b] {
+            assert!(d.is_dir() && std::fs::read_dir(d).unwrap().next().is_none());
+            let name = d.file_name().unwrap().to_str().unwrap();
+            assert_eq!(temp_owner(name).map(|o| o.0), Some(std::process::id()));
+        }
+        // An existing folder of that name is an error, never adopted.
+        assert!(std::fs::create_dir(&a).is_err());
     }
 
     #[test]

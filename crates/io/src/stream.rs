@@ -106,7 +106,7 @@ impl GeoTiffStripWriter {
         crate::atomic::check_replaceable(path)?;
         crate::atomic::remove_stale_temps(path);
         let tmp = crate::atomic::temp_path(path);
-        let file = File::create(&tmp).map_err(|e| IoError::os(path, e))?;
+        let file = crate::atomic::create_temp(&tmp).map_err(|e| IoError::os(path, e))?;
         let mut file = BufWriter::with_capacity(1 << 16, file);
         // Header; the directory offset is patched by `finish`.
         let first = header(big, 0);

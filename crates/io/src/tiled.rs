@@ -166,13 +166,7 @@ impl TiledGeoTiffWriter {
             };
             debug_assert!(opts.cog || i == 0);
             // Read back at `finish` (COG levels), hence read + write.
-            let file = std::fs::OpenOptions::new()
-                .read(true)
-                .write(true)
-                .create(true)
-                .truncate(true)
-                .open(&file_path)
-                .map_err(|e| IoError::os(path, e))?;
+            let file = crate::atomic::create_temp(&file_path).map_err(|e| IoError::os(path, e))?;
             let mut sink = BufWriter::with_capacity(1 << 16, file);
             if base > 0 {
                 sink.write_all(&[0u8; HEADER as usize])
@@ -367,7 +361,7 @@ impl TiledGeoTiffWriter {
             (head, at, bases, _) = try_layout(true);
         }
         let ifds = encode_directories(big, &self.directories(&bases), at);
-        let file = File::create(&self.tmp).map_err(os)?;
+        let file = crate::atomic::create_temp(&self.tmp).map_err(os)?;
         let mut out = BufWriter::with_capacity(1 << 20, file);
         let mut first = header(big, at);
         first.truncate(if big { 16 } else { 8 });

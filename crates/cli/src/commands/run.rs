@@ -58,10 +58,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let staged = parent.join(format!(".relief-stage-run-{}", std::process::id()));
+    // A new folder of an unpredictable name, created exclusively: a planted or stale folder
+    // (or a link to one) is never adopted, so only what this run writes is moved into --out.
+    let staged = relief_io::create_staging_dir(parent)
+        .with_context(|| format!("cannot create a staging folder in {}", parent.display()))?;
     let _cleanup = RemoveOnDrop(staged.clone());
-    std::fs::create_dir_all(&staged)
-        .with_context(|| format!("cannot create {}", staged.display()))?;
     config.out_dir = staged.clone();
     let run = pipeline::run(&config, &stages)?;
 
