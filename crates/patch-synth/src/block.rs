@@ -456,6 +456,14 @@ pub(crate) fn choose(
     let near: Vec<usize> = (0..energies.len())
         .filter(|&i| energies[i] <= limit)
         .collect();
+    if near.is_empty() {
+        // Non-finite energies (inputs are checked against this, so defensive only): the
+        // smallest in total order, never a panic.
+        let best = (0..energies.len())
+            .min_by(|&a, &b| energies[a].total_cmp(&energies[b]))
+            .unwrap_or(0);
+        return (best, energies);
+    }
     (near[rng.random_range(0..near.len())], energies)
 }
 

@@ -326,6 +326,10 @@ impl std::fmt::Debug for ExemplarIndex {
     }
 }
 
+/// Largest exemplar height magnitude (1e9: metres, millimetres and any plausible unit; the
+/// squared differences of 64 x 64 patches of such heights stay far below `f32::MAX`).
+pub(crate) const MAX_HEIGHT: f32 = 1e9;
+
 pub(crate) fn check_exemplars(exemplars: &[Exemplar], patch: usize) -> Result<()> {
     if exemplars.is_empty() {
         return Err(PatchSynthError::NoExemplars);
@@ -349,6 +353,13 @@ pub(crate) fn check_exemplars(exemplars: &[Exemplar], patch: usize) -> Result<()
         }
         if hf.as_slice().iter().any(|v| !v.is_finite()) {
             return Err(bad("non-finite heights".into()));
+        }
+        // Squared height differences summed over a patch must stay finite in f32.
+        if let Some(v) = hf.as_slice().iter().find(|v| v.abs() > MAX_HEIGHT) {
+            return Err(bad(format!(
+                "a height of {v:e} is beyond +-{MAX_HEIGHT:e} (patch distances would overflow); \
+                 scale the heights to metres"
+            )));
         }
         if let Some(r) = &e.regions {
             if r.len() != hf.len() {

@@ -484,3 +484,20 @@ proptest! {
         prop_assert_eq!(&one.placements, &two.placements);
     }
 }
+
+/// Exemplar heights far beyond any unit (1e25, whose squared differences overflow f32 and used
+/// to end in a panic choosing among non-finite energies) are refused by name.
+#[test]
+fn absurd_exemplar_heights_are_refused_not_a_panic() {
+    let hf = Heightfield::from_fn(64, 64, 10.0, 10.0, |x, y| 1e25 + (x * y) as f32 * 1e22);
+    let e = ExemplarIndex::build(
+        vec![Exemplar::new(hf, 0)],
+        &Settings::default(),
+        &NoProgress,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, PatchSynthError::BadExemplar { .. }) && e.to_string().contains("beyond"),
+        "{e}"
+    );
+}
