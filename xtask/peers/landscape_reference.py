@@ -1,10 +1,10 @@
 """Reference outputs of the peers for relief-landscape's exactness tests.
 
 Usage: python landscape_reference.py DEM.npy CELL_X_M CELL_Y_M OUTDIR
-Writes into OUTDIR (float32 / float64 .npy, C order):
-  dem.npy          the input (float32)
-  rd_fill.npy      RichDEM FillDepressions(epsilon=False)                (float32)
-  rd_fill_eps.npy  RichDEM FillDepressions(epsilon=True)                 (float32)
+Writes into OUTDIR (float64 .npy, C order; the DEM itself stays in ../shared):
+  rd_fill_raised.npy      RichDEM FillDepressions(epsilon=False): the cells it raises, rows of
+                          (cell index, filled elevation)
+  rd_fill_eps_raised.npy  the same for FillDepressions(epsilon=True)
   fs_area.npy      fastscapelib FlowGraph([SingleFlowRouter()]) drainage area (m^2, float64)
                    on rd_fill_eps (a surface on which every interior cell drains), all four
                    edges fixed-value (outlets)
@@ -40,9 +40,10 @@ def main():
     graph = fs.FlowGraph(grid, [fs.SingleFlowRouter()])
     graph.update_routes(eps.astype(np.float64))
     area = np.asarray(graph.accumulate(1.0), dtype=np.float64).reshape(eps.shape)
-    np.save(f"{out}/dem.npy", dem)
-    np.save(f"{out}/rd_fill.npy", fill)
-    np.save(f"{out}/rd_fill_eps.npy", eps)
+    for name, f in (("rd_fill_raised", fill), ("rd_fill_eps_raised", eps)):
+        idx = np.flatnonzero(f.ravel() != dem.ravel())
+        rows = np.stack([idx.astype(np.float64), f.ravel()[idx].astype(np.float64)], 1)
+        np.save(f"{out}/{name}.npy", rows)
     np.save(f"{out}/fs_area.npy", area)
     print({"changed_by_fill": int((fill != dem).sum()), "eps_vs_plain": int((eps != fill).sum())})
 

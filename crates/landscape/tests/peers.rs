@@ -1,7 +1,9 @@
 //! Exactness against the peers a GIS user checks with (RichDEM, fastscapelib), on a crop of a
-//! real DEM with non-square cells. The reference files were written once by
-//! `xtask/peers/landscape_reference.py` (its docstring says how) and are committed under
-//! `tests/data/`, so this test needs no Python.
+//! real DEM with non-square cells (jacksboro_fault rows 64..192, columns 192..320, read from
+//! `../shared/data/dem`; the tests skip with a notice when it is absent, and fail under CI).
+//! The peers' results were written once by `xtask/peers/landscape_reference.py` (its docstring
+//! says how) and are committed under `tests/data/` (the fills as the cells they raise), so these
+//! tests need no Python.
 
 use std::path::Path;
 
@@ -9,7 +11,23 @@ use relief_landscape::depression::{FillMode, priority_flood};
 use relief_landscape::flow::{self, Depressions, RouteOptions};
 use relief_landscape::grid::Grid;
 
-const CELL: (f64, f64) = (74.573, 92.475);
+/// The crop and its grid, or `None` (with a notice) without the shared DEM set.
+fn crop() -> Option<(Vec<f32>, Grid)> {
+    let hf = relief_testdata::dem_crop("jacksboro_fault", 192, 64, 128, 128)?;
+    let grid = Grid::of(&hf);
+    Some((hf.as_slice().to_vec(), grid))
+}
+
+/// A peer's fill of the crop: the crop with the raised cells of `name` (rows of cell index,
+/// filled elevation).
+fn peer_fill(dem: &[f32], name: &str) -> Vec<f32> {
+    let (rows, _, _) = npy(name);
+    let mut f = dem.to_vec();
+    for r in rows.chunks_exact(2) {
+        f[r[0] as usize] = r[1] as f32;
+    }
+    f
+}
 
 /// A C-order little-endian `.npy` of `<f4` or `<f8` as f64 (the tests' own 20-line reader: the
 /// crate does not depend on relief-io).
@@ -47,24 +65,14 @@ fn npy(name: &str) -> (Vec<f64>, usize, usize) {
     (v, shape[1], shape[0])
 }
 
-fn f32s(v: &[f64]) -> Vec<f32> {
-    v.iter().map(|&x| x as f32).collect()
-}
-
 #[test]
 fn plain_fill_equals_richdem_cell_for_cell() {
-    let (dem, w, h) = npy("dem.npy");
-    let (reference, _, _) = npy("rd_fill.npy");
-    let g = Grid {
-        width: w,
-        height: h,
-        cell_x: CELL.0,
-        cell_y: CELL.1,
-    };
-    let mut z = f32s(&dem);
+    let Some((dem, g)) = crop() else { return };
+    let reference = peer_fill(&dem, "rd_fill_raised.npy");
+    let mut z = dem.clone();
     let raised = priority_flood(&mut z, &g, FillMode::Plain, None);
     assert_eq!(raised, 1332);
-    assert_eq!(z, f32s(&reference));
+    assert_eq!(z, reference);
 }
 
 #[test]
@@ -72,27 +80,19 @@ fn epsilon_fill_differs_from_richdem_only_by_the_order_of_equal_cells() {
     // Both raise each cell one float32 step above the cell the flood reached it from; which
     // equal cell comes first is the heap's business (RichDEM: GCC's std::priority_queue; here:
     // the cell index), so the steps taken inside a filled flat may differ, never the level.
-    let (dem, w, h) = npy("dem.npy");
-    let (plain, _, _) = npy("rd_fill.npy");
-    let (reference, _, _) = npy("rd_fill_eps.npy");
-    let g = Grid {
-        width: w,
-        height: h,
-        cell_x: CELL.0,
-        cell_y: CELL.1,
-    };
-    let mut z = f32s(&dem);
+    let Some((dem, g)) = crop() else { return };
+    let plain = peer_fill(&dem, "rd_fill_raised.npy");
+    let reference = peer_fill(&dem, "rd_fill_eps_raised.npy");
+    let mut z = dem.clone();
     priority_flood(&mut z, &g, FillMode::Epsilon, None);
     let mut differ = 0;
     for i in 0..g.len() {
-        if z[i] != reference[i] as f32 {
+        if z[i] != reference[i] {
             differ += 1;
             // Only on cells the epsilon raises (a filled depression or a flat, where the
             // level is the plain fill's), by a few float32 steps above that level.
-            assert!(reference[i] > dem[i] || z[i] as f64 > dem[i], "cell {i}");
-            assert!(
-                (z[i] as f64 - plain[i]).abs() < 0.01 && (reference[i] - plain[i]).abs() < 0.01
-            );
+            assert!(reference[i] > dem[i] || z[i] > dem[i], "cell {i}");
+            assert!((z[i] - plain[i]).abs() < 0.01 && (reference[i] - plain[i]).abs() < 0.01);
         }
     }
     assert!(differ <= 40, "{differ} cells differ (17 when written)");
@@ -103,16 +103,11 @@ fn d8_area_equals_fastscapelib_on_the_same_drained_surface() {
     // fastscapelib's SingleFlowRouter is the same rule (steepest drop over centre distance, the
     // first neighbour in row-major order winning ties, edges as outlets); routed on RichDEM's
     // epsilon-filled surface, where every interior cell has a lower neighbour.
-    let (eps, w, h) = npy("rd_fill_eps.npy");
+    let Some((dem, g)) = crop() else { return };
+    let eps = peer_fill(&dem, "rd_fill_eps_raised.npy");
     let (area, _, _) = npy("fs_area.npy");
-    let g = Grid {
-        width: w,
-        height: h,
-        cell_x: CELL.0,
-        cell_y: CELL.1,
-    };
     let r = flow::route(
-        f32s(&eps),
+        eps,
         g,
         &RouteOptions {
             depressions: Depressions::None,
@@ -133,8 +128,8 @@ fn drainage_stats_equal_the_reference_tool() {
     // `shared/tools/terrain_quality.py`'s drainage(z, 80.0) on the same crop (square 80 m
     // cells: the reference tool has one cell size): (2.02178955078125, 0.46583093872066983,
     // 0.5430709163880191).
-    let (dem, w, h) = npy("dem.npy");
-    let hf = relief_heightfield::Heightfield::new(w, h, f32s(&dem), 80.0, 80.0).unwrap();
+    let Some((dem, g)) = crop() else { return };
+    let hf = relief_heightfield::Heightfield::new(g.width, g.height, dem, 80.0, 80.0).unwrap();
     let s = relief_landscape::stats::drainage(&hf);
     assert!((s.pits_per_km2 - 2.02178955078125).abs() < 1e-9, "{s:?}");
     assert!((s.fill_depth_m - 0.46583093872066983).abs() < 1e-9, "{s:?}");
