@@ -24,77 +24,50 @@ pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
     fn from_f64(v: f64) -> Self;
 }
 
-impl Elev for f32 {
-    type Key = u32;
-    type Entry = u64;
-    #[inline]
-    fn entry(self, i: u32) -> u64 {
-        ((self.key() as u64) << 32) | i as u64
-    }
-    #[inline]
-    fn cell(e: u64) -> u32 {
-        e as u32
-    }
-    #[inline]
-    fn key(self) -> u32 {
-        let b = self.to_bits();
-        if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
-    }
-    #[inline]
-    fn up(self) -> f32 {
-        self.next_up()
-    }
-    #[inline]
-    fn is_void(self) -> bool {
-        self.is_nan()
-    }
-    #[inline]
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    #[inline]
-    fn from_f64(v: f64) -> f32 {
-        v as f32
-    }
+/// One implementation for both float widths: `$key` the unsigned integer of the float's bits,
+/// `$entry` one wide enough for a key and a 32-bit cell index.
+macro_rules! impl_elev {
+    ($t:ty, $key:ty, $entry:ty) => {
+        impl Elev for $t {
+            type Key = $key;
+            type Entry = $entry;
+            #[inline]
+            fn entry(self, i: u32) -> $entry {
+                ((self.key() as $entry) << 32) | i as $entry
+            }
+            #[inline]
+            fn cell(e: $entry) -> u32 {
+                e as u32
+            }
+            #[inline]
+            fn key(self) -> $key {
+                // Negative floats reversed, positive ones above them: integer order = numeric.
+                let b = self.to_bits();
+                let sign = 1 << (<$key>::BITS - 1);
+                if b & sign != 0 { !b } else { b | sign }
+            }
+            #[inline]
+            fn up(self) -> $t {
+                self.next_up()
+            }
+            #[inline]
+            fn is_void(self) -> bool {
+                self.is_nan()
+            }
+            #[inline]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn from_f64(v: f64) -> $t {
+                v as $t
+            }
+        }
+    };
 }
 
-impl Elev for f64 {
-    type Key = u64;
-    type Entry = u128;
-    #[inline]
-    fn entry(self, i: u32) -> u128 {
-        ((self.key() as u128) << 32) | i as u128
-    }
-    #[inline]
-    fn cell(e: u128) -> u32 {
-        e as u32
-    }
-    #[inline]
-    fn key(self) -> u64 {
-        let b = self.to_bits();
-        if b >> 63 == 1 {
-            !b
-        } else {
-            b | 0x8000_0000_0000_0000
-        }
-    }
-    #[inline]
-    fn up(self) -> f64 {
-        self.next_up()
-    }
-    #[inline]
-    fn is_void(self) -> bool {
-        self.is_nan()
-    }
-    #[inline]
-    fn to_f64(self) -> f64 {
-        self
-    }
-    #[inline]
-    fn from_f64(v: f64) -> f64 {
-        v
-    }
-}
+impl_elev!(f32, u32, u64);
+impl_elev!(f64, u64, u128);
 
 #[cfg(test)]
 mod tests {
