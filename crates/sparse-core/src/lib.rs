@@ -79,7 +79,10 @@ pub use format::FormatOptions;
 pub use omp::{
     OmpFloat, OmpSettings, SparseCodes, batch_omp, batch_omp_with_progress, omp_reference,
 };
-pub use patches::{CentreGrid, PatchGeometry, Patches, extract_patches};
+pub use patches::{
+    CentreGrid, MAX_PATCH_SAMPLES, MAX_PRIMITIVES, PatchGeometry, Patches, extract_patch_rows,
+    extract_patches,
+};
 pub use sct::{
     Field, Node, NodeSpec, Placement, Profile, RasterSettings, Region, RegionSpec, River,
     RiverMode, RiverSpec, RiverValleySpec, Sct, SparseLayer, TreeSpec, Window, raster_coord,

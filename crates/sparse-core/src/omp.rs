@@ -188,6 +188,16 @@ impl<T: OmpFloat> SparseCodes<T> {
         })
     }
 
+    /// Appends the codes of `other`'s signals after this one's (codes computed in batches).
+    pub fn append(&mut self, other: &Self) {
+        let base = self.indices.len();
+        self.offsets
+            .extend(other.offsets[1..].iter().map(|&o| base + o));
+        self.indices.extend_from_slice(&other.indices);
+        self.values.extend_from_slice(&other.values);
+        self.residuals.extend_from_slice(&other.residuals);
+    }
+
     /// Number of signals.
     pub fn n_signals(&self) -> usize {
         self.offsets.len() - 1

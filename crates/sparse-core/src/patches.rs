@@ -75,7 +75,10 @@ impl PatchGeometry {
         Ok(())
     }
 
-    /// The centre grid covering a `width x height` terrain.
+    /// The centre grid covering a `width x height` terrain (at most [`MAX_PRIMITIVES`]
+    /// centres; the patch matrix of the whole grid is bounded separately, by
+    /// [`extract_patches`], so a grid too large to extract at once can still be extracted in
+    /// bands of rows with [`extract_patch_rows`]).
     pub fn grid(&self, width: usize, height: usize) -> Result<CentreGrid> {
         self.check()?;
         if width == 0 || height == 0 {
@@ -93,13 +96,11 @@ impl PatchGeometry {
             ((span / self.step) - 1e-9).ceil().max(0.0) + 1.0
         };
         let (fx, fy) = (count(width), count(height));
-        let cells = fx * fy;
-        let k = (self.patch_size * self.patch_size) as f64;
-        if !(cells <= MAX_PRIMITIVES as f64 && cells * k <= MAX_PATCH_SAMPLES as f64) {
+        if fx * fy > MAX_PRIMITIVES as f64 {
             return Err(SparseError::param(
                 "step",
                 self.step,
-                "gives too many primitives for the terrain (at most 2^24 primitives and 2^28 patch samples)",
+                "gives too many primitives for the terrain (at most 2^24)",
             ));
         }
         Ok(CentreGrid {
@@ -156,13 +157,15 @@ impl CentreGrid {
 pub struct Patches {
     /// `n x K` matrix, row `i` = `T_i` (samples minus `z_i`), row-major `a x a`.
     pub matrix: Array2<f32>,
-    /// Centres `c_i` in terrain pixel coordinates (x = column, y = row).
+    /// Centres `c_i` in terrain pixel coordinates (x = column, y = row); for a band
+    /// ([`extract_patch_rows`]) those of its primitives only.
     pub centres: Vec<[f64; 2]>,
     /// Means `z_i` over the support.
     pub means: Vec<f32>,
     /// The geometry used.
     pub geometry: PatchGeometry,
-    /// The centre grid (centres are `grid.centre(i)`).
+    /// The centre grid of the whole terrain (the patches of a band start at primitive
+    /// `rows.start * grid.nx`, [`extract_patch_rows`]).
     pub grid: CentreGrid,
 }
 
@@ -218,10 +221,45 @@ fn copy_clamped(hf: &Heightfield, (x0, y0): (isize, isize), a: usize, buf: &mut 
     }
 }
 
-/// Extracts the patches `T_i` of a void-free heightfield (section 4.2).
+/// Extracts the patches `T_i` of a void-free heightfield (section 4.2). The patch matrix holds
+/// at most [`MAX_PATCH_SAMPLES`] samples; [`extract_patch_rows`] extracts a larger grid in
+/// bands.
 pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Patches> {
+    let grid = geometry.grid(hf.width(), hf.height())?;
+    extract_patch_rows(hf, geometry, 0..grid.ny)
+}
+
+/// The patches of the centre rows `rows` of the grid covering `hf`
+/// (`geometry.grid(hf.width(), hf.height())`): row `k` of the matrix, `means[k]` and
+/// `centres[k]` belong to primitive `rows.start * nx + k` of that grid, which is the `grid`
+/// returned. The patches are those [`extract_patches`] gives for the same primitives, so a
+/// grid too large to extract at once (more than [`MAX_PATCH_SAMPLES`] samples) can be coded
+/// band by band with the same result. The band itself must hold at most
+/// [`MAX_PATCH_SAMPLES`] samples, and `rows` must lie within the grid's rows.
+pub fn extract_patch_rows(
+    hf: &Heightfield,
+    geometry: &PatchGeometry,
+    rows: std::ops::Range<usize>,
+) -> Result<Patches> {
     hf.require_complete()?;
     let grid = geometry.grid(hf.width(), hf.height())?;
+    if rows.start > rows.end || rows.end > grid.ny {
+        return Err(SparseError::param(
+            "rows",
+            format!("{}..{}", rows.start, rows.end),
+            "must lie within the centre grid's rows",
+        ));
+    }
+    let k = geometry.patch_size * geometry.patch_size;
+    let n = (rows.end - rows.start) * grid.nx;
+    if n as f64 * k as f64 > MAX_PATCH_SAMPLES as f64 {
+        return Err(SparseError::param(
+            "step",
+            geometry.step,
+            "gives too many patch samples for the terrain (at most 2^28 at once)",
+        ));
+    }
+    let base = rows.start * grid.nx;
     let mask = support_mask(
         geometry.patch_size,
         geometry.spacing,
@@ -229,7 +267,6 @@ pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Pat
     )?;
     let a = geometry.patch_size;
     let half = (a as f64 - 1.0) / 2.0;
-    let n = grid.len();
     // Every patch on its own (rows in parallel, each computed alike whatever the thread).
     let mut data = vec![0f32; n * a * a];
     let mut means = vec![0f32; n];
@@ -239,7 +276,7 @@ pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Pat
         .for_each_init(
             || vec![0f64; a * a],
             |buf, (k, (row, mean))| {
-                let [cx, cy] = grid.centre(k);
+                let [cx, cy] = grid.centre(base + k);
                 if let Some((x0, y0)) = integral_corner(cx - half, cy - half, geometry.spacing) {
                     // Unit spacing from a whole pixel: every sample is a pixel (what
                     // `sample` returns there), read row by row.
@@ -269,7 +306,7 @@ pub fn extract_patches(hf: &Heightfield, geometry: &PatchGeometry) -> Result<Pat
         .map_err(|_| SparseError::param("patch_size", a, "patch matrix shape mismatch"))?;
     Ok(Patches {
         matrix,
-        centres: grid.centres(),
+        centres: (base..base + n).map(|k| grid.centre(k)).collect(),
         means,
         geometry: *geometry,
         grid,

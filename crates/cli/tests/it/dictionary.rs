@@ -526,3 +526,33 @@ fn method_outputs_keep_the_georeference() {
     relief_ok!["fit-procedural", cin, fit, "--candidates", "64"];
     assert_georef_scaled(&read(&fit), &coarse, 1.0, "fit-procedural");
 }
+
+/// Issue 44 item 10: x256 of a 64 x 64 crop of the fixture ("gc64"). Since the default grid
+/// step became R / 2, the last x4 step codes 2049^2 patches of 64 samples, 0.1 % more than
+/// one patch matrix may hold, and the run failed with "invalid parameter `step` = 2: gives too
+/// many primitives"; the step now codes its patches in bands. Written as a `.sct` (the
+/// 16384^2 raster would only add time). A factor whose steps cannot place their primitives
+/// at all is refused in the user's terms (`--factor`), never by an internal parameter.
+#[test]
+fn amplify_x256_of_a_64_crop_and_too_large_a_factor() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (gc64, _) = fixture_crop(tmp.path(), "gc64.tif", (224, 224, 64, 64));
+    let ex = relief_testdata::fixture("grandcanyon.tif");
+    let model = tmp.path().join("gc64x256.sct");
+    ok(&relief_line(
+        "amplify {} {} --exemplar {} --factor 256",
+        &[&gc64, &model, &ex],
+    ));
+    let sct = read_model(&model);
+    assert_eq!((sct.width(), sct.height()), (16384, 16384));
+    let big = tmp.path().join("x1024.sct");
+    let e = fails_with(
+        &relief_line(
+            "amplify {} {} --exemplar {} --factor 1024",
+            &[&gc64, &big, &ex],
+        ),
+        &["--factor", "too large for x1024"],
+        &[&big],
+    );
+    assert!(!e.contains('`'), "an internal parameter named: {e}");
+}

@@ -48,7 +48,7 @@ use rand_pcg::Pcg64Mcg;
 use relief_heightfield::{Heightfield, Progress};
 use relief_sparse_core::{
     CentreGrid, Dictionary, Field, Node, OmpSettings, PatchGeometry, Placement, RasterSettings,
-    Sct, SparseLayer, extract_patches,
+    Sct, SparseLayer, extract_patch_rows, extract_patches,
 };
 use serde::{Deserialize, Serialize};
 

@@ -29,9 +29,8 @@ impl MultiResDictionary {
                 "does not match the dictionary's patch size",
             ));
         }
-        let patches = extract_patches(coarse, &geom)?;
+        let g = geom.grid(coarse.width(), coarse.height())?;
         let f = STEP_FACTOR as f64;
-        let g = patches.grid;
         let fine = CentreGrid {
             origin: [f * g.origin[0] + 1.5, f * g.origin[1] + 1.5],
             step: f * g.step,
@@ -46,31 +45,27 @@ impl MultiResDictionary {
                     "a step computed by windows needs it off (its detail gain is global)",
                 ));
             }
+            let patches = extract_patches(coarse, &geom)?;
             return self.exemplar_detail_step(coarse, &patches, fine, settings);
         }
-        let codes = if settings.diverse_atoms
-            && settings.sparsity == 1
-            && settings.patch_size() >= DIVERSE_MIN_PATCH
-            && self.len() <= DIVERSE_MAX_ATOMS
-        {
-            let nx = g.nx;
-            let global = |i: usize| match frame {
-                Some(f) => ((f.row0 + i / nx) * f.nx + f.col0 + i % nx) as u64,
-                None => i as u64,
-            };
-            self.diverse_codes_with(&patches.matrix, settings.seed, &global)?
-        } else {
-            relief_sparse_core::nearest::code_indexed(
-                self.low.view(),
-                patches.matrix.view(),
-                &OmpSettings {
-                    sparsity: settings.sparsity.min(self.len()),
-                    tolerance: None,
-                },
-                settings.index_probes,
-                &relief_heightfield::NoProgress,
-            )?
-        };
+        // The patches are extracted and coded in bands of centre rows, so that the patch
+        // matrix of a large step (the last of x256: 2049^2 patches of 64 samples, over 1 GiB)
+        // never exists whole; a primitive's code depends only on its own patch and its place
+        // in the grid, so the codes are those of one batch.
+        let k = geom.patch_size * geom.patch_size;
+        let band = (CODE_BAND_SAMPLES / (g.nx * k).max(1)).max(1);
+        let mut means = Vec::with_capacity(g.len());
+        let mut codes: Option<relief_sparse_core::SparseCodes<f32>> = None;
+        for r0 in (0..g.ny).step_by(band) {
+            let patches = extract_patch_rows(coarse, &geom, r0..(r0 + band).min(g.ny))?;
+            let c = self.code_band(&patches.matrix, r0 * g.nx, g.nx, frame, settings)?;
+            means.extend_from_slice(&patches.means);
+            match &mut codes {
+                Some(all) => all.append(&c),
+                None => codes = Some(c),
+            }
+        }
+        let codes = codes.ok_or_else(|| LearnError::param("coarse", 0, "gives no primitive"))?;
         let n = codes.n_signals();
         let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0u32);
@@ -87,14 +82,14 @@ impl MultiResDictionary {
         let layer = SparseLayer::from_parts(
             self.high.clone(),
             Placement::Grid(fine),
-            patches.means.clone(),
+            means.clone(),
             offsets,
             atoms,
             coeffs,
         )?;
         let (cx, cy) = coarse.cell_size();
         let root = if settings.residual_correction {
-            let res = self.residual_field(coarse, &patches, &codes, settings)?;
+            let res = self.residual_field(coarse, (&means, g), &codes, settings)?;
             Node::Add(vec![Node::Layer(layer), Node::Field(res)])
         } else {
             Node::Layer(layer)
@@ -105,6 +100,49 @@ impl MultiResDictionary {
             coarse.height() * STEP_FACTOR,
             (cx / f, cy / f),
         )?)
+    }
+}
+
+/// Most patch samples extracted and coded at once by a step (64 MiB of `f32`): larger grids
+/// are coded in bands of centre rows.
+const CODE_BAND_SAMPLES: usize = 1 << 24;
+
+impl MultiResDictionary {
+    /// The `L` codes of `signals`, the patches of primitives `first..` of a grid `nx`
+    /// primitives wide (`frame`: where that grid sits in the whole input's).
+    fn code_band(
+        &self,
+        signals: &Array2<f32>,
+        first: usize,
+        nx: usize,
+        frame: Option<GridFrame>,
+        settings: &AmplifySettings,
+    ) -> Result<relief_sparse_core::SparseCodes<f32>> {
+        if settings.diverse_atoms
+            && settings.sparsity == 1
+            && settings.patch_size() >= DIVERSE_MIN_PATCH
+            && self.len() <= DIVERSE_MAX_ATOMS
+        {
+            let global = |i: usize| {
+                let i = first + i;
+                match frame {
+                    Some(f) => ((f.row0 + i / nx) * f.nx + f.col0 + i % nx) as u64,
+                    None => i as u64,
+                }
+            };
+            self.diverse_codes_with(signals, settings.seed, &global)
+        } else {
+            Ok(relief_sparse_core::nearest::code_indexed(
+                self.low.view(),
+                signals.view(),
+                &OmpSettings {
+                    sparsity: settings.sparsity.min(self.len()),
+                    tolerance: None,
+                },
+                settings.index_probes,
+                &relief_heightfield::NoProgress,
+            )?)
+        }
     }
 }
 
@@ -270,11 +308,11 @@ impl MultiResDictionary {
     fn footprint_raster(
         &self,
         coarse: &Heightfield,
-        patches: &relief_sparse_core::Patches,
+        (means, grid): (&[f32], CentreGrid),
         codes: &relief_sparse_core::SparseCodes<f32>,
     ) -> Result<Heightfield> {
         let n = codes.n_signals();
-        let mut z = patches.means.clone();
+        let mut z = means.to_vec();
         let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0u32);
         let (mut atoms, mut coeffs) = (Vec::new(), Vec::new());
@@ -294,7 +332,7 @@ impl MultiResDictionary {
         }
         let layer = SparseLayer::from_parts(
             self.footprint.clone(),
-            Placement::Grid(patches.grid),
+            Placement::Grid(grid),
             z,
             offsets,
             atoms,
@@ -316,11 +354,11 @@ impl MultiResDictionary {
     fn residual_field(
         &self,
         coarse: &Heightfield,
-        patches: &relief_sparse_core::Patches,
+        primitives: (&[f32], CentreGrid),
         codes: &relief_sparse_core::SparseCodes<f32>,
         settings: &AmplifySettings,
     ) -> Result<Field> {
-        let rec = self.footprint_raster(coarse, patches, codes)?;
+        let rec = self.footprint_raster(coarse, primitives, codes)?;
         let (d, _) = relief_heightfield::metrics::difference_field(coarse, &rec)?;
         let kernel = settings.residual_kernel;
         let r = back_project(&d, coarse.width(), coarse.height(), kernel);
