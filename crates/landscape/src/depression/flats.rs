@@ -18,6 +18,29 @@ use crate::grid::{Grid, NO_FLOW};
 /// without any way out (a closed flat, possible only in an unfilled surface) keep [`NO_FLOW`].
 /// Returns the number of cells given a direction.
 pub fn resolve_flats<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool], dir: &mut [u8]) -> usize {
+    resolve_flats_labelled(z, grid, outlet, dir).given
+}
+
+/// What [`resolve_flats_labelled`] found: the flats' labels (`u32::MAX` outside them) and the
+/// low-edge cell each label was flooded from.
+pub(crate) struct FlatLabels {
+    /// Cells given a direction.
+    pub(crate) given: usize,
+    /// The label of every flat cell and of each label's seed.
+    pub(crate) label: Vec<u32>,
+    /// `seeds[l]`: the low-edge cell label `l` was flooded from (the first of the flat's low
+    /// edges in index order).
+    pub(crate) seeds: Vec<u32>,
+}
+
+/// [`resolve_flats`], also returning the labels (the tiled plan tells from them which flats
+/// a tile holds entirely).
+pub(crate) fn resolve_flats_labelled<T: Elev>(
+    z: &[T],
+    grid: &Grid,
+    outlet: &[bool],
+    dir: &mut [u8],
+) -> FlatLabels {
     let n = grid.len();
     let flat: Vec<bool> = (0..n)
         .into_par_iter()
@@ -51,18 +74,24 @@ pub fn resolve_flats<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool], dir: &mut [
     let mut low: VecDeque<u32> = edges.iter().filter(|e| e.1).map(|e| e.0).collect();
     let mut high: VecDeque<u32> = edges.iter().filter(|e| e.2).map(|e| e.0).collect();
     if low.is_empty() {
-        return 0;
+        return FlatLabels {
+            given: 0,
+            label: vec![u32::MAX; n],
+            seeds: Vec::new(),
+        };
     }
     // Label each flat from its low edges.
     const NONE: u32 = u32::MAX;
     let mut label = vec![NONE; n];
     let mut next = 0u32;
+    let mut seeds = Vec::new();
     for &s in &low {
         let s = s as usize;
         if label[s] != NONE {
             continue;
         }
         label[s] = next;
+        seeds.push(s as u32);
         let mut q = VecDeque::from([s]);
         while let Some(c) = q.pop_front() {
             grid.for_neighbours(c, |_, m| {
@@ -119,7 +148,11 @@ pub fn resolve_flats<T: Elev>(z: &[T], grid: &Grid, outlet: &[bool], dir: &mut [
             given += 1;
         }
     }
-    given
+    FlatLabels {
+        given,
+        label,
+        seeds,
+    }
 }
 
 /// Breadth-first rings over the flat cells of the labelled flats, from `seeds` (ring 0, not

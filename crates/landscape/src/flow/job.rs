@@ -105,15 +105,18 @@ impl FlowSettings {
         progress.begin("flow routing", 4);
         let r = route(dem.as_slice().to_vec(), grid, &self.route_options());
         progress.advance(1);
+        // D8 area is counted in cells and multiplied by the cell area once: the same bits
+        // whatever order the sums are made in (the tiled plan of `relief tile` makes them
+        // tile by tile; `flow::tiled`).
         let area = match self.directions {
-            Directions::D8 => r.accumulation(None),
+            Directions::D8 => r.area_d8(),
             Directions::Mfd => r.accumulation_mfd(self.mfd_exponent),
         };
         // The network, basins and HAND follow the D8 tree (a tree is what they need).
         let d8_area = if self.directions == Directions::D8 {
             area.clone()
         } else {
-            r.accumulation(None)
+            r.area_d8()
         };
         progress.advance(1);
         let order = strahler(&r, &d8_area, self.channel_area);

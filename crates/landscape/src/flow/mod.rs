@@ -6,6 +6,7 @@
 pub mod basins;
 pub mod job;
 pub mod network;
+pub mod tiled;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -208,6 +209,36 @@ impl Routing {
             }
         }
         acc
+    }
+
+    /// Cells upstream of every cell along the D8 directions, itself included (0 on voids):
+    /// integers, so the sums do not depend on the order they are made in (the tiled run of
+    /// [`tiled`] adds them in another order and gets the same values).
+    pub fn cells_upstream(&self) -> Vec<u64> {
+        let mut n: Vec<u64> = self
+            .surface
+            .iter()
+            .map(|v| u64::from(!v.is_nan()))
+            .collect();
+        for &c in &self.order {
+            let c = c as usize;
+            if let Some(r) = receiver(&self.grid, c, self.dir[c]) {
+                n[r] += n[c];
+            }
+        }
+        n
+    }
+
+    /// D8 drainage area (m^2) as `relief flow` writes it: [`Self::cells_upstream`] times the
+    /// cell area (one product per cell, so equal bit for bit to the tiled run's), `NaN` on
+    /// voids.
+    pub fn area_d8(&self) -> Vec<f64> {
+        let a0 = self.grid.cell_area();
+        self.cells_upstream()
+            .iter()
+            .zip(&self.surface)
+            .map(|(&n, z)| if z.is_nan() { f64::NAN } else { n as f64 * a0 })
+            .collect()
     }
 
     /// Multiple-flow-direction drainage area (m^2): each cell splits its water among its

@@ -1,0 +1,264 @@
+use super::*;
+use crate::flow::{Depressions, RouteOptions, route};
+
+/// The single run: `route` with plain filling and the flats drained, cells counted.
+fn single(z: &[f32], w: usize, h: usize, cx: f64, cy: f64) -> Finished {
+    let grid = Grid {
+        width: w,
+        height: h,
+        cell_x: cx,
+        cell_y: cy,
+    };
+    let r = route(
+        z.to_vec(),
+        grid,
+        &RouteOptions {
+            depressions: Depressions::Fill,
+            ..Default::default()
+        },
+    );
+    Finished {
+        cells: r.cells_upstream(),
+        filled: r.surface,
+        dir: r.dir,
+    }
+}
+
+fn shuffled(seed: u64) -> impl FnMut(usize, usize) -> Vec<usize> {
+    move |phase, n| {
+        let mut v: Vec<usize> = (0..n).collect();
+        // A seeded Fisher-Yates shuffle: another order per phase and per seed.
+        for i in (1..n).rev() {
+            let r = relief_heightfield::rng::hash(seed, phase as u64, i as u64, 7);
+            v.swap(i, (r % (i as u64 + 1)) as usize);
+        }
+        v
+    }
+}
+
+fn assert_same(a: &Finished, b: &Finished, what: &str) {
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let n = a.filled.len();
+    for i in 0..n {
+        assert_eq!(
+            a.filled[i].to_bits(),
+            b.filled[i].to_bits(),
+            "{what}: filled differs at cell {i}"
+        );
+        assert_eq!(a.dir[i], b.dir[i], "{what}: direction differs at cell {i}");
+        assert_eq!(
+            a.cells[i], b.cells[i],
+            "{what}: upstream cells differ at cell {i}"
+        );
+    }
+    assert_eq!(bits(&a.filled), bits(&b.filled));
+}
+
+fn check(z: &[f32], w: usize, h: usize, tiles: &[usize], what: &str) {
+    let (cx, cy) = (30.0, 20.0);
+    let want = single(z, w, h, cx, cy);
+    for (k, &tile) in tiles.iter().enumerate() {
+        let layout = TileLayout {
+            width: w,
+            height: h,
+            tile,
+            cell_x: cx,
+            cell_y: cy,
+        };
+        let got = run_in_memory(&layout, z, &mut shuffled(k as u64 + 1)).unwrap();
+        assert_same(&got, &want, &format!("{what}, tile {tile}"));
+    }
+}
+
+/// A basin spanning 3 x 3 tiles (a closed bowl filled to its rim), a river meandering across
+/// every tile edge, a lake on it spanning tiles, integer elevations (flats everywhere) and
+/// voids.
+fn basin_and_river(w: usize, h: usize, voids: bool) -> Vec<f32> {
+    let (fw, fh) = (w as f32, h as f32);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let u =
+                relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(3, i as u64, 0, 0));
+            // The bowl: centre of the map, closed on every side.
+            let (dx, dy) = ((x - fw * 0.5) / fw, (y - fh * 0.5) / fh);
+            let r = (dx * dx + dy * dy).sqrt();
+            let bowl = if r < 0.3 {
+                10.0 + 60.0 * r
+            } else {
+                28.0 + (r - 0.3) * 120.0
+            };
+            // The river: a sine from the west edge to the east edge, crossing every row of
+            // tiles on its way (it winds through the whole map) and draining west.
+            let path = fh * (0.5 + 0.42 * (x / fw * 9.0).sin());
+            let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
+            // Inside the bowl, the bowl alone; outside, the terrain falls to the river.
+            let z = if r < 0.3 {
+                bowl
+            } else if (y - path).abs() < 3.0 {
+                river
+            } else {
+                bowl.min(river + 6.0)
+            };
+            if voids && u < 0.01 {
+                f32::NAN
+            } else {
+                (z + u * 2.0).floor()
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn a_basin_over_nine_tiles_and_a_river_across_every_edge_equal_the_single_run() {
+    let (w, h) = (96, 90);
+    let z = basin_and_river(w, h, false);
+    // 32 px tiles: the basin spans the 3 x 3 tiles; the others cut it anywhere.
+    check(&z, w, h, &[32, 4, 7, 13, 16, 31, 45, 96, 200], "basin");
+    // The filled bowl is a flat lake over nine tiles.
+    let s = single(&z, w, h, 30.0, 20.0);
+    let centre = (h / 2) * w + w / 2;
+    assert!(s.filled[centre] > z[centre]);
+    let layout = TileLayout {
+        width: w,
+        height: h,
+        tile: 32,
+        cell_x: 30.0,
+        cell_y: 20.0,
+    };
+    let lake: std::collections::BTreeSet<usize> = (0..w * h)
+        .filter(|&i| s.filled[i] == s.filled[centre])
+        .map(|i| layout.tile_at(i % w, i / w))
+        .collect();
+    assert_eq!(lake.len(), 9, "the lake spans the 3 x 3 tiles");
+}
+
+#[test]
+fn voids_flats_and_odd_sizes_equal_the_single_run() {
+    for (w, h, seed) in [
+        (61, 47, 1u64),
+        (40, 73, 2),
+        (17, 5, 3),
+        (1, 30, 4),
+        (33, 1, 5),
+    ] {
+        let z: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                    seed, i as u64, 0, 0,
+                ));
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                if u < 0.04 {
+                    f32::NAN
+                } else {
+                    // Coarse steps: many flats, depressions and plateaus.
+                    ((u * 6.0 + (x * 0.3).sin() * 4.0 + (y * 0.2).cos() * 4.0) / 2.0).floor()
+                }
+            })
+            .collect();
+        check(&z, w, h, &[4, 5, 8, 16], &format!("{w}x{h}"));
+        let b = basin_and_river(w, h, true);
+        check(&b, w, h, &[4, 9, 16], &format!("voids {w}x{h}"));
+    }
+}
+
+#[test]
+fn a_real_dem_crop_equals_the_single_run() {
+    let Some(hf) = relief_testdata::dem_crop("jacksboro_fault", 192, 64, 128, 128) else {
+        return;
+    };
+    let (w, h) = (hf.width(), hf.height());
+    let (cx, cy) = hf.cell_size();
+    let z = hf.as_slice();
+    let want = single(z, w, h, cx, cy);
+    for (k, tile) in [16usize, 23, 48, 64].into_iter().enumerate() {
+        let layout = TileLayout {
+            width: w,
+            height: h,
+            tile,
+            cell_x: cx,
+            cell_y: cy,
+        };
+        let got = run_in_memory(&layout, z, &mut shuffled(k as u64 + 9)).unwrap();
+        assert_same(&got, &want, &format!("jacksboro_fault, tile {tile}"));
+    }
+}
+
+#[test]
+fn products_round_trip_and_damage_is_refused() {
+    let (w, h) = (40, 37);
+    let z = basin_and_river(w, h, true);
+    let layout = TileLayout {
+        width: w,
+        height: h,
+        tile: 16,
+        cell_x: 1.0,
+        cell_y: 1.0,
+    };
+    let t = 4;
+    let (fill, graph) = phase1(&layout, t, &halo_window(&layout, t, &z)).unwrap();
+    let b = fill.to_bytes(t);
+    assert_eq!(
+        LocalFill::from_bytes(&b, &layout, t).unwrap().to_bytes(t),
+        b
+    );
+    let gb = graph.to_bytes(&layout, t);
+    let back = FillGraph::from_bytes(&gb, &layout, t).unwrap();
+    assert_eq!(back.edges, graph.edges);
+    // Another tile, a truncated file, a trailing byte, an absurd count: errors, no panic.
+    assert!(LocalFill::from_bytes(&b, &layout, 3).is_err());
+    assert!(LocalFill::from_bytes(&b[..b.len() - 1], &layout, t).is_err());
+    let mut long = b.clone();
+    long.push(0);
+    assert!(LocalFill::from_bytes(&long, &layout, t).is_err());
+    let mut huge = gb.clone();
+    let at = 32 + back.band_z.len() * 8;
+    huge[at..at + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+    let e = FillGraph::from_bytes(&huge, &layout, t).unwrap_err();
+    assert!(e.to_string().contains("count"), "{e}");
+    for cut in 0..gb.len() {
+        assert!(FillGraph::from_bytes(&gb[..cut], &layout, t).is_err());
+    }
+    let mut bad_label = b.clone();
+    let off = 32 + w.min(16) * 16 * 4;
+    bad_label[off..off + 4].copy_from_slice(&1_000_000u32.to_le_bytes());
+    assert!(LocalFill::from_bytes(&bad_label, &layout, t).is_err());
+}
+
+/// The basin's lake crosses tile edges, so phase 4 drains flats, and the river's flow crosses
+/// them, so inflows enter tiles: the test above exercises both.
+#[test]
+fn the_basin_sends_flats_and_inflows_through_phase_4() {
+    let (w, h) = (96, 90);
+    let z = basin_and_river(w, h, false);
+    let layout = TileLayout {
+        width: w,
+        height: h,
+        tile: 32,
+        cell_x: 30.0,
+        cell_y: 20.0,
+    };
+    let p1: Vec<_> = (0..layout.tasks())
+        .map(|t| phase1(&layout, t, &halo_window(&layout, t, &z)).unwrap())
+        .collect();
+    let graphs: Vec<FillGraph> = p1.iter().map(|p| p.1.clone()).collect();
+    let levels = phase2(&layout, &graphs).unwrap();
+    let ports: Vec<PortGraph> = (0..layout.tasks())
+        .map(|t| {
+            let near: Vec<(usize, &Levels)> = layout
+                .neighbourhood(t)
+                .into_iter()
+                .map(|u| (u, &levels[u]))
+                .collect();
+            phase3(&layout, t, &p1[t].0, &near).unwrap().1
+        })
+        .collect();
+    let pending: usize = ports.iter().map(|p| p.pending.len()).sum();
+    assert!(
+        pending > 500,
+        "{pending} cells of flats crossing tile edges"
+    );
+    let inflow = phase4(&layout, &ports).unwrap();
+    let entering = inflow.iter().filter(|i| !i.entries.is_empty()).count();
+    assert_eq!(entering, 9, "flow enters every tile");
+}
