@@ -100,6 +100,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .rasterize_with_progress(&settings, &progress)
         .with_context(|| format!("cannot rasterise {}", args.input.display()))?;
     drop(progress);
+    refuse_non_finite(hf.as_slice(), hf.width(), &win)
+        .with_context(|| format!("cannot rasterise {}", args.input.display()))?;
     let quality = match (&reference, &args.reference) {
         (Some(r), Some(p)) => {
             if (r.width(), r.height()) != (hf.width(), hf.height()) {
@@ -135,6 +137,23 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     #[allow(clippy::print_stdout)]
     {
         print!("{out}");
+    }
+    Ok(())
+}
+
+/// `Err` naming the first cell of `values` (a `width`-wide raster of the window `win`) that is
+/// not finite: a model whose values overflow (a tree of absurd constants or depths, a crafted
+/// file) must not become a raster of infinities or NaNs that other tools read as terrain. A
+/// model relief writes covers its whole grid, so it never has voids.
+fn refuse_non_finite(values: &[f32], width: usize, win: &Window) -> Result<()> {
+    if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+        bail!(
+            "the model evaluates to {} at output cell ({}, {}): out of the range of a 32-bit \
+             raster (a tree constant, depth or layer too large?); nothing written",
+            values[k],
+            win.x + k % width.max(1),
+            win.y + k / width.max(1)
+        );
     }
     Ok(())
 }

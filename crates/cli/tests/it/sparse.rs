@@ -486,3 +486,61 @@ fn compress_with_analytic_atoms_mixes_the_dictionary() {
     assert!(failed(&o).contains("voronoi"), "{}", stderr(&o));
     assert!(!bad.exists());
 }
+
+/// Issue 44 item 7: a tree of absurd values (a constant or a river depth of 1e308, a path at
+/// +-1e300, a cell of 1e-320 m) is refused by `tree build` naming the field, and writes
+/// nothing; a model that still overflows a 32-bit raster (two fields at the largest `f32`
+/// added, as a crafted file can hold) is refused by `decompress` instead of writing
+/// infinities.
+#[test]
+fn absurd_tree_values_are_refused_and_decompress_never_writes_infinities() {
+    let tmp = tempfile::tempdir().unwrap();
+    let spec = tmp.path().join("tree.json");
+    let out = tmp.path().join("tree.sct");
+    let grid = r#""width": 32, "height": 32, "cell_size": [10, 10]"#;
+    let river = |path: &str, depth: &str| {
+        format!(
+            r#"{{{grid}, "root": {{"add": [{{"constant": 100}}, {{"river": {{"path": {path},
+                "half_width": 3, "depth": {depth}}}}}]}}}}"#
+        )
+    };
+    for (json, field) in [
+        (
+            format!(r#"{{{grid}, "root": {{"constant": 1e308}}}}"#),
+            "constant",
+        ),
+        (river("[[0, 16], [31, 16]]", "1e308"), "depth"),
+        (river("[[-1e300, 16], [1e300, 16]]", "5"), "path"),
+        (
+            r#"{"width": 32, "height": 32, "cell_size": [1e-320, 1e-320],
+                "root": {"constant": 1}}"#
+                .to_string(),
+            "cell_size",
+        ),
+    ] {
+        std::fs::write(&spec, &json).unwrap();
+        fails_with(&relief!["tree", "build", spec, out], &[field], &[&out]);
+    }
+    // A valid tree of bounded values still builds.
+    std::fs::write(&spec, river("[[0, 16], [31, 16]]", "5")).unwrap();
+    relief_ok!["tree", "build", spec, out];
+
+    use relief_heightfield::Kernel;
+    use relief_sparse_core::{Field, Node};
+    let huge = Field::new(4, 4, vec![f32::MAX; 16], [0.0, 0.0], 8.0, Kernel::Keys).unwrap();
+    let sct = Sct::new(
+        Node::Add(vec![Node::Field(huge.clone()), Node::Field(huge)]),
+        32,
+        32,
+        (10.0, 10.0),
+    )
+    .unwrap();
+    let model = tmp.path().join("overflow.sct");
+    std::fs::write(&model, sct.to_bytes().unwrap()).unwrap();
+    let raster = tmp.path().join("overflow.tif");
+    fails_with(
+        &relief!["decompress", model, raster],
+        &["evaluates to inf", "nothing written"],
+        &[&raster],
+    );
+}

@@ -88,6 +88,36 @@ pub fn window_outside(win: &Window, (width, height): (usize, usize), of: &str) -
     Some(format!("{x},{y},{w},{h} ({of} {width} x {height})"))
 }
 
+/// Largest `|value|` in metres of an elevation a tree states (a constant, a river's depth,
+/// bed or floor): a million kilometres, far beyond any terrain, so a larger value is a unit or
+/// typing error, and sums of such values stay finite in an `f32` raster.
+pub const MAX_ABS_ELEVATION: f64 = 1e9;
+/// Largest `|coordinate|` in terrain cells of a river vertex, a region or a falloff: 2^30,
+/// 64 times the widest grid.
+pub const MAX_ABS_COORD: f64 = (1u64 << 30) as f64;
+/// Smallest river half width in terrain cells: a thousandth of a cell (narrower ones only
+/// overflow the bed profile `depth (d / w)^2` far from the axis).
+pub const MIN_HALF_WIDTH: f64 = 1e-3;
+/// Cell sizes of a tree's grid, metres: from a micrometre to a million kilometres.
+pub const CELL_SIZE_RANGE: std::ops::RangeInclusive<f64> = 1e-6..=1e9;
+
+/// `Err` naming `name` and `v` unless `v` is finite and `|v| <= limit`.
+pub(crate) fn check_bounded(name: &'static str, v: f64, limit: f64) -> Result<()> {
+    if v.is_finite() && v.abs() <= limit {
+        Ok(())
+    } else {
+        Err(SparseError::param(
+            name,
+            v,
+            if limit == MAX_ABS_ELEVATION {
+                "must be finite and within +-1e9 metres"
+            } else {
+                "must be finite and within +-2^30 cells"
+            },
+        ))
+    }
+}
+
 /// Settings of [`Sct::rasterize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RasterSettings {
@@ -162,11 +192,11 @@ impl Sct {
             ));
         }
         let (cx, cy) = cell_size;
-        if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
+        if !(CELL_SIZE_RANGE.contains(&cx) && CELL_SIZE_RANGE.contains(&cy)) {
             return Err(SparseError::param(
                 "cell_size",
                 format!("{cx} x {cy}"),
-                "must be finite and > 0",
+                "must be in [1e-6, 1e9] metres",
             ));
         }
         root.check()?;

@@ -125,9 +125,7 @@ impl Node {
             return c.iter().try_for_each(Node::check);
         }
         match self {
-            Node::Constant(v) if !v.is_finite() => {
-                Err(SparseError::param("constant", v, "must be finite"))
-            }
+            Node::Constant(v) => super::check_bounded("constant", *v, super::MAX_ABS_ELEVATION),
             Node::Replace {
                 base,
                 overlay,
@@ -135,11 +133,11 @@ impl Node {
                 falloff,
             } => {
                 region.check()?;
-                if !(falloff.is_finite() && *falloff >= 0.0) {
+                if !(falloff.is_finite() && *falloff >= 0.0 && *falloff <= super::MAX_ABS_COORD) {
                     return Err(SparseError::param(
                         "falloff",
                         falloff,
-                        "must be finite and >= 0",
+                        "must be finite and in [0, 2^30] cells",
                     ));
                 }
                 base.check()?;

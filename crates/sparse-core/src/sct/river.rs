@@ -76,10 +76,10 @@ impl Region {
     pub(super) fn check(&self) -> Result<()> {
         let ok = match *self {
             Region::Rect { x0, y0, x1, y1 } => {
-                [x0, y0, x1, y1].iter().all(|v| v.is_finite()) && x0 <= x1 && y0 <= y1
+                [x0, y0, x1, y1].iter().all(|v| v.abs() <= MAX_ABS_COORD) && x0 <= x1 && y0 <= y1
             }
             Region::Disk { cx, cy, r } => {
-                cx.is_finite() && cy.is_finite() && r.is_finite() && r >= 0.0
+                [cx, cy, r].iter().all(|v| v.abs() <= MAX_ABS_COORD) && r >= 0.0
             }
         };
         if ok {
@@ -88,7 +88,7 @@ impl Region {
             Err(SparseError::param(
                 "region",
                 format!("{self:?}"),
-                "coordinates must be finite, x0 <= x1, y0 <= y1, r >= 0",
+                "coordinates must be finite and within +-2^30 cells, x0 <= x1, y0 <= y1, r >= 0",
             ))
         }
     }
@@ -159,17 +159,30 @@ impl River {
             if let Some(i) = b.iter().position(|v| !v.is_finite()) {
                 return Err(SparseError::non_finite("bed elevations", i));
             }
+            for &v in b {
+                check_bounded("bed", v, MAX_ABS_ELEVATION)?;
+            }
         }
         SparseError::check_points("river path", &path)?;
-        if let Some(&w) = half_width.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
+        for p in &path {
+            check_bounded("path", p[0], MAX_ABS_COORD)?;
+            check_bounded("path", p[1], MAX_ABS_COORD)?;
+        }
+        if let Some(&w) = half_width
+            .iter()
+            .find(|w| !(w.is_finite() && **w >= MIN_HALF_WIDTH && **w <= MAX_ABS_COORD))
+        {
             return Err(SparseError::param(
                 "half_width",
                 w,
-                "must be finite and > 0",
+                "must be finite and in [1e-3, 2^30] cells",
             ));
         }
         if let Some(&d) = depth.iter().find(|d| !(d.is_finite() && **d >= 0.0)) {
             return Err(SparseError::param("depth", d, "must be finite and >= 0"));
+        }
+        for &d in &depth {
+            check_bounded("depth", d, MAX_ABS_ELEVATION)?;
         }
         let wmax = half_width.iter().fold(0.0f64, |m, &w| m.max(w));
         let mut bbox = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
