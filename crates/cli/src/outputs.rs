@@ -98,14 +98,18 @@ fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
     v
 }
 
-/// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32` and
-/// the `.prj` of an ESRI ASCII grid.
+/// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32`, the
+/// `.prj` of an ESRI ASCII grid and the `FILE.png.json` / `FILE.r16.json` of a 16-bit
+/// heightmap (its cell size and height mapping): an output may not replace any of them
+/// (`convert h.png h.png.f32` would write its own sidecar over `h.png.json`).
 fn read_files(path: &Path) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
     if ext_of(path) == "f32" {
         v.push(path.with_extension("json"));
     } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
         v.push(path.with_extension("prj"));
+    } else if crate::ctx::is_heightmap16(path) {
+        v.push(crate::ctx::heightmap_sidecar(path));
     }
     v
 }
@@ -291,6 +295,26 @@ mod tests {
         let tif = touched(d.path(), "in.tif");
         let e = check_outputs(&[&tif], &[(&tif, OutKind::Raster)], true).unwrap_err();
         assert!(e.to_string().contains("is the input"), "{e}");
+    }
+
+    #[test]
+    fn an_output_sidecar_over_an_input_sidecar_is_refused() {
+        // Issue 44 item 9: `convert h.png h.png.f32` wrote h.png.f32's sidecar over
+        // h.png.json, the input heightmap's own, under --force.
+        let d = tempfile::tempdir().unwrap();
+        let png = touched(d.path(), "h.png");
+        let side = touched(d.path(), "h.png.json");
+        let out = d.path().join("h.png.f32");
+        let e = check_outputs(&[&png], &[(&out, OutKind::Raster)], true).unwrap_err();
+        assert!(e.to_string().contains("would overwrite the input"), "{e}");
+        // The sidecar itself named as an output, and an .r16's.
+        assert!(check_outputs(&[&png], &[(&side, OutKind::Json)], true).is_err());
+        let r16 = touched(d.path(), "h.r16");
+        let out = d.path().join("h.r16.f32");
+        assert!(check_outputs(&[&r16], &[(&out, OutKind::Raster)], true).is_err());
+        // Another name is fine.
+        let out = d.path().join("g.f32");
+        assert!(check_outputs(&[&png], &[(&out, OutKind::Raster)], true).is_ok());
     }
 
     #[test]

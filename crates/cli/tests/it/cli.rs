@@ -729,3 +729,22 @@ fn cog_flag_writes_cloud_optimized_geotiffs() {
     assert!(!res.status.success() && stderr(&res).contains("--cog"));
     assert!(!png.exists());
 }
+
+/// Issue 44 item 9: `--force convert h.png h.png.f32` wrote the `.f32`'s sidecar over
+/// `h.png.json`, the input heightmap's own (its cell size and height mapping); it is refused
+/// and the sidecar is left as it was.
+#[test]
+fn force_never_replaces_an_input_heightmap_sidecar() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("h.png");
+    relief_ok!["convert", relief_testdata::fixture("grandcanyon.tif"), png];
+    let side = tmp.path().join("h.png.json");
+    let before = std::fs::read(&side).unwrap();
+    let out = tmp.path().join("h.png.f32");
+    fails_with(
+        &relief!["--force", "convert", png, out],
+        &["would overwrite the input"],
+        &[&out],
+    );
+    assert_eq!(std::fs::read(&side).unwrap(), before);
+}
