@@ -35,6 +35,11 @@ pub(crate) struct Manifest {
     pub(crate) tiles_y: usize,
     /// Number of tasks (one per tile, row-major from the north-west tile).
     pub(crate) tasks: usize,
+    /// Phases of a multi-phase plan (`flow`: 5, each one task per tile or one task); absent
+    /// (0) for the one-phase plans of the windowable commands, whose plan ids it leaves as
+    /// they were.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub(crate) phases: usize,
     /// SHA-256 of the plan (every field above), recorded by every tile.
     pub(crate) plan_id: String,
 }
@@ -79,6 +84,10 @@ pub(crate) const INDEX_VARS: [&str; 3] = [
     "JOB_COMPLETION_INDEX",
     "AWS_BATCH_JOB_ARRAY_INDEX",
 ];
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
+}
 
 pub(crate) fn hex(d: impl AsRef<[u8]>) -> String {
     d.as_ref().iter().map(|b| format!("{b:02x}")).collect()
@@ -208,6 +217,15 @@ pub(crate) fn tile_state(dir: &Path, m: &Manifest, i: usize) -> TileState {
 
 /// A GDAL VRT over the tiles (paths relative to the VRT).
 pub(crate) fn write_vrt(path: &Path, m: &Manifest) -> Result<()> {
+    write_vrt_named(path, m, &|i| format!("tiles/{}", tile_name(i)))
+}
+
+/// A GDAL VRT over the tiles `name(i)` (paths relative to the plan folder, where the VRT is).
+pub(crate) fn write_vrt_named(
+    path: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+) -> Result<()> {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(
@@ -240,10 +258,10 @@ pub(crate) fn write_vrt(path: &Path, m: &Manifest) -> Result<()> {
         let [x, y, w, h] = m.window(i);
         let _ = write!(
             s,
-            "    <SimpleSource>\n      <SourceFilename relativeToVRT=\"1\">tiles/{}</SourceFilename>\n      \
+            "    <SimpleSource>\n      <SourceFilename relativeToVRT=\"1\">{}</SourceFilename>\n      \
              <SourceBand>1</SourceBand>\n      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{w}\" ySize=\"{h}\"/>\n      \
              <DstRect xOff=\"{x}\" yOff=\"{y}\" xSize=\"{w}\" ySize=\"{h}\"/>\n    </SimpleSource>\n",
-            tile_name(i)
+            name(i)
         );
     }
     s.push_str("  </VRTRasterBand>\n</VRTDataset>\n");
@@ -276,6 +294,7 @@ mod tests {
             tiles_x: 4,
             tiles_y: 2,
             tasks: 8,
+            phases: 0,
             plan_id: String::new(),
         };
         let mut seen = vec![0u8; 100 * 37];
@@ -326,6 +345,7 @@ mod tests {
             tiles_x: 8,
             tiles_y: 8,
             tasks: 64,
+            phases: 0,
             plan_id: String::new(),
         };
         m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m).unwrap()));

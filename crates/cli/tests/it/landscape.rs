@@ -214,13 +214,13 @@ fn flow_over_max_memory_is_refused_before_the_run() {
     assert!(!out.exists());
 }
 
-/// `tile plan` refuses the drainage commands, saying why, and writes no plan.
+/// `tile plan` refuses the drainage commands without an exact multi-phase plan (erode, masks),
+/// saying why, and writes no plan (`flow` has one: `tile_flow.rs`).
 #[test]
 fn tile_plan_refuses_drainage_commands() {
     let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
     let plan = tmp.path().join("plan");
     for cmd in [
-        words("flow {} -o {}", &[&input, &tmp.path().join("f")]),
         words("erode {} -o {}", &[&input, &tmp.path().join("e.tif")]),
         words("masks {} -o {}", &[&input, &tmp.path().join("m")]),
     ] {

@@ -10,5 +10,6 @@ mod landscape;
 mod patch;
 mod sparse;
 mod tile;
+mod tile_flow;
 mod volume;
 mod wavelet;

@@ -25,6 +25,10 @@
 //!   Cloud-Optimized GeoTIFF with overviews under `--cog`) with one band of tiles in memory, and
 //!   writes `DIR/mosaic.vrt`, a GDAL VRT over the tiles.
 //!
+//! `relief tile plan DIR -- flow DEM -o OUT_DIR` plans drainage in five phases instead
+//! ([`flow`]): `tile run --phase P`, `tile status` names the phase to run next, and the mosaic
+//! writes `OUT_DIR/{filled,direction,area}.tif`, equal bit for bit to `relief flow`'s.
+//!
 //! Every method renders a window exactly as the same window of a full run (an `.sct` window, a
 //! wavelet window), so tiles need no halo and the mosaic equals the single run bit for bit,
 //! whatever the tile size, the task order, kills and retries; seeds never depend on the task.
@@ -41,6 +45,7 @@ use sha2::{Digest, Sha256};
 use crate::ctx::Ctx;
 use crate::tile_manifest::*;
 
+mod flow;
 mod mosaic;
 mod plan;
 mod task;
@@ -78,9 +83,11 @@ struct PlanArgs {
     /// Tile side in output pixels (a multiple of 16).
     #[arg(long, default_value_t = 2048)]
     tile: usize,
-    /// The command to split, after `--`: amplify, refine or decompress with its arguments;
-    /// its output must be a GeoTIFF (.tif) and it must not have --window. flow, masks and erode
-    /// are refused: drainage is global, a tile cannot know the area upstream of it.
+    /// The command to split, after `--`: amplify, refine or decompress with its arguments
+    /// (its output must be a GeoTIFF (.tif) and it must not have --window), or flow (a
+    /// five-phase plan of filling, D8 directions and drainage area, equal to the single run;
+    /// --depressions fill and --directions d8 only). masks and erode are refused: drainage is
+    /// global and they have no exact multi-phase plan yet.
     #[arg(last = true, required = true, value_name = "COMMAND")]
     command: Vec<String>,
 }
@@ -93,6 +100,10 @@ struct RunArgs {
     /// Task index (0-based; default: from the scheduler's environment).
     #[arg(long)]
     index: Option<usize>,
+    /// Phase of a multi-phase (flow) plan, 1 to 5 (default: the first incomplete one); a
+    /// phase refuses to run while an earlier one is incomplete.
+    #[arg(long)]
+    phase: Option<usize>,
 }
 
 /// Arguments of `relief tile status`.

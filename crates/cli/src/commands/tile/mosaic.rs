@@ -5,6 +5,9 @@ use super::*;
 pub(super) fn status(a: StatusArgs, ctx: &Ctx) -> Result<()> {
     let dir = absolute(&a.dir)?;
     let m = load_manifest(&dir)?;
+    if m.phases > 0 {
+        return super::flow::status(&dir, &m, ctx);
+    }
     let (mut missing, mut corrupt) = (Vec::new(), Vec::new());
     for i in 0..m.tasks {
         match tile_state(&dir, &m, i) {
@@ -63,6 +66,9 @@ pub(super) fn ranges(v: &[usize]) -> String {
 pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     let dir = absolute(&a.dir)?;
     let m = load_manifest(&dir)?;
+    if m.phases > 0 {
+        return super::flow::mosaic(&dir, &m, &a, ctx);
+    }
     let bad: Vec<usize> = (0..m.tasks)
         .filter(|&i| tile_state(&dir, &m, i) != TileState::Done)
         .collect();
@@ -87,15 +93,44 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
         ctx.note(format!("wrote {}", vrt.display()));
         return Ok(());
     }
+    stream_tiles(
+        &dir,
+        &m,
+        &|i| format!("tiles/{}", tile_name(i)),
+        &out,
+        a.bigtiff,
+        ctx,
+    )?;
+    ctx.note(format!(
+        "wrote {} ({} x {}{}) and {}",
+        out.display(),
+        m.output.width,
+        m.output.height,
+        if ctx.cog { ", cloud-optimized" } else { "" },
+        vrt.display()
+    ));
+    Ok(())
+}
+
+/// Streams the tiles `name(i)` (relative to the plan folder) into the GeoTIFF (or COG) `out`,
+/// one band of tiles in memory.
+pub(super) fn stream_tiles(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    out: &Path,
+    bigtiff: bool,
+    ctx: &Ctx,
+) -> Result<()> {
     let opts = relief_io::TiledOptions {
         tile: 512,
         compression: ctx.write_options().compression,
         cog: ctx.cog,
-        bigtiff: a.bigtiff,
+        bigtiff,
     };
     let cell = (m.output.cell_size[0], m.output.cell_size[1]);
     let mut writer = relief_io::TiledGeoTiffWriter::create(
-        &out,
+        out,
         m.output.width,
         m.output.height,
         cell,
@@ -112,7 +147,7 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     for r in 0..m.tiles_y {
         let mut readers = (0..m.tiles_x)
             .map(|c| {
-                let p = dir.join("tiles").join(tile_name(r * m.tiles_x + c));
+                let p = dir.join(name(r * m.tiles_x + c));
                 relief_io::GeoTiffRowReader::open(&p)
                     .with_context(|| format!("cannot read {}", p.display()))
             })
@@ -148,13 +183,5 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
         .finish()
         .with_context(|| format!("cannot write {}", out.display()))?;
     drop(progress);
-    ctx.note(format!(
-        "wrote {} ({} x {}{}) and {}",
-        out.display(),
-        m.output.width,
-        m.output.height,
-        if ctx.cog { ", cloud-optimized" } else { "" },
-        vrt.display()
-    ));
     Ok(())
 }

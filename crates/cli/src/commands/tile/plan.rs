@@ -85,7 +85,7 @@ pub(super) fn takes_value(prev: &str) -> bool {
 
 /// Commands that route flow over the whole DEM: a window of their output depends on every
 /// cell upstream of it, so they are not windowable.
-pub(super) const GLOBAL_DRAINAGE: [&str; 3] = ["flow", "masks", "erode"];
+pub(super) const GLOBAL_DRAINAGE: [&str; 2] = ["masks", "erode"];
 
 pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     if a.tile < 16 || !a.tile.is_multiple_of(16) || a.tile > 1 << 15 {
@@ -94,6 +94,9 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
             a.tile
         );
     }
+    if a.command.first().is_some_and(|c| c == "flow") {
+        return super::flow::plan(&a, ctx);
+    }
     if let Some(global) = a
         .command
         .first()
@@ -101,8 +104,8 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     {
         bail!(
             "`relief {global}` cannot be planned as tiles: drainage is global, a tile cannot \
-             know the area that drains into it from upstream (an exact multi-phase plan will \
-             do it later); run `relief {global}` on the whole DEM"
+             know the area that drains into it from upstream (only `flow` has an exact \
+             multi-phase plan); run `relief {global}` on the whole DEM"
         );
     }
     let mut inner = Inner::try_parse_from(&a.command)
@@ -194,6 +197,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
         tiles_x: tx,
         tiles_y: ty,
         tasks: tx * ty,
+        phases: 0,
         plan_id: String::new(),
     };
     m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m)?));

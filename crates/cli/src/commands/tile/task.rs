@@ -24,6 +24,12 @@ pub(super) fn task_index(given: Option<usize>) -> Result<usize> {
 pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
     let dir = absolute(&a.dir)?;
     let m = load_manifest(&dir)?;
+    if m.phases > 0 {
+        return super::flow::run_task(&dir, &m, &a, ctx);
+    }
+    if a.phase.is_some_and(|p| p != 1) {
+        bail!("this plan has one phase (a task per tile): --phase must be 1 or absent");
+    }
     let i = task_index(a.index)?;
     if i >= m.tasks {
         bail!(

@@ -1,0 +1,287 @@
+//! `relief tile plan -- flow`: the five-phase drainage plan, run phase after phase as shuffled
+//! tasks two at a time (what `sbatch --dependency=afterok` chains do), with a killed task, a
+//! phase started too early and a damaged tile, mosaics into `relief flow`'s filled, direction
+//! and area rasters bit for bit, on a real DEM crop and on a synthetic basin spanning 3 x 3
+//! tiles with a river across every tile edge.
+
+use std::path::Path;
+use std::process::{Child, Stdio};
+
+use relief_heightfield::Heightfield;
+
+use crate::common::*;
+
+const PRODUCTS: [&str; 3] = ["filled", "direction", "area"];
+
+fn spawn(dir: &Path, phase: usize, i: usize) -> Child {
+    command()
+        .args(["tile", "run", s(dir), "--phase", &phase.to_string()])
+        .args(["--index", &i.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn task")
+}
+
+/// Every phase in turn; the per-tile phases as shuffled tasks two at a time.
+fn run_phases(dir: &Path, n: usize, seed: u64) {
+    for phase in 1..=5 {
+        let mut order: Vec<usize> = if phase == 2 || phase == 4 {
+            vec![0]
+        } else {
+            (0..n).collect()
+        };
+        let mut x = seed + phase as u64;
+        for i in (1..order.len()).rev() {
+            let z = relief_heightfield::rng::splitmix64(x);
+            x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            order.swap(i, (z % (i as u64 + 1)) as usize);
+        }
+        for pair in order.chunks(2) {
+            let children: Vec<Child> = pair.iter().map(|&i| spawn(dir, phase, i)).collect();
+            for c in children {
+                let out = c.wait_with_output().unwrap();
+                assert!(
+                    out.status.success(),
+                    "phase {phase} task failed: {}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
+            }
+        }
+    }
+}
+
+fn assert_same(single: &Path, tiled: &Path) {
+    for p in PRODUCTS {
+        let (a, b) = (
+            read(&single.join(format!("{p}.tif"))),
+            read(&tiled.join(format!("{p}.tif"))),
+        );
+        assert_eq!((a.width(), a.height()), (b.width(), b.height()), "{p}");
+        let differ = a
+            .as_slice()
+            .iter()
+            .zip(b.as_slice())
+            .filter(|(x, y)| x.to_bits() != y.to_bits())
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{differ} cells of {p} differ from the single run"
+        );
+        assert_eq!(a.cell_size(), b.cell_size());
+        assert_eq!(
+            a.georef().map(|g| (g.geotransform, g.crs.clone())),
+            b.georef().map(|g| (g.geotransform, g.crs.clone())),
+            "{p}: georeference"
+        );
+    }
+}
+
+fn tasks(dir: &Path) -> usize {
+    json(&dir.join("manifest.json"))["tasks"].as_u64().unwrap() as usize
+}
+
+/// Single run, plan, a killed phase-1 task, phase 3 refused before phase 2, every phase as
+/// shuffled tasks, a damaged tile found by status and redone, mosaic equal to the single run.
+fn cycle(dem: &Path, tile: usize, seed: u64) {
+    let tmp = tempfile::tempdir().unwrap();
+    let single = tmp.path().join("single");
+    let tiled = tmp.path().join("tiled");
+    let dir = tmp.path().join("plan");
+    relief_ok!["flow", dem, "-o", &single];
+    relief_ok![
+        "tile",
+        "plan",
+        &dir,
+        "--tile",
+        tile.to_string(),
+        "--",
+        "flow",
+        dem,
+        "-o",
+        &tiled
+    ];
+    let n = tasks(&dir);
+    assert!(n >= 4, "{n} tiles");
+    let st = relief!["tile", "status", &dir];
+    assert!(!st.status.success());
+    let text = String::from_utf8_lossy(&st.stdout).to_string();
+    assert!(text.contains("next: phase 1"), "{text}");
+    // A phase whose predecessor is incomplete refuses to run, naming it.
+    fails_with(
+        &relief!["tile", "run", &dir, "--phase", "3", "--index", "0"],
+        &["phase 1 is incomplete"],
+        &[],
+    );
+    // A task killed mid-run leaves nothing that counts as done.
+    let mut c = spawn(&dir, 1, 1);
+    std::thread::sleep(std::time::Duration::from_millis(40));
+    let _ = c.kill();
+    let _ = c.wait();
+    run_phases(&dir, n, seed);
+    relief_ok!["tile", "status", &dir];
+    // A task already done is a no-op; a single phase is task 0 only.
+    relief_ok!["tile", "run", &dir, "--phase", "3", "--index", "0"];
+    fails_with(
+        &relief!["tile", "run", &dir, "--phase", "2", "--index", "1"],
+        &["one task"],
+        &[],
+    );
+    // A damaged tile of the last phase is reported, refused by the mosaic, and redone.
+    let t2 = dir.join("tiles/area-000002.tif");
+    let mut bytes = std::fs::read(&t2).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x55;
+    std::fs::write(&t2, &bytes).unwrap();
+    let st = relief!["tile", "status", &dir];
+    let text = String::from_utf8_lossy(&st.stdout).to_string();
+    assert!(
+        !st.status.success() && text.contains("corrupt: 2") && text.contains("next: phase 5"),
+        "{text}"
+    );
+    assert!(!relief!["tile", "mosaic", &dir].status.success());
+    assert!(!tiled.exists());
+    // Without --phase, run picks the first incomplete phase.
+    relief_ok!["tile", "run", &dir, "--index", "2"];
+    relief_ok!["tile", "mosaic", &dir];
+    assert_same(&single, &tiled);
+    for p in PRODUCTS {
+        assert!(dir.join(format!("mosaic-{p}.vrt")).exists());
+    }
+}
+
+/// A real DEM crop (alps_dem, 300 x 200 cells of 42.6 x 61.8 m): tiles of 64 and 48 cells.
+#[test]
+fn flow_plan_equals_the_single_run_on_a_real_dem() {
+    let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 300, 200) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = write(tmp.path(), "alps.tif", &hf);
+    cycle(&dem, 64, 3);
+    cycle(&dem, 48, 11);
+}
+
+/// A basin spanning 3 x 3 tiles of 32 cells (filled to a lake over nine tiles) and a river
+/// winding across every tile edge, integer elevations (flats everywhere) and a few voids.
+#[test]
+fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
+    let (w, h) = (96, 96);
+    let data: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let u =
+                relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(5, i as u64, 0, 0));
+            let (dx, dy) = ((x - 48.0) / 96.0, (y - 48.0) / 96.0);
+            let r = (dx * dx + dy * dy).sqrt();
+            let bowl = if r < 0.3 {
+                10.0 + 60.0 * r
+            } else {
+                28.0 + (r - 0.3) * 120.0
+            };
+            let path = 96.0 * (0.5 + 0.42 * (x / 96.0 * 9.0).sin());
+            let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
+            let z = if r < 0.3 {
+                bowl
+            } else if (y - path).abs() < 3.0 {
+                river
+            } else {
+                bowl.min(river + 6.0)
+            };
+            if u < 0.005 {
+                f32::NAN
+            } else {
+                (z + u * 2.0).floor()
+            }
+        })
+        .collect();
+    let hf = Heightfield::new(w, h, data, 25.0, 25.0).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = write(tmp.path(), "basin.tif", &hf);
+    cycle(&dem, 32, 5);
+    cycle(&dem, 16, 17);
+}
+
+/// What a flow plan cannot reproduce exactly is refused by name, and nothing is planned.
+#[test]
+fn flow_plans_refuse_what_they_cannot_tile_exactly() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
+    let plan = tmp.path().join("plan");
+    let out = tmp.path().join("out");
+    for (extra, want) in [
+        (vec!["--depressions", "epsilon"], "--depressions epsilon"),
+        (vec!["--depressions", "breach"], "--depressions breach"),
+        (vec!["--directions", "mfd"], "--directions mfd"),
+        (vec!["--json"], "--json"),
+    ] {
+        let mut args = words(
+            "tile plan {} --tile 32 -- flow {} -o {}",
+            &[&plan, &input, &out],
+        );
+        args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+        fails_with(&relief(&args), &[want], &[&plan, &out]);
+    }
+    fails_with(
+        &relief![
+            "tile", "plan", &plan, "--tile", "20", "--", "flow", &input, "-o", &out
+        ],
+        &["--tile"],
+        &[&plan],
+    );
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
+}
+
+/// Planted and damaged plan files are refused by name: a link in place of a product, an
+/// oversized product, a record of another plan.
+#[test]
+fn flow_plan_files_are_untrusted() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 48));
+    let plan = tmp.path().join("plan");
+    let out = tmp.path().join("out");
+    relief_ok![
+        "tile", "plan", &plan, "--tile", "32", "--", "flow", &input, "-o", &out
+    ];
+    for i in 0..4 {
+        relief_ok![
+            "tile",
+            "run",
+            &plan,
+            "--phase",
+            "1",
+            "--index",
+            i.to_string()
+        ];
+    }
+    relief_ok!["tile", "run", &plan, "--phase", "2"];
+    // A link planted in place of a phase-1 product: not a regular file, refused.
+    let fill = plan.join("phase1/fill-000000.bin");
+    let secret = tmp.path().join("secret.bin");
+    std::fs::rename(&fill, &secret).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&secret, &fill).unwrap();
+    #[cfg(unix)]
+    fails_with(
+        &relief!["tile", "run", &plan, "--phase", "3", "--index", "0"],
+        &["phase 1 is incomplete"],
+        &[],
+    );
+    std::fs::remove_file(&fill).ok();
+    // An oversized file in place of a product.
+    std::fs::write(&fill, vec![0u8; 64 * 80 * 80]).unwrap();
+    let st = relief!["tile", "status", &plan];
+    assert!(String::from_utf8_lossy(&st.stdout).contains("corrupt: 0"));
+    relief_ok!["tile", "run", &plan, "--phase", "1", "--index", "0"];
+    // A record copied from another plan does not count.
+    let rec = plan.join("phase1/task-000001.json");
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let id = json(&plan.join("manifest.json"))["plan_id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    std::fs::write(&rec, text.replace(&id, &"0".repeat(64))).unwrap();
+    fails_with(
+        &relief!["tile", "run", &plan, "--phase", "3", "--index", "1"],
+        &["phase 1 is incomplete", "1"],
+        &[],
+    );
+}
