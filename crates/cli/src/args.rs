@@ -17,7 +17,8 @@ pub(crate) struct ReadArgs {
     #[arg(long)]
     pub(crate) height: Option<usize>,
     /// Cell size in metres, `X` or `X,Y`, for inputs that do not store one (PNG, EXR, raw,
-    /// NPY); overrides a stored one.
+    /// NPY; without it they get 1 m cells and a warning, and `volume` refuses them); overrides
+    /// a stored one, and a georeference follows (its pixel size scaled about the centre).
     #[arg(long, value_parser = parse_cell_size)]
     pub(crate) cell_size: Option<(f64, f64)>,
     /// Largest input raster accepted, in cells (default 268435456 = 2^28, 1 GiB of f32): a
@@ -32,6 +33,11 @@ pub(crate) struct ReadArgs {
     /// `terrain-rgb` (Mapbox Terrain-RGB colour PNG).
     #[arg(long, value_enum, default_value_t = PngEncoding::Auto)]
     pub(crate) png_encoding: PngEncoding,
+    /// Whether reading warns that the cell size is assumed (a PNG, Terrain-RGB, EXR, raw or
+    /// NPY file without `--cell-size`): set for a command's own input flags, off in
+    /// `ReadArgs::default()`, which auxiliary rasters (painted maps, sketches) are read with.
+    #[arg(skip = true)]
+    pub(crate) warn_assumed_cell: bool,
 }
 
 /// `--png-encoding` values.

@@ -10,7 +10,12 @@ use relief_heightfield::metrics;
 use crate::ctx::Ctx;
 
 /// The description of a raster as JSON (`relief info --json`).
-pub(crate) fn raster_json(file: &Path, raster: &relief_io::Raster) -> serde_json::Value {
+/// `cell_assumed`: the file stores no cell size and none was given (the 1 m stand-in).
+pub(crate) fn raster_json(
+    file: &Path,
+    raster: &relief_io::Raster,
+    cell_assumed: bool,
+) -> serde_json::Value {
     let hf = &raster.heightfield;
     let (cx, cy) = hf.cell_size();
     let stats = metrics::stats(hf).ok();
@@ -23,6 +28,7 @@ pub(crate) fn raster_json(file: &Path, raster: &relief_io::Raster) -> serde_json
         "nodata": raster.nodata,
         "stored_south_up": raster.rows_flipped,
         "cell_size_m": [cx, cy],
+        "cell_size_assumed": cell_assumed,
         "crs": g.and_then(|g| g.crs.clone()),
         "epsg": g
             .and_then(|g| g.crs.as_deref())
@@ -39,7 +45,8 @@ pub(crate) fn raster_json(file: &Path, raster: &relief_io::Raster) -> serde_json
 }
 
 /// The description of a raster as text (`relief info`).
-pub(crate) fn raster_text(file: &Path, raster: &relief_io::Raster) -> String {
+/// (`cell_assumed` as in [`raster_json`].)
+pub(crate) fn raster_text(file: &Path, raster: &relief_io::Raster, cell_assumed: bool) -> String {
     let hf = &raster.heightfield;
     let (cx, cy) = hf.cell_size();
     let mut out = String::new();
@@ -64,7 +71,12 @@ pub(crate) fn raster_text(file: &Path, raster: &relief_io::Raster) -> String {
         hf.height()
     ));
     out.push_str(&format!(
-        "cell size:   {cx:.3} x {cy:.3} m (east-west x north-south)\n"
+        "cell size:   {cx:.3} x {cy:.3} m (east-west x north-south){}\n",
+        if cell_assumed {
+            "; ASSUMED: the file stores none (pass --cell-size)"
+        } else {
+            ""
+        }
     ));
     match metrics::stats(hf) {
         Ok(s) => out.push_str(&format!(

@@ -161,27 +161,6 @@ pub(crate) fn preflight(
     );
     let coarse_cells = coarse.0 as f64 * coarse.1 as f64;
     let here = settings.steps - usize::from(out.last_step_tasked);
-    // Each x4 step computed here places its primitives on one grid over its whole input
-    // (a tasked last step only over a task's window); refused in the user's terms, not
-    // by the step's internal settings.
-    let geometry = settings.coarse_geometry();
-    for t in 0..here {
-        let m = 4usize.pow(t as u32);
-        let (w, h) = (coarse.0.saturating_mul(m), coarse.1.saturating_mul(m));
-        if geometry.grid(w, h).is_err() {
-            bail!(
-                "{command}: a {} x {} input is too large for x{}: its x4 step {} of {} would \
-                 add detail to {w} x {h} cells, more than one step can (at most 2^24 detail \
-                 primitives); use a smaller {} or a smaller input",
-                coarse.0,
-                coarse.1,
-                4u64.saturating_pow(settings.steps as u32),
-                t + 1,
-                settings.steps,
-                out.steps_flag
-            );
-        }
-    }
     let mut peaks: Vec<Vec<crate::memory::Part>> = Vec::new();
     for t in 0..here {
         let c = coarse_cells * 16f64.powi(t as i32);
@@ -243,7 +222,29 @@ pub(crate) fn preflight(
         )]);
     }
     let refs: Vec<&[crate::memory::Part]> = peaks.iter().map(Vec::as_slice).collect();
-    ctx.check_memory(command, &refs)
+    ctx.check_memory(command, &refs)?;
+    // Within the limits, each x4 step computed here places its primitives on one grid over
+    // its whole input (a tasked last step only over a task's window): refused in the user's
+    // terms, not by the step's internal settings.
+    let geometry = settings.coarse_geometry();
+    for t in 0..here {
+        let m = 4usize.pow(t as u32);
+        let (w, h) = (coarse.0.saturating_mul(m), coarse.1.saturating_mul(m));
+        if geometry.grid(w, h).is_err() {
+            bail!(
+                "{command}: a {} x {} input is too large for x{}: its x4 step {} of {} would \
+                 add detail to {w} x {h} cells, more than one step can (at most 2^24 detail \
+                 primitives); use a smaller {} or a smaller input",
+                coarse.0,
+                coarse.1,
+                4u64.saturating_pow(settings.steps as u32),
+                t + 1,
+                settings.steps,
+                out.steps_flag
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Whether `path` names a `.sct` model (by extension).

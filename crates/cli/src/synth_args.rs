@@ -292,7 +292,12 @@ impl SynthArgs {
             inputs.exemplars.push(read(p, "exemplar")?);
         }
         if let Some(path) = self.guide.as_deref().or(self.guide_from.as_deref()) {
-            let raster = crate::commands::read_raster(path, &self.read, ctx)
+            // A painted guide's missing cell size is handled below, not warned about.
+            let read = crate::commands::ReadArgs {
+                warn_assumed_cell: false,
+                ..self.read.clone()
+            };
+            let raster = crate::commands::read_raster(path, &read, ctx)
                 .with_context(|| format!("guide {}", path.display()))?;
             let stored = crate::commands::cell_size_stored(path, &raster);
             let mut g = raster.heightfield;

@@ -274,12 +274,17 @@ pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield
         guide.resample(w, h)?
     };
     out.set_cell_size(cell.0, cell.1)?;
-    out.set_georef(
-        guide
-            .georef()
-            .cloned()
-            .filter(|_| (w, h) == (guide.width(), guide.height())),
-    );
+    // The same ground in `w x h` cells: the georeference keeps its origin, its pixel size
+    // scaled by the resampling (the usual cross-DEM case, a guide coarser than the exemplars,
+    // lost it).
+    out.set_georef(guide.georef().map(|g| {
+        g.window(
+            0.0,
+            0.0,
+            guide.width() as f64 / w as f64,
+            guide.height() as f64 / h as f64,
+        )
+    }));
     Ok(out)
 }
 

@@ -615,3 +615,25 @@ fn reranked_search_recovers_the_exhaustive_best() {
     assert!(hit10 * 10 >= 9 * 4 * 24, "recall {hit10} of 96");
     assert!(hit10 > hit1, "rerank 10: {hit10}, rerank 1: {hit1}");
 }
+
+/// Issue 44 item 11: a guide whose cell size differs from the exemplars' (the usual
+/// cross-DEM case) keeps its georeference when resampled to their cells: the same origin,
+/// the pixel size scaled by the resampling, so the output lies on the guide's ground.
+#[test]
+fn a_resampled_guide_keeps_its_georeference() {
+    let guide = Heightfield::from_fn(40, 30, 90.0, 90.0, |x, y| (x * 3 + y) as f32).with_georef(
+        Some(relief_heightfield::GeoRef {
+            crs: Some("EPSG:32611".into()),
+            geotransform: Some([500_000.0, 90.0, 0.0, 4_000_000.0, 0.0, -90.0]),
+            ..Default::default()
+        }),
+    );
+    let g = to_cell_size(&guide, (30.0, 30.0)).unwrap();
+    assert_eq!((g.width(), g.height()), (120, 90));
+    let r = g.georef().expect("the georeference is kept");
+    assert_eq!(r.crs.as_deref(), Some("EPSG:32611"));
+    assert_eq!(
+        r.geotransform.unwrap(),
+        [500_000.0, 30.0, 0.0, 4_000_000.0, 0.0, -30.0]
+    );
+}

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 use relief_heightfield::Progress;
 
 use crate::ctx::Ctx;
@@ -25,6 +25,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input],
         &[(&args.output, crate::outputs::OutKind::Raster)],
     )?;
+    if crate::describe::is_model(&args.input) {
+        bail!(
+            "{} is a relief model (a construction tree or a dictionary), not a raster: \
+             rasterise a .sct with `relief decompress {} OUT` (`relief info` describes either)",
+            args.input.display(),
+            args.input.display()
+        );
+    }
     let raster = super::read_raster(&args.input, &args.read, ctx)?;
     let hf = raster.heightfield;
     let progress = ctx.progress();

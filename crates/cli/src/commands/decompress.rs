@@ -80,7 +80,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     };
     crate::preflight::decompress(win, args.scale, bytes.len(), change, ctx)?;
     let reference = match &args.reference {
-        Some(p) => Some(super::read_raster(p, &args.read, ctx)?.heightfield),
+        Some(p) => {
+            // Only its heights are compared: its cell size does not matter.
+            let read = super::ReadArgs {
+                warn_assumed_cell: false,
+                ..args.read.clone()
+            };
+            Some(super::read_raster(p, &read, ctx)?.heightfield)
+        }
         None => None,
     };
     let settings = RasterSettings {

@@ -25,10 +25,16 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if describe::is_model(&args.file) {
         return crate::staging::print(&describe::model(&args.file, args.json, ctx)?);
     }
-    let raster = super::read_raster(&args.file, &args.read, ctx)?;
+    // The description says when the cell size is assumed; no separate warning.
+    let read = super::ReadArgs {
+        warn_assumed_cell: false,
+        ..args.read.clone()
+    };
+    let raster = super::read_raster(&args.file, &read, ctx)?;
+    let assumed = super::cell_size_assumed(&args.file, &raster, &read);
     crate::staging::print(&if args.json {
-        crate::staging::json_text(&describe::raster_json(&args.file, &raster))?
+        crate::staging::json_text(&describe::raster_json(&args.file, &raster, assumed))?
     } else {
-        describe::raster_text(&args.file, &raster)
+        describe::raster_text(&args.file, &raster, assumed)
     })
 }

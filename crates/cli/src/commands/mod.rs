@@ -113,6 +113,8 @@ pub(crate) fn read_raster_for(
     // --max-memory leaves beside the file's bytes (decoded samples + f32 grid per cell), so a
     // decompression bomb or an endless device is refused before it is inflated.
     let mut opts = read.options();
+    // `--cell-size` is applied after reading, with the georeference (below).
+    opts.cell_size = None;
     let meta = std::fs::metadata(path).ok();
     let file_len = meta.as_ref().map_or(0, |m| m.len());
     let mut memory_cells = crate::memory::readable_cells(ctx.max_memory, file_len).max(1);
@@ -125,6 +127,24 @@ pub(crate) fn read_raster_for(
         if read.max_input_cells.is_none() {
             opts.max_cells = opts.max_cells.min(STREAM_CELLS);
         }
+    }
+    // relief's own `.r16` states its vertical mapping (and size) in its sidecar; without it
+    // the counts would be read back as metres.
+    if relief_io::Format::from_extension(path) == Some(relief_io::Format::R16)
+        && let Some(side) = heightmap_sidecar_of(path)
+        && let Some(mapping) = side.mapping
+        && side
+            .size
+            .0
+            .checked_mul(side.size.1)
+            .and_then(|c| c.checked_mul(2))
+            == Some(file_len)
+        && read.width.is_none_or(|w| w as u64 == side.size.0)
+        && read.height.is_none_or(|h| h as u64 == side.size.1)
+    {
+        opts.r16_mapping = mapping;
+        opts.width = usize::try_from(side.size.0).ok();
+        opts.height = usize::try_from(side.size.1).ok();
     }
     let by_memory = memory_cells < opts.max_cells;
     if by_memory {
@@ -190,9 +210,22 @@ pub(crate) fn read_raster_for(
         let hf = &raster.heightfield;
         j.check(hf.width() as u64, hf.height() as u64, ctx)?;
     }
-    if read.cell_size.is_none()
-        && let Some(cell) = heightmap_sidecar_cell(path, &raster.heightfield)
-    {
+    if let Some((nx, ny)) = read.cell_size {
+        // `--cell-size` overrides the stored cell size, and a georeference follows it: its
+        // pixel size is scaled by the same ratio about the grid's centre (where a geographic
+        // or Web-Mercator grid's ground cell is measured), so a GeoTIFF written from the
+        // result states the cells the user gave instead of the file's.
+        let hf = &mut raster.heightfield;
+        let (ox, oy) = hf.cell_size();
+        let (sx, sy) = (nx / ox, ny / oy);
+        let (cw, ch) = (hf.width() as f64 / 2.0, hf.height() as f64 / 2.0);
+        let georef = hf
+            .georef()
+            .map(|g| g.window(cw * (1.0 - sx), ch * (1.0 - sy), sx, sy));
+        hf.set_cell_size(nx, ny)
+            .with_context(|| format!("--cell-size {nx},{ny}"))?;
+        hf.set_georef(georef);
+    } else if let Some(cell) = heightmap_sidecar_cell(path, &raster.heightfield) {
         raster.heightfield.set_cell_size(cell.0, cell.1)?;
         ctx.note(format!(
             "{}: cell size {:.3} x {:.3} m from its sidecar {}",
@@ -201,6 +234,9 @@ pub(crate) fn read_raster_for(
             cell.1,
             crate::ctx::heightmap_sidecar(path).display()
         ));
+    }
+    if read.warn_assumed_cell {
+        warn_if_cell_assumed(path, &raster, read, ctx);
     }
     if read.fill_voids && raster.heightfield.has_voids() {
         progress.begin("filling voids", 0);
@@ -233,33 +269,92 @@ fn declared_size(e: &relief_io::IoError) -> Option<(u64, u64)> {
     }
 }
 
-/// The cell size stated by the `FILE.png.json` / `FILE.r16.json` sidecar relief writes beside a
-/// 16-bit heightmap (fields `cell_size_x_m`/`cell_size_y_m`, or `cell_size_m` as a number or
-/// `[x, y]`), when the file is such a heightmap, the sidecar's `width`/`height` match it and
-/// the cell size is positive and finite. These formats store no cell size of their own.
-pub(crate) fn heightmap_sidecar_cell(path: &Path, hf: &Heightfield) -> Option<(f64, f64)> {
+/// What relief's `FILE.png.json` / `FILE.r16.json` sidecar beside a 16-bit heightmap states:
+/// its size, its cell size (fields `cell_size_x_m`/`cell_size_y_m`, or `cell_size_m` as a
+/// number or `[x, y]`) and its vertical mapping `height = offset_m + count * metres_per_count`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct HeightmapSidecar {
+    /// `width`, `height` of the heightmap.
+    pub(crate) size: (u64, u64),
+    /// Cell size in metres, when stated, positive and finite.
+    pub(crate) cell: Option<(f64, f64)>,
+    /// `(offset_m, metres_per_count)`, when stated and finite (the scale non-zero).
+    pub(crate) mapping: Option<(f64, f64)>,
+}
+
+/// The sidecar of the 16-bit heightmap `path` (see [`HeightmapSidecar`]), when `path` is one
+/// and the sidecar is a readable JSON object of at most 1 MiB stating `width` and `height`.
+pub(crate) fn heightmap_sidecar_of(path: &Path) -> Option<HeightmapSidecar> {
     if !crate::ctx::is_heightmap16(path) {
         return None;
     }
-    let text = std::fs::read(crate::ctx::heightmap_sidecar(path)).ok()?;
-    if text.len() > 1 << 20 {
+    let side = crate::ctx::heightmap_sidecar(path);
+    if !std::fs::metadata(&side).is_ok_and(|m| m.is_file() && m.len() <= 1 << 20) {
         return None;
     }
+    let text = std::fs::read(side).ok()?;
     let v: serde_json::Value = serde_json::from_slice(&text).ok()?;
     let dim = |k: &str| v.get(k).and_then(serde_json::Value::as_u64);
-    if dim("width")? != hf.width() as u64 || dim("height")? != hf.height() as u64 {
-        return None;
-    }
+    let size = (dim("width")?, dim("height")?);
     let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
     let both = v.get("cell_size_m").and_then(|c| match c {
         serde_json::Value::Array(a) if a.len() == 2 => Some((a[0].as_f64()?, a[1].as_f64()?)),
         c => c.as_f64().map(|x| (x, x)),
     });
     let cell = match (num("cell_size_x_m"), num("cell_size_y_m")) {
-        (Some(x), Some(y)) => (x, y),
-        _ => both?,
+        (Some(x), Some(y)) => Some((x, y)),
+        _ => both,
+    }
+    .filter(|c| c.0.is_finite() && c.1.is_finite() && c.0 > 0.0 && c.1 > 0.0);
+    let mapping = match (num("offset_m"), num("metres_per_count")) {
+        (Some(o), Some(k)) if o.is_finite() && k.is_finite() && k != 0.0 => Some((o, k)),
+        _ => None,
     };
-    (cell.0.is_finite() && cell.1.is_finite() && cell.0 > 0.0 && cell.1 > 0.0).then_some(cell)
+    Some(HeightmapSidecar {
+        size,
+        cell,
+        mapping,
+    })
+}
+
+/// The cell size stated by the sidecar of the 16-bit heightmap `path` ([`heightmap_sidecar_of`])
+/// when its `width`/`height` match `hf`. These formats store no cell size of their own.
+pub(crate) fn heightmap_sidecar_cell(path: &Path, hf: &Heightfield) -> Option<(f64, f64)> {
+    let side = heightmap_sidecar_of(path)?;
+    (side.size == (hf.width() as u64, hf.height() as u64))
+        .then_some(side.cell)
+        .flatten()
+}
+
+/// Whether the cell size of a raster read from `path` with `read` is the reader's 1 m
+/// stand-in: the file stores none ([`cell_size_stored`]) and `--cell-size` did not give one.
+pub(crate) fn cell_size_assumed(path: &Path, raster: &relief_io::Raster, read: &ReadArgs) -> bool {
+    read.cell_size.is_none() && !cell_size_stored(path, raster)
+}
+
+/// The warning of an assumed cell size (see [`cell_size_assumed`]): every figure in metres
+/// (slopes, drainage areas, feature sizes, volumes) is then only as right as that guess.
+pub(crate) fn assumed_cell_warning(path: &Path) -> String {
+    format!(
+        "warning: {} stores no cell size: 1 x 1 m cells assumed (pass --cell-size X[,Y] in \
+         metres)",
+        path.display()
+    )
+}
+
+/// Prints [`assumed_cell_warning`] (unless `--quiet`) when the main input's cell size is
+/// assumed; returns whether it is.
+pub(crate) fn warn_if_cell_assumed(
+    path: &Path,
+    raster: &relief_io::Raster,
+    read: &ReadArgs,
+    ctx: &Ctx,
+) -> bool {
+    let assumed = cell_size_assumed(path, raster, read);
+    if assumed {
+        ctx.note(assumed_cell_warning(path));
+    }
+    assumed
 }
 
 /// Whether a raster read from `path` came with a cell size of its own: formats that store one,

@@ -184,7 +184,21 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         job.check().context("invalid volume settings")?;
     }
     let staged = files.stage()?;
-    let raster = super::read_raster(&args.input, &args.read, ctx)?;
+    let read = super::ReadArgs {
+        warn_assumed_cell: false,
+        ..args.read.clone()
+    };
+    let raster = super::read_raster(&args.input, &read, ctx)?;
+    // Landforms are sized in metres (caves, arches, voxels): on a guessed 1 m cell a 512-cell
+    // DEM of a 30 km range becomes a 512 m base under a kilometres-high spike, so a file
+    // without a cell size is refused rather than warned about.
+    if super::cell_size_assumed(&args.input, &raster, &read) {
+        bail!(
+            "{} stores no cell size, and volume sizes its landforms in metres: pass \
+             --cell-size X[,Y] (metres per cell)",
+            args.input.display()
+        );
+    }
     let mut hf = raster.heightfield;
     if let Some((x, y, w, h)) = args.crop.map(|w| w.as_tuple()) {
         hf = hf

@@ -17,6 +17,17 @@ impl Stage for Load {
             .with_context(|| format!("cannot read {}", input.display()))?;
         cx.section
             .figure("format", format!("{:?} ({})", raster.format, raster.dtype));
+        // A PNG, Terrain-RGB, EXR, raw or NPY input stores no cell size: the 1 m stand-in is
+        // flagged in the figures and the report.
+        let assumed = !crate::commands::cell_size_stored(input, &raster);
+        cx.section.figure("cell_size_assumed", assumed);
+        if assumed {
+            cx.section.note(&format!(
+                "{} stores no cell size: 1 x 1 m cells are assumed, so every figure in metres \
+                 (slopes, areas, feature sizes) is only as right as that guess",
+                input.display()
+            ));
+        }
         let mut hf = raster.heightfield;
         if let Some((x, y, w, h)) = cx.config.crop {
             hf = hf.crop(x, y, w, h)?;

@@ -748,3 +748,88 @@ fn force_never_replaces_an_input_heightmap_sidecar() {
     );
     assert_eq!(std::fs::read(&side).unwrap(), before);
 }
+
+/// Issue 44 item 11, data read wrongly or silently assumed:
+/// - relief's own `.r16` reads back in metres (its sidecar's `offset_m` and
+///   `metres_per_count`), not as raw counts;
+/// - a file without a cell size (a PNG without its sidecar) is flagged: `info` says the 1 m
+///   is assumed (`cell_size_assumed` in `--json`), commands warn, `volume` refuses;
+/// - `--cell-size` on a GeoTIFF input is what a GeoTIFF output states;
+/// - `convert` of a `.sct` names it a model and points to `decompress`; `info` refuses a
+///   dictionary without atoms.
+#[test]
+fn own_heightmaps_read_back_and_assumed_cells_are_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = relief_testdata::fixture("grandcanyon.tif");
+    let truth = read(&src);
+    let r16 = tmp.path().join("h.r16");
+    relief_ok!["convert", src, r16];
+    let back = tmp.path().join("back.tif");
+    relief_ok!["convert", r16, back];
+    let b = read(&back);
+    let scale = json(&tmp.path().join("h.r16.json"))["metres_per_count"]
+        .as_f64()
+        .unwrap();
+    let worst = relief_heightfield::metrics::max_abs_diff(&b, &truth).unwrap();
+    assert!(
+        worst <= scale,
+        "r16 read back {worst} m off (a count is {scale} m)"
+    );
+    assert_eq!(b.cell_size(), truth.cell_size());
+
+    // A PNG without its sidecar stores no cell size.
+    let png = tmp.path().join("p.png");
+    relief_ok!["convert", src, png];
+    std::fs::remove_file(tmp.path().join("p.png.json")).unwrap();
+    let text = relief_ok!["info", png];
+    assert!(text.contains("ASSUMED"), "{text}");
+    assert_eq!(
+        relief_json!["info", png, "--json"]["cell_size_assumed"],
+        true
+    );
+    assert_eq!(
+        relief_json!["info", png, "--json", "--cell-size", "30"]["cell_size_assumed"],
+        false
+    );
+    assert_eq!(
+        relief_json!["info", src, "--json"]["cell_size_assumed"],
+        false
+    );
+    let tif = tmp.path().join("p.tif");
+    let o = relief_loud(&[os("convert"), os(&png), os(&tif)]);
+    ok(&o);
+    assert_stderr_has(&o, "warning: ");
+    assert_stderr_has(&o, "stores no cell size");
+    let glb = tmp.path().join("p.glb");
+    fails_with(
+        &relief!["volume", png, "--crop", "0,0,24,24", "--mesh", glb],
+        &["stores no cell size", "--cell-size"],
+        &[&glb],
+    );
+
+    // --cell-size on a GeoTIFF: the GeoTIFF written states it.
+    let out = tmp.path().join("c30.tif");
+    relief_ok!["convert", src, out, "--cell-size", "30"];
+    let (cx, cy) = read(&out).cell_size();
+    assert!(
+        (cx - 30.0).abs() < 1e-6 && (cy - 30.0).abs() < 1e-6,
+        "{cx} x {cy}"
+    );
+
+    // Models: convert points to decompress; a dictionary without atoms is refused.
+    let sct = tmp.path().join("m.sct");
+    let model =
+        relief_sparse_core::Sct::new(relief_sparse_core::Node::Constant(1.0), 8, 8, (1.0, 1.0))
+            .unwrap();
+    std::fs::write(&sct, model.to_bytes().unwrap()).unwrap();
+    let raster = tmp.path().join("m.tif");
+    fails_with(
+        &relief!["convert", sct, raster],
+        &["is a relief model", "relief decompress"],
+        &[&raster],
+    );
+    let dict = tmp.path().join("empty.dict");
+    let empty = relief_sparse_core::Dictionary::new(8, 1.0, 4.0).unwrap();
+    std::fs::write(&dict, empty.to_bytes().unwrap()).unwrap();
+    fails_with(&relief!["info", dict], &["empty dictionary"], &[]);
+}

@@ -532,7 +532,8 @@ fn method_outputs_keep_the_georeference() {
 /// one patch matrix may hold, and the run failed with "invalid parameter `step` = 2: gives too
 /// many primitives"; the step now codes its patches in bands. Written as a `.sct` (the
 /// 16384^2 raster would only add time). A factor whose steps cannot place their primitives
-/// at all is refused in the user's terms (`--factor`), never by an internal parameter.
+/// at all (given the memory) is refused in the user's terms (`--factor`), never by an
+/// internal parameter.
 #[test]
 fn amplify_x256_of_a_64_crop_and_too_large_a_factor() {
     let tmp = tempfile::tempdir().unwrap();
@@ -548,7 +549,7 @@ fn amplify_x256_of_a_64_crop_and_too_large_a_factor() {
     let big = tmp.path().join("x1024.sct");
     let e = fails_with(
         &relief_line(
-            "amplify {} {} --exemplar {} --factor 1024",
+            "--max-memory 100000G amplify {} {} --exemplar {} --factor 1024",
             &[&gc64, &big, &ex],
         ),
         &["--factor", "too large for x1024"],

@@ -452,6 +452,13 @@ impl Dictionary {
         if r.remaining() != 0 {
             return Err(r.err(format!("{} trailing bytes", r.remaining())));
         }
+        // A dictionary file is read to code with: one without atoms codes nothing.
+        if dict.is_empty() {
+            return Err(SparseError::EmptyDictionary {
+                n_atoms: 0,
+                dim: dict.patch_size() * dict.patch_size(),
+            });
+        }
         for (i, atom) in dict.atoms().iter().enumerate() {
             let norm = match atom {
                 Atom::Data(v) => v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt(),
