@@ -273,14 +273,21 @@ pub(crate) fn check_output_path(path: &Path, window: Option<Window>) -> Result<(
 }
 
 /// Writes `sct` as a `.sct` model or rasterises it (whole, or one window) to a raster file.
+/// The coarse input of a landform pass over a model's raster ([`write_model`]).
+pub(crate) struct Landform<'a>(pub(crate) &'a relief_heightfield::Heightfield);
+
 pub(crate) fn write_model(
     sct: &Sct,
     path: &Path,
     window: Option<Window>,
     stream: bool,
+    finish: Option<&Landform<'_>>,
     ctx: &Ctx,
 ) -> Result<()> {
     if is_sct(path) {
+        if finish.is_some() {
+            crate::landform::skipped(ctx, "a .sct model");
+        }
         let bytes = sct.to_bytes().context("cannot serialise the model")?;
         relief_io::write_bytes_atomic(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -305,13 +312,23 @@ pub(crate) fn write_model(
     if relief_io::Format::from_extension(path) == Some(relief_io::Format::GeoTiff)
         && (stream || win.width.saturating_mul(win.height) > crate::ctx::STREAM_CELLS)
     {
+        if finish.is_some() {
+            crate::landform::skipped(ctx, "a streamed output");
+        }
         return stream_geotiff(sct, path, win, ctx);
     }
-    let hf = {
+    let mut hf = {
         let progress = ctx.progress();
         sct.rasterize_with_progress(&RasterSettings { scale: 1.0, window }, &progress)
             .context("cannot rasterise the result")?
     };
+    if let Some(coarse) = finish {
+        if window.is_some() {
+            crate::landform::skipped(ctx, "a --window");
+        } else {
+            hf = crate::landform::apply(hf, coarse.0, ctx)?;
+        }
+    }
     let progress = ctx.progress();
     progress.begin("writing", 0);
     ctx.write_raster(path, &hf)?;

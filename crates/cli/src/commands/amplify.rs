@@ -75,6 +75,8 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) stream: bool,
     #[command(flatten)]
+    pub(crate) landform: crate::landform::LandformArg,
+    #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
 
@@ -120,8 +122,20 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input, &args.exemplar.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
-    let sct = build(&args, OutputPlan::of(&args.output, window, "--factor"), ctx)?;
-    write_model(&sct, &args.output, window, args.stream, ctx)
+    let (sct, coarse) =
+        build_keeping_input(&args, OutputPlan::of(&args.output, window, "--factor"), ctx)?;
+    let finish = args
+        .landform
+        .on(args.paper)
+        .then_some(crate::sparse_model::Landform(&coarse));
+    write_model(
+        &sct,
+        &args.output,
+        window,
+        args.stream,
+        finish.as_ref(),
+        ctx,
+    )
 }
 
 /// The library settings of the arguments (checked).
@@ -148,8 +162,6 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
     Ok(settings)
 }
 
-/// Reads the inputs, checks the pre-flight estimate for the output `out`, and amplifies them
-/// into a model (`relief tile plan` stores it once for every tile task).
 /// Reads the input and the exemplar, checks them and the pre-flight estimate.
 fn inputs(
     args: &Args,
@@ -182,7 +194,9 @@ fn failed(args: &Args) -> String {
     )
 }
 
-pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
+/// Reads the inputs, checks the pre-flight estimate for the output `out`, amplifies them into
+/// a model; also returns the coarse input (for the landform pass).
+fn build_keeping_input(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<(Sct, Heightfield)> {
     let settings = settings(args)?;
     let (coarse, exemplar) = inputs(args, &settings, out, ctx)?;
     let (sct, figures) = {
@@ -193,7 +207,7 @@ pub(crate) fn build(args: &Args, out: OutputPlan, ctx: &Ctx) -> Result<Sct> {
     for step in &figures.steps {
         ctx.note(step.note.clone());
     }
-    Ok(sct)
+    Ok((sct, coarse))
 }
 
 /// Every step but the last, and the last step's dictionary and input (`relief tile plan`:

@@ -98,7 +98,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         fit_procedural(&hf, &settings, &progress)
             .with_context(|| format!("cannot fit {}", args.input.display()))?
     };
-    write_model(&fit.sct, &args.output, None, false, ctx)?;
+    write_model(&fit.sct, &args.output, None, false, None, ctx)?;
     let mut stdout = std::io::stdout().lock();
     let line = format!(
         "psnr: {:.2} dB ({} atoms `{}`, sparsity {}, {})\n",

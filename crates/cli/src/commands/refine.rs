@@ -76,10 +76,17 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) stream: bool,
     #[command(flatten)]
+    pub(crate) landform: crate::landform::LandformArg,
+    #[command(flatten)]
     pub(crate) read: super::ReadArgs,
 }
 
 impl Args {
+    /// True when the landform pass runs (`--landform`, default off for `--model paper`).
+    pub(crate) fn landform_on(&self) -> bool {
+        self.landform.on(self.model == ModelArg::Paper)
+    }
+
     /// The library settings (checked by the library itself when the refiner is built).
     pub(crate) fn settings(&self) -> Result<RefineSettings> {
         if self.levels == 0 {
@@ -137,7 +144,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let streamed = relief_io::Format::from_extension(&args.output)
         == Some(relief_io::Format::GeoTiff)
         && (args.stream || w.saturating_mul(h) > crate::ctx::STREAM_CELLS);
+    let landform = args.landform_on();
     let band = if streamed {
+        if landform {
+            crate::landform::skipped(ctx, "a streamed output");
+        }
         if x.checked_add(w).is_none_or(|e| e > ow) || y.checked_add(h).is_none_or(|e| e > oh) {
             bail!("invalid --window {x},{y},{w},{h}: outside the refined grid ({ow} x {oh})");
         }
@@ -154,6 +165,16 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             }
             None => refiner.render(&progress).context("cannot synthesise")?,
         };
+        drop(progress);
+        let out = match (landform, window) {
+            (true, None) => crate::landform::apply(out, &hf, ctx)?,
+            (true, Some(_)) => {
+                crate::landform::skipped(ctx, "a --window");
+                out
+            }
+            (false, _) => out,
+        };
+        let progress = ctx.progress();
         progress.begin("writing", 0);
         ctx.write_raster(&args.output, &out)?;
         drop(progress);

@@ -130,5 +130,5 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     for step in &figures.steps {
         ctx.note(step.note.clone());
     }
-    write_model(&sct, &args.output, window, false, ctx)
+    write_model(&sct, &args.output, window, false, None, ctx)
 }

@@ -37,7 +37,8 @@ fn amplify_x4_on_grand_canyon() {
     let ex = write(tmp.path(), "ex.tif", &exemplar);
     let out_tif = tmp.path().join("out.tif");
     let common = |out: &Path, extra: &[&str]| {
-        let line = "amplify {} {} --exemplar {} --factor 4 --seed 3 --atoms 64";
+        // The raw method (the .sct model has no landform pass).
+        let line = "amplify {} {} --exemplar {} --factor 4 --seed 3 --atoms 64 --landform off";
         relief_line_plus(line, &[&cin, &out, &ex], extra)
     };
     ok(&common(&out_tif, &[]));
@@ -494,7 +495,7 @@ fn method_outputs_keep_the_georeference() {
     let coarse = read(&cin);
     let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 256, 256, 256).unwrap());
     let amp = |out: &Path, extra: &[&str]| {
-        let line = "amplify {} {} --exemplar {} --factor 4 --atoms 32";
+        let line = "amplify {} {} --exemplar {} --factor 4 --atoms 32 --landform off";
         ok(&relief_line_plus(line, &[&cin, &out, &ex], extra));
     };
     let out_tif = tmp.path().join("a.tif");
@@ -556,4 +557,79 @@ fn amplify_x256_of_a_64_crop_and_too_large_a_factor() {
         &[&big],
     );
     assert!(!e.contains('`'), "an internal parameter named: {e}");
+}
+
+/// The landform pass (issue 41), on by default: `amplify` and `refine` outputs of a real crop
+/// have no closed depression left, still reduce to the input, and differ from the raw method
+/// (`--landform off`, also the default of `--paper` / `--model paper`); a tile plan refuses it.
+#[test]
+fn landform_pass_is_the_default_and_drains() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = dem.crop(64, 64, 128, 128).unwrap();
+    let coarse = truth.downsample_box(4).unwrap();
+    let cin = write(tmp.path(), "coarse.tif", &coarse);
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(256, 256, 256, 256).unwrap());
+    let pits = |hf: &Heightfield| relief_landscape::stats::drainage(hf).pits_per_km2;
+    let consistency = |hf: &Heightfield| {
+        metrics::rmse(&hf.downsample_box(4).unwrap(), &coarse).unwrap() / truth.relief() as f64
+    };
+    for (name, line) in [
+        (
+            "amplify",
+            "amplify {} {} --exemplar {} --factor 4 --atoms 32",
+        ),
+        ("refine", "refine {} {} --levels 2 --seed 1"),
+    ] {
+        let on = tmp.path().join(format!("{name}-on.tif"));
+        let off = tmp.path().join(format!("{name}-off.tif"));
+        let paper = tmp.path().join(format!("{name}-paper.tif"));
+        let run = |out: &Path, extra: &[&str], loud: bool| {
+            let files: Vec<&dyn AsRef<std::ffi::OsStr>> = if name == "amplify" {
+                vec![&cin, &out, &ex]
+            } else {
+                vec![&cin, &out]
+            };
+            let mut args = words(line, &files);
+            args.extend(extra.iter().map(std::ffi::OsStr::new));
+            let o = if loud {
+                relief_loud(&args)
+            } else {
+                relief(&args)
+            };
+            ok(&o);
+            o
+        };
+        let noted = run(&on, &[], true);
+        assert!(
+            String::from_utf8_lossy(&noted.stderr).contains("landform pass"),
+            "{name}: the note says what the pass did"
+        );
+        run(&off, &["--landform", "off"], false);
+        let paper_flag: &[&str] = if name == "amplify" {
+            &["--paper"]
+        } else {
+            &["--model", "paper"]
+        };
+        run(&paper, paper_flag, false);
+        let (on, off, paper) = (read(&on), read(&off), read(&paper));
+        assert!(
+            pits(&off) > 0.0 && pits(&paper) > 0.0,
+            "{name}: raw detail has pits"
+        );
+        assert_eq!(pits(&on), 0.0, "{name}");
+        assert!(consistency(&on) < 0.005, "{name}: {}", consistency(&on));
+        assert_ne!(on.as_slice(), off.as_slice());
+        assert_eq!(on.georef(), off.georef());
+    }
+    // A tile plan cannot route water across its tiles: its tiles are the raw method, and
+    // asking for the pass is refused by name.
+    let plan = tmp.path().join("plan");
+    let out = tmp.path().join("tiled.tif");
+    let refused = relief_line_plus(
+        "tile plan {} -- amplify {} {} --exemplar {} --factor 4 --landform on",
+        &[&plan, &cin, &out, &ex],
+        &[],
+    );
+    fails(&refused, &out, &["--landform on", "--landform off"]);
 }

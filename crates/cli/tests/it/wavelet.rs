@@ -319,6 +319,8 @@ fn streamed_output_equals_the_in_memory_output() {
             os(wavelet),
             os("--seed"),
             os("5"),
+            os("--landform"),
+            os("off"),
         ];
         if let Some(w) = window {
             common.extend([os("--window"), os(w)]);
@@ -368,6 +370,8 @@ fn streamed_output_equals_the_in_memory_output() {
             os("db4"),
             os("--seed"),
             os("5"),
+            os("--landform"),
+            os("off"),
             os("--stream"),
         ])
         .output()

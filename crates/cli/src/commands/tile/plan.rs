@@ -238,6 +238,20 @@ pub(super) struct Prepared {
 /// Runs the expensive, shared part of the command once (amplify: the model; decompress: the
 /// model as given; refine: the void-checked input) and sizes the output.
 pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
+    // Tiles are the raw method (the landform pass routes water over the whole raster): the
+    // mosaic equals the single run with `--landform off`; asking for the pass is an error.
+    let landform = match cmd {
+        Windowable::Amplify(x) => x.landform.landform,
+        Windowable::Refine(x) => x.landform.landform,
+        _ => None,
+    };
+    if landform == Some(crate::landform::Switch::On) {
+        bail!(
+            "a tiled plan cannot run the landform pass (it routes water over the whole raster): \
+             drop --landform on (tiles equal the single run with --landform off), and route \
+             the mosaic with `relief flow` or `relief erode`"
+        );
+    }
     let (name, job, bytes, width, height, cell, georef) = match cmd {
         Windowable::Amplify(x) => {
             // The plan runs the steps before the last and keeps the last step's input and
