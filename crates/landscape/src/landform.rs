@@ -59,7 +59,7 @@ impl Default for LandformSettings {
             rounds: 3,
             keep_depressions_deeper_than_m: f64::INFINITY,
             incision_years: 60_000.0,
-            incision_steps: 4,
+            incision_steps: 1,
             valley_width_m: 60.0,
             stream_power: StreamPowerParams {
                 diffusion: 0.05,
@@ -100,7 +100,7 @@ fn box_residual(z: &[f64], w: usize, coarse: &Heightfield, f: usize) -> Vec<f64>
 
 /// Back-projection and fill iterations after the rounds (each fill raises closed depressions,
 /// each back-projection brings the box averages back).
-const FINAL_ITERATIONS: usize = 2;
+const FINAL_ITERATIONS: usize = 0;
 
 /// Fixed-point iterations of [`back_project`] per round.
 const BACK_PROJECTION_ITERATIONS: usize = 3;
