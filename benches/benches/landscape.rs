@@ -28,6 +28,39 @@ fn fill_d8(c: &mut Criterion) {
             })
         });
     }
+    // The tiled run of `relief tile plan -- flow` (issue 46) in one process: the five passes
+    // of `flow::tiled` over 64 tiles of 512^2, tasks one after another (the plan's per-task
+    // file reading and writing excluded), against the single run's same products (route,
+    // then cells upstream: what `relief flow` writes as filled, direction and area).
+    let layout = relief_landscape::flow::tiled::TileLayout {
+        width: dem.width(),
+        height: dem.height(),
+        tile: 512,
+        cell_x: grid.cell_x,
+        cell_y: grid.cell_y,
+    };
+    g.bench_with_input(
+        BenchmarkId::new("single_fill_d8_cells", 4096),
+        &dem,
+        |b, hf| {
+            b.iter(|| {
+                let r = route(hf.as_slice().to_vec(), grid, &RouteOptions::default());
+                r.cells_upstream()
+            })
+        },
+    );
+    g.bench_with_input(
+        BenchmarkId::new("tiled_fill_d8_cells", 4096),
+        &dem,
+        |b, hf| {
+            b.iter(|| {
+                relief_landscape::flow::tiled::run_in_memory(&layout, hf.as_slice(), &mut |_, n| {
+                    (0..n).collect()
+                })
+                .expect("a valid layout")
+            })
+        },
+    );
     g.finish();
 }
 

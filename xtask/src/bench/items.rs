@@ -452,6 +452,20 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         units: None,
         note: "",
     },
+    // Issue 46: the tiled drainage of `relief tile plan -- flow` (five passes of
+    // `flow::tiled`, 64 tiles of 512^2 one after another in one process, plan files
+    // excluded) within 1.5x of the single run's time per cell on the same DEM and products.
+    WorkItem {
+        name: "tiled fill + flats + D8 cells, 4096^2 as 64 tiles of 512^2 (five passes, one process)",
+        criterion_id: "landscape/tiled_fill_d8_cells/4096",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("landscape/single_fill_d8_cells/4096"),
+            label: "the single run (route + cells upstream), same DEM, 2 threads",
+        }),
+        goal: Goal::RatioAtMost(1.5),
+        units: Some((4096.0 * 4096.0, "cells")),
+        note: "the CLI plan's per-task I/O and peak RSS: docs/SCALING.md (drainage)",
+    },
     WorkItem {
         name: "Priority-Flood+epsilon + D8 area, 4096^2 (RichDEM's own method)",
         criterion_id: "landscape/fill_eps_d8/4096",

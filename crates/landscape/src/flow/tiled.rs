@@ -58,6 +58,34 @@ use crate::elev::Elev;
 use crate::grid::{D8, Grid, NO_FLOW};
 use crate::{LandscapeError, Result};
 
+/// A multiply-xorshift hasher for the integer keys of the passes' maps (cells, label pairs):
+/// the standard SipHash spends more time than the flood itself on the label pairs of phase 1.
+#[derive(Default, Clone, Copy)]
+struct IntHasher(u64);
+
+impl std::hash::Hasher for IntHasher {
+    fn finish(&self) -> u64 {
+        let h = self.0.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        h ^ (h >> 29)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    fn write_u32(&mut self, v: u32) {
+        self.0 = (self.0.rotate_left(32) ^ u64::from(v)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0 ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+}
+
+type IntMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<IntHasher>>;
+
 /// Number of passes of a tiled drainage run (three per tile, two single tasks).
 pub const PHASES: usize = 5;
 
@@ -316,7 +344,7 @@ pub fn phase1(layout: &TileLayout, t: usize, halo: &[f32]) -> Result<(LocalFill,
             open.push(z[i].entry(i as u32));
         }
     }
-    let mut edges: HashMap<(u32, u32), f32> = HashMap::new();
+    let mut edges: IntMap<(u32, u32), f32> = IntMap::default();
     loop {
         let c = match pit.pop_front() {
             Some(c) => c,
@@ -857,7 +885,7 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
             .then(|| y as u64 * layout.width as u64 + x as u64)
     };
     // The flats crossing tile edges, drained as `resolve_flats` drains them.
-    let mut at: HashMap<u64, usize> = HashMap::new();
+    let mut at: IntMap<u64, usize> = IntMap::default();
     let mut cz: Vec<f32> = Vec::new();
     let mut flat: Vec<bool> = Vec::new();
     let mut high: Vec<bool> = Vec::new();
@@ -960,7 +988,7 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
         mask[i] = 2 * ring + away_term;
     });
     let dist = layout.grid().distances();
-    let mut resolved: HashMap<u64, u8> = HashMap::new();
+    let mut resolved: IntMap<u64, u8> = IntMap::default();
     for i in 0..m {
         if !flat[i] {
             continue;
@@ -980,7 +1008,7 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
     }
     drop((at, cz, flat, high, label, mask, away));
     // The ports' graph in topological order (Barnes 2017 section 3.2).
-    let mut port_at: HashMap<u64, usize> = HashMap::new();
+    let mut port_at: IntMap<u64, usize> = IntMap::default();
     let mut pdir: Vec<u8> = Vec::new();
     let mut total: Vec<u64> = Vec::new();
     let mut pid: Vec<u64> = Vec::new();
@@ -1002,7 +1030,7 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
             pid.push(id);
         }
     }
-    let links: Vec<HashMap<u32, u32>> = graphs
+    let links: Vec<IntMap<u32, u32>> = graphs
         .iter()
         .map(|g| g.links.iter().copied().collect())
         .collect();
@@ -1062,7 +1090,7 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
         ));
     }
     let mut out: Vec<Inflow> = vec![Inflow::default(); tasks];
-    let mut entries: Vec<HashMap<u32, u64>> = vec![HashMap::new(); tasks];
+    let mut entries: Vec<IntMap<u32, u64>> = vec![IntMap::default(); tasks];
     for p in 0..np {
         if let Some((r, _)) = down[p] {
             let (u, c) = locate(r);
