@@ -432,13 +432,17 @@ pub(super) fn run_task(dir: &Path, m: &Manifest, a: &RunArgs, ctx: &Ctx) -> Resu
     let phase = match a.phase {
         Some(p) if (1..=PHASES).contains(&p) => p,
         Some(p) => bail!("--phase {p} is out of range: a flow plan has phases 1 to {PHASES}"),
+        // The first phase with a task unrecorded, or whose task of this index (0 for a
+        // single phase) is not done (its own files are checked, not the whole plan's).
         None => {
-            let states = phase_states(dir, m);
-            match states
-                .iter()
-                .position(|(mi, co)| !mi.is_empty() || !co.is_empty())
-            {
-                Some(p) => p + 1,
+            let own = a.index.unwrap_or(0);
+            let next = (1..=PHASES).find(|&p| {
+                let i = if tiled::is_single(p) { 0 } else { own };
+                (0..tasks_of(p, m)).any(|j| load_record(dir, m, p, j).is_none())
+                    || (i < m.tasks && task_state(dir, m, p, i) != TileState::Done)
+            });
+            match next {
+                Some(p) => p,
                 None => {
                     ctx.note("every phase of the plan is done: relief tile mosaic can assemble it");
                     return Ok(());
@@ -446,10 +450,12 @@ pub(super) fn run_task(dir: &Path, m: &Manifest, a: &RunArgs, ctx: &Ctx) -> Resu
             }
         }
     };
-    // Earlier phases must be complete (a dependency that did not hold).
+    // Earlier phases must be complete (a dependency that did not hold): every task recorded.
+    // The files this task reads are checked against their records when read; hashing every
+    // earlier product here would make each task read the whole plan.
     for p in 1..phase {
         let bad: Vec<usize> = (0..tasks_of(p, m))
-            .filter(|&i| task_state(dir, m, p, i) != TileState::Done)
+            .filter(|&i| load_record(dir, m, p, i).is_none())
             .collect();
         if !bad.is_empty() {
             bail!(
