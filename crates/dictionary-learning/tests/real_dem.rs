@@ -847,3 +847,59 @@ fn large_complete_dictionary_codes_through_the_atom_index() {
     let part = window_raster(&sct, 40, 20, 50, 33);
     assert_eq!(part, indexed.crop(40, 20, 50, 33).unwrap());
 }
+
+/// RMS N-S over E-W gradient in metres of `hf` minus its Gaussian low-pass of `sigma` cells
+/// (the direction of the detail: 1 for isotropic relief, above 1 for east-west streaks).
+fn detail_gradient_ratio(hf: &Heightfield, sigma: f32) -> f64 {
+    let low = hf.gaussian_blur(sigma).unwrap();
+    let (cx, cy) = hf.cell_size();
+    let (w, h) = (hf.width(), hf.height());
+    let d: Vec<f64> = (hf.as_slice().iter().zip(low.as_slice()))
+        .map(|(a, b)| f64::from(a - b))
+        .collect();
+    let (mut gx, mut gy) = (0.0, 0.0);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            gx += ((d[i + 1] - d[i - 1]) / (2.0 * cx)).powi(2);
+            gy += ((d[i + w] - d[i - w]) / (2.0 * cy)).powi(2);
+        }
+    }
+    (gy / gx).sqrt()
+}
+
+/// Issue 41: a square-celled input amplified with the non-square alps_dem exemplar (42.65 x
+/// 61.76 m cells) at steps finer than the exemplar (self-similarity): the added detail is as
+/// isotropic in metres as the exemplar's own (it was squashed into east-west streaks, a
+/// N-S/E-W gradient ratio of 1.75 against the exemplar's 1.07, when the exemplar's cells were
+/// taken for square).
+#[test]
+fn non_square_exemplar_cells_keep_the_detail_isotropic_in_metres() {
+    let Some(ex) = alps(1400, 300, 512, 400) else {
+        return;
+    };
+    let gc = relief_io::read(
+        &relief_testdata::fixture("grandcanyon.tif"),
+        &relief_io::ReadOptions::default(),
+    )
+    .unwrap()
+    .heightfield;
+    let coarse = gc.crop(100, 100, 48, 48).unwrap();
+    let (cx, cy) = coarse.cell_size();
+    assert!((cx / cy - 1.0).abs() < 0.01, "a square-celled input");
+    let s = AmplifySettings {
+        steps: 2,
+        ..AmplifySettings::default()
+    };
+    let plan = exemplar_plan(coarse.cell_size(), (512, 400), ex.cell_size(), &s);
+    for step in &plan {
+        let (ex_x, ex_y) = step.exemplar_cell_size;
+        assert!((ex_x / ex_y - 1.0).abs() < 0.02, "{step:?}");
+        assert!(step.note.contains("aspect"), "{}", step.note);
+    }
+    let out = amplified(&coarse, &ex, &s);
+    let want = detail_gradient_ratio(&ex, 2.0);
+    let got = detail_gradient_ratio(&out, 8.0);
+    eprintln!("detail N-S/E-W gradient ratio: output {got:.3}, exemplar {want:.3}");
+    assert!((got / want - 1.0).abs() < 0.15, "{got} vs {want}");
+}

@@ -73,7 +73,18 @@ pub fn exemplar_plan(
                 min_side,
                 SCALE_TOLERANCE,
             );
-            let note = if !g.fine_enough {
+            let note = if !g.fine_enough && g.reduced {
+                format!(
+                    "step {}: target cell {} is finer than the exemplar's {}: exemplar \
+                     box-down-sampled x{:.3} along one axis to {} (the target's cell aspect), \
+                     then used at that resolution (self-similarity across scales)",
+                    t + 1,
+                    fmt_cell(target),
+                    fmt_cell(exemplar_cell),
+                    g.kx,
+                    fmt_cell(g.cell)
+                )
+            } else if !g.fine_enough {
                 format!(
                     "step {}: target cell {} is finer than the exemplar's {}: exemplar used at \
                      native resolution (self-similarity across scales)",
@@ -127,7 +138,8 @@ pub(crate) struct GridAt {
     pub(crate) size: (usize, usize),
     /// Its cell size `(x, y)` in metres.
     pub(crate) cell: (f64, f64),
-    /// Reduction factor along x (meaningful when `reduced`).
+    /// Reduction factor along x (meaningful when `reduced`; for a native grid reshaped to the
+    /// target's cell aspect, along its one reduced axis).
     pub(crate) kx: f64,
     /// The exemplar is box-down-sampled (else used at native resolution).
     pub(crate) reduced: bool,
@@ -136,6 +148,38 @@ pub(crate) struct GridAt {
     /// The grid is not at the target cell size: the exemplar is coarser than the target, or
     /// too small to be reduced that far.
     pub(crate) self_similar: bool,
+}
+
+/// The native exemplar grid of a target finer than it, box-down-sampled along one axis so its
+/// cells have the target's aspect (self-similarity scales both axes alike: an exemplar of
+/// 42.65 x 61.76 m cells used on square cells would squash its relief 1.45 times along x and
+/// show as east-west streaks). The reduced side stays `min_side` cells at least.
+fn reshaped(native: GridAt, target: (f64, f64), min_side: f64, tolerance: f64) -> GridAt {
+    let (ex, ey) = native.cell;
+    let (w, h) = (native.size.0 as f64, native.size.1 as f64);
+    let k = (target.0 / target.1) / (ex / ey);
+    if (k - 1.0).abs() <= tolerance {
+        return native;
+    }
+    // k > 1: the exemplar's x cells are relatively too fine; k < 1: its y cells.
+    let (side, kk) = if k > 1.0 { (w, k) } else { (h, 1.0 / k) };
+    let kk = kk.min(side / min_side).max(1.0);
+    if kk <= 1.0 + tolerance {
+        return native;
+    }
+    let n = ((side / kk).round() as usize).max(1);
+    let (size, cell) = if k > 1.0 {
+        ((n, native.size.1), (ex * w / n as f64, ey))
+    } else {
+        ((native.size.0, n), (ex, ey * h / n as f64))
+    };
+    GridAt {
+        size,
+        cell,
+        kx: kk,
+        reduced: true,
+        ..native
+    }
 }
 
 /// The exemplar (`exemplar_size` cells of `exemplar_cell` metres) brought to the `target`
@@ -161,7 +205,7 @@ pub(crate) fn grid_at(
         self_similar: true,
     };
     if !(rx >= 1.0 - tolerance && ry >= 1.0 - tolerance) {
-        return native;
+        return reshaped(native, target, min_side, tolerance);
     }
     let (rx, ry) = (rx.max(1.0), ry.max(1.0));
     // The largest reduction that keeps the exemplar `min_side` cells wide.
@@ -379,8 +423,8 @@ fn run_until_last(
             // exemplar's detail one x4 octave coarser is `ratio` times larger.
             // `octaves` x4 octaves between the exemplar grid used and the target (negative
             // when the target is finer than the exemplar).
-            let octaves = (scale.target_cell_size.0 / scale.exemplar_cell_size.0).ln()
-                / (STEP_FACTOR as f64).ln();
+            let (t, e) = (scale.target_cell_size, scale.exemplar_cell_size);
+            let octaves = ((t.0 * t.1) / (e.0 * e.1)).sqrt().ln() / (STEP_FACTOR as f64).ln();
             let gain = if scale.self_similar && octaves.abs() > SCALE_TOLERANCE {
                 let ratio =
                     *octave_ratio.get_or_insert_with(|| crate::sketch::octave_ratio(exemplar));
