@@ -262,7 +262,7 @@ fn flow_plan_files_are_untrusted() {
     #[cfg(unix)]
     fails_with(
         &relief!["tile", "run", &plan, "--phase", "3", "--index", "0"],
-        &["phase 1 is incomplete"],
+        &["fill-000000.bin", "not a regular file"],
         &[],
     );
     std::fs::remove_file(&fill).ok();
@@ -271,6 +271,24 @@ fn flow_plan_files_are_untrusted() {
     let st = relief!["tile", "status", &plan];
     assert!(String::from_utf8_lossy(&st.stdout).contains("corrupt: 0"));
     relief_ok!["tile", "run", &plan, "--phase", "1", "--index", "0"];
+    // A link planted in place of one of the plan's folders: refused before anything is read
+    // or written through it.
+    #[cfg(unix)]
+    {
+        let elsewhere = tmp.path().join("elsewhere");
+        std::fs::create_dir(&elsewhere).unwrap();
+        let p3 = plan.join("phase3");
+        std::fs::remove_dir(&p3).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, &p3).unwrap();
+        fails_with(
+            &relief!["tile", "run", &plan, "--phase", "3", "--index", "0"],
+            &["phase3", "not a folder of the plan"],
+            &[],
+        );
+        assert!(files(&elsewhere).is_empty());
+        std::fs::remove_file(&p3).unwrap();
+        std::fs::create_dir(&p3).unwrap();
+    }
     // A record copied from another plan does not count.
     let rec = plan.join("phase1/task-000001.json");
     let text = std::fs::read_to_string(&rec).unwrap();

@@ -1,7 +1,10 @@
 //! Flow routing on a conditioned surface: D8 receivers (steepest descent, distances of
 //! non-square cells), the topological order of the flow graph, drainage area (D8 and the
 //! multiple-flow-direction scheme of Quinn et al. 1991), and the products built on them
-//! ([`network`]: Strahler order, channels as GeoJSON; [`basins`]: watersheds, HAND).
+//! ([`network`]: Strahler order, channels as GeoJSON; [`basins`]: watersheds, HAND). [`tiled`]
+//! computes the filled surface, D8 directions and drainage area of a DEM larger than one
+//! machine in five passes over tiles (Barnes 2016, 2017), equal bit for bit to [`route`] and
+//! [`Routing::area_d8`].
 
 pub mod basins;
 pub mod job;

@@ -14,7 +14,8 @@
 //! Every task writes its files atomically, then `phaseP/task-N.json` (the plan id and the
 //! files' SHA-256); a task whose record and files agree is skipped, so a killed task is run
 //! again. Plan files are untrusted input: a task reads only files whose names it derives from
-//! the phase and the index, inside the plan folder, regular files (not links), no larger than
+//! the phase and the index, inside the plan folder's own folders (links in place of them are
+//! refused, so no read or write goes through one), regular files (not links), no larger than
 //! the tile allows, and checks each against the record of the task that wrote it (and the
 //! inputs against `input/index.json`, whose checksum the manifest holds) before decoding it
 //! with relief-landscape's checked byte forms.
@@ -171,7 +172,7 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         );
     }
     let input_sum = file_sum(&input, input.display().to_string())?;
-    for sub in ["input", "phase1", "phase2", "phase3", "phase4", "tiles"] {
+    for sub in FOLDERS {
         std::fs::create_dir_all(dir.join(sub))
             .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
     }
@@ -260,6 +261,27 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
 }
 
 const INPUT_INDEX: &str = "input/index.json";
+
+/// The plan's folders: every file a task reads or writes is in one of them.
+const FOLDERS: [&str; 6] = ["input", "phase1", "phase2", "phase3", "phase4", "tiles"];
+
+/// Every folder of the plan must be a real folder inside it: a link planted in place of one
+/// would send a task's reads and writes outside the plan folder.
+fn check_folders(dir: &Path) -> Result<()> {
+    for f in FOLDERS {
+        let p = dir.join(f);
+        let meta = std::fs::symlink_metadata(&p).with_context(|| {
+            format!("cannot read {} (is this a flow plan folder?)", p.display())
+        })?;
+        if !meta.file_type().is_dir() {
+            bail!(
+                "{} is not a folder of the plan (a link or a file): refusing to read or write                  through it",
+                p.display()
+            );
+        }
+    }
+    Ok(())
+}
 
 fn input_name(t: usize) -> String {
     format!("input/tile-{t:06}.tif")
@@ -429,6 +451,7 @@ fn phase_states(dir: &Path, m: &Manifest) -> Vec<(Vec<usize>, Vec<usize>)> {
 /// `relief tile run` on a flow plan.
 pub(super) fn run_task(dir: &Path, m: &Manifest, a: &RunArgs, ctx: &Ctx) -> Result<()> {
     let layout = layout(m)?;
+    check_folders(dir)?;
     let phase = match a.phase {
         Some(p) if (1..=PHASES).contains(&p) => p,
         Some(p) => bail!("--phase {p} is out of range: a flow plan has phases 1 to {PHASES}"),
@@ -542,7 +565,7 @@ fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
         .filter(|s| s.path == name && index.len() == m.tasks)
         .with_context(|| format!("{} does not list tile {t}", INPUT_INDEX))?;
     let [_, _, w, h] = l.window(t);
-    let bytes = read_plan_file(dir, &name, 1 << 20 | (16 * (w + 2) * (h + 2)) as u64)?;
+    let bytes = read_plan_file(dir, &name, (1 << 20) + (16 * (w + 2) * (h + 2)) as u64)?;
     if bytes_sum(&bytes, name.clone()) != *want {
         bail!(
             "{} does not match its checksum in {INPUT_INDEX} (corrupt or replaced); plan again",
@@ -667,6 +690,7 @@ fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
 
 /// `relief tile status` on a flow plan: each phase's progress and the phase to run next.
 pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
+    check_folders(dir)?;
     let states = phase_states(dir, m);
     let mut text = String::new();
     let mut next = None;
@@ -723,6 +747,7 @@ pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
 /// `relief tile mosaic` on a flow plan: `OUT_DIR/{filled,direction,area}.tif` together.
 pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Result<()> {
     layout(m)?;
+    check_folders(dir)?;
     let bad: Vec<usize> = (0..m.tasks)
         .filter(|&i| task_state(dir, m, PHASES, i) != TileState::Done)
         .collect();

@@ -63,8 +63,9 @@ pub(crate) struct Args {
 
 #[derive(Debug, clap::Subcommand)]
 enum TileCommand {
-    /// Plan a windowable command (amplify, refine, decompress) as one task per output tile;
-    /// writes DIR/manifest.json and the prepared inputs.
+    /// Plan a windowable command (amplify, refine, decompress) as one task per output tile, or
+    /// flow as five phases (per tile, one task, per tile, one task, per tile); writes
+    /// DIR/manifest.json and the prepared inputs.
     Plan(PlanArgs),
     /// Run one task of a plan (index from --index, SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX
     /// or AWS_BATCH_JOB_ARRAY_INDEX); a tile already done is skipped.
@@ -121,7 +122,8 @@ struct MosaicArgs {
     /// Always write BigTIFF (otherwise only when the file passes 4 GiB).
     #[arg(long)]
     bigtiff: bool,
-    /// Only write DIR/mosaic.vrt (GDAL reads the tiles through it), not the GeoTIFF.
+    /// Only write DIR/mosaic.vrt (GDAL reads the tiles through it; flow plans:
+    /// DIR/mosaic-{filled,direction,area}.vrt), not the GeoTIFF.
     #[arg(long)]
     vrt_only: bool,
 }
