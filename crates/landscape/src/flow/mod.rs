@@ -89,8 +89,12 @@ impl Default for RouteOptions {
     }
 }
 
-/// Conditions `z` (a copy of the DEM, voids `NaN`) and routes it with D8.
+/// Conditions `z` (a copy of the DEM, voids `NaN`) and routes it with D8. A `-0.0` cell is
+/// taken as `+0.0` first: the flood raises a cell to a spill level equal to it, so otherwise
+/// the sign of a filled zero would depend on which of two equal zeros reached it first (and
+/// the tiled run of [`tiled`] could not reproduce it).
 pub fn route(mut z: Vec<f32>, grid: Grid, opts: &RouteOptions) -> Routing {
+    positive_zeros(&mut z);
     match opts.depressions {
         Depressions::Fill => {
             depression::priority_flood(&mut z, &grid, FillMode::Plain, None);
@@ -119,6 +123,15 @@ pub fn route(mut z: Vec<f32>, grid: Grid, opts: &RouteOptions) -> Routing {
         dir,
         order,
         outlet,
+    }
+}
+
+/// Turns every `-0.0` into `+0.0` (see [`route`]).
+pub fn positive_zeros(z: &mut [f32]) {
+    for v in z.iter_mut() {
+        if *v == 0.0 {
+            *v = 0.0;
+        }
     }
 }
 

@@ -311,6 +311,8 @@ pub fn phase1(layout: &TileLayout, t: usize, halo: &[f32]) -> Result<(LocalFill,
     let n = w * h;
     let hw = w + 2;
     let mut z: Vec<f32> = (0..n).map(|i| halo[(i / w + 1) * hw + i % w + 1]).collect();
+    // As the single run does (`route`): a filled zero has one sign whatever reached it.
+    super::positive_zeros(&mut z);
     let outlet = |i: usize| {
         let (x, y) = (i % w + 1, i / w + 1);
         D8.iter().any(|&(dy, dx)| {
@@ -613,8 +615,9 @@ pub fn phase3(
         for x in 0..w {
             let i = y * w + x;
             let l = fill.label[i];
+            // Voids keep their bits, as the single run's surface does.
             wz[(y + BAND) * ww + x + BAND] = if l == NONE {
-                f32::NAN
+                fill.z[i]
             } else {
                 raise(fill.z[i], own.level[l as usize])
             };
