@@ -63,9 +63,10 @@ struct Cli {
     /// Largest output a run may write (default 32G): a larger estimate is refused up front.
     #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_size)]
     max_output_size: Option<u64>,
-    /// Longest estimated run time a command starts (e.g. 90s, 15m, 2h; `none`: no limit;
-    /// default 30m). `decompress` and `volume` renders time a small pilot of their work,
-    /// print the estimate and refuse a longer run before starting it.
+    /// Longest run time (e.g. 90s, 15m, 2h; `none`: no limit; default 30m). `decompress`,
+    /// `volume` renders, `flow`, `masks` and `erode` time a small pilot of their work, print
+    /// the estimate and refuse a longer run before starting it; any run (`relief run` and
+    /// `tile run` included) still going at the limit is stopped there, writing nothing.
     #[arg(long, global = true, value_name = "DURATION", value_parser = budget::parse_time)]
     max_time: Option<budget::TimeLimit>,
     #[command(subcommand)]
@@ -131,6 +132,7 @@ enum Command {
 /// The `relief` binary: parses the command line, runs the subcommand, reports an error as
 /// one line on stderr and a non-zero exit code.
 pub fn main() -> ExitCode {
+    Ctx::start_clock();
     let cli = Cli::parse();
     let ctx = Ctx {
         quiet: cli.quiet,
@@ -177,6 +179,15 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            let err = if crate::budget::is_stopped(&err) {
+                err.context(format!(
+                    "stopped: the run took longer than {} (it is stopped at the limit, \
+                     whatever the estimate); nothing was written",
+                    ctx.max_time
+                ))
+            } else {
+                err
+            };
             ctx.report_error(&err);
             ExitCode::FAILURE
         }

@@ -115,6 +115,38 @@ impl crate::ctx::Ctx {
     }
 }
 
+/// Whether `err` comes from work stopped by its time budget (a library's `Stopped` error,
+/// raised when [`crate::ctx::Ctx::deadline`] passed during the work).
+pub(crate) fn is_stopped(err: &anyhow::Error) -> bool {
+    err.chain().any(|e| {
+        matches!(
+            e.downcast_ref::<relief_sparse_core::SparseError>(),
+            Some(relief_sparse_core::SparseError::Stopped(_))
+        ) || matches!(
+            e.downcast_ref::<relief_wavelet_lod::WaveletError>(),
+            Some(relief_wavelet_lod::WaveletError::Stopped(_))
+        ) || matches!(
+            e.downcast_ref::<relief_implicit_volume::Error>(),
+            Some(relief_implicit_volume::Error::Stopped(_))
+        ) || matches!(
+            e.downcast_ref::<relief_landscape::LandscapeError>(),
+            Some(relief_landscape::LandscapeError::Stopped(_))
+        ) || e.downcast_ref::<Stopped>().is_some()
+    })
+}
+
+/// The CLI's own stop (between pipeline stages, in streamed writers): see [`is_stopped`].
+#[derive(Debug)]
+pub(crate) struct Stopped(pub(crate) String);
+
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "stopped: {}", self.0)
+    }
+}
+
+impl std::error::Error for Stopped {}
+
 /// Rasters of at least this many cells get a time estimate (smaller ones take seconds).
 const PILOT_FROM_CELLS: usize = 1 << 20;
 /// The pilot rasterises this many evenly spaced row strips ...

@@ -130,7 +130,26 @@ impl Ctx {
             ProgressBar::hidden()
         };
         bar.set_style(spinner_style());
-        CliProgress { bar, log }
+        CliProgress {
+            bar,
+            log,
+            deadline: self.deadline(),
+        }
+    }
+
+    /// When the run must be over: its start plus `--max-time` (`None`: no limit). Long loops
+    /// ask [`relief_heightfield::Progress::stopped`] of the progress sinks of [`Ctx::progress`],
+    /// which turns true then, and the run ends with an error naming `--max-time`.
+    pub(crate) fn deadline(&self) -> Option<std::time::Instant> {
+        let start = *RUN_START.get_or_init(std::time::Instant::now);
+        self.max_time
+            .0
+            .and_then(|s| start.checked_add(Duration::from_secs_f64(s)))
+    }
+
+    /// Starts the run's clock (the reference of `--max-time`); the first call wins.
+    pub(crate) fn start_clock() {
+        RUN_START.get_or_init(std::time::Instant::now);
     }
 
     /// A GeoTIFF writer fed row by row (north first) in bounded memory: tiled, compressed as
@@ -436,7 +455,8 @@ fn bar_style() -> ProgressStyle {
         .progress_chars("=> ")
 }
 
-/// When the run's first progress sink was made (the run's age decides whether lines print).
+/// When the run started (`main`, else the first progress sink): the run's age decides whether
+/// progress lines print, and `--max-time` counts from it.
 static RUN_START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
 
 /// Runs shorter than this print no progress line in a log.
@@ -499,6 +519,8 @@ impl LogState {
 pub(crate) struct CliProgress {
     bar: ProgressBar,
     log: Option<std::sync::Mutex<LogState>>,
+    /// [`Ctx::deadline`]: [`Progress::stopped`] turns true from then on.
+    deadline: Option<std::time::Instant>,
 }
 
 impl CliProgress {
@@ -553,6 +575,11 @@ impl Progress for CliProgress {
     fn advance(&self, n: u64) {
         self.log_line(|s| s.done = s.done.saturating_add(n), false);
         self.bar.inc(n);
+    }
+
+    fn stopped(&self) -> bool {
+        self.deadline
+            .is_some_and(|d| std::time::Instant::now() >= d)
     }
 }
 

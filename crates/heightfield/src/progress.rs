@@ -6,6 +6,12 @@ pub trait Progress: Sync {
     fn begin(&self, _phase: &str, _total: u64) {}
     /// Reports `n` more units done in the current phase.
     fn advance(&self, _n: u64) {}
+    /// Whether the caller asks the work to stop (its time budget ran out). Long loops ask
+    /// between units of work and end with their crate's `Stopped` error, leaving no partial
+    /// result; the default never stops.
+    fn stopped(&self) -> bool {
+        false
+    }
 }
 
 /// A [`Progress`] that ignores every report.

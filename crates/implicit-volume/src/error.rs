@@ -13,6 +13,9 @@ macro_rules! named_fields {
 /// Errors of this crate.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum Error {
+    /// The caller asked the work to stop (`Progress::stopped`: its time budget ran out).
+    #[error("stopped: {0} was cut short")]
+    Stopped(&'static str),
     /// A parameter is out of its valid range.
     #[error("invalid parameter `{name}` = {value}: {reason}")]
     InvalidParameter {

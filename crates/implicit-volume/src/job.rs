@@ -13,8 +13,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::geology::GeologySpec;
-use crate::mesh::{Mesh, MeshSettings, field_normals, polygonize, topology};
-use crate::recipe::{Dimensions, Recipe, RecipeReport, build_recipe, render_closeups};
+use crate::mesh::{Mesh, MeshSettings, field_normals, polygonize_with_progress, topology};
+use crate::recipe::{
+    Dimensions, Recipe, RecipeReport, build_recipe_with_progress, render_closeups,
+};
 use crate::render::{
     Camera, Image, RenderSettings, SectionSettings, SectionStats, render_with_progress, section,
 };
@@ -367,7 +369,7 @@ impl VolumeJob {
         self.check()?;
         progress.begin("building the implicit scene", 0);
         let t = Instant::now();
-        let (scene, rep) = build_recipe(hf, &self.recipe)?;
+        let (scene, rep) = build_recipe_with_progress(hf, &self.recipe, progress)?;
         let build_s = t.elapsed().as_secs_f64();
         let st = scene.stats();
         let effects = rep
@@ -455,13 +457,14 @@ impl VolumeJob {
         if self.mesh {
             progress.begin("polygonising", 0);
             let t = Instant::now();
-            let (mut m, mr) = polygonize(
+            let (mut m, mr) = polygonize_with_progress(
                 &scene,
                 &MeshSettings {
                     cells,
                     normals: self.max_triangles.is_none(),
                     ..Default::default()
                 },
+                progress,
             )?;
             f.mesh_s = Some(t.elapsed().as_secs_f64());
             f.mesh_grid = Some(cells);

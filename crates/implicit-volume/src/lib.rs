@@ -76,11 +76,11 @@ pub use look::{Openings, SurfaceLook, surface_look, surface_openings};
 pub use math::{Aabb, V3};
 pub use mesh::{
     Mesh, MeshReport, MeshSettings, Topology, field_normals, polygonize, polygonize_grid,
-    sample_grid, topology,
+    polygonize_with_progress, sample_grid, topology,
 };
 pub use recipe::{
     Densities, Deviation, Dimensions, Feature, Highlight, Recipe, RecipeReport, SeaDetection,
-    SeaKind, build_recipe, detect_sea, render_closeups,
+    SeaKind, build_recipe, build_recipe_with_progress, detect_sea, render_closeups,
 };
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{

@@ -389,6 +389,16 @@ fn weld(chunks: Vec<ChunkOut>) -> Mesh {
 
 /// Polygonises the surface `f = T` of `scene` (see module docs).
 pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)> {
+    polygonize_with_progress(scene, s, &relief_heightfield::NoProgress)
+}
+
+/// [`polygonize`], asking `progress` whether to stop before every chunk
+/// ([`relief_heightfield::Progress::stopped`]; then [`Error::Stopped`], no mesh).
+pub fn polygonize_with_progress(
+    scene: &Scene,
+    s: &MeshSettings,
+    progress: &dyn relief_heightfield::Progress,
+) -> Result<(Mesh, MeshReport)> {
     if s.cells.iter().any(|&c| c == 0 || c > 1 << 14) {
         return Err(Error::param(
             "cells",
@@ -428,9 +438,15 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
         n: s.cells,
     };
     let chunks = chunks_of(s.cells, s.chunk);
+    let stop = std::sync::atomic::AtomicBool::new(false);
     let results: Vec<(Option<ChunkOut>, usize)> = chunks
         .par_iter()
         .map(|&(lo, hi)| {
+            use std::sync::atomic::Ordering::Relaxed;
+            if stop.load(Relaxed) || progress.stopped() {
+                stop.store(true, Relaxed);
+                return (None, 0);
+            }
             let cb = Aabb::new(g.pos(lo[0], lo[1], lo[2]), g.pos(hi[0], hi[1], hi[2]));
             let touches = (0..3).any(|k| lo[k] == 0 || hi[k] == g.n[k]);
             let (flo, fhi) = scene.interval(&cb);
@@ -459,6 +475,9 @@ pub fn polygonize(scene: &Scene, s: &MeshSettings) -> Result<(Mesh, MeshReport)>
             (Some(march_chunk(&g, lo, hi, &vals, THRESHOLD)), evals)
         })
         .collect();
+    if stop.into_inner() {
+        return Err(Error::Stopped("meshing"));
+    }
     let mut report = MeshReport {
         chunks: chunks.len(),
         ..Default::default()

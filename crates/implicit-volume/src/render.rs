@@ -437,10 +437,16 @@ pub fn render_with_progress(
     let diag = norm(b.size());
     let h = 1e-3 * diag;
     let (zlo, zhi) = (b.min[2], b.max[2]);
+    let stop = std::sync::atomic::AtomicBool::new(false);
     let mut rgb = vec![0u8; s.width * s.height * 3];
     rgb.par_chunks_mut(s.width * 3)
         .enumerate()
         .for_each(|(y, row)| {
+            use std::sync::atomic::Ordering::Relaxed;
+            if stop.load(Relaxed) || progress.stopped() {
+                stop.store(true, Relaxed);
+                return;
+            }
             for x in 0..s.width {
                 let u = ((x as f32 + 0.5) / s.width as f32 * 2.0 - 1.0) * th * aspect;
                 let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
@@ -562,6 +568,9 @@ pub fn render_with_progress(
             }
             progress.advance(1);
         });
+    if stop.into_inner() {
+        return Err(Error::Stopped("rendering"));
+    }
     Ok(Image {
         width: s.width,
         height: s.height,

@@ -4,6 +4,9 @@ use thiserror::Error;
 /// Errors of the sparse-coding and Sparse Construction Tree code.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum SparseError {
+    /// The caller asked the work to stop (`Progress::stopped`: its time budget ran out).
+    #[error("stopped: {0} was cut short")]
+    Stopped(&'static str),
     /// A parameter is out of its valid range.
     #[error("invalid parameter `{name}` = {value}: {reason}")]
     InvalidParameter {

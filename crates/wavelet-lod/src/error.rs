@@ -4,6 +4,9 @@ use thiserror::Error;
 /// Errors of the wavelet transform, the statistics fit and the refinement.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum WaveletError {
+    /// The caller asked the work to stop (`Progress::stopped`: its time budget ran out).
+    #[error("stopped: {0} was cut short")]
+    Stopped(&'static str),
     /// A setting or argument is out of its valid range.
     #[error("invalid parameter `{name}` = {value}: {reason}")]
     InvalidParameter {

@@ -51,6 +51,12 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         bail!("input DEM {} does not exist", config.input.display());
     }
     config.verbose = !ctx.quiet;
+    // The global limits hold for the whole run: each stage's pre-flight against
+    // --max-memory, and --max-time as a deadline its long loops and the stage loop ask.
+    config.limits = pipeline::RunLimits {
+        max_memory: Some(ctx.max_memory.bytes),
+        deadline: ctx.deadline(),
+    };
     check_out_dir(&out, &[&args.spec, &config.input], ctx.force)?;
     let stages = pipeline::spec::build_stages(&spec.stages)?;
 

@@ -90,7 +90,9 @@ impl Stage for ErodeStage {
         job.seed ^= cx.config.seed;
         let t0 = Instant::now();
         let out = job
-            .run(&dem, None, &cx.progress(), &|| false)
+            .run(&dem, None, &cx.progress(), &|| {
+                cx.config.limits.past_deadline()
+            })
             .context("cannot erode the terrain")?;
         let seconds = t0.elapsed().as_secs_f64();
         cx.section.figure("seconds", seconds);

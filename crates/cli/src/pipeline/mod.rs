@@ -59,6 +59,41 @@ pub struct PipelineConfig {
     /// Folder that relative paths in stage parameters (and the default fixtures a stage reads,
     /// such as `fixtures/volcano.json`) are resolved against: the spec file's folder.
     pub base_dir: PathBuf,
+    /// The run's limits (`relief run --max-memory / --max-time`; none by default).
+    pub limits: RunLimits,
+}
+
+/// Limits of a pipeline run: `relief run` passes its `--max-memory` and `--max-time`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RunLimits {
+    /// Largest working memory a stage's pre-flight estimate may reach, bytes.
+    pub max_memory: Option<u64>,
+    /// When the run must be over: stages stop (their long loops ask the progress sink) and
+    /// the run ends with an error.
+    pub deadline: Option<Instant>,
+}
+
+impl RunLimits {
+    /// Refuses a stage whose estimated working memory `bytes` exceeds `max_memory`, naming
+    /// the `parameters` that make it smaller.
+    pub fn check_memory(&self, stage: &str, bytes: f64, parameters: &str) -> Result<()> {
+        if let Some(max) = self.max_memory
+            && (bytes.is_nan() || bytes > max as f64)
+        {
+            bail!(
+                "stage `{stage}` needs about {} of working memory, more than --max-memory {}: \
+                 use {parameters}, or raise --max-memory",
+                crate::memory::human(bytes as u64),
+                crate::memory::human(max)
+            );
+        }
+        Ok(())
+    }
+
+    /// Whether the run is past its deadline.
+    pub fn past_deadline(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
 }
 
 impl PipelineConfig {
@@ -76,6 +111,7 @@ impl PipelineConfig {
             previews: true,
             verbose: true,
             base_dir,
+            limits: RunLimits::default(),
         }
     }
 
@@ -245,14 +281,17 @@ impl StageCx<'_> {
     pub fn progress(&self) -> StageProgress {
         StageProgress {
             verbose: self.config.verbose,
+            limits: self.config.limits,
         }
     }
 }
 
-/// Prints each phase a library call announces (`    <phase> (<total>)`) on stderr.
+/// Prints each phase a library call announces (`    <phase> (<total>)`) on stderr, and asks
+/// the library to stop past the run's deadline.
 #[derive(Debug, Clone, Copy)]
 pub struct StageProgress {
     verbose: bool,
+    limits: RunLimits,
 }
 
 impl Progress for StageProgress {
@@ -260,6 +299,10 @@ impl Progress for StageProgress {
         if self.verbose {
             eprintln!("    {phase} ({total})");
         }
+    }
+
+    fn stopped(&self) -> bool {
+        self.limits.past_deadline()
     }
 }
 
@@ -296,6 +339,11 @@ pub fn run(config: &PipelineConfig, stages: &[NamedStage]) -> Result<PipelineRun
     let t_all = Instant::now();
     let n = stages.len();
     for (i, NamedStage { name, stage }) in stages.iter().enumerate() {
+        if config.limits.past_deadline() {
+            return Err(anyhow::Error::new(crate::budget::Stopped(format!(
+                "the run reached its time limit before stage `{name}`"
+            ))));
+        }
         if config.verbose {
             eprintln!("[{}/{n}] {name} ...", i + 1);
         }

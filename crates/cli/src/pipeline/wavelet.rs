@@ -133,6 +133,21 @@ impl Stage for WaveletStage {
                 .figure("showcase_crop", [(w - cw) / 2, (h - ch) / 2, cw, ch]);
             terrain.crop((w - cw) / 2, (h - ch) / 2, cw, ch)?
         };
+        // Pre-flight under `relief run --max-memory`: the two showcase refinements are kept
+        // (f32) while each is rendered (about 16 bytes per cell at the peak), and the whole
+        // terrain's refinement for the next stage comes on top of them.
+        let cells = |w: usize, h: usize| (w * scale) as f64 * (h * scale) as f64;
+        let showcase = cells(input.width(), input.height()) * (2.0 * 4.0 + 16.0);
+        let next = if p.replace_terrain && (w, h) != (input.width(), input.height()) {
+            cells(w, h) * 16.0
+        } else {
+            0.0
+        };
+        cx.config.limits.check_memory(
+            "wavelet",
+            showcase + next,
+            "fewer `extra_levels`, a smaller `max_cells` or `replace_terrain: false`",
+        )?;
         cx.section.figure("levels", n);
         cx.section.figure("wavelet", p.job.basis().name());
         cx.section.figure("model", p.job.model.name());

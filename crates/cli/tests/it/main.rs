@@ -7,6 +7,7 @@ mod cli;
 mod dictionary;
 mod failures;
 mod landscape;
+mod limits;
 mod patch;
 mod sparse;
 mod tile;

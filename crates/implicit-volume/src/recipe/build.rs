@@ -44,6 +44,24 @@ impl Basis<'_> {
 /// Builds the scene of `recipe` on `hf` (complete, at least 3 x 3 nodes). Deterministic in
 /// `recipe.seed` whatever the thread count.
 pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeReport)> {
+    build_recipe_with_progress(hf, recipe, &relief_heightfield::NoProgress)
+}
+
+/// [`build_recipe`], asking `progress` whether to stop between its steps (coast, karst,
+/// weathering, each landform; [`relief_heightfield::Progress::stopped`], then
+/// [`crate::Error::Stopped`]).
+pub fn build_recipe_with_progress(
+    hf: &Heightfield,
+    recipe: &Recipe,
+    progress: &dyn relief_heightfield::Progress,
+) -> Result<(Scene, RecipeReport)> {
+    let check = || {
+        if progress.stopped() {
+            Err(crate::Error::Stopped("building the scene"))
+        } else {
+            Ok(())
+        }
+    };
     let (mut basis, mut dims) = sizes(hf, recipe)?;
     let (geology, geo) = geology(&basis, &mut dims)?;
     let sea = if recipe.sea_level.is_none() {
@@ -91,8 +109,11 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
         dims,
         effects: Vec::new(),
     };
+    check()?;
     basis.coast(&mut out)?;
+    check()?;
     basis.karst(&mut out)?;
+    check()?;
     basis.weathering(&mut out)?;
     // The landforms, each when asked for.
     let landforms: [(Feature, Step<'_>); 3] = [
@@ -102,9 +123,11 @@ pub fn build_recipe(hf: &Heightfield, recipe: &Recipe) -> Result<(Scene, RecipeR
     ];
     for (feature, step) in landforms {
         if basis.has(feature) {
+            check()?;
             step(&basis, &mut out)?;
         }
     }
+    check()?;
     let Out {
         b, dims, effects, ..
     } = out;

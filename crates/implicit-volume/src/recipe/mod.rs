@@ -50,7 +50,7 @@ mod build;
 mod closeups;
 mod sea;
 
-pub use self::build::build_recipe;
+pub use self::build::{build_recipe, build_recipe_with_progress};
 pub use self::closeups::render_closeups;
 use self::closeups::{best_section_line, densest_karst};
 pub(crate) use self::sea::border_connected;

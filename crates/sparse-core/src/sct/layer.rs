@@ -269,7 +269,7 @@ impl SparseLayer {
         band: &Band,
         num: &mut [f64],
         den: &mut [f64],
-        scratch: &mut StampScratch,
+        scratch: &mut StampScratch<'_>,
     ) {
         let a = self.dictionary.patch_size();
         let delta = self.dictionary.spacing();
@@ -463,7 +463,15 @@ impl Frame {
     }
 }
 
-impl StampScratch {
+impl StampScratch<'_> {
+    /// Whether the caller asks to stop (remembered once asked).
+    pub(super) fn should_stop(&mut self) -> bool {
+        if !self.stopped && self.progress.is_some_and(|p| p.stopped()) {
+            self.stopped = true;
+        }
+        self.stopped
+    }
+
     /// `h[r][k]`: patch row `r` of `p` (`a x a`) interpolated at the cached column `k`, for
     /// the visible columns `kx` of a frame `w` wide. On patch samples (taps (0, 1, 0, 0)) the
     /// sum is that sample exactly, so it is read directly.
@@ -722,8 +730,12 @@ impl Band {
     }
 }
 
-#[derive(Debug, Default)]
-pub(super) struct StampScratch {
+#[derive(Default)]
+pub(super) struct StampScratch<'p> {
+    /// The caller's progress, asked whether to stop between the children of wide operators.
+    pub(super) progress: Option<&'p dyn relief_heightfield::Progress>,
+    /// Set once `progress` asked to stop: the band's values are then unfinished.
+    pub(super) stopped: bool,
     pub(super) candidates: Vec<u32>,
     pub(super) p: Vec<f64>,
     pub(super) h: Vec<f64>,

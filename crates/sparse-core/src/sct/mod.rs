@@ -355,9 +355,19 @@ impl Sct {
         }
         let mut out = vec![0f32; win.width * win.height];
         progress.begin("rasterize", win.height as u64);
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let scratch = || StampScratch {
+            progress: Some(progress),
+            ..StampScratch::default()
+        };
         out.par_chunks_mut(win.width * BAND_ROWS)
             .enumerate()
-            .for_each_init(StampScratch::default, |scratch, (b, chunk)| {
+            .for_each_init(scratch, |scratch, (b, chunk)| {
+                use std::sync::atomic::Ordering::Relaxed;
+                if stop.load(Relaxed) || scratch.should_stop() {
+                    stop.store(true, Relaxed);
+                    return;
+                }
                 let rows = chunk.len() / win.width;
                 let y0 = win.y + b * BAND_ROWS;
                 let cells = rows * BLOCK_COLS.min(win.width);
@@ -377,8 +387,14 @@ impl Sct {
                         }
                     }
                 }
+                if scratch.stopped {
+                    stop.store(true, Relaxed);
+                }
                 progress.advance(rows as u64);
             });
+        if stop.into_inner() {
+            return Err(SparseError::Stopped("rasterising the model"));
+        }
         let hf = Heightfield::new(
             win.width,
             win.height,

@@ -189,7 +189,7 @@ impl Node {
         band: &Band,
         val: &mut [f64],
         wt: &mut [f64],
-        scratch: &mut StampScratch,
+        scratch: &mut StampScratch<'_>,
     ) {
         let ncols = band.cols.len();
         if let Some((kind, c)) = self.children_kind() {
@@ -202,6 +202,10 @@ impl Node {
             let mut cv = vec![0.0; n];
             let mut cw = vec![0.0; n];
             for (i, child) in c.iter().enumerate() {
+                // A tree of millions of children takes seconds per band: ask between them.
+                if i % 1024 == 1023 && scratch.should_stop() {
+                    return;
+                }
                 child.raster(band, &mut cv, &mut cw, scratch);
                 for k in 0..n {
                     let a = acc_step(kind, (val[k], wt[k]), (cv[k], cw[k]), i == 0);

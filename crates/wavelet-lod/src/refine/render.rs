@@ -59,10 +59,13 @@ impl Refiner {
         let mut data = vec![0.0f32; ow * oh];
         data.par_chunks_mut(ow * t)
             .enumerate()
-            .for_each(|(sy, strip)| {
+            .try_for_each(|(sy, strip)| {
                 let y0 = sy * t;
                 let th = strip.len() / ow;
                 for tx in 0..tiles_x {
+                    if progress.stopped() {
+                        return Err(WaveletError::Stopped("the refinement"));
+                    }
                     let x0 = tx * t;
                     let tw = t.min(ow - x0);
                     let tile = self.render_region(Window::new(x0, y0, tw, th));
@@ -71,7 +74,8 @@ impl Refiner {
                     }
                     progress.advance(1);
                 }
-            });
+                Ok(())
+            })?;
         self.wrap(0, 0, ow, oh, data)
     }
 
@@ -108,10 +112,13 @@ impl Refiner {
             let tiles: Vec<Vec<f32>> = (0..tiles_x)
                 .into_par_iter()
                 .map(|tx| {
+                    if progress.stopped() {
+                        return Err(WaveletError::Stopped("the refinement"));
+                    }
                     let x0 = tx * t;
-                    self.render_region(Window::new(x0, y0, t.min(ow - x0), sh))
+                    Ok(self.render_region(Window::new(x0, y0, t.min(ow - x0), sh)))
                 })
-                .collect();
+                .collect::<Result<_>>()?;
             // Row by row in parallel (a serial copy would leave the other threads idle).
             buf[..sh * ow]
                 .par_chunks_mut(ow)

@@ -1,0 +1,116 @@
+//! Issue 44 item 5: `--max-time` stops every long-running path during the work (not only by
+//! a pilot's estimate before it), with a clear error and no output; `relief run` applies
+//! `--max-memory` and `--max-time` to its stages.
+
+use std::path::Path;
+use std::process::Output;
+use std::time::Instant;
+
+use relief_heightfield::Heightfield;
+
+use crate::common::*;
+
+/// A clean one-line failure naming `--max-time` as the reason the run was stopped, leaving
+/// none of `outputs`, within `limit_s` seconds of wall time (the limit is 1 s; the work
+/// would take minutes).
+fn stopped(out: &Output, seconds: f64, outputs: &[&Path]) {
+    let e = fails_with(out, &["stopped", "--max-time 1.0 s"], outputs);
+    assert!(seconds < 60.0, "stopped only after {seconds:.1} s: {e}");
+}
+
+fn timed(args: &[&std::ffi::OsStr]) -> (Output, f64) {
+    let t = Instant::now();
+    let o = relief(args);
+    (o, t.elapsed().as_secs_f64())
+}
+
+/// A tree blending 2^20 constants on a small raster: no pilot (under 2^20 cells), seconds per
+/// band; decompress stops between the children.
+#[test]
+fn decompress_of_a_wide_tree_stops_at_the_time_limit() {
+    use relief_sparse_core::{Node, Sct};
+    let tmp = tempfile::tempdir().unwrap();
+    let children = (0..1 << 20).map(|i| Node::Constant(i as f64)).collect();
+    let sct = Sct::new(Node::Blend(children), 256, 256, (10.0, 10.0)).unwrap();
+    let model = tmp.path().join("wide.sct");
+    std::fs::write(&model, sct.to_bytes().unwrap()).unwrap();
+    let out = tmp.path().join("wide.tif");
+    let (o, s) = timed(&words("--max-time 1s decompress {} {}", &[&model, &out]));
+    stopped(&o, s, &[&out]);
+}
+
+/// `refine --levels 8 --stream` of a 64^2 input: 256 strips of a 16384^2 GeoTIFF.
+#[test]
+fn a_streamed_refinement_stops_at_the_time_limit() {
+    let (tmp, input, _) = tmp_with_crop("gc64.tif", (224, 224, 64, 64));
+    let out = tmp.path().join("r.tif");
+    let (o, s) = timed(&words(
+        "--max-time 1s refine {} {} --levels 8 --stream",
+        &[&input, &out],
+    ));
+    stopped(&o, s, &[&out]);
+}
+
+/// Meshing a flat 64^2 DEM of 1 m cells: a fine voxel grid, no pilot for the mesh.
+#[test]
+fn meshing_stops_at_the_time_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let flat = Heightfield::from_fn(64, 64, 1.0, 1.0, |x, y| 100.0 + 0.01 * (x + y) as f32);
+    let input = write(tmp.path(), "flat.tif", &flat);
+    let mesh = tmp.path().join("flat.glb");
+    let (o, s) = timed(&words(
+        "--max-time 1s volume {} --mesh {} --resolution 4",
+        &[&input, &mesh],
+    ));
+    stopped(&o, s, &[&mesh]);
+}
+
+/// `relief run`: a wavelet stage of 8 extra levels is refused by its pre-flight under
+/// `--max-memory` (it aborted on a 4 GiB allocation), and a run past `--max-time` is stopped;
+/// neither leaves an output folder.
+#[test]
+fn run_applies_the_memory_and_time_limits() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = write(
+        tmp.path(),
+        "canyon.tif",
+        &fixture().crop(100, 100, 128, 128).unwrap(),
+    );
+    let spec = tmp.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{ "input": "canyon.tif",
+             "stages": [ { "stage": "load" },
+                         { "stage": "wavelet", "params": { "job": { "extra_levels": 8 },
+                           "quality": false, "replace_terrain": true } } ] }"#,
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    fails_with(
+        &relief!["--max-memory", "1G", "run", spec, "--out", out],
+        &["extra_levels", "--max-memory"],
+        &[],
+    );
+    assert!(!out.exists());
+    std::fs::write(
+        &spec,
+        r#"{ "input": "canyon.tif",
+             "stages": [ { "stage": "load" },
+                         { "stage": "wavelet", "params": { "job": { "extra_levels": 4 },
+                           "quality": false, "replace_terrain": true } },
+                         { "stage": "wavelet", "params": { "job": { "extra_levels": 2 },
+                           "quality": false, "replace_terrain": true, "max_cells": 268435456 } } ] }"#,
+    )
+    .unwrap();
+    let (o, s) = timed(&[
+        os("--max-time"),
+        os("1s"),
+        os("run"),
+        os(&spec),
+        os("--out"),
+        os(&out),
+    ]);
+    stopped(&o, s, &[]);
+    assert!(!out.exists());
+    let _ = input;
+}
