@@ -277,7 +277,11 @@ fn signed_zeros_and_nan_payloads_equal_the_single_run() {
             if u < 0.03 {
                 odd_nan
             } else if u < 0.5 {
-                if (x + y) as usize % 2 == 0 { -0.0 } else { 0.0 }
+                if ((x + y) as usize).is_multiple_of(2) {
+                    -0.0
+                } else {
+                    0.0
+                }
             } else {
                 ((x - 20.0).abs() + (y - 18.0).abs() - 10.0)
                     .max(-3.0)
