@@ -251,6 +251,11 @@ pub(crate) fn check_outputs(
                     file.display()
                 );
             }
+            if !force {
+                // Checked absent: the write creates it exclusively, so another run that
+                // creates the same name meanwhile makes this one fail instead of losing.
+                relief_io::create_new_only(&file);
+            }
             planned.push(file);
         }
     }

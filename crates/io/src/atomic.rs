@@ -164,10 +164,58 @@ pub(crate) fn check_replaceable(path: &Path) -> Result<()> {
     }
 }
 
+/// Targets that must be created, never replaced ([`create_new_only`]), as absolute paths.
+static NEW_ONLY: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// Marks `path` as a new output of this process: the write that puts it in place creates it
+/// exclusively, and fails (leaving the other file alone) if something appeared at that name
+/// meanwhile, instead of silently replacing it. For outputs a caller checked to be absent and
+/// may not replace (two runs writing one new name at once: the second fails).
+pub fn create_new_only(path: &Path) {
+    let abs = absolute(path);
+    let mut set = NEW_ONLY.lock().unwrap_or_else(|e| e.into_inner());
+    if !set.contains(&abs) {
+        set.push(abs);
+    }
+}
+
+fn is_new_only(path: &Path) -> bool {
+    let set = NEW_ONLY.lock().unwrap_or_else(|e| e.into_inner());
+    !set.is_empty() && set.contains(&absolute(path))
+}
+
+/// Moves the finished `tmp` to `path`: a rename, or for a [`create_new_only`] target an
+/// exclusive hard link (then `tmp` is removed), which fails when `path` exists. On a file
+/// system without hard links the name is checked just before the rename.
+pub(crate) fn place(tmp: &Path, path: &Path) -> std::io::Result<()> {
+    if !is_new_only(path) {
+        return std::fs::rename(tmp, path);
+    }
+    let taken = || {
+        std::io::Error::new(
+            std::io::ErrorKind::AlreadyExists,
+            "another process created it while this one was writing it; it was not replaced",
+        )
+    };
+    match std::fs::hard_link(tmp, path) {
+        Ok(()) => {
+            let _ = std::fs::remove_file(tmp);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(taken()),
+        Err(_) if std::fs::symlink_metadata(path).is_ok() => Err(taken()),
+        Err(_) => std::fs::rename(tmp, path),
+    }
+}
+
 /// Renames the finished temporary `tmp` over `path` (removing `tmp` on failure).
 pub(crate) fn rename_into_place(tmp: &Path, path: &Path) -> Result<()> {
-    let res = check_replaceable(path)
-        .and_then(|()| std::fs::rename(tmp, path).map_err(|e| IoError::os(path, e)));
+    let res =
+        check_replaceable(path).and_then(|()| place(tmp, path).map_err(|e| IoError::os(path, e)));
     if res.is_err() {
         let _ = std::fs::remove_file(tmp);
     }
@@ -235,29 +283,47 @@ impl Staging {
     /// Moves every staged file into its target folder, then removes the staging folders.
     pub fn commit(mut self) -> Result<()> {
         let dirs = std::mem::take(&mut self.dirs);
-        let mut moves = Vec::new();
-        for (dir, stage) in &dirs {
-            let entries = std::fs::read_dir(stage).map_err(|e| IoError::os(stage, e))?;
-            for e in entries {
-                let e = e.map_err(|e| IoError::os(stage, e))?;
-                let name = e.file_name();
-                // Leftover temporaries of the writers (none after a successful write).
-                if name.to_str().is_some_and(|n| temp_owner(n).is_some()) {
-                    continue;
-                }
-                let target = dir.join(&name);
-                check_replaceable(&target)?;
-                moves.push((e.path(), target));
-            }
-        }
-        let res = moves
-            .iter()
-            .try_for_each(|(from, to)| std::fs::rename(from, to).map_err(|e| IoError::os(to, e)));
+        let res = staged_moves(&dirs).and_then(|moves| {
+            moves
+                .iter()
+                .try_for_each(|(from, to)| place(from, to).map_err(|e| IoError::os(to, e)))
+        });
         for (_, stage) in &dirs {
             let _ = std::fs::remove_dir_all(stage);
         }
         res
     }
+}
+
+/// The `(staged file, target)` moves of a [`Staging`]'s folders, checked before anything
+/// moves: targets must be replaceable, and a new-only target ([`create_new_only`]) free.
+fn staged_moves(dirs: &[(PathBuf, PathBuf)]) -> Result<Vec<(PathBuf, PathBuf)>> {
+    let mut moves = Vec::new();
+    for (dir, stage) in dirs {
+        let entries = std::fs::read_dir(stage).map_err(|e| IoError::os(stage, e))?;
+        for e in entries {
+            let e = e.map_err(|e| IoError::os(stage, e))?;
+            let name = e.file_name();
+            // Leftover temporaries of the writers (none after a successful write).
+            if name.to_str().is_some_and(|n| temp_owner(n).is_some()) {
+                continue;
+            }
+            let target = dir.join(&name);
+            check_replaceable(&target)?;
+            if is_new_only(&target) && std::fs::symlink_metadata(&target).is_ok() {
+                return Err(IoError::os(
+                    &target,
+                    std::io::Error::new(
+                        std::io::ErrorKind::AlreadyExists,
+                        "another process created it while this one was writing it; it was \
+                         not replaced",
+                    ),
+                ));
+            }
+            moves.push((e.path(), target));
+        }
+    }
+    Ok(moves)
 }
 
 impl Drop for Staging {
@@ -337,7 +403,7 @@ pub(crate) fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
         }
     }
     for (i, ((path, _), tmp)) in files.iter().zip(&temps).enumerate() {
-        if let Err(e) = std::fs::rename(tmp, path) {
+        if let Err(e) = place(tmp, path) {
             for t in &temps[i..] {
                 let _ = std::fs::remove_file(t);
             }
@@ -353,6 +419,42 @@ mod tests {
 
     /// A pid that is not running (the largest pid Linux hands out is below 2^22).
     const DEAD: u32 = 4_194_303;
+
+    /// Issue 44 item 8: two runs writing one new output name at once both "succeeded" (the
+    /// later rename silently won). A target marked new-only is created exclusively: the
+    /// second write fails and leaves the first file alone; other targets are replaced as
+    /// before.
+    #[test]
+    fn a_new_only_target_created_meanwhile_is_not_replaced() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("new.tif");
+        create_new_only(&out);
+        // Another process creates it between this one's check and its write.
+        std::fs::write(&out, b"the other run").unwrap();
+        let e = write_atomic(&out, b"this run").unwrap_err();
+        assert!(e.to_string().contains("another process created it"), "{e}");
+        assert_eq!(std::fs::read(&out).unwrap(), b"the other run");
+        let left: Vec<_> = std::fs::read_dir(d.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "a temporary was left");
+        // The same through a staging folder and the multi-file writer.
+        let side = d.path().join("new.json");
+        create_new_only(&side);
+        std::fs::write(&side, b"{}").unwrap();
+        let mut st = Staging::new();
+        std::fs::write(st.path(&side).unwrap(), b"[]").unwrap();
+        assert!(st.commit().is_err());
+        assert!(write_all_atomic(&[(&side, b"[1]".as_slice())]).is_err());
+        assert_eq!(std::fs::read(&side).unwrap(), b"{}");
+        // A new-only name still free is created; an ordinary target is replaced.
+        let fresh = d.path().join("fresh.tif");
+        create_new_only(&fresh);
+        write_atomic(&fresh, b"x").unwrap();
+        assert_eq!(std::fs::read(&fresh).unwrap(), b"x");
+        let plain = d.path().join("plain.tif");
+        std::fs::write(&plain, b"old").unwrap();
+        write_atomic(&plain, b"new").unwrap();
+        assert_eq!(std::fs::read(&plain).unwrap(), b"new");
+    }
 
     #[test]
     fn temporary_names_stay_within_the_name_limit() {

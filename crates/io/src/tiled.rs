@@ -300,7 +300,7 @@ impl TiledGeoTiffWriter {
             let _ = std::fs::remove_file(&self.tmp);
         }
         res?;
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| {
+        crate::atomic::place(&self.tmp, &self.path).map_err(|e| {
             let _ = std::fs::remove_file(&self.tmp);
             IoError::os(&self.path, e)
         })

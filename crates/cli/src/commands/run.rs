@@ -2,8 +2,9 @@
 //! runs, same JSON, same `summary.json` and `report.html`) with the installed binary.
 //!
 //! Relative paths in the spec are relative to the spec file. The run writes into a hidden
-//! staging folder beside DIR and moves its files into DIR only when every stage succeeded, so a
-//! failed run leaves DIR as it was.
+//! staging folder beside DIR, and only when every stage succeeded does that folder become DIR
+//! (renames: an earlier run's DIR is set aside, then removed), so a failed run leaves DIR as it
+//! was and a successful one leaves only its own files.
 
 use std::path::{Path, PathBuf};
 
@@ -71,20 +72,43 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let _cleanup = RemoveOnDrop(staged.clone());
     config.out_dir = staged.clone();
     let run = pipeline::run(&config, &stages)?;
-
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    for entry in std::fs::read_dir(&staged)? {
-        let entry = entry?;
-        let target = out.join(entry.file_name());
-        std::fs::rename(entry.path(), &target)
-            .with_context(|| format!("cannot move the result into {}", target.display()))?;
-    }
+    swap_in(&staged, &out, parent)?;
     ctx.note(format!(
         "ran {} stages in {:.1} s; report: {}",
         run.stage_count,
         run.seconds,
         out.join("report.html").display()
     ));
+    Ok(())
+}
+
+/// Puts the finished staging folder `staged` in place as `out`, all or nothing: a new `out`
+/// is one rename (which fails if another run created a non-empty `out` meanwhile: that run
+/// keeps it); an existing `out` (an earlier run's, replaced under `--force`, or an empty
+/// folder) is first renamed aside to a fresh hidden name in `parent`, then `staged` takes its
+/// name and the earlier run is removed; if that second rename fails, the earlier run is
+/// renamed back. No file of the earlier run is mixed with this run's.
+fn swap_in(staged: &Path, out: &Path, parent: &Path) -> Result<()> {
+    let moved = |e: std::io::Error| {
+        anyhow::Error::new(e).context(format!("cannot move the result into {}", out.display()))
+    };
+    if std::fs::symlink_metadata(out).is_err() {
+        return std::fs::rename(staged, out).map_err(moved);
+    }
+    // A fresh, exclusively made name to park the earlier run under (rename replaces the
+    // empty folder).
+    let aside = relief_io::create_staging_dir(parent)
+        .with_context(|| format!("cannot create a staging folder in {}", parent.display()))?;
+    if let Err(e) = std::fs::rename(out, &aside) {
+        let _ = std::fs::remove_dir(&aside);
+        return Err(moved(e));
+    }
+    if let Err(e) = std::fs::rename(staged, out) {
+        // Put the earlier run back; it was not touched.
+        let _ = std::fs::rename(&aside, out);
+        return Err(moved(e));
+    }
+    let _ = std::fs::remove_dir_all(&aside);
     Ok(())
 }
 

@@ -114,3 +114,69 @@ fn run_applies_the_memory_and_time_limits() {
     assert!(!out.exists());
     let _ = input;
 }
+
+/// Issue 44 item 8: `relief --force run` over an earlier run's folder is all or nothing: a
+/// failing run leaves the earlier folder exactly as it was, a successful one leaves only its
+/// own files (the earlier run's other files were kept beside the new ones).
+#[test]
+fn a_forced_run_replaces_an_earlier_run_all_or_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    write(
+        tmp.path(),
+        "canyon.tif",
+        &fixture().crop(100, 100, 64, 64).unwrap(),
+    );
+    let spec = tmp.path().join("spec.json");
+    let good = r#"{ "input": "canyon.tif", "stages": [ { "stage": "load" } ] }"#;
+    std::fs::write(&spec, good).unwrap();
+    let out = tmp.path().join("out");
+    relief_ok!["run", spec, "--out", out];
+    std::fs::write(out.join("earlier-only.txt"), b"from an earlier run").unwrap();
+    let snapshot = |dir: &Path| -> Vec<(String, Vec<u8>)> {
+        files(dir)
+            .into_iter()
+            .map(|f| {
+                let bytes = std::fs::read(dir.join(&f)).unwrap();
+                (f, bytes)
+            })
+            .collect()
+    };
+    let before = snapshot(&out);
+    // Fails after its first stage wrote files (the wavelet pre-flight under --max-memory).
+    std::fs::write(
+        &spec,
+        r#"{ "input": "canyon.tif",
+             "stages": [ { "stage": "load" },
+                         { "stage": "wavelet", "params": { "job": { "extra_levels": 8 },
+                           "quality": false } } ] }"#,
+    )
+    .unwrap();
+    failed(&relief![
+        "--force",
+        "--max-memory",
+        "64M",
+        "run",
+        spec,
+        "--out",
+        out
+    ]);
+    assert_eq!(
+        snapshot(&out),
+        before,
+        "a failed run changed the earlier one"
+    );
+    std::fs::write(&spec, good).unwrap();
+    relief_ok!["--force", "run", spec, "--out", out];
+    let after = files(&out);
+    assert!(
+        !after.contains(&"earlier-only.txt".to_string()),
+        "{after:?}"
+    );
+    assert!(after.contains(&"summary.json".to_string()), "{after:?}");
+    // Nothing hidden is left beside it.
+    let hidden: Vec<String> = files(tmp.path())
+        .into_iter()
+        .filter(|f| f.starts_with('.'))
+        .collect();
+    assert!(hidden.is_empty(), "{hidden:?}");
+}
