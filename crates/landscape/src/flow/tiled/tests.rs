@@ -167,7 +167,8 @@ fn voids_flats_and_odd_sizes_equal_the_single_run() {
 /// topobathy with its sea below zero. Tile sides cut them anywhere, tasks shuffled.
 #[test]
 fn the_shared_dems_equal_the_single_run() {
-    let cases: [(&str, Option<(usize, usize, usize, usize)>, &[usize]); 9] = [
+    type Crop = Option<(usize, usize, usize, usize)>;
+    let cases: [(&str, Crop, &[usize]); 9] = [
         (
             "jacksboro_fault",
             Some((192, 64, 128, 128)),
