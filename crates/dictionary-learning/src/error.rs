@@ -45,6 +45,9 @@ pub enum LearnError {
     /// An error of the heightfield layer.
     #[error(transparent)]
     Heightfield(#[from] HeightfieldError),
+    /// An error of the landscape-evolution stage of sketch synthesis (its message).
+    #[error("{0}")]
+    Landscape(String),
 }
 
 impl LearnError {
@@ -60,6 +63,15 @@ impl LearnError {
 
 /// Result alias of this crate.
 pub type Result<T, E = LearnError> = std::result::Result<T, E>;
+
+impl From<relief_landscape::LandscapeError> for LearnError {
+    fn from(e: relief_landscape::LandscapeError) -> Self {
+        match e {
+            relief_landscape::LandscapeError::InvalidParameter(p) => p.into(),
+            e => Self::Landscape(e.to_string()),
+        }
+    }
+}
 
 impl From<relief_heightfield::ParamError> for LearnError {
     fn from(e: relief_heightfield::ParamError) -> Self {

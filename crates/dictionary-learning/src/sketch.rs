@@ -32,6 +32,7 @@ use crate::multires::{
 };
 use crate::noise::item_seed;
 use crate::structure::{StructureReport, StructureSettings, exemplar_structure};
+use relief_landscape::grow::{GrowSettings, grow};
 
 /// Settings of the sketch-synthesis job ([`synthesize`]); serde as [`AmplifySettings`] (fields
 /// missing inside a JSON `amplify` object take [`AmplifySettings`]' defaults, not the ones
@@ -55,6 +56,13 @@ pub struct SynthesisSettings {
     /// exemplar covers takes the exemplar's landforms at their own scale instead of by
     /// self-similarity.
     pub sketch_cell_size: Option<(f64, f64)>,
+    /// Landscape evolution from the sketch ([`relief_landscape::grow`]): the sketch is read as
+    /// a rock uplift map, and stream-power incision with hillslope diffusion grows mountains
+    /// whose ridges and dendritic valleys follow the strokes, on the sketch's grid x4 (the
+    /// first x4 step), before the exemplar's detail is added by the remaining steps. The grown
+    /// relief is mapped onto the height range. `None`: the paper's method (the sketch's
+    /// pixels amplified directly, with the structure step when its radius is > 0).
+    pub grow: Option<GrowSettings>,
 }
 
 impl Default for SynthesisSettings {
@@ -72,6 +80,7 @@ impl Default for SynthesisSettings {
             height_range: None,
             structure: StructureSettings::default(),
             sketch_cell_size: None,
+            grow: Some(GrowSettings::default()),
         }
     }
 }
@@ -83,6 +92,11 @@ pub struct SynthesisFigures {
     pub structure: Option<StructureReport>,
     /// How every x4 step used the exemplar.
     pub steps: Vec<StepScale>,
+    /// The relief grown from the sketch, mapped onto the height range, that the x4 steps
+    /// amplified ([`SynthesisSettings::grow`]; `None`: off). The output is an integer
+    /// multiple of it: the coarse input of a landform pass over the result.
+    #[serde(skip)]
+    pub grown: Option<Heightfield>,
 }
 
 /// Terrain synthesis from a painted coarse sketch (section 5.3, figures 1, 9 and 12): the sketch
@@ -145,6 +159,9 @@ pub fn synthesize_with_figures(
         None => (cx * f, cy * f),
     };
     s.set_cell_size(sx, sy)?;
+    if let Some(g) = &settings.grow {
+        return grown(&s, exemplar, (lo, hi), g, settings, progress);
+    }
     let structure = if settings.structure.radius > 0.0 {
         // Patches at most half the sketch wide: a larger radius would paste one exemplar
         // patch over the whole sketch.
@@ -165,6 +182,57 @@ pub fn synthesize_with_figures(
         SynthesisFigures {
             structure,
             steps: figures.steps,
+            grown: None,
+        },
+    ))
+}
+
+/// The landscape-evolution synthesis ([`SynthesisSettings::grow`]) of the sketch `s` already
+/// mapped to `(lo, hi)` at its cell size.
+fn grown(
+    s: &Heightfield,
+    exemplar: &Heightfield,
+    (lo, hi): (f32, f32),
+    g: &GrowSettings,
+    settings: &SynthesisSettings,
+    progress: &dyn Progress,
+) -> Result<(Sct, SynthesisFigures)> {
+    let steps = settings.amplify.steps;
+    // The network grows on the sketch's grid x4 (the first step) when there are steps left
+    // for the exemplar's detail, on the sketch's own grid otherwise.
+    let (map, rest) = if steps >= 2 {
+        (
+            s.resample(STEP_FACTOR * s.width(), STEP_FACTOR * s.height())?,
+            steps - 1,
+        )
+    } else {
+        (s.clone(), steps)
+    };
+    progress.begin("growing relief (landscape evolution)", 0);
+    let relief = grow(
+        &map,
+        &GrowSettings {
+            seed: g.seed ^ settings.amplify.seed,
+            ..*g
+        },
+        &|| false,
+    )?;
+    let (a, b) = relief
+        .min_max()
+        .ok_or(LearnError::param("sketch", "empty", "needs values"))?;
+    let span = (b - a).max(f32::MIN_POSITIVE);
+    let mapped = relief.map(|v| lo + (v - a) / span * (hi - lo));
+    let amplify = AmplifySettings {
+        steps: rest,
+        ..settings.amplify
+    };
+    let (sct, figures) = amplify_with_figures(&mapped, exemplar, &amplify, progress)?;
+    Ok((
+        sct,
+        SynthesisFigures {
+            structure: None,
+            steps: figures.steps,
+            grown: Some(mapped),
         },
     ))
 }

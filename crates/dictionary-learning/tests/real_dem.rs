@@ -232,6 +232,9 @@ fn sketch_synthesis_puts_exemplar_relief_on_flat_sketch_parts() {
                 radius: if exemplar_detail { 4.0 } else { 0.0 },
                 ..Default::default()
             },
+            // The sketch's pixels amplified directly (landscape evolution would make the
+            // unpainted plateau, the sketch's minimum, a plain).
+            grow: None,
             ..lib
         };
         synthesize(&sketch, &ex, &s, &NoProgress)
@@ -902,4 +905,59 @@ fn non_square_exemplar_cells_keep_the_detail_isotropic_in_metres() {
     let got = detail_gradient_ratio(&out, 8.0);
     eprintln!("detail N-S/E-W gradient ratio: output {got:.3}, exemplar {want:.3}");
     assert!((got / want - 1.0).abs() < 0.15, "{got} vs {want}");
+}
+
+/// The default sketch synthesis grows relief from the sketch by landscape evolution (issue
+/// 41): a painted ridge becomes a drained mountain range with valleys down its flanks (the
+/// grown relief has no closed depression, its crest line rises and falls by valleys and
+/// saddles), the output follows the painting at the sketch's scale, and the unpainted ground
+/// stays low.
+#[test]
+fn default_sketch_synthesis_grows_a_drained_range_along_the_strokes() {
+    let Some(ex) = alps(0, 0, 512, 512) else {
+        return;
+    };
+    let sketch = Heightfield::from_fn(32, 16, 1.0, 1.0, |x, y| {
+        let d = y as f32 - 8.0 - 0.2 * (x as f32 - 16.0);
+        (-(d * d) / 6.0).exp()
+    });
+    let s = SynthesisSettings {
+        amplify: AmplifySettings {
+            steps: 2,
+            radius: 2.0,
+            dictionary: DictionaryChoice::learned(32, 1),
+            ..SynthesisSettings::default().amplify
+        },
+        ..Default::default()
+    };
+    let (sct, figures) = synthesize_with_figures(&sketch, &ex, &s, &NoProgress).unwrap();
+    let grown = figures.grown.expect("the default grows relief");
+    assert_eq!((grown.width(), grown.height()), (128, 64));
+    let stats = relief_landscape::stats::drainage(&grown);
+    assert!(stats.fill_depth_m < 0.05, "{stats:?}");
+    let (lo, hi) = ex.min_max().unwrap();
+    let (glo, ghi) = grown.min_max().unwrap();
+    assert!(
+        (glo - lo).abs() < 1.0 && (ghi - hi).abs() < 1.0,
+        "{glo}..{ghi}"
+    );
+    // Along the crest the heights vary by hundreds of metres: valleys and saddles.
+    let crest: Vec<f32> = (16..112)
+        .map(|x| {
+            let y = 4.0 * (8.0 + 0.2 * (x as f32 / 4.0 - 16.0));
+            let y = y.round() as usize;
+            (y.saturating_sub(8)..(y + 8).min(64))
+                .map(|yy| grown.get(x, yy))
+                .fold(f32::MIN, f32::max)
+        })
+        .collect();
+    let (clo, chi) = crest
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(chi - clo > 0.05 * (hi - lo), "crest {clo}..{chi}");
+    let out = sct.rasterize(&RasterSettings::default()).unwrap();
+    assert_eq!((out.width(), out.height()), (512, 256));
+    let back = out.downsample_box(16).unwrap();
+    let r = metrics::pearson(back.as_slice(), sketch.as_slice());
+    assert!(r > 0.8, "correlation with the sketch {r}");
 }

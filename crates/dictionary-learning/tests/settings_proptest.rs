@@ -210,7 +210,7 @@ proptest! {
             prop_assert_eq!((sct.width(), sct.height()), (12 * f, 12 * f));
         }
         let structure = StructureSettings { radius: structure_radius, seed };
-        let syn = SynthesisSettings { amplify: s, height_range: None, structure, sketch_cell_size: None };
+        let syn = SynthesisSettings { amplify: s, height_range: None, structure, sketch_cell_size: None, grow: None };
         let r = synthesize(&coarse, &exemplar, &syn, &NoProgress);
         let structure_bad =
             !(structure_radius == 0.0 || (1.0..=64.0).contains(&structure_radius));

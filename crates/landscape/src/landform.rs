@@ -98,10 +98,6 @@ fn box_residual(z: &[f64], w: usize, coarse: &Heightfield, f: usize) -> Vec<f64>
     r
 }
 
-/// Back-projection and fill iterations after the rounds (each fill raises closed depressions,
-/// each back-projection brings the box averages back).
-const FINAL_ITERATIONS: usize = 0;
-
 /// Fixed-point iterations of [`back_project`] per round.
 const BACK_PROJECTION_ITERATIONS: usize = 3;
 
@@ -261,10 +257,6 @@ pub fn finish(
         }
     }
     report.filled_cells = drain(&mut z, true);
-    for _ in 0..FINAL_ITERATIONS {
-        back_project(&mut z, w, h, coarse, f)?;
-        report.filled_cells += drain(&mut z, true);
-    }
     let r = box_residual(&z, w, coarse, f);
     report.consistency_rms_m = (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
     let (cx, cy) = fine.cell_size();

@@ -48,6 +48,7 @@ pub mod erode;
 mod error;
 pub mod flow;
 pub mod grid;
+pub mod grow;
 pub mod landform;
 pub mod masks;
 pub mod stats;

@@ -55,6 +55,13 @@ pub(crate) struct Args {
     pub(crate) atoms: usize,
     #[command(flatten)]
     pub(crate) window: crate::sparse_model::WindowArg,
+    /// Landscape evolution and landform pass (default on, off with --paper): the sketch is
+    /// read as an uplift map and a stream-power run grows ridges and valleys that follow the
+    /// strokes on the sketch's grid x4, the exemplar's detail is added by the remaining steps,
+    /// and the result is drained and kept on the grown network. Off: the sketch's pixels
+    /// amplified directly (with the structure step).
+    #[command(flatten)]
+    pub(crate) landform: crate::landform::LandformArg,
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
@@ -84,6 +91,10 @@ pub(crate) fn settings(args: &Args, ctx: &Ctx) -> Result<SynthesisSettings> {
             ..Default::default()
         },
         sketch_cell_size: args.sketch_cell_size,
+        grow: args
+            .landform
+            .on(args.paper)
+            .then(relief_landscape::grow::GrowSettings::default),
     };
     settings
         .amplify
@@ -127,8 +138,20 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(st) = &figures.structure {
         ctx.note(st.note.clone());
     }
+    if let Some(g) = &figures.grown {
+        ctx.note(format!(
+            "grew relief from the sketch by landscape evolution on {} x {} cells of {:.1} x \
+             {:.1} m (stream power and diffusion, the sketch as uplift)",
+            g.width(),
+            g.height(),
+            g.cell_size().0,
+            g.cell_size().1
+        ));
+    }
     for step in &figures.steps {
         ctx.note(step.note.clone());
     }
-    write_model(&sct, &args.output, window, false, None, ctx)
+    // The landform pass keeps the result on the grown network (its box averages).
+    let finish = figures.grown.as_ref().map(crate::sparse_model::Landform);
+    write_model(&sct, &args.output, window, false, finish.as_ref(), ctx)
 }
