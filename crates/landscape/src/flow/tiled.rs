@@ -137,8 +137,24 @@ impl TileLayout {
                 self.width, self.height
             )));
         }
-        if !(self.cell_x > 0.0 && self.cell_y > 0.0 && self.cell_x.is_finite()) {
+        if !(self.cell_x > 0.0
+            && self.cell_y > 0.0
+            && self.cell_x.is_finite()
+            && self.cell_y.is_finite())
+        {
             return Err(bad("the cell size must be positive and finite"));
+        }
+        Ok(())
+    }
+
+    /// [`Self::check`], and `t` a tile of the layout.
+    pub fn check_tile(&self, t: usize) -> Result<()> {
+        self.check()?;
+        if t >= self.tasks() {
+            return Err(bad(format!(
+                "tile {t} is not in the layout ({} tiles)",
+                self.tasks()
+            )));
         }
         Ok(())
     }
@@ -300,7 +316,7 @@ pub struct FillGraph {
 /// Phase 1 of tile `t`: `halo` holds the tile's DEM with a one-cell margin (`(w + 2) x
 /// (h + 2)`, `NaN` off the map and on voids).
 pub fn phase1(layout: &TileLayout, t: usize, halo: &[f32]) -> Result<(LocalFill, FillGraph)> {
-    layout.check()?;
+    layout.check_tile(t)?;
     let [_, _, w, h] = layout.window(t);
     if halo.len() != (w + 2) * (h + 2) {
         return Err(bad(format!(
@@ -593,7 +609,7 @@ pub fn phase3(
     fill: &LocalFill,
     levels: &[(usize, &Levels)],
 ) -> Result<(Routed, PortGraph)> {
-    layout.check()?;
+    layout.check_tile(t)?;
     let [x0, y0, w, h] = layout.window(t);
     check_fill(fill, w, h, t)?;
     let find = |u: usize| -> Result<&Levels> {
@@ -1128,7 +1144,7 @@ pub struct Finished {
 
 /// Phase 5 of tile `t`: its [`Routed`] tile and its [`Inflow`].
 pub fn phase5(layout: &TileLayout, t: usize, routed: &Routed, inflow: &Inflow) -> Result<Finished> {
-    layout.check()?;
+    layout.check_tile(t)?;
     let [_, _, w, h] = layout.window(t);
     let n = w * h;
     if routed.filled.len() != n || routed.dir.len() != n {
@@ -1181,7 +1197,16 @@ pub fn phase5(layout: &TileLayout, t: usize, routed: &Routed, inflow: &Inflow) -
 
 /// The one-cell-margin window phase 1 of tile `t` reads, cut from a whole DEM (`NaN` off the
 /// map).
-pub fn halo_window(layout: &TileLayout, t: usize, dem: &[f32]) -> Vec<f32> {
+pub fn halo_window(layout: &TileLayout, t: usize, dem: &[f32]) -> Result<Vec<f32>> {
+    layout.check_tile(t)?;
+    if dem.len() != layout.width * layout.height {
+        return Err(bad(format!(
+            "the DEM has {} cells, not the layout's {} x {}",
+            dem.len(),
+            layout.width,
+            layout.height
+        )));
+    }
     let [x0, y0, w, h] = layout.window(t);
     let mut out = vec![f32::NAN; (w + 2) * (h + 2)];
     for y in 0..h + 2 {
@@ -1197,7 +1222,7 @@ pub fn halo_window(layout: &TileLayout, t: usize, dem: &[f32]) -> Vec<f32> {
             out[y * (w + 2) + x] = dem[gy as usize * layout.width + gx as usize];
         }
     }
-    out
+    Ok(out)
 }
 
 /// All five passes in one process, tasks in the order `order(phase, tasks)` gives (the tests
@@ -1214,13 +1239,28 @@ pub fn run_in_memory(
     let tasks = layout.tasks();
     let mut p1: Vec<Option<(LocalFill, FillGraph)>> = vec![None; tasks];
     for t in order(1, tasks) {
-        p1[t] = Some(phase1(layout, t, &halo_window(layout, t, dem))?);
+        if t >= tasks || p1[t].is_some() {
+            return Err(bad(format!(
+                "the task order names tile {t} twice or out of range"
+            )));
+        }
+        p1[t] = Some(phase1(layout, t, &halo_window(layout, t, dem)?)?);
     }
-    let (fills, graphs): (Vec<LocalFill>, Vec<FillGraph>) =
-        p1.into_iter().map(|x| x.expect("every task ran")).unzip();
+    let missing = || bad("the task order leaves a tile out");
+    let (fills, graphs): (Vec<LocalFill>, Vec<FillGraph>) = p1
+        .into_iter()
+        .map(|x| x.ok_or_else(missing))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let levels = phase2(layout, &graphs)?;
     let mut p3: Vec<Option<(Routed, PortGraph)>> = vec![None; tasks];
     for t in order(3, tasks) {
+        if t >= tasks || p3[t].is_some() {
+            return Err(bad(format!(
+                "the task order names tile {t} twice or out of range"
+            )));
+        }
         let near: Vec<(usize, &Levels)> = layout
             .neighbourhood(t)
             .into_iter()
@@ -1228,8 +1268,12 @@ pub fn run_in_memory(
             .collect();
         p3[t] = Some(phase3(layout, t, &fills[t], &near)?);
     }
-    let (routed, ports): (Vec<Routed>, Vec<PortGraph>) =
-        p3.into_iter().map(|x| x.expect("every task ran")).unzip();
+    let (routed, ports): (Vec<Routed>, Vec<PortGraph>) = p3
+        .into_iter()
+        .map(|x| x.ok_or_else(missing))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let inflow = phase4(layout, &ports)?;
     let n = layout.width * layout.height;
     let mut out = Finished {
@@ -1237,7 +1281,14 @@ pub fn run_in_memory(
         dir: vec![NO_FLOW; n],
         cells: vec![0; n],
     };
+    let mut done = vec![false; tasks];
     for t in order(5, tasks) {
+        if t >= tasks || done[t] {
+            return Err(bad(format!(
+                "the task order names tile {t} twice or out of range"
+            )));
+        }
+        done[t] = true;
         let f = phase5(layout, t, &routed[t], &inflow[t])?;
         let [x0, y0, w, h] = layout.window(t);
         for y in 0..h {
@@ -1246,6 +1297,9 @@ pub fn run_in_memory(
             out.dir[a..a + w].copy_from_slice(&f.dir[b..b + w]);
             out.cells[a..a + w].copy_from_slice(&f.cells[b..b + w]);
         }
+    }
+    if done.contains(&false) {
+        return Err(missing());
     }
     Ok(out)
 }

@@ -181,7 +181,7 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         .into_par_iter()
         .map(|t| {
             let [_, _, w, h] = layout.window(t);
-            let halo = tiled::halo_window(&layout, t, dem.as_slice());
+            let halo = tiled::halo_window(&layout, t, dem.as_slice())?;
             let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
             let bytes = deflate_geotiff(&hf)?;
             let name = input_name(t);

@@ -222,7 +222,7 @@ fn products_round_trip_and_damage_is_refused() {
         cell_y: 1.0,
     };
     let t = 4;
-    let (fill, graph) = phase1(&layout, t, &halo_window(&layout, t, &z)).unwrap();
+    let (fill, graph) = phase1(&layout, t, &halo_window(&layout, t, &z).unwrap()).unwrap();
     let b = fill.to_bytes(t);
     assert_eq!(
         LocalFill::from_bytes(&b, &layout, t).unwrap().to_bytes(t),
@@ -265,7 +265,7 @@ fn the_basin_sends_flats_and_inflows_through_phase_4() {
         cell_y: 20.0,
     };
     let p1: Vec<_> = (0..layout.tasks())
-        .map(|t| phase1(&layout, t, &halo_window(&layout, t, &z)).unwrap())
+        .map(|t| phase1(&layout, t, &halo_window(&layout, t, &z).unwrap()).unwrap())
         .collect();
     let graphs: Vec<FillGraph> = p1.iter().map(|p| p.1.clone()).collect();
     let levels = phase2(&layout, &graphs).unwrap();
@@ -346,4 +346,37 @@ proptest::proptest! {
         let got = run_in_memory(&layout, &z, &mut shuffled(seed)).unwrap();
         assert_same(&got, &want, &format!("{w}x{h} tile {tile} seed {seed}"));
     }
+}
+
+/// Misuse of the public passes is an error naming the problem, never a panic.
+#[test]
+fn bad_tiles_sizes_and_orders_are_errors() {
+    let layout = TileLayout {
+        width: 20,
+        height: 10,
+        tile: 8,
+        cell_x: 1.0,
+        cell_y: 1.0,
+    };
+    let z = vec![1.0f32; 200];
+    assert!(halo_window(&layout, 6, &z).is_err());
+    assert!(halo_window(&layout, 0, &z[..199]).is_err());
+    assert!(phase1(&layout, 9, &[0.0; 4]).is_err());
+    assert!(phase1(&layout, 0, &[0.0; 4]).is_err());
+    let e = run_in_memory(&layout, &z, &mut |_, n| (0..n - 1).collect()).unwrap_err();
+    assert!(e.to_string().contains("leaves a tile out"), "{e}");
+    let e = run_in_memory(&layout, &z, &mut |_, n| vec![0; n]).unwrap_err();
+    assert!(e.to_string().contains("twice"), "{e}");
+    for bad in [
+        TileLayout { tile: 3, ..layout },
+        TileLayout { width: 0, ..layout },
+        TileLayout {
+            cell_x: f64::NAN,
+            ..layout
+        },
+    ] {
+        assert!(run_in_memory(&bad, &z, &mut |_, n| (0..n).collect()).is_err());
+    }
+    assert!(phase2(&layout, &[]).is_err());
+    assert!(phase4(&layout, &[]).is_err());
 }
