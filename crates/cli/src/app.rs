@@ -154,6 +154,7 @@ pub fn main() -> ExitCode {
         ctx.report_error(&anyhow::anyhow!("cannot start {n} worker threads: {e}"));
         return ExitCode::FAILURE;
     }
+    crate::interrupt::install(&ctx);
     let result = match cli.command {
         Command::Info(args) => commands::info::run(args, &ctx),
         Command::Convert(args) => commands::convert::run(args, &ctx),

@@ -16,6 +16,7 @@ mod commands;
 mod ctx;
 mod describe;
 mod folder;
+mod interrupt;
 mod landform;
 mod memory;
 mod outputs;

@@ -56,11 +56,63 @@ pub(crate) fn unique_number() -> u64 {
 /// already has that name, a symbolic link included (which is then not followed), so a planted
 /// link can never redirect a write outside the folder.
 pub(crate) fn create_temp(tmp: &Path) -> std::io::Result<std::fs::File> {
-    std::fs::OpenOptions::new()
+    let f = std::fs::OpenOptions::new()
         .write(true)
         .read(true)
         .create_new(true)
-        .open(tmp)
+        .open(tmp)?;
+    remember(tmp);
+    Ok(f)
+}
+
+/// The temporaries and staging folders this process created (some long gone: renamed into
+/// place or removed), for [`remove_own_temporaries`].
+static OWN: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn remember(path: &Path) {
+    OWN.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(path.to_path_buf());
+}
+
+/// Removes every temporary file and staging folder this process created that is still there
+/// (what a write in progress has not yet renamed into place): for a process about to exit
+/// early, on SIGINT or SIGTERM, or when its time is up. Only names of this process's
+/// temporaries are touched; outputs already in place stay. Errors are ignored.
+pub fn remove_own_temporaries() {
+    remove_own_under(None);
+}
+
+/// [`remove_own_temporaries`] of those under `dir` only (all with `None`).
+fn remove_own_under(dir: Option<&Path>) {
+    let own: Vec<PathBuf> = {
+        let mut all = OWN.lock().unwrap_or_else(|e| e.into_inner());
+        let (mine, keep) = std::mem::take(&mut *all)
+            .into_iter()
+            .partition(|p| dir.is_none_or(|d| p.starts_with(d)));
+        *all = keep;
+        mine
+    };
+    let pid = std::process::id();
+    for path in own {
+        let ours = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(temp_owner)
+            .is_some_and(|(p, host)| p == pid && host.is_none_or(|h| h == host_tag()));
+        if !ours {
+            continue;
+        }
+        match std::fs::symlink_metadata(&path) {
+            Ok(m) if m.is_dir() => {
+                let _ = std::fs::remove_dir_all(&path);
+            }
+            Ok(_) => {
+                let _ = std::fs::remove_file(&path);
+            }
+            Err(_) => {}
+        }
+    }
 }
 
 /// A short tag of this machine (8 hex digits of a hash of the host name), part of every
@@ -276,6 +328,7 @@ impl Staging {
             host_tag()
         ));
         std::fs::create_dir(&stage).map_err(|e| IoError::os(target, e))?;
+        remember(&stage);
         self.dirs.push((dir, stage.clone()));
         Ok(stage.join(name))
     }
@@ -347,6 +400,7 @@ pub fn create_staging_dir(parent: &Path) -> Result<PathBuf> {
         host_tag()
     ));
     std::fs::create_dir(&stage).map_err(|e| IoError::os(&stage, e))?;
+    remember(&stage);
     Ok(stage)
 }
 
@@ -454,6 +508,27 @@ mod tests {
         std::fs::write(&plain, b"old").unwrap();
         write_atomic(&plain, b"new").unwrap();
         assert_eq!(std::fs::read(&plain).unwrap(), b"new");
+    }
+
+    /// The SIGINT/SIGTERM handler of `relief` removes what the run was still writing:
+    /// its temporaries and staging folders, never an output already in place or another
+    /// process's temporary.
+    #[test]
+    fn own_temporaries_are_removed_and_nothing_else() {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("done.tif");
+        write_atomic(&out, b"in place").unwrap();
+        let pending = temp_path(&d.path().join("pending.tif"));
+        drop(create_temp(&pending).unwrap());
+        let stage = create_staging_dir(d.path()).unwrap();
+        std::fs::write(stage.join("a.tif"), b"staged").unwrap();
+        let other = d.path().join(format!(".x.tif.tmp-{DEAD}-7-{}", host_tag()));
+        std::fs::write(&other, b"not ours").unwrap();
+        // (Only this folder's: the other tests of this process write at the same time.)
+        remove_own_under(Some(d.path()));
+        assert!(!pending.exists() && !stage.exists());
+        assert_eq!(std::fs::read(&out).unwrap(), b"in place");
+        assert!(other.exists());
     }
 
     #[test]

@@ -95,10 +95,22 @@ fn swap_in(staged: &Path, out: &Path, parent: &Path) -> Result<()> {
     if std::fs::symlink_metadata(out).is_err() {
         return std::fs::rename(staged, out).map_err(moved);
     }
-    // A fresh, exclusively made name to park the earlier run under (rename replaces the
-    // empty folder).
-    let aside = relief_io::create_staging_dir(parent)
-        .with_context(|| format!("cannot create a staging folder in {}", parent.display()))?;
+    // A fresh, exclusively made folder to park the earlier run in (the rename replaces it,
+    // empty). Not a staging name: neither the stale-temporary cleaner nor the interrupt
+    // handler may ever remove an earlier run that a crash left parked there.
+    let aside = parent.join(format!(
+        ".relief-earlier-run-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos())
+    ));
+    std::fs::create_dir(&aside).with_context(|| {
+        format!(
+            "cannot create {} to set the earlier run aside",
+            aside.display()
+        )
+    })?;
     if let Err(e) = std::fs::rename(out, &aside) {
         let _ = std::fs::remove_dir(&aside);
         return Err(moved(e));

@@ -180,3 +180,50 @@ fn a_forced_run_replaces_an_earlier_run_all_or_nothing() {
         .collect();
     assert!(hidden.is_empty(), "{hidden:?}");
 }
+
+/// A path whose loops do not ask whether to stop (K-SVD learning) is ended by the backstop a
+/// few seconds after the `--max-time` deadline, with the same clear error and no output.
+#[test]
+fn the_backstop_ends_a_path_that_does_not_stop_by_itself() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("c.sct");
+    let (o, s) = timed(&words(
+        "--max-time 1s compress {} {} -n 1024 --iterations 50 --sparsity 8 --patch-size 16",
+        &[&relief_testdata::fixture("grandcanyon.tif"), &out],
+    ));
+    stopped(&o, s, &[&out]);
+    assert!(files(tmp.path()).is_empty(), "{:?}", files(tmp.path()));
+}
+
+/// SIGINT (and SIGTERM) in the middle of a streamed write: the run ends with `128 + signal`,
+/// one clear line, and its temporary file is removed (it was left behind).
+#[test]
+fn an_interrupted_run_removes_its_temporaries() {
+    let (tmp, input, _) = tmp_with_crop("gc64.tif", (224, 224, 64, 64));
+    let out = tmp.path().join("r.tif");
+    for (signal, code) in [("-INT", 130), ("-TERM", 143)] {
+        let child = command()
+            .args(words("refine {} {} --levels 8 --stream", &[&input, &out]))
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Wait until the streamed output's temporary exists (the write is under way).
+        let t = Instant::now();
+        while !files(tmp.path()).iter().any(|f| f.contains(".tmp-")) {
+            assert!(t.elapsed().as_secs() < 60, "no temporary appeared");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let pid = child.id().to_string();
+        assert!(
+            std::process::Command::new("kill")
+                .args([signal, &pid])
+                .status()
+                .unwrap()
+                .success()
+        );
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(code), "{}", stderr(&o));
+        assert!(stderr(&o).contains("interrupted by SIG"), "{}", stderr(&o));
+        assert_eq!(files(tmp.path()), ["gc64.tif"], "left behind");
+    }
+}
