@@ -143,6 +143,23 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
     assert!(!tiled.exists());
     // Without --phase, run picks the first incomplete phase.
     relief_ok!["tile", "run", &dir, "--index", "2"];
+    // The single task of phase 4 lost and killed mid-run, then retried: the same bytes, so
+    // the later phase's tiles stay valid.
+    let inflow = dir.join("phase4/inflow-000001.bin");
+    let before = std::fs::read(&inflow).unwrap();
+    std::fs::remove_file(dir.join("phase4/task-000000.json")).unwrap();
+    let mut c = spawn(&dir, 4, 0);
+    std::thread::sleep(std::time::Duration::from_millis(15));
+    let _ = c.kill();
+    let _ = c.wait();
+    let text = String::from_utf8_lossy(&relief!["tile", "status", &dir].stdout).to_string();
+    assert!(
+        text.contains("next: phase 4") || text.contains("next: relief tile mosaic"),
+        "{text}"
+    );
+    relief_ok!["tile", "run", &dir, "--phase", "4"];
+    assert_eq!(std::fs::read(&inflow).unwrap(), before);
+    relief_ok!["tile", "status", &dir];
     relief_ok!["tile", "mosaic", &dir];
     assert_same(&single, &tiled);
     for p in PRODUCTS {
