@@ -320,3 +320,12 @@ fn flow_plan_files_are_untrusted() {
         &[],
     );
 }
+
+/// A georeferenced input (the grandcanyon fixture, EPSG:3857): the mosaics carry the single
+/// run's georeference (each tile placed on the map, the mosaic over the whole grid).
+#[test]
+fn flow_plan_keeps_the_georeference() {
+    let (_tmp, dem, hf) = tmp_with_crop("gc.tif", (40, 30, 200, 150));
+    assert!(hf.georef().and_then(|g| g.geotransform).is_some());
+    cycle(&dem, 64, 23);
+}
