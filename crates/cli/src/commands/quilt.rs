@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use relief_heightfield::Progress;
+use relief_heightfield::{Heightfield, Progress};
 use relief_patch_synth::{Blend, CutMethod, QuiltJob, Settings, ValidateJob};
 
 use crate::ctx::Ctx;
@@ -54,6 +54,11 @@ pub(crate) struct Args {
     /// Synthesize even when the input validation fails (it still runs and is reported).
     #[arg(long)]
     pub(crate) no_validate: bool,
+    /// Landform pass (default on): the quilt is drained and its channels carried across the
+    /// seams, keeping its own box averages over blocks of a quarter patch (the relief the
+    /// patches and the guide give).
+    #[command(flatten)]
+    pub(crate) landform: crate::landform::LandformArg,
 }
 
 /// The flags as a [`QuiltJob`] (checked; library defaults where a flag is absent).
@@ -81,6 +86,22 @@ pub(crate) fn job(args: &Args) -> Result<QuiltJob> {
     Ok(job)
 }
 
+/// The landform pass over a quilt, keeping its box averages over blocks of `k` cells, `k` the
+/// largest divisor of both sides up to a quarter of `patch` (`None`, with a note, when only 1
+/// divides them).
+fn landform(hf: &Heightfield, patch: usize, ctx: &Ctx) -> Result<Option<Heightfield>> {
+    let (w, h) = (hf.width(), hf.height());
+    let Some(k) = (2..=(patch / 4).max(2))
+        .rev()
+        .find(|k| w.is_multiple_of(*k) && h.is_multiple_of(*k))
+    else {
+        crate::landform::skipped(ctx, "a quilt whose sides have no common divisor");
+        return Ok(None);
+    };
+    let coarse = hf.downsample_box(k)?;
+    Ok(Some(crate::landform::apply(hf.clone(), &coarse, ctx)?))
+}
+
 /// Reads the inputs, synthesizes and writes OUT (and the guide as used, the seam map)
 /// atomically.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
@@ -100,10 +121,17 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .run(inputs, &progress)
         .map_err(|e| args.synth.job_error(e))
         .context("synthesis failed")?;
+    drop(progress);
+    let finished = if args.landform.on(false) {
+        landform(&out.synthesis.heightfield, job.settings.patch_size, ctx)?
+    } else {
+        None
+    };
+    let progress = ctx.progress();
     progress.begin("writing", 0);
     // The terrain, the guide as used and the seam map appear together or not at all.
     let staged = crate::staging::Outputs::of(&outputs, None)?;
-    let hf = &out.synthesis.heightfield;
+    let hf = finished.as_ref().unwrap_or(&out.synthesis.heightfield);
     ctx.write_raster(&staged.path(&args.output), hf)?;
     if let (Some(g), Some(p)) = (&out.guide, &args.synth.guide_out) {
         ctx.write_raster(&staged.path(p), g)?;

@@ -95,6 +95,19 @@ fn quilt_follows_a_guide_made_from_another_crop() {
     let out2 = tmp.path().join("out2.tif");
     ok(&quilt(&out2, &[]));
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&out2).unwrap());
+    // The landform pass (default) drains the quilt: no closed depression, where the patches
+    // as blended (--landform off) hold some; its box averages over quarter patches stay.
+    let raw = tmp.path().join("raw.tif");
+    ok(&quilt(&raw, &["--landform", "off"]));
+    let raw = read(&raw);
+    let drainage = relief_landscape::stats::drainage;
+    assert!(drainage(&raw).pits_per_km2 > 0.0);
+    assert_eq!(drainage(&hf).pits_per_km2, 0.0);
+    let (a, b) = (
+        hf.downsample_box(8).unwrap(),
+        raw.downsample_box(8).unwrap(),
+    );
+    assert!(rmse(&a, &b).unwrap() < 0.005 * f64::from(raw.relief()));
     // The input check alone passes and says so.
     let stdout = ok(&relief_parts(&[&["validate"], &opts]));
     assert!(stdout.contains("result:          ok"), "{stdout}");
