@@ -426,3 +426,44 @@ fn rays_out_of_steps_are_ground_not_sky() {
         }
     }
 }
+
+/// Issue 44 item 5: the long loops ask `Progress::stopped` during the work and end with
+/// `Error::Stopped`, no result: karst percolation (up to 2^22 steps) before every candidate,
+/// meshing before every chunk.
+#[test]
+fn karst_and_meshing_stop_when_asked() {
+    use relief_heightfield::{Heightfield, Progress};
+    use relief_implicit_volume::{
+        Error, Geology, ImplicitizeSettings, KarstSettings, MeshSettings, Region, SceneBuilder,
+        polygonize_with_progress,
+    };
+    /// Says stop from its `after`-th question on.
+    struct StopAfter(std::sync::atomic::AtomicUsize, usize);
+    impl Progress for StopAfter {
+        fn stopped(&self) -> bool {
+            self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= self.1
+        }
+    }
+    // Dimples: interior local minima are the karst's sinkholes.
+    let hf = Heightfield::from_fn(40, 40, 5.0, 5.0, |x, y| {
+        20.0 + 3.0 * (x as f32 * 0.7).sin() * (y as f32 * 0.7).cos()
+    });
+    let geo = Geology::layered_default([100.0, 100.0, 20.0], 10.0, 1).unwrap();
+    let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+    let ks = KarstSettings {
+        budget: 50,
+        ..Default::default()
+    };
+    let stop = StopAfter(Default::default(), 0);
+    let e = b.karst_with_progress(&ks, &Region::everywhere(), &stop);
+    assert!(matches!(e, Err(Error::Stopped(_))), "{e:?}");
+    let scene = b.build(true).unwrap();
+    let settings = MeshSettings {
+        cells: [24, 24, 16],
+        ..Default::default()
+    };
+    let e = polygonize_with_progress(&scene, &settings, &StopAfter(Default::default(), 0));
+    assert!(matches!(e, Err(Error::Stopped(_))), "{:?}", e.err());
+    // Never asked to stop: the same calls succeed.
+    assert!(polygonize_with_progress(&scene, &settings, &relief_heightfield::NoProgress).is_ok());
+}

@@ -108,6 +108,7 @@ pub fn build_recipe_with_progress(
         region,
         dims,
         effects: Vec::new(),
+        progress,
     };
     check()?;
     basis.coast(&mut out)?;
@@ -264,19 +265,21 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
 
 /// What the steps after the implicitised DEM add to: each step (a method of [`Basis`]) adds
 /// its effects to the scene builder, its sizes to the dimensions and its report to the effects.
-struct Out {
+struct Out<'p> {
     b: SceneBuilder,
     region: Region,
     dims: Dimensions,
     effects: Vec<(Feature, EffectReport)>,
+    /// Asked whether to stop inside the long steps (karst).
+    progress: &'p dyn relief_heightfield::Progress,
 }
 
 /// A step: adds what it builds to the output.
-type Step<'a> = fn(&Basis<'a>, &mut Out) -> Result<()>;
+type Step<'a> = fn(&Basis<'a>, &mut Out<'_>) -> Result<()>;
 
 impl Basis<'_> {
     /// Sea cliffs, and sea erosion with or without caves.
-    fn coast(&self, o: &mut Out) -> Result<()> {
+    fn coast(&self, o: &mut Out<'_>) -> Result<()> {
         let (voxel, relief, wr) = (self.voxel, self.relief, self.wr);
         let shore: Vec<&str> = [Feature::Cliffs, Feature::Sea, Feature::Caves]
             .into_iter()
@@ -352,7 +355,7 @@ impl Basis<'_> {
     }
 
     /// Karst passages in the soft strata, when they are at least two voxels thick.
-    fn karst(&self, o: &mut Out) -> Result<()> {
+    fn karst(&self, o: &mut Out<'_>) -> Result<()> {
         if !self.has(Feature::Karst) {
             return Ok(());
         }
@@ -384,7 +387,10 @@ impl Basis<'_> {
                     seed: self.sub(2),
                     ..Default::default()
                 };
-                o.effects.push((Feature::Karst, o.b.karst(&ks, &o.region)?));
+                o.effects.push((
+                    Feature::Karst,
+                    o.b.karst_with_progress(&ks, &o.region, o.progress)?,
+                ));
             }
             Some(t) => dims.notes.push(format!(
                 "karst skipped: soft strata {t:.1} m thick, under two voxels of {voxel:.1} m \
@@ -398,7 +404,7 @@ impl Basis<'_> {
     }
 
     /// Wind and rain erosion; together they are the overhangs feature (one report).
-    fn weathering(&self, o: &mut Out) -> Result<()> {
+    fn weathering(&self, o: &mut Out<'_>) -> Result<()> {
         let recipe = self.recipe;
         let wind = self.has(Feature::Wind) || self.has(Feature::Overhangs);
         let rain = self.has(Feature::Rain) || self.has(Feature::Overhangs);
@@ -452,7 +458,7 @@ impl Basis<'_> {
     }
 
     /// Hoodoos, skipped (with a note) when the voxel or the relief cannot hold them.
-    fn hoodoos(&self, o: &mut Out) -> Result<()> {
+    fn hoodoos(&self, o: &mut Out<'_>) -> Result<()> {
         let height = (0.12 * self.relief).clamp(15.0, 250.0) * self.recipe.scale;
         let radius = (height / 6.0).max(self.voxel);
         let dims = &mut o.dims;
@@ -483,7 +489,7 @@ impl Basis<'_> {
 
     /// Floating islands: clusters of three, main radii `clamp(0.1 R, 20, 300) s`, down to a
     /// third of that, floating `max(0.3 R, 4 radius)` above the ground.
-    fn islands(&self, o: &mut Out) -> Result<()> {
+    fn islands(&self, o: &mut Out<'_>) -> Result<()> {
         let dims = &mut o.dims;
         let radius = (0.1 * self.relief).clamp(20.0, 300.0) * self.recipe.scale;
         dims.island_radius_m = radius.max(2.0 * self.voxel);
@@ -506,7 +512,7 @@ impl Basis<'_> {
 
     /// Arches, skipped (with a note) when the voxel or the relief cannot hold them, or when
     /// no ridge can carry one.
-    fn arches(&self, o: &mut Out) -> Result<()> {
+    fn arches(&self, o: &mut Out<'_>) -> Result<()> {
         let (voxel, relief, dims) = (self.voxel, self.relief, &mut o.dims);
         let span = (0.2 * relief).clamp(30.0, 300.0) * self.recipe.scale;
         let thickness = (span / 4.0).max(voxel);

@@ -49,6 +49,17 @@ impl SceneBuilder {
     /// lower hemisphere, Poisson rejection; ends on the budget, the `rho_stop` threshold or an
     /// empty queue ([`EffectReport::stop`]).
     pub fn karst(&mut self, s: &KarstSettings, region: &Region) -> Result<EffectReport> {
+        self.karst_with_progress(s, region, &relief_heightfield::NoProgress)
+    }
+
+    /// [`SceneBuilder::karst`], asking `progress` whether to stop before every candidate
+    /// (up to 2^22 steps; then [`Error::Stopped`]).
+    pub fn karst_with_progress(
+        &mut self,
+        s: &KarstSettings,
+        region: &Region,
+        progress: &dyn relief_heightfield::Progress,
+    ) -> Result<EffectReport> {
         self.check_karst(s, region)?;
         let frame = self.frame;
         let floor = self.tree.bbox(self.hf).min[2];
@@ -66,6 +77,9 @@ impl SceneBuilder {
         let mut steps = 0usize;
         report.stop = Some(KarstStop::Exhausted);
         while let Some(Reverse((kbits, idx))) = queue.heap.pop() {
+            if progress.stopped() {
+                return Err(Error::Stopped("karst"));
+            }
             if steps >= s.budget {
                 report.stop = Some(KarstStop::Budget);
                 break;
