@@ -19,7 +19,8 @@ pub(crate) struct Args {
     /// Pipeline spec (JSON; see docs/PIPELINE.md and docs/pipeline-chain.example.json).
     pub(crate) spec: PathBuf,
     /// Output folder for rasters, previews, summary.json and report.html (default: SPEC's
-    /// name without `.json`, plus `.out`, beside SPEC). It must be empty or new (or --force).
+    /// name without `.json`, plus `.out`, beside SPEC). It must be empty or new (or --force:
+    /// an earlier run's folder is then replaced as a whole, only if this run succeeds).
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
     /// Input DEM, replacing the spec's `input`.
