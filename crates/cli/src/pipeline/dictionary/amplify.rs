@@ -84,8 +84,11 @@ impl AmplifyStage {
 
 /// One table row of the box protocol: consistency (% of relief), signed spectral-slope error
 /// over the added octaves, slope EMD (degrees), Laplacian EMD, detail phase swing, high-pass
-/// phase swing of the output `out`, seconds.
+/// phase swing of the output `out`, its drainage (pits per km^2, mean closed-depression
+/// depth in m, drainage-area exponent beta: `relief_landscape::stats`, as
+/// `terrain_quality.py`), seconds.
 fn quality_cells(r: &BoxProtocolRow, out: &Heightfield, seconds: f64) -> Result<Vec<f64>> {
+    let d = relief_landscape::stats::drainage(out);
     Ok(vec![
         100.0 * r.consistency,
         r.slope_signed,
@@ -93,8 +96,40 @@ fn quality_cells(r: &BoxProtocolRow, out: &Heightfield, seconds: f64) -> Result<
         r.curvature_emd,
         r.swing,
         highpass_swing(out)?,
+        d.pits_per_km2,
+        d.fill_depth_m,
+        d.beta,
         seconds,
     ])
+}
+
+/// The protocol row of `out` after the landform pass (`relief amplify`'s default), with its
+/// drainage figures; `secs`: the amplification's time, to which the pass's is added.
+fn landform_row(
+    cx: &mut StageCx<'_>,
+    (truth, coarse): (&Heightfield, &Heightfield),
+    out: &Heightfield,
+    fac: usize,
+    secs: f64,
+) -> Result<(String, Vec<f64>)> {
+    let t = Instant::now();
+    let (finished, _) = relief_landscape::landform::finish(
+        out,
+        coarse,
+        &relief_landscape::landform::LandformSettings::default(),
+    )?;
+    let secs = secs + t.elapsed().as_secs_f64();
+    let q = box_protocol(truth, coarse, &finished, fac)?;
+    let d = relief_landscape::stats::drainage(&finished);
+    cx.section
+        .figure(&format!("landform_pits_per_km2_x{fac}"), d.pits_per_km2);
+    cx.section
+        .figure(&format!("landform_fill_depth_m_x{fac}"), d.fill_depth_m);
+    cx.section.figure(&format!("landform_beta_x{fac}"), d.beta);
+    Ok((
+        format!("sparse + landform pass, the CLI default (x{fac})"),
+        quality_cells(&q, &finished, secs)?,
+    ))
 }
 
 impl StageCx<'_> {
@@ -319,9 +354,10 @@ impl AmplifyStage {
             };
             rows.push((label, quality_cells(&q, &out, secs)?));
             if residual {
+                rows.push(landform_row(cx, (truth, &coarse), &out, fac, secs)?); // + landform
                 let tag = format!("x{fac}");
                 cx.section
-                    .figure(&format!("hp_swing_{tag}"), rows[rows.len() - 1].1[5]);
+                    .figure(&format!("hp_swing_{tag}"), rows[rows.len() - 2].1[5]);
                 cx.section
                     .figure(&format!("consistency_{tag}"), q.consistency);
                 cx.section
@@ -390,7 +426,10 @@ impl AmplifyStage {
                  on real crops of 256^2-752^2: the bar is the method's swing <= 1.15 x the \
                  truth's); \
                  high-pass swing: the same of the output minus its 2-pixel Gaussian blur (no \
-                 interpolated reference, whose own error depends on the phase)",
+                 interpolated reference, whose own error depends on the phase); pits: strict \
+                 local minima per km^2; fill: mean closed-depression depth (m); beta: \
+                 drainage-area exponent (issue 41: pits <= 2x the truth's, fill <= 2x + 0.05 \
+                 m, |beta - truth's| <= 0.06)",
                 coarse.width(),
                 coarse.height(),
                 exemplar.width(),
@@ -404,6 +443,9 @@ impl AmplifyStage {
                 "Laplacian EMD",
                 "phase swing",
                 "high-pass swing",
+                "pits/km2",
+                "fill (m)",
+                "beta",
                 "time (s)",
             ],
             &rows_ref,
