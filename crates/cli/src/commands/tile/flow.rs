@@ -176,24 +176,7 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         std::fs::create_dir_all(dir.join(sub))
             .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
     }
-    // Every tile's window with its one-cell margin, so a phase-1 task reads its tile alone.
-    let index = (0..tasks)
-        .into_par_iter()
-        .map(|t| {
-            let [_, _, w, h] = layout.window(t);
-            let halo = tiled::halo_window(&layout, t, dem.as_slice())?;
-            let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
-            let bytes = deflate_geotiff(&hf)?;
-            let name = input_name(t);
-            let path = dir.join(&name);
-            relief_io::write_bytes_atomic(&path, &bytes)
-                .with_context(|| format!("cannot write {}", path.display()))?;
-            Ok(bytes_sum(&bytes, name))
-        })
-        .collect::<Result<Vec<FileSum>>>()?;
-    let index_bytes = serde_json::to_vec(&index)?;
-    relief_io::write_bytes_atomic(&dir.join(INPUT_INDEX), &index_bytes)
-        .with_context(|| format!("cannot write {}", dir.join(INPUT_INDEX).display()))?;
+    let index_bytes = cut_inputs(&dir, &layout, &dem)?;
     let args = vec![
         "flow".to_string(),
         input.display().to_string(),
@@ -258,6 +241,31 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         d = dir.display(),
     ));
     Ok(())
+}
+
+/// Writes every tile's window with its one-cell margin (`input/tile-N.tif`), so a phase-1
+/// task reads its tile alone, and `input/index.json` (their checksums); returns the index.
+fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &Heightfield) -> Result<Vec<u8>> {
+    let (cx, cy) = (layout.cell_x, layout.cell_y);
+    let tasks = layout.tasks();
+    let index = (0..tasks)
+        .into_par_iter()
+        .map(|t| {
+            let [_, _, w, h] = layout.window(t);
+            let halo = tiled::halo_window(layout, t, dem.as_slice())?;
+            let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
+            let bytes = deflate_geotiff(&hf)?;
+            let name = input_name(t);
+            let path = dir.join(&name);
+            relief_io::write_bytes_atomic(&path, &bytes)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            Ok(bytes_sum(&bytes, name))
+        })
+        .collect::<Result<Vec<FileSum>>>()?;
+    let index_bytes = serde_json::to_vec(&index)?;
+    relief_io::write_bytes_atomic(&dir.join(INPUT_INDEX), &index_bytes)
+        .with_context(|| format!("cannot write {}", dir.join(INPUT_INDEX).display()))?;
+    Ok(index_bytes)
 }
 
 const INPUT_INDEX: &str = "input/index.json";
