@@ -466,7 +466,7 @@ pub(super) fn run_task(dir: &Path, m: &Manifest, a: &RunArgs, ctx: &Ctx) -> Resu
         // The first phase with a task unrecorded, or whose task of this index (0 for a
         // single phase) is not done (its own files are checked, not the whole plan's).
         None => {
-            let own = a.index.unwrap_or(0);
+            let own = super::task::task_index(a.index).unwrap_or(0);
             let next = (1..=PHASES).find(|&p| {
                 let i = if tiled::is_single(p) { 0 } else { own };
                 (0..tasks_of(p, m)).any(|j| load_record(dir, m, p, j).is_none())
