@@ -10,7 +10,7 @@ use relief_heightfield::Heightfield;
 use relief_landscape::landform::{LandformSettings, finish};
 use relief_landscape::stats::drainage;
 
-pub fn read_npy(path: &str) -> (usize, usize, Vec<f32>) {
+pub(crate) fn read_npy(path: &str) -> (usize, usize, Vec<f32>) {
     let b = std::fs::read(path).expect("read");
     let hl = u16::from_le_bytes([b[8], b[9]]) as usize;
     let header = std::str::from_utf8(&b[10..10 + hl]).expect("header");
@@ -30,7 +30,7 @@ pub fn read_npy(path: &str) -> (usize, usize, Vec<f32>) {
     (dims[1], dims[0], data)
 }
 
-pub fn write_npy(path: &str, hf: &Heightfield) {
+pub(crate) fn write_npy(path: &str, hf: &Heightfield) {
     let mut header = format!(
         "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
         hf.height(),
