@@ -416,6 +416,29 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
     render_with_progress(scene, cam, s, &relief_heightfield::NoProgress)
 }
 
+/// Where a ray from `eye` along `d` starts: with a cut-away plane `(point, normal)`, where it
+/// enters the kept side (`None`: it never does), and whether it starts on the cut face.
+fn ray_start(
+    scene: &Scene,
+    eye: [f32; 3],
+    d: [f32; 3],
+    cut: Option<([f32; 3], [f32; 3])>,
+) -> (Option<f32>, bool) {
+    let Some((cp, cn)) = cut else {
+        return (Some(0.0), false);
+    };
+    let side = dot(sub(eye, cp), cn);
+    let dn = dot(d, cn);
+    if side <= 0.0 {
+        (Some(0.0), false)
+    } else if dn < 0.0 {
+        let t = side / -dn;
+        (Some(t), scene.inside(add(eye, mul(d, t))))
+    } else {
+        (None, false)
+    }
+}
+
 /// [`render`] reporting image rows done to `progress` (within the caller's phase: the total
 /// is the image height).
 pub fn render_with_progress(
@@ -452,22 +475,7 @@ pub fn render_with_progress(
                 let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
                 let d = normalize(add(fwd, add(mul(right, u), mul(up, v))));
                 let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
-                // With a cut-away, the ray starts where it enters the kept side.
-                let (t0, on_cut) = match cut {
-                    Some((cp, cn)) => {
-                        let side = dot(sub(cam.eye, cp), cn);
-                        let dn = dot(d, cn);
-                        if side <= 0.0 {
-                            (Some(0.0), false)
-                        } else if dn < 0.0 {
-                            let t = side / -dn;
-                            (Some(t), scene.inside(add(cam.eye, mul(d, t))))
-                        } else {
-                            (None, false)
-                        }
-                    }
-                    None => (Some(0.0), false),
-                };
+                let (t0, on_cut) = ray_start(scene, cam.eye, d, cut);
                 let hit = match t0 {
                     Some(t0) if on_cut => Some(t0),
                     Some(t0) => trace(
