@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use relief_heightfield::{Heightfield, Progress};
-use relief_landscape::landform::{LandformSettings, finish};
+use relief_landscape::landform::{LandformSettings, finish_until};
 
 use crate::ctx::Ctx;
 
@@ -41,8 +41,11 @@ impl LandformArg {
 pub(crate) fn apply(fine: Heightfield, coarse: &Heightfield, ctx: &Ctx) -> Result<Heightfield> {
     let progress = ctx.progress();
     progress.begin("landform pass", 0);
-    let (out, r) =
-        finish(&fine, coarse, &LandformSettings::default()).context("the landform pass failed")?;
+    // --max-time holds: the pass is asked to stop at the deadline.
+    let (out, r) = finish_until(&fine, coarse, &LandformSettings::default(), &|| {
+        progress.stopped()
+    })
+    .context("the landform pass failed")?;
     drop(progress);
     ctx.note(format!(
         "landform pass: {} depressions breached or filled ({} cells lowered, {} raised), \

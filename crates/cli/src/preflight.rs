@@ -120,9 +120,15 @@ pub(crate) fn refine(
         n * ANALYSIS_BYTES_PER_CELL,
         "a smaller input (crop it)",
     );
+    // The landform pass works on the whole raster (never on a window or bands).
+    let landform = if args.landform_on() && !streamed && window.is_none() {
+        relief_landscape::landform::WORKING_BYTES_PER_CELL
+    } else {
+        0.0
+    };
     let synthesis = part(
         format!("the synthesis of {} output cells", rendered as u64),
-        rendered * RENDER_BYTES_PER_CELL,
+        rendered * (RENDER_BYTES_PER_CELL + landform),
         if streamed {
             "fewer --levels"
         } else if window.is_some() {

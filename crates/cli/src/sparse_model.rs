@@ -71,6 +71,8 @@ pub(crate) struct OutputPlan {
     /// Only the steps before the last run here (`relief tile plan`): the last step's input
     /// raster is kept and its tasks compute the output window by window.
     pub(crate) last_step_tasked: bool,
+    /// The landform pass runs over a raster held whole ([`crate::landform`]).
+    pub(crate) landform: bool,
 }
 
 impl OutputPlan {
@@ -83,7 +85,13 @@ impl OutputPlan {
             window,
             stream: relief_io::Format::from_extension(output) == Some(relief_io::Format::GeoTiff),
             steps_flag,
+            landform: false,
         }
+    }
+
+    /// The plan with the landform pass on or off.
+    pub(crate) fn with_landform(self, landform: bool) -> Self {
+        Self { landform, ..self }
     }
 }
 
@@ -202,15 +210,26 @@ pub(crate) fn preflight(
             format!("--window, a .sct output or a smaller {}", out.steps_flag)
         };
         ctx.check_output_size("the output raster", written * 4.0, &change)?;
-        let in_memory = if out.stream && written > crate::ctx::STREAM_CELLS as f64 {
+        let banded = out.stream && written > crate::ctx::STREAM_CELLS as f64;
+        let in_memory = if banded {
             // One band computed while the previous one is written.
             2.0 * crate::ctx::STREAM_BAND_CELLS as f64
         } else {
             written
         };
+        // The landform pass works on the whole raster (never on a window or bands).
+        let landform = if out.landform && !banded && out.window.is_none() {
+            relief_landscape::landform::WORKING_BYTES_PER_CELL
+        } else {
+            0.0
+        };
         peaks.push(vec![part(
-            "the output raster",
-            in_memory * RASTER_OUT_BYTES_PER_CELL,
+            if landform > 0.0 {
+                "the output raster and its landform pass"
+            } else {
+                "the output raster"
+            },
+            in_memory * (RASTER_OUT_BYTES_PER_CELL + landform),
             if out.window.is_some() {
                 "a smaller --window".to_string()
             } else {

@@ -122,8 +122,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input, &args.exemplar.exemplar],
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
-    let (sct, coarse) =
-        build_keeping_input(&args, OutputPlan::of(&args.output, window, "--factor"), ctx)?;
+    let plan = OutputPlan::of(&args.output, window, "--factor")
+        .with_landform(args.landform.on(args.paper));
+    let (sct, coarse) = build_keeping_input(&args, plan, ctx)?;
     let finish = args
         .landform
         .on(args.paper)

@@ -123,7 +123,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         (sketch.width(), sketch.height()),
         (exemplar.width(), exemplar.height()),
         &settings.amplify,
-        OutputPlan::of(&args.output, window, "--steps"),
+        OutputPlan::of(&args.output, window, "--steps").with_landform(settings.grow.is_some()),
     )?;
     let (sct, figures) = {
         let progress = ctx.progress();

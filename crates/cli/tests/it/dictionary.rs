@@ -653,3 +653,19 @@ fn landform_pass_is_the_default_and_drains() {
     );
     fails(&refused, &out, &["--landform on", "--landform off"]);
 }
+
+/// `--max-time` holds through the landform pass: a x4 amplification of the whole fixture
+/// (2048^2 cells, a pass of several seconds) under a 2 s limit stops with an error naming
+/// the limit, and writes nothing.
+#[test]
+fn the_landform_pass_stops_at_the_time_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = relief_testdata::fixture("grandcanyon.tif");
+    let out = tmp.path().join("out.tif");
+    let res = relief_line_plus(
+        "amplify {} {} --exemplar {} --factor 4 --atoms 32 --max-time 2s",
+        &[&gc, &out, &gc],
+        &[],
+    );
+    fails(&res, &out, &["--max-time"]);
+}

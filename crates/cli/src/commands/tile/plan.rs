@@ -263,6 +263,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
                 window: None,
                 stream: true,
                 steps_flag: "--factor",
+                landform: false,
             };
             let settings = crate::commands::amplify::settings(x)?;
             let job = serde_json::to_value(settings)?;
