@@ -5,8 +5,9 @@
 //!
 //! A 64 x 128 painted sketch (ridge strokes, a peak, a valley, flat plateaus) is synthesised in
 //! `N` x4 steps (default 3: 4096 x 8192) with an alps_dem crop (or the grandcanyon fixture) as
-//! exemplar, three ways: the paper's method (`--paper`), the exemplar detail without the
-//! structure step (`--structure-radius 0`), and the default. Prints, per way, the time, the
+//! exemplar, four ways: the paper's method (`--paper`), the exemplar detail without the
+//! structure step (`--structure-radius 0 --landform off`), with it (`--landform off`), and the
+//! default (landscape evolution from the sketch, `relief_landscape::grow`). Prints, per way, the time, the
 //! slope-histogram distance to the exemplar (EMD, degrees; the output has the exemplar's cell
 //! size unless `--sketch-cell` sets the sketch's) and the correlation of the output reduced to
 //! the sketch's size with the sketch; writes hillshades (PGM) of the default result (box-reduced
@@ -86,6 +87,7 @@ fn main() {
                     ..base.amplify
                 },
                 structure: off,
+                grow: None,
                 ..base
             },
         ),
@@ -93,10 +95,15 @@ fn main() {
             "no structure",
             SynthesisSettings {
                 structure: off,
+                grow: None,
                 ..base
             },
         ),
-        ("default", base),
+        (
+            "structure (--landform off)",
+            SynthesisSettings { grow: None, ..base },
+        ),
+        ("default (landscape evolution)", base),
     ];
     println!("| way | seconds | slope EMD (deg) | correlation with the sketch |");
     println!("|---|---|---|---|");

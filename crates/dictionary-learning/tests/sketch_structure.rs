@@ -79,6 +79,8 @@ fn structure_puts_exemplar_landforms_on_a_smooth_sketch() {
                 radius,
                 ..Default::default()
             },
+            // The structure step runs on the sketch's pixels (no landscape evolution).
+            grow: None,
             ..lib
         };
         let (sct, fig) = synthesize_with_figures(&sketch, &ex, &s, &NoProgress).unwrap();
@@ -217,6 +219,7 @@ fn sketch_cell_size_sets_the_extent() {
                 ..Default::default()
             },
             sketch_cell_size: cell,
+            grow: None,
             ..Default::default()
         };
         synthesize_with_figures(&sketch, &ex, &s, &NoProgress)
