@@ -95,8 +95,10 @@ enum Command {
     /// reads it.
     Learn(commands::learn::Args),
     /// Synthesise a terrain from a painted sketch and an exemplar (x4 steps, figure 12). By
-    /// default the output takes the exemplar's elevation range and cell size (the sketch is
-    /// 4^steps times coarser).
+    /// default the sketch is read as rock uplift: ridges and valleys are grown on it by
+    /// landscape evolution, mapped onto the exemplar's elevation range, and the x4 steps add
+    /// the exemplar's detail (which can reach past that range by its own amplitude); the
+    /// output has the exemplar's cell size (the sketch is 4^steps times coarser).
     Synthesize(commands::synthesize::Args),
     /// Fit an analytic (noise-atom) model to a terrain, write it as .sct and print its PSNR.
     FitProcedural(commands::fit_procedural::Args),

@@ -15,7 +15,8 @@ use crate::sparse_model::{OutputPlan, check_output_path, dictionary_choice, writ
 /// Arguments of `relief synthesize`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// Painted sketch (bright = high); its values are mapped linearly to the elevation range.
+    /// Painted sketch (bright = high): read as rock uplift and grown into relief (default), or
+    /// mapped linearly to the elevation range (`--landform off`, `--paper`).
     pub(crate) sketch: PathBuf,
     /// Output: a raster (.tif, .png, .exr, .npy, .r16, .r32) or a `.sct` model.
     pub(crate) output: PathBuf,
