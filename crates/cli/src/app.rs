@@ -126,6 +126,10 @@ enum Command {
     /// whose values every flag overrides; writes the terrain and optionally the net erosion and
     /// deposition depths.
     Erode(commands::erode::Args),
+    /// Export a DEM as a game engine's heightmap (Unreal, Unity, Godot Terrain3D, Gaea): the
+    /// engine's sizes, 16-bit PNG or raw in its row order, tiles that share their edges, the
+    /// drainage masks as its layers, and an import sheet with the vertical scale.
+    Export(commands::export::Args),
     /// Run a pipeline spec (JSON: input, stages, parameters) and write its rasters, previews,
     /// summary.json and report.html, as `cargo xtask pipeline SPEC.json` does.
     Run(commands::run::Args),
@@ -177,6 +181,7 @@ pub fn main() -> ExitCode {
         Command::Flow(args) => commands::flow::run(args, &ctx),
         Command::Masks(args) => commands::masks::run(args, &ctx),
         Command::Erode(args) => commands::erode::run(args, &ctx),
+        Command::Export(args) => commands::export::run(args, &ctx),
         Command::Run(args) => commands::run::run(args, &ctx),
     };
     match result {
@@ -261,6 +266,7 @@ where
         | Command::Learn(_)
         | Command::Tile(_)
         | Command::Tree(_)
+        | Command::Export(_)
         | Command::Run(_) => return Ok(None),
     };
     Ok(Some(v))

@@ -26,6 +26,10 @@ pub(crate) enum OutKind {
     Mesh,
     /// A JSON document (`.json`, `.geojson`: reports, channel networks).
     Json,
+    /// Headerless 16-bit samples for a game engine (`.raw`, `.r16`: `relief export`).
+    Raw16,
+    /// Plain text (`.txt`: the import sheet of `relief export`).
+    Text,
 }
 
 fn ext_of(path: &Path) -> String {
@@ -66,6 +70,8 @@ pub(crate) fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
         OutKind::Png => ext == "png",
         OutKind::Mesh => matches!(ext.as_str(), "obj" | "ply" | "glb"),
         OutKind::Json => matches!(ext.as_str(), "json" | "geojson"),
+        OutKind::Raw16 => matches!(ext.as_str(), "raw" | "r16"),
+        OutKind::Text => ext == "txt",
     };
     if ok {
         return Ok(());
@@ -78,6 +84,8 @@ pub(crate) fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
         OutKind::Png => ".png (this command writes a PNG image)".into(),
         OutKind::Mesh => ".obj, .ply or .glb (this command writes a mesh)".into(),
         OutKind::Json => ".json or .geojson (this command writes JSON)".into(),
+        OutKind::Raw16 => ".raw or .r16 (this command writes 16-bit raw samples)".into(),
+        OutKind::Text => ".txt (this command writes text)".into(),
     };
     bail!("output {}: the name must end in {expected}", path.display())
 }

@@ -8,6 +8,7 @@ pub(crate) mod compress;
 pub(crate) mod convert;
 pub(crate) mod decompress;
 pub(crate) mod erode;
+pub(crate) mod export;
 pub(crate) mod fit_procedural;
 pub(crate) mod flow;
 pub(crate) mod info;
