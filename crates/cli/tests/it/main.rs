@@ -5,6 +5,7 @@ mod common;
 
 mod cli;
 mod dictionary;
+mod export;
 mod failures;
 mod landscape;
 mod limits;
