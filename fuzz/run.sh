@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
 # Runs fuzz targets one after another at the lowest priority, from a snapshot of the built
 # binaries, in libFuzzer fork mode so one crash does not end the run (artifacts/<target>/).
-# Usage: fuzz/run.sh SECONDS TARGET...   (build first: RUSTC_BOOTSTRAP=1 cargo fuzz build -s none -a)
+# Usage: fuzz/run.sh SECONDS TARGET...
+# Installs cargo-fuzz from crates.io when it is missing and builds the targets (stable
+# toolchain with RUSTC_BOOTSTRAP=1, no sanitizer, debug assertions) before running them.
 # Logs: fuzz/logs/<target>.log; new corpus entries: fuzz/corpus/<target>/.
 set -u
 cd "$(dirname "$0")"
 secs=$1; shift
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  cargo install cargo-fuzz --locked || { echo "run.sh: cannot install cargo-fuzz"; exit 1; }
+fi
+RUSTC_BOOTSTRAP=1 cargo fuzz build -s none -a || { echo "run.sh: the targets do not build"; exit 1; }
 snap=$(mktemp -d /tmp/relief-fuzzbin.XXXXXX)
 for t in "$@"; do cp "target/x86_64-unknown-linux-gnu/release/$t" "$snap/"; done
 mkdir -p logs

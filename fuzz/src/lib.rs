@@ -57,7 +57,10 @@ pub fn read_raw(data: &[u8], name: &str) {
         width: (w > 0).then_some(w),
         ..opts()
     };
-    check(relief_io::read_bytes(&data[2..], Some(Path::new(name)), &o), &o);
+    check(
+        relief_io::read_bytes(&data[2..], Some(Path::new(name)), &o),
+        &o,
+    );
 }
 
 /// A function atom for the `.sct` target: `1 - |sin(freq * t)|` along direction `angle`.
@@ -97,8 +100,24 @@ pub fn sct_registry() -> relief_sparse_core::FunctionAtomRegistry {
         Ok(std::sync::Arc::new(Ridge {
             freq: p[0],
             angle: p[1],
-        }) as std::sync::Arc<dyn relief_sparse_core::FunctionAtom>)
+        })
+            as std::sync::Arc<dyn relief_sparse_core::FunctionAtom>)
     });
     relief_dictionary_learning::noise::register_function_atoms(&mut r);
     r
+}
+
+/// A `width x height` tree of one constant `value` (1 m cells): the layer every name of a
+/// fuzzed tree description resolves to.
+pub fn constant_tree(
+    width: usize,
+    height: usize,
+    value: f64,
+) -> relief_sparse_core::Result<relief_sparse_core::Sct> {
+    relief_sparse_core::Sct::new(
+        relief_sparse_core::Node::Constant(value),
+        width,
+        height,
+        (1.0, 1.0),
+    )
 }

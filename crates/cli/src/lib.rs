@@ -7,6 +7,8 @@
 //! and, when asked to be verbose, prints each stage's progress on stderr.
 
 pub mod app;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod pipeline;
 
 mod args;

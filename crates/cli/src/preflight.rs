@@ -52,12 +52,7 @@ pub(crate) fn compress(args: &compress::Args, hf: &Heightfield, ctx: &Ctx) -> Re
         } else {
             "fewer --atoms"
         };
-    let gram = if args.sparsity == 1 && k > relief_sparse_core::omp::NEAREST_MIN_ATOMS as f64 {
-        // One 256 x 4096 correlation buffer per worker.
-        8.0 * 256.0 * 4096.0 * 4.0
-    } else {
-        k * k * 4.0
-    };
+    let (patch_bytes, dict_bytes) = compress_bytes(cells, patches, a, k, args.sparsity);
     ctx.check_memory(
         "compress",
         &[&[
@@ -67,16 +62,50 @@ pub(crate) fn compress(args: &compress::Args, hf: &Heightfield, ctx: &Ctx) -> Re
                     patches as u64,
                     a as u64 * a as u64
                 ),
-                patches * a * a * 4.0 * 4.0 + cells * 16.0,
+                patch_bytes,
                 "a larger --step or --spacing, or a smaller input",
             ),
             part(
                 format!("the dictionary of {} atoms and its Gram matrix", k as u64),
-                k * a * a * 4.0 * 2.0 + gram,
+                dict_bytes,
                 change_k,
             ),
         ]],
     )
+}
+
+/// The two parts of a compression's working memory: the patch matrix (f32 rows of `a^2`, with
+/// the working copies of K-SVD) over the input, and the dictionary of `k` atoms with its Gram
+/// matrix (none at sparsity 1 above 4096 atoms, where the nearest-atom search codes without).
+fn compress_bytes(cells: f64, patches: f64, a: f64, k: f64, sparsity: usize) -> (f64, f64) {
+    let gram = if sparsity == 1 && k > relief_sparse_core::omp::NEAREST_MIN_ATOMS as f64 {
+        // One 256 x 4096 correlation buffer per worker.
+        8.0 * 256.0 * 4096.0 * 4.0
+    } else {
+        k * k * 4.0
+    };
+    (
+        patches * a * a * 4.0 * 4.0 + cells * 16.0,
+        k * a * a * 4.0 * 2.0 + gram,
+    )
+}
+
+/// The working memory of the pipeline's `sparse` stage on a `w x h` terrain (each of its
+/// compressions in turn, at the largest sparsity).
+pub(crate) fn compress_job_bytes(
+    (w, h): (usize, usize),
+    job: &relief_dictionary_learning::CompressSettings,
+    sparsity: usize,
+) -> f64 {
+    let a = job.patch_size as f64;
+    let step = job.step.unwrap_or(a * job.spacing / 2.0).max(0.25);
+    let patches = (w as f64 / step).ceil() * (h as f64 / step).ceil();
+    let k = match job.source {
+        relief_dictionary_learning::DictionarySource::Complete => patches,
+        _ => job.atoms as f64,
+    };
+    let (p, d) = compress_bytes(w as f64 * h as f64, patches, a, k, sparsity);
+    p + d
 }
 
 /// Working bytes per input cell of the analysis (the DWT pyramid and the fitted statistics
@@ -143,6 +172,65 @@ pub(crate) fn refine(
     )
 }
 
+/// Pre-flight of one task of a tiled refine plan: the analysis of the prepared input (its
+/// size is the planned output's over `2^levels`) and the synthesis of the task's window.
+pub(crate) fn refine_window(
+    prepared_bytes: f64,
+    m: &crate::tile_manifest::Manifest,
+    win: relief_sparse_core::Window,
+    change: &str,
+    ctx: &Ctx,
+) -> Result<()> {
+    let levels = m.job["extra_levels"].as_u64().unwrap_or(0).min(30) as i32;
+    let f = 2f64.powi(levels);
+    let n = (m.output.width as f64 / f).ceil() * (m.output.height as f64 / f).ceil();
+    let cells = win.width as f64 * win.height as f64;
+    ctx.check_memory(
+        "tile run (refine)",
+        &[&[
+            part(
+                format!("the wavelet analysis of {} input cells", n as u64),
+                n * ANALYSIS_BYTES_PER_CELL + prepared_bytes,
+                "fewer --levels or a smaller input (plan again)",
+            ),
+            part(
+                format!("the synthesis of {} output cells", cells as u64),
+                cells * (RENDER_BYTES_PER_CELL + crate::sparse_model::RASTER_OUT_BYTES_PER_CELL),
+                change,
+            ),
+        ]],
+    )
+}
+
+/// Pre-flight of one task of a tiled amplify plan: the decoded last step (its input raster
+/// and dictionary, about twice the prepared file) and the window's x4 step (the step's
+/// working bytes per coarse cell over the window's 1/16 coarse cells) and written raster.
+pub(crate) fn last_step_window(
+    prepared_bytes: f64,
+    win: relief_sparse_core::Window,
+    change: &str,
+    ctx: &Ctx,
+) -> Result<()> {
+    let cells = win.width as f64 * win.height as f64;
+    ctx.check_memory(
+        "tile run (amplify)",
+        &[&[
+            part(
+                "the prepared last step (its input and dictionary)",
+                prepared_bytes * 3.0,
+                "a smaller --factor or input (plan again)",
+            ),
+            part(
+                format!("the last x4 step over {} output cells", cells as u64),
+                cells
+                    * (crate::sparse_model::STEP_BYTES_PER_COARSE_CELL / 16.0
+                        + crate::sparse_model::RASTER_OUT_BYTES_PER_CELL),
+                change,
+            ),
+        ]],
+    )
+}
+
 /// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
 /// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
 /// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
@@ -160,6 +248,35 @@ const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
 
 /// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
 const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
+
+/// The working memory of a volume job on a `w x h` DEM of `cell` metres, before the scene is
+/// built (the pipeline's `volume` stage): the mesh of the polygonisation grid (one column per
+/// voxel, the recipe's voxel or else the DEM's smaller cell side, at most `max_mesh_cells` a
+/// side) and the images.
+pub(crate) fn volume_job_bytes(
+    (w, h): (usize, usize),
+    cell: (f64, f64),
+    job: &relief_implicit_volume::VolumeJob,
+) -> f64 {
+    let voxel = job
+        .recipe
+        .voxel
+        .map_or(cell.0.min(cell.1), f64::from)
+        .max(1e-6);
+    let side = |n: usize, c: f64| (n as f64 * c / voxel).ceil().min(job.max_mesh_cells as f64);
+    let columns = side(w, cell.0) * side(h, cell.1);
+    let mesh = if job.mesh {
+        columns * TRIANGLES_PER_COLUMN * MESH_BYTES_PER_TRIANGLE
+    } else {
+        0.0
+    };
+    let images = if job.render || job.section || job.closeups {
+        (job.image_size[0] * job.image_size[1]) as f64 * IMAGE_BYTES_PER_PIXEL
+    } else {
+        0.0
+    };
+    mesh + images
+}
 
 /// Pre-flight estimate of the mesh of `relief volume` (issue 18): triangles from the polygonisation grid, memory
 /// against `--max-memory` and file size against `--max-output-size`, both naming

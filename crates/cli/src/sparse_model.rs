@@ -116,7 +116,7 @@ const LAST_STEP_INPUT_BYTES_PER_CELL: f64 = 16.0;
 /// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
 /// `a = 8` and grid step 2; scaled by `a^2 / S^2` for other settings. Calibrated on measured
 /// peak RSS (issue 18).
-const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
+pub(crate) const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
 
 /// Working bytes per exemplar cell (resampled copies, candidate patches, the learned pair of
 /// dictionaries).
@@ -142,6 +142,27 @@ pub(crate) fn candidate_bytes(exemplar: (usize, usize), settings: &AmplifySettin
     };
     let pairs = patches.min(cap as f64);
     pairs * (18 * a * a) as f64 * 4.0 * 2.0
+}
+
+/// The peak working memory of an amplification of `coarse` cells with `exemplar` held whole
+/// in memory, with the constants of [`preflight`]: the largest of the last x4 step with the
+/// exemplar's dictionaries, and the output raster. The pipeline's `amplify` and `sketch`
+/// stages check it against `relief run --max-memory`.
+pub(crate) fn amplify_working_bytes(
+    coarse: (usize, usize),
+    exemplar: (usize, usize),
+    settings: &AmplifySettings,
+) -> f64 {
+    let a = settings.patch_size() as f64;
+    let s = settings.grid_step().max(1.0);
+    let shape = ((a * a / (s * s)) / 16.0).max(0.25);
+    let ex = exemplar.0 as f64 * exemplar.1 as f64 * EXEMPLAR_BYTES_PER_CELL
+        + candidate_bytes(exemplar, settings);
+    let c0 = coarse.0 as f64 * coarse.1 as f64;
+    let steps = settings.steps.min(64) as i32;
+    let last = c0 * 16f64.powi((steps - 1).max(0));
+    let out = c0 * 16f64.powi(steps);
+    (last * STEP_BYTES_PER_COARSE_CELL * shape + ex).max(out * RASTER_OUT_BYTES_PER_CELL)
 }
 
 /// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the

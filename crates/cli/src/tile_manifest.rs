@@ -126,12 +126,135 @@ pub(crate) fn bytes_sum(bytes: &[u8], name: String) -> FileSum {
     }
 }
 
-/// Reads and checks `DIR/manifest.json`.
+/// Largest manifest a plan folder may hold (a plan of [`MAX_TASKS`] tasks stays far below:
+/// the manifest does not list the tasks).
+pub(crate) const MAX_MANIFEST_BYTES: u64 = 16 << 20;
+/// Largest tile record (a few hundred bytes are written).
+pub(crate) const MAX_RECORD_BYTES: u64 = 64 << 10;
+/// Largest side of a planned output (2^24 cells: 256 Ti cells in all).
+pub(crate) const MAX_SIDE: usize = 1 << 24;
+
+/// Whether `name` is a path inside the plan folder: relative, only plain components (no `..`,
+/// no root, no prefix), not empty.
+pub(crate) fn is_inside_name(name: &str) -> bool {
+    use std::path::Component;
+    let p = Path::new(name);
+    !name.is_empty()
+        && !name.contains('\\')
+        && p.components().all(|c| matches!(c, Component::Normal(_)))
+}
+
+/// Reads a plan file by its name relative to the plan folder: a regular file (not a link, a
+/// device or a pipe) inside it, at most `max` bytes (checked before reading, and again while
+/// reading, so a file that grows cannot hold the task).
+pub(crate) fn read_plan_file(dir: &Path, name: &str, max: u64) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    if !is_inside_name(name) {
+        bail!(
+            "`{name}` is not a file name inside the plan folder {}",
+            dir.display()
+        );
+    }
+    let path = dir.join(name);
+    let meta = std::fs::symlink_metadata(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    if !meta.file_type().is_file() {
+        bail!(
+            "{} is not a regular file (a link, a folder or a device): refusing to read it",
+            path.display()
+        );
+    }
+    if meta.len() > max {
+        bail!(
+            "{} holds {} bytes, more than the {max} it may hold",
+            path.display(),
+            meta.len()
+        );
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?
+        .take(max + 1)
+        .read_to_end(&mut bytes)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    if bytes.len() as u64 > max {
+        bail!("{} grew beyond {max} bytes while read", path.display());
+    }
+    Ok(bytes)
+}
+
+/// The plan's folder `name` must be a real folder inside it: a link planted in place of one
+/// would send a task's reads and writes outside the plan folder.
+pub(crate) fn check_plan_folder(dir: &Path, name: &str) -> Result<()> {
+    let p = dir.join(name);
+    let meta = std::fs::symlink_metadata(&p)
+        .with_context(|| format!("cannot read {} (is this a plan folder?)", p.display()))?;
+    if !meta.file_type().is_dir() {
+        bail!(
+            "{} is not a folder of the plan (a link or a file): refusing to read or write \
+             through it",
+            p.display()
+        );
+    }
+    Ok(())
+}
+
+/// Whether the plan's manifest can only have been written by the user running this command:
+/// the manifest and the plan folder are owned by this user and writable by no one else (the
+/// test `ssh` applies to its keys). Only then are the paths outside the plan folder that the
+/// manifest names (the planned output, the inputs) followed; a plan in a folder others can
+/// write (a shared NFS folder) may have been rewritten, plan id and all, since SHA-256 is not
+/// keyed. Not Linux: never.
+pub(crate) fn manifest_is_trusted(dir: &Path) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::MetadataExt as _;
+        let Ok(me) = std::fs::metadata("/proc/self") else {
+            return false;
+        };
+        let private = |p: &Path| {
+            std::fs::symlink_metadata(p).is_ok_and(|m| m.uid() == me.uid() && m.mode() & 0o022 == 0)
+        };
+        private(dir) && private(&dir.join(MANIFEST))
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = dir;
+        false
+    }
+}
+
+/// Where the mosaic writes: `given` (the user named it), else the planned output when the
+/// manifest is trusted ([`manifest_is_trusted`]).
+pub(crate) fn mosaic_output(dir: &Path, m: &Manifest, given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(p) = given {
+        return Ok(p.to_path_buf());
+    }
+    if manifest_is_trusted(dir) {
+        return Ok(PathBuf::from(&m.output.path));
+    }
+    bail!(
+        "the plan folder {} or its manifest can be written by other users (or is not yours), \
+         so the output path its manifest names is not followed: name the output with --out \
+         (planned: {})",
+        dir.display(),
+        m.output.path
+    )
+}
+
+/// Reads and checks `DIR/manifest.json`: a regular file of at most [`MAX_MANIFEST_BYTES`],
+/// unmodified since planning, with a consistent tile grid of at most [`MAX_TASKS`] tasks and
+/// a prepared file named inside the plan folder.
 pub(crate) fn load_manifest(dir: &Path) -> Result<Manifest> {
     let path = dir.join(MANIFEST);
-    let bytes = std::fs::read(&path)
+    let bytes = read_plan_file(dir, MANIFEST, MAX_MANIFEST_BYTES)
         .with_context(|| format!("cannot read {} (is this a plan folder?)", path.display()))?;
-    let mut m: Manifest = serde_json::from_slice(&bytes)
+    parse_manifest(&bytes, &path)
+}
+
+/// Parses and checks the bytes of the manifest `path` (see [`load_manifest`]).
+pub(crate) fn parse_manifest(bytes: &[u8], path: &Path) -> Result<Manifest> {
+    let mut m: Manifest = serde_json::from_slice(bytes)
         .with_context(|| format!("{} is not a tile plan manifest", path.display()))?;
     if m.format != FORMAT || m.version != VERSION {
         bail!(
@@ -148,12 +271,32 @@ pub(crate) fn load_manifest(dir: &Path) -> Result<Manifest> {
         );
     }
     m.plan_id = id;
+    if m.tasks > MAX_TASKS
+        || !(1..=MAX_SIDE).contains(&m.output.width)
+        || !(1..=MAX_SIDE).contains(&m.output.height)
+    {
+        bail!(
+            "{} plans {} tasks over a {} x {} output: more than a plan may hold ({MAX_TASKS} \
+             tasks, {MAX_SIDE} cells a side)",
+            path.display(),
+            m.tasks,
+            m.output.width,
+            m.output.height
+        );
+    }
     if m.tile == 0
         || m.tiles_x != m.output.width.div_ceil(m.tile)
         || m.tiles_y != m.output.height.div_ceil(m.tile)
-        || m.tasks != m.tiles_x * m.tiles_y
+        || Some(m.tasks) != m.tiles_x.checked_mul(m.tiles_y)
     {
         bail!("{} has an inconsistent tile grid", path.display());
+    }
+    if !is_inside_name(&m.prepared.path) {
+        bail!(
+            "{} names its prepared file `{}` outside the plan folder",
+            path.display(),
+            m.prepared.path
+        );
     }
     Ok(m)
 }
@@ -198,21 +341,43 @@ pub(crate) enum TileState {
     Corrupt,
 }
 
+/// The state of tile `i`: its record (a regular file of at most [`MAX_RECORD_BYTES`] at its
+/// fixed name) must be of this plan, this index and window, and name the tile's own file
+/// (`tiles/tile-i.tif`: a record cannot point at another tile's file), a regular file with
+/// the recorded length and checksum.
 pub(crate) fn tile_state(dir: &Path, m: &Manifest, i: usize) -> TileState {
-    let rec = record_path(dir, i);
-    let Ok(bytes) = std::fs::read(&rec) else {
+    let rec = format!("tiles/tile-{i:06}.json");
+    if std::fs::symlink_metadata(dir.join(&rec)).is_err() {
         return TileState::Missing;
-    };
-    let Ok(r) = serde_json::from_slice::<TileRecord>(&bytes) else {
+    }
+    let Ok(bytes) = read_plan_file(dir, &rec, MAX_RECORD_BYTES) else {
         return TileState::Corrupt;
     };
-    if r.plan_id != m.plan_id || r.index != i || r.window != m.window(i) {
+    let Some(r) = parse_record(m, i, &bytes) else {
+        return TileState::Corrupt;
+    };
+    let tile = dir.join("tiles").join(&r.file.path);
+    let regular = std::fs::symlink_metadata(&tile)
+        .is_ok_and(|md| md.file_type().is_file() && md.len() == r.file.bytes);
+    if !regular {
         return TileState::Corrupt;
     }
-    match file_sum(&dir.join("tiles").join(&r.file.path), r.file.path.clone()) {
+    match file_sum(&tile, r.file.path.clone()) {
         Ok(s) if s == r.file => TileState::Done,
         _ => TileState::Corrupt,
     }
+}
+
+/// The record of tile `i` in `bytes` when it is one of this plan's, for this index and window,
+/// naming the tile's own file.
+pub(crate) fn parse_record(m: &Manifest, i: usize, bytes: &[u8]) -> Option<TileRecord> {
+    let r = serde_json::from_slice::<TileRecord>(bytes).ok()?;
+    let ok = r.plan_id == m.plan_id
+        && r.index == i
+        && i < m.tasks
+        && r.window == m.window(i)
+        && r.file.path == tile_name(i);
+    ok.then_some(r)
 }
 
 /// A GDAL VRT over the tiles (paths relative to the VRT).

@@ -567,6 +567,9 @@ pub struct GeoTiffRowReader {
     band_start: usize,
     next_row: usize,
     path: PathBuf,
+    /// The map position (X, Y) of the north-west corner, from a single ModelTiepoint at
+    /// raster (0, 0).
+    origin: Option<(f64, f64)>,
 }
 
 impl GeoTiffRowReader {
@@ -591,6 +594,14 @@ impl GeoTiffRowReader {
             }
         }
         let (cw, ch) = decoder.chunk_dimensions();
+        let origin = match decoder.find_tag(tiff::tags::Tag::ModelTiepointTag) {
+            Ok(Some(v)) => v
+                .into_f64_vec()
+                .ok()
+                .filter(|t| t.len() == 6 && t[0] == 0.0 && t[1] == 0.0)
+                .map(|t| (t[3], t[4])),
+            _ => None,
+        };
         Ok(GeoTiffRowReader {
             decoder,
             width: w as usize,
@@ -601,7 +612,14 @@ impl GeoTiffRowReader {
             band_start: 0,
             next_row: 0,
             path: path.to_path_buf(),
+            origin,
         })
+    }
+
+    /// The map position (X, Y) of the raster's north-west corner when the file has a single
+    /// tiepoint at raster (0, 0) (as relief writes it).
+    pub fn origin(&self) -> Option<(f64, f64)> {
+        self.origin
     }
 
     /// Width in cells.

@@ -86,6 +86,14 @@ impl Stage for ErodeStage {
         } else {
             terrain
         };
+        // Pre-flight under `relief run --max-memory`: the library's bytes per cell of the
+        // erosion and the stage's copies of its rasters.
+        cx.config.limits.check_memory(
+            "erode",
+            dem.len() as f64
+                * (relief_landscape::erode::job::ErodeSettings::BYTES_PER_CELL + 12) as f64,
+            "a smaller `max_size`",
+        )?;
         let mut job = p.job.clone();
         job.seed ^= cx.config.seed;
         let t0 = Instant::now();

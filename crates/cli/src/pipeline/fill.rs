@@ -19,10 +19,21 @@ const FILL_TOLERANCE: Tolerance = Tolerance {
 #[derive(Debug)]
 pub(crate) struct FillVoids;
 
+/// Working bytes per cell of the stage: the terrain's copy (4), the fill's unknowns, residual,
+/// direction, product and preconditioner (5 x 8) and its masks.
+const FILL_BYTES_PER_CELL: f64 = 48.0;
+
 impl Stage for FillVoids {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let settings = FillSettings::default();
         let mut hf = cx.state.terrain()?.clone();
+        // Pre-flight under `relief run --max-memory`: the copy and the conjugate-gradient
+        // vectors (f64) of the harmonic fill over the grid.
+        cx.config.limits.check_memory(
+            "fill_voids",
+            hf.len() as f64 * FILL_BYTES_PER_CELL,
+            "a smaller terrain (`crop`)",
+        )?;
         let voids = hf.void_count();
         cx.section.figure("voids_before", voids);
         let progress = cx.progress();

@@ -42,6 +42,14 @@ impl FlowStage {
 impl Stage for FlowStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let terrain = cx.state.terrain()?.clone();
+        // Pre-flight under `relief run --max-memory`: the library's bytes per cell of the
+        // routing and the stage's copies of its rasters.
+        cx.config.limits.check_memory(
+            "flow",
+            terrain.len() as f64
+                * (relief_landscape::flow::job::FlowSettings::BYTES_PER_CELL + 16) as f64,
+            "a smaller terrain (`crop`)",
+        )?;
         let out = self
             .0
             .run(&terrain, &cx.progress())

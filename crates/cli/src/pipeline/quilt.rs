@@ -213,7 +213,14 @@ fn volcano(
         let (cx_, cy_) = terrain.cell_size();
         vjob.guide.cell_size = Some((cx_ * k, cy_ * k));
     }
-    let (out, secs, g) = run_guided(&vjob, quads.clone(), volcano, &progress, "volcano")?;
+    let (out, secs, g) = run_guided(
+        &vjob,
+        quads.clone(),
+        volcano,
+        &progress,
+        "volcano",
+        &cx.config.limits,
+    )?;
     let pf = &out.figures.prepare;
     cx.section.figure(
         "volcano_exemplar_categories",
@@ -303,6 +310,7 @@ fn run_guided(
     guide: Heightfield,
     progress: &dyn Progress,
     what: &str,
+    limits: &super::RunLimits,
 ) -> Result<(QuiltOutput, f64, Heightfield)> {
     progress.begin(&format!("quilt: {what}"), 0);
     let t = std::time::Instant::now();
@@ -312,6 +320,17 @@ fn run_guided(
         categories: None,
         exemplar_regions: Vec::new(),
     };
+    // Pre-flight under `relief run --max-memory`: the library's own estimate (the exemplar
+    // index and the output canvases).
+    let m = job
+        .validate_job()
+        .memory(&inputs)
+        .with_context(|| format!("quilt ({what})"))?;
+    limits.check_memory(
+        &format!("quilt ({what})"),
+        m.index_bytes + m.output_bytes,
+        "a larger `job.settings.exemplar_stride`, a smaller terrain (`crop`)",
+    )?;
     let out = job.run(inputs, progress).with_context(|| {
         let guide = if what == "volcano" {
             "volcano guide"
@@ -347,7 +366,14 @@ fn holdout(
     // golden crop 5-11 of 55 blocks have no match): the validation is reported, not
     // enforced, so that the protocol measures the method on what it has.
     hjob.settings.enforce_validation = false;
-    let (out, secs, g) = run_guided(&hjob, vec![ex.clone()], truth.clone(), &progress, "holdout")?;
+    let (out, secs, g) = run_guided(
+        &hjob,
+        vec![ex.clone()],
+        truth.clone(),
+        &progress,
+        "holdout",
+        &cx.config.limits,
+    )?;
     let report = out.report.as_ref().context("validation report")?;
     cx.section.figure("holdout_validation_ok", report.ok);
     cx.section.figure(

@@ -93,6 +93,17 @@ impl Stage for SparseStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
         let terrain = cx.state.complete_terrain("sparse")?;
+        // Pre-flight under `relief run --max-memory`: the patches and the dictionary.
+        cx.config.limits.check_memory(
+            "sparse",
+            crate::preflight::compress_job_bytes(
+                (terrain.width(), terrain.height()),
+                &p.job,
+                p.sparsities.iter().copied().max().unwrap_or(1),
+            ),
+            "a larger `job.step` or `job.spacing`, fewer `job.atoms`, or a smaller terrain \
+             (`crop`)",
+        )?;
         let progress = cx.progress();
         let geometry = p.job.geometry();
         let patches = extract_patches(&terrain, &geometry)?;

@@ -80,12 +80,29 @@ pub struct PipelineSpec {
     pub base_dir: Option<PathBuf>,
 }
 
+/// Largest pipeline spec file read (a spec is a few kilobytes of JSON).
+pub const MAX_SPEC_BYTES: u64 = 4 << 20;
+
 impl PipelineSpec {
     /// Reads and checks a spec file: JSON syntax, field names, and that every stage builds.
     pub fn read(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path)
+        use std::io::Read as _;
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_SPEC_BYTES + 1).read_to_end(&mut bytes))
             .with_context(|| format!("cannot read pipeline spec {}", path.display()))?;
-        let mut spec: PipelineSpec = serde_json::from_slice(&bytes)
+        if bytes.len() as u64 > MAX_SPEC_BYTES {
+            bail!(
+                "{}: more than the {MAX_SPEC_BYTES} bytes a pipeline spec may take",
+                path.display()
+            );
+        }
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Parses and checks the bytes of the spec file `path` (see [`PipelineSpec::read`]).
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self> {
+        let mut spec: PipelineSpec = serde_json::from_slice(bytes)
             .with_context(|| format!("{} is not a valid pipeline spec", path.display()))?;
         if spec.stages.is_empty() {
             bail!("{}: `stages` is empty", path.display());

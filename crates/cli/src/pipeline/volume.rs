@@ -116,6 +116,13 @@ impl Stage for VolumeStage {
             job.render = true;
             job.closeups = true;
         }
+        // Pre-flight under `relief run --max-memory`: the mesh and the images.
+        cx.config.limits.check_memory(
+            "volume",
+            crate::preflight::volume_job_bytes((hf.width(), hf.height()), hf.cell_size(), &job),
+            "a larger `job.recipe.voxel`, a smaller `job.max_mesh_cells`, `max_size` or \
+             `job.image_size`",
+        )?;
         let progress = cx.progress();
         let out = job.run(&hf, &progress).context("cannot build the scene")?;
         let figures = serde_json::to_value(&out.figures).context("cannot encode the figures")?;

@@ -115,6 +115,56 @@ fn run_applies_the_memory_and_time_limits() {
     let _ = input;
 }
 
+/// Every stage of `relief run` checks its working memory against `--max-memory` before its
+/// work, naming the stage and the spec parameters that make it smaller.
+#[test]
+fn every_run_stage_applies_the_memory_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 900^2 cells: read within the smallest --max-memory (16M), too large for every stage's
+    // working memory under it.
+    write(
+        tmp.path(),
+        "canyon.tif",
+        &fixture().resample(900, 900).unwrap(),
+    );
+    let spec = tmp.path().join("spec.json");
+    let out = tmp.path().join("out");
+    for (stage, params, limit, names) in [
+        ("fill_voids", "{}", "16M", "`crop`"),
+        ("flow", "{}", "16M", "`crop`"),
+        ("erode", r#"{ "max_size": 0 }"#, "16M", "`max_size`"),
+        ("sparse", "{}", "16M", "`job.step`"),
+        ("quilt", "{}", "16M", "exemplar_stride"),
+        ("procedural", r#"{ "max_side": 900 }"#, "16M", "`max_side`"),
+        (
+            "volume",
+            r#"{ "job": { "recipe": { "voxel": 1.0 } }, "max_size": 0 }"#,
+            "1G",
+            "`job.recipe.voxel`",
+        ),
+    ] {
+        std::fs::write(
+            &spec,
+            format!(
+                r#"{{ "input": "canyon.tif", "stages": [ {{ "stage": "load" }},
+                   {{ "stage": "{stage}", "params": {params} }} ] }}"#
+            ),
+        )
+        .unwrap();
+        fails_with(
+            &relief!["--max-memory", limit, "run", spec, "--out", out],
+            &[
+                &format!("stage `{stage}"),
+                "needs about",
+                names,
+                "--max-memory",
+            ],
+            &[],
+        );
+        assert!(!out.exists());
+    }
+}
+
 /// Issue 44 item 8: `relief --force run` over an earlier run's folder is all or nothing: a
 /// failing run leaves the earlier folder exactly as it was, a successful one leaves only its
 /// own files (the earlier run's other files were kept beside the new ones).

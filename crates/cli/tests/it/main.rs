@@ -7,6 +7,7 @@ mod cli;
 mod dictionary;
 mod export;
 mod failures;
+mod hostile_plans;
 mod landscape;
 mod limits;
 mod patch;

@@ -24,8 +24,6 @@
 //! or not at all), equal bit for bit to those of `relief flow` (the other products of
 //! `relief flow` are not planned).
 
-use std::io::Read as _;
-
 use relief_landscape::flow::ESRI_CODES;
 use relief_landscape::flow::job::FlowSettings;
 use relief_landscape::flow::tiled::{
@@ -273,22 +271,9 @@ const INPUT_INDEX: &str = "input/index.json";
 /// The plan's folders: every file a task reads or writes is in one of them.
 const FOLDERS: [&str; 6] = ["input", "phase1", "phase2", "phase3", "phase4", "tiles"];
 
-/// Every folder of the plan must be a real folder inside it: a link planted in place of one
-/// would send a task's reads and writes outside the plan folder.
+/// Every folder of the plan must be a real folder inside it.
 fn check_folders(dir: &Path) -> Result<()> {
-    for f in FOLDERS {
-        let p = dir.join(f);
-        let meta = std::fs::symlink_metadata(&p).with_context(|| {
-            format!("cannot read {} (is this a flow plan folder?)", p.display())
-        })?;
-        if !meta.file_type().is_dir() {
-            bail!(
-                "{} is not a folder of the plan (a link or a file): refusing to read or write                  through it",
-                p.display()
-            );
-        }
-    }
-    Ok(())
+    FOLDERS.iter().try_for_each(|f| check_plan_folder(dir, f))
 }
 
 fn input_name(t: usize) -> String {
@@ -337,7 +322,7 @@ fn tasks_of(phase: usize, m: &Manifest) -> usize {
 /// The record of a finished task of a flow plan.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-struct PhaseRecord {
+pub(super) struct PhaseRecord {
     plan_id: String,
     phase: usize,
     index: usize,
@@ -350,39 +335,22 @@ fn max_bytes(m: &Manifest, t: usize) -> u64 {
     4096 + 64 * ((w + 4) * (h + 4)) as u64
 }
 
-/// Reads a plan file by its fixed name: a regular file inside the plan folder, at most `max`
-/// bytes.
-fn read_plan_file(dir: &Path, name: &str, max: u64) -> Result<Vec<u8>> {
-    let path = dir.join(name);
-    let meta = std::fs::symlink_metadata(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    if !meta.file_type().is_file() {
-        bail!("{} is not a regular file", path.display());
-    }
-    if meta.len() > max {
-        bail!(
-            "{} holds {} bytes, more than the {max} its tile allows",
-            path.display(),
-            meta.len()
-        );
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?
-        .take(max + 1)
-        .read_to_end(&mut bytes)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    if bytes.len() as u64 > max {
-        bail!("{} grew beyond {max} bytes while read", path.display());
-    }
-    Ok(bytes)
-}
-
 /// The record of task `index` of `phase` when it is valid for this plan (not the files).
 fn load_record(dir: &Path, m: &Manifest, phase: usize, index: usize) -> Option<PhaseRecord> {
     let max = 4096 + 256 * m.tasks as u64;
     let bytes = read_plan_file(dir, &record_name(phase, index), max).ok()?;
-    let r: PhaseRecord = serde_json::from_slice(&bytes).ok()?;
+    parse_record(m, phase, index, &bytes)
+}
+
+/// The record of task `index` of `phase` in `bytes` when it is valid for this plan: its plan
+/// id, phase and index, and the file names the task writes, in order.
+pub(super) fn parse_record(
+    m: &Manifest,
+    phase: usize,
+    index: usize,
+    bytes: &[u8],
+) -> Option<PhaseRecord> {
+    let r: PhaseRecord = serde_json::from_slice(bytes).ok()?;
     let names = outputs_of(phase, index, m.tasks);
     let ok = r.plan_id == m.plan_id
         && r.phase == phase
@@ -390,6 +358,16 @@ fn load_record(dir: &Path, m: &Manifest, phase: usize, index: usize) -> Option<P
         && r.files.len() == names.len()
         && r.files.iter().zip(&names).all(|(f, n)| &f.path == n);
     ok.then_some(r)
+}
+
+/// The files an accepted record of task `index` of `phase` lists (the fuzz target's view).
+pub(crate) fn record_files(
+    m: &Manifest,
+    phase: usize,
+    index: usize,
+    bytes: &[u8],
+) -> Option<Vec<String>> {
+    parse_record(m, phase, index, bytes).map(|r| r.files.into_iter().map(|f| f.path).collect())
 }
 
 /// Done, missing or corrupt: a task is done when its record is valid and every file it lists
@@ -403,7 +381,8 @@ fn task_state(dir: &Path, m: &Manifest, phase: usize, index: usize) -> TileState
     };
     for f in &r.files {
         let p = dir.join(&f.path);
-        let regular = std::fs::symlink_metadata(&p).is_ok_and(|md| md.file_type().is_file());
+        let regular = std::fs::symlink_metadata(&p)
+            .is_ok_and(|md| md.file_type().is_file() && md.len() == f.bytes);
         if !regular || file_sum(&p, f.path.clone()).ok().as_ref() != Some(f) {
             return TileState::Corrupt;
         }
@@ -781,7 +760,7 @@ pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Res
         ));
         return Ok(());
     }
-    let out = PathBuf::from(&m.output.path);
+    let out = mosaic_output(dir, m, a.out.as_deref())?;
     let inputs: Vec<PathBuf> = m.inputs.iter().map(|s| PathBuf::from(&s.path)).collect();
     let in_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let files = out_files();

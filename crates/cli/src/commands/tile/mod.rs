@@ -50,6 +50,7 @@ mod mosaic;
 mod plan;
 mod task;
 
+pub(crate) use flow::record_files;
 use mosaic::{mosaic, status};
 use plan::{absolute, plan};
 use task::run_task;
@@ -126,6 +127,11 @@ struct MosaicArgs {
     /// DIR/mosaic-{filled,direction,area}.vrt), not the GeoTIFF.
     #[arg(long)]
     vrt_only: bool,
+    /// Write the mosaic here (a GeoTIFF; flow plans: a folder) instead of the planned output.
+    /// Needed when the plan folder can be written by other users: the output path its
+    /// manifest names is then not followed.
+    #[arg(long, short = 'o', value_name = "PATH")]
+    out: Option<PathBuf>,
 }
 
 /// The commands a plan can split.

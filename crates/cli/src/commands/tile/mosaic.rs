@@ -8,6 +8,7 @@ pub(super) fn status(a: StatusArgs, ctx: &Ctx) -> Result<()> {
     if m.phases > 0 {
         return super::flow::status(&dir, &m, ctx);
     }
+    check_plan_folder(&dir, "tiles")?;
     let (mut missing, mut corrupt) = (Vec::new(), Vec::new());
     for i in 0..m.tasks {
         match tile_state(&dir, &m, i) {
@@ -69,6 +70,7 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
     if m.phases > 0 {
         return super::flow::mosaic(&dir, &m, &a, ctx);
     }
+    check_plan_folder(&dir, "tiles")?;
     let bad: Vec<usize> = (0..m.tasks)
         .filter(|&i| tile_state(&dir, &m, i) != TileState::Done)
         .collect();
@@ -81,7 +83,11 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
             dir.display()
         );
     }
-    let out = PathBuf::from(&m.output.path);
+    let out = if a.vrt_only {
+        PathBuf::new()
+    } else {
+        mosaic_output(&dir, &m, a.out.as_deref())?
+    };
     let inputs: Vec<PathBuf> = m.inputs.iter().map(|s| PathBuf::from(&s.path)).collect();
     let in_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let vrt = dir.join("mosaic.vrt");
@@ -109,6 +115,40 @@ pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
         if ctx.cog { ", cloud-optimized" } else { "" },
         vrt.display()
     ));
+    Ok(())
+}
+
+/// A tile of a georeferenced plan must sit where the plan puts tile `i` (to a thousandth of a
+/// cell): a tile file copied over another's, with its record rewritten to match, is refused.
+fn check_origin(m: &Manifest, i: usize, rd: &relief_io::GeoTiffRowReader, p: &Path) -> Result<()> {
+    let Some(g) = m
+        .output
+        .georef
+        .as_ref()
+        .filter(|g| g.geotransform.is_some())
+    else {
+        return Ok(());
+    };
+    let [x, y, _, _] = m.window(i);
+    let Some(t) = g.window(x as f64, y as f64, 1.0, 1.0).geotransform else {
+        return Ok(());
+    };
+    let tol = 1e-3 * (m.output.cell_size[0].abs() + m.output.cell_size[1].abs());
+    // A rotated grid is written as a ModelTransformation, without a tiepoint to compare.
+    let placed = match rd.origin() {
+        Some((ox, oy)) => (ox - t[0]).abs() <= tol && (oy - t[3]).abs() <= tol,
+        None => g.transformation.is_some(),
+    };
+    if !placed {
+        bail!(
+            "{} is not placed where tile {i} belongs ({:?} instead of ({}, {})): it was copied \
+             from another tile or plan; run tile {i} again",
+            p.display(),
+            rd.origin(),
+            t[0],
+            t[3]
+        );
+    }
     Ok(())
 }
 
@@ -147,9 +187,21 @@ pub(super) fn stream_tiles(
     for r in 0..m.tiles_y {
         let mut readers = (0..m.tiles_x)
             .map(|c| {
-                let p = dir.join(name(r * m.tiles_x + c));
-                relief_io::GeoTiffRowReader::open(&p)
-                    .with_context(|| format!("cannot read {}", p.display()))
+                let i = r * m.tiles_x + c;
+                let p = dir.join(name(i));
+                let rd = relief_io::GeoTiffRowReader::open(&p)
+                    .with_context(|| format!("cannot read {}", p.display()))?;
+                let [_, _, w, h] = m.window(i);
+                if (rd.width(), rd.height()) != (w, h) {
+                    bail!(
+                        "{} is {} x {}, not the {w} x {h} of tile {i}: run the tile again",
+                        p.display(),
+                        rd.width(),
+                        rd.height()
+                    );
+                }
+                check_origin(m, i, &rd, &p)?;
+                Ok(rd)
             })
             .collect::<Result<Vec<_>>>()?;
         let [_, _, _, h] = m.window(r * m.tiles_x);

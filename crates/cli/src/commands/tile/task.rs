@@ -38,45 +38,22 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
             m.tasks - 1
         );
     }
+    check_plan_folder(&dir, "tiles")?;
     if tile_state(&dir, &m, i) == TileState::Done {
         ctx.note(format!("tile {i} is already done"));
         return Ok(());
     }
-    // Inputs still reachable must be those planned (a task on another machine may not see
-    // them: it reads only the prepared file, which is always checked).
-    for s in &m.inputs {
-        let p = Path::new(&s.path);
-        if p.exists() {
-            let now = file_sum(p, s.path.clone())?;
-            if now != *s {
-                bail!(
-                    "input {} changed since the plan (checksum {} instead of {}); plan again",
-                    s.path,
-                    &now.sha256[..12],
-                    &s.sha256[..12]
-                );
-            }
-        }
-    }
-    let prepared_path = dir.join(&m.prepared.path);
-    let prepared = crate::sparse_model::read_model_bytes(&prepared_path, ctx)?;
-    if bytes_sum(&prepared, m.prepared.path.clone()) != m.prepared {
-        bail!(
-            "{} does not match its checksum in the manifest (corrupt or replaced); plan again",
-            prepared_path.display()
-        );
-    }
+    check_inputs(&dir, &m)?;
     let [x, y, w, h] = m.window(i);
-    let hf = render(
-        &m,
-        prepared,
-        Window {
-            x,
-            y,
-            width: w,
-            height: h,
-        },
-    )?;
+    let win = Window {
+        x,
+        y,
+        width: w,
+        height: h,
+    };
+    preflight(&m, win, ctx)?;
+    let prepared = read_prepared(&dir, &m, ctx)?;
+    let hf = render(&m, prepared, win)?;
     let bytes = deflate_geotiff(&hf)?;
     let name = tile_name(i);
     let tile_path = dir.join("tiles").join(&name);
@@ -93,6 +70,74 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
         .with_context(|| format!("cannot write the record of tile {i}"))?;
     ctx.note(format!("tile {i} done ({w} x {h} at {x},{y})"));
     Ok(())
+}
+
+/// Inputs still reachable must be those planned. A task on another machine may not see them
+/// (it reads only the prepared file, which is always checked), and they lie outside the plan
+/// folder, so they are read only when the manifest is the user's own
+/// ([`manifest_is_trusted`]), only when they are regular files of the planned length (a
+/// device named in their place is never read).
+fn check_inputs(dir: &Path, m: &Manifest) -> Result<()> {
+    if !manifest_is_trusted(dir) {
+        return Ok(());
+    }
+    for s in &m.inputs {
+        let Ok(meta) = std::fs::metadata(&s.path) else {
+            continue;
+        };
+        let now = if !meta.is_file() || meta.len() != s.bytes {
+            None
+        } else {
+            Some(file_sum(Path::new(&s.path), s.path.clone())?)
+        };
+        if now.as_ref() != Some(s) {
+            bail!(
+                "input {} changed since the plan (its length or checksum differs); plan again",
+                s.path
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The prepared file: a regular file inside the plan folder, of the length and checksum the
+/// manifest records, and at most a third of `--max-memory` (its decoded form takes about
+/// twice the file).
+fn read_prepared(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<Vec<u8>> {
+    let cap = crate::sparse_model::MAX_MODEL_BYTES.min(ctx.max_memory.bytes / 3);
+    if m.prepared.bytes > cap {
+        bail!(
+            "the plan's prepared file {} holds {} bytes, above the {} a task may read (a third \
+             of --max-memory {})",
+            m.prepared.path,
+            m.prepared.bytes,
+            crate::memory::human(cap),
+            ctx.max_memory
+        );
+    }
+    let prepared = read_plan_file(dir, &m.prepared.path, m.prepared.bytes)?;
+    if bytes_sum(&prepared, m.prepared.path.clone()) != m.prepared {
+        bail!(
+            "{} does not match its checksum in the manifest (corrupt or replaced); plan again",
+            dir.join(&m.prepared.path).display()
+        );
+    }
+    Ok(prepared)
+}
+
+/// Pre-flight of one task against `--max-memory`, before the prepared file is read: the
+/// decoded prepared file and the window, with the single commands' own estimates.
+fn preflight(m: &Manifest, win: Window, ctx: &Ctx) -> Result<()> {
+    let change = "a smaller --tile (plan again)";
+    let prepared = m.prepared.bytes as f64;
+    match m.command.as_str() {
+        "refine" => crate::preflight::refine_window(prepared, m, win, change, ctx),
+        "decompress" | "amplify" if m.prepared.path != super::plan::LAST_STEP => {
+            let scale = m.job["scale"].as_f64().unwrap_or(1.0);
+            crate::preflight::decompress(win, scale, m.prepared.bytes as usize, change, ctx)
+        }
+        _ => crate::preflight::last_step_window(prepared, win, change, ctx),
+    }
 }
 
 /// One window of the planned output, from the prepared file and the manifest's job settings.

@@ -167,6 +167,18 @@ impl Stage for AmplifyStage {
         };
         let steps = plan.steps;
         let f = 4usize.pow(steps as u32);
+        // Pre-flight under `relief run --max-memory`: the enlargement of the left half is the
+        // stage's peak (its amplification, then the result and its bicubic comparison).
+        let enlarged = (half * f) as f64 * (h * f) as f64;
+        cx.config.limits.check_memory(
+            "amplify",
+            crate::sparse_model::amplify_working_bytes(
+                (half, h),
+                (w - half, h),
+                &plan.settings(p, steps, true),
+            ) + enlarged * 8.0,
+            "fewer `job.steps`, or a smaller terrain (`crop`)",
+        )?;
         let (tw, th) = (half / f * f, h / f * f);
         let truth = terrain.crop(0, 0, tw, th)?;
         cx.section.figure("factor", f);

@@ -64,6 +64,17 @@ impl Stage for ProceduralStage {
         // Scale the dictionary down on small crops: full size from 128^2 up, fewer below.
         let n = p.job.n_candidates;
         let candidates = (n * w * h / (128 * 128)).clamp(64, n.max(64));
+        // Pre-flight under `relief run --max-memory`, as `relief fit-procedural`'s: the
+        // patches of the crop, the discretised candidate atoms and their Gram matrix.
+        let a = p.job.patch_size as f64;
+        let step = (a / 2.0).max(1.0);
+        let patches = (w as f64 / step).ceil() * (h as f64 / step).ceil();
+        let k = candidates as f64;
+        cx.config.limits.check_memory(
+            "procedural",
+            patches * a * a * 16.0 + (w * h) as f64 * 16.0 + k * a * a * 8.0 + k * k * 8.0,
+            "a smaller `max_side` or fewer `job.n_candidates`",
+        )?;
         let progress = cx.progress();
         let mut rows = Vec::new();
         // The paper's ridged-sum fit (the golden) and the default field fit.

@@ -119,6 +119,18 @@ impl Stage for SketchStage {
             sketch_cell_size: Some(sketch_cell),
             ..p.job
         };
+        // Pre-flight under `relief run --max-memory`: the x4 steps from the sketch, the
+        // exemplar's dictionaries, and the grown relief on the sketch grid x4.
+        let grown = (8 * n) as f64 * (4 * n) as f64;
+        cx.config.limits.check_memory(
+            "sketch",
+            crate::sparse_model::amplify_working_bytes(
+                (2 * n, n),
+                (exemplar.width(), exemplar.height()),
+                &settings.amplify,
+            ) + grown * relief_landscape::landform::WORKING_BYTES_PER_CELL,
+            "fewer `job.amplify.steps` or a smaller `sketch_size`",
+        )?;
         let progress = cx.progress();
         progress.begin(&format!("sketch synthesis {} x {n} -> x{f}", 2 * n), 0);
         let t = Instant::now();
