@@ -31,6 +31,14 @@ pub fn epsg_wkt(code: u32) -> Option<String> {
     crs_definitions::from_code(code).map(|d| d.wkt.to_string())
 }
 
+/// Ground cell size `(x, y)` in metres of a grid `height` rows high with georeference `g`, as
+/// the GeoTIFF reader derives it from the affine transform and the GeoTIFF keys: geographic
+/// grids at the centre latitude (WGS84), Web Mercator scaled by cos(latitude), other
+/// projections taken as metres. `None` without a usable transform.
+pub fn ground_cell_size(g: &GeoRef, height: usize) -> Option<(f64, f64)> {
+    crate::geotiff::cell_size(g, height)
+}
+
 /// The CRS a `.prj` (WKT 1, OGC or ESRI flavour) names: `EPSG:<code>` from its outermost
 /// `AUTHORITY["EPSG", ...]` (the last one in the text), else the name of its outermost
 /// `PROJCS` / `GEOGCS`. `None` for text that is not WKT.

@@ -444,7 +444,7 @@ fn gdal_scale_offset(xml: &str) -> (Option<f64>, Option<f64>) {
 
 /// Ground cell size in metres: geographic grids at the centre latitude (WGS84), Web Mercator
 /// scaled by cos(latitude), other projections taken as metres.
-fn cell_size(g: &GeoRef, h: usize) -> Option<(f64, f64)> {
+pub(crate) fn cell_size(g: &GeoRef, h: usize) -> Option<(f64, f64)> {
     let t = g.geotransform?;
     let (sx, sy) = (
         (t[1].powi(2) + t[4].powi(2)).sqrt(),

@@ -1,0 +1,249 @@
+//! The detail jobs: `amplify` and `synthesize` (relief-dictionary-learning, rasterised by
+//! relief-sparse-core) and `refine` (relief-wavelet-lod), called as `relief amplify`,
+//! `relief synthesize` and `relief refine` call them, with the same landform pass after them
+//! (relief-landscape; on by default, off in the paper modes, skipped for a window).
+
+use numpy::{PyArray2, PyReadonlyArray2};
+use pyo3::prelude::*;
+use relief_dictionary_learning::{
+    AmplifySettings, SynthesisSettings, amplify_with_figures, synthesize_with_figures,
+};
+use relief_heightfield::{Heightfield, Progress, Window};
+use relief_landscape::landform::{LandformSettings, finish_until};
+use relief_sparse_core::RasterSettings;
+use relief_wavelet_lod::{RefineSettings, Refiner};
+
+use crate::convert::{self, Geo, NO_GEO};
+use crate::run::{Failure, Reporter, run};
+
+/// A window `(x, y, width, height)` in output cells.
+pub(crate) type WindowTuple = (usize, usize, usize, usize);
+
+/// What a detail job returns: the raster, its georeference (JSON, see [`Geo`]) and the
+/// library's notes.
+type Out<'py> = (Bound<'py, PyArray2<f32>>, Option<String>, Vec<String>);
+
+/// The library window of a tuple (width and height checked by the library).
+pub(crate) fn window(w: WindowTuple) -> Window {
+    Window::new(w.0, w.1, w.2, w.3)
+}
+
+/// The landform pass of the CLI's `--landform` over `fine`, the detail of `coarse`.
+fn landform(
+    fine: Heightfield,
+    coarse: &Heightfield,
+    p: &Reporter,
+) -> Result<(Heightfield, String), Failure> {
+    p.begin("landform pass", 0);
+    let (out, r) = finish_until(&fine, coarse, &LandformSettings::default(), &|| {
+        p.stop_flag()
+    })
+    .map_err(|e| stop_or(e, p))?;
+    let note = format!(
+        "landform pass: {} depressions breached or filled ({} cells lowered, {} raised), \
+         consistency with the input {:.3} m RMS",
+        r.pits_before, r.breached_cells, r.filled_cells, r.consistency_rms_m
+    );
+    Ok((out, note))
+}
+
+/// A library error as a failure, or [`Failure::Stopped`] when the run was asked to stop.
+pub(crate) fn stop_or(e: impl std::fmt::Display, p: &Reporter) -> Failure {
+    if p.stop_flag() {
+        Failure::Stopped
+    } else {
+        Failure::value(e)
+    }
+}
+
+fn output(py: Python<'_>, hf: Heightfield, notes: Vec<String>) -> Out<'_> {
+    let t = convert::georef_json(&hf);
+    (convert::array(py, hf), t, notes)
+}
+
+/// The checked amplify settings of keyword arguments over the default (or paper) settings.
+pub(crate) fn amplify_settings(json: &str, paper: bool) -> Result<AmplifySettings, Failure> {
+    let base = if paper {
+        AmplifySettings::paper()
+    } else {
+        AmplifySettings::default()
+    };
+    let s = convert::settings(&base, json)?;
+    s.check().map_err(Failure::value)?;
+    Ok(s)
+}
+
+/// A void-free heightfield or the library's message naming `what`.
+pub(crate) fn complete(hf: Heightfield, what: &str) -> Result<Heightfield, Failure> {
+    hf.require_complete()
+        .map_err(|e| Failure::Value(format!("cannot use the {what}: {e}")))?;
+    Ok(hf)
+}
+
+/// `relief amplify`: see `relief.amplify`.
+#[pyfunction]
+#[pyo3(signature = (coarse, cell_size, geo, exemplar, exemplar_cell_size, settings, paper, landform, window, progress))]
+#[allow(clippy::type_complexity)]
+pub(crate) fn amplify<'py>(
+    py: Python<'py>,
+    coarse: PyReadonlyArray2<'py, f32>,
+    cell_size: (f64, f64),
+    geo: Geo,
+    exemplar: PyReadonlyArray2<'py, f32>,
+    exemplar_cell_size: (f64, f64),
+    settings: &str,
+    paper: bool,
+    landform: Option<bool>,
+    window: Option<WindowTuple>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Out<'py>> {
+    let settings = amplify_settings(settings, paper)?;
+    let coarse = complete(
+        convert::heightfield(&coarse, cell_size, &geo)?,
+        "coarse input",
+    )?;
+    let exemplar = complete(
+        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
+        "exemplar",
+    )?;
+    let finish = landform.unwrap_or(!paper) && window.is_none();
+    let raster = RasterSettings {
+        scale: 1.0,
+        window: window.map(self::window),
+    };
+    let (hf, notes) = run(py, progress, move |p| {
+        let (sct, figures) =
+            amplify_with_figures(&coarse, &exemplar, &settings, p).map_err(|e| stop_or(e, p))?;
+        let mut notes: Vec<String> = figures.steps.iter().map(|s| s.note.clone()).collect();
+        let hf = sct
+            .rasterize_with_progress(&raster, p)
+            .map_err(|e| stop_or(e, p))?;
+        let hf = if finish {
+            let (hf, note) = self::landform(hf, &coarse, p)?;
+            notes.push(note);
+            hf
+        } else {
+            hf
+        };
+        Ok((hf, notes))
+    })?;
+    Ok(output(py, hf, notes))
+}
+
+/// `relief synthesize`: see `relief.synthesize`.
+#[pyfunction]
+#[pyo3(signature = (sketch, cell_size, exemplar, exemplar_cell_size, settings, paper, window, progress))]
+pub(crate) fn synthesize<'py>(
+    py: Python<'py>,
+    sketch: PyReadonlyArray2<'py, f32>,
+    cell_size: (f64, f64),
+    exemplar: PyReadonlyArray2<'py, f32>,
+    exemplar_cell_size: (f64, f64),
+    settings: &str,
+    paper: bool,
+    window: Option<WindowTuple>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Out<'py>> {
+    let mut base = SynthesisSettings::default();
+    if paper {
+        // `relief synthesize --paper`: the whole atom scaled by the code, no structure step,
+        // no landscape evolution.
+        base.amplify.normalize_detail = false;
+        base.amplify.exemplar_detail = false;
+        base.structure.radius = 0.0;
+        base.grow = None;
+    }
+    let settings: SynthesisSettings = convert::settings(&base, settings)?;
+    settings.amplify.check().map_err(Failure::value)?;
+    settings.structure.check().map_err(Failure::value)?;
+    let sketch = complete(convert::heightfield(&sketch, cell_size, &NO_GEO)?, "sketch")?;
+    let exemplar = complete(
+        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
+        "exemplar",
+    )?;
+    let raster = RasterSettings {
+        scale: 1.0,
+        window: window.map(self::window),
+    };
+    let (hf, notes) = run(py, progress, move |p| {
+        let (sct, figures) =
+            synthesize_with_figures(&sketch, &exemplar, &settings, p).map_err(|e| stop_or(e, p))?;
+        let mut notes: Vec<String> = figures.structure.iter().map(|s| s.note.clone()).collect();
+        notes.extend(figures.steps.iter().map(|s| s.note.clone()));
+        let hf = sct
+            .rasterize_with_progress(&raster, p)
+            .map_err(|e| stop_or(e, p))?;
+        // The landform pass keeps the result on the grown network (its box averages).
+        let hf = match (&figures.grown, raster.window) {
+            (Some(grown), None) => {
+                let (hf, note) = self::landform(hf, grown, p)?;
+                notes.push(note);
+                hf
+            }
+            _ => hf,
+        };
+        Ok((hf, notes))
+    })?;
+    Ok(output(py, hf, notes))
+}
+
+/// The checked refine settings of keyword arguments over the default (or paper) settings.
+pub(crate) fn refine_settings(json: &str, paper: bool) -> Result<RefineSettings, Failure> {
+    let base = if paper {
+        RefineSettings::paper()
+    } else {
+        RefineSettings::default()
+    };
+    let s: RefineSettings = convert::settings(&base, json)?;
+    s.check().map_err(Failure::value)?;
+    Ok(s)
+}
+
+/// `relief refine`: see `relief.refine`.
+#[pyfunction]
+#[pyo3(signature = (input, cell_size, geo, settings, paper, landform, window, progress))]
+pub(crate) fn refine<'py>(
+    py: Python<'py>,
+    input: PyReadonlyArray2<'py, f32>,
+    cell_size: (f64, f64),
+    geo: Geo,
+    settings: &str,
+    paper: bool,
+    landform: Option<bool>,
+    window: Option<WindowTuple>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Out<'py>> {
+    let settings = refine_settings(settings, paper)?;
+    let hf = complete(convert::heightfield(&input, cell_size, &geo)?, "input")?;
+    let finish = landform.unwrap_or(!paper) && window.is_none();
+    let (out, notes) = run(py, progress, move |p| {
+        p.begin("wavelet analysis", 0);
+        let refiner = Refiner::new(&hf, &settings).map_err(|e| stop_or(e, p))?;
+        let mut notes: Vec<String> = refiner
+            .notes()
+            .iter()
+            .map(|n| format!("note: {n}"))
+            .collect();
+        let out = match window {
+            Some((x, y, w, h)) => {
+                p.begin("synthesising the window", 0);
+                let (ow, oh) = refiner.output_size();
+                refiner.render_window(x, y, w, h).map_err(|e| {
+                    Failure::Value(format!(
+                        "invalid window (the refined grid is {ow} x {oh}): {e}"
+                    ))
+                })?
+            }
+            None => refiner.render(p).map_err(|e| stop_or(e, p))?,
+        };
+        let out = if finish {
+            let (out, note) = self::landform(out, &hf, p)?;
+            notes.push(note);
+            out
+        } else {
+            out
+        };
+        Ok((out, notes))
+    })?;
+    Ok(output(py, out, notes))
+}

@@ -1,0 +1,224 @@
+//! Plans of windowed runs (`relief.dask`): everything a window of an amplified or refined
+//! terrain needs, computed once, from which each window is computed alone and equal bit for
+//! bit to the same window of the whole run (relief-dictionary-learning's [`LastStep`], relief-
+//! wavelet-lod's [`Refiner::render_window`]). Plans pickle, so a Dask scheduler sends one to
+//! its workers once.
+
+use numpy::{PyArray2, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+use relief_dictionary_learning::{LastStep, prepare_last_step};
+use relief_heightfield::Heightfield;
+use relief_wavelet_lod::{RefineSettings, Refiner};
+
+use crate::convert::{self, Geo, NO_GEO, Transform};
+use crate::detail::{amplify_settings, complete, refine_settings, stop_or, window};
+use crate::run::{Failure, run};
+
+/// The last x4 step of an amplification: any window of its output.
+#[pyclass(module = "relief._relief", frozen)]
+#[derive(Debug)]
+pub(crate) struct AmplifyPlan {
+    last: LastStep,
+    /// The keyword arguments the settings came from, and the paper switch (for pickling).
+    settings_json: String,
+    paper: bool,
+    /// Geotransform of the whole amplified output.
+    transform: Option<Transform>,
+}
+
+#[pymethods]
+impl AmplifyPlan {
+    /// `(width, height)` of the amplified output.
+    fn output_size(&self) -> (usize, usize) {
+        self.last.output_size()
+    }
+
+    /// The geotransform `[x0, dx, rx, y0, ry, dy]` of the whole output (GDAL order), if the
+    /// input had one.
+    #[getter]
+    fn transform(&self) -> Option<Transform> {
+        self.transform
+    }
+
+    /// The window `(x, y, width, height)` of the output, computed alone (the GIL released).
+    fn window<'py>(
+        &self,
+        py: Python<'py>,
+        x: usize,
+        y: usize,
+        width: usize,
+        height: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let win = window((x, y, width, height));
+        let hf = py
+            .detach(|| self.last.render_window(win))
+            .map_err(Failure::value)?;
+        Ok(convert::array(py, hf))
+    }
+
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let bytes = py.detach(|| self.last.to_bytes()).map_err(Failure::value)?;
+        let f = py.import("relief._relief")?.getattr("_amplify_plan")?;
+        let args = (
+            PyBytes::new(py, &bytes),
+            self.settings_json.clone(),
+            self.paper,
+            self.transform,
+        )
+            .into_pyobject(py)?
+            .into_any();
+        Ok((f, args))
+    }
+}
+
+/// Unpickles an [`AmplifyPlan`].
+#[pyfunction]
+pub(crate) fn _amplify_plan(
+    py: Python<'_>,
+    bytes: &[u8],
+    settings_json: String,
+    paper: bool,
+    transform: Option<Transform>,
+) -> PyResult<AmplifyPlan> {
+    let settings = amplify_settings(&settings_json, paper)?;
+    let last = py
+        .detach(|| LastStep::from_bytes(bytes, &settings))
+        .map_err(Failure::value)?;
+    Ok(AmplifyPlan {
+        last,
+        settings_json,
+        paper,
+        transform,
+    })
+}
+
+/// Runs every amplification step but the last: see `relief.dask.amplify`.
+#[pyfunction]
+#[pyo3(signature = (coarse, cell_size, geo, exemplar, exemplar_cell_size, settings, paper, progress))]
+pub(crate) fn amplify_plan(
+    py: Python<'_>,
+    coarse: PyReadonlyArray2<'_, f32>,
+    cell_size: (f64, f64),
+    geo: Geo,
+    exemplar: PyReadonlyArray2<'_, f32>,
+    exemplar_cell_size: (f64, f64),
+    settings: String,
+    paper: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<AmplifyPlan> {
+    let s = amplify_settings(&settings, paper)?;
+    let coarse = complete(
+        convert::heightfield(&coarse, cell_size, &geo)?,
+        "coarse input",
+    )?;
+    let exemplar = complete(
+        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
+        "exemplar",
+    )?;
+    let steps = s.steps;
+    let last = run(py, progress, move |p| {
+        let (last, _) = prepare_last_step(&coarse, &exemplar, &s, p).map_err(|e| stop_or(e, p))?;
+        Ok(last)
+    })?;
+    // The georeference of the amplified output, as `relief amplify` writes it.
+    let f = 1.0 / 4f64.powi(steps as i32);
+    let transform = convert::geo(&geo)?
+        .map(|g| g.window(0.0, 0.0, f, f))
+        .and_then(|g| g.geotransform);
+    Ok(AmplifyPlan {
+        last,
+        settings_json: settings,
+        paper,
+        transform,
+    })
+}
+
+/// The analysis of a refinement: any window of the refined terrain.
+#[pyclass(module = "relief._relief", frozen)]
+#[derive(Debug)]
+pub(crate) struct RefinePlan {
+    refiner: Refiner,
+    input: Heightfield,
+    settings_json: String,
+    paper: bool,
+}
+
+#[pymethods]
+impl RefinePlan {
+    /// `(width, height)` of the refined terrain.
+    fn output_size(&self) -> (usize, usize) {
+        self.refiner.output_size()
+    }
+
+    /// The geotransform of the whole refined terrain (GDAL order), if the input had one.
+    #[getter]
+    fn transform(&self) -> PyResult<Option<Transform>> {
+        let corner = self
+            .refiner
+            .render_window(0, 0, 1, 1)
+            .map_err(Failure::value)?;
+        Ok(corner.georef().and_then(|g| g.geotransform))
+    }
+
+    /// The window `(x, y, width, height)` of the refined terrain, computed alone.
+    fn window<'py>(
+        &self,
+        py: Python<'py>,
+        x: usize,
+        y: usize,
+        width: usize,
+        height: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let (ow, oh) = self.refiner.output_size();
+        let hf = py
+            .detach(|| self.refiner.render_window(x, y, width, height))
+            .map_err(|e| {
+                Failure::Value(format!(
+                    "invalid window (the refined grid is {ow} x {oh}): {e}"
+                ))
+            })?;
+        Ok(convert::array(py, hf))
+    }
+
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let f = py.import("relief._relief")?.getattr("refine_plan")?;
+        let geo: Geo = (None, None, convert::georef_json(&self.input));
+        let args = (
+            convert::array(py, self.input.clone()),
+            self.input.cell_size(),
+            geo,
+            self.settings_json.clone(),
+            self.paper,
+        )
+            .into_pyobject(py)?
+            .into_any();
+        Ok((f, args))
+    }
+}
+
+/// Analyses a terrain for windowed refinement: see `relief.dask.refine`.
+#[pyfunction]
+#[pyo3(signature = (input, cell_size, geo, settings, paper))]
+pub(crate) fn refine_plan(
+    py: Python<'_>,
+    input: PyReadonlyArray2<'_, f32>,
+    cell_size: (f64, f64),
+    geo: Geo,
+    settings: String,
+    paper: bool,
+) -> PyResult<RefinePlan> {
+    let s: RefineSettings = refine_settings(&settings, paper)?;
+    let input = complete(convert::heightfield(&input, cell_size, &geo)?, "input")?;
+    let (refiner, input) = py.detach(move || {
+        Refiner::new(&input, &s)
+            .map(|r| (r, input))
+            .map_err(Failure::value)
+    })?;
+    Ok(RefinePlan {
+        refiner,
+        input,
+        settings_json: settings,
+        paper,
+    })
+}
