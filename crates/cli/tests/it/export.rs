@@ -199,6 +199,50 @@ fn gaea_png_keeps_the_dem_size() {
     let base = numbers(&setting(&sheet, "Base elevation (m)"))[0];
     let gaea = |x: usize, y: usize| base + f64::from(counts[y * w + x]) / 65535.0 * height;
     assert_metres(&hf.corner_samples().unwrap(), tolerance(&sheet), gaea);
+    // --height-range fixes the mapping (exports that must meet share it).
+    let out = tmp.path().join("fixed/");
+    let sheet = relief_json![
+        "--height-range",
+        "0,4000",
+        "export",
+        "--engine",
+        "gaea",
+        &input,
+        &out,
+        "--json"
+    ];
+    assert_eq!(setting(&sheet, "Height (m)"), "4000.0000");
+    assert_eq!(setting(&sheet, "Base elevation (m)"), "0.0000");
+    let counts = png16(&out.join("crop.png")).2;
+    let fixed = |x: usize, y: usize| f64::from(counts[y * w + x]) / 65535.0 * 4000.0;
+    assert_metres(
+        &hf.corner_samples().unwrap(),
+        4000.0 / 65535.0 * 0.5 + 1e-3,
+        fixed,
+    );
+}
+
+/// --max-time: a run still going at the limit stops there and writes nothing.
+#[test]
+fn export_stops_at_the_time_limit() {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 256, 256));
+    let out = tmp.path().join("late/");
+    fails_with(
+        &relief![
+            "--max-time",
+            "0.001",
+            "export",
+            "--engine",
+            "unity",
+            &input,
+            &out,
+            "--tiles",
+            "2x2"
+        ],
+        &["stopped", "--max-time"],
+        &[&tmp.path().join("late")],
+    );
+    assert_eq!(files(tmp.path()), ["crop.tif"]);
 }
 
 /// Unreal World Partition tiles NAME_x<X>_y<Y> (y0 north): 2x2 tiles of 127 for a 252^2
@@ -360,6 +404,32 @@ fn bad_exports_are_refused_naming_the_problem() {
             "8129"
         ],
         &["export would need", "8129 x 8129", "--max-memory"],
+        &[&d.join("out")],
+    );
+    fails_with(
+        &relief![
+            "export",
+            "--engine",
+            "unreal",
+            &input,
+            &out,
+            "--region-size",
+            "512"
+        ],
+        &["--region-size", "godot"],
+        &[&d.join("out")],
+    );
+    fails_with(
+        &relief![
+            "export",
+            "--engine",
+            "godot",
+            &input,
+            &out,
+            "--region-size",
+            "300"
+        ],
+        &["--region-size 300", "2048"],
         &[&d.join("out")],
     );
     fails_with(

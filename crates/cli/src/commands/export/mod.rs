@@ -57,9 +57,10 @@ pub(crate) struct Args {
     /// the DEM by --fit unless --tiles gives it.
     #[arg(long, value_name = "N")]
     pub(crate) tile_size: Option<usize>,
-    /// Terrain3D region size (--engine godot): the long side is a multiple of it.
-    #[arg(long, value_name = "N", default_value_t = 256)]
-    pub(crate) region_size: usize,
+    /// Terrain3D region size (--engine godot; default 256): the long side is a multiple of
+    /// it.
+    #[arg(long, value_name = "N")]
+    pub(crate) region_size: Option<usize>,
     /// Heightmap file format: png (16-bit greyscale) or r16 (16-bit little-endian raw).
     /// Default: png for unreal and gaea, r16 (.raw) for unity and godot (which read raw
     /// only).
@@ -174,7 +175,8 @@ fn grids(hf: &Heightfield, (sx, sy): (usize, usize)) -> Result<Grids> {
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let engine = args.engine;
     let format = engine.format(args.format)?;
-    engine::check_region(engine, args.region_size, args.region_size != 256)?;
+    let region = args.region_size.unwrap_or(256);
+    engine::check_region(engine, region, args.region_size.is_some())?;
     let (dir, stem) = destination(&args.out, args.name.as_deref(), &args.input)?;
     let job = super::JobCells {
         command: "export",
@@ -195,7 +197,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         size: args.size,
         tiles: args.tiles,
         tile_size: args.tile_size,
-        region: args.region_size,
+        region,
     };
     let layout = engine::layout(engine, (hf.width(), hf.height()), args.fit, ask)?;
     let plan = write::Plan {
