@@ -131,6 +131,9 @@ pub(crate) fn is_stopped(err: &anyhow::Error) -> bool {
         ) || matches!(
             e.downcast_ref::<relief_landscape::LandscapeError>(),
             Some(relief_landscape::LandscapeError::Stopped(_))
+        ) || matches!(
+            e.downcast_ref::<relief_dictionary_learning::LearnError>(),
+            Some(relief_dictionary_learning::LearnError::Stopped(_))
         ) || e.downcast_ref::<Stopped>().is_some()
     })
 }

@@ -33,6 +33,10 @@ pub enum LearnError {
         /// Row index.
         row: usize,
     },
+    /// The caller asked the work to stop (`Progress::stopped`: its time budget ran out); no
+    /// partial result is returned.
+    #[error("stopped: {0}")]
+    Stopped(String),
     /// The SVD of a restricted error matrix failed to converge.
     #[error("svd failed for atom {atom}")]
     Svd {

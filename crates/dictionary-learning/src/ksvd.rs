@@ -449,11 +449,27 @@ pub fn ksvd_with_fixed(
     let dim = signals.ncols();
     let mut trace = Vec::with_capacity(s.iterations + 1);
     progress.begin("k-svd", s.iterations as u64);
-    for _ in 0..s.iterations {
+    let stop = |it: usize| {
+        if progress.stopped() {
+            Err(LearnError::Stopped(format!(
+                "k-svd, iteration {} of {}",
+                it + 1,
+                s.iterations
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    for it in 0..s.iterations {
+        stop(it)?;
         let codes = batch_omp(atoms.view(), signals, &omp)?;
+        stop(it)?;
         let rmse = codes_rmse(&codes, dim);
         let mut table = CodeTable::new(&codes, atoms.nrows());
         for j in 0..atoms.nrows() {
+            if j % 64 == 63 {
+                stop(it)?;
+            }
             if table.users[j].is_empty() || is_fixed[j] {
                 continue;
             }

@@ -150,6 +150,18 @@ pub fn fit_procedural(
         }
     };
     let n_atoms = dict.len();
+    // Asked between the parts (a run past its time budget ends with `Stopped`); the
+    // rasterisation asks between its bands.
+    let stop = |after: &str| {
+        if progress.stopped() {
+            Err(LearnError::Stopped(format!(
+                "the procedural fit, after {after}"
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    stop("the dictionary")?;
     let sct = encode(
         hf,
         &dict,
@@ -158,7 +170,8 @@ pub fn fit_procedural(
             ..Default::default()
         },
     )?;
-    let rec = sct.rasterize(&RasterSettings::default())?;
+    stop("the coding")?;
+    let rec = sct.rasterize_with_progress(&RasterSettings::default(), progress)?;
     let psnr = metrics::psnr(hf, &rec)?;
     Ok(ProceduralFit { sct, psnr, n_atoms })
 }

@@ -65,6 +65,122 @@ fn meshing_stops_at_the_time_limit() {
     stopped(&o, s, &[&mesh]);
 }
 
+/// Every long-running command, on inputs that take it several seconds, ends under
+/// `--max-time 1s` with one line naming the limit (a pilot's refusal before the work, or a
+/// stop during it) and writes nothing; two commands run at a time.
+#[test]
+fn every_long_command_stops_at_the_time_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let gc = relief_testdata::fixture("grandcanyon.tif");
+    let big = write(t, "big.tif", &fixture().resample(2048, 2048).unwrap());
+    let (small, _) = fixture_crop(t, "small.tif", (0, 0, 128, 128));
+    let (mid, _) = fixture_crop(t, "mid.tif", (0, 0, 256, 256));
+    let plan = t.join("plan");
+    relief_ok![
+        "tile",
+        "plan",
+        &plan,
+        "--tile",
+        "4096",
+        "--",
+        "amplify",
+        &mid,
+        t.join("a.tif"),
+        "--exemplar",
+        &gc,
+        "--factor",
+        "16",
+        "--landform",
+        "off"
+    ];
+    let o = |name: &str| t.join(name);
+    let cases: Vec<(Vec<std::ffi::OsString>, Vec<std::path::PathBuf>)> = vec![
+        (argv("flow {} -o {}", &[&big, &o("flow")]), vec![o("flow")]),
+        (
+            argv("masks {} --out {}", &[&big, &o("masks")]),
+            vec![o("masks")],
+        ),
+        (
+            argv("erode {} --output {}", &[&big, &o("e.tif")]),
+            vec![o("e.tif")],
+        ),
+        (
+            argv(
+                "amplify {} {} --exemplar {} --factor 16",
+                &[&small, &o("a16.tif"), &gc],
+            ),
+            vec![o("a16.tif")],
+        ),
+        (
+            argv(
+                "synthesize {} {} --exemplar {}",
+                &[&small, &o("s.tif"), &gc],
+            ),
+            vec![o("s.tif")],
+        ),
+        (
+            argv(
+                "quilt {} --exemplar {} --guide {} --guide-range auto",
+                &[&o("q.tif"), &gc, &gc],
+            ),
+            vec![o("q.tif")],
+        ),
+        (
+            argv("compress {} {}", &[&big, &o("c.sct")]),
+            vec![o("c.sct")],
+        ),
+        (
+            argv("learn {} {}", &[&big, &o("l.dict")]),
+            vec![o("l.dict")],
+        ),
+        (
+            argv("fit-procedural {} {}", &[&big, &o("p.sct")]),
+            vec![o("p.sct")],
+        ),
+        (
+            argv("tile run {} --index 0", &[&plan]),
+            vec![plan.join("tiles/tile-000000.tif")],
+        ),
+    ];
+    let failures: Vec<String> = std::thread::scope(|sc| {
+        cases
+            .chunks(2)
+            .flat_map(|pair| {
+                let hs: Vec<_> = pair
+                    .iter()
+                    .map(|(args, outs)| {
+                        sc.spawn(move || {
+                            let mut a: Vec<&std::ffi::OsStr> = vec![os("--max-time"), os("1s")];
+                            a.extend(args.iter().map(|x| x.as_os_str()));
+                            let (out, secs) = timed(&a);
+                            let e = stderr(&out);
+                            let fine = !out.status.success()
+                                && e.trim_end().lines().count() == 1
+                                && e.contains("--max-time")
+                                && secs < 30.0
+                                && outs.iter().all(|p| !p.exists());
+                            (!fine).then(|| format!("{args:?}: {secs:.1} s: {e}"))
+                        })
+                    })
+                    .collect();
+                hs.into_iter()
+                    .filter_map(|h| h.join().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    });
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// `line` with each `{}` replaced by the next of `files`, as owned arguments.
+fn argv(line: &str, files: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<std::ffi::OsString> {
+    words(line, files)
+        .into_iter()
+        .map(|w| w.to_os_string())
+        .collect()
+}
+
 /// `relief run`: a wavelet stage of 8 extra levels is refused by its pre-flight under
 /// `--max-memory` (it aborted on a 4 GiB allocation), and a run past `--max-time` is stopped;
 /// neither leaves an output folder.

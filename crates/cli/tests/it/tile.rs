@@ -376,3 +376,40 @@ fn tile_commands_fail_cleanly_on_missing_and_corrupt_plans() {
         }
     }
 }
+
+/// Under `--max-time` a task renders its tile in bands of rows, asking the deadline between
+/// them: the tile is the same bytes as rendered at once (refine and amplify plans, tiles of
+/// 1024 rows).
+#[test]
+fn a_tile_rendered_in_bands_is_the_same_tile() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gc = relief_testdata::fixture("grandcanyon.tif");
+    let out = tmp.path().join("o.tif");
+    for (k, line) in [
+        "refine {} {} --landform off",
+        "amplify {} {} --exemplar {} --factor 4 --landform off",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let dir = tmp.path().join(format!("plan-{k}"));
+        let files: Vec<&dyn AsRef<std::ffi::OsStr>> = if k == 0 {
+            vec![&gc, &out]
+        } else {
+            vec![&gc, &out, &gc]
+        };
+        let mut args = words("tile plan {} --tile 1024 --", &[&dir]);
+        args.extend(words(line, &files));
+        ok(&relief(&args));
+        relief_ok!["--max-time", "1h", "tile", "run", &dir, "--index", "0"];
+        let tile = dir.join("tiles/tile-000000.tif");
+        let banded = std::fs::read(&tile).unwrap();
+        std::fs::remove_file(&tile).unwrap();
+        std::fs::remove_file(dir.join("tiles/tile-000000.json")).unwrap();
+        relief_ok!["tile", "run", &dir, "--index", "0"];
+        assert!(
+            banded == std::fs::read(&tile).unwrap(),
+            "{line}: the banded tile differs"
+        );
+    }
+}

@@ -103,8 +103,20 @@ impl FlowSettings {
             ));
         }
         progress.begin("flow routing", 4);
+        // Asked between the passes (each a fraction of a second per million cells): a run
+        // past its time budget ends with `Stopped`.
+        let stop = |after: &str| {
+            if progress.stopped() {
+                Err(LandscapeError::Stopped(format!(
+                    "flow routing, after {after}"
+                )))
+            } else {
+                Ok(())
+            }
+        };
         let r = route(dem.as_slice().to_vec(), grid, &self.route_options());
         progress.advance(1);
+        stop("the depressions and directions")?;
         // D8 area is counted in cells and multiplied by the cell area once: the same bits
         // whatever order the sums are made in (the tiled plan of `relief tile` makes them
         // tile by tile; `flow::tiled`).
@@ -119,11 +131,15 @@ impl FlowSettings {
             r.area_d8()
         };
         progress.advance(1);
+        stop("the drainage area")?;
         let order = strahler(&r, &d8_area, self.channel_area);
         let reach = reaches(&r, &d8_area, &order);
+        stop("the Strahler order")?;
         let basins = watersheds(&r, &d8_area);
+        stop("the watersheds")?;
         let hand = hand(&r, &d8_area, self.channel_area);
         progress.advance(1);
+        stop("HAND")?;
         let input = dem.as_slice();
         let mut raised = 0usize;
         let mut lowered = 0usize;

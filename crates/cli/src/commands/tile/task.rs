@@ -53,7 +53,7 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
     };
     preflight(&m, win, ctx)?;
     let prepared = read_prepared(&dir, &m, ctx)?;
-    let hf = render(&m, prepared, win)?;
+    let hf = render(&m, prepared, win, ctx)?;
     let bytes = deflate_geotiff(&hf)?;
     let name = tile_name(i);
     let tile_path = dir.join("tiles").join(&name);
@@ -140,38 +140,87 @@ fn preflight(m: &Manifest, win: Window, ctx: &Ctx) -> Result<()> {
     }
 }
 
-/// One window of the planned output, from the prepared file and the manifest's job settings.
-/// The prepared bytes are dropped as soon as they are decoded (a large last step's input is
-/// held once, not twice, while the window is computed).
-pub(super) fn render(m: &Manifest, prepared: Vec<u8>, win: Window) -> Result<Heightfield> {
-    let sct_window = |prepared: &[u8], scale: f64| -> Result<Heightfield> {
+/// Rows of a tile rendered at once when the run has a deadline (`--max-time`): the deadline
+/// is asked between bands. A band is a window like any other, so the tile is the same bytes.
+const BAND_ROWS: usize = 512;
+
+/// The window `win` of the planned output, in bands of [`BAND_ROWS`] rows when the run has a
+/// deadline (asked before each band), else at once.
+pub(super) fn render(
+    m: &Manifest,
+    prepared: Vec<u8>,
+    win: Window,
+    ctx: &Ctx,
+) -> Result<Heightfield> {
+    let window = renderer(m, prepared)?;
+    if ctx.deadline().is_none() || win.height <= BAND_ROWS {
+        return window(win);
+    }
+    let progress = ctx.progress();
+    let mut data: Vec<f32> = Vec::with_capacity(win.width * win.height);
+    let mut first: Option<Heightfield> = None;
+    for y in (0..win.height).step_by(BAND_ROWS) {
+        if progress.stopped() {
+            return Err(crate::budget::Stopped(format!(
+                "tile task, after {y} of {} rows",
+                win.height
+            ))
+            .into());
+        }
+        let band = window(Window {
+            y: win.y + y,
+            height: BAND_ROWS.min(win.height - y),
+            ..win
+        })?;
+        data.extend_from_slice(band.as_slice());
+        first.get_or_insert(band);
+    }
+    let first = first.context("an empty tile")?;
+    let (cx, cy) = first.cell_size();
+    Ok(Heightfield::new(win.width, win.height, data, cx, cy)?.with_georef(first.georef().cloned()))
+}
+
+/// Decodes the prepared file once; the result renders any window of the planned output from
+/// the manifest's job settings.
+#[allow(clippy::type_complexity)]
+fn renderer(
+    m: &Manifest,
+    prepared: Vec<u8>,
+) -> Result<Box<dyn Fn(Window) -> Result<Heightfield> + '_>> {
+    let sct = |prepared: &[u8], scale: f64| -> Result<Box<dyn Fn(Window) -> Result<Heightfield>>> {
         let sct = Sct::from_bytes(prepared, &crate::sparse_model::registry())
             .context("cannot read the prepared model")?;
-        Ok(sct.rasterize(&RasterSettings {
-            scale,
-            window: Some(win),
-        })?)
+        Ok(Box::new(move |win| {
+            Ok(sct.rasterize(&RasterSettings {
+                scale,
+                window: Some(win),
+            })?)
+        }))
     };
     let bad_job = || format!("the manifest's `job` is not valid {} settings", m.command);
     match m.command.as_str() {
         "amplify" if m.prepared.path == super::plan::LAST_STEP => {
             let settings: relief_dictionary_learning::AmplifySettings =
                 serde_json::from_value(m.job.clone()).with_context(bad_job)?;
+            // The prepared bytes are dropped once decoded (a large last step's input is held
+            // once, not twice, while windows are computed).
             let last = relief_dictionary_learning::LastStep::from_bytes(&prepared, &settings)
                 .context("cannot read the prepared last step")?;
             drop(prepared);
-            let hf = last.render_window(win)?;
-            let georef = m
-                .output
-                .georef
-                .as_ref()
-                .map(|g| g.window(win.x as f64, win.y as f64, 1.0, 1.0));
-            Ok(hf.with_georef(georef))
+            Ok(Box::new(move |win: Window| {
+                let hf = last.render_window(win)?;
+                let georef = m
+                    .output
+                    .georef
+                    .as_ref()
+                    .map(|g| g.window(win.x as f64, win.y as f64, 1.0, 1.0));
+                Ok(hf.with_georef(georef))
+            }))
         }
-        "amplify" => sct_window(&prepared, 1.0),
+        "amplify" => sct(&prepared, 1.0),
         "decompress" => {
             let scale = m.job["scale"].as_f64().with_context(bad_job)?;
-            sct_window(&prepared, scale)
+            sct(&prepared, scale)
         }
         "refine" => {
             let settings: relief_wavelet_lod::RefineSettings =
@@ -183,9 +232,12 @@ pub(super) fn render(m: &Manifest, prepared: Vec<u8>, win: Window) -> Result<Hei
             )
             .context("cannot read the prepared input")?
             .heightfield;
+            drop(prepared);
             let refiner = relief_wavelet_lod::Refiner::new(&hf, &settings)
                 .context("cannot analyse the prepared input")?;
-            Ok(refiner.render_window(win.x, win.y, win.width, win.height)?)
+            Ok(Box::new(move |win: Window| {
+                Ok(refiner.render_window(win.x, win.y, win.width, win.height)?)
+            }))
         }
         other => bail!("the manifest's command `{other}` cannot be tiled"),
     }
