@@ -296,6 +296,17 @@ fn unity_tiles_are_named_by_x_and_z_and_share_their_edges() {
     }
     // North-first rows would put the DEM's north edge in the SW tile's row 0: it is not.
     assert_ne!(&nw[..t], &nw[(t - 1) * t..]);
+    // The sheet places each terrain by its south-west corner: the north-west one 128 cells up.
+    let sheet = json(&out.join("crop.json"));
+    let nw = sheet["heightmaps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["file"] == "crop_0_1.raw")
+        .unwrap();
+    let z = numbers(nw["position"].as_str().unwrap().split(':').nth(1).unwrap())[1];
+    let want = 128.0 * sheet["spacing_m"][1].as_f64().unwrap();
+    assert!((z - want).abs() < 1e-3, "{z} vs {want}");
 }
 
 /// --masks: Unreal gets one 8-bit weight map per layer on the heightmap's samples, the
@@ -405,6 +416,11 @@ fn bad_exports_are_refused_naming_the_problem() {
         ],
         &["export would need", "8129 x 8129", "--max-memory"],
         &[&d.join("out")],
+    );
+    fails_with(
+        &relief!["export", "--engine", "unreal", &input, d.join("t.png")],
+        &["drop the .png"],
+        &[&d.join("t.png.png")],
     );
     fails_with(
         &relief![

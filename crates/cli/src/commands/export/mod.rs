@@ -119,6 +119,15 @@ fn destination(out: &Path, name: Option<&str>, input: &Path) -> Result<(PathBuf,
             .unwrap_or_default();
         (dir, stem)
     };
+    let known = ["png", "raw", "r16", "json", "txt"];
+    if let Some(ext) = Path::new(&stem).extension().and_then(|e| e.to_str())
+        && known.iter().any(|k| ext.eq_ignore_ascii_case(k))
+    {
+        bail!(
+            "{}: OUT is a folder or a prefix DIR/NAME, not a file name: drop the .{ext}",
+            out.display()
+        );
+    }
     let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
     if stem.is_empty() || !stem.chars().all(ok) || stem.starts_with('.') {
         bail!(

@@ -38,6 +38,10 @@ pub(crate) struct Placed {
     pub(crate) first_sample: (usize, usize),
     /// Its north-west corner from the grid's north-west corner (m, x east, y south).
     pub(crate) origin_m: (f64, f64),
+    /// Where the engine puts a tile placed by hand: Unreal's actor Location X, Y (cm, its
+    /// north-west corner), Unity's terrain Position X, Z (m, its south-west corner, Z north).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) position: Option<String>,
 }
 
 /// The masks written.
@@ -162,7 +166,11 @@ impl Plan {
             let bytes = encode(&tile, self.engine, self.format, v)?;
             relief_io::write_bytes_atomic(&staged.path(&name), &bytes)
                 .with_context(|| format!("cannot write {}", staged.target(&name).display()))?;
-            heightmaps.push(placed(name, t, first, spacing));
+            let mut p = placed(name, t, first, spacing);
+            if self.layout.tiles.is_some() {
+                p.position = self.position(&p, side, spacing);
+            }
+            heightmaps.push(p);
             progress.advance(1);
         }
         let masks = if self.masks {
@@ -197,6 +205,24 @@ impl Plan {
             heightmaps,
             masks,
         })
+    }
+
+    /// The engine position of tile `p` of `side` samples (see [`Placed::position`]).
+    fn position(&self, p: &Placed, side: (usize, usize), spacing: (f64, f64)) -> Option<String> {
+        let (ox, oy) = p.origin_m;
+        match self.engine {
+            Engine::Unreal => Some(format!(
+                "Location X, Y (cm): {:.3}, {:.3}",
+                ox * 100.0,
+                oy * 100.0
+            )),
+            Engine::Unity => {
+                let south = (self.layout.samples.1 - 1) as f64 * spacing.1;
+                let z = south - oy - (side.1 - 1) as f64 * spacing.1;
+                Some(format!("Position X, Z (m): {ox:.4}, {:.4}", z.max(0.0)))
+            }
+            Engine::Godot | Engine::Gaea => None,
+        }
     }
 
     /// Computes the masks on the export's grid and writes them packed for the engine.
@@ -283,6 +309,7 @@ fn placed(
         tile,
         first_sample: first,
         origin_m: (first.0 as f64 * spacing.0, first.1 as f64 * spacing.1),
+        position: None,
     }
 }
 
