@@ -67,6 +67,8 @@ struct Shared {
     seq: AtomicU64,
     /// Set by the caller: the job's [`Progress::stopped`].
     stop: AtomicBool,
+    /// A callback takes the reports (else phases are not queued).
+    listening: bool,
 }
 
 /// The job's [`Progress`]: stores the reports for the calling thread.
@@ -78,7 +80,9 @@ impl Progress for Reporter {
         if let Ok(mut p) = self.0.phase.lock() {
             *p = (phase.to_string(), total);
         }
-        if let Ok(mut b) = self.0.begun.lock() {
+        if self.0.listening
+            && let Ok(mut b) = self.0.begun.lock()
+        {
             b.push((phase.to_string(), total));
         }
         self.0.done.store(0, Ordering::Relaxed);
@@ -138,7 +142,10 @@ where
     T: Send + 'static,
     F: FnOnce(&Reporter) -> Result<T, Failure> + Send + 'static,
 {
-    let shared = Arc::new(Shared::default());
+    let shared = Arc::new(Shared {
+        listening: callback.is_some(),
+        ..Shared::default()
+    });
     let reporter = Reporter(Arc::clone(&shared));
     let (tx, rx) = channel();
     std::thread::Builder::new()

@@ -1,0 +1,100 @@
+"""Type stubs of the native module ``relief._relief`` (PyO3). Use the wrappers in ``relief``:
+they take keyword arguments, Rasters, paths and rasterio ``Affine``s and build the arguments
+below (settings as the JSON of the keyword arguments, georeferences as ``Geo``)."""
+
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+F32 = npt.NDArray[np.float32]
+U32 = npt.NDArray[np.uint32]
+Cell = Tuple[float, float]
+# GDAL geotransform (x0, dx, rx, y0, ry, dy).
+Transform = Tuple[float, float, float, float, float, float]
+# (transform, CRS text, the library's GeoRef as JSON of a raster relief read or computed).
+Geo = Tuple[Optional[Transform], Optional[str], Optional[str]]
+Window = Tuple[int, int, int, int]
+Progress = Optional[Callable[[str, int, int], None]]
+Grid = Tuple[F32, Cell]
+
+__version__: str
+
+def read(path: str, max_cells: Optional[int] = None) -> Dict[str, object]:
+    """Reads any raster relief-io knows: ``array``, ``cell_size``, ``transform``, ``crs``,
+    ``georef``, ``nodata``, ``format``, ``dtype``."""
+
+def write(path: str, array: F32, cell_size: Cell, geo: Geo) -> None:
+    """Writes a float32 array (format from the extension) with its georeference."""
+
+def ground_cell_size(transform: Transform, crs: Optional[str], height: int) -> Optional[Cell]:
+    """Ground cell size in metres, as relief-io derives it for a GeoTIFF."""
+
+def defaults(job: str) -> str:
+    """The library's default settings of a job, as JSON."""
+
+def amplify(
+    coarse: F32, cell_size: Cell, geo: Geo, exemplar: F32, exemplar_cell_size: Cell, settings: str,
+    paper: bool, landform: Optional[bool], window: Optional[Window], progress: Progress,
+) -> Tuple[F32, Optional[str], List[str]]:
+    """``relief amplify``: (raster, georeference JSON, notes)."""
+
+def synthesize(
+    sketch: F32, cell_size: Cell, exemplar: F32, exemplar_cell_size: Cell, settings: str, paper: bool,
+    window: Optional[Window], progress: Progress,
+) -> Tuple[F32, Optional[str], List[str]]:
+    """``relief synthesize``: (raster, georeference JSON, notes)."""
+
+def refine(
+    input: F32, cell_size: Cell, geo: Geo, settings: str, paper: bool, landform: Optional[bool],
+    window: Optional[Window], progress: Progress,
+) -> Tuple[F32, Optional[str], List[str]]:
+    """``relief refine``: (raster, georeference JSON, notes)."""
+
+def quilt(
+    exemplars: Sequence[Grid], guide: Optional[Grid], categories: Optional[Grid],
+    exemplar_regions: Sequence[Grid], settings: str, landform: bool, progress: Progress,
+) -> F32:
+    """``relief quilt``."""
+
+def volume(dem: Grid, settings: str, progress: Progress) -> Tuple[F32, U32]:
+    """``relief volume --mesh``: (vertices (n, 3) in metres, faces (m, 3))."""
+
+def flow(dem: Grid, geo: Geo, settings: str, progress: Progress) -> Tuple[Dict[str, F32], str]:
+    """``relief flow``: (rasters by name, channels GeoJSON)."""
+
+def erode(dem: Grid, uplift: Optional[Grid], settings: str, progress: Progress) -> Dict[str, F32]:
+    """``relief erode``: terrain, erosion, deposition."""
+
+def masks(
+    dem: Grid, erosion: Optional[Grid], deposition: Optional[Grid], settings: str, progress: Progress
+) -> Tuple[Dict[str, F32], F32]:
+    """``relief masks``: (masks by name, splat weights (rows, columns * 4))."""
+
+class AmplifyPlan:
+    """The last x4 step of an amplification: any window of its output (picklable)."""
+
+    @property
+    def transform(self) -> Optional[Transform]: ...
+    def output_size(self) -> Tuple[int, int]: ...
+    def window(self, x: int, y: int, width: int, height: int) -> F32: ...
+
+class RefinePlan:
+    """The analysis of a refinement: any window of the refined terrain (picklable)."""
+
+    @property
+    def transform(self) -> Optional[Transform]: ...
+    def output_size(self) -> Tuple[int, int]: ...
+    def window(self, x: int, y: int, width: int, height: int) -> F32: ...
+
+def amplify_plan(
+    coarse: F32, cell_size: Cell, geo: Geo, exemplar: F32, exemplar_cell_size: Cell, settings: str,
+    paper: bool, progress: Progress,
+) -> AmplifyPlan:
+    """Every amplification step but the last (``relief.dask.amplify``)."""
+
+def refine_plan(input: F32, cell_size: Cell, geo: Geo, settings: str, paper: bool) -> RefinePlan:
+    """The wavelet analysis of a terrain (``relief.dask.refine``)."""
+
+def _amplify_plan(bytes: bytes, settings_json: str, paper: bool, transform: Optional[Transform]) -> AmplifyPlan:
+    """Unpickles an AmplifyPlan."""
