@@ -272,6 +272,29 @@ fn unreal_tiles_share_their_edges() {
     let m = |c: u16| (loc + (f64::from(c) - 32768.0) / 128.0 * z) / 100.0;
     let sw = want.crop(126, 126, t, t).unwrap();
     assert_metres(&sw, tolerance(&sheet), |x, y| m(d[y * t + x]));
+    // Each tile is placed by hand at its Location X, Y (cm): x1_y1 is 126 quads in each way.
+    let placed = sheet["heightmaps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["file"] == "crop_x1_y1.png")
+        .unwrap();
+    let loc = numbers(
+        placed["position"]
+            .as_str()
+            .unwrap()
+            .split(':')
+            .nth(1)
+            .unwrap(),
+    );
+    let quad_cm = numbers(&setting(&sheet, "Scale X (cm per quad)"))[0];
+    assert!((loc[0] - 126.0 * quad_cm).abs() < 0.01 && (loc[1] - loc[0]).abs() < 0.01);
+    assert!(
+        sheet["notes"][0]
+            .as_str()
+            .unwrap()
+            .contains("without overlap")
+    );
 }
 
 /// Unity tiles NAME_<X>_<Z> (Z northwards), each south first: the north-west tile is

@@ -8,7 +8,10 @@
 //!   per component). The heightmap's counts are read as `(count - 32768) / 128 * ZScale`
 //!   centimetres about the actor's location (Z scale 100: -256..256 m); X/Y scale are
 //!   centimetres per quad. PNG rows are read north (image top) first; tiles are
-//!   `NAME_x<X>_y<Y>` with `y0` the top row.
+//!   `NAME_x<X>_y<Y>` with `y0` the top row, each a landscape of a recommended size sharing
+//!   its edge samples (placed by the sheet's Location X, Y). UE5's World Partition import of
+//!   such a set (`FLandscapeImportHelper`) copies file (X, Y) to `X x width, Y x height`
+//!   without overlap, so that import takes one heightmap, not shared-edge tiles.
 //! - Unity, TerrainData and the terrain inspector's Import Raw: heightmap resolution
 //!   `2^n + 1` (33..4097), 16-bit raw with byte order "Windows" (little-endian), raw row 0 is
 //!   the terrain's z = 0 edge (south) unless "Flip Vertically" is ticked, height =

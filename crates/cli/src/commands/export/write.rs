@@ -78,6 +78,8 @@ pub(crate) struct Sheet {
     pub(crate) settings: Vec<Setting>,
     pub(crate) heightmaps: Vec<Placed>,
     pub(crate) masks: Option<MaskFiles>,
+    /// How to bring the files in, when it needs saying.
+    pub(crate) notes: Vec<&'static str>,
 }
 
 impl Plan {
@@ -204,7 +206,31 @@ impl Plan {
             settings: engine::settings(self.engine, v, spacing, self.layout.samples, side),
             heightmaps,
             masks,
+            notes: self.notes(),
         })
+    }
+
+    /// What the sheet adds for tiles.
+    fn notes(&self) -> Vec<&'static str> {
+        if self.layout.tiles.is_none() {
+            return Vec::new();
+        }
+        match self.engine {
+            Engine::Unreal => vec![
+                "Each tile is a landscape of its own, sharing its edge samples with its \
+                 neighbours: create one Landscape per tile with the settings above at the \
+                 tile's Location X, Y. UE5's World Partition import of an _x_y file set \
+                 places the files side by side without overlap (LandscapeImportHelper: start \
+                 = tile index x file width), which would repeat the shared samples: for that \
+                 import, export one heightmap (--size, up to 8129) instead.",
+            ],
+            Engine::Unity => vec![
+                "One Terrain per tile (Terrain Tools' Toolbox batch import reads the _X_Z \
+                 names, or Import Raw per terrain at the tile's Position X, Z); neighbours \
+                 share their edge samples, as Unity's neighbouring terrains do.",
+            ],
+            Engine::Godot | Engine::Gaea => Vec::new(),
+        }
     }
 
     /// The engine position of tile `p` of `side` samples (see [`Placed::position`]).
@@ -398,6 +424,9 @@ pub(crate) fn sheet_text(s: &Sheet) -> String {
     let _ = writeln!(t, "settings:");
     for set in &s.settings {
         let _ = writeln!(t, "  {}: {}", set.name, set.value);
+    }
+    for n in &s.notes {
+        let _ = writeln!(t, "note:       {n}");
     }
     if let Some(m) = &s.masks {
         let files: Vec<&str> = m.files.iter().map(|p| p.file.as_str()).collect();
