@@ -124,13 +124,25 @@ pub(crate) fn raster_text(file: &Path, raster: &relief_io::Raster, cell_assumed:
 
 /// Whether `path` starts with the magic of a `.sct` model or a `.dict` dictionary.
 pub(crate) fn is_model(path: &Path) -> bool {
+    head(path).is_some_and(|h| {
+        &h == relief_sparse_core::format::MAGIC
+            || &h == relief_sparse_core::format::DICTIONARY_MAGIC
+    })
+}
+
+/// Whether `path` starts with the magic of a construction tree (`.sct`).
+pub(crate) fn is_tree(path: &Path) -> bool {
+    head(path).is_some_and(|h| &h == relief_sparse_core::format::MAGIC)
+}
+
+/// The first 8 bytes of `path`.
+fn head(path: &Path) -> Option<[u8; 8]> {
     use std::io::Read as _;
     let mut head = [0u8; 8];
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok()
-        && (&head == relief_sparse_core::format::MAGIC
-            || &head == relief_sparse_core::format::DICTIONARY_MAGIC)
+        .ok()
+        .map(|_| head)
 }
 
 /// One dictionary, for `info`: atoms, patch size, spacing, support radius, function atoms.

@@ -20,6 +20,8 @@ const EXPECT: &[(&str, &str)] = &[
     ("tif_strip_past_end.tif", "strip 0"),
     ("tif_strip_count_past_end.tif", "strip 0"),
     ("tif_short_strip.tif", "truncated"),
+    ("tif_strip_and_tile.tif", "tileoffsets"),
+    ("tif_tiles_and_stray_strip.tif", "tileoffsets"),
     ("tif_nan_only.tif", "only voids"),
     ("tif_rgb_unsupported.tif", "unsupported"),
     ("png_wrong_magic.png", "magic"),

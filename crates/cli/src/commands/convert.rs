@@ -25,10 +25,26 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[&args.input],
         &[(&args.output, crate::outputs::OutKind::Raster)],
     )?;
+    if crate::describe::is_tree(&args.input) {
+        // A construction tree is a terrain at any scale: converted at its own grid, as
+        // `relief decompress MODEL OUT` (which takes --scale and --window) writes it.
+        #[derive(Debug, clap::Parser)]
+        struct Decompress {
+            #[command(flatten)]
+            args: super::decompress::Args,
+        }
+        use clap::Parser as _;
+        let d = Decompress::try_parse_from([
+            std::ffi::OsStr::new("decompress"),
+            args.input.as_os_str(),
+            args.output.as_os_str(),
+        ])?;
+        return super::decompress::run(d.args, ctx);
+    }
     if crate::describe::is_model(&args.input) {
         bail!(
-            "{} is a relief model (a construction tree or a dictionary), not a raster: \
-             rasterise a .sct with `relief decompress {} OUT` (`relief info` describes either)",
+            "{} is a relief model (a dictionary of patches), not a terrain to convert \
+             (`relief info` describes it; `relief compress --dictionary {}` uses it)",
             args.input.display(),
             args.input.display()
         );

@@ -816,20 +816,26 @@ fn own_heightmaps_read_back_and_assumed_cells_are_flagged() {
         "{cx} x {cy}"
     );
 
-    // Models: convert points to decompress; a dictionary without atoms is refused.
+    // Models: convert rasterises a tree at its own grid (as decompress does); a dictionary
+    // is refused, and one without atoms also by info.
     let sct = tmp.path().join("m.sct");
     let model =
         relief_sparse_core::Sct::new(relief_sparse_core::Node::Constant(1.0), 8, 8, (1.0, 1.0))
             .unwrap();
     std::fs::write(&sct, model.to_bytes().unwrap()).unwrap();
     let raster = tmp.path().join("m.tif");
-    fails_with(
-        &relief!["convert", sct, raster],
-        &["is a relief model", "relief decompress"],
-        &[&raster],
-    );
+    relief_ok!["convert", &sct, &raster];
+    let r = read(&raster);
+    assert_eq!((r.width(), r.height()), (8, 8));
+    assert!(r.as_slice().iter().all(|&v| v == 1.0));
     let dict = tmp.path().join("empty.dict");
     let empty = relief_sparse_core::Dictionary::new(8, 1.0, 4.0).unwrap();
     std::fs::write(&dict, empty.to_bytes().unwrap()).unwrap();
+    let raster2 = tmp.path().join("d.tif");
+    fails_with(
+        &relief!["convert", &dict, &raster2],
+        &["is a relief model", "dictionary of patches"],
+        &[&raster2],
+    );
     fails_with(&relief!["info", dict], &["empty dictionary"], &[]);
 }
