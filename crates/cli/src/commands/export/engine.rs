@@ -28,8 +28,8 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub(crate) enum Engine {
-    /// Unreal Engine landscape: 16-bit PNG (or .r16), recommended landscape sizes, World
-    /// Partition tiles NAME_x0_y0, 8-bit weight maps per layer.
+    /// Unreal Engine landscape: 16-bit PNG (or .r16), recommended landscape sizes, tiles
+    /// NAME_x0_y0 (one landscape each), 8-bit weight maps per layer.
     Unreal,
     /// Unity terrain: 16-bit little-endian .raw of 2^n+1, tiles NAME_X_Z, RGBA splat
     /// (alphamap) per terrain.
