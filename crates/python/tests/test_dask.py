@@ -57,3 +57,10 @@ def test_dask_backed_xarray_keeps_coordinates(client):
     assert same_bits(out.values, single)
     assert out.x.values[0] == pytest.approx(500000.0 + 7.5)
     assert out.y.values[-1] == pytest.approx(4000000.0 - 60 * 40 + 7.5)
+
+
+def test_the_landform_pass_has_no_windows():
+    with pytest.raises(ValueError, match="landform pass routes water over the whole raster"):
+        rdask.amplify(COARSE, FIXTURE, 4, cell_size=60, landform=True)
+    # Off is what relief.dask computes anyway.
+    assert rdask.refine(COARSE, cell_size=60, landform=False, chunks=64).shape == (160, 208)

@@ -29,6 +29,14 @@ from relief import _relief
 __all__ = ["amplify", "refine", "assemble"]
 
 
+def _no_landform(settings: dict) -> None:
+    if settings.pop("landform", False):
+        raise ValueError(
+            "relief.dask computes windows, and the landform pass routes water over the whole "
+            "raster: run relief.flow or relief.erode on the result instead (or omit landform)"
+        )
+
+
 def _window(plan: Any, x: int, y: int, w: int, h: int) -> np.ndarray:
     return plan.window(x, y, w, h)
 
@@ -84,6 +92,7 @@ def amplify(
     landform pass does not apply). ``coarse`` may be a numpy or dask array, a dask-backed
     DataArray (its values are computed: the coarse input is 1/factor^2 of the output), a
     :class:`relief.Raster` or a path. Settings as for :func:`relief.amplify`."""
+    _no_landform(settings)
     steps = relief.factor_steps(factor)
     settings = dict(settings, steps=settings.get("steps", steps))
     g = relief._grid(_input(coarse), cell_size)
@@ -99,6 +108,7 @@ def amplify(
 def refine(terrain: Any, *, chunks: Any = 1024, cell_size: Any = None, **settings: Any) -> Any:
     """:func:`relief.refine` as a dask array of exact windows (``chunks`` cells each; the landform
     pass does not apply). Settings as for :func:`relief.refine`."""
+    _no_landform(settings)
     paper = settings.get("model") == "paper"
     g = relief._grid(_input(terrain), cell_size)
     cell = relief._need_cell(g, "terrain")
