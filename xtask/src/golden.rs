@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Heightfield;
 
-use relief_cli::pipeline::{self, PipelineConfig, RasterOutput};
+use relief_pipeline::{self as pipeline, PipelineConfig, RasterOutput};
 
 /// Rayon threads of the golden run (outputs must not depend on it, but the goldens are made
 /// with a stated count).

@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
-use relief_cli::pipeline;
+use relief_pipeline as pipeline;
 
 mod bench;
 mod golden;
@@ -118,5 +118,5 @@ pub(crate) fn project_root() -> PathBuf {
 
 /// Cargo's target directory (`$CARGO_TARGET_DIR` or `<root>/target`).
 pub(crate) fn target_dir(root: &Path) -> PathBuf {
-    relief_cli::target_dir(root)
+    relief_pipeline::target_dir(root)
 }

@@ -135,6 +135,7 @@ pub(crate) fn is_stopped(err: &anyhow::Error) -> bool {
             e.downcast_ref::<relief_dictionary_learning::LearnError>(),
             Some(relief_dictionary_learning::LearnError::Stopped(_))
         ) || e.downcast_ref::<Stopped>().is_some()
+            || e.downcast_ref::<relief_pipeline::Stopped>().is_some()
     })
 }
 

@@ -75,20 +75,7 @@ impl RowStream<'_> {
     }
 }
 
-/// The file beside a 16-bit heightmap that states its vertical mapping (`OUT.png.json`).
-pub(crate) fn heightmap_sidecar(path: &std::path::Path) -> std::path::PathBuf {
-    let mut s = path.as_os_str().to_owned();
-    s.push(".json");
-    std::path::PathBuf::from(s)
-}
-
-/// Whether `path` is written as a 16-bit engine heightmap (PNG16 or `.r16`).
-pub(crate) fn is_heightmap16(path: &std::path::Path) -> bool {
-    matches!(
-        relief_io::Format::from_extension(path),
-        Some(relief_io::Format::Png | relief_io::Format::R16)
-    )
-}
+pub(crate) use relief_io::heightmap16::{heightmap_sidecar, is_heightmap16};
 
 /// `--compress` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]

@@ -1,19 +1,18 @@
-//! The application layer of `relief` shared by the `relief` binary and `cargo xtask`: the
-//! [`pipeline`] (a JSON spec of stages run on one DEM, written as rasters, previews,
-//! `summary.json` and `report.html`), run by `relief run SPEC.json` and by
-//! `cargo xtask pipeline`.
+//! The library half of the `relief` command-line tool: its commands, their flags and
+//! pre-flight checks, outputs and tile plans ([`app`] parses and runs a command line). The
+//! pipeline `relief run` runs is the `relief-pipeline` crate, re-exported as [`pipeline`].
 //!
 //! This is application code, not one of the method libraries: it reports errors with `anyhow`
-//! and, when asked to be verbose, prints each stage's progress on stderr.
+//! and prints what a command line prints.
 
 pub mod app;
 #[doc(hidden)]
 pub mod fuzzing;
-pub mod pipeline;
+/// The pipeline `relief run` runs (the `relief-pipeline` crate).
+pub use relief_pipeline as pipeline;
 
 mod args;
 mod budget;
-mod channels;
 mod commands;
 mod ctx;
 mod describe;
@@ -29,26 +28,4 @@ mod synth_args;
 mod tile_manifest;
 mod volume_io;
 
-use std::path::{Path, PathBuf};
-
-/// The workspace this crate was built from (its `fixtures/` and `docs/`), when it still exists:
-/// the last place a relative path in a pipeline spec is looked up, so the bundled fixtures work
-/// from a checkout. An installed binary whose sources are gone gets `None`.
-pub fn workspace_root() -> Option<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent()?.parent()?;
-    root.join("Cargo.toml")
-        .is_file()
-        .then(|| root.to_path_buf())
-}
-
-/// Cargo's target directory of the workspace at `root` (`$CARGO_TARGET_DIR` or `root/target`).
-pub fn target_dir(root: &Path) -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("target"))
-}
-
-#[cfg(test)]
-pub(crate) fn test_root() -> PathBuf {
-    workspace_root().expect("tests run from the workspace")
-}
+pub use relief_pipeline::{target_dir, workspace_root};

@@ -92,23 +92,7 @@ impl std::fmt::Display for Limit {
 
 /// A byte count for people: `1.5 GiB`, `320 MiB`, `12 KiB`, `100 B`.
 pub(crate) fn human(b: u64) -> String {
-    const UNITS: [(&str, u64); 4] = [
-        ("TiB", 1 << 40),
-        ("GiB", 1 << 30),
-        ("MiB", 1 << 20),
-        ("KiB", 1 << 10),
-    ];
-    for (u, s) in UNITS {
-        if b >= s {
-            let v = b as f64 / s as f64;
-            return if v < 10.0 {
-                format!("{v:.1} {u}")
-            } else {
-                format!("{v:.0} {u}")
-            };
-        }
-    }
-    format!("{b} B")
+    relief_pipeline::human_bytes(b)
 }
 
 /// Parses a byte size: a number with an optional unit `K`, `M`, `G`, `T` (powers of 1024,

@@ -52,7 +52,8 @@ pub(crate) fn compress(args: &compress::Args, hf: &Heightfield, ctx: &Ctx) -> Re
         } else {
             "fewer --atoms"
         };
-    let (patch_bytes, dict_bytes) = compress_bytes(cells, patches, a, k, args.sparsity);
+    let (patch_bytes, dict_bytes) =
+        relief_dictionary_learning::memory::compress_bytes(cells, patches, a, k, args.sparsity);
     ctx.check_memory(
         "compress",
         &[&[
@@ -72,40 +73,6 @@ pub(crate) fn compress(args: &compress::Args, hf: &Heightfield, ctx: &Ctx) -> Re
             ),
         ]],
     )
-}
-
-/// The two parts of a compression's working memory: the patch matrix (f32 rows of `a^2`, with
-/// the working copies of K-SVD) over the input, and the dictionary of `k` atoms with its Gram
-/// matrix (none at sparsity 1 above 4096 atoms, where the nearest-atom search codes without).
-fn compress_bytes(cells: f64, patches: f64, a: f64, k: f64, sparsity: usize) -> (f64, f64) {
-    let gram = if sparsity == 1 && k > relief_sparse_core::omp::NEAREST_MIN_ATOMS as f64 {
-        // One 256 x 4096 correlation buffer per worker.
-        8.0 * 256.0 * 4096.0 * 4.0
-    } else {
-        k * k * 4.0
-    };
-    (
-        patches * a * a * 4.0 * 4.0 + cells * 16.0,
-        k * a * a * 4.0 * 2.0 + gram,
-    )
-}
-
-/// The working memory of the pipeline's `sparse` stage on a `w x h` terrain (each of its
-/// compressions in turn, at the largest sparsity).
-pub(crate) fn compress_job_bytes(
-    (w, h): (usize, usize),
-    job: &relief_dictionary_learning::CompressSettings,
-    sparsity: usize,
-) -> f64 {
-    let a = job.patch_size as f64;
-    let step = job.step.unwrap_or(a * job.spacing / 2.0).max(0.25);
-    let patches = (w as f64 / step).ceil() * (h as f64 / step).ceil();
-    let k = match job.source {
-        relief_dictionary_learning::DictionarySource::Complete => patches,
-        _ => job.atoms as f64,
-    };
-    let (p, d) = compress_bytes(w as f64 * h as f64, patches, a, k, sparsity);
-    p + d
 }
 
 /// Working bytes per input cell of the analysis (the DWT pyramid and the fitted statistics
@@ -195,7 +162,9 @@ pub(crate) fn refine_window(
             ),
             part(
                 format!("the synthesis of {} output cells", cells as u64),
-                cells * (RENDER_BYTES_PER_CELL + crate::sparse_model::RASTER_OUT_BYTES_PER_CELL),
+                cells
+                    * (RENDER_BYTES_PER_CELL
+                        + relief_dictionary_learning::memory::RASTER_OUT_BYTES_PER_CELL),
                 change,
             ),
         ]],
@@ -223,59 +192,12 @@ pub(crate) fn last_step_window(
             part(
                 format!("the last x4 step over {} output cells", cells as u64),
                 cells
-                    * (crate::sparse_model::STEP_BYTES_PER_COARSE_CELL / 16.0
-                        + crate::sparse_model::RASTER_OUT_BYTES_PER_CELL),
+                    * (relief_dictionary_learning::memory::STEP_BYTES_PER_COARSE_CELL / 16.0
+                        + relief_dictionary_learning::memory::RASTER_OUT_BYTES_PER_CELL),
                 change,
             ),
         ]],
     )
-}
-
-/// Triangles per horizontal mesh cell assumed by the pre-flight estimate: a terrain surface
-/// has 2; caves, arches, islands and overhangs add walls and ceilings. The default features on
-/// a synthetic 128^2 DEM gave 22 (1.5 M triangles on a 262^2 grid; issue 18 measured 19 on its
-/// case).
-const TRIANGLES_PER_COLUMN: f64 = 24.0;
-
-/// Peak bytes per triangle while meshing and writing: positions and normals of about half a
-/// vertex (24 B), the triangle (12 B), the vertex map of the chunked polygoniser and the
-/// encoded file built in memory before the atomic write (measured: 69-81 B at 1.5-6 M
-/// triangles, release build).
-const MESH_BYTES_PER_TRIANGLE: f64 = 90.0;
-
-/// Bytes per file triangle (binary PLY/GLB: 12 B of indices plus half a vertex of 24 B).
-const FILE_BYTES_PER_TRIANGLE: f64 = 26.0;
-
-/// Bytes per pixel of the render and the section (RGB, depth, normals, per-ray state).
-const IMAGE_BYTES_PER_PIXEL: f64 = 64.0;
-
-/// The working memory of a volume job on a `w x h` DEM of `cell` metres, before the scene is
-/// built (the pipeline's `volume` stage): the mesh of the polygonisation grid (one column per
-/// voxel, the recipe's voxel or else the DEM's smaller cell side, at most `max_mesh_cells` a
-/// side) and the images.
-pub(crate) fn volume_job_bytes(
-    (w, h): (usize, usize),
-    cell: (f64, f64),
-    job: &relief_implicit_volume::VolumeJob,
-) -> f64 {
-    let voxel = job
-        .recipe
-        .voxel
-        .map_or(cell.0.min(cell.1), f64::from)
-        .max(1e-6);
-    let side = |n: usize, c: f64| (n as f64 * c / voxel).ceil().min(job.max_mesh_cells as f64);
-    let columns = side(w, cell.0) * side(h, cell.1);
-    let mesh = if job.mesh {
-        columns * TRIANGLES_PER_COLUMN * MESH_BYTES_PER_TRIANGLE
-    } else {
-        0.0
-    };
-    let images = if job.render || job.section || job.closeups {
-        (job.image_size[0] * job.image_size[1]) as f64 * IMAGE_BYTES_PER_PIXEL
-    } else {
-        0.0
-    };
-    mesh + images
 }
 
 /// Pre-flight estimate of the mesh of `relief volume` (issue 18): triangles from the polygonisation grid, memory
@@ -283,7 +205,7 @@ pub(crate) fn volume_job_bytes(
 /// `--resolution`.
 fn volume_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Result<()> {
     let columns = cells[0] as f64 * cells[1] as f64;
-    let triangles = columns * TRIANGLES_PER_COLUMN;
+    let triangles = columns * relief_implicit_volume::memory::TRIANGLES_PER_COLUMN;
     let change = format!(
         "a larger --voxel or a smaller --resolution (the voxel is now {voxel_m:.3} m; the grid is \
          {}x{}x{}) or a --crop",
@@ -291,14 +213,14 @@ fn volume_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Resul
     );
     ctx.check_output_size(
         &format!("the mesh {}", path.display()),
-        triangles * FILE_BYTES_PER_TRIANGLE,
+        triangles * relief_implicit_volume::memory::FILE_BYTES_PER_TRIANGLE,
         &change,
     )?;
     ctx.check_memory(
         &format!("volume with {voxel_m:.3} m voxels"),
         &[&[part(
             format!("the mesh (about {:.0} M triangles)", triangles / 1e6),
-            triangles * MESH_BYTES_PER_TRIANGLE,
+            triangles * relief_implicit_volume::memory::MESH_BYTES_PER_TRIANGLE,
             change,
         )]],
     )
@@ -310,7 +232,7 @@ fn volume_images(ctx: &Ctx, (w, h): (usize, usize)) -> Result<()> {
         "volume",
         &[&[part(
             "the render and section images",
-            w as f64 * h as f64 * IMAGE_BYTES_PER_PIXEL,
+            w as f64 * h as f64 * relief_implicit_volume::memory::IMAGE_BYTES_PER_PIXEL,
             "a smaller --image-size",
         )]],
     )
@@ -332,7 +254,7 @@ pub(crate) fn decompress(
         &[&[
             part(
                 format!("the {} x {} output raster", win.width, win.height),
-                out_cells * crate::sparse_model::RASTER_OUT_BYTES_PER_CELL,
+                out_cells * relief_dictionary_learning::memory::RASTER_OUT_BYTES_PER_CELL,
                 change,
             ),
             part("the model", model_bytes as f64 * 3.0, "a smaller model"),

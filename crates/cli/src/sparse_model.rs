@@ -4,6 +4,10 @@
 //! streamed in bands of rows); and reading a model or dictionary file with the function atoms
 //! every reader understands (`decompress`, `info`, `tree`, `tile`, `compress --dictionary`).
 
+use relief_dictionary_learning::memory::{
+    EXEMPLAR_BYTES_PER_CELL, LAST_STEP_INPUT_BYTES_PER_CELL, RASTER_OUT_BYTES_PER_CELL,
+    STEP_BYTES_PER_COARSE_CELL, candidate_bytes,
+};
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
@@ -106,63 +110,6 @@ pub(crate) fn dictionary_choice(atoms: usize) -> DictionaryChoice {
             iterations: 3,
         }
     }
-}
-
-/// Bytes per cell of the last step's input kept by a tile plan (the raster, the intermediate
-/// model's rasterisation buffers, the serialised copy).
-const LAST_STEP_INPUT_BYTES_PER_CELL: f64 = 16.0;
-
-/// Working bytes per coarse cell of one x4 step (patch matrices of the coding and training
-/// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
-/// `a = 8` and grid step 2; scaled by `a^2 / S^2` for other settings. Calibrated on measured
-/// peak RSS (issue 18).
-pub(crate) const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
-
-/// Working bytes per exemplar cell (resampled copies, candidate patches, the learned pair of
-/// dictionaries).
-const EXEMPLAR_BYTES_PER_CELL: f64 = 40.0;
-
-/// Bytes per output cell of a raster written from memory (the f32 grid and its encoding).
-pub(crate) const RASTER_OUT_BYTES_PER_CELL: f64 = 12.0;
-
-/// Bytes of the candidate (L, H) pairs an exemplar gives (`min(max_candidates, patches of the
-/// x4-reduced exemplar)` pairs for a complete dictionary, at most `max_learning_pool` for a
-/// learned one): per pair the L patch (`a^2` floats), the H patch (`16 a^2`) and the L
-/// footprint (`a^2`), held twice while the dictionaries are built (candidate matrices and
-/// dictionary). A complete 65,536-atom dictionary of the default `a = 8` takes about 600 MB.
-pub(crate) fn candidate_bytes(exemplar: (usize, usize), settings: &AmplifySettings) -> f64 {
-    let a = settings.patch_size();
-    let cs = settings.candidate_step.max(1);
-    let (wl, hl) = (exemplar.0 / 4, exemplar.1 / 4);
-    let per_axis = |l: usize| if l < a { 0 } else { (l - a) / cs + 1 };
-    let patches = per_axis(wl) as f64 * per_axis(hl) as f64;
-    let cap = match settings.dictionary {
-        DictionaryChoice::Complete => settings.max_candidates,
-        DictionaryChoice::Learned { .. } => settings.max_candidates.min(settings.max_learning_pool),
-    };
-    let pairs = patches.min(cap as f64);
-    pairs * (18 * a * a) as f64 * 4.0 * 2.0
-}
-
-/// The peak working memory of an amplification of `coarse` cells with `exemplar` held whole
-/// in memory, with the constants of [`preflight`]: the largest of the last x4 step with the
-/// exemplar's dictionaries, and the output raster. The pipeline's `amplify` and `sketch`
-/// stages check it against `relief run --max-memory`.
-pub(crate) fn amplify_working_bytes(
-    coarse: (usize, usize),
-    exemplar: (usize, usize),
-    settings: &AmplifySettings,
-) -> f64 {
-    let a = settings.patch_size() as f64;
-    let s = settings.grid_step().max(1.0);
-    let shape = ((a * a / (s * s)) / 16.0).max(0.25);
-    let ex = exemplar.0 as f64 * exemplar.1 as f64 * EXEMPLAR_BYTES_PER_CELL
-        + candidate_bytes(exemplar, settings);
-    let c0 = coarse.0 as f64 * coarse.1 as f64;
-    let steps = settings.steps.min(64) as i32;
-    let last = c0 * 16f64.powi((steps - 1).max(0));
-    let out = c0 * 16f64.powi(steps);
-    (last * STEP_BYTES_PER_COARSE_CELL * shape + ex).max(out * RASTER_OUT_BYTES_PER_CELL)
 }
 
 /// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the

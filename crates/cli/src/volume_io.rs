@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use relief_heightfield::Heightfield;
-use relief_implicit_volume::{GeologySpec, Mesh, VolumeOutput};
+use relief_implicit_volume::{GeologySpec, VolumeOutput};
 
 use crate::ctx::Ctx;
 use crate::outputs::{OutKind, check_png_flag, check_report_path};
@@ -69,23 +69,7 @@ pub(crate) fn read_geology(path: &Path) -> Result<GeologySpec> {
     Ok(spec)
 }
 
-/// Writes the scene's mesh (format from the extension) and returns its size in bytes. `y_up`
-/// rotates an OBJ or PLY to Y-up (`(x, y, z) -> (x, z, -y)`); a GLB is always Y-up.
-pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, y_up: bool) -> Result<u64> {
-    let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
-    let glb = relief_io::MeshFormat::from_extension(path) == Some(relief_io::MeshFormat::Glb);
-    let rotated = (y_up && !glb).then(|| {
-        let r =
-            |v: &[[f32; 3]]| -> Vec<[f32; 3]> { v.iter().map(relief_io::z_up_to_y_up).collect() };
-        (r(&mesh.positions), normals.map(r))
-    });
-    let (positions, normals) = match &rotated {
-        Some((p, n)) => (&p[..], n.as_deref()),
-        None => (&mesh.positions[..], normals),
-    };
-    relief_io::write_mesh(path, positions, &mesh.triangles, normals)?;
-    Ok(std::fs::metadata(path).map_or(0, |m| m.len()))
-}
+pub(crate) use relief_pipeline::write_mesh;
 
 /// The files of one `relief volume` run (each optional).
 pub(crate) struct Files<'a> {

@@ -98,6 +98,7 @@ pub mod compress;
 pub mod constrained;
 mod error;
 pub mod ksvd;
+pub mod memory;
 pub mod multires;
 pub mod noise;
 pub mod procedural;

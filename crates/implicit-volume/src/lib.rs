@@ -62,6 +62,7 @@ pub mod geology;
 pub mod job;
 pub mod look;
 pub mod math;
+pub mod memory;
 pub mod mesh;
 pub mod recipe;
 pub mod render;

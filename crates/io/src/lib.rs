@@ -69,6 +69,7 @@ pub mod crs;
 mod error;
 mod exr_io;
 mod geotiff;
+pub mod heightmap16;
 mod hgt;
 mod mesh;
 mod npy;

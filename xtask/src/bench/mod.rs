@@ -26,7 +26,7 @@ use serde::Serialize;
 
 mod items;
 
-use relief_cli::pipeline::report::esc;
+use relief_pipeline::report::esc;
 
 /// Packages installed into the peers venv. `richdem2` is a maintained build of RichDEM (it
 /// installs the `richdem` module): the `richdem` 0.3.4 sdist on PyPI bundles a pybind11 that
@@ -295,7 +295,7 @@ fn peer_extras(m: &BTreeMap<String, f64>, key: &str) -> String {
     let prefix = format!("{stem}_");
     m.iter()
         .filter(|(k, _)| k.starts_with(&prefix) && k.as_str() != key)
-        .map(|(k, v)| format!("peer {k} = {}", relief_cli::pipeline::report::fmt_num(*v)))
+        .map(|(k, v)| format!("peer {k} = {}", relief_pipeline::report::fmt_num(*v)))
         .collect::<Vec<_>>()
         .join(", ")
 }

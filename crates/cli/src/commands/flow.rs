@@ -228,6 +228,6 @@ fn write(
         ctx.write_raster(&staged.path(name), hf)?;
     }
     staged.write_json("channels.geojson", &out.channels, false)?;
-    let rgb = crate::channels::channel_map(dem, &out.direction, &out.strahler)?;
+    let rgb = relief_pipeline::channels::channel_map(dem, &out.direction, &out.strahler)?;
     staged.write_png("channels.png", dem.width(), dem.height(), &rgb)
 }

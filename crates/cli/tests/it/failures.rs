@@ -112,7 +112,10 @@ fn fill_args(cmd: &str, usage: &[String], input: &Path, out_dir: &Path) -> Vec<S
             args.push(t.clone());
             let v = it.next().map(String::as_str).unwrap_or_default();
             let v = v.to_ascii_uppercase();
-            if ["FACTOR", "SIZE", "STEPS", "LEVELS", "N"]
+            if v.contains("ENGINE") {
+                // `export --engine <ENGINE>`: one of the engines.
+                args.push("unreal".into());
+            } else if ["FACTOR", "SIZE", "STEPS", "LEVELS", "N"]
                 .iter()
                 .any(|n| v.contains(n))
             {

@@ -172,7 +172,7 @@ impl Stage for AmplifyStage {
         let enlarged = (half * f) as f64 * (h * f) as f64;
         cx.config.limits.check_memory(
             "amplify",
-            crate::sparse_model::amplify_working_bytes(
+            relief_dictionary_learning::memory::amplify_working_bytes(
                 (half, h),
                 (w - half, h),
                 &plan.settings(p, steps, true),

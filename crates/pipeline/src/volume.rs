@@ -119,7 +119,11 @@ impl Stage for VolumeStage {
         // Pre-flight under `relief run --max-memory`: the mesh and the images.
         cx.config.limits.check_memory(
             "volume",
-            crate::preflight::volume_job_bytes((hf.width(), hf.height()), hf.cell_size(), &job),
+            relief_implicit_volume::memory::volume_job_bytes(
+                (hf.width(), hf.height()),
+                hf.cell_size(),
+                &job,
+            ),
             "a larger `job.recipe.voxel`, a smaller `job.max_mesh_cells`, `max_size` or \
              `job.image_size`",
         )?;
@@ -151,7 +155,7 @@ impl Stage for VolumeStage {
         );
         if let Some(mesh) = out.mesh.as_ref().filter(|m| !m.triangles.is_empty()) {
             let glb = cx.config.out_dir.join("volume.glb");
-            let bytes = crate::volume_io::write_mesh(&glb, mesh, false)
+            let bytes = crate::write_mesh(&glb, mesh, false)
                 .with_context(|| format!("cannot write {}", glb.display()))?;
             cx.section.file("volume.glb");
             cx.section.figure("glb_bytes", bytes);

@@ -96,7 +96,7 @@ impl Stage for SparseStage {
         // Pre-flight under `relief run --max-memory`: the patches and the dictionary.
         cx.config.limits.check_memory(
             "sparse",
-            crate::preflight::compress_job_bytes(
+            relief_dictionary_learning::memory::compress_job_bytes(
                 (terrain.width(), terrain.height()),
                 &p.job,
                 p.sparsities.iter().copied().max().unwrap_or(1),

@@ -19,7 +19,7 @@ impl Stage for Load {
             .figure("format", format!("{:?} ({})", raster.format, raster.dtype));
         // A PNG, Terrain-RGB, EXR, raw or NPY input stores no cell size: the 1 m stand-in is
         // flagged in the figures and the report.
-        let assumed = !crate::commands::cell_size_stored(input, &raster);
+        let assumed = !relief_io::heightmap16::cell_size_stored(input, &raster);
         cx.section.figure("cell_size_assumed", assumed);
         if assumed {
             cx.section.note(&format!(

@@ -107,7 +107,7 @@ mod model {
 
     #[test]
     fn huge_hillshades_are_reduced_and_pairs_recorded() {
-        let (config, tmp) = crate::pipeline::test_config(None);
+        let (config, tmp) = crate::test_config(None);
         let mut state = State::default();
         let mut section = Section::new("x");
         let mut cx = StageCx {
@@ -143,13 +143,13 @@ mod model {
     /// stage peak memory, and the figures in summary.json.
     #[test]
     fn overview_and_stage_memory_on_a_real_crop() {
-        let (config, tmp) = crate::pipeline::test_config(Some((100, 120, 96, 64)));
-        let stages = crate::pipeline::spec::build_stages(&[
-            crate::pipeline::spec::StageSpec::named("load"),
-            crate::pipeline::spec::StageSpec::named("fill_voids"),
+        let (config, tmp) = crate::test_config(Some((100, 120, 96, 64)));
+        let stages = crate::spec::build_stages(&[
+            crate::spec::StageSpec::named("load"),
+            crate::spec::StageSpec::named("fill_voids"),
         ])
         .unwrap();
-        crate::pipeline::run(&config, &stages).unwrap();
+        crate::run(&config, &stages).unwrap();
         for f in ["overview_before.png", "overview_after.png"] {
             assert!(tmp.path().join(f).is_file(), "{f}");
         }
@@ -185,7 +185,7 @@ mod model {
 /// builds (unknown stages, fields and invalid parameter values are errors).
 #[cfg(test)]
 mod docs_tests {
-    use crate::pipeline::spec::{PipelineSpec, build_stages, stage_names};
+    use crate::spec::{PipelineSpec, build_stages, stage_names};
 
     fn doc() -> String {
         std::fs::read_to_string(crate::test_root().join("docs/PIPELINE.md")).unwrap()
@@ -222,7 +222,7 @@ mod docs_tests {
             if path.extension().is_some_and(|e| e == "json") {
                 let spec = PipelineSpec::read(&path)
                     .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
-                let mut config = crate::pipeline::PipelineConfig::full(&root);
+                let mut config = crate::PipelineConfig::full(&root);
                 spec.apply(&mut config);
                 assert!(config.input.is_file(), "{}", path.display());
                 assert_eq!(spec.stages[0].stage, "load", "{}", path.display());

@@ -124,7 +124,7 @@ impl Stage for SketchStage {
         let grown = (8 * n) as f64 * (4 * n) as f64;
         cx.config.limits.check_memory(
             "sketch",
-            crate::sparse_model::amplify_working_bytes(
+            relief_dictionary_learning::memory::amplify_working_bytes(
                 (2 * n, n),
                 (exemplar.width(), exemplar.height()),
                 &settings.amplify,

@@ -498,7 +498,7 @@ mod tests {
 
     #[test]
     fn params_merge_onto_the_stage_defaults_and_refuse_unknown_fields() {
-        use crate::pipeline::spec::params;
+        use crate::spec::params;
         let p: QuiltParams = params(&serde_json::json!({})).unwrap();
         assert_eq!(p, QuiltParams::default());
         let p: QuiltParams =

@@ -2,7 +2,7 @@
 //! previews, figures and tables into a shared [`Report`].
 //!
 //! # Adding a stage
-//! 1. Create `crates/cli/src/pipeline/<name>.rs` with a struct implementing [`Stage`]:
+//! 1. Create `crates/pipeline/src/<name>.rs` with a struct implementing [`Stage`]:
 //!    `run(&self, cx: &mut StageCx)`. Read the current terrain with [`State::terrain`], replace
 //!    it with [`State::set_terrain`] when the stage produces the next terrain (stages compose:
 //!    the output of one is the input of the next), save every raster with
@@ -25,6 +25,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, Progress};
 
+pub mod channels;
 mod convert;
 mod dictionary;
 mod erode;
@@ -83,8 +84,8 @@ impl RunLimits {
             bail!(
                 "stage `{stage}` needs about {} of working memory, more than --max-memory {}: \
                  use {parameters}, or raise --max-memory",
-                crate::memory::human(bytes as u64),
-                crate::memory::human(max)
+                human_bytes(bytes as u64),
+                human_bytes(max)
             );
         }
         Ok(())
@@ -122,7 +123,7 @@ impl PipelineConfig {
             base_dir: root.to_path_buf(),
             ..Self::new(
                 root.join("fixtures/grandcanyon.tif"),
-                crate::target_dir(root).join("pipeline"),
+                target_dir(root).join("pipeline"),
             )
         }
     }
@@ -139,7 +140,7 @@ impl PipelineConfig {
         if beside.exists() {
             return beside;
         }
-        match crate::workspace_root().map(|r| r.join(path)) {
+        match workspace_root().map(|r| r.join(path)) {
             Some(p) if p.exists() => p,
             _ => beside,
         }
@@ -340,7 +341,7 @@ pub fn run(config: &PipelineConfig, stages: &[NamedStage]) -> Result<PipelineRun
     let n = stages.len();
     for (i, NamedStage { name, stage }) in stages.iter().enumerate() {
         if config.limits.past_deadline() {
-            return Err(anyhow::Error::new(crate::budget::Stopped(format!(
+            return Err(anyhow::Error::new(Stopped(format!(
                 "the run reached its time limit before stage `{name}`"
             ))));
         }
@@ -470,4 +471,77 @@ mod tests {
             "{err:#}"
         );
     }
+}
+
+/// The workspace this crate was built from (its `fixtures/` and `docs/`), when it still exists:
+/// the last place a relative path in a pipeline spec is looked up, so the bundled fixtures work
+/// from a checkout. An installed binary whose sources are gone gets `None`.
+pub fn workspace_root() -> Option<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent()?.parent()?;
+    root.join("Cargo.toml")
+        .is_file()
+        .then(|| root.to_path_buf())
+}
+
+/// Cargo's target directory of the workspace at `root` (`$CARGO_TARGET_DIR` or `root/target`).
+pub fn target_dir(root: &Path) -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("target"))
+}
+
+#[cfg(test)]
+pub(crate) fn test_root() -> PathBuf {
+    workspace_root().expect("tests run from the workspace")
+}
+
+/// `bytes` for people: `1.5 GiB`, `300 MiB`, `12 KiB`, `512 B`.
+pub fn human_bytes(b: u64) -> String {
+    const UNITS: [(&str, u64); 4] = [
+        ("TiB", 1 << 40),
+        ("GiB", 1 << 30),
+        ("MiB", 1 << 20),
+        ("KiB", 1 << 10),
+    ];
+    for (u, s) in UNITS {
+        if b >= s {
+            let v = b as f64 / s as f64;
+            return if v < 10.0 {
+                format!("{v:.1} {u}")
+            } else {
+                format!("{v:.0} {u}")
+            };
+        }
+    }
+    format!("{b} B")
+}
+
+/// A run stopped by its time budget (`relief run --max-time`): between stages, or inside one.
+#[derive(Debug)]
+pub struct Stopped(pub String);
+
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "stopped: {}", self.0)
+    }
+}
+
+impl std::error::Error for Stopped {}
+
+/// Writes the scene's mesh (format from the extension) and returns its size in bytes. `y_up`
+/// rotates an OBJ or PLY to Y-up (`(x, y, z) -> (x, z, -y)`); a GLB is always Y-up.
+pub fn write_mesh(path: &Path, mesh: &relief_implicit_volume::Mesh, y_up: bool) -> Result<u64> {
+    let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
+    let glb = relief_io::MeshFormat::from_extension(path) == Some(relief_io::MeshFormat::Glb);
+    let rotated = (y_up && !glb).then(|| {
+        let r =
+            |v: &[[f32; 3]]| -> Vec<[f32; 3]> { v.iter().map(relief_io::z_up_to_y_up).collect() };
+        (r(&mesh.positions), normals.map(r))
+    });
+    let (positions, normals) = match &rotated {
+        Some((p, n)) => (&p[..], n.as_deref()),
+        None => (&mesh.positions[..], normals),
+    };
+    relief_io::write_mesh(path, positions, &mesh.triangles, normals)?;
+    Ok(std::fs::metadata(path).map_or(0, |m| m.len()))
 }

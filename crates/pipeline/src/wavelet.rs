@@ -542,8 +542,8 @@ fn quality(
 
 #[cfg(test)]
 mod tests {
-    use crate::pipeline::run;
-    use crate::pipeline::spec::{StageSpec, build_stage};
+    use crate::run;
+    use crate::spec::{StageSpec, build_stage};
 
     #[test]
     fn bad_params_are_named() {
@@ -573,7 +573,7 @@ mod tests {
     /// crop (`max_cells`) never shrinks the terrain that is passed on.
     #[test]
     fn one_level_replaces_the_terrain_with_the_whole_refined_grid() {
-        let (mut config, _tmp) = crate::pipeline::test_config(Some((40, 30, 72, 64)));
+        let (mut config, _tmp) = crate::test_config(Some((40, 30, 72, 64)));
         config.previews = false;
         let specs = [
             StageSpec::named("load"),

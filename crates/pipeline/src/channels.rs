@@ -13,7 +13,7 @@ const HIGH: [f32; 3] = [0.0, 45.0, 190.0];
 
 /// Width in pixels of a channel of Strahler order `order` (1 px at order 1, 0.75 px more per
 /// order).
-pub(crate) fn line_width(order: u8) -> f32 {
+pub fn line_width(order: u8) -> f32 {
     1.0 + 0.75 * f32::from(order.saturating_sub(1))
 }
 
@@ -35,7 +35,7 @@ fn esri_step(code: u8) -> Option<(i64, i64)> {
 
 /// RGB bytes (`width x height` triples) of `dem`'s preview with the channels of `strahler`
 /// (order > 0) drawn along `direction` (ESRI codes), both on `dem`'s grid.
-pub(crate) fn channel_map(
+pub fn channel_map(
     dem: &Heightfield,
     direction: &Heightfield,
     strahler: &Heightfield,
@@ -47,7 +47,7 @@ pub(crate) fn channel_map(
 /// its box-averaged reduction by the smallest integer factor that fits, the channels at
 /// their positions scaled by it (line widths unchanged). Returns the image's width, height
 /// and RGB bytes.
-pub(crate) fn channel_map_within(
+pub fn channel_map_within(
     dem: &Heightfield,
     direction: &Heightfield,
     strahler: &Heightfield,
