@@ -109,6 +109,7 @@ fn _relief(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write, m)?)?;
     m.add_function(wrap_pyfunction!(defaults, m)?)?;
     m.add_function(wrap_pyfunction!(ground_cell_size, m)?)?;
+    m.add_function(wrap_pyfunction!(run::last_run_seconds, m)?)?;
     m.add_function(wrap_pyfunction!(detail::amplify, m)?)?;
     m.add_function(wrap_pyfunction!(detail::synthesize, m)?)?;
     m.add_function(wrap_pyfunction!(detail::refine, m)?)?;

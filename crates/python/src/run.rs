@@ -106,6 +106,19 @@ impl Reporter {
     }
 }
 
+std::thread_local! {
+    /// Wall time of the last job run from this thread, in seconds (see [`last_run_seconds`]).
+    static LAST_RUN: std::cell::Cell<f64> = const { std::cell::Cell::new(0.0) };
+}
+
+/// Wall time in seconds of the last job run from the calling thread, measured on the job's
+/// own thread from its start to its result: what a call costs beyond it is the Python layer's
+/// (conversions, the thread, the polling). For the overhead row of `tests/test_bench.py`.
+#[pyfunction]
+pub(crate) fn last_run_seconds() -> f64 {
+    LAST_RUN.with(|c| c.get())
+}
+
 /// Calls `callback(phase, done, total)` when the reports changed since `seen`.
 fn report(
     py: Python<'_>,
@@ -151,7 +164,8 @@ where
     std::thread::Builder::new()
         .name("relief-job".into())
         .spawn(move || {
-            let r = work(&reporter);
+            let t = std::time::Instant::now();
+            let r = work(&reporter).map(|v| (v, t.elapsed().as_secs_f64()));
             // The caller may have returned (interrupted): nobody listens any more.
             let _ = tx.send(r);
         })
@@ -167,7 +181,9 @@ where
         match got {
             Ok(result) => {
                 report(py, &shared, callback.as_ref(), &mut seen)?;
-                return result.map_err(PyErr::from);
+                let (value, seconds) = result?;
+                LAST_RUN.with(|c| c.set(seconds));
+                return Ok(value);
             }
             Err(RecvTimeoutError::Timeout) => {
                 let checked = report(py, &shared, callback.as_ref(), &mut seen)

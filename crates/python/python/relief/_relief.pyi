@@ -30,6 +30,9 @@ def write(path: str, array: F32, cell_size: Cell, geo: Geo) -> None:
 def ground_cell_size(transform: Transform, crs: Optional[str], height: int) -> Optional[Cell]:
     """Ground cell size in metres, as relief-io derives it for a GeoTIFF."""
 
+def last_run_seconds() -> float:
+    """Wall time of the last job run from this thread, on the job's own thread."""
+
 def defaults(job: str) -> str:
     """The library's default settings of a job, as JSON."""
 
