@@ -250,6 +250,21 @@ impl Ctx {
         hf: &relief_heightfield::Heightfield,
     ) -> anyhow::Result<()> {
         let mut opts = self.write_options();
+        if !is_heightmap16(path) {
+            // These flags shape 16-bit engine heightmaps only: say so instead of ignoring them.
+            for (set, flag) in [
+                (self.height_range.is_some(), "--height-range"),
+                (self.size_plus_one, "--size-plus-one"),
+            ] {
+                if set {
+                    self.note(format!(
+                        "{flag} applies to 16-bit heightmaps (.png, .r16) only: {} is written \
+                         in metres as it is",
+                        crate::staging::shown(path).display()
+                    ));
+                }
+            }
+        }
         let corners;
         let hf = if self.size_plus_one && is_heightmap16(path) {
             corners = hf

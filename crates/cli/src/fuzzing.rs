@@ -23,8 +23,9 @@ pub fn tile_manifest(bytes: &[u8]) {
     }
 }
 
-/// A manifest of 4 x 2 tasks of 32 px (`phases` 0: a windowable plan; 5: flow).
-fn sample(phases: usize) -> Manifest {
+/// A manifest of 4 x 2 tasks of 32 px over a 100 x 37 output (`phases` 0: a windowable plan;
+/// 5: flow), for the targets and the manifest's unit tests.
+pub(crate) fn sample(phases: usize) -> Manifest {
     Manifest {
         format: FORMAT.into(),
         version: VERSION,

@@ -45,11 +45,20 @@ impl ExemplarArg {
     pub(crate) fn read(&self, ctx: &Ctx) -> Result<relief_heightfield::Heightfield> {
         let raster =
             crate::commands::read_raster(&self.exemplar, &crate::args::ReadArgs::default(), ctx)?;
-        raster
-            .heightfield
-            .require_complete()
+        let hf = raster.heightfield;
+        // The command's --fill-voids fills its input, not the exemplar: say how to fill it.
+        let voids = hf.void_count();
+        if voids > 0 && voids < hf.len() {
+            bail!(
+                "cannot use {} as exemplar: it has {voids} void cells and an exemplar must be \
+                 complete (fill them first: relief convert --fill-voids {} FILLED.tif)",
+                self.exemplar.display(),
+                self.exemplar.display()
+            );
+        }
+        hf.require_complete()
             .with_context(|| format!("cannot use {} as exemplar", self.exemplar.display()))?;
-        Ok(raster.heightfield)
+        Ok(hf)
     }
 }
 

@@ -440,28 +440,7 @@ mod tests {
 
     #[test]
     fn windows_cover_the_output_once() {
-        let m = Manifest {
-            format: FORMAT.into(),
-            version: VERSION,
-            command: "refine".into(),
-            args: vec![],
-            job: serde_json::Value::Null,
-            inputs: vec![],
-            prepared: bytes_sum(b"", "x".into()),
-            output: OutputGrid {
-                path: "o.tif".into(),
-                width: 100,
-                height: 37,
-                cell_size: [1.0, 1.0],
-                georef: None,
-            },
-            tile: 32,
-            tiles_x: 4,
-            tiles_y: 2,
-            tasks: 8,
-            phases: 0,
-            plan_id: String::new(),
-        };
+        let m = crate::fuzzing::sample(0);
         let mut seen = vec![0u8; 100 * 37];
         for i in 0..m.tasks {
             let [x, y, w, h] = m.window(i);

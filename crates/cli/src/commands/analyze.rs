@@ -99,7 +99,11 @@ pub(crate) fn settings(args: &Args) -> Result<AnalyzeSettings> {
         },
         local_window: args.local,
     };
-    settings.check().context("invalid analysis settings")?;
+    if let Err(e) = settings.check() {
+        // Name the flag, not the library's field.
+        let text = e.to_string().replace("parameter `window`", "--local");
+        bail!("invalid analysis settings: {text}");
+    }
     if args.plot_levels > 12 {
         bail!("invalid --plot-levels {}: must be <= 12", args.plot_levels);
     }

@@ -54,12 +54,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let progress = ctx.progress();
     progress.begin("writing", 0);
     ctx.write_raster(&args.output, &hf)?;
+    // `--size-plus-one` writes the corner samples of a 16-bit heightmap: one more each way.
+    let plus_one = usize::from(ctx.size_plus_one && crate::ctx::is_heightmap16(&args.output));
     drop(progress);
     ctx.note(format!(
         "wrote {} ({} x {})",
         args.output.display(),
-        hf.width(),
-        hf.height()
+        hf.width() + plus_one,
+        hf.height() + plus_one
     ));
     Ok(())
 }

@@ -147,7 +147,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         a = geometry.patch_size,
     ));
     out.push_str(&format!(
-        "error:       rmse {first:.3} m -> {last:.3} m over {} iterations, s = {} ({replaced} \
+        "fit:         rmse {first:.3} m -> {last:.3} m over {} iterations, s = {} ({replaced} \
          atoms replaced)\n",
         args.iterations, args.sparsity
     ));

@@ -65,8 +65,7 @@ pub(crate) struct Args {
     pub(crate) report: Option<PathBuf>,
     /// Geology tree as JSON, nodes `{"type": "strata", "z0": M, "layers": [{"thickness": M,
     /// "hardness": 0..1}, ...]}`, `fold`, `fault`, `noise`, `warp`, `blend`, `max`, `min`,
-    /// `uniform` (`GeologySpec` in relief-implicit-volume); default: layered strata scaled to
-    /// the DEM's relief.
+    /// `uniform`; default: layered strata scaled to the DEM's relief.
     #[arg(long)]
     pub(crate) geology: Option<PathBuf>,
     /// Crop `X,Y,W,H` (columns, rows) applied after reading.

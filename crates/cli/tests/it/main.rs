@@ -10,6 +10,7 @@ mod failures;
 mod hostile_plans;
 mod landscape;
 mod limits;
+mod messages;
 mod patch;
 mod sparse;
 mod tile;

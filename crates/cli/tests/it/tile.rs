@@ -256,7 +256,10 @@ fn plans_refuse_what_they_cannot_tile() {
             vec!["refine", s(&gc), s(&tif), "--window", "0,0,8,8"],
             "--window",
         ),
-        (vec!["preview", s(&gc), s(&png)], "invalid command"),
+        (
+            vec!["preview", s(&gc), s(&png)],
+            "cannot be planned as tiles",
+        ),
     ] {
         let mut a = vec!["tile", "plan", s(&d), "--"];
         a.extend(args);

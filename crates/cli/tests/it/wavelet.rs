@@ -251,7 +251,7 @@ fn bad_input_fails_cleanly() {
             os("--plot"),
             plot.as_os_str(),
         ],
-        "window",
+        "--local = 2",
         &plot,
     );
 }

@@ -108,6 +108,16 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
              multi-phase plan); run `relief {global}` on the whole DEM"
         );
     }
+    if let Some(other) = a
+        .command
+        .first()
+        .filter(|c| !["amplify", "refine", "decompress"].contains(&c.as_str()))
+    {
+        bail!(
+            "`relief {other}` cannot be planned as tiles: a plan splits amplify, refine or \
+             decompress (one task per output tile, each an exact window) or flow (five phases)"
+        );
+    }
     let mut inner = Inner::try_parse_from(&a.command)
         .map_err(|e| anyhow::anyhow!("invalid command after `--`: {}", e.to_string().trim()))?;
     let (inputs, output) = absolutise(&mut inner.command)?;
