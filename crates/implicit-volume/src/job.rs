@@ -284,6 +284,20 @@ impl VolumeFigures {
                 e.candidates
             );
         }
+        for (f, z) in &d.sizes {
+            out += &format!(
+                "{:<13} {} {}: {:.1} / {:.1} / {:.1} m (min / median / max; p10-p90 {:.1}-{:.1} \
+                 m)\n",
+                format!("{f} size:"),
+                z.count,
+                z.measure,
+                z.min,
+                z.median,
+                z.max,
+                z.p10,
+                z.p90
+            );
+        }
         for n in &self.notes {
             out += &format!("note:         {n}\n");
         }

@@ -28,6 +28,8 @@ struct Basis<'a> {
     sea_detected: bool,
     /// Radius of the weathering spheres.
     wr: f32,
+    /// The feature sizes times the recipe's scale (m).
+    sz: FeatureSizes,
 }
 
 impl Basis<'_> {
@@ -38,6 +40,39 @@ impl Basis<'_> {
 
     fn has(&self, f: Feature) -> bool {
         self.recipe.features.contains(&f)
+    }
+
+    /// Whether weathering `f` at `spacing` over the whole DEM is beyond a run's budget
+    /// ([`WEATHERING_MAX_SAMPLES`]; a note then names the window that fits).
+    fn too_large(&self, f: Feature, spacing: f32, o: &mut Out<'_>) -> bool {
+        let n = o.b.candidate_count(spacing);
+        if n <= WEATHERING_MAX_SAMPLES as f64 {
+            return false;
+        }
+        let side = self.ex.max(self.ey) * (WEATHERING_MAX_SAMPLES as f64 / n).sqrt() as f32;
+        o.dims.notes.push(format!(
+            "{f} refused: {n:.0} surface samples at their {spacing:.1} m spacing over this \
+             {:.1} km2 DEM, over the {WEATHERING_MAX_SAMPLES} a run affords; a window of about \
+             {side:.0} m (--crop) fits",
+            self.area_km2
+        ));
+        true
+    }
+
+    /// Whether the DEM's cells are too coarse for `f` (a note then says what cell it needs).
+    fn too_coarse(&self, f: Feature, dims: &mut Dimensions) -> bool {
+        match self.sz.needed_cell_m(f) {
+            Some(need) if self.l > need * 1.001 => {
+                dims.notes.push(format!(
+                    "{f} refused: they need DEM cells of at most {need:.1} m, this DEM's are \
+                     {:.1} m (relief volume amplifies a window of the DEM to that cell unless \
+                     --raw-dem)",
+                    self.l
+                ));
+                true
+            }
+            _ => false,
+        }
     }
 }
 
@@ -101,7 +136,7 @@ pub fn build_recipe_with_progress(
     let deviation = b.implicitization_deviation(4096);
     basis.sea_level = recipe.sea_level.or(sea.map(|s| s.level));
     basis.sea_detected = sea.is_some();
-    basis.wr = (2.5 * basis.voxel).max(0.05 * basis.relief * recipe.scale);
+    basis.wr = basis.sz.overhang_depth_m;
     dims.weathering_radius_m = basis.wr;
     let mut out = Out {
         b,
@@ -130,8 +165,12 @@ pub fn build_recipe_with_progress(
     }
     check()?;
     let Out {
-        b, dims, effects, ..
+        b,
+        mut dims,
+        effects,
+        ..
     } = out;
+    dims.sizes = size_stats(&basis, &dims, &effects);
     let section_line = best_section_line(&b);
     let highlights = highlights(&b, &effects);
     // Water wherever the scene has a sea level: the DEM's own sea (even when no shore feature
@@ -170,6 +209,7 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
     let (cx, cy) = (cx as f32, cy as f32);
     let l = cx.max(cy);
     let k = recipe.scale;
+    let sz = recipe.sizes.scaled(k);
     let (lo, hi) = hf
         .min_max()
         .ok_or(Error::param("heightfield", "all void", "needs samples"))?;
@@ -198,7 +238,10 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
                 "must be finite, > 0 and at least 1/8192 of the DEM's extent",
             ));
         }
-        None => (0.5 * l).min((hi - lo) / 32.0).max(ex.max(ey) / 512.0),
+        None => sz
+            .voxel_for(&recipe.features)
+            .unwrap_or((0.5 * l).min((hi - lo) / 32.0))
+            .max(ex.max(ey) / 512.0),
     };
     let relief = (hi - lo).max(4.0 * voxel);
     let dims = Dimensions {
@@ -207,8 +250,22 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
         area_km2,
         voxel_m: voxel,
         floor_depth_m: (0.3 * relief).max(8.0 * voxel),
+        needed_cell_m: sz.needed_cell_for(&recipe.features),
+        affordable_extent_m: sz.voxel_for(&recipe.features).map(|v| 512.0 * v),
         ..Default::default()
     };
+    let mut dims = dims;
+    if let (Some(want), None) = (sz.voxel_for(&recipe.features), recipe.voxel)
+        && voxel > 1.5 * want
+    {
+        dims.notes.push(format!(
+            "mesh voxel {voxel:.1} m (512 cells over {:.0} m): the features are built at their \
+             size (renders, close-ups and sections show them) but a mesh resolves them at a \
+             {want:.1} m voxel, on a window of at most {:.0} m (--crop)",
+            ex.max(ey),
+            512.0 * want
+        ));
+    }
     let basis = Basis {
         recipe,
         l,
@@ -223,6 +280,7 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
         sea_level: None,
         sea_detected: false,
         wr: 0.0,
+        sz,
     };
     Ok((basis, dims))
 }
@@ -236,14 +294,14 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
         lo,
         hi,
         voxel,
-        relief,
         ..
     } = *basis;
-    let center = [0.5 * ex, 0.5 * ey, 0.5 * (lo + hi)];
+    // The strata at fixed elevations (from 0 m), whatever the crop.
+    let center = [0.5 * ex, 0.5 * ey, 0.0];
+    let period = basis.sz.strata_period_m;
     let geology = match &basis.recipe.geology {
         Some(g) => g.clone(),
         None => {
-            let period = (relief / 6.0).max(9.0 * voxel);
             dims.strata_period_m = Some(period);
             GeologySpec::layered_default(center, period, basis.recipe.seed)?
         }
@@ -257,7 +315,8 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
             ]
         })
         .collect();
-    let mut runs = geo.soft_runs(&cols, lo - dims.floor_depth_m, hi, basis.rho0, 0.25 * voxel);
+    let step = (period / 40.0).min(0.25 * voxel);
+    let mut runs = geo.soft_runs(&cols, lo - dims.floor_depth_m, hi, basis.rho0, step);
     runs.sort_by(f32::total_cmp);
     dims.soft_thickness_m = runs.get(runs.len() / 2).copied();
     Ok((geology, geo))
@@ -280,7 +339,7 @@ type Step<'a> = fn(&Basis<'a>, &mut Out<'_>) -> Result<()>;
 impl Basis<'_> {
     /// Sea cliffs, and sea erosion with or without caves.
     fn coast(&self, o: &mut Out<'_>) -> Result<()> {
-        let (voxel, relief, wr) = (self.voxel, self.relief, self.wr);
+        let sz = self.sz;
         let shore: Vec<&str> = [Feature::Cliffs, Feature::Sea, Feature::Caves]
             .into_iter()
             .filter(|&f| self.has(f))
@@ -298,13 +357,18 @@ impl Basis<'_> {
             }
             return Ok(());
         };
-        if self.has(Feature::Cliffs) {
-            // Spheres finer than the soft strata, so hard ones survive as ledges.
-            let cr = (1.5 * voxel).max(wr.min(0.4 * o.dims.soft_thickness_m.unwrap_or(wr)));
+        // Spheres finer than the soft strata, so hard ones survive as ledges, but at least a
+        // sixth of the retreat (the cut's primitive count grows with the inverse cube).
+        let soft = o.dims.soft_thickness_m.unwrap_or(sz.sea_radius_m);
+        let cr = (0.4 * soft).max(sz.cliff_retreat_m / 6.0);
+        if self.has(Feature::Cliffs)
+            && !self.too_coarse(Feature::Cliffs, &mut o.dims)
+            && !self.too_large(Feature::Cliffs, 0.75 * cr, o)
+        {
             let c = SeaCliffs {
                 sea_level,
                 depth: 0.3 * cr,
-                retreat: 6.0 * cr,
+                retreat: sz.cliff_retreat_m,
                 radius: cr,
                 beta: 0.2,
                 seed: self.sub(8),
@@ -314,17 +378,23 @@ impl Basis<'_> {
             o.effects
                 .push((Feature::Cliffs, o.b.sea_cliffs(&c, &o.region)?));
         }
-        if self.has(Feature::Sea) || self.has(Feature::Caves) {
-            let r = wr;
+        let shore = [Feature::Sea, Feature::Caves]
+            .into_iter()
+            .find(|&f| self.has(f));
+        if let Some(f) = shore
+            && !self.too_coarse(f, &mut o.dims)
+            && !self.too_large(f, 0.4 * sz.sea_radius_m, o)
+        {
+            let r = sz.sea_radius_m;
             let dims = &mut o.dims;
             dims.sea_radius_m = r;
-            dims.sea_height_m = (0.15 * relief).max(2.0 * r);
+            dims.sea_height_m = sz.sea_height_m;
             dims.cave_count = if self.has(Feature::Caves) {
                 count(self.recipe.densities.caves_per_km2, self.area_km2, 64)
             } else {
                 0
             };
-            dims.cave_length_m = (12.0 * r).min(0.25 * self.ex.min(self.ey));
+            dims.cave_length_m = sz.cave_length_m.min(0.25 * self.ex.min(self.ey));
             let s = SeaErosion {
                 weathering: Weathering {
                     spacing: 0.4 * r,
@@ -337,7 +407,7 @@ impl Basis<'_> {
                 depth: 0.3 * r,
                 height: dims.sea_height_m,
                 peak: 0.2 * dims.sea_height_m,
-                reach: (6.0 * r).max(2.0 * self.l),
+                reach: sz.cliff_retreat_m.max(2.0 * self.l),
                 caves: dims.cave_count,
                 cave_length: dims.cave_length_m,
                 iterations: 3,
@@ -354,27 +424,44 @@ impl Basis<'_> {
         Ok(())
     }
 
-    /// Karst passages in the soft strata, when they are at least two voxels thick.
+    /// Karst passages in the soft strata, at most half their thickness in radius.
     fn karst(&self, o: &mut Out<'_>) -> Result<()> {
         if !self.has(Feature::Karst) {
             return Ok(());
         }
-        let (voxel, k, area_km2) = (self.voxel, self.recipe.scale, self.area_km2);
+        let area_km2 = self.area_km2;
         let d = &self.recipe.densities;
         let dims = &mut o.dims;
         match dims.soft_thickness_m {
-            Some(t) if 0.5 * t >= voxel => {
-                let a = (0.4 * t * k).clamp(voxel, 0.5 * t);
+            Some(t) => {
+                let a = self.sz.karst_radius_m.min(0.5 * t);
+                if a < self.sz.karst_radius_m {
+                    dims.notes.push(format!(
+                        "karst passages {a:.1} m in radius, not {:.1} m: the soft strata are \
+                         {t:.1} m thick",
+                        self.sz.karst_radius_m
+                    ));
+                }
                 let step = a;
                 dims.karst_radius_m = a;
                 dims.karst_step_m = step;
-                dims.karst_budget = self.recipe.karst_budget.unwrap_or(
-                    ((d.karst_km_per_km2 * area_km2 * 1000.0 / step).round() as usize).min(1 << 22),
-                );
+                let wanted = (d.karst_km_per_km2 * area_km2 * 1000.0 / step).round() as usize;
+                dims.karst_budget = self.recipe.karst_budget.unwrap_or_else(|| {
+                    if wanted > KARST_MAX_STEPS {
+                        dims.notes.push(format!(
+                            "karst budget {KARST_MAX_STEPS} steps ({:.1} km of passages), not \
+                             the {:.1} km the density asks for over {area_km2:.1} km2 \
+                             (--karst-budget)",
+                            KARST_MAX_STEPS as f32 * step * 1e-3,
+                            wanted as f32 * step * 1e-3
+                        ));
+                    }
+                    wanted.min(KARST_MAX_STEPS)
+                });
                 let ks = KarstSettings {
                     radius: a,
-                    // The flattened passage is at least a voxel high where it narrows.
-                    min_radius: (voxel / KarstSettings::default().axes().1).min(a),
+                    // Passages narrow to half their radius under thin roofs.
+                    min_radius: 0.5 * a,
                     step,
                     poisson_radius: 0.8 * step,
                     sub_spheres: 4,
@@ -392,10 +479,6 @@ impl Basis<'_> {
                     o.b.karst_with_progress(&ks, &o.region, o.progress)?,
                 ));
             }
-            Some(t) => dims.notes.push(format!(
-                "karst skipped: soft strata {t:.1} m thick, under two voxels of {voxel:.1} m \
-                 (a finer --voxel or a thicker geology resolves them)"
-            )),
             None => dims
                 .notes
                 .push("karst skipped: the geology has no soft strata (rho < 0.5)".into()),
@@ -406,8 +489,14 @@ impl Basis<'_> {
     /// Wind and rain erosion; together they are the overhangs feature (one report).
     fn weathering(&self, o: &mut Out<'_>) -> Result<()> {
         let recipe = self.recipe;
-        let wind = self.has(Feature::Wind) || self.has(Feature::Overhangs);
-        let rain = self.has(Feature::Rain) || self.has(Feature::Overhangs);
+        let mut wind = self.has(Feature::Wind) || self.has(Feature::Overhangs);
+        let mut rain = self.has(Feature::Rain) || self.has(Feature::Overhangs);
+        if (wind || rain)
+            && (self.too_coarse(Feature::Overhangs, &mut o.dims)
+                || self.too_large(Feature::Overhangs, 0.5 * self.wr, o))
+        {
+            (wind, rain) = (false, false);
+        }
         let w = Weathering {
             spacing: 0.5 * self.wr,
             radius: self.wr,
@@ -457,19 +546,12 @@ impl Basis<'_> {
         Ok(())
     }
 
-    /// Hoodoos, skipped (with a note) when the voxel or the relief cannot hold them.
+    /// Hoodoos, refused (with a note) on DEM cells coarser than their height.
     fn hoodoos(&self, o: &mut Out<'_>) -> Result<()> {
-        let height = (0.12 * self.relief).clamp(15.0, 250.0) * self.recipe.scale;
-        let radius = (height / 6.0).max(self.voxel);
+        let (height, radius) = (self.sz.hoodoo_height_m, self.sz.hoodoo_radius_m);
         let dims = &mut o.dims;
         (dims.hoodoo_height_m, dims.hoodoo_radius_m) = (height, radius);
-        if height > 0.45 * self.relief || height < 4.0 * self.voxel {
-            dims.notes.push(format!(
-                "hoodoos skipped: {height:.0} m tall is not between four voxels ({:.0} m) and \
-                 0.45 of the relief ({:.0} m)",
-                4.0 * self.voxel,
-                0.45 * self.relief
-            ));
+        if self.too_coarse(Feature::Hoodoos, dims) {
             return Ok(());
         }
         dims.hoodoo_count = count(self.recipe.densities.hoodoos_per_km2, self.area_km2, 256);
@@ -487,21 +569,20 @@ impl Basis<'_> {
         Ok(())
     }
 
-    /// Floating islands: clusters of three, main radii `clamp(0.1 R, 20, 300) s`, down to a
-    /// third of that, floating `max(0.3 R, 4 radius)` above the ground.
+    /// Floating islands: clusters of three, main radius [`FeatureSizes::island_radius_m`], down
+    /// to a third of that, floating four radii above the ground.
     fn islands(&self, o: &mut Out<'_>) -> Result<()> {
         let dims = &mut o.dims;
-        let radius = (0.1 * self.relief).clamp(20.0, 300.0) * self.recipe.scale;
-        dims.island_radius_m = radius.max(2.0 * self.voxel);
-        dims.island_altitude_m = (0.3 * self.relief).max(4.0 * dims.island_radius_m);
+        dims.island_radius_m = self.sz.island_radius_m;
+        dims.island_altitude_m = 4.0 * dims.island_radius_m;
         dims.island_count = count(self.recipe.densities.islands_per_km2, self.area_km2, 16);
         let i = IslandSettings {
             count: dims.island_count,
             radius: dims.island_radius_m,
             altitude: dims.island_altitude_m,
             per_cluster: 3,
-            // The smallest island at least two voxels wide.
-            spread: (dims.island_radius_m / (2.0 * self.voxel)).clamp(1.0, 3.0),
+            // The smallest island a third of the main one.
+            spread: 3.0,
             seed: self.sub(7),
         };
         let rep = o.b.floating_islands(&i, &o.region)?;
@@ -510,21 +591,15 @@ impl Basis<'_> {
         Ok(())
     }
 
-    /// Arches, skipped (with a note) when the voxel or the relief cannot hold them, or when
+    /// Arches, refused (with a note) on DEM cells coarser than half their span, or skipped when
     /// no ridge can carry one.
     fn arches(&self, o: &mut Out<'_>) -> Result<()> {
-        let (voxel, relief, dims) = (self.voxel, self.relief, &mut o.dims);
-        let span = (0.2 * relief).clamp(30.0, 300.0) * self.recipe.scale;
-        let thickness = (span / 4.0).max(voxel);
+        let dims = &mut o.dims;
+        let (span, thickness) = (self.sz.arch_span_m, self.sz.arch_thickness_m);
         dims.arch_span_m = span;
         dims.arch_height_m = 0.6 * span;
         dims.arch_thickness_m = thickness;
-        if span > 0.5 * relief || span < 3.0 * voxel {
-            dims.notes.push(format!(
-                "arches skipped: a {span:.0} m opening is over half the relief ({:.0} m) or \
-                 under three {voxel:.1} m voxels",
-                0.5 * relief
-            ));
+        if self.too_coarse(Feature::Arches, dims) {
             return Ok(());
         }
         dims.arch_count = count(self.recipe.densities.arches_per_km2, self.area_km2, 64);
@@ -603,4 +678,45 @@ fn highlights(b: &SceneBuilder, effects: &[(Feature, EffectReport)]) -> Vec<High
         }
     }
     highlights
+}
+
+/// Per placed feature, the distribution of its instances' sizes (m): measured per instance where
+/// the generator reports it ([`EffectReport::sizes_m`]: karst radii per step, hoodoo heights,
+/// arch spans, cave radii, island radii), else the nominal size once per primitive (notch and
+/// weathering spheres) or once (cliff retreat).
+fn size_stats(
+    basis: &Basis<'_>,
+    dims: &Dimensions,
+    effects: &[(Feature, EffectReport)],
+) -> std::collections::BTreeMap<String, SizeStats> {
+    let mut out = std::collections::BTreeMap::new();
+    for (f, e) in effects {
+        let nominal = |v: f32, n: usize| vec![v; n];
+        let (key, measure, sizes) = match f {
+            Feature::Karst => ("karst", "passage radius", e.sizes_m.clone()),
+            Feature::Hoodoos => ("hoodoos", "height", e.sizes_m.clone()),
+            Feature::Arches => ("arches", "span", e.sizes_m.clone()),
+            Feature::Islands => ("islands", "radius", e.sizes_m.clone()),
+            Feature::Cliffs => ("cliffs", "retreat", nominal(dims.cliff_retreat_m, 1)),
+            Feature::Sea | Feature::Caves => {
+                let caves = e.sizes_m.len();
+                if basis.has(Feature::Caves) {
+                    out.insert(
+                        "caves".to_string(),
+                        SizeStats::of("cave radius", &e.sizes_m),
+                    );
+                }
+                if *f == Feature::Caves {
+                    continue;
+                }
+                let notches = e.primitives.saturating_sub(caves);
+                ("sea", "notch radius", nominal(dims.sea_radius_m, notches))
+            }
+            Feature::Overhangs | Feature::Wind | Feature::Rain => {
+                (f.name(), "hollow radius", nominal(basis.wr, e.primitives))
+            }
+        };
+        out.insert(key.to_string(), SizeStats::of(measure, &sizes));
+    }
+    out
 }

@@ -4,26 +4,31 @@
 //! run; the individual generators of [`crate::scene::SceneBuilder`] stay available for finer
 //! control.
 //!
-//! # Sizes (with `R` the relief, `v` the meshing voxel, `s` [`Recipe::scale`])
-//! * voxel `v`: half the larger DEM cell, refined to `R / 32` for low relief, but never finer
-//!   than 1/512 of the larger horizontal extent (the mesh stays within ~512 cells a side);
-//! * closing floor `max(0.3 R, 8 v)` below the lowest sample;
-//! * default geology [`GeologySpec::layered_default`] with a period of `max(R / 6, 9 v)` so that
-//!   its soft strata are at least 2.5 voxels thick;
-//! * karst passages: visible radius `clamp(0.4 t s, v, 0.5 t)` with `t` the median soft-stratum
-//!   thickness measured on the geology, step = radius, budget from a passage density
-//!   ([`Densities::karst_km_per_km2`]); skipped (with a note) when `0.5 t < v`;
-//! * hoodoos `clamp(0.12 R, 15, 250) s` tall (at most `0.45 R`), radius a sixth of that (at
-//!   least `v`); arches spanning `clamp(0.2 R, 30, 300) s` (at most `0.5 R`), opening 0.6 of their
-//!   span high under a bridge a quarter of it thick; floating islands in clusters of three, main radius
-//!   `clamp(0.1 R, 20, 300) s`, the others down to a third of it (never under two voxels),
-//!   `max(0.3 R, 4 radius)` above the ground;
-//! * sea and weathering spheres of radius `max(2.5 v, 0.05 R)`, `0.4` radius apart; sea
-//!   cliffs cut `6 c` back with spheres of `c = max(1.5 v, min(that, 0.4 t))`;
+//! # Sizes
+//! Every landform has a size in metres from geology and geomorphology ([`FeatureSizes`], sources
+//! in `docs/VOLUME_SIZES.md`), times [`Recipe::scale`]: never from the DEM's cell, extent or
+//! relief, so a feature is the same size on a 128 x 128 crop and on the whole DEM. What follows
+//! the features, not the other way round:
+//! * the meshing voxel `v`: a third of the smallest feature asked for
+//!   ([`FeatureSizes::voxel_for`]), but never finer than 1/512 of the larger horizontal extent
+//!   (the mesh stays within ~512 cells a side; a note then names the window that would mesh
+//!   the features, [`Dimensions::affordable_extent_m`]); the scene itself (renders, close-ups,
+//!   sections) holds the features at their size whatever the voxel;
+//! * the DEM cell: a surface feature needs cells of at most [`FeatureSizes::needed_cell_m`]
+//!   (hoodoos their height, arches half their span, shore features half the cliff retreat,
+//!   weathering five hollows); on a coarser DEM the feature is refused with a note naming the
+//!   cell it needs (`relief volume` amplifies a window of the DEM to it first);
+//! * karst passages: radius [`FeatureSizes::karst_radius_m`], at most half the median soft
+//!   stratum, budget from a passage density ([`Densities::karst_km_per_km2`]) capped at
+//!   [`KARST_MAX_STEPS`] steps;
+//! * weathering (sea notches, wind and rain hollows) considers at most
+//!   [`WEATHERING_MAX_SAMPLES`] surface samples: beyond, the effect is refused with a note
+//!   naming the window that fits;
+//! * the default geology's strata: [`FeatureSizes::strata_period_m`], at fixed elevations;
+//! * the closing floor `max(0.3 R, 8 v)` below the lowest sample (`R` the relief);
 //! * counts from densities per km^2 ([`Densities`]) over the DEM's area (at least one).
 //!
-//! Each size is checked against the voxel and the relief; a feature that cannot be resolved is
-//! skipped and [`Dimensions::notes`] says why.
+//! [`Dimensions::sizes`] gives, per feature, the distribution of the placed instances' sizes.
 //!
 //! # Sea
 //! The shore features ([`Feature::Sea`], [`Feature::Caves`], [`Feature::Cliffs`]) need a sea
@@ -49,9 +54,20 @@ use crate::scene::{
 mod build;
 mod closeups;
 mod sea;
+mod sizes;
 
 pub use self::build::{build_recipe, build_recipe_with_progress};
 pub use self::closeups::render_closeups;
+pub use self::sizes::{FeatureSizes, SizeStats};
+
+/// Largest default karst budget (carving steps), which keeps the tree within a few hundred
+/// thousand nodes; a larger area gets the same passage size, sparser.
+pub const KARST_MAX_STEPS: usize = 16_384;
+
+/// Most surface samples a weathering effect (sea, wind, rain) may consider: at physical
+/// sizes (1-2 m hollows) this is a window of about a kilometre; a larger DEM refuses the effect
+/// with a note naming the window that fits.
+pub const WEATHERING_MAX_SAMPLES: usize = 1 << 21;
 use self::closeups::{best_section_line, densest_karst};
 pub(crate) use self::sea::border_connected;
 pub use self::sea::{
@@ -176,8 +192,8 @@ pub struct Densities {
 impl Default for Densities {
     fn default() -> Self {
         Self {
-            hoodoos_per_km2: 1.0,
-            arches_per_km2: 0.3,
+            hoodoos_per_km2: 20.0,
+            arches_per_km2: 2.0,
             islands_per_km2: 0.1,
             caves_per_km2: 1.0,
             karst_km_per_km2: 6.0,
@@ -205,8 +221,10 @@ pub struct Recipe {
     /// Per-cell weights in `[0, 1]` (row-major, DEM size) limiting every effect; `None` =
     /// everywhere.
     pub mask: Option<Vec<f32>>,
-    /// Multiplies every derived feature size (module docs); 1 = default.
+    /// Multiplies every feature size ([`FeatureSizes`]); 1 = default.
     pub scale: f32,
+    /// The landforms' sizes in metres (before [`Recipe::scale`]).
+    pub sizes: FeatureSizes,
     /// Meshing voxel edge (m) the sizes are checked against; `None` = derived (module docs).
     pub voxel: Option<f32>,
     /// Geology tree; `None` = [`GeologySpec::layered_default`] scaled to the DEM.
@@ -239,6 +257,7 @@ impl Default for Recipe {
             seabed: true,
             mask: None,
             scale: 1.0,
+            sizes: FeatureSizes::default(),
             voxel: None,
             geology: None,
             karst_budget: None,
@@ -308,6 +327,15 @@ pub struct Dimensions {
     pub weathering_radius_m: f32,
     /// How far sea cliffs cut the shore back (m).
     pub cliff_retreat_m: f32,
+    /// The finest DEM cell the asked features need (m; [`FeatureSizes::needed_cell_for`]).
+    pub needed_cell_m: Option<f32>,
+    /// The largest window side (m) the mesh can afford at the voxel the features ask for
+    /// (512 voxels of [`FeatureSizes::voxel_for`]).
+    pub affordable_extent_m: Option<f32>,
+    /// Per placed feature (by name), the distribution of its instances' sizes in metres: karst
+    /// passage radii (per carved step), hoodoo heights, arch spans, sea cave radii, notch and
+    /// weathering sphere radii, cliff retreat, floating island radii.
+    pub sizes: std::collections::BTreeMap<String, SizeStats>,
     /// Features skipped or adjusted, and why.
     pub notes: Vec<String>,
 }
@@ -392,6 +420,7 @@ impl Recipe {
             caves_per_km2, karst_km_per_km2, karst_cliff_seeds_per_km2,
         );
         Error::check_all_in(&densities, 0.0..=1e4, "must be in [0, 10000]")?;
+        self.sizes.check()?;
         if let Some(v) = self.voxel {
             Error::check_positive("voxel", v)?;
         }

@@ -179,6 +179,7 @@ impl SceneBuilder {
             // A wandering passage: the heading turns by up to +-20 degrees a step and the
             // floor drifts a little, within the sea-erosion band.
             let n = (s.cave_length / (0.5 * r)).ceil() as usize;
+            let mut widest = 0.0f32;
             let mut c = p;
             for m in 1..=n {
                 let t = m as f32 / n as f32;
@@ -193,11 +194,13 @@ impl SceneBuilder {
                 c[2] = (c[2] + 0.15 * r * h(1))
                     .clamp(s.sea_level - s.depth, s.sea_level + 0.5 * s.height);
                 let rr = r * (1.0 - 0.5 * t) * (0.85 + 0.3 * (h(2) + 0.5));
+                widest = widest.max(rr);
                 let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
                 self.negatives.push(id);
                 self.carved.push((c, rr, false));
                 report.primitives += 1;
             }
+            report.sizes_m.push(widest);
         }
         Ok(())
     }

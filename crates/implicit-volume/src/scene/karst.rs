@@ -102,6 +102,7 @@ impl SceneBuilder {
                     match self.covered_radius(s, p, a, e) {
                         Some(a) => {
                             steps += 1;
+                            report.sizes_m.push(a);
                             report.primitives += self.karst_passage(s, p, a, e, wgt, idx)?;
                         }
                         None => report.thin_cover += 1,

@@ -124,11 +124,12 @@ impl SceneBuilder {
             }
             let h = |c| unit(hash(s.seed, k as u64, c, 7));
             // A hoodoo survives under a resistant caprock: the cap sits at the hardest level
-            // of the top quarter; sites without hard rock there are skipped.
+            // between 0.6 and 1.4 of the nominal height (the first of equals), so each stands
+            // as tall as its strata allow; sites without hard rock there are skipped.
             let rho = |z: f32| self.geology.resistance([p[0], p[1], z]);
             let mut cap = (f32::NEG_INFINITY, p[2] + s.height);
-            for m in 0..=8 {
-                let z = p[2] + s.height * (0.75 + 0.3 * m as f32 / 8.0);
+            for m in 0..=16 {
+                let z = p[2] + s.height * (0.6 + 0.8 * m as f32 / 16.0);
                 let r = rho(z);
                 if r > cap.0 {
                     cap = (r, z);
@@ -169,6 +170,7 @@ impl SceneBuilder {
             report.primitives += parts.len();
             report.features += 1;
             report.sites.push(p);
+            report.sizes_m.push(top + 0.45 * cr - p[2]);
             let seed = (s.seed as u32).wrapping_add(k as u32);
             self.add_warped(&parts, 0.12 * s.radius, 0.6 * s.radius, seed)?;
         }
@@ -272,6 +274,7 @@ impl SceneBuilder {
             report.primitives += self.keep_ring(&arch, seed)?;
             report.features += 1;
             report.length_m += norm(sub(m1, m0));
+            report.sizes_m.push(s.span);
             let c = arch.centre;
             report.sites.push([c[0], c[1], c[2] + 0.5 * s.height]);
             // Look through the opening from the lower side.
@@ -297,6 +300,20 @@ impl SceneBuilder {
         };
         let outer = fit.half + 0.5 * fit.leg;
         let top = fit.rise + 0.5 * fit.bridge;
+        // The ring and its legs stand inside the DEM (not on the slab's side).
+        let fr = self.frame;
+        let (xm, ym) = (
+            (fr.width - 1) as f32 * fr.cx,
+            (fr.height - 1) as f32 * fr.cy,
+        );
+        let inside = |p: V3| p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= xm && p[1] <= ym;
+        let reach = outer + fit.leg;
+        if ![-1.0f32, 1.0]
+            .iter()
+            .all(|&u| inside(add(fit.centre, mul(fit.side, u * reach))))
+        {
+            return None;
+        }
         // The ring's height is scaled down to the ground where the ridge sags (to 0.7 at most).
         let scale = (-8..=8)
             .map(|q| {

@@ -109,8 +109,9 @@ pub struct SceneBuilder {
     positives: Vec<NodeId>,
     /// Carving spheres' centres and radii, kept for reports and tests.
     carved: Vec<(V3, f32, bool)>,
-    /// Smallest length an effect accepts: 1e-4 of the scene's coordinate magnitude (lengths
-    /// are also at most `1e6 min_len`), so no primitive degenerates in f32.
+    /// Smallest length an effect accepts: 1e-5 of the scene's coordinate magnitude (a metre
+    /// at 100 km, about 80 f32 ulps; lengths are also at most `1e7 min_len`), so no primitive
+    /// degenerates in f32.
     min_len: f32,
 }
 
@@ -165,10 +166,10 @@ impl SceneBuilder {
             return Err(Error::param(
                 name,
                 v,
-                "too small for the scene's coordinates (below 1e-4 of its extent)",
+                "too small for the scene's coordinates (below 1e-5 of its extent)",
             ));
         }
-        if name != "energy" && v > 1e6 * self.min_len {
+        if name != "energy" && v > 1e7 * self.min_len {
             return Err(Error::param(
                 name,
                 v,
@@ -195,7 +196,7 @@ impl SceneBuilder {
             .chain(&bb.max)
             .fold(1.0f32, |m, v| m.max(v.abs()));
         Ok(Self {
-            min_len: 1e-4 * mag,
+            min_len: 1e-5 * mag,
             tree,
             hf: node,
             frame,
@@ -359,8 +360,9 @@ impl SceneBuilder {
         (lo, hi)
     }
 
-    /// Number of candidates [`Self::surface_candidates`] would generate (without a z band).
-    fn candidate_count(&self, spacing: f32) -> f64 {
+    /// Number of surface samples a weathering effect (sea, wind, rain) at `spacing` metres
+    /// would consider on this DEM (without a z band): what its cost grows with.
+    pub fn candidate_count(&self, spacing: f32) -> f64 {
         let f = self.frame;
         let per_xy = ((f.cx as f64 * f.cy as f64) / (spacing as f64 * spacing as f64))
             .ceil()

@@ -55,11 +55,11 @@ impl Weathering {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::param(n, v, "must be finite and > 0"));
             }
-            if n != "energy" && !(min_len..=1e6 * min_len).contains(&v) {
+            if n != "energy" && !(min_len..=1e7 * min_len).contains(&v) {
                 return Err(Error::param(
                     n,
                     v,
-                    "out of scale with the scene (1e-4 to 100 times its extent)",
+                    "out of scale with the scene (1e-5 to 100 times its extent)",
                 ));
             }
         }
@@ -425,7 +425,8 @@ pub struct EffectReport {
     /// axis, so a camera sees through the opening; floating islands: towards the lowest ground
     /// around, so a camera sees the underside); empty for the other effects.
     pub axes: Vec<V3>,
-    /// Per site, the landform's size (m): floating islands' radii; empty for the other
-    /// effects.
+    /// The landforms' sizes (m): floating islands' radii, hoodoo heights (ground to cap top),
+    /// arch spans, sea caves' widest radii (one per site), karst passage radii (one per carved
+    /// step); empty for the other effects.
     pub sizes_m: Vec<f32>,
 }
