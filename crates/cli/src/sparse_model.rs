@@ -114,10 +114,7 @@ pub(crate) fn dictionary_choice(atoms: usize) -> DictionaryChoice {
     if atoms == 0 {
         DictionaryChoice::Complete
     } else {
-        DictionaryChoice::Learned {
-            n_atoms: atoms,
-            iterations: 3,
-        }
+        DictionaryChoice::learned_default(atoms)
     }
 }
 

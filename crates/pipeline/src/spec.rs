@@ -346,13 +346,7 @@ mod tests {
         let p: dictionary::AmplifyParams =
             params(&serde_json::json!({"job": {"dictionary": {"learned": {"n_atoms": 32}}}}))
                 .unwrap();
-        assert_eq!(
-            p.job.dictionary,
-            DictionaryChoice::Learned {
-                n_atoms: 32,
-                iterations: 3
-            }
-        );
+        assert_eq!(p.job.dictionary, DictionaryChoice::learned_default(32));
         let p: dictionary::AmplifyParams =
             params(&serde_json::json!({"job": {"dictionary": "complete"}})).unwrap();
         assert_eq!(p.job.dictionary, DictionaryChoice::Complete);

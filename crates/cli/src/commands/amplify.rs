@@ -51,12 +51,8 @@ pub(crate) struct Args {
     /// The paper's plain method (section 5.3), for comparison: no residual correction, no
     /// detail-energy normalisation and always the best-matching atom (less consistent with the
     /// input, a visible grid, details repeated along rows of primitives).
-    #[arg(long, conflicts_with = "residual_correction")]
-    pub(crate) paper: bool,
-    /// Add the coarse residual back so the output reduces to the input (the default; kept
-    /// for compatibility, not in the paper).
     #[arg(long)]
-    pub(crate) residual_correction: bool,
+    pub(crate) paper: bool,
     /// Interpolation of the residual layer (not with --paper): lanczos3 (the default) keeps
     /// the input's finest relief at the same energy between its samples as on them; keys (the
     /// Keys cubic) keeps it on the samples and smooths it between them, a faint row-and-column

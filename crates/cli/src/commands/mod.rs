@@ -35,7 +35,7 @@ pub(crate) use crate::args::{ReadArgs, parse_cell_size, parse_crop, parse_image_
 
 /// Largest raster read from a device or pipe without `--max-input-cells` (2^24 cells: the
 /// stream is read up to 512 MiB).
-const STREAM_CELLS: usize = 1 << 24;
+const DEVICE_READ_CELLS: usize = 1 << 24;
 
 /// [`read_raster`] of a terrain that must be void-free: `--fill-voids` (in `read`) fills
 /// the voids on reading; without it they are an error naming the flag.
@@ -122,11 +122,11 @@ pub(crate) fn read_raster_for(
     let stream = meta.is_some_and(|m| !m.is_file());
     if stream {
         // A device or pipe has no length: relief-io reads at most 32 bytes per cell of it, so
-        // its cells are bounded tighter, and without --max-input-cells by STREAM_CELLS (an
+        // its cells are bounded tighter, and without --max-input-cells by DEVICE_READ_CELLS (an
         // endless `/dev/zero` is refused after 512 MiB, not after gigabytes).
         memory_cells /= 3;
         if read.max_input_cells.is_none() {
-            opts.max_cells = opts.max_cells.min(STREAM_CELLS);
+            opts.max_cells = opts.max_cells.min(DEVICE_READ_CELLS);
         }
     }
     // relief's own `.r16` states its vertical mapping (and size) in its sidecar; without it
@@ -177,7 +177,7 @@ pub(crate) fn read_raster_for(
             )
         } else if stream && read.max_input_cells.is_none() {
             format!(
-                "cannot read {}: a device or pipe is read up to {STREAM_CELLS} cells unless \
+                "cannot read {}: a device or pipe is read up to {DEVICE_READ_CELLS} cells unless \
                  --max-input-cells says more",
                 path.display()
             )

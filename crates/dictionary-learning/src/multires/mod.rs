@@ -94,6 +94,14 @@ pub enum DictionaryChoice {
 }
 
 impl DictionaryChoice {
+    /// Learning iterations of the default learned dictionary (and of `--atoms N`).
+    pub const DEFAULT_ITERATIONS: usize = 3;
+
+    /// `n_atoms` atoms learned in [`Self::DEFAULT_ITERATIONS`] iterations.
+    pub const fn learned_default(n_atoms: usize) -> Self {
+        Self::learned(n_atoms, Self::DEFAULT_ITERATIONS)
+    }
+
     /// [`DictionaryChoice::Learned`]: `n_atoms` atoms learned in `iterations` iterations.
     pub const fn learned(n_atoms: usize, iterations: usize) -> Self {
         DictionaryChoice::Learned {
@@ -203,7 +211,7 @@ impl Default for AmplifySettings {
             step: None,
             steps: 1,
             sparsity: 1,
-            dictionary: DictionaryChoice::learned(256, 3),
+            dictionary: DictionaryChoice::learned_default(256),
             candidate_step: 1,
             max_candidates: 65_536,
             max_learning_pool: 4096,

@@ -34,10 +34,7 @@ pub(crate) fn stage_amplify_job() -> AmplifySettings {
     AmplifySettings {
         steps: 2,
         radius: 2.0,
-        dictionary: DictionaryChoice::Learned {
-            n_atoms: 256,
-            iterations: 3,
-        },
+        dictionary: DictionaryChoice::learned_default(256),
         ..AmplifySettings::default()
     }
 }
