@@ -71,8 +71,8 @@ pub(crate) struct Args {
     /// Crop `X,Y,W,H` (columns, rows) applied after reading.
     #[arg(long, value_parser = super::parse_crop)]
     pub(crate) crop: Option<relief_heightfield::Window>,
-    /// Meshing voxel edge in metres; feature sizes are checked against it (default: derived
-    /// from the DEM's cell size, relief and extent).
+    /// Meshing voxel edge in metres (default: a third of the smallest feature asked for, at
+    /// most 512 cells across the DEM).
     #[arg(long, conflicts_with = "resolution")]
     pub(crate) voxel: Option<f32>,
     /// Mesh cells per DEM cell horizontally (sets the voxel to the larger cell / N).
@@ -82,7 +82,15 @@ pub(crate) struct Args {
     /// watertight).
     #[arg(long)]
     pub(crate) max_triangles: Option<usize>,
-    /// Multiplies every derived feature size (1 = physical defaults from the DEM).
+    /// Keep the DEM's own cells. By default, when they are coarser than a surface feature needs
+    /// (hoodoos: their height, 12 m; arches: half their span, 15 m; shore: half the cliff
+    /// retreat, 15 m; overhangs: 20 m), the scene is built on a window of the DEM, centred and
+    /// as wide as the features' voxel affords (512 voxels), refined (wavelet, spectral model)
+    /// to that cell. With --raw-dem such features are refused with a note naming the cell they
+    /// need.
+    #[arg(long)]
+    pub(crate) raw_dem: bool,
+    /// Multiplies every feature size (1 = the physical defaults in metres, docs/VOLUME_SIZES.md).
     #[arg(long, default_value_t = 1.0)]
     pub(crate) scale: f32,
     /// Karst budget in carving steps (default: from a passage density of 6 km per km^2).
@@ -209,14 +217,16 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(p) = &args.mask {
         job.recipe.mask = Some(crate::volume_io::read_mask(p, &hf, ctx)?);
     }
+    let amplified = amplify_window(&mut hf, &job, &args, ctx)?;
     let (cx, cy) = hf.cell_size();
     job.recipe.voxel = args
         .voxel
         .or(args.resolution.map(|r| cx.max(cy) as f32 / r));
     let progress = ctx.progress();
-    let built = job
+    let mut built = job
         .build(&hf, &progress)
         .context("cannot build the scene")?;
+    built.figures.notes.extend(amplified);
     crate::preflight::volume(ctx, &job, &built, args.mesh.as_deref(), args.image_size)?;
     let out = job
         .finish(built, &progress)
@@ -226,3 +236,95 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     drop(progress);
     crate::staging::print(&text)
 }
+
+/// When the DEM's cells are coarser than a surface feature asked for needs
+/// ([`relief_implicit_volume::recipe::FeatureSizes::needed_cell_for`]) and `--raw-dem` is not given, replaces `hf` by a window
+/// of it refined to that cell (issue 42: features at their physical size on amplified terrain,
+/// never kilometre-wide caves on coarse cells): the window is centred, as wide as 512 of the
+/// features' voxels ([`relief_implicit_volume::recipe::FeatureSizes::voxel_for`]) or the whole DEM when smaller, analysed
+/// with a margin of [`MARGIN`] cells and refined by `L` wavelet levels (`2^L` finer, the
+/// smallest `L` that reaches the cell). Returns the note saying what was done (printed and put
+/// in the report), none when `hf` is kept.
+fn amplify_window(
+    hf: &mut relief_heightfield::Heightfield,
+    job: &VolumeJob,
+    args: &Args,
+    ctx: &Ctx,
+) -> Result<Option<String>> {
+    let r = &job.recipe;
+    let sizes = r.sizes.scaled(r.scale);
+    let Some(need) = sizes.needed_cell_for(&r.features) else {
+        return Ok(None);
+    };
+    let (cx, cy) = hf.cell_size();
+    let cell = cx.max(cy);
+    if args.raw_dem || cell <= f64::from(need) * 1.001 {
+        return Ok(None);
+    }
+    if args.mask.is_some() {
+        bail!(
+            "--mask: the DEM's {cell:.1} m cells are coarser than the {need:.1} m the features \
+             need, so the scene is built on a refined window of it, which a DEM-sized mask \
+             does not fit; give --raw-dem (features that need finer cells are then refused) or \
+             crop and refine the DEM and its mask first (relief refine)"
+        );
+    }
+    let levels = (cell / f64::from(need)).log2().ceil().max(1.0) as u32;
+    if levels > 8 {
+        bail!(
+            "{}: {cell:.1} m cells are over 256 times coarser than the {need:.1} m the features \
+             ask for; use a finer DEM, fewer features (--features), a larger --scale, or \
+             --raw-dem",
+            args.input.display()
+        );
+    }
+    let side = sizes
+        .voxel_for(&r.features)
+        .map_or(f64::INFINITY, |v| 512.0 * f64::from(v));
+    let (w, h) = (hf.width(), hf.height());
+    let win = |n: usize, c: f64| ((side / c).ceil() as usize + 1).clamp(3.min(n), n);
+    let (ww, wh) = (win(w, cx), win(h, cy));
+    let (x0, y0) = ((w - ww) / 2, (h - wh) / 2);
+    // A margin of source cells around the window for the wavelet analysis.
+    let (mx0, my0) = (x0.saturating_sub(MARGIN), y0.saturating_sub(MARGIN));
+    let (mx1, my1) = ((x0 + ww + MARGIN).min(w), (y0 + wh + MARGIN).min(h));
+    let src = hf
+        .crop(mx0, my0, mx1 - mx0, my1 - my0)
+        .context("cannot take the window to amplify")?;
+    let settings = relief_wavelet_lod::RefineSettings {
+        extra_levels: levels,
+        seed: r.seed,
+        ..Default::default()
+    };
+    let refiner = relief_wavelet_lod::Refiner::new(&src, &settings)
+        .context("cannot analyse the window to amplify")?;
+    let k = 1usize << levels;
+    // Node-registered: `n` source nodes span `n - 1` cells, i.e. `(n - 1) k + 1` fine nodes.
+    let out = refiner
+        .render_window(
+            (x0 - mx0) * k,
+            (y0 - my0) * k,
+            (ww - 1) * k + 1,
+            (wh - 1) * k + 1,
+        )
+        .context("cannot refine the window")?;
+    let (fx, fy) = out.cell_size();
+    let note = format!(
+        "volume: built on a {:.0} x {:.0} m window (columns {x0}..{}, rows {y0}..{}) of the \
+         DEM refined {k}x (wavelet, {levels} levels) from {cell:.1} m to {:.1} m cells: the \
+         features need cells of at most {need:.1} m and their voxel affords {:.0} m a side \
+         (--crop picks another window, --raw-dem keeps the DEM)",
+        (ww - 1) as f64 * cx,
+        (wh - 1) as f64 * cy,
+        x0 + ww,
+        y0 + wh,
+        fx.max(fy),
+        side.min(f64::from(u32::MAX)),
+    );
+    ctx.note(format!("note: {note}"));
+    *hf = out;
+    Ok(Some(note))
+}
+
+/// Source cells around an amplified window that the wavelet analysis also sees.
+const MARGIN: usize = 8;

@@ -34,7 +34,7 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
         "volume {} --crop 200,160,32,32 \
          --features sea,caves,karst,hoodoos,arches,islands,overhangs --mesh {} \
          --render {} --section {} --closeups {} --report {} --max-triangles 20000 \
-         --image-size 64x48 --resolution 1 --seed 3",
+         --image-size 64x48 --resolution 1 --seed 3 --raw-dem",
         &[&input, &glb, &png, &sec, &close, &report],
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -57,7 +57,8 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
     assert!(stdout.contains("no sea, voxel"), "{stdout}");
     assert!(!stdout.lines().any(|l| l.starts_with("sea:")), "{stdout}");
     // Every other requested feature added primitives to the tree, or a note says why it could
-    // not be resolved (at one voxel per 61.7 m cell, hoodoos of tens of metres cannot).
+    // not be built (--raw-dem: on 61.7 m cells hoodoos, arches and overhangs are refused,
+    // naming the cell they need).
     for f in ["karst", "overhangs", "hoodoos", "arches", "islands"] {
         match stdout.lines().find(|l| l.starts_with(&format!("{f}:"))) {
             Some(line) => {
@@ -65,9 +66,10 @@ fn volume_writes_mesh_render_and_section_of_a_canyon_crop() {
                 assert!(n > 0, "{line}");
             }
             None => assert!(
-                stdout
-                    .lines()
-                    .any(|l| l.starts_with("note:") && l.contains(&format!("{f} skipped"))),
+                stdout.lines().any(|l| l.starts_with("note:")
+                    && (l.contains(&format!("{f} skipped"))
+                        || (l.contains(&format!("{f} refused: they need DEM cells of at most"))
+                            && l.contains("61.7 m")))),
                 "no `{f}` line nor note:\n{stdout}"
             ),
         }
@@ -276,7 +278,7 @@ fn volume_sea_level_puts_a_lake_shore_in_the_canyon() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("r.json");
     let stdout = ok(&relief_line(
-        "volume {} --crop 200,160,32,32 --features sea,caves --sea-level 685 \
+        "volume {} --crop 218,160,12,12 --features sea,caves --sea-level 685 \
          --render {} --image-size 32x24 --report {}",
         &[&gc(), &s(&dir.path().join("r.png")), &report],
     ));
@@ -352,4 +354,67 @@ fn volume_renders_over_the_time_budget_are_refused_before_starting() {
         "{err}"
     );
     assert!(err.contains("--image-size"), "{err}");
+}
+
+/// Issue 42: on the fixture's 61.7 m cells, hoodoos (which need 12 m cells) are built on a
+/// centred window refined 8x (three wavelet levels, 7.7 m cells) as wide as their voxel affords,
+/// a note says so, and the report lists each feature's sizes in metres; `--raw-dem` refuses
+/// them instead, naming the cell they need. The sizes do not follow the crop: the same heights
+/// on a 24 and a 48 cell crop.
+#[test]
+fn volume_amplifies_a_window_for_features_finer_than_the_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |crop: &str, raw: bool| {
+        let report = dir.path().join(format!("r{crop}{raw}.json"));
+        let out = relief_line(
+            &format!(
+                "volume {{}} --crop {crop} --features hoodoos,karst --report {{}}{}",
+                if raw { " --raw-dem" } else { "" }
+            ),
+            &[&gc(), &report],
+        );
+        let stdout = ok(&out);
+        (stdout, json(&report))
+    };
+    let (stdout, r) = run("200,160,24,24", false);
+    assert!(
+        stdout.contains("refined 8x (wavelet, 3 levels) from 61.7 m to 7.7 m cells"),
+        "{stdout}"
+    );
+    assert!(
+        (r["dimensions"]["cell_m"].as_f64().unwrap() - 7.713).abs() < 0.01,
+        "{r}"
+    );
+    let sizes = &r["dimensions"]["sizes"];
+    let h = &sizes["hoodoos"];
+    assert!(h["count"].as_u64().unwrap() > 0, "{r}");
+    assert!(
+        h["min"].as_f64().unwrap() >= 1.5 && h["max"].as_f64().unwrap() <= 45.0,
+        "{h}"
+    );
+    let k = &sizes["karst"];
+    assert!(
+        k["measure"] == "passage radius" && k["max"].as_f64().unwrap() <= 15.0,
+        "{k}"
+    );
+    assert!(r["notes"].to_string().contains("refined 8x"), "{r}");
+    // A larger crop: a window of the same size, the same sizes.
+    let (_, r2) = run("188,148,48,48", false);
+    let h2 = &r2["dimensions"]["sizes"]["hoodoos"];
+    let med = |h: &serde_json::Value| h["median"].as_f64().unwrap();
+    assert!((med(h) - med(h2)).abs() <= 0.3 * med(h), "{h} vs {h2}");
+    assert_eq!(r["width"], r2["width"]);
+    // --raw-dem: refused with the cell they need, karst still carved at its radius.
+    let (stdout, r) = run("200,160,24,24", true);
+    assert!(
+        stdout.contains(
+            "hoodoos refused: they need DEM cells of at most 12.0 m, this DEM's are 61.7 m"
+        ),
+        "{stdout}"
+    );
+    assert!(r["dimensions"]["sizes"]["hoodoos"].is_null(), "{r}");
+    assert!(
+        r["dimensions"]["sizes"]["karst"]["count"].as_u64().unwrap() > 0,
+        "{r}"
+    );
 }

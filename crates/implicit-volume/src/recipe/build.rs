@@ -44,8 +44,14 @@ impl Basis<'_> {
 
     /// Whether weathering `f` at `spacing` over the whole DEM is beyond a run's budget
     /// ([`WEATHERING_MAX_SAMPLES`]; a note then names the window that fits).
-    fn too_large(&self, f: Feature, spacing: f32, o: &mut Out<'_>) -> bool {
-        let n = o.b.candidate_count(spacing);
+    fn too_large(
+        &self,
+        f: Feature,
+        spacing: f32,
+        zband: Option<(f32, f32)>,
+        o: &mut Out<'_>,
+    ) -> bool {
+        let n = o.b.candidate_count(spacing, zband);
         if n <= WEATHERING_MAX_SAMPLES as f64 {
             return false;
         }
@@ -359,11 +365,16 @@ impl Basis<'_> {
         };
         // Spheres finer than the soft strata, so hard ones survive as ledges, but at least a
         // sixth of the retreat (the cut's primitive count grows with the inverse cube).
+        // The height band the waves reach (what the shore effects sample).
+        let band = (
+            sea_level - 0.3 * sz.sea_radius_m,
+            sea_level + sz.sea_height_m,
+        );
         let soft = o.dims.soft_thickness_m.unwrap_or(sz.sea_radius_m);
         let cr = (0.4 * soft).max(sz.cliff_retreat_m / 6.0);
         if self.has(Feature::Cliffs)
             && !self.too_coarse(Feature::Cliffs, &mut o.dims)
-            && !self.too_large(Feature::Cliffs, 0.75 * cr, o)
+            && !self.too_large(Feature::Cliffs, 0.75 * cr, Some(band), o)
         {
             let c = SeaCliffs {
                 sea_level,
@@ -383,7 +394,7 @@ impl Basis<'_> {
             .find(|&f| self.has(f));
         if let Some(f) = shore
             && !self.too_coarse(f, &mut o.dims)
-            && !self.too_large(f, 0.4 * sz.sea_radius_m, o)
+            && !self.too_large(f, 0.4 * sz.sea_radius_m, Some(band), o)
         {
             let r = sz.sea_radius_m;
             let dims = &mut o.dims;
@@ -493,7 +504,7 @@ impl Basis<'_> {
         let mut rain = self.has(Feature::Rain) || self.has(Feature::Overhangs);
         if (wind || rain)
             && (self.too_coarse(Feature::Overhangs, &mut o.dims)
-                || self.too_large(Feature::Overhangs, 0.5 * self.wr, o))
+                || self.too_large(Feature::Overhangs, 0.5 * self.wr, None, o))
         {
             (wind, rain) = (false, false);
         }

@@ -361,8 +361,9 @@ impl SceneBuilder {
     }
 
     /// Number of surface samples a weathering effect (sea, wind, rain) at `spacing` metres
-    /// would consider on this DEM (without a z band): what its cost grows with.
-    pub fn candidate_count(&self, spacing: f32) -> f64 {
+    /// would consider on this DEM, in the cells reaching into `zband` (all without one): what
+    /// its cost grows with.
+    pub fn candidate_count(&self, spacing: f32, zband: Option<(f32, f32)>) -> f64 {
         let f = self.frame;
         let per_xy = ((f.cx as f64 * f.cy as f64) / (spacing as f64 * spacing as f64))
             .ceil()
@@ -371,6 +372,11 @@ impl SceneBuilder {
         for i in 0..f.height - 1 {
             for j in 0..f.width - 1 {
                 let (lo, hi) = self.cell_range(j, i);
+                if let Some((a, b)) = zband
+                    && (hi < a || lo > b)
+                {
+                    continue;
+                }
                 n += per_xy * (1.0 + ((hi - lo) / spacing).floor() as f64).min(32.0);
             }
         }
@@ -388,7 +394,7 @@ impl SceneBuilder {
     ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
         w.check(self.min_len)?;
         region.check(&self.frame)?;
-        if self.candidate_count(w.spacing) > (1u64 << 22) as f64 {
+        if self.candidate_count(w.spacing, zband) > (1u64 << 22) as f64 {
             return Err(Error::param(
                 "spacing",
                 w.spacing,
