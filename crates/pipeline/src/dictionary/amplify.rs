@@ -79,25 +79,62 @@ impl AmplifyStage {
     }
 }
 
-/// One table row of the box protocol: consistency (% of relief), signed spectral-slope error
-/// over the added octaves, slope EMD (degrees), Laplacian EMD, detail phase swing, high-pass
-/// phase swing of the output `out`, its drainage (pits per km^2, mean closed-depression
-/// depth in m, drainage-area exponent beta: `relief_landscape::stats`, as
-/// `terrain_quality.py`), seconds.
-fn quality_cells(r: &BoxProtocolRow, out: &Heightfield, seconds: f64) -> Result<Vec<f64>> {
-    let d = relief_landscape::stats::drainage(out);
-    Ok(vec![
-        100.0 * r.consistency,
-        r.slope_signed,
-        r.slope_emd,
-        r.curvature_emd,
-        r.swing,
-        highpass_swing(out)?,
-        d.pits_per_km2,
-        d.fill_depth_m,
-        d.beta,
-        seconds,
-    ])
+/// One table row of the box protocol, for the output `out`: its measures by name (the table
+/// takes them in the order of [`QualityRow::cells`]).
+#[derive(Debug, Clone, Copy)]
+struct QualityRow {
+    /// Consistency, % of relief.
+    consistency_pct: f64,
+    /// Signed spectral-slope error over the added octaves.
+    slope_signed: f64,
+    /// Slope EMD (degrees).
+    slope_emd: f64,
+    /// Laplacian EMD.
+    curvature_emd: f64,
+    /// Detail phase swing.
+    swing: f64,
+    /// High-pass phase swing of the output.
+    hp_swing: f64,
+    /// Drainage (`relief_landscape::stats`, as `terrain_quality.py`): pits per km^2, mean
+    /// closed-depression depth (m), drainage-area exponent beta.
+    pits_per_km2: f64,
+    fill_depth_m: f64,
+    beta: f64,
+    seconds: f64,
+}
+
+impl QualityRow {
+    fn of(r: &BoxProtocolRow, out: &Heightfield, seconds: f64) -> Result<Self> {
+        let d = relief_landscape::stats::drainage(out);
+        Ok(Self {
+            consistency_pct: 100.0 * r.consistency,
+            slope_signed: r.slope_signed,
+            slope_emd: r.slope_emd,
+            curvature_emd: r.curvature_emd,
+            swing: r.swing,
+            hp_swing: highpass_swing(out)?,
+            pits_per_km2: d.pits_per_km2,
+            fill_depth_m: d.fill_depth_m,
+            beta: d.beta,
+            seconds,
+        })
+    }
+
+    /// The table's cells, in its column order.
+    fn cells(&self) -> Vec<f64> {
+        vec![
+            self.consistency_pct,
+            self.slope_signed,
+            self.slope_emd,
+            self.curvature_emd,
+            self.swing,
+            self.hp_swing,
+            self.pits_per_km2,
+            self.fill_depth_m,
+            self.beta,
+            self.seconds,
+        ]
+    }
 }
 
 /// The protocol row of `out` after the landform pass (`relief amplify`'s default), with its
@@ -108,7 +145,7 @@ fn landform_row(
     out: &Heightfield,
     fac: usize,
     secs: f64,
-) -> Result<(String, Vec<f64>)> {
+) -> Result<(String, QualityRow)> {
     let t = Instant::now();
     let (finished, _) = relief_landscape::landform::finish(
         out,
@@ -125,7 +162,7 @@ fn landform_row(
     cx.section.figure(&format!("landform_beta_x{fac}"), d.beta);
     Ok((
         format!("sparse + landform pass, the CLI default (x{fac})"),
-        quality_cells(&q, &finished, secs)?,
+        QualityRow::of(&q, &finished, secs)?,
     ))
 }
 
@@ -321,13 +358,13 @@ impl AmplifyStage {
         let coarse = truth.downsample_box(fac)?;
         // The truth's own measures: its phase swing is what non-stationary relief gives
         // without any grid (the swing of a small crop is far from 1).
-        let mut rows: Vec<(String, Vec<f64>)> = vec![(
+        let mut rows: Vec<(String, QualityRow)> = vec![(
             format!("truth (reference) (x{fac})"),
-            quality_cells(&box_protocol(truth, &coarse, truth, fac)?, truth, 0.0)?,
+            QualityRow::of(&box_protocol(truth, &coarse, truth, fac)?, truth, 0.0)?,
         )];
         cx.section
-            .figure(&format!("hp_swing_truth_x{fac}"), rows[0].1[5]);
-        let truth_swing = rows[0].1[4];
+            .figure(&format!("hp_swing_truth_x{fac}"), rows[0].1.hp_swing);
+        let truth_swing = rows[0].1.swing;
         cx.section
             .figure(&format!("swing_truth_x{fac}"), truth_swing);
         // `true`: the library default; `false`: the paper's plain method (`--paper`).
@@ -361,12 +398,12 @@ impl AmplifyStage {
             } else {
                 format!("sparse --paper (plain method) (x{fac})")
             };
-            rows.push((label, quality_cells(&q, &out, secs)?));
+            rows.push((label, QualityRow::of(&q, &out, secs)?));
             if residual {
                 rows.push(landform_row(cx, (truth, &coarse), &out, fac, secs)?); // + landform
                 let tag = format!("x{fac}");
                 cx.section
-                    .figure(&format!("hp_swing_{tag}"), rows[rows.len() - 2].1[5]);
+                    .figure(&format!("hp_swing_{tag}"), rows[rows.len() - 2].1.hp_swing);
                 cx.section
                     .figure(&format!("consistency_{tag}"), q.consistency);
                 cx.section
@@ -393,7 +430,7 @@ impl AmplifyStage {
         let secs = t.elapsed().as_secs_f64();
         rows.push((
             format!("bicubic (x{fac})"),
-            quality_cells(
+            QualityRow::of(
                 &box_protocol(truth, &coarse, &bicubic, fac)?,
                 &bicubic,
                 secs,
@@ -411,14 +448,14 @@ impl AmplifyStage {
         let secs = t.elapsed().as_secs_f64();
         rows.push((
             format!("noise baseline, fig. 15 (x{fac})"),
-            quality_cells(&box_protocol(truth, &coarse, &noise, fac)?, &noise, secs)?,
+            QualityRow::of(&box_protocol(truth, &coarse, &noise, fac)?, &noise, secs)?,
         ));
         if st == steps {
             spectra.push(("bicubic".into(), bicubic));
             spectra.push(("noise".into(), noise));
         }
         let rows_ref: Vec<(&str, Vec<f64>)> =
-            rows.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+            rows.iter().map(|(n, v)| (n.as_str(), v.cells())).collect();
         cx.section.numbers(
             &format!("amplification x{fac} on real data (guerin2016 5.3, issue-15 box protocol)"),
             &format!(
