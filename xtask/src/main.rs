@@ -16,6 +16,7 @@ use relief_pipeline as pipeline;
 
 mod bench;
 mod golden;
+mod cycles;
 mod tidy;
 
 /// Workspace automation for relief.

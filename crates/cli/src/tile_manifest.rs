@@ -434,13 +434,40 @@ pub(crate) fn write_vrt_named(
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
+/// A manifest of 4 x 2 tasks of 32 px over a 100 x 37 output (`phases` 0: a windowable plan;
+/// 5: flow), for the targets and the manifest's unit tests.
+pub(crate) fn sample(phases: usize) -> Manifest {
+    Manifest {
+        format: FORMAT.into(),
+        version: VERSION,
+        command: if phases > 0 { "flow" } else { "refine" }.into(),
+        args: vec![],
+        job: serde_json::Value::Null,
+        inputs: vec![],
+        prepared: bytes_sum(b"", "input.tif".into()),
+        output: OutputGrid {
+            path: "/o.tif".into(),
+            width: 100,
+            height: 37,
+            cell_size: [1.0, 1.0],
+            georef: None,
+        },
+        tile: 32,
+        tiles_x: 4,
+        tiles_y: 2,
+        tasks: 8,
+        phases,
+        plan_id: "ab".repeat(32),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn windows_cover_the_output_once() {
-        let m = crate::fuzzing::sample(0);
+        let m = sample(0);
         let mut seen = vec![0u8; 100 * 37];
         for i in 0..m.tasks {
             let [x, y, w, h] = m.window(i);
