@@ -418,3 +418,49 @@ fn volume_amplifies_a_window_for_features_finer_than_the_cells() {
         "{r}"
     );
 }
+
+/// Issue 42: a coast of 567 m cells (topobathy's scale) gets its shore features at physical
+/// size on a window around the coast refined 64x (8.9 m cells), the DEM's sea level passed on;
+/// with --raw-dem they are refused naming the cell they need. Never kilometre-wide caves.
+#[test]
+fn volume_builds_the_shore_of_a_coarse_coast_on_an_amplified_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let hf = relief_heightfield::Heightfield::from_fn(40, 40, 567.0, 567.0, |x, y| {
+        if x < 17 {
+            -1.0
+        } else {
+            (x as f32 - 16.5) * 40.0 + 25.0 * ((y as f32) * 0.7).sin()
+        }
+    });
+    let input = write(dir.path(), "coast.tif", &hf);
+    let run = |raw: bool| {
+        let report = dir.path().join(format!("c{raw}.json"));
+        let stdout = ok(&relief_line(
+            &format!(
+                "volume {{}} --cell-size 567 --features sea,caves,cliffs --report {{}}{}",
+                if raw { " --raw-dem" } else { "" }
+            ),
+            &[&s(&input), &report],
+        ));
+        (stdout, json(&report))
+    };
+    let (stdout, r) = run(false);
+    assert!(
+        stdout.contains("refined 64x (wavelet, 6 levels) from 567.0 m to 8.9 m cells"),
+        "{stdout}"
+    );
+    assert_eq!(r["sea_level_m"], 0.0, "{r}");
+    let sizes = &r["dimensions"]["sizes"];
+    assert!(sizes["sea"]["count"].as_u64().unwrap() > 0, "{r}");
+    assert!(sizes["sea"]["max"].as_f64().unwrap() <= 15.0, "{r}");
+    if let Some(m) = sizes["caves"]["max"].as_f64() {
+        assert!(m <= 15.0, "{r}");
+    }
+    let (stdout, r) = run(true);
+    assert!(
+        stdout
+            .contains("sea refused: they need DEM cells of at most 15.0 m, this DEM's are 567.0 m"),
+        "{stdout}"
+    );
+    assert!(r["dimensions"]["sizes"]["sea"].is_null(), "{r}");
+}
