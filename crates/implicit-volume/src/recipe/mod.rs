@@ -195,7 +195,7 @@ impl Default for Densities {
             hoodoos_per_km2: 20.0,
             arches_per_km2: 2.0,
             islands_per_km2: 0.1,
-            caves_per_km2: 1.0,
+            caves_per_km2: 10.0,
             karst_km_per_km2: 6.0,
             karst_cliff_seeds_per_km2: 4.0,
         }
