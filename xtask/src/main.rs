@@ -15,8 +15,8 @@ use clap::{Parser, Subcommand};
 use relief_pipeline as pipeline;
 
 mod bench;
-mod golden;
 mod cycles;
+mod golden;
 mod tidy;
 
 /// Workspace automation for relief.

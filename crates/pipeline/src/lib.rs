@@ -37,6 +37,7 @@ pub mod report;
 mod sparse;
 pub mod spec;
 mod volume;
+pub mod volume_window;
 mod wavelet;
 
 pub use report::{Report, Section};

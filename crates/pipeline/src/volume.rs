@@ -31,6 +31,9 @@ pub(crate) struct VolumeParams {
     pub(crate) max_size: usize,
     /// Which terrain the scene is built on.
     pub(crate) input: VolumeInput,
+    /// Keep the terrain's own cells (`relief volume --raw-dem`): features that need finer
+    /// cells are refused with a note instead of built on a refined window.
+    pub(crate) raw_dem: bool,
 }
 
 /// The terrain the `volume` stage builds on.
@@ -67,6 +70,7 @@ impl Default for VolumeParams {
             },
             max_size: 128,
             input: VolumeInput::Source,
+            raw_dem: false,
         }
     }
 }
@@ -96,7 +100,7 @@ impl Stage for VolumeStage {
         cx.section.figure("input", which);
         let terrain = &terrain;
         let (w, h) = (terrain.width(), terrain.height());
-        let hf = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
+        let mut hf = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
             let (cw, ch) = (w.min(p.max_size), h.min(p.max_size));
             let (x, y) = ((w - cw) / 2, (h - ch) / 2);
             cx.section.figure("crop", [x, y, cw, ch]);
@@ -115,6 +119,23 @@ impl Stage for VolumeStage {
         } else {
             job.render = true;
             job.closeups = true;
+            // As `relief volume`: a DEM coarser than the features need is replaced by a window
+            // of it refined to their cell (the golden run keeps one voxel per DEM cell).
+            if !p.raw_dem {
+                let options = crate::volume_window::WindowOptions {
+                    raw_dem: false,
+                    mask: job.recipe.mask.is_some(),
+                    sea_level: job.recipe.sea_level,
+                    input: which,
+                };
+                if let Some(note) =
+                    crate::volume_window::amplify_window(&mut hf, &mut job, &options)?
+                {
+                    cx.section.note(&note);
+                    cx.section
+                        .figure("amplified_window", [hf.width(), hf.height()]);
+                }
+            }
         }
         // Pre-flight under `relief run --max-memory`: the mesh and the images.
         cx.config.limits.check_memory(
