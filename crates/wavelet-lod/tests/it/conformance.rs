@@ -25,7 +25,7 @@ fn max_abs(v: &[f32]) -> f32 {
 }
 
 fn reference() -> Value {
-    let text = include_str!("data/pywt_reference.json");
+    let text = include_str!("../data/pywt_reference.json");
     serde_json::from_str(text).expect("reference json")
 }
 
