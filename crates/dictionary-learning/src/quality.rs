@@ -124,26 +124,13 @@ pub fn box_protocol(
     })
 }
 
-/// 5-point Laplacian (per-axis cell sizes) of the interior cells.
-fn laplacian(hf: &Heightfield) -> Vec<f64> {
-    let (w, h) = (hf.width(), hf.height());
-    let (cx, cy) = hf.cell_size();
-    let mut out = Vec::with_capacity(w.saturating_sub(2) * h.saturating_sub(2));
-    for y in 1..h.saturating_sub(1) {
-        for x in 1..w.saturating_sub(1) {
-            let c = hf.get(x, y) as f64;
-            let lx = (hf.get(x - 1, y) as f64 + hf.get(x + 1, y) as f64 - 2.0 * c) / (cx * cx);
-            let ly = (hf.get(x, y - 1) as f64 + hf.get(x, y + 1) as f64 - 2.0 * c) / (cy * cy);
-            out.push(lx + ly);
-        }
-    }
-    out
-}
-
 /// Laplacian-curvature histogram distance of `a` to `truth` (see
 /// [`BoxProtocolRow::curvature_emd`]); 0 for grids smaller than 3 x 3.
 pub fn laplacian_histogram_distance(a: &Heightfield, truth: &Heightfield) -> f64 {
-    let (la, lt) = (laplacian(a), laplacian(truth));
+    let (la, lt) = (
+        relief_heightfield::terrain::laplacian(a),
+        relief_heightfield::terrain::laplacian(truth),
+    );
     if la.is_empty() || lt.is_empty() {
         return 0.0;
     }

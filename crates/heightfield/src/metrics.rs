@@ -304,6 +304,25 @@ pub fn quantile(values: &[f32], q: f64) -> Option<f32> {
     Some(v[((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize])
 }
 
+/// Linear-interpolated percentile (`q` in `0..=100`) of sorted values (numpy's default); 0
+/// when empty.
+///
+/// ```
+/// use relief_heightfield::metrics::percentile_sorted;
+/// assert_eq!(percentile_sorted(&[1.0, 2.0, 3.0, 4.0], 50.0), 2.5);
+/// assert_eq!(percentile_sorted(&[1.0, 2.0, 3.0, 4.0], 100.0), 4.0);
+/// ```
+pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let pos = q / 100.0 * (sorted.len() - 1) as f64;
+    let i = pos.floor() as usize;
+    let f = pos - i as f64;
+    let next = sorted[(i + 1).min(sorted.len() - 1)];
+    sorted[i] * (1.0 - f) + next * f
+}
+
 /// Pearson correlation of two equally long series (0 when either is constant).
 ///
 /// ```

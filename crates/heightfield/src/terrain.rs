@@ -92,3 +92,20 @@ pub fn hillshade(
         if d.is_finite() { d.max(0.0) } else { 0.0 }
     })
 }
+
+/// 5-point Laplacian of the interior cells (m / m^2, true cell sizes).
+pub fn laplacian(hf: &Heightfield) -> Vec<f64> {
+    let (w, h) = (hf.width(), hf.height());
+    let (cx, cy) = hf.cell_size();
+    let z = hf.as_slice();
+    let mut out = Vec::with_capacity(w.saturating_sub(2) * h.saturating_sub(2));
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let c = z[y * w + x] as f64;
+            let dx = z[y * w + x - 1] as f64 + z[y * w + x + 1] as f64 - 2.0 * c;
+            let dy = z[(y - 1) * w + x] as f64 + z[(y + 1) * w + x] as f64 - 2.0 * c;
+            out.push(dx / (cx * cx) + dy / (cy * cy));
+        }
+    }
+    out
+}

@@ -129,10 +129,10 @@ impl Protocol {
         let zoom = spline_zoom(&coarse, factor)?;
         let truth_swing = swing(&truth, &zoom);
         let truth_swing_keys = swing(&truth, &bicubic);
-        let lt = laplacian(&truth);
+        let lt = relief_heightfield::terrain::laplacian(&truth);
         let mut abs: Vec<f64> = lt.iter().map(|v| v.abs()).collect();
         abs.sort_by(f64::total_cmp);
-        let lap_clip = percentile(&abs, 99.0).max(1e-12);
+        let lap_clip = relief_heightfield::metrics::percentile_sorted(&abs, 99.0).max(1e-12);
         let lap_hist = histogram(&lt, lap_clip);
         let truth_energy = block_curvature(&truth, 4 * factor);
         Ok(Self {
@@ -170,8 +170,9 @@ impl Protocol {
             .sum();
         let consistency = (se / down.len() as f64).sqrt() / (self.truth.relief() as f64).max(1e-12);
         let spectral_slope = added_octave_slope(&o, self.factor)?;
-        let curv = histogram(&laplacian(&o), self.lap_clip);
-        let curv_emd = emd(&curv, &self.lap_hist) * (2.0 / 90.0);
+        let curv = histogram(&relief_heightfield::terrain::laplacian(&o), self.lap_clip);
+        let curv_emd =
+            relief_heightfield::metrics::histogram_emd(&curv, &self.lap_hist) * (2.0 / 90.0);
         let energy = block_curvature(&o, 4 * self.factor);
         let (placement, flat_excess) = placement(&self.truth_energy, &energy);
         Ok(Scores {
@@ -204,35 +205,6 @@ pub fn added_octave_slope(hf: &Heightfield, factor: usize) -> Result<f64> {
     Ok(spectral_slope(&spec, 0.5 / factor as f64, 0.5)?)
 }
 
-/// 5-point Laplacian of the interior cells (m / m^2, true cell sizes).
-fn laplacian(hf: &Heightfield) -> Vec<f64> {
-    let (w, h) = (hf.width(), hf.height());
-    let (cx, cy) = hf.cell_size();
-    let z = hf.as_slice();
-    let mut out = Vec::with_capacity(w.saturating_sub(2) * h.saturating_sub(2));
-    for y in 1..h.saturating_sub(1) {
-        for x in 1..w.saturating_sub(1) {
-            let c = z[y * w + x] as f64;
-            let dx = z[y * w + x - 1] as f64 + z[y * w + x + 1] as f64 - 2.0 * c;
-            let dy = z[(y - 1) * w + x] as f64 + z[(y + 1) * w + x] as f64 - 2.0 * c;
-            out.push(dx / (cx * cx) + dy / (cy * cy));
-        }
-    }
-    out
-}
-
-/// Linear-interpolated percentile of sorted values (numpy's default).
-fn percentile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let pos = q / 100.0 * (sorted.len() - 1) as f64;
-    let i = pos.floor() as usize;
-    let f = pos - i as f64;
-    let next = sorted[(i + 1).min(sorted.len() - 1)];
-    sorted[i] * (1.0 - f) + next * f
-}
-
 /// Normalised 90-bin histogram of values clipped into `[-l, l]`.
 fn histogram(v: &[f64], l: f64) -> Vec<f64> {
     let mut hist = vec![0.0f64; 90];
@@ -245,23 +217,12 @@ fn histogram(v: &[f64], l: f64) -> Vec<f64> {
     hist
 }
 
-/// Sum of absolute differences of the cumulative histograms (bin width 1).
-fn emd(a: &[f64], b: &[f64]) -> f64 {
-    let (mut ca, mut cb, mut d) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        ca += x;
-        cb += y;
-        d += (ca - cb).abs();
-    }
-    d
-}
-
 /// Mean squared 5-point Laplacian per `b x b` block of the interior `(w - 2) x (h - 2)` grid
 /// (whole blocks only, row-major).
 pub fn block_curvature(hf: &Heightfield, b: usize) -> Vec<f64> {
     let b = b.max(1);
     let (w, h) = (hf.width().saturating_sub(2), hf.height().saturating_sub(2));
-    let lap = laplacian(hf);
+    let lap = relief_heightfield::terrain::laplacian(hf);
     let (bw, bh) = (w / b, h / b);
     let mut out = vec![0.0f64; bw * bh];
     for y in 0..bh * b {
