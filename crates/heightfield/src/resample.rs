@@ -266,6 +266,58 @@ impl Heightfield {
         self.with_data(out)
     }
 
+    /// Area-consistent box down-sampling of `hf` to `w x h` cells: every output cell is the
+    /// exact area average of the input cells it covers (fractional overlaps weighted), so the
+    /// mean over any output region equals that of the input over the same ground. The cell size
+    /// is scaled to keep the extent.
+    pub fn resample_area(&self, w: usize, h: usize) -> Result<Heightfield> {
+        let hf = self;
+        let (iw, ih) = (hf.width(), hf.height());
+        if w == 0 || h == 0 || w > iw || h > ih {
+            return Err(HeightfieldError::param(
+                "size",
+                format!("{w}x{h}"),
+                "must be in 1..=the input size (down-sampling only)",
+            ));
+        }
+        // Per output index, the (input index, weight) taps of the 1-D area average.
+        let taps = |n_in: usize, n_out: usize| -> Vec<Vec<(usize, f64)>> {
+            let s = n_in as f64 / n_out as f64;
+            (0..n_out)
+                .map(|i| {
+                    let (a, b) = (i as f64 * s, ((i + 1) as f64 * s).min(n_in as f64));
+                    let lo = a.floor() as usize;
+                    let hi = (b.ceil() as usize).min(n_in);
+                    (lo..hi)
+                        .filter_map(|j| {
+                            let ov = (b.min((j + 1) as f64) - a.max(j as f64)) / s;
+                            (ov > 0.0).then_some((j, ov))
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let (tx, ty) = (taps(iw, w), taps(ih, h));
+        let src = hf.as_slice();
+        let mut rows = vec![0.0f64; ih * w];
+        for y in 0..ih {
+            let line = &src[y * iw..(y + 1) * iw];
+            for (x, t) in tx.iter().enumerate() {
+                rows[y * w + x] = t.iter().map(|&(j, wt)| wt * line[j] as f64).sum();
+            }
+        }
+        let data = Array2::from_shape_fn((h, w), |(y, x)| {
+            ty[y]
+                .iter()
+                .map(|&(j, wt)| wt * rows[j * w + x])
+                .sum::<f64>() as f32
+        });
+        let (fx, fy) = (iw as f64 / w as f64, ih as f64 / h as f64);
+        let (cx, cy) = hf.cell_size();
+        let out = Heightfield::from_array(data, cx * fx, cy * fy)?;
+        Ok(out.with_georef(hf.georef().map(|g| g.window(0.0, 0.0, fx, fy))))
+    }
+
     /// Integer box-average reduction by `k` (exact area average of k x k blocks; trailing cells
     /// that do not fill a block are dropped). A cheaper, cruder low-pass than [`Self::resample`].
     pub fn downsample_box(&self, k: usize) -> Result<Self> {
