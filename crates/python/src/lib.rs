@@ -121,6 +121,7 @@ fn _relief(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(windows::amplify_plan, m)?)?;
     m.add_function(wrap_pyfunction!(windows::_amplify_plan, m)?)?;
     m.add_function(wrap_pyfunction!(windows::refine_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(windows::_refine_plan, m)?)?;
     m.add_class::<windows::AmplifyPlan>()?;
     m.add_class::<windows::RefinePlan>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

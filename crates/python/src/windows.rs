@@ -182,10 +182,18 @@ impl RefinePlan {
     }
 
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let f = py.import("relief._relief")?.getattr("refine_plan")?;
+        // The samples as bytes: a pickled numpy array may come back at an unaligned address.
+        let f = py.import("relief._relief")?.getattr("_refine_plan")?;
+        let bytes: Vec<u8> = self
+            .input
+            .as_slice()
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
         let geo: Geo = (None, None, convert::georef_json(&self.input));
         let args = (
-            convert::array(py, self.input.clone()),
+            PyBytes::new(py, &bytes),
+            (self.input.width(), self.input.height()),
             self.input.cell_size(),
             geo,
             self.settings_json.clone(),
@@ -195,6 +203,38 @@ impl RefinePlan {
             .into_any();
         Ok((f, args))
     }
+}
+
+/// Unpickles a [`RefinePlan`].
+#[pyfunction]
+pub(crate) fn _refine_plan(
+    py: Python<'_>,
+    bytes: &[u8],
+    size: (usize, usize),
+    cell_size: (f64, f64),
+    geo: Geo,
+    settings_json: String,
+    paper: bool,
+) -> PyResult<RefinePlan> {
+    let s = refine_settings(&settings_json, paper)?;
+    let data: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let input = Heightfield::new(size.0, size.1, data, cell_size.0, cell_size.1)
+        .map_err(Failure::value)?
+        .with_georef(convert::geo(&geo)?);
+    let (refiner, input) = py.detach(move || {
+        Refiner::new(&input, &s)
+            .map(|r| (r, input))
+            .map_err(Failure::value)
+    })?;
+    Ok(RefinePlan {
+        refiner,
+        input,
+        settings_json,
+        paper,
+    })
 }
 
 /// Analyses a terrain for windowed refinement: see `relief.dask.refine`.

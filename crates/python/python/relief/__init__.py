@@ -118,7 +118,9 @@ def _crs_text(crs: Any) -> Optional[str]:
 
 
 def _f32(array: Any) -> np.ndarray:
-    a = np.asarray(array, dtype=np.float32)
+    # Aligned float32 (a copy only when the dtype or the alignment differs: numpy can hold
+    # unaligned buffers, e.g. unpickled ones, which the native side cannot view).
+    a = np.require(array, dtype=np.float32, requirements=["A"])
     if a.ndim != 2:
         raise ValueError(f"expected a 2-D array (rows, columns), got {a.ndim} dimensions")
     return a

@@ -101,3 +101,8 @@ def refine_plan(input: F32, cell_size: Cell, geo: Geo, settings: str, paper: boo
 
 def _amplify_plan(bytes: bytes, settings_json: str, paper: bool, transform: Optional[Transform]) -> AmplifyPlan:
     """Unpickles an AmplifyPlan."""
+
+def _refine_plan(
+    bytes: bytes, size: Tuple[int, int], cell_size: Cell, geo: Geo, settings_json: str, paper: bool
+) -> RefinePlan:
+    """Unpickles a RefinePlan."""
