@@ -171,8 +171,23 @@ pub fn constrained_learning(
     };
     let mut trace = Vec::new();
     progress.begin("constrained learning", s.iterations as u64);
-    for _ in 0..s.iterations {
+    // Asked before every iteration, after its coding and every 64 atoms: a run past its time
+    // budget (or interrupted from Python) ends with `Stopped` within a fraction of a second.
+    let stop = |it: usize| {
+        if progress.stopped() {
+            Err(LearnError::Stopped(format!(
+                "constrained learning, iteration {} of {}",
+                it + 1,
+                s.iterations
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    for it in 0..s.iterations {
+        stop(it)?;
         let codes = batch_omp(atoms.view(), signals, &omp)?;
+        stop(it)?;
         let rmse = codes_rmse(&codes, k);
         let mut table = CodeTable::new(&codes, s.n_atoms);
         let mut replaced = 0;
@@ -181,6 +196,9 @@ pub fn constrained_learning(
         let worst = crate::ksvd::worst_signals(&codes, &row_norms_sq(&signals));
         let mut next_worst = 0;
         for j in 0..s.n_atoms {
+            if j % 64 == 63 {
+                stop(it)?;
+            }
             let scores = if table.users[j].is_empty() {
                 let Some(&w) = worst.get(next_worst) else {
                     continue;

@@ -245,6 +245,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .finish(built, &progress)
         .context("cannot mesh or render the scene")?;
     let text = files.write(&out, &args.input, args.up == Some(UpArg::Y), &staged)?;
+    // Simplifying and encoding a large mesh ask no deadline: a run past --max-time is not
+    // committed (the staged files are removed), whatever phase it was in.
+    if relief_heightfield::Progress::stopped(&progress) {
+        return Err(crate::budget::Stopped(
+            "volume, after meshing and encoding the outputs".into(),
+        )
+        .into());
+    }
     staged.commit()?;
     drop(progress);
     crate::staging::print(&text)

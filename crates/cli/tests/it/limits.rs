@@ -59,7 +59,7 @@ fn meshing_stops_at_the_time_limit() {
     let input = write(tmp.path(), "flat.tif", &flat);
     let mesh = tmp.path().join("flat.glb");
     let (o, s) = timed(&words(
-        "--max-time 1s volume {} --mesh {} --resolution 4",
+        "--max-time 1s volume {} --mesh {} --resolution 8",
         &[&input, &mesh],
     ));
     stopped(&o, s, &[&mesh]);
@@ -254,7 +254,7 @@ fn every_run_stage_applies_the_memory_limit() {
         ("procedural", r#"{ "max_side": 900 }"#, "16M", "`max_side`"),
         (
             "volume",
-            r#"{ "job": { "recipe": { "voxel": 1.0 } }, "max_size": 0 }"#,
+            r#"{ "job": { "recipe": { "voxel": 1.0 } }, "max_size": 0, "raw_dem": true }"#,
             "1G",
             "`job.recipe.voxel`",
         ),
