@@ -171,19 +171,8 @@ pub fn constrained_learning(
     };
     let mut trace = Vec::new();
     progress.begin("constrained learning", s.iterations as u64);
-    // Asked before every iteration, after its coding and every 64 atoms: a run past its time
-    // budget (or interrupted from Python) ends with `Stopped` within a fraction of a second.
-    let stop = |it: usize| {
-        if progress.stopped() {
-            Err(LearnError::Stopped(format!(
-                "constrained learning, iteration {} of {}",
-                it + 1,
-                s.iterations
-            )))
-        } else {
-            Ok(())
-        }
-    };
+    let stop =
+        |it: usize| crate::ksvd::stop_if_asked(progress, "constrained learning", it, s.iterations);
     for it in 0..s.iterations {
         stop(it)?;
         let codes = batch_omp(atoms.view(), signals, &omp)?;

@@ -377,6 +377,25 @@ pub(crate) fn replace_unused_and_duplicates(
     replaced
 }
 
+/// `Stopped` when `progress` asks the work to stop (its time budget ran out, or Ctrl-C from
+/// Python), naming `what` and the iteration: the learning loops ask before every iteration,
+/// after its coding and every 64 atoms.
+pub(crate) fn stop_if_asked(
+    progress: &dyn Progress,
+    what: &str,
+    it: usize,
+    iterations: usize,
+) -> Result<()> {
+    if progress.stopped() {
+        Err(LearnError::Stopped(format!(
+            "{what}, iteration {} of {iterations}",
+            it + 1
+        )))
+    } else {
+        Ok(())
+    }
+}
+
 /// K-SVD on `signals` (`n x K`, rows already mean-removed) from a random initialisation.
 pub fn ksvd(
     signals: ArrayView2<f32>,
@@ -449,17 +468,7 @@ pub fn ksvd_with_fixed(
     let dim = signals.ncols();
     let mut trace = Vec::with_capacity(s.iterations + 1);
     progress.begin("k-svd", s.iterations as u64);
-    let stop = |it: usize| {
-        if progress.stopped() {
-            Err(LearnError::Stopped(format!(
-                "k-svd, iteration {} of {}",
-                it + 1,
-                s.iterations
-            )))
-        } else {
-            Ok(())
-        }
-    };
+    let stop = |it: usize| stop_if_asked(progress, "k-svd", it, s.iterations);
     for it in 0..s.iterations {
         stop(it)?;
         let codes = batch_omp(atoms.view(), signals, &omp)?;
