@@ -3,7 +3,8 @@
 //! drainage statistics before and after):
 //! `cargo run --release -p relief-landscape --example erode_look [-- DEM...]`
 //! writes `target/look/erode/<dem>.png` (`PRESETS=mountain,desert` picks presets, `OVERRIDES`
-//! a JSON object of `ErodeSettings` fields applied over each).
+//! a JSON object of `ErodeSettings` fields applied over each; `CROP=x,y,w,h` replaces the crop
+//! of the DEMs named).
 
 #![allow(clippy::print_stdout)]
 
@@ -23,9 +24,17 @@ fn main() {
     ];
     let out = relief_testdata::workspace_root().join("target/look/erode");
     std::fs::create_dir_all(&out).expect("output folder");
-    for (id, x, y, w, h) in crops {
+    let crop: Option<Vec<usize>> = std::env::var("CROP").ok().map(|c| {
+        c.split(',')
+            .map(|v| v.parse().expect("CROP x,y,w,h"))
+            .collect()
+    });
+    for (id, mut x, mut y, mut w, mut h) in crops {
         if !args.is_empty() && !args.iter().any(|a| a == id) {
             continue;
+        }
+        if let Some(c) = crop.as_deref() {
+            [x, y, w, h] = [c[0], c[1], c[2], c[3]];
         }
         let Some(dem) = relief_testdata::dem_crop(id, x, y, w, h) else {
             println!("{id}: shared DEMs not found");

@@ -194,6 +194,10 @@ impl ErodeSettings {
             p.dt = self.dt.unwrap_or(p.dt);
             sp.years = self.years.unwrap_or(sp.years);
             sp.uplift = self.uplift.unwrap_or(sp.uplift);
+            // A run shorter than one step is one step of its own length, not a whole step.
+            if sp.years > 0.0 {
+                p.dt = p.dt.min(sp.years);
+            }
         }
         if plan.stream_power.is_some_and(|s| s.years == 0.0) {
             plan.stream_power = None;
@@ -222,18 +226,22 @@ impl ErodeSettings {
     }
 
     /// The plan on a grid of `cell_x` by `cell_y` metres. Unless `years` is set, a preset's
-    /// stream-power time is capped so that hillslope diffusion spreads no further than a cell,
-    /// `sqrt(D t) <= min(cell_x, cell_y)`: what the grid can show. An SRTM grid (30-90 m) gets
-    /// the preset's tens of millennia, a 2 m lidar grid a few centuries (over 50 kyr the
-    /// diffusion alone would smooth a 2 m grid's scarps over 10 cells and the incision would
-    /// cut rills every cell wide, finer than channel heads are).
+    /// stream-power time is capped so that hillslope diffusion spreads no further than half a
+    /// cell, `sqrt(D t) <= min(cell_x, cell_y) / 2`: what the grid can show. An SRTM grid
+    /// (30-90 m) gets the preset's tens of millennia, a 2 m lidar grid a century (over 50 kyr
+    /// the diffusion alone would smooth a 2 m grid's scarps over 10 cells and the incision would
+    /// cut rills every cell wide, finer than channel heads are). Half a cell, not a cell: on
+    /// carrizo's lidar (2 m) a diffusion length of one cell (400 yr at D = 0.01) already smooths
+    /// away the micro-relief that steers the flow, and the hillslopes drain in parallel sheets
+    /// (beta 0.595 -> 0.737); at half a cell the network keeps its character (0.635).
     pub fn plan_for(&self, cell_x: f64, cell_y: f64) -> Plan {
         let mut plan = self.plan();
         let cell = cell_x.min(cell_y);
         if let Some(sp) = plan.stream_power.as_mut().filter(|_| self.years.is_none()) {
             let d = sp.params.diffusion;
-            if d > 0.0 && cell * cell / d < sp.years {
-                sp.years = cell * cell / d;
+            let cap = 0.25 * cell * cell / d;
+            if d > 0.0 && cap < sp.years {
+                sp.years = cap;
                 sp.params.dt = sp.params.dt.min(sp.years);
             }
         }
@@ -398,12 +406,22 @@ fn run_plan(
             Some(r) => Uplift::Raster(r),
             None => Uplift::Constant(sp.uplift),
         };
-        let steps = (sp.years / sp.params.dt).ceil() as usize;
-        let f = stream_power::run(&mut zz, &grid, &base, &sp.params, up, steps, progress, stop)?;
+        // Equal steps that add up to the run's years (45.5 kyr in steps of at most 10 kyr is
+        // five steps of 9.1 kyr, not five of 10).
+        let steps = (sp.years / sp.params.dt).ceil().max(1.0);
+        let params = StreamPowerParams {
+            dt: sp.years / steps,
+            ..sp.params
+        };
+        let steps = steps as usize;
+        if let Some(s) = figures.plan.stream_power.as_mut() {
+            s.params.dt = params.dt;
+        }
+        let f = stream_power::run(&mut zz, &grid, &base, &params, up, steps, progress, stop)?;
         if f.stopped {
             return Err(LandscapeError::Stopped("stream power".into()));
         }
-        let years = f.steps as f64 * sp.params.dt;
+        let years = f.steps as f64 * params.dt;
         for i in 0..grid.len() {
             if !base[i] {
                 uplifted[i] = years * rates.as_ref().map_or(sp.uplift, |r| r[i]);
@@ -564,6 +582,38 @@ mod tests {
     }
 
     #[test]
+    fn the_stream_power_steps_add_up_to_the_years_asked() {
+        let dem = Heightfield::from_fn(40, 32, 50.0, 50.0, |x, y| {
+            300.0 - (x as f32 - 20.0).abs() * 6.0 - y as f32 * 2.0
+        });
+        let only_sp = |years: f64, dt: Option<f64>| {
+            ErodeSettings {
+                years: Some(years),
+                dt,
+                hydraulic_iterations: Some(0),
+                thermal_iterations: Some(0),
+                fill_pits: Some(false),
+                ..Default::default()
+            }
+            .run(&dem, None, &relief_heightfield::NoProgress, &|| false)
+            .unwrap()
+        };
+        // 300 yr with the preset's 10 kyr step is one step of 300 yr, not of 10 kyr.
+        let short = only_sp(300.0, None);
+        let sp = short.figures.plan.stream_power.unwrap();
+        assert_eq!(
+            (sp.params.dt, short.figures.stream_power.unwrap().steps),
+            (300.0, 1)
+        );
+        assert_eq!(short.terrain, only_sp(300.0, Some(300.0)).terrain);
+        assert!(short.figures.eroded_m3 < only_sp(10_000.0, None).figures.eroded_m3 / 5.0);
+        // 25 kyr in steps of at most 10 kyr: three equal steps of 8333 yr.
+        let odd = only_sp(25_000.0, None);
+        assert_eq!(odd.figures.stream_power.unwrap().steps, 3);
+        assert_eq!(odd.terrain, only_sp(25_000.0, Some(25_000.0 / 3.0)).terrain);
+    }
+
+    #[test]
     fn erosion_and_deposition_balance_the_change_net_of_uplift() {
         let dem = Heightfield::from_fn(48, 40, 50.0, 60.0, |x, y| {
             let (dx, dy) = (x as f32 - 24.0, y as f32 - 20.0);
@@ -605,10 +655,10 @@ mod tests {
         let pits = crate::stats::drainage(&out.terrain).pits_per_km2;
         assert!(pits <= crate::stats::drainage(&dem).pits_per_km2, "{pits}");
         let stopped = s.run(&dem, None, &relief_heightfield::NoProgress, &|| true);
-        // On a 2 m grid the preset's 50 kyr are capped at cell^2 / D (400 yr at D = 0.01);
+        // On a 2 m grid the preset's 50 kyr are capped at cell^2 / 4D (100 yr at D = 0.01);
         // an explicit `years` is kept.
         let fine = ErodeSettings::default().plan_for(2.0, 2.0);
-        assert_eq!(fine.stream_power.unwrap().years, 400.0);
+        assert_eq!(fine.stream_power.unwrap().years, 100.0);
         assert_eq!(
             ErodeSettings::default()
                 .plan_for(60.0, 90.0)
