@@ -50,6 +50,6 @@ mod window;
 pub use error::{HeightfieldError, Result};
 pub use grid::{GeoRef, Heightfield, MAX_CELLS};
 pub use param::ParamError;
-pub use progress::{NoProgress, Progress};
+pub use progress::{NoProgress, Progress, StopOnly};
 pub use sample::{Kernel, cubic_weights, cubic_weights_f64};
 pub use window::Window;

@@ -58,8 +58,13 @@ impl LastStep {
 
     /// The whole step as a model (what [`amplify`] returns, without the georeference).
     pub fn sct(&self) -> Result<Sct> {
+        self.sct_with(&relief_heightfield::NoProgress)
+    }
+
+    /// [`Self::sct`], asking `progress` whether to stop between bands of coded primitives.
+    pub fn sct_with(&self, progress: &dyn Progress) -> Result<Sct> {
         self.dictionary
-            .amplify_once(&self.input, &self.step_settings())
+            .amplify_once_with(&self.input, &self.step_settings(), progress)
     }
 
     /// The window `win` (output pixels) of the amplified output, computed on a crop of the
@@ -95,7 +100,12 @@ impl LastStep {
             row0: y0 / s,
             nx,
         };
-        let sct = self.dictionary.amplify_once_in(&crop, &st, Some(frame))?;
+        let sct = self.dictionary.amplify_once_in(
+            &crop,
+            &st,
+            Some(frame),
+            &relief_heightfield::NoProgress,
+        )?;
         let out = sct.rasterize(&RasterSettings {
             scale: 1.0,
             window: Some(Window {

@@ -266,7 +266,7 @@ pub fn amplify_with_figures(
     progress: &dyn Progress,
 ) -> Result<(Sct, AmplifyFigures)> {
     let (last, figures) = prepare_last_step(coarse, exemplar, settings, progress)?;
-    let sct = last.sct()?;
+    let sct = last.sct_with(progress)?;
     Ok((amplified_georef(sct, coarse, settings), figures))
 }
 
@@ -292,7 +292,7 @@ pub fn amplify_observed(
     observe: &mut dyn FnMut(&StepReport<'_>),
 ) -> Result<Sct> {
     let (last, scale) = run_until_last(coarse, exemplar, settings, progress, observe)?;
-    let sct = last.sct()?;
+    let sct = last.sct_with(progress)?;
     observe(&StepReport {
         step: settings.steps - 1,
         input: &last.input,
@@ -398,14 +398,17 @@ fn run_until_last(
             };
             return Ok((last, scale.clone()));
         }
-        let sct = dict.amplify_once(&current, &step_settings)?;
+        let sct = dict.amplify_once_with(&current, &step_settings, progress)?;
         observe(&StepReport {
             step: t,
             input: &current,
             output: &sct,
             exemplar: scale,
         });
-        current = sct.rasterize(&RasterSettings::default())?;
+        current = sct.rasterize_with_progress(
+            &RasterSettings::default(),
+            &relief_heightfield::StopOnly(progress),
+        )?;
     }
     Err(LearnError::param("steps", 0, "must be >= 1"))
 }

@@ -7,17 +7,31 @@ impl MultiResDictionary {
     /// One x4 step: codes `coarse` on `L`, rebuilds on `H`; the result covers
     /// `4 w x 4 h` pixels of cell size `cell / 4`.
     pub fn amplify_once(&self, coarse: &Heightfield, settings: &AmplifySettings) -> Result<Sct> {
-        self.amplify_once_in(coarse, settings, None)
+        self.amplify_once_in(coarse, settings, None, &relief_heightfield::NoProgress)
+    }
+
+    /// [`Self::amplify_once`] asking `progress` whether to stop between bands of coded
+    /// primitives (a few tens of milliseconds apart): a run past its time budget or
+    /// interrupted ends with [`LearnError::Stopped`]. Nothing is reported to it.
+    pub fn amplify_once_with(
+        &self,
+        coarse: &Heightfield,
+        settings: &AmplifySettings,
+        progress: &dyn Progress,
+    ) -> Result<Sct> {
+        self.amplify_once_in(coarse, settings, None, progress)
     }
 
     /// [`Self::amplify_once`] on `coarse`, a crop of a larger step input placed by `frame`
     /// (`None`: `coarse` is the whole input): the seeded choices of the primitives hash their
     /// position in the whole input's grid, so a crop's primitives are those of the full run.
+    /// `progress` is asked whether to stop before every band of primitives.
     pub(super) fn amplify_once_in(
         &self,
         coarse: &Heightfield,
         settings: &AmplifySettings,
         frame: Option<GridFrame>,
+        progress: &dyn Progress,
     ) -> Result<Sct> {
         settings.check()?;
         coarse.require_complete()?;
@@ -57,6 +71,12 @@ impl MultiResDictionary {
         let mut means = Vec::with_capacity(g.len());
         let mut codes: Option<relief_sparse_core::SparseCodes<f32>> = None;
         for r0 in (0..g.ny).step_by(band) {
+            if progress.stopped() {
+                return Err(LearnError::Stopped(format!(
+                    "coding the x4 step's primitives, row {r0} of {}",
+                    g.ny
+                )));
+            }
             let patches = extract_patch_rows(coarse, &geom, r0..(r0 + band).min(g.ny))?;
             let c = self.code_band(&patches.matrix, r0 * g.nx, g.nx, frame, settings)?;
             means.extend_from_slice(&patches.means);
@@ -103,9 +123,10 @@ impl MultiResDictionary {
     }
 }
 
-/// Most patch samples extracted and coded at once by a step (64 MiB of `f32`): larger grids
-/// are coded in bands of centre rows.
-const CODE_BAND_SAMPLES: usize = 1 << 24;
+/// Most patch samples extracted and coded at once by a step (8 MiB of `f32`): larger grids
+/// are coded in bands of centre rows, so the patch matrix of a large step never exists whole
+/// and a stop is asked for every few tens of milliseconds of coding.
+const CODE_BAND_SAMPLES: usize = 1 << 21;
 
 impl MultiResDictionary {
     /// The `L` codes of `signals`, the patches of primitives `first..` of a grid `nx`

@@ -202,3 +202,31 @@ fn last_step_bytes_reject_corruption() {
     };
     assert!(last.render_window(win).is_err());
 }
+
+#[test]
+fn the_last_step_stops_when_asked_and_runs_otherwise() {
+    struct Stop;
+    impl Progress for Stop {
+        fn stopped(&self) -> bool {
+            true
+        }
+    }
+    let settings = AmplifySettings {
+        steps: 1,
+        dictionary: DictionaryChoice::learned(16, 1),
+        seed: 3,
+        ..AmplifySettings::default()
+    };
+    let (last, _) = prepare_last_step(
+        &rough(40, 36, 64.0, 5),
+        &rough(200, 200, 16.0, 6),
+        &settings,
+        &relief_heightfield::NoProgress,
+    )
+    .unwrap();
+    match last.sct_with(&Stop) {
+        Err(LearnError::Stopped(m)) => assert!(m.contains("coding"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    assert!(last.sct().is_ok());
+}
