@@ -59,8 +59,10 @@ impl From<Failure> for PyErr {
 struct Shared {
     /// Current phase and its total units.
     phase: Mutex<(String, u64)>,
-    /// Phases begun since the caller last looked (each is reported, however short).
-    begun: Mutex<Vec<(String, u64)>>,
+    /// Reports queued since the caller last looked, `(phase, done, total)`: every phase begun
+    /// (with 0 done) and every phase ended (with its last count), however short, so a bar
+    /// of a phase shorter than the caller's poll still ends full.
+    begun: Mutex<Vec<(String, u64, u64)>>,
     /// Units done in the phase.
     done: AtomicU64,
     /// Bumped on every report, so the caller only calls back on change.
@@ -77,15 +79,21 @@ pub(crate) struct Reporter(Arc<Shared>);
 
 impl Progress for Reporter {
     fn begin(&self, phase: &str, total: u64) {
-        if let Ok(mut p) = self.0.phase.lock() {
-            *p = (phase.to_string(), total);
-        }
+        let previous = self
+            .0
+            .phase
+            .lock()
+            .map(|mut p| std::mem::replace(&mut *p, (phase.to_string(), total)))
+            .unwrap_or_default();
+        let done = self.0.done.swap(0, Ordering::Relaxed);
         if self.0.listening
             && let Ok(mut b) = self.0.begun.lock()
         {
-            b.push((phase.to_string(), total));
+            if !previous.0.is_empty() {
+                b.push((previous.0, done, previous.1));
+            }
+            b.push((phase.to_string(), 0, total));
         }
-        self.0.done.store(0, Ordering::Relaxed);
         self.0.seq.fetch_add(1, Ordering::Relaxed);
     }
 
@@ -139,8 +147,8 @@ fn report(
         .lock()
         .map(|mut b| std::mem::take(&mut *b))
         .unwrap_or_default();
-    for (phase, total) in begun {
-        cb.call1(py, (phase, 0u64, total))?;
+    for (phase, done, total) in begun {
+        cb.call1(py, (phase, done, total))?;
     }
     let (phase, total) = shared.phase.lock().map(|p| p.clone()).unwrap_or_default();
     let done = shared.done.load(Ordering::Relaxed);

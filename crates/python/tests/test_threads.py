@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
+import sys
 import threading
 import time
 
@@ -59,7 +61,24 @@ def test_progress_reaches_the_callback():
     relief.amplify(COARSE, FIXTURE, 16, cell_size=60, progress=lambda p, d, t: seen.append((p, d, t)))
     phases = {p for p, _, _ in seen}
     assert "rasterize" in phases and "landform pass" in phases, phases
+    # A phase's end is reported with its last count, however short the phase: bars end full.
+    assert any(p == "rasterize" and d == t > 0 for p, d, t in seen), [
+        s for s in seen if s[0] == "rasterize"
+    ]
     assert all(isinstance(d, int) and isinstance(t, int) for _, d, t in seen)
+
+
+def test_progress_true_draws_tqdm_bars_or_logs_without_tqdm(capsys, caplog, monkeypatch):
+    pytest.importorskip("tqdm")
+    relief.amplify(COARSE, FIXTURE, 4, cell_size=60, progress=True)
+    err = capsys.readouterr().err
+    # One bar per phase, named by it, ending full (tqdm draws "100%|" when done == total).
+    assert "rasterize" in err and "100%|" in err, err[-2000:]
+    # Without tqdm the same reports go to the "relief" logger.
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    with caplog.at_level(logging.INFO, logger="relief"):
+        relief.amplify(COARSE, FIXTURE, 4, cell_size=60, progress=True)
+    assert any("rasterize:" in r.getMessage() for r in caplog.records), caplog.text[-2000:]
 
 
 def test_an_exception_in_the_callback_stops_the_run():
