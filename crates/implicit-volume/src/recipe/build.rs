@@ -571,8 +571,10 @@ impl Basis<'_> {
             height,
             radius,
             spacing: 4.0 * radius,
-            max_slope_deg: 25.0,
+            min_slope_deg: 15.0,
+            max_slope_deg: 55.0,
             cap_rho: 0.55,
+            per_cluster: 6,
             seed: self.sub(5),
         };
         o.effects
@@ -617,25 +619,26 @@ impl Basis<'_> {
         let a = ArchSettings {
             count: dims.arch_count,
             span,
-            height: dims.arch_height_m,
             thickness,
             max_length: (5.0 * span).max(3.0 * self.l),
             seed: self.sub(6),
         };
         let rep = o.b.arches(&a, &o.region)?;
+        // The smallest arch tried: 0.35 of the span, its opening 0.35 of that high.
+        let small = 0.35 * span;
         if rep.features == 0 && rep.candidates == 0 {
             o.dims.notes.push(format!(
                 "arches skipped: no ridge rises {:.0} m on both sides within {:.0} m",
-                a.height + a.thickness,
+                0.35 * small + (0.4 * thickness).max(1.0),
                 a.max_length
             ));
         } else if rep.features == 0 {
             o.dims.notes.push(format!(
-                "arches skipped: {} ridges are narrow enough, but none keeps {:.0} m of rock \
-                 (at least 0.7 of it) along {:.0} m of its crest for the ring",
+                "arches skipped: {} ridges are narrow enough, but on none does soft rock lie \
+                 under a resistant bed 0.35 to 1 span above the floor with the ridge holding \
+                 the bridge over it (spans {small:.0} to {:.0} m tried)",
                 rep.candidates,
-                a.height + a.thickness,
-                a.span + 2.4 * a.thickness
+                3.0 * span
             ));
         } else {
             o.effects.push((Feature::Arches, rep));

@@ -3,10 +3,12 @@
 //!
 //! The builder's core (implicitisation, surface samples, weathering) is here; its effects live
 //! in `erosion.rs` (sea caves, sea cliffs, wind, rain), `karst.rs` (invasion percolation) and
-//! `landforms.rs` (hoodoos, arches), `islands.rs` (floating islands); their settings in
+//! `hoodoos.rs`, `arches.rs`, `landforms.rs` (a hand-placed arch), `islands.rs` (floating islands); their settings in
 //! `settings.rs`.
 
+mod arches;
 mod erosion;
+mod hoodoos;
 mod islands;
 mod karst;
 mod landforms;

@@ -304,22 +304,29 @@ pub enum KarstStop {
     Exhausted,
 }
 
-/// Hoodoos (figure 3): stacked perturbed spheres on a cone, creased by a warp.
+/// Hoodoos (figure 3, [`SceneBuilder::hoodoos`]): columns of soft rock under a resistant cap
+/// bed, their profile from the geology, in clusters on steep slopes below that bed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HoodooSettings {
     /// Number of hoodoos (fewer if the region has no room).
     pub count: usize,
-    /// Height (m).
+    /// Nominal height (m): each stands up to the resistant bed nearest this height above its
+    /// ground, between 0.6 and 1.4 times it.
     pub height: f32,
-    /// Base radius (m).
+    /// Column radius (m) in rock of resistance 0.73 (`0.45 + 0.75 rho` times it elsewhere).
     pub radius: f32,
-    /// Minimum distance between hoodoos (m).
+    /// Minimum distance between hoodoos (m); clusters are `6 spacing` apart and `2 spacing`
+    /// in radius.
     pub spacing: f32,
-    /// Maximum ground slope (degrees) where a hoodoo may stand.
+    /// Gentlest ground slope (degrees) where a hoodoo may stand (badland slopes, not flats).
+    pub min_slope_deg: f32,
+    /// Steepest ground slope (degrees) where a hoodoo may stand.
     pub max_slope_deg: f32,
-    /// Smallest resistance of the caprock: sites without rock this hard near the hoodoo's top
+    /// Smallest resistance of the cap bed: sites without such a bed near the nominal height
     /// are skipped.
     pub cap_rho: f32,
+    /// Most hoodoos per cluster, in `1..=64`.
+    pub per_cluster: usize,
     /// Seed.
     pub seed: u64,
 }
@@ -330,27 +337,28 @@ impl Default for HoodooSettings {
             height: 40.0,
             radius: 8.0,
             spacing: 40.0,
-            max_slope_deg: 20.0,
+            min_slope_deg: 15.0,
+            max_slope_deg: 55.0,
             cap_rho: 0.55,
+            per_cluster: 5,
             seed: 3,
         }
     }
 }
 
-/// Natural arches eroded out of the rock: a gap cut through a narrow ridge (a fin, a headland
-/// between two coves, a wall between two canyons) around a ring of the ridge's rock left
-/// standing in it, two legs and a bridge, necked where the strata are soft (see
-/// [`SceneBuilder::arches`]).
+/// Natural arches ([`SceneBuilder::arches`]): a ridge narrowed to a fin and eroded through
+/// along a soft stratum under a resistant bridge bed, the opening irregular, the span drawn
+/// per arch around `span`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArchSettings {
-    /// Number of arches (fewer when the DEM has no ridge narrow and high enough).
+    /// Number of arches (fewer when the DEM has no ridge narrow and high enough, or the
+    /// geology no resistant bed over soft rock at the right height).
     pub count: usize,
-    /// Width of the opening (m).
+    /// Median span (opening width, m): each arch's is drawn log-normal around it, within
+    /// `[0.35, 3]` times it and at most 120 m, and shrunk to what its ridge holds.
     pub span: f32,
-    /// Height of the opening above its floor, the higher ground at the two mouths (m).
-    pub height: f32,
-    /// Thickness of the bridge over the opening (m; up to twice that where the ridge has
-    /// more rock over it, trimmed by the DEM's surface); the legs are 1.2 times as wide.
+    /// Thickness of the fin (m, +-20 % per arch); the bridge keeps at least
+    /// `max(0.4 thickness, 1 m)` of rock over the opening.
     pub thickness: f32,
     /// Thickest ridge cut through (the gap's length between its mouths, m).
     pub max_length: f32,
@@ -362,7 +370,6 @@ impl Default for ArchSettings {
         Self {
             count: 2,
             span: 60.0,
-            height: 40.0,
             thickness: 12.0,
             max_length: 240.0,
             seed: 5,

@@ -173,11 +173,13 @@ proptest! {
             bbox: Some(Aabb::new([lo, lo, lo], [hi, hi, hi])),
         };
         let names = ["region", "height", "radius", "spacing", "count", "span", "thickness",
-                     "altitude", "per_cluster", "spread", "max_slope_deg", "arch feet", "cap_rho", "max_length"];
+                     "altitude", "per_cluster", "spread", "max_slope_deg", "min_slope_deg", "arch feet", "cap_rho", "max_length"];
         check(b.hoodoos(&HoodooSettings { count: n, height: h, radius: r, spacing: sp,
-                                          max_slope_deg: slope, cap_rho: mv, seed }, &region),
+                                          min_slope_deg: 0.0, max_slope_deg: slope,
+                                          cap_rho: mv, per_cluster: 1 + n % 70, seed },
+                        &region),
               &names)?;
-        check(b.arches(&ArchSettings { count: n, span: sp, height: h, thickness: r,
+        check(b.arches(&ArchSettings { count: n, span: sp, thickness: r,
                                        max_length: 4.0 * sp, seed },
                        &Region::everywhere()), &names)?;
         check(b.floating_islands(&IslandSettings { count: n, radius: r, altitude: h,

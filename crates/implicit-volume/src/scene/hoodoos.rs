@@ -1,0 +1,380 @@
+//! Hoodoos (paper figure 3) out of the strata: columns of soft rock left standing under a
+//! resistant cap bed, in clusters on steep, dissected slopes below that bed.
+//!
+//! Placement ([`SceneBuilder::hoodoos`]):
+//! * **sites from the geology**: a DEM node qualifies when its ground slopes between
+//!   `min_slope_deg` and `max_slope_deg` (badland slopes, not the plateau) and the rock column
+//!   over it holds a resistant bed (`rho >= cap_rho`) between 0.6 and 1.4 times the nominal
+//!   height, the nearest to it, with mostly soft rock (`rho < 0.5`) under that bed: the bed
+//!   becomes the cap, the soft rock the column;
+//! * **clusters**: qualifying sites in hashed order, the steeper (at least 25 degrees) first,
+//!   seed clusters `6 spacing` apart; each cluster takes up to `per_cluster` sites within
+//!   `2 spacing` of its seed, `spacing` apart from every hoodoo placed.
+//!
+//! Shape of one hoodoo (visible radius `R` = `radius`):
+//! * the column, from under the lowest ground around it up to the cap bed, is a stack of
+//!   cones (a union: the profile is exactly the sampled one) whose radius at each height
+//!   follows the rock there, `R (0.45 + 0.75 rho(z))`: soft strata are narrow necks, harder
+//!   beds bulges, so the same hoodoo has another profile on another geology; a foot flares
+//!   over the lowest quarter (talus), each sample is jittered by +-8 % and the axis leans a
+//!   little;
+//! * the cap is the resistant bed itself: three flattened, offset ellipsoids as thick as the
+//!   bed (within `[0.15, 1.2] R`) and `R (1.25 + 0.6 rho)` wide, wider than any part of the
+//!   column;
+//! * a noise warp (`0.12 R` at `0.8 R`) creases the whole.
+
+use super::*;
+use relief_heightfield::param::in_range;
+
+/// Visible radius of a primitive of support radius 1 at energy 1 (`(1 - q)^3 = T`).
+const VISIBLE: f32 = 0.454_4;
+
+/// Slope (degrees) from which a qualifying site counts as steep badland (placed first).
+const BADLAND_SLOPE_DEG: f32 = 25.0;
+
+/// A qualifying hoodoo site: the ground node, its cap bed and its slope.
+#[derive(Debug, Clone, Copy)]
+struct Site {
+    /// Ground at the node.
+    p: V3,
+    /// Base and top of the cap bed.
+    bed: (f32, f32),
+    /// Resistance of the cap bed (its hardest sample).
+    rho_cap: f32,
+    /// Ground slope (degrees).
+    slope: f32,
+    /// Node index (hash key).
+    idx: u64,
+}
+
+impl SceneBuilder {
+    /// The cap bed over the ground at `p` for a hoodoo of nominal height `h`: the resistant
+    /// bed (`rho >= cap_rho`) whose base is nearest `h` above the ground within `[0.6, 1.4] h`,
+    /// with at least 40 % soft rock (`rho < 0.5`) under it; its base, top and hardness.
+    fn cap_bed(&self, p: V3, h: f32, cap_rho: f32, radius: f32) -> Option<((f32, f32), f32)> {
+        let n = 96usize;
+        let dz = 1.5 * h / n as f32;
+        let rho: Vec<f32> = (0..=n)
+            .map(|k| self.geology.resistance([p[0], p[1], p[2] + k as f32 * dz]))
+            .collect();
+        let mut best: Option<(f32, usize)> = None;
+        for k in 1..=n {
+            let z = k as f32 * dz;
+            if rho[k] >= cap_rho && rho[k - 1] < cap_rho && (0.6 * h..=1.4 * h).contains(&z) {
+                let soft = rho[..k].iter().filter(|&&r| r < 0.5).count() as f32 / k as f32;
+                let d = (z - h).abs();
+                if soft >= 0.4 && best.is_none_or(|b| d < b.0) {
+                    best = Some((d, k));
+                }
+            }
+        }
+        let (_, k0) = best?;
+        let mut k1 = k0;
+        let mut hard = rho[k0];
+        while k1 < n && rho[k1 + 1] >= cap_rho && (k1 - k0) as f32 * dz < 1.2 * radius {
+            k1 += 1;
+            hard = hard.max(rho[k1]);
+        }
+        let base = p[2] + k0 as f32 * dz;
+        let top = base + ((k1 + 1 - k0) as f32 * dz).clamp(0.15 * radius, 1.2 * radius);
+        Some(((base, top), hard))
+    }
+
+    /// Every DEM node where a hoodoo could stand ([module docs](self)).
+    fn hoodoo_sites(&self, s: &HoodooSettings, region: &Region) -> Vec<Site> {
+        let f = self.frame;
+        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        let margin = 2.0 * s.radius;
+        let (cos_min, cos_max) = (
+            s.min_slope_deg.to_radians().cos(),
+            s.max_slope_deg.to_radians().cos(),
+        );
+        let nodes: Vec<(usize, usize)> = (0..f.height)
+            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .collect();
+        nodes
+            .par_iter()
+            .filter_map(|&(j, i)| {
+                let p = f.node(j, i, self.dem_at(j, i));
+                if p[0] < margin || p[1] < margin || p[0] > xm - margin || p[1] > ym - margin {
+                    return None;
+                }
+                let nz = self.slope_normal(j, i)[2];
+                if nz > cos_min + 1e-6 || nz < cos_max || region.weight(&f, p) <= 0.0 {
+                    return None;
+                }
+                let (bed, rho_cap) = self.cap_bed(p, s.height, s.cap_rho, s.radius)?;
+                Some(Site {
+                    p,
+                    bed,
+                    rho_cap,
+                    slope: nz.clamp(-1.0, 1.0).acos().to_degrees(),
+                    idx: (i * f.width + j) as u64,
+                })
+            })
+            .collect()
+    }
+
+    /// Hoodoos ([module docs](self)): columns of soft rock under a resistant cap bed, their
+    /// profile from the geology, clustered on steep slopes under that bed.
+    /// [`EffectReport::sites`] are the ground under each axis, [`EffectReport::sizes_m`] the
+    /// heights from that ground to the cap's top.
+    pub fn hoodoos(&mut self, s: &HoodooSettings, region: &Region) -> Result<EffectReport> {
+        self.check_lens(&named_fields!(s; height, radius, spacing))?;
+        for (n, v) in named_fields!(s; min_slope_deg, max_slope_deg) {
+            in_range(n, v, 0.0..=90.0, "must be in [0, 90]")?;
+        }
+        if s.min_slope_deg > s.max_slope_deg {
+            return Err(Error::param(
+                "min_slope_deg",
+                s.min_slope_deg,
+                "must be at most max_slope_deg",
+            ));
+        }
+        in_range("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
+        in_range("per_cluster", s.per_cluster, 1..=64, "must be in 1..=64")?;
+        region.check(&self.frame)?;
+        let mut sites = self.hoodoo_sites(s, region);
+        sites.sort_by_key(|c| {
+            (
+                c.slope < BADLAND_SLOPE_DEG,
+                hash(s.seed, c.idx, 0x686f_6f64, 0),
+            )
+        });
+        let mut report = EffectReport {
+            candidates: sites.len(),
+            ..Default::default()
+        };
+        let pts: Vec<V3> = sites.iter().map(|c| [c.p[0], c.p[1], 0.0]).collect();
+        let seeds = poisson_filter(&pts, 6.0 * s.spacing, |_| true);
+        let mut placed: Vec<V3> = Vec::new();
+        for &c in &seeds {
+            let mut members = 0;
+            for (k, site) in sites.iter().enumerate() {
+                if report.features >= s.count || members >= s.per_cluster {
+                    break;
+                }
+                let q = pts[k];
+                if norm(sub(q, pts[c])) > 2.0 * s.spacing
+                    || placed.iter().any(|o| norm(sub(*o, q)) < s.spacing)
+                {
+                    continue;
+                }
+                placed.push(q);
+                members += 1;
+                let n = self.hoodoo(s, site)?;
+                report.primitives += n;
+                report.features += 1;
+                report.sites.push(site.p);
+                report.sizes_m.push(site.bed.1 - site.p[2]);
+            }
+        }
+        Ok(report)
+    }
+
+    /// One hoodoo on `site` ([module docs](self)); returns its primitive count.
+    fn hoodoo(&mut self, s: &HoodooSettings, site: &Site) -> Result<usize> {
+        let (p, r) = (site.p, s.radius);
+        let h = |c: u64| unit(hash(s.seed, site.idx, c, 0x6361_7073));
+        // The foot: under the lowest ground within a radius (the downslope side).
+        let low = (0..8)
+            .map(|k| {
+                let a = k as f32 * std::f32::consts::FRAC_PI_4;
+                self.ground(p[0] + r * a.cos(), p[1] + r * a.sin())
+            })
+            .fold(p[2], f32::min);
+        let (z0, z1) = (low - 0.3 * r, site.bed.0);
+        let lean_a = std::f32::consts::TAU * h(1);
+        let lean = [lean_a.cos(), lean_a.sin(), 0.0];
+        let tall = z1 - p[2];
+        let axis = |z: f32| {
+            let t = ((z - p[2]) / tall).max(0.0);
+            add([p[0], p[1], z], mul(lean, 0.05 * tall * t * (0.5 + h(2))))
+        };
+        let n = (((z1 - z0) / (0.3f32).max(0.15 * r)).ceil() as usize).clamp(4, 64);
+        let profile: Vec<(V3, f32)> = (0..=n)
+            .map(|m| {
+                let z = z0 + (z1 - z0) * m as f32 / n as f32;
+                let rho = self.geology.resistance(axis(z));
+                let foot = (1.0 - (z - low) / (0.25 * tall)).clamp(0.0, 1.0);
+                let jitter = 0.92 + 0.16 * h(10 + m as u64);
+                let rv = r * (0.45 + 0.75 * rho) * (1.0 + 0.5 * foot * foot) * jitter;
+                (axis(z), rv / VISIBLE)
+            })
+            .collect();
+        let mut parts = Vec::with_capacity(n + 3);
+        for w in profile.windows(2) {
+            parts.push(self.tree.cone(w[0].0, w[1].0, w[0].1, w[1].1, 1.0)?);
+        }
+        // The cap: the resistant bed, wider than the column.
+        let (b0, b1) = site.bed;
+        let top = axis(b1);
+        let rc = r * (1.25 + 0.6 * site.rho_cap);
+        for k in 0..3u64 {
+            let a = std::f32::consts::TAU * h(20 + k);
+            let off = if k == 0 { 0.0 } else { 0.3 * rc * h(30 + k) };
+            let c = [
+                top[0] + off * a.cos(),
+                top[1] + off * a.sin(),
+                0.5 * (b0 + b1),
+            ];
+            let (ax, ay) = (rc * (0.8 + 0.4 * h(40 + k)), rc * (0.8 + 0.4 * h(50 + k)));
+            let axes = [ax / VISIBLE, ay / VISIBLE, 0.5 * (b1 - b0) / VISIBLE];
+            parts.push(self.tree.ellipsoid(c, axes, 1.0)?);
+        }
+        let mut all = parts[0];
+        for &q in &parts[1..] {
+            all = self.tree.union(all, q)?;
+        }
+        let seed = (s.seed as u32).wrapping_add(site.idx as u32);
+        let w = self.tree.warp(all, 0.12 * r, 1.0 / (0.8 * r), seed)?;
+        self.positives.push(w);
+        Ok(parts.len())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geology::{Geology, Layer};
+
+    /// Strata of 4 m soft (0.1) under 2 m hard (0.9) beds, shifted up by `z0`.
+    fn beds(z0: f32) -> Geology {
+        let mut g = Geology::new();
+        let layers = [
+            Layer {
+                thickness: 4.0,
+                hardness: 0.1,
+            },
+            Layer {
+                thickness: 2.0,
+                hardness: 0.9,
+            },
+        ];
+        let id = g.strata(z0, &layers).unwrap();
+        g.set_root(id).unwrap();
+        g
+    }
+
+    fn one(geo: Geology) -> (Scene, EffectReport) {
+        let hf = Heightfield::from_fn(24, 24, 1.0, 1.0, |_, _| 0.0);
+        let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+        let s = HoodooSettings {
+            count: 1,
+            height: 12.0,
+            radius: 2.0,
+            spacing: 8.0,
+            min_slope_deg: 0.0,
+            max_slope_deg: 90.0,
+            per_cluster: 1,
+            ..Default::default()
+        };
+        let rep = b.hoodoos(&s, &Region::everywhere()).unwrap();
+        assert_eq!(rep.features, 1, "{rep:?}");
+        (b.build(true).unwrap(), rep)
+    }
+
+    /// Radius of the matter's horizontal section at height `z` around `c` (from its area).
+    fn radius_at(scene: &Scene, c: V3, z: f32) -> f32 {
+        let step = 0.1;
+        let mut n = 0;
+        for a in -80..=80 {
+            for b in -80..=80 {
+                let p = [c[0] + a as f32 * step, c[1] + b as f32 * step, z];
+                if scene.inside(p) {
+                    n += 1;
+                }
+            }
+        }
+        (n as f32 * step * step / std::f32::consts::PI).sqrt()
+    }
+
+    /// The column narrows through soft rock and bulges at hard beds, and the cap (the bed
+    /// nearest 12 m, 10-12 m) is wider than both; on strata shifted by 3 m the same settings
+    /// give another hoodoo (its cap on another bed, its neck at another height).
+    #[test]
+    fn hoodoo_profile_follows_the_strata() {
+        let (scene, rep) = one(beds(0.0));
+        let c = rep.sites[0];
+        assert!((rep.sizes_m[0] - 12.0).abs() < 0.3, "{rep:?}");
+        let (soft, hard, cap) = (
+            radius_at(&scene, c, 8.0),
+            radius_at(&scene, c, 5.0),
+            radius_at(&scene, c, 11.0),
+        );
+        assert!(soft < 0.8 * hard && hard < cap, "{soft} {hard} {cap}");
+        assert!(soft > 0.5 && cap < 6.0, "{soft} {cap}");
+        // Above the cap, air.
+        assert!(radius_at(&scene, c, 12.8) < 0.3);
+        let (shifted, rep2) = one(beds(3.0));
+        let c2 = rep2.sites[0];
+        // Beds at 7-9 and 13-15: the cap is the 13 m bed, the neck now at 10-13 m.
+        assert!((rep2.sizes_m[0] - 15.0).abs() < 0.3, "{rep2:?}");
+        let (neck, bulge) = (radius_at(&shifted, c2, 11.0), radius_at(&shifted, c2, 8.0));
+        assert!(neck < 0.8 * bulge, "{neck} {bulge}");
+        assert!(radius_at(&shifted, c2, 11.0) < 0.8 * radius_at(&scene, c, 11.0));
+    }
+
+    /// On a DEM with a steep band under the hard beds and gentle ground elsewhere, hoodoos
+    /// stand only on the band, in clusters (their nearest neighbours much closer than the
+    /// same count spread evenly over the band would be), the same whatever the thread count.
+    #[test]
+    fn hoodoos_cluster_on_steep_slopes_below_a_cap_bed() {
+        // 160 x 160 m: flat at 0 m west, a 35 degree slope from x = 60 m to 100 m, flat at
+        // 28 m east.
+        let hf = Heightfield::from_fn(81, 81, 2.0, 2.0, |x, _| {
+            ((x as f32 * 2.0 - 60.0) * 0.7).clamp(0.0, 28.0)
+        });
+        let run = |threads| {
+            with_threads(threads, || {
+                let mut b =
+                    SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+                let s = HoodooSettings {
+                    count: 12,
+                    height: 8.0,
+                    radius: 1.5,
+                    spacing: 6.0,
+                    per_cluster: 4,
+                    ..Default::default()
+                };
+                let rep = b.hoodoos(&s, &Region::everywhere()).unwrap();
+                let scene = b.build(true).unwrap();
+                (rep, scene.stats())
+            })
+        };
+        let (rep, st) = run(1);
+        assert_eq!(run(3), (rep.clone(), st));
+        assert!(rep.features >= 8, "{rep:?}");
+        for p in &rep.sites {
+            assert!((59.0..=101.0).contains(&p[0]), "off the slope: {p:?}");
+        }
+        // Clark-Evans: mean nearest-neighbour distance over that of a random pattern of the
+        // same density on the band (40 x 160 m): clustered well below 1.
+        let n = rep.sites.len() as f32;
+        let nn: f32 = rep
+            .sites
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                rep.sites
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != i)
+                    .map(|(_, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .sum::<f32>()
+            / n;
+        let random = 0.5 / (n / (40.0 * 160.0)).sqrt();
+        assert!(nn < 0.75 * random, "{nn} vs {random}");
+    }
+
+    /// Runs `f` on a pool of `threads` threads.
+    fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+}
