@@ -81,6 +81,7 @@ mod stream;
 mod tiff_dir;
 mod tiled;
 mod util;
+pub mod wkt_keys;
 
 use std::path::Path;
 

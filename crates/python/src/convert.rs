@@ -39,7 +39,7 @@ pub(crate) fn geo(g: &Geo) -> Result<Option<GeoRef>, Failure> {
             return Ok(Some(r));
         }
     }
-    Ok(georef(*t, crs.as_deref()))
+    georef(*t, crs.as_deref()).map_err(Failure::value)
 }
 
 /// The library's georeference of a heightfield as JSON (see [`Geo`]).
@@ -68,12 +68,17 @@ pub(crate) fn array(py: Python<'_>, hf: Heightfield) -> Bound<'_, PyArray2<f32>>
     PyArray2::from_owned_array(py, hf.into_array())
 }
 
-/// The georeference of a geotransform and a CRS (`EPSG:<code>`, OGC/ESRI WKT 1 with an EPSG
-/// authority, or a name): the affine transform, the CRS name and, for an EPSG code, the
-/// GeoTIFF keys that name it (what a GeoTIFF written from it stores).
-pub(crate) fn georef(transform: Option<Transform>, crs: Option<&str>) -> Option<GeoRef> {
+/// The georeference of a geotransform and a CRS (`EPSG:<code>`, OGC/ESRI WKT 1, or a name):
+/// the affine transform, the CRS name and the GeoTIFF keys a GeoTIFF written from it stores:
+/// those naming the EPSG code, or for WKT 1 without one the user-defined keys of
+/// [`relief_io::wkt_keys`]. A WKT those cannot express is an error naming why (the CRS would
+/// otherwise be lost from the written file).
+pub(crate) fn georef(
+    transform: Option<Transform>,
+    crs: Option<&str>,
+) -> Result<Option<GeoRef>, String> {
     if transform.is_none() && crs.is_none() {
-        return None;
+        return Ok(None);
     }
     let name = crs.map(|c| {
         let c = c.trim();
@@ -110,8 +115,35 @@ pub(crate) fn georef(transform: Option<Transform>, crs: Option<&str>) -> Option<
             1,
             code,
         ]);
+    } else if let Some(text) = crs.map(str::trim).filter(|c| {
+        ["PROJCS[", "GEOGCS[", "COMPD_CS["]
+            .iter()
+            .any(|k| c.starts_with(k))
+    }) {
+        let keys = relief_io::wkt_keys::geokeys_of_wkt(text)
+            .map_err(|e| format!("the CRS cannot be written to a GeoTIFF: {e}"))?;
+        g.geo_key_directory = Some(keys.directory);
+        g.geo_double_params = (!keys.doubles.is_empty()).then_some(keys.doubles);
+        g.geo_ascii_params = (!keys.ascii.is_empty()).then_some(keys.ascii);
+    } else if let Some(text) = crs.map(str::trim).filter(|c| {
+        [
+            "PROJCRS[",
+            "GEOGCRS[",
+            "GEODCRS[",
+            "BOUNDCRS[",
+            "COMPOUNDCRS[",
+            "PROJECTEDCRS[",
+        ]
+        .iter()
+        .any(|k| c.starts_with(k))
+    }) {
+        let head: String = text.chars().take(40).collect();
+        return Err(format!(
+            "the CRS is WKT 2 ({head}...), which relief does not read: pass an EPSG code, \
+             WKT 1 (e.g. crs.to_wkt(version=\"WKT1_GDAL\")) or a rasterio CRS"
+        ));
     }
-    Some(g)
+    Ok(Some(g))
 }
 
 /// The CRS of a georeference as text: its OGC WKT 1 when it has an EPSG code the table holds,

@@ -77,7 +77,7 @@ fn ground_cell_size(
     crs: Option<String>,
     height: usize,
 ) -> Option<(f64, f64)> {
-    let g = convert::georef(Some(transform), crs.as_deref())?;
+    let g = convert::georef(Some(transform), crs.as_deref()).ok()??;
     relief_io::crs::ground_cell_size(&g, height)
 }
 

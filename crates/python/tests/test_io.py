@@ -88,3 +88,56 @@ def test_npy_output_is_the_array(tmp_path):
     np.testing.assert_array_equal(np.load(tmp_path / "a.npy"), a)
     back = relief.read(tmp_path / "a.npy")
     np.testing.assert_array_equal(back.array, a)
+
+
+CUSTOM_CRS = {
+    "lambert conic 2SP": "+proj=lcc +lat_1=45 +lat_2=50 +lat_0=47 +lon_0=10 +x_0=700000 +y_0=6600000 +ellps=GRS80 +units=m",
+    "lambert conic 1SP": "+proj=lcc +lat_1=46.8 +lat_0=46.8 +lon_0=2.33722917 +k_0=0.99987742 +x_0=600000 +y_0=2200000 +a=6378249.2 +b=6356515 +units=m",
+    "transverse mercator, Bessel": "+proj=tmerc +lat_0=0 +lon_0=13.5 +k=0.9996 +x_0=500000 +y_0=0 +ellps=bessel +units=m",
+    "transverse mercator, feet": "+proj=tmerc +lat_0=31 +lon_0=-110.1666666666667 +k=0.9999 +x_0=213360 +y_0=0 +ellps=GRS80 +units=ft",
+    "albers": "+proj=aea +lat_1=29.5 +lat_2=45.5 +lat_0=23 +lon_0=-96 +x_0=0 +y_0=0 +ellps=GRS80 +units=m",
+    "polar stereographic": "+proj=stere +lat_0=90 +lat_ts=70 +lon_0=-45 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m",
+    "lambert azimuthal": "+proj=laea +lat_0=52 +lon_0=10 +x_0=4321000 +y_0=3210000 +ellps=GRS80 +units=m",
+    "mercator 2SP": "+proj=merc +lat_ts=30 +lon_0=0 +x_0=0 +y_0=0 +ellps=WGS84 +units=m",
+    "oblique stereographic": "+proj=sterea +lat_0=52.15616055555555 +lon_0=5.38763888888889 +k=0.9999079 +x_0=155000 +y_0=463000 +ellps=bessel +units=m",
+}
+
+
+@pytest.mark.parametrize("name", sorted(CUSTOM_CRS))
+def test_a_crs_without_an_epsg_code_is_written_as_geotiff_keys(name, tmp_path):
+    # rasterio (GDAL) reads the written file back as the same projection: the raster's corners
+    # land on the same longitudes and latitudes through both CRSs.
+    from rasterio.crs import CRS
+    from rasterio.warp import transform as warp
+
+    crs = CRS.from_proj4(CUSTOM_CRS[name])
+    a = np.arange(32 * 40, dtype=np.float32).reshape(32, 40)
+    t = Affine(30, 0, 100_000, 0, -30, 200_000)
+    out = tmp_path / "custom.tif"
+    # As WKT 1 text: a CRS object with an EPSG equivalent (GDAL finds 3035 for the LAEA one)
+    # would be written by its code.
+    relief.write(out, a, transform=t, crs=crs.to_wkt())
+    with rasterio.open(out) as back:
+        assert back.crs is not None, "the CRS was dropped"
+        assert back.transform == t
+        xs, ys = [100_000, 101_200, 100_000], [200_000, 199_040, 199_040]
+        lon0, lat0 = warp(crs, "EPSG:4326", xs, ys)
+        lon1, lat1 = warp(back.crs, "EPSG:4326", xs, ys)
+        np.testing.assert_allclose(lon1, lon0, atol=1e-9)
+        np.testing.assert_allclose(lat1, lat0, atol=1e-9)
+
+
+def test_a_crs_that_cannot_be_written_is_an_error_not_a_silent_loss(tmp_path):
+    from rasterio.crs import CRS
+
+    a = np.zeros((8, 8), np.float32)
+    t = Affine(30, 0, 0, 0, -30, 0)
+    omerc = CRS.from_proj4(
+        "+proj=omerc +lat_0=4 +lonc=102.25 +alpha=323.0257964666666 +k=0.99984 +x_0=804671 "
+        "+y_0=0 +ellps=GRS80 +units=m"
+    )
+    with pytest.raises(ValueError, match="Hotine"):
+        relief.write(tmp_path / "omerc.tif", a, transform=t, crs=omerc)
+    with pytest.raises(ValueError, match="WKT 2"):
+        relief.write(tmp_path / "wkt2.tif", a, transform=t, crs=omerc.to_wkt(version="WKT2_2019"))
+    assert not (tmp_path / "omerc.tif").exists() and not (tmp_path / "wkt2.tif").exists()

@@ -113,7 +113,11 @@ def _crs_text(crs: Any) -> Optional[str]:
             return f"EPSG:{code}"
     to_wkt = getattr(crs, "to_wkt", None)
     if to_wkt is not None:
-        return to_wkt()
+        # WKT 1, which the library reads (rasterio's and pyproj's CRS both take `version`).
+        try:
+            return to_wkt(version="WKT1_GDAL")
+        except TypeError:
+            return to_wkt()
     return str(crs)
 
 
