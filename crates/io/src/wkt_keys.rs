@@ -471,7 +471,13 @@ fn directory(mut keys: Vec<(u16, Value)>) -> GeoKeys {
                 doubles.push(d);
             }
             Value::Ascii(t) => {
-                let t: String = t.chars().filter(|c| *c != '|' && c.is_ascii()).collect();
+                // Printable ASCII without GeoTIFF's '|' terminator, at most 255 characters (a
+                // citation, not a payload: the offsets are 16-bit).
+                let t: String = t
+                    .chars()
+                    .filter(|c| *c != '|' && (c.is_ascii_graphic() || *c == ' '))
+                    .take(255)
+                    .collect();
                 dir.extend([k, ASCII_TAG, t.len() as u16 + 1, ascii.len() as u16]);
                 ascii.push_str(&t);
                 ascii.push('|');
@@ -559,5 +565,35 @@ mod tests {
         }
         let deep = "A[".repeat(100);
         assert!(geokeys_of_wkt(&deep).is_err());
+        // A 100 kB name is cut to a citation, not a 16-bit overflow.
+        let long = LCC.replacen("\"unknown\"", &format!("\"{}\"", "n".repeat(100_000)), 1);
+        let k = geokeys_of_wkt(&long).unwrap();
+        assert!(k.ascii.len() < 1000);
+    }
+}
+
+#[cfg(test)]
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn any_text_gives_keys_or_an_error(s in "[A-Z_\\[\\]\\(\\),\" 0-9.eE+-]{0,200}") {
+            let _ = geokeys_of_wkt(&s);
+        }
+
+        #[test]
+        fn mangled_wkt_gives_keys_or_an_error(cut in 0usize..600, junk in "[\\[\\]\",]{0,3}") {
+            let w = tests_lcc();
+            let cut = cut.min(w.len());
+            let _ = geokeys_of_wkt(&format!("{}{}{}", &w[..cut], junk, &w[cut..]));
+        }
+    }
+
+    fn tests_lcc() -> String {
+        crate::crs::epsg_wkt(2154)
+            .unwrap()
+            .replace("AUTHORITY[\"EPSG\",\"2154\"]", "")
     }
 }
