@@ -6,9 +6,9 @@ use crate::validate::ValidationReport;
 /// Errors of the patch-synthesis crate.
 #[derive(Debug, Error)]
 pub enum PatchSynthError {
-    /// A setting is out of its valid range (names the field and the value).
-    #[error("invalid setting `{name}` = {value}: {reason}")]
-    InvalidSetting {
+    /// A parameter is out of its valid range (names the field and the value).
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
         /// Field name.
         name: &'static str,
         /// Offending value, formatted.
@@ -78,7 +78,7 @@ impl PatchSynthError {
         value: impl std::fmt::Display,
         reason: impl Into<String>,
     ) -> Self {
-        Self::InvalidSetting {
+        Self::InvalidParameter {
             name,
             value: value.to_string(),
             reason: reason.into(),

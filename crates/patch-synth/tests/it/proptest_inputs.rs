@@ -260,7 +260,7 @@ fn check_names_field(err: &PatchSynthError) -> Result<(), TestCaseError> {
 
 /// [`check_names_field`] that also accepts the function parameters `extra`.
 fn check_names(err: &PatchSynthError, extra: &[&str]) -> Result<(), TestCaseError> {
-    if let PatchSynthError::InvalidSetting { name, value, .. } = err {
+    if let PatchSynthError::InvalidParameter { name, value, .. } = err {
         prop_assert!(
             FIELDS.contains(name) || extra.contains(name),
             "unknown field {name}"
@@ -292,7 +292,7 @@ proptest! {
         let checked = s.check();
         if let Err(e) = &checked {
             check_names_field(e)?;
-            prop_assert!(matches!(e, PatchSynthError::InvalidSetting { .. }), "{e}");
+            prop_assert!(matches!(e, PatchSynthError::InvalidParameter { .. }), "{e}");
         }
         let ex = vec![Exemplar::new(a.clone(), 0), Exemplar::new(b.clone(), 1)];
         let built = ExemplarIndex::build(ex.clone(), &s, &NoProgress);
