@@ -14,6 +14,7 @@ use relief_dictionary_learning::{
 use relief_heightfield::Heightfield;
 use relief_sparse_core::Sct;
 
+use crate::args::LibEnum;
 use crate::ctx::Ctx;
 use crate::sparse_model::{
     OutputPlan, check_output_path, dictionary_choice, preflight, write_model,
@@ -35,14 +36,14 @@ pub(crate) struct Args {
     pub(crate) seed: crate::sparse_model::SeedArg,
     /// Support radius R in coarse pixels (figure 11): small follows the input, large imposes
     /// more of the exemplar.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = AmplifySettings::default().radius)]
     pub(crate) radius: f64,
     /// Number of learned atoms N (constrained learning); 0 = the complete dictionary (every
     /// exemplar patch).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = AmplifySettings::default().dictionary.n_atoms())]
     pub(crate) atoms: usize,
     /// Sparsity s of the coding (the paper uses 1).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = AmplifySettings::default().sparsity)]
     pub(crate) sparsity: usize,
     /// Grid step S between primitive centres, in coarse pixels (default: half the radius,
     /// the paper's grid; must be < radius * sqrt(2)). Larger is faster but shows the grid.
@@ -57,8 +58,8 @@ pub(crate) struct Args {
     /// the input's finest relief at the same energy between its samples as on them; keys (the
     /// Keys cubic) keeps it on the samples and smooths it between them, a faint row-and-column
     /// pattern in the shaded relief.
-    #[arg(long, value_enum, default_value_t = ResidualKernel::Lanczos3)]
-    pub(crate) residual_kernel: ResidualKernel,
+    #[arg(long, value_name = "KERNEL", default_value_t = LibEnum(AmplifySettings::default().residual_kernel))]
+    pub(crate) residual_kernel: LibEnum<relief_heightfield::Kernel>,
     /// With `--sparsity 1` and a complete dictionary of more than 4096 atoms (`--atoms 0`):
     /// clusters of the atom index searched per primitive; 0 = the exact search (about 15x
     /// slower at 65,536 atoms).
@@ -74,24 +75,6 @@ pub(crate) struct Args {
     pub(crate) landform: crate::landform::LandformArg,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
-}
-
-/// `--residual-kernel` values ([`relief_heightfield::Kernel`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum ResidualKernel {
-    /// Lanczos-3 (6 taps).
-    Lanczos3,
-    /// Keys cubic (4 taps).
-    Keys,
-}
-
-impl From<ResidualKernel> for relief_heightfield::Kernel {
-    fn from(k: ResidualKernel) -> Self {
-        match k {
-            ResidualKernel::Lanczos3 => relief_heightfield::Kernel::Lanczos3,
-            ResidualKernel::Keys => relief_heightfield::Kernel::Keys,
-        }
-    }
 }
 
 /// Number of x4 steps of a factor, or an error naming it.
@@ -152,7 +135,7 @@ pub(crate) fn settings(args: &Args) -> Result<AmplifySettings> {
         seed: args.seed.seed,
         exemplar_cell_size: args.exemplar.exemplar_cell_size,
         index_probes: args.index_probes,
-        residual_kernel: args.residual_kernel.into(),
+        residual_kernel: args.residual_kernel.0,
         ..base
     };
     settings.check().context("invalid amplification settings")?;

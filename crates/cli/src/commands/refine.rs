@@ -47,7 +47,7 @@ pub(crate) struct Args {
     /// Output raster (format from the extension: .tif, .exr, .png, .npy, .r16, .r32).
     pub(crate) output: PathBuf,
     /// Number of synthesised levels: the output is 2^N times larger per side (1..=12).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = RefineSettings::default().extra_levels)]
     pub(crate) levels: u32,
     /// Synthesis model: spectral (default) or paper.
     #[arg(long, value_enum, default_value_t = ModelArg::Spectral)]
@@ -56,17 +56,17 @@ pub(crate) struct Args {
     #[arg(long, value_enum, default_value_t = MethodArg::Lsa)]
     pub(crate) method: MethodArg,
     /// LSA statistics window side (odd; the paper uses 1, 3, 5 or 7 and recommends 3).
-    #[arg(long = "stats-window", value_name = "W", default_value_t = 3)]
+    #[arg(long = "stats-window", value_name = "W", default_value_t = RefineSettings::default().window)]
     pub(crate) window: usize,
     /// Wavelet basis: haar, cdf53 (linear spline), cdf97, db4 (PyWavelets names too). Default:
     /// cdf97 for the spectral model, cdf53 (the paper's) for --model paper.
     #[arg(long)]
     pub(crate) wavelet: Option<String>,
     /// Seed of the coefficient hash (same seed = same output bytes).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = RefineSettings::default().seed)]
     pub(crate) seed: u64,
     /// First level taking part in the fit of equation (3) (the paper uses 3).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = FitSettings::default().min_level)]
     pub(crate) min_level: u32,
     /// Write only this window `X,Y,W,H` of the refined terrain (output cells).
     #[arg(long = "window", value_name = "X,Y,W,H")]

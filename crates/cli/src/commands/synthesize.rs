@@ -23,12 +23,12 @@ pub(crate) struct Args {
     #[command(flatten)]
     pub(crate) exemplar: crate::sparse_model::ExemplarArg,
     /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = SynthesisSettings::default().amplify.steps)]
     pub(crate) steps: usize,
     #[command(flatten)]
     pub(crate) seed: crate::sparse_model::SeedArg,
     /// Support radius R in coarse pixels.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = SynthesisSettings::default().amplify.radius)]
     pub(crate) radius: f64,
     /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
     #[arg(long)]
@@ -42,7 +42,7 @@ pub(crate) struct Args {
     /// the x4 steps: patches 4R cells wide whose smooth part matches the sketch's, continued
     /// coherently from patch to patch. 0 turns the step off (the paper's method; `--paper`
     /// does too).
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = SynthesisSettings::default().structure.radius)]
     pub(crate) structure_radius: f64,
     /// Ground size of a sketch pixel in metres, `X` or `X,Y` (the sketch's extent over its
     /// size). Default: the exemplar's cell size times 4^steps, so the output has the
@@ -52,7 +52,7 @@ pub(crate) struct Args {
     #[arg(long, value_parser = crate::args::parse_cell_size, value_name = "X[,Y]")]
     pub(crate) sketch_cell_size: Option<(f64, f64)>,
     /// Number of learned atoms N; 0 = the complete dictionary.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = SynthesisSettings::default().amplify.dictionary.n_atoms())]
     pub(crate) atoms: usize,
     #[command(flatten)]
     pub(crate) window: crate::sparse_model::WindowArg,

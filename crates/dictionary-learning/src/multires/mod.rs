@@ -97,6 +97,14 @@ impl DictionaryChoice {
     /// Learning iterations of the default learned dictionary (and of `--atoms N`).
     pub const DEFAULT_ITERATIONS: usize = 3;
 
+    /// Number of atoms of a learned dictionary; 0 for the complete one (the CLI's `--atoms 0`).
+    pub const fn n_atoms(&self) -> usize {
+        match self {
+            Self::Complete => 0,
+            Self::Learned { n_atoms, .. } => *n_atoms,
+        }
+    }
+
     /// `n_atoms` atoms learned in [`Self::DEFAULT_ITERATIONS`] iterations.
     pub const fn learned_default(n_atoms: usize) -> Self {
         Self::learned(n_atoms, Self::DEFAULT_ITERATIONS)
