@@ -22,7 +22,7 @@ use crate::ctx::Ctx;
 #[derive(Debug, Clone, Copy, Default, clap::Args)]
 pub(crate) struct SeedArg {
     /// Seed (candidate sampling and dictionary learning).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = relief_dictionary_learning::AmplifySettings::default().seed)]
     pub(crate) seed: u64,
 }
 

@@ -26,7 +26,7 @@ pub(crate) struct Args {
     #[arg(long, default_value = "cdf53")]
     pub(crate) wavelet: String,
     /// First level taking part in the fit of equation (3) (the paper uses 3).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = relief_wavelet_lod::FitSettings::default().min_level)]
     pub(crate) min_level: u32,
     /// Also fit the local statistics (LSA, equation (4)) in a W x W window (odd) and summarise
     /// their maps (mean and 5/50/95th percentiles of gamma and of the fractal dimension).

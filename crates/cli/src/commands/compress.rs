@@ -39,10 +39,10 @@ pub(crate) struct Args {
     /// Output `.sct` file (written atomically).
     pub(crate) output: PathBuf,
     /// Sparsity `s`: atoms per primitive (1..=64, at most the number of atoms).
-    #[arg(short, long, default_value_t = 2)]
+    #[arg(short, long, default_value_t = CompressSettings::default().sparsity)]
     pub(crate) sparsity: usize,
     /// Number of atoms `N` of a learned or sampled dictionary.
-    #[arg(short = 'n', long, default_value_t = 128)]
+    #[arg(short = 'n', long, default_value_t = CompressSettings::default().atoms)]
     pub(crate) atoms: usize,
     /// Dictionary source when no `--dictionary FILE` is given [default: ksvd].
     #[arg(long = "dict", value_enum)]
@@ -70,10 +70,10 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) quantize: bool,
     /// K-SVD iterations (with `--dict ksvd`).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = CompressSettings::default().iterations)]
     pub(crate) iterations: usize,
     /// Seed of the K-SVD initialisation (with `--dict ksvd`).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = CompressSettings::default().seed)]
     pub(crate) seed: u64,
     /// Append random analytic atoms to the data dictionary, `FAMILY:N,...` with FAMILY one of
     /// `ridged` (sums of ridged noise, figure 4), `perlin`, `ridged-multifractal`,
@@ -84,7 +84,7 @@ pub(crate) struct Args {
     /// With `--sparsity 1` and more than 4096 atoms (`--dict complete` on a large DEM): clusters
     /// of the atom index searched per patch; 0 = the exact search (about 15x slower at 65,536
     /// atoms).
-    #[arg(long, default_value_t = relief_sparse_core::DEFAULT_INDEX_PROBES)]
+    #[arg(long, default_value_t = CompressSettings::default().index_probes)]
     pub(crate) index_probes: usize,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,

@@ -22,10 +22,10 @@ pub(crate) struct Args {
     #[arg(required = true, num_args = 2.., value_name = "EXEMPLAR... OUT")]
     pub(crate) paths: Vec<PathBuf>,
     /// Number of atoms N.
-    #[arg(short = 'n', long, default_value_t = 256)]
+    #[arg(short = 'n', long, default_value_t = KsvdSettings::default().n_atoms)]
     pub(crate) atoms: usize,
     /// Sparsity s of the coding step.
-    #[arg(short, long, default_value_t = 4)]
+    #[arg(short, long, default_value_t = KsvdSettings::default().sparsity)]
     pub(crate) sparsity: usize,
     /// Patch side a in samples (K = a^2).
     #[arg(short = 'a', long, default_value_t = 8)]
@@ -34,7 +34,7 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) step: Option<f64>,
     /// Learning iterations.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = KsvdSettings::default().iterations)]
     pub(crate) iterations: usize,
     /// Atom update: `approximate` (one power iteration) or `exact` (rank-1 SVD).
     #[arg(long, default_value = "approximate")]
@@ -46,7 +46,7 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 30_000)]
     pub(crate) max_patches: usize,
     /// Seed of the initialisation.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = KsvdSettings::default().seed)]
     pub(crate) seed: u64,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
