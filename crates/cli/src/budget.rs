@@ -1,4 +1,4 @@
-//! Time budgets (issue 18). Memory and output size follow from the input and the settings
+//! Time budgets. Memory and output size follow from the input and the settings
 //! (`memory.rs`), but the run time of some jobs does not: `decompress` of a model with wide
 //! blends at a large `--scale`, or `volume` renders at a large `--image-size`, can take from
 //! seconds to hours for the same output size. Those commands time a small pilot of the very

@@ -161,7 +161,7 @@ fn dictionary_json(d: &relief_sparse_core::Dictionary) -> serde_json::Value {
     })
 }
 
-/// Describes a `.sct` model or a `.dict` dictionary (issue 18): version, checksum, size,
+/// Describes a `.sct` model or a `.dict` dictionary: version, checksum, size,
 /// cell size, georeference, and per layer the atoms, patch size and primitives.
 pub(crate) fn model(path: &Path, json: bool, ctx: &Ctx) -> Result<String> {
     let bytes = crate::sparse_model::read_model_bytes(path, ctx)?;

@@ -1,4 +1,4 @@
-//! Pre-flight estimates (issue 18): every command states how much working memory and how many
+//! Pre-flight estimates: every command states how much working memory and how many
 //! output bytes a run will need, from the input size and its settings, before the work starts,
 //! and refuses a run that exceeds the global `--max-memory` or `--max-output-size` with a
 //! message naming the flag to change. The estimates are upper bounds calibrated on measured

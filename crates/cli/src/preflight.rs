@@ -1,4 +1,4 @@
-//! The pre-flight estimates of the commands (issue 18): from the input size and the settings,
+//! The pre-flight estimates of the commands: from the input size and the settings,
 //! before any work, the peak working memory (checked against `--max-memory`) and the output
 //! size (against `--max-output-size`), each part naming the flag that makes it smaller. The
 //! limits and the checking are [`crate::memory`]; the sparse-model commands share
@@ -14,7 +14,7 @@ use crate::commands::{compress, refine};
 use crate::ctx::Ctx;
 use crate::memory::part;
 
-/// Pre-flight estimate of `analyze` (issue 18): the DWT pyramid, and with `--local` the fitted
+/// Pre-flight estimate of `analyze`: the DWT pyramid, and with `--local` the fitted
 /// maps of every band.
 pub(crate) fn analyze(hf: &Heightfield, local: bool, ctx: &Ctx) -> Result<()> {
     ctx.check_memory(
@@ -27,7 +27,7 @@ pub(crate) fn analyze(hf: &Heightfield, local: bool, ctx: &Ctx) -> Result<()> {
     )
 }
 
-/// Pre-flight estimate of `compress` (issue 18), before any patch is cut: the patch matrix
+/// Pre-flight estimate of `compress`, before any patch is cut: the patch matrix
 /// (f32 rows of `a^2`, with the working copies of K-SVD), the dictionary and its Gram matrix
 /// (K^2: with `--dict complete`, K is the number of patches; none at `--sparsity 1` above 4096
 /// atoms, where the exact nearest-atom search codes without it), the codes and the model.
@@ -76,14 +76,14 @@ pub(crate) fn compress(args: &compress::Args, hf: &Heightfield, ctx: &Ctx) -> Re
 }
 
 /// Working bytes per input cell of the analysis (the DWT pyramid and the fitted statistics
-/// maps of every band and level); calibrated on measured peak RSS (issue 18).
+/// maps of every band and level); calibrated on measured peak RSS.
 const ANALYSIS_BYTES_PER_CELL: f64 = 80.0;
 
 /// Working bytes per output cell synthesised in memory (the synthesis pyramid, the f32 result
 /// and its encoding).
 const RENDER_BYTES_PER_CELL: f64 = 24.0;
 
-/// Pre-flight estimate (issue 18): the analysis of the input and the synthesis of the output
+/// Pre-flight estimate: the analysis of the input and the synthesis of the output
 /// (whole, one window, or one streamed band), checked against `--max-memory`, and the output
 /// size against `--max-output-size`, before the analysis starts.
 pub(crate) fn refine(
@@ -200,7 +200,7 @@ pub(crate) fn last_step_window(
     )
 }
 
-/// Pre-flight estimate of the mesh of `relief volume` (issue 18): triangles from the polygonisation grid, memory
+/// Pre-flight estimate of the mesh of `relief volume`: triangles from the polygonisation grid, memory
 /// against `--max-memory` and file size against `--max-output-size`, both naming
 /// `--resolution`.
 fn volume_mesh(ctx: &Ctx, path: &Path, cells: [usize; 3], voxel_m: f64) -> Result<()> {

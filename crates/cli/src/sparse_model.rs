@@ -1,6 +1,6 @@
 //! What the commands that build a sparse model by x4 steps share (`amplify`, `synthesize`,
 //! `fit-procedural`, `tile plan`): the pre-flight estimate of the steps and of the output
-//! (issue 18), and writing the model as a `.sct` file or as a raster (whole, one window, or
+//!, and writing the model as a `.sct` file or as a raster (whole, one window, or
 //! streamed in bands of rows); and reading a model or dictionary file with the function atoms
 //! every reader understands (`decompress`, `info`, `tree`, `tile`, `compress --dictionary`).
 
@@ -118,7 +118,7 @@ pub(crate) fn dictionary_choice(atoms: usize) -> DictionaryChoice {
     }
 }
 
-/// Pre-flight estimate of an amplification (issue 18): the memory of each x4 step from the
+/// Pre-flight estimate of an amplification: the memory of each x4 step from the
 /// coarse size and the settings, and that of the written raster, checked against
 /// `--max-memory` (and the raster's size against `--max-output-size`) before any work. The
 /// message names `--factor` when an intermediate step is too large, `--window` / `--stream` /

@@ -351,7 +351,7 @@ impl SynthArgs {
         Ok(inputs)
     }
 
-    /// Pre-flight memory check (issue 18) of the job on these inputs.
+    /// Pre-flight memory check of the job on these inputs.
     pub(crate) fn preflight(&self, job: &ValidateJob, inputs: &JobInputs, ctx: &Ctx) -> Result<()> {
         use crate::memory::part;
         let m = job.memory(inputs)?;

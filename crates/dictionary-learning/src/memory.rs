@@ -12,7 +12,7 @@ pub const LAST_STEP_INPUT_BYTES_PER_CELL: f64 = 16.0;
 /// Working bytes per coarse cell of one x4 step (patch matrices of the coding and training
 /// grids, codes, residual layer, the x16 intermediate raster), for the default patch side
 /// `a = 8` and grid step 2; scaled by `a^2 / S^2` for other settings. Calibrated on measured
-/// peak RSS (issue 18).
+/// peak RSS.
 pub const STEP_BYTES_PER_COARSE_CELL: f64 = 200.0;
 
 /// Working bytes per exemplar cell (resampled copies, candidate patches, the learned pair of

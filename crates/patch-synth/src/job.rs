@@ -1,4 +1,4 @@
-//! Job layer (issue 13): the `quilt` and `validate` jobs as serde settings with one `check` and
+//! Job layer: the `quilt` and `validate` jobs as serde settings with one `check` and
 //! one `run` on heightfields, shared by the CLI commands and the pipeline stage.
 //!
 //! A job takes the exemplars, the guide DEM as read (any cell size, any height units) and an

@@ -255,7 +255,7 @@ mod tests {
         eprintln!("volume stage on the golden crop: {secs:.2} s");
         assert_eq!(f["mesh_watertight_manifold"], true, "{f:?}");
         assert!(f["implicitisation_max_dev_m"].as_f64().unwrap() < 0.01);
-        // The canyon has no sea (issue 19): sea and caves skipped with a note, no water.
+        // The canyon has no sea: sea and caves skipped with a note, no water.
         let notes = f["notes"].to_string();
         assert!(
             notes.contains("shore features skipped (sea, caves): no sea in this DEM"),

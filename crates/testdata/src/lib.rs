@@ -152,7 +152,7 @@ pub fn dem_windows<const N: usize>(
     Some(windows.map(|(x, y, w, h)| dem.crop(x, y, w, h).expect("crop inside the DEM")))
 }
 
-/// Checks the JSON contract of a job settings type (issue 13): `value` round-trips through
+/// Checks the JSON contract of a job settings type: `value` round-trips through
 /// JSON whose text contains every one of `fragments`, and `{}` reads as `T::default()`.
 /// Returns the JSON text.
 ///

@@ -69,7 +69,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let hf = super::read_raster(&args.input, &args.read, ctx)?.heightfield;
-    // Pre-flight (issue 18): the patches of the input, the discretised candidate atoms and
+    // Pre-flight: the patches of the input, the discretised candidate atoms and
     // their Gram matrix.
     {
         use crate::memory::part;
