@@ -86,8 +86,8 @@ pub use recipe::{
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,
-    KarstStop, RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, Weathering,
-    WindErosion, erosion_intensity,
+    KarstStop, RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, UndercutSettings,
+    Weathering, WindErosion, erosion_intensity,
 };
 pub use simplify::{SimplifyReport, simplify};
 pub use tree::{DemFrame, NodeId, THRESHOLD, TerrainTree, TreeStats};

@@ -551,7 +551,23 @@ impl Basis<'_> {
                 None => o.effects.push((Feature::Rain, rep)),
             }
         }
-        if let Some(h) = overhangs {
+        if let Some(mut h) = overhangs {
+            // Soft rock retreating under resistant beds: the overhangs proper.
+            let u = o.b.undercuts(
+                &UndercutSettings {
+                    depth: self.wr,
+                    spacing: 0.5 * self.wr,
+                    seed: self.sub(9),
+                    ..Default::default()
+                },
+                &o.region,
+            )?;
+            h.candidates += u.candidates;
+            h.primitives += u.primitives;
+            h.features += u.features;
+            h.sites = u.sites;
+            h.axes = u.axes;
+            h.sizes_m = u.sizes_m;
             o.effects.push((Feature::Overhangs, h));
         }
         Ok(())
@@ -659,12 +675,14 @@ fn highlights(b: &SceneBuilder, effects: &[(Feature, EffectReport)]) -> Vec<High
                     at: c,
                     from: Some([-0.55, -0.7, 0.35]),
                     cutaway: true,
+                    size_m: None,
                 });
             }
         } else if matches!(
             f,
             Feature::Hoodoos
                 | Feature::Arches
+                | Feature::Overhangs
                 | Feature::Islands
                 | Feature::Caves
                 | Feature::Sea
@@ -688,6 +706,7 @@ fn highlights(b: &SceneBuilder, effects: &[(Feature, EffectReport)]) -> Vec<High
                 at: e.sites[k],
                 from: e.axes.get(k).or(e.axes.first()).copied(),
                 cutaway: false,
+                size_m: e.sizes_m.get(k).copied(),
             });
         }
     }
@@ -727,7 +746,15 @@ fn size_stats(
                 ("sea", "notch radius", nominal(dims.sea_radius_m, notches))
             }
             Feature::Overhangs | Feature::Wind | Feature::Rain => {
-                (f.name(), "hollow radius", nominal(basis.wr, e.primitives))
+                // Overhangs: the undercuts' depths apart from the weathering hollows.
+                if !e.sizes_m.is_empty() {
+                    out.insert(
+                        "undercuts".to_string(),
+                        SizeStats::of("undercut depth", &e.sizes_m),
+                    );
+                }
+                let hollows = e.primitives.saturating_sub(e.sizes_m.len());
+                (f.name(), "hollow radius", nominal(basis.wr, hollows))
             }
         };
         out.insert(key.to_string(), SizeStats::of(measure, &sizes));

@@ -62,11 +62,13 @@ pub fn render_closeups(
     let mut tiles = Vec::new();
     let mut names = Vec::new();
     for h in rep.highlights.iter().take(4) {
+        let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
-            Feature::Hoodoos => d.hoodoo_height_m * 3.5,
-            Feature::Arches => d.arch_span_m * 3.0,
-            Feature::Islands => d.island_radius_m * 7.0,
+            Feature::Hoodoos => own(d.hoodoo_height_m) * 3.5,
+            Feature::Arches => own(d.arch_span_m) * 3.0,
+            Feature::Islands => own(d.island_radius_m) * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,
+            Feature::Overhangs => d.weathering_radius_m * 10.0,
             _ => d.sea_height_m * 6.0,
         };
         let dist = size.max(4.0 * d.voxel_m);
@@ -91,15 +93,21 @@ pub fn render_closeups(
         }
         // Hoodoos are placed by their foot: aim at mid-height.
         let at = match h.feature {
-            Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.5 * d.hoodoo_height_m],
+            Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.5 * own(d.hoodoo_height_m)],
             // Islands are placed by their top: aim below it, at the underside.
             Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
             _ => h.at,
         };
-        // An arch is seen through its gap from either side: the sunlit one.
+        // An arch is seen through its gap from either side: the sunlit one. An undercut face
+        // is seen obliquely (50 degrees off its normal), so its ledges stand out against
+        // the hollows under them.
         let from = match (h.feature, h.from) {
             (Feature::Arches, Some(v)) if v[0] * tile.light[0] + v[1] * tile.light[1] < 0.0 => {
                 Some([-v[0], -v[1], v[2]])
+            }
+            (Feature::Overhangs, Some(v)) => {
+                let (c, s) = (50f32.to_radians().cos(), 50f32.to_radians().sin());
+                Some([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
             }
             (_, v) => v,
         };

@@ -48,7 +48,8 @@ use crate::geology::GeologySpec;
 use crate::render::{Camera, Image, RenderSettings, render};
 use crate::scene::{
     ArchSettings, EffectReport, HoodooSettings, ImplicitizeSettings, IslandSettings, KarstSettings,
-    RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, Weathering, WindErosion,
+    RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, UndercutSettings, Weathering,
+    WindErosion,
 };
 
 mod build;
@@ -95,8 +96,9 @@ pub enum Feature {
     Arches,
     /// Floating islands.
     Islands,
-    /// Wind and rain erosion of exposed and steep faces (both [`Feature::Wind`] and
-    /// [`Feature::Rain`]).
+    /// Overhangs: soft rock retreating under resistant beds on steep faces
+    /// ([`SceneBuilder::undercuts`]), with wind and rain erosion of exposed and steep faces
+    /// (both [`Feature::Wind`] and [`Feature::Rain`]).
     Overhangs,
     /// Wind erosion of the faces turned to the wind ([`Recipe::wind`]).
     Wind,
@@ -392,6 +394,10 @@ pub struct Highlight {
     pub from: Option<[f32; 3]>,
     /// Underground (karst): the close-up is a cut-away through `at`, facing the eye.
     pub cutaway: bool,
+    /// The landform's own size (m) when measured ([`EffectReport::sizes_m`]: a hoodoo's
+    /// height, an arch's span, an island's radius, an undercut's depth), which frames its
+    /// close-up; `None` = the recipe's nominal size.
+    pub size_m: Option<f32>,
 }
 
 fn count(density: f32, area_km2: f32, cap: usize) -> usize {

@@ -18,9 +18,10 @@
 //!   beds bulges, so the same hoodoo has another profile on another geology; a foot flares
 //!   over the lowest quarter (talus), each sample is jittered by +-8 % and the axis leans a
 //!   little;
-//! * the cap is the resistant bed itself: three flattened, offset ellipsoids as thick as the
-//!   bed (within `[0.15, 1.2] R`) and `R (1.25 + 0.6 rho)` wide, wider than any part of the
-//!   column;
+//! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
+//!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
+//!   the bed (within `[0.15, 1.2] R`) and `R (1.25 + 0.6 rho)` wide, wider than any part of
+//!   the column;
 //! * a noise warp (`0.12 R` at `0.8 R`) creases the whole.
 
 use super::*;
@@ -210,17 +211,25 @@ impl SceneBuilder {
         let (b0, b1) = site.bed;
         let top = axis(b1);
         let rc = r * (1.25 + 0.6 * site.rho_cap);
-        for k in 0..3u64 {
+        // Two offset slabs, each a tall elliptic column cut by a wide flat ellipsoid (their
+        // intersection: a disc with flat top and bottom, the bed's, and steep sides).
+        let th = 0.5 * (b1 - b0) / VISIBLE;
+        for k in 0..2u64 {
             let a = std::f32::consts::TAU * h(20 + k);
-            let off = if k == 0 { 0.0 } else { 0.3 * rc * h(30 + k) };
+            let off = if k == 0 { 0.0 } else { 0.35 * rc * h(30 + k) };
             let c = [
                 top[0] + off * a.cos(),
                 top[1] + off * a.sin(),
                 0.5 * (b0 + b1),
             ];
             let (ax, ay) = (rc * (0.8 + 0.4 * h(40 + k)), rc * (0.8 + 0.4 * h(50 + k)));
-            let axes = [ax / VISIBLE, ay / VISIBLE, 0.5 * (b1 - b0) / VISIBLE];
-            parts.push(self.tree.ellipsoid(c, axes, 1.0)?);
+            let column = self
+                .tree
+                .ellipsoid(c, [ax / VISIBLE, ay / VISIBLE, 6.0 * th], 1.0)?;
+            let slab = self
+                .tree
+                .ellipsoid(c, [3.0 * ax / VISIBLE, 3.0 * ay / VISIBLE, th], 1.0)?;
+            parts.push(self.tree.intersection(column, slab)?);
         }
         let mut all = parts[0];
         for &q in &parts[1..] {

@@ -3,7 +3,7 @@
 //!
 //! The builder's core (implicitisation, surface samples, weathering) is here; its effects live
 //! in `erosion.rs` (sea caves, sea cliffs, wind, rain), `karst.rs` (invasion percolation) and
-//! `hoodoos.rs`, `arches.rs`, `landforms.rs` (a hand-placed arch), `islands.rs` (floating islands); their settings in
+//! `hoodoos.rs`, `arches.rs`, `landforms.rs` (a hand-placed arch), `islands.rs` (floating islands), `undercuts.rs`; their settings in
 //! `settings.rs`.
 
 mod arches;
@@ -13,6 +13,7 @@ mod islands;
 mod karst;
 mod landforms;
 mod settings;
+mod undercuts;
 
 pub use islands::nearest_neighbour_cv;
 pub use settings::*;

@@ -188,6 +188,36 @@ impl Default for RainErosion {
     }
 }
 
+/// Undercuts ([`SceneBuilder::undercuts`]): soft rock retreating under a resistant bed on
+/// steep faces, leaving the bed overhanging.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UndercutSettings {
+    /// Deepest retreat under a bed (m), for a contrast of 0.5 or more in resistance.
+    pub depth: f32,
+    /// Distance between face samples (m).
+    pub spacing: f32,
+    /// Gentlest face (degrees) undercut.
+    pub min_slope_deg: f32,
+    /// Rock under this resistance is soft (retreats).
+    pub rho_soft: f32,
+    /// Rock of at least this resistance is a resistant bed (stands out).
+    pub rho_hard: f32,
+    /// Seed of the face samples.
+    pub seed: u64,
+}
+impl Default for UndercutSettings {
+    fn default() -> Self {
+        Self {
+            depth: 4.0,
+            spacing: 2.0,
+            min_slope_deg: 40.0,
+            rho_soft: 0.5,
+            rho_hard: 0.55,
+            seed: 17,
+        }
+    }
+}
+
 /// Karst by modified invasion percolation (paper section 4.2, figure 6).
 ///
 /// Lengths are in metres. A carved step places a negative ellipsoid, flattened along the
