@@ -69,19 +69,6 @@ pub(crate) fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
     (n * phi.cos() * d, m * d)
 }
 
-/// The largest decompression ratio of a TIFF compression scheme (name, ratio): DEFLATE
-/// 1032:1, PackBits 64:1 (2 bytes for a run of 128), LZW 3641:1 (a 9-bit code for at most 4096
-/// bytes), ZSTD 65536:1 (generous: RLE blocks); `None` for schemes without a known bound.
-fn max_ratio(compression: u16) -> Option<(&'static str, u64)> {
-    match compression {
-        8 | 32946 => Some(("DEFLATE", 1032)),
-        32773 => Some(("PackBits", 64)),
-        5 => Some(("LZW", 3641)),
-        50000 => Some(("ZSTD", 65536)),
-        _ => None,
-    }
-}
-
 fn find_f64s(dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> Result<Option<Vec<f64>>> {
     match dec.find_tag(tag).map_err(terr)? {
         Some(v) => Ok(Some(v.into_f64_vec().map_err(terr)?)),
@@ -135,6 +122,16 @@ fn check_chunks(
         .find_tag_unsigned::<u16>(Tag::Compression)
         .map_err(terr)?
         .unwrap_or(1);
+    if let Some(name) = crate::tiff_dir::unreadable_compression(compression) {
+        return Err(IoError::unsupported(
+            F,
+            format!(
+                "{name} compression (TIFF compression {compression}) is not read by relief; \
+                 convert the file to a lossless one first, e.g. `gdal_translate -co \
+                 COMPRESS=DEFLATE -co PREDICTOR=3 IN.tif OUT.tif`"
+            ),
+        ));
+    }
     let total: u64 = counts.iter().fold(0u64, |a, &c| a.saturating_add(c));
     let needed = n as u64 * (bits as u64 / 8);
     if compression == 1 {
@@ -146,7 +143,7 @@ fn check_chunks(
                 total,
             ));
         }
-    } else if let Some((name, ratio)) = max_ratio(compression)
+    } else if let Some((name, ratio)) = crate::tiff_dir::max_ratio(compression)
         && total.saturating_mul(ratio) < needed
     {
         // A compressed chunk cannot inflate beyond the codec's largest ratio: a file whose

@@ -151,3 +151,32 @@ pub(crate) fn georef_entries(g: &GeoRef, e: &mut Vec<(u16, Value)>) {
     ];
     e.extend(tags.into_iter().filter_map(|(tag, v)| Some((tag, v?))));
 }
+
+/// The largest decompression ratio of a TIFF compression scheme (name, ratio): DEFLATE
+/// 1032:1, PackBits 64:1 (2 bytes for a run of 128), LZW 3641:1 (a 9-bit code for at most 4096
+/// bytes), ZSTD 65536:1 (generous: RLE blocks); `None` for schemes without a known bound.
+pub(crate) fn max_ratio(compression: u16) -> Option<(&'static str, u64)> {
+    match compression {
+        8 | 32946 => Some(("DEFLATE", 1032)),
+        32773 => Some(("PackBits", 64)),
+        5 => Some(("LZW", 3641)),
+        50000 => Some(("ZSTD", 65536)),
+        _ => None,
+    }
+}
+
+/// The name of a TIFF compression scheme GDAL writes that relief's decoder does not read
+/// (None for the ones it does: none, LZW, DEFLATE, PackBits, JPEG, ZSTD; and for unknown
+/// codes, which the decoder names itself; CCITT files are 1-bit, refused by sample format).
+pub(crate) fn unreadable_compression(compression: u16) -> Option<&'static str> {
+    Some(match compression {
+        34661 => "JBIG",
+        34676 | 34677 => "SGILog",
+        34712 => "JPEG 2000",
+        34887 => "LERC",
+        34925 => "LZMA",
+        50001 => "WebP",
+        50002 => "JPEG XL",
+        _ => return None,
+    })
+}

@@ -513,6 +513,32 @@ fn geotiff_strips_too_small_for_their_samples_are_refused() {
     assert!(e.to_string().contains("1032:1"), "{e}");
 }
 
+#[test]
+fn geotiff_compressions_relief_cannot_decode_are_named_with_the_way_out() {
+    // GDAL writes LERC, JPEG 2000, LZMA, WebP...: the message names the scheme and the
+    // gdal_translate line that converts the file, not "malformed ... unsupported error".
+    use relief_heightfield::Heightfield;
+    let hf = Heightfield::from_fn(16, 16, 10.0, 10.0, |x, y| (x * 3 + y) as f32);
+    let opts = relief_io::WriteOptions::default();
+    let mut b = relief_io::encode(&hf, relief_io::Format::GeoTiff, &opts).unwrap();
+    let u16_at = |b: &[u8], i: usize| u16::from_le_bytes([b[i], b[i + 1]]) as usize;
+    let ifd = u32::from_le_bytes([b[4], b[5], b[6], b[7]]) as usize;
+    let e = (0..u16_at(&b, ifd))
+        .map(|k| ifd + 2 + 12 * k)
+        .find(|&e| u16_at(&b, e) == 259)
+        .expect("Compression");
+    for (code, name) in [(34887u16, "LERC"), (34712, "JPEG 2000"), (50001, "WebP")] {
+        b[e + 8..e + 10].copy_from_slice(&code.to_le_bytes());
+        let err = relief_io::read_bytes(&b, None, &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(name) && err.contains("gdal_translate") && !err.contains("malformed"),
+            "{err}"
+        );
+    }
+}
+
 /// Issue 18: cell sizes and origins that are not finite positive numbers are refused with the
 /// field named; a present but non-numeric sidecar cell size is not silently 1 m.
 #[test]
