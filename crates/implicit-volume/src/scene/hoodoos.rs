@@ -22,6 +22,7 @@
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
 //!   the bed (within `[0.15, 1.2] R`) and `R (1.25 + 0.6 rho)` wide, wider than any part of
 //!   the column;
+//! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap);
 //! * a noise warp (`0.12 R` at `0.8 R`) creases the whole.
 
 use super::*;
@@ -231,8 +232,22 @@ impl SceneBuilder {
                 .ellipsoid(c, [3.0 * ax / VISIBLE, 3.0 * ay / VISIBLE, th], 1.0)?;
             parts.push(self.tree.intersection(column, slab)?);
         }
-        let mut all = parts[0];
-        for &q in &parts[1..] {
+        // The column's rounded top is cut at the cap's mid-plane (a very flat ellipsoid's top
+        // there), so it never pokes through a thin cap.
+        let n_column = parts.len() - 2;
+        let mut column = parts[0];
+        for &q in &parts[1..n_column] {
+            column = self.tree.union(column, q)?;
+        }
+        let mid = 0.5 * (b0 + b1);
+        let (wide, deep) = (20.0 * rc / VISIBLE, 4.0 * (mid - z0) / VISIBLE);
+        let below = self.tree.ellipsoid(
+            [top[0], top[1], mid - deep * VISIBLE],
+            [wide, wide, deep],
+            1.0,
+        )?;
+        let mut all = self.tree.intersection(column, below)?;
+        for &q in &parts[n_column..] {
             all = self.tree.union(all, q)?;
         }
         let seed = (s.seed as u32).wrapping_add(site.idx as u32);
