@@ -517,7 +517,7 @@ fn quality(
             terrain.width(),
             terrain.height()
         ),
-        "The protocol of relief_wavelet_lod::quality: consistency (RMS of the \
+        "The quality protocol (the measures of shared/tools/terrain_quality.py): consistency (RMS of the \
          box-down of the output minus the input, % of relief), spectral slope over the added \
          octaves and its distance to the truth's, slope-angle and Laplacian histogram distances \
          (EMD), detail-energy swing with the position modulo 4-32 px (compare with the \

@@ -250,7 +250,12 @@ impl Stage for AmplifyStage {
             &coarse,
             &out,
         )?;
-        cx.before_after("amplify_truth", "truth and the amplification", &truth, &out)?;
+        cx.side_by_side(
+            "amplify_truth",
+            "truth and the amplification",
+            ("truth", &truth),
+            ("amplified", &out),
+        )?;
         let mut grids: Vec<(&str, &Heightfield)> = vec![("truth", &truth)];
         grids.extend(spectra.iter().map(|(n, g)| (n.as_str(), g)));
         cx.spectrum_plot("radial power spectra: truth vs amplifications", &grids);
@@ -474,7 +479,7 @@ impl AmplifyStage {
                  high-pass swing: the same of the output minus its 2-pixel Gaussian blur (no \
                  interpolated reference, whose own error depends on the phase); pits: strict \
                  local minima per km^2; fill: mean closed-depression depth (m); beta: \
-                 drainage-area exponent (issue 41: pits <= 2x the truth's, fill <= 2x + 0.05 \
+                 drainage-area exponent (the bars: pits <= 2x the truth's, fill <= 2x + 0.05 \
                  m, |beta - truth's| <= 0.06)",
                 coarse.width(),
                 coarse.height(),

@@ -154,13 +154,12 @@ fn section_body(h: &mut String, s: &Section) {
     }
     if !s.figures.is_empty() {
         h.push_str("<table><tr><th>figure</th><th>value</th></tr>\n");
+        let mut rows = Vec::new();
         for (k, v) in &s.figures {
-            let _ = writeln!(
-                h,
-                "<tr><td>{}</td><td>{}</td></tr>",
-                esc(k),
-                esc(&fmt_value(v))
-            );
+            flatten(k, v, &mut rows);
+        }
+        for (k, v) in rows {
+            let _ = writeln!(h, "<tr><td>{}</td><td>{}</td></tr>", esc(&k), esc(&v));
         }
         h.push_str("</table>\n");
     }
@@ -192,6 +191,37 @@ fn section_body(h: &mut String, s: &Section) {
             .collect();
         h.push_str(&links.join(", "));
         h.push_str("</p>\n");
+    }
+}
+
+/// The rows of a figure: an object becomes one row per field (`sizes.arches.count`), nested
+/// to any depth, so a stage's structured figures read as a table and not as one cell of JSON;
+/// a list of numbers or strings is one row (at most 12 items shown, then the count).
+fn flatten(key: &str, v: &Value, rows: &mut Vec<(String, String)>) {
+    match v {
+        Value::Object(m) if !m.is_empty() => {
+            for (k, x) in m {
+                flatten(&format!("{key}.{k}"), x, rows);
+            }
+        }
+        Value::Array(a) if a.iter().all(|x| !x.is_object() && !x.is_array()) => {
+            let shown: Vec<String> = a.iter().take(12).map(fmt_value).collect();
+            let more = if a.len() > 12 {
+                format!(", ... ({} items)", a.len())
+            } else {
+                String::new()
+            };
+            rows.push((key.to_string(), format!("[{}{more}]", shown.join(", "))));
+        }
+        Value::Array(a) => {
+            for (i, x) in a.iter().enumerate().take(12) {
+                flatten(&format!("{key}[{i}]"), x, rows);
+            }
+            if a.len() > 12 {
+                rows.push((key.to_string(), format!("... ({} items)", a.len())));
+            }
+        }
+        _ => rows.push((key.to_string(), fmt_value(v))),
     }
 }
 

@@ -322,11 +322,23 @@ impl StageCx<'_> {
         before: &Heightfield,
         after: &Heightfield,
     ) -> Result<()> {
-        let b = self.save_hillshade(&format!("{name}_before"), before)?;
-        let a = self.save_hillshade(&format!("{name}_after"), after)?;
+        self.side_by_side(name, caption, ("before", before), ("after", after))
+    }
+
+    /// [`Self::before_after`] with other labels (e.g. "truth" beside "amplified"): the files
+    /// are still `<name>_before.png` and `<name>_after.png`.
+    pub fn side_by_side(
+        &mut self,
+        name: &str,
+        caption: &str,
+        (left_label, left): (&str, &Heightfield),
+        (right_label, right): (&str, &Heightfield),
+    ) -> Result<()> {
+        let b = self.save_hillshade(&format!("{name}_before"), left)?;
+        let a = self.save_hillshade(&format!("{name}_after"), right)?;
         if let (Some(b), Some(a)) = (b, a) {
-            let lb = format!("before ({} x {})", before.width(), before.height());
-            let la = format!("after ({} x {})", after.width(), after.height());
+            let lb = format!("{left_label} ({} x {})", left.width(), left.height());
+            let la = format!("{right_label} ({} x {})", right.width(), right.height());
             self.section.pair((&b, &lb), (&a, &la), caption);
         }
         Ok(())
@@ -335,14 +347,34 @@ impl StageCx<'_> {
     /// Adds a log-log plot of the radially averaged power spectra (cycles per metre) of the
     /// given grids, and records each one's spectral slope over the band from 4 cycles per
     /// grid to a quarter of its Nyquist frequency as the figure `spectral_slope_<label>`.
-    /// Grids with voids or smaller than 8 x 8 are skipped.
+    /// Grids with voids or smaller than 8 x 8 are skipped. The curves are power spectral
+    /// densities (m^2 per (cycle/m)^2: the FFT power times the cell area over the cells and
+    /// the Hann window's mean square), so grids of other sizes and cell sizes that hold the
+    /// same terrain lie on one curve.
     pub fn spectrum_plot(&mut self, title: &str, grids: &[(&str, &Heightfield)]) {
-        let mut plot = Plot::new(title, "frequency (cycles / m)", "power").log_log();
+        let mut plot = Plot::new(
+            title,
+            "frequency (cycles / m)",
+            "power spectral density (m^4)",
+        )
+        .log_log();
         for (label, hf) in grids {
             let Ok(spec) = metrics::radial_power_spectrum(hf) else {
                 continue;
             };
             let (cx, cy) = hf.cell_size();
+            let hann_ms = |n: usize| {
+                (0..n)
+                    .map(|i| {
+                        let v = 0.5
+                            - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n - 1) as f64).cos();
+                        v * v
+                    })
+                    .sum::<f64>()
+                    / n as f64
+            };
+            let norm = cx * cy / (hf.len() as f64 * hann_ms(hf.width()) * hann_ms(hf.height()));
+            let spec: Vec<(f64, f64)> = spec.into_iter().map(|(f, p)| (f, p * norm)).collect();
             let extent = (hf.width() as f64 * cx).max(hf.height() as f64 * cy);
             let f_hi = 0.25 * 0.5 / cx.max(cy);
             if let Ok(slope) = metrics::spectral_slope(&spec, 4.0 / extent, f_hi) {

@@ -13,6 +13,10 @@ mod model {
         s.figure("voids", 3);
         s.figure("rmse_m", 0.25);
         s.figure("residual", 1.5e-7);
+        s.figure(
+            "sizes",
+            serde_json::json!({"arches": {"count": 2, "span_m": [12.5, 40.0]}, "long": (0..20).collect::<Vec<_>>()}),
+        );
         s.table(
             "round trips",
             &["format", "max-abs"],
@@ -24,6 +28,19 @@ mod model {
         assert!(h.contains("<td>voids</td><td>3</td>"));
         assert!(h.contains("<td>rmse_m</td><td>0.2500</td>"));
         assert!(h.contains("<td>residual</td><td>1.5000e-7</td>"), "{h}");
+        // Structured figures are rows of fields, not a cell of JSON.
+        assert!(h.contains("<td>sizes.arches.count</td><td>2</td>"), "{h}");
+        assert!(
+            h.contains("<td>sizes.arches.span_m</td><td>[12.5000, 40.0000]</td>"),
+            "{h}"
+        );
+        assert!(
+            h.contains(
+                "<td>sizes.long</td><td>[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, ... (20 items)]</td>"
+            ),
+            "{h}"
+        );
+        assert!(!h.contains("&quot;"), "{h}");
         assert!(h.contains("<td>exr</td><td>0</td>"));
         assert!(h.contains("src=\"dem.png\""));
         assert!(h.contains("a &lt;b&gt;"));
@@ -137,6 +154,40 @@ mod model {
         assert_eq!(t, [0.0, 2.0, 4.0, 6.0, 8.0, 10.0]);
         let t: Vec<f64> = ticks(-3.2, 1.5, true).iter().map(|t| t.0).collect();
         assert_eq!(t, [-3.0, -2.0, -1.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn spectra_are_densities_that_agree_across_grid_sizes() {
+        // The same terrain on 10 m cells (256^2) and box-reduced to 20 m (128^2): at the low
+        // frequencies both grids resolve, their densities agree (raw FFT power differed by the
+        // ratio of the cell counts squared, 16x, and more with the cell areas).
+        let fine = relief_heightfield::Heightfield::from_fn(256, 256, 10.0, 10.0, |x, y| {
+            let (x, y) = (x as f32, y as f32);
+            40.0 * (x * 0.031).sin() * (y * 0.023).cos() + 15.0 * (x * 0.11 + y * 0.07).sin()
+        });
+        let coarse = fine.downsample_box(2).unwrap();
+        let (config, _tmp) = crate::test_config(None);
+        let mut state = crate::State::default();
+        let mut section = Section::new("t");
+        let mut cx = crate::StageCx {
+            config: &config,
+            state: &mut state,
+            section: &mut section,
+        };
+        cx.spectrum_plot("spectra", &[("fine", &fine), ("coarse", &coarse)]);
+        let plot = &section.plots[0];
+        assert!(plot.y_label.contains("density"));
+        let at = |s: &Series, f: f64| {
+            s.points
+                .iter()
+                .min_by(|a, b| (a.0 - f).abs().total_cmp(&(b.0 - f).abs()))
+                .unwrap()
+                .1
+        };
+        for f in [2.0 / 2560.0, 4.0 / 2560.0, 8.0 / 2560.0] {
+            let r = at(&plot.series[0], f) / at(&plot.series[1], f);
+            assert!((0.5..2.0).contains(&r), "ratio {r} at {f} cycles/m");
+        }
     }
 
     /// The run on a real crop: hillshade pair, spectra and statistics of the overview, per
