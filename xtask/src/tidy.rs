@@ -424,3 +424,51 @@ where
         );
     }
 }
+
+#[cfg(test)]
+mod python_features {
+    use std::collections::{BTreeMap, BTreeSet};
+    use std::process::Command;
+
+    /// Package -> features, as `cargo tree` resolves them for `args`.
+    fn features(args: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
+        let out = Command::new(env!("CARGO"))
+            .args(["tree", "--offline", "--prefix", "none", "-f", "{p}|{f}"])
+            .args(args)
+            .current_dir(crate::project_root())
+            .output()
+            .expect("cargo tree");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let mut m: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for line in String::from_utf8_lossy(&out.stdout).lines() {
+            if let Some((p, f)) = line.trim_end_matches(" (*)").split_once('|') {
+                m.entry(p.to_string())
+                    .or_default()
+                    .extend(f.split(',').filter(|x| !x.is_empty()).map(String::from));
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn the_python_crate_resolves_the_workspace_features() {
+        // maturin builds relief-python alone; with the features of `cargo test --workspace`
+        // it reuses that build's library crates (crates/python/Cargo.toml says how).
+        let py = features(&["-p", "relief-python", "-e", "normal,build"]);
+        let ws = features(&["--workspace", "-e", "normal,build,dev"]);
+        let differ: Vec<String> = py
+            .iter()
+            .filter(|(p, f)| ws.get(*p) != Some(f))
+            .map(|(p, f)| format!("{p}: python {f:?}, workspace {:?}", ws.get(p)))
+            .collect();
+        assert!(
+            differ.is_empty(),
+            "add these features to crates/python/Cargo.toml:\n{}",
+            differ.join("\n")
+        );
+    }
+}
