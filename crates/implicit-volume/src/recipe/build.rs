@@ -177,7 +177,7 @@ pub fn build_recipe_with_progress(
         ..
     } = out;
     dims.sizes = size_stats(&basis, &dims, &effects);
-    let section_line = best_section_line(&b);
+    let section_line = best_section_line(&b, &effects, dims.sea_radius_m);
     let highlights = highlights(&b, &effects);
     // Water wherever the scene has a sea level: the DEM's own sea (even when no shore feature
     // is asked for: a karst-only coast still shows its sea) or the recipe's explicit level.

@@ -25,11 +25,26 @@ pub(super) fn densest_karst(b: &SceneBuilder) -> Option<[f32; 3]> {
         .map(|(n, s)| s.map(|v| (v / *n as f64) as f32))
 }
 
-/// The west-east line through the DEM row holding the most karst spheres (or carving
-/// spheres when there is no karst).
-pub(super) fn best_section_line(b: &SceneBuilder) -> ([f32; 2], [f32; 2]) {
+/// The west-east line through the DEM row holding the most karst spheres; without karst,
+/// through the first sea cave two radii `cave_radius` inside its mouth (the section then cuts
+/// the cave under its roof); else through the row of the most carving spheres.
+pub(super) fn best_section_line(
+    b: &SceneBuilder,
+    effects: &[(Feature, EffectReport)],
+    cave_radius: f32,
+) -> ([f32; 2], [f32; 2]) {
     let f = b.frame();
     let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+    let cave = effects
+        .iter()
+        .filter(|(k, _)| matches!(k, Feature::Sea | Feature::Caves))
+        .find_map(|(_, e)| Some((*e.sites.first()?, *e.axes.first()?)));
+    if let Some((mouth, out)) = cave
+        && !b.carvings().iter().any(|c| c.2)
+    {
+        let y = (mouth[1] - 2.0 * cave_radius * out[1]).clamp(0.0, ym);
+        return ([0.0, y], [xm, y]);
+    }
     let mut counts = vec![0usize; f.height];
     // Karst passages when there are any (weathering pits would win the count otherwise).
     let any_karst = b.carvings().iter().any(|c| c.2);

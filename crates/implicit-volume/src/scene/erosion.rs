@@ -144,7 +144,9 @@ impl SceneBuilder {
     }
 
     /// Sea caves: chains of carving spheres going inland (up the distance-to-sea gradient,
-    /// `inland`), from the most eroded samples just above sea level of `placed`.
+    /// `inland`), from the most eroded samples just above sea level of `placed`, at the
+    /// softest level of the lower sea band, only where the ground 1.5 radii inland rises 1.6
+    /// radii over that level, under a roof, ending in resistant rock or under too thin a roof. Sites are the mouths, axes the directions out of them (to the sea).
     fn sea_caves(
         &mut self,
         s: &SeaErosion,
@@ -173,14 +175,34 @@ impl SceneBuilder {
             let Some(mut dir) = inland(p) else {
                 continue;
             };
+            // The cave opens at the waterline in the softest rock of the lower sea band.
+            let (lo, hi) = (s.sea_level, s.sea_level + 0.5 * s.height);
+            let level = (0..=8)
+                .map(|q| lo + (hi - lo) * q as f32 / 8.0)
+                .min_by(|a, b| {
+                    let rho = |z: f32| self.geology.resistance([p[0], p[1], z]);
+                    rho(*a).total_cmp(&rho(*b))
+                })
+                .unwrap_or(p[2]);
+            let mouth = [p[0], p[1], level];
+            // Only into rock that rises over a roof: a shore lower than that gets notches,
+            // no cave (a cave there would be a trench open to the sky).
+            let behind = add(mouth, mul(dir, 1.5 * r));
+            if self.ground(behind[0], behind[1]) - level < 1.6 * r {
+                continue;
+            }
             mouths.push(p);
             report.features += 1;
-            report.sites.push(p);
+            report.sites.push(mouth);
+            report.axes.push([-dir[0], -dir[1], 0.0]);
             // A wandering passage: the heading turns by up to +-20 degrees a step and the
-            // floor drifts a little, within the sea-erosion band.
+            // floor drifts to the softest rock nearby, within the sea-erosion band. Past its
+            // mouth it keeps a roof (its support radius at most 0.9 of the rock over its
+            // centre) and ends where the roof gets thinner than 0.6 radius or the rock
+            // resistant: an enclosed void in soft rock, not a trench.
             let n = (s.cave_length / (0.5 * r)).ceil() as usize;
             let mut widest = 0.0f32;
-            let mut c = p;
+            let mut c = mouth;
             for m in 1..=n {
                 let t = m as f32 / n as f32;
                 let h = |q: u64| unit(hash(w.seed, k as u64, m as u64, 90 + q)) - 0.5;
@@ -191,9 +213,23 @@ impl SceneBuilder {
                     0.0,
                 ];
                 c = add(c, mul(dir, 0.5 * r));
-                c[2] = (c[2] + 0.15 * r * h(1))
-                    .clamp(s.sea_level - s.depth, s.sea_level + 0.5 * s.height);
+                c[2] = [-0.15f32, 0.0, 0.15]
+                    .into_iter()
+                    .map(|dz| (c[2] + dz * r).clamp(s.sea_level - s.depth, hi))
+                    .min_by(|a, b| {
+                        let rho = |z: f32| self.geology.resistance([c[0], c[1], z]);
+                        rho(*a).total_cmp(&rho(*b))
+                    })
+                    .unwrap_or(c[2]);
+                let room = self.ground(c[0], c[1]) - c[2];
+                if m > 2 && (room < 0.6 * r || self.geology.resistance(c) >= 0.55) {
+                    break;
+                }
                 let rr = r * (1.0 - 0.5 * t) * (0.85 + 0.3 * (h(2) + 0.5));
+                let rr = if m > 1 { rr.min(0.9 * room) } else { rr };
+                if rr <= 0.0 {
+                    break;
+                }
                 widest = widest.max(rr);
                 let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
                 self.negatives.push(id);
@@ -393,4 +429,82 @@ fn inland(frame: &DemFrame, dist: &[f32], p: V3) -> Option<V3> {
     let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
     let g = (gx * gx + gy * gy).sqrt();
     (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geology::{Geology, Layer};
+    use crate::render::{SectionSettings, section};
+
+    /// A 20 m cliff rising out of the sea (x > 30 m) in strata of 6 m soft (0.15) under 4 m
+    /// resistant (0.85) rock, the waterline in soft rock: sea caves open at the waterline in
+    /// soft rock and run inland under a roof, so vertical sections along and across them show
+    /// carved air with rock over it (enclosed), not trenches open to the sky.
+    #[test]
+    fn sea_caves_are_enclosed_voids_in_soft_rock_at_the_waterline() {
+        let hf = Heightfield::from_fn(48, 32, 2.0, 2.0, |x, _| {
+            if x < 15 {
+                -4.0
+            } else {
+                20.0f32.min(-4.0 + 12.0 * (x - 14) as f32)
+            }
+        });
+        let mut g = Geology::new();
+        let layers = [
+            Layer {
+                thickness: 6.0,
+                hardness: 0.15,
+            },
+            Layer {
+                thickness: 4.0,
+                hardness: 0.85,
+            },
+        ];
+        let id = g.strata(-3.0, &layers).unwrap();
+        g.set_root(id).unwrap();
+        let mut b = SceneBuilder::new(&hf, g.clone(), &ImplicitizeSettings::default()).unwrap();
+        let s = SeaErosion {
+            weathering: Weathering {
+                spacing: 1.5,
+                radius: 3.0,
+                energy: 3.0,
+                ..Default::default()
+            },
+            height: 8.0,
+            peak: 2.0,
+            reach: 20.0,
+            caves: 2,
+            cave_length: 24.0,
+            ..Default::default()
+        };
+        let rep = b.sea_erosion(&s, &Region::everywhere()).unwrap();
+        assert!(rep.features >= 1, "{rep:?}");
+        let scene = b.build(true).unwrap();
+        for (mouth, out) in rep.sites.iter().zip(&rep.axes) {
+            assert!(g.resistance(*mouth) < 0.5, "mouth in soft rock: {mouth:?}");
+            assert!(
+                (0.0..=4.0).contains(&mouth[2]),
+                "at the waterline: {mouth:?}"
+            );
+            assert!(out[0] < -0.5, "the mouth faces the sea: {out:?}");
+            let cut = |start: [f32; 2], end: [f32; 2]| {
+                let st = SectionSettings {
+                    start,
+                    end,
+                    z_range: Some((-8.0, 24.0)),
+                    width: 160,
+                    height: 128,
+                };
+                section(&scene, &st).unwrap().1
+            };
+            // Along the cave (west-east through the mouth) and across it 8 m inland.
+            let along = cut([0.0, mouth[1]], [94.0, mouth[1]]);
+            let across = cut([mouth[0] + 8.0, 0.0], [mouth[0] + 8.0, 62.0]);
+            assert!(
+                along.enclosed > 0 && across.enclosed > 0,
+                "{along:?} {across:?}"
+            );
+        }
+    }
 }

@@ -460,7 +460,8 @@ pub struct EffectReport {
     pub sites: Vec<V3>,
     /// Per site, the horizontal direction to look along to see it best (arches: the gap's
     /// axis, so a camera sees through the opening; floating islands: towards the lowest ground
-    /// around, so a camera sees the underside); empty for the other effects.
+    /// around, so a camera sees the underside; sea caves: out of the mouth, towards the sea;
+    /// undercuts: out of the face); empty for the other effects.
     pub axes: Vec<V3>,
     /// The landforms' sizes (m): floating islands' radii, hoodoo heights (ground to cap top),
     /// arch spans, sea caves' widest radii (one per site), karst passage radii (one per carved

@@ -181,9 +181,10 @@ fn a_567_m_coast_gets_no_kilometre_caves() {
         "{:?}",
         rep.dims.notes
     );
-    // With the cells the shore needs (a 10 m coast), caves of metres.
+    // With the cells the shore needs (a 10 m cliffed coast: caves need rock rising over a
+    // roof), caves of metres.
     let hf = Heightfield::from_fn(96, 96, 10.0, 10.0, |x, y| {
-        (x as f32 - 30.0) * 1.5 + 4.0 * ((y as f32) * 0.3).sin()
+        ((x as f32 - 30.0) * 15.0).clamp(-10.0, 40.0) + 4.0 * ((y as f32) * 0.3).sin()
     });
     let (_, rep) = build_recipe(&hf, &recipe).unwrap();
     let caves = stats(&rep, "caves");
