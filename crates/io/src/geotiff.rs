@@ -12,6 +12,8 @@ use tiff::tags::Tag;
 use crate::util::{check_dims, finish, flip_rows};
 use crate::{Format, IoError, Raster, ReadOptions, Result};
 
+pub(crate) mod bands;
+
 const F: Format = Format::GeoTiff;
 
 fn terr(e: tiff::TiffError) -> IoError {

@@ -89,6 +89,7 @@ use relief_heightfield::{GeoRef, Heightfield};
 
 pub use atomic::{Staging, create_new_only, create_staging_dir, remove_own_temporaries};
 pub use error::{IoError, Result};
+pub use geotiff::bands::GeoTiffBands;
 pub use geotiff::{DEFLATE_LEVEL, TiffCompression};
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as, z_up_to_y_up};
 pub use npy::npy_f32;

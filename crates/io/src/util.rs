@@ -106,25 +106,7 @@ pub(crate) fn finish(
     nodata: Option<f64>,
     dtype: &str,
 ) -> Result<Raster> {
-    if let Some(nd) = nodata {
-        if nd.is_nan() {
-            // NaN is already a void.
-        } else {
-            let ndf = nd as f32;
-            for v in &mut data {
-                if *v == ndf {
-                    *v = f32::NAN;
-                }
-            }
-        }
-    }
-    // Infinite values, and magnitudes no terrain has (a float DEM whose GDAL nodata of
-    // -3.4e38 lost its tag), are voids.
-    for v in &mut data {
-        if v.is_infinite() || v.abs() > VOID_MAGNITUDE {
-            *v = f32::NAN;
-        }
-    }
+    voids_to_nan(&mut data, nodata);
     if data.iter().all(|v| v.is_nan()) {
         return Err(IoError::AllVoid { format });
     }
@@ -137,6 +119,19 @@ pub(crate) fn finish(
         dtype: dtype.to_string(),
         rows_flipped: false,
     })
+}
+
+/// Turns the voids of decoded samples into NaN, cell by cell (so a band of rows gets the
+/// values the whole raster gets): the declared `nodata` value, infinite values, and magnitudes
+/// no terrain has (a float DEM whose GDAL nodata of -3.4e38 lost its tag).
+pub(crate) fn voids_to_nan(data: &mut [f32], nodata: Option<f64>) {
+    // A NaN nodata is already a void.
+    let ndf = nodata.filter(|nd| !nd.is_nan()).map(|nd| nd as f32);
+    for v in data {
+        if Some(*v) == ndf || v.is_infinite() || v.abs() > VOID_MAGNITUDE {
+            *v = f32::NAN;
+        }
+    }
 }
 
 /// Flips rows in place (row-major `width` columns).
