@@ -347,6 +347,37 @@ pub fn halo_window(layout: &TileLayout, t: usize, dem: &[f32]) -> Result<Vec<f32
             layout.height
         )));
     }
+    halo_from_rows(layout, t, dem, 0)
+}
+
+/// The rows of the DEM [`halo_window`] of tile `t` reads: `first .. end` (its tile's rows and
+/// the margin rows inside the map).
+pub fn halo_rows(layout: &TileLayout, t: usize) -> Result<(usize, usize)> {
+    layout.check_tile(t)?;
+    let [_, y0, _, h] = layout.window(t);
+    Ok((y0.saturating_sub(1), (y0 + h + 1).min(layout.height)))
+}
+
+/// [`halo_window`] cut from a band of whole rows of the DEM, `rows` starting at row `first`,
+/// which must hold the rows [`halo_rows`] names (so the plan can cut its tiles' inputs from
+/// the DEM read band by band): the same values.
+pub fn halo_from_rows(
+    layout: &TileLayout,
+    t: usize,
+    rows: &[f32],
+    first: usize,
+) -> Result<Vec<f32>> {
+    let (need0, need1) = halo_rows(layout, t)?;
+    let n = rows.len() / layout.width.max(1);
+    if !rows.len().is_multiple_of(layout.width.max(1)) || first > need0 || first + n < need1 {
+        return Err(bad(format!(
+            "rows {first}..{} ({} values) do not hold rows {need0}..{need1} of tile {t} across \
+             {} columns",
+            first + n,
+            rows.len(),
+            layout.width
+        )));
+    }
     let [x0, y0, w, h] = layout.window(t);
     let mut out = vec![f32::NAN; (w + 2) * (h + 2)];
     for y in 0..h + 2 {
@@ -354,12 +385,13 @@ pub fn halo_window(layout: &TileLayout, t: usize, dem: &[f32]) -> Result<Vec<f32
         if gy < 0 || gy >= layout.height as isize {
             continue;
         }
+        let r = gy as usize - first;
         for x in 0..w + 2 {
             let gx = (x0 + x) as isize - 1;
             if gx < 0 || gx >= layout.width as isize {
                 continue;
             }
-            out[y * (w + 2) + x] = dem[gy as usize * layout.width + gx as usize];
+            out[y * (w + 2) + x] = rows[r * layout.width + gx as usize];
         }
     }
     Ok(out)

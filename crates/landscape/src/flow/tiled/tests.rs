@@ -380,3 +380,35 @@ fn bad_tiles_sizes_and_orders_are_errors() {
     assert!(phase2(&layout, &[]).is_err());
     assert!(phase4(&layout, &[]).is_err());
 }
+
+#[test]
+fn halos_cut_from_row_bands_equal_those_of_the_whole_dem() {
+    // What the plan cuts band by band: every tile's halo from just its rows (and from larger
+    // bands), the same values as from the whole DEM; a band missing a row is an error.
+    let (w, h) = (37, 29);
+    let z = basin_and_river(w, h, true);
+    let layout = TileLayout {
+        width: w,
+        height: h,
+        tile: 8,
+        cell_x: 1.0,
+        cell_y: 1.0,
+    };
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for t in 0..layout.tasks() {
+        let whole = halo_window(&layout, t, &z).unwrap();
+        let (a, b) = halo_rows(&layout, t).unwrap();
+        let [_, y0, _, th] = layout.window(t);
+        assert_eq!((a, b), (y0.saturating_sub(1), (y0 + th + 1).min(h)));
+        for (first, end) in [(a, b), (a.saturating_sub(2), (b + 3).min(h)), (0, h)] {
+            let band = &z[first * w..end * w];
+            let cut = halo_from_rows(&layout, t, band, first).unwrap();
+            assert_eq!(bits(&cut), bits(&whole), "tile {t} rows {first}..{end}");
+        }
+        if b - a > 1 {
+            assert!(halo_from_rows(&layout, t, &z[(a + 1) * w..b * w], a + 1).is_err());
+            assert!(halo_from_rows(&layout, t, &z[a * w..(b - 1) * w], a).is_err());
+        }
+        assert!(halo_from_rows(&layout, t, &z[a * w..b * w - 1], a).is_err());
+    }
+}
