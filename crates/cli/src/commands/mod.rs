@@ -217,12 +217,12 @@ pub(crate) fn read_raster_for(
         // or Web-Mercator grid's ground cell is measured), so a GeoTIFF written from the
         // result states the cells the user gave instead of the file's.
         let hf = &mut raster.heightfield;
-        let (ox, oy) = hf.cell_size();
-        let (sx, sy) = (nx / ox, ny / oy);
-        let (cw, ch) = (hf.width() as f64 / 2.0, hf.height() as f64 / 2.0);
-        let georef = hf
-            .georef()
-            .map(|g| g.window(cw * (1.0 - sx), ch * (1.0 - sy), sx, sy));
+        let georef = cell_size_georef(
+            hf.georef(),
+            (hf.width(), hf.height()),
+            hf.cell_size(),
+            (nx, ny),
+        );
         hf.set_cell_size(nx, ny)
             .with_context(|| format!("--cell-size {nx},{ny}"))?;
         hf.set_georef(georef);
@@ -256,6 +256,20 @@ pub(crate) fn read_raster_for(
         ));
     }
     Ok(raster)
+}
+
+/// The georeference of a `width x height` grid of cells `old` once `--cell-size` makes them
+/// `new`: its pixel size scaled by the same ratio about the grid's centre (see
+/// [`read_raster_for`]).
+pub(crate) fn cell_size_georef(
+    georef: Option<&relief_heightfield::GeoRef>,
+    (width, height): (usize, usize),
+    (ox, oy): (f64, f64),
+    (nx, ny): (f64, f64),
+) -> Option<relief_heightfield::GeoRef> {
+    let (sx, sy) = (nx / ox, ny / oy);
+    let (cw, ch) = (width as f64 / 2.0, height as f64 / 2.0);
+    georef.map(|g| g.window(cw * (1.0 - sx), ch * (1.0 - sy), sx, sy))
 }
 
 /// The width and height a file declares, from a reader's size error.

@@ -167,22 +167,9 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
     }
 }
 
-/// A real DEM crop (alps_dem, 300 x 200 cells of 42.6 x 61.8 m): tiles of 64 and 48 cells.
-#[test]
-fn flow_plan_equals_the_single_run_on_a_real_dem() {
-    let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 300, 200) else {
-        return;
-    };
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "alps.tif", &hf);
-    cycle(&dem, 64, 3);
-    cycle(&dem, 48, 11);
-}
-
-/// A basin spanning 3 x 3 tiles of 32 cells (filled to a lake over nine tiles) and a river
+/// A 96 x 96 basin of 25 m cells: a bowl over the middle 3 x 3 tiles of 32 cells, a river
 /// winding across every tile edge, integer elevations (flats everywhere) and a few voids.
-#[test]
-fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
+fn basin() -> Heightfield {
     let (w, h) = (96, 96);
     let data: Vec<f32> = (0..w * h)
         .map(|i| {
@@ -212,7 +199,78 @@ fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
             }
         })
         .collect();
-    let hf = Heightfield::new(w, h, data, 25.0, 25.0).unwrap();
+    Heightfield::new(w, h, data, 25.0, 25.0).unwrap()
+}
+
+/// `relief flow DEM EXTRA` and its plan as tiles of `tile` cells, every phase run: the same
+/// bytes.
+fn plan_equals_single(dem: &Path, tile: usize, extra: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (single, tiled, dir) = (
+        tmp.path().join("s"),
+        tmp.path().join("t"),
+        tmp.path().join("p"),
+    );
+    let mut args = words("flow {} -o {}", &[&dem, &single]);
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+    assert!(relief(&args).status.success(), "{args:?}");
+    let line = format!("tile plan {{}} --tile {tile} -- flow {{}} -o {{}}");
+    let mut args = words(&line, &[&dir, &dem, &tiled]);
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+    assert!(relief(&args).status.success(), "{args:?}");
+    run_phases(&dir, tasks(&dir), 7);
+    relief_ok!["tile", "mosaic", &dir];
+    assert_same(&single, &tiled);
+}
+
+/// The plan reads a GeoTIFF file band by band (the plan step never holds the whole DEM) and
+/// other inputs whole, with the read flags of `relief flow`: `--cell-size` scales the
+/// georeference as the single run's, `--fill-voids` fills the whole DEM before cutting (the
+/// whole read), a NumPy DEM is read whole; each mosaic equals the single run. A GeoTIFF of
+/// voids only is refused by name and leaves no plan behind.
+#[test]
+fn flow_plan_reads_its_input_as_relief_flow_does() {
+    let (tmp, gc, _) = tmp_with_crop("gc.tif", (10, 20, 100, 90));
+    plan_equals_single(&gc, 32, &["--cell-size", "20,30"]);
+    let hf = basin();
+    let tif = write(tmp.path(), "basin.tif", &hf);
+    plan_equals_single(&tif, 32, &["--fill-voids"]);
+    let npy = write(tmp.path(), "basin.npy", &hf);
+    plan_equals_single(&npy, 48, &[]);
+    let void = Heightfield::new(40, 40, vec![f32::NAN; 1600], 5.0, 5.0).unwrap();
+    let void = write(tmp.path(), "void.tif", &void);
+    let (plan, out) = (tmp.path().join("vp"), tmp.path().join("vo"));
+    fails_with(
+        &relief![
+            "tile", "plan", &plan, "--tile", "16", "--", "flow", &void, "-o", &out
+        ],
+        &["void.tif", "no valid cell"],
+        &[],
+    );
+    assert!(
+        !plan.exists() || files(&plan).is_empty(),
+        "{:?}",
+        files(&plan)
+    );
+}
+
+/// A real DEM crop (alps_dem, 300 x 200 cells of 42.6 x 61.8 m): tiles of 64 and 48 cells.
+#[test]
+fn flow_plan_equals_the_single_run_on_a_real_dem() {
+    let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 300, 200) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = write(tmp.path(), "alps.tif", &hf);
+    cycle(&dem, 64, 3);
+    cycle(&dem, 48, 11);
+}
+
+/// A basin spanning 3 x 3 tiles of 32 cells (filled to a lake over nine tiles) and a river
+/// winding across every tile edge, integer elevations (flats everywhere) and a few voids.
+#[test]
+fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
+    let hf = basin();
     let tmp = tempfile::tempdir().unwrap();
     let dem = write(tmp.path(), "basin.tif", &hf);
     cycle(&dem, 32, 5);

@@ -148,14 +148,12 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         &[&input],
         ctx,
     )?);
-    let dem = crate::commands::read_raster_for(&input, &f.read, ctx, None)?.heightfield;
-    if dem.as_slice().iter().all(|v| v.is_nan()) {
-        bail!("{} has no valid cell to route", input.display());
-    }
-    let (cx, cy) = dem.cell_size();
+    let mut dem = Dem::open(&input, &f.read, ctx)?;
+    let (width, height) = dem.size();
+    let (cx, cy) = dem.cell;
     let layout = TileLayout {
-        width: dem.width(),
-        height: dem.height(),
+        width,
+        height,
         tile: a.tile,
         cell_x: cx,
         cell_y: cy,
@@ -174,7 +172,16 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         std::fs::create_dir_all(dir.join(sub))
             .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
     }
-    let index_bytes = cut_inputs(&dir, &layout, &dem)?;
+    let index_bytes = match cut_inputs(&dir, &layout, &mut dem, ctx) {
+        Ok(b) => b,
+        Err(e) => {
+            // Nothing of a plan that cannot run is left (the folder was new or empty).
+            for sub in FOLDERS {
+                let _ = std::fs::remove_dir_all(dir.join(sub));
+            }
+            return Err(e.context(format!("cannot plan {}", input.display())));
+        }
+    };
     let args = vec![
         "flow".to_string(),
         input.display().to_string(),
@@ -198,7 +205,7 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
             width: layout.width,
             height: layout.height,
             cell_size: [cx, cy],
-            georef: dem.georef().cloned(),
+            georef: dem.georef.clone(),
         },
         tile: a.tile,
         tiles_x: layout.tiles_x(),
@@ -241,25 +248,121 @@ pub(super) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
     Ok(())
 }
 
+/// The DEM the plan cuts: read band by band (a GeoTIFF file: the plan step holds a band of
+/// tile rows, never the whole DEM), or whole (other formats, devices, `--fill-voids`, whose
+/// filling is global), with the values, cell size and georeference `relief flow` reads.
+struct Dem {
+    source: Source,
+    cell: (f64, f64),
+    georef: Option<GeoRef>,
+}
+
+enum Source {
+    Bands(Box<relief_io::GeoTiffBands>),
+    Whole(Box<Heightfield>),
+}
+
+impl Dem {
+    fn open(path: &Path, read: &crate::args::ReadArgs, ctx: &Ctx) -> Result<Self> {
+        let streamable = !read.fill_voids
+            && std::fs::metadata(path).is_ok_and(|m| m.is_file())
+            && first_bytes(path).is_some_and(|b| {
+                relief_io::Format::detect(&b, Some(path)).ok() == Some(relief_io::Format::GeoTiff)
+            });
+        if !streamable {
+            let hf = crate::commands::read_raster_for(path, read, ctx, None)?.heightfield;
+            if hf.as_slice().iter().all(|v| v.is_nan()) {
+                bail!("{} has no valid cell to route", path.display());
+            }
+            return Ok(Dem {
+                cell: hf.cell_size(),
+                georef: hf.georef().cloned(),
+                source: Source::Whole(Box::new(hf)),
+            });
+        }
+        let mut opts = read.options();
+        opts.cell_size = None;
+        let bands = relief_io::GeoTiffBands::open(path, &opts)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let (mut cell, mut georef) = (bands.cell_size(), bands.georef().cloned());
+        if let Some(new) = read.cell_size {
+            // As `relief flow` reads it (`read_raster_for`).
+            Heightfield::new(1, 1, vec![0.0], new.0, new.1)
+                .with_context(|| format!("--cell-size {},{}", new.0, new.1))?;
+            let size = (bands.width(), bands.height());
+            georef = crate::commands::cell_size_georef(georef.as_ref(), size, cell, new);
+            cell = new;
+        }
+        Ok(Dem {
+            source: Source::Bands(Box::new(bands)),
+            cell,
+            georef,
+        })
+    }
+
+    fn size(&self) -> (usize, usize) {
+        match &self.source {
+            Source::Bands(b) => (b.width(), b.height()),
+            Source::Whole(hf) => (hf.width(), hf.height()),
+        }
+    }
+}
+
+/// The first bytes of a file (its format's magic).
+fn first_bytes(path: &Path) -> Option<Vec<u8>> {
+    use std::io::Read as _;
+    let mut b = Vec::with_capacity(64);
+    std::fs::File::open(path)
+        .ok()?
+        .take(64)
+        .read_to_end(&mut b)
+        .ok()?;
+    Some(b)
+}
+
 /// Writes every tile's window with its one-cell margin (`input/tile-N.tif`), so a phase-1
 /// task reads its tile alone, and `input/index.json` (their checksums); returns the index.
-fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &Heightfield) -> Result<Vec<u8>> {
+/// A streamed DEM is read one row of tiles (and its margin rows) at a time.
+fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &mut Dem, ctx: &Ctx) -> Result<Vec<u8>> {
     let (cx, cy) = (layout.cell_x, layout.cell_y);
-    let tasks = layout.tasks();
-    let index = (0..tasks)
-        .into_par_iter()
-        .map(|t| {
-            let [_, _, w, h] = layout.window(t);
-            let halo = tiled::halo_window(layout, t, dem.as_slice())?;
-            let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
-            let bytes = deflate_geotiff(&hf)?;
-            let name = input_name(t);
-            let path = dir.join(&name);
-            relief_io::write_bytes_atomic(&path, &bytes)
-                .with_context(|| format!("cannot write {}", path.display()))?;
-            Ok(bytes_sum(&bytes, name))
-        })
-        .collect::<Result<Vec<FileSum>>>()?;
+    let mut index = Vec::with_capacity(layout.tasks());
+    let mut rows = Vec::new();
+    let mut any_valid = false;
+    let progress = ctx.progress();
+    progress.begin("cutting the tiles' inputs", layout.tiles_y() as u64);
+    for ty in 0..layout.tiles_y() {
+        let row: Vec<usize> = (ty * layout.tiles_x()..(ty + 1) * layout.tiles_x()).collect();
+        let (first, end) = tiled::halo_rows(layout, row[0])?;
+        let (band, band_first): (&[f32], usize) = match &mut dem.source {
+            Source::Whole(hf) => (hf.as_slice(), 0),
+            Source::Bands(b) => {
+                b.read_rows(first, end - first, &mut rows)?;
+                let own = &rows[(ty * layout.tile - first) * layout.width..];
+                let own = &own[..own.len().min(layout.tile * layout.width)];
+                any_valid |= own.iter().any(|v| !v.is_nan());
+                (&rows, first)
+            }
+        };
+        let cut = row
+            .into_par_iter()
+            .map(|t| {
+                let [_, _, w, h] = layout.window(t);
+                let halo = tiled::halo_from_rows(layout, t, band, band_first)?;
+                let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
+                let bytes = deflate_geotiff(&hf)?;
+                let name = input_name(t);
+                let path = dir.join(&name);
+                relief_io::write_bytes_atomic(&path, &bytes)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                Ok(bytes_sum(&bytes, name))
+            })
+            .collect::<Result<Vec<FileSum>>>()?;
+        index.extend(cut);
+        progress.advance(1);
+    }
+    if matches!(dem.source, Source::Bands(_)) && !any_valid {
+        bail!("the DEM has no valid cell to route (every cell is a void)");
+    }
     let index_bytes = serde_json::to_vec(&index)?;
     relief_io::write_bytes_atomic(&dir.join(INPUT_INDEX), &index_bytes)
         .with_context(|| format!("cannot write {}", dir.join(INPUT_INDEX).display()))?;
