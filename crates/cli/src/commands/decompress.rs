@@ -34,8 +34,8 @@ pub(crate) struct Args {
     /// Raster to compare with (same size as the output): prints PSNR and RMSE.
     #[arg(long)]
     pub(crate) reference: Option<PathBuf>,
-    /// Refuse outputs larger than this many cells.
-    #[arg(long, default_value_t = 1 << 28)]
+    /// Refuse outputs larger than this many cells (the input's limit is --max-input-cells).
+    #[arg(long = "max-output-cells", alias = "max-cells", default_value_t = 1 << 28)]
     pub(crate) max_cells: usize,
     #[command(flatten)]
     pub(crate) read: super::ReadArgs,
@@ -67,7 +67,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let cells = (win.width as u128) * (win.height as u128);
     if cells > args.max_cells as u128 {
         bail!(
-            "invalid output size {} x {} = {cells} cells: exceeds --max-cells {}",
+            "invalid output size {} x {} = {cells} cells: exceeds --max-output-cells {}",
             win.width,
             win.height,
             args.max_cells

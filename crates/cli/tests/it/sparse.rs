@@ -334,6 +334,7 @@ fn bad_input_fails_cleanly() {
         vec!["--window", "0,0,49,10"],
         vec!["--window", "40,0,10,10"],
         vec!["--window", "18446744073709551615,0,2,2"],
+        vec!["--scale", "200", "--max-output-cells", "1000"],
         vec!["--scale", "200", "--max-cells", "1000"],
     ] {
         let mut a = vec![os("decompress"), good.as_os_str(), raster.as_os_str()];
