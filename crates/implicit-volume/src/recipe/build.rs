@@ -593,8 +593,19 @@ impl Basis<'_> {
             per_cluster: 6,
             seed: self.sub(5),
         };
-        o.effects
-            .push((Feature::Hoodoos, o.b.hoodoos(&h, &o.region)?));
+        let rep = o.b.hoodoos(&h, &o.region)?;
+        if rep.features == 0 {
+            o.dims.notes.push(format!(
+                "hoodoos skipped: no ground sloping {:.0}-{:.0} degrees has a resistant bed \
+                 (rho >= {}) {:.0}-{:.0} m over it with mostly soft rock under it",
+                h.min_slope_deg,
+                h.max_slope_deg,
+                h.cap_rho,
+                0.6 * height,
+                1.4 * height
+            ));
+        }
+        o.effects.push((Feature::Hoodoos, rep));
         Ok(())
     }
 

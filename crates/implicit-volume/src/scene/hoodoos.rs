@@ -7,7 +7,8 @@
 //!   over it holds a resistant bed (`rho >= cap_rho`) between 0.6 and 1.4 times the nominal
 //!   height, the nearest to it, with mostly soft rock (`rho < 0.5`) under that bed: the bed
 //!   becomes the cap, the soft rock the column;
-//! * **clusters**: qualifying sites in hashed order, the steeper (at least 25 degrees) first,
+//! * **clusters**: qualifying sites in hashed order, the steeper (at least 25 degrees) first
+//!   and, among those, the ones whose cap stands within 20 % of the nominal height first,
 //!   seed clusters `6 spacing` apart; each cluster takes up to `per_cluster` sites within
 //!   `2 spacing` of its seed, `spacing` apart from every hoodoo placed.
 //!
@@ -140,6 +141,7 @@ impl SceneBuilder {
         sites.sort_by_key(|c| {
             (
                 c.slope < BADLAND_SLOPE_DEG,
+                (c.bed.1 - c.p[2] - s.height).abs() > 0.2 * s.height,
                 hash(s.seed, c.idx, 0x686f_6f64, 0),
             )
         });
