@@ -270,6 +270,15 @@ impl Dem {
                 relief_io::Format::detect(&b, Some(path)).ok() == Some(relief_io::Format::GeoTiff)
             });
         if !streamable {
+            let why = if read.fill_voids {
+                "--fill-voids fills the whole DEM first"
+            } else {
+                "only a GeoTIFF file is read band by band"
+            };
+            ctx.note(format!(
+                "{}: read whole to cut the tiles ({why}; about 6 bytes per cell)",
+                path.display()
+            ));
             let hf = crate::commands::read_raster_for(path, read, ctx, None)?.heightfield;
             if hf.as_slice().iter().all(|v| v.is_nan()) {
                 bail!("{} has no valid cell to route", path.display());
