@@ -245,13 +245,14 @@ impl VolumeFigures {
                     e.thin_cover
                 ),
                 "hoodoos" => format!(
-                    ", {} hoodoos {:.0} m tall, radius {:.0} m",
+                    ", {} hoodoos under resistant cap beds near {:.0} m up, column radius {:.0} m \
+                     at resistance 0.73 (narrower in soft rock)",
                     e.count, d.hoodoo_height_m, d.hoodoo_radius_m
                 ),
                 "arches" => format!(
-                    ", {} arches left standing in gaps cut through ridges: openings {:.0} m wide, \
-                     up to {:.0} m high, bridges {:.0} m thick, gaps {:.0} m long in all",
-                    e.count, d.arch_span_m, d.arch_height_m, d.arch_thickness_m, e.length_m
+                    ", {} arches (fins eroded through under a resistant bed), spans drawn \
+                     around {:.0} m, fins {:.0} m thick, gaps {:.0} m long in all",
+                    e.count, d.arch_span_m, d.arch_thickness_m, e.length_m
                 ),
                 "islands" => {
                     let r = &d.island_radii_m;

@@ -295,15 +295,17 @@ pub struct Dimensions {
     pub karst_step_m: f32,
     /// Karst budget (steps).
     pub karst_budget: usize,
-    /// Hoodoo height (m).
+    /// Nominal hoodoo height (m): each stands to the resistant bed nearest it (0.6 to 1.4
+    /// times it; `sizes` has the heights placed).
     pub hoodoo_height_m: f32,
-    /// Hoodoo base radius (m).
+    /// Hoodoo column radius in rock of resistance 0.73 (m; `0.45 + 0.75 rho` times it).
     pub hoodoo_radius_m: f32,
     /// Hoodoos asked for.
     pub hoodoo_count: usize,
-    /// Arch span (m).
+    /// Median arch span (m): each arch's is drawn around it (`sizes` has the spans placed).
     pub arch_span_m: f32,
-    /// Arch rise above the higher foot (m).
+    /// Nominal opening height (m): 0.6 of the median span (each arch's opening runs from
+    /// its floor up to its bridge bed, [`crate::scene::SceneBuilder::arches`]).
     pub arch_height_m: f32,
     /// Arch thickness (m).
     pub arch_thickness_m: f32,
