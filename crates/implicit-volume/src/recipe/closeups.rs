@@ -79,7 +79,7 @@ pub fn render_closeups(
     for h in rep.highlights.iter().take(4) {
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
-            Feature::Hoodoos => own(d.hoodoo_height_m) * 3.5,
+            Feature::Hoodoos => own(d.hoodoo_height_m) * 5.0,
             Feature::Arches => own(d.arch_span_m) * 3.0,
             Feature::Islands => own(d.island_radius_m) * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,

@@ -21,8 +21,8 @@
 //!   little;
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
-//!   the bed (within `[0.15, 1.2] R`) and `R (1.25 + 0.6 rho)` wide, wider than any part of
-//!   the column;
+//!   the bed (within `[0.15, 1.2] R`) and `R (0.9 + 0.6 rho)` in radius, wider than the
+//!   column above its foot;
 //! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap);
 //! * a noise warp (`0.12 R` at `0.8 R`) creases the whole.
 
@@ -213,7 +213,7 @@ impl SceneBuilder {
         // The cap: the resistant bed, wider than the column.
         let (b0, b1) = site.bed;
         let top = axis(b1);
-        let rc = r * (1.25 + 0.6 * site.rho_cap);
+        let rc = r * (0.9 + 0.6 * site.rho_cap);
         // Two offset slabs, each a tall elliptic column cut by a wide flat ellipsoid (their
         // intersection: a disc with flat top and bottom, the bed's, and steep sides).
         let th = 0.5 * (b1 - b0) / VISIBLE;
