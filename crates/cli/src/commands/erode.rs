@@ -243,6 +243,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(p) = &args.deposition {
         ctx.write_raster(&staged.path(p), &out.deposition)?;
     }
+    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
+    // removed).
+    if relief_heightfield::Progress::stopped(&progress) {
+        return Err(crate::budget::Stopped("erode, after writing the outputs".into()).into());
+    }
     staged.commit()?;
     drop(progress);
     let report = Report {

@@ -200,6 +200,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         outputs: FILES.iter().map(|(n, _)| *n).collect(),
     };
     staged.write_json("flow.json", &report, true)?;
+    // Writing six rasters and the network asks no deadline: a run past --max-time is not
+    // committed (the staged files are removed), whatever phase it was in.
+    if relief_heightfield::Progress::stopped(&progress) {
+        return Err(crate::budget::Stopped("flow, after writing the outputs".into()).into());
+    }
     staged.commit()?;
     drop(progress);
     let text = if args.json {

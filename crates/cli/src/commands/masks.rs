@@ -259,6 +259,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         splat_channels: ["ground", "rock", "sediment", "wet"],
     };
     staged.write_json("masks.json", &report, true)?;
+    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
+    // removed).
+    if relief_heightfield::Progress::stopped(&progress) {
+        return Err(crate::budget::Stopped("masks, after writing the outputs".into()).into());
+    }
     staged.commit()?;
     drop(progress);
     let text = if args.json {

@@ -140,6 +140,11 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         let m = &out.synthesis.seam_map;
         staged.write_png(png, m.width, m.height, &m.rgb())?;
     }
+    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
+    // removed).
+    if relief_heightfield::Progress::stopped(&progress) {
+        return Err(crate::budget::Stopped("quilt, after writing the outputs".into()).into());
+    }
     staged.commit()?;
     drop(progress);
     let f = &out.figures;

@@ -55,6 +55,15 @@ pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
     let prepared = read_prepared(&dir, &m, ctx)?;
     let hf = render(&m, prepared, win, ctx)?;
     let bytes = deflate_geotiff(&hf)?;
+    // Encoding asks no deadline: a task past --max-time writes nothing (the tile stays to do).
+    if ctx
+        .deadline()
+        .is_some_and(|d| std::time::Instant::now() >= d)
+    {
+        return Err(
+            crate::budget::Stopped(format!("tile task {i}, after encoding the tile")).into(),
+        );
+    }
     let name = tile_name(i);
     let tile_path = dir.join("tiles").join(&name);
     relief_io::write_bytes_atomic(&tile_path, &bytes)
