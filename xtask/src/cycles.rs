@@ -36,7 +36,6 @@ mod tests {
         ),
         ("sparse-core", &["dictionary", "patches"]),
         ("sparse-core", &["nearest", "omp"]),
-        ("wavelet-lod", &["dwt", "lift"]),
     ];
 
     /// Every `.rs` file below `dir`.

@@ -13,13 +13,12 @@
 //!
 //! `H` responds to horizontal edges (elevation changing from row to row).
 
-use std::ops::Range;
-
 use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, WaveletError};
+pub(crate) use crate::lift::AxisPlan;
 use crate::lift::{Boundary, forward_1d, forward_rows, inverse_1d, inverse_rows, lane_maps};
 use crate::wavelet::{Scheme, Wavelet};
 
@@ -330,34 +329,6 @@ pub(crate) fn forward_level(
         grid(wh, hl, sh),
         grid(wh, hh, dh),
     )
-}
-
-/// The lane ranges one axis of a windowed inverse level needs.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct AxisPlan {
-    /// Full length of the axis at the finer level.
-    pub(crate) n: usize,
-    /// Requested output range.
-    pub(crate) out: Range<usize>,
-    /// Even-lane (low-pass) range.
-    pub(crate) even: Range<usize>,
-    /// Odd-lane (high-pass) range (empty on an axis of length 1).
-    pub(crate) odd: Range<usize>,
-}
-
-impl AxisPlan {
-    /// The lanes the output range `out` of an axis of length `n` needs, with `margin` samples
-    /// of the synthesis filter on each side.
-    pub(crate) fn new(n: usize, out: Range<usize>, margin: usize) -> Self {
-        let p0 = out.start.saturating_sub(margin) & !1;
-        let p1 = (out.end + margin).min(n);
-        Self {
-            n,
-            out,
-            even: p0 / 2..p1.div_ceil(2),
-            odd: p0 / 2..p1 / 2,
-        }
-    }
 }
 
 /// Inverse of one level on a window: returns the `px.out x py.out` window of the finer level

@@ -8,6 +8,8 @@
 //! once per level instead of once per step. The schedule is only used when it provably reads
 //! every value at the stage the step-by-step order would, so it is an exact reordering.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -549,10 +551,37 @@ pub(crate) fn rows_stepwise(
     column_ops_stepwise(&ops, even, odd, em, om, width, false);
 }
 
+/// The lane ranges one axis of a windowed inverse level needs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct AxisPlan {
+    /// Full length of the axis at the finer level.
+    pub(crate) n: usize,
+    /// Requested output range.
+    pub(crate) out: Range<usize>,
+    /// Even-lane (low-pass) range.
+    pub(crate) even: Range<usize>,
+    /// Odd-lane (high-pass) range (empty on an axis of length 1).
+    pub(crate) odd: Range<usize>,
+}
+
+impl AxisPlan {
+    /// The lanes the output range `out` of an axis of length `n` needs, with `margin` samples
+    /// of the synthesis filter on each side.
+    pub(crate) fn new(n: usize, out: Range<usize>, margin: usize) -> Self {
+        let p0 = out.start.saturating_sub(margin) & !1;
+        let p1 = (out.end + margin).min(n);
+        Self {
+            n,
+            out,
+            even: p0 / 2..p1.div_ceil(2),
+            odd: p0 / 2..p1 / 2,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dwt::AxisPlan;
     use crate::wavelet::Wavelet;
 
     /// Deterministic values in [-500, 500).
