@@ -26,7 +26,6 @@ mod tests {
         ),
         ("dictionary-learning", &["multires", "sketch", "structure"]),
         ("implicit-volume", &["recipe", "render", "scene"]),
-        ("landscape", &["depression", "elev"]),
         (
             "patch-synth",
             &[

@@ -9,7 +9,7 @@ pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
     /// The order-preserving key of `self`.
     fn key(self) -> Self::Key;
     /// A priority-queue entry: the key of `self` and a cell index, ordered by key, then index.
-    type Entry: crate::depression::radix::RadixKey;
+    type Entry: crate::radix::RadixKey;
     /// The entry of `self` at cell `i`.
     fn entry(self, i: u32) -> Self::Entry;
     /// The cell of an entry.

@@ -51,6 +51,7 @@ pub mod grid;
 pub mod grow;
 pub mod landform;
 pub mod masks;
+pub mod radix;
 pub mod stats;
 
 pub use error::{LandscapeError, Result};

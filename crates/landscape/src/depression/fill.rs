@@ -8,7 +8,7 @@
 
 use std::collections::VecDeque;
 
-use crate::depression::radix::RadixHeap;
+use crate::radix::RadixHeap;
 
 use crate::elev::Elev;
 use crate::grid::Grid;

@@ -4,7 +4,8 @@
 pub mod breach;
 pub mod fill;
 pub mod flats;
-pub mod radix;
+/// The radix heap of the floods (kept at this path for callers; it lives in `crate::radix`).
+pub use crate::radix;
 
 pub use breach::{BreachLimits, BreachReport, breach};
 pub use fill::{FillMode, NO_PARENT, is_outlet, priority_flood};

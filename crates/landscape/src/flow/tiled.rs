@@ -50,9 +50,9 @@
 
 use std::collections::HashMap;
 
-use crate::depression::radix::RadixHeap;
 use crate::elev::Elev;
 use crate::grid::{D8, Grid, NO_FLOW};
+use crate::radix::RadixHeap;
 use crate::{LandscapeError, Result};
 
 mod accum;
