@@ -33,7 +33,6 @@ mod tests {
                 "validate",
             ],
         ),
-        ("sparse-core", &["dictionary", "patches"]),
         ("sparse-core", &["nearest", "omp"]),
     ];
 

@@ -17,7 +17,6 @@ use ndarray::Array2;
 use rayon::prelude::*;
 use relief_heightfield::Heightfield;
 
-use crate::dictionary::support_mask;
 use crate::error::{Result, SparseError};
 
 /// Largest number of primitives of a centre grid.
@@ -311,4 +310,47 @@ pub fn extract_patch_rows(
         geometry: *geometry,
         grid,
     })
+}
+
+/// Checks a patch frame and returns the support mask.
+pub(crate) fn support_mask(patch_size: usize, spacing: f64, radius: f64) -> Result<Vec<bool>> {
+    if patch_size == 0 || patch_size > 256 {
+        return Err(SparseError::param(
+            "patch_size",
+            patch_size,
+            "must be in 1..=256",
+        ));
+    }
+    if !(spacing.is_finite() && spacing > 0.0 && spacing <= 1e6) {
+        return Err(SparseError::param(
+            "spacing",
+            spacing,
+            "must be finite and in (0, 1e6] cells",
+        ));
+    }
+    if !(radius.is_finite() && radius > 0.0 && radius <= 1e9) {
+        return Err(SparseError::param(
+            "support_radius",
+            radius,
+            "must be finite and in (0, 1e9] cells",
+        ));
+    }
+    let a = patch_size;
+    let h = (a as f64 - 1.0) / 2.0;
+    let mut mask = vec![false; a * a];
+    for r in 0..a {
+        for c in 0..a {
+            let dx = (c as f64 - h) * spacing;
+            let dy = (r as f64 - h) * spacing;
+            mask[r * a + c] = dx * dx + dy * dy < radius * radius;
+        }
+    }
+    if !mask.iter().any(|&m| m) {
+        return Err(SparseError::param(
+            "support_radius",
+            radius,
+            "the support disk holds no sample of the patch",
+        ));
+    }
+    Ok(mask)
 }
