@@ -24,7 +24,6 @@ mod tests {
                 "volume_io",
             ],
         ),
-        ("dictionary-learning", &["multires", "sketch", "structure"]),
         ("implicit-volume", &["recipe", "render", "scene"]),
         (
             "patch-synth",

@@ -33,9 +33,9 @@ use relief_heightfield::Heightfield;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{LearnError, Result};
+use crate::multires::octave_ratio;
 use crate::multires::{STEP_FACTOR, box_resample, grid_at};
 use crate::noise::item_seed;
-use crate::sketch::octave_ratio;
 
 /// Smallest side (cells) of the exemplar grid the structure is taken from, in patch sides
 /// (3: the exemplar is reduced closer to the sketch's cell, so less relies on self-similarity;

@@ -57,11 +57,13 @@ use crate::error::{LearnError, Result};
 use crate::noise::item_seed;
 
 mod build;
+mod detail;
 mod kernels;
 mod last;
 mod plan;
 mod step;
 
+pub(crate) use self::detail::{octave_ratio, x4_detail_rms};
 pub use self::kernels::detail_gain;
 pub(crate) use self::kernels::upsample4;
 use self::kernels::{back_project, box_down4};

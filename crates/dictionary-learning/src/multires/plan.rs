@@ -382,13 +382,12 @@ fn run_until_last(
             let (t, e) = (scale.target_cell_size, scale.exemplar_cell_size);
             let octaves = ((t.0 * t.1) / (e.0 * e.1)).sqrt().ln() / (STEP_FACTOR as f64).ln();
             let gain = if scale.self_similar && octaves.abs() > SCALE_TOLERANCE {
-                let ratio =
-                    *octave_ratio.get_or_insert_with(|| crate::sketch::octave_ratio(exemplar));
+                let ratio = *octave_ratio.get_or_insert_with(|| super::octave_ratio(exemplar));
                 ratio.powf(octaves)
             } else {
                 1.0
             };
-            dict.detail_rms = crate::sketch::x4_detail_rms(&ex).map(|r| r * gain);
+            dict.detail_rms = super::x4_detail_rms(&ex).map(|r| r * gain);
         }
         if t + 1 == settings.steps {
             let last = LastStep {
