@@ -24,7 +24,6 @@ mod tests {
                 "volume_io",
             ],
         ),
-        ("implicit-volume", &["recipe", "render", "scene"]),
         (
             "patch-synth",
             &[

@@ -706,3 +706,84 @@ pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStat
         st,
     ))
 }
+
+#[cfg(test)]
+mod sea_cave_sections {
+    //! Sections through the sea caves of `scene::SceneBuilder::sea_erosion` (here, not in the
+    //! scene's tests: the scene does not depend on the renderer).
+    use super::{SectionSettings, section};
+    use crate::geology::{Geology, Layer};
+    use crate::scene::{ImplicitizeSettings, Region, SceneBuilder, SeaErosion, Weathering};
+    use relief_heightfield::Heightfield;
+
+    /// A 20 m cliff rising out of the sea (x > 30 m) in strata of 6 m soft (0.15) under 4 m
+    /// resistant (0.85) rock, the waterline in soft rock: sea caves open at the waterline in
+    /// soft rock and run inland under a roof, so vertical sections along and across them show
+    /// carved air with rock over it (enclosed), not trenches open to the sky.
+    #[test]
+    fn sea_caves_are_enclosed_voids_in_soft_rock_at_the_waterline() {
+        let hf = Heightfield::from_fn(48, 32, 2.0, 2.0, |x, _| {
+            if x < 15 {
+                -4.0
+            } else {
+                20.0f32.min(-4.0 + 12.0 * (x - 14) as f32)
+            }
+        });
+        let mut g = Geology::new();
+        let layers = [
+            Layer {
+                thickness: 6.0,
+                hardness: 0.15,
+            },
+            Layer {
+                thickness: 4.0,
+                hardness: 0.85,
+            },
+        ];
+        let id = g.strata(-3.0, &layers).unwrap();
+        g.set_root(id).unwrap();
+        let mut b = SceneBuilder::new(&hf, g.clone(), &ImplicitizeSettings::default()).unwrap();
+        let s = SeaErosion {
+            weathering: Weathering {
+                spacing: 1.5,
+                radius: 3.0,
+                energy: 3.0,
+                ..Default::default()
+            },
+            height: 8.0,
+            peak: 2.0,
+            reach: 20.0,
+            caves: 2,
+            cave_length: 24.0,
+            ..Default::default()
+        };
+        let rep = b.sea_erosion(&s, &Region::everywhere()).unwrap();
+        assert!(rep.features >= 1, "{rep:?}");
+        let scene = b.build(true).unwrap();
+        for (mouth, out) in rep.sites.iter().zip(&rep.axes) {
+            assert!(g.resistance(*mouth) < 0.5, "mouth in soft rock: {mouth:?}");
+            assert!(
+                (0.0..=4.0).contains(&mouth[2]),
+                "at the waterline: {mouth:?}"
+            );
+            assert!(out[0] < -0.5, "the mouth faces the sea: {out:?}");
+            let cut = |start: [f32; 2], end: [f32; 2]| {
+                let st = SectionSettings {
+                    start,
+                    end,
+                    z_range: Some((-8.0, 24.0)),
+                    width: 160,
+                    height: 128,
+                };
+                section(&scene, &st).unwrap().1
+            };
+            // Along the cave (west-east through the mouth) and across it 8 m inland.
+            let along = cut([0.0, mouth[1]], [94.0, mouth[1]]);
+            let across = cut([mouth[0] + 8.0, 0.0], [mouth[0] + 8.0, 62.0]);
+            assert!(
+                along.enclosed > 0 && across.enclosed > 0,
+                "{along:?} {across:?}"
+            );
+        }
+    }
+}

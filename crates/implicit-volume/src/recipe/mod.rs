@@ -70,11 +70,12 @@ pub const KARST_MAX_STEPS: usize = 16_384;
 /// with a note naming the window that fits.
 pub const WEATHERING_MAX_SAMPLES: usize = 1 << 21;
 use self::closeups::{best_section_line, densest_karst};
-pub(crate) use self::sea::border_connected;
 pub use self::sea::{
     FLAT_SEA_SHARE, SEA_FLAT_NOISE_M, SEA_MIN_CELLS, SEA_MIN_SHARE, SEA_PITS, SeaDetection,
-    SeaKind, Seabed, border_connected_at_or_below, detect_sea, sea_flat_tolerance, seabed,
+    SeaKind, Seabed, detect_sea, sea_flat_tolerance, seabed,
 };
+/// The implicitisation deviation and the sea mask are the scene's (kept at these paths).
+pub use crate::scene::{Deviation, border_connected_at_or_below};
 
 /// One landform effect of a [`Recipe`].
 #[derive(
@@ -342,17 +343,6 @@ pub struct Dimensions {
     pub sizes: std::collections::BTreeMap<String, SizeStats>,
     /// Features skipped or adjusted, and why.
     pub notes: Vec<String>,
-}
-
-/// Deviation of the implicitised DEM's surface `f = T` from the DEM samples.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
-pub struct Deviation {
-    /// Largest absolute vertical distance (m).
-    pub max: f32,
-    /// Mean absolute vertical distance (m).
-    pub mean: f32,
-    /// Number of DEM nodes measured.
-    pub samples: usize,
 }
 
 /// What [`build_recipe`] did.

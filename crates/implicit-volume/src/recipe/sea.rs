@@ -34,6 +34,8 @@
 
 use relief_heightfield::Heightfield;
 
+use crate::scene::border_connected_at_or_below;
+
 /// Smallest share of the DEM's samples a sea covers ([`detect_sea`]).
 pub const SEA_MIN_SHARE: f32 = 0.02;
 /// Smallest number of samples a sea covers ([`detect_sea`]).
@@ -96,53 +98,6 @@ pub struct SeaDetection {
     pub cells: usize,
     /// `cells` over the DEM's sample count.
     pub share: f32,
-}
-
-/// The samples at or below `level` connected to the DEM's border by 4-neighbour steps through
-/// such samples (non-finite samples are never sea and block the fill).
-pub fn border_connected_at_or_below(hf: &Heightfield, level: f32) -> Vec<bool> {
-    border_connected(hf.as_slice(), hf.width(), hf.height(), level)
-}
-
-/// [`border_connected_at_or_below`] on a row-major `w x h` grid `z`.
-pub(crate) fn border_connected(z: &[f32], w: usize, h: usize, level: f32) -> Vec<bool> {
-    let low = |k: usize| z[k].is_finite() && z[k] <= level;
-    let mut sea = vec![false; w * h];
-    let mut stack = Vec::new();
-    let seed = |k: usize, sea: &mut Vec<bool>, stack: &mut Vec<usize>| {
-        if !sea[k] && low(k) {
-            sea[k] = true;
-            stack.push(k);
-        }
-    };
-    for j in 0..w {
-        seed(j, &mut sea, &mut stack);
-        if h > 1 {
-            seed((h - 1) * w + j, &mut sea, &mut stack);
-        }
-    }
-    for i in 0..h {
-        seed(i * w, &mut sea, &mut stack);
-        if w > 1 {
-            seed(i * w + w - 1, &mut sea, &mut stack);
-        }
-    }
-    while let Some(k) = stack.pop() {
-        let (i, j) = (k / w, k % w);
-        if j > 0 {
-            seed(k - 1, &mut sea, &mut stack);
-        }
-        if j + 1 < w {
-            seed(k + 1, &mut sea, &mut stack);
-        }
-        if i > 0 {
-            seed(k - w, &mut sea, &mut stack);
-        }
-        if i + 1 < h {
-            seed(k + w, &mut sea, &mut stack);
-        }
-    }
-    sea
 }
 
 /// Detects the sea of a DEM (module docs): border-connected samples at or below 0 m, else a

@@ -240,11 +240,11 @@ impl SceneBuilder {
     /// Implicitisation deviation: at up to `max_samples` interior DEM nodes (a regular
     /// stride), the root of `f = T` of the heightfield primitive alone is found by bisection
     /// along the vertical and compared with the DEM sample.
-    pub fn implicitization_deviation(&self, max_samples: usize) -> crate::recipe::Deviation {
+    pub fn implicitization_deviation(&self, max_samples: usize) -> Deviation {
         let f = self.frame;
         let interior = (f.width.saturating_sub(2)) * (f.height.saturating_sub(2));
         if interior == 0 || max_samples == 0 {
-            return crate::recipe::Deviation::default();
+            return Deviation::default();
         }
         let stride = ((interior as f64 / max_samples as f64).sqrt().ceil() as usize).max(1);
         let mut pts = Vec::new();
@@ -275,7 +275,7 @@ impl SceneBuilder {
             .collect();
         let max = devs.iter().cloned().fold(0.0, f32::max);
         let mean = (devs.iter().map(|&d| d as f64).sum::<f64>() / devs.len() as f64) as f32;
-        crate::recipe::Deviation {
+        Deviation {
             max,
             mean,
             samples: devs.len(),
@@ -491,7 +491,7 @@ impl SceneBuilder {
         let f = self.frame;
         let (w, h) = (f.width, f.height);
         let mut d: Vec<f32> = if connected {
-            crate::recipe::border_connected(&self.dem, w, h, level)
+            border_connected(&self.dem, w, h, level)
                 .into_iter()
                 .map(|s| if s { 0.0 } else { f32::INFINITY })
                 .collect()
@@ -698,6 +698,64 @@ impl Scene {
     pub fn geology(&self) -> &Geology {
         &self.geology
     }
+}
+
+/// Deviation of the implicitised DEM's surface `f = T` from the DEM samples.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Deviation {
+    /// Largest absolute vertical distance (m).
+    pub max: f32,
+    /// Mean absolute vertical distance (m).
+    pub mean: f32,
+    /// Number of DEM nodes measured.
+    pub samples: usize,
+}
+
+/// The samples at or below `level` connected to the DEM's border by 4-neighbour steps through
+/// such samples (non-finite samples are never sea and block the fill).
+pub fn border_connected_at_or_below(hf: &Heightfield, level: f32) -> Vec<bool> {
+    border_connected(hf.as_slice(), hf.width(), hf.height(), level)
+}
+
+/// [`border_connected_at_or_below`] on a row-major `w x h` grid `z`.
+pub(crate) fn border_connected(z: &[f32], w: usize, h: usize, level: f32) -> Vec<bool> {
+    let low = |k: usize| z[k].is_finite() && z[k] <= level;
+    let mut sea = vec![false; w * h];
+    let mut stack = Vec::new();
+    let seed = |k: usize, sea: &mut Vec<bool>, stack: &mut Vec<usize>| {
+        if !sea[k] && low(k) {
+            sea[k] = true;
+            stack.push(k);
+        }
+    };
+    for j in 0..w {
+        seed(j, &mut sea, &mut stack);
+        if h > 1 {
+            seed((h - 1) * w + j, &mut sea, &mut stack);
+        }
+    }
+    for i in 0..h {
+        seed(i * w, &mut sea, &mut stack);
+        if w > 1 {
+            seed(i * w + w - 1, &mut sea, &mut stack);
+        }
+    }
+    while let Some(k) = stack.pop() {
+        let (i, j) = (k / w, k % w);
+        if j > 0 {
+            seed(k - 1, &mut sea, &mut stack);
+        }
+        if j + 1 < w {
+            seed(k + 1, &mut sea, &mut stack);
+        }
+        if i > 0 {
+            seed(k - w, &mut sea, &mut stack);
+        }
+        if i + 1 < h {
+            seed(k + w, &mut sea, &mut stack);
+        }
+    }
+    sea
 }
 
 #[cfg(test)]

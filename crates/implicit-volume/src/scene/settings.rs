@@ -94,7 +94,7 @@ pub struct SeaErosion {
     /// scaled by `0.8^(k-1)`, deepening notches into caves and arches (figure 4, left).
     pub iterations: usize,
     /// The sea is only the ground at or below `sea_level` connected to the DEM's border
-    /// ([`crate::recipe::border_connected_at_or_below`]), not closed depressions inland;
+    /// ([`crate::scene::border_connected_at_or_below`]), not closed depressions inland;
     /// `false` = every sample at or below `sea_level` (a lake level anywhere).
     pub border_connected: bool,
 }
