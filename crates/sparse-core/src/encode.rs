@@ -9,10 +9,10 @@ use std::sync::Arc;
 
 use relief_heightfield::{Heightfield, NoProgress, Progress, metrics};
 
+use crate::coding::code_indexed;
 use crate::dictionary::{Dictionary, FunctionAtomRegistry};
 use crate::error::{Result, SparseError};
 use crate::format::FormatOptions;
-use crate::nearest::code_indexed;
 use crate::omp::OmpSettings;
 use crate::patches::{PatchGeometry, extract_patches};
 use crate::sct::{Node, Placement, RasterSettings, Sct, SparseLayer};
@@ -28,7 +28,7 @@ pub struct EncodeSettings {
     /// (`a delta / 2`).
     pub step: Option<f64>,
     /// With `s = 1` and more than 4096 atoms: clusters of the inverted-list index searched per
-    /// patch ([`crate::nearest::code_indexed`]; 0 = the exact search). Default
+    /// patch ([`crate::code_indexed`]; 0 = the exact search). Default
     /// [`DEFAULT_INDEX_PROBES`].
     pub index_probes: usize,
 }

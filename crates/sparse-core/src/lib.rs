@@ -60,6 +60,8 @@
 //! ```
 #![warn(missing_docs)]
 
+mod codes;
+mod coding;
 pub mod dictionary;
 pub mod encode;
 mod error;
@@ -69,6 +71,7 @@ pub mod omp;
 pub mod patches;
 pub mod sct;
 
+pub use coding::code_indexed;
 pub use dictionary::{AtomDescriptor, Dictionary, FunctionAtom, FunctionAtomRegistry};
 pub use encode::{
     CompressionReport, DEFAULT_INDEX_PROBES, EncodeSettings, compression_report, dictionary_values,

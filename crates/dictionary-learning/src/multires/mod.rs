@@ -208,7 +208,7 @@ pub struct AmplifySettings {
     pub exemplar_cell_size: Option<(f64, f64)>,
     /// With `s = 1` and more than 4096 atoms (a complete dictionary of a large exemplar, when
     /// [`Self::diverse_atoms`] does not apply): clusters of the inverted-list atom index
-    /// searched per primitive (`relief_sparse_core::nearest::code_indexed`; 0 = the exact
+    /// searched per primitive (`relief_sparse_core::code_indexed`; 0 = the exact
     /// search, about 15x slower at 65,536 atoms). Default
     /// [`relief_sparse_core::DEFAULT_INDEX_PROBES`].
     pub index_probes: usize,

@@ -153,7 +153,7 @@ impl MultiResDictionary {
             };
             self.diverse_codes_with(signals, settings.seed, &global)
         } else {
-            Ok(relief_sparse_core::nearest::code_indexed(
+            Ok(relief_sparse_core::code_indexed(
                 self.low.view(),
                 signals.view(),
                 &OmpSettings {

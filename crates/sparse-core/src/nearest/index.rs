@@ -27,8 +27,8 @@ use serde::{Deserialize, Serialize};
 use relief_heightfield::{NoProgress, Progress};
 
 use super::{Coded, MAX_NEAREST_ATOMS, finish_code};
+use crate::codes::{OmpFloat, OmpSettings, SparseCodes, argmax_abs, validate_limit};
 use crate::error::{Result, SparseError};
-use crate::omp::{OmpFloat, OmpSettings, SparseCodes, argmax_abs, validate_limit};
 
 /// Signals per block of the indexed search (one `block x lists` score buffer per worker).
 const SIG_BLOCK: usize = 2048;

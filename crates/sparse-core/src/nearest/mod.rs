@@ -25,7 +25,7 @@ use relief_heightfield::Progress;
 use crate::error::Result;
 
 mod index;
-use crate::omp::{OmpFloat, OmpSettings, SparseCodes, argmax_abs, validate_limit};
+use crate::codes::{OmpFloat, OmpSettings, SparseCodes, argmax_abs, validate_limit};
 pub use index::{AtomIndex, AtomIndexSettings};
 
 /// Largest dictionary [`nearest_atom`] accepts (2^22 atoms; indices stay exact in `f32`).
@@ -134,32 +134,6 @@ pub(super) fn assemble<T: OmpFloat>(
         residuals.push(res);
     }
     SparseCodes::from_parts(offsets, indices, values, residuals)
-}
-
-/// `s = 1`-aware coding: with `settings.sparsity == 1`, more than
-/// [`crate::omp::NEAREST_MIN_ATOMS`] atoms and `probes > 0`, the inverted-list [`AtomIndex`]
-/// (default clustering, `probes` clusters searched per signal) built for `dict`; otherwise
-/// [`crate::omp::batch_omp_with_progress`] (the Gram path, or the exact [`nearest_atom`] above
-/// 4096 atoms at `s = 1`). The index is a function of the dictionary alone, so the codes of a
-/// signal do not depend on the batch it is coded in.
-pub fn code_indexed<T: OmpFloat>(
-    dict: ArrayView2<T>,
-    signals: ArrayView2<T>,
-    settings: &OmpSettings,
-    probes: usize,
-    progress: &dyn Progress,
-) -> Result<SparseCodes<T>> {
-    if settings.sparsity != 1 || dict.nrows() <= crate::omp::NEAREST_MIN_ATOMS || probes == 0 {
-        return crate::omp::batch_omp_with_progress(dict, signals, settings, progress);
-    }
-    let index = AtomIndex::build(
-        dict,
-        &AtomIndexSettings {
-            probes,
-            ..AtomIndexSettings::default()
-        },
-    )?;
-    index.code_with_progress(signals, settings.tolerance, progress)
 }
 
 /// Exact `s = 1` OMP for dictionaries of any size up to [`MAX_NEAREST_ATOMS`]: for each signal
