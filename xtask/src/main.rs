@@ -15,6 +15,7 @@ use clap::{Parser, Subcommand};
 use relief_pipeline as pipeline;
 
 mod bench;
+mod claims;
 mod cycles;
 mod golden;
 mod tidy;

@@ -320,7 +320,7 @@ mod tests {
         // The seed command lines of the fuzz target `cli_args` (fuzz/seeds/cli_args).
         for good in [
             "amplify /a.tif /o.sct --exemplar /b.tif --factor 4 --paper --atoms 64",
-            "synthesize /s.tif /o.tif --exemplar /e.tif --steps 3",
+            "synthesize /s.tif /o.tif --exemplar /e.tif --x4-steps 3",
             "compress /a.tif /o.sct --sparsity 4",
             "fit-procedural /a.tif /o.sct --family perlin",
             "refine /a.tif /o.tif --levels 2 --method lsa",

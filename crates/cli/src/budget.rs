@@ -1,6 +1,6 @@
 //! Time budgets. Memory and output size follow from the input and the settings
 //! (`memory.rs`), but the run time of some jobs does not: `decompress` of a model with wide
-//! blends at a large `--scale`, or `volume` renders at a large `--image-size`, can take from
+//! blends at a large `--factor`, or `volume` renders at a large `--image-size`, can take from
 //! seconds to hours for the same output size. Those commands time a small pilot of the very
 //! same work before they start (a few evenly spaced row strips of the raster, the images at
 //! 1/4 of their width and height), extrapolate by the amount of work, print the estimate when
@@ -16,7 +16,7 @@ use relief_sparse_core::{RasterSettings, Sct, Window};
 pub(crate) const DEFAULT_MAX_TIME_S: f64 = 1800.0;
 
 /// Estimates shorter than this are not printed.
-const NOTE_AFTER_S: f64 = 10.0;
+pub(crate) const NOTE_AFTER_S: f64 = 10.0;
 
 /// `--max-time`: the longest estimated run time a command starts (`None`: no limit).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,17 +104,6 @@ pub(crate) fn check_time(
     Ok(())
 }
 
-impl crate::ctx::Ctx {
-    /// [`check_time`] against `--max-time`; prints the estimate when it is not short.
-    pub(crate) fn check_time(&self, what: &str, est_s: f64, how: &str, change: &str) -> Result<()> {
-        check_time(what, est_s, how, self.max_time, change)?;
-        if est_s >= NOTE_AFTER_S {
-            self.note(format!("{what}: estimated {} ({how})", human_secs(est_s)));
-        }
-        Ok(())
-    }
-}
-
 /// Whether `err` comes from work stopped by its time budget (a library's `Stopped` error,
 /// raised when [`crate::ctx::Ctx::deadline`] passed during the work).
 pub(crate) fn is_stopped(err: &anyhow::Error) -> bool {
@@ -131,10 +120,10 @@ pub(crate) fn is_stopped(err: &anyhow::Error) -> bool {
         ) || matches!(
             e.downcast_ref::<relief_landscape::LandscapeError>(),
             Some(relief_landscape::LandscapeError::Stopped(_))
-        ) || matches!(
-            e.downcast_ref::<relief_dictionary_learning::LearnError>(),
-            Some(relief_dictionary_learning::LearnError::Stopped(_))
-        ) || e.downcast_ref::<Stopped>().is_some()
+        ) || e
+            .downcast_ref::<relief_dictionary_learning::LearnError>()
+            .is_some_and(|e| e.is_stopped())
+            || e.downcast_ref::<Stopped>().is_some()
             || e.downcast_ref::<relief_pipeline::Stopped>().is_some()
     })
 }

@@ -591,6 +591,47 @@ impl Drop for CliProgress {
     }
 }
 
+impl Ctx {
+    /// [`crate::budget::check_time`] against `--max-time`; prints the estimate when it is not short.
+    pub(crate) fn check_time(
+        &self,
+        what: &str,
+        est_s: f64,
+        how: &str,
+        change: &str,
+    ) -> anyhow::Result<()> {
+        crate::budget::check_time(what, est_s, how, self.max_time, change)?;
+        if est_s >= crate::budget::NOTE_AFTER_S {
+            self.note(format!(
+                "{what}: estimated {} ({how})",
+                crate::budget::human_secs(est_s)
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Ctx {
+    /// [`crate::memory::check_memory`] against `--max-memory`.
+    pub(crate) fn check_memory(
+        &self,
+        command: &str,
+        peaks: &[&[crate::memory::Part]],
+    ) -> anyhow::Result<()> {
+        crate::memory::check_memory(command, self.max_memory, peaks)
+    }
+
+    /// [`crate::memory::check_output`] against `--max-output-size`.
+    pub(crate) fn check_output_size(
+        &self,
+        what: &str,
+        bytes: f64,
+        change: &str,
+    ) -> anyhow::Result<()> {
+        crate::memory::check_output(what, bytes, self.max_output.0, change)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,7 +21,7 @@ mod interrupt;
 mod landform;
 mod memory;
 mod outputs;
-mod preflight;
+mod read;
 mod sparse_model;
 mod staging;
 mod synth_args;

@@ -122,18 +122,6 @@ pub(crate) fn parse_size(s: &str) -> std::result::Result<u64, String> {
     Ok(bytes as u64)
 }
 
-impl crate::ctx::Ctx {
-    /// [`check_memory`] against `--max-memory`.
-    pub(crate) fn check_memory(&self, command: &str, peaks: &[&[Part]]) -> Result<()> {
-        check_memory(command, self.max_memory, peaks)
-    }
-
-    /// [`check_output`] against `--max-output-size`.
-    pub(crate) fn check_output_size(&self, what: &str, bytes: f64, change: &str) -> Result<()> {
-        check_output(what, bytes, self.max_output.0, change)
-    }
-}
-
 /// `--max-memory` value parser.
 pub(crate) fn parse_limit(s: &str) -> std::result::Result<Limit, String> {
     let bytes = parse_size(s)?;

@@ -99,8 +99,8 @@ fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
             v.push(path.with_extension("json"));
         } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
             v.push(path.with_extension("prj"));
-        } else if crate::ctx::is_heightmap16(path) {
-            v.push(crate::ctx::heightmap_sidecar(path));
+        } else if relief_io::heightmap16::is_heightmap16(path) {
+            v.push(relief_io::heightmap16::heightmap_sidecar(path));
         }
     }
     v
@@ -116,8 +116,8 @@ fn read_files(path: &Path) -> Vec<PathBuf> {
         v.push(path.with_extension("json"));
     } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
         v.push(path.with_extension("prj"));
-    } else if crate::ctx::is_heightmap16(path) {
-        v.push(crate::ctx::heightmap_sidecar(path));
+    } else if relief_io::heightmap16::is_heightmap16(path) {
+        v.push(relief_io::heightmap16::heightmap_sidecar(path));
     }
     v
 }

@@ -44,7 +44,7 @@ impl ExemplarArg {
     /// Reads the exemplar; voids are an error naming it.
     pub(crate) fn read(&self, ctx: &Ctx) -> Result<relief_heightfield::Heightfield> {
         let raster =
-            crate::commands::read_raster(&self.exemplar, &crate::args::ReadArgs::default(), ctx)?;
+            crate::read::read_raster(&self.exemplar, &crate::args::ReadArgs::default(), ctx)?;
         let hf = raster.heightfield;
         // The command's --fill-voids fills its input, not the exemplar: say how to fill it.
         let voids = hf.void_count();
@@ -79,7 +79,7 @@ pub(crate) struct OutputPlan {
     pub(crate) window: Option<Window>,
     /// A GeoTIFF that is streamed in bands when large.
     pub(crate) stream: bool,
-    /// The flag that sets the number of x4 steps (`--factor`, `--steps`).
+    /// The flag that sets the number of x4 steps (`--factor`, `--x4-steps`).
     pub(crate) steps_flag: &'static str,
     /// Only the steps before the last run here (`relief tile plan`): the last step's input
     /// raster is kept and its tasks compute the output window by window.

@@ -81,7 +81,7 @@ pub(crate) struct SynthArgs {
     /// or a wrong one; the guide is resampled from it to the exemplars' cell size. Without it,
     /// a guide that stores none is taken at the exemplars' cell size (one guide cell per output
     /// cell), and a 16-bit PNG relief wrote reads its cell size from its `.png.json` sidecar.
-    #[arg(long, value_name = "X[,Y]", value_parser = crate::commands::parse_cell_size)]
+    #[arg(long, value_name = "X[,Y]", value_parser = crate::args::parse_cell_size)]
     pub(crate) guide_cell_size: Option<(f64, f64)>,
     /// Categorisation map (e.g. an 8-bit grey PNG): each cell's value is the exemplar category
     /// allowed there (65535 = any). Resampled (nearest) to the output size.
@@ -141,7 +141,7 @@ pub(crate) struct SynthArgs {
     #[arg(long, default_value_t = Settings::default().exemplar_stride)]
     pub(crate) stride: usize,
     #[command(flatten)]
-    pub(crate) read: crate::commands::ReadArgs,
+    pub(crate) read: crate::args::ReadArgs,
 }
 
 /// A `--guide-lowpass` value: automatic or a sigma in cells.
@@ -283,7 +283,7 @@ impl SynthArgs {
     /// the categorisation map (raw grey counts).
     pub(crate) fn inputs(&self, ctx: &Ctx) -> Result<JobInputs> {
         let read = |path: &Path, what: &str| -> Result<Heightfield> {
-            Ok(crate::commands::read_raster(path, &self.read, ctx)
+            Ok(crate::read::read_raster(path, &self.read, ctx)
                 .with_context(|| format!("{what} {}", path.display()))?
                 .heightfield)
         };
@@ -293,13 +293,13 @@ impl SynthArgs {
         }
         if let Some(path) = self.guide.as_deref().or(self.guide_from.as_deref()) {
             // A painted guide's missing cell size is handled below, not warned about.
-            let read = crate::commands::ReadArgs {
+            let read = crate::args::ReadArgs {
                 warn_assumed_cell: false,
                 ..self.read.clone()
             };
-            let raster = crate::commands::read_raster(path, &read, ctx)
+            let raster = crate::read::read_raster(path, &read, ctx)
                 .with_context(|| format!("guide {}", path.display()))?;
-            let stored = crate::commands::cell_size_stored(path, &raster);
+            let stored = crate::read::cell_size_stored(path, &raster);
             let mut g = raster.heightfield;
             // A painted guide (PNG, raw, EXR, NPY) stores no cell size: it is drawn on the
             // output grid, so it takes the exemplars' cell size rather than the reader's 1 m

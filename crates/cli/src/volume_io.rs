@@ -14,7 +14,7 @@ use crate::staging::Outputs;
 /// Reads a mask raster and maps it to `[0, 1]`: values already in `[0, 1]` are kept, 8-bit
 /// counts are divided by 255 and 16-bit counts by 65535.
 pub(crate) fn read_mask(path: &Path, dem: &Heightfield, ctx: &Ctx) -> Result<Vec<f32>> {
-    let raster = crate::commands::read_raster(path, &crate::commands::ReadArgs::default(), ctx)?;
+    let raster = crate::read::read_raster(path, &crate::args::ReadArgs::default(), ctx)?;
     let m = raster.heightfield;
     if (m.width(), m.height()) != (dem.width(), dem.height()) {
         bail!(

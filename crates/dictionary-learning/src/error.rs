@@ -55,6 +55,15 @@ pub enum LearnError {
 }
 
 impl LearnError {
+    /// Whether the work stopped because the caller asked it to (its own stop, or one of the
+    /// sparse-coding layer it wraps transparently, which an error chain does not show).
+    pub fn is_stopped(&self) -> bool {
+        matches!(
+            self,
+            Self::Stopped(_) | Self::Sparse(SparseError::Stopped(_))
+        )
+    }
+
     /// Shorthand for [`LearnError::InvalidParameter`].
     pub fn param(name: &'static str, value: impl std::fmt::Display, reason: &'static str) -> Self {
         Self::InvalidParameter {
@@ -72,6 +81,7 @@ impl From<relief_landscape::LandscapeError> for LearnError {
     fn from(e: relief_landscape::LandscapeError) -> Self {
         match e {
             relief_landscape::LandscapeError::InvalidParameter(p) => p.into(),
+            relief_landscape::LandscapeError::Stopped(what) => Self::Stopped(what.to_string()),
             e => Self::Landscape(e.to_string()),
         }
     }
@@ -84,5 +94,22 @@ impl From<relief_heightfield::ParamError> for LearnError {
             value: e.value,
             reason: e.reason,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_of_a_wrapped_layer_is_a_stop() {
+        assert!(LearnError::from(SparseError::Stopped("rasterising the model")).is_stopped());
+        let landscape = relief_landscape::LandscapeError::Stopped("the landform pass".into());
+        let e = LearnError::from(landscape);
+        assert!(e.is_stopped(), "{e}");
+        assert!(
+            !LearnError::from(SparseError::EmptyDictionary { n_atoms: 0, dim: 4 }).is_stopped()
+        );
+        assert!(!LearnError::Svd { atom: 3 }.is_stopped());
     }
 }

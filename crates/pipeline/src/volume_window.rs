@@ -55,7 +55,7 @@ pub fn amplify_window(
     if levels > 8 {
         bail!(
             "{}: {cell:.1} m cells are over 256 times coarser than the {need:.1} m the features \
-             ask for; use a finer DEM, fewer features (--features), a larger --scale, or \
+             ask for; use a finer DEM, fewer features (--features), a larger --feature-scale, or \
              --raw-dem",
             args.input
         );

@@ -34,8 +34,8 @@ pub(crate) struct Args {
     pub(crate) factor: usize,
     #[command(flatten)]
     pub(crate) seed: crate::sparse_model::SeedArg,
-    /// Support radius R in coarse pixels (figure 11): small follows the input, large imposes
-    /// more of the exemplar.
+    /// Support radius R in cells of the input (its coarse pixels, figure 11): small follows
+    /// the input, large imposes more of the exemplar.
     #[arg(long, default_value_t = AmplifySettings::default().radius)]
     pub(crate) radius: f64,
     /// Number of learned atoms N (constrained learning); 0 = the complete dictionary (every
@@ -45,7 +45,7 @@ pub(crate) struct Args {
     /// Sparsity s of the coding (the paper uses 1).
     #[arg(long, default_value_t = AmplifySettings::default().sparsity)]
     pub(crate) sparsity: usize,
-    /// Grid step S between primitive centres, in coarse pixels (default: half the radius,
+    /// Grid step S between primitive centres, in cells of the input (default: half the radius,
     /// the paper's grid; must be < radius * sqrt(2)). Larger is faster but shows the grid.
     #[arg(long)]
     pub(crate) step: Option<f64>,

@@ -130,7 +130,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let staged = crate::staging::Outputs::of(&outputs, None)?;
     // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
     let hf = super::read_void_free(&args.input, &args.read, ctx)?;
-    crate::preflight::analyze(&hf, args.local.is_some(), ctx)?;
+    crate::commands::preflight::analyze(&hf, args.local.is_some(), ctx)?;
     let progress = ctx.progress();
     let result = settings
         .run(&hf, &progress)

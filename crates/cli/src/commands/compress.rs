@@ -57,14 +57,19 @@ pub(crate) struct Args {
     /// Sample spacing `delta` of the patches, in cells [default: 1].
     #[arg(long)]
     pub(crate) spacing: Option<f64>,
-    /// Support radius `R` in cells (default: half the patch width, `a delta / 2`).
+    /// Support radius `R` in cells of the input (default: half the patch width, `a delta / 2`).
     #[arg(long)]
     pub(crate) radius: Option<f64>,
-    /// Step between primitive centres in cells (default: half the patch width).
+    /// Step between primitive centres in cells of the input (default: half the patch width).
     #[arg(long)]
     pub(crate) step: Option<f64>,
-    /// Stop a patch's OMP early once its squared residual is at most this (m^2).
-    #[arg(long)]
+    /// Stop a patch's OMP early once its squared residual is at most this, in m^2 (a sum over
+    /// the patch's samples; not quilt's RMS --tolerance in metres; --tolerance is an alias).
+    #[arg(
+        long = "residual-tolerance",
+        visible_alias = "tolerance",
+        value_name = "M2"
+    )]
     pub(crate) tolerance: Option<f64>,
     /// Store coefficients as 16-bit integers (smaller file, slightly lower PSNR).
     #[arg(long)]
@@ -164,7 +169,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             hf.void_count()
         );
     }
-    crate::preflight::compress(&args, &hf, ctx)?;
+    crate::commands::preflight::compress(&args, &hf, ctx)?;
     let given = given_dictionary(&args, ctx)?;
     let progress = ctx.progress();
     let out = job

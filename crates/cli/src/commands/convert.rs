@@ -27,7 +27,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     )?;
     if crate::describe::is_tree(&args.input) {
         // A construction tree is a terrain at any scale: converted at its own grid, as
-        // `relief decompress MODEL OUT` (which takes --scale and --window) writes it.
+        // `relief decompress MODEL OUT` (which takes --factor and --window) writes it.
         #[derive(Debug, clap::Parser)]
         struct Decompress {
             #[command(flatten)]

@@ -1,11 +1,11 @@
-//! `relief decompress IN.sct OUT [--scale F] [--window x,y,w,h]`: rasterises a Sparse
+//! `relief decompress IN.sct OUT [--factor F] [--window x,y,w,h]`: rasterises a Sparse
 //! Construction Tree (guerin2016 section 4.1) at any resolution, or any window of it, into any
 //! raster format relief writes (chosen from OUT's extension; written atomically). Prints the
 //! storage figures of the model and, with `--reference`, the PSNR against a raster.
 //!
 //! ```text
 //! relief decompress gc.sct gc.tif
-//! relief decompress gc.sct gc_x4.exr --scale 4 --window 512,512,1024,1024
+//! relief decompress gc.sct gc_x4.exr --factor 4 --window 512,512,1024,1024
 //! relief decompress gc.sct gc.tif --reference grandcanyon.tif
 //! ```
 
@@ -25,10 +25,16 @@ pub(crate) struct Args {
     pub(crate) input: PathBuf,
     /// Output raster: .tif/.tiff, .png (16-bit), .exr, .npy, .r16 or .r32.
     pub(crate) output: PathBuf,
-    /// Scale factor: output pixel (X, Y) samples the terrain at (X / F, Y / F).
-    #[arg(long, default_value_t = 1.0)]
+    /// Magnification F, as amplify's and refine's --factor: output pixel (X, Y) samples the
+    /// terrain at (X / F, Y / F); any positive real, not only powers of 4 (--scale is an alias).
+    #[arg(
+        long = "factor",
+        visible_alias = "scale",
+        value_name = "F",
+        default_value_t = 1.0
+    )]
     pub(crate) scale: f64,
-    /// Window `X,Y,W,H` of the output raster (in output pixels at --scale).
+    /// Window `X,Y,W,H` of the output raster (in output pixels at --factor).
     #[arg(long, value_name = "X,Y,W,H")]
     pub(crate) window: Option<Window>,
     /// Raster to compare with (same size as the output): prints PSNR and RMSE.
@@ -51,7 +57,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .with_context(|| format!("cannot read {}", args.input.display()))?;
     let (fw, fh) = sct.raster_size(args.scale).with_context(|| {
         format!(
-            "cannot rasterise the {} x {} model {} at --scale {}",
+            "cannot rasterise the {} x {} model {} at --factor {}",
             sct.width(),
             sct.height(),
             args.input.display(),
@@ -76,9 +82,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let change = if args.window.is_some() {
         "a smaller --window"
     } else {
-        "a smaller --scale or --window"
+        "a smaller --factor or --window"
     };
-    crate::preflight::decompress(win, args.scale, bytes.len(), change, ctx)?;
+    crate::commands::preflight::decompress(win, args.scale, bytes.len(), change, ctx)?;
     let reference = match &args.reference {
         Some(p) => {
             // Only its heights are compared: its cell size does not matter.

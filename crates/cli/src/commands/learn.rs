@@ -30,7 +30,7 @@ pub(crate) struct Args {
     /// Patch side a in samples (K = a^2).
     #[arg(short = 'a', long, default_value_t = 8)]
     pub(crate) patch_size: usize,
-    /// Step between patch centres in cells (default: half the patch side).
+    /// Step between patch centres in cells of the exemplars (default: half the patch side).
     #[arg(long)]
     pub(crate) step: Option<f64>,
     /// Learning iterations.
@@ -81,7 +81,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             .with_context(|| format!("cannot learn from {}", path.display()))?;
         terrains.push(hf);
     }
-    crate::preflight::learn(&terrains, &geometry, &args, ctx)?;
+    crate::commands::preflight::learn(&terrains, &geometry, &args, ctx)?;
     let refs: Vec<&Heightfield> = terrains.iter().collect();
     let all =
         training_patches(&refs, &geometry).context("cannot cut the exemplars into patches")?;

@@ -131,7 +131,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     )?;
     // `--fill-voids` (ReadArgs) fills voids on reading; without it they are an error.
     let hf = super::read_void_free(&args.input, &args.read, ctx)?;
-    crate::preflight::refine(&args, &settings, &hf, window, ctx)?;
+    crate::commands::preflight::refine(&args, &settings, &hf, window, ctx)?;
     let progress = ctx.progress();
     progress.begin("wavelet analysis", 0);
     let refiner = Refiner::new(&hf, &settings)

@@ -22,15 +22,17 @@ pub(crate) struct Args {
     pub(crate) output: PathBuf,
     #[command(flatten)]
     pub(crate) exemplar: crate::sparse_model::ExemplarArg,
-    /// Number of x4 steps (the output is 4^steps times the sketch; figure 12 uses 3).
-    #[arg(long, default_value_t = SynthesisSettings::default().amplify.steps)]
+    /// Number of x4 amplification steps (the output is 4^N times the sketch; figure 12 uses 3;
+    /// not the grid --step; --steps is an alias).
+    #[arg(long = "x4-steps", visible_alias = "steps", value_name = "N", default_value_t = SynthesisSettings::default().amplify.steps)]
     pub(crate) steps: usize,
     #[command(flatten)]
     pub(crate) seed: crate::sparse_model::SeedArg,
-    /// Support radius R in coarse pixels.
+    /// Support radius R in cells of each step's input (its coarse pixels).
     #[arg(long, default_value_t = SynthesisSettings::default().amplify.radius)]
     pub(crate) radius: f64,
-    /// Grid step S between primitive centres, in coarse pixels (default: half the radius).
+    /// Grid step S between primitive centres, in cells of each step's input (default: half the
+    /// radius).
     #[arg(long)]
     pub(crate) step: Option<f64>,
     /// The paper's plain method: the whole high-resolution atom scaled by the code (no detail at
@@ -124,7 +126,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         (sketch.width(), sketch.height()),
         (exemplar.width(), exemplar.height()),
         &settings.amplify,
-        OutputPlan::of(&args.output, window, "--steps").with_landform(settings.grow.is_some()),
+        OutputPlan::of(&args.output, window, "--x4-steps").with_landform(settings.grow.is_some()),
     )?;
     let (sct, figures) = {
         let progress = ctx.progress();

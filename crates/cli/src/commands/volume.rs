@@ -91,8 +91,9 @@ pub(crate) struct Args {
     /// need.
     #[arg(long)]
     pub(crate) raw_dem: bool,
-    /// Multiplies every feature size (1 = the physical defaults in metres, docs/VOLUME_SIZES.md).
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiplies every feature size (1 = the physical defaults in metres, docs/VOLUME_SIZES.md;
+    /// --scale is an alias).
+    #[arg(long = "feature-scale", visible_alias = "scale", default_value_t = 1.0)]
     pub(crate) scale: f32,
     /// Karst budget in carving steps (default: from a passage density of 6 km per km^2).
     #[arg(long)]
@@ -240,7 +241,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         .build(&hf, &progress)
         .context("cannot build the scene")?;
     built.figures.notes.extend(amplified);
-    crate::preflight::volume(ctx, &job, &built, args.mesh.as_deref(), args.image_size)?;
+    crate::commands::preflight::volume(ctx, &job, &built, args.mesh.as_deref(), args.image_size)?;
     let out = job
         .finish(built, &progress)
         .context("cannot mesh or render the scene")?;

@@ -370,7 +370,15 @@ fn bad_input_fails_cleanly() {
     let o = amp_with(&coarse, &ex, "4", &out, &["--radius", "NaN"]);
     fails(&o, &out, &["radius"]);
     // synthesize: zero steps; fit-procedural: unknown family and NaN input.
-    let o = relief!["synthesize", coarse, out, "--exemplar", ex, "--steps", "0"];
+    let o = relief![
+        "synthesize",
+        coarse,
+        out,
+        "--exemplar",
+        ex,
+        "--x4-steps",
+        "0"
+    ];
     fails(&o, &out, &["steps"]);
     let sct = tmp.path().join("fit.sct");
     let o = relief!["fit-procedural", coarse, sct, "--family", "simplex"];

@@ -93,7 +93,7 @@ fn learned_dictionary_psnr_rises_with_sparsity_and_windows_match() {
     // A window at scale 2.5 equals the same window of the full scale-2.5 raster, bit for bit.
     let sct = tmp.path().join("s8.sct");
     let full = tmp.path().join("full.tif");
-    relief_ok!["decompress", sct, full, "--scale", "2.5"];
+    relief_ok!["decompress", sct, full, "--factor", "2.5"];
     let part = tmp.path().join("part.r32");
     ok(&relief_line(
         "decompress {} {} --scale 2.5 --window 31,17,60,45",
@@ -327,14 +327,14 @@ fn bad_input_fails_cleanly() {
     }
     // Absurd output sizes, bad windows and scales.
     for args in [
-        vec!["--scale", "1000"],
-        vec!["--scale", "0"],
-        vec!["--scale", "nan"],
+        vec!["--factor", "1000"],
+        vec!["--factor", "0"],
+        vec!["--factor", "nan"],
         vec!["--scale=-2"],
         vec!["--window", "0,0,49,10"],
         vec!["--window", "40,0,10,10"],
         vec!["--window", "18446744073709551615,0,2,2"],
-        vec!["--scale", "200", "--max-output-cells", "1000"],
+        vec!["--factor", "200", "--max-output-cells", "1000"],
         vec!["--scale", "200", "--max-cells", "1000"],
     ] {
         let mut a = vec![os("decompress"), good.as_os_str(), raster.as_os_str()];
@@ -347,7 +347,7 @@ fn bad_input_fails_cleanly() {
             os("decompress"),
             good.as_os_str(),
             raster.as_os_str(),
-            os("--scale"),
+            os("--factor"),
             os("32"),
             os("--max-time"),
             os("0.001s"),
@@ -356,7 +356,7 @@ fn bad_input_fails_cleanly() {
         "time budget",
     );
     assert!(
-        e.contains("estimated at") && e.contains("--max-time") && e.contains("--scale"),
+        e.contains("estimated at") && e.contains("--max-time") && e.contains("--factor"),
         "{e}"
     );
     for w in ["0,0,0,10", "1,2,3", "1,-2,3,4"] {

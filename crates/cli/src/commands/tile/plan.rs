@@ -290,7 +290,7 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
                 .with_context(|| format!("cannot read {}", x.input.display()))?;
             let (w, h) = sct
                 .raster_size(x.scale)
-                .context("invalid parameter `--scale`")?;
+                .context("invalid parameter `--factor`")?;
             let win = Window {
                 x: 0,
                 y: 0,

@@ -140,12 +140,18 @@ fn preflight(m: &Manifest, win: Window, ctx: &Ctx) -> Result<()> {
     let change = "a smaller --tile (plan again)";
     let prepared = m.prepared.bytes as f64;
     match m.command.as_str() {
-        "refine" => crate::preflight::refine_window(prepared, m, win, change, ctx),
+        "refine" => crate::commands::preflight::refine_window(prepared, m, win, change, ctx),
         "decompress" | "amplify" if m.prepared.path != super::plan::LAST_STEP => {
             let scale = m.job["scale"].as_f64().unwrap_or(1.0);
-            crate::preflight::decompress(win, scale, m.prepared.bytes as usize, change, ctx)
+            crate::commands::preflight::decompress(
+                win,
+                scale,
+                m.prepared.bytes as usize,
+                change,
+                ctx,
+            )
         }
-        _ => crate::preflight::last_step_window(prepared, win, change, ctx),
+        _ => crate::commands::preflight::last_step_window(prepared, win, change, ctx),
     }
 }
 

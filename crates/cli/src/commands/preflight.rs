@@ -250,7 +250,7 @@ pub(crate) fn decompress(
     let out_cells = win.width as f64 * win.height as f64;
     ctx.check_output_size("the output raster", out_cells * 4.0, change)?;
     ctx.check_memory(
-        &format!("decompress --scale {scale}"),
+        &format!("decompress --factor {scale}"),
         &[&[
             part(
                 format!("the {} x {} output raster", win.width, win.height),
