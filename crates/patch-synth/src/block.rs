@@ -7,13 +7,12 @@ use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 
+use crate::blend::{PoissonInput, poisson_blend, smooth_crease};
 use crate::cut::cut as seam_cut;
 use crate::error::{PatchSynthError, Result};
+use crate::grid::{smoothstep, translated_dist2, window_mean};
 use crate::index::{ExemplarIndex, OverlapShape, PatchRef, Sat, features};
 use crate::settings::{Blend, Settings};
-use crate::synth::{
-    PoissonInput, poisson_blend, smooth_crease, smoothstep, translated_dist2, window_mean,
-};
 
 /// What every block of one synthesis shares.
 pub(crate) struct Shared<'a> {

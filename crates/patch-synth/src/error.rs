@@ -1,7 +1,7 @@
 use relief_heightfield::{HeightfieldError, ParamError};
 use thiserror::Error;
 
-use crate::validate::ValidationReport;
+use crate::report::ValidationReport;
 
 /// Errors of the patch-synthesis crate.
 #[derive(Debug, Error)]

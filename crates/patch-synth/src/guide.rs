@@ -5,6 +5,7 @@ use relief_heightfield::Heightfield;
 use relief_heightfield::fill::{FillSettings, fill_voids};
 
 use crate::error::{PatchSynthError, Result};
+pub use crate::grid::gaussian_blur;
 
 /// Low-pass guide by resampling: reduce by `factor` with the Lanczos low-pass, then enlarge
 /// back (bicubic) to the original size.
@@ -25,25 +26,11 @@ pub fn lowpass_resample(dem: &Heightfield, factor: usize) -> Result<Heightfield>
     Ok(out)
 }
 
-/// Separable Gaussian blur with standard deviation `sigma` cells (edges clamped); see
-/// [`Heightfield::gaussian_blur`].
-pub fn gaussian_blur(dem: &Heightfield, sigma: f32) -> Result<Heightfield> {
-    dem.require_complete()?;
-    if !(sigma.is_finite() && sigma > 0.0 && sigma < 1e4) {
-        return Err(PatchSynthError::setting(
-            "sigma",
-            sigma,
-            "must be in (0, 1e4)",
-        ));
-    }
-    Ok(dem.gaussian_blur(sigma)?)
-}
-
 /// Errs (`size`, with `reason`) unless `width x height` is a non-empty grid of at most
 /// [`crate::MAX_OUTPUT_CELLS`] cells.
 fn check_size(width: usize, height: usize, reason: impl FnOnce() -> String) -> Result<()> {
     let cells = width.saturating_mul(height);
-    if width == 0 || height == 0 || cells > crate::synth::MAX_OUTPUT_CELLS {
+    if width == 0 || height == 0 || cells > crate::grid::MAX_OUTPUT_CELLS {
         return Err(PatchSynthError::InvalidControl {
             name: "size",
             reason: reason(),
@@ -254,7 +241,7 @@ pub fn to_cell_size(guide: &Heightfield, cell: (f64, f64)) -> Result<Heightfield
     let (gx, gy) = guide.cell_size();
     let w = (guide.width() as f64 * gx / cell.0).round().max(1.0);
     let h = (guide.height() as f64 * gy / cell.1).round().max(1.0);
-    if w * h > crate::synth::MAX_OUTPUT_CELLS as f64 {
+    if w * h > crate::grid::MAX_OUTPUT_CELLS as f64 {
         return Err(PatchSynthError::InvalidControl {
             name: "guide",
             reason: format!(
@@ -462,7 +449,7 @@ fn map_range_q(
     while y + bh <= h {
         let mut x = 0;
         while x + bw <= w {
-            means.push(crate::synth::window_mean(src, w, x, y, bw, bh));
+            means.push(crate::grid::window_mean(src, w, x, y, bw, bh));
             x += step;
         }
         y += step;
@@ -527,7 +514,7 @@ pub fn fit_to_grid(
         (guide.height() as f64 * ky).round().max(1.0),
     );
     let mut g = std::borrow::Cow::Borrowed(guide);
-    if rw * rh > crate::synth::MAX_OUTPUT_CELLS as f64 {
+    if rw * rh > crate::grid::MAX_OUTPUT_CELLS as f64 {
         let Some((w, h)) = size else {
             return Err(PatchSynthError::InvalidControl {
                 name: "guide",

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use relief_heightfield::{Heightfield, Progress};
 
 use crate::error::{PatchSynthError, Result};
+use crate::grid::{Layouts, bounds};
 use crate::kmeans::{KMeans, kmeans};
 use crate::pca::Pca;
 use crate::settings::Settings;
@@ -156,13 +157,6 @@ fn box_sizes<'a>(rects: impl IntoIterator<Item = &'a [usize; 4]>) -> Vec<(usize,
     sizes
 }
 
-/// Cell boundaries splitting `len` into `n` nearly equal parts.
-pub(crate) fn bounds(len: usize, n: usize) -> Vec<(usize, usize)> {
-    (0..n)
-        .map(|i| (i * len / n, (i + 1) * len / n - i * len / n))
-        .collect()
-}
-
 /// Rectangles `(x, y, w, h)` (patch coordinates) of an `n x n` grid of cells.
 pub(crate) fn grid_rects(size: usize, n: usize) -> Vec<[usize; 4]> {
     let b = bounds(size, n);
@@ -184,35 +178,6 @@ pub enum OverlapShape {
     Top = 1,
     /// Both strips (the L-shaped region).
     Both = 2,
-}
-
-/// Cell layout of the reduced overlap features of each shape: box means over `f x f` cells.
-#[derive(Debug, Clone)]
-pub(crate) struct Layouts {
-    pub(crate) rects: [Vec<[usize; 4]>; 3],
-}
-
-impl Layouts {
-    pub(crate) fn new(p: usize, o: usize) -> Self {
-        let f = (((p * o) as f64 / 256.0).sqrt().ceil() as usize).max(1);
-        let cells = |len: usize| len.div_ceil(f).max(1);
-        let rect_grid = |x0: usize, y0: usize, w: usize, h: usize| {
-            let mut r = Vec::new();
-            for (y, hh) in bounds(h, cells(h)) {
-                for (x, ww) in bounds(w, cells(w)) {
-                    r.push([x0 + x, y0 + y, ww, hh]);
-                }
-            }
-            r
-        };
-        let left = rect_grid(0, 0, o, p);
-        let top = rect_grid(0, 0, p, o);
-        let mut both = left.clone();
-        both.extend(rect_grid(o, 0, p - o, o));
-        Self {
-            rects: [left, top, both],
-        }
-    }
 }
 
 /// Mean-removed box-mean features of one shape, from a box-mean function in patch coordinates.
@@ -688,7 +653,7 @@ impl ExemplarIndex {
             });
         }
         let f = features(rects, |x, y, w, h| {
-            crate::synth::window_mean(region, p, x, y, w, h)
+            crate::grid::window_mean(region, p, x, y, w, h)
         });
         let mut q = vec![0.0f32; self.built_with.pca_dims];
         self.pcas[sh].project(&f, &mut q);
@@ -765,7 +730,7 @@ impl ExemplarIndex {
     pub(crate) fn lowpassed_sats(&self, sigma: f32) -> Result<Vec<Sat>> {
         self.exemplars
             .par_iter()
-            .map(|e| crate::guide::gaussian_blur(&e.heightfield, sigma).map(|low| Sat::new(&low)))
+            .map(|e| crate::grid::gaussian_blur(&e.heightfield, sigma).map(|low| Sat::new(&low)))
             .collect()
     }
     /// With a guide low-pass `sigma > 0`: the low-passed exemplars' tables

@@ -321,7 +321,7 @@ impl ValidateJob {
             && (w == 0
                 || h == 0
                 || w.checked_mul(h)
-                    .is_none_or(|n| n > crate::synth::MAX_OUTPUT_CELLS))
+                    .is_none_or(|n| n > crate::grid::MAX_OUTPUT_CELLS))
         {
             return Err(PatchSynthError::setting(
                 "size",

@@ -114,16 +114,20 @@
 //! ```
 #![warn(missing_docs)]
 
+mod blend;
 mod block;
 mod category;
+mod control;
 mod cut;
 mod error;
+mod grid;
 pub mod guide;
 mod index;
 pub mod job;
 pub mod kmeans;
 pub mod pca;
 pub mod quality;
+mod report;
 mod settings;
 mod synth;
 mod validate;

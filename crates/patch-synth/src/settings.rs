@@ -230,7 +230,7 @@ impl Settings {
         let dims = self.pca_dims;
         let ok = SUPPORTED_PCA_DIMS.contains(&dims);
         ensure(ok, "pca_dims", dims, "must be one of 4, 6, 8, 12, 16")?;
-        let features = crate::index::Layouts::new(self.patch_size, self.overlap)
+        let features = crate::grid::Layouts::new(self.patch_size, self.overlap)
             .rects
             .iter()
             .map(Vec::len)
