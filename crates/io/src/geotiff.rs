@@ -15,6 +15,7 @@ pub(crate) mod bands;
 mod directory;
 
 use directory::Tags;
+pub(crate) use directory::read_chunk_row;
 
 const F: Format = Format::GeoTiff;
 

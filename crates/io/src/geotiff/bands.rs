@@ -175,29 +175,19 @@ impl GeoTiffBands {
     /// Decodes chunk row `cr` (every chunk across the raster) into `band`, values final.
     fn load_band(&mut self, cr: usize) -> Result<()> {
         self.band_index = None;
-        let y0 = cr * self.chunk_rows;
-        let rows = self.chunk_rows.min(self.height - y0);
-        let across = self.width.div_ceil(self.chunk_cols);
-        self.band.clear();
-        self.band.resize(rows * self.width, 0.0);
-        for c in 0..across {
-            let index = u32::try_from(cr * across + c)
-                .map_err(|_| IoError::malformed(F, "more chunks than a TIFF holds"))?;
-            let decoded = self.decoder.read_chunk(index).map_err(terr)?;
-            let v = directory::samples_f32(decoded)
-                .ok_or_else(|| IoError::unsupported(F, format!("samples of {}", self.dtype)))?;
-            let (dw, _) = self.decoder.chunk_data_dimensions(index);
-            let dw = dw as usize;
-            let x0 = c * self.chunk_cols;
-            let cols = dw.min(self.width - x0);
-            if rows.saturating_mul(dw) > v.len() || cols == 0 {
-                return Err(IoError::malformed(F, "a chunk is shorter than its size"));
-            }
-            for r in 0..rows {
-                self.band[r * self.width + x0..r * self.width + x0 + cols]
-                    .copy_from_slice(&v[r * dw..r * dw + cols]);
-            }
-        }
+        let dtype = self.dtype;
+        directory::read_chunk_row(
+            &mut self.decoder,
+            cr,
+            (self.width, self.height),
+            (self.chunk_cols, self.chunk_rows),
+            &mut self.band,
+            |decoded| {
+                directory::samples_f32(decoded)
+                    .ok_or_else(|| IoError::unsupported(F, format!("samples of {dtype}")))
+            },
+            terr,
+        )?;
         voids_to_nan(&mut self.band, self.nodata);
         if let Some((s, o)) = self.scale {
             // As `read` applies GDAL's unit scaling: nodata matched on the stored values.

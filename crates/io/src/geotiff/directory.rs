@@ -206,3 +206,38 @@ pub(super) fn samples_f32(decoded: DecodingResult) -> Option<Vec<f32>> {
         _ => return None,
     })
 }
+
+/// Decodes chunk row `cr` of a `width x height` raster stored in chunks (strips or tiles) of
+/// `chunk_cols x chunk_rows` into `band` (full rows), each chunk's samples converted by
+/// `samples`; `terr` says a codec error.
+pub(crate) fn read_chunk_row<R: Read + Seek>(
+    dec: &mut Decoder<R>,
+    cr: usize,
+    (width, height): (usize, usize),
+    (chunk_cols, chunk_rows): (usize, usize),
+    band: &mut Vec<f32>,
+    samples: impl Fn(DecodingResult) -> Result<Vec<f32>>,
+    terr: impl Fn(tiff::TiffError) -> IoError,
+) -> Result<()> {
+    let y0 = cr * chunk_rows;
+    let rows = chunk_rows.min(height - y0);
+    let across = width.div_ceil(chunk_cols);
+    band.clear();
+    band.resize(rows * width, 0.0);
+    for c in 0..across {
+        let index = u32::try_from(cr * across + c)
+            .map_err(|_| IoError::malformed(F, "more chunks than a TIFF holds"))?;
+        let v = samples(dec.read_chunk(index).map_err(&terr)?)?;
+        let (dw, _) = dec.chunk_data_dimensions(index);
+        let dw = dw as usize;
+        let x0 = c * chunk_cols;
+        let cols = dw.min(width - x0);
+        if rows.saturating_mul(dw) > v.len() || cols == 0 {
+            return Err(IoError::malformed(F, "a chunk is shorter than its size"));
+        }
+        for r in 0..rows {
+            band[r * width + x0..r * width + x0 + cols].copy_from_slice(&v[r * dw..r * dw + cols]);
+        }
+    }
+    Ok(())
+}
