@@ -636,18 +636,7 @@ pub fn idwt1(low: &[f32], high: &[f32], wavelet: Wavelet, boundary: Boundary) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn values(len: usize, seed: u32) -> Vec<f32> {
-        let mut s = seed.wrapping_mul(2_654_435_761) | 1;
-        (0..len)
-            .map(|_| {
-                s ^= s << 13;
-                s ^= s >> 17;
-                s ^= s << 5;
-                (s >> 8) as f32 / (1u32 << 24) as f32 * 200.0 - 100.0
-            })
-            .collect()
-    }
+    use crate::lift::test_values as values;
 
     fn bits(v: &[f32]) -> Vec<u32> {
         v.iter().map(|x| x.to_bits()).collect()
@@ -659,7 +648,7 @@ mod tests {
         let (w, h) = (x.width, x.height);
         let (wl, wh, hl, hh) = (w.div_ceil(2), w / 2, h.div_ceil(2), h / 2);
         let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
-        let lifting = Lifting::forward(scheme);
+        let lifting = Lifting::forward(scheme).stepwise();
         let (mut sl, mut sh, mut dl, mut dh) = (vec![], vec![], vec![], vec![]);
         for y in 0..h {
             let r = &x.data[y * w..(y + 1) * w];
@@ -675,12 +664,8 @@ mod tests {
             hi.extend(o);
         }
         let (emy, omy) = lane_maps(h, boundary, 0, hl, 0, hh);
-        lifting
-            .stepwise()
-            .run_rows(&mut sl, &mut dl, &emy, &omy, wl, false);
-        lifting
-            .stepwise()
-            .run_rows(&mut sh, &mut dh, &emy, &omy, wh, false);
+        lifting.run_rows(&mut sl, &mut dl, &emy, &omy, wl, false);
+        lifting.run_rows(&mut sh, &mut dh, &emy, &omy, wh, false);
         [sl, dl, sh, dh]
     }
 
@@ -703,13 +688,9 @@ mod tests {
             py.odd.start,
             py.odd.len(),
         );
-        let lifting = Lifting::inverse(scheme);
-        lifting
-            .stepwise()
-            .run_rows(&mut s1, &mut d1, &emy, &omy, ex, false);
-        lifting
-            .stepwise()
-            .run_rows(&mut s2, &mut d2, &emy, &omy, ox, false);
+        let lifting = Lifting::inverse(scheme).stepwise();
+        lifting.run_rows(&mut s1, &mut d1, &emy, &omy, ex, false);
+        lifting.run_rows(&mut s2, &mut d2, &emy, &omy, ox, false);
         let (emx, omx) = lane_maps(px.n, boundary, px.even.start, ex, px.odd.start, ox);
         let mut out = Vec::new();
         for y in py.out.clone() {

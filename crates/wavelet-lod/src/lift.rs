@@ -519,23 +519,19 @@ impl AxisPlan {
     }
 }
 
+/// Deterministic test values in [-500, 500), a stream per `seed`.
+#[cfg(test)]
+pub(crate) fn test_values(len: usize, seed: u64) -> Vec<f32> {
+    use relief_heightfield::rng::{hash, unit_f32};
+    (0..len)
+        .map(|i| unit_f32(hash(seed, i as u64, 0, 0)) * 1000.0 - 500.0)
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::wavelet::Wavelet;
-
-    /// Deterministic values in [-500, 500).
-    fn values(len: usize, seed: u64) -> Vec<f32> {
-        let mut s = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-        (0..len)
-            .map(|_| {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                (s >> 40) as f32 / (1u64 << 24) as f32 * 1000.0 - 500.0
-            })
-            .collect()
-    }
 
     /// The lane segments of a full axis and of windows with the synthesis margin.
     fn segments(n: usize, margin: usize) -> Vec<(usize, usize, usize, usize)> {
@@ -573,8 +569,8 @@ mod tests {
                             }
                             for width in [1, 3] {
                                 seed += 1;
-                                let even = values(el * width, seed);
-                                let odd = values(ol * width, seed + 1000);
+                                let even = test_values(el * width, seed);
+                                let odd = test_values(ol * width, seed + 1000);
                                 let (mut e1, mut o1) = (even.clone(), odd.clone());
                                 let (mut e2, mut o2) = (even, odd);
                                 lifting.run_rows(&mut e1, &mut o1, &em, &om, width, false);
