@@ -418,24 +418,11 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geology::{Geology, Layer};
+    use crate::geology::{Geology, test_beds};
 
     /// Strata from `z0`: 8 m soft (0.15) under 4 m resistant (0.85) beds.
     fn beds(z0: f32) -> Geology {
-        let mut g = Geology::new();
-        let layers = [
-            Layer {
-                thickness: 8.0,
-                hardness: 0.15,
-            },
-            Layer {
-                thickness: 4.0,
-                hardness: 0.85,
-            },
-        ];
-        let id = g.strata(z0, &layers).unwrap();
-        g.set_root(id).unwrap();
-        g
+        test_beds(z0, (8.0, 0.15), (4.0, 0.85))
     }
 
     /// A north-south ridge 20 m wide and 30 m high on ground at 10 m, `geo`, one arch.
