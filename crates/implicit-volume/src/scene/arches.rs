@@ -462,22 +462,7 @@ mod tests {
             ]
         };
         let start = (60, ((site[2] - 4.0) / 0.5).round() as usize);
-        let mut seen = vec![false; nu * nz];
-        let mut stack = vec![start];
-        let (mut n, mut open) = (0, false);
-        while let Some((i, k)) = stack.pop() {
-            if seen[k * nu + i] || scene.inside(p(i, k)) {
-                continue;
-            }
-            seen[k * nu + i] = true;
-            n += 1;
-            if i == 0 || k == 0 || i == nu - 1 || k == nz - 1 {
-                open = true;
-                continue;
-            }
-            stack.extend([(i - 1, k), (i + 1, k), (i, k - 1), (i, k + 1)]);
-        }
-        (n, open)
+        relief_testdata::flood_fill(nu, nz, start, |i, k| !scene.inside(p(i, k)))
     }
 
     /// The arch is a fin left in a gap cut across the ridge, eroded through under the
