@@ -47,13 +47,7 @@ impl SceneBuilder {
             relief_heightfield::param::in_range(n, v, 0.0..=1.0, "must be in [0, 1]")?;
         }
         region.check(&self.frame)?;
-        if self.candidate_count(s.spacing, None) > (1u64 << 22) as f64 {
-            return Err(Error::param(
-                "spacing",
-                s.spacing,
-                "too small for this DEM: more than 2^22 candidate samples",
-            ));
-        }
+        self.check_candidates(s.spacing, None)?;
         let f = self.frame;
         let cos_min = s.min_slope_deg.to_radians().cos();
         let cand = self.surface_candidates(s.spacing, s.seed, None);
