@@ -69,16 +69,8 @@ fn stream_power(c: &mut Criterion) {
     let grid = Grid::of(&hf);
     let z0: Vec<f64> = hf.as_slice().iter().map(|&v| v as f64).collect();
     let base = base_level_mask(&z0, &grid);
-    // The peer's parameters (fastscapelib's Mountain example): K 2e-4, m 0.4, n 1, D 0.01,
-    // dt 1 kyr, U 1 mm/yr.
-    let params = StreamPowerParams {
-        k: 2e-4,
-        m: 0.4,
-        n: 1.0,
-        diffusion: 0.01,
-        dt: 1e3,
-        ..StreamPowerParams::default()
-    };
+    // The peer's parameters (fastscapelib's Mountain example, uplift 1 mm/yr).
+    let params = StreamPowerParams::fastscape_mountain();
     let mut g = c.benchmark_group("landscape");
     g.sample_size(20);
     let mut z = z0.clone();

@@ -30,32 +30,17 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "2")
 os.environ.setdefault("NUMBA_NUM_THREADS", "2")
 
-import contextlib  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import traceback  # noqa: E402
 
 import numpy as np  # noqa: E402
+from peer_common import load_input, stdout_to_stderr  # noqa: E402
 
 CELL = 30.0
 NODATA = -9999.0
 SIZE = 4096
-
-
-@contextlib.contextmanager
-def stdout_to_stderr():
-    """RichDEM prints progress and warnings on stdout (Python and C++): send file descriptor 1
-    to stderr meanwhile so that stdout carries only the JSON object."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    os.dup2(2, 1)
-    try:
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def median_runs(fn, repeats):
@@ -69,6 +54,19 @@ def median_runs(fn, repeats):
         for k, v in p.items():
             parts.setdefault(k, []).append(v)
     return float(np.median(totals)), {k: float(np.median(v)) for k, v in parts.items()}, result
+
+
+def time_peer(prepare, run, dem, repeats, key):
+    """Times `run` (returning a dict of part times and the accumulation) on `prepare(dem)`
+    after one small warm-up (so that numba's compilation is not timed): the median total
+    `{key}_s`, each part `{key}_{part}_s` and the largest accumulation."""
+    run(prepare(dem[:256, :256].copy()))
+    r = prepare(dem)
+    total, parts, acc = median_runs(lambda: run(r), repeats)
+    out = {f"{key}_s": total}
+    out.update({f"{key}_{part}_s": t for part, t in parts.items()})
+    out[f"{key}_max_acc_cells"] = float(np.asarray(acc).max())
+    return out
 
 
 def richdem_peer(dem, repeats):
@@ -95,17 +93,8 @@ def richdem_peer(dem, repeats):
         return {"fill": t1 - t0, "acc": t2 - t1}, acc
 
     with stdout_to_stderr():
-        run(prepare(dem[:256, :256].copy()))
-        r = prepare(dem)
-        total, parts, acc = median_runs(lambda: run(r), repeats)
-    key = f"richdem_fill_d8_{dem.shape[0]}"
-    return {
-        f"{key}_s": total,
-        f"{key}_fill_s": parts["fill"],
-        f"{key}_acc_s": parts["acc"],
-        f"{key}_max_acc_cells": float(np.asarray(acc).max()),
-        "richdem_version": ver,
-    }
+        out = time_peer(prepare, run, dem, repeats, f"richdem_fill_d8_{dem.shape[0]}")
+    return {**out, "richdem_version": ver}
 
 
 def pysheds_peer(dem, repeats):
@@ -137,30 +126,16 @@ def pysheds_peer(dem, repeats):
         t4 = time.perf_counter()
         return {"fill": t1 - t0, "flats": t2 - t1, "fdir": t3 - t2, "acc": t4 - t3}, acc
 
-    run(prepare(dem[:256, :256].copy()))
-    r = prepare(dem)
-    total, parts, acc = median_runs(lambda: run(r), repeats)
-    key = f"pysheds_fill_d8_{dem.shape[0]}"
-    return {
-        f"{key}_s": total,
-        f"{key}_fill_s": parts["fill"],
-        f"{key}_flats_s": parts["flats"],
-        f"{key}_fdir_s": parts["fdir"],
-        f"{key}_acc_s": parts["acc"],
-        f"{key}_max_acc_cells": float(np.asarray(acc).max()),
-        "pysheds_version": pysheds.__version__ if hasattr(pysheds, "__version__") else "?",
-    }
+    out = time_peer(prepare, run, dem, repeats, f"pysheds_fill_d8_{dem.shape[0]}")
+    return {**out, "pysheds_version": pysheds.__version__ if hasattr(pysheds, "__version__") else "?"}
 
 
 def main():
     data = sys.argv[1]
     repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 3
-    path = os.path.join(data, f"flow_{SIZE}.npy")
-    if not os.path.exists(path):
-        print(f"drainage.py: {path} missing, no timings", file=sys.stderr)
-        print("{}")
+    dem = load_input("drainage.py", os.path.join(data, f"flow_{SIZE}.npy"), np.float32)
+    if dem is None:
         return
-    dem = np.ascontiguousarray(np.load(path), dtype=np.float32)
     dem[~np.isfinite(dem)] = NODATA
     out = {}
     for name, peer in (("richdem", richdem_peer), ("pysheds", pysheds_peer)):

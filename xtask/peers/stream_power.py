@@ -45,6 +45,7 @@ import sys
 import time
 
 import numpy as np
+from peer_common import load_input
 
 try:
     import fastscapelib as fs
@@ -95,12 +96,9 @@ def bench(data, steps, a):
         print(f"stream_power.py: fastscapelib not installed ({_FS_ERROR})", file=sys.stderr)
         print("{}")
         return
-    path = os.path.join(data, f"spl_{SIZE}.npy")
-    if not os.path.exists(path):
-        print(f"stream_power.py: {path} missing, no timings", file=sys.stderr)
-        print("{}")
+    z = load_input("stream_power.py", os.path.join(data, f"spl_{SIZE}.npy"), np.float64)
+    if z is None:
         return
-    z = np.ascontiguousarray(np.load(path), dtype=np.float64)
     # keep `grid` referenced: the flow graph and the eroders hold it by reference only
     grid, graph, spl, diffusion, uplift = build(z.shape, a)
     area = np.empty_like(z)

@@ -167,33 +167,18 @@ pub fn fill_voids(hf: &mut Heightfield, settings: &FillSettings) -> Result<FillR
         r[k] = b[k] - r[k];
     }
     let bnorm = b.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-30);
-    let mut zv: Vec<f64> = r.iter().zip(&deg).map(|(a, d)| a / d).collect();
-    let mut p = zv.clone();
-    let mut rz: f64 = r.iter().zip(&zv).map(|(a, b)| a * b).sum();
-    let mut ap = vec![0.0; n];
-    let mut iterations = 0;
-    let mut rel = r.iter().map(|v| v * v).sum::<f64>().sqrt() / bnorm;
-    while rel > settings.tolerance && iterations < settings.max_iterations {
-        apply(&p, &mut ap);
-        let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
-        if pap <= 0.0 || !pap.is_finite() {
-            break;
-        }
-        let alpha = rz / pap;
-        for k in 0..n {
-            u[k] += alpha * p[k];
-            r[k] -= alpha * ap[k];
-            zv[k] = r[k] / deg[k];
-        }
-        let rz_new: f64 = r.iter().zip(&zv).map(|(a, b)| a * b).sum();
-        let beta = rz_new / rz;
-        rz = rz_new;
-        for k in 0..n {
-            p[k] = zv[k] + beta * p[k];
-        }
-        iterations += 1;
-        rel = r.iter().map(|v| v * v).sum::<f64>().sqrt() / bnorm;
-    }
+    let iterations = crate::cg::pcg(
+        apply,
+        |r: &[f64], z: &mut [f64]| {
+            for k in 0..n {
+                z[k] = r[k] / deg[k];
+            }
+        },
+        &mut u,
+        &mut r,
+        |it, rr| rr.sqrt() / bnorm > settings.tolerance && it < settings.max_iterations,
+    );
+    let rel = r.iter().map(|v| v * v).sum::<f64>().sqrt() / bnorm;
     let data = hf.as_mut_slice();
     for (k, &c) in cells.iter().enumerate() {
         data[c] = u[k] as f32;

@@ -1,5 +1,6 @@
 use std::ops::RangeInclusive;
 
+use relief_heightfield::ParamError;
 use thiserror::Error;
 
 /// `[("a", s.a), ("b", s.b)]`: fields of `s` paired with their own names, for the checks
@@ -17,15 +18,8 @@ pub enum Error {
     #[error("stopped: {0} was cut short")]
     Stopped(&'static str),
     /// A parameter is out of its valid range.
-    #[error("invalid parameter `{name}` = {value}: {reason}")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// Offending value, formatted.
-        value: String,
-        /// What is expected.
-        reason: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
     /// The input heightfield was rejected.
     #[error(transparent)]
     Heightfield(#[from] relief_heightfield::HeightfieldError),
@@ -37,11 +31,7 @@ impl Error {
         value: impl std::fmt::Display,
         reason: &'static str,
     ) -> Self {
-        Self::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason,
-        }
+        Self::InvalidParameter(ParamError::new(name, value, reason))
     }
 
     /// [`in_range`](relief_heightfield::param::in_range) of every `(name, value)` in turn,
@@ -75,16 +65,6 @@ impl Error {
             value,
             "must be finite and > 0",
         )?)
-    }
-}
-
-impl From<relief_heightfield::ParamError> for Error {
-    fn from(e: relief_heightfield::ParamError) -> Self {
-        Self::InvalidParameter {
-            name: e.name,
-            value: e.value,
-            reason: e.reason,
-        }
     }
 }
 

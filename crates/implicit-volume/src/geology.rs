@@ -585,6 +585,20 @@ impl GeologySpec {
     }
 }
 
+/// Test strata: from `z0` up, a soft bed under a resistant one, each `(thickness m,
+/// hardness)`, repeated, as the whole geology (the layered rock the landform tests carve).
+#[cfg(test)]
+pub(crate) fn test_beds(z0: f32, soft: (f32, f32), hard: (f32, f32)) -> Geology {
+    let mut g = Geology::new();
+    let layers = [soft, hard].map(|(thickness, hardness)| Layer {
+        thickness,
+        hardness,
+    });
+    let id = g.strata(z0, &layers).unwrap();
+    g.set_root(id).unwrap();
+    g
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -712,7 +712,7 @@ mod sea_cave_sections {
     //! Sections through the sea caves of `scene::SceneBuilder::sea_erosion` (here, not in the
     //! scene's tests: the scene does not depend on the renderer).
     use super::{SectionSettings, section};
-    use crate::geology::{Geology, Layer};
+    use crate::geology::test_beds;
     use crate::scene::{ImplicitizeSettings, Region, SceneBuilder, SeaErosion, Weathering};
     use relief_heightfield::Heightfield;
 
@@ -729,19 +729,7 @@ mod sea_cave_sections {
                 20.0f32.min(-4.0 + 12.0 * (x - 14) as f32)
             }
         });
-        let mut g = Geology::new();
-        let layers = [
-            Layer {
-                thickness: 6.0,
-                hardness: 0.15,
-            },
-            Layer {
-                thickness: 4.0,
-                hardness: 0.85,
-            },
-        ];
-        let id = g.strata(-3.0, &layers).unwrap();
-        g.set_root(id).unwrap();
+        let g = test_beds(-3.0, (6.0, 0.15), (4.0, 0.85));
         let mut b = SceneBuilder::new(&hf, g.clone(), &ImplicitizeSettings::default()).unwrap();
         let s = SeaErosion {
             weathering: Weathering {

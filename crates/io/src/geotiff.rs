@@ -4,8 +4,7 @@
 use std::io::Cursor;
 
 use relief_heightfield::{GeoRef, Heightfield};
-use tiff::ColorType;
-use tiff::decoder::{ChunkType, Decoder, DecodingResult, Limits};
+use tiff::decoder::Decoder;
 use tiff::encoder::{TiffEncoder, colortype};
 use tiff::tags::Tag;
 
@@ -13,6 +12,10 @@ use crate::util::{check_dims, finish, flip_rows};
 use crate::{Format, IoError, Raster, ReadOptions, Result};
 
 pub(crate) mod bands;
+mod directory;
+
+use directory::Tags;
+pub(crate) use directory::read_chunk_row;
 
 const F: Format = Format::GeoTiff;
 
@@ -71,13 +74,6 @@ pub(crate) fn metres_per_degree(lat_deg: f64) -> (f64, f64) {
     (n * phi.cos() * d, m * d)
 }
 
-fn find_f64s(dec: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> Result<Option<Vec<f64>>> {
-    match dec.find_tag(tag).map_err(terr)? {
-        Some(v) => Ok(Some(v.into_f64_vec().map_err(terr)?)),
-        None => Ok(None),
-    }
-}
-
 /// Checks, before the decoder touches them, that every chunk lies inside the file and that
 /// the chunks hold enough bytes for the `w x h = n` declared samples.
 fn check_chunks(
@@ -87,39 +83,7 @@ fn check_chunks(
     bits: u8,
     dtype: &str,
 ) -> Result<()> {
-    let (off_tag, cnt_tag, kind) = match dec.get_chunk_type() {
-        ChunkType::Strip => (Tag::StripOffsets, Tag::StripByteCounts, "strip"),
-        ChunkType::Tile => (Tag::TileOffsets, Tag::TileByteCounts, "tile"),
-    };
-    let offsets = dec
-        .find_tag_unsigned_vec::<u64>(off_tag)
-        .map_err(terr)?
-        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} offsets")))?;
-    let counts = dec
-        .find_tag_unsigned_vec::<u64>(cnt_tag)
-        .map_err(terr)?
-        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} byte counts")))?;
-    if offsets.len() != counts.len() {
-        return Err(IoError::malformed(
-            F,
-            format!(
-                "{} {kind} offsets but {} byte counts",
-                offsets.len(),
-                counts.len()
-            ),
-        ));
-    }
-    for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
-        let end = o.saturating_add(c);
-        if end > bytes.len() as u64 {
-            return Err(IoError::truncated(
-                F,
-                format!("{kind} {i} (offset {o}, {c} bytes)"),
-                end,
-                bytes.len() as u64,
-            ));
-        }
-    }
+    let (kind, counts) = directory::check_chunks_in_file(dec, bytes.len() as u64)?;
     let compression = dec
         .find_tag_unsigned::<u16>(Tag::Compression)
         .map_err(terr)?
@@ -164,99 +128,16 @@ fn check_chunks(
 }
 
 pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    let mut dec = Decoder::new(Cursor::new(bytes)).map_err(terr)?;
-    let mut limits = Limits::default();
-    limits.decoding_buffer_size = opts.max_cells.saturating_mul(8);
-    limits.ifd_value_size = 16 << 20;
-    dec = dec.with_limits(limits);
-
+    let mut dec = directory::decoder(Cursor::new(bytes), opts)?;
     let (w, h) = dec.dimensions().map_err(terr)?;
     let n = check_dims(F, w as u64, h as u64, opts)?;
-    let bits = match dec.colortype().map_err(terr)? {
-        ColorType::Gray(b) => b,
-        other => {
-            return Err(IoError::unsupported(
-                F,
-                format!("colour type {other:?}; only single-band rasters are read"),
-            ));
-        }
-    };
-    let sample_format = dec
-        .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
-        .map_err(terr)?
-        .and_then(|v| v.first().copied())
-        .unwrap_or(1);
-    let dtype = match (sample_format, bits) {
-        (1, 8) => "uint8",
-        (1, 16) => "uint16",
-        (1, 32) => "uint32",
-        (2, 8) => "int8",
-        (2, 16) => "int16",
-        (2, 32) => "int32",
-        (3, 32) => "float32",
-        (3, 64) => "float64",
-        (sf, b) => {
-            return Err(IoError::unsupported(
-                F,
-                format!("sample format {sf} with {b} bits per sample"),
-            ));
-        }
-    };
-
+    let (bits, dtype) = directory::sample_type(&mut dec)?;
     check_chunks(&mut dec, bytes, (w, h, n), bits, dtype)?;
-
-    let nodata = match dec.find_tag(Tag::GdalNodata).map_err(terr)? {
-        Some(v) => {
-            let s = v.into_string().map_err(terr)?;
-            let s = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
-            Some(s.parse::<f64>().map_err(|_| {
-                IoError::malformed(F, format!("GDAL_NODATA tag {s:?} is not a number"))
-            })?)
-        }
-        None => None,
-    };
-    let mut geo = GeoRef {
-        pixel_scale: find_f64s(&mut dec, Tag::ModelPixelScaleTag)?,
-        tiepoints: find_f64s(&mut dec, Tag::ModelTiepointTag)?,
-        transformation: find_f64s(&mut dec, Tag::ModelTransformationTag)?,
-        geo_key_directory: match dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(terr)? {
-            Some(v) => Some(v.into_u16_vec().map_err(terr)?),
-            None => None,
-        },
-        geo_double_params: find_f64s(&mut dec, Tag::GeoDoubleParamsTag)?,
-        geo_ascii_params: match dec.find_tag(Tag::GeoAsciiParamsTag).map_err(terr)? {
-            Some(v) => Some(v.into_string().map_err(terr)?),
-            None => None,
-        },
-        crs: None,
-        geotransform: None,
-    };
-
-    let gdal_metadata = match dec
-        .find_tag(Tag::Unknown(GDAL_METADATA_TAG))
-        .map_err(terr)?
-    {
-        Some(v) => Some(v.into_string().map_err(terr)?),
-        None => None,
-    };
+    let mut tags = Tags::read(&mut dec)?;
 
     let decoded = dec.read_image().map_err(terr)?;
-    let mut data: Vec<f32> = match decoded {
-        DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U32(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::I8(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::I32(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        _ => {
-            return Err(IoError::unsupported(
-                F,
-                format!("decoded sample type of {dtype}"),
-            ));
-        }
-    };
+    let mut data = directory::samples_f32(decoded)
+        .ok_or_else(|| IoError::unsupported(F, format!("decoded sample type of {dtype}")))?;
     if data.len() != n {
         return Err(IoError::malformed(
             F,
@@ -264,31 +145,16 @@ pub(crate) fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         ));
     }
     let (w, h) = (w as usize, h as usize);
-    let flipped = complete_georef(&mut geo, w, h);
+    let (flipped, cell) = tags.complete_georef(w, h)?;
     if flipped {
         flip_rows(&mut data, w);
     }
-    check_georef_values(&geo)?;
-    let cell = cell_size(&geo, h).unwrap_or((1.0, 1.0));
-    crate::util::check_cell(
-        F,
-        "georeference (ModelPixelScale / ModelTransformation)",
-        cell.0,
-        cell.1,
-    )?;
-    let georef = (geo != GeoRef::default()).then_some(geo);
-    let mut r = finish(F, w, h, data, cell, nodata, dtype)?;
-    let (scale, offset) = gdal_metadata
-        .as_deref()
-        .map(gdal_scale_offset)
-        .unwrap_or_default();
-    if scale.is_some() || offset.is_some() {
+    let Tags { nodata, geo, .. } = &tags;
+    let georef = (*geo != GeoRef::default()).then(|| geo.clone());
+    let mut r = finish(F, w, h, data, cell, *nodata, dtype)?;
+    if let Some((s, o)) = tags.scale()? {
         // GDAL's unit scaling (e.g. an int16 DEM stored in decimetres): nodata was matched
         // on the stored values above, the heights are scaled values.
-        let (s, o) = (scale.unwrap_or(1.0), offset.unwrap_or(0.0));
-        if s == 0.0 {
-            return Err(IoError::malformed(F, "GDAL metadata SCALE is 0"));
-        }
         r.heightfield = r.heightfield.map(|v| (v as f64 * s + o) as f32);
     }
     r.heightfield.set_georef(georef);

@@ -655,30 +655,19 @@ impl GeoTiffRowReader {
     fn load_band(&mut self, cr: usize) -> Result<()> {
         let terr =
             |e: tiff::TiffError| IoError::malformed(F, format!("{}: {e}", self.path.display()));
-        let y0 = cr * self.chunk_rows;
-        let rows = self.chunk_rows.min(self.height - y0);
-        let across = self.width.div_ceil(self.chunk_cols);
-        self.band.clear();
-        self.band.resize(rows * self.width, 0.0);
-        for c in 0..across {
-            let index = (cr * across + c) as u32;
-            let data = self.decoder.read_chunk(index).map_err(terr)?;
-            let tiff::decoder::DecodingResult::F32(v) = data else {
-                return Err(IoError::unsupported(F, "samples are not float32"));
-            };
-            let (dw, _) = self.decoder.chunk_data_dimensions(index);
-            let dw = dw as usize;
-            let x0 = c * self.chunk_cols;
-            let cols = dw.min(self.width - x0);
-            for r in 0..rows {
-                if (r + 1) * dw > v.len() {
-                    return Err(IoError::malformed(F, "a chunk is shorter than its size"));
-                }
-                self.band[r * self.width + x0..r * self.width + x0 + cols]
-                    .copy_from_slice(&v[r * dw..r * dw + cols]);
-            }
-        }
-        self.band_start = y0;
+        crate::geotiff::read_chunk_row(
+            &mut self.decoder,
+            cr,
+            (self.width, self.height),
+            (self.chunk_cols, self.chunk_rows),
+            &mut self.band,
+            |decoded| match decoded {
+                tiff::decoder::DecodingResult::F32(v) => Ok(v),
+                _ => Err(IoError::unsupported(F, "samples are not float32")),
+            },
+            terr,
+        )?;
+        self.band_start = cr * self.chunk_rows;
         Ok(())
     }
 }

@@ -21,12 +21,7 @@ fn main() {
         a[3].parse().unwrap(),
         a[4].parse().unwrap(),
     );
-    let grid = Grid {
-        width: w,
-        height: h,
-        cell_x: cell,
-        cell_y: cell,
-    };
+    let grid = Grid::new(w, h, cell, cell);
     let t = Instant::now();
     let mut f = z.clone();
     depression::priority_flood(&mut f, &grid, FillMode::Plain, None);

@@ -38,12 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .chunks_exact(4)
         .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
         .collect();
-    let mut grid = Grid {
-        width: w,
-        height: h,
-        cell_x: cx,
-        cell_y: cy,
-    };
+    let mut grid = Grid::new(w, h, cx, cy);
     let mut hp = serde_json::to_value(HydraulicParams::default())?;
     let mut tp = serde_json::to_value(ThermalParams::default())?;
     let (mut zf, mut tag, mut up) = (1.0f64, String::new(), 1usize);
@@ -79,12 +74,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/look");
     std::fs::create_dir_all(&out)?;
     let before = z.clone();
-    write_gray(
-        &out.join(format!("{name}_before.png")),
-        &grid,
-        up,
-        &hillshade(&z, &grid, zf),
-    )?;
+    let write_shade = |when: &str, z: &[f32]| {
+        write_gray(
+            &out.join(format!("{name}_{when}.png")),
+            &grid,
+            up,
+            &hillshade(z, &grid, zf),
+        )
+    };
+    write_shade("before", &z)?;
 
     let t = Instant::now();
     let tf = thermal(&mut z, &grid, &tp, &NoProgress, &|| false)?;
@@ -95,12 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("{}x{} cells of {cx} x {cy} m", grid.width, grid.height);
     println!("thermal {tp:?}: {:.2?} {tf:?}", t_thermal);
     println!("hydraulic {hp:?}: {:.2?}\n{:#?}", t_hydraulic, ho.figures);
-    write_gray(
-        &out.join(format!("{name}_after.png")),
-        &grid,
-        up,
-        &hillshade(&z, &grid, zf),
-    )?;
+    write_shade("after", &z)?;
     // Erosion red, deposition blue, over the old hillshade; full colour at 1/4 of the cell size.
     let shade = hillshade(&before, &grid, zf);
     let full = 0.25 * cx.min(cy) as f32;

@@ -37,12 +37,7 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let steps: usize = args.get(1).map_or(100, |s| s.parse().expect("STEPS"));
     let n = 1024;
-    let grid = Grid {
-        width: n,
-        height: n,
-        cell_x: 100.0,
-        cell_y: 100.0,
-    };
+    let grid = Grid::new(n, n, 100.0, 100.0);
     let mut z: Vec<f64> = (0..n * n)
         .map(|i| unit_f32(hash(7, i as u64, 0, 0)) as f64)
         .collect();
@@ -50,14 +45,7 @@ fn main() {
         write_npy(out, &z, n, n).expect("write the .npy");
     }
     let base = base_level_mask(&z, &grid);
-    let params = StreamPowerParams {
-        k: 2e-4,
-        m: 0.4,
-        n: 1.0,
-        diffusion: 0.01,
-        dt: 1e3,
-        ..Default::default()
-    };
+    let params = StreamPowerParams::fastscape_mountain();
     let mut scratch = StreamPowerScratch::new();
     let mut times = Vec::with_capacity(steps);
     for s in 0..steps {

@@ -39,15 +39,20 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// The grid of a heightfield.
-    pub fn of(hf: &Heightfield) -> Self {
-        let (cell_x, cell_y) = hf.cell_size();
+    /// A `width x height` grid of `cell_x` by `cell_y` m cells.
+    pub const fn new(width: usize, height: usize, cell_x: f64, cell_y: f64) -> Self {
         Self {
-            width: hf.width(),
-            height: hf.height(),
+            width,
+            height,
             cell_x,
             cell_y,
         }
+    }
+
+    /// The grid of a heightfield.
+    pub fn of(hf: &Heightfield) -> Self {
+        let (cell_x, cell_y) = hf.cell_size();
+        Self::new(hf.width(), hf.height(), cell_x, cell_y)
     }
 
     /// Number of cells.
@@ -128,12 +133,7 @@ mod tests {
 
     #[test]
     fn distances_follow_non_square_cells() {
-        let g = Grid {
-            width: 4,
-            height: 3,
-            cell_x: 30.0,
-            cell_y: 40.0,
-        };
+        let g = Grid::new(4, 3, 30.0, 40.0);
         let d = g.distances();
         assert_eq!(d[1], 40.0);
         assert_eq!(d[3], 30.0);

@@ -14,23 +14,21 @@ pub trait RadixKey: Copy + Ord + std::fmt::Debug {
     const ZERO: Self;
 }
 
-impl RadixKey for u64 {
-    const BITS: u32 = 64;
-    const ZERO: u64 = 0;
-    #[inline]
-    fn xor_lz(self, other: u64) -> u32 {
-        (self ^ other).leading_zeros()
-    }
+/// [`RadixKey`] for unsigned integer types.
+macro_rules! radix_key {
+    ($($t:ty),+) => {$(
+        impl RadixKey for $t {
+            const BITS: u32 = <$t>::BITS;
+            const ZERO: $t = 0;
+            #[inline]
+            fn xor_lz(self, other: $t) -> u32 {
+                (self ^ other).leading_zeros()
+            }
+        }
+    )+};
 }
 
-impl RadixKey for u128 {
-    const BITS: u32 = 128;
-    const ZERO: u128 = 0;
-    #[inline]
-    fn xor_lz(self, other: u128) -> u32 {
-        (self ^ other).leading_zeros()
-    }
-}
+radix_key!(u64, u128);
 
 /// A monotone min-queue of keys: every pushed key must be at least the last popped one.
 #[derive(Debug)]

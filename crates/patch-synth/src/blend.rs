@@ -164,35 +164,14 @@ pub(crate) fn poisson_blend(
     let mut ax = vec![0.0f64; n];
     apply(&x, &mut ax);
     let mut res: Vec<f64> = rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
-    let mut z = vec![0.0f64; n];
-    precond.solve(&res, &mut z);
-    let mut dir = z.clone();
-    let mut rz: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
-    let mut rr: f64 = res.iter().map(|v| v * v).sum();
     let bnorm: f64 = rhs.iter().map(|v| v * v).sum::<f64>().max(1e-30);
-    let mut it = 0;
-    let mut ad = vec![0.0f64; n];
-    while it < max_iterations && rr > 1e-14 * bnorm {
-        apply(&dir, &mut ad);
-        let dad: f64 = dir.iter().zip(&ad).map(|(a, b)| a * b).sum();
-        if dad <= 0.0 || rz <= 0.0 {
-            break;
-        }
-        let step = rz / dad;
-        for i in 0..n {
-            x[i] += step * dir[i];
-            res[i] -= step * ad[i];
-        }
-        rr = res.iter().map(|v| v * v).sum();
-        precond.solve(&res, &mut z);
-        let rz_new: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
-        let beta = rz_new / rz;
-        rz = rz_new;
-        for i in 0..n {
-            dir[i] = z[i] + beta * dir[i];
-        }
-        it += 1;
-    }
+    let it = relief_heightfield::cg::pcg(
+        apply,
+        |r: &[f64], z: &mut [f64]| precond.solve(r, z),
+        &mut x,
+        &mut res,
+        |it, rr| it < max_iterations && rr > 1e-14 * bnorm,
+    );
     for (a, &(r, c)) in cells.iter().enumerate() {
         out[r * p + c] = x[a] as f32;
     }

@@ -40,6 +40,22 @@ bl_info = {
 MAX_MESH_CELLS = 1 << 20
 
 
+def polygon_mesh(name: str, co: np.ndarray, corners: np.ndarray, k: int) -> bpy.types.Mesh:
+    """A mesh of the vertices ``co`` (x, y, z flat) and polygons of ``k`` corners each, their
+    vertex indices flat in ``corners``."""
+    n = len(corners) // k
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(len(co) // 3)
+    me.vertices.foreach_set("co", co)
+    me.loops.add(k * n)
+    me.loops.foreach_set("vertex_index", corners)
+    me.polygons.add(n)
+    me.polygons.foreach_set("loop_start", np.arange(0, k * n, k, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(n, k, dtype=np.int32))
+    me.update(calc_edges=True)
+    return me
+
+
 def grid_mesh(name: str, z: np.ndarray, cell: tuple, step: int = 1) -> bpy.types.Mesh:
     """A mesh of the grid ``z`` (rows north to south) with cells ``cell`` metres, every
     ``step``-th sample, in metres (voids dropped as holes at 0 m would lie: they become the
@@ -53,16 +69,7 @@ def grid_mesh(name: str, z: np.ndarray, cell: tuple, step: int = 1) -> bpy.types
     co = np.stack([xs, ys, z], axis=-1).reshape(-1)
     i = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
     quads = np.stack([i[:-1, :-1], i[1:, :-1], i[1:, 1:], i[:-1, 1:]], axis=-1).reshape(-1)
-    me = bpy.data.meshes.new(name)
-    me.vertices.add(rows * cols)
-    me.vertices.foreach_set("co", co)
-    nq = (rows - 1) * (cols - 1)
-    me.loops.add(4 * nq)
-    me.loops.foreach_set("vertex_index", quads)
-    me.polygons.add(nq)
-    me.polygons.foreach_set("loop_start", np.arange(0, 4 * nq, 4, dtype=np.int32))
-    me.polygons.foreach_set("loop_total", np.full(nq, 4, dtype=np.int32))
-    me.update(calc_edges=True)
+    me = polygon_mesh(name, co, quads, 4)
     me.validate()
     return me
 
@@ -132,87 +139,83 @@ class RELIEF_OT_import_dem(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
-class RELIEF_OT_amplify(bpy.types.Operator):
+class TerrainJob:
+    """An operator running a relief job on the active terrain (an object this add-on made):
+    ``run(s, ob)`` calls relief with the panel's settings ``s`` (an ``OSError`` or
+    ``ValueError`` is reported and cancels), ``place(context, s, ob, out)`` adds its result."""
+
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        s = context.scene.relief
+        ob = context.active_object
+        if ob is None or "relief_cell" not in ob:
+            self.report({"ERROR"}, "the active object is not a relief terrain (import a DEM first)")
+            return {"CANCELLED"}
+        try:
+            out = self.run(s, ob)
+        except (OSError, ValueError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.place(context, s, ob, out)
+        return {"FINISHED"}
+
+
+class NewTerrainJob(TerrainJob):
+    """A terrain job whose result is a raster: a new terrain object named ``ob.name`` and
+    ``suffix(s)``, at the active terrain's place."""
+
+    def place(self, context, s, ob, out):
+        new = add_terrain(context, f"{ob.name} {self.suffix(s)}", out)
+        new.location = ob.location
+
+
+class RELIEF_OT_amplify(NewTerrainJob, bpy.types.Operator):
     """Amplify the active terrain with the exemplar's details (relief.amplify) into a new object"""
 
     bl_idname = "relief.amplify"
     bl_label = "Amplify"
-    bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context):
-        s = context.scene.relief
-        ob = context.active_object
-        if ob is None or "relief_cell" not in ob:
-            self.report({"ERROR"}, "the active object is not a relief terrain (import a DEM first)")
-            return {"CANCELLED"}
+    def run(self, s, ob):
         exemplar = bpy.path.abspath(s.exemplar) if s.exemplar else ob.get("relief_path", "")
-        try:
-            out = relief.amplify(raster_of(ob), exemplar, int(s.factor), seed=s.seed, landform=s.landform)
-        except (OSError, ValueError) as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        new = add_terrain(context, f"{ob.name} x{s.factor}", out)
-        new.location = ob.location
-        return {"FINISHED"}
+        return relief.amplify(raster_of(ob), exemplar, int(s.factor), seed=s.seed, landform=s.landform)
+
+    def suffix(self, s):
+        return f"x{s.factor}"
 
 
-class RELIEF_OT_refine(bpy.types.Operator):
+class RELIEF_OT_refine(NewTerrainJob, bpy.types.Operator):
     """Refine the active terrain by wavelet synthesis (relief.refine) into a new object"""
 
     bl_idname = "relief.refine"
     bl_label = "Refine"
-    bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context):
-        s = context.scene.relief
-        ob = context.active_object
-        if ob is None or "relief_cell" not in ob:
-            self.report({"ERROR"}, "the active object is not a relief terrain (import a DEM first)")
-            return {"CANCELLED"}
-        try:
-            out = relief.refine(raster_of(ob), extra_levels=s.levels, seed=s.seed, landform=s.landform)
-        except (OSError, ValueError) as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        new = add_terrain(context, f"{ob.name} refined", out)
-        new.location = ob.location
-        return {"FINISHED"}
+    def run(self, s, ob):
+        return relief.refine(raster_of(ob), extra_levels=s.levels, seed=s.seed, landform=s.landform)
+
+    def suffix(self, s):
+        return "refined"
 
 
-class RELIEF_OT_volume(bpy.types.Operator):
+class RELIEF_OT_volume(TerrainJob, bpy.types.Operator):
     """Carve 3-D landforms into the active terrain (relief.volume) as a new mesh"""
 
     bl_idname = "relief.volume"
     bl_label = "Volume"
-    bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context):
-        s = context.scene.relief
-        ob = context.active_object
-        if ob is None or "relief_cell" not in ob:
-            self.report({"ERROR"}, "the active object is not a relief terrain (import a DEM first)")
-            return {"CANCELLED"}
-        try:
-            v, f = relief.volume(raster_of(ob), features=[s.feature], seed=s.seed, max_mesh_cells=s.mesh_cells)
-        except (OSError, ValueError) as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        me = bpy.data.meshes.new(f"{ob.name} {s.feature}")
-        me.vertices.add(len(v))
-        me.vertices.foreach_set("co", np.ascontiguousarray(v, dtype=np.float32).reshape(-1))
-        me.loops.add(3 * len(f))
-        me.loops.foreach_set("vertex_index", f.astype(np.int32).reshape(-1))
-        me.polygons.add(len(f))
-        me.polygons.foreach_set("loop_start", np.arange(0, 3 * len(f), 3, dtype=np.int32))
-        me.polygons.foreach_set("loop_total", np.full(len(f), 3, dtype=np.int32))
-        me.update(calc_edges=True)
+    def run(self, s, ob):
+        return relief.volume(raster_of(ob), features=[s.feature], seed=s.seed, max_mesh_cells=s.mesh_cells)
+
+    def place(self, context, s, ob, out):
+        v, f = out
+        co = np.ascontiguousarray(v, dtype=np.float32).reshape(-1)
+        me = polygon_mesh(f"{ob.name} {s.feature}", co, f.astype(np.int32).reshape(-1), 3)
         new = bpy.data.objects.new(me.name, me)
         context.collection.objects.link(new)
         # The volume mesh has y north from the south edge: put its north-west corner on the grid's.
         rows = int(ob["relief_shape"][0])
         new.location = ob.location
         new.location.y -= (rows - 1) * float(ob["relief_cell"][1])
-        return {"FINISHED"}
 
 
 class ReliefSettings(bpy.types.PropertyGroup):

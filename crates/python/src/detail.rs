@@ -28,12 +28,14 @@ pub(crate) fn window(w: WindowTuple) -> Window {
     Window::new(w.0, w.1, w.2, w.3)
 }
 
-/// The landform pass of the CLI's `--landform` over `fine`, the detail of `coarse`.
+/// The landform pass of the CLI's `--landform` over `fine`, the detail of `coarse`; its note
+/// goes to `notes`.
 fn landform(
     fine: Heightfield,
     coarse: &Heightfield,
     p: &Reporter,
-) -> Result<(Heightfield, String), Failure> {
+    notes: &mut Vec<String>,
+) -> Result<Heightfield, Failure> {
     p.begin("landform pass", 0);
     let (out, r) = finish_until(&fine, coarse, &LandformSettings::default(), &|| {
         p.stop_flag()
@@ -44,7 +46,8 @@ fn landform(
          consistency with the input {:.3} m RMS",
         r.pits_before, r.breached_cells, r.filled_cells, r.consistency_rms_m
     );
-    Ok((out, note))
+    notes.push(note);
+    Ok(out)
 }
 
 /// A library error as a failure, or [`Failure::Stopped`] when the run was asked to stop.
@@ -80,6 +83,37 @@ pub(crate) fn complete(hf: Heightfield, what: &str) -> Result<Heightfield, Failu
     Ok(hf)
 }
 
+/// The heightfield of an input array, void-free, or the library's message naming `what`.
+pub(crate) fn complete_array(
+    array: &PyReadonlyArray2<'_, f32>,
+    cell: (f64, f64),
+    geo: &Geo,
+    what: &str,
+) -> Result<Heightfield, Failure> {
+    complete(convert::heightfield(array, cell, geo)?, what)
+}
+
+/// The rasterisation of a whole model, or of `window` of it.
+fn raster_settings(window: Option<WindowTuple>) -> RasterSettings {
+    RasterSettings {
+        scale: 1.0,
+        window: window.map(self::window),
+    }
+}
+
+/// The window `(x, y, w, h)` of a refinement, or an error naming the refined grid's size.
+pub(crate) fn refined_window(
+    refiner: &Refiner,
+    (x, y, w, h): WindowTuple,
+) -> Result<Heightfield, Failure> {
+    let (ow, oh) = refiner.output_size();
+    refiner.render_window(x, y, w, h).map_err(|e| {
+        Failure::Value(format!(
+            "invalid window (the refined grid is {ow} x {oh}): {e}"
+        ))
+    })
+}
+
 /// `relief amplify`: see `relief.amplify`.
 #[pyfunction]
 #[pyo3(signature = (coarse, cell_size, geo, exemplar, exemplar_cell_size, settings, paper, landform, window, progress))]
@@ -98,19 +132,10 @@ pub(crate) fn amplify<'py>(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Out<'py>> {
     let settings = amplify_settings(settings, paper)?;
-    let coarse = complete(
-        convert::heightfield(&coarse, cell_size, &geo)?,
-        "coarse input",
-    )?;
-    let exemplar = complete(
-        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
-        "exemplar",
-    )?;
+    let coarse = complete_array(&coarse, cell_size, &geo, "coarse input")?;
+    let exemplar = complete_array(&exemplar, exemplar_cell_size, &NO_GEO, "exemplar")?;
     let finish = landform.unwrap_or(!paper) && window.is_none();
-    let raster = RasterSettings {
-        scale: 1.0,
-        window: window.map(self::window),
-    };
+    let raster = raster_settings(window);
     let (hf, notes) = run(py, progress, move |p| {
         let (sct, figures) =
             amplify_with_figures(&coarse, &exemplar, &settings, p).map_err(|e| stop_or(e, p))?;
@@ -119,9 +144,7 @@ pub(crate) fn amplify<'py>(
             .rasterize_with_progress(&raster, p)
             .map_err(|e| stop_or(e, p))?;
         let hf = if finish {
-            let (hf, note) = self::landform(hf, &coarse, p)?;
-            notes.push(note);
-            hf
+            self::landform(hf, &coarse, p, &mut notes)?
         } else {
             hf
         };
@@ -156,15 +179,9 @@ pub(crate) fn synthesize<'py>(
     let settings: SynthesisSettings = convert::settings(&base, settings)?;
     settings.amplify.check().map_err(Failure::value)?;
     settings.structure.check().map_err(Failure::value)?;
-    let sketch = complete(convert::heightfield(&sketch, cell_size, &NO_GEO)?, "sketch")?;
-    let exemplar = complete(
-        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
-        "exemplar",
-    )?;
-    let raster = RasterSettings {
-        scale: 1.0,
-        window: window.map(self::window),
-    };
+    let sketch = complete_array(&sketch, cell_size, &NO_GEO, "sketch")?;
+    let exemplar = complete_array(&exemplar, exemplar_cell_size, &NO_GEO, "exemplar")?;
+    let raster = raster_settings(window);
     let (hf, notes) = run(py, progress, move |p| {
         let (sct, figures) =
             synthesize_with_figures(&sketch, &exemplar, &settings, p).map_err(|e| stop_or(e, p))?;
@@ -175,11 +192,7 @@ pub(crate) fn synthesize<'py>(
             .map_err(|e| stop_or(e, p))?;
         // The landform pass keeps the result on the grown network (its box averages).
         let hf = match (&figures.grown, raster.window) {
-            (Some(grown), None) => {
-                let (hf, note) = self::landform(hf, grown, p)?;
-                notes.push(note);
-                hf
-            }
+            (Some(grown), None) => self::landform(hf, grown, p, &mut notes)?,
             _ => hf,
         };
         Ok((hf, notes))
@@ -214,7 +227,7 @@ pub(crate) fn refine<'py>(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Out<'py>> {
     let settings = refine_settings(settings, paper)?;
-    let hf = complete(convert::heightfield(&input, cell_size, &geo)?, "input")?;
+    let hf = complete_array(&input, cell_size, &geo, "input")?;
     let finish = landform.unwrap_or(!paper) && window.is_none();
     let (out, notes) = run(py, progress, move |p| {
         p.begin("wavelet analysis", 0);
@@ -225,21 +238,14 @@ pub(crate) fn refine<'py>(
             .map(|n| format!("note: {n}"))
             .collect();
         let out = match window {
-            Some((x, y, w, h)) => {
+            Some(w) => {
                 p.begin("synthesising the window", 0);
-                let (ow, oh) = refiner.output_size();
-                refiner.render_window(x, y, w, h).map_err(|e| {
-                    Failure::Value(format!(
-                        "invalid window (the refined grid is {ow} x {oh}): {e}"
-                    ))
-                })?
+                refined_window(&refiner, w)?
             }
             None => refiner.render(p).map_err(|e| stop_or(e, p))?,
         };
         let out = if finish {
-            let (out, note) = self::landform(out, &hf, p)?;
-            notes.push(note);
-            out
+            self::landform(out, &hf, p, &mut notes)?
         } else {
             out
         };

@@ -5,6 +5,7 @@
 //! its workers once.
 
 use numpy::{PyArray2, PyReadonlyArray2};
+use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use relief_dictionary_learning::{LastStep, prepare_last_step};
@@ -12,8 +13,37 @@ use relief_heightfield::Heightfield;
 use relief_wavelet_lod::{RefineSettings, Refiner};
 
 use crate::convert::{self, Geo, NO_GEO, Transform};
-use crate::detail::{amplify_settings, complete, refine_settings, stop_or, window};
+use crate::detail::{
+    amplify_settings, complete_array, refine_settings, refined_window, stop_or, window,
+};
 use crate::run::{Failure, run};
+
+/// What `__reduce__` returns: the unpickling function and its arguments.
+type Reduced<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
+
+/// The `__reduce__` value that unpickles by calling `relief._relief.<function>(*args)`.
+fn reduced<'py>(
+    py: Python<'py>,
+    function: &str,
+    args: impl IntoPyObject<'py>,
+) -> PyResult<Reduced<'py>> {
+    let f = py.import("relief._relief")?.getattr(function)?;
+    Ok((f, args.into_bound_py_any(py)?))
+}
+
+/// The analysis of `input` for windowed refinement (the GIL released), with `input` back.
+fn analyse(
+    py: Python<'_>,
+    input: Heightfield,
+    s: &RefineSettings,
+) -> PyResult<(Refiner, Heightfield)> {
+    let (refiner, input) = py.detach(move || {
+        Refiner::new(&input, s)
+            .map(|r| (r, input))
+            .map_err(Failure::value)
+    })?;
+    Ok((refiner, input))
+}
 
 /// The last x4 step of an amplification: any window of its output.
 #[pyclass(module = "relief._relief", frozen)]
@@ -57,18 +87,15 @@ impl AmplifyPlan {
         Ok(convert::array(py, hf))
     }
 
-    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Reduced<'py>> {
         let bytes = py.detach(|| self.last.to_bytes()).map_err(Failure::value)?;
-        let f = py.import("relief._relief")?.getattr("_amplify_plan")?;
         let args = (
             PyBytes::new(py, &bytes),
             self.settings_json.clone(),
             self.paper,
             self.transform,
-        )
-            .into_pyobject(py)?
-            .into_any();
-        Ok((f, args))
+        );
+        reduced(py, "_amplify_plan", args)
     }
 }
 
@@ -108,14 +135,8 @@ pub(crate) fn amplify_plan(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<AmplifyPlan> {
     let s = amplify_settings(&settings, paper)?;
-    let coarse = complete(
-        convert::heightfield(&coarse, cell_size, &geo)?,
-        "coarse input",
-    )?;
-    let exemplar = complete(
-        convert::heightfield(&exemplar, exemplar_cell_size, &NO_GEO)?,
-        "exemplar",
-    )?;
+    let coarse = complete_array(&coarse, cell_size, &geo, "coarse input")?;
+    let exemplar = complete_array(&exemplar, exemplar_cell_size, &NO_GEO, "exemplar")?;
     let steps = s.steps;
     let last = run(py, progress, move |p| {
         let (last, _) = prepare_last_step(&coarse, &exemplar, &s, p).map_err(|e| stop_or(e, p))?;
@@ -170,20 +191,12 @@ impl RefinePlan {
         width: usize,
         height: usize,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let (ow, oh) = self.refiner.output_size();
-        let hf = py
-            .detach(|| self.refiner.render_window(x, y, width, height))
-            .map_err(|e| {
-                Failure::Value(format!(
-                    "invalid window (the refined grid is {ow} x {oh}): {e}"
-                ))
-            })?;
+        let hf = py.detach(|| refined_window(&self.refiner, (x, y, width, height)))?;
         Ok(convert::array(py, hf))
     }
 
-    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Reduced<'py>> {
         // The samples as bytes: a pickled numpy array may come back at an unaligned address.
-        let f = py.import("relief._relief")?.getattr("_refine_plan")?;
         let bytes: Vec<u8> = self
             .input
             .as_slice()
@@ -198,10 +211,8 @@ impl RefinePlan {
             geo,
             self.settings_json.clone(),
             self.paper,
-        )
-            .into_pyobject(py)?
-            .into_any();
-        Ok((f, args))
+        );
+        reduced(py, "_refine_plan", args)
     }
 }
 
@@ -224,11 +235,7 @@ pub(crate) fn _refine_plan(
     let input = Heightfield::new(size.0, size.1, data, cell_size.0, cell_size.1)
         .map_err(Failure::value)?
         .with_georef(convert::geo(&geo)?);
-    let (refiner, input) = py.detach(move || {
-        Refiner::new(&input, &s)
-            .map(|r| (r, input))
-            .map_err(Failure::value)
-    })?;
+    let (refiner, input) = analyse(py, input, &s)?;
     Ok(RefinePlan {
         refiner,
         input,
@@ -249,12 +256,8 @@ pub(crate) fn refine_plan(
     paper: bool,
 ) -> PyResult<RefinePlan> {
     let s: RefineSettings = refine_settings(&settings, paper)?;
-    let input = complete(convert::heightfield(&input, cell_size, &geo)?, "input")?;
-    let (refiner, input) = py.detach(move || {
-        Refiner::new(&input, &s)
-            .map(|r| (r, input))
-            .map_err(Failure::value)
-    })?;
+    let input = complete_array(&input, cell_size, &geo, "input")?;
+    let (refiner, input) = analyse(py, input, &s)?;
     Ok(RefinePlan {
         refiner,
         input,

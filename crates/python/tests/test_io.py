@@ -46,25 +46,23 @@ def test_rasterio_crop_of_the_shared_dem_round_trips(shared_srtm, tmp_path):
     assert r.cell_size[0] == pytest.approx(3 * 30.87 * np.cos(np.radians(47.9)), rel=0.01)
 
 
+def assert_written_back(src, out):
+    """`relief.read(src)` written to `out` by `relief.write` has the CRS, transform and values
+    rasterio reads in `src`."""
+    relief.write(out, relief.read(src))
+    with rasterio.open(out) as back, rasterio.open(src) as want:
+        assert back.crs == want.crs
+        assert back.transform == want.transform
+        np.testing.assert_array_equal(back.read(1), want.read(1).astype(np.float32))
+
+
 def test_any_crs_read_by_relief_is_written_back(shared_dem, tmp_path):
     # alps_dem's CRS is ETRS89 in arc-seconds (no EPSG code): its GeoTIFF keys pass through.
-    r = relief.read(shared_dem)
-    out = tmp_path / "alps.tif"
-    relief.write(out, r)
-    with rasterio.open(out) as back, rasterio.open(shared_dem) as src:
-        assert back.crs == src.crs
-        assert back.transform == src.transform
-        np.testing.assert_array_equal(back.read(1), src.read(1).astype(np.float32))
+    assert_written_back(shared_dem, tmp_path / "alps.tif")
 
 
 def test_write_takes_wkt_and_a_raster(tmp_path):
-    r = relief.read(FIXTURE)
-    out = tmp_path / "again.tif"
-    relief.write(out, r)
-    with rasterio.open(out) as back, rasterio.open(FIXTURE) as src:
-        assert back.crs == src.crs
-        assert back.transform == src.transform
-        np.testing.assert_array_equal(back.read(1), src.read(1).astype(np.float32))
+    assert_written_back(FIXTURE, tmp_path / "again.tif")
 
 
 def test_amplified_raster_keeps_the_georeference(crop, tmp_path):

@@ -227,3 +227,30 @@ pub const PAINTED_SKETCH_JSON: &str = r#"{"width": 512, "height": 512, "smoothin
                             [490, 110, 1800]]},
                 {"points": [[250, 260, 1300], [300, 350, 1000], [380, 400, 850],
                             [430, 440, 700]]}]}"#;
+
+/// Flood fill of a `width x height` grid from `start`, 4-connected, through the cells where
+/// `free(i, k)` (column `i`, row `k`): how many cells it reaches and whether it reaches the
+/// grid's border (where it stops). The volume tests' "is this air enclosed?" on a section.
+pub fn flood_fill(
+    width: usize,
+    height: usize,
+    start: (usize, usize),
+    free: impl Fn(usize, usize) -> bool,
+) -> (usize, bool) {
+    let mut seen = vec![false; width * height];
+    let mut stack = vec![start];
+    let (mut n, mut open) = (0, false);
+    while let Some((i, k)) = stack.pop() {
+        if seen[k * width + i] || !free(i, k) {
+            continue;
+        }
+        seen[k * width + i] = true;
+        n += 1;
+        if i == 0 || k == 0 || i == width - 1 || k == height - 1 {
+            open = true;
+            continue;
+        }
+        stack.extend([(i - 1, k), (i + 1, k), (i, k - 1), (i, k + 1)]);
+    }
+    (n, open)
+}

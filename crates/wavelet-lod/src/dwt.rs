@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, WaveletError};
 pub(crate) use crate::lift::AxisPlan;
-use crate::lift::{Boundary, forward_1d, forward_rows, inverse_1d, inverse_rows, lane_maps};
+use crate::lift::{Boundary, Lifting, lane_maps};
 use crate::wavelet::{Scheme, Wavelet};
 
 /// A row-major `f32` grid (`height` rows of `width` values); either side may be 0 for an empty
@@ -261,6 +261,16 @@ fn par_for(len: usize) -> bool {
     len >= 1 << 15
 }
 
+/// Runs `a` and `b`, side by side when `par`.
+fn join_if(par: bool, a: impl FnOnce() + Send, b: impl FnOnce() + Send) {
+    if par {
+        rayon::join(a, b);
+    } else {
+        a();
+        b();
+    }
+}
+
 /// One forward level of the 2-D transform: `(LL, H, V, D)`.
 pub(crate) fn forward_level(
     x: &Grid,
@@ -279,12 +289,13 @@ pub(crate) fn forward_level(
     let mut sh = vec![0.0f32; hl * wh];
     let mut dh = vec![0.0f32; hh * wh];
     let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
+    let lifting = Lifting::forward(scheme);
     let row_pass = |lo: &mut [f32], hi: &mut [f32], parity: usize| {
         let one = |(i, (e, o)): (usize, (&mut [f32], &mut [f32]))| {
             let y = 2 * i + parity;
             let r = &x[y * w..(y + 1) * w];
             deinterleave(r, e, o);
-            forward_1d(scheme, e, o, &em, &om);
+            lifting.run_1d(e, o, &em, &om);
         };
         if wh == 0 {
             // A single column: nothing to transform along x.
@@ -310,14 +321,11 @@ pub(crate) fn forward_level(
     // Column pass (along y): the low-x and high-x halves are independent, so with `par` they
     // run side by side (each one row-pipelined sweep).
     let (emy, omy) = lane_maps(h, boundary, 0, hl, 0, hh);
-    let mut low = || forward_rows(scheme, &mut sl, &mut dl, &emy, &omy, wl, par);
-    let mut high = || forward_rows(scheme, &mut sh, &mut dh, &emy, &omy, wh, par);
-    if par {
-        rayon::join(low, high);
-    } else {
-        low();
-        high();
-    }
+    join_if(
+        par,
+        || lifting.run_rows(&mut sl, &mut dl, &emy, &omy, wl, par),
+        || lifting.run_rows(&mut sh, &mut dh, &emy, &omy, wh, par),
+    );
     let grid = |width: usize, height: usize, data: Vec<f32>| Grid {
         width,
         height,
@@ -354,15 +362,13 @@ pub(crate) fn inverse_level_window(
     let (emy, omy) = lane_maps(py.n, boundary, py.even.start, ey, py.odd.start, oy);
     let (mut s1, mut d1) = (approx, hb);
     let (mut s2, mut d2) = (vb, db);
+    let lifting = Lifting::inverse(scheme);
     // The low-x and high-x halves of the column pass are independent.
-    let mut low = || inverse_rows(scheme, &mut s1, &mut d1, &emy, &omy, ex, par);
-    let mut high = || inverse_rows(scheme, &mut s2, &mut d2, &emy, &omy, ox, par);
-    if par {
-        rayon::join(low, high);
-    } else {
-        low();
-        high();
-    }
+    join_if(
+        par,
+        || lifting.run_rows(&mut s1, &mut d1, &emy, &omy, ex, par),
+        || lifting.run_rows(&mut s2, &mut d2, &emy, &omy, ox, par),
+    );
     // Row pass: each output row lifts its two lane rows in place (no copies) and interleaves
     // them. `lanes[r]` are the (even-x, odd-x) lane rows of output row `py.out.start + r`.
     let (emx, omx) = lane_maps(px.n, boundary, px.even.start, ex, px.odd.start, ox);
@@ -384,7 +390,7 @@ pub(crate) fn inverse_level_window(
         .collect();
     let mut out = vec![0.0f32; ow * py.out.len()];
     let body = |(orow, (e, o)): (&mut [f32], (&mut [f32], &mut [f32]))| {
-        inverse_1d(scheme, e, o, &emx, &omx);
+        lifting.run_1d(e, o, &emx, &omx);
         interleave(orow, px, e, o);
     };
     if ow == 0 {
@@ -600,7 +606,7 @@ pub fn dwt1(signal: &[f32], wavelet: Wavelet, boundary: Boundary) -> Result<(Vec
     let mut e: Vec<f32> = signal.iter().step_by(2).copied().collect();
     let mut o: Vec<f32> = signal.iter().skip(1).step_by(2).copied().collect();
     let (em, om) = lane_maps(n, boundary, 0, e.len(), 0, o.len());
-    forward_1d(wavelet.scheme(), &mut e, &mut o, &em, &om);
+    Lifting::forward(wavelet.scheme()).run_1d(&mut e, &mut o, &em, &om);
     Ok((e, o))
 }
 
@@ -619,7 +625,7 @@ pub fn idwt1(low: &[f32], high: &[f32], wavelet: Wavelet, boundary: Boundary) ->
     }
     let (mut e, mut o) = (low.to_vec(), high.to_vec());
     let (em, om) = lane_maps(n, boundary, 0, e.len(), 0, o.len());
-    inverse_1d(wavelet.scheme(), &mut e, &mut o, &em, &om);
+    Lifting::inverse(wavelet.scheme()).run_1d(&mut e, &mut o, &em, &om);
     let mut out = vec![0.0f32; n];
     for (i, v) in out.iter_mut().enumerate() {
         *v = if i % 2 == 0 { e[i / 2] } else { o[i / 2] };
@@ -630,19 +636,7 @@ pub fn idwt1(low: &[f32], high: &[f32], wavelet: Wavelet, boundary: Boundary) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lift::rows_stepwise;
-
-    fn values(len: usize, seed: u32) -> Vec<f32> {
-        let mut s = seed.wrapping_mul(2_654_435_761) | 1;
-        (0..len)
-            .map(|_| {
-                s ^= s << 13;
-                s ^= s >> 17;
-                s ^= s << 5;
-                (s >> 8) as f32 / (1u32 << 24) as f32 * 200.0 - 100.0
-            })
-            .collect()
-    }
+    use crate::lift::test_values as values;
 
     fn bits(v: &[f32]) -> Vec<u32> {
         v.iter().map(|x| x.to_bits()).collect()
@@ -654,12 +648,13 @@ mod tests {
         let (w, h) = (x.width, x.height);
         let (wl, wh, hl, hh) = (w.div_ceil(2), w / 2, h.div_ceil(2), h / 2);
         let (em, om) = lane_maps(w, boundary, 0, wl, 0, wh);
+        let lifting = Lifting::forward(scheme).stepwise();
         let (mut sl, mut sh, mut dl, mut dh) = (vec![], vec![], vec![], vec![]);
         for y in 0..h {
             let r = &x.data[y * w..(y + 1) * w];
             let mut e: Vec<f32> = r.iter().step_by(2).copied().collect();
             let mut o: Vec<f32> = r.iter().skip(1).step_by(2).copied().collect();
-            forward_1d(scheme, &mut e, &mut o, &em, &om);
+            lifting.run_1d(&mut e, &mut o, &em, &om);
             let (lo, hi) = if y % 2 == 0 {
                 (&mut sl, &mut sh)
             } else {
@@ -669,8 +664,8 @@ mod tests {
             hi.extend(o);
         }
         let (emy, omy) = lane_maps(h, boundary, 0, hl, 0, hh);
-        rows_stepwise(scheme, true, &mut sl, &mut dl, &emy, &omy, wl);
-        rows_stepwise(scheme, true, &mut sh, &mut dh, &emy, &omy, wh);
+        lifting.run_rows(&mut sl, &mut dl, &emy, &omy, wl, false);
+        lifting.run_rows(&mut sh, &mut dh, &emy, &omy, wh, false);
         [sl, dl, sh, dh]
     }
 
@@ -693,8 +688,9 @@ mod tests {
             py.odd.start,
             py.odd.len(),
         );
-        rows_stepwise(scheme, false, &mut s1, &mut d1, &emy, &omy, ex);
-        rows_stepwise(scheme, false, &mut s2, &mut d2, &emy, &omy, ox);
+        let lifting = Lifting::inverse(scheme).stepwise();
+        lifting.run_rows(&mut s1, &mut d1, &emy, &omy, ex, false);
+        lifting.run_rows(&mut s2, &mut d2, &emy, &omy, ox, false);
         let (emx, omx) = lane_maps(px.n, boundary, px.even.start, ex, px.odd.start, ox);
         let mut out = Vec::new();
         for y in py.out.clone() {
@@ -705,7 +701,7 @@ mod tests {
             };
             let mut e = lo[r * ex..(r + 1) * ex].to_vec();
             let mut o = hi[r * ox..(r + 1) * ox].to_vec();
-            inverse_1d(scheme, &mut e, &mut o, &emx, &omx);
+            lifting.run_1d(&mut e, &mut o, &emx, &omx);
             for x in px.out.clone() {
                 out.push(if x % 2 == 0 {
                     e[x / 2 - px.even.start]

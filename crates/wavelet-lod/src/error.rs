@@ -8,15 +8,8 @@ pub enum WaveletError {
     #[error("stopped: {0} was cut short")]
     Stopped(&'static str),
     /// A setting or argument is out of its valid range.
-    #[error("invalid parameter `{name}` = {value}: {reason}")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// Offending value, formatted.
-        value: String,
-        /// What is expected.
-        reason: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
     /// A wavelet name is not one of the supported bases.
     #[error("unknown wavelet `{0}` (expected haar, cdf53, cdf97 or db4)")]
     UnknownWavelet(String),
@@ -68,20 +61,6 @@ pub type Result<T, E = WaveletError> = std::result::Result<T, E>;
 impl WaveletError {
     /// Shorthand for [`WaveletError::InvalidParameter`].
     pub fn param(name: &'static str, value: impl std::fmt::Display, reason: &'static str) -> Self {
-        Self::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason,
-        }
-    }
-}
-
-impl From<ParamError> for WaveletError {
-    fn from(e: ParamError) -> Self {
-        Self::InvalidParameter {
-            name: e.name,
-            value: e.value,
-            reason: e.reason,
-        }
+        Self::InvalidParameter(ParamError::new(name, value, reason))
     }
 }

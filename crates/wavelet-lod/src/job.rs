@@ -347,13 +347,7 @@ mod tests {
             extra_levels: 3,
             ..RefineSettings::default()
         };
-        let json = serde_json::to_string(&s).unwrap();
-        assert!(json.contains("\"stats_window\":5"), "{json}");
-        assert_eq!(serde_json::from_str::<RefineSettings>(&json).unwrap(), s);
-        assert_eq!(
-            serde_json::from_str::<RefineSettings>("{}").unwrap(),
-            RefineSettings::default()
-        );
+        relief_testdata::assert_json_round_trip(&s, &["\"stats_window\":5"]);
         let err = serde_json::from_str::<RefineSettings>(r#"{"levels": 2}"#).unwrap_err();
         assert!(err.to_string().contains("unknown field `levels`"), "{err}");
     }

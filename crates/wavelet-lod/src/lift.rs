@@ -13,7 +13,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::wavelet::{Lane, Scheme, Step};
+use crate::wavelet::{Lane, Scheme};
 
 /// How a signal is extended past its ends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -243,59 +243,23 @@ pub(crate) fn lane_maps(
     )
 }
 
-fn step_parts<'a>(
-    step: &Step,
+/// The target lane of an operation on `target` with its map, and the other (source) lane
+/// with its map.
+fn parts<'a>(
+    target: Lane,
     even: &'a mut [f32],
     odd: &'a mut [f32],
     em: &'a LaneMap,
     om: &'a LaneMap,
-) -> (&'a mut [f32], isize, &'a [f32], &'a LaneMap) {
-    match step.target {
-        Lane::Odd => (odd, om.seg0, even, em),
-        Lane::Even => (even, em.seg0, odd, om),
+) -> (&'a mut [f32], &'a LaneMap, &'a [f32], &'a LaneMap) {
+    match target {
+        Lane::Even => (even, em, odd, om),
+        Lane::Odd => (odd, om, even, em),
     }
 }
 
-/// Forward lifting of one 1-D segment pair in place (analysis order, then scaling).
-pub(crate) fn forward_1d(
-    scheme: &Scheme,
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-) {
-    if odd.is_empty() {
-        return;
-    }
-    for step in scheme.steps {
-        let (t, t0, s, sm) = step_parts(step, even, odd, em, om);
-        step_1d(t, t0, s, sm, step.taps, false);
-    }
-    scale(even, scheme.scale_even);
-    scale(odd, scheme.scale_odd);
-}
-
-/// Inverse lifting of one 1-D segment pair in place (unscaling, then the steps reversed).
-pub(crate) fn inverse_1d(
-    scheme: &Scheme,
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-) {
-    if odd.is_empty() {
-        return;
-    }
-    scale(even, 1.0 / scheme.scale_even);
-    scale(odd, 1.0 / scheme.scale_odd);
-    for step in scheme.steps.iter().rev() {
-        let (t, t0, s, sm) = step_parts(step, even, odd, em, om);
-        step_1d(t, t0, s, sm, step.taps, true);
-    }
-}
-
-/// One operation of a column sweep: a lifting step (`taps` not empty) or a scaling of the
-/// target lane by `k` (`taps` empty).
+/// One operation of a lifting: a step (`taps` not empty) or a scaling of the target lane by
+/// `k` (`taps` empty).
 #[derive(Debug, Clone, Copy)]
 struct ColOp {
     target: Lane,
@@ -304,34 +268,106 @@ struct ColOp {
     k: f32,
 }
 
-/// The column operations of a forward (analysis) sweep: the steps, then the scalings that
-/// are not 1.
-fn forward_ops(scheme: &Scheme) -> Vec<ColOp> {
-    let mut ops: Vec<ColOp> = scheme
-        .steps
-        .iter()
-        .map(|s| ColOp {
-            target: s.target,
-            taps: s.taps,
-            subtract: false,
-            k: 1.0,
-        })
-        .collect();
-    ops.extend(scale_ops(scheme.scale_even, scheme.scale_odd));
-    ops
+/// The operations of one level of a scheme in one direction, in order, built once and applied
+/// to every lane pair of the level: along rows ([`Lifting::run_1d`]) and along columns
+/// ([`Lifting::run_rows`]).
+pub(crate) struct Lifting {
+    ops: Vec<ColOp>,
+    /// Whether [`Lifting::run_rows`] may use the row-pipelined schedule.
+    pipelined: bool,
 }
 
-/// The column operations of an inverse sweep: the unscalings that are not 1, then the steps
-/// reversed, subtracting.
-fn inverse_ops(scheme: &Scheme) -> Vec<ColOp> {
-    let mut ops = scale_ops(1.0 / scheme.scale_even, 1.0 / scheme.scale_odd);
-    ops.extend(scheme.steps.iter().rev().map(|s| ColOp {
-        target: s.target,
-        taps: s.taps,
-        subtract: true,
-        k: 1.0,
-    }));
-    ops
+impl Lifting {
+    /// The forward (analysis) lifting: the steps, then the scalings that are not 1.
+    pub(crate) fn forward(scheme: &Scheme) -> Self {
+        let mut ops: Vec<ColOp> = scheme
+            .steps
+            .iter()
+            .map(|s| ColOp {
+                target: s.target,
+                taps: s.taps,
+                subtract: false,
+                k: 1.0,
+            })
+            .collect();
+        ops.extend(scale_ops(scheme.scale_even, scheme.scale_odd));
+        Self {
+            ops,
+            pipelined: true,
+        }
+    }
+
+    /// The inverse lifting: the unscalings that are not 1, then the steps reversed,
+    /// subtracting.
+    pub(crate) fn inverse(scheme: &Scheme) -> Self {
+        let mut ops = scale_ops(1.0 / scheme.scale_even, 1.0 / scheme.scale_odd);
+        ops.extend(scheme.steps.iter().rev().map(|s| ColOp {
+            target: s.target,
+            taps: s.taps,
+            subtract: true,
+            k: 1.0,
+        }));
+        Self {
+            ops,
+            pipelined: true,
+        }
+    }
+
+    /// Lifts one 1-D segment pair in place.
+    pub(crate) fn run_1d(&self, even: &mut [f32], odd: &mut [f32], em: &LaneMap, om: &LaneMap) {
+        if odd.is_empty() {
+            return;
+        }
+        for op in &self.ops {
+            let (t, tm, s, sm) = parts(op.target, even, odd, em, om);
+            if op.taps.is_empty() {
+                scale(t, op.k);
+            } else {
+                step_1d(t, tm.seg0, s, sm, op.taps, op.subtract);
+            }
+        }
+    }
+
+    /// Lifts row-lane buffers (each `width` wide) along columns in place: row-pipelined when
+    /// the schedule allows it ([`Pipeline`]), else one whole operation after the other (each
+    /// parallel over rows when `par`).
+    pub(crate) fn run_rows(
+        &self,
+        even: &mut [f32],
+        odd: &mut [f32],
+        em: &LaneMap,
+        om: &LaneMap,
+        width: usize,
+        par: bool,
+    ) {
+        if odd.is_empty() || width == 0 {
+            return;
+        }
+        if self.pipelined
+            && let Some(p) = Pipeline::new(&self.ops, em, om)
+        {
+            p.run(&self.ops, even, odd, em, om, width);
+            return;
+        }
+        for op in &self.ops {
+            let (t, tm, s, sm) = parts(op.target, even, odd, em, om);
+            if op.taps.is_empty() {
+                scale_par(t, op.k, par);
+            } else {
+                step_rows(t, tm.seg0, s, sm, width, op.taps, op.subtract, par);
+            }
+        }
+    }
+
+    /// The same lifting whose [`Lifting::run_rows`] always goes one whole operation after the
+    /// other: the reference order the pipelined schedule must reproduce.
+    #[cfg(test)]
+    pub(crate) fn stepwise(&self) -> Self {
+        Self {
+            ops: self.ops.clone(),
+            pipelined: false,
+        }
+    }
 }
 
 fn scale_ops(ke: f32, ko: f32) -> Vec<ColOp> {
@@ -417,10 +453,7 @@ impl Pipeline {
         let g1 = (em.seg0 + em.seglen as isize).max(om.seg0 + om.seglen as isize);
         for r in g0..g1 + ops.len() as isize {
             for (s, op) in ops.iter().enumerate() {
-                let (tgt, src, tm) = match op.target {
-                    Lane::Even => (&mut *even, &*odd, em),
-                    Lane::Odd => (&mut *odd, &*even, om),
-                };
+                let (tgt, tm, src, _) = parts(op.target, even, odd, em, om);
                 let i = r - s as isize - tm.seg0;
                 if i < 0 || i >= tm.seglen as isize {
                     continue;
@@ -440,76 +473,6 @@ impl Pipeline {
     }
 }
 
-/// Applies column operations to row-lane buffers in place: row-pipelined when the schedule
-/// allows it ([`Pipeline`]), else step by step (each step parallel over rows when `par`).
-fn column_ops(
-    ops: &[ColOp],
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-    width: usize,
-    par: bool,
-) {
-    if odd.is_empty() || width == 0 {
-        return;
-    }
-    if let Some(p) = Pipeline::new(ops, em, om) {
-        p.run(ops, even, odd, em, om, width);
-        return;
-    }
-    column_ops_stepwise(ops, even, odd, em, om, width, par);
-}
-
-/// [`column_ops`] one whole operation after the other (the reference order).
-fn column_ops_stepwise(
-    ops: &[ColOp],
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-    width: usize,
-    par: bool,
-) {
-    for op in ops {
-        let (tgt, t0, src, sm) = match op.target {
-            Lane::Even => (&mut *even, em.seg0, &*odd, om),
-            Lane::Odd => (&mut *odd, om.seg0, &*even, em),
-        };
-        if op.taps.is_empty() {
-            scale_par(tgt, op.k, par);
-        } else {
-            step_rows(tgt, t0, src, sm, width, op.taps, op.subtract, par);
-        }
-    }
-}
-
-/// Forward lifting along columns of row-lane buffers (each `width` wide) in place.
-pub(crate) fn forward_rows(
-    scheme: &Scheme,
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-    width: usize,
-    par: bool,
-) {
-    column_ops(&forward_ops(scheme), even, odd, em, om, width, par);
-}
-
-/// Inverse lifting along columns of row-lane buffers in place.
-pub(crate) fn inverse_rows(
-    scheme: &Scheme,
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-    width: usize,
-    par: bool,
-) {
-    column_ops(&inverse_ops(scheme), even, odd, em, om, width, par);
-}
-
 #[inline]
 fn scale(v: &mut [f32], k: f32) {
     if k != 1.0 {
@@ -526,29 +489,6 @@ fn scale_par(v: &mut [f32], k: f32, par: bool) {
     } else {
         scale(v, k);
     }
-}
-
-/// The column lifting of one level step by step, sequentially (the reference order the
-/// pipelined schedule must reproduce), for tests.
-#[cfg(test)]
-pub(crate) fn rows_stepwise(
-    scheme: &Scheme,
-    forward: bool,
-    even: &mut [f32],
-    odd: &mut [f32],
-    em: &LaneMap,
-    om: &LaneMap,
-    width: usize,
-) {
-    if odd.is_empty() || width == 0 {
-        return;
-    }
-    let ops = if forward {
-        forward_ops(scheme)
-    } else {
-        inverse_ops(scheme)
-    };
-    column_ops_stepwise(&ops, even, odd, em, om, width, false);
 }
 
 /// The lane ranges one axis of a windowed inverse level needs.
@@ -579,23 +519,19 @@ impl AxisPlan {
     }
 }
 
+/// Deterministic test values in [-500, 500), a stream per `seed`.
+#[cfg(test)]
+pub(crate) fn test_values(len: usize, seed: u64) -> Vec<f32> {
+    use relief_heightfield::rng::{hash, unit_f32};
+    (0..len)
+        .map(|i| unit_f32(hash(seed, i as u64, 0, 0)) * 1000.0 - 500.0)
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::wavelet::Wavelet;
-
-    /// Deterministic values in [-500, 500).
-    fn values(len: usize, seed: u64) -> Vec<f32> {
-        let mut s = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-        (0..len)
-            .map(|_| {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                (s >> 40) as f32 / (1u64 << 24) as f32 * 1000.0 - 500.0
-            })
-            .collect()
-    }
 
     /// The lane segments of a full axis and of windows with the synthesis margin.
     fn segments(n: usize, margin: usize) -> Vec<(usize, usize, usize, usize)> {
@@ -619,7 +555,7 @@ mod tests {
         let mut seed = 1;
         for w in Wavelet::ALL {
             let scheme = w.scheme();
-            for ops in [forward_ops(scheme), inverse_ops(scheme)] {
+            for lifting in [Lifting::forward(scheme), Lifting::inverse(scheme)] {
                 for boundary in [Boundary::Symmetric, Boundary::Periodic] {
                     for n in 2..=24 {
                         if boundary == Boundary::Periodic && n % 2 == 1 {
@@ -627,18 +563,20 @@ mod tests {
                         }
                         for (e0, el, o0, ol) in segments(n, w.synthesis_margin()) {
                             let (em, om) = lane_maps(n, boundary, e0, el, o0, ol);
-                            let pipe = Pipeline::new(&ops, &em, &om);
+                            let pipe = Pipeline::new(&lifting.ops, &em, &om);
                             if boundary == Boundary::Symmetric {
                                 assert!(pipe.is_some(), "{w} n {n} seg {e0} {el} {o0} {ol}");
                             }
                             for width in [1, 3] {
                                 seed += 1;
-                                let even = values(el * width, seed);
-                                let odd = values(ol * width, seed + 1000);
+                                let even = test_values(el * width, seed);
+                                let odd = test_values(ol * width, seed + 1000);
                                 let (mut e1, mut o1) = (even.clone(), odd.clone());
                                 let (mut e2, mut o2) = (even, odd);
-                                column_ops(&ops, &mut e1, &mut o1, &em, &om, width, false);
-                                column_ops_stepwise(&ops, &mut e2, &mut o2, &em, &om, width, true);
+                                lifting.run_rows(&mut e1, &mut o1, &em, &om, width, false);
+                                lifting
+                                    .stepwise()
+                                    .run_rows(&mut e2, &mut o2, &em, &om, width, true);
                                 let bits =
                                     |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                                 assert_eq!(bits(&e1), bits(&e2), "{w} {boundary:?} n {n}");

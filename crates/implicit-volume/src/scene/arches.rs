@@ -418,24 +418,11 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geology::{Geology, Layer};
+    use crate::geology::{Geology, test_beds};
 
     /// Strata from `z0`: 8 m soft (0.15) under 4 m resistant (0.85) beds.
     fn beds(z0: f32) -> Geology {
-        let mut g = Geology::new();
-        let layers = [
-            Layer {
-                thickness: 8.0,
-                hardness: 0.15,
-            },
-            Layer {
-                thickness: 4.0,
-                hardness: 0.85,
-            },
-        ];
-        let id = g.strata(z0, &layers).unwrap();
-        g.set_root(id).unwrap();
-        g
+        test_beds(z0, (8.0, 0.15), (4.0, 0.85))
     }
 
     /// A north-south ridge 20 m wide and 30 m high on ground at 10 m, `geo`, one arch.
@@ -475,22 +462,7 @@ mod tests {
             ]
         };
         let start = (60, ((site[2] - 4.0) / 0.5).round() as usize);
-        let mut seen = vec![false; nu * nz];
-        let mut stack = vec![start];
-        let (mut n, mut open) = (0, false);
-        while let Some((i, k)) = stack.pop() {
-            if seen[k * nu + i] || scene.inside(p(i, k)) {
-                continue;
-            }
-            seen[k * nu + i] = true;
-            n += 1;
-            if i == 0 || k == 0 || i == nu - 1 || k == nz - 1 {
-                open = true;
-                continue;
-            }
-            stack.extend([(i - 1, k), (i + 1, k), (i, k - 1), (i, k + 1)]);
-        }
-        (n, open)
+        relief_testdata::flood_fill(nu, nz, start, |i, k| !scene.inside(p(i, k)))
     }
 
     /// The arch is a fin left in a gap cut across the ridge, eroded through under the

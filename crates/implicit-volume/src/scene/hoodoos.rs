@@ -127,13 +127,13 @@ impl SceneBuilder {
         for (n, v) in named_fields!(s; min_slope_deg, max_slope_deg) {
             in_range(n, v, 0.0..=90.0, "must be in [0, 90]")?;
         }
-        if s.min_slope_deg > s.max_slope_deg {
-            return Err(Error::param(
-                "min_slope_deg",
-                s.min_slope_deg,
-                "must be at most max_slope_deg",
-            ));
-        }
+        let max = s.max_slope_deg;
+        in_range(
+            "min_slope_deg",
+            s.min_slope_deg,
+            ..=max,
+            "must be at most max_slope_deg",
+        )?;
         in_range("cap_rho", s.cap_rho, 0.0..=1.0, "must be in [0, 1]")?;
         in_range("per_cluster", s.per_cluster, 1..=64, "must be in 1..=64")?;
         region.check(&self.frame)?;
@@ -262,24 +262,11 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geology::{Geology, Layer};
+    use crate::geology::{Geology, test_beds};
 
     /// Strata of 4 m soft (0.1) under 2 m hard (0.9) beds, shifted up by `z0`.
     fn beds(z0: f32) -> Geology {
-        let mut g = Geology::new();
-        let layers = [
-            Layer {
-                thickness: 4.0,
-                hardness: 0.1,
-            },
-            Layer {
-                thickness: 2.0,
-                hardness: 0.9,
-            },
-        ];
-        let id = g.strata(z0, &layers).unwrap();
-        g.set_root(id).unwrap();
-        g
+        test_beds(z0, (4.0, 0.1), (2.0, 0.9))
     }
 
     fn one(geo: Geology) -> (Scene, EffectReport) {

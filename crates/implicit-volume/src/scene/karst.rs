@@ -153,13 +153,7 @@ impl SceneBuilder {
         let lens =
             named_fields!(s; radius, min_radius, energy, step, poisson_radius, cliff_spacing);
         self.check_lens(&lens)?;
-        if s.min_radius > s.radius {
-            return Err(Error::param(
-                "min_radius",
-                s.min_radius,
-                "must be <= radius",
-            ));
-        }
+        in_range("min_radius", s.min_radius, ..=s.radius, "must be <= radius")?;
         in_range("directions", s.directions, 1..=64, "must be in 1..=64")?;
         if s.sub_spheres > 16 {
             return Err(Error::param("sub_spheres", s.sub_spheres, "must be <= 16"));

@@ -386,6 +386,19 @@ impl SceneBuilder {
         n
     }
 
+    /// [`Error::param`] on `spacing` when a surface effect at that spacing would consider
+    /// more than 2^22 samples ([`SceneBuilder::candidate_count`]).
+    fn check_candidates(&self, spacing: f32, zband: Option<(f32, f32)>) -> Result<()> {
+        if self.candidate_count(spacing, zband) > (1u64 << 22) as f64 {
+            return Err(Error::param(
+                "spacing",
+                spacing,
+                "too small for this DEM: more than 2^22 candidate samples",
+            ));
+        }
+        Ok(())
+    }
+
     /// Places negative spheres at Poisson samples with energy from `e(rho, sigma)`.
     fn weather(
         &mut self,
@@ -397,13 +410,7 @@ impl SceneBuilder {
     ) -> Result<(EffectReport, Vec<(V3, f32)>)> {
         w.check(self.min_len)?;
         region.check(&self.frame)?;
-        if self.candidate_count(w.spacing, zband) > (1u64 << 22) as f64 {
-            return Err(Error::param(
-                "spacing",
-                w.spacing,
-                "too small for this DEM: more than 2^22 candidate samples",
-            ));
-        }
+        self.check_candidates(w.spacing, zband)?;
         let cand = self.surface_candidates(w.spacing, w.seed, zband);
         let kept = poisson_filter(&cand, w.spacing, |_| true);
         let me = &*self;

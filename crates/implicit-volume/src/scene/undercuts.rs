@@ -47,13 +47,7 @@ impl SceneBuilder {
             relief_heightfield::param::in_range(n, v, 0.0..=1.0, "must be in [0, 1]")?;
         }
         region.check(&self.frame)?;
-        if self.candidate_count(s.spacing, None) > (1u64 << 22) as f64 {
-            return Err(Error::param(
-                "spacing",
-                s.spacing,
-                "too small for this DEM: more than 2^22 candidate samples",
-            ));
-        }
+        self.check_candidates(s.spacing, None)?;
         let f = self.frame;
         let cos_min = s.min_slope_deg.to_radians().cos();
         let cand = self.surface_candidates(s.spacing, s.seed, None);
@@ -144,7 +138,7 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geology::{Geology, Layer};
+    use crate::geology::test_beds;
 
     /// A west-facing cliff (60 degrees, 0 to 40 m) in strata of 5 m soft (0.1) under 3 m
     /// resistant (0.9) beds: under each bed's base the face is cut back into a hollow (air
@@ -155,19 +149,7 @@ mod tests {
         let hf = Heightfield::from_fn(40, 24, 1.0, 1.0, |x, _| {
             ((x as f32 - 12.0) * 3f32.sqrt()).clamp(0.0, 40.0)
         });
-        let mut g = Geology::new();
-        let layers = [
-            Layer {
-                thickness: 5.0,
-                hardness: 0.1,
-            },
-            Layer {
-                thickness: 3.0,
-                hardness: 0.9,
-            },
-        ];
-        let id = g.strata(0.0, &layers).unwrap();
-        g.set_root(id).unwrap();
+        let g = test_beds(0.0, (5.0, 0.1), (3.0, 0.9));
         let s = UndercutSettings {
             depth: 2.0,
             spacing: 1.0,

@@ -35,7 +35,8 @@ impl TerrainTree {
                     0.0
                 }
             }
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+            Node::Blend { first, count } => self
+                .blended(first, count)
                 .iter()
                 .map(|&c| self.lip(c, region))
                 .sum(),
@@ -78,7 +79,8 @@ impl TerrainTree {
             | Node::Cone { e, .. }
             | Node::Ellipsoid { e, .. } => e.min(0.0),
             Node::Heightfield(_) => 0.0,
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+            Node::Blend { first, count } => self
+                .blended(first, count)
                 .iter()
                 .map(|&c| self.field_min(c))
                 .sum(),
@@ -137,12 +139,14 @@ impl TerrainTree {
                     THRESHOLD + THRESHOLD * cubic_step(dh / h.r),
                 )
             }
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
-                .iter()
-                .fold((0.0, 0.0), |acc, &c| {
-                    let v = self.iv(c, region);
-                    (acc.0 + v.0, acc.1 + v.1)
-                }),
+            Node::Blend { first, count } => {
+                self.blended(first, count)
+                    .iter()
+                    .fold((0.0, 0.0), |acc, &c| {
+                        let v = self.iv(c, region);
+                        (acc.0 + v.0, acc.1 + v.1)
+                    })
+            }
             Node::Bvh { bbox, left, right } => {
                 if bbox.intersects(region) {
                     let (a, b) = (self.iv(left, region), self.iv(right, region));

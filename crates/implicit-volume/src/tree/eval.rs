@@ -37,7 +37,8 @@ impl TerrainTree {
                 e * falloff(q)
             }
             Node::Heightfield(k) => self.hfs[k as usize].field(p),
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+            Node::Blend { first, count } => self
+                .blended(first, count)
                 .iter()
                 .map(|&c| self.ev(c, p))
                 .sum(),
@@ -147,12 +148,14 @@ impl TerrainTree {
                 }
             }
             Node::Heightfield(k) => self.hfs[k as usize].field_grad_with(p, smooth),
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
-                .iter()
-                .fold((0.0, [0.0; 3]), |acc, &c| {
-                    let (v, g) = self.evg(c, p, h, smooth);
-                    (acc.0 + v, add(acc.1, g))
-                }),
+            Node::Blend { first, count } => {
+                self.blended(first, count)
+                    .iter()
+                    .fold((0.0, [0.0; 3]), |acc, &c| {
+                        let (v, g) = self.evg(c, p, h, smooth);
+                        (acc.0 + v, add(acc.1, g))
+                    })
+            }
             Node::Bvh { bbox, left, right } => {
                 if bbox.contains(p) {
                     let (a, ga) = self.evg(left, p, h, smooth);

@@ -176,6 +176,11 @@ impl TerrainTree {
         Error::check_node("node id", id.0, self.nodes.len())
     }
 
+    /// The children of a `Node::Blend { first, count }`.
+    fn blended(&self, first: u32, count: u32) -> &[u32] {
+        &self.children[first as usize..(first + count) as usize]
+    }
+
     /// Sphere primitive: centre `c`, support radius `r`, energy `e` (negative carves).
     pub fn sphere(&mut self, c: V3, r: f32, e: f32) -> Result<NodeId> {
         fin("sphere.center", &c)?;
@@ -406,7 +411,8 @@ impl TerrainTree {
                 max: add(c, axes),
             },
             Node::Heightfield(k) => self.hfs[k as usize].bbox(),
-            Node::Blend { first, count } => self.children[first as usize..(first + count) as usize]
+            Node::Blend { first, count } => self
+                .blended(first, count)
                 .iter()
                 .fold(Aabb::empty(), |b, &c| b.union(&self.bbox_of(c))),
             Node::Bvh { bbox, .. } => bbox,

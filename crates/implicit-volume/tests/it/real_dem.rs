@@ -544,22 +544,7 @@ fn section_air(
         let (u, dz) = ((i as f32 - c as f32) * step, (k as f32 - c as f32) * step);
         [site[0] + side[0] * u, site[1] + side[1] * u, site[2] + dz]
     };
-    let mut seen = vec![false; n * n];
-    let mut stack = vec![(c, c)];
-    let (mut air, mut open) = (0, false);
-    while let Some((i, k)) = stack.pop() {
-        if seen[k * n + i] || scene.inside(p(i, k)) {
-            continue;
-        }
-        seen[k * n + i] = true;
-        air += 1;
-        if i == 0 || k == 0 || i == n - 1 || k == n - 1 {
-            open = true;
-            continue;
-        }
-        stack.extend([(i - 1, k), (i + 1, k), (i, k - 1), (i, k + 1)]);
-    }
-    (air, open)
+    relief_testdata::flood_fill(n, n, (c, c), |i, k| !scene.inside(p(i, k)))
 }
 
 /// Arches on the grandcanyon plateau (a 7.9 km crop): each opening, under the ridge before,

@@ -2,17 +2,14 @@
 //! [`crate::read`] gives, without the whole raster (or the whole file) in memory.
 
 use std::fs::File;
-use std::io::{BufReader, Read, Seek};
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use relief_heightfield::GeoRef;
-use tiff::ColorType;
-use tiff::decoder::{ChunkType, Decoder, DecodingResult, Limits};
-use tiff::tags::Tag;
+use tiff::decoder::Decoder;
 
-use super::{
-    F, GDAL_METADATA_TAG, cell_size, check_georef_values, complete_georef, gdal_scale_offset, terr,
-};
+use super::directory::{self, Tags};
+use super::{F, terr};
 use crate::util::{check_dims, voids_to_nan};
 use crate::{IoError, ReadOptions, Result};
 
@@ -59,48 +56,6 @@ pub struct GeoTiffBands {
     band_index: Option<usize>,
 }
 
-fn find_f64s<R: Read + Seek>(dec: &mut Decoder<R>, tag: Tag) -> Result<Option<Vec<f64>>> {
-    match dec.find_tag(tag).map_err(terr)? {
-        Some(v) => Ok(Some(v.into_f64_vec().map_err(terr)?)),
-        None => Ok(None),
-    }
-}
-
-/// The decoded samples as `f32`, converted as [`crate::read`] converts them.
-fn samples_f32(decoded: DecodingResult) -> Option<Vec<f32>> {
-    Some(match decoded {
-        DecodingResult::U8(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U32(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::I8(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::I32(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        _ => return None,
-    })
-}
-
-/// The data type name of a sample format and bit depth `read` accepts.
-fn dtype_of(sample_format: u16, bits: u8) -> Result<&'static str> {
-    Ok(match (sample_format, bits) {
-        (1, 8) => "uint8",
-        (1, 16) => "uint16",
-        (1, 32) => "uint32",
-        (2, 8) => "int8",
-        (2, 16) => "int16",
-        (2, 32) => "int32",
-        (3, 32) => "float32",
-        (3, 64) => "float64",
-        (sf, b) => {
-            return Err(IoError::unsupported(
-                F,
-                format!("sample format {sf} with {b} bits per sample"),
-            ));
-        }
-    })
-}
-
 impl GeoTiffBands {
     /// Opens `path` and reads its directory (no samples yet): the size (checked against
     /// `opts.max_cells`), sample type, nodata, georeference and scaling, with the checks and
@@ -112,82 +67,17 @@ impl GeoTiffBands {
     fn open_file(path: &Path, opts: &ReadOptions) -> Result<Self> {
         let file = File::open(path).map_err(|e| IoError::os(path, e))?;
         let file_len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
-        let mut dec = Decoder::new(BufReader::new(file)).map_err(terr)?;
-        let mut limits = Limits::default();
-        limits.decoding_buffer_size = opts.max_cells.saturating_mul(8);
-        limits.ifd_value_size = 16 << 20;
-        dec = dec.with_limits(limits);
+        let mut dec = directory::decoder(BufReader::new(file), opts)?;
         let (w, h) = dec.dimensions().map_err(terr)?;
         check_dims(F, w as u64, h as u64, opts)?;
-        let bits = match dec.colortype().map_err(terr)? {
-            ColorType::Gray(b) => b,
-            other => {
-                return Err(IoError::unsupported(
-                    F,
-                    format!("colour type {other:?}; only single-band rasters are read"),
-                ));
-            }
-        };
-        let sample_format = dec
-            .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
-            .map_err(terr)?
-            .and_then(|v| v.first().copied())
-            .unwrap_or(1);
-        let dtype = dtype_of(sample_format, bits)?;
-        check_chunks_in_file(&mut dec, file_len)?;
-        let nodata = match dec.find_tag(Tag::GdalNodata).map_err(terr)? {
-            Some(v) => {
-                let s = v.into_string().map_err(terr)?;
-                let s = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
-                Some(s.parse::<f64>().map_err(|_| {
-                    IoError::malformed(F, format!("GDAL_NODATA tag {s:?} is not a number"))
-                })?)
-            }
-            None => None,
-        };
-        let mut geo = GeoRef {
-            pixel_scale: find_f64s(&mut dec, Tag::ModelPixelScaleTag)?,
-            tiepoints: find_f64s(&mut dec, Tag::ModelTiepointTag)?,
-            transformation: find_f64s(&mut dec, Tag::ModelTransformationTag)?,
-            geo_key_directory: match dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(terr)? {
-                Some(v) => Some(v.into_u16_vec().map_err(terr)?),
-                None => None,
-            },
-            geo_double_params: find_f64s(&mut dec, Tag::GeoDoubleParamsTag)?,
-            geo_ascii_params: match dec.find_tag(Tag::GeoAsciiParamsTag).map_err(terr)? {
-                Some(v) => Some(v.into_string().map_err(terr)?),
-                None => None,
-            },
-            crs: None,
-            geotransform: None,
-        };
-        let gdal_metadata = match dec
-            .find_tag(Tag::Unknown(GDAL_METADATA_TAG))
-            .map_err(terr)?
-        {
-            Some(v) => Some(v.into_string().map_err(terr)?),
-            None => None,
-        };
+        let (_, dtype) = directory::sample_type(&mut dec)?;
+        directory::check_chunks_in_file(&mut dec, file_len)?;
+        let mut tags = Tags::read(&mut dec)?;
         let (w, h) = (w as usize, h as usize);
-        let flipped = complete_georef(&mut geo, w, h);
-        check_georef_values(&geo)?;
-        let cell = cell_size(&geo, h).unwrap_or((1.0, 1.0));
-        crate::util::check_cell(
-            F,
-            "georeference (ModelPixelScale / ModelTransformation)",
-            cell.0,
-            cell.1,
-        )?;
+        let (flipped, cell) = tags.complete_georef(w, h)?;
         crate::util::check_cell(F, "cell size", cell.0, cell.1)?;
-        let (scale, offset) = gdal_metadata
-            .as_deref()
-            .map(gdal_scale_offset)
-            .unwrap_or_default();
-        let scale = (scale.is_some() || offset.is_some())
-            .then(|| (scale.unwrap_or(1.0), offset.unwrap_or(0.0)));
-        if scale.is_some_and(|(s, _)| s == 0.0) {
-            return Err(IoError::malformed(F, "GDAL metadata SCALE is 0"));
-        }
+        let scale = tags.scale()?;
+        let Tags { nodata, geo, .. } = tags;
         let (cw, ch) = dec.chunk_dimensions();
         if cw == 0 || ch == 0 {
             return Err(IoError::malformed(
@@ -285,29 +175,19 @@ impl GeoTiffBands {
     /// Decodes chunk row `cr` (every chunk across the raster) into `band`, values final.
     fn load_band(&mut self, cr: usize) -> Result<()> {
         self.band_index = None;
-        let y0 = cr * self.chunk_rows;
-        let rows = self.chunk_rows.min(self.height - y0);
-        let across = self.width.div_ceil(self.chunk_cols);
-        self.band.clear();
-        self.band.resize(rows * self.width, 0.0);
-        for c in 0..across {
-            let index = u32::try_from(cr * across + c)
-                .map_err(|_| IoError::malformed(F, "more chunks than a TIFF holds"))?;
-            let decoded = self.decoder.read_chunk(index).map_err(terr)?;
-            let v = samples_f32(decoded)
-                .ok_or_else(|| IoError::unsupported(F, format!("samples of {}", self.dtype)))?;
-            let (dw, _) = self.decoder.chunk_data_dimensions(index);
-            let dw = dw as usize;
-            let x0 = c * self.chunk_cols;
-            let cols = dw.min(self.width - x0);
-            if rows.saturating_mul(dw) > v.len() || cols == 0 {
-                return Err(IoError::malformed(F, "a chunk is shorter than its size"));
-            }
-            for r in 0..rows {
-                self.band[r * self.width + x0..r * self.width + x0 + cols]
-                    .copy_from_slice(&v[r * dw..r * dw + cols]);
-            }
-        }
+        let dtype = self.dtype;
+        directory::read_chunk_row(
+            &mut self.decoder,
+            cr,
+            (self.width, self.height),
+            (self.chunk_cols, self.chunk_rows),
+            &mut self.band,
+            |decoded| {
+                directory::samples_f32(decoded)
+                    .ok_or_else(|| IoError::unsupported(F, format!("samples of {dtype}")))
+            },
+            terr,
+        )?;
         voids_to_nan(&mut self.band, self.nodata);
         if let Some((s, o)) = self.scale {
             // As `read` applies GDAL's unit scaling: nodata matched on the stored values.
@@ -320,51 +200,15 @@ impl GeoTiffBands {
     }
 }
 
-/// Every strip or tile listed lies inside the file (`file_len` bytes), before any is read.
-fn check_chunks_in_file<R: Read + Seek>(dec: &mut Decoder<R>, file_len: u64) -> Result<()> {
-    let (off_tag, cnt_tag, kind) = match dec.get_chunk_type() {
-        ChunkType::Strip => (Tag::StripOffsets, Tag::StripByteCounts, "strip"),
-        ChunkType::Tile => (Tag::TileOffsets, Tag::TileByteCounts, "tile"),
-    };
-    let offsets = dec
-        .find_tag_unsigned_vec::<u64>(off_tag)
-        .map_err(terr)?
-        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} offsets")))?;
-    let counts = dec
-        .find_tag_unsigned_vec::<u64>(cnt_tag)
-        .map_err(terr)?
-        .ok_or_else(|| IoError::malformed(F, format!("missing {kind} byte counts")))?;
-    if offsets.len() != counts.len() {
-        return Err(IoError::malformed(
-            F,
-            format!(
-                "{} {kind} offsets but {} byte counts",
-                offsets.len(),
-                counts.len()
-            ),
-        ));
-    }
-    for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
-        let end = o.saturating_add(c);
-        if end > file_len {
-            return Err(IoError::truncated(
-                F,
-                format!("{kind} {i} (offset {o}, {c} bytes)"),
-                end,
-                file_len,
-            ));
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use std::io::Cursor;
 
     use tiff::encoder::{TiffEncoder, colortype};
+    use tiff::tags::Tag;
 
     use super::*;
+    use crate::geotiff::GDAL_METADATA_TAG;
     use crate::{TiledGeoTiffWriter, TiledOptions, read};
 
     /// Every band split gives the rows of `read`, with its size, cell, georeference and nodata.

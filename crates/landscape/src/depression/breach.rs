@@ -150,12 +150,7 @@ mod tests {
     #[test]
     fn a_dam_across_a_valley_is_cut_not_filled() {
         // A valley sloping east with a 3 m dam at column 10: breaching cuts through the dam.
-        let g = Grid {
-            width: 20,
-            height: 9,
-            cell_x: 10.0,
-            cell_y: 10.0,
-        };
+        let g = Grid::new(20, 9, 10.0, 10.0);
         let mut z: Vec<f32> = (0..g.len())
             .map(|i| {
                 let (x, y) = (i % 20, i / 20);
@@ -182,12 +177,7 @@ mod tests {
 
     #[test]
     fn a_deep_closed_basin_stays_unresolved_within_the_limits() {
-        let g = Grid {
-            width: 15,
-            height: 15,
-            cell_x: 1.0,
-            cell_y: 1.0,
-        };
+        let g = Grid::new(15, 15, 1.0, 1.0);
         let mut z: Vec<f32> = (0..g.len())
             .map(|i| {
                 let (x, y) = ((i % 15) as f32 - 7.0, (i / 15) as f32 - 7.0);

@@ -109,12 +109,7 @@ mod tests {
     use super::*;
 
     fn grid(w: usize, h: usize) -> Grid {
-        Grid {
-            width: w,
-            height: h,
-            cell_x: 1.0,
-            cell_y: 1.0,
-        }
+        Grid::new(w, h, 1.0, 1.0)
     }
 
     /// Exhaustive reference: the filled elevation of a cell is the lowest, over all paths to

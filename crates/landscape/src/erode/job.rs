@@ -544,12 +544,7 @@ mod tests {
         for preset in Preset::ALL {
             ErodeSettings::preset(preset).check().unwrap();
         }
-        let json = serde_json::to_string(&s).unwrap();
-        assert_eq!(serde_json::from_str::<ErodeSettings>(&json).unwrap(), s);
-        assert_eq!(
-            serde_json::from_str::<ErodeSettings>("{}").unwrap(),
-            ErodeSettings::default()
-        );
+        relief_testdata::assert_json_round_trip(&s, &[]);
     }
 
     #[test]

@@ -114,6 +114,19 @@ impl Default for StreamPowerParams {
 }
 
 impl StreamPowerParams {
+    /// The parameters of fastscapelib's Mountain example (K 2e-4, m 0.4, n 1, D 0.01, dt
+    /// 1 kyr; its uplift is 1 mm/yr): the setup the speed comparisons with fastscapelib run.
+    pub fn fastscape_mountain() -> Self {
+        Self {
+            k: 2e-4,
+            m: 0.4,
+            n: 1.0,
+            diffusion: 0.01,
+            dt: 1e3,
+            ..Self::default()
+        }
+    }
+
     /// Checks every field, naming the first one out of range.
     pub fn check(&self) -> std::result::Result<(), ParamError> {
         in_range(

@@ -6,6 +6,7 @@ use relief_heightfield::rng::{hash, unit_f64};
 
 use super::stream_power::newton_drop;
 use super::*;
+use crate::LandscapeError;
 use crate::depression::{FillMode, priority_flood};
 use crate::flow::{flow_order, receiver, steepest_descent};
 use crate::grid::Grid;
@@ -45,12 +46,7 @@ fn noisy_plateau(grid: &Grid, base: f64, amplitude: f64, seed: u64) -> Vec<f64> 
 }
 
 fn square(w: usize, h: usize, cell: f64) -> Grid {
-    Grid {
-        width: w,
-        height: h,
-        cell_x: cell,
-        cell_y: cell,
-    }
+    Grid::new(w, h, cell, cell)
 }
 
 fn max_rel_diff(got: &[f64], want: &[f64]) -> f64 {
@@ -65,12 +61,7 @@ fn max_rel_diff(got: &[f64], want: &[f64]) -> f64 {
 #[test]
 fn one_step_matches_fastscapelib_on_non_square_cells() {
     let (rows, cols, input) = read_npy(&data("spl_in"));
-    let grid = Grid {
-        width: cols,
-        height: rows,
-        cell_x: 100.0,
-        cell_y: 80.0,
-    };
+    let grid = Grid::new(cols, rows, 100.0, 80.0);
     let base = base_level_mask(&input, &grid);
     for (name, n, diffusion) in [
         ("spl_n1", 1.0, 0.0),
@@ -368,12 +359,7 @@ fn a_lake_drains_over_its_spill_point_without_eroding_its_floor() {
 
 #[test]
 fn diffusion_conserves_volume_with_closed_edges_and_keeps_fixed_cells_and_voids() {
-    let grid = Grid {
-        width: 37,
-        height: 23,
-        cell_x: 10.0,
-        cell_y: 7.0,
-    };
+    let grid = Grid::new(37, 23, 10.0, 7.0);
     let mut z = noisy_plateau(&grid, 50.0, 10.0, 1);
     let none = vec![false; grid.len()];
     let before: f64 = z.iter().sum();
@@ -400,12 +386,7 @@ fn diffusion_conserves_volume_with_closed_edges_and_keeps_fixed_cells_and_voids(
 fn diffusion_decays_a_sine_mode_at_the_analytic_rate() {
     // z = sin(pi x / L) sin(pi y / H) with fixed edges decays as exp(-D pi^2 (1/L^2 + 1/H^2) t).
     let (w, h) = (65, 49);
-    let grid = Grid {
-        width: w,
-        height: h,
-        cell_x: 10.0,
-        cell_y: 8.0,
-    };
+    let grid = Grid::new(w, h, 10.0, 8.0);
     let (lx, ly) = ((w - 1) as f64 * 10.0, (h - 1) as f64 * 8.0);
     let pi = std::f64::consts::PI;
     let mut z: Vec<f64> = (0..grid.len())
@@ -454,4 +435,16 @@ fn params_are_checked() {
     )
     .unwrap();
     assert!(stopped.stopped && stopped.steps == 0);
+}
+
+/// An erosion `run` (given the raster and its stop flag) asked to stop from the start ends
+/// with [`LandscapeError::Stopped`] and leaves `z` as given.
+pub(super) fn assert_stopping_leaves_the_input_alone<T: std::fmt::Debug>(
+    mut z: Vec<f32>,
+    run: impl FnOnce(&mut [f32], &dyn Fn() -> bool) -> Result<T, LandscapeError>,
+) {
+    let before = z.clone();
+    let e = run(&mut z, &|| true);
+    assert!(matches!(e, Err(LandscapeError::Stopped(_))), "{e:?}");
+    assert_eq!(z, before);
 }

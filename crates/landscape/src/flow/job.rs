@@ -298,15 +298,7 @@ mod tests {
         ] {
             assert_eq!(s.check().unwrap_err().name, name);
         }
-        let json = serde_json::to_string(&FlowSettings::default()).unwrap();
-        assert_eq!(
-            serde_json::from_str::<FlowSettings>(&json).unwrap(),
-            FlowSettings::default()
-        );
-        assert_eq!(
-            serde_json::from_str::<FlowSettings>("{}").unwrap(),
-            FlowSettings::default()
-        );
+        relief_testdata::assert_json_round_trip(&FlowSettings::default(), &[]);
         assert!(serde_json::from_str::<FlowSettings>(r#"{"depressions": "lake"}"#).is_err());
     }
 

@@ -15,12 +15,7 @@ fn hash_dem(w: usize, h: usize, seed: u64) -> Vec<f32> {
 }
 
 fn grid(w: usize, h: usize, cx: f64, cy: f64) -> Grid {
-    Grid {
-        width: w,
-        height: h,
-        cell_x: cx,
-        cell_y: cy,
-    }
+    Grid::new(w, h, cx, cy)
 }
 
 #[test]

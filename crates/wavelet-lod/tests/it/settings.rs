@@ -3,7 +3,7 @@
 //! whose message names the offending field and its value.
 
 use proptest::prelude::*;
-use relief_heightfield::{Heightfield, NoProgress};
+use relief_heightfield::{Heightfield, NoProgress, ParamError};
 use relief_wavelet_lod::rng::{fill_normals, normal_at};
 use relief_wavelet_lod::{
     Boundary, Decomposition, FitSettings, Grid, Method, Model, RefineSettings, Refiner, Wavelet,
@@ -162,7 +162,7 @@ fn check_error(e: &WaveletError) {
     let msg = e.to_string();
     assert!(!msg.is_empty());
     assert!(!msg.contains('\n'), "one line: {msg}");
-    if let WaveletError::InvalidParameter { name, value, .. } = e {
+    if let WaveletError::InvalidParameter(ParamError { name, value, .. }) = e {
         assert!(FIELDS.contains(name), "unexpected field name {name}");
         assert!(msg.contains(name) && msg.contains(value.as_str()), "{msg}");
     }

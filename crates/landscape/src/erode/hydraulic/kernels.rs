@@ -87,20 +87,17 @@ pub(super) fn flux_cells(
     let (n, w) = (fw.len(), c.width);
     // The cells and their west, east, north and south neighbours.
     let at = |v, j| window(v, j, n);
-    let (bc, bw, be, bn, bs) = (
-        at(b, i),
-        at(b, i - 1),
-        at(b, i + 1),
-        at(b, i - w),
-        at(b, i + w),
-    );
-    let (dc, dw, de, dn, ds) = (
-        at(d, i),
-        at(d, i - 1),
-        at(d, i + 1),
-        at(d, i - w),
-        at(d, i + w),
-    );
+    let cross = |v| {
+        [
+            at(v, i),
+            at(v, i - 1),
+            at(v, i + 1),
+            at(v, i - w),
+            at(v, i + w),
+        ]
+    };
+    let [bc, bw, be, bn, bs] = cross(b);
+    let [dc, dw, de, dn, ds] = cross(d);
     let (fe, fnn, fs) = (&mut fe[..n], &mut fnn[..n], &mut fs[..n]);
     let [kw, ke, kn, ks] = c.kflux;
     let (area, dt) = (c.area, c.dt);

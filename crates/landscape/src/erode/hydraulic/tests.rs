@@ -2,6 +2,7 @@ use relief_heightfield::NoProgress;
 use relief_heightfield::rng::{hash, unit_f32};
 
 use super::*;
+use crate::erode::tests::assert_stopping_leaves_the_input_alone;
 use crate::flow::{RouteOptions, route};
 
 fn never() -> bool {
@@ -45,12 +46,7 @@ fn grid(width: usize, height: usize, cell: f64) -> Grid {
 #[test]
 fn the_sediment_budget_closes() {
     // A bowl: a cone turned upside down, so most water and sediment stay on the map.
-    let g = Grid {
-        width: 48,
-        height: 40,
-        cell_x: 30.0,
-        cell_y: 40.0,
-    };
+    let g = Grid::new(48, 40, 30.0, 40.0);
     let bowl: Vec<f32> = cone(&g, 300.0, 5.0, 1).iter().map(|v| 300.0 - v).collect();
     for settle in [false, true] {
         let mut z = bowl.clone();
@@ -190,17 +186,10 @@ fn voids_are_untouched_and_open() {
 #[test]
 fn stopping_leaves_the_input_alone() {
     let g = grid(9, 9, 10.0);
-    let mut z = cone(&g, 50.0, 1.0, 1);
-    let before = z.clone();
-    let e = hydraulic(
-        &mut z,
-        &g,
-        &HydraulicParams::default(),
-        &NoProgress,
-        &|| true,
-    );
-    assert!(matches!(e, Err(LandscapeError::Stopped(_))));
-    assert_eq!(z, before);
+    let p = HydraulicParams::default();
+    assert_stopping_leaves_the_input_alone(cone(&g, 50.0, 1.0, 1), |z, stop| {
+        hydraulic(z, &g, &p, &NoProgress, stop)
+    });
 }
 
 #[test]

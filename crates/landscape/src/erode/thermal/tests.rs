@@ -2,6 +2,7 @@ use relief_heightfield::NoProgress;
 use relief_heightfield::rng::{hash, unit_f32};
 
 use super::*;
+use crate::erode::tests::assert_stopping_leaves_the_input_alone;
 
 fn never() -> bool {
     false
@@ -20,12 +21,7 @@ fn total(z: &[f32]) -> f64 {
 
 #[test]
 fn mass_is_conserved_and_voids_untouched() {
-    let grid = Grid {
-        width: 37,
-        height: 23,
-        cell_x: 10.0,
-        cell_y: 14.0,
-    };
+    let grid = Grid::new(37, 23, 10.0, 14.0);
     let mut z = rough(&grid, 3);
     for i in [0, 50, 51, 52, 300, 400, grid.len() - 1] {
         z[i] = f32::NAN;
@@ -48,12 +44,7 @@ fn mass_is_conserved_and_voids_untouched() {
 
 #[test]
 fn a_cliff_relaxes_to_the_talus_angle_on_non_square_cells() {
-    let grid = Grid {
-        width: 40,
-        height: 5,
-        cell_x: 10.0,
-        cell_y: 15.0,
-    };
+    let grid = Grid::new(40, 5, 10.0, 15.0);
     let mut z: Vec<f32> = (0..grid.len())
         .map(|i| if i % grid.width < 20 { 100.0 } else { 0.0 })
         .collect();
@@ -87,12 +78,7 @@ fn a_cliff_relaxes_to_the_talus_angle_on_non_square_cells() {
 
 #[test]
 fn a_weathering_depth_keeps_the_cliff_and_builds_an_apron() {
-    let grid = Grid {
-        width: 40,
-        height: 5,
-        cell_x: 10.0,
-        cell_y: 10.0,
-    };
+    let grid = Grid::new(40, 5, 10.0, 10.0);
     let z0: Vec<f32> = (0..grid.len())
         .map(|i| if i % grid.width < 20 { 100.0 } else { 0.0 })
         .collect();
@@ -129,12 +115,7 @@ fn a_weathering_depth_keeps_the_cliff_and_builds_an_apron() {
 
 #[test]
 fn one_and_two_threads_give_the_same_bytes() {
-    let grid = Grid {
-        width: 70,
-        height: 41,
-        cell_x: 30.0,
-        cell_y: 30.0,
-    };
+    let grid = Grid::new(70, 41, 30.0, 30.0);
     let run = |k: usize| {
         let mut z = rough(&grid, 9);
         let pool = rayon::ThreadPoolBuilder::new()
@@ -158,23 +139,11 @@ fn one_and_two_threads_give_the_same_bytes() {
 
 #[test]
 fn stopping_leaves_the_input_alone() {
-    let grid = Grid {
-        width: 9,
-        height: 9,
-        cell_x: 1.0,
-        cell_y: 1.0,
-    };
-    let mut z = rough(&grid, 1);
-    let before = z.clone();
-    let e = thermal(
-        &mut z,
-        &grid,
-        &ThermalParams::default(),
-        &NoProgress,
-        &|| true,
-    );
-    assert!(matches!(e, Err(LandscapeError::Stopped(_))));
-    assert_eq!(z, before);
+    let grid = Grid::new(9, 9, 1.0, 1.0);
+    let p = ThermalParams::default();
+    assert_stopping_leaves_the_input_alone(rough(&grid, 1), |z, stop| {
+        thermal(z, &grid, &p, &NoProgress, stop)
+    });
 }
 
 #[test]
@@ -205,12 +174,7 @@ fn bad_settings_and_inputs_are_rejected_by_name() {
         "rate"
     );
     assert_eq!(name(ThermalParams { rate: 0.6, ..d }), "rate");
-    let grid = Grid {
-        width: 4,
-        height: 4,
-        cell_x: 1.0,
-        cell_y: -1.0,
-    };
+    let grid = Grid::new(4, 4, 1.0, -1.0);
     let mut z = vec![0.0f32; 16];
     let e = thermal(&mut z, &grid, &d, &NoProgress, &never).unwrap_err();
     assert!(e.to_string().contains("cell_y"), "{e}");
