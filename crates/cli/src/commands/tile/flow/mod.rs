@@ -1,6 +1,7 @@
 //! `relief tile plan DIR -- flow DEM -o OUT_DIR`: drainage as a multi-phase plan
-//! (relief-landscape's `flow::tiled`: Barnes 2016 filling and Barnes 2017 accumulation), five
-//! phases, each a task array or one task, that a scheduler chains with dependencies
+//! (relief-landscape's `flow::tiled`: Barnes 2016 filling and Barnes 2017 accumulation, then
+//! the products that follow the D8 tree carried across tile edges the same way), seven phases,
+//! each a task array or one task, that a scheduler chains with dependencies
 //! (`sbatch --dependency=afterok:<previous>`):
 //!
 //! | phase | tasks | reads | writes |
@@ -9,7 +10,9 @@
 //! | 2 | one | every `phase1/graph-N.bin` | `phase2/levels-N.bin` |
 //! | 3 | one per tile | `phase1/fill-N.bin`, the levels of the tile and its neighbours | `phase3/routed-N.bin`, `phase3/ports-N.bin` |
 //! | 4 | one | every `phase3/ports-N.bin` | `phase4/inflow-N.bin` |
-//! | 5 | one per tile | `phase3/routed-N.bin`, `phase4/inflow-N.bin` | `tiles/{filled,direction,area}-N.tif` |
+//! | 5 | one per tile | `phase3/routed-N.bin`, `phase4/inflow-N.bin` | `tiles/{filled,direction,area}-N.tif`, `phase5/summary-N.bin` |
+//! | 6 | one | every `phase5/summary-N.bin` | `phase6/net-N.bin` |
+//! | 7 | one per tile | `input/tile-N.tif`, `phase3/routed-N.bin`, `phase4/inflow-N.bin`, `phase6/net-N.bin` | `tiles/{strahler,watersheds,hand}-N.tif`, `tiles/network-N.bin` |
 //!
 //! Every task writes its files atomically, then `phaseP/task-N.json` (the plan id and the
 //! files' SHA-256); a task whose record and files agree is skipped, so a killed task is run
@@ -20,9 +23,11 @@
 //! inputs against `input/index.json`, whose checksum the manifest holds) before decoding it
 //! with relief-landscape's checked byte forms.
 //!
-//! `relief tile mosaic` writes `OUT_DIR/filled.tif`, `direction.tif` and `area.tif` (together
-//! or not at all), equal bit for bit to those of `relief flow` (the other products of
-//! `relief flow` are not planned).
+//! `relief tile mosaic` writes `OUT_DIR/{filled,direction,area,strahler,watersheds,hand}.tif`,
+//! `channels.geojson` (joined from every tile's channel cells) and `flow.json` (the figures
+//! summed over the tiles), together or not at all, equal byte for byte to those of
+//! `relief flow` (`flow.json` names the plan's absolute input path). `channels.png`, a preview
+//! drawn over the whole map's hillshade, is not planned (the plan says so).
 
 use relief_landscape::flow::ESRI_CODES;
 use relief_landscape::flow::job::FlowSettings;
@@ -37,8 +42,19 @@ use super::mosaic::ranges;
 use super::*;
 use crate::outputs::OutKind;
 
-/// The rasters a flow plan mosaics into its output folder.
-pub(super) const PRODUCTS: [&str; 3] = ["filled", "direction", "area"];
+/// The rasters a flow plan mosaics into its output folder (phase 5's, then phase 7's).
+pub(super) const PRODUCTS: [&str; 6] = [
+    "filled",
+    "direction",
+    "area",
+    "strahler",
+    "watersheds",
+    "hand",
+];
+
+/// The files of `relief flow` a plan does not write, and why (the plan's note says so).
+pub(super) const NOT_PLANNED: &str = "channels.png (a preview drawn over the whole map's \
+     hillshade; draw it from the mosaic with relief flow on a reduced DEM or relief preview)";
 
 /// The parser of the planned flow command.
 #[derive(Debug, clap::Parser)]
@@ -62,10 +78,13 @@ struct FlowJob {
 }
 
 fn out_files() -> Vec<(String, OutKind)> {
-    PRODUCTS
+    let mut v: Vec<(String, OutKind)> = PRODUCTS
         .iter()
         .map(|p| (format!("{p}.tif"), OutKind::Raster))
-        .collect()
+        .collect();
+    v.push(("channels.geojson".into(), OutKind::Json));
+    v.push(("flow.json".into(), OutKind::Json));
+    v
 }
 
 /// The settings a tiled plan reproduces exactly, or an error naming the flag.
@@ -112,7 +131,9 @@ pub(super) use plan::plan;
 const INPUT_INDEX: &str = "input/index.json";
 
 /// The plan's folders: every file a task reads or writes is in one of them.
-const FOLDERS: [&str; 6] = ["input", "phase1", "phase2", "phase3", "phase4", "tiles"];
+const FOLDERS: [&str; 8] = [
+    "input", "phase1", "phase2", "phase3", "phase4", "phase5", "phase6", "tiles",
+];
 
 /// Every folder of the plan must be a real folder inside it.
 fn check_folders(dir: &Path) -> Result<()> {
@@ -140,7 +161,25 @@ fn outputs_of(phase: usize, index: usize, tasks: usize) -> Vec<String> {
         4 => (0..tasks)
             .map(|t| format!("phase4/inflow-{t:06}.bin"))
             .collect(),
-        _ => PRODUCTS.iter().map(|p| product_name(p, index)).collect(),
+        5 => {
+            let mut v: Vec<String> = PRODUCTS[..3]
+                .iter()
+                .map(|p| product_name(p, index))
+                .collect();
+            v.push(format!("phase5/summary-{index:06}.bin"));
+            v
+        }
+        6 => (0..tasks)
+            .map(|t| format!("phase6/net-{t:06}.bin"))
+            .collect(),
+        _ => {
+            let mut v: Vec<String> = PRODUCTS[3..]
+                .iter()
+                .map(|p| product_name(p, index))
+                .collect();
+            v.push(format!("tiles/network-{index:06}.bin"));
+            v
+        }
     }
 }
 
@@ -334,22 +373,25 @@ pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
     Ok(())
 }
 
-/// `relief tile mosaic` on a flow plan: `OUT_DIR/{filled,direction,area}.tif` together.
+/// `relief tile mosaic` on a flow plan: `OUT_DIR/{filled,direction,area,strahler,watersheds,
+/// hand}.tif`, `channels.geojson` and `flow.json` together.
 pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Result<()> {
-    layout(m)?;
+    let layout = layout(m)?;
     check_folders(dir)?;
-    let bad: Vec<usize> = (0..m.tasks)
-        .filter(|&i| task_state(dir, m, PHASES, i) != TileState::Done)
-        .collect();
-    if !bad.is_empty() {
-        bail!(
-            "{} of {} tiles of the last phase are missing or corrupt ({}): run them (relief tile \
-             status {})",
-            bad.len(),
-            m.tasks,
-            ranges(&bad),
-            dir.display()
-        );
+    for phase in [5, PHASES] {
+        let bad: Vec<usize> = (0..m.tasks)
+            .filter(|&i| task_state(dir, m, phase, i) != TileState::Done)
+            .collect();
+        if !bad.is_empty() {
+            bail!(
+                "{} of {} tiles of phase {phase} are missing or corrupt ({}): run them (relief \
+                 tile status {})",
+                bad.len(),
+                m.tasks,
+                ranges(&bad),
+                dir.display()
+            );
+        }
     }
     for p in PRODUCTS {
         let vrt = dir.join(format!("mosaic-{p}.vrt"));
@@ -373,11 +415,44 @@ pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Res
         let target = staged.path(&format!("{p}.tif"));
         super::mosaic::stream_tiles(dir, m, &|i| product_name(p, i), &target, a.bigtiff, ctx)?;
     }
+    // The network: every tile's channel cells, joined into reaches as the single run's.
+    let nets = (0..m.tasks)
+        .into_par_iter()
+        .map(|t| {
+            let b = read_product(dir, m, PHASES, t, 3, t)?;
+            Ok(tiled::TileNetwork::from_bytes(&b, &layout, t)?)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let georef = m.output.georef.as_ref();
+    let (channels, figures) = tiled::assemble(&layout, georef, &nets)?;
+    drop(nets);
+    staged.write_json("channels.geojson", &channels, false)?;
+    let job: FlowJob = serde_json::from_value(m.job.clone())
+        .context("the manifest's job is not a flow job's settings")?;
+    let report = crate::commands::flow::Report {
+        file: m.inputs.first().map(|s| s.path.clone()).unwrap_or_default(),
+        width: m.output.width,
+        height: m.output.height,
+        cell_size: (m.output.cell_size[0], m.output.cell_size[1]),
+        crs: georef.and_then(|g| g.crs.clone()),
+        settings: job.flow,
+        figures,
+        outputs: crate::commands::flow::FILES
+            .iter()
+            .map(|(n, _)| *n)
+            .filter(|n| files.iter().any(|(f, _)| f == n))
+            .collect(),
+    };
+    staged.write_json("flow.json", &report, true)?;
     staged.commit()?;
     ctx.note(format!(
-        "wrote {}/{{{}}}.tif ({} x {}{})",
+        "wrote {}/{{{},channels.geojson,flow.json}} ({} x {}{}); not planned: {NOT_PLANNED}",
         out.display(),
-        PRODUCTS.join(","),
+        PRODUCTS
+            .iter()
+            .map(|p| format!("{p}.tif"))
+            .collect::<Vec<_>>()
+            .join(","),
         m.output.width,
         m.output.height,
         if ctx.cog { ", cloud-optimized" } else { "" },

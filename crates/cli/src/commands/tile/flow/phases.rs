@@ -82,7 +82,9 @@ pub(in crate::commands::tile) fn run_task(
         2 => phase2(dir, m, &layout)?,
         3 => phase3(dir, m, &layout, index)?,
         4 => phase4(dir, m, &layout)?,
-        _ => phase5(dir, m, &layout, index)?,
+        5 => phase5(dir, m, &layout, index)?,
+        6 => phase6(dir, m, &layout)?,
+        _ => phase7(dir, m, &layout, index)?,
     };
     let names = outputs_of(phase, index, m.tasks);
     let mut files = Vec::with_capacity(outputs.len());
@@ -108,6 +110,17 @@ pub(in crate::commands::tile) fn run_task(
 }
 
 fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let hf = read_input(dir, m, l, t)?;
+    let (fill, graph) = tiled::phase1(l, t, hf.as_slice())?;
+    let names = outputs_of(1, t, m.tasks);
+    Ok(vec![
+        (names[0].clone(), fill.to_bytes(t)),
+        (names[1].clone(), graph.to_bytes(l, t)),
+    ])
+}
+
+/// Tile `t`'s input (the tile and its one-cell margin), checked against the input index.
+fn read_input(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Heightfield> {
     // The input index is checked against the manifest, the tile's input against the index.
     let index_bytes = read_plan_file(dir, INPUT_INDEX, 4096 + 256 * m.tasks as u64)?;
     if bytes_sum(&index_bytes, m.prepared.path.clone()) != m.prepared {
@@ -144,12 +157,7 @@ fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
             h + 2
         );
     }
-    let (fill, graph) = tiled::phase1(l, t, hf.as_slice())?;
-    let names = outputs_of(1, t, m.tasks);
-    Ok(vec![
-        (names[0].clone(), fill.to_bytes(t)),
-        (names[1].clone(), graph.to_bytes(l, t)),
-    ])
+    Ok(hf)
 }
 
 fn phase2(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
@@ -205,11 +213,25 @@ fn phase4(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u
         .collect())
 }
 
-fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+/// Tile `t`'s final filled elevations, directions and upstream cells (phase 5's values, which
+/// phase 7 computes again rather than decoding three rasters).
+fn finished(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<tiled::Finished> {
     let routed = Routed::from_bytes(&read_product(dir, m, 3, t, 0, t)?, l, t)?;
     let inflow = Inflow::from_bytes(&read_product(dir, m, 4, 0, t, t)?, l, t)?;
-    let f = tiled::phase5(l, t, &routed, &inflow)?;
-    drop((routed, inflow));
+    Ok(tiled::phase5(l, t, &routed, &inflow)?)
+}
+
+/// The channel area of the plan's settings.
+fn channel_area(m: &Manifest) -> Result<f64> {
+    let job: FlowJob = serde_json::from_value(m.job.clone())
+        .context("the manifest's job is not a flow job's settings")?;
+    job.flow.check().map_err(crate::args::flag_error)?;
+    Ok(job.flow.channel_area)
+}
+
+fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let f = finished(dir, m, l, t)?;
+    let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
     let [x, y, w, h] = l.window(t);
     let a0 = l.cell_x * l.cell_y;
     let georef = m
@@ -239,10 +261,55 @@ fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
         })
         .collect();
     let names = outputs_of(5, t, m.tasks);
-    let mut out = Vec::with_capacity(3);
-    for (name, data) in names.into_iter().zip([f.filled, dir_codes, area]) {
+    let mut out = Vec::with_capacity(4);
+    for (name, data) in names.iter().zip([f.filled, dir_codes, area]) {
         let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
-        out.push((name, deflate_geotiff(&hf)?));
+        out.push((name.clone(), deflate_geotiff(&hf)?));
     }
+    out.push((names[3].clone(), summary));
+    Ok(out)
+}
+
+fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
+    let sums = (0..m.tasks)
+        .into_par_iter()
+        .map(|t| {
+            let b = read_product(dir, m, 5, t, 3, t)?;
+            Ok(tiled::NetSummary::from_bytes(&b, l, t)?)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let levels = tiled::phase6(l, &sums)?;
+    let names = outputs_of(6, 0, m.tasks);
+    Ok(levels
+        .iter()
+        .enumerate()
+        .map(|(t, lv)| (names[t].clone(), lv.to_bytes(l, t)))
+        .collect())
+}
+
+fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let f = finished(dir, m, l, t)?;
+    let levels = tiled::NetLevels::from_bytes(&read_product(dir, m, 6, 0, t, t)?, l, t)?;
+    let input = read_input(dir, m, l, t)?;
+    let (r, net) = tiled::phase7(l, t, &f, &levels, input.as_slice(), channel_area(m)?)?;
+    let (order, label, hand) = (r.strahler, r.watersheds, r.hand);
+    let [x, y, w, h] = l.window(t);
+    let georef = m
+        .output
+        .georef
+        .as_ref()
+        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
+    // The same values `relief flow` writes: voids NaN in the order and the watersheds.
+    let void = |i: usize| input.as_slice()[(i / w + 1) * (w + 2) + i % w + 1].is_nan();
+    let nan_or = |i: usize, v: f32| if void(i) { f32::NAN } else { v };
+    let order: Vec<f32> = (0..w * h).map(|i| nan_or(i, order[i] as f32)).collect();
+    let label: Vec<f32> = (0..w * h).map(|i| nan_or(i, label[i] as f32)).collect();
+    let names = outputs_of(7, t, m.tasks);
+    let mut out = Vec::with_capacity(4);
+    for (name, data) in names.iter().zip([order, label, hand]) {
+        let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
+        out.push((name.clone(), deflate_geotiff(&hf)?));
+    }
+    out.push((names[3].clone(), net.to_bytes(l, t)));
     Ok(out)
 }

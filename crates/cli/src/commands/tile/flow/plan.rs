@@ -91,6 +91,8 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         "fill".into(),
         "--directions".into(),
         "d8".into(),
+        "--channel-area".into(),
+        settings.channel_area.to_string(),
     ];
     let mut m = Manifest {
         format: FORMAT.into(),
@@ -121,16 +123,20 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
     let (per_tile, single) = layout.memory_estimate();
     let mb = |b: u64| b as f64 / 1e6;
     ctx.note(format!(
-        "planned the drainage of {} x {} cells ({}) as {} tiles of {} px ({} x {}) in five \
+        "planned the drainage of {} x {} cells ({}) as {} tiles of {} px ({} x {}) in seven \
          phases in {}\n\
-         memory: about {:.0} MB per tile task (phases 1, 3, 5) and {:.0} MB for the single tasks \
-         (phases 2, 4) plus 60 bytes per cell of the flats that cross tile edges\n\
+         memory: about {:.0} MB per tile task (phases 1, 3, 5, 7) and {:.0} MB for the single \
+         tasks (phases 2, 4, 6) plus 60 bytes per cell of the flats that cross tile edges; the \
+         mosaic holds the channel network (about 200 bytes per channel cell)\n\
+         not planned: {NOT_PLANNED}\n\
          run them in order, each after the previous one succeeded, e.g. on Slurm:\n  \
          j1=$(sbatch --parsable --array=0-{last} --wrap 'relief tile run {d} --phase 1')\n  \
          j2=$(sbatch --parsable --dependency=afterok:$j1 --wrap 'relief tile run {d} --phase 2')\n  \
          j3=$(sbatch --parsable --dependency=afterok:$j2 --array=0-{last} --wrap 'relief tile run {d} --phase 3')\n  \
          j4=$(sbatch --parsable --dependency=afterok:$j3 --wrap 'relief tile run {d} --phase 4')\n  \
-         sbatch --dependency=afterok:$j4 --array=0-{last} --wrap 'relief tile run {d} --phase 5'\n\
+         j5=$(sbatch --parsable --dependency=afterok:$j4 --array=0-{last} --wrap 'relief tile run {d} --phase 5')\n  \
+         j6=$(sbatch --parsable --dependency=afterok:$j5 --wrap 'relief tile run {d} --phase 6')\n  \
+         sbatch --dependency=afterok:$j6 --array=0-{last} --wrap 'relief tile run {d} --phase 7'\n\
          then: relief tile mosaic {d}",
         layout.width,
         layout.height,
