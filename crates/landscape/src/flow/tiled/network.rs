@@ -697,3 +697,53 @@ pub fn assemble(
     };
     Ok((collection(features, georef), figures))
 }
+
+impl Finished {
+    /// The direction raster `relief flow` writes for these cells: ESRI codes, 0 where the
+    /// flow ends, `NaN` on voids.
+    pub fn direction_codes(&self) -> Vec<f32> {
+        (0..self.filled.len())
+            .map(|i| {
+                if self.filled[i].is_nan() {
+                    f32::NAN
+                } else if self.dir[i] == NO_FLOW {
+                    0.0
+                } else {
+                    crate::flow::ESRI_CODES[self.dir[i] as usize] as f32
+                }
+            })
+            .collect()
+    }
+
+    /// The drainage area raster (m^2) `relief flow` writes for these cells (`cells x a0`,
+    /// rounded to f32 once), `NaN` on voids.
+    pub fn area(&self, layout: &TileLayout) -> Vec<f32> {
+        let a0 = layout.cell_x * layout.cell_y;
+        (0..self.filled.len())
+            .map(|i| {
+                if self.filled[i].is_nan() {
+                    f32::NAN
+                } else {
+                    (self.cells[i] as f64 * a0) as f32
+                }
+            })
+            .collect()
+    }
+}
+
+impl NetRasters {
+    /// The Strahler order and watershed rasters `relief flow` writes, `NaN` on the voids of
+    /// `input` (the tile and its one-cell margin, as phase 7 read it).
+    pub fn to_f32(&self, width: usize, input: &[f32]) -> (Vec<f32>, Vec<f32>) {
+        let void = |i: usize| input[(i / width + 1) * (width + 2) + i % width + 1].is_nan();
+        let nan_or = |i: usize, v: f32| if void(i) { f32::NAN } else { v };
+        (
+            (0..self.strahler.len())
+                .map(|i| nan_or(i, self.strahler[i] as f32))
+                .collect(),
+            (0..self.watersheds.len())
+                .map(|i| nan_or(i, self.watersheds[i] as f32))
+                .collect(),
+        )
+    }
+}

@@ -29,13 +29,11 @@
 //! `relief flow` (`flow.json` names the plan's absolute input path). `channels.png`, a preview
 //! drawn over the whole map's hillshade, is not planned (the plan says so).
 
-use relief_landscape::flow::ESRI_CODES;
 use relief_landscape::flow::job::FlowSettings;
 use relief_landscape::flow::tiled::{
     self, FillGraph, Inflow, Levels, LocalFill, PHASES, PortGraph, Routed, TileLayout,
 };
 use relief_landscape::flow::{Depressions, Directions};
-use relief_landscape::grid::NO_FLOW;
 use serde::{Deserialize, Serialize};
 
 use super::mosaic::ranges;

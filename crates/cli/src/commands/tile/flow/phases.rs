@@ -233,33 +233,13 @@ fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
     let f = finished(dir, m, l, t)?;
     let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
     let [x, y, w, h] = l.window(t);
-    let a0 = l.cell_x * l.cell_y;
     let georef = m
         .output
         .georef
         .as_ref()
         .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
     // The same values `relief flow` writes (relief-landscape's `FlowSettings::run`).
-    let dir_codes: Vec<f32> = (0..w * h)
-        .map(|i| {
-            if f.filled[i].is_nan() {
-                f32::NAN
-            } else if f.dir[i] == NO_FLOW {
-                0.0
-            } else {
-                ESRI_CODES[f.dir[i] as usize] as f32
-            }
-        })
-        .collect();
-    let area: Vec<f32> = (0..w * h)
-        .map(|i| {
-            if f.filled[i].is_nan() {
-                f32::NAN
-            } else {
-                (f.cells[i] as f64 * a0) as f32
-            }
-        })
-        .collect();
+    let (dir_codes, area) = (f.direction_codes(), f.area(l));
     let names = outputs_of(5, t, m.tasks);
     let mut out = Vec::with_capacity(4);
     for (name, data) in names.iter().zip([f.filled, dir_codes, area]) {
@@ -292,7 +272,6 @@ fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
     let levels = tiled::NetLevels::from_bytes(&read_product(dir, m, 6, 0, t, t)?, l, t)?;
     let input = read_input(dir, m, l, t)?;
     let (r, net) = tiled::phase7(l, t, &f, &levels, input.as_slice(), channel_area(m)?)?;
-    let (order, label, hand) = (r.strahler, r.watersheds, r.hand);
     let [x, y, w, h] = l.window(t);
     let georef = m
         .output
@@ -300,10 +279,8 @@ fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
         .as_ref()
         .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
-    let void = |i: usize| input.as_slice()[(i / w + 1) * (w + 2) + i % w + 1].is_nan();
-    let nan_or = |i: usize, v: f32| if void(i) { f32::NAN } else { v };
-    let order: Vec<f32> = (0..w * h).map(|i| nan_or(i, order[i] as f32)).collect();
-    let label: Vec<f32> = (0..w * h).map(|i| nan_or(i, label[i] as f32)).collect();
+    let (order, label) = r.to_f32(w, input.as_slice());
+    let hand = r.hand;
     let names = outputs_of(7, t, m.tasks);
     let mut out = Vec::with_capacity(4);
     for (name, data) in names.iter().zip([order, label, hand]) {
