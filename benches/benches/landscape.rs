@@ -61,7 +61,59 @@ fn fill_d8(c: &mut Criterion) {
             })
         },
     );
+    // Every product of `relief flow` (issue 46): the seven passes (the five above, the
+    // summaries, phase 6, phase 7 of every tile and the network's assembly) against
+    // `FlowSettings::run` (filled, directions, area, Strahler, watersheds, HAND, network).
+    let settings = relief_landscape::flow::job::FlowSettings::default();
+    g.bench_with_input(BenchmarkId::new("single_flow_all", 4096), &dem, |b, hf| {
+        b.iter(|| {
+            settings
+                .run(hf, &relief_heightfield::NoProgress)
+                .expect("a DEM")
+        })
+    });
+    g.bench_with_input(BenchmarkId::new("tiled_flow_all", 4096), &dem, |b, hf| {
+        b.iter(|| tiled_all(&layout, hf, settings.channel_area))
+    });
     g.finish();
+}
+
+/// The seven passes of the tiled drainage in one process, tiles one after another.
+fn tiled_all(
+    layout: &relief_landscape::flow::tiled::TileLayout,
+    hf: &relief_heightfield::Heightfield,
+    channel_area: f64,
+) -> usize {
+    use relief_landscape::flow::tiled::{self, Finished};
+    let all = tiled::run_in_memory(layout, hf.as_slice(), &mut |_, n| (0..n).collect())
+        .expect("a valid layout");
+    let w = layout.width;
+    let cut = |t: usize| {
+        let [x0, y0, tw, th] = layout.window(t);
+        let pick = |i: usize| (y0 + i / tw) * w + x0 + i % tw;
+        Finished {
+            filled: (0..tw * th).map(|i| all.filled[pick(i)]).collect(),
+            dir: (0..tw * th).map(|i| all.dir[pick(i)]).collect(),
+            cells: (0..tw * th).map(|i| all.cells[pick(i)]).collect(),
+        }
+    };
+    let n = layout.tasks();
+    let sums: Vec<_> = (0..n)
+        .map(|t| tiled::summarize(layout, t, &cut(t), channel_area).expect("a tile"))
+        .collect();
+    let levels = tiled::phase6(layout, &sums).expect("the summaries");
+    let nets: Vec<_> = (0..n)
+        .map(|t| {
+            let input = tiled::halo_window(layout, t, hf.as_slice()).expect("a tile");
+            let (r, net) = tiled::phase7(layout, t, &cut(t), &levels[t], &input, channel_area)
+                .expect("a tile");
+            std::hint::black_box(r);
+            net
+        })
+        .collect();
+    let (network, figures) = tiled::assemble(layout, hf.georef(), &nets).expect("the networks");
+    std::hint::black_box(network);
+    figures.reaches
 }
 
 fn stream_power(c: &mut Criterion) {

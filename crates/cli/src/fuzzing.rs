@@ -35,8 +35,9 @@ pub fn tile_record(bytes: &[u8]) {
 /// A task record of a flow plan: an accepted one lists only the files its task writes,
 /// inside the plan folder.
 pub fn flow_record(bytes: &[u8]) {
-    let m = crate::tile_manifest::sample(5);
-    for phase in 1..=5 {
+    let phases = relief_landscape::flow::tiled::PHASES;
+    let m = crate::tile_manifest::sample(phases);
+    for phase in 1..=phases {
         if let Some(files) = crate::commands::tile::record_files(&m, phase, 1, bytes) {
             assert!(files.iter().all(|f| is_inside_name(f)), "{files:?}");
         }

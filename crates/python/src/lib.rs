@@ -12,6 +12,7 @@ mod convert;
 mod detail;
 mod jobs;
 mod run;
+mod tiled;
 mod windows;
 
 use numpy::PyReadonlyArray2;
@@ -122,6 +123,15 @@ fn _relief(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(windows::_amplify_plan, m)?)?;
     m.add_function(wrap_pyfunction!(windows::refine_plan, m)?)?;
     m.add_function(wrap_pyfunction!(windows::_refine_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_tiles, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase1, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase2, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase3, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase4, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase5, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase6, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_phase7, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::flow_assemble, m)?)?;
     m.add_class::<windows::AmplifyPlan>()?;
     m.add_class::<windows::RefinePlan>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -86,3 +86,65 @@ def test_plans_pickle_and_unaligned_arrays_are_read():
     plan = _relief.refine_plan(COARSE, (60.0, 60.0), (None, None, None), '{"extra_levels": 2, "seed": 9}', False)
     again = pickle.loads(pickle.dumps(plan, protocol=5))
     assert same_bits(again.window(30, 20, 50, 40), single[20:60, 30:80])
+
+
+def _basin(w: int = 96, h: int = 90) -> np.ndarray:
+    """A bowl over the middle 3 x 3 tiles of 32 cells (filled to a lake over nine tiles), a
+    river winding across every tile edge, integer elevations (flats) and a few voids."""
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    u = np.random.default_rng(5).random((h, w))
+    r = np.hypot((x - w / 2) / w, (y - h / 2) / h)
+    bowl = np.where(r < 0.3, 10 + 60 * r, 28 + (r - 0.3) * 120)
+    path = h * (0.5 + 0.42 * np.sin(x / w * 9))
+    river = np.maximum(np.abs(y - path) - 2, 0) * 3 + x * 0.05
+    z = np.where(r < 0.3, bowl, np.where(np.abs(y - path) < 3, river, np.minimum(bowl, river + 6)))
+    z = np.floor(z + u * 2)
+    z[u < 0.005] = np.nan
+    return z.astype(np.float32)
+
+
+def _flow_equal(lazy: dict, single: dict, client=None) -> None:
+    import dask
+
+    keys = ("conditioned", "direction", "area", "strahler", "watersheds", "hand")
+    if client is None:
+        out = dask.compute(lazy)[0]
+    else:
+        futures = client.compute(list(lazy.values()))
+        out = dict(zip(list(lazy), client.gather(futures)))
+    for k in keys:
+        assert same_bits(np.asarray(out[k]), single[k]), k
+    assert out["channels"] == single["channels"]
+    assert len(out["channels"]["features"]) > 4
+
+
+def test_flow_on_two_worker_processes_equals_the_single_run(client):
+    dem = _basin()
+    single = relief.flow(dem, cell_size=(30, 20), channel_area=30 * 20 * 12)
+    for tile in (32, 16, 45):
+        lazy = rdask.flow(dem, tile=tile, cell_size=(30, 20), channel_area=30 * 20 * 12)
+        assert lazy["area"].numblocks == (-(-90 // tile), -(-96 // tile))
+        _flow_equal(lazy, single, client if tile == 32 else None)
+    # A dask array stays lazy: each tile's task reads its own slice.
+    lazy = rdask.flow(da.from_array(dem, chunks=40), tile=32, cell_size=(30, 20), channel_area=7200)
+    _flow_equal(lazy, single)
+    # The graph: per-tile tasks of phases 1, 3, 5, 7, one task of phases 2, 4, 6.
+    graph = dict(lazy["hand"].__dask_graph__())
+    for phase, count in ((1, 9), (2, 1), (3, 9), (4, 1), (5, 9), (6, 1), (7, 9)):
+        names = [k for k in graph if (k[0] if isinstance(k, tuple) else k).startswith(f"relief-flow-phase{phase}-")]
+        assert len(names) == count, (phase, names)
+
+
+def test_flow_of_a_real_dem_crop_equals_the_single_run():
+    r = relief.read(FIXTURE)
+    single = relief.flow(r, channel_area=2e5)
+    lazy = rdask.flow(r, tile=64, channel_area=2e5)
+    _flow_equal(lazy, single)
+
+
+def test_flow_refuses_what_has_no_tiled_form():
+    dem = _basin()
+    for bad, what in (({"depressions": "breach"}, "depressions"), ({"directions": "mfd"}, "directions"),
+                      ({"channel_area": -1.0}, "channel_area"), ({"lakes": 1}, "lakes")):
+        with pytest.raises(ValueError, match=what):
+            rdask.flow(dem, cell_size=30, **bad)

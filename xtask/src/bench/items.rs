@@ -466,6 +466,20 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
         units: Some((4096.0 * 4096.0, "cells")),
         note: "the CLI plan's per-task I/O and peak RSS: docs/SCALING.md (drainage)",
     },
+    // Issue 46: every product of `relief flow` (the seven passes: filling, directions, area,
+    // then Strahler order, watersheds, HAND and the network across tile edges) within 1.5x
+    // of `FlowSettings::run` on the same DEM.
+    WorkItem {
+        name: "tiled flow, all products, 4096^2 as 64 tiles of 512^2 (seven passes, one process)",
+        criterion_id: "landscape/tiled_flow_all/4096",
+        peer: Some(Peer {
+            source: PeerSource::Criterion("landscape/single_flow_all/4096"),
+            label: "the single run (FlowSettings::run: every raster and the network), 2 threads",
+        }),
+        goal: Goal::RatioAtMost(1.5),
+        units: Some((4096.0 * 4096.0, "cells")),
+        note: "the CLI plan's per-task I/O and peak RSS: docs/SCALING.md (drainage)",
+    },
     WorkItem {
         name: "Priority-Flood+epsilon + D8 area, 4096^2 (RichDEM's own method)",
         criterion_id: "landscape/fill_eps_d8/4096",

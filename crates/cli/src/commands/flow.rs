@@ -123,14 +123,14 @@ pub(crate) fn settings(args: &Args) -> Result<FlowSettings> {
 /// `flow.json` and what `--json` prints: the input, the settings and the figures.
 #[derive(Debug, Serialize)]
 pub(crate) struct Report {
-    file: String,
-    width: usize,
-    height: usize,
-    cell_size: (f64, f64),
-    crs: Option<String>,
-    settings: FlowSettings,
-    figures: FlowFigures,
-    outputs: Vec<&'static str>,
+    pub(crate) file: String,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) cell_size: (f64, f64),
+    pub(crate) crs: Option<String>,
+    pub(crate) settings: FlowSettings,
+    pub(crate) figures: FlowFigures,
+    pub(crate) outputs: Vec<&'static str>,
 }
 
 fn text(r: &Report, out: &std::path::Path) -> String {

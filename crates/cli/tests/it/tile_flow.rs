@@ -1,7 +1,8 @@
-//! `relief tile plan -- flow`: the five-phase drainage plan, run phase after phase as shuffled
-//! tasks two at a time (what `sbatch --dependency=afterok` chains do), with a killed task, a
-//! phase started too early and a damaged tile, mosaics into `relief flow`'s filled, direction
-//! and area rasters bit for bit, on a real DEM crop and on a synthetic basin spanning 3 x 3
+//! `relief tile plan -- flow`: the seven-phase drainage plan, run phase after phase as
+//! shuffled tasks two at a time (what `sbatch --dependency=afterok` chains do), with a killed
+//! task, a phase started too early and a damaged tile, mosaics into `relief flow`'s filled,
+//! direction, area, Strahler, watershed and HAND rasters bit for bit, its `channels.geojson`
+//! byte for byte and its figures, on a real DEM crop and on a synthetic basin spanning 3 x 3
 //! tiles with a river across every tile edge.
 
 use std::path::Path;
@@ -11,7 +12,14 @@ use relief_heightfield::Heightfield;
 
 use crate::common::*;
 
-const PRODUCTS: [&str; 3] = ["filled", "direction", "area"];
+const PRODUCTS: [&str; 6] = [
+    "filled",
+    "direction",
+    "area",
+    "strahler",
+    "watersheds",
+    "hand",
+];
 
 fn spawn(dir: &Path, phase: usize, i: usize) -> Child {
     command()
@@ -25,8 +33,8 @@ fn spawn(dir: &Path, phase: usize, i: usize) -> Child {
 
 /// Every phase in turn; the per-tile phases as shuffled tasks two at a time.
 fn run_phases(dir: &Path, n: usize, seed: u64) {
-    for phase in 1..=5 {
-        let mut order: Vec<usize> = if phase == 2 || phase == 4 {
+    for phase in 1..=7 {
+        let mut order: Vec<usize> = if phase == 2 || phase == 4 || phase == 6 {
             vec![0]
         } else {
             (0..n).collect()
@@ -75,32 +83,50 @@ fn assert_same(single: &Path, tiled: &Path) {
             "{p}: georeference"
         );
     }
+    let geojson = |d: &Path| std::fs::read(d.join("channels.geojson")).unwrap();
+    let (a, b) = (geojson(single), geojson(tiled));
+    assert!(a == b, "channels.geojson differs from the single run's");
+    let (a, b) = (
+        json(&single.join("flow.json")),
+        json(&tiled.join("flow.json")),
+    );
+    for k in ["width", "height", "cell_size", "crs", "settings", "figures"] {
+        assert_eq!(a[k], b[k], "flow.json: {k}");
+    }
+    assert!(!tiled.join("channels.png").exists());
 }
 
 fn tasks(dir: &Path) -> usize {
     json(&dir.join("manifest.json"))["tasks"].as_u64().unwrap() as usize
 }
 
-/// Single run, plan, a killed phase-1 task, phase 3 refused before phase 2, every phase as
+/// Single run, plan (which names the output it does not write), a killed phase-1 task, phase 3 refused before phase 2, every phase as
 /// shuffled tasks, a damaged tile found by status and redone, mosaic equal to the single run.
 fn cycle(dem: &Path, tile: usize, seed: u64) {
     let tmp = tempfile::tempdir().unwrap();
     let single = tmp.path().join("single");
     let tiled = tmp.path().join("tiled");
     let dir = tmp.path().join("plan");
-    relief_ok!["flow", dem, "-o", &single];
-    relief_ok![
-        "tile",
-        "plan",
-        &dir,
-        "--tile",
-        tile.to_string(),
-        "--",
-        "flow",
-        dem,
-        "-o",
-        &tiled
-    ];
+    // A channel area of a few hundred cells: a network crossing every tile edge.
+    relief_ok!["flow", dem, "-o", &single, "--channel-area", "2e5"];
+    let tile_s = tile.to_string();
+    let planned = relief_loud(&[
+        std::ffi::OsStr::new("tile"),
+        std::ffi::OsStr::new("plan"),
+        dir.as_os_str(),
+        std::ffi::OsStr::new("--tile"),
+        std::ffi::OsStr::new(&tile_s),
+        std::ffi::OsStr::new("--"),
+        std::ffi::OsStr::new("flow"),
+        dem.as_os_str(),
+        std::ffi::OsStr::new("-o"),
+        tiled.as_os_str(),
+        std::ffi::OsStr::new("--channel-area"),
+        std::ffi::OsStr::new("2e5"),
+    ]);
+    let note = String::from_utf8_lossy(&planned.stderr).to_string();
+    assert!(planned.status.success(), "{note}");
+    assert!(note.contains("not planned: channels.png"), "{note}");
     let n = tasks(&dir);
     assert!(n >= 4, "{n} tiles");
     let st = relief!["tile", "status", &dir];
@@ -162,6 +188,8 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
     relief_ok!["tile", "status", &dir];
     relief_ok!["tile", "mosaic", &dir];
     assert_same(&single, &tiled);
+    let reaches = json(&single.join("flow.json"))["figures"]["reaches"].as_u64();
+    assert!(reaches.unwrap() > 4, "{reaches:?} reaches");
     for p in PRODUCTS {
         assert!(dir.join(format!("mosaic-{p}.vrt")).exists());
     }
@@ -205,6 +233,8 @@ fn basin() -> Heightfield {
 /// `relief flow DEM EXTRA` and its plan as tiles of `tile` cells, every phase run: the same
 /// bytes.
 fn plan_equals_single(dem: &Path, tile: usize, extra: &[&str]) {
+    // A channel area of a few hundred cells, so that every small DEM has a network.
+    let extra = [extra, &["--channel-area", "1e5"]].concat();
     let tmp = tempfile::tempdir().unwrap();
     let (single, tiled, dir) = (
         tmp.path().join("s"),

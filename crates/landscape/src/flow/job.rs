@@ -157,11 +157,15 @@ impl FlowSettings {
         let outlets = (0..grid.len())
             .filter(|&i| r.outlet[i] && r.dir[i] == NO_FLOW)
             .count();
-        let dist = grid.distances();
-        let channel_m: f64 = (0..grid.len())
-            .filter(|&i| order[i] > 0 && r.dir[i] != NO_FLOW)
-            .map(|i| dist[r.dir[i] as usize])
-            .sum();
+        // Counted by direction, then multiplied: the same bits whatever order the cells are
+        // visited in (the tiled plan counts them tile by tile).
+        let mut steps = [0u64; 8];
+        for i in 0..grid.len() {
+            if order[i] > 0 && r.dir[i] != NO_FLOW {
+                steps[r.dir[i] as usize] += 1;
+            }
+        }
+        let channel_m = channel_length(&grid, &steps);
         let basin_area = |l: u32| basins.iter().filter(|&&b| b == l).count() as f64;
         let figures = FlowFigures {
             cells: grid.len(),
@@ -215,6 +219,16 @@ impl FlowSettings {
         progress.advance(1);
         Ok(out)
     }
+}
+
+/// Length (m) of the channel steps counted by direction (index into `D8`).
+pub fn channel_length(grid: &Grid, steps: &[u64; 8]) -> f64 {
+    let dist = grid.distances();
+    let mut m = 0.0;
+    for k in 0..8 {
+        m += steps[k] as f64 * dist[k];
+    }
+    m
 }
 
 /// The rasters and network of a flow run (all on the DEM's grid and georeference).

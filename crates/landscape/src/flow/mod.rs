@@ -4,7 +4,8 @@
 //! ([`network`]: Strahler order, channels as GeoJSON; [`basins`]: watersheds, HAND). [`tiled`]
 //! computes the filled surface, D8 directions and drainage area of a DEM larger than one
 //! machine in five passes over tiles (Barnes 2016, 2017), equal bit for bit to [`route`] and
-//! [`Routing::area_d8`].
+//! [`Routing::area_d8`], and the Strahler order, watersheds, HAND and channel network of
+//! [`job`] in two more.
 
 pub mod basins;
 pub mod job;

@@ -4,6 +4,7 @@
 use serde_json::{Value, json};
 
 use super::{Routing, receiver};
+use crate::grid::Grid;
 use relief_heightfield::GeoRef;
 
 /// Strahler order of every channel cell (`area >= threshold_m2`), 0 elsewhere: 1 at a
@@ -52,7 +53,8 @@ pub struct Reach {
 }
 
 /// Splits the channel network into reaches (each from a head, or from just below a
-/// confluence, down to the next confluence or the network's end).
+/// confluence, down to the next confluence or the network's end), in the row-major order of
+/// their first cells (an order the tiled run of [`super::tiled`] reproduces).
 pub fn reaches(r: &Routing, area: &[f64], strahler: &[u8]) -> Vec<Reach> {
     let n = r.grid.len();
     let mut channel_donors = vec![0u8; n];
@@ -66,8 +68,7 @@ pub fn reaches(r: &Routing, area: &[f64], strahler: &[u8]) -> Vec<Reach> {
     }
     let mut out = Vec::new();
     // A reach starts at a head (no channel donor) or at a confluence (two or more).
-    for &c in &r.order {
-        let c = c as usize;
+    for c in 0..n {
         if strahler[c] == 0 || channel_donors[c] == 1 {
             continue;
         }
@@ -107,14 +108,42 @@ pub fn epsg(georef: &GeoRef) -> Option<u16> {
 /// Map coordinates of a cell centre: through the georeference's affine transform, else metres
 /// from the north-west corner (x east, y north, so the first row has y = -cell_y / 2).
 pub fn cell_centre(r: &Routing, georef: Option<&GeoRef>, i: usize) -> [f64; 2] {
-    let (x, y) = (
-        (i % r.grid.width) as f64 + 0.5,
-        (i / r.grid.width) as f64 + 0.5,
-    );
+    centre(&r.grid, georef, i as u64)
+}
+
+/// [`cell_centre`] of cell `i` of a grid.
+pub fn centre(grid: &Grid, georef: Option<&GeoRef>, i: u64) -> [f64; 2] {
+    let w = grid.width as u64;
+    let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
     match georef.and_then(|g| g.geotransform) {
         Some(t) => [t[0] + x * t[1] + y * t[2], t[3] + x * t[4] + y * t[5]],
-        None => [x * r.grid.cell_x, -y * r.grid.cell_y],
+        None => [x * grid.cell_x, -y * grid.cell_y],
     }
+}
+
+/// One reach as a GeoJSON `Feature` (see [`geojson`]).
+pub fn feature(coords: Vec<[f64; 2]>, order: u8, area_m2: f64, length_m: f64) -> Value {
+    json!({
+        "type": "Feature",
+        "properties": {
+            "order": order,
+            "area_km2": area_m2 / 1e6,
+            "length_m": length_m,
+        },
+        "geometry": { "type": "LineString", "coordinates": coords },
+    })
+}
+
+/// The features as a GeoJSON `FeatureCollection` (see [`geojson`]).
+pub fn collection(features: Vec<Value>, georef: Option<&GeoRef>) -> Value {
+    let mut fc = json!({ "type": "FeatureCollection", "features": features });
+    if let Some(code) = georef.and_then(epsg) {
+        fc["crs"] = json!({
+            "type": "name",
+            "properties": { "name": format!("urn:ogc:def:crs:EPSG::{code}") },
+        });
+    }
+    fc
 }
 
 /// The reaches as a GeoJSON `FeatureCollection` of `LineString`s (properties: `order`,
@@ -136,23 +165,8 @@ pub fn geojson(r: &Routing, georef: Option<&GeoRef>, reaches: &[Reach]) -> Value
                 .take(reach.cells.len() - 1)
                 .map(|&c| dist[r.dir[c as usize] as usize])
                 .sum();
-            json!({
-                "type": "Feature",
-                "properties": {
-                    "order": reach.order,
-                    "area_km2": reach.area_m2 / 1e6,
-                    "length_m": length,
-                },
-                "geometry": { "type": "LineString", "coordinates": coords },
-            })
+            feature(coords, reach.order, reach.area_m2, length)
         })
         .collect();
-    let mut fc = json!({ "type": "FeatureCollection", "features": features });
-    if let Some(code) = georef.and_then(epsg) {
-        fc["crs"] = json!({
-            "type": "name",
-            "properties": { "name": format!("urn:ogc:def:crs:EPSG::{code}") },
-        });
-    }
-    fc
+    collection(features, georef)
 }

@@ -29,6 +29,14 @@
 //! 5. [`phase5`] (per tile): the final directions and the upstream cells of every cell, the
 //!    inflows of phase 4 added downstream of where they enter the tile (section 3.3).
 //!
+//! Two more passes give what `relief flow` derives from the D8 tree and the area
+//! ([`network`]): [`summarize`] (run with phase 5: where each perimeter cell's path goes in
+//! the tile, the tile's ends of the flow, its channel cells whose Strahler order depends on
+//! other tiles), 6. [`phase6`] (one task: watershed numbers by area, the paths chained tile to
+//! tile, those channel cells' orders), 7. [`phase7`] (per tile: Strahler order, watersheds,
+//! HAND, the channel cells and figures), and [`assemble`] (the channel network's GeoJSON and
+//! the figures from every tile's channel cells).
+//!
 //! Why it is exact: the filled elevation of a cell is the lowest, over its paths to an outlet,
 //! of the highest cell on the path (a minimax), whose value is one of the DEM's own values and
 //! does not depend on any order; phases 1-3 compute it as Barnes (2016) proves. Directions
@@ -57,11 +65,16 @@ use crate::{LandscapeError, Result};
 
 mod accum;
 mod fill;
+mod network;
 mod route;
 
 pub use accum::{Finished, Inflow, phase4, phase5};
 pub use fill::{FillGraph, Levels, LocalFill, phase1, phase2};
 use fill::{check_fill, check_graph};
+pub use network::{
+    Entry, Key, NetLevels, NetRasters, NetSummary, TileFigures, TileNetwork, assemble, phase6,
+    phase7, summarize,
+};
 pub use route::{FlatCell, PortGraph, Routed, phase3};
 
 /// A multiply-xorshift hasher for the integer keys of the passes' maps (cells, label pairs):
@@ -92,12 +105,12 @@ impl std::hash::Hasher for IntHasher {
 
 type IntMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<IntHasher>>;
 
-/// Number of passes of a tiled drainage run (three per tile, two single tasks).
-pub const PHASES: usize = 5;
+/// Number of passes of a tiled drainage run (four per tile, three single tasks).
+pub const PHASES: usize = 7;
 
 /// True for the passes that run as one task (the others run one task per tile).
 pub fn is_single(phase: usize) -> bool {
-    phase == 2 || phase == 4
+    phase == 2 || phase == 4 || phase == 6
 }
 
 /// Depth of the perimeter band a tile shares with its neighbours (the halo of phase 3).
@@ -397,7 +410,7 @@ pub fn halo_from_rows(
     Ok(out)
 }
 
-/// All five passes in one process, tasks in the order `order(phase, tasks)` gives (the tests
+/// The first five passes in one process, tasks in the order `order(phase, tasks)` gives (the tests
 /// shuffle it): the tiled run of [`TileLayout`] over `dem`, assembled.
 pub fn run_in_memory(
     layout: &TileLayout,

@@ -106,3 +106,39 @@ def _refine_plan(
     bytes: bytes, size: Tuple[int, int], cell_size: Cell, geo: Geo, settings_json: str, paper: bool
 ) -> RefinePlan:
     """Unpickles a RefinePlan."""
+
+# The passes of the tiled drainage (relief.dask.flow); Layout: (width, height, tile, cell_x,
+# cell_y); every product is the checked byte form of relief-landscape's flow::tiled.
+Layout = Tuple[int, int, int, float, float]
+
+def flow_tiles(layout: Layout) -> List[Tuple[int, int, int, int]]:
+    """Each tile's (x, y, width, height)."""
+
+def flow_phase1(layout: Layout, t: int, input: bytes) -> Tuple[bytes, bytes]:
+    """Phase 1 of tile t from the tile and its one-cell margin (little-endian f32 bytes):
+    (local fill, fill graph)."""
+
+def flow_phase2(layout: Layout, graphs: List[bytes]) -> List[bytes]:
+    """Phase 2: every tile's levels."""
+
+def flow_phase3(layout: Layout, t: int, fill: bytes, levels: List[bytes]) -> Tuple[bytes, bytes]:
+    """Phase 3 of tile t: (routed, port graph)."""
+
+def flow_phase4(layout: Layout, ports: List[bytes]) -> List[bytes]:
+    """Phase 4: every tile's inflows."""
+
+def flow_phase5(
+    layout: Layout, t: int, routed: bytes, inflow: bytes, channel_area: float
+) -> Tuple[F32, F32, F32, bytes]:
+    """Phase 5 of tile t: (filled, direction, area, network summary)."""
+
+def flow_phase6(layout: Layout, summaries: List[bytes]) -> List[bytes]:
+    """Phase 6: every tile's network levels."""
+
+def flow_phase7(
+    layout: Layout, t: int, routed: bytes, inflow: bytes, net: bytes, input: bytes, channel_area: float
+) -> Tuple[F32, F32, F32, bytes]:
+    """Phase 7 of tile t: (strahler, watersheds, hand, network)."""
+
+def flow_assemble(layout: Layout, geo: Geo, networks: List[bytes]) -> Tuple[str, str]:
+    """The channel network (GeoJSON text) and the figures (JSON text)."""

@@ -14,6 +14,11 @@ The work that is not per window runs once, here, when the array is built: for ``
 every x4 step but the last (a sixteenth of the last one's cells) and the last step's
 dictionary; for ``refine`` the wavelet analysis of the input. This plan is one task of the
 graph, pickled once to each worker that needs it.
+
+:func:`flow` is not a set of windows: drainage is global. It is the seven passes of relief's
+tiled drainage (Barnes 2016 and 2017, as ``relief tile plan -- flow`` runs them on Slurm) as
+tasks of the graph, per-tile passes and single passes in turn, each tile's products handed on as
+checked bytes; its arrays and network equal :func:`relief.flow` bit for bit.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import numpy as np
 import relief
 from relief import _relief
 
-__all__ = ["amplify", "refine", "assemble"]
+__all__ = ["amplify", "refine", "assemble", "flow"]
 
 
 def _no_landform(settings: dict) -> None:
@@ -119,3 +124,113 @@ def refine(terrain: Any, *, chunks: Any = 1024, cell_size: Any = None, **setting
 def plan_transform(plan: Any) -> Optional[Tuple[float, ...]]:
     """The rasterio-style affine 6-tuple of a plan's whole output, if its input had one."""
     return relief._affine(plan.transform)
+
+
+_FLOW_KEYS = ("depressions", "directions", "channel_area", "breach_depth", "breach_length", "mfd_exponent")
+
+
+def _halo(block: np.ndarray, pads: Tuple[Tuple[int, int], Tuple[int, int]]) -> bytes:
+    """A tile's input: its cells and a one-cell margin, NaN off the map, as little-endian f32
+    bytes (a worker may receive an array unaligned; bytes it reads as they are)."""
+    return np.pad(np.asarray(block, dtype=np.float32), pads, constant_values=np.nan).astype("<f4").tobytes()
+
+
+def _assemble_flow(layout: Any, geo: Any, networks: list) -> Tuple[dict, dict]:
+    import json
+
+    channels, figures = _relief.flow_assemble(layout, geo, list(networks))
+    return json.loads(channels), json.loads(figures)
+
+
+def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) -> dict:
+    """:func:`relief.flow` as a Dask graph of relief's tiled drainage: per tile of ``tile`` x
+    ``tile`` cells a task of phase 1 (local filling), one task of phase 2 (the spill levels of
+    all tiles), per tile phase 3 (filled tile, directions, local accumulation), one task of
+    phase 4 (the flats and flows crossing tile edges), per tile phase 5 (final filled surface,
+    directions, area), one task of phase 6 (watersheds, HAND bases and Strahler orders across
+    tile edges), per tile phase 7 (Strahler order, watersheds, HAND). Each task holds about one
+    tile; the single tasks hold the tiles' perimeters.
+
+    Returns a dict like :func:`relief.flow`'s: dask arrays ``conditioned``, ``direction``,
+    ``area``, ``strahler``, ``watersheds``, ``hand`` (one chunk per tile) and delayed values
+    ``channels`` (the GeoJSON network as a dict) and ``figures``; compute them together
+    (``dask.compute(result)``) to run the graph once. Equal bit for bit to :func:`relief.flow`
+    with the same settings. ``dem``: as for :func:`relief.flow`, or a dask array (kept lazy:
+    each tile's task reads its own slice; ``cell_size`` is then required). Only
+    ``depressions="fill"`` and ``directions="d8"`` (the defaults) have a tiled form."""
+    import dask
+    import dask.array as da
+
+    unknown = sorted(set(settings) - set(_FLOW_KEYS))
+    if unknown:
+        raise ValueError(f"unknown flow settings: {', '.join(unknown)}")
+    for key, only in (("depressions", "fill"), ("directions", "d8")):
+        if settings.get(key, only) != only:
+            raise ValueError(
+                f"{key}={settings[key]!r} has no tiled form equal to the single run: relief.dask.flow "
+                f"computes {key}={only!r} only (run relief.flow for the others)"
+            )
+    area = settings.get("channel_area", 1e6)
+    if not isinstance(area, (int, float)) or not (1e-6 <= float(area) <= 1e13):
+        raise ValueError(f"channel_area={area!r} must be a positive area in m^2 (at most 1e13)")
+    tile = int(tile)
+    if tile < 4 or tile > 32768:
+        raise ValueError(f"tile={tile} must be between 4 and 32768 cells")
+    data = getattr(dem, "data", None)
+    lazy = dem if hasattr(dem, "dask") else data if hasattr(data, "dask") else None
+    if lazy is not None:
+        cell = relief._cell(cell_size)
+        if cell is None:
+            raise ValueError("a dask array has no cell size: pass cell_size=(x, y) in metres")
+        arr, geo = lazy.astype(np.float32), (None, None, None)
+    else:
+        g = relief._grid(dem, cell_size)
+        cell = relief._need_cell(g, "DEM")
+        arr, geo = g.array, g.geo
+    if arr.ndim != 2 or 0 in arr.shape:
+        raise ValueError(f"the DEM must be a non-empty 2-D array, not of shape {arr.shape}")
+    h, w = arr.shape
+    layout = (w, h, tile, float(cell[0]), float(cell[1]))
+    tiles = _relief.flow_tiles(layout)
+    n = len(tiles)
+    token = uuid.uuid4().hex
+
+    def call(f: Any, phase: Any, *args: Any, nout: Optional[int] = None) -> Any:
+        return dask.delayed(f, pure=True, nout=nout)(*args, dask_key_name=phase)
+
+    def key(p: Any, t: Optional[int] = None) -> Any:
+        name = f"relief-flow-{p}-{token}"
+        return name if t is None else (name, t)
+
+    halos = []
+    for t, (x, y, tw, th) in enumerate(tiles):
+        x0, y0, x1, y1 = max(x - 1, 0), max(y - 1, 0), min(x + tw + 1, w), min(y + th + 1, h)
+        pads = ((y0 - (y - 1), (y + th + 1) - y1), (x0 - (x - 1), (x + tw + 1) - x1))
+        halos.append(call(_halo, key("input", t), arr[y0:y1, x0:x1], pads))
+    ca = float(area)
+    p1 = [call(_relief.flow_phase1, key("phase1", t), layout, t, halos[t], nout=2) for t in range(n)]
+    p2 = call(_relief.flow_phase2, key("phase2"), layout, [p[1] for p in p1])
+    p3 = [call(_relief.flow_phase3, key("phase3", t), layout, t, p1[t][0], p2, nout=2) for t in range(n)]
+    p4 = call(_relief.flow_phase4, key("phase4"), layout, [p[1] for p in p3], nout=n)
+    p5 = [call(_relief.flow_phase5, key("phase5", t), layout, t, p3[t][0], p4[t], ca, nout=4) for t in range(n)]
+    p6 = call(_relief.flow_phase6, key("phase6"), layout, [p[3] for p in p5], nout=n)
+    p7 = [
+        call(_relief.flow_phase7, key("phase7", t), layout, t, p3[t][0], p4[t], p6[t], halos[t], ca, nout=4)
+        for t in range(n)
+    ]
+    net = call(_assemble_flow, key("network"), layout, geo, [p[3] for p in p7], nout=2)
+    tiles_x = -(-w // tile)
+
+    def mosaic(parts: list, k: int) -> Any:
+        rows = []
+        for r in range(0, n, tiles_x):
+            rows.append([
+                da.from_delayed(parts[t][k], shape=(tiles[t][3], tiles[t][2]), dtype=np.float32)
+                for t in range(r, r + tiles_x)
+            ])
+        return da.block(rows)
+
+    out = {name: mosaic(p5, k) for k, name in enumerate(("conditioned", "direction", "area"))}
+    out.update({name: mosaic(p7, k) for k, name in enumerate(("strahler", "watersheds", "hand"))})
+    out["channels"], out["figures"] = net[0], net[1]
+    return out

@@ -25,9 +25,10 @@
 //!   Cloud-Optimized GeoTIFF with overviews under `--cog`) with one band of tiles in memory, and
 //!   writes `DIR/mosaic.vrt`, a GDAL VRT over the tiles.
 //!
-//! `relief tile plan DIR -- flow DEM -o OUT_DIR` plans drainage in five phases instead
+//! `relief tile plan DIR -- flow DEM -o OUT_DIR` plans drainage in seven phases instead
 //! ([`flow`]): `tile run --phase P`, `tile status` names the phase to run next, and the mosaic
-//! writes `OUT_DIR/{filled,direction,area}.tif`, equal bit for bit to `relief flow`'s.
+//! writes `OUT_DIR/{filled,direction,area,strahler,watersheds,hand}.tif`, `channels.geojson`
+//! and `flow.json`, equal to `relief flow`'s (all but its `channels.png` preview).
 //!
 //! Every method renders a window exactly as the same window of a full run (an `.sct` window, a
 //! wavelet window), so tiles need no halo and the mosaic equals the single run bit for bit,
@@ -65,7 +66,7 @@ pub(crate) struct Args {
 #[derive(Debug, clap::Subcommand)]
 enum TileCommand {
     /// Plan a windowable command (amplify, refine, decompress) as one task per output tile, or
-    /// flow as five phases (per tile, one task, per tile, one task, per tile); writes
+    /// flow as seven phases (per tile, then one task, in turn, ending per tile); writes
     /// DIR/manifest.json and the prepared inputs.
     Plan(PlanArgs),
     /// Run one task of a plan (index from --index, SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX
@@ -87,7 +88,8 @@ struct PlanArgs {
     tile: usize,
     /// The command to split, after `--`: amplify, refine or decompress with its arguments
     /// (its output must be a GeoTIFF (.tif) and it must not have --window), or flow (a
-    /// five-phase plan of filling, D8 directions and drainage area, equal to the single run;
+    /// seven-phase plan of filling, D8 directions, drainage area, Strahler order, watersheds,
+    /// HAND and channels, equal to the single run, without its channels.png preview;
     /// --depressions fill and --directions d8 only). masks and erode are refused: drainage is
     /// global and they have no exact multi-phase plan yet.
     #[arg(last = true, required = true, value_name = "COMMAND")]
@@ -124,7 +126,7 @@ struct MosaicArgs {
     #[arg(long)]
     bigtiff: bool,
     /// Only write DIR/mosaic.vrt (GDAL reads the tiles through it; flow plans:
-    /// DIR/mosaic-{filled,direction,area}.vrt), not the GeoTIFF.
+    /// DIR/mosaic-{filled,direction,area,strahler,watersheds,hand}.vrt), not the GeoTIFF.
     #[arg(long)]
     vrt_only: bool,
     /// Write the mosaic here (a GeoTIFF; flow plans: a folder) instead of the planned output.

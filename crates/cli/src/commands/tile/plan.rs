@@ -115,7 +115,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     {
         bail!(
             "`relief {other}` cannot be planned as tiles: a plan splits amplify, refine or \
-             decompress (one task per output tile, each an exact window) or flow (five phases)"
+             decompress (one task per output tile, each an exact window) or flow (seven phases)"
         );
     }
     let mut inner = Inner::try_parse_from(&a.command)

@@ -21,14 +21,14 @@ pub struct Inflow {
 
 impl TileLayout {
     /// The raster index of cell `c` of tile `t`.
-    fn global(&self, t: usize, c: u32) -> u64 {
+    pub(super) fn global(&self, t: usize, c: u32) -> u64 {
         let [x0, y0, w, _] = self.window(t);
         let c = c as usize;
         ((y0 + c / w) * self.width + x0 + c % w) as u64
     }
 
     /// The tile of raster cell `g` and its index there.
-    fn locate(&self, g: u64) -> (usize, u32) {
+    pub(super) fn locate(&self, g: u64) -> (usize, u32) {
         let (gx, gy) = (
             (g % self.width as u64) as usize,
             (g / self.width as u64) as usize,
@@ -39,7 +39,7 @@ impl TileLayout {
     }
 
     /// Neighbour `k` of raster cell `g`, if on the map.
-    fn neighbour(&self, g: u64, k: usize) -> Option<u64> {
+    pub(super) fn neighbour(&self, g: u64, k: usize) -> Option<u64> {
         let (gx, gy) = (
             (g % self.width as u64) as isize,
             (g / self.width as u64) as isize,

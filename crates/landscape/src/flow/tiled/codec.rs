@@ -385,3 +385,212 @@ impl Inflow {
         })
     }
 }
+
+const SUMMARY: &[u8; 8] = b"RLFTP5NS";
+const NETLEVELS: &[u8; 8] = b"RLFTP6NL";
+const NETWORK: &[u8; 8] = b"RLFTP7NW";
+
+/// An error naming the product of tile `t` unless its cells and values passed the checks.
+fn cells_in(t: usize, what: &str, ok: bool) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(bad(format!(
+            "{what} of tile {t}: a cell or value is out of range"
+        )))
+    }
+}
+
+impl NetSummary {
+    /// The byte form of tile `t`'s network summary.
+    pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
+        let [_, _, w, h] = layout.window(t);
+        let mut o = Out::new(SUMMARY, t, w, h);
+        o.u64(self.ends.len() as u64);
+        for &(c, n, z) in &self.ends {
+            o.u32(c);
+            o.u64(n);
+            o.f32(z);
+        }
+        o.u64(self.entries.len() as u64);
+        for e in &self.entries {
+            o.u32(e.cell);
+            o.u32(e.target);
+            o.u8(e.out);
+            o.f32(e.base);
+        }
+        o.u64(self.keys.len() as u64);
+        for k in &self.keys {
+            o.u32(k.cell);
+            o.u8(k.top.0);
+            o.u8(k.top.1);
+            o.u32(k.down);
+            o.u8(k.out);
+        }
+        o.0
+    }
+
+    /// Reads and checks tile `t`'s network summary.
+    pub fn from_bytes(b: &[u8], layout: &TileLayout, t: usize) -> Result<Self> {
+        let what = "network summary";
+        let mut r = In::new(b, SUMMARY, what, layout, t)?;
+        let [_, _, w, h] = layout.window(t);
+        let n = w * h;
+        let mut s = NetSummary::default();
+        for _ in 0..r.count(n, 16)? {
+            s.ends.push((r.u32()?, r.u64()?, r.f32()?));
+        }
+        for _ in 0..r.count(n, 13)? {
+            s.entries.push(Entry {
+                cell: r.u32()?,
+                target: r.u32()?,
+                out: r.u8()?,
+                base: r.f32()?,
+            });
+        }
+        for _ in 0..r.count(n, 11)? {
+            s.keys.push(Key {
+                cell: r.u32()?,
+                top: (r.u8()?, r.u8()?),
+                down: r.u32()?,
+                out: r.u8()?,
+            });
+        }
+        r.end()?;
+        let n = n as u32;
+        let sorted = s.ends.windows(2).all(|p| p[0].0 < p[1].0)
+            && s.entries.windows(2).all(|p| p[0].cell < p[1].cell)
+            && s.keys.windows(2).all(|p| p[0].cell < p[1].cell);
+        let ok = sorted
+            && s.ends.iter().all(|e| e.0 < n)
+            && s.entries
+                .iter()
+                .all(|e| e.cell < n && e.target < n && dir_ok(e.out))
+            && s.keys.iter().all(|k| {
+                k.cell < n && (k.down < n || k.down == NONE) && dir_ok(k.out) && k.top.1 <= 2
+            });
+        cells_in(t, what, ok)?;
+        Ok(s)
+    }
+}
+
+impl NetLevels {
+    /// The byte form of tile `t`'s network levels.
+    pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
+        let [_, _, w, h] = layout.window(t);
+        let mut o = Out::new(NETLEVELS, t, w, h);
+        o.u64(self.labels.len() as u64);
+        for &(c, l) in &self.labels {
+            o.u32(c);
+            o.u32(l);
+        }
+        o.u64(self.exits.len() as u64);
+        for &(c, l, b) in &self.exits {
+            o.u32(c);
+            o.u32(l);
+            o.f32(b);
+        }
+        o.u64(self.orders.len() as u64);
+        for &(c, k) in &self.orders {
+            o.u32(c);
+            o.u8(k);
+        }
+        o.0
+    }
+
+    /// Reads and checks tile `t`'s network levels.
+    pub fn from_bytes(b: &[u8], layout: &TileLayout, t: usize) -> Result<Self> {
+        let what = "network levels";
+        let mut r = In::new(b, NETLEVELS, what, layout, t)?;
+        let [_, _, w, h] = layout.window(t);
+        let n = w * h;
+        let mut s = NetLevels::default();
+        for _ in 0..r.count(n, 8)? {
+            s.labels.push((r.u32()?, r.u32()?));
+        }
+        for _ in 0..r.count(n, 12)? {
+            s.exits.push((r.u32()?, r.u32()?, r.f32()?));
+        }
+        for _ in 0..r.count(n, 5)? {
+            s.orders.push((r.u32()?, r.u8()?));
+        }
+        r.end()?;
+        let n = n as u32;
+        let ok = s.labels.iter().all(|l| l.0 < n)
+            && s.exits.iter().all(|e| e.0 < n)
+            && s.orders.iter().all(|o| o.0 < n);
+        cells_in(t, what, ok)?;
+        Ok(s)
+    }
+}
+
+impl TileNetwork {
+    /// The byte form of tile `t`'s channel cells and figures.
+    pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
+        let [_, _, w, h] = layout.window(t);
+        let mut o = Out::new(NETWORK, t, w, h);
+        let f = &self.figures;
+        for v in [f.voids, f.raised, f.lowered, f.sinks, f.outlets] {
+            o.u64(v);
+        }
+        o.f32(f.max_fill);
+        o.f32(f.max_cut);
+        f.channel_steps.iter().for_each(|&v| o.u64(v));
+        o.u64(f.largest_basin_cells);
+        o.u8(f.max_order);
+        o.u64(self.channels.len() as u64);
+        for &(c, d, n, k) in &self.channels {
+            o.u32(c);
+            o.u8(d);
+            o.u64(n);
+            o.u8(k);
+        }
+        o.0
+    }
+
+    /// Reads and checks tile `t`'s channel cells and figures.
+    pub fn from_bytes(b: &[u8], layout: &TileLayout, t: usize) -> Result<Self> {
+        let what = "network";
+        let mut r = In::new(b, NETWORK, what, layout, t)?;
+        let [_, _, w, h] = layout.window(t);
+        let n = w * h;
+        let mut f = TileFigures {
+            voids: r.u64()?,
+            raised: r.u64()?,
+            lowered: r.u64()?,
+            sinks: r.u64()?,
+            outlets: r.u64()?,
+            max_fill: r.f32()?,
+            max_cut: r.f32()?,
+            ..Default::default()
+        };
+        for k in 0..8 {
+            f.channel_steps[k] = r.u64()?;
+        }
+        f.largest_basin_cells = r.u64()?;
+        f.max_order = r.u8()?;
+        let mut channels = Vec::new();
+        for _ in 0..r.count(n, 14)? {
+            channels.push((r.u32()?, r.u8()?, r.u64()?, r.u8()?));
+        }
+        r.end()?;
+        let counts = [
+            f.voids,
+            f.raised,
+            f.lowered,
+            f.sinks,
+            f.outlets,
+            f.largest_basin_cells,
+        ];
+        let ok = counts.iter().all(|&v| v <= n as u64)
+            && f.channel_steps.iter().sum::<u64>() <= n as u64
+            && channels
+                .iter()
+                .all(|&(c, d, _, k)| (c as usize) < n && dir_ok(d) && k > 0);
+        cells_in(t, what, ok)?;
+        Ok(TileNetwork {
+            channels,
+            figures: f,
+        })
+    }
+}

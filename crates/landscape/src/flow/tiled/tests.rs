@@ -345,6 +345,10 @@ proptest::proptest! {
         let layout = TileLayout { width: w, height: h, tile, cell_x: 10.0, cell_y: 7.5 };
         let got = run_in_memory(&layout, &z, &mut shuffled(seed)).unwrap();
         assert_same(&got, &want, &format!("{w}x{h} tile {tile} seed {seed}"));
+        // The network's products too (a channel from a few cells up), unless all are voids.
+        if z.iter().any(|v| !v.is_nan()) {
+            check_network(&z, w, h, (10.0, 7.5), &[tile], 10.0 * 7.5 * 3.0, 0);
+        }
     }
 }
 
@@ -410,5 +414,137 @@ fn halos_cut_from_row_bands_equal_those_of_the_whole_dem() {
             assert!(halo_from_rows(&layout, t, &z[a * w..(b - 1) * w], a).is_err());
         }
         assert!(halo_from_rows(&layout, t, &z[a * w..b * w - 1], a).is_err());
+    }
+}
+
+/// Phases 6 and 7 after the tiled drainage of `z` (each tile's finished values cut from the
+/// assembled run, which equals the single run), their products through their byte forms: the
+/// Strahler order, watersheds, HAND, channel network and figures of `FlowSettings::run`.
+fn check_network(
+    z: &[f32],
+    w: usize,
+    h: usize,
+    cell: (f64, f64),
+    tiles: &[usize],
+    area: f64,
+    min_reaches: usize,
+) {
+    use crate::flow::job::FlowSettings;
+    let hf = relief_heightfield::Heightfield::new(w, h, z.to_vec(), cell.0, cell.1).unwrap();
+    let settings = FlowSettings {
+        channel_area: area,
+        ..Default::default()
+    };
+    let want = settings.run(&hf, &relief_heightfield::NoProgress).unwrap();
+    assert!(
+        want.figures.reaches >= min_reaches,
+        "{} reaches",
+        want.figures.reaches
+    );
+    for (k, &tile) in tiles.iter().enumerate() {
+        let layout = TileLayout {
+            width: w,
+            height: h,
+            tile,
+            cell_x: cell.0,
+            cell_y: cell.1,
+        };
+        let all = run_in_memory(&layout, z, &mut shuffled(k as u64 + 40)).unwrap();
+        let cut = |t: usize| {
+            let [x0, y0, tw, th] = layout.window(t);
+            let pick = |i: usize| (y0 + i / tw) * w + x0 + i % tw;
+            Finished {
+                filled: (0..tw * th).map(|i| all.filled[pick(i)]).collect(),
+                dir: (0..tw * th).map(|i| all.dir[pick(i)]).collect(),
+                cells: (0..tw * th).map(|i| all.cells[pick(i)]).collect(),
+            }
+        };
+        let sums: Vec<NetSummary> = (0..layout.tasks())
+            .map(|t| {
+                let s = summarize(&layout, t, &cut(t), area).unwrap();
+                NetSummary::from_bytes(&s.to_bytes(&layout, t), &layout, t).unwrap()
+            })
+            .collect();
+        let levels = phase6(&layout, &sums).unwrap();
+        let mut strahler = vec![f32::NAN; w * h];
+        let mut sheds = vec![f32::NAN; w * h];
+        let mut hand = vec![0f32; w * h];
+        let mut nets = Vec::new();
+        for t in shuffled(k as u64 + 41)(7, layout.tasks()) {
+            let lv = NetLevels::from_bytes(&levels[t].to_bytes(&layout, t), &layout, t).unwrap();
+            let input = halo_window(&layout, t, z).unwrap();
+            let (r, net) = phase7(&layout, t, &cut(t), &lv, &input, area).unwrap();
+            let (o, l, hd) = (r.strahler, r.watersheds, r.hand);
+            let net = TileNetwork::from_bytes(&net.to_bytes(&layout, t), &layout, t).unwrap();
+            let [x0, y0, tw, _] = layout.window(t);
+            for i in 0..o.len() {
+                let g = (y0 + i / tw) * w + x0 + i % tw;
+                if !z[g].is_nan() {
+                    strahler[g] = o[i] as f32;
+                    sheds[g] = l[i] as f32;
+                }
+                hand[g] = hd[i];
+            }
+            nets.push((t, net));
+        }
+        nets.sort_by_key(|n| n.0);
+        let nets: Vec<TileNetwork> = nets.into_iter().map(|n| n.1).collect();
+        let (geojson, figures) = assemble(&layout, None, &nets).unwrap();
+        let what = format!("tile {tile}");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&strahler),
+            bits(want.strahler.as_slice()),
+            "{what}: Strahler"
+        );
+        assert_eq!(
+            bits(&sheds),
+            bits(want.watersheds.as_slice()),
+            "{what}: watersheds"
+        );
+        assert_eq!(bits(&hand), bits(want.hand.as_slice()), "{what}: HAND");
+        assert_eq!(figures, want.figures, "{what}: figures");
+        assert_eq!(
+            serde_json::to_string(&geojson).unwrap(),
+            serde_json::to_string(&want.channels).unwrap(),
+            "{what}: network"
+        );
+    }
+}
+
+#[test]
+fn network_products_of_a_basin_and_a_river_equal_the_single_run() {
+    let (w, h) = (96, 90);
+    for voids in [false, true] {
+        let z = basin_and_river(w, h, voids);
+        check_network(
+            &z,
+            w,
+            h,
+            (30.0, 20.0),
+            &[32, 4, 7, 16, 31, 96],
+            30.0 * 20.0 * 12.0,
+            20,
+        );
+    }
+}
+
+#[test]
+fn network_products_of_the_shared_dems_equal_the_single_run() {
+    for (id, crop, tiles, area) in [
+        (
+            "jacksboro_fault",
+            (192, 64, 128, 128),
+            &[16, 23, 48][..],
+            5e4,
+        ),
+        ("alps_dem", (600, 200, 300, 200), &[32, 96][..], 2e5),
+        ("N47E011", (0, 0, 400, 300), &[64, 144][..], 3e5),
+    ] {
+        let Some(hf) = relief_testdata::dem_crop(id, crop.0, crop.1, crop.2, crop.3) else {
+            return;
+        };
+        let (w, h) = (hf.width(), hf.height());
+        check_network(hf.as_slice(), w, h, hf.cell_size(), tiles, area, 4);
     }
 }

@@ -1,0 +1,292 @@
+//! `relief tile run` on a flow plan: the phase and task to run, and each phase's task.
+
+use super::*;
+
+/// `relief tile run` on a flow plan.
+pub(in crate::commands::tile) fn run_task(
+    dir: &Path,
+    m: &Manifest,
+    a: &RunArgs,
+    ctx: &Ctx,
+) -> Result<()> {
+    let layout = layout(m)?;
+    check_folders(dir)?;
+    let phase = match a.phase {
+        Some(p) if (1..=PHASES).contains(&p) => p,
+        Some(p) => bail!("--phase {p} is out of range: a flow plan has phases 1 to {PHASES}"),
+        // The first phase with a task unrecorded, or whose task of this index (0 for a
+        // single phase) is not done (its own files are checked, not the whole plan's).
+        None => {
+            let own = super::task::task_index(a.index).unwrap_or(0);
+            let next = (1..=PHASES).find(|&p| {
+                let i = if tiled::is_single(p) { 0 } else { own };
+                (0..tasks_of(p, m)).any(|j| load_record(dir, m, p, j).is_none())
+                    || (i < m.tasks && task_state(dir, m, p, i) != TileState::Done)
+            });
+            match next {
+                Some(p) => p,
+                None => {
+                    ctx.note("every phase of the plan is done: relief tile mosaic can assemble it");
+                    return Ok(());
+                }
+            }
+        }
+    };
+    // Earlier phases must be complete (a dependency that did not hold): every task recorded.
+    // The files this task reads are checked against their records when read; hashing every
+    // earlier product here would make each task read the whole plan.
+    for p in 1..phase {
+        let bad: Vec<usize> = (0..tasks_of(p, m))
+            .filter(|&i| load_record(dir, m, p, i).is_none())
+            .collect();
+        if !bad.is_empty() {
+            bail!(
+                "phase {phase} cannot run: phase {p} is incomplete (tasks {} are missing or \
+                 corrupt); run them first",
+                ranges(&bad)
+            );
+        }
+    }
+    let index = if tiled::is_single(phase) {
+        match a.index {
+            None | Some(0) => 0,
+            Some(i) => bail!("phase {phase} is one task (index 0), not task {i}"),
+        }
+    } else {
+        let i = match a.index {
+            Some(i) => i,
+            None if INDEX_VARS.iter().any(|v| std::env::var_os(v).is_some()) => {
+                super::task::task_index(None)?
+            }
+            None => bail!(
+                "no task index for phase {phase} (one task per tile): pass --index or run under \
+                 a job array ({})",
+                INDEX_VARS.join(", ")
+            ),
+        };
+        if i >= m.tasks {
+            bail!(
+                "task index {i} is out of range: the plan has {} tiles (0..{})",
+                m.tasks,
+                m.tasks - 1
+            );
+        }
+        i
+    };
+    if task_state(dir, m, phase, index) == TileState::Done {
+        ctx.note(format!("phase {phase} task {index} is already done"));
+        return Ok(());
+    }
+    let outputs: Vec<(String, Vec<u8>)> = match phase {
+        1 => phase1(dir, m, &layout, index)?,
+        2 => phase2(dir, m, &layout)?,
+        3 => phase3(dir, m, &layout, index)?,
+        4 => phase4(dir, m, &layout)?,
+        5 => phase5(dir, m, &layout, index)?,
+        6 => phase6(dir, m, &layout)?,
+        _ => phase7(dir, m, &layout, index)?,
+    };
+    let names = outputs_of(phase, index, m.tasks);
+    let mut files = Vec::with_capacity(outputs.len());
+    for ((name, bytes), want) in outputs.iter().zip(&names) {
+        debug_assert_eq!(name, want);
+        let path = dir.join(name);
+        relief_io::write_bytes_atomic(&path, bytes)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        files.push(bytes_sum(bytes, name.clone()));
+    }
+    let rec = PhaseRecord {
+        plan_id: m.plan_id.clone(),
+        phase,
+        index,
+        files,
+    };
+    let json = crate::staging::json_text(&rec)?;
+    let rp = dir.join(record_name(phase, index));
+    relief_io::write_bytes_atomic(&rp, json.as_bytes())
+        .with_context(|| format!("cannot write {}", rp.display()))?;
+    ctx.note(format!("phase {phase} task {index} done"));
+    Ok(())
+}
+
+fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let hf = read_input(dir, m, l, t)?;
+    let (fill, graph) = tiled::phase1(l, t, hf.as_slice())?;
+    let names = outputs_of(1, t, m.tasks);
+    Ok(vec![
+        (names[0].clone(), fill.to_bytes(t)),
+        (names[1].clone(), graph.to_bytes(l, t)),
+    ])
+}
+
+/// Tile `t`'s input (the tile and its one-cell margin), checked against the input index.
+fn read_input(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Heightfield> {
+    // The input index is checked against the manifest, the tile's input against the index.
+    let index_bytes = read_plan_file(dir, INPUT_INDEX, 4096 + 256 * m.tasks as u64)?;
+    if bytes_sum(&index_bytes, m.prepared.path.clone()) != m.prepared {
+        bail!(
+            "{} does not match its checksum in the manifest (corrupt or replaced); plan again",
+            dir.join(INPUT_INDEX).display()
+        );
+    }
+    let index: Vec<FileSum> = serde_json::from_slice(&index_bytes)
+        .with_context(|| format!("{} is not an input index", dir.join(INPUT_INDEX).display()))?;
+    let name = input_name(t);
+    let want = index
+        .get(t)
+        .filter(|s| s.path == name && index.len() == m.tasks)
+        .with_context(|| format!("{} does not list tile {t}", INPUT_INDEX))?;
+    let [_, _, w, h] = l.window(t);
+    let bytes = read_plan_file(dir, &name, (1 << 20) + (16 * (w + 2) * (h + 2)) as u64)?;
+    if bytes_sum(&bytes, name.clone()) != *want {
+        bail!(
+            "{} does not match its checksum in {INPUT_INDEX} (corrupt or replaced); plan again",
+            dir.join(&name).display()
+        );
+    }
+    let hf = relief_io::read_bytes(&bytes, Some(Path::new("tile.tif")), &Default::default())
+        .with_context(|| format!("cannot read {}", dir.join(&name).display()))?
+        .heightfield;
+    if (hf.width(), hf.height()) != (w + 2, h + 2) {
+        bail!(
+            "{} is {} x {}, not the {} x {} of tile {t} and its margin",
+            dir.join(&name).display(),
+            hf.width(),
+            hf.height(),
+            w + 2,
+            h + 2
+        );
+    }
+    Ok(hf)
+}
+
+fn phase2(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
+    let graphs = (0..m.tasks)
+        .into_par_iter()
+        .map(|t| {
+            let b = read_product(dir, m, 1, t, 1, t)?;
+            Ok(FillGraph::from_bytes(&b, l, t)?)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let levels = tiled::phase2(l, &graphs)?;
+    let names = outputs_of(2, 0, m.tasks);
+    Ok(levels
+        .iter()
+        .enumerate()
+        .map(|(t, lv)| (names[t].clone(), lv.to_bytes(l, t)))
+        .collect())
+}
+
+fn phase3(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let fill = LocalFill::from_bytes(&read_product(dir, m, 1, t, 0, t)?, l, t)?;
+    let near = l
+        .neighbourhood(t)
+        .into_iter()
+        .map(|u| {
+            let b = read_product(dir, m, 2, 0, u, u)?;
+            Ok((u, Levels::from_bytes(&b, l, u)?))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let refs: Vec<(usize, &Levels)> = near.iter().map(|(u, lv)| (*u, lv)).collect();
+    let (routed, ports) = tiled::phase3(l, t, &fill, &refs)?;
+    let names = outputs_of(3, t, m.tasks);
+    Ok(vec![
+        (names[0].clone(), routed.to_bytes(l, t)),
+        (names[1].clone(), ports.to_bytes(l, t)),
+    ])
+}
+
+fn phase4(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
+    let graphs = (0..m.tasks)
+        .into_par_iter()
+        .map(|t| {
+            let b = read_product(dir, m, 3, t, 1, t)?;
+            Ok(PortGraph::from_bytes(&b, l, t)?)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let inflow = tiled::phase4(l, &graphs)?;
+    let names = outputs_of(4, 0, m.tasks);
+    Ok(inflow
+        .iter()
+        .enumerate()
+        .map(|(t, f)| (names[t].clone(), f.to_bytes(l, t)))
+        .collect())
+}
+
+/// Tile `t`'s final filled elevations, directions and upstream cells (phase 5's values, which
+/// phase 7 computes again rather than decoding three rasters).
+fn finished(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<tiled::Finished> {
+    let routed = Routed::from_bytes(&read_product(dir, m, 3, t, 0, t)?, l, t)?;
+    let inflow = Inflow::from_bytes(&read_product(dir, m, 4, 0, t, t)?, l, t)?;
+    Ok(tiled::phase5(l, t, &routed, &inflow)?)
+}
+
+/// The channel area of the plan's settings.
+fn channel_area(m: &Manifest) -> Result<f64> {
+    let job: FlowJob = serde_json::from_value(m.job.clone())
+        .context("the manifest's job is not a flow job's settings")?;
+    job.flow.check().map_err(crate::args::flag_error)?;
+    Ok(job.flow.channel_area)
+}
+
+fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let f = finished(dir, m, l, t)?;
+    let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
+    let [x, y, w, h] = l.window(t);
+    let georef = m
+        .output
+        .georef
+        .as_ref()
+        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
+    // The same values `relief flow` writes (relief-landscape's `FlowSettings::run`).
+    let (dir_codes, area) = (f.direction_codes(), f.area(l));
+    let names = outputs_of(5, t, m.tasks);
+    let mut out = Vec::with_capacity(4);
+    for (name, data) in names.iter().zip([f.filled, dir_codes, area]) {
+        let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
+        out.push((name.clone(), deflate_geotiff(&hf)?));
+    }
+    out.push((names[3].clone(), summary));
+    Ok(out)
+}
+
+fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
+    let sums = (0..m.tasks)
+        .into_par_iter()
+        .map(|t| {
+            let b = read_product(dir, m, 5, t, 3, t)?;
+            Ok(tiled::NetSummary::from_bytes(&b, l, t)?)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let levels = tiled::phase6(l, &sums)?;
+    let names = outputs_of(6, 0, m.tasks);
+    Ok(levels
+        .iter()
+        .enumerate()
+        .map(|(t, lv)| (names[t].clone(), lv.to_bytes(l, t)))
+        .collect())
+}
+
+fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    let f = finished(dir, m, l, t)?;
+    let levels = tiled::NetLevels::from_bytes(&read_product(dir, m, 6, 0, t, t)?, l, t)?;
+    let input = read_input(dir, m, l, t)?;
+    let (r, net) = tiled::phase7(l, t, &f, &levels, input.as_slice(), channel_area(m)?)?;
+    let [x, y, w, h] = l.window(t);
+    let georef = m
+        .output
+        .georef
+        .as_ref()
+        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
+    // The same values `relief flow` writes: voids NaN in the order and the watersheds.
+    let (order, label) = r.to_f32(w, input.as_slice());
+    let hand = r.hand;
+    let names = outputs_of(7, t, m.tasks);
+    let mut out = Vec::with_capacity(4);
+    for (name, data) in names.iter().zip([order, label, hand]) {
+        let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
+        out.push((name.clone(), deflate_geotiff(&hf)?));
+    }
+    out.push((names[3].clone(), net.to_bytes(l, t)));
+    Ok(out)
+}
