@@ -340,10 +340,7 @@ fn a_forced_run_replaces_an_earlier_run_all_or_nothing() {
     );
     assert!(after.contains(&"summary.json".to_string()), "{after:?}");
     // Nothing hidden is left beside it.
-    let hidden: Vec<String> = files(tmp.path())
-        .into_iter()
-        .filter(|f| f.starts_with('.'))
-        .collect();
+    let hidden = hidden_files(tmp.path());
     assert!(hidden.is_empty(), "{hidden:?}");
 }
 
