@@ -140,6 +140,20 @@ impl std::fmt::Display for Stopped {
 
 impl std::error::Error for Stopped {}
 
+/// Ends a command's writing: `commit` makes its staged outputs final, unless the run went past
+/// `--max-time` meanwhile (writing asks no deadline: a late run is not committed, its staged
+/// files are removed). `progress` ends here.
+pub(crate) fn commit_in_time(
+    command: &str,
+    progress: impl relief_heightfield::Progress,
+    commit: impl FnOnce() -> Result<()>,
+) -> Result<()> {
+    if progress.stopped() {
+        return Err(Stopped(format!("{command}, after writing the outputs")).into());
+    }
+    commit()
+}
+
 /// Rasters of at least this many cells get a time estimate (smaller ones take seconds).
 const PILOT_FROM_CELLS: usize = 1 << 20;
 /// The pilot rasterises this many evenly spaced row strips ...

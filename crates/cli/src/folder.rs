@@ -59,10 +59,7 @@ impl FolderOutputs {
                 dir.display()
             ),
             Err(_) => {
-                let parent = match dir.parent() {
-                    Some(p) if !p.as_os_str().is_empty() => p,
-                    _ => Path::new("."),
-                };
+                let parent = crate::outputs::parent_folder(dir);
                 if !parent.is_dir() {
                     bail!(
                         "cannot create the output folder {}: {} is not a folder",

@@ -92,18 +92,13 @@ pub(crate) fn check_extension(path: &Path, kind: OutKind) -> Result<()> {
 
 /// The files written for an output: the path itself, plus the `.json` sidecar of an `.f32`
 /// and the `.prj` of an ESRI ASCII grid.
+/// (A raster writes the sidecar its reader reads: the files of [`read_files`].)
 fn written_files(path: &Path, kind: OutKind) -> Vec<PathBuf> {
-    let mut v = vec![path.to_path_buf()];
     if matches!(kind, OutKind::Raster | OutKind::RasterOrSct) {
-        if ext_of(path) == "f32" {
-            v.push(path.with_extension("json"));
-        } else if matches!(ext_of(path).as_str(), "asc" | "grd") {
-            v.push(path.with_extension("prj"));
-        } else if relief_io::heightmap16::is_heightmap16(path) {
-            v.push(relief_io::heightmap16::heightmap_sidecar(path));
-        }
+        read_files(path)
+    } else {
+        vec![path.to_path_buf()]
     }
-    v
 }
 
 /// The files read for an input: the path itself, plus the `.json` sidecar of an `.f32`, the
@@ -120,6 +115,14 @@ fn read_files(path: &Path) -> Vec<PathBuf> {
         v.push(relief_io::heightmap16::heightmap_sidecar(path));
     }
     v
+}
+
+/// The folder `path` is in (`.` for a bare file name).
+pub(crate) fn parent_folder(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
 }
 
 /// Whether two existing paths name the same file (same device and inode on Unix, same
@@ -202,10 +205,7 @@ pub(crate) fn check_outputs(
     let mut planned: Vec<PathBuf> = Vec::new();
     for &(out, kind) in outputs {
         check_extension(out, kind)?;
-        let folder = match out.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let folder = parent_folder(out);
         if !folder.is_dir() {
             bail!(
                 "cannot write {}: {} {}",
@@ -270,10 +270,7 @@ pub(crate) fn check_outputs(
     // Hidden temporaries that killed runs left in the output folders go now, whatever output
     // they were for.
     for file in &planned {
-        match file.parent() {
-            Some(d) if !d.as_os_str().is_empty() => relief_io::remove_stale_temporaries(d),
-            _ => relief_io::remove_stale_temporaries(Path::new(".")),
-        }
+        relief_io::remove_stale_temporaries(parent_folder(file));
     }
     Ok(())
 }

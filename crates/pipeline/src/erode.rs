@@ -16,18 +16,7 @@ use relief_landscape::stats::{DrainageStats, drainage};
 use serde::{Deserialize, Serialize};
 
 use super::report::fmt_num;
-use super::{Stage, StageCx};
-
-/// The terrain the `erode` stage works on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub(crate) enum ErodeInput {
-    /// The input DEM as loaded (void-filled when it has voids); the terrain is not changed.
-    #[default]
-    Source,
-    /// The current terrain, replaced by the eroded one.
-    Terrain,
-}
+use super::{Stage, StageCx, StageInput};
 
 /// Parameters of the `erode` stage.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -35,8 +24,9 @@ pub(crate) enum ErodeInput {
 pub(crate) struct ErodeParams {
     /// The job, exactly as `relief erode` builds it (`preset` and its overrides).
     pub(crate) job: ErodeSettings,
-    /// Which terrain is eroded.
-    pub(crate) input: ErodeInput,
+    /// Which terrain is eroded: the input DEM as loaded (the terrain is not changed) or the
+    /// current terrain (replaced by the eroded one).
+    pub(crate) input: StageInput,
     /// The terrain's centre is cropped to at most this many cells per side (0 = no crop).
     pub(crate) max_size: usize,
     /// Also run every preset and show each beside the input.
@@ -47,7 +37,7 @@ impl Default for ErodeParams {
     fn default() -> Self {
         Self {
             job: ErodeSettings::default(),
-            input: ErodeInput::Source,
+            input: StageInput::Source,
             max_size: 1024,
             presets: true,
         }
@@ -72,20 +62,9 @@ impl ErodeStage {
 impl Stage for ErodeStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        let (terrain, which) = match p.input {
-            ErodeInput::Source => cx.state.complete_source("erode", "terrain")?,
-            ErodeInput::Terrain => (cx.state.terrain()?.clone(), "the current terrain"),
-        };
-        cx.section.figure("input", which);
+        let (terrain, _) = cx.input_terrain("erode", p.input)?;
         let (w, h) = (terrain.width(), terrain.height());
-        let dem = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
-            let (cw, ch) = (w.min(p.max_size), h.min(p.max_size));
-            let (x, y) = ((w - cw) / 2, (h - ch) / 2);
-            cx.section.figure("crop", [x, y, cw, ch]);
-            terrain.crop(x, y, cw, ch)?
-        } else {
-            terrain
-        };
+        let dem = cx.centre_crop_to(terrain, p.max_size)?;
         // Pre-flight under `relief run --max-memory`: the library's bytes per cell of the
         // erosion and the stage's copies of its rasters.
         cx.config.limits.check_memory(
@@ -171,7 +150,7 @@ impl Stage for ErodeStage {
             &["surface", "seconds", "pits / km2", "fill depth (m)", "beta"],
             rows,
         );
-        if p.input == ErodeInput::Terrain && (w, h) == (dem.width(), dem.height()) {
+        if p.input == StageInput::Terrain && (w, h) == (dem.width(), dem.height()) {
             cx.state.set_terrain(out.terrain);
         }
         Ok(())
@@ -228,7 +207,7 @@ fn eroded(hf: &relief_heightfield::Heightfield) -> relief_heightfield::Heightfie
 
 #[cfg(test)]
 mod tests {
-    use super::super::{PipelineConfig, Section, State};
+    use super::super::State;
     use super::*;
 
     /// On a crop of the fixture: the eroded terrain is saved, the figures and the drainage
@@ -236,42 +215,29 @@ mod tests {
     /// `input: terrain`.
     #[test]
     fn stage_erodes_the_source_or_the_terrain() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            previews: false,
-            ..PipelineConfig::full(&root)
-        };
-        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
-        let src = raster.heightfield.crop(100, 100, 96, 80).unwrap();
-        for input in [ErodeInput::Source, ErodeInput::Terrain] {
+        let (mut config, _tmp) = crate::test_config(None);
+        config.previews = false;
+        let src = crate::test_input_crop(&config, (100, 100, 96, 80));
+        for input in [StageInput::Source, StageInput::Terrain] {
             let mut state = State {
                 source: Some(src.clone()),
                 ..Default::default()
             };
             state.set_terrain(src.clone());
-            let mut section = Section::new("erode");
-            let mut cx = StageCx {
-                config: &config,
-                state: &mut state,
-                section: &mut section,
-            };
             let stage = ErodeStage::new(ErodeParams {
                 input,
                 ..Default::default()
             })
             .unwrap();
-            stage.run(&mut cx).unwrap();
+            let section = crate::run_stage(&stage, "erode", &config, &mut state).unwrap();
             assert!(section.figures.get("eroded_m3").unwrap().as_f64().unwrap() > 0.0);
             assert!(section.figures.contains_key("beta"));
             let expected = eroded(&src);
             assert_eq!(state.outputs[0].raster.as_slice(), expected.as_slice());
             let t = state.terrain().unwrap();
             match input {
-                ErodeInput::Source => assert_eq!(t.as_slice(), src.as_slice()),
-                ErodeInput::Terrain => assert_eq!(t.as_slice(), expected.as_slice()),
+                StageInput::Source => assert_eq!(t.as_slice(), src.as_slice()),
+                StageInput::Terrain => assert_eq!(t.as_slice(), expected.as_slice()),
             }
         }
         assert!(

@@ -151,7 +151,7 @@ impl FlowStage {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{PipelineConfig, Section, State};
+    use super::super::State;
     use super::*;
 
     /// On a crop of the fixture: figures, the drainage statistics of the terrain and of the
@@ -159,32 +159,19 @@ mod tests {
     /// channel map.
     #[test]
     fn stage_reports_drainage_of_the_terrain_and_the_input() {
-        let root = crate::test_root();
-        let tmp = tempfile::tempdir().unwrap();
-        let config = PipelineConfig {
-            out_dir: tmp.path().to_path_buf(),
-            verbose: false,
-            ..PipelineConfig::full(&root)
-        };
-        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
-        let src = raster.heightfield.crop(100, 100, 160, 144).unwrap();
+        let (config, tmp) = crate::test_config(None);
+        let src = crate::test_input_crop(&config, (100, 100, 160, 144));
         let mut state = State {
             source: Some(src.clone()),
             ..Default::default()
         };
         state.set_terrain(src.crop(0, 0, 150, 130).unwrap());
-        let mut section = Section::new("flow");
-        let mut cx = StageCx {
-            config: &config,
-            state: &mut state,
-            section: &mut section,
-        };
         let stage = FlowStage::new(FlowSettings {
             channel_area: 2e5,
             ..Default::default()
         })
         .unwrap();
-        stage.run(&mut cx).unwrap();
+        let section = crate::run_stage(&stage, "flow", &config, &mut state).unwrap();
         let fig = |k: &str| section.figures.get(k).cloned().unwrap_or_default();
         assert!(
             fig("reaches").as_u64().unwrap() > 0,

@@ -233,6 +233,18 @@ impl State {
     }
 }
 
+/// The terrain a stage works on (its `input` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub(crate) enum StageInput {
+    /// The input DEM as loaded when it is void-free, else the current terrain (see
+    /// [`State::complete_source`]).
+    #[default]
+    Source,
+    /// The current terrain: the previous stage's output.
+    Terrain,
+}
+
 /// Everything a stage may touch while it runs.
 #[derive(Debug)]
 pub struct StageCx<'a> {
@@ -277,6 +289,38 @@ impl StageCx<'_> {
             .with_context(|| format!("cannot write {}", png.display()))?;
         self.section.image(&format!("{name}.png"), caption);
         Ok(())
+    }
+
+    /// The terrain `input` names for the `stage` stage and which one it is (the figure
+    /// `input`).
+    pub(crate) fn input_terrain(
+        &mut self,
+        stage: &str,
+        input: StageInput,
+    ) -> Result<(Heightfield, &'static str)> {
+        let (terrain, which) = match input {
+            StageInput::Source => self.state.complete_source(stage, "terrain")?,
+            StageInput::Terrain => (self.state.terrain()?.clone(), "the current terrain"),
+        };
+        self.section.figure("input", which);
+        Ok((terrain, which))
+    }
+
+    /// The centre of `hf` cropped to at most `max_size` cells per side (0 = no crop); the
+    /// figure `crop` gives the window `[x, y, w, h]` when it is cropped.
+    pub(crate) fn centre_crop_to(
+        &mut self,
+        hf: Heightfield,
+        max_size: usize,
+    ) -> Result<Heightfield> {
+        let (w, h) = (hf.width(), hf.height());
+        if max_size == 0 || (w <= max_size && h <= max_size) {
+            return Ok(hf);
+        }
+        let (cw, ch) = (w.min(max_size), h.min(max_size));
+        let (x, y) = ((w - cw) / 2, (h - ch) / 2);
+        self.section.figure("crop", [x, y, cw, ch]);
+        Ok(hf.crop(x, y, cw, ch)?)
     }
 
     /// A progress sink for library calls that prints phase names under `verbose`.
@@ -332,6 +376,24 @@ pub struct PipelineRun {
     pub seconds: f64,
 }
 
+/// Runs one stage on `state` into a new report section `name`, timed.
+pub(crate) fn run_stage(
+    stage: &dyn Stage,
+    name: &str,
+    config: &PipelineConfig,
+    state: &mut State,
+) -> Result<Section> {
+    let t = Instant::now();
+    let mut section = Section::new(name);
+    stage.run(&mut StageCx {
+        config,
+        state,
+        section: &mut section,
+    })?;
+    section.seconds = t.elapsed().as_secs_f64();
+    Ok(section)
+}
+
 /// Runs `stages` in order, then writes `summary.json` and `report.html` into the output folder.
 pub fn run(config: &PipelineConfig, stages: &[NamedStage]) -> Result<PipelineRun> {
     std::fs::create_dir_all(&config.out_dir)
@@ -349,17 +411,8 @@ pub fn run(config: &PipelineConfig, stages: &[NamedStage]) -> Result<PipelineRun
         if config.verbose {
             eprintln!("[{}/{n}] {name} ...", i + 1);
         }
-        let t = Instant::now();
-        let mut section = Section::new(name);
-        let mut cx = StageCx {
-            config,
-            state: &mut state,
-            section: &mut section,
-        };
-        stage
-            .run(&mut cx)
+        let section = run_stage(stage.as_ref(), name, config, &mut state)
             .with_context(|| format!("pipeline stage `{name}` failed"))?;
-        section.seconds = t.elapsed().as_secs_f64();
         if config.verbose {
             eprintln!("[{}/{n}] {name} done in {:.2} s", i + 1, section.seconds);
         }
@@ -402,6 +455,16 @@ pub(crate) fn test_config(
         ..PipelineConfig::full(&crate::test_root())
     };
     (config, tmp)
+}
+
+/// For tests: the window `(x, y, w, h)` of the input DEM of `config`.
+#[cfg(test)]
+pub(crate) fn test_input_crop(
+    config: &PipelineConfig,
+    (x, y, w, h): (usize, usize, usize, usize),
+) -> Heightfield {
+    let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
+    raster.heightfield.crop(x, y, w, h).unwrap()
 }
 
 #[cfg(test)]

@@ -17,7 +17,7 @@ use anyhow::{Context, Result, bail};
 use relief_implicit_volume::{Feature, Recipe, VolumeJob};
 use serde::{Deserialize, Serialize};
 
-use super::{Stage, StageCx};
+use super::{Stage, StageCx, StageInput};
 
 /// Parameters of the `volume` stage (JSON `params`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -30,21 +30,10 @@ pub(crate) struct VolumeParams {
     /// The terrain's centre is cropped to at most this many cells per side (0 = no crop).
     pub(crate) max_size: usize,
     /// Which terrain the scene is built on.
-    pub(crate) input: VolumeInput,
+    pub(crate) input: StageInput,
     /// Keep the terrain's own cells (`relief volume --raw-dem`): features that need finer
     /// cells are refused with a note instead of built on a refined window.
     pub(crate) raw_dem: bool,
-}
-
-/// The terrain the `volume` stage builds on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub(crate) enum VolumeInput {
-    /// The input DEM as loaded, when void-free (else the current terrain).
-    #[default]
-    Source,
-    /// The current terrain: the previous stage's output.
-    Terrain,
 }
 
 impl Default for VolumeParams {
@@ -69,7 +58,7 @@ impl Default for VolumeParams {
                 ..Default::default()
             },
             max_size: 128,
-            input: VolumeInput::Source,
+            input: StageInput::Source,
             raw_dem: false,
         }
     }
@@ -93,21 +82,8 @@ impl VolumeStage {
 impl Stage for VolumeStage {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let p = &self.0;
-        let (terrain, which) = match p.input {
-            VolumeInput::Source => cx.state.complete_source("volume", "terrain")?,
-            VolumeInput::Terrain => (cx.state.terrain()?.clone(), "the current terrain"),
-        };
-        cx.section.figure("input", which);
-        let terrain = &terrain;
-        let (w, h) = (terrain.width(), terrain.height());
-        let mut hf = if p.max_size > 0 && (w > p.max_size || h > p.max_size) {
-            let (cw, ch) = (w.min(p.max_size), h.min(p.max_size));
-            let (x, y) = ((w - cw) / 2, (h - ch) / 2);
-            cx.section.figure("crop", [x, y, cw, ch]);
-            terrain.crop(x, y, cw, ch)?
-        } else {
-            terrain.clone()
-        };
+        let (terrain, which) = cx.input_terrain("volume", p.input)?;
+        let mut hf = cx.centre_crop_to(terrain, p.max_size)?;
         let mut job = p.job.clone();
         job.recipe.seed ^= cx.config.seed;
         if !cx.config.previews {
@@ -224,7 +200,7 @@ impl Stage for VolumeStage {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{PipelineConfig, Section, State};
+    use super::super::{PipelineConfig, State};
     use super::*;
     use std::time::Instant;
 
@@ -235,21 +211,11 @@ mod tests {
         let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig::golden(&root, tmp.path().to_path_buf());
-        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
-        let (x, y, w, h) = config.crop.unwrap();
         let mut state = State::default();
-        state.set_terrain(raster.heightfield.crop(x, y, w, h).unwrap());
-        let mut section = Section::new("volume");
-        let mut cx = StageCx {
-            config: &config,
-            state: &mut state,
-            section: &mut section,
-        };
+        state.set_terrain(crate::test_input_crop(&config, config.crop.unwrap()));
         let t = Instant::now();
-        VolumeStage::new(VolumeParams::default())
-            .unwrap()
-            .run(&mut cx)
-            .unwrap();
+        let stage = VolumeStage::new(VolumeParams::default()).unwrap();
+        let section = crate::run_stage(&stage, "volume", &config, &mut state).unwrap();
         let secs = t.elapsed().as_secs_f64();
         let f = &section.figures;
         eprintln!("volume stage on the golden crop: {secs:.2} s");
@@ -294,34 +260,28 @@ mod tests {
         let root = crate::test_root();
         let tmp = tempfile::tempdir().unwrap();
         let config = PipelineConfig::golden(&root, tmp.path().to_path_buf());
-        let raster = relief_io::read(&config.input, &relief_io::ReadOptions::default()).unwrap();
-        let source = raster.heightfield.crop(200, 160, 24, 24).unwrap();
+        let source = crate::test_input_crop(&config, (200, 160, 24, 24));
         let (cx0, _) = source.cell_size();
         let current =
             relief_heightfield::Heightfield::from_fn(16, 16, cx0 / 2.0, cx0 / 2.0, |x, y| {
                 1000.0 + (x * y) as f32
             });
         for (input, cell, which) in [
-            (VolumeInput::Source, cx0, "the input DEM"),
-            (VolumeInput::Terrain, cx0 / 2.0, "the current terrain"),
+            (StageInput::Source, cx0, "the input DEM"),
+            (StageInput::Terrain, cx0 / 2.0, "the current terrain"),
         ] {
             let mut state = State {
                 source: Some(source.clone()),
                 ..Default::default()
             };
             state.set_terrain(current.clone());
-            let mut section = Section::new("volume");
-            let mut cx = StageCx {
-                config: &config,
-                state: &mut state,
-                section: &mut section,
-            };
             let mut p = VolumeParams {
                 input,
                 ..Default::default()
             };
             p.job.recipe.features = vec![Feature::Karst];
-            VolumeStage::new(p).unwrap().run(&mut cx).unwrap();
+            let stage = VolumeStage::new(p).unwrap();
+            let section = crate::run_stage(&stage, "volume", &config, &mut state).unwrap();
             let f = &section.figures;
             assert_eq!(f["input"], which);
             let got = f["cell_size_m"][0].as_f64().unwrap();

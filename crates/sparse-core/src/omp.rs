@@ -260,7 +260,14 @@ pub fn batch_omp_with_progress<T: OmpFloat>(
                     values: Vec::with_capacity((hi - lo) * s),
                     residuals: Vec::with_capacity(hi - lo),
                 };
-                code_block_dispatch(sc, x, gram, n_atoms, s, tol, &mut out);
+                let block = Block {
+                    x,
+                    gram,
+                    n_atoms,
+                    s,
+                    tol,
+                };
+                code_block_dispatch(sc, block, &mut out);
                 progress.advance((hi - lo) as u64);
                 out
             },
@@ -289,20 +296,24 @@ pub fn batch_omp_with_progress<T: OmpFloat>(
     })
 }
 
-/// Codes every row of the block `x` (correlations already in `sc.alpha0`).
-#[inline(always)]
-fn code_block<T: OmpFloat>(
-    sc: &mut Scratch<T>,
-    x: ArrayView2<T>,
-    gram: &[T],
+/// A block of signals `x` to code (their correlations already in `sc.alpha0`) and what every
+/// row is coded with: the Gram matrix of the `n_atoms` atoms (row-major), the sparsity `s` and
+/// the optional residual tolerance.
+#[derive(Clone, Copy)]
+struct Block<'a, T> {
+    x: ArrayView2<'a, T>,
+    gram: &'a [T],
     n_atoms: usize,
     s: usize,
     tol: Option<f64>,
-    out: &mut BlockOut<T>,
-) {
-    for r in 0..x.nrows() {
-        let xx = x.row(r).iter().fold(T::zero(), |acc, &v| acc + v * v);
-        code_one(sc, r, xx, gram, n_atoms, s, tol, out);
+}
+
+/// Codes every row of the block.
+#[inline(always)]
+fn code_block<T: OmpFloat>(sc: &mut Scratch<T>, block: Block<'_, T>, out: &mut BlockOut<T>) {
+    for r in 0..block.x.nrows() {
+        let xx = block.x.row(r).iter().fold(T::zero(), |acc, &v| acc + v * v);
+        code_one(sc, r, xx, block, out);
     }
 }
 
@@ -311,26 +322,14 @@ fn code_block<T: OmpFloat>(
 /// the baseline build.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn code_block_avx2<T: OmpFloat>(
-    sc: &mut Scratch<T>,
-    x: ArrayView2<T>,
-    gram: &[T],
-    n_atoms: usize,
-    s: usize,
-    tol: Option<f64>,
-    out: &mut BlockOut<T>,
-) {
-    code_block(sc, x, gram, n_atoms, s, tol, out);
+fn code_block_avx2<T: OmpFloat>(sc: &mut Scratch<T>, block: Block<'_, T>, out: &mut BlockOut<T>) {
+    code_block(sc, block, out);
 }
 
 #[allow(unsafe_code)]
 fn code_block_dispatch<T: OmpFloat>(
     sc: &mut Scratch<T>,
-    x: ArrayView2<T>,
-    gram: &[T],
-    n_atoms: usize,
-    s: usize,
-    tol: Option<f64>,
+    block: Block<'_, T>,
     out: &mut BlockOut<T>,
 ) {
     #[cfg(target_arch = "x86_64")]
@@ -338,10 +337,10 @@ fn code_block_dispatch<T: OmpFloat>(
         assert!(std::arch::is_x86_feature_detected!("avx2"));
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of calling
         // a `#[target_feature(enable = "avx2")]` function.
-        unsafe { code_block_avx2(sc, x, gram, n_atoms, s, tol, out) };
+        unsafe { code_block_avx2(sc, block, out) };
         return;
     }
-    code_block(sc, x, gram, n_atoms, s, tol, out);
+    code_block(sc, block, out);
 }
 
 /// Codes row `r` of the block held in `sc.alpha0`.
@@ -356,12 +355,16 @@ fn code_one<T: OmpFloat>(
     sc: &mut Scratch<T>,
     r: usize,
     xx: T,
-    gram: &[T],
-    n: usize,
-    s: usize,
-    tol: Option<f64>,
+    block: Block<'_, T>,
     out: &mut BlockOut<T>,
 ) {
+    let Block {
+        gram,
+        n_atoms: n,
+        s,
+        tol,
+        ..
+    } = block;
     let Scratch {
         alpha0,
         l,

@@ -53,9 +53,8 @@ pub(crate) struct Args {
 /// Everything `--json` prints: the input and the job's figures.
 #[derive(Debug, Serialize)]
 pub(crate) struct Report {
-    file: String,
-    width: usize,
-    height: usize,
+    #[serde(flatten)]
+    input: super::InputGrid,
     cell_size: (f64, f64),
     #[serde(flatten)]
     figures: AnalyzeFigures,
@@ -63,11 +62,11 @@ pub(crate) struct Report {
 
 fn text(r: &Report) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "file:        {}", r.file);
+    let _ = writeln!(s, "file:        {}", r.input.file);
     let _ = writeln!(
         s,
         "size:        {} x {} (cell {:.3} x {:.3} m)",
-        r.width, r.height, r.cell_size.0, r.cell_size.1
+        r.input.width, r.input.height, r.cell_size.0, r.cell_size.1
     );
     s + &r.figures.summary()
 }
@@ -165,9 +164,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     staged.commit()?;
     drop(progress);
     let report = Report {
-        file: args.input.display().to_string(),
-        width: hf.width(),
-        height: hf.height(),
+        input: super::InputGrid::of(&args.input, &hf),
         cell_size: hf.cell_size(),
         figures: result.figures,
     };

@@ -177,9 +177,8 @@ const CLI_BYTES_PER_CELL: u64 = 12;
 /// What `--json` prints.
 #[derive(Debug, serde::Serialize)]
 struct Report {
-    file: String,
-    width: usize,
-    height: usize,
+    #[serde(flatten)]
+    input: super::InputGrid,
     settings: ErodeSettings,
     uplift_raster: Option<String>,
     seconds: f64,
@@ -243,17 +242,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(p) = &args.deposition {
         ctx.write_raster(&staged.path(p), &out.deposition)?;
     }
-    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
-    // removed).
-    if relief_heightfield::Progress::stopped(&progress) {
-        return Err(crate::budget::Stopped("erode, after writing the outputs".into()).into());
-    }
-    staged.commit()?;
-    drop(progress);
+    crate::budget::commit_in_time("erode", progress, || staged.commit())?;
     let report = Report {
-        file: args.input.display().to_string(),
-        width: dem.width(),
-        height: dem.height(),
+        input: super::InputGrid::of(&args.input, &dem),
         settings,
         uplift_raster: uplift_path.map(|p| p.display().to_string()),
         seconds,
@@ -267,9 +258,9 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             "file:       {}\nsize:       {} x {}\npreset:     {}\nprocesses:  {}\neroded:     \
              {:.3e} m3 (deepest {:.2} m)\ndeposited:  {:.3e} m3 (highest {:.2} m)\ntime:       \
              {}\nwrote:      {}\n",
-            report.file,
-            report.width,
-            report.height,
+            report.input.file,
+            report.input.width,
+            report.input.height,
             LibEnum(report.settings.preset),
             processes(f),
             f.eroded_m3,

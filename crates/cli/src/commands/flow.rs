@@ -123,9 +123,8 @@ pub(crate) fn settings(args: &Args) -> Result<FlowSettings> {
 /// `flow.json` and what `--json` prints: the input, the settings and the figures.
 #[derive(Debug, Serialize)]
 pub(crate) struct Report {
-    pub(crate) file: String,
-    pub(crate) width: usize,
-    pub(crate) height: usize,
+    #[serde(flatten)]
+    pub(crate) input: super::InputGrid,
     pub(crate) cell_size: (f64, f64),
     pub(crate) crs: Option<String>,
     pub(crate) settings: FlowSettings,
@@ -136,11 +135,11 @@ pub(crate) struct Report {
 fn text(r: &Report, out: &std::path::Path) -> String {
     let f = &r.figures;
     let mut s = String::new();
-    let _ = writeln!(s, "file:        {}", r.file);
+    let _ = writeln!(s, "file:        {}", r.input.file);
     let _ = writeln!(
         s,
         "size:        {} x {} (cell {:.3} x {:.3} m), {} voids",
-        r.width, r.height, r.cell_size.0, r.cell_size.1, f.voids
+        r.input.width, r.input.height, r.cell_size.0, r.cell_size.1, f.voids
     );
     let _ = writeln!(
         s,
@@ -190,9 +189,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     progress.begin("writing", 0);
     write(&staged, &dem, &out, ctx)?;
     let report = Report {
-        file: args.input.display().to_string(),
-        width: dem.width(),
-        height: dem.height(),
+        input: super::InputGrid::of(&args.input, &dem),
         cell_size: dem.cell_size(),
         crs: dem.georef().and_then(|g| g.crs.clone()),
         settings,
@@ -200,13 +197,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         outputs: FILES.iter().map(|(n, _)| *n).collect(),
     };
     staged.write_json("flow.json", &report, true)?;
-    // Writing six rasters and the network asks no deadline: a run past --max-time is not
-    // committed (the staged files are removed), whatever phase it was in.
-    if relief_heightfield::Progress::stopped(&progress) {
-        return Err(crate::budget::Stopped("flow, after writing the outputs".into()).into());
-    }
-    staged.commit()?;
-    drop(progress);
+    crate::budget::commit_in_time("flow", progress, || staged.commit())?;
     let text = if args.json {
         crate::staging::json_text(&report)?
     } else {

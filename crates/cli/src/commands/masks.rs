@@ -124,9 +124,8 @@ const MASK_BYTES_PER_CELL: u64 = 68;
 /// `masks.json` and what `--json` prints.
 #[derive(Debug, Serialize)]
 struct Report {
-    file: String,
-    width: usize,
-    height: usize,
+    #[serde(flatten)]
+    input: super::InputGrid,
     settings: MasksSettings,
     /// Upper limits of the height bands used (m).
     bands: Vec<f64>,
@@ -244,9 +243,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     relief_io::write_rgba_png(&staged.path("splat.png"), w, h, &rgba)
         .with_context(|| format!("cannot write {}", staged.target("splat.png").display()))?;
     let report = Report {
-        file: args.input.display().to_string(),
-        width: w,
-        height: h,
+        input: super::InputGrid::of(&args.input, &dem),
         settings,
         bands: masks.bands.clone(),
         format: match args.format {
@@ -259,20 +256,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         splat_channels: ["ground", "rock", "sediment", "wet"],
     };
     staged.write_json("masks.json", &report, true)?;
-    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
-    // removed).
-    if relief_heightfield::Progress::stopped(&progress) {
-        return Err(crate::budget::Stopped("masks, after writing the outputs".into()).into());
-    }
-    staged.commit()?;
-    drop(progress);
+    crate::budget::commit_in_time("masks", progress, || staged.commit())?;
     let text = if args.json {
         crate::staging::json_text(&report)?
     } else {
         let list: Vec<&str> = report.masks.iter().map(|(_, f)| f.as_str()).collect();
         format!(
             "file:   {}\nsize:   {w} x {h}\nbands:  {:?} m\nwrote:  {}/{{{},splat.png,masks.json}}\n",
-            report.file,
+            report.input.file,
             report.bands,
             args.out.display(),
             list.join(",")

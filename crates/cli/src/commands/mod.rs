@@ -26,6 +26,25 @@ pub(crate) mod volume;
 
 pub(crate) mod preflight;
 
+/// The input a command's report names (flattened into its JSON as `file`, `width`, `height`).
+#[derive(Debug, serde::Serialize)]
+pub(crate) struct InputGrid {
+    pub(crate) file: String,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+}
+
+impl InputGrid {
+    /// The input file `path` and the size of its grid `hf`.
+    pub(crate) fn of(path: &std::path::Path, hf: &relief_heightfield::Heightfield) -> Self {
+        Self {
+            file: path.display().to_string(),
+            width: hf.width(),
+            height: hf.height(),
+        }
+    }
+}
+
 pub(crate) use crate::args::{ReadArgs, parse_crop, parse_image_size, parse_pair};
 pub(crate) use crate::read::{
     JobCells, cell_size_assumed, cell_size_georef, read_raster, read_raster_for, read_void_free,

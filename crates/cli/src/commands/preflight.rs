@@ -12,7 +12,7 @@ use relief_wavelet_lod::RefineSettings;
 
 use crate::commands::{compress, refine};
 use crate::ctx::Ctx;
-use crate::memory::part;
+use crate::memory::{Part, part};
 
 /// Pre-flight estimate of `analyze`: the DWT pyramid, and with `--local` the fitted
 /// maps of every band.
@@ -151,23 +151,17 @@ pub(crate) fn refine_window(
     let levels = m.job["extra_levels"].as_u64().unwrap_or(0).min(30) as i32;
     let f = 2f64.powi(levels);
     let n = (m.output.width as f64 / f).ceil() * (m.output.height as f64 / f).ceil();
-    let cells = win.width as f64 * win.height as f64;
-    ctx.check_memory(
-        "tile run (refine)",
-        &[&[
-            part(
-                format!("the wavelet analysis of {} input cells", n as u64),
-                n * ANALYSIS_BYTES_PER_CELL + prepared_bytes,
-                "fewer --levels or a smaller input (plan again)",
-            ),
-            part(
-                format!("the synthesis of {} output cells", cells as u64),
-                cells
-                    * (RENDER_BYTES_PER_CELL
-                        + relief_dictionary_learning::memory::RASTER_OUT_BYTES_PER_CELL),
-                change,
-            ),
-        ]],
+    tile_task(
+        "refine",
+        part(
+            format!("the wavelet analysis of {} input cells", n as u64),
+            n * ANALYSIS_BYTES_PER_CELL + prepared_bytes,
+            "fewer --levels or a smaller input (plan again)",
+        ),
+        ("the synthesis of", RENDER_BYTES_PER_CELL),
+        win,
+        change,
+        ctx,
     )
 }
 
@@ -180,19 +174,42 @@ pub(crate) fn last_step_window(
     change: &str,
     ctx: &Ctx,
 ) -> Result<()> {
+    tile_task(
+        "amplify",
+        part(
+            "the prepared last step (its input and dictionary)",
+            prepared_bytes * 3.0,
+            "a smaller --factor or input (plan again)",
+        ),
+        (
+            "the last x4 step over",
+            relief_dictionary_learning::memory::STEP_BYTES_PER_COARSE_CELL / 16.0,
+        ),
+        win,
+        change,
+        ctx,
+    )
+}
+
+/// Pre-flight of one task of a tiled `command` plan: what the task loads, then the work over
+/// the window's output cells (`(what, working bytes per output cell)`) and its written raster.
+fn tile_task(
+    command: &str,
+    loaded: Part,
+    (work, bytes_per_cell): (&str, f64),
+    win: relief_sparse_core::Window,
+    change: &str,
+    ctx: &Ctx,
+) -> Result<()> {
     let cells = win.width as f64 * win.height as f64;
     ctx.check_memory(
-        "tile run (amplify)",
+        &format!("tile run ({command})"),
         &[&[
+            loaded,
             part(
-                "the prepared last step (its input and dictionary)",
-                prepared_bytes * 3.0,
-                "a smaller --factor or input (plan again)",
-            ),
-            part(
-                format!("the last x4 step over {} output cells", cells as u64),
+                format!("{work} {} output cells", cells as u64),
                 cells
-                    * (relief_dictionary_learning::memory::STEP_BYTES_PER_COARSE_CELL / 16.0
+                    * (bytes_per_cell
                         + relief_dictionary_learning::memory::RASTER_OUT_BYTES_PER_CELL),
                 change,
             ),

@@ -140,13 +140,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         let m = &out.synthesis.seam_map;
         staged.write_png(png, m.width, m.height, &m.rgb())?;
     }
-    // Writing asks no deadline: a run past --max-time is not committed (the staged files are
-    // removed).
-    if relief_heightfield::Progress::stopped(&progress) {
-        return Err(crate::budget::Stopped("quilt, after writing the outputs".into()).into());
-    }
-    staged.commit()?;
-    drop(progress);
+    crate::budget::commit_in_time("quilt", progress, || staged.commit())?;
     let f = &out.figures;
     args.synth.note_figures(&f.prepare, ctx);
     if let Some(r) = out.report.as_ref().filter(|r| !r.ok) {

@@ -62,10 +62,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     check_out_dir(&out, &[&args.spec, &config.input], ctx.force)?;
     let stages = pipeline::spec::build_stages(&spec.stages)?;
 
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = crate::outputs::parent_folder(&out);
     // A new folder of an unpredictable name, created exclusively: a planted or stale folder
     // (or a link to one) is never adopted, so only what this run writes is moved into --out.
     let staged = relief_io::create_staging_dir(parent)

@@ -184,6 +184,14 @@ pub(crate) fn files(dir: &Path) -> Vec<String> {
     v
 }
 
+/// The hidden names (`.` first: temporaries, staging folders) in `dir`, sorted.
+pub(crate) fn hidden_files(dir: &Path) -> Vec<String> {
+    files(dir)
+        .into_iter()
+        .filter(|f| f.starts_with('.'))
+        .collect()
+}
+
 /// Asserts `a` and `b` agree element by element within `rel` of each value (absolute below 1).
 pub(crate) fn assert_close(a: &[f64], b: &[f64], rel: f64, what: &str) {
     assert_eq!(a.len(), b.len(), "{what}: {a:?} vs {b:?}");

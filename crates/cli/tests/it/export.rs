@@ -83,14 +83,22 @@ fn tolerance(sheet: &serde_json::Value) -> f64 {
     sheet["vertical"]["step"].as_f64().unwrap() * 0.5 + 2e-3
 }
 
+/// `window` of the fixture as `crop.tif` in a new temporary folder, and its grid as the export
+/// reads it (a Web-Mercator crop states its own ground cell size).
+fn export_input(
+    window: (usize, usize, usize, usize),
+) -> (tempfile::TempDir, std::path::PathBuf, Heightfield) {
+    let (tmp, input, _) = tmp_with_crop("crop.tif", window);
+    let hf = read(&input);
+    (tmp, input, hf)
+}
+
 /// Unreal: a 252^2-cell DEM fits the 253 landscape without resampling; the PNG is 16-bit,
 /// north first, and Location Z + (count - 32768) / 128 x Z scale (cm) gives the corner
 /// heights back; --format r16 writes the same counts little-endian.
 #[test]
 fn unreal_heightmap_reads_back_in_metres() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (40, 60, 252, 252));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((40, 60, 252, 252));
     let out = tmp.path().join("ue/");
     let sheet = relief_json!["export", "--engine", "unreal", &input, &out, "--json"];
     assert_eq!(json(&tmp.path().join("ue/crop.json")), sheet);
@@ -130,9 +138,7 @@ fn unreal_heightmap_reads_back_in_metres() {
 /// (south) edge, read as Import Raw does: count / 65536 x terrain height + position.
 #[test]
 fn unity_raw_is_south_first_and_scaled_by_the_terrain_height() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (100, 30, 256, 256));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((100, 30, 256, 256));
     let out = tmp.path().join("unity/");
     let sheet = relief_json![
         "export", "--engine", "unity", &input, &out, "--name", "t", "--json"
@@ -157,9 +163,7 @@ fn unity_raw_is_south_first_and_scaled_by_the_terrain_height() {
 /// Terrain3D's R16 loader reads count / 65535 x (max - min) + min, row 0 first.
 #[test]
 fn godot_raw_is_resampled_to_the_region_size() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (10, 200, 300, 200));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((10, 200, 300, 200));
     let out = tmp.path().join("godot/");
     let sheet = relief_json!["export", "--engine", "godot", &input, &out, "--json"];
     assert_eq!(sheet["samples"], serde_json::json!([256, 171]));
@@ -182,9 +186,7 @@ fn godot_raw_is_resampled_to_the_region_size() {
 /// the base elevation.
 #[test]
 fn gaea_png_keeps_the_dem_size() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 100, 70));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((0, 0, 100, 70));
     let sheet = relief_json![
         "export",
         "--engine",
@@ -250,9 +252,7 @@ fn export_stops_at_the_time_limit() {
 /// grid's window.
 #[test]
 fn unreal_tiles_share_their_edges() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (40, 60, 252, 252));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((40, 60, 252, 252));
     let out = tmp.path().join("tiles/");
     let sheet = relief_json![
         "export", "--engine", "unreal", &input, &out, "--tiles", "2x2", "--json"
@@ -336,9 +336,7 @@ fn unity_tiles_are_named_by_x_and_z_and_share_their_edges() {
 /// layers summing to 255; they are the `relief masks` splat of the exported grid.
 #[test]
 fn unreal_masks_are_weight_maps_per_layer() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (40, 60, 252, 252));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((40, 60, 252, 252));
     let out = tmp.path().join("m/");
     relief_ok!["export", "--engine", "unreal", &input, &out, "--masks"];
     let corners = hf.corner_samples().unwrap();
@@ -366,9 +364,7 @@ fn unreal_masks_are_weight_maps_per_layer() {
 /// heightmap, cut from the splat of the whole grid's cells (not from overlapping tiles).
 #[test]
 fn unity_masks_are_alphamaps_per_terrain() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (100, 30, 256, 256));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((100, 30, 256, 256));
     let out = tmp.path().join("um/");
     relief_ok![
         "export", "--engine", "unity", &input, &out, "--tiles", "2x2", "--masks"
@@ -398,9 +394,7 @@ fn unity_masks_are_alphamaps_per_terrain() {
 /// --max-memory, voids.
 #[test]
 fn bad_exports_are_refused_naming_the_problem() {
-    let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
-    // As the export reads it (a Web-Mercator crop states its own ground cell size).
-    let hf = read(&input);
+    let (tmp, input, hf) = export_input((0, 0, 64, 64));
     let d = tmp.path();
     // A 16-bit PNG input whose name the export would take.
     let png_in = write(d, "h.png", &hf);

@@ -445,10 +445,7 @@ fn sigkill_at_any_instant_leaves_no_partial_output() {
         let out = out_dir.join(format!("o{i}.exr"));
         relief_ok!["--force", "convert", input, out];
     }
-    let left: Vec<String> = files(&out_dir)
-        .into_iter()
-        .filter(|f| f.starts_with('.'))
-        .collect();
+    let left = hidden_files(&out_dir);
     assert!(left.is_empty(), "stale temporaries kept: {left:?}");
 }
 
@@ -849,11 +846,7 @@ fn multi_output_commands_write_all_or_nothing() {
     std::fs::create_dir(out.join(format!(".relief-stage-{dead}-1"))).unwrap();
     std::fs::write(out.join(format!(".relief-stage-{dead}-1/m.glb")), b"half").unwrap();
     relief_ok!["convert", &i, &s(&out.join("other.tif"))];
-    assert!(
-        !files(&out).iter().any(|f| f.starts_with('.')),
-        "{:?}",
-        files(&out)
-    );
+    assert!(hidden_files(&out).is_empty(), "{:?}", files(&out));
     // A 250-byte output name: its temporary name must stay within the 255-byte limit.
     let long = format!("{}.tif", "n".repeat(246));
     relief_ok!["convert", &i, &s(&out.join(&long))];

@@ -121,61 +121,31 @@ fn chmod(p: &Path, mode: u32) {
 fn plan(tmp: &Path, kind: &str) -> (PathBuf, PathBuf) {
     let (input, _) = fixture_crop(tmp, &format!("{kind}-in.tif"), (0, 0, 64, 64));
     let dir = tmp.join(format!("{kind}-plan"));
-    let out = tmp.join(format!("{kind}-out.tif"));
-    match kind {
-        "amplify" => relief_ok![
-            "tile",
-            "plan",
-            &dir,
-            "--tile",
+    let mut out = tmp.join(format!("{kind}-out.tif"));
+    let exemplar = relief_testdata::fixture("grandcanyon.tif");
+    let model = tmp.join("m.sct");
+    let (tile, command) = match kind {
+        "amplify" => (
             "128",
-            "--",
-            "amplify",
-            &input,
-            &out,
-            "--exemplar",
-            relief_testdata::fixture("grandcanyon.tif"),
-            "--factor",
-            "4",
-            "--landform",
-            "off"
-        ],
-        "refine" => relief_ok![
-            "tile",
-            "plan",
-            &dir,
-            "--tile",
-            "128",
-            "--",
-            "refine",
-            &input,
-            &out,
-            "--landform",
-            "off"
-        ],
+            words(
+                "amplify {} {} --exemplar {} --factor 4 --landform off",
+                &[&input, &out, &exemplar],
+            ),
+        ),
+        "refine" => ("128", words("refine {} {} --landform off", &[&input, &out])),
         "decompress" => {
-            let model = tmp.join("m.sct");
             relief_ok!["compress", &input, &model];
-            relief_ok![
-                "tile",
-                "plan",
-                &dir,
-                "--tile",
-                "32",
-                "--",
-                "decompress",
-                &model,
-                &out
-            ]
+            ("32", words("decompress {} {}", &[&model, &out]))
         }
         _ => {
-            let out = tmp.join("flow-out");
-            relief_ok![
-                "tile", "plan", &dir, "--tile", "32", "--", "flow", &input, "-o", &out
-            ];
-            return (dir, out);
+            out = tmp.join("flow-out");
+            ("32", words("flow {} -o {}", &[&input, &out]))
         }
     };
+    let mut args = words("tile plan {} --tile", &[&dir]);
+    args.extend([OsStr::new(tile), OsStr::new("--")]);
+    args.extend(command);
+    ok(&relief(&args));
     (dir, out)
 }
 

@@ -157,25 +157,40 @@ fn flow_into_an_existing_folder_needs_force_to_replace() {
     assert_eq!(files(&out), want, "no staging folder left");
 }
 
+/// Each `(flag, value)` makes `relief COMMAND INPUT -o OUT FLAG VALUE` fail with one line
+/// naming the flag, before anything is written.
+fn bad_values_fail_naming_the_flag(
+    command: &str,
+    input: &Path,
+    out: &Path,
+    cases: &[(&str, &str)],
+) {
+    for (flag, value) in cases {
+        fails_with(
+            &relief![command, input, "-o", out, flag, value],
+            &[&format!("invalid {flag}")],
+            &[out],
+        );
+    }
+}
+
 /// Bad parameters fail cleanly, naming the flag, before anything is written.
 #[test]
 fn flow_bad_parameters_fail_naming_the_flag() {
     let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
     let out = tmp.path().join("out");
-    for (flag, value) in [
-        ("--channel-area", "-5"),
-        ("--channel-area", "nan"),
-        ("--breach-depth", "-1"),
-        ("--breach-length", "1e9"),
-        ("--mfd-exponent", "0"),
-    ] {
-        fails_with(
-            &relief!["flow", &input, "-o", &out, flag, value],
-            &[&format!("invalid {flag}")],
-            &[&out],
-        );
-        assert!(!out.exists(), "{flag} {value}: {} created", out.display());
-    }
+    bad_values_fail_naming_the_flag(
+        "flow",
+        &input,
+        &out,
+        &[
+            ("--channel-area", "-5"),
+            ("--channel-area", "nan"),
+            ("--breach-depth", "-1"),
+            ("--breach-length", "1e9"),
+            ("--mfd-exponent", "0"),
+        ],
+    );
     usage_error(
         &words("flow {} -o {} --depressions lake", &[&input, &out]),
         "--depressions",
@@ -330,18 +345,17 @@ fn masks_write_each_mask_and_a_splat_map() {
 fn masks_bad_parameters_fail_naming_the_flag() {
     let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
     let out = tmp.path().join("m");
-    for (flag, value) in [
-        ("--rock-slope", "95"),
-        ("--wet-index", "-1"),
-        ("--height-bands", "1500,1000"),
-        ("--channel-area", "0"),
-    ] {
-        fails_with(
-            &relief!["masks", &input, "-o", &out, flag, value],
-            &[&format!("invalid {flag}")],
-            &[&out],
-        );
-    }
+    bad_values_fail_naming_the_flag(
+        "masks",
+        &input,
+        &out,
+        &[
+            ("--rock-slope", "95"),
+            ("--wet-index", "-1"),
+            ("--height-bands", "1500,1000"),
+            ("--channel-area", "0"),
+        ],
+    );
     usage_error(
         &words("masks {} -o {} --format jpg", &[&input, &out]),
         "--format",

@@ -24,6 +24,13 @@ fn timed(args: &[&std::ffi::OsStr]) -> (Output, f64) {
     (o, t.elapsed().as_secs_f64())
 }
 
+/// `relief --max-time 1s LINE` (see [`words`]) is [`stopped`], leaving none of `outputs`.
+fn stops_in_one_second(line: &str, files: &[&dyn AsRef<std::ffi::OsStr>], outputs: &[&Path]) {
+    let line = format!("--max-time 1s {line}");
+    let (o, s) = timed(&words(&line, files));
+    stopped(&o, s, outputs);
+}
+
 /// A tree blending 2^20 constants on a small raster: no pilot (under 2^20 cells), seconds per
 /// band; decompress stops between the children.
 #[test]
@@ -35,8 +42,7 @@ fn decompress_of_a_wide_tree_stops_at_the_time_limit() {
     let model = tmp.path().join("wide.sct");
     std::fs::write(&model, sct.to_bytes().unwrap()).unwrap();
     let out = tmp.path().join("wide.tif");
-    let (o, s) = timed(&words("--max-time 1s decompress {} {}", &[&model, &out]));
-    stopped(&o, s, &[&out]);
+    stops_in_one_second("decompress {} {}", &[&model, &out], &[&out]);
 }
 
 /// `refine --levels 8 --stream` of a 64^2 input: 256 strips of a 16384^2 GeoTIFF.
@@ -44,11 +50,7 @@ fn decompress_of_a_wide_tree_stops_at_the_time_limit() {
 fn a_streamed_refinement_stops_at_the_time_limit() {
     let (tmp, input, _) = tmp_with_crop("gc64.tif", (224, 224, 64, 64));
     let out = tmp.path().join("r.tif");
-    let (o, s) = timed(&words(
-        "--max-time 1s refine {} {} --levels 8 --stream",
-        &[&input, &out],
-    ));
-    stopped(&o, s, &[&out]);
+    stops_in_one_second("refine {} {} --levels 8 --stream", &[&input, &out], &[&out]);
 }
 
 /// Meshing a flat 64^2 DEM of 1 m cells: a fine voxel grid, no pilot for the mesh.
@@ -58,11 +60,11 @@ fn meshing_stops_at_the_time_limit() {
     let flat = Heightfield::from_fn(64, 64, 1.0, 1.0, |x, y| 100.0 + 0.01 * (x + y) as f32);
     let input = write(tmp.path(), "flat.tif", &flat);
     let mesh = tmp.path().join("flat.glb");
-    let (o, s) = timed(&words(
-        "--max-time 1s volume {} --mesh {} --resolution 8",
+    stops_in_one_second(
+        "volume {} --mesh {} --resolution 8",
         &[&input, &mesh],
-    ));
-    stopped(&o, s, &[&mesh]);
+        &[&mesh],
+    );
 }
 
 /// Every long-running command, on inputs that take it several seconds, ends under
@@ -340,10 +342,7 @@ fn a_forced_run_replaces_an_earlier_run_all_or_nothing() {
     );
     assert!(after.contains(&"summary.json".to_string()), "{after:?}");
     // Nothing hidden is left beside it.
-    let hidden: Vec<String> = files(tmp.path())
-        .into_iter()
-        .filter(|f| f.starts_with('.'))
-        .collect();
+    let hidden = hidden_files(tmp.path());
     assert!(hidden.is_empty(), "{hidden:?}");
 }
 
@@ -353,11 +352,11 @@ fn a_forced_run_replaces_an_earlier_run_all_or_nothing() {
 fn the_backstop_ends_a_path_that_does_not_stop_by_itself() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("c.sct");
-    let (o, s) = timed(&words(
-        "--max-time 1s compress {} {} -n 1024 --iterations 50 --sparsity 8 --patch-size 16",
+    stops_in_one_second(
+        "compress {} {} -n 1024 --iterations 50 --sparsity 8 --patch-size 16",
         &[&relief_testdata::fixture("grandcanyon.tif"), &out],
-    ));
-    stopped(&o, s, &[&out]);
+        &[&out],
+    );
     assert!(files(tmp.path()).is_empty(), "{:?}", files(tmp.path()));
 }
 

@@ -428,9 +428,11 @@ pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Res
     let job: FlowJob = serde_json::from_value(m.job.clone())
         .context("the manifest's job is not a flow job's settings")?;
     let report = crate::commands::flow::Report {
-        file: m.inputs.first().map(|s| s.path.clone()).unwrap_or_default(),
-        width: m.output.width,
-        height: m.output.height,
+        input: crate::commands::InputGrid {
+            file: m.inputs.first().map(|s| s.path.clone()).unwrap_or_default(),
+            width: m.output.width,
+            height: m.output.height,
+        },
         cell_size: (m.output.cell_size[0], m.output.cell_size[1]),
         crs: georef.and_then(|g| g.crs.clone()),
         settings: job.flow,
