@@ -91,7 +91,8 @@ impl LogVariancePlot {
     }
 
     /// Renders the plot into an RGB8 buffer (`width * height * 3` bytes, row-major, top row
-    /// first): axes with integer ticks and labels, filled squares for measured levels (grey
+    /// first): axes with integer ticks and labels, the axis titles (level j, log2 Var) and a
+    /// legend (H, V, D in their colours), filled squares for measured levels (grey
     /// outline when outside the fit), hollow squares for synthesised levels, the fitted lines
     /// (solid over the data, dashed over the new levels) and a dotted vertical line at the first
     /// synthesised level. Colours: H red, V green, D blue. Sizes are clamped into `64..=8192`.
@@ -147,9 +148,17 @@ impl LogVariancePlot {
             c.text(&format!("{}", yv as i64), 2, y as i64 - 2, black);
             yv += step;
         }
+        // Axis titles and the legend (H red, V green, D blue), in the 3x5 font.
+        let xlabel = "LEVEL J";
+        let xl = (l + r) as i64 / 2 - (xlabel.len() as i64 * 4) / 2;
+        c.text(xlabel, xl, b as i64 + 14, black);
+        c.text("LOG2 VAR", l as i64 + 4, t as i64, black);
+        let colours = [[200, 40, 40], [30, 140, 40], [40, 70, 210]];
+        for (i, (name, col)) in ["H", "V", "D"].iter().zip(colours).enumerate() {
+            c.text(name, r as i64 - 36 + 12 * i as i64, t as i64, col);
+        }
         let xn = sx(self.first_new_level as f64 - 0.5);
         c.line(xn, t as f64, xn, b as f64, grey, 2);
-        let colours = [[200, 40, 40], [30, 140, 40], [40, 70, 210]];
         for (s, col) in self.series.iter().zip(colours) {
             let last_meas = s.measured.iter().map(|p| p.0).fold(x0 + 0.5, f64::max);
             let first_fit = s
@@ -228,7 +237,8 @@ impl Canvas {
         }
     }
 
-    /// Text in a 3x5 pixel font (digits and '-').
+    /// Text in a 3x5 pixel font (digits, '-', space and the capitals of the axis titles and
+    /// legend).
     fn text(&mut self, s: &str, x: i64, y: i64, c: [u8; 3]) {
         for (i, ch) in s.chars().enumerate() {
             let glyph: [u8; 5] = match ch {
@@ -243,6 +253,16 @@ impl Canvas {
                 '8' => [7, 5, 7, 5, 7],
                 '9' => [7, 5, 7, 1, 7],
                 '-' => [0, 0, 7, 0, 0],
+                'A' => [2, 5, 7, 5, 5],
+                'D' => [6, 5, 5, 5, 6],
+                'E' => [7, 4, 7, 4, 7],
+                'G' => [7, 4, 5, 5, 7],
+                'H' => [5, 5, 7, 5, 5],
+                'J' => [1, 1, 1, 5, 7],
+                'L' => [4, 4, 4, 4, 7],
+                'O' => [7, 5, 5, 5, 7],
+                'R' => [6, 5, 6, 5, 5],
+                'V' => [5, 5, 5, 5, 2],
                 _ => [0; 5],
             };
             for (r, bits) in glyph.iter().enumerate() {
@@ -268,4 +288,59 @@ pub fn render_log_variance_plot(
     height: usize,
 ) -> Vec<u8> {
     LogVariancePlot::new(input, extra_levels, refined).render_rgb(width, height)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series(band: Band, a: f64) -> PlotSeries {
+        PlotSeries {
+            band,
+            measured: (1..6).map(|j| (j as f64, a - 1.5 * j as f64)).collect(),
+            fitted: vec![true; 5],
+            synthesized: vec![],
+            a,
+            gamma: 1.5,
+        }
+    }
+
+    /// The axis titles and the legend are drawn: black pixels in the row band under the x tick
+    /// labels and at the top-left, the band colours at the top-right.
+    #[test]
+    fn the_plot_has_axis_titles_and_a_legend() {
+        let plot = LogVariancePlot {
+            series: vec![
+                series(Band::ALL[0], 20.0),
+                series(Band::ALL[1], 19.0),
+                series(Band::ALL[2], 18.0),
+            ],
+            first_new_level: 6,
+            extra_levels: 2,
+        };
+        let (w, h) = (320usize, 240usize);
+        let rgb = plot.render_rgb(w, h);
+        let px = |x: usize, y: usize| {
+            [
+                rgb[(y * w + x) * 3],
+                rgb[(y * w + x) * 3 + 1],
+                rgb[(y * w + x) * 3 + 2],
+            ]
+        };
+        let count = |xs: std::ops::Range<usize>, ys: std::ops::Range<usize>, c: [u8; 3]| {
+            ys.flat_map(|y| xs.clone().map(move |x| (x, y)))
+                .filter(|&(x, y)| px(x, y) == c)
+                .count()
+        };
+        let b = h - 22;
+        assert!(count(100..220, b + 14..b + 19, [0, 0, 0]) > 20, "x title");
+        assert!(count(38..80, 10..15, [0, 0, 0]) > 20, "y title");
+        for (i, c) in [[200, 40, 40], [30, 140, 40], [40, 70, 210]]
+            .into_iter()
+            .enumerate()
+        {
+            let x0 = w - 10 - 36 + 12 * i;
+            assert!(count(x0..x0 + 3, 10..15, c) >= 7, "legend {i}");
+        }
+    }
 }
