@@ -20,7 +20,8 @@ pub(crate) struct Args {
     /// Input DEM (format detected from its content; must have no voids).
     pub(crate) input: PathBuf,
     /// Comma-separated features: cliffs, sea, caves, karst, hoodoos, arches, islands, overhangs
-    /// (soft rock retreating under resistant beds, wind and rain hollows), wind, rain.
+    /// (soft rock retreating under resistant beds, wind and rain hollows), wind, rain; `none`
+    /// meshes and renders the DEM alone (a plain DEM -> mesh).
     #[arg(long, default_value = "sea,karst,hoodoos,arches,islands")]
     pub(crate) features: String,
     /// Grey PNG (or any raster) of the DEM's size limiting every effect (0 = none, max = full).

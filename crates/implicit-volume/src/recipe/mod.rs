@@ -139,9 +139,12 @@ impl Feature {
     }
 
     /// Parses a comma-separated list (`"sea,karst"`); duplicates are merged, order is
-    /// [`Feature::ALL`]'s.
+    /// [`Feature::ALL`]'s. `"none"` is the empty list (the DEM alone).
     pub fn parse_list(s: &str) -> Result<Vec<Feature>> {
         let mut v = Vec::new();
+        if s.trim() == "none" {
+            return Ok(v);
+        }
         for part in s.split(',') {
             let f: Feature = part.trim().parse()?;
             if !v.contains(&f) {
@@ -163,7 +166,7 @@ impl FromStr for Feature {
                 Error::param(
                     "feature",
                     format!("`{s}`"),
-                    "must be one of cliffs, sea, caves, karst, hoodoos, arches, islands, overhangs, wind, rain",
+                    "must be one of cliffs, sea, caves, karst, hoodoos, arches, islands, overhangs, wind, rain (or none alone)",
                 )
             })
     }

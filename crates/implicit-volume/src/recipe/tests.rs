@@ -6,6 +6,11 @@ fn feature_lists_parse_and_reject_unknown_names() {
         Feature::parse_list("karst, sea,karst").unwrap(),
         vec![Feature::Sea, Feature::Karst]
     );
+    assert_eq!(Feature::parse_list(" none ").unwrap(), vec![]);
+    assert!(
+        Feature::parse_list("none,sea").is_err(),
+        "none stands alone"
+    );
     let e = Feature::parse_list("sea,volcano").unwrap_err().to_string();
     assert!(e.contains("feature") && e.contains("volcano"), "{e}");
     for f in Feature::ALL {
