@@ -91,6 +91,37 @@ pub(crate) fn flow_phase1<'py>(
     ))
 }
 
+/// A single-task phase: decodes every tile's input, runs `phase` over all of them off the GIL
+/// and encodes every tile's output.
+fn single_phase<'py, I, O>(
+    py: Python<'py>,
+    l: Layout,
+    inputs: Vec<Vec<u8>>,
+    decode: fn(&[u8], &TileLayout, usize) -> relief_landscape::Result<I>,
+    phase: fn(&TileLayout, &[I]) -> relief_landscape::Result<Vec<O>>,
+    encode: fn(&O, &TileLayout, usize) -> Vec<u8>,
+) -> PyResult<Vec<Bound<'py, PyBytes>>> {
+    let l = layout(l)?;
+    let out = py
+        .detach(|| {
+            let decoded = inputs
+                .iter()
+                .enumerate()
+                .map(|(t, b)| decode(b, &l, t))
+                .collect::<relief_landscape::Result<Vec<_>>>()?;
+            let outputs = phase(&l, &decoded)?;
+            Ok::<_, relief_landscape::LandscapeError>(
+                outputs
+                    .iter()
+                    .enumerate()
+                    .map(|(t, x)| encode(x, &l, t))
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .map_err(Failure::value)?;
+    Ok(out.iter().map(|b| PyBytes::new(py, b)).collect())
+}
+
 /// Phase 2 (one task): every tile's levels from every tile's fill graph.
 #[pyfunction]
 pub(crate) fn flow_phase2<'py>(
@@ -98,24 +129,14 @@ pub(crate) fn flow_phase2<'py>(
     l: Layout,
     graphs: Vec<Vec<u8>>,
 ) -> PyResult<Vec<Bound<'py, PyBytes>>> {
-    let l = layout(l)?;
-    let levels = py
-        .detach(|| {
-            let g = graphs
-                .iter()
-                .enumerate()
-                .map(|(t, b)| FillGraph::from_bytes(b, &l, t))
-                .collect::<relief_landscape::Result<Vec<_>>>()?;
-            let lv = tiled::phase2(&l, &g)?;
-            Ok::<_, relief_landscape::LandscapeError>(
-                lv.iter()
-                    .enumerate()
-                    .map(|(t, x)| x.to_bytes(&l, t))
-                    .collect::<Vec<_>>(),
-            )
-        })
-        .map_err(Failure::value)?;
-    Ok(levels.iter().map(|b| PyBytes::new(py, b)).collect())
+    single_phase(
+        py,
+        l,
+        graphs,
+        FillGraph::from_bytes,
+        tiled::phase2,
+        Levels::to_bytes,
+    )
 }
 
 /// Phase 3 of tile `t`: `(routed, port graph)` from its local fill and every tile's levels.
@@ -155,25 +176,14 @@ pub(crate) fn flow_phase4<'py>(
     l: Layout,
     ports: Vec<Vec<u8>>,
 ) -> PyResult<Vec<Bound<'py, PyBytes>>> {
-    let l = layout(l)?;
-    let out = py
-        .detach(|| {
-            let g = ports
-                .iter()
-                .enumerate()
-                .map(|(t, b)| PortGraph::from_bytes(b, &l, t))
-                .collect::<relief_landscape::Result<Vec<_>>>()?;
-            let inflow = tiled::phase4(&l, &g)?;
-            Ok::<_, relief_landscape::LandscapeError>(
-                inflow
-                    .iter()
-                    .enumerate()
-                    .map(|(t, x)| x.to_bytes(&l, t))
-                    .collect::<Vec<_>>(),
-            )
-        })
-        .map_err(Failure::value)?;
-    Ok(out.iter().map(|b| PyBytes::new(py, b)).collect())
+    single_phase(
+        py,
+        l,
+        ports,
+        PortGraph::from_bytes,
+        tiled::phase4,
+        Inflow::to_bytes,
+    )
 }
 
 fn finished(
@@ -231,24 +241,14 @@ pub(crate) fn flow_phase6<'py>(
     l: Layout,
     summaries: Vec<Vec<u8>>,
 ) -> PyResult<Vec<Bound<'py, PyBytes>>> {
-    let l = layout(l)?;
-    let out = py
-        .detach(|| {
-            let s = summaries
-                .iter()
-                .enumerate()
-                .map(|(t, b)| NetSummary::from_bytes(b, &l, t))
-                .collect::<relief_landscape::Result<Vec<_>>>()?;
-            let lv = tiled::phase6(&l, &s)?;
-            Ok::<_, relief_landscape::LandscapeError>(
-                lv.iter()
-                    .enumerate()
-                    .map(|(t, x)| x.to_bytes(&l, t))
-                    .collect::<Vec<_>>(),
-            )
-        })
-        .map_err(Failure::value)?;
-    Ok(out.iter().map(|b| PyBytes::new(py, b)).collect())
+    single_phase(
+        py,
+        l,
+        summaries,
+        NetSummary::from_bytes,
+        tiled::phase6,
+        NetLevels::to_bytes,
+    )
 }
 
 /// Phase 7 of tile `t`: `(strahler, watersheds, hand, network)`.

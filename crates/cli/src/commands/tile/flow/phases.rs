@@ -160,21 +160,46 @@ fn read_input(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Heig
     Ok(hf)
 }
 
-fn phase2(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
-    let graphs = (0..m.tasks)
+/// A single-task phase `phase`: decodes product `index` of every tile's task of phase `from`,
+/// runs `run` over all of them and names every tile's encoded output.
+#[allow(clippy::too_many_arguments)]
+fn single_phase<I: Send, O>(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    (from, index): (usize, usize),
+    phase: usize,
+    decode: fn(&[u8], &TileLayout, usize) -> relief_landscape::Result<I>,
+    run: fn(&TileLayout, &[I]) -> relief_landscape::Result<Vec<O>>,
+    encode: fn(&O, &TileLayout, usize) -> Vec<u8>,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let inputs = (0..m.tasks)
         .into_par_iter()
         .map(|t| {
-            let b = read_product(dir, m, 1, t, 1, t)?;
-            Ok(FillGraph::from_bytes(&b, l, t)?)
+            let b = read_product(dir, m, from, t, index, t)?;
+            Ok(decode(&b, l, t)?)
         })
         .collect::<Result<Vec<_>>>()?;
-    let levels = tiled::phase2(l, &graphs)?;
-    let names = outputs_of(2, 0, m.tasks);
-    Ok(levels
+    let outputs = run(l, &inputs)?;
+    let names = outputs_of(phase, 0, m.tasks);
+    Ok(outputs
         .iter()
         .enumerate()
-        .map(|(t, lv)| (names[t].clone(), lv.to_bytes(l, t)))
+        .map(|(t, x)| (names[t].clone(), encode(x, l, t)))
         .collect())
+}
+
+fn phase2(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
+    single_phase(
+        dir,
+        m,
+        l,
+        (1, 1),
+        2,
+        FillGraph::from_bytes,
+        tiled::phase2,
+        Levels::to_bytes,
+    )
 }
 
 fn phase3(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
@@ -197,20 +222,16 @@ fn phase3(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
 }
 
 fn phase4(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
-    let graphs = (0..m.tasks)
-        .into_par_iter()
-        .map(|t| {
-            let b = read_product(dir, m, 3, t, 1, t)?;
-            Ok(PortGraph::from_bytes(&b, l, t)?)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let inflow = tiled::phase4(l, &graphs)?;
-    let names = outputs_of(4, 0, m.tasks);
-    Ok(inflow
-        .iter()
-        .enumerate()
-        .map(|(t, f)| (names[t].clone(), f.to_bytes(l, t)))
-        .collect())
+    single_phase(
+        dir,
+        m,
+        l,
+        (3, 1),
+        4,
+        PortGraph::from_bytes,
+        tiled::phase4,
+        Inflow::to_bytes,
+    )
 }
 
 /// Tile `t`'s final filled elevations, directions and upstream cells (phase 5's values, which
@@ -251,20 +272,16 @@ fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
 }
 
 fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
-    let sums = (0..m.tasks)
-        .into_par_iter()
-        .map(|t| {
-            let b = read_product(dir, m, 5, t, 3, t)?;
-            Ok(tiled::NetSummary::from_bytes(&b, l, t)?)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let levels = tiled::phase6(l, &sums)?;
-    let names = outputs_of(6, 0, m.tasks);
-    Ok(levels
-        .iter()
-        .enumerate()
-        .map(|(t, lv)| (names[t].clone(), lv.to_bytes(l, t)))
-        .collect())
+    single_phase(
+        dir,
+        m,
+        l,
+        (5, 3),
+        6,
+        tiled::NetSummary::from_bytes,
+        tiled::phase6,
+        tiled::NetLevels::to_bytes,
+    )
 }
 
 fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
