@@ -11,6 +11,7 @@
 //! | 4.3 OMP (literal argmin of the residual) | [`omp_reference`] |
 //! | 4.3 fast OMP: Batch-OMP (Rubinstein, Zibulevsky & Elad 2008) | [`batch_omp`] |
 //! | 5.3 `s = 1` coding with complete dictionaries of 60,000-120,000 atoms (exact nearest-atom search, blocked correlations, no Gram matrix) | [`nearest::nearest_atom`] (used by [`batch_omp`] above 4096 atoms) |
+//! | 5.3 the coder the encoder and the amplification steps call: Batch-OMP, or at `s = 1` with a large dictionary the inverted-list search | [`code_indexed`] (at the crate root since the `coding` module sits above both solvers; it was `nearest::code_indexed`) |
 //! | 4.3 exact reconstruction with `s = 1` and the complete dictionary | `Dictionary::from_patches(&p, None)` + [`encode()`] (tested) |
 //! | 5.1 compact representation, `t(s, N) = KN + n(2s + 2) + 1`, `rho = t / t0`, PSNR | [`encode()`], [`encode::compression_report`], [`format`](mod@format) (`.sct` bytes) |
 //! | 5.4 authoring: operators (blend, add, max/min carve, replace in region), rivers (fig. 12-13) | [`sct::Node`], [`sct::River`] (carve or bed profile along a polyline, width/depth per vertex), [`sct::Region`] |
