@@ -1,5 +1,7 @@
 use thiserror::Error;
 
+use crate::ParamError;
+
 /// Errors of heightfield construction and processing.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum HeightfieldError {
@@ -74,15 +76,8 @@ pub enum HeightfieldError {
         b_h: usize,
     },
     /// A parameter is out of its valid range.
-    #[error("invalid parameter `{name}` = {value}: {reason}")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// Offending value, formatted.
-        value: String,
-        /// What is expected.
-        reason: &'static str,
-    },
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
 }
 
 /// Result alias of this crate.
@@ -91,10 +86,6 @@ pub type Result<T, E = HeightfieldError> = std::result::Result<T, E>;
 impl HeightfieldError {
     /// Shorthand for [`HeightfieldError::InvalidParameter`].
     pub fn param(name: &'static str, value: impl std::fmt::Display, reason: &'static str) -> Self {
-        Self::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason,
-        }
+        Self::InvalidParameter(ParamError::new(name, value, reason))
     }
 }

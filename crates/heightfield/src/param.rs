@@ -55,6 +55,17 @@ pub fn in_range<T: PartialOrd + Display>(
     ensure(range.contains(&value), name, value, reason)
 }
 
+/// `Ok` when `lo < value <= hi` (the half-open interval `(lo, hi]`, never for a NaN), else the
+/// [`ParamError`] naming `name`: the range of a positive rate, fraction or size with a cap.
+pub fn in_left_open<T: PartialOrd + Display>(
+    name: &'static str,
+    value: T,
+    (lo, hi): (T, T),
+    reason: &'static str,
+) -> Result<(), ParamError> {
+    ensure(value > lo && value <= hi, name, value, reason)
+}
+
 /// [`in_range`] on the field `$field` of `$settings`, named after the field, so that the name in
 /// the error cannot drift from the field checked:
 /// `check_field!(self, tile, 16..=65_536, "must be in 16..=65536")?` checks `self.tile`.
@@ -63,16 +74,6 @@ macro_rules! check_field {
     ($settings:ident, $field:ident, $range:expr, $reason:expr) => {
         $crate::param::in_range(stringify!($field), $settings.$field, $range, $reason)
     };
-}
-
-impl From<ParamError> for crate::HeightfieldError {
-    fn from(e: ParamError) -> Self {
-        Self::InvalidParameter {
-            name: e.name,
-            value: e.value,
-            reason: e.reason,
-        }
-    }
 }
 
 #[cfg(test)]
@@ -88,6 +89,11 @@ mod tests {
             "invalid parameter `k` = 13: must be in 1..=12"
         );
         assert!(in_range("g", f64::NAN, 0.0..=8.0, "must be in [0, 8]").is_err());
+        assert!(in_left_open("r", 0.5, (0.0, 0.5), "must be in (0, 0.5]").is_ok());
+        for bad in [0.0, 0.51, f64::NAN] {
+            let e = in_left_open("r", bad, (0.0, 0.5), "must be in (0, 0.5]").unwrap_err();
+            assert_eq!(e.name, "r");
+        }
         assert!(ensure(false, "x", 0.5, "must be > 1").is_err());
         struct S {
             tile: usize,

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use relief_heightfield::check_field;
-use relief_heightfield::param::{ensure, in_range};
+use relief_heightfield::param::{ensure, in_left_open, in_range};
 
 use crate::error::{PatchSynthError, Result};
 
@@ -286,12 +286,7 @@ impl Settings {
         check_field!(self, reuse_penalty, 0.0..=100.0, "must be in [0, 100]")?;
         check_field!(self, reuse_radius, ..=64, "must be <= 64 blocks")?;
         if let Some(f) = self.min_candidates_share {
-            ensure(
-                f > 0.0 && f <= 1.0,
-                "min_candidates_share",
-                f,
-                "must be in (0, 1]",
-            )?;
+            in_left_open("min_candidates_share", f, (0.0, 1.0), "must be in (0, 1]")?;
         }
         if let Some(t) = self.validation_tolerance {
             let ok = t.is_finite() && t > 0.0;

@@ -67,7 +67,7 @@
 //! or a void, so both give the same bytes.
 
 use rayon::prelude::*;
-use relief_heightfield::param::{ensure, in_range};
+use relief_heightfield::param::{in_left_open, in_range};
 use relief_heightfield::rng::{hash, unit_f32};
 use relief_heightfield::{ParamError, Progress};
 use serde::{Deserialize, Serialize};
@@ -75,7 +75,7 @@ use serde::{Deserialize, Serialize};
 use crate::LandscapeError;
 use crate::grid::Grid;
 
-use super::thermal::check_input;
+use super::thermal::{check_input, check_iterations, check_stop};
 
 /// Gravity (m/s^2).
 const G: f64 = 9.81;
@@ -147,20 +147,15 @@ impl Default for HydraulicParams {
 impl HydraulicParams {
     /// Checks every field (names the first one out of range).
     pub fn check(&self) -> Result<(), ParamError> {
-        ensure(
-            self.iterations <= 1_000_000,
-            "iterations",
-            self.iterations,
-            "must be at most 1000000",
-        )?;
+        check_iterations(self.iterations)?;
         if let Some(dt) = self.dt_s {
-            ensure(dt > 0.0 && dt <= 1e6, "dt_s", dt, "must be in (0, 1e6] s")?;
+            in_left_open("dt_s", dt, (0.0, 1e6), "must be in (0, 1e6] s")?;
         }
         in_range("rain_m", self.rain_m, 0.0..=10.0, "must be in [0, 10] m")?;
-        ensure(
-            self.rain_fraction > 0.0 && self.rain_fraction <= 1.0,
+        in_left_open(
             "rain_fraction",
             self.rain_fraction,
+            (0.0, 1.0),
             "must be in (0, 1]",
         )?;
         in_range(
@@ -183,19 +178,14 @@ impl HydraulicParams {
             "must be in [0, 1]",
         )?;
         in_range("min_tilt", self.min_tilt, 0.0..=1.0, "must be in [0, 1]")?;
-        ensure(
-            self.full_depth_m > 0.0 && self.full_depth_m <= 1e4,
+        in_left_open(
             "full_depth_m",
             self.full_depth_m,
+            (0.0, 1e4),
             "must be in (0, 1e4] m",
         )?;
         if let Some(a) = self.pipe_area_m2 {
-            ensure(
-                a > 0.0 && a <= 1e12,
-                "pipe_area_m2",
-                a,
-                "must be in (0, 1e12] m^2",
-            )?;
+            in_left_open("pipe_area_m2", a, (0.0, 1e12), "must be in (0, 1e12] m^2")?;
         }
         in_range(
             "hardness_depth_m",
@@ -284,12 +274,7 @@ pub fn hydraulic(
     progress.begin("hydraulic erosion", p.iterations as u64);
     let mut suspended = 0.0f64;
     for it in 0..p.iterations {
-        if stop() {
-            return Err(LandscapeError::Stopped(format!(
-                "hydraulic erosion after {it} of {} iterations",
-                p.iterations
-            )));
-        }
+        check_stop(stop, "hydraulic erosion", it, p.iterations)?;
         // Transport of the previous step's load (steps 4) and the new fluxes (step 2a) in one
         // sweep: both read what the erosion pass wrote and write different buffers.
         let advected = sim.flow_transport(&consts, it > 0);

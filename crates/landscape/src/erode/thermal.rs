@@ -23,7 +23,7 @@
 //! Voids (`NaN`) are left untouched and take no material; nothing leaves the map.
 
 use rayon::prelude::*;
-use relief_heightfield::param::{ensure, in_range};
+use relief_heightfield::param::{ensure, in_left_open, in_range};
 use relief_heightfield::{ParamError, Progress};
 use serde::{Deserialize, Serialize};
 
@@ -73,18 +73,8 @@ impl ThermalParams {
             0.1..=89.0,
             "must be in [0.1, 89] degrees",
         )?;
-        ensure(
-            self.iterations <= 1_000_000,
-            "iterations",
-            self.iterations,
-            "must be at most 1000000",
-        )?;
-        ensure(
-            self.rate > 0.0 && self.rate <= 0.5,
-            "rate",
-            self.rate,
-            "must be in (0, 0.5]",
-        )?;
+        check_iterations(self.iterations)?;
+        in_left_open("rate", self.rate, (0.0, 0.5), "must be in (0, 0.5]")?;
         if let Some(w) = self.weathering_m {
             in_range("weathering_m", w, 0.0..=1e4, "must be in [0, 10000] m")?;
         }
@@ -146,12 +136,7 @@ pub fn thermal(
     progress.begin("thermal erosion", p.iterations as u64);
     let mut done = 0;
     for it in 0..p.iterations {
-        if stop() {
-            return Err(LandscapeError::Stopped(format!(
-                "thermal erosion after {it} of {} iterations",
-                p.iterations
-            )));
-        }
+        check_stop(stop, "thermal erosion", it, p.iterations)?;
         (
             share_out.par_chunks_mut(band),
             share_in.par_chunks_mut(band),
@@ -233,6 +218,33 @@ pub fn thermal(
     }
     z.copy_from_slice(&cur);
     Ok(figures)
+}
+
+/// Iterations of a hydraulic or thermal run: at most a million.
+pub(crate) fn check_iterations(iterations: u32) -> Result<(), ParamError> {
+    in_range(
+        "iterations",
+        iterations,
+        ..=1_000_000,
+        "must be at most 1000000",
+    )
+}
+
+/// [`LandscapeError::Stopped`] naming `what` and the `it` of `of` iterations done when `stop()`
+/// returns true (checked before every iteration of the hydraulic and thermal runs).
+pub(crate) fn check_stop(
+    stop: &dyn Fn() -> bool,
+    what: &str,
+    it: u32,
+    of: u32,
+) -> Result<(), LandscapeError> {
+    if stop() {
+        Err(LandscapeError::Stopped(format!(
+            "{what} after {it} of {of} iterations"
+        )))
+    } else {
+        Ok(())
+    }
 }
 
 /// The size check every erosion routine shares: `z` holds one value per cell, cell sizes are
