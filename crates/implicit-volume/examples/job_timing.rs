@@ -118,20 +118,10 @@ fn main() {
             if *feat == Feature::Islands {
                 let mut r = e.sizes_m.clone();
                 r.sort_by(f32::total_cmp);
-                // Clark-Evans ratio: mean nearest-neighbour distance over that of a Poisson
-                // process of the same density (1 random, < 1 clustered, > 1 regular).
-                let n = e.sites.len() as f32;
-                let nn = |i: usize| {
-                    let p = e.sites[i];
-                    e.sites
-                        .iter()
-                        .enumerate()
-                        .filter(|&(j, _)| j != i)
-                        .map(|(_, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-                        .fold(f32::INFINITY, f32::min)
-                };
-                let area = 1e6 * out.report.dims.area_km2;
-                let ce = (0..e.sites.len()).map(nn).sum::<f32>() / n / (0.5 / (n / area).sqrt());
+                // Clark-Evans ratio (1 random, < 1 clustered, > 1 regular).
+                let area = 1e6 * out.report.dims.area_km2 as f64;
+                let ce =
+                    relief_implicit_volume::scene::clark_evans(&e.sites, area).unwrap_or(f32::NAN);
                 println!(
                     "  islands: radii {:?} m, nearest-neighbour spacing cv {:?}, clark-evans {ce:.2}, tops {:?}",
                     r.iter().map(|x| x.round()).collect::<Vec<_>>(),

@@ -363,23 +363,8 @@ mod tests {
         }
         // Clark-Evans: mean nearest-neighbour distance over that of a random pattern of the
         // same density on the band (40 x 160 m): clustered well below 1.
-        let n = rep.sites.len() as f32;
-        let nn: f32 = rep
-            .sites
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                rep.sites
-                    .iter()
-                    .enumerate()
-                    .filter(|&(j, _)| j != i)
-                    .map(|(_, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
-                    .fold(f32::INFINITY, f32::min)
-            })
-            .sum::<f32>()
-            / n;
-        let random = 0.5 / (n / (40.0 * 160.0)).sqrt();
-        assert!(nn < 0.75 * random, "{nn} vs {random}");
+        let ce = crate::scene::clark_evans(&rep.sites, 40.0 * 160.0).unwrap();
+        assert!(ce < 0.75, "Clark-Evans ratio {ce}");
     }
 
     /// Runs `f` on a pool of `threads` threads.

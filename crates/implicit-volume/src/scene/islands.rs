@@ -40,14 +40,10 @@ struct Island {
     depth: f32,
 }
 
-/// Coefficient of variation (standard deviation over mean) of the horizontal nearest-neighbour
-/// distances of `sites`: 0 for an even grid, about 0.5 for a Poisson process, more for
-/// clusters. `None` with fewer than two sites.
-pub fn nearest_neighbour_cv(sites: &[V3]) -> Option<f32> {
-    if sites.len() < 2 {
-        return None;
-    }
-    let d: Vec<f64> = sites
+/// Horizontal distance (m) from each of `sites` to the nearest other one (infinite for a lone
+/// site).
+pub fn nearest_neighbour_distances(sites: &[V3]) -> Vec<f64> {
+    sites
         .iter()
         .enumerate()
         .map(|(i, p)| {
@@ -58,11 +54,34 @@ pub fn nearest_neighbour_cv(sites: &[V3]) -> Option<f32> {
                 .map(|(_, q)| ((p[0] - q[0]) as f64).hypot((p[1] - q[1]) as f64))
                 .fold(f64::INFINITY, f64::min)
         })
-        .collect();
+        .collect()
+}
+
+/// Coefficient of variation (standard deviation over mean) of the horizontal nearest-neighbour
+/// distances of `sites`: 0 for an even grid, about 0.5 for a Poisson process, more for
+/// clusters. `None` with fewer than two sites.
+pub fn nearest_neighbour_cv(sites: &[V3]) -> Option<f32> {
+    if sites.len() < 2 {
+        return None;
+    }
+    let d = nearest_neighbour_distances(sites);
     let n = d.len() as f64;
     let mean = d.iter().sum::<f64>() / n;
     let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
     (mean > 0.0).then(|| (var.sqrt() / mean) as f32)
+}
+
+/// Clark-Evans ratio of `sites` spread over `area_m2`: their mean nearest-neighbour distance
+/// over that of a Poisson process of the same density (1 random, < 1 clustered, > 1 regular).
+/// `None` with fewer than two sites.
+pub fn clark_evans(sites: &[V3], area_m2: f64) -> Option<f32> {
+    if sites.len() < 2 {
+        return None;
+    }
+    let d = nearest_neighbour_distances(sites);
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    Some((mean / (0.5 / (n / area_m2).sqrt())) as f32)
 }
 
 impl SceneBuilder {
@@ -497,7 +516,7 @@ mod tests {
     }
 
     #[test]
-    fn nn_cv_is_zero_on_a_grid_and_large_for_clusters() {
+    fn nn_cv_and_clark_evans_tell_a_grid_from_clusters() {
         let grid: Vec<V3> = (0..16)
             .map(|k| [(k % 4) as f32 * 10.0, (k / 4) as f32 * 10.0, 0.0])
             .collect();
@@ -510,6 +529,11 @@ mod tests {
             [100.0, 20.0, 0.0],
         ];
         assert!(nearest_neighbour_cv(&clusters).unwrap() > 0.3);
+        // Clark-Evans: the 4 x 4 grid of spacing 10 on 40 x 40 m is twice as regular as a
+        // Poisson process of its density; the clusters on 120 x 40 m are clustered (0.54).
+        assert!((clark_evans(&grid, 1600.0).unwrap() - 2.0).abs() < 1e-6);
+        assert!((clark_evans(&clusters, 4800.0).unwrap() - 0.542).abs() < 1e-3);
+        assert_eq!(clark_evans(&grid[..1], 1e4), None);
         assert_eq!(nearest_neighbour_cv(&grid[..1]), None);
     }
 }

@@ -15,7 +15,7 @@ mod landforms;
 mod settings;
 mod undercuts;
 
-pub use islands::nearest_neighbour_cv;
+pub use islands::{clark_evans, nearest_neighbour_cv, nearest_neighbour_distances};
 pub use settings::*;
 
 use std::cmp::Reverse;
