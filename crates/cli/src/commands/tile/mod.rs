@@ -161,6 +161,14 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     }
 }
 
+/// The plan folder `dir` (made absolute) and its checked manifest: the start of `relief tile
+/// status`, `run` and `mosaic`.
+fn open_plan(dir: &Path) -> Result<(PathBuf, Manifest)> {
+    let dir = absolute(dir)?;
+    let m = load_manifest(&dir)?;
+    Ok((dir, m))
+}
+
 #[cfg(test)]
 mod tests {
     use super::mosaic::ranges;

@@ -3,8 +3,7 @@
 use super::*;
 
 pub(super) fn status(a: StatusArgs, ctx: &Ctx) -> Result<()> {
-    let dir = absolute(&a.dir)?;
-    let m = load_manifest(&dir)?;
+    let (dir, m) = open_plan(&a.dir)?;
     if m.phases > 0 {
         return super::flow::status(&dir, &m, ctx);
     }
@@ -65,8 +64,7 @@ pub(super) fn ranges(v: &[usize]) -> String {
 }
 
 pub(super) fn mosaic(a: MosaicArgs, ctx: &Ctx) -> Result<()> {
-    let dir = absolute(&a.dir)?;
-    let m = load_manifest(&dir)?;
+    let (dir, m) = open_plan(&a.dir)?;
     if m.phases > 0 {
         return super::flow::mosaic(&dir, &m, &a, ctx);
     }

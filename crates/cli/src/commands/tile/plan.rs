@@ -143,18 +143,7 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
             output.display()
         );
     }
-    let dir = absolute(&a.dir)?;
-    if dir.exists()
-        && std::fs::read_dir(&dir)
-            .with_context(|| format!("cannot read {}", dir.display()))?
-            .next()
-            .is_some()
-    {
-        bail!(
-            "the plan folder {} is not empty (a plan is written into a new folder)",
-            dir.display()
-        );
-    }
+    let dir = new_plan_dir(&a.dir)?;
     let in_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     ctx.check_outputs(&in_refs, &[(&output, crate::outputs::OutKind::Raster)])?;
     if inputs.iter().any(|i| dir.starts_with(i)) || output.starts_with(&dir) {
@@ -337,4 +326,22 @@ pub(super) fn prepare(cmd: &Windowable, ctx: &Ctx) -> Result<Prepared> {
         cell,
         georef,
     })
+}
+
+/// The plan folder `dir`, absolute; it must be new or empty (a plan is written into a new
+/// folder).
+pub(super) fn new_plan_dir(dir: &Path) -> Result<PathBuf> {
+    let dir = absolute(dir)?;
+    if dir.exists()
+        && std::fs::read_dir(&dir)
+            .with_context(|| format!("cannot read {}", dir.display()))?
+            .next()
+            .is_some()
+    {
+        bail!(
+            "the plan folder {} is not empty (a plan is written into a new folder)",
+            dir.display()
+        );
+    }
+    Ok(dir)
 }

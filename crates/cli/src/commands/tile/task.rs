@@ -22,8 +22,7 @@ pub(super) fn task_index(given: Option<usize>) -> Result<usize> {
 }
 
 pub(super) fn run_task(a: RunArgs, ctx: &Ctx) -> Result<()> {
-    let dir = absolute(&a.dir)?;
-    let m = load_manifest(&dir)?;
+    let (dir, m) = open_plan(&a.dir)?;
     if m.phases > 0 {
         return super::flow::run_task(&dir, &m, &a, ctx);
     }
