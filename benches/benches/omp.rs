@@ -16,8 +16,7 @@
 //! index of `relief_sparse_core::nearest::AtomIndex` (default settings: 256 lists, 8 probes) is
 //! timed as `omp_large/atom_index_build_f32/k64_n65536_s1` (once per dictionary) and
 //! `omp_large/atom_index_code_f32/k64_n65536_s1` (the same 16,384 signals); its recall against
-//! the exact search is printed by `cargo run --release -p relief-benches --example
-//! nearest_index`.
+//! the exact search is printed by `cargo bench -p relief-benches --bench nearest_index`.
 
 use criterion::measurement::WallTime;
 use criterion::{

@@ -92,7 +92,7 @@ pub fn with_holes(hf: &Heightfield) -> Heightfield {
     out
 }
 
-/// The large-dictionary data of the `omp_large` bench and the `nearest_index` example
+/// The large-dictionary data of the `omp_large` bench and the `nearest_index` bench
 /// (guerin2016 section 5.3, issue 15): `n_atoms` unit-norm mean-removed 8 x 8 patches of the top
 /// half of the fixture DEM and `n_signals` patches of its bottom half (no signal is an atom),
 /// both evenly strided over the patches with a norm above 1e-3.
@@ -159,31 +159,4 @@ pub fn spl_surface() -> Heightfield {
         })
         .collect();
     Heightfield::new(n, n, data, 100.0, 100.0).expect("a 1024^2 grid")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn holes_cover_about_seven_percent() {
-        let hf = Heightfield::from_fn(512, 512, 1.0, 1.0, |x, y| (x + y) as f32);
-        let holed = with_holes(&hf);
-        let frac = holed.void_count() as f64 / holed.len() as f64;
-        assert!((0.05..0.08).contains(&frac), "{frac}");
-        assert_eq!(holed.get(0, 0), 0.0);
-        assert!(holed.get(128, 128).is_nan());
-    }
-
-    #[test]
-    fn dwt_surface_is_a_deterministic_random_walk() {
-        let a = dwt_surface(64);
-        assert_eq!(a, dwt_surface(64));
-        // Cumulative sums in both directions: the first cell is the first normal, and the
-        // surface wanders far further than one step.
-        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
-            - a.iter().cloned().fold(f32::INFINITY, f32::min);
-        assert!(spread > 20.0, "{spread}");
-        assert!(a.iter().all(|v| v.is_finite()));
-    }
 }

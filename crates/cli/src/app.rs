@@ -302,6 +302,12 @@ mod tests {
             .unwrap()
             .unwrap();
         assert_eq!(v["render"], true, "{v}");
+        // Meshes are simplified to 2 M triangles unless asked otherwise; 0 keeps them all.
+        assert_eq!(v["max_triangles"], 2_000_000, "{v}");
+        let v = settings("volume /no/a.tif --mesh /no/m.glb --max-triangles 0")
+            .unwrap()
+            .unwrap();
+        assert!(v["max_triangles"].is_null(), "{v}");
         assert!(settings("info /no/a.tif").unwrap().is_none());
         let v = settings("validate --guide /g --exemplar /e --min-candidates-share 0.05")
             .unwrap()

@@ -36,7 +36,7 @@ pub struct EncodeSettings {
 /// Default probes of the `s = 1` atom index for dictionaries of more than 4096 atoms: on
 /// 65,536 Grand Canyon atoms, 96.8 % of the patches get the exact search's atom and the
 /// squared residual grows by 0.27 %, at 15 us per patch against 230 us for the exact search
-/// and 23 us for a 4096-atom dictionary (`cargo run --release -p relief-benches --example
+/// and 23 us for a 4096-atom dictionary (`cargo bench -p relief-benches --bench
 /// nearest_index`).
 pub const DEFAULT_INDEX_PROBES: usize = 8;
 

@@ -99,7 +99,7 @@ pub(crate) const WORK_ITEMS: &[WorkItem] = &[
     },
     // Issue 15: s = 1 coding with a 65,536-atom dictionary, per signal no slower than the
     // 4096-atom Gram path on the same 16,384 signals (a Rust peer timed in the same run): the
-    // default inverted-list index (8 probes; recall printed by the `nearest_index` example),
+    // default inverted-list index (8 probes; recall printed by the `nearest_index` bench),
     // and the exact search for reference.
     WorkItem {
         name: "s=1 coding K=64 N=65,536 (atom index, 8 probes), 16,384 grandcanyon patches, 2 threads",

@@ -616,4 +616,30 @@ mod tests {
         );
         assert_eq!(peer_extras(&m, "other_s"), "");
     }
+
+    // The data helpers of `relief-benches` (its library has no test target of its own, so that
+    // `cargo test --workspace` does not build criterion and the benchmark peers).
+
+    #[test]
+    fn holes_cover_about_seven_percent() {
+        let hf =
+            relief_heightfield::Heightfield::from_fn(512, 512, 1.0, 1.0, |x, y| (x + y) as f32);
+        let holed = relief_benches::with_holes(&hf);
+        let frac = holed.void_count() as f64 / holed.len() as f64;
+        assert!((0.05..0.08).contains(&frac), "{frac}");
+        assert_eq!(holed.get(0, 0), 0.0);
+        assert!(holed.get(128, 128).is_nan());
+    }
+
+    #[test]
+    fn dwt_surface_is_a_deterministic_random_walk() {
+        let a = relief_benches::dwt_surface(64);
+        assert_eq!(a, relief_benches::dwt_surface(64));
+        // Cumulative sums in both directions: the first cell is the first normal, and the
+        // surface wanders far further than one step.
+        let spread = a.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
+            - a.iter().cloned().fold(f32::INFINITY, f32::min);
+        assert!(spread > 20.0, "{spread}");
+        assert!(a.iter().all(|v| v.is_finite()));
+    }
 }

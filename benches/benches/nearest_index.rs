@@ -4,7 +4,7 @@
 //! `omp_large` criterion bench).
 //!
 //! ```text
-//! cargo run --release -p relief-benches --example nearest_index [-- LISTS PROBES...]
+//! cargo bench -p relief-benches --bench nearest_index [-- LISTS PROBES...]
 //! ```
 //!
 //! Prints one row per search: seconds, microseconds per signal, the recall (fraction of
@@ -18,8 +18,10 @@ use relief_sparse_core::omp::{OmpSettings, batch_omp};
 use relief_testdata::timed;
 
 fn main() {
+    // `cargo bench` adds `--bench` to the arguments of a harness-free target.
     let args: Vec<usize> = std::env::args()
         .skip(1)
+        .filter(|a| !a.starts_with("--"))
         .map(|a| a.parse().expect("a number"))
         .collect();
     let lists = args.first().copied().unwrap_or(0);
