@@ -132,18 +132,28 @@ impl MultiResDictionary {
         // primitive. A smooth input matches many atoms almost equally; always taking the best
         // one repeats the same detail on the grid (a wallpaper of one landform).
         let n = patches.matrix.nrows();
+        // Strongest first, ties by atom: a total order, so sorting only the first
+        // DETAIL_CHOICES after a selection gives the same list as sorting them all.
+        let order = |x: &(f32, usize), y: &(f32, usize)| {
+            y.0.abs().total_cmp(&x.0.abs()).then(x.1.cmp(&y.1))
+        };
         let picks: Vec<Option<(u32, f32, f64)>> = (0..n)
             .into_par_iter()
-            .map(|i| {
+            .map_init(Vec::new, |best: &mut Vec<(f32, usize)>, i| {
                 let p = patches.matrix.row(i);
-                let mut best: Vec<(f32, usize)> = self
-                    .low
-                    .outer_iter()
-                    .enumerate()
-                    .filter(|(j, _)| slot[*j].is_some())
-                    .map(|(j, l)| (p.dot(&l), j))
-                    .collect();
-                best.sort_by(|x, y| y.0.abs().total_cmp(&x.0.abs()).then(x.1.cmp(&y.1)));
+                best.clear();
+                best.extend(
+                    self.low
+                        .outer_iter()
+                        .enumerate()
+                        .filter(|(j, _)| slot[*j].is_some())
+                        .map(|(j, l)| (p.dot(&l), j)),
+                );
+                if best.len() > DETAIL_CHOICES {
+                    best.select_nth_unstable_by(DETAIL_CHOICES - 1, order);
+                    best.truncate(DETAIL_CHOICES);
+                }
+                best.sort_unstable_by(order);
                 let top = best.first()?.0.abs();
                 let k = best
                     .iter()

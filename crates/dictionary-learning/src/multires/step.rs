@@ -169,6 +169,7 @@ impl MultiResDictionary {
 
 /// Largest `|v|` of `v` (0 for an empty slice; NaNs ignored, as by `f32::max`), in eight
 /// lanes so that it vectorises: max is exact, so the lanes give the sequential fold's value.
+#[inline(always)]
 fn max_abs(v: &[f32]) -> f32 {
     let mut lanes = [0.0f32; 8];
     let chunks = v.chunks_exact(8);
@@ -187,6 +188,7 @@ fn max_abs(v: &[f32]) -> f32 {
 /// Appends `(v, j)` for every `v = cs[j]` with `|v| >= thr`, in increasing `j` (what the
 /// plain filter gives), testing eight values at a time first: few atoms come within the
 /// tolerance of the best, so most blocks are skipped by one vectorised comparison.
+#[inline(always)]
 fn near_atoms(cs: &[f32], thr: f32, near: &mut Vec<(f32, u32)>) {
     let chunks = cs.chunks_exact(8);
     let tail = chunks.remainder();
@@ -205,6 +207,87 @@ fn near_atoms(cs: &[f32], thr: f32, near: &mut Vec<(f32, u32)>) {
             near.push((v, (base + k) as u32));
         }
     }
+}
+
+/// The diverse pick of every row of a block of signals `rows` (the first is signal `first`)
+/// from its correlations `corr` with the `L` atoms: a seeded choice among the atoms within
+/// [`DIVERSE_TOLERANCE`] of the best, `(atom, coefficient, squared residual)`; `None` for a
+/// row without a finite non-zero correlation.
+#[inline(always)]
+fn pick_block(
+    corr: &Array2<f32>,
+    rows: ndarray::ArrayView2<'_, f32>,
+    (first, seed): (usize, u64),
+    index: &(dyn Fn(usize) -> u64 + Sync),
+) -> Vec<Option<(u32, f32, f32)>> {
+    let mut out = Vec::with_capacity(rows.nrows());
+    let mut near: Vec<(f32, u32)> = Vec::new();
+    for (r, (c, x)) in corr.outer_iter().zip(rows.outer_iter()).enumerate() {
+        let i = first + r;
+        let best = c
+            .as_slice()
+            .map_or_else(|| c.iter().fold(0.0f32, |m, v| m.max(v.abs())), max_abs);
+        if !(best > 0.0 && best.is_finite()) {
+            out.push(None);
+            continue;
+        }
+        near.clear();
+        let thr = DIVERSE_TOLERANCE * best;
+        match c.as_slice() {
+            Some(cs) => near_atoms(cs, thr, &mut near),
+            None => near.extend(
+                c.iter()
+                    .enumerate()
+                    .filter(|(_, v)| v.abs() >= thr)
+                    .map(|(j, &v)| (v, j as u32)),
+            ),
+        }
+        // Strongest first, ties by atom: a total order, so keeping only the first
+        // DIVERSE_CHOICES before sorting gives the same list.
+        let order =
+            |p: &(f32, u32), q: &(f32, u32)| q.0.abs().total_cmp(&p.0.abs()).then(p.1.cmp(&q.1));
+        if near.len() > DIVERSE_CHOICES {
+            near.select_nth_unstable_by(DIVERSE_CHOICES - 1, order);
+            near.truncate(DIVERSE_CHOICES);
+        }
+        near.sort_unstable_by(order);
+        let k = near.len().min(DIVERSE_CHOICES);
+        let (v, j) = near[(item_seed(seed, 0xd17e, index(i)) % k as u64) as usize];
+        let e: f32 = x.iter().map(|t| t * t).sum();
+        out.push(Some((j, v, (e - v * v).max(0.0))));
+    }
+    out
+}
+
+/// [`pick_block`] compiled with AVX2 enabled (wider vectors for the scans of the
+/// correlations). No FMA contraction is enabled and no sum is reordered: the picks are
+/// bit-identical to the baseline build's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn pick_block_avx2(
+    corr: &Array2<f32>,
+    rows: ndarray::ArrayView2<'_, f32>,
+    first: (usize, u64),
+    index: &(dyn Fn(usize) -> u64 + Sync),
+) -> Vec<Option<(u32, f32, f32)>> {
+    pick_block(corr, rows, first, index)
+}
+
+/// [`pick_block`], with AVX2 where the CPU has it.
+#[allow(unsafe_code)]
+fn pick_block_dispatch(
+    corr: &Array2<f32>,
+    rows: ndarray::ArrayView2<'_, f32>,
+    first: (usize, u64),
+    index: &(dyn Fn(usize) -> u64 + Sync),
+) -> Vec<Option<(u32, f32, f32)>> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        return unsafe { pick_block_avx2(corr, rows, first, index) };
+    }
+    pick_block(corr, rows, first, index)
 }
 
 /// Where a crop of a step input sits in the whole input's primitive grid: its first primitive
@@ -265,44 +348,7 @@ impl MultiResDictionary {
             .flat_map_iter(|b| {
                 let rows = signals.slice(ndarray::s![b * BLOCK..((b + 1) * BLOCK).min(n), ..]);
                 let corr = rows.dot(&lt);
-                let mut out = Vec::with_capacity(rows.nrows());
-                let mut near: Vec<(f32, u32)> = Vec::new();
-                for (r, (c, x)) in corr.outer_iter().zip(rows.outer_iter()).enumerate() {
-                    let i = b * BLOCK + r;
-                    let best = c
-                        .as_slice()
-                        .map_or_else(|| c.iter().fold(0.0f32, |m, v| m.max(v.abs())), max_abs);
-                    if !(best > 0.0 && best.is_finite()) {
-                        out.push(None);
-                        continue;
-                    }
-                    near.clear();
-                    let thr = DIVERSE_TOLERANCE * best;
-                    match c.as_slice() {
-                        Some(cs) => near_atoms(cs, thr, &mut near),
-                        None => near.extend(
-                            c.iter()
-                                .enumerate()
-                                .filter(|(_, v)| v.abs() >= thr)
-                                .map(|(j, &v)| (v, j as u32)),
-                        ),
-                    }
-                    // Strongest first, ties by atom: a total order, so keeping only the
-                    // first DIVERSE_CHOICES before sorting gives the same list.
-                    let order = |p: &(f32, u32), q: &(f32, u32)| {
-                        q.0.abs().total_cmp(&p.0.abs()).then(p.1.cmp(&q.1))
-                    };
-                    if near.len() > DIVERSE_CHOICES {
-                        near.select_nth_unstable_by(DIVERSE_CHOICES - 1, order);
-                        near.truncate(DIVERSE_CHOICES);
-                    }
-                    near.sort_unstable_by(order);
-                    let k = near.len().min(DIVERSE_CHOICES);
-                    let (v, j) = near[(item_seed(seed, 0xd17e, index(i)) % k as u64) as usize];
-                    let e: f32 = x.iter().map(|t| t * t).sum();
-                    out.push(Some((j, v, (e - v * v).max(0.0))));
-                }
-                out
+                pick_block_dispatch(&corr, rows, (b * BLOCK, seed), index)
             })
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);

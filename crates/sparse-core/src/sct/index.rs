@@ -54,7 +54,7 @@ impl SpatialIndex {
     /// Index of disks of radius `radius` around `centres`.
     pub(super) fn build(centres: &[[f64; 2]], radius: f64) -> Self {
         let boxes: Vec<[f64; 4]> = centres
-            .iter()
+            .par_iter()
             .map(|c| [c[0] - radius, c[1] - radius, c[0] + radius, c[1] + radius])
             .collect();
         Self::from_boxes(&boxes, 2.0 * radius)
@@ -106,7 +106,7 @@ impl SpatialIndex {
         };
         let mut counts = vec![0u32; nx * ny];
         let ranges: Vec<(usize, usize, usize, usize)> = boxes
-            .iter()
+            .par_iter()
             .map(|b| {
                 let (ia, ib) = idx.span(b[0], b[2], 0);
                 let (ja, jb) = idx.span(b[1], b[3], 1);

@@ -199,8 +199,12 @@ impl Node {
             let (a0, w0) = acc_init(kind);
             val.iter_mut().for_each(|v| *v = a0);
             wt.iter_mut().for_each(|v| *v = w0);
-            let mut cv = vec![0.0; n];
-            let mut cw = vec![0.0; n];
+            // The scratch pair (a nested operator finds it taken and allocates its own).
+            let (mut cv, mut cw) = std::mem::take(&mut scratch.child);
+            cv.clear();
+            cv.resize(n, 0.0);
+            cw.clear();
+            cw.resize(n, 0.0);
             for (i, child) in c.iter().enumerate() {
                 // A tree of millions of children takes seconds per band: ask between them.
                 if i % 1024 == 1023 && scratch.should_stop() {
@@ -213,6 +217,7 @@ impl Node {
                     wt[k] = a.1;
                 }
             }
+            scratch.child = (cv, cw);
             for k in 0..n {
                 let a = acc_finish(kind, (val[k], wt[k]));
                 val[k] = a.0;
