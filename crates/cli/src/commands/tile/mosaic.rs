@@ -152,6 +152,89 @@ fn check_origin(m: &Manifest, i: usize, rd: &relief_io::GeoTiffRowReader, p: &Pa
     Ok(())
 }
 
+/// Block side of a mosaic's GeoTIFF (GDAL's COG default), which tiles written for a mosaic
+/// share so that their encoded blocks are copied as they are.
+pub(super) const MOSAIC_BLOCK: usize = 512;
+
+/// Opens tile `i`'s file `name(i)` for reading rows, checked to be the size of tile `i` and
+/// placed where it belongs.
+fn open_tile(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    i: usize,
+) -> Result<relief_io::GeoTiffRowReader> {
+    let p = dir.join(name(i));
+    let rd = relief_io::GeoTiffRowReader::open(&p)
+        .with_context(|| format!("cannot read {}", p.display()))?;
+    let [_, _, w, h] = m.window(i);
+    if (rd.width(), rd.height()) != (w, h) {
+        bail!(
+            "{} is {} x {}, not the {w} x {h} of tile {i}: run the tile again",
+            p.display(),
+            rd.width(),
+            rd.height()
+        );
+    }
+    check_origin(m, i, &rd, &p)?;
+    Ok(rd)
+}
+
+/// The tiles' encoded blocks when the mosaic can be their copy: not a COG (whose overviews
+/// are made from the values), every tile's corner on the output's block grid, and every
+/// tile a tiled GeoTIFF in the output's block side and codec (as a flow plan's phases write
+/// their products). Else `None`: the tiles are decoded and encoded again.
+fn block_sources(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
+) -> Result<Option<Vec<relief_io::EncodedBlocks>>> {
+    if opts.cog {
+        return Ok(None);
+    }
+    let mut sources = Vec::with_capacity(m.tasks);
+    for i in 0..m.tasks {
+        let [x, y, _, _] = m.window(i);
+        if !x.is_multiple_of(opts.tile) || !y.is_multiple_of(opts.tile) {
+            return Ok(None);
+        }
+        open_tile(dir, m, name, i)?;
+        match relief_io::EncodedBlocks::open(&dir.join(name(i))) {
+            Ok(b) if b.tile() == opts.tile && b.compression() == opts.compression => {
+                sources.push(b)
+            }
+            _ => return Ok(None),
+        }
+    }
+    Ok(Some(sources))
+}
+
+/// Writes the mosaic as the tiles' encoded blocks, one band of blocks at a time (bytes equal
+/// to encoding the decoded tiles: relief-io's `EncodedBlocks`).
+fn copy_blocks(
+    m: &Manifest,
+    mut sources: Vec<relief_io::EncodedBlocks>,
+    writer: &mut relief_io::TiledGeoTiffWriter,
+    progress: &dyn Progress,
+) -> Result<()> {
+    let mut blocks = Vec::new();
+    for r in 0..m.tiles_y {
+        let row = &mut sources[r * m.tiles_x..(r + 1) * m.tiles_x];
+        let has_nan = row.iter().any(|b| b.has_nan());
+        for k in 0..row[0].height().div_ceil(MOSAIC_BLOCK) {
+            blocks.clear();
+            for b in row.iter_mut() {
+                b.read_block_row(k, &mut blocks)?;
+            }
+            let rows = MOSAIC_BLOCK.min(row[0].height() - k * MOSAIC_BLOCK);
+            writer.write_encoded_band(&blocks, rows, has_nan)?;
+            progress.advance(rows as u64);
+        }
+    }
+    Ok(())
+}
+
 /// Streams the tiles `name(i)` (relative to the plan folder) into the GeoTIFF (or COG) `out`,
 /// one band of tiles in memory.
 pub(super) fn stream_tiles(
@@ -163,7 +246,7 @@ pub(super) fn stream_tiles(
     ctx: &Ctx,
 ) -> Result<()> {
     let opts = relief_io::TiledOptions {
-        tile: 512,
+        tile: MOSAIC_BLOCK,
         compression: ctx.write_options().compression,
         cog: ctx.cog,
         bigtiff,
@@ -180,29 +263,21 @@ pub(super) fn stream_tiles(
     .with_context(|| format!("cannot write {}", out.display()))?;
     let progress = ctx.progress();
     progress.begin("mosaicking", m.output.height as u64);
+    if let Some(sources) = block_sources(dir, m, name, &opts)? {
+        copy_blocks(m, sources, &mut writer, &progress)?;
+        writer
+            .finish()
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        drop(progress);
+        return Ok(());
+    }
     // Blocks of rows: every tile of a row of tiles decodes its part in parallel, then the
     // block goes to the writer (which compresses its tiles in parallel too).
     let width = m.output.width;
     let mut block: Vec<f32> = Vec::new();
     for r in 0..m.tiles_y {
         let mut readers = (0..m.tiles_x)
-            .map(|c| {
-                let i = r * m.tiles_x + c;
-                let p = dir.join(name(i));
-                let rd = relief_io::GeoTiffRowReader::open(&p)
-                    .with_context(|| format!("cannot read {}", p.display()))?;
-                let [_, _, w, h] = m.window(i);
-                if (rd.width(), rd.height()) != (w, h) {
-                    bail!(
-                        "{} is {} x {}, not the {w} x {h} of tile {i}: run the tile again",
-                        p.display(),
-                        rd.width(),
-                        rd.height()
-                    );
-                }
-                check_origin(m, i, &rd, &p)?;
-                Ok(rd)
-            })
+            .map(|c| open_tile(dir, m, name, r * m.tiles_x + c))
             .collect::<Result<Vec<_>>>()?;
         let [_, _, _, h] = m.window(r * m.tiles_x);
         let mut y = 0;
