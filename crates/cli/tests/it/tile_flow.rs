@@ -90,7 +90,15 @@ fn assert_same(single: &Path, tiled: &Path) {
         json(&single.join("flow.json")),
         json(&tiled.join("flow.json")),
     );
-    for k in ["width", "height", "cell_size", "crs", "settings", "figures"] {
+    for k in [
+        "file",
+        "width",
+        "height",
+        "cell_size",
+        "crs",
+        "settings",
+        "figures",
+    ] {
         assert_eq!(a[k], b[k], "flow.json: {k}");
     }
     assert!(!tiled.join("channels.png").exists());
@@ -322,27 +330,30 @@ fn flow_plan_mosaic_copies_aligned_tiles_blocks() {
     let tmp = tempfile::tempdir().unwrap();
     let dem = write(tmp.path(), "basin.tif", &hf);
     let single = tmp.path().join("single");
-    relief_ok!["flow", &dem, "-o", &single, "--channel-area", "1e6"];
+    // Relative paths, as flow.json's `file` names them.
+    let in_tmp = |line: &str| {
+        let out = command()
+            .current_dir(tmp.path())
+            .args(line.split(' '))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{line}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    assert!(dem.ends_with("basin.tif"));
+    in_tmp("flow basin.tif -o single --channel-area 1e6");
     let mut outs = Vec::new();
     for tile in [512, 256] {
         let (dir, out) = (
             tmp.path().join(format!("p{tile}")),
             tmp.path().join(format!("t{tile}")),
         );
-        relief_ok![
-            "tile",
-            "plan",
-            &dir,
-            "--tile",
-            tile.to_string(),
-            "--",
-            "flow",
-            &dem,
-            "-o",
-            &out,
-            "--channel-area",
-            "1e6"
-        ];
+        in_tmp(&format!(
+            "tile plan p{tile} --tile {tile} -- flow basin.tif -o t{tile} --channel-area 1e6"
+        ));
         run_phases(&dir, tasks(&dir), 3);
         relief_ok!["tile", "mosaic", &dir];
         assert_same(&single, &out);

@@ -99,7 +99,10 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         version: VERSION,
         command: "flow".into(),
         args,
-        job: serde_json::to_value(FlowJob { flow: settings })?,
+        job: serde_json::to_value(FlowJob {
+            flow: settings,
+            file: Some(f.input.display().to_string()),
+        })?,
         inputs: vec![input_sum],
         prepared: bytes_sum(&index_bytes, INPUT_INDEX.into()),
         output: OutputGrid {
