@@ -82,6 +82,16 @@ struct FlowJob {
     file: Option<String>,
 }
 
+impl FlowJob {
+    /// The job of settings `flow` on the input `file` as the command line named it.
+    fn new(flow: FlowSettings, file: &Path) -> Self {
+        FlowJob {
+            flow,
+            file: Some(file.display().to_string()),
+        }
+    }
+}
+
 fn out_files() -> Vec<(String, OutKind)> {
     let mut v: Vec<(String, OutKind)> = PRODUCTS
         .iter()

@@ -99,10 +99,7 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         version: VERSION,
         command: "flow".into(),
         args,
-        job: serde_json::to_value(FlowJob {
-            flow: settings,
-            file: Some(f.input.display().to_string()),
-        })?,
+        job: serde_json::to_value(FlowJob::new(settings, &f.input))?,
         inputs: vec![input_sum],
         prepared: bytes_sum(&index_bytes, INPUT_INDEX.into()),
         output: OutputGrid {
