@@ -180,54 +180,77 @@ fn open_tile(
     Ok(rd)
 }
 
-/// The tiles' encoded blocks when the mosaic can be their copy: not a COG (whose overviews
-/// are made from the values), every tile's corner on the output's block grid, and every
-/// tile a tiled GeoTIFF in the output's block side and codec (as a flow plan's phases write
-/// their products). Else `None`: the tiles are decoded and encoded again.
-fn block_sources(
+/// Whether the mosaic can be the copy of the tiles' encoded blocks: not a COG (whose
+/// overviews are made from the values), every tile's corner on the output's block grid, and
+/// every tile a tiled GeoTIFF in the output's block side and codec (as a flow plan's phases
+/// write their products). Else the tiles are decoded and encoded again.
+fn blocks_fit(
     dir: &Path,
     m: &Manifest,
     name: &dyn Fn(usize) -> String,
     opts: &relief_io::TiledOptions,
-) -> Result<Option<Vec<relief_io::EncodedBlocks>>> {
+) -> Result<bool> {
     if opts.cog {
-        return Ok(None);
+        return Ok(false);
     }
-    let mut sources = Vec::with_capacity(m.tasks);
     for i in 0..m.tasks {
         let [x, y, _, _] = m.window(i);
         if !x.is_multiple_of(opts.tile) || !y.is_multiple_of(opts.tile) {
-            return Ok(None);
+            return Ok(false);
         }
-        open_tile(dir, m, name, i)?;
-        match relief_io::EncodedBlocks::open(&dir.join(name(i))) {
-            Ok(b) if b.tile() == opts.tile && b.compression() == opts.compression => {
-                sources.push(b)
-            }
-            _ => return Ok(None),
+        if open_blocks(dir, m, name, opts, i).is_err() {
+            return Ok(false);
         }
     }
-    Ok(Some(sources))
+    Ok(true)
+}
+
+/// Tile `i`'s encoded blocks, checked as [`open_tile`] checks the tile and to be in the
+/// output's block side and codec.
+fn open_blocks(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
+    i: usize,
+) -> Result<relief_io::EncodedBlocks> {
+    open_tile(dir, m, name, i)?;
+    let p = dir.join(name(i));
+    let b = relief_io::EncodedBlocks::open(&p)
+        .with_context(|| format!("cannot read {}", p.display()))?;
+    if b.tile() != opts.tile || b.compression() != opts.compression {
+        bail!(
+            "{} is not in the mosaic's blocks and codec: run tile {i} again",
+            p.display()
+        );
+    }
+    Ok(b)
 }
 
 /// Writes the mosaic as the tiles' encoded blocks, one band of blocks at a time (bytes equal
-/// to encoding the decoded tiles: relief-io's `EncodedBlocks`).
+/// to encoding the decoded tiles: relief-io's `EncodedBlocks`), one row of tiles open at a
+/// time.
 fn copy_blocks(
+    dir: &Path,
     m: &Manifest,
-    mut sources: Vec<relief_io::EncodedBlocks>,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
     writer: &mut relief_io::TiledGeoTiffWriter,
     progress: &dyn Progress,
 ) -> Result<()> {
     let mut blocks = Vec::new();
     for r in 0..m.tiles_y {
-        let row = &mut sources[r * m.tiles_x..(r + 1) * m.tiles_x];
+        let mut row = (r * m.tiles_x..(r + 1) * m.tiles_x)
+            .map(|i| open_blocks(dir, m, name, opts, i))
+            .collect::<Result<Vec<_>>>()?;
         let has_nan = row.iter().any(|b| b.has_nan());
-        for k in 0..row[0].height().div_ceil(MOSAIC_BLOCK) {
+        let h = row[0].height();
+        for k in 0..h.div_ceil(opts.tile) {
             blocks.clear();
-            for b in row.iter_mut() {
+            for b in &mut row {
                 b.read_block_row(k, &mut blocks)?;
             }
-            let rows = MOSAIC_BLOCK.min(row[0].height() - k * MOSAIC_BLOCK);
+            let rows = opts.tile.min(h - k * opts.tile);
             writer.write_encoded_band(&blocks, rows, has_nan)?;
             progress.advance(rows as u64);
         }
@@ -263,8 +286,8 @@ pub(super) fn stream_tiles(
     .with_context(|| format!("cannot write {}", out.display()))?;
     let progress = ctx.progress();
     progress.begin("mosaicking", m.output.height as u64);
-    if let Some(sources) = block_sources(dir, m, name, &opts)? {
-        copy_blocks(m, sources, &mut writer, &progress)?;
+    if blocks_fit(dir, m, name, &opts)? {
+        copy_blocks(dir, m, name, &opts, &mut writer, &progress)?;
         writer
             .finish()
             .with_context(|| format!("cannot write {}", out.display()))?;
