@@ -98,7 +98,7 @@ pub use preview::{
     write_preview_png_with, write_rgb_png, write_rgba_png,
 };
 pub use stream::GeoTiffStripWriter;
-pub use tiled::{GeoTiffRowReader, TiledGeoTiffWriter, TiledOptions};
+pub use tiled::{EncodedBlocks, GeoTiffRowReader, TiledGeoTiffWriter, TiledOptions};
 
 /// A raster or mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -21,6 +21,9 @@ use relief_heightfield::GeoRef;
 use crate::tiff_dir::{Value, encode_directories, georef_entries, header};
 use crate::{Format, IoError, Result, TiffCompression};
 
+mod blocks;
+pub use blocks::EncodedBlocks;
+
 const F: Format = Format::GeoTiff;
 
 /// Options of [`TiledGeoTiffWriter`].

@@ -133,6 +133,11 @@ def test_flow_on_two_worker_processes_equals_the_single_run(client):
     for phase, count in ((1, 9), (2, 1), (3, 9), (4, 1), (5, 9), (6, 1), (7, 9)):
         names = [k for k in graph if (k[0] if isinstance(k, tuple) else k).startswith(f"relief-flow-phase{phase}-")]
         assert len(names) == count, (phase, names)
+    # Each phase is one named layer of the high-level graph, holding every task of the phase.
+    layers = lazy["hand"].__dask_graph__().layers
+    for phase, count in ((1, 9), (2, 1), (3, 9), (4, 1), (5, 9), (6, 1), (7, 9)):
+        [name] = [k for k in layers if str(k).startswith(f"relief-flow-phase{phase}-")]
+        assert len(layers[name]) == count, (phase, name)
 
 
 def test_flow_of_a_real_dem_crop_equals_the_single_run():

@@ -90,7 +90,15 @@ fn assert_same(single: &Path, tiled: &Path) {
         json(&single.join("flow.json")),
         json(&tiled.join("flow.json")),
     );
-    for k in ["width", "height", "cell_size", "crs", "settings", "figures"] {
+    for k in [
+        "file",
+        "width",
+        "height",
+        "cell_size",
+        "crs",
+        "settings",
+        "figures",
+    ] {
         assert_eq!(a[k], b[k], "flow.json: {k}");
     }
     assert!(!tiled.join("channels.png").exists());
@@ -198,20 +206,25 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
 /// A 96 x 96 basin of 25 m cells: a bowl over the middle 3 x 3 tiles of 32 cells, a river
 /// winding across every tile edge, integer elevations (flats everywhere) and a few voids.
 fn basin() -> Heightfield {
-    let (w, h) = (96, 96);
+    basin_of(96, 96)
+}
+
+/// [`basin`]'s shape over `w x h` cells.
+fn basin_of(w: usize, h: usize) -> Heightfield {
+    let (fw, fh) = (w as f32, h as f32);
     let data: Vec<f32> = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f32, (i / w) as f32);
             let u =
                 relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(5, i as u64, 0, 0));
-            let (dx, dy) = ((x - 48.0) / 96.0, (y - 48.0) / 96.0);
+            let (dx, dy) = ((x - fw / 2.0) / fw, (y - fh / 2.0) / fh);
             let r = (dx * dx + dy * dy).sqrt();
             let bowl = if r < 0.3 {
                 10.0 + 60.0 * r
             } else {
                 28.0 + (r - 0.3) * 120.0
             };
-            let path = 96.0 * (0.5 + 0.42 * (x / 96.0 * 9.0).sin());
+            let path = fh * (0.5 + 0.42 * (x / fw * 9.0).sin());
             let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
             let z = if r < 0.3 {
                 bowl
@@ -305,6 +318,68 @@ fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
     let dem = write(tmp.path(), "basin.tif", &hf);
     cycle(&dem, 32, 5);
     cycle(&dem, 16, 17);
+}
+
+/// Tiles of 512 cells (the mosaic's GeoTIFF block) are written in the mosaic's blocks and
+/// codec, so the mosaic copies their encoded blocks: the files are byte for byte those the
+/// mosaic of tiles of 256 cells (off the block grid: decoded and encoded again) writes, and
+/// the values the single run's; a COG mosaic (overviews made from the values) still works.
+#[test]
+fn flow_plan_mosaic_copies_aligned_tiles_blocks() {
+    let hf = basin_of(700, 560);
+    let tmp = tempfile::tempdir().unwrap();
+    let dem = write(tmp.path(), "basin.tif", &hf);
+    let single = tmp.path().join("single");
+    // Relative paths, as flow.json's `file` names them.
+    let in_tmp = |line: &str| {
+        let out = command()
+            .current_dir(tmp.path())
+            .args(line.split(' '))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{line}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    assert!(dem.ends_with("basin.tif"));
+    in_tmp("flow basin.tif -o single --channel-area 1e6");
+    let mut outs = Vec::new();
+    for tile in [512, 256] {
+        let (dir, out) = (
+            tmp.path().join(format!("p{tile}")),
+            tmp.path().join(format!("t{tile}")),
+        );
+        in_tmp(&format!(
+            "tile plan p{tile} --tile {tile} -- flow basin.tif -o t{tile} --channel-area 1e6"
+        ));
+        run_phases(&dir, tasks(&dir), 3);
+        relief_ok!["tile", "mosaic", &dir];
+        assert_same(&single, &out);
+        let blocks = relief_io::EncodedBlocks::open(&dir.join("tiles/hand-000001.tif")).unwrap();
+        assert_eq!(
+            (blocks.tile(), blocks.width()),
+            (512, if tile == 512 { 188 } else { 256 })
+        );
+        outs.push(out);
+        if tile == 512 {
+            let cog = tmp.path().join("cog");
+            relief_ok!["--cog", "tile", "mosaic", &dir, "--out", &cog];
+            assert_same(&single, &cog);
+        }
+    }
+    for p in PRODUCTS {
+        let f = format!("{p}.tif");
+        let (a, b) = (
+            std::fs::read(outs[0].join(&f)),
+            std::fs::read(outs[1].join(&f)),
+        );
+        assert!(
+            a.unwrap() == b.unwrap(),
+            "{f}: the copied blocks differ from the encoded tiles"
+        );
+    }
 }
 
 /// What a flow plan cannot reproduce exactly is refused by name, and nothing is planned.

@@ -135,6 +135,32 @@ def _halo(block: np.ndarray, pads: Tuple[Tuple[int, int], Tuple[int, int]]) -> b
     return np.pad(np.asarray(block, dtype=np.float32), pads, constant_values=np.nan).astype("<f4").tobytes()
 
 
+class _Layer:
+    """One layer of a high-level graph as a dask collection (what
+    ``HighLevelGraph.from_collections`` takes as a dependency)."""
+
+    def __init__(self, name: str, graph: Any) -> None:
+        self.name, self.graph = name, graph
+
+    def __dask_graph__(self) -> Any:
+        return self.graph
+
+    def __dask_layers__(self) -> tuple:
+        return (self.name,)
+
+    def __dask_keys__(self) -> list:
+        return list(self.graph.layers[self.name].keys())
+
+    def __dask_postcompute__(self) -> Any:
+        return (lambda results: results), ()
+
+    def __dask_postpersist__(self) -> Any:
+        raise NotImplementedError("an internal layer of relief.dask.flow is not persisted")
+
+    def __dask_tokenize__(self) -> str:
+        return self.name
+
+
 def _assemble_flow(layout: Any, geo: Any, networks: list) -> Tuple[dict, dict]:
     import json
 
@@ -158,8 +184,12 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
     with the same settings. ``dem``: as for :func:`relief.flow`, or a dask array (kept lazy:
     each tile's task reads its own slice; ``cell_size`` is then required). Only
     ``depressions="fill"`` and ``directions="d8"`` (the defaults) have a tiled form."""
+    from operator import getitem
+
     import dask
     import dask.array as da
+    from dask.delayed import Delayed
+    from dask.highlevelgraph import HighLevelGraph
 
     unknown = sorted(set(settings) - set(_FLOW_KEYS))
     if unknown:
@@ -195,42 +225,51 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
     n = len(tiles)
     token = uuid.uuid4().hex
 
-    def call(f: Any, phase: Any, *args: Any, nout: Optional[int] = None) -> Any:
-        return dask.delayed(f, pure=True, nout=nout)(*args, dask_key_name=phase)
-
-    def key(p: Any, t: Optional[int] = None) -> Any:
-        name = f"relief-flow-{p}-{token}"
-        return name if t is None else (name, t)
+    def name(p: str) -> str:
+        return f"relief-flow-{p}-{token}"
 
     halos = []
     for t, (x, y, tw, th) in enumerate(tiles):
         x0, y0, x1, y1 = max(x - 1, 0), max(y - 1, 0), min(x + tw + 1, w), min(y + th + 1, h)
         pads = ((y0 - (y - 1), (y + th + 1) - y1), (x0 - (x - 1), (x + tw + 1) - x1))
-        halos.append(call(_halo, key("input", t), arr[y0:y1, x0:x1], pads))
+        halos.append(dask.delayed(_halo, pure=True)(arr[y0:y1, x0:x1], pads, dask_key_name=(name("input"), t)))
     ca = float(area)
-    p1 = [call(_relief.flow_phase1, key("phase1", t), layout, t, halos[t], nout=2) for t in range(n)]
-    p2 = call(_relief.flow_phase2, key("phase2"), layout, [p[1] for p in p1])
-    p3 = [call(_relief.flow_phase3, key("phase3", t), layout, t, p1[t][0], p2, nout=2) for t in range(n)]
-    p4 = call(_relief.flow_phase4, key("phase4"), layout, [p[1] for p in p3], nout=n)
-    p5 = [call(_relief.flow_phase5, key("phase5", t), layout, t, p3[t][0], p4[t], ca, nout=4) for t in range(n)]
-    p6 = call(_relief.flow_phase6, key("phase6"), layout, [p[3] for p in p5], nout=n)
-    p7 = [
-        call(_relief.flow_phase7, key("phase7", t), layout, t, p3[t][0], p4[t], p6[t], halos[t], ca, nout=4)
-        for t in range(n)
+    # One graph layer per phase (named relief-flow-phaseP-<token>), holding every task of the
+    # phase: per tile (key (name, t)) or one task (key name); an output k of a task of several
+    # outputs is taken by (getitem, key, k) inside the task that uses it.
+    p1, p2, p3, p4, p5, p6, p7 = (name(f"phase{p}") for p in range(1, 8))
+    net = name("network")
+    one = range(n)
+    phases = [
+        (p1, {(p1, t): (_relief.flow_phase1, layout, t, (name("input"), t)) for t in one}, halos),
+        (p2, {p2: (_relief.flow_phase2, layout, [(getitem, (p1, t), 1) for t in one])}, [p1]),
+        (p3, {(p3, t): (_relief.flow_phase3, layout, t, (getitem, (p1, t), 0), p2) for t in one}, [p1, p2]),
+        (p4, {p4: (_relief.flow_phase4, layout, [(getitem, (p3, t), 1) for t in one])}, [p3]),
+        (p5, {(p5, t): (_relief.flow_phase5, layout, t, (getitem, (p3, t), 0), (getitem, p4, t), ca)
+              for t in one}, [p3, p4]),
+        (p6, {p6: (_relief.flow_phase6, layout, [(getitem, (p5, t), 3) for t in one])}, [p5]),
+        (p7, {(p7, t): (_relief.flow_phase7, layout, t, (getitem, (p3, t), 0), (getitem, p4, t),
+                        (getitem, p6, t), (name("input"), t), ca) for t in one}, [p3, p4, p6, *halos]),
+        (net, {net: (_assemble_flow, layout, geo, [(getitem, (p7, t), 3) for t in one])}, [p7]),
     ]
-    net = call(_assemble_flow, key("network"), layout, geo, [p[3] for p in p7], nout=2)
+    made: dict = {}
+    for layer, tasks, deps in phases:
+        colls = [made[d] if isinstance(d, str) else d for d in deps]
+        made[layer] = _Layer(layer, HighLevelGraph.from_collections(layer, tasks, dependencies=colls))
     tiles_x = -(-w // tile)
+    rows = tuple(tiles[t][3] for t in range(0, n, tiles_x))
+    cols = tuple(tiles[t][2] for t in range(tiles_x))
 
-    def mosaic(parts: list, k: int) -> Any:
-        rows = []
-        for r in range(0, n, tiles_x):
-            rows.append([
-                da.from_delayed(parts[t][k], shape=(tiles[t][3], tiles[t][2]), dtype=np.float32)
-                for t in range(r, r + tiles_x)
-            ])
-        return da.block(rows)
+    def mosaic(phase: str, k: int, product: str) -> Any:
+        layer = name(product)
+        tasks = {(layer, t // tiles_x, t % tiles_x): (getitem, (phase, t), k) for t in one}
+        graph = HighLevelGraph.from_collections(layer, tasks, dependencies=[made[phase]])
+        return da.Array(graph, layer, (rows, cols), dtype=np.float32)
 
-    out = {name: mosaic(p5, k) for k, name in enumerate(("conditioned", "direction", "area"))}
-    out.update({name: mosaic(p7, k) for k, name in enumerate(("strahler", "watersheds", "hand"))})
-    out["channels"], out["figures"] = net[0], net[1]
+    out = {p: mosaic(p5, k, p) for k, p in enumerate(("conditioned", "direction", "area"))}
+    out.update({p: mosaic(p7, k, p) for k, p in enumerate(("strahler", "watersheds", "hand"))})
+    for k, p in enumerate(("channels", "figures")):
+        layer = name(p)
+        graph = HighLevelGraph.from_collections(layer, {layer: (getitem, net, k)}, dependencies=[made[net]])
+        out[p] = Delayed(layer, graph)
     return out

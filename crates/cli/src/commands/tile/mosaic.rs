@@ -150,6 +150,112 @@ fn check_origin(m: &Manifest, i: usize, rd: &relief_io::GeoTiffRowReader, p: &Pa
     Ok(())
 }
 
+/// Block side of a mosaic's GeoTIFF (GDAL's COG default), which tiles written for a mosaic
+/// share so that their encoded blocks are copied as they are.
+pub(super) const MOSAIC_BLOCK: usize = 512;
+
+/// Opens tile `i`'s file `name(i)` for reading rows, checked to be the size of tile `i` and
+/// placed where it belongs.
+fn open_tile(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    i: usize,
+) -> Result<relief_io::GeoTiffRowReader> {
+    let p = dir.join(name(i));
+    let rd = relief_io::GeoTiffRowReader::open(&p)
+        .with_context(|| format!("cannot read {}", p.display()))?;
+    let [_, _, w, h] = m.window(i);
+    if (rd.width(), rd.height()) != (w, h) {
+        bail!(
+            "{} is {} x {}, not the {w} x {h} of tile {i}: run the tile again",
+            p.display(),
+            rd.width(),
+            rd.height()
+        );
+    }
+    check_origin(m, i, &rd, &p)?;
+    Ok(rd)
+}
+
+/// Whether the mosaic can be the copy of the tiles' encoded blocks: not a COG (whose
+/// overviews are made from the values), every tile's corner on the output's block grid, and
+/// every tile a tiled GeoTIFF in the output's block side and codec (as a flow plan's phases
+/// write their products). Else the tiles are decoded and encoded again.
+fn blocks_fit(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
+) -> Result<bool> {
+    if opts.cog {
+        return Ok(false);
+    }
+    for i in 0..m.tasks {
+        let [x, y, _, _] = m.window(i);
+        if !x.is_multiple_of(opts.tile) || !y.is_multiple_of(opts.tile) {
+            return Ok(false);
+        }
+        if open_blocks(dir, m, name, opts, i).is_err() {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+/// Tile `i`'s encoded blocks, checked as [`open_tile`] checks the tile and to be in the
+/// output's block side and codec.
+fn open_blocks(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
+    i: usize,
+) -> Result<relief_io::EncodedBlocks> {
+    open_tile(dir, m, name, i)?;
+    let p = dir.join(name(i));
+    let b = relief_io::EncodedBlocks::open(&p)
+        .with_context(|| format!("cannot read {}", p.display()))?;
+    if b.tile() != opts.tile || b.compression() != opts.compression {
+        bail!(
+            "{} is not in the mosaic's blocks and codec: run tile {i} again",
+            p.display()
+        );
+    }
+    Ok(b)
+}
+
+/// Writes the mosaic as the tiles' encoded blocks, one band of blocks at a time (bytes equal
+/// to encoding the decoded tiles: relief-io's `EncodedBlocks`), one row of tiles open at a
+/// time.
+fn copy_blocks(
+    dir: &Path,
+    m: &Manifest,
+    name: &dyn Fn(usize) -> String,
+    opts: &relief_io::TiledOptions,
+    writer: &mut relief_io::TiledGeoTiffWriter,
+    progress: &dyn Progress,
+) -> Result<()> {
+    let mut blocks = Vec::new();
+    for r in 0..m.tiles_y {
+        let mut row = (r * m.tiles_x..(r + 1) * m.tiles_x)
+            .map(|i| open_blocks(dir, m, name, opts, i))
+            .collect::<Result<Vec<_>>>()?;
+        let has_nan = row.iter().any(|b| b.has_nan());
+        let h = row[0].height();
+        for k in 0..h.div_ceil(opts.tile) {
+            blocks.clear();
+            for b in &mut row {
+                b.read_block_row(k, &mut blocks)?;
+            }
+            let rows = opts.tile.min(h - k * opts.tile);
+            writer.write_encoded_band(&blocks, rows, has_nan)?;
+            progress.advance(rows as u64);
+        }
+    }
+    Ok(())
+}
+
 /// Streams the tiles `name(i)` (relative to the plan folder) into the GeoTIFF (or COG) `out`,
 /// one band of tiles in memory.
 pub(super) fn stream_tiles(
@@ -161,7 +267,7 @@ pub(super) fn stream_tiles(
     ctx: &Ctx,
 ) -> Result<()> {
     let opts = relief_io::TiledOptions {
-        tile: 512,
+        tile: MOSAIC_BLOCK,
         compression: ctx.write_options().compression,
         cog: ctx.cog,
         bigtiff,
@@ -178,29 +284,21 @@ pub(super) fn stream_tiles(
     .with_context(|| format!("cannot write {}", out.display()))?;
     let progress = ctx.progress();
     progress.begin("mosaicking", m.output.height as u64);
+    if blocks_fit(dir, m, name, &opts)? {
+        copy_blocks(dir, m, name, &opts, &mut writer, &progress)?;
+        writer
+            .finish()
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        drop(progress);
+        return Ok(());
+    }
     // Blocks of rows: every tile of a row of tiles decodes its part in parallel, then the
     // block goes to the writer (which compresses its tiles in parallel too).
     let width = m.output.width;
     let mut block: Vec<f32> = Vec::new();
     for r in 0..m.tiles_y {
         let mut readers = (0..m.tiles_x)
-            .map(|c| {
-                let i = r * m.tiles_x + c;
-                let p = dir.join(name(i));
-                let rd = relief_io::GeoTiffRowReader::open(&p)
-                    .with_context(|| format!("cannot read {}", p.display()))?;
-                let [_, _, w, h] = m.window(i);
-                if (rd.width(), rd.height()) != (w, h) {
-                    bail!(
-                        "{} is {} x {}, not the {w} x {h} of tile {i}: run the tile again",
-                        p.display(),
-                        rd.width(),
-                        rd.height()
-                    );
-                }
-                check_origin(m, i, &rd, &p)?;
-                Ok(rd)
-            })
+            .map(|c| open_tile(dir, m, name, r * m.tiles_x + c))
             .collect::<Result<Vec<_>>>()?;
         let [_, _, _, h] = m.window(r * m.tiles_x);
         let mut y = 0;

@@ -26,8 +26,11 @@
 //! `relief tile mosaic` writes `OUT_DIR/{filled,direction,area,strahler,watersheds,hand}.tif`,
 //! `channels.geojson` (joined from every tile's channel cells) and `flow.json` (the figures
 //! summed over the tiles), together or not at all, equal byte for byte to those of
-//! `relief flow` (`flow.json` names the plan's absolute input path). `channels.png`, a preview
-//! drawn over the whole map's hillshade, is not planned (the plan says so).
+//! `relief flow` (`flow.json` names the input as the plan's command line named it, as
+//! `relief flow` does). `channels.png`, a preview drawn over the whole map's hillshade, is not
+//! planned (the plan says so). The rasters of phases 5 and 7 are tiled GeoTIFFs in the
+//! mosaic's block side and codec, so that the mosaic of a plan whose tile is a multiple of
+//! that block copies their encoded blocks instead of decoding and encoding them again.
 
 use relief_landscape::flow::job::FlowSettings;
 use relief_landscape::flow::tiled::{
@@ -73,6 +76,20 @@ enum FlowCommand {
 struct FlowJob {
     /// The job's settings (relief-landscape's `FlowSettings`).
     flow: FlowSettings,
+    /// The input as the plan's command line named it (`flow.json`'s `file`, as `relief flow`
+    /// writes it); plans made before it was kept give the absolute path.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    file: Option<String>,
+}
+
+impl FlowJob {
+    /// The job of settings `flow` on the input `file` as the command line named it.
+    fn new(flow: FlowSettings, file: &Path) -> Self {
+        FlowJob {
+            flow,
+            file: Some(file.display().to_string()),
+        }
+    }
 }
 
 fn out_files() -> Vec<(String, OutKind)> {
@@ -429,7 +446,11 @@ pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Res
         .context("the manifest's job is not a flow job's settings")?;
     let report = crate::commands::flow::Report {
         input: crate::commands::InputGrid {
-            file: m.inputs.first().map(|s| s.path.clone()).unwrap_or_default(),
+            file: job
+                .file
+                .clone()
+                .or_else(|| m.inputs.first().map(|s| s.path.clone()))
+                .unwrap_or_default(),
             width: m.output.width,
             height: m.output.height,
         },

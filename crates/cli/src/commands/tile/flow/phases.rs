@@ -77,13 +77,13 @@ pub(in crate::commands::tile) fn run_task(
         ctx.note(format!("phase {phase} task {index} is already done"));
         return Ok(());
     }
-    let outputs: Vec<(String, Vec<u8>)> = match phase {
-        1 => phase1(dir, m, &layout, index)?,
-        2 => phase2(dir, m, &layout)?,
-        3 => phase3(dir, m, &layout, index)?,
-        4 => phase4(dir, m, &layout)?,
+    let outputs: Vec<(String, Option<Vec<u8>>)> = match phase {
+        1 => bytes(phase1(dir, m, &layout, index)?),
+        2 => bytes(phase2(dir, m, &layout)?),
+        3 => bytes(phase3(dir, m, &layout, index)?),
+        4 => bytes(phase4(dir, m, &layout)?),
         5 => phase5(dir, m, &layout, index)?,
-        6 => phase6(dir, m, &layout)?,
+        6 => bytes(phase6(dir, m, &layout)?),
         _ => phase7(dir, m, &layout, index)?,
     };
     let names = outputs_of(phase, index, m.tasks);
@@ -91,9 +91,15 @@ pub(in crate::commands::tile) fn run_task(
     for ((name, bytes), want) in outputs.iter().zip(&names) {
         debug_assert_eq!(name, want);
         let path = dir.join(name);
-        relief_io::write_bytes_atomic(&path, bytes)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        files.push(bytes_sum(bytes, name.clone()));
+        match bytes {
+            Some(bytes) => {
+                relief_io::write_bytes_atomic(&path, bytes)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                files.push(bytes_sum(bytes, name.clone()));
+            }
+            // A raster the phase wrote in place (atomically).
+            None => files.push(file_sum(&path, name.clone())?),
+        }
     }
     let rec = PhaseRecord {
         plan_id: m.plan_id.clone(),
@@ -106,6 +112,52 @@ pub(in crate::commands::tile) fn run_task(
     relief_io::write_bytes_atomic(&rp, json.as_bytes())
         .with_context(|| format!("cannot write {}", rp.display()))?;
     ctx.note(format!("phase {phase} task {index} done"));
+    Ok(())
+}
+
+/// Outputs to write (none written in place).
+fn bytes(v: Vec<(String, Vec<u8>)>) -> Vec<(String, Option<Vec<u8>>)> {
+    v.into_iter().map(|(n, b)| (n, Some(b))).collect()
+}
+
+/// Writes tile `t`'s rasters (`names`, values row-major) in place as tiled GeoTIFFs in a
+/// mosaic's block side and codec (DEFLATE), so that `relief tile mosaic` copies their encoded
+/// blocks instead of decoding and encoding them again (unless it writes another codec or a
+/// COG).
+fn write_rasters(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+    rasters: Vec<(&String, Vec<f32>)>,
+) -> Result<()> {
+    let [x, y, w, h] = l.window(t);
+    let georef = m
+        .output
+        .georef
+        .as_ref()
+        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
+    let opts = relief_io::TiledOptions {
+        tile: super::super::mosaic::MOSAIC_BLOCK,
+        compression: relief_io::TiffCompression::Deflate,
+        cog: false,
+        bigtiff: false,
+    };
+    for (name, data) in rasters {
+        let path = dir.join(name);
+        let cannot = || format!("cannot write {}", path.display());
+        let mut out = relief_io::TiledGeoTiffWriter::create(
+            &path,
+            w,
+            h,
+            (l.cell_x, l.cell_y),
+            georef.as_ref(),
+            opts,
+        )
+        .with_context(cannot)?;
+        out.write_rows(&data).with_context(cannot)?;
+        out.finish().with_context(cannot)?;
+    }
     Ok(())
 }
 
@@ -250,24 +302,27 @@ fn channel_area(m: &Manifest) -> Result<f64> {
     Ok(job.flow.channel_area)
 }
 
-fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+fn phase5(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+) -> Result<Vec<(String, Option<Vec<u8>>)>> {
     let f = finished(dir, m, l, t)?;
     let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
-    let [x, y, w, h] = l.window(t);
-    let georef = m
-        .output
-        .georef
-        .as_ref()
-        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
     // The same values `relief flow` writes (relief-landscape's `FlowSettings::run`).
     let (dir_codes, area) = (f.direction_codes(), f.area(l));
     let names = outputs_of(5, t, m.tasks);
-    let mut out = Vec::with_capacity(4);
-    for (name, data) in names.iter().zip([f.filled, dir_codes, area]) {
-        let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
-        out.push((name.clone(), deflate_geotiff(&hf)?));
-    }
-    out.push((names[3].clone(), summary));
+    write_rasters(
+        dir,
+        m,
+        l,
+        t,
+        names.iter().zip([f.filled, dir_codes, area]).collect(),
+    )?;
+    let mut out: Vec<(String, Option<Vec<u8>>)> =
+        names[..3].iter().map(|n| (n.clone(), None)).collect();
+    out.push((names[3].clone(), Some(summary)));
     Ok(out)
 }
 
@@ -284,26 +339,29 @@ fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u
     )
 }
 
-fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
+fn phase7(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+) -> Result<Vec<(String, Option<Vec<u8>>)>> {
     let f = finished(dir, m, l, t)?;
     let levels = tiled::NetLevels::from_bytes(&read_product(dir, m, 6, 0, t, t)?, l, t)?;
     let input = read_input(dir, m, l, t)?;
     let (r, net) = tiled::phase7(l, t, &f, &levels, input.as_slice(), channel_area(m)?)?;
-    let [x, y, w, h] = l.window(t);
-    let georef = m
-        .output
-        .georef
-        .as_ref()
-        .map(|g| g.window(x as f64, y as f64, 1.0, 1.0));
+    let [_, _, w, _] = l.window(t);
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
     let (order, label) = r.to_f32(w, input.as_slice());
-    let hand = r.hand;
     let names = outputs_of(7, t, m.tasks);
-    let mut out = Vec::with_capacity(4);
-    for (name, data) in names.iter().zip([order, label, hand]) {
-        let hf = Heightfield::new(w, h, data, l.cell_x, l.cell_y)?.with_georef(georef.clone());
-        out.push((name.clone(), deflate_geotiff(&hf)?));
-    }
-    out.push((names[3].clone(), net.to_bytes(l, t)));
+    write_rasters(
+        dir,
+        m,
+        l,
+        t,
+        names.iter().zip([order, label, r.hand]).collect(),
+    )?;
+    let mut out: Vec<(String, Option<Vec<u8>>)> =
+        names[..3].iter().map(|n| (n.clone(), None)).collect();
+    out.push((names[3].clone(), Some(net.to_bytes(l, t))));
     Ok(out)
 }
