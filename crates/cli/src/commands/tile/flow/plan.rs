@@ -21,18 +21,7 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
     }
     let input = absolute(&f.input)?;
     let out = absolute(&f.out)?;
-    let dir = absolute(&a.dir)?;
-    if dir.exists()
-        && std::fs::read_dir(&dir)
-            .with_context(|| format!("cannot read {}", dir.display()))?
-            .next()
-            .is_some()
-    {
-        bail!(
-            "the plan folder {} is not empty (a plan is written into a new folder)",
-            dir.display()
-        );
-    }
+    let dir = super::super::plan::new_plan_dir(&a.dir)?;
     if dir.starts_with(&input) || out.starts_with(&dir) || dir.starts_with(&out) {
         bail!(
             "the plan folder {} must not contain the output folder, lie in it, or be the input",
