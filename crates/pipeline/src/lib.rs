@@ -487,6 +487,11 @@ mod tests {
             if s.stage == "amplify" {
                 s.params = serde_json::json!({"x256_window": 0});
             }
+            // The volume stage on the DEM's own cells: on a refined window (its default, tested
+            // by `volume::tests`) the scene's renders and close-ups took 22 of this test's 24 s.
+            if s.stage == "volume" {
+                s.params = serde_json::json!({"raw_dem": true});
+            }
         }
         let run = run(&config, &spec::build_stages(&specs).unwrap()).unwrap();
         assert_eq!(run.stage_count, default_stages().len());
