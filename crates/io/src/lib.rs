@@ -94,7 +94,7 @@ pub use geotiff::{DEFLATE_LEVEL, TiffCompression};
 pub use mesh::{MeshFormat, encode_mesh, write_mesh, write_mesh_as, z_up_to_y_up};
 pub use npy::npy_f32;
 pub use preview::{
-    PreviewStyle, preview_rgb, preview_rgb_with, write_gray_png, write_preview_png,
+    PreviewStyle, RgbaPngWriter, preview_rgb, preview_rgb_with, write_gray_png, write_preview_png,
     write_preview_png_with, write_rgb_png, write_rgba_png,
 };
 pub use stream::GeoTiffStripWriter;

@@ -132,9 +132,159 @@ pub fn write_rgb_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Re
 
 /// Writes an 8-bit RGBA PNG from row-major `rgba` (4 bytes per pixel) atomically: colour
 /// images with alpha, and four-channel weight maps (splat maps).
+/// (Through [`RgbaPngWriter`]: the same bytes as a map written row by row.)
 pub fn write_rgba_png(path: &Path, width: usize, height: usize, rgba: &[u8]) -> Result<()> {
-    let bytes = encode_8bit(width, height, 4, rgba).map_err(|e| e.in_file(path))?;
-    atomic::write_atomic(path, &bytes)
+    if width.checked_mul(height).and_then(|n| n.checked_mul(4)) != Some(rgba.len()) {
+        return Err(IoError::param(
+            "pixels",
+            rgba.len(),
+            format!("a {width} x {height} RGBA image needs {width} x {height} x 4 bytes"),
+        ));
+    }
+    let mut w = RgbaPngWriter::create(path, width, height)?;
+    w.write_rows(rgba)?;
+    w.finish()
+}
+
+/// An 8-bit RGBA PNG written row by row into a temporary sibling and renamed into place by
+/// [`RgbaPngWriter::finish`] (dropped unfinished: removed), so that a map far larger than
+/// memory (a splat map assembled from tiles) is never held whole; [`write_rgba_png`] writes
+/// through it, so both give the same bytes.
+pub struct RgbaPngWriter {
+    path: std::path::PathBuf,
+    tmp: std::path::PathBuf,
+    inner: Option<png::StreamWriter<'static, std::fs::File>>,
+    /// The temporary file (for its final sync).
+    file: std::fs::File,
+    row_bytes: usize,
+    rows_left: usize,
+    done: bool,
+}
+
+impl RgbaPngWriter {
+    /// Starts `path` (`width x height` pixels, neither 0 nor beyond 2^31).
+    pub fn create(path: &Path, width: usize, height: usize) -> Result<Self> {
+        let (Ok(w32), Ok(h32)) = (u32::try_from(width), u32::try_from(height)) else {
+            return Err(IoError::dimensions(
+                crate::Format::Png,
+                width,
+                height,
+                "too large for PNG",
+            ));
+        };
+        if width == 0 || height == 0 || w32 > i32::MAX as u32 || h32 > i32::MAX as u32 {
+            return Err(IoError::dimensions(
+                crate::Format::Png,
+                width,
+                height,
+                "zero size or a side beyond 2^31",
+            ));
+        }
+        atomic::remove_stale_temps(path);
+        let tmp = atomic::temp_path(path);
+        let file = atomic::create_temp(&tmp).map_err(|e| IoError::os(&tmp, e))?;
+        let sync = match file.try_clone() {
+            Ok(f) => f,
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(IoError::os(&tmp, e));
+            }
+        };
+        let malformed =
+            |e: png::EncodingError| IoError::malformed(crate::Format::Png, e.to_string());
+        let start = || -> Result<_> {
+            let mut enc = png::Encoder::new(file, w32, h32);
+            enc.set_color(png::ColorType::Rgba);
+            enc.set_depth(png::BitDepth::Eight);
+            enc.set_compression(png::Compression::Fast);
+            let wr = enc.write_header().map_err(malformed)?;
+            wr.into_stream_writer_with_size(1 << 20).map_err(malformed)
+        };
+        match start() {
+            Ok(inner) => Ok(Self {
+                path: path.to_path_buf(),
+                tmp,
+                inner: Some(inner),
+                file: sync,
+                row_bytes: width * 4,
+                rows_left: height,
+                done: false,
+            }),
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                Err(e.in_file(path))
+            }
+        }
+    }
+
+    /// Appends whole rows (`4 x width` bytes each, RGBA).
+    pub fn write_rows(&mut self, rgba: &[u8]) -> Result<()> {
+        use std::io::Write as _;
+        let rows = rgba.len() / self.row_bytes;
+        if !rgba.len().is_multiple_of(self.row_bytes) || rows > self.rows_left {
+            return Err(IoError::param(
+                "rows",
+                rgba.len(),
+                format!(
+                    "must be whole rows of {} bytes, at most the {} rows left",
+                    self.row_bytes, self.rows_left
+                ),
+            ));
+        }
+        let Some(inner) = self.inner.as_mut() else {
+            return Err(IoError::param(
+                "rows",
+                rgba.len(),
+                "the writer failed before",
+            ));
+        };
+        if let Err(e) = inner.write_all(rgba) {
+            self.inner = None;
+            return Err(IoError::os(&self.path, e));
+        }
+        self.rows_left -= rows;
+        Ok(())
+    }
+
+    /// Ends the image and renames it into place (every row must have been written).
+    pub fn finish(mut self) -> Result<()> {
+        if self.rows_left != 0 {
+            return Err(IoError::param(
+                "rows",
+                self.rows_left,
+                "rows are missing; the file is not written",
+            ));
+        }
+        let Some(inner) = self.inner.take() else {
+            return Err(IoError::param("rows", 0, "the writer failed before"));
+        };
+        let os = |e| IoError::os(&self.path, e);
+        // The stream writer holds no buffer once finished: every byte went to the file.
+        inner
+            .finish()
+            .map_err(|e| IoError::malformed(crate::Format::Png, e.to_string()))?;
+        self.file.sync_all().map_err(os)?;
+        atomic::rename_into_place(&self.tmp, &self.path)?;
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for RgbaPngWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RgbaPngWriter")
+            .field("path", &self.path)
+            .field("rows_left", &self.rows_left)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Drop for RgbaPngWriter {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 /// Writes an 8-bit grey PNG from row-major `grey` (1 byte per pixel) atomically.

@@ -16,6 +16,8 @@ use crate::flow::{self, basins};
 use crate::grid::Grid;
 use crate::{LandscapeError, Result};
 
+pub mod tiled;
+
 /// Settings of `relief masks`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -108,48 +110,36 @@ impl MasksSettings {
         let (slope, profile, plan) = derivatives(z, &g);
         progress.advance(1);
         let r = flow::route(z.to_vec(), g, &self.flow.route_options());
+        // D8 area is counted in cells and multiplied by the cell area once, as `relief flow`
+        // does: the same bits whatever order the sums are made in (the tiled plan makes them
+        // tile by tile).
+        let d8 = r.area_d8();
         let area = match self.flow.directions {
-            flow::Directions::D8 => r.accumulation(None),
+            flow::Directions::D8 => d8.clone(),
             flow::Directions::Mfd => r.accumulation_mfd(self.flow.mfd_exponent),
         };
-        let d8 = r.accumulation(None);
         let hand = basins::hand(&r, &d8, self.flow.channel_area);
         progress.advance(1);
-        let width = g.cell_area().sqrt();
-        let wetness: Vec<f32> = (0..g.len())
-            .map(|i| {
-                let tan = (slope[i] as f64).to_radians().tan().max(1e-3);
-                ((area[i] / width) / tan).ln() as f32
-            })
-            .collect();
-        let log_area: Vec<f32> = area.iter().map(|&a| a.log10() as f32).collect();
-        let bands = self.bands(dem);
-        let band: Vec<f32> = z
-            .iter()
-            .map(|&v| {
-                if v.is_nan() {
-                    f32::NAN
-                } else {
-                    bands.iter().filter(|&&b| (v as f64) > b).count() as f32
-                }
-            })
-            .collect();
-        let mut masks = vec![
-            Mask::new(MaskKind::Slope, slope),
-            Mask::new(MaskKind::ProfileCurvature, profile),
-            Mask::new(MaskKind::PlanCurvature, plan),
-            Mask::new(MaskKind::Area, log_area),
-            Mask::new(MaskKind::Wetness, wetness),
-            Mask::new(MaskKind::Hand, hand),
-            Mask::new(MaskKind::HeightBand, band),
-        ];
-        if let Some(e) = erosion {
-            masks.push(Mask::new(MaskKind::Erosion, e.as_slice().to_vec()));
-        }
-        if let Some(d) = deposition {
-            masks.push(Mask::new(MaskKind::Deposition, d.as_slice().to_vec()));
-        }
-        let splat = self.splat(&masks, deposition);
+        let scales = MaskScales {
+            bands: self.bands(dem),
+            profile_scale: percentile_abs(&profile, PROFILE_QUANTILE),
+        };
+        let (masks, splat) = self.assemble(
+            Derivatives {
+                slope,
+                profile,
+                plan,
+            },
+            &area,
+            hand,
+            dem.cell_size(),
+            z,
+            &scales,
+            (
+                erosion.map(|e| e.as_slice()),
+                deposition.map(|d| d.as_slice()),
+            ),
+        );
         progress.advance(1);
         let georef = dem.georef().cloned();
         let rasters = masks
@@ -159,8 +149,61 @@ impl MasksSettings {
         Ok(Masks {
             rasters,
             splat,
-            bands,
+            bands: scales.bands,
         })
+    }
+
+    /// The masks and splat weights of some cells from their derivatives, drainage area (m^2),
+    /// HAND (m), heights `z`, the map's global [`MaskScales`] and the erosion and deposition
+    /// depths: every value depends on its own cell only, so a tile's masks are the map's
+    /// (`masks::tiled`). `cell` is the cell size (m).
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble(
+        &self,
+        d: Derivatives,
+        area: &[f64],
+        hand: Vec<f32>,
+        cell: (f64, f64),
+        z: &[f32],
+        scales: &MaskScales,
+        (erosion, deposition): (Option<&[f32]>, Option<&[f32]>),
+    ) -> (Vec<Mask>, Vec<[f32; 4]>) {
+        let width = (cell.0 * cell.1).sqrt();
+        let slope = &d.slope;
+        let wetness: Vec<f32> = (0..z.len())
+            .map(|i| {
+                let tan = (slope[i] as f64).to_radians().tan().max(1e-3);
+                ((area[i] / width) / tan).ln() as f32
+            })
+            .collect();
+        let log_area: Vec<f32> = area.iter().map(|&a| a.log10() as f32).collect();
+        let band: Vec<f32> = z
+            .iter()
+            .map(|&v| {
+                if v.is_nan() {
+                    f32::NAN
+                } else {
+                    scales.bands.iter().filter(|&&b| (v as f64) > b).count() as f32
+                }
+            })
+            .collect();
+        let mut masks = vec![
+            Mask::new(MaskKind::Slope, d.slope),
+            Mask::new(MaskKind::ProfileCurvature, d.profile),
+            Mask::new(MaskKind::PlanCurvature, d.plan),
+            Mask::new(MaskKind::Area, log_area),
+            Mask::new(MaskKind::Wetness, wetness),
+            Mask::new(MaskKind::Hand, hand),
+            Mask::new(MaskKind::HeightBand, band),
+        ];
+        if let Some(e) = erosion {
+            masks.push(Mask::new(MaskKind::Erosion, e.to_vec()));
+        }
+        if let Some(d) = deposition {
+            masks.push(Mask::new(MaskKind::Deposition, d.to_vec()));
+        }
+        let splat = self.splat(&masks, deposition, scales.profile_scale);
+        (masks, splat)
     }
 
     fn bands(&self, dem: &Heightfield) -> Vec<f64> {
@@ -174,9 +217,9 @@ impl MasksSettings {
             .filter(|v| !v.is_nan())
             .collect();
         v.sort_by(f32::total_cmp);
-        [0.25, 0.5, 0.75]
+        BAND_QUANTILES
             .iter()
-            .map(|q| v[((v.len() - 1) as f64 * q).round() as usize] as f64)
+            .map(|&q| v[band_rank(v.len() as u64, q) as usize] as f64)
             .collect()
     }
 
@@ -184,14 +227,19 @@ impl MasksSettings {
     /// `rock_slope`, blended over 10 degrees), B sediment (deposition, or gentle concave
     /// ground at the foot of slopes without an erosion run), A wet (wetness index above
     /// `wet_index`, blended over 2 units, and channels).
-    fn splat(&self, masks: &[Mask], deposition: Option<&Heightfield>) -> Vec<[f32; 4]> {
+    fn splat(
+        &self,
+        masks: &[Mask],
+        deposition: Option<&[f32]>,
+        profile_scale: f64,
+    ) -> Vec<[f32; 4]> {
         let get = |k: MaskKind| &masks.iter().find(|m| m.kind == k).expect("mask").values;
         let (slope, profile, wet) = (
             get(MaskKind::Slope),
             get(MaskKind::ProfileCurvature),
             get(MaskKind::Wetness),
         );
-        let prof_scale = percentile_abs(profile, 0.95).max(1e-9);
+        let prof_scale = profile_scale.max(1e-9);
         (0..slope.len())
             .map(|i| {
                 if slope[i].is_nan() {
@@ -204,7 +252,7 @@ impl MasksSettings {
                 );
                 let wet_w = smoothstep(self.wet_index - 1.0, self.wet_index + 1.0, wet[i] as f64);
                 let sed = match deposition {
-                    Some(d) => smoothstep(0.05, 1.0, d.as_slice()[i] as f64),
+                    Some(d) => smoothstep(0.05, 1.0, d[i] as f64),
                     None => {
                         smoothstep(0.0, 1.0, profile[i] as f64 / prof_scale)
                             * (1.0 - smoothstep(10.0, 25.0, slope[i] as f64))
@@ -232,7 +280,7 @@ fn smoothstep(lo: f64, hi: f64, v: f64) -> f64 {
     t * t * (3.0 - 2.0 * t)
 }
 
-fn percentile_abs(v: &[f32], q: f64) -> f64 {
+pub(crate) fn percentile_abs(v: &[f32], q: f64) -> f64 {
     let mut a: Vec<f32> = v
         .iter()
         .filter(|x| x.is_finite())
@@ -241,8 +289,49 @@ fn percentile_abs(v: &[f32], q: f64) -> f64 {
     if a.is_empty() {
         return 0.0;
     }
-    let k = ((a.len() - 1) as f64 * q) as usize;
+    let k = profile_rank(a.len() as u64, q) as usize;
     *a.select_nth_unstable_by(k, f32::total_cmp).1 as f64
+}
+
+/// Quantiles of the valid heights that bound the default height bands (the quartiles).
+pub const BAND_QUANTILES: [f64; 3] = [0.25, 0.5, 0.75];
+
+/// Quantile of `|profile curvature|` (finite cells) that scales the splat map's sediment layer.
+pub const PROFILE_QUANTILE: f64 = 0.95;
+
+/// Rank (0-based, in `f32::total_cmp` order) of the height-band limit at quantile `q` of `n`
+/// valid heights: `round((n - 1) q)`.
+pub fn band_rank(n: u64, q: f64) -> u64 {
+    ((n - 1) as f64 * q).round() as u64
+}
+
+/// Rank (0-based) of the profile-curvature scale at quantile `q` of `n` finite values:
+/// `floor((n - 1) q)`.
+pub fn profile_rank(n: u64, q: f64) -> u64 {
+    ((n - 1) as f64 * q) as u64
+}
+
+/// The statistics of the whole map the masks of a cell depend on: the height-band limits and
+/// the profile-curvature scale of the splat map's sediment layer. A tiled run computes them
+/// exactly beforehand (`masks::tiled`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaskScales {
+    /// Upper limits of the height bands (m).
+    pub bands: Vec<f64>,
+    /// The [`PROFILE_QUANTILE`] quantile of `|profile curvature|` (1/m).
+    pub profile_scale: f64,
+}
+
+/// Slope (degrees), profile and plan curvature (1/m) of some cells ([`derivatives`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Derivatives {
+    /// Slope angle (degrees).
+    pub slope: Vec<f32>,
+    /// Profile curvature (1/m).
+    pub profile: Vec<f32>,
+    /// Plan curvature (1/m).
+    pub plan: Vec<f32>,
 }
 
 /// Slope (degrees), profile and plan curvature (1/m) by central differences (Zevenbergen and

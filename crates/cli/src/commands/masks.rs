@@ -93,23 +93,26 @@ pub(crate) fn settings(args: &Args) -> Result<MasksSettings> {
     Ok(s)
 }
 
+/// The masks every run writes, in the library's order.
+pub(crate) const BASE_KINDS: [MaskKind; 7] = [
+    MaskKind::Slope,
+    MaskKind::ProfileCurvature,
+    MaskKind::PlanCurvature,
+    MaskKind::Area,
+    MaskKind::Wetness,
+    MaskKind::Hand,
+    MaskKind::HeightBand,
+];
+
 /// The masks a run writes, in the library's order.
 fn kinds(args: &Args) -> Vec<MaskKind> {
-    let mut v = vec![
-        MaskKind::Slope,
-        MaskKind::ProfileCurvature,
-        MaskKind::PlanCurvature,
-        MaskKind::Area,
-        MaskKind::Wetness,
-        MaskKind::Hand,
-        MaskKind::HeightBand,
-    ];
+    let mut v = BASE_KINDS.to_vec();
     v.extend(args.erosion_depth.as_ref().map(|_| MaskKind::Erosion));
     v.extend(args.deposition_depth.as_ref().map(|_| MaskKind::Deposition));
     v
 }
 
-fn file_name(kind: MaskKind, format: MaskFormat) -> String {
+pub(crate) fn file_name(kind: MaskKind, format: MaskFormat) -> String {
     match format {
         MaskFormat::Tif => format!("{}.tif", kind.name()),
         MaskFormat::Png8 | MaskFormat::Png16 => format!("{}.png", kind.name()),
@@ -121,20 +124,23 @@ fn file_name(kind: MaskKind, format: MaskFormat) -> String {
 /// encoding of one file (8).
 const MASK_BYTES_PER_CELL: u64 = 68;
 
-/// `masks.json` and what `--json` prints.
+/// `masks.json` and what `--json` prints (and what the mosaic of a tiled masks plan writes).
 #[derive(Debug, Serialize)]
-struct Report {
+pub(crate) struct Report {
     #[serde(flatten)]
-    input: super::InputGrid,
-    settings: MasksSettings,
+    pub(crate) input: super::InputGrid,
+    pub(crate) settings: MasksSettings,
     /// Upper limits of the height bands used (m).
-    bands: Vec<f64>,
-    format: &'static str,
+    pub(crate) bands: Vec<f64>,
+    pub(crate) format: &'static str,
     /// `(mask, file)`.
-    masks: Vec<(MaskKind, String)>,
-    splat: &'static str,
-    splat_channels: [&'static str; 4],
+    pub(crate) masks: Vec<(MaskKind, String)>,
+    pub(crate) splat: &'static str,
+    pub(crate) splat_channels: [&'static str; 4],
 }
+
+/// The splat map's channels, in RGBA order.
+pub(crate) const SPLAT_CHANNELS: [&str; 4] = ["ground", "rock", "sediment", "wet"];
 
 /// Reads the DEM (and the erosion rasters), computes the masks, writes the folder.
 pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
@@ -253,7 +259,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
         },
         masks: written,
         splat: "splat.png",
-        splat_channels: ["ground", "rock", "sediment", "wet"],
+        splat_channels: SPLAT_CHANNELS,
     };
     staged.write_json("masks.json", &report, true)?;
     crate::budget::commit_in_time("masks", progress, || staged.commit())?;

@@ -15,5 +15,6 @@ mod patch;
 mod sparse;
 mod tile;
 mod tile_flow;
+mod tile_masks;
 mod volume;
 mod wavelet;

@@ -33,7 +33,35 @@ fn spawn(dir: &Path, phase: usize, i: usize) -> Child {
 
 /// Every phase in turn; the per-tile phases as shuffled tasks two at a time.
 fn run_phases(dir: &Path, n: usize, seed: u64) {
-    for phase in 1..=7 {
+    run_phases_to(dir, n, seed, 7);
+}
+
+/// `file` in folders `single` and `tiled`: the same grid, bits, cell size and georeference.
+pub(crate) fn assert_same_raster(single: &Path, tiled: &Path, file: &str) {
+    let (a, b) = (read(&single.join(file)), read(&tiled.join(file)));
+    assert_eq!((a.width(), a.height()), (b.width(), b.height()), "{file}");
+    let differ = a
+        .as_slice()
+        .iter()
+        .zip(b.as_slice())
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count();
+    assert_eq!(
+        differ, 0,
+        "{differ} cells of {file} differ from the single run"
+    );
+    assert_eq!(a.cell_size(), b.cell_size());
+    assert_eq!(
+        a.georef().map(|g| (g.geotransform, g.crs.clone())),
+        b.georef().map(|g| (g.geotransform, g.crs.clone())),
+        "{file}: georeference"
+    );
+}
+
+/// Phases 1 to `last` in turn (a masks plan has 8); the per-tile phases as shuffled tasks two
+/// at a time.
+pub(crate) fn run_phases_to(dir: &Path, n: usize, seed: u64, last: usize) {
+    for phase in 1..=last {
         let mut order: Vec<usize> = if phase == 2 || phase == 4 || phase == 6 {
             vec![0]
         } else {
@@ -61,27 +89,7 @@ fn run_phases(dir: &Path, n: usize, seed: u64) {
 
 fn assert_same(single: &Path, tiled: &Path) {
     for p in PRODUCTS {
-        let (a, b) = (
-            read(&single.join(format!("{p}.tif"))),
-            read(&tiled.join(format!("{p}.tif"))),
-        );
-        assert_eq!((a.width(), a.height()), (b.width(), b.height()), "{p}");
-        let differ = a
-            .as_slice()
-            .iter()
-            .zip(b.as_slice())
-            .filter(|(x, y)| x.to_bits() != y.to_bits())
-            .count();
-        assert_eq!(
-            differ, 0,
-            "{differ} cells of {p} differ from the single run"
-        );
-        assert_eq!(a.cell_size(), b.cell_size());
-        assert_eq!(
-            a.georef().map(|g| (g.geotransform, g.crs.clone())),
-            b.georef().map(|g| (g.geotransform, g.crs.clone())),
-            "{p}: georeference"
-        );
+        assert_same_raster(single, tiled, &format!("{p}.tif"));
     }
     let geojson = |d: &Path| std::fs::read(d.join("channels.geojson")).unwrap();
     let (a, b) = (geojson(single), geojson(tiled));
@@ -104,7 +112,7 @@ fn assert_same(single: &Path, tiled: &Path) {
     assert!(!tiled.join("channels.png").exists());
 }
 
-fn tasks(dir: &Path) -> usize {
+pub(crate) fn tasks(dir: &Path) -> usize {
     json(&dir.join("manifest.json"))["tasks"].as_u64().unwrap() as usize
 }
 
@@ -205,7 +213,7 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
 
 /// A 96 x 96 basin of 25 m cells: a bowl over the middle 3 x 3 tiles of 32 cells, a river
 /// winding across every tile edge, integer elevations (flats everywhere) and a few voids.
-fn basin() -> Heightfield {
+pub(crate) fn basin() -> Heightfield {
     basin_of(96, 96)
 }
 

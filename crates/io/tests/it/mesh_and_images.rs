@@ -225,6 +225,44 @@ fn preview_and_helper_pngs() {
     assert!(!dir.path().join("bad.png").exists());
 }
 
+/// An RGBA map written row by row has the bytes of the one written whole, decodes to the
+/// pixels given, and leaves nothing when it is not finished.
+#[test]
+fn rgba_png_rows_equal_the_whole_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (37usize, 29usize);
+    let rgba: Vec<u8> = (0..w * h * 4).map(|i| ((i * 7919) % 251) as u8).collect();
+    let whole = dir.path().join("whole.png");
+    relief_io::write_rgba_png(&whole, w, h, &rgba).unwrap();
+    let rows = dir.path().join("rows.png");
+    let mut wr = relief_io::RgbaPngWriter::create(&rows, w, h).unwrap();
+    for band in rgba.chunks(w * 4 * 10) {
+        wr.write_rows(band).unwrap();
+    }
+    assert!(wr.write_rows(&[0; 4]).is_err(), "not a whole row");
+    wr.finish().unwrap();
+    let (a, b) = (
+        std::fs::read(&whole).unwrap(),
+        std::fs::read(&rows).unwrap(),
+    );
+    assert_eq!(a, b);
+    let mut dec = png::Decoder::new(std::io::Cursor::new(a))
+        .read_info()
+        .unwrap();
+    let mut px = vec![0; dec.output_buffer_size().unwrap()];
+    dec.next_frame(&mut px).unwrap();
+    assert_eq!(px, rgba);
+    let part = dir.path().join("part.png");
+    let mut wr = relief_io::RgbaPngWriter::create(&part, w, h).unwrap();
+    wr.write_rows(&rgba[..w * 4]).unwrap();
+    assert!(wr.finish().is_err());
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        2,
+        "no temporary is left"
+    );
+}
+
 /// Issue 14: sea colours below 0 m (blue by depth) when there is land too, the light and the
 /// exaggeration act, and a bad style names its field.
 #[test]

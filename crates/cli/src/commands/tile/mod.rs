@@ -29,6 +29,8 @@
 //! ([`flow`]): `tile run --phase P`, `tile status` names the phase to run next, and the mosaic
 //! writes `OUT_DIR/{filled,direction,area,strahler,watersheds,hand}.tif`, `channels.geojson`
 //! and `flow.json`, equal to `relief flow`'s (all but its `channels.png` preview).
+//! `relief tile plan DIR -- masks DEM -o OUT_DIR` adds an eighth phase, the masks per tile,
+//! and its mosaic writes the GeoTIFF masks, `splat.png` and `masks.json` of `relief masks`.
 //!
 //! Every method renders a window exactly as the same window of a full run (an `.sct` window, a
 //! wavelet window), so tiles need no halo and the mosaic equals the single run bit for bit,
@@ -66,8 +68,9 @@ pub(crate) struct Args {
 #[derive(Debug, clap::Subcommand)]
 enum TileCommand {
     /// Plan a windowable command (amplify, refine, decompress) as one task per output tile, or
-    /// flow as seven phases (per tile, then one task, in turn, ending per tile); writes
-    /// DIR/manifest.json and the prepared inputs.
+    /// flow as seven phases (per tile, then one task, in turn, ending per tile) and masks as
+    /// eight (flow's, then the masks per tile); writes DIR/manifest.json and the prepared
+    /// inputs.
     Plan(PlanArgs),
     /// Run one task of a plan (index from --index, SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX
     /// or AWS_BATCH_JOB_ARRAY_INDEX); a tile already done is skipped.
@@ -90,8 +93,9 @@ struct PlanArgs {
     /// (its output must be a GeoTIFF (.tif) and it must not have --window), or flow (a
     /// seven-phase plan of filling, D8 directions, drainage area, Strahler order, watersheds,
     /// HAND and channels, equal to the single run, without its channels.png preview;
-    /// --depressions fill and --directions d8 only). masks and erode are refused: drainage is
-    /// global and they have no exact multi-phase plan yet.
+    /// --depressions fill and --directions d8 only), or masks (flow's phases, then the masks
+    /// and splat map per tile, equal to the single run; --format tif only, no erosion
+    /// rasters). erode is refused: it has no exact multi-phase plan.
     #[arg(last = true, required = true, value_name = "COMMAND")]
     command: Vec<String>,
 }
@@ -104,8 +108,8 @@ struct RunArgs {
     /// Task index (0-based; default: from the scheduler's environment).
     #[arg(long)]
     index: Option<usize>,
-    /// Phase of a multi-phase (flow) plan, 1 to 5 (default: the first incomplete one); a
-    /// phase refuses to run while an earlier one is incomplete.
+    /// Phase of a multi-phase plan (flow: 1 to 7, masks: 1 to 8; default: the first
+    /// incomplete one); a phase refuses to run while an earlier one is incomplete.
     #[arg(long)]
     phase: Option<usize>,
 }

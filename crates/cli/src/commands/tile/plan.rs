@@ -85,7 +85,7 @@ pub(super) fn takes_value(prev: &str) -> bool {
 
 /// Commands that route flow over the whole DEM: a window of their output depends on every
 /// cell upstream of it, so they are not windowable.
-pub(super) const GLOBAL_DRAINAGE: [&str; 2] = ["masks", "erode"];
+pub(super) const GLOBAL_DRAINAGE: [&str; 1] = ["erode"];
 
 pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     if a.tile < 16 || !a.tile.is_multiple_of(16) || a.tile > 1 << 15 {
@@ -94,7 +94,10 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
             a.tile
         );
     }
-    if a.command.first().is_some_and(|c| c == "flow") {
+    if a.command
+        .first()
+        .is_some_and(|c| c == "flow" || c == "masks")
+    {
         return super::flow::plan(&a, ctx);
     }
     if let Some(global) = a
@@ -104,8 +107,8 @@ pub(super) fn plan(a: PlanArgs, ctx: &Ctx) -> Result<()> {
     {
         bail!(
             "`relief {global}` cannot be planned as tiles: drainage is global, a tile cannot \
-             know the area that drains into it from upstream (only `flow` has an exact \
-             multi-phase plan); run `relief {global}` on the whole DEM"
+             know the area that drains into it from upstream (only `flow` and `masks` have \
+             exact multi-phase plans); run `relief {global}` on the whole DEM"
         );
     }
     if let Some(other) = a

@@ -68,6 +68,7 @@ struct FlowInner {
 #[derive(Debug, clap::Subcommand)]
 enum FlowCommand {
     Flow(crate::commands::flow::Args),
+    Masks(crate::commands::masks::Args),
 }
 
 /// What the manifest's `job` holds for a flow plan.
@@ -121,6 +122,19 @@ fn tileable(s: &FlowSettings) -> Result<()> {
     Ok(())
 }
 
+/// Phases of a masks plan: the drainage's seven, then the masks per tile.
+pub(super) const MASK_PHASES: usize = PHASES + 1;
+
+/// Whether `m` plans masks (its last phase writes them).
+fn is_masks(m: &Manifest) -> bool {
+    m.command == "masks"
+}
+
+/// Whether phase `p` of a plan is one task (the others are one task per tile).
+fn single(p: usize) -> bool {
+    p <= PHASES && tiled::is_single(p)
+}
+
 fn layout(m: &Manifest) -> Result<TileLayout> {
     let l = TileLayout {
         width: m.output.width,
@@ -131,12 +145,14 @@ fn layout(m: &Manifest) -> Result<TileLayout> {
     };
     l.check()
         .with_context(|| "the manifest's grid cannot be tiled".to_string())?;
-    if l.tasks() != m.tasks || m.phases != PHASES {
+    let phases = if is_masks(m) { MASK_PHASES } else { PHASES };
+    if l.tasks() != m.tasks || m.phases != phases {
         bail!("the manifest's tile grid or phases do not match a flow plan");
     }
     Ok(l)
 }
 
+mod masks;
 mod phases;
 mod plan;
 
@@ -145,14 +161,26 @@ pub(super) use plan::plan;
 
 const INPUT_INDEX: &str = "input/index.json";
 
-/// The plan's folders: every file a task reads or writes is in one of them.
+/// The plan's folders: every file a task reads or writes is in one of them (and `masks` for
+/// a masks plan).
 const FOLDERS: [&str; 8] = [
     "input", "phase1", "phase2", "phase3", "phase4", "phase5", "phase6", "tiles",
 ];
 
+/// The folders of plan `m`.
+fn folders(masks: bool) -> Vec<&'static str> {
+    let mut v = FOLDERS.to_vec();
+    if masks {
+        v.push("masks");
+    }
+    v
+}
+
 /// Every folder of the plan must be a real folder inside it.
-fn check_folders(dir: &Path) -> Result<()> {
-    FOLDERS.iter().try_for_each(|f| check_plan_folder(dir, f))
+fn check_folders(dir: &Path, m: &Manifest) -> Result<()> {
+    folders(is_masks(m))
+        .iter()
+        .try_for_each(|f| check_plan_folder(dir, f))
 }
 
 fn input_name(t: usize) -> String {
@@ -187,6 +215,7 @@ fn outputs_of(phase: usize, index: usize, tasks: usize) -> Vec<String> {
         6 => (0..tasks)
             .map(|t| format!("phase6/net-{t:06}.bin"))
             .collect(),
+        MASK_PHASES => masks::outputs(index),
         _ => {
             let mut v: Vec<String> = PRODUCTS[3..]
                 .iter()
@@ -206,6 +235,8 @@ pub(super) fn product_name(product: &str, t: usize) -> String {
 fn record_name(phase: usize, index: usize) -> String {
     let folder = if phase == PHASES {
         "tiles".to_string()
+    } else if phase == MASK_PHASES {
+        "masks".to_string()
     } else {
         format!("phase{phase}")
     };
@@ -213,7 +244,7 @@ fn record_name(phase: usize, index: usize) -> String {
 }
 
 fn tasks_of(phase: usize, m: &Manifest) -> usize {
-    if tiled::is_single(phase) { 1 } else { m.tasks }
+    if single(phase) { 1 } else { m.tasks }
 }
 
 /// The record of a finished task of a flow plan.
@@ -317,7 +348,7 @@ fn read_product(
 
 /// Per phase, the tasks not done (missing, corrupt).
 fn phase_states(dir: &Path, m: &Manifest) -> Vec<(Vec<usize>, Vec<usize>)> {
-    (1..=PHASES)
+    (1..=m.phases)
         .map(|p| {
             let (mut missing, mut corrupt) = (Vec::new(), Vec::new());
             for i in 0..tasks_of(p, m) {
@@ -334,7 +365,7 @@ fn phase_states(dir: &Path, m: &Manifest) -> Vec<(Vec<usize>, Vec<usize>)> {
 
 /// `relief tile status` on a flow plan: each phase's progress and the phase to run next.
 pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
-    check_folders(dir)?;
+    check_folders(dir, m)?;
     let states = phase_states(dir, m);
     let mut text = String::new();
     let mut next = None;
@@ -342,7 +373,7 @@ pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
         let phase = p + 1;
         let n = tasks_of(phase, m);
         let done = n - missing.len() - corrupt.len();
-        let kind = if tiled::is_single(phase) {
+        let kind = if single(phase) {
             "one task"
         } else {
             "one task per tile"
@@ -369,11 +400,7 @@ pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
             "next: phase {p}, tasks {} (relief tile run {} --phase {p}{})\n",
             ranges(all),
             dir.display(),
-            if tiled::is_single(*p) {
-                ""
-            } else {
-                " --index I"
-            }
+            if single(*p) { "" } else { " --index I" }
         )),
         None => text.push_str("next: relief tile mosaic (every phase is done)\n"),
     }
@@ -392,7 +419,10 @@ pub(super) fn status(dir: &Path, m: &Manifest, ctx: &Ctx) -> Result<()> {
 /// hand}.tif`, `channels.geojson` and `flow.json` together.
 pub(super) fn mosaic(dir: &Path, m: &Manifest, a: &MosaicArgs, ctx: &Ctx) -> Result<()> {
     let layout = layout(m)?;
-    check_folders(dir)?;
+    check_folders(dir, m)?;
+    if is_masks(m) {
+        return masks::mosaic(dir, m, &layout, a, ctx);
+    }
     for phase in [5, PHASES] {
         let bad: Vec<usize> = (0..m.tasks)
             .filter(|&i| task_state(dir, m, phase, i) != TileState::Done)

@@ -10,16 +10,17 @@ pub(in crate::commands::tile) fn run_task(
     ctx: &Ctx,
 ) -> Result<()> {
     let layout = layout(m)?;
-    check_folders(dir)?;
+    check_folders(dir, m)?;
+    let phases = m.phases;
     let phase = match a.phase {
-        Some(p) if (1..=PHASES).contains(&p) => p,
-        Some(p) => bail!("--phase {p} is out of range: a flow plan has phases 1 to {PHASES}"),
+        Some(p) if (1..=phases).contains(&p) => p,
+        Some(p) => bail!("--phase {p} is out of range: this plan has phases 1 to {phases}"),
         // The first phase with a task unrecorded, or whose task of this index (0 for a
         // single phase) is not done (its own files are checked, not the whole plan's).
         None => {
             let own = super::task::task_index(a.index).unwrap_or(0);
-            let next = (1..=PHASES).find(|&p| {
-                let i = if tiled::is_single(p) { 0 } else { own };
+            let next = (1..=phases).find(|&p| {
+                let i = if single(p) { 0 } else { own };
                 (0..tasks_of(p, m)).any(|j| load_record(dir, m, p, j).is_none())
                     || (i < m.tasks && task_state(dir, m, p, i) != TileState::Done)
             });
@@ -47,7 +48,7 @@ pub(in crate::commands::tile) fn run_task(
             );
         }
     }
-    let index = if tiled::is_single(phase) {
+    let index = if single(phase) {
         match a.index {
             None | Some(0) => 0,
             Some(i) => bail!("phase {phase} is one task (index 0), not task {i}"),
@@ -84,7 +85,8 @@ pub(in crate::commands::tile) fn run_task(
         4 => bytes(phase4(dir, m, &layout)?),
         5 => phase5(dir, m, &layout, index)?,
         6 => bytes(phase6(dir, m, &layout)?),
-        _ => phase7(dir, m, &layout, index)?,
+        PHASES => phase7(dir, m, &layout, index)?,
+        _ => super::masks::phase8(dir, m, &layout, index)?,
     };
     let names = outputs_of(phase, index, m.tasks);
     let mut files = Vec::with_capacity(outputs.len());
@@ -124,7 +126,7 @@ fn bytes(v: Vec<(String, Vec<u8>)>) -> Vec<(String, Option<Vec<u8>>)> {
 /// mosaic's block side and codec (DEFLATE), so that `relief tile mosaic` copies their encoded
 /// blocks instead of decoding and encoding them again (unless it writes another codec or a
 /// COG).
-fn write_rasters(
+pub(super) fn write_rasters(
     dir: &Path,
     m: &Manifest,
     l: &TileLayout,
@@ -172,7 +174,12 @@ fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
 }
 
 /// Tile `t`'s input (the tile and its one-cell margin), checked against the input index.
-fn read_input(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Heightfield> {
+pub(super) fn read_input(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+) -> Result<Heightfield> {
     // The input index is checked against the manifest, the tile's input against the index.
     let index_bytes = read_plan_file(dir, INPUT_INDEX, 4096 + 256 * m.tasks as u64)?;
     if bytes_sum(&index_bytes, m.prepared.path.clone()) != m.prepared {
@@ -288,7 +295,12 @@ fn phase4(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u
 
 /// Tile `t`'s final filled elevations, directions and upstream cells (phase 5's values, which
 /// phase 7 computes again rather than decoding three rasters).
-fn finished(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<tiled::Finished> {
+pub(super) fn finished(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+) -> Result<tiled::Finished> {
     let routed = Routed::from_bytes(&read_product(dir, m, 3, t, 0, t)?, l, t)?;
     let inflow = Inflow::from_bytes(&read_product(dir, m, 4, 0, t, t)?, l, t)?;
     Ok(tiled::phase5(l, t, &routed, &inflow)?)
@@ -296,10 +308,15 @@ fn finished(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<tiled:
 
 /// The channel area of the plan's settings.
 fn channel_area(m: &Manifest) -> Result<f64> {
-    let job: FlowJob = serde_json::from_value(m.job.clone())
-        .context("the manifest's job is not a flow job's settings")?;
-    job.flow.check().map_err(crate::args::flag_error)?;
-    Ok(job.flow.channel_area)
+    let flow = if is_masks(m) {
+        super::masks::job(m)?.masks.flow
+    } else {
+        let job: FlowJob = serde_json::from_value(m.job.clone())
+            .context("the manifest's job is not a flow job's settings")?;
+        job.flow
+    };
+    flow.check().map_err(crate::args::flag_error)?;
+    Ok(flow.channel_area)
 }
 
 fn phase5(

@@ -1,6 +1,8 @@
 //! The plan step of a flow plan: the DEM read band by band (or whole) and cut into the tiles'
 //! inputs with their one-cell margin, and the manifest.
 
+use relief_landscape::masks::tiled::ScaleCounts;
+
 use super::*;
 
 /// `relief tile plan DIR --tile N -- flow ...`.
@@ -13,14 +15,24 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
     }
     let parsed = FlowInner::try_parse_from(&a.command)
         .map_err(|e| anyhow::anyhow!("invalid command after `--`: {}", e.to_string().trim()))?;
-    let FlowCommand::Flow(f) = parsed.command;
-    let settings = crate::commands::flow::settings(&f)?;
+    // The drainage's settings, and the masks' for a masks plan.
+    let (input_arg, out_arg, read, json, settings, masks) = match parsed.command {
+        FlowCommand::Flow(f) => {
+            let s = crate::commands::flow::settings(&f)?;
+            (f.input, f.out, f.read, f.json, s, None)
+        }
+        FlowCommand::Masks(m) => {
+            let s = super::masks::plannable(&m)?;
+            (m.input, m.out, m.read, m.json, s.flow.clone(), Some(s))
+        }
+    };
+    let f = (&input_arg, &read);
     tileable(&settings)?;
-    if f.json {
+    if json {
         bail!("--json cannot be planned: a plan writes no report (relief tile status does)");
     }
-    let input = absolute(&f.input)?;
-    let out = absolute(&f.out)?;
+    let input = absolute(&input_arg)?;
+    let out = absolute(&out_arg)?;
     let dir = super::super::plan::new_plan_dir(&a.dir)?;
     if dir.starts_with(&input) || out.starts_with(&dir) || dir.starts_with(&out) {
         bail!(
@@ -29,7 +41,10 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         );
     }
     // The output folder is checked as `relief flow` checks it (then the staging is dropped).
-    let files = out_files();
+    let files = match &masks {
+        None => out_files(),
+        Some(s) => super::masks::out_files(s),
+    };
     let names: Vec<(&str, OutKind)> = files.iter().map(|(n, k)| (n.as_str(), *k)).collect();
     drop(crate::folder::FolderOutputs::new(
         &out,
@@ -37,7 +52,7 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         &[&input],
         ctx,
     )?);
-    let mut dem = Dem::open(&input, &f.read, ctx)?;
+    let mut dem = Dem::open(&input, f.1, ctx)?;
     let (width, height) = dem.size();
     let (cx, cy) = dem.cell;
     let layout = TileLayout {
@@ -57,22 +72,35 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         );
     }
     let input_sum = file_sum(&input, input.display().to_string())?;
-    for sub in FOLDERS {
+    let subs = folders(masks.is_some());
+    for sub in &subs {
         std::fs::create_dir_all(dir.join(sub))
             .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
     }
-    let index_bytes = match cut_inputs(&dir, &layout, &mut dem, ctx) {
+    let cut =
+        cut_inputs(&dir, &layout, &mut dem, masks.is_some(), ctx).and_then(|(index, counts)| {
+            let job = match (&masks, counts) {
+                (Some(s), Some(c)) => {
+                    let job = super::masks::scales(&dir, &layout, s, &c, f.0, ctx)?;
+                    serde_json::to_value(job)?
+                }
+                _ => serde_json::to_value(FlowJob::new(settings.clone(), f.0))?,
+            };
+            Ok((index, job))
+        });
+    let (index_bytes, job) = match cut {
         Ok(b) => b,
         Err(e) => {
             // Nothing of a plan that cannot run is left (the folder was new or empty).
-            for sub in FOLDERS {
+            for sub in &subs {
                 let _ = std::fs::remove_dir_all(dir.join(sub));
             }
             return Err(e.context(format!("cannot plan {}", input.display())));
         }
     };
-    let args = vec![
-        "flow".to_string(),
+    let command = if masks.is_some() { "masks" } else { "flow" };
+    let mut args = vec![
+        command.to_string(),
         input.display().to_string(),
         "--out".into(),
         out.display().to_string(),
@@ -83,12 +111,16 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         "--channel-area".into(),
         settings.channel_area.to_string(),
     ];
+    if let Some(s) = &masks {
+        args.extend(super::masks::args(s));
+    }
+    let phases = if masks.is_some() { MASK_PHASES } else { PHASES };
     let mut m = Manifest {
         format: FORMAT.into(),
         version: VERSION,
-        command: "flow".into(),
+        command: command.into(),
         args,
-        job: serde_json::to_value(FlowJob::new(settings, &f.input))?,
+        job,
         inputs: vec![input_sum],
         prepared: bytes_sum(&index_bytes, INPUT_INDEX.into()),
         output: OutputGrid {
@@ -102,45 +134,100 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         tiles_x: layout.tiles_x(),
         tiles_y: layout.tiles_y(),
         tasks,
-        phases: PHASES,
+        phases,
         plan_id: String::new(),
     };
     m.plan_id = hex(Sha256::digest(serde_json::to_vec(&m)?));
     let json = crate::staging::json_text(&m)?;
     relief_io::write_bytes_atomic(&dir.join(MANIFEST), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join(MANIFEST).display()))?;
+    let bands = match &masks {
+        Some(_) => Some(
+            serde_json::from_value::<super::masks::MasksJob>(m.job.clone())?
+                .scales
+                .bands,
+        ),
+        None => None,
+    };
+    note(ctx, &layout, &input, &dir, a.tile, bands);
+    Ok(())
+}
+
+/// The plan step's note: the plan, its memory, and the chain of phases on Slurm; `bands` are
+/// a masks plan's height bands.
+fn note(
+    ctx: &Ctx,
+    layout: &TileLayout,
+    input: &Path,
+    dir: &Path,
+    tile: usize,
+    bands: Option<Vec<f64>>,
+) {
+    let tasks = layout.tasks();
+    let phases = if bands.is_some() { MASK_PHASES } else { PHASES };
     let (per_tile, single) = layout.memory_estimate();
     let mb = |b: u64| b as f64 / 1e6;
+    let last = tasks - 1;
+    let d = dir.display();
+    let mut chain = String::new();
+    for p in 1..=phases {
+        let array = if super::single(p) {
+            String::new()
+        } else {
+            format!(" --array=0-{last}")
+        };
+        let (var, dep) = (
+            if p < phases {
+                format!("j{p}=$(sbatch --parsable")
+            } else {
+                "sbatch".into()
+            },
+            if p > 1 {
+                format!(" --dependency=afterok:$j{}", p - 1)
+            } else {
+                String::new()
+            },
+        );
+        let close = if p < phases { ")" } else { "" };
+        chain.push_str(&format!(
+            "  {var}{dep}{array} --wrap 'relief tile run {d} --phase {p}'{close}\n"
+        ));
+    }
+    let (what, extra) = match &bands {
+        None => ("the drainage", String::new()),
+        Some(b) => (
+            "the masks",
+            format!(
+                "; phase 8 (per tile) writes the masks from the drainage and the map's height \
+                 bands {b:?} m and profile-curvature scale, found exactly while planning"
+            ),
+        ),
+    };
     ctx.note(format!(
-        "planned the drainage of {} x {} cells ({}) as {} tiles of {} px ({} x {}) in seven \
-         phases in {}\n\
-         memory: about {:.0} MB per tile task (phases 1, 3, 5, 7) and {:.0} MB for the single \
-         tasks (phases 2, 4, 6) plus 60 bytes per cell of the flats that cross tile edges; the \
-         mosaic holds the channel network (about 200 bytes per channel cell)\n\
-         not planned: {NOT_PLANNED}\n\
-         run them in order, each after the previous one succeeded, e.g. on Slurm:\n  \
-         j1=$(sbatch --parsable --array=0-{last} --wrap 'relief tile run {d} --phase 1')\n  \
-         j2=$(sbatch --parsable --dependency=afterok:$j1 --wrap 'relief tile run {d} --phase 2')\n  \
-         j3=$(sbatch --parsable --dependency=afterok:$j2 --array=0-{last} --wrap 'relief tile run {d} --phase 3')\n  \
-         j4=$(sbatch --parsable --dependency=afterok:$j3 --wrap 'relief tile run {d} --phase 4')\n  \
-         j5=$(sbatch --parsable --dependency=afterok:$j4 --array=0-{last} --wrap 'relief tile run {d} --phase 5')\n  \
-         j6=$(sbatch --parsable --dependency=afterok:$j5 --wrap 'relief tile run {d} --phase 6')\n  \
-         sbatch --dependency=afterok:$j6 --array=0-{last} --wrap 'relief tile run {d} --phase 7'\n\
+        "planned {what} of {} x {} cells ({}) as {} tiles of {} px ({} x {}) in {phases} \
+         phases in {}{extra}\n\
+         memory: about {:.0} MB per tile task and {:.0} MB for the single tasks (phases 2, 4, \
+         6) plus 60 bytes per cell of the flats that cross tile edges; the mosaic holds the \
+         channel network (about 200 bytes per channel cell)\n\
+         not planned: {}\n\
+         run them in order, each after the previous one succeeded, e.g. on Slurm:\n{chain}\
          then: relief tile mosaic {d}",
         layout.width,
         layout.height,
         input.display(),
         tasks,
-        a.tile,
+        tile,
         layout.tiles_x(),
         layout.tiles_y(),
         dir.display(),
         mb(per_tile),
         mb(single),
-        last = tasks - 1,
-        d = dir.display(),
+        if bands.is_some() {
+            super::masks::NOT_PLANNED
+        } else {
+            NOT_PLANNED
+        },
     ));
-    Ok(())
 }
 
 /// The DEM the plan cuts: read band by band (a GeoTIFF file: the plan step holds a band of
@@ -225,9 +312,19 @@ fn first_bytes(path: &Path) -> Option<Vec<u8>> {
 }
 
 /// Writes every tile's window with its one-cell margin (`input/tile-N.tif`), so a phase-1
-/// task reads its tile alone, and `input/index.json` (their checksums); returns the index.
+/// task reads its tile alone, and `input/index.json` (their checksums); returns the index,
+/// and for a masks plan (`masks`) the first pass of the map's mask scales.
 /// A streamed DEM is read one row of tiles (and its margin rows) at a time.
-fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &mut Dem, ctx: &Ctx) -> Result<Vec<u8>> {
+fn cut_inputs(
+    dir: &Path,
+    layout: &TileLayout,
+    dem: &mut Dem,
+    masks: bool,
+    ctx: &Ctx,
+) -> Result<(Vec<u8>, Option<ScaleCounts>)> {
+    // Merged as each tile is counted (integer counts: the order does not matter), so a row of
+    // many small tiles never holds more than one count table per thread.
+    let counts = std::sync::Mutex::new(masks.then(ScaleCounts::empty));
     let (cx, cy) = (layout.cell_x, layout.cell_y);
     let mut index = Vec::with_capacity(layout.tasks());
     let mut rows = Vec::new();
@@ -253,6 +350,12 @@ fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &mut Dem, ctx: &Ctx) -> Resu
                 let [_, _, w, h] = layout.window(t);
                 let halo = tiled::halo_from_rows(layout, t, band, band_first)?;
                 let hf = Heightfield::new(w + 2, h + 2, halo, cx, cy)?;
+                if masks {
+                    let c = ScaleCounts::of_tile(layout, t, hf.as_slice())?;
+                    if let Some(all) = counts.lock().unwrap_or_else(|e| e.into_inner()).as_mut() {
+                        all.merge(&c);
+                    }
+                }
                 // Uncompressed: the plan, phase 1 and phase 7 spent about a third of their
                 // time in DEFLATE and its predictor on these (4 bytes per cell on disk).
                 let bytes =
@@ -273,5 +376,8 @@ fn cut_inputs(dir: &Path, layout: &TileLayout, dem: &mut Dem, ctx: &Ctx) -> Resu
     let index_bytes = serde_json::to_vec(&index)?;
     relief_io::write_bytes_atomic(&dir.join(INPUT_INDEX), &index_bytes)
         .with_context(|| format!("cannot write {}", dir.join(INPUT_INDEX).display()))?;
-    Ok(index_bytes)
+    Ok((
+        index_bytes,
+        counts.into_inner().unwrap_or_else(|e| e.into_inner()),
+    ))
 }
