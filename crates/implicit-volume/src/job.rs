@@ -21,7 +21,7 @@ use crate::render::{
     Camera, Image, RenderSettings, SectionSettings, SectionStats, render_with_progress, section,
 };
 use crate::scene::Scene;
-use crate::simplify::simplify;
+use crate::simplify::simplify_with_progress;
 
 /// What `relief volume` and the pipeline's `volume` stage do with a DEM.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -491,7 +491,7 @@ impl VolumeJob {
             if let Some(max) = self.max_triangles {
                 progress.begin("simplifying", 0);
                 let t = Instant::now();
-                let (s, sr) = simplify(&m, max)?;
+                let (s, sr) = simplify_with_progress(&m, max, progress)?;
                 m = s;
                 field_normals(&scene, &mut m, 0.25 * rep.dims.voxel_m);
                 f.simplify_s = Some(t.elapsed().as_secs_f64());

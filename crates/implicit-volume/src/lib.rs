@@ -89,5 +89,5 @@ pub use scene::{
     KarstStop, RainErosion, Region, Scene, SceneBuilder, SeaCliffs, SeaErosion, UndercutSettings,
     Weathering, WindErosion, erosion_intensity,
 };
-pub use simplify::{SimplifyReport, simplify};
+pub use simplify::{SimplifyReport, simplify, simplify_with_progress};
 pub use tree::{DemFrame, NodeId, THRESHOLD, TerrainTree, TreeStats};

@@ -17,8 +17,13 @@
 //! budget is met; the next pass re-plans the edges of the merged mesh. A pass replaces the
 //! millions of heap updates of a one-edge-at-a-time queue by one parallel sort, and the
 //! result does not depend on the thread count.
+//!
+//! [`simplify_with_progress`] asks its [`Progress`] whether to stop before every pass and every
+//! 4096 queued edges of a pass, and then ends with [`Error::Stopped`] (no mesh); a
+//! run that is not stopped gives the same mesh as [`simplify`].
 
 use rayon::prelude::*;
+use relief_heightfield::Progress;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -26,6 +31,11 @@ use crate::mesh::Mesh;
 /// Largest valence a collapse may create (keeps triangles well shaped and the cost of the
 /// neighbourhood scans bounded on flat regions).
 const MAX_VALENCE: usize = 16;
+
+/// Queued edges (collapse attempts) between two asks of [`Progress::stopped`]: a small slice
+/// of a pass (which goes through up to half the edges), so a stop is honoured quickly while the
+/// asks cost nothing next to the collapses.
+const POLL_EVERY: usize = 4096;
 
 /// What [`simplify`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -270,6 +280,17 @@ impl State {
 /// collapse passes the checks (module docs). Normals are dropped (recompute them, e.g. from the
 /// scene's field gradient).
 pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyReport)> {
+    simplify_with_progress(mesh, max_triangles, &relief_heightfield::NoProgress)
+}
+
+/// [`simplify`], asking `progress` whether to stop ([`Progress::stopped`]) before every pass
+/// and every 4096 queued edges; then [`Error::Stopped`], no mesh. A mesh already
+/// within the budget is returned without asking.
+pub fn simplify_with_progress(
+    mesh: &Mesh,
+    max_triangles: usize,
+    progress: &dyn Progress,
+) -> Result<(Mesh, SimplifyReport)> {
     let nv = mesh.positions.len();
     if let Some(t) = mesh
         .triangles
@@ -329,6 +350,9 @@ pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyRepo
     let mut pass = 0u32;
     let (mut nu, mut nv_) = (Vec::new(), Vec::new());
     while alive_count > max_triangles {
+        if progress.stopped() {
+            return Err(Error::Stopped("simplifying"));
+        }
         pass += 1;
         // Every undirected edge once: a closed, consistently oriented mesh holds each edge
         // once in each direction (duplicates of other meshes are removed after the sort).
@@ -350,9 +374,12 @@ pub fn simplify(mesh: &Mesh, max_triangles: usize) -> Result<(Mesh, SimplifyRepo
         // cheaper half of the edges, so the coarsening stays cheapest-first across passes.
         let need = (alive_count - max_triangles).div_ceil(2);
         let mut done = 0usize;
-        for &(_, u, v) in &queue[..queue.len().div_ceil(2)] {
+        for (k, &(_, u, v)) in queue[..queue.len().div_ceil(2)].iter().enumerate() {
             if done >= need {
                 break;
+            }
+            if k % POLL_EVERY == POLL_EVERY - 1 && progress.stopped() {
+                return Err(Error::Stopped("simplifying"));
             }
             if touched[u as usize] == pass || touched[v as usize] == pass {
                 continue;
@@ -464,6 +491,41 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    /// Says stop from its `after`-th question on, and counts the questions.
+    struct StopAfter(std::sync::atomic::AtomicUsize, usize);
+    impl Progress for StopAfter {
+        fn stopped(&self) -> bool {
+            self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= self.1
+        }
+    }
+
+    /// The brief's `--max-time` rule: the collapse loop asks `Progress::stopped` before every
+    /// pass and every `POLL_EVERY` queued edges and then ends with `Error::Stopped`, no mesh;
+    /// a run never told to stop gives exactly the mesh and report of `simplify`.
+    #[test]
+    fn stops_when_asked_and_is_unchanged_otherwise() {
+        let m = sphere(60);
+        let stopped = Err(Error::Stopped("simplifying"));
+        let up_front = simplify_with_progress(&m, 1000, &StopAfter(Default::default(), 0));
+        assert_eq!(up_front, stopped);
+        // The first question (before pass 1) says go on, the second comes inside pass 1,
+        // after `POLL_EVERY` queued edges (the sphere has ~21,000 edges, so pass 1 queues
+        // over 10,000 before it reaches its collapse target).
+        let in_pass = simplify_with_progress(&m, 1000, &StopAfter(Default::default(), 1));
+        assert_eq!(in_pass, stopped);
+        let never = StopAfter(Default::default(), usize::MAX);
+        let (a, ra) = simplify_with_progress(&m, 1000, &never).unwrap();
+        let asked = never.0.load(std::sync::atomic::Ordering::Relaxed);
+        assert!(asked > ra.passes, "{asked} questions in {ra:?}");
+        let (b, rb) = simplify(&m, 1000).unwrap();
+        assert_eq!((a, ra), (b, rb));
+        // Within the budget there is nothing to stop.
+        let (same, _) =
+            simplify_with_progress(&m, m.triangles.len(), &StopAfter(Default::default(), 0))
+                .unwrap();
+        assert_eq!(same.triangles, m.triangles);
     }
 
     #[test]

@@ -71,6 +71,7 @@ pub mod nearest;
 pub mod omp;
 pub mod patches;
 pub mod sct;
+mod simd;
 
 pub use coding::code_indexed;
 pub use dictionary::{AtomDescriptor, Dictionary, FunctionAtom, FunctionAtomRegistry};

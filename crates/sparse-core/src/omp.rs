@@ -317,30 +317,14 @@ fn code_block<T: OmpFloat>(sc: &mut Scratch<T>, block: Block<'_, T>, out: &mut B
     }
 }
 
-/// [`code_block`] compiled with AVX2 enabled (wider vectors for the O(N) passes). No FMA
-/// contraction is enabled and no reduction is reordered, so the results are bit-identical to
-/// the baseline build.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn code_block_avx2<T: OmpFloat>(sc: &mut Scratch<T>, block: Block<'_, T>, out: &mut BlockOut<T>) {
-    code_block(sc, block, out);
-}
-
-#[allow(unsafe_code)]
-fn code_block_dispatch<T: OmpFloat>(
-    sc: &mut Scratch<T>,
-    block: Block<'_, T>,
-    out: &mut BlockOut<T>,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        assert!(std::arch::is_x86_feature_detected!("avx2"));
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of calling
-        // a `#[target_feature(enable = "avx2")]` function.
-        unsafe { code_block_avx2(sc, block, out) };
-        return;
-    }
-    code_block(sc, block, out);
+crate::avx2_dispatch! {
+    /// [`code_block`], compiled with AVX2 where the CPU has it (wider vectors for the O(N)
+    /// passes; bit-identical results, see [`avx2_dispatch!`](crate::avx2_dispatch)).
+    fn code_block_dispatch[T: OmpFloat](
+        sc: &mut Scratch<T>,
+        block: Block<'_, T>,
+        out: &mut BlockOut<T>,
+    ) => code_block;
 }
 
 /// Codes row `r` of the block held in `sc.alpha0`.

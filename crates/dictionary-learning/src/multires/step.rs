@@ -259,35 +259,16 @@ fn pick_block(
     out
 }
 
-/// [`pick_block`] compiled with AVX2 enabled (wider vectors for the scans of the
-/// correlations). No FMA contraction is enabled and no sum is reordered: the picks are
-/// bit-identical to the baseline build's.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn pick_block_avx2(
-    corr: &Array2<f32>,
-    rows: ndarray::ArrayView2<'_, f32>,
-    first: (usize, u64),
-    index: &(dyn Fn(usize) -> u64 + Sync),
-) -> Vec<Option<(u32, f32, f32)>> {
-    pick_block(corr, rows, first, index)
-}
-
-/// [`pick_block`], with AVX2 where the CPU has it.
-#[allow(unsafe_code)]
-fn pick_block_dispatch(
-    corr: &Array2<f32>,
-    rows: ndarray::ArrayView2<'_, f32>,
-    first: (usize, u64),
-    index: &(dyn Fn(usize) -> u64 + Sync),
-) -> Vec<Option<(u32, f32, f32)>> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-        // calling a `#[target_feature(enable = "avx2")]` function.
-        return unsafe { pick_block_avx2(corr, rows, first, index) };
-    }
-    pick_block(corr, rows, first, index)
+relief_sparse_core::avx2_dispatch! {
+    /// [`pick_block`], compiled with AVX2 where the CPU has it (wider vectors for the scans of
+    /// the correlations; the picks are bit-identical, see
+    /// [`avx2_dispatch!`](relief_sparse_core::avx2_dispatch)).
+    fn pick_block_dispatch(
+        corr: &Array2<f32>,
+        rows: ndarray::ArrayView2<'_, f32>,
+        first: (usize, u64),
+        index: &(dyn Fn(usize) -> u64 + Sync),
+    ) -> Vec<Option<(u32, f32, f32)>> => pick_block;
 }
 
 /// Where a crop of a step input sits in the whole input's primitive grid: its first primitive

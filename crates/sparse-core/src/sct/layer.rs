@@ -269,9 +269,8 @@ impl SparseLayer {
 
     /// Stamps the layer into a band: `num`/`den` are `ncols x nrows` buffers for pixels
     /// `(X0 + c, Y0 + r)` at scale `scale`. On x86-64 with AVX2 the same code is compiled with
-    /// AVX2 enabled (four f64 lanes in the accumulation runs instead of two); no FMA
-    /// contraction is enabled and no sum is reordered, so the output is bit-identical.
-    #[allow(unsafe_code)]
+    /// AVX2 enabled (four f64 lanes in the accumulation runs instead of two); the output is
+    /// bit-identical ([`avx2_dispatch!`](crate::avx2_dispatch)).
     pub(super) fn stamp(
         &self,
         band: &Band,
@@ -279,27 +278,7 @@ impl SparseLayer {
         den: &mut [f64],
         scratch: &mut StampScratch<'_>,
     ) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-            // calling a `#[target_feature(enable = "avx2")]` function.
-            unsafe { self.stamp_avx2(band, num, den, scratch) };
-            return;
-        }
-        self.stamp_body(band, num, den, scratch);
-    }
-
-    /// [`Self::stamp_body`] compiled with AVX2 enabled.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn stamp_avx2(
-        &self,
-        band: &Band,
-        num: &mut [f64],
-        den: &mut [f64],
-        scratch: &mut StampScratch<'_>,
-    ) {
-        self.stamp_body(band, num, den, scratch);
+        stamp_dispatch(self, band, num, den, scratch);
     }
 
     /// The body of [`Self::stamp`].
@@ -459,6 +438,17 @@ impl SparseLayer {
         }
         scratch.candidates = candidates;
     }
+}
+
+crate::avx2_dispatch! {
+    /// [`SparseLayer::stamp`]'s work, with AVX2 where the CPU has it.
+    fn stamp_dispatch(
+        layer: &SparseLayer,
+        band: &Band,
+        num: &mut [f64],
+        den: &mut [f64],
+        scratch: &mut StampScratch<'_>,
+    ) => SparseLayer::stamp_body;
 }
 
 /// Where a primitive's support meets a band, in pixels: the frame of its cached offsets
