@@ -132,6 +132,12 @@ fn _relief(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tiled::flow_phase6, m)?)?;
     m.add_function(wrap_pyfunction!(tiled::flow_phase7, m)?)?;
     m.add_function(wrap_pyfunction!(tiled::flow_assemble, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_check, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_counts, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_targets, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_fine, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_scales, m)?)?;
+    m.add_function(wrap_pyfunction!(tiled::masks_tile, m)?)?;
     m.add_class::<windows::AmplifyPlan>()?;
     m.add_class::<windows::RefinePlan>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

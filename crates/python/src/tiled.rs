@@ -1,7 +1,8 @@
 //! The passes of the tiled drainage (`relief.dask.flow`): relief-landscape's `flow::tiled`,
 //! one function per pass, each taking and giving the passes' checked byte forms (Python
 //! `bytes`, which Dask moves between workers), so a graph of per-tile and single tasks
-//! computes `relief.flow` of a DEM larger than one worker, equal bit for bit.
+//! computes `relief.flow` of a DEM larger than one worker, equal bit for bit; and the passes
+//! of the tiled masks (`relief.dask.masks`, relief-landscape's `masks::tiled`).
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -10,6 +11,9 @@ use relief_landscape::flow::tiled::{
     self, FillGraph, Finished, Inflow, Levels, LocalFill, NetLevels, NetSummary, PortGraph, Routed,
     TileLayout, TileNetwork,
 };
+
+use relief_landscape::masks::tiled::{self as mask_tiles, ScaleCounts, ScaleFine, ScaleTargets};
+use relief_landscape::masks::{MaskScales, MasksSettings};
 
 use crate::convert::Geo;
 use crate::run::Failure;
@@ -307,4 +311,130 @@ pub(crate) fn flow_assemble(
         ))
     })
     .map_err(|e| Failure::value(e).into())
+}
+
+/// The masks settings of `relief.dask.masks` (JSON keyword arguments over the defaults).
+fn mask_settings(json: &str) -> PyResult<MasksSettings> {
+    let s: MasksSettings = crate::convert::settings(&MasksSettings::default(), json)?;
+    s.check().map_err(Failure::value)?;
+    Ok(s)
+}
+
+/// Checks the settings of `relief.dask.masks` (an error names the field), before any task.
+#[pyfunction]
+pub(crate) fn masks_check(settings: &str) -> PyResult<()> {
+    mask_settings(settings).map(|_| ())
+}
+
+/// First pass of the map's mask scales over tile `t` (its input with the margin, f32 bytes).
+#[pyfunction]
+pub(crate) fn masks_counts<'py>(
+    py: Python<'py>,
+    l: Layout,
+    t: usize,
+    input: Vec<u8>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let l = layout(l)?;
+    let z = halo(&l, t, &input)?;
+    let c = py
+        .detach(|| ScaleCounts::of_tile(&l, t, &z))
+        .map_err(Failure::value)?;
+    Ok(PyBytes::new(py, &c.to_bytes()))
+}
+
+/// One task: the bins and ranks of the map's statistics from every tile's counts.
+#[pyfunction]
+pub(crate) fn masks_targets<'py>(
+    py: Python<'py>,
+    settings: &str,
+    counts: Vec<Vec<u8>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let s = mask_settings(settings)?;
+    let t = py
+        .detach(|| {
+            let mut all = ScaleCounts::empty();
+            for b in &counts {
+                all.merge(&ScaleCounts::from_bytes(b)?);
+            }
+            all.targets(&s)
+        })
+        .map_err(Failure::value)?;
+    Ok(PyBytes::new(py, &t.to_bytes()))
+}
+
+/// Second pass of the map's mask scales over tile `t`.
+#[pyfunction]
+pub(crate) fn masks_fine<'py>(
+    py: Python<'py>,
+    l: Layout,
+    t: usize,
+    input: Vec<u8>,
+    targets: Vec<u8>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let l = layout(l)?;
+    let z = halo(&l, t, &input)?;
+    let f = py
+        .detach(|| {
+            let targets = ScaleTargets::from_bytes(&targets)?;
+            ScaleFine::of_tile(&l, t, &z, &targets)
+        })
+        .map_err(Failure::value)?;
+    Ok(PyBytes::new(py, &f.to_bytes()))
+}
+
+/// One task: the map's height bands and curvature scale (`MaskScales` as JSON) from every
+/// tile's second-pass counts.
+#[pyfunction]
+pub(crate) fn masks_scales(
+    py: Python<'_>,
+    targets: Vec<u8>,
+    fine: Vec<Vec<u8>>,
+) -> PyResult<String> {
+    let scales = py
+        .detach(|| {
+            let targets = ScaleTargets::from_bytes(&targets)?;
+            let mut all = ScaleFine::empty(&targets);
+            for b in &fine {
+                all.merge(&ScaleFine::from_bytes(b, &targets)?);
+            }
+            Ok::<_, relief_landscape::LandscapeError>(all.scales(&targets))
+        })
+        .map_err(Failure::value)?;
+    serde_json::to_string(&scales).map_err(|e| Failure::value(e).into())
+}
+
+/// The masks of tile `t` from its input, its routed tile and inflow (phases 3 and 4), its
+/// HAND (phase 7) and the map's scales: `(masks by name, splat weights (h, w * 4))`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn masks_tile<'py>(
+    py: Python<'py>,
+    l: Layout,
+    t: usize,
+    input: Vec<u8>,
+    routed: Vec<u8>,
+    inflow: Vec<u8>,
+    hand: numpy::PyReadonlyArray2<'py, f32>,
+    settings: &str,
+    scales: &str,
+) -> PyResult<(Bound<'py, pyo3::types::PyDict>, Bound<'py, PyArray2<f32>>)> {
+    let l = layout(l)?;
+    let [_, _, w, h] = tile(&l, t)?;
+    let z = halo(&l, t, &input)?;
+    let s = mask_settings(settings)?;
+    let scales: MaskScales = serde_json::from_str(scales).map_err(Failure::value)?;
+    let hand: Vec<f32> = hand.as_array().iter().copied().collect();
+    let (masks, splat) = py
+        .detach(|| {
+            let f = finished(&l, t, &routed, &inflow)?;
+            mask_tiles::tile_masks(&s, &l, t, &z, &f.cells, hand, &scales)
+        })
+        .map_err(Failure::value)?;
+    let d = pyo3::types::PyDict::new(py);
+    for m in masks {
+        d.set_item(m.kind.name(), array(py, w, h, m.values)?)?;
+    }
+    let splat = ndarray::Array2::from_shape_vec((h, w * 4), splat.into_flattened())
+        .map_err(Failure::value)?;
+    Ok((d, PyArray2::from_owned_array(py, splat)))
 }

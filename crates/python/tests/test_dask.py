@@ -153,3 +153,43 @@ def test_flow_refuses_what_has_no_tiled_form():
                       ({"channel_area": -1.0}, "channel_area"), ({"lakes": 1}, "lakes")):
         with pytest.raises(ValueError, match=what):
             rdask.flow(dem, cell_size=30, **bad)
+
+
+def _masks_equal(lazy: dict, single: dict, client=None) -> None:
+    import dask
+
+    if client is None:
+        out = dask.compute(lazy)[0]
+    else:
+        futures = client.compute(list(lazy.values()))
+        out = dict(zip(list(lazy), client.gather(futures)))
+    for k in ("slope", "profile_curvature", "plan_curvature", "area", "wetness", "hand", "height_band", "splat"):
+        assert same_bits(np.asarray(out[k]), single[k]), k
+    assert len(out["scales"]["bands"]) == 3
+
+
+def test_masks_on_two_worker_processes_equals_the_single_run(client):
+    dem = _basin()
+    single = relief.masks(dem, cell_size=(30, 20), flow={"channel_area": 7200})
+    lazy = rdask.masks(dem, tile=32, cell_size=(30, 20), flow={"channel_area": 7200})
+    assert lazy["splat"].shape == (90, 96, 4)
+    _masks_equal(lazy, single, client)
+    lazy = rdask.masks(da.from_array(dem, chunks=40), tile=45, cell_size=(30, 20), flow={"channel_area": 7200})
+    _masks_equal(lazy, single)
+    given = relief.masks(dem, cell_size=30, height_bands=[20.0, 40.0], rock_slope=25.0)
+    lazy = rdask.masks(dem, tile=16, cell_size=30, height_bands=[20.0, 40.0], rock_slope=25.0)
+    out = lazy["height_band"].compute()
+    assert same_bits(out, given["height_band"]) and np.nanmax(out) == 2
+
+
+def test_masks_of_a_real_dem_crop_equals_the_single_run():
+    r = relief.read(FIXTURE)
+    _masks_equal(rdask.masks(r, tile=64), relief.masks(r))
+
+
+def test_masks_refuse_what_has_no_tiled_form():
+    dem = _basin()
+    for bad, what in (({"flow": {"directions": "mfd"}}, "directions"), ({"rock_slope": 95.0}, "rock_slope"),
+                      ({"erosion": 1}, "erosion")):
+        with pytest.raises(ValueError, match=what):
+            rdask.masks(dem, cell_size=30, **bad)

@@ -38,6 +38,35 @@ fn bad(msg: impl Into<String>) -> LandscapeError {
     LandscapeError::InvalidInput(msg.into())
 }
 
+/// A count table's non-zero bins, `(bin, count)` in increasing bin order (the byte forms).
+type Sparse = Vec<(u32, u64)>;
+
+fn sparse(v: &[u64]) -> Sparse {
+    v.iter()
+        .enumerate()
+        .filter(|(_, c)| **c > 0)
+        .map(|(b, &c)| (b as u32, c))
+        .collect()
+}
+
+/// The table of `s` (bins increasing, each below 65536).
+fn dense(s: &[(u32, u64)], what: &str) -> Result<Vec<u64>> {
+    let mut v = vec![0; BINS];
+    let mut last = None;
+    for &(b, c) in s {
+        if b as usize >= BINS || last.is_some_and(|l| l >= b) {
+            return Err(bad(format!("{what}: bins out of order or range")));
+        }
+        last = Some(b);
+        v[b as usize] = c;
+    }
+    Ok(v)
+}
+
+fn decode<T: serde::de::DeserializeOwned>(b: &[u8], what: &str) -> Result<T> {
+    serde_json::from_slice(b).map_err(|e| bad(format!("{what}: {e}")))
+}
+
 /// Slope, profile and plan curvature of tile `t` from its input (the tile and its one-cell
 /// margin, `(w + 2) x (h + 2)` row-major, margin cells outside the map `NaN` or anything):
 /// the values [`derivatives`] gives those cells on the whole map, bit for bit. Outside the
@@ -138,6 +167,20 @@ impl ScaleCounts {
         Ok(c)
     }
 
+    /// The counts as bytes (JSON of the non-zero bins), for a task graph to move.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        serde_json::to_vec(&(sparse(&self.heights), sparse(&self.profile))).unwrap_or_default()
+    }
+
+    /// The counts of [`ScaleCounts::to_bytes`], checked.
+    pub fn from_bytes(b: &[u8]) -> Result<Self> {
+        let (h, p): (Sparse, Sparse) = decode(b, "scale counts")?;
+        Ok(Self {
+            heights: dense(&h, "scale counts")?,
+            profile: dense(&p, "scale counts")?,
+        })
+    }
+
     /// Adds `other`'s counts.
     pub fn merge(&mut self, other: &Self) {
         for (a, b) in self.heights.iter_mut().zip(&other.heights) {
@@ -187,7 +230,8 @@ fn locate(counts: &[u64], mut k: u64) -> (u32, u64) {
 }
 
 /// The bins (high 16 bits of the order key) and ranks within them of the wanted statistics.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ScaleTargets {
     bands: Vec<f64>,
     heights: Vec<(u32, u64)>,
@@ -202,7 +246,53 @@ pub struct ScaleFine {
     profile: Vec<u64>,
 }
 
+impl ScaleTargets {
+    /// The targets as bytes (JSON).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        serde_json::to_vec(self).unwrap_or_default()
+    }
+
+    /// The targets of [`ScaleTargets::to_bytes`], checked.
+    pub fn from_bytes(b: &[u8]) -> Result<Self> {
+        let t: Self = decode(b, "scale targets")?;
+        let bins_ok = t
+            .heights
+            .iter()
+            .chain(&t.profile)
+            .all(|&(b, _)| (b as usize) < BINS);
+        if !bins_ok || t.heights.len() > BAND_QUANTILES.len() {
+            return Err(bad("scale targets: bins out of range"));
+        }
+        Ok(t)
+    }
+}
+
 impl ScaleFine {
+    /// The counts as bytes (JSON of the non-zero bins).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let h: Vec<Sparse> = self.heights.iter().map(|v| sparse(v)).collect();
+        serde_json::to_vec(&(h, sparse(&self.profile))).unwrap_or_default()
+    }
+
+    /// The counts of [`ScaleFine::to_bytes`] for `targets`, checked.
+    pub fn from_bytes(b: &[u8], targets: &ScaleTargets) -> Result<Self> {
+        let (h, p): (Vec<Sparse>, Sparse) = decode(b, "scale counts")?;
+        if h.len() != targets.heights.len() || (targets.profile.is_none() && !p.is_empty()) {
+            return Err(bad("scale counts: not those of these targets"));
+        }
+        Ok(Self {
+            heights: h
+                .iter()
+                .map(|v| dense(v, "scale counts"))
+                .collect::<Result<_>>()?,
+            profile: if targets.profile.is_some() {
+                dense(&p, "scale counts")?
+            } else {
+                Vec::new()
+            },
+        })
+    }
+
     /// No value counted, for `targets`.
     pub fn empty(targets: &ScaleTargets) -> Self {
         Self {
@@ -411,13 +501,20 @@ mod tests {
                     assert_eq!(d.plan[k].to_bits(), whole.2[g].to_bits(), "plan {g}");
                 }
             }
-            counts.merge(&ScaleCounts::of_tile(&l, t, &i).unwrap());
+            // Through the byte forms a task graph moves.
+            let c = ScaleCounts::of_tile(&l, t, &i).unwrap();
+            counts.merge(&ScaleCounts::from_bytes(&c.to_bytes()).unwrap());
         }
         let targets = counts.targets(&settings).unwrap();
+        let targets = ScaleTargets::from_bytes(&targets.to_bytes()).unwrap();
         let mut fine = ScaleFine::empty(&targets);
         for t in 0..l.tasks() {
-            fine.merge(&ScaleFine::of_tile(&l, t, &input(&hf, &l, t), &targets).unwrap());
+            let f = ScaleFine::of_tile(&l, t, &input(&hf, &l, t), &targets).unwrap();
+            fine.merge(&ScaleFine::from_bytes(&f.to_bytes(), &targets).unwrap());
         }
+        assert!(ScaleCounts::from_bytes(b"[[[70000,1]],[]]").is_err());
+        assert!(ScaleCounts::from_bytes(b"[[[5,1],[5,2]],[]]").is_err());
+        assert!(ScaleFine::from_bytes(b"[[],[]]", &targets).is_err());
         let scales = fine.scales(&targets);
         let m = settings.run(&hf, None, None, &NoProgress).unwrap();
         assert_eq!(scales.bands, m.bands);

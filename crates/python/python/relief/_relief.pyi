@@ -142,3 +142,25 @@ def flow_phase7(
 
 def flow_assemble(layout: Layout, geo: Geo, networks: List[bytes]) -> Tuple[str, str]:
     """The channel network (GeoJSON text) and the figures (JSON text)."""
+
+# The passes of the tiled masks (relief.dask.masks): settings as JSON keyword arguments.
+def masks_check(settings_json: str) -> None:
+    """Checks the masks settings (an error names the field)."""
+
+def masks_counts(layout: Layout, t: int, input: bytes) -> bytes:
+    """First count of tile t's heights and |profile curvature| (high 16 bits of the keys)."""
+
+def masks_targets(settings_json: str, counts: List[bytes]) -> bytes:
+    """The bins and ranks of the map's height bands and curvature scale."""
+
+def masks_fine(layout: Layout, t: int, input: bytes, targets: bytes) -> bytes:
+    """Second count of tile t, within the target bins."""
+
+def masks_scales(targets: bytes, fine: List[bytes]) -> str:
+    """The map's height bands and curvature scale (MaskScales as JSON)."""
+
+def masks_tile(
+    layout: Layout, t: int, input: bytes, routed: bytes, inflow: bytes, hand: F32, settings_json: str,
+    scales_json: str
+) -> Tuple[Dict[str, F32], F32]:
+    """Tile t's masks by name and its splat weights (rows, columns x 4)."""

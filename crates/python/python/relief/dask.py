@@ -18,7 +18,9 @@ graph, pickled once to each worker that needs it.
 :func:`flow` is not a set of windows: drainage is global. It is the seven passes of relief's
 tiled drainage (Barnes 2016 and 2017, as ``relief tile plan -- flow`` runs them on Slurm) as
 tasks of the graph, per-tile passes and single passes in turn, each tile's products handed on as
-checked bytes; its arrays and network equal :func:`relief.flow` bit for bit.
+checked bytes; its arrays and network equal :func:`relief.flow` bit for bit. :func:`masks` adds
+the two exact passes of the map's height bands and curvature scale and the masks per tile
+(``relief tile plan -- masks``); its arrays equal :func:`relief.masks` bit for bit.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import numpy as np
 import relief
 from relief import _relief
 
-__all__ = ["amplify", "refine", "assemble", "flow"]
+__all__ = ["amplify", "refine", "assemble", "flow", "masks"]
 
 
 def _no_landform(settings: dict) -> None:
@@ -168,27 +170,13 @@ def _assemble_flow(layout: Any, geo: Any, networks: list) -> Tuple[dict, dict]:
     return json.loads(channels), json.loads(figures)
 
 
-def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) -> dict:
-    """:func:`relief.flow` as a Dask graph of relief's tiled drainage: per tile of ``tile`` x
-    ``tile`` cells a task of phase 1 (local filling), one task of phase 2 (the spill levels of
-    all tiles), per tile phase 3 (filled tile, directions, local accumulation), one task of
-    phase 4 (the flats and flows crossing tile edges), per tile phase 5 (final filled surface,
-    directions, area), one task of phase 6 (watersheds, HAND bases and Strahler orders across
-    tile edges), per tile phase 7 (Strahler order, watersheds, HAND). Each task holds about one
-    tile; the single tasks hold the tiles' perimeters.
-
-    Returns a dict like :func:`relief.flow`'s: dask arrays ``conditioned``, ``direction``,
-    ``area``, ``strahler``, ``watersheds``, ``hand`` (one chunk per tile) and delayed values
-    ``channels`` (the GeoJSON network as a dict) and ``figures``; compute them together
-    (``dask.compute(result)``) to run the graph once. Equal bit for bit to :func:`relief.flow`
-    with the same settings. ``dem``: as for :func:`relief.flow`, or a dask array (kept lazy:
-    each tile's task reads its own slice; ``cell_size`` is then required). Only
-    ``depressions="fill"`` and ``directions="d8"`` (the defaults) have a tiled form."""
+def _drainage(dem: Any, tile: int, cell_size: Any, settings: dict, what: str) -> dict:
+    """The seven phases of the tiled drainage as graph layers, with what the products need:
+    ``made`` (layer name -> collection), ``name`` (a layer's name), ``layout``, ``tiles``,
+    ``halos`` and the mosaic's ``rows``, ``cols`` and ``tiles_x``."""
     from operator import getitem
 
     import dask
-    import dask.array as da
-    from dask.delayed import Delayed
     from dask.highlevelgraph import HighLevelGraph
 
     unknown = sorted(set(settings) - set(_FLOW_KEYS))
@@ -197,7 +185,7 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
     for key, only in (("depressions", "fill"), ("directions", "d8")):
         if settings.get(key, only) != only:
             raise ValueError(
-                f"{key}={settings[key]!r} has no tiled form equal to the single run: relief.dask.flow "
+                f"{key}={settings[key]!r} has no tiled form equal to the single run: relief.dask.{what} "
                 f"computes {key}={only!r} only (run relief.flow for the others)"
             )
     area = settings.get("channel_area", 1e6)
@@ -226,7 +214,7 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
     token = uuid.uuid4().hex
 
     def name(p: str) -> str:
-        return f"relief-flow-{p}-{token}"
+        return f"relief-{what}-{p}-{token}"
 
     halos = []
     for t, (x, y, tw, th) in enumerate(tiles):
@@ -259,12 +247,42 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
     tiles_x = -(-w // tile)
     rows = tuple(tiles[t][3] for t in range(0, n, tiles_x))
     cols = tuple(tiles[t][2] for t in range(tiles_x))
+    return dict(made=made, name=name, layout=layout, tiles=tiles, halos=halos, geo=geo, rows=rows,
+                cols=cols, tiles_x=tiles_x, ca=ca)
+
+
+def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) -> dict:
+    """:func:`relief.flow` as a Dask graph of relief's tiled drainage: per tile of ``tile`` x
+    ``tile`` cells a task of phase 1 (local filling), one task of phase 2 (the spill levels of
+    all tiles), per tile phase 3 (filled tile, directions, local accumulation), one task of
+    phase 4 (the flats and flows crossing tile edges), per tile phase 5 (final filled surface,
+    directions, area), one task of phase 6 (watersheds, HAND bases and Strahler orders across
+    tile edges), per tile phase 7 (Strahler order, watersheds, HAND). Each task holds about one
+    tile; the single tasks hold the tiles' perimeters.
+
+    Returns a dict like :func:`relief.flow`'s: dask arrays ``conditioned``, ``direction``,
+    ``area``, ``strahler``, ``watersheds``, ``hand`` (one chunk per tile) and delayed values
+    ``channels`` (the GeoJSON network as a dict) and ``figures``; compute them together
+    (``dask.compute(result)``) to run the graph once. Equal bit for bit to :func:`relief.flow`
+    with the same settings. ``dem``: as for :func:`relief.flow`, or a dask array (kept lazy:
+    each tile's task reads its own slice; ``cell_size`` is then required). Only
+    ``depressions="fill"`` and ``directions="d8"`` (the defaults) have a tiled form."""
+    from operator import getitem
+
+    import dask.array as da
+    from dask.delayed import Delayed
+    from dask.highlevelgraph import HighLevelGraph
+
+    g = _drainage(dem, tile, cell_size, settings, "flow")
+    made, name, tiles_x = g["made"], g["name"], g["tiles_x"]
+    one = range(len(g["tiles"]))
+    p5, p7, net = name("phase5"), name("phase7"), name("network")
 
     def mosaic(phase: str, k: int, product: str) -> Any:
         layer = name(product)
         tasks = {(layer, t // tiles_x, t % tiles_x): (getitem, (phase, t), k) for t in one}
         graph = HighLevelGraph.from_collections(layer, tasks, dependencies=[made[phase]])
-        return da.Array(graph, layer, (rows, cols), dtype=np.float32)
+        return da.Array(graph, layer, (g["rows"], g["cols"]), dtype=np.float32)
 
     out = {p: mosaic(p5, k, p) for k, p in enumerate(("conditioned", "direction", "area"))}
     out.update({p: mosaic(p7, k, p) for k, p in enumerate(("strahler", "watersheds", "hand"))})
@@ -272,4 +290,75 @@ def flow(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) 
         layer = name(p)
         graph = HighLevelGraph.from_collections(layer, {layer: (getitem, net, k)}, dependencies=[made[net]])
         out[p] = Delayed(layer, graph)
+    return out
+
+
+_MASK_KEYS = ("flow", "height_bands", "rock_slope", "wet_index")
+
+
+def _pick(d: dict, k: str) -> Any:
+    return d[k]
+
+
+def masks(dem: Any, *, tile: int = 1024, cell_size: Any = None, **settings: Any) -> dict:
+    """:func:`relief.masks` as a Dask graph: the seven passes of :func:`flow`, then per tile
+    the first count of the map's heights and ``|profile curvature|`` by the high 16 bits of
+    their order key, one task locating the bins of the height quartiles (unless
+    ``height_bands`` are given) and of the curvature's 95th percentile, per tile the count
+    within those bins, one task giving the exact values, and per tile the masks and splat
+    weights. Each task holds about one tile (the count tasks 65536 counts per statistic).
+
+    Returns a dict like :func:`relief.masks`'s: dask arrays ``slope``, ``profile_curvature``,
+    ``plan_curvature``, ``area``, ``wetness``, ``hand``, ``height_band`` (one chunk per tile)
+    and ``splat`` ``(rows, columns, 4)``, and a delayed ``scales`` (the height bands and the
+    curvature scale); compute them together to run the graph once. Equal bit for bit to
+    :func:`relief.masks` with the same settings (``flow``: ``depressions="fill"`` and
+    ``directions="d8"`` only; no erosion rasters)."""
+    import json
+    from operator import getitem
+
+    import dask.array as da
+    from dask.delayed import Delayed
+    from dask.highlevelgraph import HighLevelGraph
+
+    unknown = sorted(set(settings) - set(_MASK_KEYS))
+    if unknown:
+        raise ValueError(f"unknown masks settings: {', '.join(unknown)}")
+    flow_settings = dict(settings.get("flow") or {})
+    g = _drainage(dem, tile, cell_size, flow_settings, "masks")
+    sj = json.dumps(settings)
+    _relief.masks_check(sj)
+    made, name, layout, tiles_x = g["made"], g["name"], g["layout"], g["tiles_x"]
+    one = range(len(g["tiles"]))
+    p3, p4, p7 = name("phase3"), name("phase4"), name("phase7")
+    cnt, tg, fine, sc, mk = (name(p) for p in ("counts", "targets", "fine", "scales", "masks"))
+    inp = lambda t: (name("input"), t)  # noqa: E731
+    layers = [
+        (cnt, {(cnt, t): (_relief.masks_counts, layout, t, inp(t)) for t in one}, g["halos"]),
+        (tg, {tg: (_relief.masks_targets, sj, [(cnt, t) for t in one])}, [cnt]),
+        (fine, {(fine, t): (_relief.masks_fine, layout, t, inp(t), tg) for t in one}, [tg, *g["halos"]]),
+        (sc, {sc: (_relief.masks_scales, tg, [(fine, t) for t in one])}, [tg, fine]),
+        (mk, {(mk, t): (_relief.masks_tile, layout, t, inp(t), (getitem, (p3, t), 0), (getitem, p4, t),
+                        (getitem, (p7, t), 2), sj, sc) for t in one}, [p3, p4, p7, sc, *g["halos"]]),
+    ]
+    for layer, tasks, deps in layers:
+        colls = [made[d] if isinstance(d, str) else d for d in deps]
+        made[layer] = _Layer(layer, HighLevelGraph.from_collections(layer, tasks, dependencies=colls))
+    chunks = (g["rows"], g["cols"])
+    out = {}
+    for m in ("slope", "profile_curvature", "plan_curvature", "area", "wetness", "hand", "height_band"):
+        layer = name(m)
+        tasks = {(layer, t // tiles_x, t % tiles_x): (_pick, (getitem, (mk, t), 0), m) for t in one}
+        graph = HighLevelGraph.from_collections(layer, tasks, dependencies=[made[mk]])
+        out[m] = da.Array(graph, layer, chunks, dtype=np.float32)
+    layer = name("splat")
+    tasks = {
+        (layer, t // tiles_x, t % tiles_x, 0): (np.reshape, (getitem, (mk, t), 1), (th, tw, 4))
+        for t, (_, _, tw, th) in zip(one, g["tiles"])
+    }
+    graph = HighLevelGraph.from_collections(layer, tasks, dependencies=[made[mk]])
+    out["splat"] = da.Array(graph, layer, (*chunks, (4,)), dtype=np.float32)
+    layer = name("scales-json")
+    graph = HighLevelGraph.from_collections(layer, {layer: (json.loads, sc)}, dependencies=[made[sc]])
+    out["scales"] = Delayed(layer, graph)
     return out
