@@ -2,7 +2,8 @@
 //! eight phases, the drainage's seven ([`super`]) and an eighth, one task per tile, that
 //! writes the tile's masks (`masks/<mask>-N.tif`) and splat weights (`masks/splat-N.bin`,
 //! RGBA bytes) from its input, its drainage (phases 3 and 4: the cells upstream; phase 7:
-//! HAND) and the map's height bands and profile-curvature scale. Those two statistics of the
+//! HAND, `tiles/hand-N.bin`) and the map's height bands and profile-curvature scale. Phases 5
+//! and 7 of a masks plan write only what phases 6 and 8 read (not the drainage's rasters). Those two statistics of the
 //! whole map are found exactly while planning, in two passes over the tiles' inputs
 //! (relief-landscape's `masks::tiled`), and kept in the manifest's job.
 //!
@@ -151,31 +152,28 @@ pub(super) fn phase8(
     let job = job(m)?;
     let input = phases::read_input(dir, m, l, t)?;
     let f = phases::finished(dir, m, l, t)?;
-    // Phase 7's HAND raster: the tile's, as `relief flow` (and `relief masks`) compute it.
-    let hand_file = &outputs_of(PHASES, t, m.tasks)[2];
-    let hand = relief_io::read_bytes(
-        &read_product(dir, m, PHASES, t, 2, t)?,
-        Some(Path::new("hand.tif")),
-        &Default::default(),
-    )
-    .with_context(|| format!("cannot read {}", dir.join(hand_file).display()))?
-    .heightfield;
+    // Phase 7's HAND: the tile's, as `relief flow` (and `relief masks`) compute it.
+    let hand_file = &outputs_of(m, PHASES, t)[0];
+    let bytes = read_product(dir, m, PHASES, t, 0, t)?;
     let [_, _, w, h] = l.window(t);
-    if (hand.width(), hand.height()) != (w, h) {
+    if bytes.len() != w * h * 4 {
         bail!(
-            "{} is {} x {}, not the {w} x {h} of tile {t}",
+            "{} holds {} bytes, not the {w} x {h} f32 cells of tile {t}",
             dir.join(hand_file).display(),
-            hand.width(),
-            hand.height()
+            bytes.len()
         );
     }
+    let hand: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
     let (masks, splat) = mask_tiles::tile_masks(
         &job.masks,
         l,
         t,
         input.as_slice(),
         &f.cells,
-        hand.as_slice().to_vec(),
+        hand,
         &job.scales,
     )?;
     let names = outputs(t);

@@ -187,8 +187,17 @@ fn input_name(t: usize) -> String {
     format!("input/tile-{t:06}.tif")
 }
 
-/// The files task `index` of `phase` writes, by name (relative to the plan folder).
-fn outputs_of(phase: usize, index: usize, tasks: usize) -> Vec<String> {
+/// The files task `index` of `phase` of plan `m` writes, by name (relative to the plan
+/// folder). A masks plan's phases 5 and 7 write only what phases 6 and 8 read (the summary;
+/// HAND as raw little-endian f32), not the drainage's rasters and network.
+fn outputs_of(m: &Manifest, phase: usize, index: usize) -> Vec<String> {
+    let tasks = m.tasks;
+    if is_masks(m) && phase == 5 {
+        return vec![format!("phase5/summary-{index:06}.bin")];
+    }
+    if is_masks(m) && phase == PHASES {
+        return vec![format!("tiles/hand-{index:06}.bin")];
+    }
     match phase {
         1 => vec![
             format!("phase1/fill-{index:06}.bin"),
@@ -279,7 +288,7 @@ pub(super) fn parse_record(
     bytes: &[u8],
 ) -> Option<PhaseRecord> {
     let r: PhaseRecord = serde_json::from_slice(bytes).ok()?;
-    let names = outputs_of(phase, index, m.tasks);
+    let names = outputs_of(m, phase, index);
     let ok = r.plan_id == m.plan_id
         && r.phase == phase
         && r.index == index
@@ -334,7 +343,9 @@ fn read_product(
             dir.display()
         )
     })?;
-    let f = &r.files[k];
+    let Some(f) = r.files.get(k) else {
+        bail!("phase {phase} task {index} recorded no file {k}");
+    };
     let bytes = read_plan_file(dir, &f.path, max_bytes(m, tile))?;
     if bytes_sum(&bytes, f.path.clone()) != *f {
         bail!(

@@ -88,7 +88,7 @@ pub(in crate::commands::tile) fn run_task(
         PHASES => phase7(dir, m, &layout, index)?,
         _ => super::masks::phase8(dir, m, &layout, index)?,
     };
-    let names = outputs_of(phase, index, m.tasks);
+    let names = outputs_of(m, phase, index);
     let mut files = Vec::with_capacity(outputs.len());
     for ((name, bytes), want) in outputs.iter().zip(&names) {
         debug_assert_eq!(name, want);
@@ -166,7 +166,7 @@ pub(super) fn write_rasters(
 fn phase1(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(String, Vec<u8>)>> {
     let hf = read_input(dir, m, l, t)?;
     let (fill, graph) = tiled::phase1(l, t, hf.as_slice())?;
-    let names = outputs_of(1, t, m.tasks);
+    let names = outputs_of(m, 1, t);
     Ok(vec![
         (names[0].clone(), fill.to_bytes(t)),
         (names[1].clone(), graph.to_bytes(l, t)),
@@ -240,7 +240,7 @@ fn single_phase<I: Send, O>(
         })
         .collect::<Result<Vec<_>>>()?;
     let outputs = run(l, &inputs)?;
-    let names = outputs_of(phase, 0, m.tasks);
+    let names = outputs_of(m, phase, 0);
     Ok(outputs
         .iter()
         .enumerate()
@@ -273,7 +273,7 @@ fn phase3(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<Vec<(Str
         .collect::<Result<Vec<_>>>()?;
     let refs: Vec<(usize, &Levels)> = near.iter().map(|(u, lv)| (*u, lv)).collect();
     let (routed, ports) = tiled::phase3(l, t, &fill, &refs)?;
-    let names = outputs_of(3, t, m.tasks);
+    let names = outputs_of(m, 3, t);
     Ok(vec![
         (names[0].clone(), routed.to_bytes(l, t)),
         (names[1].clone(), ports.to_bytes(l, t)),
@@ -327,9 +327,12 @@ fn phase5(
 ) -> Result<Vec<(String, Option<Vec<u8>>)>> {
     let f = finished(dir, m, l, t)?;
     let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
+    let names = outputs_of(m, 5, t);
+    if is_masks(m) {
+        return Ok(vec![(names[0].clone(), Some(summary))]);
+    }
     // The same values `relief flow` writes (relief-landscape's `FlowSettings::run`).
     let (dir_codes, area) = (f.direction_codes(), f.area(l));
-    let names = outputs_of(5, t, m.tasks);
     write_rasters(
         dir,
         m,
@@ -348,7 +351,8 @@ fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u
         dir,
         m,
         l,
-        (5, 3),
+        // The summary: a masks plan's phase 5 writes nothing else.
+        (5, if is_masks(m) { 0 } else { 3 }),
         6,
         tiled::NetSummary::from_bytes,
         tiled::phase6,
@@ -367,9 +371,13 @@ fn phase7(
     let input = read_input(dir, m, l, t)?;
     let (r, net) = tiled::phase7(l, t, &f, &levels, input.as_slice(), channel_area(m)?)?;
     let [_, _, w, _] = l.window(t);
+    let names = outputs_of(m, 7, t);
+    if is_masks(m) {
+        let hand: Vec<u8> = r.hand.iter().flat_map(|v| v.to_le_bytes()).collect();
+        return Ok(vec![(names[0].clone(), Some(hand))]);
+    }
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
     let (order, label) = r.to_f32(w, input.as_slice());
-    let names = outputs_of(7, t, m.tasks);
     write_rasters(
         dir,
         m,
