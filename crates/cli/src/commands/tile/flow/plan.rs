@@ -26,7 +26,6 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
             (m.input, m.out, m.read, m.json, s.flow.clone(), Some(s))
         }
     };
-    let f = (&input_arg, &read);
     tileable(&settings)?;
     if json {
         bail!("--json cannot be planned: a plan writes no report (relief tile status does)");
@@ -52,7 +51,7 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         &[&input],
         ctx,
     )?);
-    let mut dem = Dem::open(&input, f.1, ctx)?;
+    let mut dem = Dem::open(&input, &read, ctx)?;
     let (width, height) = dem.size();
     let (cx, cy) = dem.cell;
     let layout = TileLayout {
@@ -81,10 +80,10 @@ pub(in crate::commands::tile) fn plan(a: &PlanArgs, ctx: &Ctx) -> Result<()> {
         cut_inputs(&dir, &layout, &mut dem, masks.is_some(), ctx).and_then(|(index, counts)| {
             let job = match (&masks, counts) {
                 (Some(s), Some(c)) => {
-                    let job = super::masks::scales(&dir, &layout, s, &c, f.0, ctx)?;
+                    let job = super::masks::scales(&dir, &layout, s, &c, &input_arg, ctx)?;
                     serde_json::to_value(job)?
                 }
-                _ => serde_json::to_value(FlowJob::new(settings.clone(), f.0))?,
+                _ => serde_json::to_value(FlowJob::new(settings.clone(), &input_arg))?,
             };
             Ok((index, job))
         });
@@ -207,8 +206,7 @@ fn note(
         "planned {what} of {} x {} cells ({}) as {} tiles of {} px ({} x {}) in {phases} \
          phases in {}{extra}\n\
          memory: about {:.0} MB per tile task and {:.0} MB for the single tasks (phases 2, 4, \
-         6) plus 60 bytes per cell of the flats that cross tile edges; the mosaic holds the \
-         channel network (about 200 bytes per channel cell)\n\
+         6) plus 60 bytes per cell of the flats that cross tile edges; the mosaic holds {}\n\
          not planned: {}\n\
          run them in order, each after the previous one succeeded, e.g. on Slurm:\n{chain}\
          then: relief tile mosaic {d}",
@@ -222,6 +220,11 @@ fn note(
         dir.display(),
         mb(per_tile),
         mb(single),
+        if bands.is_some() {
+            "one row of tiles of the splat map (4 bytes per cell)"
+        } else {
+            "the channel network (about 200 bytes per channel cell)"
+        },
         if bands.is_some() {
             super::masks::NOT_PLANNED
         } else {
