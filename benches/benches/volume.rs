@@ -2,7 +2,8 @@
 //! (34x34 cells resampled to 136x136): tree build on 2 threads, field evaluation with and
 //! without the BVH, chunked meshing of a 256^3 sampling (field evaluation included) and marching
 //! tetrahedra on the same grid precomputed, meshing at 64^3 / 128^3 / 256^3 and with analytic
-//! gradient normals, gradient evaluation and a 320 x 240 render (compare
+//! gradient normals, gradient evaluation, a 320 x 240 render, the 1600 x 900 close-ups of the
+//! every-feature grand canyon scene (issue 42's 5 s bar) (compare
 //! `xtask/peers/skimage_mc.py`, which times scikit-image `marching_cubes` on the same 256^3
 //! grid, written here to `target/bench-data/volume256.npy`). The karst + sea scene's node
 //! count and tree memory are printed on stderr.
@@ -90,6 +91,32 @@ fn points(scene: &Scene, n: usize) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// Issue 42's close-up bar (1600 x 900 in at most 5 s): each close-up view of the scene
+/// (`closeup_views`, as `relief volume --closeups` frames them), rendered at 1600 x 900 on 2
+/// threads.
+fn closeups(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    rep: &RecipeReport,
+) {
+    let tile = RenderSettings {
+        width: 1600,
+        height: 900,
+        sea_level: rep.sea_level.filter(|_| rep.has_sea),
+        ..Default::default()
+    };
+    for (cam, s, name) in closeup_views(scene, rep, &tile) {
+        let id = format!(
+            "grandcanyon_128_{}_1600x900",
+            name.replace([' ', '(', ')'], "")
+        );
+        g.bench_function(BenchmarkId::new("render_closeup_2threads", id), |b| {
+            b.iter(|| pool.install(|| render(scene, &cam, &s).expect("render")))
+        });
+    }
+}
+
 fn volume(c: &mut Criterion) {
     let Some(hf) = dem() else { return };
     let pool = rayon::ThreadPoolBuilder::new()
@@ -113,7 +140,7 @@ fn volume(c: &mut Criterion) {
         let Some((crop, recipe)) = recipe_scene(name, x, y, w, h) else {
             continue;
         };
-        let (scene, _) = pool.install(|| build_recipe(&crop, &recipe).expect("recipe"));
+        let (scene, rep) = pool.install(|| build_recipe(&crop, &recipe).expect("recipe"));
         #[allow(clippy::print_stderr)]
         {
             eprintln!("recipe scene {id}: {} tree nodes", scene.stats().nodes);
@@ -121,6 +148,9 @@ fn volume(c: &mut Criterion) {
         g.bench_function(BenchmarkId::new("tree_build_recipe_2threads", id), |b| {
             b.iter(|| pool.install(|| build_recipe(&crop, &recipe).expect("recipe")))
         });
+        if id == "grandcanyon_128" {
+            closeups(&mut g, &pool, &scene, &rep);
+        }
     }
     let scene = pool.install(|| build(&hf, true));
     let st = scene.stats();

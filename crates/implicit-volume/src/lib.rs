@@ -81,7 +81,7 @@ pub use mesh::{
 };
 pub use recipe::{
     Densities, Deviation, Dimensions, Feature, Highlight, Recipe, RecipeReport, SeaDetection,
-    SeaKind, build_recipe, build_recipe_with_progress, detect_sea, render_closeups,
+    SeaKind, build_recipe, build_recipe_with_progress, closeup_views, detect_sea, render_closeups,
 };
 pub use render::{Camera, Image, RenderSettings, SectionSettings, SectionStats, render, section};
 pub use scene::{

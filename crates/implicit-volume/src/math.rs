@@ -141,6 +141,11 @@ impl Aabb {
     /// Largest squared distance from a point of the box to the segment `a`-`b` (reached at a
     /// corner: the distance to a segment is convex).
     pub fn max_dist_sq_to_segment(&self, a: V3, b: V3) -> f32 {
+        self.max_dist_sq_to_segment_until(a, b, f32::INFINITY)
+    }
+    /// [`Self::max_dist_sq_to_segment`], or the first corner's squared distance `d` with
+    /// `d / r2 >= 1` (a falloff of `d / r2` is then 0 whatever the larger corners give).
+    pub fn max_dist_sq_to_segment_until(&self, a: V3, b: V3, r2: f32) -> f32 {
         let ab = sub(b, a);
         let len2 = dot(ab, ab);
         let mut m = 0.0f32;
@@ -158,6 +163,9 @@ impl Aabb {
             };
             let d = sub(ap, mul(ab, t));
             m = m.max(dot(d, d));
+            if m / r2 >= 1.0 {
+                return m;
+            }
         }
         m
     }

@@ -320,9 +320,7 @@ fn trace(
         // In air of the carving-free tree (upper >= f), its cheaper bound gives a safe step.
         let step = match scene.upper_field(p) {
             Some(u) if u < THRESHOLD => {
-                let l = scene
-                    .upper_bound(p, &Aabb::sphere(p, r))
-                    .map_or(1e-9, |x| x.1);
+                let l = scene.upper_lipschitz(&Aabb::sphere(p, r)).unwrap_or(1e-9);
                 (THRESHOLD - u) / l.max(1e-9)
             }
             Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,

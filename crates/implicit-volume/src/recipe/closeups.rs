@@ -73,9 +73,24 @@ pub fn render_closeups(
     rep: &RecipeReport,
     tile: &RenderSettings,
 ) -> Result<(Image, Vec<String>)> {
-    let d = &rep.dims;
     let mut tiles = Vec::new();
     let mut names = Vec::new();
+    for (cam, s, name) in closeup_views(scene, rep, tile) {
+        tiles.push(render(scene, &cam, &s)?);
+        names.push(name);
+    }
+    Ok((strip(&tiles), names))
+}
+
+/// The views of [`render_closeups`]: for each close-up, its camera, its render settings
+/// (`tile` with the cut-away plane of an underground view) and its feature name.
+pub fn closeup_views(
+    scene: &Scene,
+    rep: &RecipeReport,
+    tile: &RenderSettings,
+) -> Vec<(Camera, RenderSettings, String)> {
+    let d = &rep.dims;
+    let mut views = Vec::new();
     for h in rep.highlights.iter().take(4) {
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
@@ -102,8 +117,7 @@ pub fn render_closeups(
                 sea_level: None,
                 ..*tile
             };
-            tiles.push(render(scene, &cam, &s)?);
-            names.push(format!("{} (cut-away)", h.feature));
+            views.push((cam, s, format!("{} (cut-away)", h.feature)));
             continue;
         }
         // Hoodoos are placed by their foot: aim at mid-height.
@@ -130,22 +144,20 @@ pub fn render_closeups(
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),
         };
-        tiles.push(render(scene, &cam, tile)?);
-        names.push(h.feature.to_string());
+        views.push((cam, *tile, h.feature.to_string()));
     }
-    if tiles.is_empty() {
+    if views.is_empty() {
         let b = scene.bbox();
         let c = b.center();
         let z = scene.dem_height(c[0], c[1]).unwrap_or(c[2]);
         let dist = 0.3 * b.size()[0].max(b.size()[1]);
-        tiles.push(render(
-            scene,
-            &Camera::closeup(scene, [c[0], c[1], z], dist),
-            tile,
-        )?);
-        names.push("centre".into());
+        views.push((
+            Camera::closeup(scene, [c[0], c[1], z], dist),
+            *tile,
+            "centre".into(),
+        ));
     }
-    Ok((strip(&tiles), names))
+    views
 }
 
 /// Images side by side (top-aligned, black below the shorter ones).

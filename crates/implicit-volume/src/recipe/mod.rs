@@ -58,7 +58,7 @@ mod sea;
 mod sizes;
 
 pub use self::build::{build_recipe, build_recipe_with_progress};
-pub use self::closeups::render_closeups;
+pub use self::closeups::{closeup_views, render_closeups};
 pub use self::sizes::{FeatureSizes, SizeStats};
 
 /// Largest default karst budget (carving steps), which keeps the tree within a few hundred

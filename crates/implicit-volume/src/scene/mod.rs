@@ -623,6 +623,11 @@ impl Scene {
         let u = self.upper?;
         Some((self.tree.eval(u, p), self.tree.lipschitz(u, region)))
     }
+    /// The Lipschitz bound over `region` of [`Scene::upper_bound`]'s tree (its value being
+    /// [`Scene::upper_field`]).
+    pub fn upper_lipschitz(&self, region: &Aabb) -> Option<f32> {
+        Some(self.tree.lipschitz(self.upper?, region))
+    }
     /// Upper end of a conservative range of `f` over `region`, from the carving-free tree when
     /// there is one (cheaper) or the whole tree: `<= T` proves `region` is air.
     pub fn max_over(&self, region: &Aabb) -> f32 {

@@ -199,7 +199,8 @@ fn seg_range(a: V3, b: V3, rmin: f32, rmax: f32, e: f32, region: &Aabb) -> (f32,
     if near >= rmax * rmax {
         return (0.0, 0.0);
     }
-    let far = region.max_dist_sq_to_segment(a, b);
+    // Only `falloff(far / rmin^2)` is used: 0 once a corner is that far.
+    let far = region.max_dist_sq_to_segment_until(a, b, rmin * rmin);
     let (gmax, gmin) = (falloff(near / (rmax * rmax)), falloff(far / (rmin * rmin)));
     if e >= 0.0 {
         (e * gmin, e * gmax)
