@@ -1,7 +1,7 @@
 //! Quality of amplification on real DEMs, the protocol of issue 15 (the measures of
 //! `shared/tools/terrain_quality.py`), release build:
 //!
-//! `cargo run --release -p relief-dictionary-learning --example amplify_quality`
+//! `cargo run --release -p relief-dictionary-learning --features examples --example amplify_quality`
 //!
 //! For alps_dem, N47E011 (voids filled) and carrizo: a truth crop, box down-sampled x4 and x16,
 //! amplified back with an exemplar from a disjoint part of the same DEM, and compared with the

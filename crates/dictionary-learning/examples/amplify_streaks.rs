@@ -1,6 +1,6 @@
 //! Streaks and grid artifacts of an amplification as a user sees them (issue 15), release build:
 //!
-//! `cargo run --release -p relief-dictionary-learning --example amplify_streaks -- DEM X Y SIDE EX_X EX_Y EX_W EX_H STEPS [MODE] [OUT_DIR]`
+//! `cargo run --release -p relief-dictionary-learning --features examples --example amplify_streaks -- DEM X Y SIDE EX_X EX_Y EX_W EX_H STEPS [MODE] [OUT_DIR]`
 //!
 //! e.g. `... -- grandcanyon 0 128 256 256 0 256 512 2` (the pipeline's x16 enlargement: the
 //! fixture's left half, the right half as exemplar, every step self-similar) or

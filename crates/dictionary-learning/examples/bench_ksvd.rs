@@ -1,5 +1,5 @@
 //! K-SVD speed and error vs SPAMS `trainDL` on the same real patches (release timing harness):
-//! `cargo run --release -p relief-dictionary-learning --example bench_ksvd`
+//! `cargo run --release -p relief-dictionary-learning --features examples --example bench_ksvd`
 //!
 //! ~28k mean-removed 16x16 patches of alps_dem (step 8), N = 256, s = 4, 10 iterations, on the
 //! rayon pool (set `RAYON_NUM_THREADS=2` for the 2-thread figure). The patches are written to

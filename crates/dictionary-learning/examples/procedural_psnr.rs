@@ -1,6 +1,6 @@
 //! Inverse procedural modelling (section 5.2, figure 8): PSNR of s = 1 reconstructions of a real
 //! mountain DEM crop with analytic dictionaries of each noise family (release example):
-//! `cargo run --release -p relief-dictionary-learning --example procedural_psnr`
+//! `cargo run --release -p relief-dictionary-learning --features examples --example procedural_psnr`
 #![allow(clippy::print_stdout)]
 
 use relief_dictionary_learning::{NoiseFamily, ProceduralSettings, fit_procedural};

@@ -1,5 +1,5 @@
 //! Quality table of amplification on real data (release example):
-//! `cargo run --release -p relief-dictionary-learning --example quality_table`
+//! `cargo run --release -p relief-dictionary-learning --features examples --example quality_table`
 #![allow(clippy::print_stdout)]
 
 use relief_dictionary_learning::*;

@@ -1,6 +1,6 @@
 //! Sketch synthesis (guerin2016 figure 12) on a real exemplar, release build:
 //!
-//! `cargo run --release -p relief-dictionary-learning --example sketch_synthesis [OUT_DIR]
+//! `cargo run --release -p relief-dictionary-learning --features examples --example sketch_synthesis [OUT_DIR]
 //! [--grandcanyon] [--steps N] [--sketch-cell M]`
 //!
 //! A 64 x 128 painted sketch (ridge strokes, a peak, a valley, flat plateaus) is synthesised in

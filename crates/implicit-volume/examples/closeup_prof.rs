@@ -1,6 +1,6 @@
 //! Close-up render timing on the grand canyon scene with every feature (the 128 x 128 crop of
 //! the `implicit_volume` criterion group, lake at the crop's 25th percentile):
-//! `cargo run -p relief-implicit-volume --example closeup_prof -- [WIDTH HEIGHT [THREADS [VIEW]]]`
+//! `cargo run -p relief-implicit-volume --features examples --example closeup_prof -- [WIDTH HEIGHT [THREADS [VIEW]]]`
 //! (default 400 x 225, 1 thread, every view). Prints each view's CPU seconds and an FNV hash
 //! of its bytes; `PPM=1` writes them to target/bench-data/closeup_<k>.ppm.
 #![allow(clippy::print_stdout)]

@@ -1,6 +1,6 @@
 //! Release timing of the whole `relief volume` job on real crops (tree build, polygonisation at
 //! the recipe's voxel, simplification to a triangle budget, render), 2 threads:
-//! `cargo run --release -p relief-implicit-volume --example job_timing -- [DEM X Y W H [MAX_TRIANGLES]]`
+//! `cargo run --release -p relief-implicit-volume --features examples --example job_timing -- [DEM X Y W H [MAX_TRIANGLES]]`
 //! (default: N57E011 888 72 48 48, then grandcanyon 200 160 128 128, 200000 triangles).
 //! `FEATURES=wind,rain` builds only those features (default: all); `LOOK=1` meshes the scene at
 //! the recipe's grid and prints its [`relief_implicit_volume::surface_look`] (downward-facing

@@ -1,5 +1,5 @@
 //! Render timing on a recipe scene (grandcanyon 48 x 48 crop, every feature):
-//! `cargo run --release -p relief-implicit-volume --example render_prof`
+//! `cargo run --release -p relief-implicit-volume --features examples --example render_prof`
 #![allow(clippy::print_stdout)]
 use relief_implicit_volume::*;
 fn main() {

@@ -1,6 +1,6 @@
 //! Release-mode timing harness for relief-io (criterion lives in the workspace `benches` crate;
 //! this is a quick per-crate measurement). Run:
-//! `cargo run --release -p relief-io --example bench_io`
+//! `cargo run --release -p relief-io --features examples --example bench_io`
 #![allow(clippy::print_stdout)]
 
 use std::time::Instant;

@@ -1,6 +1,6 @@
 //! Peak-memory harness of the streaming GeoTIFF writer (issue 9, large outputs).
 //!
-//! `cargo build --release -p relief-io --example stream_geotiff` then
+//! `cargo build --release -p relief-io --features examples --example stream_geotiff` then
 //! `/usr/bin/time -v target/release/examples/stream_geotiff OUT.tif 16384 stream` (rows produced
 //! and written one at a time) or `... whole` (the same raster built in memory and written with
 //! `relief_io::write`), and compare "Maximum resident set size".

@@ -1,7 +1,7 @@
 //! The erosion presets on crops of the shared real DEMs, for looking at: for each DEM a panel
 //! of hillshades (input, then each preset) and a line of figures per preset (time, volumes,
 //! drainage statistics before and after):
-//! `cargo run --release -p relief-landscape --example erode_look [-- DEM...]`
+//! `cargo run --release -p relief-landscape --features examples --example erode_look [-- DEM...]`
 //! writes `target/look/erode/<dem>.png` (`PRESETS=mountain,desert` picks presets, `OVERRIDES`
 //! a JSON object of `ErodeSettings` fields applied over each; `CROP=x,y,w,h` replaces the crop
 //! of the DEMs named).

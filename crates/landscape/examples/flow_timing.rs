@@ -1,5 +1,5 @@
 //! Times the steps of `relief flow`'s routing on a raw float32 raster:
-//! `cargo run --release -p relief-landscape --example flow_timing -- FILE.f32 WIDTH HEIGHT CELL`.
+//! `cargo run --release -p relief-landscape --features examples --example flow_timing -- FILE.f32 WIDTH HEIGHT CELL`.
 
 #![allow(clippy::print_stdout)]
 

@@ -1,6 +1,6 @@
 //! Landscape evolution from a painted map in a `.npy` file (float32, C order):
 //!
-//! `cargo run --release -p relief-landscape --example grow_npy -- MAP.npy OUT.npy CELL_X CELL_Y [UPSAMPLE]`
+//! `cargo run --release -p relief-landscape --features examples --example grow_npy -- MAP.npy OUT.npy CELL_X CELL_Y [UPSAMPLE]`
 //!
 //! The map is enlarged `UPSAMPLE` times (bicubic, default 1) and grown with
 //! [`relief_landscape::grow::grow`] (settings from the `GROW` environment variable, JSON).

@@ -3,7 +3,7 @@
 //! and a map of erosion (red) and deposition (blue), to `target/look/`.
 //!
 //! ```text
-//! cargo run --release -p relief-landscape --example hydraulic_look -- \
+//! cargo run --release -p relief-landscape --features examples --example hydraulic_look -- \
 //!     /work/shared/data/dem/grandcanyon [crop=W,H,X,Y] [zf=2] [thermal.iterations=0] [capacity=0.1] ...
 //! ```
 //! `key=value` pairs override [`HydraulicParams`] fields (`thermal.` ones [`ThermalParams`]),

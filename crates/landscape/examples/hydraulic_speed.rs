@@ -4,7 +4,7 @@
 //! and exits.
 //!
 //! ```text
-//! cargo run --release -p relief-landscape --example hydraulic_speed -- [SIZE] [ITERATIONS] [THREADS]
+//! cargo run --release -p relief-landscape --features examples --example hydraulic_speed -- [SIZE] [ITERATIONS] [THREADS]
 //! ```
 //! With `THREADS`, only that thread count is timed.
 

@@ -1,6 +1,6 @@
 //! The landform pass on `.npy` files (float32, C order), to try it on a detail method's output:
 //!
-//! `cargo run --release -p relief-landscape --example landform_npy -- COARSE.npy FINE.npy OUT.npy CELL_X CELL_Y`
+//! `cargo run --release -p relief-landscape --features examples --example landform_npy -- COARSE.npy FINE.npy OUT.npy CELL_X CELL_Y`
 //!
 //! `CELL_X`, `CELL_Y`: the fine grid's cell size (m). Prints the report and the drainage
 //! statistics before and after.

@@ -2,7 +2,7 @@
 //! uniform noise in [0, 1) m, 100 m cells) with the parameters of `xtask/peers/stream_power.py`
 //! (fastscapelib's Mountain example: K 2e-4, m 0.4, n 1, D 0.01 m2/yr, dt 1 kyr, U 1 mm/yr).
 //!
-//! `cargo run --release -p relief-landscape --example stream_power_speed -- [STEPS] [NPY_OUT]`
+//! `cargo run --release -p relief-landscape --features examples --example stream_power_speed -- [STEPS] [NPY_OUT]`
 //! prints the median and total step time; with `NPY_OUT` it first writes the input surface as
 //! a float64 `.npy` (for `stream_power.py DATA_DIR` as `DATA_DIR/spl_1024.npy`).
 

@@ -9,7 +9,7 @@
 //! Also prints the time of every progress phase (descriptors, k-means, pca, kd-trees,
 //! synthesis): the profile of the run.
 //!
-//! `cargo run --release -p relief-patch-synth --example bench_quilt`
+//! `cargo run --release -p relief-patch-synth --features examples --example bench_quilt`
 #![allow(clippy::print_stdout)]
 
 use std::sync::Mutex;

@@ -13,7 +13,7 @@
 //! whether 1 and 2 rayon threads give the same bytes. Targets: validation passes, correlation
 //! >= 0.9, slope distance <= 3 deg, curvature ratio <= 1.05, same bytes.
 //!
-//! `cargo run --release -p relief-patch-synth --example guided_quality [OUT_DIR]`: with
+//! `cargo run --release -p relief-patch-synth --features examples --example guided_quality [OUT_DIR]`: with
 //! `OUT_DIR`, hillshade previews of guide and output (and both as raw little-endian f32) are
 //! written there. Environment overrides
 //! for experiments: `LAMBDA`, `ALPHA`, `BETA`, `GAMMA`, `CREASE` (passes), `BLUR` (sigma),

@@ -2,7 +2,7 @@
 //! other exemplars (two other alps crops and the Grand Canyon) and report guide fidelity, seam
 //! visibility and slope-histogram distance.
 //!
-//! `cargo run --release -p relief-patch-synth --example quality_protocol`
+//! `cargo run --release -p relief-patch-synth --features examples --example quality_protocol`
 //! (optional environment overrides for experiments: `ALPHA`, `BETA`, `GAMMA`, `LAMBDA`, `KNN`,
 //! `PCA_DIMS`).
 #![allow(clippy::print_stdout)]

@@ -7,7 +7,7 @@
 //! 24 among the 24 returned, and the full-resolution SSD of the best returned patch over the
 //! exhaustive best (1 = optimal).
 //!
-//! `cargo run --release -p relief-patch-synth --example search_quality [PCA_DIMS ...]`
+//! `cargo run --release -p relief-patch-synth --features examples --example search_quality [PCA_DIMS ...]`
 #![allow(clippy::print_stdout)]
 
 use relief_heightfield::NoProgress;

@@ -1,6 +1,6 @@
 //! Release timing harness of Batch-OMP (the criterion bench in `benches/benches/omp.rs` is the
 //! reference measurement on real patches):
-//! `cargo run --release -p relief-sparse-core --example bench_omp -- [K] [N] [S] [SIGNALS]` on
+//! `cargo run --release -p relief-sparse-core --features examples --example bench_omp -- [K] [N] [S] [SIGNALS]` on
 //! synthetic data, or `... --example bench_omp -- --npy target/bench-data` on the four cases the
 //! criterion bench wrote (the same inputs as `xtask/peers/spams_omp.py`). Prints wall time,
 //! process CPU time, signals/s and signals per CPU-second (comparable on a shared machine).

@@ -1,6 +1,6 @@
 //! The analogue of guerin2016 table 1 on a real DEM: rho, bytes and PSNR at s = 1, 2, 8 with a
 //! dictionary of N = 128 patches (8 x 8) picked evenly from the same DEM (until learned
-//! dictionaries are used): `cargo run --release -p relief-sparse-core --example compress_table
+//! dictionaries are used): `cargo run --release -p relief-sparse-core --features examples --example compress_table
 //! -- [DEM id]` (default `grandcanyon`, 512 x 512; needs ../shared/data/dem).
 #![allow(clippy::print_stdout)]
 

@@ -5,7 +5,7 @@
 //! ```text
 //! RAYON_NUM_THREADS=2 /usr/bin/time -v target/release/examples/lod_big [SIZE] [full|strips] [STRIP] [spectral|paper]
 //! ```
-//! (build it first with `cargo build --release -p relief-wavelet-lod --example lod_big`).
+//! (build it first with `cargo build --release -p relief-wavelet-lod --features examples --example lod_big`).
 //! `full` (default) renders the whole refined grid into one buffer with `Refiner::render`;
 //! `strips` renders it with `Refiner::render_strips` (STRIP rows at a time, default 256) and
 //! hands every strip to a sink that only folds a checksum, i.e. what a streaming writer would

@@ -3,7 +3,7 @@
 //! and GSA, bicubic) and print the scores of [`relief_wavelet_lod::quality`].
 //!
 //! ```text
-//! cargo run --release -p relief-wavelet-lod --example quality [-- OPTIONS]
+//! cargo run --release -p relief-wavelet-lod --features examples --example quality [-- OPTIONS]
 //! ```
 //! Options (any combination): `holdout` (grandcanyon and jacksboro_fault instead: DEMs the
 //! defaults were not chosen on), `variants` (other settings of the spectral model: no detail, GSA,
