@@ -618,15 +618,24 @@ fn arches_on_the_plateau_stand_free_in_their_gaps() {
 /// Default recipes on a plateau (grandcanyon) and a coast (N57E011): sizes in metres within
 /// the ranges of the issue, counts from densities, karst passages between one voxel and half
 /// the soft strata, the percolation ended by its threshold or an empty queue (not the budget).
+/// The plateau and the coast are two tests so that they run in parallel (issue 45).
 #[test]
-fn recipe_sizes_are_physical_on_the_canyon_and_the_coast() {
-    let (Some(gc), Some(co)) = (
-        fine(dem_crop("grandcanyon", 200, 160, 16, 16), 8.0),
-        fine(dem_crop("N57E011", 888, 72, 32, 32), 8.0),
-    ) else {
-        return;
-    };
-    for (name, hf) in [("grandcanyon 64x64", gc), ("N57E011 48x48", co)] {
+fn recipe_sizes_are_physical_on_the_canyon() {
+    if let Some(gc) = fine(dem_crop("grandcanyon", 200, 160, 16, 16), 8.0) {
+        check_default_recipe_sizes("grandcanyon 64x64", gc);
+    }
+}
+
+/// The coast half of [`recipe_sizes_are_physical_on_the_canyon`].
+#[test]
+fn recipe_sizes_are_physical_on_the_coast() {
+    if let Some(co) = fine(dem_crop("N57E011", 888, 72, 32, 32), 8.0) {
+        check_default_recipe_sizes("N57E011 48x48", co);
+    }
+}
+
+fn check_default_recipe_sizes(name: &str, hf: Heightfield) {
+    {
         let recipe = Recipe {
             features: Feature::ALL.to_vec(),
             ..Default::default()
@@ -1023,33 +1032,37 @@ fn a_noisy_lake_on_real_dems_is_sea_and_the_canyon_still_is_not() {
     assert_eq!(detect_sea(&speckle(&gc, 0.0)), None);
 }
 
-/// With every feature on and no `sea_level`, the Grand Canyon gets no sea: no shore
-/// primitives, no water, a note (the old default flooded it at the 25th percentile); the
-/// coast gets its sea at 0 m with shore features; an explicit level on the canyon still
-/// carves a shore there (the old behaviour, on purpose).
-#[test]
-fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
-    let (Some(gc), Some(co)) = (
-        fine(dem_crop("grandcanyon", 200, 160, 16, 16), 8.0),
-        fine(dem_crop("N57E011", 888, 72, 20, 20), 8.0),
-    ) else {
-        return;
-    };
-    let shore = |rep: &RecipeReport| {
-        rep.effects
-            .iter()
-            .filter(|(f, _)| matches!(f, Feature::Sea | Feature::Caves | Feature::Cliffs))
-            .map(|(f, e)| (*f, e.primitives))
-            .collect::<Vec<_>>()
-    };
-    let job = VolumeJob {
+/// The shore features a report placed, with their primitive counts.
+fn shore(rep: &RecipeReport) -> Vec<(Feature, usize)> {
+    rep.effects
+        .iter()
+        .filter(|(f, _)| matches!(f, Feature::Sea | Feature::Caves | Feature::Cliffs))
+        .map(|(f, e)| (*f, e.primitives))
+        .collect()
+}
+
+/// Every feature, no mesh.
+fn all_features_job() -> VolumeJob {
+    VolumeJob {
         recipe: Recipe {
             features: Feature::ALL.to_vec(),
             ..Default::default()
         },
         mesh: false,
         ..Default::default()
+    }
+}
+
+/// With every feature on and no `sea_level`, the Grand Canyon gets no sea: no shore
+/// primitives, no water, a note (the old default flooded it at the 25th percentile); the
+/// coast gets its sea at 0 m with shore features; an explicit level on the canyon still
+/// carves a shore there (the old behaviour, on purpose).
+#[test]
+fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
+    let Some(gc) = fine(dem_crop("grandcanyon", 200, 160, 16, 16), 8.0) else {
+        return;
     };
+    let job = all_features_job();
     // The canyon, default: no sea.
     let built = job.build(&gc, &relief_heightfield::NoProgress).unwrap();
     let rep = &built.report;
@@ -1106,7 +1119,16 @@ fn shore_features_only_where_the_dem_has_sea_unless_a_level_is_set() {
     );
     assert!(rep.has_sea && rep.sea_level == Some(q25) && rep.sea.is_none());
     assert!(!rep.dims.notes.iter().any(|n| n.contains("no sea")));
+}
 
+/// The coast half of [`shore_features_only_where_the_dem_has_sea_unless_a_level_is_set`], a
+/// test of its own so that the two run in parallel (issue 45).
+#[test]
+fn shore_features_on_the_coast_where_the_dem_has_sea() {
+    let Some(co) = fine(dem_crop("N57E011", 888, 72, 20, 20), 8.0) else {
+        return;
+    };
+    let job = all_features_job();
     // The coast, default: sea at 0 m, detected, shore features placed.
     let built = job.build(&co, &relief_heightfield::NoProgress).unwrap();
     let rep = &built.report;
