@@ -6,18 +6,7 @@
 #![allow(clippy::print_stdout)]
 use relief_implicit_volume::*;
 
-/// CPU seconds of this process (user + system, all threads) from `/proc/self/stat`.
-fn cpu_s() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let f: Vec<&str> = s
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let t = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (t(11) + t(12)) / 100.0
-}
+use relief_testdata::cpu_seconds as cpu_s;
 
 fn main() {
     let a: Vec<usize> = std::env::args()

@@ -13,18 +13,7 @@ use relief_heightfield::NoProgress;
 use relief_implicit_volume::job::VolumeJob;
 use relief_implicit_volume::recipe::{Feature, Recipe};
 
-/// CPU seconds of this process (user + system, all threads) from `/proc/self/stat`.
-fn cpu_s() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let f: Vec<&str> = s
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let t = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (t(11) + t(12)) / 100.0
-}
+use relief_testdata::cpu_seconds as cpu_s;
 
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();

@@ -174,6 +174,20 @@ where
     json
 }
 
+/// CPU seconds of this process so far (user + system, all threads, from `/proc/self/stat`; 0
+/// where it cannot be read), for the timing examples on a shared machine.
+pub fn cpu_seconds() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = s
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let t = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (t(11) + t(12)) / 100.0
+}
+
 /// The value of `f` and the seconds it took (the measurement examples' timings).
 pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let t = std::time::Instant::now();

@@ -251,24 +251,38 @@ fn basin_of(w: usize, h: usize) -> Heightfield {
     Heightfield::new(w, h, data, 25.0, 25.0).unwrap()
 }
 
+/// `relief CMD DEM -o S EXTRA` (which must succeed) and `relief tile plan P --tile TILE --
+/// CMD DEM -o T EXTRA` (its output returned, the note included), with a channel area of a few
+/// hundred cells so that every small DEM has a network: the temporary folder and `[S, T, P]`.
+pub(crate) fn single_and_plan(
+    cmd: &str,
+    dem: &Path,
+    tile: usize,
+    extra: &[&str],
+) -> (
+    tempfile::TempDir,
+    [std::path::PathBuf; 3],
+    std::process::Output,
+) {
+    let extra = [extra, &["--channel-area", "1e5"]].concat();
+    let tmp = tempfile::tempdir().unwrap();
+    let [single, tiled, dir] = ["s", "t", "p"].map(|n| tmp.path().join(n));
+    let line = format!("{cmd} {{}} -o {{}}");
+    let mut args = words(&line, &[&dem, &single]);
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+    assert!(relief(&args).status.success(), "{args:?}");
+    let line = format!("tile plan {{}} --tile {tile} -- {cmd} {{}} -o {{}}");
+    let mut args = words(&line, &[&dir, &dem, &tiled]);
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+    let planned = relief_loud(&args);
+    (tmp, [single, tiled, dir], planned)
+}
+
 /// `relief flow DEM EXTRA` and its plan as tiles of `tile` cells, every phase run: the same
 /// bytes.
 fn plan_equals_single(dem: &Path, tile: usize, extra: &[&str]) {
-    // A channel area of a few hundred cells, so that every small DEM has a network.
-    let extra = [extra, &["--channel-area", "1e5"]].concat();
-    let tmp = tempfile::tempdir().unwrap();
-    let (single, tiled, dir) = (
-        tmp.path().join("s"),
-        tmp.path().join("t"),
-        tmp.path().join("p"),
-    );
-    let mut args = words("flow {} -o {}", &[&dem, &single]);
-    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-    assert!(relief(&args).status.success(), "{args:?}");
-    let line = format!("tile plan {{}} --tile {tile} -- flow {{}} -o {{}}");
-    let mut args = words(&line, &[&dir, &dem, &tiled]);
-    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-    assert!(relief(&args).status.success(), "{args:?}");
+    let (_tmp, [single, tiled, dir], planned) = single_and_plan("flow", dem, tile, extra);
+    assert!(planned.status.success(), "{}", stderr(&planned));
     run_phases(&dir, tasks(&dir), 7);
     relief_ok!["tile", "mosaic", &dir];
     assert_same(&single, &tiled);

@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use crate::common::*;
-use crate::tile_flow::{assert_same_raster, basin, run_phases_to, tasks};
+use crate::tile_flow::{assert_same_raster, basin, run_phases_to, single_and_plan, tasks};
 
 const MASKS: [&str; 7] = [
     "slope",
@@ -22,20 +22,7 @@ const MASKS: [&str; 7] = [
 /// `relief masks DEM EXTRA` and its plan as tiles of `tile` cells, every phase run in
 /// shuffled order: the same files.
 fn masks_plan_equals_single(dem: &Path, tile: usize, extra: &[&str], seed: u64) {
-    let extra = [extra, &["--channel-area", "1e5"]].concat();
-    let tmp = tempfile::tempdir().unwrap();
-    let (single, tiled, dir) = (
-        tmp.path().join("s"),
-        tmp.path().join("t"),
-        tmp.path().join("p"),
-    );
-    let mut args = words("masks {} -o {}", &[&dem, &single]);
-    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-    assert!(relief(&args).status.success(), "{args:?}");
-    let line = format!("tile plan {{}} --tile {tile} -- masks {{}} -o {{}}");
-    let mut args = words(&line, &[&dir, &dem, &tiled]);
-    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-    let planned = relief_loud(&args);
+    let (_tmp, [single, tiled, dir], planned) = single_and_plan("masks", dem, tile, extra);
     let note = stderr(&planned);
     assert!(planned.status.success(), "{note}");
     assert!(
