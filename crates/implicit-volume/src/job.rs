@@ -497,6 +497,7 @@ impl VolumeJob {
                 f.simplify_s = Some(t.elapsed().as_secs_f64());
                 f.simplify_refused = Some(sr.refused);
             }
+            m.colours = crate::material::vertex_colours(&scene, &m);
             let topo = topology(&m);
             f.mesh_vertices = Some(m.positions.len());
             f.mesh_triangles = Some(m.triangles.len());

@@ -61,6 +61,7 @@ mod error;
 pub mod geology;
 pub mod job;
 pub mod look;
+pub mod material;
 pub mod math;
 pub mod memory;
 pub mod mesh;

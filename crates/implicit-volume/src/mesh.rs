@@ -41,6 +41,9 @@ pub struct Mesh {
     pub normals: Vec<[f32; 3]>,
     /// Counter-clockwise triangles seen from outside.
     pub triangles: Vec<[u32; 3]>,
+    /// sRGB vertex colours, alpha 255 ([`crate::material::vertex_colours`]: rock by stratum,
+    /// soil on gentle slopes); empty when not computed.
+    pub colours: Vec<[u8; 4]>,
 }
 
 /// Polygonisation settings.

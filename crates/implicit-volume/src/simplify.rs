@@ -485,7 +485,8 @@ mod tests {
                 &Mesh {
                     positions: vec![[0.0; 3]],
                     normals: vec![],
-                    triangles: vec![[0, 1, 2]]
+                    triangles: vec![[0, 1, 2]],
+                    colours: vec![],
                 },
                 0
             )

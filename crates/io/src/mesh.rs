@@ -1,5 +1,5 @@
 //! Triangle mesh writers: Wavefront OBJ, binary little-endian PLY and glTF 2.0 binary (GLB),
-//! all written atomically.
+//! all written atomically, with optional vertex normals and sRGB vertex colours.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -9,11 +9,15 @@ use crate::{IoError, Result, atomic};
 /// A mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MeshFormat {
-    /// Wavefront OBJ (text, 1-based indices, `vn` when normals are given).
+    /// Wavefront OBJ (text, 1-based indices, `vn` when normals are given, colours as the
+    /// widely read `v x y z r g b` extension with sRGB values in `[0, 1]`).
     Obj,
-    /// Binary little-endian PLY (`float x y z [nx ny nz]`, `list uchar uint vertex_indices`).
+    /// Binary little-endian PLY (`float x y z [nx ny nz] [uchar red green blue alpha]`,
+    /// `list uchar uint vertex_indices`).
     Ply,
-    /// glTF 2.0 binary: one JSON chunk and one BIN chunk, 4-byte aligned.
+    /// glTF 2.0 binary: one JSON chunk and one BIN chunk, 4-byte aligned; colours as `COLOR_0`
+    /// (linear, normalised unsigned short, as the specification wants) with a rough,
+    /// non-metallic white material that they multiply.
     Glb,
 }
 
@@ -31,12 +35,14 @@ impl MeshFormat {
 }
 
 /// Writes a triangle mesh to `path`; the format comes from the extension (`.obj`, `.ply`,
-/// `.glb`). `normals`, when given, has one entry per position.
+/// `.glb`). `normals` and `colours` (sRGB, alpha last), when given, have one entry per
+/// position.
 pub fn write_mesh(
     path: &Path,
     positions: &[[f32; 3]],
     triangles: &[[u32; 3]],
     normals: Option<&[[f32; 3]]>,
+    colours: Option<&[[u8; 4]]>,
 ) -> Result<()> {
     let f = MeshFormat::from_extension(path).ok_or_else(|| {
         IoError::UnknownFormat(format!(
@@ -44,7 +50,7 @@ pub fn write_mesh(
             path.display()
         ))
     })?;
-    write_mesh_as(path, f, positions, triangles, normals)
+    write_mesh_as(path, f, positions, triangles, normals, colours)
 }
 
 /// Writes a triangle mesh to `path` in format `f` (atomically).
@@ -54,8 +60,10 @@ pub fn write_mesh_as(
     positions: &[[f32; 3]],
     triangles: &[[u32; 3]],
     normals: Option<&[[f32; 3]]>,
+    colours: Option<&[[u8; 4]]>,
 ) -> Result<()> {
-    let bytes = encode_mesh(f, positions, triangles, normals).map_err(|e| e.in_file(path))?;
+    let bytes =
+        encode_mesh(f, positions, triangles, normals, colours).map_err(|e| e.in_file(path))?;
     atomic::write_atomic(path, &bytes)
 }
 
@@ -63,7 +71,17 @@ fn validate(
     positions: &[[f32; 3]],
     triangles: &[[u32; 3]],
     normals: Option<&[[f32; 3]]>,
+    colours: Option<&[[u8; 4]]>,
 ) -> Result<()> {
+    if let Some(c) = colours
+        && c.len() != positions.len()
+    {
+        return Err(IoError::param(
+            "colours",
+            c.len(),
+            format!("need one per position ({})", positions.len()),
+        ));
+    }
     if positions.is_empty() || triangles.is_empty() {
         return Err(IoError::param(
             "mesh",
@@ -129,20 +147,41 @@ pub fn encode_mesh(
     positions: &[[f32; 3]],
     triangles: &[[u32; 3]],
     normals: Option<&[[f32; 3]]>,
+    colours: Option<&[[u8; 4]]>,
 ) -> Result<Vec<u8>> {
-    validate(positions, triangles, normals)?;
+    validate(positions, triangles, normals, colours)?;
+    let m = Parts {
+        p: positions,
+        t: triangles,
+        n: normals,
+        colours,
+    };
     Ok(match f {
-        MeshFormat::Obj => obj(positions, triangles, normals),
-        MeshFormat::Ply => ply(positions, triangles, normals),
-        MeshFormat::Glb => glb(positions, triangles, normals)?,
+        MeshFormat::Obj => obj(&m),
+        MeshFormat::Ply => ply(&m),
+        MeshFormat::Glb => glb(&m)?,
     })
 }
 
-fn obj(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+/// A validated mesh: positions, triangles, and the optional per-position normals and colours.
+struct Parts<'a> {
+    p: &'a [[f32; 3]],
+    t: &'a [[u32; 3]],
+    n: Option<&'a [[f32; 3]]>,
+    colours: Option<&'a [[u8; 4]]>,
+}
+
+fn obj(m: &Parts) -> Vec<u8> {
+    let (p, t, n, colours) = (m.p, m.t, m.n, m.colours);
     let mut s = String::with_capacity(p.len() * 40 + t.len() * 30);
     s.push_str("# written by relief-io\n");
-    for v in p {
-        let _ = writeln!(s, "v {} {} {}", v[0], v[1], v[2]);
+    for (i, v) in p.iter().enumerate() {
+        let _ = write!(s, "v {} {} {}", v[0], v[1], v[2]);
+        if let Some(c) = colours {
+            let [r, g, b, _] = c[i].map(|x| x as f32 / 255.0);
+            let _ = write!(s, " {r:.4} {g:.4} {b:.4}");
+        }
+        s.push('\n');
     }
     if let Some(n) = n {
         for v in n {
@@ -160,13 +199,19 @@ fn obj(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
     s.into_bytes()
 }
 
-fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
+fn ply(m: &Parts) -> Vec<u8> {
+    let (p, t, n, colours) = (m.p, m.t, m.n, m.colours);
     let mut h = format!(
         "ply\nformat binary_little_endian 1.0\ncomment written by relief-io\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
         p.len()
     );
     if n.is_some() {
         h.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+    }
+    if colours.is_some() {
+        h.push_str(
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n",
+        );
     }
     let _ = write!(
         h,
@@ -183,6 +228,9 @@ fn ply(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Vec<u8> {
             for c in &n[i] {
                 out.extend_from_slice(&c.to_le_bytes());
             }
+        }
+        if let Some(c) = colours {
+            out.extend_from_slice(&c[i]);
         }
     }
     for tri in t {
@@ -201,7 +249,20 @@ pub fn z_up_to_y_up(v: &[f32; 3]) -> [f32; 3] {
     [v[0], v[2], -v[1]]
 }
 
-fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Result<Vec<u8>> {
+/// An 8-bit sRGB value to linear light as a normalised unsigned short (glTF's `COLOR_0` is
+/// linear).
+fn srgb_to_linear_u16(v: u8) -> u16 {
+    let c = v as f64 / 255.0;
+    let l = if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    };
+    (l * 65535.0).round() as u16
+}
+
+fn glb(m: &Parts) -> Result<Vec<u8>> {
+    let (p, t, n, colours) = (m.p, m.t, m.n, m.colours);
     let p: Vec<[f32; 3]> = p.iter().map(z_up_to_y_up).collect();
     let n: Option<Vec<[f32; 3]>> = n.map(|n| n.iter().map(z_up_to_y_up).collect());
     let (p, n) = (p.as_slice(), n.as_deref());
@@ -226,12 +287,22 @@ fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Result<Vec<u8>
         }
     }
     let nrm_len = bin.len() - pos_len;
+    if let Some(c) = colours {
+        let lut: Vec<u16> = (0..=255u8).map(srgb_to_linear_u16).collect();
+        for v in c {
+            for k in 0..3 {
+                bin.extend_from_slice(&lut[v[k] as usize].to_le_bytes());
+            }
+            bin.extend_from_slice(&((v[3] as u16) * 257).to_le_bytes());
+        }
+    }
+    let col_len = bin.len() - pos_len - nrm_len;
     for tri in t {
         for i in tri {
             bin.extend_from_slice(&i.to_le_bytes());
         }
     }
-    let idx_len = bin.len() - pos_len - nrm_len;
+    let idx_len = bin.len() - pos_len - nrm_len - col_len;
     let mut views = vec![
         serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "target": 34962}),
     ];
@@ -245,20 +316,36 @@ fn glb(p: &[[f32; 3]], t: &[[u32; 3]], n: Option<&[[f32; 3]]>) -> Result<Vec<u8>
         accessors.push(serde_json::json!({"bufferView": 1, "componentType": 5126, "count": p.len(), "type": "VEC3"}));
         attributes["NORMAL"] = serde_json::json!(1);
     }
+    let mut material = None;
+    if colours.is_some() {
+        let cv = views.len();
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": pos_len + nrm_len, "byteLength": col_len, "target": 34962}));
+        accessors.push(serde_json::json!({"bufferView": cv, "componentType": 5123, "normalized": true, "count": p.len(), "type": "VEC4"}));
+        attributes["COLOR_0"] = serde_json::json!(accessors.len() - 1);
+        material = Some(serde_json::json!({
+            "name": "relief-rock",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.9}
+        }));
+    }
     let iv = views.len();
-    views.push(serde_json::json!({"buffer": 0, "byteOffset": pos_len + nrm_len, "byteLength": idx_len, "target": 34963}));
+    views.push(serde_json::json!({"buffer": 0, "byteOffset": pos_len + nrm_len + col_len, "byteLength": idx_len, "target": 34963}));
     accessors.push(serde_json::json!({"bufferView": iv, "componentType": 5125, "count": t.len() * 3, "type": "SCALAR"}));
     let ia = accessors.len() - 1;
-    let json = serde_json::json!({
+    let mut primitive = serde_json::json!({"attributes": attributes, "indices": ia, "mode": 4});
+    let mut json = serde_json::json!({
         "asset": {"version": "2.0", "generator": "relief-io"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": attributes, "indices": ia, "mode": 4}]}],
         "buffers": [{"byteLength": bin.len()}],
         "bufferViews": views,
         "accessors": accessors,
     });
+    if let Some(m) = material {
+        primitive["material"] = serde_json::json!(0);
+        json["materials"] = serde_json::json!([m]);
+    }
+    json["meshes"] = serde_json::json!([{"primitives": [primitive]}]);
     let mut js = serde_json::to_vec(&json).unwrap_or_default();
     while !js.len().is_multiple_of(4) {
         js.push(b' ');

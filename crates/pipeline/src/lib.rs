@@ -597,7 +597,8 @@ impl std::fmt::Display for Stopped {
 
 impl std::error::Error for Stopped {}
 
-/// Writes the scene's mesh (format from the extension) and returns its size in bytes. `y_up`
+/// Writes the scene's mesh (format from the extension, with its normals and vertex colours)
+/// and returns its size in bytes. `y_up`
 /// rotates an OBJ or PLY to Y-up (`(x, y, z) -> (x, z, -y)`); a GLB is always Y-up.
 pub fn write_mesh(path: &Path, mesh: &relief_implicit_volume::Mesh, y_up: bool) -> Result<u64> {
     let normals = (!mesh.normals.is_empty()).then_some(&mesh.normals[..]);
@@ -611,6 +612,7 @@ pub fn write_mesh(path: &Path, mesh: &relief_implicit_volume::Mesh, y_up: bool) 
         Some((p, n)) => (&p[..], n.as_deref()),
         None => (&mesh.positions[..], normals),
     };
-    relief_io::write_mesh(path, positions, &mesh.triangles, normals)?;
+    let colours = (!mesh.colours.is_empty()).then_some(&mesh.colours[..]);
+    relief_io::write_mesh(path, positions, &mesh.triangles, normals, colours)?;
     Ok(std::fs::metadata(path).map_or(0, |m| m.len()))
 }

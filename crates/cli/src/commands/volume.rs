@@ -38,7 +38,8 @@ pub(crate) struct Args {
     /// relief (at most 200 m), so the mesh has a seabed and the water shows its depth.
     #[arg(long)]
     pub(crate) flat_sea: bool,
-    /// Write the polygonised scene (.glb, .ply or .obj).
+    /// Write the polygonised scene (.glb, .ply or .obj) with vertex normals and colours (rock
+    /// by stratum, soil on gentle slopes: what the renders show).
     #[arg(long)]
     pub(crate) mesh: Option<PathBuf>,
     /// Up axis of an OBJ or PLY mesh: z (default; relief's frame: x east, y north, z up, as

@@ -271,6 +271,13 @@ fn glb_passes_the_khronos_validator() {
     let issues: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
     assert_eq!(issues["numErrors"], 0, "{issues}");
     assert_eq!(issues["numWarnings"], 0, "{issues}");
+    // The mesh carries its strata's colours (COLOR_0) under a material they multiply.
+    let b = std::fs::read(&glb).unwrap();
+    let jl = u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
+    let json: serde_json::Value = serde_json::from_slice(&b[20..20 + jl]).unwrap();
+    let prim = &json["meshes"][0]["primitives"][0];
+    assert!(prim["attributes"].get("COLOR_0").is_some(), "{prim}");
+    assert_eq!(prim["material"], 0);
 }
 
 /// `--sea-level` puts a shore in the canyon on purpose (the behaviour before issue 19's sea

@@ -488,11 +488,39 @@ fn recipe_is_thread_count_independent_on_the_canyon() {
                 },
             )
             .unwrap();
-            (mesh_bytes(&mesh), img, sec, st, rep, topology(&mesh))
+            // Vertex colours with the resistance under each steep vertex (rock, no soil).
+            let colours = relief_implicit_volume::material::vertex_colours(&scene, &mesh);
+            let steep_rho: Vec<(f32, [u8; 4])> = (mesh.positions.iter().zip(&mesh.normals))
+                .zip(&colours)
+                .filter(|((_, n), _)| n[2].abs() < 0.2)
+                .map(|((p, _), c)| (scene.resistance(*p), *c))
+                .collect();
+            (
+                mesh_bytes(&mesh),
+                img,
+                sec,
+                st,
+                rep,
+                topology(&mesh),
+                colours,
+                steep_rho,
+            )
         })
     };
     let a = run(1);
     let b = run(2);
+    assert!(a.6 == b.6, "vertex colours differ between 1 and 2 threads");
+    // Steep faces show their strata: soft rock redder (red over blue) than hard rock.
+    let redness = |lo: f32, hi: f32| {
+        let v: Vec<f32> = (a.7.iter())
+            .filter(|(r, _)| (lo..hi).contains(r))
+            .map(|(_, c)| c[0] as f32 / c[2].max(1) as f32)
+            .collect();
+        assert!(v.len() >= 5, "{} steep vertices in [{lo}, {hi})", v.len());
+        v.iter().sum::<f32>() / v.len() as f32
+    };
+    let (soft, hard) = (redness(0.0, 0.35), redness(0.65, 1.01));
+    assert!(soft > 1.4 * hard, "red/blue soft {soft} vs hard {hard}");
     assert!(a.0 == b.0, "mesh bytes differ between 1 and 2 threads");
     assert_eq!(a.1, b.1);
     assert_eq!((a.2.clone(), a.3), (b.2, b.3));

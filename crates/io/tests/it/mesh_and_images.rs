@@ -35,7 +35,7 @@ fn written_tetra(name: &str) -> (Vec<u8>, Vec<[u32; 3]>) {
     let (p, t, n) = tetra();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(name);
-    write_mesh(&path, &p, &t, Some(&n)).unwrap();
+    write_mesh(&path, &p, &t, Some(&n), None).unwrap();
     (std::fs::read(&path).unwrap(), t)
 }
 
@@ -99,9 +99,20 @@ fn ply_parses_back() {
 fn glb_chunks_and_accessors_are_valid() {
     let (p, t, n) = tetra();
     let dir = tempfile::tempdir().unwrap();
-    for normals in [None, Some(n.as_slice())] {
+    let colours = [
+        [255, 0, 0, 255],
+        [0, 128, 0, 255],
+        [0, 0, 255, 128],
+        [188, 188, 188, 255],
+    ];
+    for (normals, colours) in [
+        (None, None),
+        (Some(n.as_slice()), None),
+        (Some(n.as_slice()), Some(colours.as_slice())),
+        (None, Some(colours.as_slice())),
+    ] {
         let path = dir.path().join("m.glb");
-        write_mesh(&path, &p, &t, normals).unwrap();
+        write_mesh(&path, &p, &t, normals, colours).unwrap();
         let b = std::fs::read(&path).unwrap();
         assert_eq!(&b[0..4], b"glTF");
         assert_eq!(u32_at(&b, 4), 2);
@@ -144,6 +155,38 @@ fn glb_chunks_and_accessors_are_valid() {
             prim["attributes"].get("NORMAL").is_some(),
             normals.is_some()
         );
+        // Colours: linear normalised u16 (sRGB 188 is linear 0.5029), under a white material.
+        assert_eq!(
+            prim["attributes"].get("COLOR_0").is_some(),
+            colours.is_some()
+        );
+        assert_eq!(prim.get("material").is_some(), colours.is_some());
+        if colours.is_some() {
+            let c = acc(&prim["attributes"]["COLOR_0"]);
+            assert_eq!(
+                (c["componentType"].as_u64(), c["type"].as_str()),
+                (Some(5123), Some("VEC4"))
+            );
+            assert_eq!(c["normalized"], true);
+            let cv = &json["bufferViews"][c["bufferView"].as_u64().unwrap() as usize];
+            let co = cv["byteOffset"].as_u64().unwrap() as usize;
+            let u16_at = |o: usize| u16::from_le_bytes([bin[o], bin[o + 1]]) as f64 / 65535.0;
+            assert_eq!(
+                [u16_at(co), u16_at(co + 2), u16_at(co + 4), u16_at(co + 6)],
+                [1.0, 0.0, 0.0, 1.0]
+            );
+            assert!(
+                (u16_at(co + 8 + 2) - 0.2158).abs() < 1e-3,
+                "sRGB 128 -> linear"
+            );
+            assert!(
+                (u16_at(co + 16 + 6) - 128.0 / 255.0).abs() < 1e-4,
+                "alpha stays linear"
+            );
+            assert!((u16_at(co + 24) - 0.5029).abs() < 1e-3);
+            let m = &json["materials"][0]["pbrMetallicRoughness"];
+            assert_eq!(m["metallicFactor"], 0.0);
+        }
         let idx = acc(&prim["indices"]);
         assert_eq!(idx["count"], 12);
         assert_eq!(idx["componentType"], 5125);
@@ -166,17 +209,27 @@ fn glb_chunks_and_accessors_are_valid() {
 fn mesh_errors() {
     let dir = tempfile::tempdir().unwrap();
     let (p, _, _) = tetra();
-    assert!(write_mesh(&dir.path().join("m.obj"), &p, &[[0, 1, 9]], None).is_err());
-    assert!(write_mesh(&dir.path().join("m.stl"), &p, &[[0, 1, 2]], None).is_err());
+    assert!(write_mesh(&dir.path().join("m.obj"), &p, &[[0, 1, 9]], None, None).is_err());
+    assert!(write_mesh(&dir.path().join("m.stl"), &p, &[[0, 1, 2]], None, None).is_err());
     assert!(
         write_mesh(
             &dir.path().join("m.ply"),
             &p,
             &[[0, 1, 2]],
-            Some(&[[0.0; 3]])
+            Some(&[[0.0; 3]]),
+            None
         )
         .is_err()
     );
+    let e = write_mesh(
+        &dir.path().join("m.glb"),
+        &p,
+        &[[0, 1, 2]],
+        None,
+        Some(&[[0; 4]; 3]),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("colours"), "{e}");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     assert_eq!(
         MeshFormat::from_extension(std::path::Path::new("a.GLB")),
@@ -305,4 +358,36 @@ fn preview_style_draws_the_sea_and_moves_the_light() {
         let e = styled(set).unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
+}
+
+#[test]
+fn obj_and_ply_carry_vertex_colours() {
+    let (p, t, n) = tetra();
+    let colours = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [51, 102, 153, 255],
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("m.obj");
+    write_mesh(&obj, &p, &t, Some(&n), Some(&colours)).unwrap();
+    let text = std::fs::read_to_string(&obj).unwrap();
+    let last: Vec<f32> = text.lines().filter(|l| l.starts_with("v ")).nth(3).unwrap()[2..]
+        .split(' ')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    assert_eq!(last, vec![0.0, 0.0, 1.0, 0.2, 0.4, 0.6]);
+    let ply = dir.path().join("m.ply");
+    write_mesh(&ply, &p, &t, Some(&n), Some(&colours)).unwrap();
+    let b = std::fs::read(&ply).unwrap();
+    let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let header = std::str::from_utf8(&b[..end]).unwrap();
+    assert!(header.contains(
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+    ));
+    // Vertex records: 6 floats then 4 bytes.
+    let rec = 6 * 4 + 4;
+    assert_eq!(&b[end + 3 * rec + 24..end + 4 * rec], &[51, 102, 153, 255]);
+    assert_eq!(b.len(), end + 4 * rec + 4 * 13);
 }

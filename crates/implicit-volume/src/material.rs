@@ -1,0 +1,153 @@
+//! Surface colours shared by the renderer and the meshes: rock coloured by its stratum's
+//! resistance (soft shale red-brown, sandstone orange to buff, hard limestone pale grey, as in
+//! the Grand Canyon's column), with a grain texture in metres, and a soil and vegetation cover
+//! on gentle slopes tinted by the rock beneath. A render ([`crate::render`]) and a mesh's vertex
+//! colours ([`vertex_colours`]) use the same [`surface_albedo`], so Blender and game engines
+//! show the strata a render shows. Ambient occlusion ([`ambient_occlusion`]) darkens hollows,
+//! cave mouths and the feet of cliffs in renders.
+
+use rayon::prelude::*;
+
+use crate::math::{V3, add, fbm, mul};
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+
+/// Rock colours along resistance: `(resistance, [r, g, b])`, display values in `[0, 1]`.
+const ROCK: [(f32, V3); 5] = [
+    (0.0, [0.50, 0.27, 0.19]),  // soft shale, red-brown
+    (0.3, [0.70, 0.42, 0.26]),  // weak sandstone, orange
+    (0.55, [0.80, 0.64, 0.45]), // sandstone, buff
+    (0.75, [0.76, 0.72, 0.62]), // hard sandstone / dolomite, pale
+    (1.0, [0.70, 0.70, 0.68]),  // limestone, grey
+];
+
+/// Wavelengths (m) of the rock's grain texture: a coarse mottling and a fine grain.
+const GRAIN_COARSE_M: f32 = 24.0;
+const GRAIN_FINE_M: f32 = 3.0;
+
+/// Colour of rock of resistance `rho` (clamped to `[0, 1]`) at `p` (metres): the stratum's
+/// colour with a grain texture of +-12 % whose wavelengths are in metres, so the same rock
+/// looks the same at every scale of mesh or render.
+pub fn rock_albedo(rho: f32, p: V3) -> V3 {
+    let r = if rho.is_finite() {
+        rho.clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    let mut c = ROCK[ROCK.len() - 1].1;
+    for w in ROCK.windows(2) {
+        let ((r0, c0), (r1, c1)) = (w[0], w[1]);
+        if r <= r1 {
+            let t = (r - r0) / (r1 - r0);
+            c = add(mul(c0, 1.0 - t), mul(c1, t));
+            break;
+        }
+    }
+    let g = 0.08 * fbm(0x6a11, mul(p, 1.0 / GRAIN_COARSE_M), 2)
+        + 0.05 * fbm(0x6a12, mul(p, 1.0 / GRAIN_FINE_M), 2);
+    mul(c, 1.0 + g)
+}
+
+/// Colour of the surface at `p` with outward normal `n`: rock on slopes steeper than about
+/// 25 degrees, elsewhere soil and sparse vegetation (greener low, paler high in the scene's
+/// height range) tinted by the rock beneath.
+pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
+    let b = scene.bbox();
+    let (zlo, zhi) = (b.min[2], b.max[2]);
+    let hgt = ((p[2] - zlo) / (zhi - zlo).max(1e-3)).clamp(0.0, 1.0);
+    let rock = rock_albedo(scene.resistance(p), p);
+    let steep = 1.0 - n[2].clamp(0.0, 1.0);
+    let k = (steep * 2.5).min(1.0);
+    let cover = [0.35 + 0.3 * hgt, 0.43 + 0.2 * hgt, 0.25 + 0.25 * hgt];
+    let soil = add(mul(cover, 0.7), mul(rock, 0.3));
+    add(mul(soil, 1.0 - k), mul(rock, k))
+}
+
+/// Share of sky light reaching `p` (outward normal `n`), in `[0, 1]`: points at distances
+/// `radius / 4`, `radius / 2` and `radius` along the normal and along four directions tilted
+/// 45 degrees from it are tested for matter; each solid point removes its weight (the nearer
+/// points weigh more). One field evaluation per point, twelve in all.
+pub fn ambient_occlusion(scene: &Scene, p: V3, n: V3, radius: f32) -> f32 {
+    // A tangent frame around n.
+    let a = if n[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let t = crate::math::normalize(crate::math::cross(n, a));
+    let s = crate::math::cross(n, t);
+    let dirs = [
+        n,
+        add(mul(n, 0.707), mul(t, 0.707)),
+        add(mul(n, 0.707), mul(t, -0.707)),
+        add(mul(n, 0.707), mul(s, 0.707)),
+    ];
+    let mut occluded = 0.0;
+    let mut total = 0.0;
+    for (k, scale) in [0.25f32, 0.5, 1.0].into_iter().enumerate() {
+        let w = [1.0, 0.6, 0.35][k];
+        for d in dirs {
+            total += w;
+            if scene.inside(add(p, mul(d, radius * scale))) {
+                occluded += w;
+            }
+        }
+    }
+    1.0 - occluded / total
+}
+
+/// Display value in `[0, 1]` to an 8-bit sRGB byte.
+fn to_byte(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// sRGB colours (alpha 255) of `mesh`'s vertices from [`surface_albedo`], with the mesh's
+/// normals (a vertex without a finite normal takes the scene's). The same bytes for any
+/// thread count.
+pub fn vertex_colours(scene: &Scene, mesh: &Mesh) -> Vec<[u8; 4]> {
+    let h = 1e-3 * crate::math::norm(scene.bbox().size()).max(1e-3);
+    mesh.positions
+        .par_iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            let n = match mesh.normals.get(i) {
+                Some(n) if n.iter().all(|c| c.is_finite()) => *n,
+                _ => scene.shading_normal(p, h),
+            };
+            let c = surface_albedo(scene, p, n);
+            [to_byte(c[0]), to_byte(c[1]), to_byte(c[2]), 255]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn soft_rock_is_redder_and_darker_than_hard_rock() {
+        // Away from the grain's extremes: the mean over many points.
+        let mean = |rho: f32| {
+            let mut s = [0.0f32; 3];
+            for i in 0..200 {
+                let c = rock_albedo(rho, [i as f32 * 7.3, i as f32 * 3.1, 0.0]);
+                s = add(s, mul(c, 1.0 / 200.0));
+            }
+            s
+        };
+        let (soft, hard) = (mean(0.05), mean(0.95));
+        assert!(
+            soft[0] / soft[2] > 2.0 * hard[0] / hard[2],
+            "{soft:?} {hard:?}"
+        );
+        assert!(soft.iter().sum::<f32>() < hard.iter().sum::<f32>());
+        // The grain varies the colour by a few per cent, not more than 15 %.
+        let c = (0..200).map(|i| rock_albedo(0.5, [i as f32 * 1.7, 0.0, 0.0])[0]);
+        let (lo, hi) = c.fold((f32::MAX, f32::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        assert!(hi / lo > 1.03 && hi / lo < 1.35, "{lo} {hi}");
+        // Out-of-range and non-finite resistance give a colour, not a panic or NaN.
+        for r in [-1.0, 2.0, f32::NAN] {
+            assert!(rock_albedo(r, [0.0; 3]).iter().all(|v| v.is_finite()));
+        }
+    }
+}
