@@ -2,7 +2,8 @@
 //! the `implicit_volume` criterion group, lake at the crop's 25th percentile):
 //! `cargo run -p relief-implicit-volume --features examples --example closeup_prof -- [WIDTH HEIGHT [THREADS [VIEW]]]`
 //! (default 400 x 225, 1 thread, every view). Prints each view's CPU seconds and an FNV hash
-//! of its bytes; `PPM=1` writes them to target/bench-data/closeup_<k>.ppm.
+//! of its bytes; `PPM=1` writes them to target/bench-data/closeup_<k>.ppm; `NO_SHADOWS=1` and
+//! `NO_AO=1` turn the shadow rays and the ambient occlusion off (to see what each costs).
 #![allow(clippy::print_stdout)]
 use relief_implicit_volume::*;
 
@@ -49,6 +50,9 @@ fn main() {
         if only.is_some_and(|o| o != k) {
             continue;
         }
+        let mut s = s;
+        s.shadows = std::env::var_os("NO_SHADOWS").is_none();
+        s.ambient_occlusion = std::env::var_os("NO_AO").is_none();
         let c0 = cpu_s();
         let t0 = std::time::Instant::now();
         let img = pool.install(|| render(&scene, &cam, &s).expect("render"));

@@ -66,7 +66,7 @@ pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
 /// Share of sky light reaching `p` (outward normal `n`), in `[0, 1]`: points at distances
 /// `radius / 4`, `radius / 2` and `radius` along the normal and along four directions tilted
 /// 45 degrees from it are tested for matter; each solid point removes its weight (the nearer
-/// points weigh more). One field evaluation per point, twelve in all.
+/// points weigh more). One field evaluation per point, fifteen in all.
 pub fn ambient_occlusion(scene: &Scene, p: V3, n: V3, radius: f32) -> f32 {
     // A tangent frame around n.
     let a = if n[2].abs() < 0.9 {
@@ -81,6 +81,7 @@ pub fn ambient_occlusion(scene: &Scene, p: V3, n: V3, radius: f32) -> f32 {
         add(mul(n, 0.707), mul(t, 0.707)),
         add(mul(n, 0.707), mul(t, -0.707)),
         add(mul(n, 0.707), mul(s, 0.707)),
+        add(mul(n, 0.707), mul(s, -0.707)),
     ];
     let mut occluded = 0.0;
     let mut total = 0.0;
@@ -123,6 +124,36 @@ pub fn vertex_colours(scene: &Scene, mesh: &Mesh) -> Vec<[u8; 4]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geology::test_beds;
+    use crate::scene::{ImplicitizeSettings, SceneBuilder};
+    use relief_heightfield::Heightfield;
+
+    /// The floor of a V valley with 60 degree walls 40 m deep is occluded; the flat plains on
+    /// either side are not.
+    #[test]
+    fn ambient_occlusion_darkens_a_valley_floor_not_a_plain_or_a_crest() {
+        let hf = Heightfield::from_fn(64, 16, 2.0, 2.0, |x, _| {
+            let d = (x as f32 - 32.0).abs() * 2.0;
+            if x < 8 {
+                40.0
+            } else {
+                (d * 3f32.sqrt()).min(40.0)
+            }
+        });
+        let g = test_beds(0.0, (6.0, 0.2), (4.0, 0.8));
+        let scene = SceneBuilder::new(&hf, g, &ImplicitizeSettings::default())
+            .unwrap()
+            .build(true)
+            .unwrap();
+        let ao = |x: f32| {
+            let z = scene.dem_height(x, 16.0).unwrap();
+            let p = [x, 16.0, z + 0.05];
+            ambient_occlusion(&scene, p, scene.shading_normal(p, 0.05), 8.0)
+        };
+        let (floor, west, east) = (ao(64.0), ao(8.0), ao(116.0));
+        assert!(floor < 0.75, "valley floor {floor}");
+        assert!(west > 0.95 && east > 0.95, "plains {west}, {east}");
+    }
 
     #[test]
     fn soft_rock_is_redder_and_darker_than_hard_rock() {

@@ -242,7 +242,7 @@ pub struct RenderSettings {
     /// Trace shadow rays.
     pub shadows: bool,
     /// Darken the sky and bounce light in hollows ([`crate::material::ambient_occlusion`]:
-    /// twelve field evaluations per pixel).
+    /// fifteen field evaluations per pixel).
     pub ambient_occlusion: bool,
     /// Sea level drawn as a translucent water plane (`None`: no water).
     pub sea_level: Option<f32>,
