@@ -4,7 +4,7 @@
 //! `cargo run --release -p relief-landscape --features examples --example erode_look [-- DEM...]`
 //! writes `target/look/erode/<dem>.png` (`PRESETS=mountain,desert` picks presets, `OVERRIDES`
 //! a JSON object of `ErodeSettings` fields applied over each; `CROP=x,y,w,h` replaces the crop
-//! of the DEMs named).
+//! of the DEMs named; `SQUARE=1` resamples each crop to square cells first).
 
 #![allow(clippy::print_stdout)]
 
@@ -44,6 +44,17 @@ fn main() {
             let mut d = dem.clone();
             relief_heightfield::fill::fill_voids(&mut d, &Default::default()).expect("fill");
             d
+        } else {
+            dem
+        };
+        // SQUARE=1: resampled (bicubic) to square cells of the smaller side first, to tell the
+        // processes' response to the terrain from their response to the cells' shape.
+        let dem = if std::env::var_os("SQUARE").is_some() {
+            let (cx, cy) = dem.cell_size();
+            let c = cx.min(cy);
+            let w2 = (dem.width() as f64 * cx / c).round() as usize;
+            let h2 = (dem.height() as f64 * cy / c).round() as usize;
+            dem.resample(w2, h2).expect("resample")
         } else {
             dem
         };

@@ -197,6 +197,25 @@ class RELIEF_OT_refine(NewTerrainJob, bpy.types.Operator):
         return "refined"
 
 
+def add_rock_colours(me, colours):
+    """The volume's vertex colours (sRGB bytes) as the colour attribute "relief_rock" (linear
+    floats, as Blender stores them) and a material that shows it, as the GLB's COLOR_0 does."""
+    srgb = colours[:, :3].astype(np.float64) / 255.0
+    lin = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    rgba = np.concatenate([lin, colours[:, 3:4] / 255.0], axis=1).astype(np.float32)
+    attr = me.color_attributes.new(name="relief_rock", type="FLOAT_COLOR", domain="POINT")
+    attr.data.foreach_set("color", rgba.reshape(-1))
+    mat = bpy.data.materials.new(name="relief rock")
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
+    col = nodes.new("ShaderNodeVertexColor")
+    col.layer_name = "relief_rock"
+    mat.node_tree.links.new(col.outputs["Color"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.9
+    me.materials.append(mat)
+
+
 class RELIEF_OT_volume(TerrainJob, bpy.types.Operator):
     """Carve 3-D landforms into the active terrain (relief.volume) as a new mesh"""
 
@@ -204,12 +223,15 @@ class RELIEF_OT_volume(TerrainJob, bpy.types.Operator):
     bl_label = "Volume"
 
     def run(self, s, ob):
-        return relief.volume(raster_of(ob), features=[s.feature], seed=s.seed, max_mesh_cells=s.mesh_cells)
+        return relief.volume(
+            raster_of(ob), features=[s.feature], seed=s.seed, max_mesh_cells=s.mesh_cells, colours=True
+        )
 
     def place(self, context, s, ob, out):
-        v, f = out
+        v, f, c = out
         co = np.ascontiguousarray(v, dtype=np.float32).reshape(-1)
         me = polygon_mesh(f"{ob.name} {s.feature}", co, f.astype(np.int32).reshape(-1), 3)
+        add_rock_colours(me, c)
         new = bpy.data.objects.new(me.name, me)
         context.collection.objects.link(new)
         # The volume mesh has y north from the south edge: put its north-west corner on the grid's.

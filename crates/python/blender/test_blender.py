@@ -54,6 +54,12 @@ def main():
     assert bpy.ops.relief.volume() == {"FINISHED"}
     vol = [o for o in bpy.data.objects if o.name.endswith(" arches")][0]
     assert len(vol.data.polygons) > 100
+    # The strata's colours arrive as a colour attribute shown by the mesh's material.
+    attr = vol.data.color_attributes["relief_rock"]
+    assert len(attr.data) == len(vol.data.vertices)
+    reds = [attr.data[i].color[0] for i in range(0, len(attr.data), 97)]
+    assert max(reds) > 0.05 and len(set(round(r, 3) for r in reds)) > 3
+    assert vol.data.materials[0].name.startswith("relief rock")
     relief_blender.unregister()
     print(f"blender add-on: ok (import {rows}x{cols}, amplify x4, volume {len(vol.data.polygons)} triangles)")
 

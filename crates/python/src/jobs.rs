@@ -77,7 +77,11 @@ pub(crate) fn quilt<'py>(
 }
 
 /// A mesh as numpy arrays: vertices `(n, 3)` float32 in metres (Z up), faces `(m, 3)` uint32.
-type MeshArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>);
+type MeshArrays<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<u32>>,
+    Bound<'py, PyArray2<u8>>,
+);
 
 /// `relief volume --mesh`: see `relief.volume`.
 #[pyfunction]
@@ -108,9 +112,12 @@ pub(crate) fn volume<'py>(
         .map_err(Failure::value)?;
     let f = ndarray::Array2::from_shape_vec((m, 3), mesh.triangles.into_flattened())
         .map_err(Failure::value)?;
+    let c = ndarray::Array2::from_shape_vec((mesh.colours.len(), 4), mesh.colours.into_flattened())
+        .map_err(Failure::value)?;
     Ok((
         PyArray2::from_owned_array(py, v),
         PyArray2::from_owned_array(py, f),
+        PyArray2::from_owned_array(py, c),
     ))
 }
 

@@ -35,6 +35,11 @@ def test_volume_mesh_covers_the_dem():
     assert v[:, 0].max() - v[:, 0].min() == pytest.approx(95 * cx, rel=0.05)
     assert v[:, 1].max() - v[:, 1].min() == pytest.approx(95 * cy, rel=0.05)
     assert v[:, 2].max() == pytest.approx(float(small.array.max()), abs=cx * 2)
+    # Vertex colours on request: one sRGB + alpha per vertex, the same mesh.
+    v2, f2, c = relief.volume(small, features=["arches"], max_mesh_cells=96, seed=2, colours=True)
+    assert np.array_equal(v2, v) and np.array_equal(f2, f)
+    assert c.dtype == np.uint8 and c.shape == (len(v), 4) and (c[:, 3] == 255).all()
+    assert len(np.unique(c[:, :3], axis=0)) > 10
 
 
 def test_erode_and_masks():

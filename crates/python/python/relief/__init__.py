@@ -444,16 +444,21 @@ def quilt(
     return out
 
 
-def volume(dem: Any, *, cell_size: Any = None, progress: Any = None, **settings: Any) -> Tuple[np.ndarray, np.ndarray]:
+def volume(
+    dem: Any, *, cell_size: Any = None, colours: bool = False, progress: Any = None, **settings: Any
+) -> Tuple[np.ndarray, ...]:
     """3-D landforms on an implicit construction tree (Paris et al. 2018): ``relief volume
     --mesh``. Returns ``(vertices, faces)``: ``(n, 3)`` float32 positions in metres (x east,
-    y north, z up) and ``(m, 3)`` uint32 counter-clockwise triangles. ``settings``: fields of
+    y north, z up) and ``(m, 3)`` uint32 counter-clockwise triangles; with ``colours=True``
+    also ``(n, 4)`` uint8 sRGB vertex colours (rock by stratum, soil on gentle slopes: what
+    ``relief volume --render`` draws and ``--mesh`` writes). ``settings``: fields of
     ``VolumeJob`` (``max_triangles``, ``max_mesh_cells``) and of its ``Recipe`` at the top
     level or as ``recipe={...}`` (``features``, ``sea_level``, ``seed``, ``voxel``, ``scale``,
     ...; see ``defaults("volume")``)."""
     settings = _split(dict(settings), "recipe", "volume")
     g = _grid(dem, cell_size)
-    return _relief.volume((g.array, _need_cell(g, "DEM")), _json(settings), _progress(progress))
+    v, f, c = _relief.volume((g.array, _need_cell(g, "DEM")), _json(settings), _progress(progress))
+    return (v, f, c) if colours else (v, f)
 
 
 def flow(dem: Any, *, cell_size: Any = None, progress: Any = None, **settings: Any) -> dict:

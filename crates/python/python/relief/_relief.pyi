@@ -9,6 +9,7 @@ import numpy.typing as npt
 
 F32 = npt.NDArray[np.float32]
 U32 = npt.NDArray[np.uint32]
+U8 = npt.NDArray[np.uint8]
 Cell = Tuple[float, float]
 # GDAL geotransform (x0, dx, rx, y0, ry, dy).
 Transform = Tuple[float, float, float, float, float, float]
@@ -60,8 +61,9 @@ def quilt(
 ) -> F32:
     """``relief quilt``."""
 
-def volume(dem: Grid, settings: str, progress: Progress) -> Tuple[F32, U32]:
-    """``relief volume --mesh``: (vertices (n, 3) in metres, faces (m, 3))."""
+def volume(dem: Grid, settings: str, progress: Progress) -> Tuple[F32, U32, U8]:
+    """``relief volume --mesh``: (vertices (n, 3) in metres, faces (m, 3), sRGB vertex colours
+    (n, 4))."""
 
 def flow(dem: Grid, geo: Geo, settings: str, progress: Progress) -> Tuple[Dict[str, F32], str]:
     """``relief flow``: (rasters by name, channels GeoJSON)."""
