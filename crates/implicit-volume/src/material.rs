@@ -50,7 +50,7 @@ pub fn rock_albedo(rho: f32, p: V3) -> V3 {
 
 /// Colour of the surface at `p` with outward normal `n`: rock on slopes steeper than about
 /// 25 degrees, elsewhere soil and sparse vegetation (greener low, paler high in the scene's
-/// height range) tinted by the rock beneath.
+/// height range, in patches) faintly tinted by the rock beneath.
 pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
     let b = scene.bbox();
     let (zlo, zhi) = (b.min[2], b.max[2]);
@@ -58,8 +58,15 @@ pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
     let rock = rock_albedo(scene.resistance(p), p);
     let steep = 1.0 - n[2].clamp(0.0, 1.0);
     let k = (steep * 2.5).min(1.0);
-    let cover = [0.35 + 0.3 * hgt, 0.43 + 0.2 * hgt, 0.25 + 0.25 * hgt];
-    let soil = add(mul(cover, 0.7), mul(rock, 0.3));
+    // Patchy cover (40 m and 10 m patches), faintly tinted by the rock beneath: a strong tint
+    // would draw every bed's outcrop as a contour stripe across gentle ground.
+    let patch = 0.1 * fbm(0x6a13, mul(p, 1.0 / 40.0), 3);
+    let cover = [
+        0.35 + 0.3 * hgt + patch,
+        0.43 + 0.2 * hgt + patch,
+        0.25 + 0.25 * hgt + 0.5 * patch,
+    ];
+    let soil = add(mul(cover, 0.75), mul(rock, 0.25));
     add(mul(soil, 1.0 - k), mul(rock, k))
 }
 
