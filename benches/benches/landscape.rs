@@ -84,19 +84,10 @@ fn tiled_all(
     hf: &relief_heightfield::Heightfield,
     channel_area: f64,
 ) -> usize {
-    use relief_landscape::flow::tiled::{self, Finished};
+    use relief_landscape::flow::tiled;
     let all = tiled::run_in_memory(layout, hf.as_slice(), &mut |_, n| (0..n).collect())
         .expect("a valid layout");
-    let w = layout.width;
-    let cut = |t: usize| {
-        let [x0, y0, tw, th] = layout.window(t);
-        let pick = |i: usize| (y0 + i / tw) * w + x0 + i % tw;
-        Finished {
-            filled: (0..tw * th).map(|i| all.filled[pick(i)]).collect(),
-            dir: (0..tw * th).map(|i| all.dir[pick(i)]).collect(),
-            cells: (0..tw * th).map(|i| all.cells[pick(i)]).collect(),
-        }
-    };
+    let cut = |t: usize| all.tile(layout, t);
     let n = layout.tasks();
     let sums: Vec<_> = (0..n)
         .map(|t| tiled::summarize(layout, t, &cut(t), channel_area).expect("a tile"))

@@ -268,3 +268,44 @@ pub fn flood_fill(
     }
     (n, open)
 }
+
+/// The tiled drainage tests' terrain, `w x h` cells row-major: a closed bowl over the middle of
+/// the map (filled to its rim, a lake spanning tiles), a river meandering from the west edge to
+/// the east edge across every row of tiles and draining west, integer elevations (flats
+/// everywhere) and, where the hash `seed` of a cell falls below `voids` (a fraction), a void.
+pub fn basin_and_river(w: usize, h: usize, seed: u64, voids: f32) -> Vec<f32> {
+    let (fw, fh) = (w as f32, h as f32);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let u = relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(
+                seed, i as u64, 0, 0,
+            ));
+            // The bowl: centre of the map, closed on every side.
+            let (dx, dy) = ((x - fw * 0.5) / fw, (y - fh * 0.5) / fh);
+            let r = (dx * dx + dy * dy).sqrt();
+            let bowl = if r < 0.3 {
+                10.0 + 60.0 * r
+            } else {
+                28.0 + (r - 0.3) * 120.0
+            };
+            // The river: a sine from the west edge to the east edge, crossing every row of
+            // tiles on its way (it winds through the whole map) and draining west.
+            let path = fh * (0.5 + 0.42 * (x / fw * 9.0).sin());
+            let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
+            // Inside the bowl, the bowl alone; outside, the terrain falls to the river.
+            let z = if r < 0.3 {
+                bowl
+            } else if (y - path).abs() < 3.0 {
+                river
+            } else {
+                bowl.min(river + 6.0)
+            };
+            if u < voids {
+                f32::NAN
+            } else {
+                (z + u * 2.0).floor()
+            }
+        })
+        .collect()
+}

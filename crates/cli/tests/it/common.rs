@@ -5,7 +5,7 @@
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output};
 
 use relief_heightfield::Heightfield;
 
@@ -249,4 +249,31 @@ pub(crate) fn usage_error(args: &[&OsStr], flag: &str, output: &Path) {
         "{args:?}: {e}"
     );
     assert!(!output.exists(), "{args:?}: {} written", output.display());
+}
+
+/// A fixed Fisher-Yates shuffle of `order` (splitmix64 from `seed`): tasks in another order
+/// than the plan's.
+pub(crate) fn shuffle(order: &mut [usize], seed: u64) {
+    let mut x = seed;
+    for i in (1..order.len()).rev() {
+        let z = relief_heightfield::rng::splitmix64(x);
+        x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        order.swap(i, (z % (i as u64 + 1)) as usize);
+    }
+}
+
+/// Runs the tasks of `order` two processes at a time (`spawn` starts task `i`); every one must
+/// succeed (`what` names them when one fails).
+pub(crate) fn two_at_a_time(order: &[usize], what: &str, spawn: impl Fn(usize) -> Child) {
+    for pair in order.chunks(2) {
+        let children: Vec<Child> = pair.iter().map(|&i| spawn(i)).collect();
+        for c in children {
+            let out = c.wait_with_output().unwrap();
+            assert!(
+                out.status.success(),
+                "{what} failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
 }

@@ -26,24 +26,8 @@ fn spawn_task(dir: &Path, i: usize) -> Child {
 /// Runs every task of the plan in a shuffled order, two processes at a time.
 fn run_all_two_at_a_time(dir: &Path, n: usize, seed: u64) {
     let mut order: Vec<usize> = (0..n).collect();
-    // A fixed Fisher-Yates shuffle (splitmix64): the order differs from the plan's.
-    let mut x = seed;
-    for i in (1..n).rev() {
-        let z = relief_heightfield::rng::splitmix64(x);
-        x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        order.swap(i, (z % (i as u64 + 1)) as usize);
-    }
-    for pair in order.chunks(2) {
-        let children: Vec<Child> = pair.iter().map(|&i| spawn_task(dir, i)).collect();
-        for c in children {
-            let out = c.wait_with_output().unwrap();
-            assert!(
-                out.status.success(),
-                "task failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        }
-    }
+    shuffle(&mut order, seed);
+    two_at_a_time(&order, "task", |i| spawn_task(dir, i));
 }
 
 fn assert_same_raster(a: &Path, b: &Path) {

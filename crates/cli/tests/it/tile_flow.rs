@@ -67,23 +67,26 @@ pub(crate) fn run_phases_to(dir: &Path, n: usize, seed: u64, last: usize) {
         } else {
             (0..n).collect()
         };
-        let mut x = seed + phase as u64;
-        for i in (1..order.len()).rev() {
-            let z = relief_heightfield::rng::splitmix64(x);
-            x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            order.swap(i, (z % (i as u64 + 1)) as usize);
-        }
-        for pair in order.chunks(2) {
-            let children: Vec<Child> = pair.iter().map(|&i| spawn(dir, phase, i)).collect();
-            for c in children {
-                let out = c.wait_with_output().unwrap();
-                assert!(
-                    out.status.success(),
-                    "phase {phase} task failed: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                );
-            }
-        }
+        shuffle(&mut order, seed + phase as u64);
+        two_at_a_time(&order, &format!("phase {phase} task"), |i| {
+            spawn(dir, phase, i)
+        });
+    }
+}
+
+/// `relief tile plan PLAN --tile 32 -- CMD INPUT -o OUT EXTRA` fails naming `want` and writes
+/// neither `PLAN` nor `OUT`, for every `(EXTRA, want)` of `cases`.
+pub(crate) fn plan_refuses(
+    cmd: &str,
+    plan: &Path,
+    input: &Path,
+    out: &Path,
+    cases: &[(Vec<&str>, &str)],
+) {
+    let line = format!("tile plan {{}} --tile 32 -- {cmd} {{}} -o {{}}");
+    for (extra, want) in cases {
+        let o = relief_line_plus(&line, &[&plan, &input, &out], extra);
+        fails_with(&o, &[want], &[plan, out]);
     }
 }
 
@@ -219,35 +222,7 @@ pub(crate) fn basin() -> Heightfield {
 
 /// [`basin`]'s shape over `w x h` cells.
 fn basin_of(w: usize, h: usize) -> Heightfield {
-    let (fw, fh) = (w as f32, h as f32);
-    let data: Vec<f32> = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f32, (i / w) as f32);
-            let u =
-                relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(5, i as u64, 0, 0));
-            let (dx, dy) = ((x - fw / 2.0) / fw, (y - fh / 2.0) / fh);
-            let r = (dx * dx + dy * dy).sqrt();
-            let bowl = if r < 0.3 {
-                10.0 + 60.0 * r
-            } else {
-                28.0 + (r - 0.3) * 120.0
-            };
-            let path = fh * (0.5 + 0.42 * (x / fw * 9.0).sin());
-            let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
-            let z = if r < 0.3 {
-                bowl
-            } else if (y - path).abs() < 3.0 {
-                river
-            } else {
-                bowl.min(river + 6.0)
-            };
-            if u < 0.005 {
-                f32::NAN
-            } else {
-                (z + u * 2.0).floor()
-            }
-        })
-        .collect();
+    let data = relief_testdata::basin_and_river(w, h, 5, 0.005);
     Heightfield::new(w, h, data, 25.0, 25.0).unwrap()
 }
 
@@ -410,19 +385,18 @@ fn flow_plans_refuse_what_they_cannot_tile_exactly() {
     let (tmp, input, _) = tmp_with_crop("crop.tif", (0, 0, 64, 64));
     let plan = tmp.path().join("plan");
     let out = tmp.path().join("out");
-    for (extra, want) in [
-        (vec!["--depressions", "epsilon"], "--depressions epsilon"),
-        (vec!["--depressions", "breach"], "--depressions breach"),
-        (vec!["--directions", "mfd"], "--directions mfd"),
-        (vec!["--json"], "--json"),
-    ] {
-        let mut args = words(
-            "tile plan {} --tile 32 -- flow {} -o {}",
-            &[&plan, &input, &out],
-        );
-        args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-        fails_with(&relief(&args), &[want], &[&plan, &out]);
-    }
+    plan_refuses(
+        "flow",
+        &plan,
+        &input,
+        &out,
+        &[
+            (vec!["--depressions", "epsilon"], "--depressions epsilon"),
+            (vec!["--depressions", "breach"], "--depressions breach"),
+            (vec!["--directions", "mfd"], "--directions mfd"),
+            (vec!["--json"], "--json"),
+        ],
+    );
     fails_with(
         &relief![
             "tile", "plan", &plan, "--tile", "20", "--", "flow", &input, "-o", &out

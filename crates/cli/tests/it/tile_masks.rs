@@ -7,7 +7,9 @@
 use std::path::Path;
 
 use crate::common::*;
-use crate::tile_flow::{assert_same_raster, basin, run_phases_to, single_and_plan, tasks};
+use crate::tile_flow::{
+    assert_same_raster, basin, plan_refuses, run_phases_to, single_and_plan, tasks,
+};
 
 const MASKS: [&str; 7] = [
     "slope",
@@ -94,19 +96,18 @@ fn masks_plans_refuse_what_they_cannot_tile_exactly() {
     let plan = tmp.path().join("plan");
     let out = tmp.path().join("out");
     let dep = tmp.path().join("crop.tif");
-    for (extra, want) in [
-        (vec!["--format", "png8"], "--format png8/png16"),
-        (vec!["--deposition-depth", s(&dep)], "--deposition-depth"),
-        (vec!["--directions", "mfd"], "--directions mfd"),
-        (vec!["--json"], "--json"),
-    ] {
-        let mut args = words(
-            "tile plan {} --tile 32 -- masks {} -o {}",
-            &[&plan, &input, &out],
-        );
-        args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-        fails_with(&relief(&args), &[want], &[&plan, &out]);
-    }
+    plan_refuses(
+        "masks",
+        &plan,
+        &input,
+        &out,
+        &[
+            (vec!["--format", "png8"], "--format png8/png16"),
+            (vec!["--deposition-depth", s(&dep)], "--deposition-depth"),
+            (vec!["--directions", "mfd"], "--directions mfd"),
+            (vec!["--json"], "--json"),
+        ],
+    );
     fails_with(
         &relief!["tile", "plan", &plan, "--", "erode", &input, "-o", &out],
         &["relief erode", "cannot be planned"],

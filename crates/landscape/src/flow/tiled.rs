@@ -178,6 +178,19 @@ impl TileLayout {
         Ok(())
     }
 
+    /// [`Self::check`], and one of `items` (`what`) per tile for `phase`: the number of tiles.
+    pub(crate) fn check_all<T>(&self, phase: u8, what: &str, items: &[T]) -> Result<usize> {
+        self.check()?;
+        let tasks = self.tasks();
+        if items.len() != tasks {
+            return Err(bad(format!(
+                "phase {phase} needs the {what} of all {tasks} tiles, got {}",
+                items.len()
+            )));
+        }
+        Ok(tasks)
+    }
+
     /// Tiles per row.
     pub fn tiles_x(&self) -> usize {
         self.width.div_ceil(self.tile)
@@ -410,6 +423,37 @@ pub fn halo_from_rows(
     Ok(out)
 }
 
+/// Kahn's order over a graph whose nodes each drain into at most one other (`indeg[p]` nodes
+/// drain into node `p`): `visit(p)` handles node `p` once every node draining into it is
+/// handled, sources first, first in first out, and gives the node `p` drains into. False when
+/// a cycle leaves nodes unhandled.
+fn drain_order(indeg: &mut [u32], mut visit: impl FnMut(usize) -> Option<usize>) -> bool {
+    let mut queue: Vec<usize> = (0..indeg.len()).filter(|&p| indeg[p] == 0).collect();
+    let mut head = 0;
+    while head < queue.len() {
+        let p = queue[head];
+        head += 1;
+        if let Some(q) = visit(p) {
+            indeg[q] -= 1;
+            if indeg[q] == 0 {
+                queue.push(q);
+            }
+        }
+    }
+    queue.len() == indeg.len()
+}
+
+/// An error unless tile `t` of a task order is in range and not yet done (`taken`: whether it
+/// is done, `None` out of range).
+fn untaken(t: usize, taken: Option<bool>) -> Result<()> {
+    if taken != Some(false) {
+        return Err(bad(format!(
+            "the task order names tile {t} twice or out of range"
+        )));
+    }
+    Ok(())
+}
+
 /// The first five passes in one process, tasks in the order `order(phase, tasks)` gives (the tests
 /// shuffle it): the tiled run of [`TileLayout`] over `dem`, assembled.
 pub fn run_in_memory(
@@ -424,11 +468,7 @@ pub fn run_in_memory(
     let tasks = layout.tasks();
     let mut p1: Vec<Option<(LocalFill, FillGraph)>> = vec![None; tasks];
     for t in order(1, tasks) {
-        if t >= tasks || p1[t].is_some() {
-            return Err(bad(format!(
-                "the task order names tile {t} twice or out of range"
-            )));
-        }
+        untaken(t, p1.get(t).map(Option::is_some))?;
         p1[t] = Some(phase1(layout, t, &halo_window(layout, t, dem)?)?);
     }
     let missing = || bad("the task order leaves a tile out");
@@ -441,11 +481,7 @@ pub fn run_in_memory(
     let levels = phase2(layout, &graphs)?;
     let mut p3: Vec<Option<(Routed, PortGraph)>> = vec![None; tasks];
     for t in order(3, tasks) {
-        if t >= tasks || p3[t].is_some() {
-            return Err(bad(format!(
-                "the task order names tile {t} twice or out of range"
-            )));
-        }
+        untaken(t, p3.get(t).map(Option::is_some))?;
         let near: Vec<(usize, &Levels)> = layout
             .neighbourhood(t)
             .into_iter()
@@ -468,11 +504,7 @@ pub fn run_in_memory(
     };
     let mut done = vec![false; tasks];
     for t in order(5, tasks) {
-        if t >= tasks || done[t] {
-            return Err(bad(format!(
-                "the task order names tile {t} twice or out of range"
-            )));
-        }
+        untaken(t, done.get(t).copied())?;
         done[t] = true;
         let f = phase5(layout, t, &routed[t], &inflow[t])?;
         let [x0, y0, w, h] = layout.window(t);

@@ -183,14 +183,7 @@ fn drain_crossing_flats(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Int
 /// Phase 4: drains the flats that cross tile edges and resolves the ports' graph
 /// (`graphs[t]` is tile `t`'s [`PortGraph`]).
 pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> {
-    layout.check()?;
-    let tasks = layout.tasks();
-    if graphs.len() != tasks {
-        return Err(bad(format!(
-            "phase 4 needs the port graphs of all {tasks} tiles, got {}",
-            graphs.len()
-        )));
-    }
+    let tasks = layout.check_all(4, "port graphs", graphs)?;
     for (t, g) in graphs.iter().enumerate() {
         let [_, _, w, h] = layout.window(t);
         let n = (w * h) as u32;
@@ -273,20 +266,13 @@ pub fn phase4(layout: &TileLayout, graphs: &[PortGraph]) -> Result<Vec<Inflow>> 
             indeg[q] += 1;
         }
     }
-    let mut queue: Vec<usize> = (0..np).filter(|&p| indeg[p] == 0).collect();
-    let mut head = 0;
-    while head < queue.len() {
-        let p = queue[head];
-        head += 1;
-        if let Some((_, Some(q))) = down[p] {
-            total[q] += total[p];
-            indeg[q] -= 1;
-            if indeg[q] == 0 {
-                queue.push(q);
-            }
-        }
-    }
-    if queue.len() != np {
+    let ordered = super::drain_order(&mut indeg, |p| {
+        let (_, q) = down[p]?;
+        let q = q?;
+        total[q] += total[p];
+        Some(q)
+    });
+    if !ordered {
         return Err(bad(
             "the ports' graph has a cycle (the tiles' products do not belong together)",
         ));
@@ -323,6 +309,20 @@ pub struct Finished {
     pub dir: Vec<u8>,
     /// Cells upstream of each cell, itself included (0 on voids).
     pub cells: Vec<u64>,
+}
+
+impl Finished {
+    /// The values of tile `t` cut from those of the whole raster (as [`run_in_memory`] gives
+    /// them): what [`phase5`] gives that tile.
+    pub fn tile(&self, layout: &TileLayout, t: usize) -> Finished {
+        let [x0, y0, tw, th] = layout.window(t);
+        let pick = |i: usize| (y0 + i / tw) * layout.width + x0 + i % tw;
+        Finished {
+            filled: (0..tw * th).map(|i| self.filled[pick(i)]).collect(),
+            dir: (0..tw * th).map(|i| self.dir[pick(i)]).collect(),
+            cells: (0..tw * th).map(|i| self.cells[pick(i)]).collect(),
+        }
+    }
 }
 
 /// Phase 5 of tile `t`: its [`Routed`] tile and its [`Inflow`].

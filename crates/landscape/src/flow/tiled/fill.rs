@@ -158,14 +158,7 @@ pub struct Levels {
 /// Phase 2: joins the tiles' labels and spills (`graphs[t]` is tile `t`'s) and floods the
 /// graph from the outlets.
 pub fn phase2(layout: &TileLayout, graphs: &[FillGraph]) -> Result<Vec<Levels>> {
-    layout.check()?;
-    let tasks = layout.tasks();
-    if graphs.len() != tasks {
-        return Err(bad(format!(
-            "phase 2 needs the graphs of all {tasks} tiles, got {}",
-            graphs.len()
-        )));
-    }
+    let tasks = layout.check_all(2, "graphs", graphs)?;
     let mut base = Vec::with_capacity(tasks + 1);
     let mut next = 1usize;
     for (t, g) in graphs.iter().enumerate() {

@@ -316,14 +316,7 @@ pub fn summarize(
 /// Phase 6: watershed numbers, HAND bases across tile edges and the Strahler order of every
 /// key cell (`sums[t]` is tile `t`'s [`NetSummary`]).
 pub fn phase6(layout: &TileLayout, sums: &[NetSummary]) -> Result<Vec<NetLevels>> {
-    layout.check()?;
-    let tasks = layout.tasks();
-    if sums.len() != tasks {
-        return Err(bad(format!(
-            "phase 6 needs the summaries of all {tasks} tiles, got {}",
-            sums.len()
-        )));
-    }
+    let tasks = layout.check_all(6, "summaries", sums)?;
     // Ends ranked by drainage area (as `basins::watersheds`: area descending, then index).
     let a0 = layout.cell_x * layout.cell_y;
     let mut ends: Vec<(f64, u64)> = Vec::new();
@@ -454,24 +447,17 @@ fn strahler_keys(layout: &TileLayout, sums: &[NetSummary], out: &mut [NetLevels]
         }
     }
     let mut top: Vec<(u8, u8)> = node.iter().map(|(_, k)| k.top).collect();
-    let mut queue: Vec<usize> = (0..m).filter(|&i| indeg[i] == 0).collect();
-    let mut head = 0;
-    while head < queue.len() {
-        let i = queue[head];
-        head += 1;
+    let ordered = super::drain_order(&mut indeg, |i| {
         let o = strahler_of(top[i]);
         let (t, k) = node[i];
         out[t].orders.push((k.cell, o));
-        if down[i] != usize::MAX {
-            let j = down[i];
+        let j = down[i];
+        (j != usize::MAX).then(|| {
             merge_top(&mut top[j], o);
-            indeg[j] -= 1;
-            if indeg[j] == 0 {
-                queue.push(j);
-            }
-        }
-    }
-    if queue.len() != m {
+            j
+        })
+    });
+    if !ordered {
         return Err(bad(
             "the channel keys form a cycle (the tiles' products do not belong together)",
         ));

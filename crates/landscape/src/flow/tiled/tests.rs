@@ -24,6 +24,17 @@ fn single(z: &[f32], w: usize, h: usize, cx: f64, cy: f64) -> Finished {
     }
 }
 
+/// The layout of a `w x h` raster of `cell` metres in tiles of side `tile`.
+fn layout(w: usize, h: usize, tile: usize, cell: (f64, f64)) -> TileLayout {
+    TileLayout {
+        width: w,
+        height: h,
+        tile,
+        cell_x: cell.0,
+        cell_y: cell.1,
+    }
+}
+
 fn shuffled(seed: u64) -> impl FnMut(usize, usize) -> Vec<usize> {
     move |phase, n| {
         let mut v: Vec<usize> = (0..n).collect();
@@ -58,13 +69,7 @@ fn check(z: &[f32], w: usize, h: usize, tiles: &[usize], what: &str) {
     let (cx, cy) = (30.0, 20.0);
     let want = single(z, w, h, cx, cy);
     for (k, &tile) in tiles.iter().enumerate() {
-        let layout = TileLayout {
-            width: w,
-            height: h,
-            tile,
-            cell_x: cx,
-            cell_y: cy,
-        };
+        let layout = layout(w, h, tile, (cx, cy));
         let got = run_in_memory(&layout, z, &mut shuffled(k as u64 + 1)).unwrap();
         assert_same(&got, &want, &format!("{what}, tile {tile}"));
     }
@@ -74,39 +79,7 @@ fn check(z: &[f32], w: usize, h: usize, tiles: &[usize], what: &str) {
 /// every tile edge, a lake on it spanning tiles, integer elevations (flats everywhere) and
 /// voids.
 fn basin_and_river(w: usize, h: usize, voids: bool) -> Vec<f32> {
-    let (fw, fh) = (w as f32, h as f32);
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f32, (i / w) as f32);
-            let u =
-                relief_heightfield::rng::unit_f32(relief_heightfield::rng::hash(3, i as u64, 0, 0));
-            // The bowl: centre of the map, closed on every side.
-            let (dx, dy) = ((x - fw * 0.5) / fw, (y - fh * 0.5) / fh);
-            let r = (dx * dx + dy * dy).sqrt();
-            let bowl = if r < 0.3 {
-                10.0 + 60.0 * r
-            } else {
-                28.0 + (r - 0.3) * 120.0
-            };
-            // The river: a sine from the west edge to the east edge, crossing every row of
-            // tiles on its way (it winds through the whole map) and draining west.
-            let path = fh * (0.5 + 0.42 * (x / fw * 9.0).sin());
-            let river = ((y - path).abs() - 2.0).max(0.0) * 3.0 + x * 0.05;
-            // Inside the bowl, the bowl alone; outside, the terrain falls to the river.
-            let z = if r < 0.3 {
-                bowl
-            } else if (y - path).abs() < 3.0 {
-                river
-            } else {
-                bowl.min(river + 6.0)
-            };
-            if voids && u < 0.01 {
-                f32::NAN
-            } else {
-                (z + u * 2.0).floor()
-            }
-        })
-        .collect()
+    relief_testdata::basin_and_river(w, h, 3, if voids { 0.01 } else { 0.0 })
 }
 
 #[test]
@@ -119,13 +92,7 @@ fn a_basin_over_nine_tiles_and_a_river_across_every_edge_equal_the_single_run() 
     let s = single(&z, w, h, 30.0, 20.0);
     let centre = (h / 2) * w + w / 2;
     assert!(s.filled[centre] > z[centre]);
-    let layout = TileLayout {
-        width: w,
-        height: h,
-        tile: 32,
-        cell_x: 30.0,
-        cell_y: 20.0,
-    };
+    let layout = layout(w, h, 32, (30.0, 20.0));
     let lake: std::collections::BTreeSet<usize> = (0..w * h)
         .filter(|&i| s.filled[i] == s.filled[centre])
         .map(|i| layout.tile_at(i % w, i / w))
@@ -196,13 +163,7 @@ fn the_shared_dems_equal_the_single_run() {
         let z = hf.as_slice();
         let want = single(z, w, h, cx, cy);
         for &tile in tiles {
-            let layout = TileLayout {
-                width: w,
-                height: h,
-                tile,
-                cell_x: cx,
-                cell_y: cy,
-            };
+            let layout = layout(w, h, tile, (cx, cy));
             let got =
                 run_in_memory(&layout, z, &mut shuffled(k as u64 * 31 + tile as u64)).unwrap();
             assert_same(&got, &want, &format!("{id}, tile {tile}"));
@@ -214,13 +175,7 @@ fn the_shared_dems_equal_the_single_run() {
 fn products_round_trip_and_damage_is_refused() {
     let (w, h) = (40, 37);
     let z = basin_and_river(w, h, true);
-    let layout = TileLayout {
-        width: w,
-        height: h,
-        tile: 16,
-        cell_x: 1.0,
-        cell_y: 1.0,
-    };
+    let layout = layout(w, h, 16, (1.0, 1.0));
     let t = 4;
     let (fill, graph) = phase1(&layout, t, &halo_window(&layout, t, &z).unwrap()).unwrap();
     let b = fill.to_bytes(t);
@@ -257,13 +212,7 @@ fn products_round_trip_and_damage_is_refused() {
 fn the_basin_sends_flats_and_inflows_through_phase_4() {
     let (w, h) = (96, 90);
     let z = basin_and_river(w, h, false);
-    let layout = TileLayout {
-        width: w,
-        height: h,
-        tile: 32,
-        cell_x: 30.0,
-        cell_y: 20.0,
-    };
+    let layout = layout(w, h, 32, (30.0, 20.0));
     let p1: Vec<_> = (0..layout.tasks())
         .map(|t| phase1(&layout, t, &halo_window(&layout, t, &z).unwrap()).unwrap())
         .collect();
@@ -342,7 +291,7 @@ proptest::proptest! {
             })
             .collect();
         let want = single(&z, w, h, 10.0, 7.5);
-        let layout = TileLayout { width: w, height: h, tile, cell_x: 10.0, cell_y: 7.5 };
+        let layout = layout(w, h, tile, (10.0, 7.5));
         let got = run_in_memory(&layout, &z, &mut shuffled(seed)).unwrap();
         assert_same(&got, &want, &format!("{w}x{h} tile {tile} seed {seed}"));
         // The network's products too (a channel from a few cells up), unless all are voids.
@@ -355,13 +304,7 @@ proptest::proptest! {
 /// Misuse of the public passes is an error naming the problem, never a panic.
 #[test]
 fn bad_tiles_sizes_and_orders_are_errors() {
-    let layout = TileLayout {
-        width: 20,
-        height: 10,
-        tile: 8,
-        cell_x: 1.0,
-        cell_y: 1.0,
-    };
+    let layout = layout(20, 10, 8, (1.0, 1.0));
     let z = vec![1.0f32; 200];
     assert!(halo_window(&layout, 6, &z).is_err());
     assert!(halo_window(&layout, 0, &z[..199]).is_err());
@@ -391,13 +334,7 @@ fn halos_cut_from_row_bands_equal_those_of_the_whole_dem() {
     // bands), the same values as from the whole DEM; a band missing a row is an error.
     let (w, h) = (37, 29);
     let z = basin_and_river(w, h, true);
-    let layout = TileLayout {
-        width: w,
-        height: h,
-        tile: 8,
-        cell_x: 1.0,
-        cell_y: 1.0,
-    };
+    let layout = layout(w, h, 8, (1.0, 1.0));
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for t in 0..layout.tasks() {
         let whole = halo_window(&layout, t, &z).unwrap();
@@ -442,23 +379,9 @@ fn check_network(
         want.figures.reaches
     );
     for (k, &tile) in tiles.iter().enumerate() {
-        let layout = TileLayout {
-            width: w,
-            height: h,
-            tile,
-            cell_x: cell.0,
-            cell_y: cell.1,
-        };
+        let layout = layout(w, h, tile, cell);
         let all = run_in_memory(&layout, z, &mut shuffled(k as u64 + 40)).unwrap();
-        let cut = |t: usize| {
-            let [x0, y0, tw, th] = layout.window(t);
-            let pick = |i: usize| (y0 + i / tw) * w + x0 + i % tw;
-            Finished {
-                filled: (0..tw * th).map(|i| all.filled[pick(i)]).collect(),
-                dir: (0..tw * th).map(|i| all.dir[pick(i)]).collect(),
-                cells: (0..tw * th).map(|i| all.cells[pick(i)]).collect(),
-            }
-        };
+        let cut = |t: usize| all.tile(&layout, t);
         let sums: Vec<NetSummary> = (0..layout.tasks())
             .map(|t| {
                 let s = summarize(&layout, t, &cut(t), area).unwrap();

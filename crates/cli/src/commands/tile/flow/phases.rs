@@ -333,16 +333,24 @@ fn phase5(
     }
     // The same values `relief flow` writes (relief-landscape's `FlowSettings::run`).
     let (dir_codes, area) = (f.direction_codes(), f.area(l));
-    write_rasters(
-        dir,
-        m,
-        l,
-        t,
-        names.iter().zip([f.filled, dir_codes, area]).collect(),
-    )?;
+    rasters_and_bytes(dir, m, l, t, &names, [f.filled, dir_codes, area], summary)
+}
+
+/// Writes the three rasters of tile `t` under the first three `names`: those three without
+/// their bytes (written) and the fourth with `bytes`.
+fn rasters_and_bytes(
+    dir: &Path,
+    m: &Manifest,
+    l: &TileLayout,
+    t: usize,
+    names: &[String],
+    rasters: [Vec<f32>; 3],
+    bytes: Vec<u8>,
+) -> Result<Vec<(String, Option<Vec<u8>>)>> {
+    write_rasters(dir, m, l, t, names.iter().zip(rasters).collect())?;
     let mut out: Vec<(String, Option<Vec<u8>>)> =
         names[..3].iter().map(|n| (n.clone(), None)).collect();
-    out.push((names[3].clone(), Some(summary)));
+    out.push((names[3].clone(), Some(bytes)));
     Ok(out)
 }
 
@@ -378,15 +386,6 @@ fn phase7(
     }
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
     let (order, label) = r.to_f32(w, input.as_slice());
-    write_rasters(
-        dir,
-        m,
-        l,
-        t,
-        names.iter().zip([order, label, r.hand]).collect(),
-    )?;
-    let mut out: Vec<(String, Option<Vec<u8>>)> =
-        names[..3].iter().map(|n| (n.clone(), None)).collect();
-    out.push((names[3].clone(), Some(net.to_bytes(l, t))));
-    Ok(out)
+    let net = net.to_bytes(l, t);
+    rasters_and_bytes(dir, m, l, t, &names, [order, label, r.hand], net)
 }
