@@ -358,7 +358,7 @@ fn stream_geotiff(sct: &Sct, path: &Path, win: Window, ctx: &Ctx) -> Result<()> 
                     window: Some(window),
                 })
                 .context("cannot rasterise the result")?;
-            Ok(hf.as_slice().to_vec())
+            Ok(hf.into_vec())
         },
     )?;
     ctx.note(format!(

@@ -243,6 +243,16 @@ impl Heightfield {
     pub fn into_array(self) -> Array2<f32> {
         self.data
     }
+    /// Consumes the heightfield and returns its row-major samples, without copying them
+    /// (the array is in standard layout, an invariant, and owns exactly its samples).
+    pub fn into_vec(self) -> Vec<f32> {
+        let n = self.data.len();
+        match self.data.into_raw_vec_and_offset() {
+            (v, Some(0)) if v.len() == n => v,
+            (v, Some(o)) if o + n <= v.len() => v[o..o + n].to_vec(),
+            (v, _) => v,
+        }
+    }
     /// Row-major samples.
     pub fn as_slice(&self) -> &[f32] {
         self.data

@@ -44,6 +44,13 @@ proptest! {
     }
 
     #[test]
+    fn into_vec_is_the_row_major_samples(hf in smooth_field()) {
+        let rows: Vec<f32> = hf.array().iter().copied().collect();
+        prop_assert_eq!(hf.as_slice(), rows.as_slice());
+        prop_assert_eq!(hf.into_vec(), rows);
+    }
+
+    #[test]
     fn downsampling_preserves_the_mean(hf in smooth_field()) {
         let small = hf.resample(hf.width() / 2, hf.height() / 2).unwrap();
         let m = |h: &Heightfield| h.as_slice().iter().map(|&v| v as f64).sum::<f64>() / h.len() as f64;

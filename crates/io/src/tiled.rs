@@ -475,7 +475,7 @@ fn flush_band(
     let os = |e| IoError::os(path, e);
     // A few tiles per worker at a time, so the compressed tiles waiting for their turn stay
     // a few MiB whatever the width.
-    let batch = 2 * rayon::current_num_threads().max(1);
+    let batch = 8 * rayon::current_num_threads().max(1);
     let mut c0 = 0;
     while c0 < cols {
         let c1 = (c0 + batch).min(cols);
