@@ -574,6 +574,18 @@ pub fn render_with_progress(
                             mul(col, 0.2 + 0.35 * clear),
                             mul([0.05, 0.2, 0.4], 1.0 - 0.3 * clear),
                         );
+                        // The surface reflects the sky by Fresnel's law (Schlick, water's
+                        // 2 % at normal incidence, all of it at grazing angles) and fades into
+                        // the haze with distance where no ground is under it (the ground's
+                        // colour has its own), so open water reads as sea to the horizon
+                        // rather than as a flat blue wall.
+                        let refl = [0.55 + 0.3 * (-d[2]), 0.7 + 0.2 * (-d[2]), 0.95];
+                        let fresnel = 0.02 + 0.98 * (1.0 + d[2]).clamp(0.0, 1.0).powi(5);
+                        col = add(mul(col, 1.0 - fresnel), mul(refl, fresnel));
+                        if hit.is_none() {
+                            let haze = (ts / (3.0 * diag)).min(0.6);
+                            col = add(mul(col, 1.0 - haze), mul(sky, haze));
+                        }
                     }
                 }
                 for c in 0..3 {

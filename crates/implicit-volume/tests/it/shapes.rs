@@ -387,6 +387,40 @@ fn deeper_ground_shows_less_through_the_water() {
     );
 }
 
+/// Open water reflects the sky by its angle (Fresnel): seen from a low camera over a small deep
+/// basin, the sea towards the horizon (grazing) is redder (more sky) than the sea at the
+/// frame's foot; the water tint alone gave every row of open water the same flat blue.
+#[test]
+fn open_water_reflects_more_sky_towards_the_horizon() {
+    let hf = relief_heightfield::Heightfield::from_fn(8, 8, 10.0, 10.0, |_, _| -200.0);
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let (w, h) = (32, 48);
+    let cam = Camera {
+        eye: [40.0, -400.0, 60.0],
+        target: [40.0, 400.0, -40.0],
+        up: [0.0, 0.0, 1.0],
+        fov_deg: 50.0,
+    };
+    let s = RenderSettings {
+        width: w,
+        height: h,
+        sea_level: Some(0.0),
+        shadows: false,
+        ..Default::default()
+    };
+    let img = render(&scene, &cam, &s).unwrap();
+    let row = |y: usize| (0..w).map(|x| img.rgb[3 * (y * w + x)] as u32).sum::<u32>() / w as u32;
+    // Red: the water tint has little, the sky's reflection much.
+    let (far, near) = (row(h / 2 + 2), row(h - 1));
+    assert!(
+        far > near + 20,
+        "red at the horizon {far} vs at the foot {near}"
+    );
+}
+
 /// A ray that runs out of steps inside the scene (creeping along ground it grazes) is drawn as
 /// ground, not as a hole of sky: a low camera over a plain with a 6-step budget.
 #[test]
