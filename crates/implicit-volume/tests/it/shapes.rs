@@ -332,6 +332,14 @@ fn shore_erosion_planes_a_low_fringe_to_a_platform_under_the_water() {
     assert!(fringe_is_rock_at(&scene, -4.0 - 1.0));
 }
 
+/// The scene of `hf` alone (no geology, no features).
+fn bare_scene(hf: &relief_heightfield::Heightfield) -> Scene {
+    SceneBuilder::new(hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap()
+}
+
 /// Straight-down renders (40 degrees, no shadows, north up) of `hf`'s scene from `eye`: without
 /// water and with a sea at 0 m.
 fn dry_and_wet(
@@ -339,10 +347,7 @@ fn dry_and_wet(
     eye: [f32; 3],
     (width, height): (usize, usize),
 ) -> (Image, Image) {
-    let scene = SceneBuilder::new(hf, Geology::new(), &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
+    let scene = bare_scene(hf);
     let cam = Camera {
         eye,
         target: [eye[0], eye[1], 0.0],
@@ -393,10 +398,7 @@ fn deeper_ground_shows_less_through_the_water() {
 #[test]
 fn open_water_reflects_more_sky_towards_the_horizon() {
     let hf = relief_heightfield::Heightfield::from_fn(8, 8, 10.0, 10.0, |_, _| -200.0);
-    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
+    let scene = bare_scene(&hf);
     let (w, h) = (32, 48);
     let cam = Camera {
         eye: [40.0, -400.0, 60.0],
@@ -428,10 +430,7 @@ fn rays_out_of_steps_are_ground_not_sky() {
     let hf = relief_heightfield::Heightfield::from_fn(64, 64, 10.0, 10.0, |x, y| {
         ((x as f32) * 0.7).sin() + ((y as f32) * 0.5).cos()
     });
-    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
+    let scene = bare_scene(&hf);
     let (w, h) = (48, 32);
     let s = RenderSettings {
         width: w,
