@@ -556,37 +556,15 @@ pub fn render_with_progress(
                         add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog))
                     }
                 };
-                if let Some(sea) = s.sea_level
-                    && d[2] < 0.0
-                {
-                    let ts = (sea - cam.eye[2]) / d[2];
-                    // Ground within SEA_TOLERANCE of the level is under water: a DEM whose sea
-                    // is stored as a flat surface at the level (SRTM) would otherwise fight
-                    // with the water plane (speckles) and show its coast as cell-edge steps.
-                    let te = (sea + SEA_TOLERANCE - cam.eye[2]) / d[2];
-                    if ts > 0.0 && hit.is_none_or(|t| t > te) {
-                        // The ground shows through the water by its depth (a shelf reads as
-                        // bathymetry, whatever the view's angle).
-                        let depth =
-                            hit.map_or(f32::INFINITY, |t| (sea - (cam.eye[2] + d[2] * t)).max(0.0));
-                        let clear = (-depth / (WATER_CLARITY * (zhi - zlo).max(1e-3))).exp();
-                        col = add(
-                            mul(col, 0.2 + 0.35 * clear),
-                            mul([0.05, 0.2, 0.4], 1.0 - 0.3 * clear),
-                        );
-                        // The surface reflects the sky by Fresnel's law (Schlick, water's
-                        // 2 % at normal incidence, all of it at grazing angles) and fades into
-                        // the haze with distance where no ground is under it (the ground's
-                        // colour has its own), so open water reads as sea to the horizon
-                        // rather than as a flat blue wall.
-                        let refl = [0.55 + 0.3 * (-d[2]), 0.7 + 0.2 * (-d[2]), 0.95];
-                        let fresnel = 0.02 + 0.98 * (1.0 + d[2]).clamp(0.0, 1.0).powi(5);
-                        col = add(mul(col, 1.0 - fresnel), mul(refl, fresnel));
-                        if hit.is_none() {
-                            let haze = (ts / (3.0 * diag)).min(0.6);
-                            col = add(mul(col, 1.0 - haze), mul(sky, haze));
-                        }
-                    }
+                if let Some(sea) = s.sea_level {
+                    let view = View {
+                        eye: cam.eye,
+                        d,
+                        sky,
+                        diag,
+                        relief: zhi - zlo,
+                    };
+                    col = water_over(col, sea, hit, &view);
                 }
                 for c in 0..3 {
                     row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
@@ -602,6 +580,53 @@ pub fn render_with_progress(
         height: s.height,
         rgb,
     })
+}
+
+/// A pixel's ray, for [`water_over`]: the eye, the unit direction, the sky's colour along it,
+/// the scene box's diagonal (haze distance) and height range (water clarity).
+struct View {
+    eye: V3,
+    d: V3,
+    sky: V3,
+    diag: f32,
+    relief: f32,
+}
+
+/// The colour `col` of a pixel whose ray hits the ground at `hit` (`None`: nothing), seen
+/// through a sea at level `sea` when the ray crosses it before the ground.
+fn water_over(col: V3, sea: f32, hit: Option<f32>, v: &View) -> V3 {
+    let (eye, d) = (v.eye, v.d);
+    if d[2] >= 0.0 {
+        return col;
+    }
+    let ts = (sea - eye[2]) / d[2];
+    // Ground within SEA_TOLERANCE of the level is under water: a DEM whose sea is stored as a
+    // flat surface at the level (SRTM) would otherwise fight with the water plane (speckles)
+    // and show its coast as cell-edge steps.
+    let te = (sea + SEA_TOLERANCE - eye[2]) / d[2];
+    if ts <= 0.0 || hit.is_some_and(|t| t <= te) {
+        return col;
+    }
+    // The ground shows through the water by its depth (a shelf reads as bathymetry, whatever
+    // the view's angle).
+    let depth = hit.map_or(f32::INFINITY, |t| (sea - (eye[2] + d[2] * t)).max(0.0));
+    let clear = (-depth / (WATER_CLARITY * v.relief.max(1e-3))).exp();
+    let mut col = add(
+        mul(col, 0.2 + 0.35 * clear),
+        mul([0.05, 0.2, 0.4], 1.0 - 0.3 * clear),
+    );
+    // The surface reflects the sky by Fresnel's law (Schlick, water's 2 % at normal incidence,
+    // all of it at grazing angles) and fades into the haze with distance where no ground is
+    // under it (the ground's colour has its own), so open water reads as sea to the horizon
+    // rather than as a flat blue wall.
+    let refl = [0.55 + 0.3 * (-d[2]), 0.7 + 0.2 * (-d[2]), 0.95];
+    let fresnel = 0.02 + 0.98 * (1.0 + d[2]).clamp(0.0, 1.0).powi(5);
+    col = add(mul(col, 1.0 - fresnel), mul(refl, fresnel));
+    if hit.is_none() {
+        let haze = (ts / (3.0 * v.diag)).min(0.6);
+        col = add(mul(col, 1.0 - haze), mul(v.sky, haze));
+    }
+    col
 }
 
 /// Depth of water, as a share of the scene's height range, under which the ground's light
