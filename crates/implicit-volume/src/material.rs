@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use crate::math::{V3, add, fbm, mul};
+use crate::math::{V3, add, cross, fbm, mul, norm, normalize};
 use crate::mesh::Mesh;
 use crate::scene::Scene;
 
@@ -81,8 +81,8 @@ pub fn ambient_occlusion(scene: &Scene, p: V3, n: V3, radius: f32) -> f32 {
     } else {
         [1.0, 0.0, 0.0]
     };
-    let t = crate::math::normalize(crate::math::cross(n, a));
-    let s = crate::math::cross(n, t);
+    let t = normalize(cross(n, a));
+    let s = cross(n, t);
     let dirs = [
         n,
         add(mul(n, 0.707), mul(t, 0.707)),
@@ -105,7 +105,7 @@ pub fn ambient_occlusion(scene: &Scene, p: V3, n: V3, radius: f32) -> f32 {
 }
 
 /// Display value in `[0, 1]` to an 8-bit sRGB byte.
-fn to_byte(v: f32) -> u8 {
+pub(crate) fn to_byte(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
@@ -113,7 +113,7 @@ fn to_byte(v: f32) -> u8 {
 /// normals (a vertex without a finite normal takes the scene's). The same bytes for any
 /// thread count.
 pub fn vertex_colours(scene: &Scene, mesh: &Mesh) -> Vec<[u8; 4]> {
-    let h = 1e-3 * crate::math::norm(scene.bbox().size()).max(1e-3);
+    let h = 1e-3 * norm(scene.bbox().size()).max(1e-3);
     mesh.positions
         .par_iter()
         .enumerate()
@@ -138,7 +138,7 @@ mod tests {
     /// The floor of a V valley with 60 degree walls 40 m deep is occluded; the flat plains on
     /// either side are not.
     #[test]
-    fn ambient_occlusion_darkens_a_valley_floor_not_a_plain_or_a_crest() {
+    fn ambient_occlusion_darkens_a_valley_floor_not_the_plains_beside_it() {
         let hf = Heightfield::from_fn(64, 16, 2.0, 2.0, |x, _| {
             let d = (x as f32 - 32.0).abs() * 2.0;
             if x < 8 {
@@ -179,7 +179,7 @@ mod tests {
             "{soft:?} {hard:?}"
         );
         assert!(soft.iter().sum::<f32>() < hard.iter().sum::<f32>());
-        // The grain varies the colour by a few per cent, not more than 15 %.
+        // The grain varies the colour by a few per cent: 3-35 % from the lowest to the highest.
         let c = (0..200).map(|i| rock_albedo(0.5, [i as f32 * 1.7, 0.0, 0.0])[0]);
         let (lo, hi) = c.fold((f32::MAX, f32::MIN), |(a, b), v| (a.min(v), b.max(v)));
         assert!(hi / lo > 1.03 && hi / lo < 1.35, "{lo} {hi}");

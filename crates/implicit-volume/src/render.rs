@@ -531,7 +531,7 @@ pub fn render_with_progress(
                             let base = material::rock_albedo(scene.resistance(p), p);
                             let col = mul(base, 0.55 + 0.45 * lam);
                             for c in 0..3 {
-                                row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+                                row[x * 3 + c] = material::to_byte(col[c]);
                             }
                             continue;
                         }
@@ -567,7 +567,7 @@ pub fn render_with_progress(
                     col = water_over(col, sea, hit, &view);
                 }
                 for c in 0..3 {
-                    row[x * 3 + c] = (col[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+                    row[x * 3 + c] = material::to_byte(col[c]);
                 }
             }
             progress.advance(1);
@@ -722,7 +722,7 @@ pub fn section(scene: &Scene, s: &SectionSettings) -> Result<(Image, SectionStat
                     [0.6, 0.75, 0.95]
                 };
                 for k in 0..3 {
-                    col[y * 3 + k] = (c[k].clamp(0.0, 1.0) * 255.0).round() as u8;
+                    col[y * 3 + k] = material::to_byte(c[k]);
                 }
             }
             (col, st)
