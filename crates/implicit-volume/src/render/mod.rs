@@ -2,9 +2,16 @@
 //!
 //! The tracer steps along each ray by `(T - f(p)) / L`, where `L` is a Lipschitz bound of the
 //! field over a ball around `p` ([`Scene::lipschitz`]), so it never steps over a surface thinner
-//! than the bound allows; the ball radius adapts (doubling after free steps).
+//! than the bound allows; the ball radius adapts (doubling after free steps). Two shortcuts
+//! keep that exact but cheaper: a beam pre-pass ([`beam`]) traces one cone per block of 16 x 16
+//! and then 4 x 4 pixels, so each primary ray starts where its block's cone proved the space
+//! in front of it empty; and a primary ray creeping along a surface at the smallest step (the
+//! pixel footprint) skips the interval test of its ball, which fails there, and reuses the
+//! Lipschitz bound while it stays inside the ball the bound was computed over.
 
 use rayon::prelude::*;
+
+mod beam;
 
 use crate::error::{Error, Result};
 use crate::material;
@@ -278,6 +285,7 @@ fn trace(
     max_steps: u32,
     cone: f32,
     bias: f32,
+    creep: bool,
 ) -> Option<f32> {
     let b = scene.bbox();
     // Slab test.
@@ -311,13 +319,19 @@ fn trace(
         }
         b
     };
+    // Creeping along a surface at the smallest step: the interval test of the ball is skipped
+    // (near the surface it fails) and the carving-free tree's Lipschitz bound is reused while
+    // the ray stays in the ball it was computed over (centre, radius, bound).
+    let mut creeping = false;
+    let mut cached: Option<(V3, f32, f32)> = None;
     for _ in 0..max_steps {
         if t > t1 {
             return None;
         }
         let p = add(o, mul(d, t));
+        let floor = eps.max(cone * (t + bias));
         // A ball proven empty by interval arithmetic: jump across it and try a larger one.
-        if scene.max_over(&Aabb::sphere(p, r)) <= THRESHOLD {
+        if !creeping && scene.max_over(&Aabb::sphere(p, r)) <= THRESHOLD {
             t_prev = t;
             t += r;
             r *= 2.0;
@@ -326,8 +340,21 @@ fn trace(
         // In air of the carving-free tree (upper >= f), its cheaper bound gives a safe step.
         let step = match scene.upper_field(p) {
             Some(u) if u < THRESHOLD => {
-                let l = scene.upper_lipschitz(&Aabb::sphere(p, r)).unwrap_or(1e-9);
-                (THRESHOLD - u) / l.max(1e-9)
+                let reuse = cached
+                    .filter(|&(c, rc, _)| norm(sub(p, c)) <= rc)
+                    .map(|(_, _, l)| (THRESHOLD - u) / l)
+                    .filter(|&s| s < floor);
+                match reuse {
+                    Some(s) => s,
+                    None => {
+                        let l = scene
+                            .upper_lipschitz(&Aabb::sphere(p, r))
+                            .unwrap_or(1e-9)
+                            .max(1e-9);
+                        cached = Some((p, r, l));
+                        (THRESHOLD - u) / l
+                    }
+                }
             }
             Some(_) if scene.root_max_over(&Aabb::sphere(p, r)) <= THRESHOLD => r,
             _ => {
@@ -340,13 +367,14 @@ fn trace(
             }
         };
         t_prev = t;
+        creeping = creep && step < floor && step < r;
         if step >= r {
             t += r;
             r *= 2.0;
         } else {
             // Cone marching: never step less than the pixel footprint (features thinner than
             // a pixel may be skipped, a hit is then refined by bisection).
-            let s = step.max(eps).max(cone * (t + bias));
+            let s = step.max(floor);
             t += s;
             r = (2.0 * s).max(4.0 * eps);
         }
@@ -452,18 +480,20 @@ pub fn render_with_progress(
     progress: &dyn relief_heightfield::Progress,
 ) -> Result<Image> {
     let cut = check_view(cam, s)?;
-    let fwd = normalize(sub(cam.target, cam.eye));
-    let right = normalize(cross(fwd, cam.up));
-    let up = cross(right, fwd);
+    let pin = beam::Pinhole::new(cam, s.width, s.height);
     let light = normalize(s.light);
     let fill = normalize([-light[0], -light[1], 0.3]);
-    let th = (0.5 * cam.fov_deg.to_radians()).tan();
-    let aspect = s.width as f32 / s.height as f32;
-    let cone = th / s.height as f32;
+    let cone = pin.th / s.height as f32;
     let b = scene.bbox();
     let diag = norm(b.size());
     let h = 1e-3 * diag;
     let (zlo, zhi) = (b.min[2], b.max[2]);
+    // Shared starts of the primary rays (not with a cut-away: its rays start on the plane).
+    let starts = match cut {
+        None => beam::starts(scene, &pin, s.max_steps),
+        Some(_) => Vec::new(),
+    };
+    let blocks_x = s.width.div_ceil(beam::FINE);
     let stop = std::sync::atomic::AtomicBool::new(false);
     let mut rgb = vec![0u8; s.width * s.height * 3];
     rgb.par_chunks_mut(s.width * 3)
@@ -475,11 +505,12 @@ pub fn render_with_progress(
                 return;
             }
             for x in 0..s.width {
-                let u = ((x as f32 + 0.5) / s.width as f32 * 2.0 - 1.0) * th * aspect;
-                let v = (1.0 - (y as f32 + 0.5) / s.height as f32 * 2.0) * th;
-                let d = normalize(add(fwd, add(mul(right, u), mul(up, v))));
+                let d = pin.dir(x as f32 + 0.5, y as f32 + 0.5);
                 let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
-                let (t0, on_cut) = ray_start(scene, cam.eye, d, cut);
+                let (t0, on_cut) = match starts.get((y / beam::FINE) * blocks_x + x / beam::FINE) {
+                    Some(&t) => (Some(t), false),
+                    None => ray_start(scene, cam.eye, d, cut),
+                };
                 let hit = match t0 {
                     Some(t0) if on_cut => Some(t0),
                     Some(t0) => trace(
@@ -490,6 +521,7 @@ pub fn render_with_progress(
                         s.max_steps,
                         cone,
                         t0,
+                        true,
                     )
                     .map(|t| t + t0),
                     None => None,
@@ -522,6 +554,7 @@ pub fn render_with_progress(
                                 s.max_steps / 2,
                                 cone,
                                 t,
+                                false,
                             )
                             .is_some()
                         {
