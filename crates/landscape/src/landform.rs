@@ -53,6 +53,13 @@ pub struct LandformSettings {
     /// Standard deviation (m) of the Gaussian that spreads each round's incision across the
     /// valley (0: the stream-power channels as cut, one cell wide).
     pub valley_width_m: f64,
+    /// Channel-head drainage area (m^2) of the incision for a x4 step: cells draining less
+    /// are left to the breach and the diffusion. Each further octave of added detail divides
+    /// it by 4 (x16: 1/16 of it): the coarser the input, the fewer of the hollows and
+    /// low-order valleys it holds, so the pass carves them from smaller areas. 1 km^2 is
+    /// where Stock and Dietrich (2003) find the fluvial power law to start in steep terrain;
+    /// 0 incises every cell. Overrides `stream_power.channel_area_m2`.
+    pub channel_head_x4_m2: f64,
     /// Stream-power parameters of the incision (`dt` is set from the years and steps).
     pub stream_power: StreamPowerParams,
 }
@@ -65,6 +72,7 @@ impl Default for LandformSettings {
             incision_years: 60_000.0,
             incision_steps: 1,
             valley_width_m: 60.0,
+            channel_head_x4_m2: 1e6,
             stream_power: StreamPowerParams {
                 diffusion: 0.05,
                 ..StreamPowerParams::default()
@@ -230,8 +238,10 @@ pub fn finish_until(
     }
     let rounds = settings.rounds.max(1);
     let steps = settings.incision_steps.max(1);
+    let octaves_beyond_x4 = (f as f64 / 4.0).log2();
     let sp = StreamPowerParams {
         dt: settings.incision_years / (rounds * steps) as f64,
+        channel_area_m2: settings.channel_head_x4_m2 / 4f64.powf(octaves_beyond_x4),
         ..settings.stream_power
     };
     for _ in 0..settings.rounds {

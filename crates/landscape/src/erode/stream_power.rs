@@ -98,6 +98,12 @@ pub struct StreamPowerParams {
     /// Convergence of the Newton iterations for `n != 1` (m): the residual of the drop to the
     /// receiver.
     pub tolerance: f64,
+    /// Channel-head drainage area (m^2): cells draining less do not incise (0: every cell
+    /// does). The stream-power law describes bedrock and alluvial channels; above the channel
+    /// heads, hillslopes and colluvial hollows are shaped by diffusion and debris flows
+    /// (Montgomery and Dietrich 1988; Stock and Dietrich 2003 find the fluvial power law from
+    /// about 1 km^2 in steep terrain).
+    pub channel_area_m2: f64,
 }
 
 impl Default for StreamPowerParams {
@@ -109,6 +115,7 @@ impl Default for StreamPowerParams {
             diffusion: 0.01,
             dt: 1e3,
             tolerance: 1e-5,
+            channel_area_m2: 0.0,
         }
     }
 }
@@ -154,6 +161,12 @@ impl StreamPowerParams {
             "tolerance",
             self.tolerance,
             "must be in (0, 1e3) m",
+        )?;
+        in_range(
+            "channel_area_m2",
+            self.channel_area_m2,
+            0.0..1e15,
+            "must be >= 0 and finite (m2)",
         )
     }
 
@@ -348,8 +361,12 @@ impl StreamPowerScratch {
                 continue;
             }
             let mut new = zi;
+            let c = count[i] as usize;
+            if (c as f64) * area0 < p.channel_area_m2 {
+                // Above the channel head: no incision (the cell still drains to its receiver).
+                continue;
+            }
             if zr <= zi {
-                let c = count[i] as usize;
                 let kda = match table.get(c) {
                     Some(&v) => v,
                     None => kdt * (c as f64 * area0).powf(p.m),

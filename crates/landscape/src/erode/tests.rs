@@ -77,6 +77,7 @@ fn one_step_matches_fastscapelib_on_non_square_cells() {
             diffusion,
             dt: 1e3,
             tolerance: 1e-5,
+            channel_area_m2: 0.0,
         };
         let mut z = input.clone();
         let f = step(&mut z, &grid, &base, &params, Uplift::Constant(1e-3)).unwrap();
@@ -135,6 +136,7 @@ fn steady_state_follows_the_slope_area_relation() {
         diffusion: 0.0,
         dt: 2e4,
         tolerance: 1e-5,
+        channel_area_m2: 0.0,
     };
     let u = 1e-3;
     let f = run(
@@ -447,4 +449,28 @@ pub(super) fn assert_stopping_leaves_the_input_alone<T: std::fmt::Debug>(
     let e = run(&mut z, &|| true);
     assert!(matches!(e, Err(LandscapeError::Stopped(_))), "{e:?}");
     assert_eq!(z, before);
+}
+
+#[test]
+fn cells_above_the_channel_head_do_not_incise() {
+    // No uplift, no diffusion: a cell changes only by incision. A 64 x 64 grid of 100 m
+    // cells drains 4.1e7 m^2 in all; each cell 1e4 m^2.
+    let grid = square(64, 64, 100.0);
+    let z0 = noisy_plateau(&grid, 0.0, 1.0, 11);
+    let base = base_level_mask(&z0, &grid);
+    let changed = |channel_area_m2: f64| {
+        let params = StreamPowerParams {
+            k: 1e-4,
+            diffusion: 0.0,
+            dt: 1e3,
+            channel_area_m2,
+            ..StreamPowerParams::default()
+        };
+        let mut z = z0.clone();
+        step(&mut z, &grid, &base, &params, Uplift::Constant(0.0)).unwrap();
+        z.iter().zip(&z0).filter(|(a, b)| a != b).count()
+    };
+    let (all, some, none) = (changed(0.0), changed(2e5), changed(1e9));
+    assert_eq!(none, 0);
+    assert!(some > 0 && 2 * some < all, "{all} {some}");
 }
