@@ -118,15 +118,7 @@ fn beam(scene: &Scene, o: V3, axis: V3, a: f32, t_start: f32, max_steps: u32) ->
     let b = scene.bbox();
     let diag = norm(b.size());
     // Beyond the farthest corner of the scene box from `o`, every ray is outside the box.
-    let mut far = 0.0f32;
-    for k in 0..8 {
-        let c = [
-            if k & 1 == 0 { b.min[0] } else { b.max[0] },
-            if k & 2 == 0 { b.min[1] } else { b.max[1] },
-            if k & 4 == 0 { b.min[2] } else { b.max[2] },
-        ];
-        far = far.max(norm(sub(c, o)));
-    }
+    let far = b.max_dist_sq_to_segment(o, o).sqrt();
     let mut t = t_start;
     let mut r = 0.02 * diag;
     let min_step = 1e-5 * diag;
