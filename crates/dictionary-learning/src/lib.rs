@@ -128,7 +128,10 @@ pub use quality::{
     BoxProtocolRow, QualityRow, box_protocol, corner_bicubic, detail_swing, evaluate,
     highpass_swing, laplacian_histogram_distance, phase_swing, repeat_score, swing_floor,
 };
-pub use sketch::{SynthesisFigures, SynthesisSettings, synthesize, synthesize_with_figures};
+pub use sketch::{
+    SynthesisFigures, SynthesisSettings, synthesize, synthesize_with_figures,
+    synthesize_with_strokes,
+};
 pub use structure::{StructureReport, StructureSettings, exemplar_structure};
 
 /// Stacks the patch matrices of several terrains (same geometry) into one training matrix, for

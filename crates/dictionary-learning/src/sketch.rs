@@ -24,7 +24,7 @@ use crate::multires::{
     AmplifySettings, DictionaryChoice, STEP_FACTOR, StepScale, amplify_with_figures,
 };
 use crate::structure::{StructureReport, StructureSettings, exemplar_structure};
-use relief_landscape::grow::{GrowSettings, grow};
+use relief_landscape::grow::{GrowSettings, Strokes, grow_with_strokes};
 
 /// Settings of the sketch-synthesis job ([`synthesize`]); serde as [`AmplifySettings`] (fields
 /// missing inside a JSON `amplify` object take [`AmplifySettings`]' defaults, not the ones
@@ -111,6 +111,31 @@ pub fn synthesize_with_figures(
     settings: &SynthesisSettings,
     progress: &dyn Progress,
 ) -> Result<(Sct, SynthesisFigures)> {
+    synthesize_with_strokes(sketch, &Strokes::default(), exemplar, settings, progress)
+}
+
+/// [`synthesize_with_figures`] with explicit ridge and river strokes painted beside the sketch
+/// (figure 12's lines; [`Strokes`], each of the sketch's size or an integer fraction of it),
+/// which the landscape evolution ([`SynthesisSettings::grow`]) follows: ridges raise the
+/// uplift, rivers cancel it so they stay valley floors.
+///
+/// Errors: those of [`synthesize_with_figures`]; strokes without the landscape evolution
+/// (`grow: None`), of another size, or with voids.
+pub fn synthesize_with_strokes(
+    sketch: &Heightfield,
+    strokes: &Strokes,
+    exemplar: &Heightfield,
+    settings: &SynthesisSettings,
+    progress: &dyn Progress,
+) -> Result<(Sct, SynthesisFigures)> {
+    if !strokes.is_empty() && settings.grow.is_none() {
+        return Err(LearnError::param(
+            "strokes",
+            "ridges/rivers",
+            "need the landscape evolution (grow); the paper's method reads the sketch alone",
+        ));
+    }
+    strokes.check(sketch.width(), sketch.height())?;
     settings.amplify.check()?;
     settings.structure.check()?;
     sketch.require_complete()?;
@@ -152,7 +177,7 @@ pub fn synthesize_with_figures(
     };
     s.set_cell_size(sx, sy)?;
     if let Some(g) = &settings.grow {
-        return grown(&s, exemplar, (lo, hi), g, settings, progress);
+        return grown(&s, strokes, exemplar, (lo, hi), g, settings, progress);
     }
     let structure = if settings.structure.radius > 0.0 {
         // Patches at most half the sketch wide: a larger radius would paste one exemplar
@@ -183,6 +208,7 @@ pub fn synthesize_with_figures(
 /// mapped to `(lo, hi)` at its cell size.
 fn grown(
     s: &Heightfield,
+    strokes: &Strokes,
     exemplar: &Heightfield,
     (lo, hi): (f32, f32),
     g: &GrowSettings,
@@ -201,8 +227,11 @@ fn grown(
         (s.clone(), steps)
     };
     progress.begin("growing relief (landscape evolution)", 0);
-    let relief = grow(
+    // The strokes (checked against the sketch) follow the map's resampling.
+    let (mw, mh) = (map.width(), map.height());
+    let relief = grow_with_strokes(
         &map,
+        &strokes.resampled(mw, mh)?,
         &GrowSettings {
             seed: g.seed ^ settings.amplify.seed,
             ..*g

@@ -6,9 +6,10 @@
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use relief_dictionary_learning::{
-    AmplifySettings, SynthesisSettings, amplify_with_figures, synthesize_with_figures,
+    AmplifySettings, SynthesisSettings, amplify_with_figures, synthesize_with_strokes,
 };
 use relief_heightfield::{Heightfield, Progress, Window};
+use relief_landscape::grow::Strokes;
 use relief_landscape::landform::{LandformSettings, finish_until};
 use relief_sparse_core::RasterSettings;
 use relief_wavelet_lod::{RefineSettings, Refiner};
@@ -155,7 +156,7 @@ pub(crate) fn amplify<'py>(
 
 /// `relief synthesize`: see `relief.synthesize`.
 #[pyfunction]
-#[pyo3(signature = (sketch, cell_size, exemplar, exemplar_cell_size, settings, paper, window, progress))]
+#[pyo3(signature = (sketch, cell_size, exemplar, exemplar_cell_size, settings, paper, window, progress, ridges=None, rivers=None))]
 pub(crate) fn synthesize<'py>(
     py: Python<'py>,
     sketch: PyReadonlyArray2<'py, f32>,
@@ -166,6 +167,8 @@ pub(crate) fn synthesize<'py>(
     paper: bool,
     window: Option<WindowTuple>,
     progress: Option<Py<PyAny>>,
+    ridges: Option<PyReadonlyArray2<'py, f32>>,
+    rivers: Option<PyReadonlyArray2<'py, f32>>,
 ) -> PyResult<Out<'py>> {
     let mut base = SynthesisSettings::default();
     if paper {
@@ -181,10 +184,22 @@ pub(crate) fn synthesize<'py>(
     settings.structure.check().map_err(Failure::value)?;
     let sketch = complete_array(&sketch, cell_size, &NO_GEO, "sketch")?;
     let exemplar = complete_array(&exemplar, exemplar_cell_size, &NO_GEO, "exemplar")?;
+    let layer = |a: &Option<PyReadonlyArray2<'py, f32>>, name: &str| {
+        a.as_ref()
+            .map(|a| complete_array(a, (1.0, 1.0), &NO_GEO, name))
+            .transpose()
+    };
+    let strokes = Strokes {
+        ridges: layer(&ridges, "ridges")?,
+        rivers: layer(&rivers, "rivers")?,
+    };
+    strokes
+        .check(sketch.width(), sketch.height())
+        .map_err(Failure::value)?;
     let raster = raster_settings(window);
     let (hf, notes) = run(py, progress, move |p| {
-        let (sct, figures) =
-            synthesize_with_figures(&sketch, &exemplar, &settings, p).map_err(|e| stop_or(e, p))?;
+        let (sct, figures) = synthesize_with_strokes(&sketch, &strokes, &exemplar, &settings, p)
+            .map_err(|e| stop_or(e, p))?;
         let mut notes: Vec<String> = figures.structure.iter().map(|s| s.note.clone()).collect();
         notes.extend(figures.steps.iter().map(|s| s.note.clone()));
         let hf = sct

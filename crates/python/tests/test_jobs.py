@@ -56,6 +56,19 @@ def test_erode_and_masks():
     assert np.allclose(m["splat"].sum(axis=2), 1.0, atol=1e-4)
 
 
+def test_synthesize_follows_river_and_ridge_strokes():
+    y, x = np.mgrid[0:16, 0:16].astype(np.float32)
+    sketch = np.exp(-((x - 7.5) ** 2 + (y - 7.5) ** 2) / 40.0).astype(np.float32)
+    river = np.where((x == 11) & (y >= 7), 1.0, 0.0).astype(np.float32)
+    kw = dict(steps=2, seed=1, sketch_cell_size=[1000.0, 1000.0], height_range=[0.0, 2000.0])
+    plain = relief.synthesize(sketch, FIXTURE, **kw)
+    cut = relief.synthesize(sketch, FIXTURE, rivers=river, **kw)
+    corridor = (slice(8 * 16, 13 * 16), slice(11 * 16, 12 * 16))
+    assert cut[corridor].mean() < plain[corridor].mean() - 100.0
+    with pytest.raises(ValueError, match="river strokes"):
+        relief.synthesize(sketch, FIXTURE, rivers=river[:5, :5], **kw)
+
+
 def test_synthesize_from_a_sketch():
     sketch = np.zeros((16, 16), np.float32)
     sketch[4:12, 6:10] = 1.0

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use relief_dictionary_learning::{
-    AmplifySettings, StructureSettings, SynthesisSettings, synthesize_with_figures,
+    AmplifySettings, StructureSettings, SynthesisSettings, synthesize_with_strokes,
 };
 
 use crate::ctx::Ctx;
@@ -65,6 +65,17 @@ pub(crate) struct Args {
     /// amplified directly (with the structure step).
     #[command(flatten)]
     pub(crate) landform: crate::landform::LandformArg,
+    /// Ridge lines painted beside the sketch (a raster of the sketch's size or an integer
+    /// fraction of it; bright = ridge): the grown relief gets extra uplift there, so its
+    /// divides follow them (figure 12's ridge strokes). Needs the grown relief (not with
+    /// `--paper` or `--landform off`).
+    #[arg(long, value_name = "RASTER")]
+    pub(crate) ridges: Option<PathBuf>,
+    /// Rivers painted beside the sketch (as `--ridges`; bright = river): no uplift under the
+    /// stroke, so it stays a valley floor while the land around it rises; draw a river to the
+    /// map's edge for it to drain there.
+    #[arg(long, value_name = "RASTER")]
+    pub(crate) rivers: Option<PathBuf>,
 }
 
 /// Reads the sketch and exemplar, synthesises, writes.
@@ -114,11 +125,37 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let settings = settings(&args, ctx)?;
     let window = args.window.window;
     check_output_path(&args.output, window)?;
+    let stroke_paths: Vec<&std::path::Path> = args
+        .ridges
+        .iter()
+        .chain(&args.rivers)
+        .map(PathBuf::as_path)
+        .collect();
+    if !stroke_paths.is_empty() && settings.grow.is_none() {
+        anyhow::bail!(
+            "--ridges and --rivers shape the grown relief: drop --paper / --landform off to use \
+             them"
+        );
+    }
+    let mut inputs = vec![args.sketch.as_path(), args.exemplar.exemplar.as_path()];
+    inputs.extend(stroke_paths);
     ctx.check_outputs(
-        &[&args.sketch, &args.exemplar.exemplar],
+        &inputs,
         &[(&args.output, crate::outputs::OutKind::RasterOrSct)],
     )?;
     let sketch = super::read_raster(&args.sketch, &super::ReadArgs::default(), ctx)?.heightfield;
+    let read_strokes = |p: &Option<PathBuf>| -> Result<Option<relief_heightfield::Heightfield>> {
+        p.as_ref()
+            .map(|p| Ok(super::read_raster(p, &super::ReadArgs::default(), ctx)?.heightfield))
+            .transpose()
+    };
+    let strokes = relief_landscape::grow::Strokes {
+        ridges: read_strokes(&args.ridges)?,
+        rivers: read_strokes(&args.rivers)?,
+    };
+    strokes
+        .check(sketch.width(), sketch.height())
+        .context("cannot use the strokes")?;
     let exemplar = args.exemplar.read(ctx)?;
     crate::sparse_model::preflight(
         ctx,
@@ -130,13 +167,15 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     )?;
     let (sct, figures) = {
         let progress = ctx.progress();
-        synthesize_with_figures(&sketch, &exemplar, &settings, &progress).with_context(|| {
-            format!(
-                "cannot synthesise from {} with {}",
-                args.sketch.display(),
-                args.exemplar.exemplar.display()
-            )
-        })?
+        synthesize_with_strokes(&sketch, &strokes, &exemplar, &settings, &progress).with_context(
+            || {
+                format!(
+                    "cannot synthesise from {} with {}",
+                    args.sketch.display(),
+                    args.exemplar.exemplar.display()
+                )
+            },
+        )?
     };
     if let Some(st) = &figures.structure {
         ctx.note(st.note.clone());

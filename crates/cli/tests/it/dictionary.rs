@@ -164,6 +164,81 @@ fn amplify_x16_two_steps() {
 
 /// Figure 12: a painted sketch (a ridge and a basin) becomes a terrain with the exemplar's
 /// elevation range whose large-scale shape follows the sketch.
+/// `--rivers` and `--ridges`: a river painted from the southern edge into a painted range
+/// becomes a valley (lower than the same ground grown without it), a ridge line raises the
+/// ground under it; strokes of the wrong size or without the grown relief are refused.
+#[test]
+fn synthesize_follows_ridge_and_river_strokes() {
+    let dem = fixture();
+    let tmp = tempfile::tempdir().unwrap();
+    let sketch = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
+        let (x, y) = (x as f32 - 7.5, y as f32 - 7.5);
+        255.0 * (-(x * x + y * y) / 40.0).exp()
+    });
+    let river = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
+        if x == 11 && y >= 7 { 255.0 } else { 0.0 }
+    });
+    let ridge = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
+        if y == 4 && (3..13).contains(&x) {
+            255.0
+        } else {
+            0.0
+        }
+    });
+    let sk = write(tmp.path(), "sketch.npy", &sketch);
+    let rv = write(tmp.path(), "river.npy", &river);
+    let rg = write(tmp.path(), "ridge.npy", &ridge);
+    let ex = write(tmp.path(), "ex.tif", &dem.crop(0, 0, 384, 384).unwrap());
+    let line =
+        "synthesize {} {} --exemplar {} --steps 2 --sketch-cell-size 1000 --height-range 0,2000";
+    let plain = ok_read(line, &[&sk, &tmp.path().join("plain.tif"), &ex]);
+    let strokes_out = tmp.path().join("strokes.tif");
+    let with = ok_read(
+        &format!("{line} --rivers {{}} --ridges {{}}"),
+        &[&sk, &strokes_out, &ex, &rv, &rg],
+    );
+    // Mean height over sketch cells (x0..x1, y0..y1) (16 output cells each).
+    let mean = |z: &Heightfield, x0: usize, x1: usize, y0: usize, y1: usize| {
+        let mut s = 0.0f64;
+        for y in 16 * y0..16 * y1 {
+            for x in 16 * x0..16 * x1 {
+                s += f64::from(z.get(x, y));
+            }
+        }
+        s / (256 * (x1 - x0) * (y1 - y0)) as f64
+    };
+    let (r_with, r_plain) = (mean(&with, 11, 12, 8, 13), mean(&plain, 11, 12, 8, 13));
+    assert!(r_with < r_plain - 100.0, "river {r_with} vs {r_plain} m");
+    let (g_with, g_plain) = (mean(&with, 4, 12, 4, 5), mean(&plain, 4, 12, 4, 5));
+    eprintln!(
+        "strokes: river {r_with:.0} m (without {r_plain:.0}), ridge {g_with:.0} m (without {g_plain:.0})"
+    );
+    assert!(g_with > g_plain + 50.0, "ridge {g_with} vs {g_plain} m");
+    // Refused: strokes of another size, and strokes without the grown relief.
+    let small = write(
+        tmp.path(),
+        "small.npy",
+        &Heightfield::from_fn(5, 5, 1.0, 1.0, |_, _| 0.0),
+    );
+    let bad_out = tmp.path().join("bad.tif");
+    fails(
+        &relief_line(
+            &format!("{line} --rivers {{}}"),
+            &[&sk, &bad_out, &ex, &small],
+        ),
+        &bad_out,
+        &["river strokes (5x5)"],
+    );
+    fails(
+        &relief_line(
+            &format!("{line} --ridges {{}} --landform off"),
+            &[&sk, &bad_out, &ex, &rg],
+        ),
+        &bad_out,
+        &["--ridges and --rivers"],
+    );
+}
+
 #[test]
 fn synthesize_from_painted_sketch() {
     let dem = fixture();

@@ -339,6 +339,8 @@ def synthesize(
     paper: bool = False,
     window: Optional[Tuple[int, int, int, int]] = None,
     progress: Any = None,
+    ridges: Any = None,
+    rivers: Any = None,
     **settings: Any,
 ) -> Any:
     """A terrain from a painted sketch (bright = high) and an exemplar DEM, by x4
@@ -348,7 +350,10 @@ def synthesize(
     ``structure``, ``grow`` (None turns it off), ``sketch_cell_size``, ``height_range``);
     ``steps`` and ``seed`` are accepted at the top level as ``amplify``'s. ``paper``: the
     paper's plain method. The sketch's cell size is only used when given (else the
-    library's ``sketch_cell_size`` rule applies)."""
+    library's ``sketch_cell_size`` rule applies). ``ridges`` / ``rivers``: stroke layers
+    painted beside the sketch (2-D arrays of its shape or an integer fraction of it, bright =
+    stroke), as ``--ridges`` / ``--rivers``: ridge lines raise the grown relief, rivers stay
+    valley floors (they need the landscape evolution: not with ``paper``)."""
     amp = dict(settings.pop("amplify", {}) or {})
     for k in ("steps", "seed"):
         if k in settings:
@@ -357,9 +362,11 @@ def synthesize(
         settings["amplify"] = amp
     g = _grid(sketch, cell_size)
     ex, ex_cell = _exemplar(exemplar, (1.0, 1.0))
+    layer = lambda a: None if a is None else _f32(a)
     out, t, notes = _relief.synthesize(
         g.array, g.cell or (1.0, 1.0), ex, ex_cell, _json(settings), bool(paper),
         None if window is None else tuple(int(v) for v in window), _progress(progress),
+        layer(ridges), layer(rivers),
     )
     _notes(notes)
     return _result(g, out, t, None)

@@ -45,7 +45,8 @@ def amplify(
 
 def synthesize(
     sketch: F32, cell_size: Cell, exemplar: F32, exemplar_cell_size: Cell, settings: str, paper: bool,
-    window: Optional[Window], progress: Progress,
+    window: Optional[Window], progress: Progress, ridges: Optional[F32] = None,
+    rivers: Optional[F32] = None,
 ) -> Tuple[F32, Optional[str], List[str]]:
     """``relief synthesize``: (raster, georeference JSON, notes)."""
 
