@@ -227,11 +227,11 @@ fn grown(
         (s.clone(), steps)
     };
     progress.begin("growing relief (landscape evolution)", 0);
-    // The strokes (checked against the sketch) follow the map's resampling.
-    let (mw, mh) = (map.width(), map.height());
     let relief = grow_with_strokes(
         &map,
-        &strokes.resampled(mw, mh)?,
+        // Strokes of the sketch's size are an integer fraction of the map: `grow` resamples
+        // them as the map was.
+        strokes,
         &GrowSettings {
             seed: g.seed ^ settings.amplify.seed,
             ..*g

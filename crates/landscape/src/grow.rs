@@ -14,6 +14,10 @@
 //! hillslope diffusivity of 0.05 m^2/yr, in 100 steps of 20 kyr (with much longer steps the
 //! network keeps the flow directions of the initial slope: parallel gullies down every flank
 //! instead of valleys that capture one another and merge).
+//!
+//! Ridge and river strokes painted beside the map ([`Strokes`], [`grow_with_strokes`]) raise
+//! the uplift under ridge lines and cancel it under rivers, each faded over
+//! [`GrowSettings::stroke_width_m`] metres, so the divides and the main valleys follow them.
 
 use relief_heightfield::Heightfield;
 use relief_heightfield::param::{ParamError, ensure, in_range};
@@ -126,20 +130,6 @@ impl Strokes {
     /// Whether neither layer is given.
     pub fn is_empty(&self) -> bool {
         self.ridges.is_none() && self.rivers.is_none()
-    }
-
-    /// Each layer resampled to `w` x `h` cells.
-    pub fn resampled(&self, w: usize, h: usize) -> Result<Strokes> {
-        let r = |m: &Option<Heightfield>| -> Result<Option<Heightfield>> {
-            Ok(match m {
-                Some(m) if (m.width(), m.height()) != (w, h) => Some(m.resample(w, h)?),
-                other => other.clone(),
-            })
-        };
-        Ok(Strokes {
-            ridges: r(&self.ridges)?,
-            rivers: r(&self.rivers)?,
-        })
     }
 
     /// Checks that each layer has the size `w` x `h` of the map it paints over, or an integer
