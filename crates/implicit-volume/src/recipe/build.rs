@@ -586,11 +586,11 @@ impl Basis<'_> {
             count: dims.hoodoo_count,
             height,
             radius,
-            spacing: 4.0 * radius,
+            spacing: 3.2 * radius,
             min_slope_deg: 15.0,
             max_slope_deg: 55.0,
             cap_rho: 0.55,
-            per_cluster: 6,
+            per_cluster: 12,
             seed: self.sub(5),
         };
         let rep = o.b.hoodoos(&h, &o.region)?;

@@ -94,7 +94,8 @@ pub fn closeup_views(
     for h in rep.highlights.iter().take(4) {
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
-            Feature::Hoodoos => own(d.hoodoo_height_m) * 5.0,
+            // A cluster, seen whole (the highlighted member may be a short spire).
+            Feature::Hoodoos => own(d.hoodoo_height_m).max(d.hoodoo_height_m) * 5.0,
             Feature::Arches => own(d.arch_span_m) * 3.0,
             Feature::Islands => own(d.island_radius_m) * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,
@@ -131,6 +132,15 @@ pub fn closeup_views(
         // is seen obliquely (50 degrees off its normal), so its ledges stand out against
         // the hollows under them.
         let from = match (h.feature, h.from) {
+            // A hoodoo cluster from down its slope and to the sunlit side (45 degrees off the
+            // fall line), so the ground falls away from the eye and the columns are lit.
+            (Feature::Hoodoos, Some(v)) => {
+                let mut c = [-v[1], v[0]];
+                if c[0] * tile.light[0] + c[1] * tile.light[1] < 0.0 {
+                    c = [v[1], -v[0]];
+                }
+                Some([v[0] + c[0], v[1] + c[1], 0.0])
+            }
             (Feature::Arches, Some(v)) if v[0] * tile.light[0] + v[1] * tile.light[1] < 0.0 => {
                 Some([-v[0], -v[1], v[2]])
             }
@@ -141,6 +151,10 @@ pub fn closeup_views(
             (_, v) => v,
         };
         let cam = match from {
+            // A hoodoo cluster from 20 degrees above, over the crest of its slope.
+            Some(v) if h.feature == Feature::Hoodoos => {
+                Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.36])
+            }
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),
         };

@@ -198,7 +198,7 @@ pub struct Densities {
 impl Default for Densities {
     fn default() -> Self {
         Self {
-            hoodoos_per_km2: 20.0,
+            hoodoos_per_km2: 60.0,
             arches_per_km2: 2.0,
             islands_per_km2: 0.1,
             caves_per_km2: 10.0,

@@ -7,10 +7,16 @@
 //!   over it holds a resistant bed (`rho >= cap_rho`) between 0.6 and 1.4 times the nominal
 //!   height, the nearest to it, with mostly soft rock (`rho < 0.5`) under that bed: the bed
 //!   becomes the cap, the soft rock the column;
-//! * **clusters**: qualifying sites in hashed order, the steeper (at least 25 degrees) first
-//!   and, among those, the ones whose cap stands within 20 % of the nominal height first,
-//!   seed clusters `6 spacing` apart; each cluster takes up to `per_cluster` sites within
-//!   `2 spacing` of its seed, `spacing` apart from every hoodoo placed.
+//! * **clusters**: qualifying DEM nodes in hashed order, the steeper (at least 25 degrees)
+//!   first and, among those, the ones whose cap stands within 20 % of the nominal height
+//!   first, seed clusters `6 spacing` apart. A cluster is a field of rows along a joint
+//!   direction hashed from its seed: members on a staggered lattice `spacing` apart along a
+//!   row and `1.15 spacing` between rows (jittered by 15 %, anywhere between DEM nodes),
+//!   within an ellipse of 3.2 by 2.2 steps, nearest the seed first, each one a qualifying site
+//!   no closer than `0.8 spacing` to another; up to `per_cluster` of them.
+//! * **fins**: half the neighbours of a row stay joined at their feet by the fin they were cut
+//!   from, a wall up to 15-45 % of the lower one's height, thick where the strata are hard
+//!   and tapering upwards.
 //!
 //! Shape of one hoodoo (visible radius `R` = `radius`):
 //! * the column, from under the lowest ground around it up to the cap bed, is a stack of
@@ -21,10 +27,14 @@
 //!   little;
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
-//!   the bed (within `[0.15, 1.2] R`) and `R (0.9 + 0.6 rho)` in radius, wider than the
+//!   the bed (within `[0.15, 1.2] R`) and `R (0.75 + 0.5 rho)` in radius, wider than the
 //!   column above its foot;
-//! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap);
-//! * a noise warp (`0.12 R` at `0.8 R`) creases the whole.
+//! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap),
+//!   and the last `0.8 R` under the cap, sheltered by it, widens towards the cap;
+//! * a third of the hoodoos have lost their cap: the column stops at 50-90 % of the capped
+//!   height and rounds to a blunt spire over its top `1.5 R`;
+//! * a noise warp stretched vertically (`0.12 R` deep, `0.5 R` across, `3 R` long) flutes the
+//!   column and its cap with rills.
 
 use super::*;
 use relief_heightfield::param::in_range;
@@ -34,6 +44,9 @@ const VISIBLE: f32 = 0.454_4;
 
 /// Slope (degrees) from which a qualifying site counts as steep badland (placed first).
 const BADLAND_SLOPE_DEG: f32 = 25.0;
+
+/// Share of the hoodoos that have lost their cap (spires of 50-90 % of the capped height).
+const CAPLESS: f32 = 0.35;
 
 /// A qualifying hoodoo site: the ground node, its cap bed and its slope.
 #[derive(Debug, Clone, Copy)]
@@ -83,39 +96,124 @@ impl SceneBuilder {
         Some(((base, top), hard))
     }
 
-    /// Every DEM node where a hoodoo could stand ([module docs](self)).
-    fn hoodoo_sites(&self, s: &HoodooSettings, region: &Region) -> Vec<Site> {
+    /// A hoodoo site at scene `(x, y)` if it qualifies ([module docs](self)): inside the
+    /// margin and the region, on a slope in range at its nearest DEM node, with a cap bed.
+    fn site_at(
+        &self,
+        s: &HoodooSettings,
+        region: &Region,
+        x: f32,
+        y: f32,
+        idx: u64,
+    ) -> Option<Site> {
         let f = self.frame;
         let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
         let margin = 2.0 * s.radius;
+        if x < margin || y < margin || x > xm - margin || y > ym - margin {
+            return None;
+        }
+        let (j, i) = f.cell([x, y, 0.0])?;
+        let nz = self.slope_normal(j, i)[2];
         let (cos_min, cos_max) = (
             s.min_slope_deg.to_radians().cos(),
             s.max_slope_deg.to_radians().cos(),
         );
+        let p = [x, y, self.ground(x, y)];
+        if nz > cos_min + 1e-6 || nz < cos_max || region.weight(&f, p) <= 0.0 {
+            return None;
+        }
+        let (bed, rho_cap) = self.cap_bed(p, s.height, s.cap_rho, s.radius)?;
+        Some(Site {
+            p,
+            bed,
+            rho_cap,
+            slope: nz.clamp(-1.0, 1.0).acos().to_degrees(),
+            idx,
+        })
+    }
+
+    /// The horizontal downslope direction at `p` (from its nearest DEM node; east on flat
+    /// ground): a camera there sees a cluster against its slope.
+    fn downslope(&self, p: V3) -> V3 {
+        let n = match self.frame.cell(p) {
+            Some((j, i)) => self.slope_normal(j, i),
+            None => [0.0, 0.0, 1.0],
+        };
+        let l = n[0].hypot(n[1]);
+        if l > 1e-6 {
+            [n[0] / l, n[1] / l, 0.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        }
+    }
+
+    /// Every DEM node where a hoodoo could stand ([module docs](self)).
+    fn hoodoo_sites(&self, s: &HoodooSettings, region: &Region) -> Vec<Site> {
+        let f = self.frame;
         let nodes: Vec<(usize, usize)> = (0..f.height)
             .flat_map(|i| (0..f.width).map(move |j| (j, i)))
             .collect();
         nodes
             .par_iter()
             .filter_map(|&(j, i)| {
-                let p = f.node(j, i, self.dem_at(j, i));
-                if p[0] < margin || p[1] < margin || p[0] > xm - margin || p[1] > ym - margin {
-                    return None;
-                }
-                let nz = self.slope_normal(j, i)[2];
-                if nz > cos_min + 1e-6 || nz < cos_max || region.weight(&f, p) <= 0.0 {
-                    return None;
-                }
-                let (bed, rho_cap) = self.cap_bed(p, s.height, s.cap_rho, s.radius)?;
-                Some(Site {
-                    p,
-                    bed,
-                    rho_cap,
-                    slope: nz.clamp(-1.0, 1.0).acos().to_degrees(),
-                    idx: (i * f.width + j) as u64,
-                })
+                let p = f.node(j, i, 0.0);
+                self.site_at(s, region, p[0], p[1], (i * f.width + j) as u64)
             })
             .collect()
+    }
+
+    /// The members of the cluster around `centre` ([module docs](self)): sites on a
+    /// staggered lattice of rows along a joint direction hashed from the centre, `spacing`
+    /// apart along a row and `1.15 spacing` between rows, jittered by 15 %, within an ellipse
+    /// of `3.2` by `2.2` steps, nearest the centre first; none closer than `0.8 spacing` to
+    /// a hoodoo already placed. Each member comes with its lattice `(row, column)`.
+    fn hoodoo_cluster(
+        &self,
+        s: &HoodooSettings,
+        region: &Region,
+        centre: &Site,
+        placed: &[V3],
+        room: usize,
+    ) -> Vec<(Site, (i32, i32))> {
+        let h = |a: u64, b: u64| unit(hash(s.seed, centre.idx, a, b));
+        let theta = std::f32::consts::TAU * h(0x6a6f_696e, 0);
+        let (u, v) = ([theta.cos(), theta.sin()], [-theta.sin(), theta.cos()]);
+        let (a, b) = (s.spacing, 1.15 * s.spacing);
+        let mut cands: Vec<(f32, i32, i32)> = Vec::new();
+        for j in -2i32..=2 {
+            for i in -3i32..=3 {
+                let (x, y) = (i as f32 / 3.2, j as f32 / 2.2);
+                if x * x + y * y <= 1.0 {
+                    let key = ((i + 8) * 16 + j + 8) as u64;
+                    cands.push((i.abs() as f32 + 1.5 * j.abs() as f32 + h(key, 1), j, i));
+                }
+            }
+        }
+        cands.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut out: Vec<(Site, (i32, i32))> = Vec::new();
+        for &(_, j, i) in &cands {
+            if out.len() >= room.min(s.per_cluster) {
+                break;
+            }
+            let key = ((i + 8) * 16 + j + 8) as u64;
+            let site = if (i, j) == (0, 0) {
+                Some(*centre)
+            } else {
+                let along = (i as f32 + 0.5 * (j & 1) as f32 + 0.3 * (h(key, 2) - 0.5)) * a;
+                let across = (j as f32 + 0.3 * (h(key, 3) - 0.5)) * b;
+                let x = centre.p[0] + along * u[0] + across * v[0];
+                let y = centre.p[1] + along * u[1] + across * v[1];
+                self.site_at(s, region, x, y, hash(centre.idx, key, 0x6c61_7474, 0))
+            };
+            let Some(site) = site else { continue };
+            let q = [site.p[0], site.p[1], 0.0];
+            let near = |o: &V3| norm(sub(*o, q)) < 0.8 * s.spacing;
+            if placed.iter().any(near) || out.iter().any(|(o, _)| near(&[o.p[0], o.p[1], 0.0])) {
+                continue;
+            }
+            out.push((site, (j, i)));
+        }
+        out
     }
 
     /// Hoodoos ([module docs](self)): columns of soft rock under a resistant cap bed, their
@@ -153,33 +251,39 @@ impl SceneBuilder {
         let seeds = poisson_filter(&pts, 6.0 * s.spacing, |_| true);
         let mut placed: Vec<V3> = Vec::new();
         for &c in &seeds {
-            let mut members = 0;
-            for (k, site) in sites.iter().enumerate() {
-                if report.features >= s.count || members >= s.per_cluster {
-                    break;
-                }
-                let q = pts[k];
-                if norm(sub(q, pts[c])) > 2.0 * s.spacing
-                    || placed.iter().any(|o| norm(sub(*o, q)) < s.spacing)
-                {
-                    continue;
-                }
-                placed.push(q);
-                members += 1;
-                let n = self.hoodoo(s, site)?;
+            let room = s.count - report.features;
+            if room == 0 {
+                break;
+            }
+            let members = self.hoodoo_cluster(s, region, &sites[c], &placed, room);
+            for (site, _) in &members {
+                placed.push([site.p[0], site.p[1], 0.0]);
+                let (n, top) = self.hoodoo(s, site)?;
                 report.primitives += n;
                 report.features += 1;
                 report.sites.push(site.p);
-                report.sizes_m.push(site.bed.1 - site.p[2]);
+                report.sizes_m.push(top - site.p[2]);
+                report.axes.push(self.downslope(site.p));
+            }
+            // The fins the row's hoodoos broke out of, between neighbours of a row.
+            for (m, (site, (j, i))) in members.iter().enumerate() {
+                let next = members.iter().find(|(_, l)| *l == (*j, i + 1));
+                if let Some((other, _)) = next
+                    && unit(hash(s.seed, site.idx, 0x6669_6e73, m as u64)) < 0.5
+                {
+                    report.primitives += self.hoodoo_fin(s, site, other)?;
+                }
             }
         }
         Ok(report)
     }
 
     /// One hoodoo on `site` ([module docs](self)); returns its primitive count.
-    fn hoodoo(&mut self, s: &HoodooSettings, site: &Site) -> Result<usize> {
+    fn hoodoo(&mut self, s: &HoodooSettings, site: &Site) -> Result<(usize, f32)> {
         let (p, r) = (site.p, s.radius);
         let h = |c: u64| unit(hash(s.seed, site.idx, c, 0x6361_7073));
+        // A third have lost their cap: their soft column wastes down to a spire.
+        let capless = h(60) < CAPLESS;
         // The foot: under the lowest ground within a radius (the downslope side).
         let low = (0..8)
             .map(|k| {
@@ -187,14 +291,20 @@ impl SceneBuilder {
                 self.ground(p[0] + r * a.cos(), p[1] + r * a.sin())
             })
             .fold(p[2], f32::min);
-        let (z0, z1) = (low - 0.3 * r, site.bed.0);
+        let tall = site.bed.0 - p[2];
+        let z1 = if capless {
+            p[2] + tall * (0.5 + 0.4 * h(61))
+        } else {
+            site.bed.0
+        };
+        let z0 = low - 0.3 * r;
         let lean_a = std::f32::consts::TAU * h(1);
         let lean = [lean_a.cos(), lean_a.sin(), 0.0];
-        let tall = z1 - p[2];
         let axis = |z: f32| {
             let t = ((z - p[2]) / tall).max(0.0);
             add([p[0], p[1], z], mul(lean, 0.05 * tall * t * (0.5 + h(2))))
         };
+        let rc = r * (0.75 + 0.5 * site.rho_cap);
         let n = (((z1 - z0) / (0.3f32).max(0.15 * r)).ceil() as usize).clamp(4, 64);
         let profile: Vec<(V3, f32)> = (0..=n)
             .map(|m| {
@@ -203,6 +313,16 @@ impl SceneBuilder {
                 let foot = (1.0 - (z - low) / (0.25 * tall)).clamp(0.0, 1.0);
                 let jitter = 0.92 + 0.16 * h(10 + m as u64);
                 let rv = r * (0.45 + 0.75 * rho) * (1.0 + 0.5 * foot * foot) * jitter;
+                // The rock right under the cap is sheltered by it: the column widens
+                // towards the cap over the last `0.8 R`.
+                let rv = if capless {
+                    // Rounded to a blunt point over the top `1.5 R`.
+                    let t = ((z1 - z) / (1.5 * r)).clamp(0.0, 1.0);
+                    rv * (0.3 + 0.7 * t.sqrt())
+                } else {
+                    let guard = (1.0 - (z1 - z) / (0.8 * r)).clamp(0.0, 1.0);
+                    rv + (0.85 * rc - rv).max(0.0) * guard
+                };
                 (axis(z), rv / VISIBLE)
             })
             .collect();
@@ -210,22 +330,30 @@ impl SceneBuilder {
         for w in profile.windows(2) {
             parts.push(self.tree.cone(w[0].0, w[1].0, w[0].1, w[1].1, 1.0)?);
         }
+        let seed = (s.seed as u32).wrapping_add(site.idx as u32);
+        if capless {
+            let mut column = parts[0];
+            for &q in &parts[1..] {
+                column = self.tree.union(column, q)?;
+            }
+            self.push_fluted(column, r, seed)?;
+            return Ok((parts.len(), z1));
+        }
         // The cap: the resistant bed, wider than the column.
         let (b0, b1) = site.bed;
         let top = axis(b1);
-        let rc = r * (0.9 + 0.6 * site.rho_cap);
         // Two offset slabs, each a tall elliptic column cut by a wide flat ellipsoid (their
         // intersection: a disc with flat top and bottom, the bed's, and steep sides).
         let th = 0.5 * (b1 - b0) / VISIBLE;
         for k in 0..2u64 {
             let a = std::f32::consts::TAU * h(20 + k);
-            let off = if k == 0 { 0.0 } else { 0.35 * rc * h(30 + k) };
+            let off = if k == 0 { 0.0 } else { 0.25 * rc * h(30 + k) };
             let c = [
                 top[0] + off * a.cos(),
                 top[1] + off * a.sin(),
                 0.5 * (b0 + b1),
             ];
-            let (ax, ay) = (rc * (0.8 + 0.4 * h(40 + k)), rc * (0.8 + 0.4 * h(50 + k)));
+            let (ax, ay) = (rc * (0.8 + 0.3 * h(40 + k)), rc * (0.8 + 0.3 * h(50 + k)));
             let column = self
                 .tree
                 .ellipsoid(c, [ax / VISIBLE, ay / VISIBLE, 6.0 * th], 1.0)?;
@@ -252,10 +380,48 @@ impl SceneBuilder {
         for &q in &parts[n_column..] {
             all = self.tree.union(all, q)?;
         }
-        let seed = (s.seed as u32).wrapping_add(site.idx as u32);
-        let w = self.tree.warp(all, 0.12 * r, 1.0 / (0.8 * r), seed)?;
+        self.push_fluted(all, r, seed)?;
+        Ok((parts.len(), b1))
+    }
+
+    /// `node` warped into vertical flutes and rills (`0.12 R` deep, `0.5 R` across, `3 R`
+    /// long) and added to the scene.
+    fn push_fluted(&mut self, node: NodeId, r: f32, seed: u32) -> Result<()> {
+        let w = self
+            .tree
+            .streaked_warp(node, 0.12 * r, 1.0 / (0.5 * r), 1.0 / (3.0 * r), seed)?;
         self.positives.push(w);
-        Ok(parts.len())
+        Ok(())
+    }
+
+    /// The fin between hoodoos `a` and `b` of a row ([module docs](self)): the rock they
+    /// stood out of, up to a hashed 25-60 % of the lower one's height above the ground, its
+    /// thickness following the strata (`R (0.35 + 0.5 rho)`) and tapering upwards; stacked
+    /// cones parallel to the ground between the two axes, fluted as the columns. Returns
+    /// its primitive count.
+    fn hoodoo_fin(&mut self, s: &HoodooSettings, a: &Site, b: &Site) -> Result<usize> {
+        let r = s.radius;
+        let frac = 0.15 + 0.3 * unit(hash(s.seed, a.idx, b.idx, 0x6669_6e32));
+        let wall = frac * (a.bed.0 - a.p[2]).min(b.bed.0 - b.p[2]);
+        let n = ((wall / (0.4 * r)).ceil() as usize).clamp(2, 32);
+        let mut fin: Option<NodeId> = None;
+        for k in 0..=n {
+            let t = k as f32 / n as f32;
+            let dz = -0.3 * r + (wall + 0.3 * r) * t;
+            let (pa, pb) = ([a.p[0], a.p[1], a.p[2] + dz], [b.p[0], b.p[1], b.p[2] + dz]);
+            let rho = self.geology.resistance(mul(add(pa, pb), 0.5));
+            let rv = r * (0.35 + 0.5 * rho) * (1.0 - 0.55 * t) / VISIBLE;
+            let c = self.tree.cone(pa, pb, rv, rv, 1.0)?;
+            fin = Some(match fin {
+                Some(f) => self.tree.union(f, c)?,
+                None => c,
+            });
+        }
+        if let Some(f) = fin {
+            let seed = (s.seed as u32) ^ (a.idx as u32).wrapping_mul(31) ^ (b.idx as u32);
+            self.push_fluted(f, r, seed)?;
+        }
+        Ok(n + 1)
     }
 }
 
@@ -365,6 +531,55 @@ mod tests {
         // same density on the band (40 x 160 m): clustered well below 1.
         let ce = crate::scene::clark_evans(&rep.sites, 40.0 * 160.0).unwrap();
         assert!(ce < 0.75, "Clark-Evans ratio {ce}");
+    }
+
+    /// A cluster is a field, not a row of pins: some hoodoos have lost their cap (spires well
+    /// under the cap bed), the others stand to it.
+    #[test]
+    fn clusters_hold_spires_and_capped_columns() {
+        let hf = Heightfield::from_fn(81, 81, 2.0, 2.0, |x, _| {
+            ((x as f32 * 2.0 - 60.0) * 0.7).clamp(0.0, 28.0)
+        });
+        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+        let s = HoodooSettings {
+            count: 24,
+            height: 8.0,
+            radius: 1.5,
+            spacing: 4.8,
+            per_cluster: 12,
+            ..Default::default()
+        };
+        let rep = b.hoodoos(&s, &Region::everywhere()).unwrap();
+        assert!(rep.features >= 12, "{rep:?}");
+        // Cap beds here are 2 m thick and their base 4.8-11.2 m up: a capped hoodoo stands
+        // at least 6.8 m, a spire at most 0.9 of 11.2 m.
+        let capped = rep.sizes_m.iter().filter(|&&h| h >= 6.8).count();
+        let spires = rep.sizes_m.iter().filter(|&&h| h < 6.0).count();
+        assert!(capped >= 4 && spires >= 2, "{:?}", rep.sizes_m);
+    }
+
+    /// A fin between two hoodoo sites is a low wall: rock midway between them near the
+    /// ground, air there above 45 % of their height and beside the line joining them.
+    #[test]
+    fn a_fin_is_a_low_wall_between_two_columns() {
+        let hf = Heightfield::from_fn(24, 24, 1.0, 1.0, |_, _| 0.0);
+        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+        let s = HoodooSettings {
+            radius: 1.5,
+            ..Default::default()
+        };
+        let site = |x: f32, idx| Site {
+            p: [x, 12.0, 0.0],
+            bed: (10.0, 12.0),
+            rho_cap: 0.9,
+            slope: 30.0,
+            idx,
+        };
+        b.hoodoo_fin(&s, &site(8.0, 1), &site(14.0, 2)).unwrap();
+        let scene = b.build(true).unwrap();
+        assert!(scene.inside([11.0, 12.0, 1.0]));
+        assert!(!scene.inside([11.0, 12.0, 4.6]));
+        assert!(!scene.inside([11.0, 14.5, 1.0]) && !scene.inside([11.0, 9.5, 1.0]));
     }
 
     /// Runs `f` on a pool of `threads` threads.

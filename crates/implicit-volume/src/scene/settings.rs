@@ -345,8 +345,8 @@ pub struct HoodooSettings {
     pub height: f32,
     /// Column radius (m) in rock of resistance 0.73 (`0.45 + 0.75 rho` times it elsewhere).
     pub radius: f32,
-    /// Minimum distance between hoodoos (m); clusters are `6 spacing` apart and `2 spacing`
-    /// in radius.
+    /// Distance between neighbours of a cluster's row (m; none closer than 0.8 of it);
+    /// clusters are `6 spacing` apart.
     pub spacing: f32,
     /// Gentlest ground slope (degrees) where a hoodoo may stand (badland slopes, not flats).
     pub min_slope_deg: f32,
@@ -460,7 +460,8 @@ pub struct EffectReport {
     pub sites: Vec<V3>,
     /// Per site, the horizontal direction to look along to see it best (arches: the gap's
     /// axis, so a camera sees through the opening; floating islands: towards the lowest ground
-    /// around, so a camera sees the underside; sea caves: out of the mouth, towards the sea;
+    /// around, so a camera sees the underside; sea caves: out of the mouth, towards the sea; hoodoos: downslope, so a camera sees a
+    /// cluster against its slope;
     /// undercuts: out of the face); empty for the other effects.
     pub axes: Vec<V3>,
     /// The landforms' sizes (m): floating islands' radii, hoodoo heights (ground to cap top),

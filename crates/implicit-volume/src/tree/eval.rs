@@ -67,13 +67,14 @@ impl TerrainTree {
                 child,
                 amp,
                 freq,
+                zfreq,
                 seed,
                 bx,
             } => {
                 if !self.warp_boxes[bx as usize].contains(p) {
                     return 0.0;
                 }
-                let d = fbm3(seed as u64, mul(p, freq), 2);
+                let d = fbm3(seed as u64, [p[0] * freq, p[1] * freq, p[2] * zfreq], 2);
                 self.ev(child, add(p, mul(d, amp)))
             }
         }

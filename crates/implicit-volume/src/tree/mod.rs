@@ -90,6 +90,8 @@ enum Node {
         child: u32,
         amp: f32,
         freq: f32,
+        /// Vertical frequency (at most `freq`: lower streaks the displacement vertically).
+        zfreq: f32,
         seed: u32,
         /// Index of the warp's support box in `TerrainTree::warp_boxes` (outside it the
         /// field is 0: the displacement is below `0.75 amp`), so a query outside never
@@ -382,8 +384,30 @@ impl TerrainTree {
     }
     /// Noise warp: the child is evaluated at `p + amp * fbm3(p * freq)` (creases, cracks).
     pub fn warp(&mut self, child: NodeId, amp: f32, freq: f32, seed: u32) -> Result<NodeId> {
+        self.streaked_warp(child, amp, freq, freq, seed)
+    }
+
+    /// Noise warp stretched vertically: the child is evaluated at `p + amp * fbm3(q)` with
+    /// `q = (x freq, y freq, z zfreq)`, `0 < zfreq <= freq`. The displacement changes slowly
+    /// with height, so a surface gets vertical flutes and rills rather than round creases.
+    pub fn streaked_warp(
+        &mut self,
+        child: NodeId,
+        amp: f32,
+        freq: f32,
+        zfreq: f32,
+        seed: u32,
+    ) -> Result<NodeId> {
         Error::check_positive("warp.amp", amp)?;
         Error::check_positive("warp.freq", freq)?;
+        Error::check_positive("warp.zfreq", zfreq)?;
+        if zfreq > freq {
+            return Err(Error::param(
+                "warp.zfreq",
+                zfreq,
+                "must be at most warp.freq",
+            ));
+        }
         let child = self.id(child)?;
         let bx = self.warp_boxes.len() as u32;
         self.warp_boxes
@@ -392,6 +416,7 @@ impl TerrainTree {
             child,
             amp,
             freq,
+            zfreq,
             seed,
             bx,
         }))
