@@ -16,13 +16,16 @@
 //!   geology.
 //!
 //! Shape ([`SceneBuilder::arches`]): a gap is cut across the ridge down to the floor (walls
-//! flaring upwards, warped); in it a fin of the ridge's own rock is left standing along the
-//! ridge, `thickness` (+-20 %) thick, its faces recessed in soft strata and standing out at
-//! hard beds (`0.6 + 0.6 rho`), its top the DEM's surface; the opening is cut through the
-//! fin: a half-superellipse (exponent 2.5: a roof along the bed, rounded shoulders, walls
-//! down to the floor) widened in soft rock (`0.85 + 0.3 (1 - rho)`), made of capsules across
-//! the fin with radii jittered by +-20 % and warped by noise (`0.08 span` at `0.35 span`), all
-//! hashed from the seed: every opening is irregular, and the same for the same seed.
+//! flaring upwards, warped); in it the arch stands free, the ridge's rock left where the
+//! resistant bed protected it: a rib swept along a half-superellipse (exponent 2.5: rounded
+//! shoulders) from one foot over the opening to the other, its underside at the roof (the
+//! bridge bed's base) and the opening `span` wide at the floor. The crown is as thick as the
+//! resistant rock over the roof (within `[0.15, 0.35] span`), the rib thickens to legs of
+//! `0.6 thickness + 0.15 span` radius, narrower in soft strata (`0.85 + 0.3 rho`) and jittered
+//! by +-10 %; it is cut to the fin (rows of capsules along the ridge `thickness` thick,
+//! recessed in soft strata and standing out at hard beds, `0.6 + 0.6 rho`), so its faces are
+//! flat and ledged, and warped by noise (`0.12` of the leg radius); all hashed from the seed,
+//! the same for the same seed.
 
 use super::*;
 
@@ -188,90 +191,86 @@ impl SceneBuilder {
         })
     }
 
-    /// The fin left standing in the gap, with the opening cut through it ([module
-    /// docs](self)): horizontal capsules along the ridge from under the floor to the highest
-    /// ground over the fin, intersected with the DEM's rock and warped, minus the opening's
-    /// capsules across the fin, warped. Returns the primitives.
+    /// The arch left standing in the gap ([module docs](self)): a rib swept along a
+    /// half-superellipse from one foot over the opening to the other, its underside at the
+    /// roof, its crown as thick as the resistant bed over the roof (within `[0.15, 0.35]
+    /// span`), thickening to the legs, narrower in soft strata, as deep across as the fin,
+    /// warped by noise. Returns the primitives.
     fn keep_fin(&mut self, f: &ArchFit, seed: u64, idx: u64) -> Result<usize> {
         let h = |c: u64, m: u64| unit(hash(seed, idx, m, 0x6f70_656e + c));
-        let len = 1.3 * f.half_gap;
         let at = |u: f32, v: f32, z: f32| {
             let p = add(add(f.centre, mul(f.side, u)), mul(f.across, v));
             [p[0], p[1], z]
         };
         let floor = f.centre[2];
-        let crest = (-8..=8)
-            .map(|q| {
-                let p = at(q as f32 / 8.0 * len, 0.0, 0.0);
-                self.ground(p[0], p[1])
+        let roof = floor + f.rise;
+        let rho = |u: f32, z: f32| self.geology.resistance(at(u, 0.0, z));
+        // The bridge: the resistant rock over the roof.
+        let dz = f.span / 64.0;
+        let bed = (0..64)
+            .map(|k| k as f32 * dz)
+            .take_while(|&z| rho(0.0, roof + z + 0.5 * dz) >= 0.55)
+            .count() as f32
+            * dz;
+        let bridge = bed.clamp(0.15 * f.span, 0.35 * f.span).max(1.0);
+        let (r_crown, r_leg) = (0.5 * bridge, 0.6 * f.fin + 0.15 * f.span);
+        // Centre line: a half-superellipse (exponent 2.5) of half-width `a`, crown `hc` over
+        // the floor; its feet `0.3 r_leg` under the floor.
+        let (a, hc) = (0.5 * f.span + r_leg, f.rise + r_crown);
+        let n = 24usize;
+        let e = 2.5f32;
+        let line: Vec<(f32, f32, f32)> = (0..=n)
+            .map(|k| {
+                let phi = std::f32::consts::PI * k as f32 / n as f32;
+                let (c, sn) = (phi.cos(), phi.sin());
+                let u = -a * c.signum() * c.abs().powf(2.0 / e);
+                let z = floor - 0.3 * r_leg + (hc + 0.3 * r_leg) * sn.abs().powf(2.0 / e);
+                let w = c * c;
+                let r = (r_crown + (r_leg - r_crown) * w)
+                    * (0.85 + 0.3 * rho(u, z))
+                    * (0.9 + 0.2 * h(0, k as u64));
+                (u, z, r)
             })
-            .fold(floor + f.rise, f32::max);
-        let rho = |z: f32| self.geology.resistance(at(0.0, 0.0, z));
-        // The fin: its faces recessed in soft strata, standing out at hard beds.
+            .collect();
+        let mut parts = Vec::with_capacity(n + 64);
+        for w in line.windows(2) {
+            let ((u0, z0, r0), (u1, z1, r1)) = (w[0], w[1]);
+            let (p, q) = (at(u0, 0.0, z0), at(u1, 0.0, z1));
+            parts.push(self.tree.cone(p, q, r0 / VISIBLE, r1 / VISIBLE, 1.0)?);
+        }
+        let mut rib = parts[0];
+        for &q in &parts[1..n] {
+            rib = self.tree.union(rib, q)?;
+        }
+        // Cut to the fin: rows of capsules along the ridge, `fin` thick, recessed in soft
+        // strata and standing out at hard beds (`0.6 + 0.6 rho`): flat, ledged faces.
+        let (len, top) = (a + r_leg, floor + hc + r_crown + r_leg);
         let step = 0.3 * f.fin;
-        let rows = (((crest - floor + f.fin) / step).ceil() as usize).clamp(2, 256);
-        let mut fin = Vec::with_capacity(rows);
+        let rows = (((top - floor + f.fin) / step).ceil() as usize).clamp(2, 256);
+        let mut wall: Option<NodeId> = None;
         for k in 0..=rows {
             let z = floor - f.fin + k as f32 * step;
-            let r = 0.5 * f.fin * (0.6 + 0.6 * rho(z));
-            fin.push(
-                self.tree
-                    .capsule(at(-len, 0.0, z), at(len, 0.0, z), r / VISIBLE, 1.0)?,
-            );
+            let r = 0.5 * f.fin * (0.6 + 0.6 * rho(0.0, z));
+            let c = self
+                .tree
+                .capsule(at(-len, 0.0, z), at(len, 0.0, z), r / VISIBLE, 1.0)?;
+            parts.push(c);
+            wall = Some(match wall {
+                Some(w) => self.tree.union(w, c)?,
+                None => c,
+            });
         }
-        let mut wall = fin[0];
-        for &q in &fin[1..] {
-            wall = self.tree.union(wall, q)?;
+        if let Some(w) = wall {
+            rib = self.tree.intersection(rib, w)?;
         }
         let s32 = (seed as u32).wrapping_add(idx as u32);
-        let wall = self.tree.warp(wall, 0.1 * f.fin, 1.0 / f.fin, s32)?;
-        let wall = self.tree.intersection(self.hf, wall)?;
-        // The opening: a half-superellipse under the bed, widened in soft rock.
-        let rr = (f.span / 6.0).max(0.5);
-        let top = f.rise - rr;
-        let mut holes = Vec::new();
-        // Rows evenly from just above the floor to the roof (the top row's capsule touches
-        // the bed's base with its full radius).
-        let z0 = 0.6 * rr;
-        let rows = (((top - z0) / (0.8 * rr)).ceil().max(0.0) as u64).min(256);
-        for row in 0..=rows {
-            let z = if rows == 0 {
-                top.max(z0)
-            } else {
-                z0 + (top - z0) * row as f32 / rows as f32
-            };
-            let t = ((z + rr) / f.rise).min(1.0);
-            let a = 0.5 * f.span * (1.0 - t.powf(2.5)).max(0.0).powf(0.4);
-            let a = a * (0.85 + 0.3 * (1.0 - rho(floor + z)));
-            let cols = (((a - rr).max(0.0) / (0.8 * rr)).ceil() as i32).min(64);
-            for c in -cols..=cols {
-                let m = row * 256 + (c + 128) as u64;
-                let u = if cols == 0 {
-                    0.0
-                } else {
-                    c as f32 / cols as f32 * (a - rr).max(0.0)
-                };
-                let r = if row == rows {
-                    rr
-                } else {
-                    rr * (0.8 + 0.4 * h(0, m))
-                };
-                let (p, q) = (at(u, -f.fin, floor + z), at(u, f.fin, floor + z));
-                holes.push(self.tree.capsule(p, q, r / VISIBLE, 1.0)?);
-                self.carved.push((at(u, 0.0, floor + z), r, false));
-            }
-        }
-        let n = fin.len() + holes.len();
-        let mut opening = holes[0];
-        for &q in &holes[1..] {
-            opening = self.tree.union(opening, q)?;
-        }
-        let opening =
-            self.tree
-                .warp(opening, 0.08 * f.span, 1.0 / (0.35 * f.span), s32 ^ 0x5eed)?;
-        let arch = self.tree.difference(wall, opening)?;
-        self.positives.push(arch);
-        Ok(n)
+        let rib = self
+            .tree
+            .warp(rib, 0.12 * r_leg, 1.0 / (1.5 * r_leg), s32 ^ 0x5eed)?;
+        self.positives.push(rib);
+        self.carved
+            .push((at(0.0, 0.0, floor + 0.5 * f.rise), 0.5 * f.rise, false));
+        Ok(parts.len())
     }
 
     /// The gap through the ridge around an arch: negative capsules along `d` from beyond
@@ -522,6 +521,45 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(b.arches(&s, &Region::everywhere()).unwrap().features, 0);
+    }
+
+    /// The arch stands free of the old crest: over the opening's middle the rock ends a
+    /// bridge's thickness over the roof (at most 0.35 span and the warp; the ridge stood to
+    /// 40 m), and the rock over the opening is thicker towards the legs than at the crown.
+    #[test]
+    fn the_bridge_is_thin_and_thickens_to_the_legs() {
+        let (before, scene, rep) = ridge_arch(beds(10.0), 3);
+        let (site, axis, span) = (rep.sites[0], rep.axes[0], rep.sizes_m[0]);
+        let side = [-axis[1], axis[0], 0.0];
+        let at = |u: f32, z: f32| [site[0] + side[0] * u, site[1] + side[1] * u, z];
+        let top = |u: f32| {
+            (0..450)
+                .map(|k| 45.0 - k as f32 * 0.1)
+                .find(|&z| scene.inside(at(u, z)))
+                .unwrap_or(0.0)
+        };
+        let mid = top(0.0);
+        assert!(before.inside(at(0.0, 39.0)), "the ridge stood to 40 m");
+        assert!(
+            mid > 19.0 && mid < 18.0 + 0.35 * span + 1.5,
+            "bridge top {mid} m over a roof at 18 m (span {span} m)"
+        );
+        // Vertical thickness of the rock over the opening's mid-height at `u`.
+        let thick = |u: f32| {
+            let under = (0..300)
+                .map(|k| site[2] + k as f32 * 0.1)
+                .find(|&z| scene.inside(at(u, z)))
+                .unwrap_or(45.0);
+            top(u) - under
+        };
+        let crown = thick(0.0);
+        for u in [-0.45 * span, 0.45 * span] {
+            assert!(
+                thick(u) > crown + 1.0,
+                "the rib thickens: {} at {u}, {crown}",
+                thick(u)
+            );
+        }
     }
 
     /// Spans are log-normal around the median: spread both ways, within the bounds.
