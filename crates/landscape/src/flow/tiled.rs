@@ -224,9 +224,14 @@ impl TileLayout {
 
     /// The grid of the whole raster.
     pub fn grid(&self) -> Grid {
+        self.grid_of(self.width, self.height)
+    }
+
+    /// A `width x height` grid at the raster's cell size (a tile, or a tile with a margin).
+    pub(crate) fn grid_of(&self, width: usize, height: usize) -> Grid {
         Grid {
-            width: self.width,
-            height: self.height,
+            width,
+            height,
             cell_x: self.cell_x,
             cell_y: self.cell_y,
         }
