@@ -116,6 +116,31 @@ pub(crate) fn read(path: &Path) -> Heightfield {
         .heightfield
 }
 
+/// Two rasters with the same grid, bits (voids included), cell size and georeference.
+pub(crate) fn assert_same_raster(a: &Path, b: &Path) {
+    let (x, y) = (read(a), read(b));
+    assert_eq!((x.width(), x.height()), (y.width(), y.height()));
+    let differ = x
+        .as_slice()
+        .iter()
+        .zip(y.as_slice())
+        .filter(|(p, q)| p.to_bits() != q.to_bits())
+        .count();
+    assert_eq!(
+        differ,
+        0,
+        "{differ} cells differ between {} and {}",
+        a.display(),
+        b.display()
+    );
+    assert_eq!(x.cell_size(), y.cell_size());
+    let geo = |h: &Heightfield| {
+        h.georef()
+            .map(|g| (g.geotransform, g.crs.clone(), g.geo_key_directory.clone()))
+    };
+    assert_eq!(geo(&x), geo(&y), "georeference of {}", a.display());
+}
+
 /// Writes `hf` into `path` with the default options.
 pub(crate) fn save(path: &Path, hf: &Heightfield) {
     relief_io::write(path, hf, &relief_io::WriteOptions::default())

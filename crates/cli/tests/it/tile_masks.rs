@@ -7,9 +7,7 @@
 use std::path::Path;
 
 use crate::common::*;
-use crate::tile_flow::{
-    assert_same_raster, basin, plan_refuses, run_phases_to, single_and_plan, tasks,
-};
+use crate::tile_flow::{basin, plan_refuses, run_phases_to, single_and_plan, tasks};
 
 const MASKS: [&str; 7] = [
     "slope",
@@ -49,7 +47,8 @@ fn masks_plan_equals_single(dem: &Path, tile: usize, extra: &[&str], seed: u64) 
     relief_ok!["tile", "status", &dir];
     relief_ok!["tile", "mosaic", &dir];
     for m in MASKS {
-        assert_same_raster(&single, &tiled, &format!("{m}.tif"));
+        let f = format!("{m}.tif");
+        assert_same_raster(&single.join(&f), &tiled.join(&f));
     }
     for f in ["splat.png", "masks.json"] {
         assert!(
