@@ -253,6 +253,13 @@ pub(crate) fn tmp_with_crop(
     (tmp, path, hf)
 }
 
+/// A temporary folder holding `hf` written as `name`, and the file's path.
+pub(crate) fn tmp_with(name: &str, hf: &Heightfield) -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = write(tmp.path(), name, hf);
+    (tmp, path)
+}
+
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
 }
@@ -301,4 +308,20 @@ pub(crate) fn two_at_a_time(order: &[usize], what: &str, spawn: impl Fn(usize) -
             );
         }
     }
+}
+
+/// Kills `child` (SIGKILL) `ms` milliseconds after it started and reaps it: a task killed
+/// mid-run.
+pub(crate) fn kill_after(mut child: Child, ms: u64) {
+    std::thread::sleep(std::time::Duration::from_millis(ms));
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Damages a file in place: one byte in its middle flipped.
+pub(crate) fn damage(path: &Path) {
+    let mut bytes = std::fs::read(path).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x55;
+    std::fs::write(path, &bytes).unwrap();
 }

@@ -61,10 +61,7 @@ fn cycle(line: &str) {
     assert!(!mo.status.success());
     assert!(!planned.exists());
     // A task killed at some point of its run leaves no tile that counts as done.
-    let mut c = spawn_task(&dir, 1);
-    std::thread::sleep(std::time::Duration::from_millis(60));
-    let _ = c.kill();
-    let _ = c.wait();
+    kill_after(spawn_task(&dir, 1), 60);
     run_all_two_at_a_time(&dir, n, 7);
     relief_ok!["tile", "status", &dir];
     // A re-run of a done task is a no-op.
@@ -72,10 +69,7 @@ fn cycle(line: &str) {
     ok(&again);
     // A damaged tile is reported, refused by the mosaic, and redone by its task.
     let t2 = dir.join("tiles/tile-000002.tif");
-    let mut bytes = std::fs::read(&t2).unwrap();
-    let mid = bytes.len() / 2;
-    bytes[mid] ^= 0x55;
-    std::fs::write(&t2, &bytes).unwrap();
+    damage(&t2);
     let st = relief!["tile", "status", &dir];
     assert!(!st.status.success());
     assert!(

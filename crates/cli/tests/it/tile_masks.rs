@@ -68,8 +68,7 @@ fn masks_plan_equals_the_single_run_on_a_real_dem() {
     let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 200, 150) else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "alps.tif", &hf);
+    let (_tmp, dem) = tmp_with("alps.tif", &hf);
     masks_plan_equals_single(&dem, 64, &[], 3);
 }
 
@@ -77,8 +76,7 @@ fn masks_plan_equals_the_single_run_on_a_real_dem() {
 /// given height bands and a rock slope.
 #[test]
 fn masks_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "basin.tif", &basin());
+    let (_tmp, dem) = tmp_with("basin.tif", &basin());
     masks_plan_equals_single(&dem, 32, &[], 5);
     masks_plan_equals_single(
         &dem,
