@@ -163,10 +163,7 @@ pub(super) fn phase8(
             bytes.len()
         );
     }
-    let hand: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
+    let hand = relief_heightfield::bytes::f32_from_le_bytes(&bytes);
     let (masks, splat) = mask_tiles::tile_masks(
         &job.masks,
         l,

@@ -379,7 +379,7 @@ fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<PhaseOut
     let [_, _, w, _] = l.window(t);
     let names = outputs_of(m, 7, t);
     if is_masks(m) {
-        let hand: Vec<u8> = r.hand.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let hand = relief_heightfield::bytes::f32_to_le_bytes(&r.hand);
         return Ok(vec![(names[0].clone(), Some(hand))]);
     }
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
