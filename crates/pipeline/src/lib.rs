@@ -13,7 +13,7 @@
 //!    parameters is its parameter struct: it derives `Serialize + Deserialize + Default`
 //!    (`#[serde(default, deny_unknown_fields)]`, its method settings in a `job` field of the
 //!    method crate's serde type) so a user's JSON spec can set them (merged onto its defaults),
-//!    and implements [`spec::StageParams`] (the checks run when the spec is built).
+//!    and implements `spec::StageParams` (the checks run when the spec is built).
 //! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
 //!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
 

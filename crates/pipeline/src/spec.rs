@@ -23,7 +23,7 @@
 //!
 //! # Registering a stage
 //! Add one entry to `REGISTRY`: its name and how it is built (`with_params::<YourParams>` for a
-//! stage with parameters, whose parameter struct implements [`Stage`] and [`StageParams`];
+//! stage with parameters, whose parameter struct implements [`Stage`] and `StageParams`;
 //! `|p| no_params(p, Box::new(YourStage))` for one without), at its place in the default run
 //! ([`default_spec`]). The test below checks that every name builds.
 
