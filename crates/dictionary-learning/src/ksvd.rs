@@ -386,14 +386,8 @@ pub(crate) fn stop_if_asked(
     it: usize,
     iterations: usize,
 ) -> Result<()> {
-    if progress.stopped() {
-        Err(LearnError::Stopped(format!(
-            "{what}, iteration {} of {iterations}",
-            it + 1
-        )))
-    } else {
-        Ok(())
-    }
+    progress
+        .check_stop(|| LearnError::Stopped(format!("{what}, iteration {} of {iterations}", it + 1)))
 }
 
 /// K-SVD on `signals` (`n x K`, rows already mean-removed) from a random initialisation.

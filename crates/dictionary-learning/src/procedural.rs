@@ -153,13 +153,7 @@ pub fn fit_procedural(
     // Asked between the parts (a run past its time budget ends with `Stopped`); the
     // rasterisation asks between its bands.
     let stop = |after: &str| {
-        if progress.stopped() {
-            Err(LearnError::Stopped(format!(
-                "the procedural fit, after {after}"
-            )))
-        } else {
-            Ok(())
-        }
+        progress.check_stop(|| LearnError::Stopped(format!("the procedural fit, after {after}")))
     };
     stop("the dictionary")?;
     let sct = encode(

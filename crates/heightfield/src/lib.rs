@@ -35,6 +35,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod bytes;
 pub mod cg;
 mod error;
 pub mod fill;

@@ -14,6 +14,19 @@ pub trait Progress: Sync {
     }
 }
 
+impl dyn Progress + '_ {
+    /// `Err(stopped())` when the caller asks the work to stop ([`Progress::stopped`]), else
+    /// `Ok(())`: the check a long computation makes between units of work, `stopped` making
+    /// its crate's `Stopped` error.
+    pub fn check_stop<E>(&self, stopped: impl FnOnce() -> E) -> Result<(), E> {
+        if self.stopped() {
+            Err(stopped())
+        } else {
+            Ok(())
+        }
+    }
+}
+
 /// A [`Progress`] that ignores every report.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct NoProgress;

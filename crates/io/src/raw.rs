@@ -87,10 +87,7 @@ pub(crate) fn read(bytes: &[u8], format: Format, opts: &ReadOptions) -> Result<R
         }
         _ => {
             let (w, h) = raw_dims(format, bytes.len(), 4, opts)?;
-            let data = bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
+            let data = relief_heightfield::bytes::f32_from_le_bytes(bytes);
             finish(format, w, h, data, cell, None, "float32")
         }
     }

@@ -94,10 +94,7 @@ pub(crate) fn read_f32_bytes(
             ),
         ));
     }
-    let data = bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let data = relief_heightfield::bytes::f32_from_le_bytes(bytes);
     finish(
         f,
         side.width as usize,

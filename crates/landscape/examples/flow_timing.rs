@@ -12,10 +12,7 @@ use relief_landscape::grid::Grid;
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let bytes = std::fs::read(&a[1]).expect("raster");
-    let z: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-        .collect();
+    let z: Vec<f32> = relief_heightfield::bytes::f32_from_le_bytes(&bytes);
     let (w, h, cell): (usize, usize, f64) = (
         a[2].parse().unwrap(),
         a[3].parse().unwrap(),

@@ -34,10 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         meta["cell_size_y_m"].as_f64().ok_or("cell_size_y_m")?,
     );
     let bytes = std::fs::read(format!("{stem}.f32"))?;
-    let mut z: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let mut z: Vec<f32> = relief_heightfield::bytes::f32_from_le_bytes(&bytes);
     let mut grid = Grid::new(w, h, cx, cy);
     let mut hp = serde_json::to_value(HydraulicParams::default())?;
     let mut tp = serde_json::to_value(ThermalParams::default())?;

@@ -23,10 +23,7 @@ pub(crate) fn read_npy(path: &str) -> (usize, usize, Vec<f32>) {
         .split(',')
         .filter_map(|s| s.trim().parse().ok())
         .collect();
-    let data = b[10 + hl..]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
+    let data = relief_heightfield::bytes::f32_from_le_bytes(&b[10 + hl..]);
     (dims[1], dims[0], data)
 }
 

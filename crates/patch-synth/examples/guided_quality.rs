@@ -211,15 +211,10 @@ fn main() {
                     .expect("png");
             };
             save("output", &out.heightfield);
-            let raw: Vec<u8> = out
-                .heightfield
-                .as_slice()
-                .iter()
-                .flat_map(|v| v.to_le_bytes())
-                .collect();
-            std::fs::write(dir.join(format!("{id}_output.f32")), raw).expect("raw");
-            let raw: Vec<u8> = g.as_slice().iter().flat_map(|v| v.to_le_bytes()).collect();
-            std::fs::write(dir.join(format!("{id}_guide.f32")), raw).expect("raw");
+            for (name, hf) in [("output", &out.heightfield), ("guide", &g)] {
+                let raw = relief_heightfield::bytes::f32_to_le_bytes(hf.as_slice());
+                std::fs::write(dir.join(format!("{id}_{name}.f32")), raw).expect("raw");
+            }
         }
     }
 }

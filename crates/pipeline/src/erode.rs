@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use relief_heightfield::NoProgress;
 use relief_landscape::erode::job::{ErodeOutput, ErodeSettings, Preset};
 use relief_landscape::flow::job::FlowSettings;
@@ -16,6 +16,7 @@ use relief_landscape::stats::{DrainageStats, drainage};
 use serde::{Deserialize, Serialize};
 
 use super::report::fmt_num;
+use super::spec::StageParams;
 use super::{Stage, StageCx, StageInput};
 
 /// Parameters of the `erode` stage.
@@ -44,24 +45,16 @@ impl Default for ErodeParams {
     }
 }
 
-/// The `erode` stage.
-#[derive(Debug)]
-pub(crate) struct ErodeStage(pub(crate) ErodeParams);
-
-impl ErodeStage {
-    /// Checks the parameters when the spec is read.
-    pub(crate) fn new(p: ErodeParams) -> Result<Self> {
-        p.job.check().context("invalid `job`")?;
-        if p.max_size != 0 && p.max_size < 16 {
-            bail!("`max_size` = {} must be 0 or >= 16", p.max_size);
-        }
-        Ok(Self(p))
+impl StageParams for ErodeParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        crate::check_max_size(self.max_size, 16)
     }
 }
 
-impl Stage for ErodeStage {
+impl Stage for ErodeParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let (terrain, _) = cx.input_terrain("erode", p.input)?;
         let (w, h) = (terrain.width(), terrain.height());
         let dem = cx.centre_crop_to(terrain, p.max_size)?;
@@ -167,7 +160,7 @@ fn row(name: &str, seconds: Option<f64>, s: DrainageStats) -> Vec<String> {
     ]
 }
 
-impl ErodeStage {
+impl ErodeParams {
     /// The channel network of the eroded terrain over its hillshade.
     fn channels(&self, cx: &mut StageCx<'_>, out: &ErodeOutput) -> Result<()> {
         if !cx.config.previews {
@@ -224,11 +217,11 @@ mod tests {
                 ..Default::default()
             };
             state.set_terrain(src.clone());
-            let stage = ErodeStage::new(ErodeParams {
+            let stage = ErodeParams {
                 input,
                 ..Default::default()
-            })
-            .unwrap();
+            };
+            stage.check_params().unwrap();
             let section = crate::run_stage(&stage, "erode", &config, &mut state).unwrap();
             assert!(section.figures.get("eroded_m3").unwrap().as_f64().unwrap() > 0.0);
             assert!(section.figures.contains_key("beta"));
@@ -241,10 +234,11 @@ mod tests {
             }
         }
         assert!(
-            ErodeStage::new(ErodeParams {
+            ErodeParams {
                 max_size: 3,
                 ..Default::default()
-            })
+            }
+            .check_params()
             .is_err()
         );
     }

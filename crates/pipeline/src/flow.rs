@@ -12,6 +12,9 @@ use relief_landscape::flow::job::FlowSettings;
 use relief_landscape::stats::{DrainageStats, drainage};
 
 use super::report::fmt_num;
+use serde::{Deserialize, Serialize};
+
+use super::spec::StageParams;
 use super::{Stage, StageCx, Tolerance};
 
 /// Tolerance of the conditioned window's golden: filling copies elevations of the terrain,
@@ -27,15 +30,14 @@ const WINDOW: usize = 128;
 /// Largest side of the channel map in the report (a larger terrain is drawn reduced).
 const CHANNEL_MAP_SIDE: usize = 2048;
 
-/// The `flow` stage.
-#[derive(Debug)]
+/// The `flow` stage: its parameters are the job's settings.
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(transparent)]
 pub(crate) struct FlowStage(pub(crate) FlowSettings);
 
-impl FlowStage {
-    /// The stage with checked settings.
-    pub(crate) fn new(settings: FlowSettings) -> Result<Self> {
-        settings.check().context("invalid flow settings")?;
-        Ok(Self(settings))
+impl StageParams for FlowStage {
+    fn check_params(&self) -> Result<()> {
+        self.0.check().context("invalid flow settings")
     }
 }
 
@@ -166,11 +168,11 @@ mod tests {
             ..Default::default()
         };
         state.set_terrain(src.crop(0, 0, 150, 130).unwrap());
-        let stage = FlowStage::new(FlowSettings {
+        let stage = FlowStage(FlowSettings {
             channel_area: 2e5,
             ..Default::default()
-        })
-        .unwrap();
+        });
+        stage.check_params().unwrap();
         let section = crate::run_stage(&stage, "flow", &config, &mut state).unwrap();
         let fig = |k: &str| section.figures.get(k).cloned().unwrap_or_default();
         assert!(
@@ -202,10 +204,11 @@ mod tests {
             assert!(tmp.path().join(f).is_file(), "{f} missing");
         }
         assert!(
-            FlowStage::new(FlowSettings {
+            FlowStage(FlowSettings {
                 channel_area: -1.0,
                 ..Default::default()
             })
+            .check_params()
             .is_err()
         );
     }

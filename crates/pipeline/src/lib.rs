@@ -9,10 +9,11 @@
 //!    [`StageCx::save_raster`] (GeoTIFF f32 + preview PNG, and a golden candidate with its
 //!    tolerance), and put numbers into `cx.section` (`figure`, `table`, `image`).
 //! 2. Add `mod <name>;` below and register it in `spec.rs` (one entry of its `REGISTRY`: the
-//!    stage's name, at its place in the default run, and how it is built). A stage with parameters derives
-//!    `Serialize + Deserialize + Default` (`#[serde(default, deny_unknown_fields)]`, its method
-//!    settings in a `job` field of the method crate's serde type) so a user's JSON spec can set
-//!    them; the spec is merged onto its defaults.
+//!    stage's name, at its place in the default run, and how it is built). A stage with
+//!    parameters is its parameter struct: it derives `Serialize + Deserialize + Default`
+//!    (`#[serde(default, deny_unknown_fields)]`, its method settings in a `job` field of the
+//!    method crate's serde type) so a user's JSON spec can set them (merged onto its defaults),
+//!    and implements `spec::StageParams` (the checks run when the spec is built).
 //! 3. If the stage saves rasters with a tolerance, run `cargo xtask golden --bless` once and
 //!    commit the new files in `fixtures/golden/` (keep them small: the golden run is a crop).
 
@@ -330,6 +331,15 @@ impl StageCx<'_> {
             limits: self.config.limits,
         }
     }
+}
+
+/// Checks a stage's `max_size` parameter (the side [`StageCx::centre_crop_to`] crops to): 0 (no
+/// crop) or at least `min` cells.
+pub(crate) fn check_max_size(max_size: usize, min: usize) -> Result<()> {
+    if max_size != 0 && max_size < min {
+        bail!("`max_size` = {max_size} must be 0 or >= {min}");
+    }
+    Ok(())
 }
 
 /// Prints each phase a library call announces (`    <phase> (<total>)`) on stderr, and asks

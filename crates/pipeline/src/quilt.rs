@@ -27,6 +27,7 @@ use relief_patch_synth::{
 };
 use serde::{Deserialize, Serialize};
 
+use super::spec::StageParams;
 use super::{Stage, StageCx, Tolerance};
 
 /// Tolerance of the quilt goldens: synthesis is deterministic for a seed, so reruns agree to
@@ -101,10 +102,6 @@ impl Default for QuiltParams {
     }
 }
 
-/// The `quilt` stage.
-#[derive(Debug, Default)]
-pub(crate) struct Quilt(pub(crate) QuiltParams);
-
 /// Numbers of one synthesis for the quality table.
 struct Row {
     name: &'static str,
@@ -160,13 +157,20 @@ fn category_rgb(map: &CategoryMap) -> Vec<u8> {
         .collect()
 }
 
-impl Stage for Quilt {
+impl StageParams for QuiltParams {
+    fn check_params(&self) -> Result<()> {
+        // The job is checked by the library when the stage runs it.
+        Ok(())
+    }
+}
+
+impl Stage for QuiltParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
         let mut terrain = cx.state.terrain()?.clone();
         if terrain.has_voids() {
             fill_voids(&mut terrain, &FillSettings::default())?;
         }
-        let mut job = self.0.job.clone();
+        let mut job = self.job.clone();
         job.settings.seed = cx.config.seed ^ 0x0c12_2015;
         job.check().context("quilt job")?;
         let settings = &job.settings;
@@ -178,7 +182,7 @@ impl Stage for Quilt {
         let (volcano_row, volcano_result) = volcano(cx, &job, &terrain, factor)?;
         let rows = [volcano_row, holdout(cx, &job, &terrain, factor)?];
         quality_table(cx, &rows);
-        if self.0.replace_terrain {
+        if self.replace_terrain {
             cx.state.set_terrain(volcano_result);
         }
         Ok(())

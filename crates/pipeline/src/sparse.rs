@@ -29,6 +29,7 @@ use relief_sparse_core::{
 };
 use serde::{Deserialize, Serialize};
 
+use super::spec::StageParams;
 use super::{Stage, StageCx, Tolerance};
 
 /// Tolerance of the sparse goldens: K-SVD and Batch-OMP are deterministic for a seed whatever
@@ -66,32 +67,27 @@ impl Default for SparseParams {
     }
 }
 
-/// The `sparse` stage.
-#[derive(Debug, Default)]
-pub(crate) struct SparseStage(pub(crate) SparseParams);
-
-impl SparseStage {
-    /// Checks the job and the sparsities when the spec is built.
-    pub(crate) fn new(p: SparseParams) -> Result<Self> {
-        p.job.check().context("invalid `job`")?;
-        if p.sparsities.is_empty() {
+impl StageParams for SparseParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        if self.sparsities.is_empty() {
             bail!("invalid parameter `sparsities` = []: give at least one sparsity");
         }
-        for &s in &p.sparsities {
+        for &s in &self.sparsities {
             CompressSettings {
                 sparsity: s,
-                ..p.job
+                ..self.job
             }
             .check()
             .context("invalid `sparsities`")?;
         }
-        Ok(Self(p))
+        Ok(())
     }
 }
 
-impl Stage for SparseStage {
+impl Stage for SparseParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let terrain = cx.state.complete_terrain("sparse")?;
         // Pre-flight under `relief run --max-memory`: the patches and the dictionary.
         cx.config.limits.check_memory(

@@ -22,10 +22,10 @@
 //! from the terrain the previous one produced.
 //!
 //! # Registering a stage
-//! Add one entry to `REGISTRY`: its name and how it is built (`|p| Ok(Box::new(YourStage::new(
-//! params(p)?)?))` for a stage with parameters, which must implement `Serialize + Deserialize +
-//! Default`; `|p| no_params(p, Box::new(YourStage))` for one without), at its place in the
-//! default run ([`default_spec`]). The test below checks that every name builds.
+//! Add one entry to `REGISTRY`: its name and how it is built (`with_params::<YourParams>` for a
+//! stage with parameters, whose parameter struct implements [`Stage`] and `StageParams`;
+//! `|p| no_params(p, Box::new(YourStage))` for one without), at its place in the default run
+//! ([`default_spec`]). The test below checks that every name builds.
 
 use std::path::{Path, PathBuf};
 
@@ -162,32 +162,18 @@ const REGISTRY: [(&str, Build); 12] = [
     ("convert", |p| {
         no_params(p, Box::new(convert::ConvertRoundTrips))
     }),
-    ("sparse", |p| {
-        Ok(Box::new(sparse::SparseStage::new(params(p)?)?))
-    }),
-    ("quilt", |p| Ok(Box::new(quilt::Quilt(params(p)?)))),
-    ("wavelet", |p| {
-        Ok(Box::new(wavelet::WaveletStage::new(params(p)?)?))
-    }),
-    ("amplify", |p| {
-        Ok(Box::new(dictionary::AmplifyStage::new(params(p)?)?))
-    }),
-    ("sketch", |p| {
-        Ok(Box::new(dictionary::SketchStage::new(params(p)?)?))
-    }),
-    ("procedural", |p| {
-        Ok(Box::new(dictionary::ProceduralStage::new(params(p)?)?))
-    }),
-    ("volume", |p| {
-        Ok(Box::new(volume::VolumeStage::new(params(p)?)?))
-    }),
+    ("sparse", with_params::<sparse::SparseParams>),
+    ("quilt", with_params::<quilt::QuiltParams>),
+    ("wavelet", with_params::<wavelet::WaveletParams>),
+    ("amplify", with_params::<dictionary::AmplifyParams>),
+    ("sketch", with_params::<dictionary::SketchParams>),
+    ("procedural", with_params::<dictionary::ProceduralParams>),
+    ("volume", with_params::<volume::VolumeParams>),
     // After every stage that changes the terrain (the last is `amplify`; sketch, procedural
     // and volume leave it as it is): the drainage of the final terrain.
-    ("flow", |p| Ok(Box::new(flow::FlowStage::new(params(p)?)?))),
+    ("flow", with_params::<flow::FlowStage>),
     // Erosion of the input DEM at its own cell size (or of the terrain, `input: "terrain"`).
-    ("erode", |p| {
-        Ok(Box::new(erode::ErodeStage::new(params(p)?)?))
-    }),
+    ("erode", with_params::<erode::ErodeParams>),
 ];
 
 /// Every stage name a spec may use, in the order of the default run.
@@ -255,6 +241,23 @@ fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
         }
         (b, o) => *b = o,
     }
+}
+
+/// The parameters of a stage, which run as the stage itself: read by [`params`] from the spec's
+/// `params` over their [`Default`], and checked when the spec is built, so a bad spec fails
+/// before any stage runs.
+pub(crate) trait StageParams:
+    Stage + Serialize + DeserializeOwned + Default + 'static
+{
+    /// Checks the parameters; an error names the parameter.
+    fn check_params(&self) -> Result<()>;
+}
+
+/// Builds a stage with parameters `P` from its spec entry's `params` (read and checked).
+pub(crate) fn with_params<P: StageParams>(value: &serde_json::Value) -> Result<Box<dyn Stage>> {
+    let p: P = params(value)?;
+    p.check_params()?;
+    Ok(Box::new(p))
 }
 
 /// A stage without parameters: `params` must be absent, `null` or `{}`.

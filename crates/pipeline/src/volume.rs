@@ -13,10 +13,11 @@
 //! runs without previews (the golden run) it meshes at one voxel per DEM cell unless the job
 //! sets a voxel, and skips the renders, to stay well under a second.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use relief_implicit_volume::{Feature, Recipe, VolumeJob};
 use serde::{Deserialize, Serialize};
 
+use super::spec::StageParams;
 use super::{Stage, StageCx, StageInput};
 
 /// Parameters of the `volume` stage (JSON `params`).
@@ -64,24 +65,16 @@ impl Default for VolumeParams {
     }
 }
 
-/// The `volume` stage.
-#[derive(Debug)]
-pub(crate) struct VolumeStage(pub(crate) VolumeParams);
-
-impl VolumeStage {
-    /// Checks the parameters when the spec is read.
-    pub(crate) fn new(p: VolumeParams) -> Result<Self> {
-        p.job.check().context("invalid `job`")?;
-        if p.max_size != 0 && p.max_size < 3 {
-            bail!("`max_size` = {} must be 0 or >= 3", p.max_size);
-        }
-        Ok(Self(p))
+impl StageParams for VolumeParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        crate::check_max_size(self.max_size, 3)
     }
 }
 
-impl Stage for VolumeStage {
+impl Stage for VolumeParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let (terrain, which) = cx.input_terrain("volume", p.input)?;
         let mut hf = cx.centre_crop_to(terrain, p.max_size)?;
         let mut job = p.job.clone();
@@ -214,7 +207,8 @@ mod tests {
         let mut state = State::default();
         state.set_terrain(crate::test_input_crop(&config, config.crop.unwrap()));
         let t = Instant::now();
-        let stage = VolumeStage::new(VolumeParams::default()).unwrap();
+        let stage = VolumeParams::default();
+        stage.check_params().unwrap();
         let section = crate::run_stage(&stage, "volume", &config, &mut state).unwrap();
         let secs = t.elapsed().as_secs_f64();
         let f = &section.figures;
@@ -280,8 +274,8 @@ mod tests {
                 ..Default::default()
             };
             p.job.recipe.features = vec![Feature::Karst];
-            let stage = VolumeStage::new(p).unwrap();
-            let section = crate::run_stage(&stage, "volume", &config, &mut state).unwrap();
+            p.check_params().unwrap();
+            let section = crate::run_stage(&p, "volume", &config, &mut state).unwrap();
             let f = &section.figures;
             assert_eq!(f["input"], which);
             let got = f["cell_size_m"][0].as_f64().unwrap();
@@ -295,10 +289,8 @@ mod tests {
             serde_json::json!({ "job": { "recipe": { "features": ["caves"] } } }),
         )
         .unwrap();
-        assert_eq!(
-            VolumeStage::new(p).unwrap().0.job.recipe.features,
-            vec![Feature::Caves]
-        );
+        p.check_params().unwrap();
+        assert_eq!(p.job.recipe.features, vec![Feature::Caves]);
         let e = serde_json::from_value::<VolumeParams>(
             serde_json::json!({ "job": { "recipe": { "features": ["lava"] } } }),
         )
@@ -306,7 +298,7 @@ mod tests {
         assert!(e.to_string().contains("lava"), "{e}");
         let p: VolumeParams =
             serde_json::from_value(serde_json::json!({ "job": { "max_triangles": 0 } })).unwrap();
-        let e = VolumeStage::new(p).unwrap_err();
+        let e = p.check_params().unwrap_err();
         assert!(format!("{e:#}").contains("max_triangles"), "{e:#}");
         assert!(
             serde_json::from_value::<VolumeParams>(serde_json::json!({ "colour": 1 })).is_err()

@@ -32,6 +32,7 @@ use relief_wavelet_lod::{
 use serde::{Deserialize, Serialize};
 
 use super::report::Plot;
+use super::spec::StageParams;
 use super::{Stage, StageCx, Tolerance};
 
 /// Tolerance of the wavelet golden (the on-demand LSA window): the synthesis is deterministic
@@ -71,31 +72,24 @@ impl Default for WaveletParams {
     }
 }
 
-/// The `wavelet` stage.
-#[derive(Debug, Default)]
-pub(crate) struct WaveletStage(pub(crate) WaveletParams);
-
-impl WaveletStage {
-    /// Checks the parameters (called when the spec is built, so a bad spec fails before any
-    /// stage runs).
-    pub(crate) fn new(params: WaveletParams) -> Result<Self> {
-        params.job.check().context("invalid `job`")?;
-        if params.max_cells < 64 * 64 {
-            bail!(
-                "invalid `max_cells` = {}: must be >= 4096",
-                params.max_cells
-            );
+impl StageParams for WaveletParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        if self.max_cells < 64 * 64 {
+            bail!("invalid `max_cells` = {}: must be >= 4096", self.max_cells);
         }
-        Ok(Self(params))
+        Ok(())
     }
+}
 
+impl WaveletParams {
     /// The job with another method, level count and seed.
     fn settings(&self, method: Method, levels: u32, seed: u64) -> RefineSettings {
         RefineSettings {
             method,
             extra_levels: levels,
-            seed: seed ^ self.0.job.seed,
-            ..self.0.job.clone()
+            seed: seed ^ self.job.seed,
+            ..self.job.clone()
         }
     }
 }
@@ -107,9 +101,9 @@ fn label(method: Method, window: usize) -> String {
     }
 }
 
-impl Stage for WaveletStage {
+impl Stage for WaveletParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let seed = cx.config.seed ^ 0x5741_5645_4c45_5400; // "WAVELET"
         let terrain = cx.state.terrain()?.clone();
         if terrain.has_voids() {
@@ -419,7 +413,7 @@ fn on_demand_windows(cx: &mut StageCx<'_>, p: &WaveletParams, refined: &[Refined
 fn quality(
     cx: &mut StageCx<'_>,
     terrain: &Heightfield,
-    stage: &WaveletStage,
+    stage: &WaveletParams,
     seed: u64,
 ) -> Result<()> {
     let mut rows: Vec<(String, Vec<f64>)> = Vec::new();
@@ -437,7 +431,7 @@ fn quality(
             }
         };
         let levels = factor.trailing_zeros();
-        let window = stage.0.job.window;
+        let window = stage.job.window;
         let runs = [
             (
                 label(Method::Gsa, window),

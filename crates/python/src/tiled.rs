@@ -62,9 +62,7 @@ fn halo(l: &TileLayout, t: usize, b: &[u8]) -> PyResult<Vec<f32>> {
         ))
         .into());
     }
-    Ok(b.chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect())
+    Ok(relief_heightfield::bytes::f32_from_le_bytes(b))
 }
 
 /// Each tile's `(x, y, width, height)`.

@@ -197,12 +197,7 @@ impl RefinePlan {
 
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Reduced<'py>> {
         // The samples as bytes: a pickled numpy array may come back at an unaligned address.
-        let bytes: Vec<u8> = self
-            .input
-            .as_slice()
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
+        let bytes = relief_heightfield::bytes::f32_to_le_bytes(self.input.as_slice());
         let geo: Geo = (None, None, convert::georef_json(&self.input));
         let args = (
             PyBytes::new(py, &bytes),
@@ -228,10 +223,7 @@ pub(crate) fn _refine_plan(
     paper: bool,
 ) -> PyResult<RefinePlan> {
     let s = refine_settings(&settings_json, paper)?;
-    let data: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let data = relief_heightfield::bytes::f32_from_le_bytes(bytes);
     let input = Heightfield::new(size.0, size.1, data, cell_size.0, cell_size.1)
         .map_err(Failure::value)?
         .with_georef(convert::geo(&geo)?);

@@ -116,6 +116,31 @@ pub(crate) fn read(path: &Path) -> Heightfield {
         .heightfield
 }
 
+/// Two rasters with the same grid, bits (voids included), cell size and georeference.
+pub(crate) fn assert_same_raster(a: &Path, b: &Path) {
+    let (x, y) = (read(a), read(b));
+    assert_eq!((x.width(), x.height()), (y.width(), y.height()));
+    let differ = x
+        .as_slice()
+        .iter()
+        .zip(y.as_slice())
+        .filter(|(p, q)| p.to_bits() != q.to_bits())
+        .count();
+    assert_eq!(
+        differ,
+        0,
+        "{differ} cells differ between {} and {}",
+        a.display(),
+        b.display()
+    );
+    assert_eq!(x.cell_size(), y.cell_size());
+    let geo = |h: &Heightfield| {
+        h.georef()
+            .map(|g| (g.geotransform, g.crs.clone(), g.geo_key_directory.clone()))
+    };
+    assert_eq!(geo(&x), geo(&y), "georeference of {}", a.display());
+}
+
 /// Writes `hf` into `path` with the default options.
 pub(crate) fn save(path: &Path, hf: &Heightfield) {
     relief_io::write(path, hf, &relief_io::WriteOptions::default())
@@ -228,6 +253,13 @@ pub(crate) fn tmp_with_crop(
     (tmp, path, hf)
 }
 
+/// A temporary folder holding `hf` written as `name`, and the file's path.
+pub(crate) fn tmp_with(name: &str, hf: &Heightfield) -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = write(tmp.path(), name, hf);
+    (tmp, path)
+}
+
 pub(crate) fn dem(name: &str) -> Option<PathBuf> {
     relief_testdata::dem_dir().map(|d| d.join(name))
 }
@@ -276,4 +308,20 @@ pub(crate) fn two_at_a_time(order: &[usize], what: &str, spawn: impl Fn(usize) -
             );
         }
     }
+}
+
+/// Kills `child` (SIGKILL) `ms` milliseconds after it started and reaps it: a task killed
+/// mid-run.
+pub(crate) fn kill_after(mut child: Child, ms: u64) {
+    std::thread::sleep(std::time::Duration::from_millis(ms));
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Damages a file in place: one byte in its middle flipped.
+pub(crate) fn damage(path: &Path) {
+    let mut bytes = std::fs::read(path).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x55;
+    std::fs::write(path, &bytes).unwrap();
 }

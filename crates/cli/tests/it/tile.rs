@@ -30,29 +30,6 @@ fn run_all_two_at_a_time(dir: &Path, n: usize, seed: u64) {
     two_at_a_time(&order, "task", |i| spawn_task(dir, i));
 }
 
-fn assert_same_raster(a: &Path, b: &Path) {
-    let (x, y) = (read(a), read(b));
-    assert_eq!((x.width(), x.height()), (y.width(), y.height()));
-    let differ = x
-        .as_slice()
-        .iter()
-        .zip(y.as_slice())
-        .filter(|(p, q)| p.to_bits() != q.to_bits())
-        .count();
-    assert_eq!(
-        differ,
-        0,
-        "{differ} cells differ between {} and {}",
-        a.display(),
-        b.display()
-    );
-    assert_eq!(x.cell_size(), y.cell_size());
-    let (ga, gb) = (x.georef().unwrap(), y.georef().unwrap());
-    assert_eq!(ga.geotransform, gb.geotransform);
-    assert_eq!(ga.crs, gb.crs);
-    assert_eq!(ga.geo_key_directory, gb.geo_key_directory);
-}
-
 /// The whole cycle for one command: single run, plan, a killed task, shuffled tasks two at a
 /// time, a corrupted tile found and redone, mosaic equal to the single run. `line` is the
 /// command without its output, `{}` standing for the fixture DEM.
@@ -84,10 +61,7 @@ fn cycle(line: &str) {
     assert!(!mo.status.success());
     assert!(!planned.exists());
     // A task killed at some point of its run leaves no tile that counts as done.
-    let mut c = spawn_task(&dir, 1);
-    std::thread::sleep(std::time::Duration::from_millis(60));
-    let _ = c.kill();
-    let _ = c.wait();
+    kill_after(spawn_task(&dir, 1), 60);
     run_all_two_at_a_time(&dir, n, 7);
     relief_ok!["tile", "status", &dir];
     // A re-run of a done task is a no-op.
@@ -95,10 +69,7 @@ fn cycle(line: &str) {
     ok(&again);
     // A damaged tile is reported, refused by the mosaic, and redone by its task.
     let t2 = dir.join("tiles/tile-000002.tif");
-    let mut bytes = std::fs::read(&t2).unwrap();
-    let mid = bytes.len() / 2;
-    bytes[mid] ^= 0x55;
-    std::fs::write(&t2, &bytes).unwrap();
+    damage(&t2);
     let st = relief!["tile", "status", &dir];
     assert!(!st.status.success());
     assert!(

@@ -36,28 +36,6 @@ fn run_phases(dir: &Path, n: usize, seed: u64) {
     run_phases_to(dir, n, seed, 7);
 }
 
-/// `file` in folders `single` and `tiled`: the same grid, bits, cell size and georeference.
-pub(crate) fn assert_same_raster(single: &Path, tiled: &Path, file: &str) {
-    let (a, b) = (read(&single.join(file)), read(&tiled.join(file)));
-    assert_eq!((a.width(), a.height()), (b.width(), b.height()), "{file}");
-    let differ = a
-        .as_slice()
-        .iter()
-        .zip(b.as_slice())
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
-    assert_eq!(
-        differ, 0,
-        "{differ} cells of {file} differ from the single run"
-    );
-    assert_eq!(a.cell_size(), b.cell_size());
-    assert_eq!(
-        a.georef().map(|g| (g.geotransform, g.crs.clone())),
-        b.georef().map(|g| (g.geotransform, g.crs.clone())),
-        "{file}: georeference"
-    );
-}
-
 /// Phases 1 to `last` in turn (a masks plan has 8); the per-tile phases as shuffled tasks two
 /// at a time.
 pub(crate) fn run_phases_to(dir: &Path, n: usize, seed: u64, last: usize) {
@@ -92,7 +70,8 @@ pub(crate) fn plan_refuses(
 
 fn assert_same(single: &Path, tiled: &Path) {
     for p in PRODUCTS {
-        assert_same_raster(single, tiled, &format!("{p}.tif"));
+        let f = format!("{p}.tif");
+        assert_same_raster(&single.join(&f), &tiled.join(&f));
     }
     let geojson = |d: &Path| std::fs::read(d.join("channels.geojson")).unwrap();
     let (a, b) = (geojson(single), geojson(tiled));
@@ -159,10 +138,7 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
         &[],
     );
     // A task killed mid-run leaves nothing that counts as done.
-    let mut c = spawn(&dir, 1, 1);
-    std::thread::sleep(std::time::Duration::from_millis(40));
-    let _ = c.kill();
-    let _ = c.wait();
+    kill_after(spawn(&dir, 1, 1), 40);
     run_phases(&dir, n, seed);
     relief_ok!["tile", "status", &dir];
     // A task already done is a no-op; a single phase is task 0 only.
@@ -174,10 +150,7 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
     );
     // A damaged tile of the last phase is reported, refused by the mosaic, and redone.
     let t2 = dir.join("tiles/area-000002.tif");
-    let mut bytes = std::fs::read(&t2).unwrap();
-    let mid = bytes.len() / 2;
-    bytes[mid] ^= 0x55;
-    std::fs::write(&t2, &bytes).unwrap();
+    damage(&t2);
     let st = relief!["tile", "status", &dir];
     let text = String::from_utf8_lossy(&st.stdout).to_string();
     assert!(
@@ -193,10 +166,7 @@ fn cycle(dem: &Path, tile: usize, seed: u64) {
     let inflow = dir.join("phase4/inflow-000001.bin");
     let before = std::fs::read(&inflow).unwrap();
     std::fs::remove_file(dir.join("phase4/task-000000.json")).unwrap();
-    let mut c = spawn(&dir, 4, 0);
-    std::thread::sleep(std::time::Duration::from_millis(15));
-    let _ = c.kill();
-    let _ = c.wait();
+    kill_after(spawn(&dir, 4, 0), 15);
     let text = String::from_utf8_lossy(&relief!["tile", "status", &dir].stdout).to_string();
     assert!(
         text.contains("next: phase 4") || text.contains("next: relief tile mosaic"),
@@ -300,8 +270,7 @@ fn flow_plan_equals_the_single_run_on_a_real_dem() {
     let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 300, 200) else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "alps.tif", &hf);
+    let (_tmp, dem) = tmp_with("alps.tif", &hf);
     cycle(&dem, 64, 3);
     cycle(&dem, 48, 11);
 }
@@ -311,8 +280,7 @@ fn flow_plan_equals_the_single_run_on_a_real_dem() {
 #[test]
 fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
     let hf = basin();
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "basin.tif", &hf);
+    let (_tmp, dem) = tmp_with("basin.tif", &hf);
     cycle(&dem, 32, 5);
     cycle(&dem, 16, 17);
 }
@@ -324,8 +292,7 @@ fn flow_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
 #[test]
 fn flow_plan_mosaic_copies_aligned_tiles_blocks() {
     let hf = basin_of(700, 560);
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "basin.tif", &hf);
+    let (tmp, dem) = tmp_with("basin.tif", &hf);
     let single = tmp.path().join("single");
     // Relative paths, as flow.json's `file` names them.
     let in_tmp = |line: &str| {

@@ -7,9 +7,7 @@
 use std::path::Path;
 
 use crate::common::*;
-use crate::tile_flow::{
-    assert_same_raster, basin, plan_refuses, run_phases_to, single_and_plan, tasks,
-};
+use crate::tile_flow::{basin, plan_refuses, run_phases_to, single_and_plan, tasks};
 
 const MASKS: [&str; 7] = [
     "slope",
@@ -49,7 +47,8 @@ fn masks_plan_equals_single(dem: &Path, tile: usize, extra: &[&str], seed: u64) 
     relief_ok!["tile", "status", &dir];
     relief_ok!["tile", "mosaic", &dir];
     for m in MASKS {
-        assert_same_raster(&single, &tiled, &format!("{m}.tif"));
+        let f = format!("{m}.tif");
+        assert_same_raster(&single.join(&f), &tiled.join(&f));
     }
     for f in ["splat.png", "masks.json"] {
         assert!(
@@ -69,8 +68,7 @@ fn masks_plan_equals_the_single_run_on_a_real_dem() {
     let Some(hf) = relief_testdata::dem_crop("alps_dem", 120, 100, 200, 150) else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "alps.tif", &hf);
+    let (_tmp, dem) = tmp_with("alps.tif", &hf);
     masks_plan_equals_single(&dem, 64, &[], 3);
 }
 
@@ -78,8 +76,7 @@ fn masks_plan_equals_the_single_run_on_a_real_dem() {
 /// given height bands and a rock slope.
 #[test]
 fn masks_plan_equals_the_single_run_on_a_basin_over_nine_tiles() {
-    let tmp = tempfile::tempdir().unwrap();
-    let dem = write(tmp.path(), "basin.tif", &basin());
+    let (_tmp, dem) = tmp_with("basin.tif", &basin());
     masks_plan_equals_single(&dem, 32, &[], 5);
     masks_plan_equals_single(
         &dem,

@@ -71,12 +71,12 @@ impl MultiResDictionary {
         let mut means = Vec::with_capacity(g.len());
         let mut codes: Option<relief_sparse_core::SparseCodes<f32>> = None;
         for r0 in (0..g.ny).step_by(band) {
-            if progress.stopped() {
-                return Err(LearnError::Stopped(format!(
+            progress.check_stop(|| {
+                LearnError::Stopped(format!(
                     "coding the x4 step's primitives, row {r0} of {}",
                     g.ny
-                )));
-            }
+                ))
+            })?;
             let patches = extract_patch_rows(coarse, &geom, r0..(r0 + band).min(g.ny))?;
             let c = self.code_band(&patches.matrix, r0 * g.nx, g.nx, frame, settings)?;
             means.extend_from_slice(&patches.means);

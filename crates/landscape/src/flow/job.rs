@@ -106,13 +106,7 @@ impl FlowSettings {
         // Asked between the passes (each a fraction of a second per million cells): a run
         // past its time budget ends with `Stopped`.
         let stop = |after: &str| {
-            if progress.stopped() {
-                Err(LandscapeError::Stopped(format!(
-                    "flow routing, after {after}"
-                )))
-            } else {
-                Ok(())
-            }
+            progress.check_stop(|| LandscapeError::Stopped(format!("flow routing, after {after}")))
         };
         let r = route(dem.as_slice().to_vec(), grid, &self.route_options());
         progress.advance(1);

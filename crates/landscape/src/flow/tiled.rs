@@ -224,9 +224,14 @@ impl TileLayout {
 
     /// The grid of the whole raster.
     pub fn grid(&self) -> Grid {
+        self.grid_of(self.width, self.height)
+    }
+
+    /// A `width x height` grid at the raster's cell size (a tile, or a tile with a margin).
+    pub(crate) fn grid_of(&self, width: usize, height: usize) -> Grid {
         Grid {
-            width: self.width,
-            height: self.height,
+            width,
+            height,
             cell_x: self.cell_x,
             cell_y: self.cell_y,
         }
@@ -443,15 +448,25 @@ fn drain_order(indeg: &mut [u32], mut visit: impl FnMut(usize) -> Option<usize>)
     queue.len() == indeg.len()
 }
 
-/// An error unless tile `t` of a task order is in range and not yet done (`taken`: whether it
-/// is done, `None` out of range).
-fn untaken(t: usize, taken: Option<bool>) -> Result<()> {
-    if taken != Some(false) {
-        return Err(bad(format!(
-            "the task order names tile {t} twice or out of range"
-        )));
+/// A per-tile pass run on the `tasks` tiles in the task order `order` (an error unless it names
+/// every tile once), and every tile's product.
+fn per_tile<T>(
+    tasks: usize,
+    order: Vec<usize>,
+    mut run: impl FnMut(usize) -> Result<T>,
+) -> Result<Vec<T>> {
+    let mut done: Vec<Option<T>> = (0..tasks).map(|_| None).collect();
+    for t in order {
+        if !matches!(done.get(t), Some(None)) {
+            return Err(bad(format!(
+                "the task order names tile {t} twice or out of range"
+            )));
+        }
+        done[t] = Some(run(t)?);
     }
-    Ok(())
+    done.into_iter()
+        .map(|x| x.ok_or_else(|| bad("the task order leaves a tile out")))
+        .collect()
 }
 
 /// The first five passes in one process, tasks in the order `order(phase, tasks)` gives (the tests
@@ -466,35 +481,23 @@ pub fn run_in_memory(
         return Err(bad("the DEM does not match the layout"));
     }
     let tasks = layout.tasks();
-    let mut p1: Vec<Option<(LocalFill, FillGraph)>> = vec![None; tasks];
-    for t in order(1, tasks) {
-        untaken(t, p1.get(t).map(Option::is_some))?;
-        p1[t] = Some(phase1(layout, t, &halo_window(layout, t, dem)?)?);
-    }
-    let missing = || bad("the task order leaves a tile out");
-    let (fills, graphs): (Vec<LocalFill>, Vec<FillGraph>) = p1
-        .into_iter()
-        .map(|x| x.ok_or_else(missing))
-        .collect::<Result<Vec<_>>>()?
+    let (fills, graphs): (Vec<LocalFill>, Vec<FillGraph>) =
+        per_tile(tasks, order(1, tasks), |t| {
+            phase1(layout, t, &halo_window(layout, t, dem)?)
+        })?
         .into_iter()
         .unzip();
     let levels = phase2(layout, &graphs)?;
-    let mut p3: Vec<Option<(Routed, PortGraph)>> = vec![None; tasks];
-    for t in order(3, tasks) {
-        untaken(t, p3.get(t).map(Option::is_some))?;
+    let (routed, ports): (Vec<Routed>, Vec<PortGraph>) = per_tile(tasks, order(3, tasks), |t| {
         let near: Vec<(usize, &Levels)> = layout
             .neighbourhood(t)
             .into_iter()
             .map(|u| (u, &levels[u]))
             .collect();
-        p3[t] = Some(phase3(layout, t, &fills[t], &near)?);
-    }
-    let (routed, ports): (Vec<Routed>, Vec<PortGraph>) = p3
-        .into_iter()
-        .map(|x| x.ok_or_else(missing))
-        .collect::<Result<Vec<_>>>()?
-        .into_iter()
-        .unzip();
+        phase3(layout, t, &fills[t], &near)
+    })?
+    .into_iter()
+    .unzip();
     let inflow = phase4(layout, &ports)?;
     let n = layout.width * layout.height;
     let mut out = Finished {
@@ -502,10 +505,7 @@ pub fn run_in_memory(
         dir: vec![NO_FLOW; n],
         cells: vec![0; n],
     };
-    let mut done = vec![false; tasks];
-    for t in order(5, tasks) {
-        untaken(t, done.get(t).copied())?;
-        done[t] = true;
+    per_tile(tasks, order(5, tasks), |t| {
         let f = phase5(layout, t, &routed[t], &inflow[t])?;
         let [x0, y0, w, h] = layout.window(t);
         for y in 0..h {
@@ -514,10 +514,8 @@ pub fn run_in_memory(
             out.dir[a..a + w].copy_from_slice(&f.dir[b..b + w]);
             out.cells[a..a + w].copy_from_slice(&f.cells[b..b + w]);
         }
-    }
-    if done.contains(&false) {
-        return Err(missing());
-    }
+        Ok(())
+    })?;
     Ok(out)
 }
 

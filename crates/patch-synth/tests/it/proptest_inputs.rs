@@ -478,7 +478,7 @@ proptest! {
             })
         };
         let (one, two) = (run(1), run(2));
-        let bytes = |h: &Heightfield| -> Vec<u8> { h.as_slice().iter().flat_map(|v| v.to_le_bytes()).collect() };
+        let bytes = |h: &Heightfield| relief_heightfield::bytes::f32_to_le_bytes(h.as_slice());
         prop_assert_eq!(bytes(&one.heightfield), bytes(&two.heightfield));
         prop_assert_eq!(&one.seam_map, &two.seam_map);
         prop_assert_eq!(&one.placements, &two.placements);

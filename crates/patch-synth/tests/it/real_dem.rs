@@ -218,9 +218,7 @@ fn deterministic_across_thread_counts() {
         })
     };
     let (a, b) = (run(1), run(2));
-    let bytes = |h: &Heightfield| -> Vec<u8> {
-        h.as_slice().iter().flat_map(|v| v.to_le_bytes()).collect()
-    };
+    let bytes = |h: &Heightfield| relief_heightfield::bytes::f32_to_le_bytes(h.as_slice());
     assert_eq!(bytes(&a.heightfield), bytes(&b.heightfield));
     assert_eq!(a.seam_map, b.seam_map);
     assert_eq!(a.placements, b.placements);

@@ -52,30 +52,25 @@ impl Default for AmplifyParams {
     }
 }
 
-/// The `amplify` stage.
-#[derive(Debug, Default)]
-pub(crate) struct AmplifyStage(pub(crate) AmplifyParams);
-
-impl AmplifyStage {
-    /// Checks the job when the spec is built, so a bad spec fails before any stage runs.
-    pub(crate) fn new(p: AmplifyParams) -> Result<Self> {
-        p.job.check().context("invalid `job`")?;
-        if !(1..=3).contains(&p.job.steps) {
+impl StageParams for AmplifyParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        if !(1..=3).contains(&self.job.steps) {
             bail!(
                 "invalid parameter `job.steps` = {}: the stage runs 1, 2 or 3 x4 steps",
-                p.job.steps
+                self.job.steps
             );
         }
-        if p.x256_window != 0 && !(8..=64).contains(&p.x256_window) {
+        if self.x256_window != 0 && !(8..=64).contains(&self.x256_window) {
             bail!(
                 "invalid parameter `x256_window` = {}: must be 0 (off) or 8..=64 input cells",
-                p.x256_window
+                self.x256_window
             );
         }
-        if p.zoom < 16 {
-            bail!("invalid parameter `zoom` = {}: must be >= 16", p.zoom);
+        if self.zoom < 16 {
+            bail!("invalid parameter `zoom` = {}: must be >= 16", self.zoom);
         }
-        Ok(Self(p))
+        Ok(())
     }
 }
 
@@ -189,9 +184,9 @@ impl StageCx<'_> {
     }
 }
 
-impl Stage for AmplifyStage {
+impl Stage for AmplifyParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let terrain = cx.state.complete_terrain("amplify")?;
         let (w, h) = (terrain.width(), terrain.height());
         let half = w / 2;
@@ -300,7 +295,7 @@ impl Plan {
     }
 }
 
-impl AmplifyStage {
+impl AmplifyParams {
     /// Scales the work to the input: x16 needs a coarse input of >= 8 pixels per side and an
     /// exemplar of >= 6 fine patches; otherwise x4 and the smallest radius. `None` (with a
     /// note) when even that does not fit.
@@ -310,7 +305,7 @@ impl AmplifyStage {
         (w, h): (usize, usize),
         exemplar: &Heightfield,
     ) -> Option<Plan> {
-        let p = &self.0;
+        let p = self;
         let half = w / 2;
         let ex_side = exemplar.width().min(exemplar.height());
         let mut steps = p.job.steps;
@@ -355,7 +350,7 @@ impl AmplifyStage {
         output: &mut Option<(Heightfield, Heightfield)>,
         spectra: &mut Vec<(String, Heightfield)>,
     ) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let (steps, radius, atoms) = (plan.steps, plan.radius, plan.atoms);
         let (tw, th) = (truth.width(), truth.height());
         let progress = cx.progress();
@@ -503,7 +498,9 @@ impl AmplifyStage {
         );
         Ok(())
     }
+}
 
+impl AmplifyParams {
     /// The enlargement: the left half at full resolution amplified x{f} (nothing finer exists,
     /// so the result cannot have seen its answer), details from the right half.
     fn enlarge(
@@ -513,7 +510,7 @@ impl AmplifyStage {
         terrain: &Heightfield,
         exemplar: &Heightfield,
     ) -> Result<Heightfield> {
-        let p = &self.0;
+        let p = self;
         let (steps, f) = (plan.steps, 4usize.pow(plan.steps as u32));
         let (half, h) = (terrain.width() / 2, terrain.height());
         let progress = cx.progress();
@@ -580,7 +577,7 @@ impl AmplifyStage {
         exemplar: &Heightfield,
         settings: &AmplifySettings,
     ) -> Result<()> {
-        let n = self.0.x256_window;
+        let n = self.x256_window;
         let half = terrain.width() / 2;
         if half < n || terrain.height() < n {
             cx.section.note(&format!(

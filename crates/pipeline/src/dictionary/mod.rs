@@ -39,17 +39,16 @@ use relief_heightfield::{Heightfield, Progress, metrics};
 use relief_sparse_core::RasterSettings;
 use serde::{Deserialize, Serialize};
 
+use super::spec::StageParams;
 use super::{Stage, StageCx, Tolerance};
 
 mod amplify;
 mod procedural;
 mod sketch;
 
-#[cfg(test)]
 pub(crate) use self::amplify::AmplifyParams;
-pub(crate) use self::amplify::AmplifyStage;
-pub(crate) use self::procedural::ProceduralStage;
-pub(crate) use self::sketch::SketchStage;
+pub(crate) use self::procedural::ProceduralParams;
+pub(crate) use self::sketch::SketchParams;
 #[cfg(test)]
 use self::sketch::painted_sketch;
 

@@ -24,23 +24,23 @@ impl Default for ProceduralParams {
     }
 }
 
-impl ProceduralStage {
-    /// Checks the job when the spec is built.
-    pub(crate) fn new(p: ProceduralParams) -> Result<Self> {
-        p.job.check().context("invalid `job`")?;
-        if p.max_side < 16 {
+impl StageParams for ProceduralParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.check().context("invalid `job`")?;
+        if self.max_side < 16 {
             bail!(
                 "invalid parameter `max_side` = {}: must be >= 16",
-                p.max_side
+                self.max_side
             );
         }
-        Ok(Self(p))
+        Ok(())
     }
+}
 
+impl ProceduralParams {
     /// Atoms of the learned row.
     fn learned_atoms(&self, candidates: usize) -> usize {
-        self.0
-            .job
+        self.job
             .learned_atoms
             .unwrap_or(64)
             .min(candidates / 2)
@@ -48,13 +48,9 @@ impl ProceduralStage {
     }
 }
 
-/// The `procedural` stage.
-#[derive(Debug, Default)]
-pub(crate) struct ProceduralStage(pub(crate) ProceduralParams);
-
-impl Stage for ProceduralStage {
+impl Stage for ProceduralParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         // Fit the real DEM as loaded when it is complete (the comparison of atom families is
         // about real relief; earlier stages may have replaced the terrain by a synthetic one),
         // else the current terrain.

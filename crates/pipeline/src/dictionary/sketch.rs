@@ -36,24 +36,19 @@ impl Default for SketchParams {
     }
 }
 
-/// The `sketch` stage.
-#[derive(Debug, Default)]
-pub(crate) struct SketchStage(pub(crate) SketchParams);
-
-impl SketchStage {
-    /// Checks the job when the spec is built.
-    pub(crate) fn new(p: SketchParams) -> Result<Self> {
-        p.job.amplify.check().context("invalid `job.amplify`")?;
-        if !(1..=3).contains(&p.job.amplify.steps) {
+impl StageParams for SketchParams {
+    fn check_params(&self) -> Result<()> {
+        self.job.amplify.check().context("invalid `job.amplify`")?;
+        if !(1..=3).contains(&self.job.amplify.steps) {
             bail!(
                 "invalid parameter `job.amplify.steps` = {}: must be 1, 2 or 3",
-                p.job.amplify.steps
+                self.job.amplify.steps
             );
         }
-        if p.sketch_size == 0 {
+        if self.sketch_size == 0 {
             bail!("invalid parameter `sketch_size` = 0: must be >= 1");
         }
-        Ok(Self(p))
+        Ok(())
     }
 }
 
@@ -71,9 +66,9 @@ pub(crate) fn painted_sketch(w: usize, h: usize) -> Heightfield {
     })
 }
 
-impl Stage for SketchStage {
+impl Stage for SketchParams {
     fn run(&self, cx: &mut StageCx<'_>) -> Result<()> {
-        let p = &self.0;
+        let p = self;
         let steps = p.job.amplify.steps;
         // The real DEM as loaded when it is complete: earlier stages (amplify) may have made the
         // current terrain synthetic, and a sketch should get real relief; else the current

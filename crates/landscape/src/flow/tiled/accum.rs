@@ -343,12 +343,7 @@ pub fn phase5(layout: &TileLayout, t: usize, routed: &Routed, inflow: &Inflow) -
         pending[c] = true;
         dir[c] = d;
     }
-    let g = Grid {
-        width: w,
-        height: h,
-        cell_x: layout.cell_x,
-        cell_y: layout.cell_y,
-    };
+    let g = layout.grid_of(w, h);
     let port: Vec<bool> = (0..n)
         .map(|c| pending[c] || (dir[c] != NO_FLOW && in_tile_receiver(&g, c, dir[c]).is_none()))
         .collect();

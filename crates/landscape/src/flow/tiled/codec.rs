@@ -11,22 +11,17 @@ impl Out {
     fn new(magic: &[u8; 8], t: usize, w: usize, h: usize) -> Self {
         let mut o = Out(Vec::new());
         o.0.extend_from_slice(magic);
-        o.u64(t as u64);
-        o.u64(w as u64);
-        o.u64(h as u64);
+        (t as u64, w as u64, h as u64).put(&mut o);
         o
     }
-    fn u8(&mut self, v: u8) {
-        self.0.push(v);
+    /// The values one after the other.
+    fn all<T: Field>(&mut self, values: &[T]) {
+        values.iter().for_each(|v| v.put(self));
     }
-    fn u32(&mut self, v: u32) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn u64(&mut self, v: u64) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn f32(&mut self, v: f32) {
-        self.0.extend_from_slice(&v.to_le_bytes());
+    /// A count, then the values.
+    fn list<T: Field>(&mut self, values: &[T]) {
+        (values.len() as u64).put(self);
+        self.all(values);
     }
 }
 
@@ -55,7 +50,7 @@ impl<'a> In<'a> {
             )));
         }
         let [_, _, w, h] = layout.window(t);
-        if (r.u64()?, r.u64()?, r.u64()?) != (t as u64, w as u64, h as u64) {
+        if <(u64, u64, u64)>::get(&mut r)? != (t as u64, w as u64, h as u64) {
             return Err(bad(format!(
                 "{what} of tile {t}: written for another tile or tile size"
             )));
@@ -70,27 +65,30 @@ impl<'a> In<'a> {
         self.b = b;
         Ok(a)
     }
-    fn u8(&mut self) -> Result<u8> {
-        Ok(self.take(1)?[0])
+    /// The next value.
+    fn get<T: Field>(&mut self) -> Result<T> {
+        T::get(self)
     }
-    fn u32(&mut self) -> Result<u32> {
-        Ok(u32::from_le_bytes(
-            self.take(4)?.try_into().expect("4 bytes"),
-        ))
+    /// `n` values one after the other.
+    fn all<T: Field>(&mut self, n: usize) -> Result<Vec<T>> {
+        if n.saturating_mul(T::SIZE) > self.b.len() {
+            return Err(bad(format!("{} of tile {}: truncated", self.what, self.t)));
+        }
+        let mut v = Vec::with_capacity(n);
+        for _ in 0..n {
+            v.push(T::get(self)?);
+        }
+        Ok(v)
     }
-    fn u64(&mut self) -> Result<u64> {
-        Ok(u64::from_le_bytes(
-            self.take(8)?.try_into().expect("8 bytes"),
-        ))
-    }
-    fn f32(&mut self) -> Result<f32> {
-        Ok(f32::from_le_bytes(
-            self.take(4)?.try_into().expect("4 bytes"),
-        ))
+    /// A count of at most `max` values, then the values (the count is also bounded by what is
+    /// left, before anything is allocated).
+    fn list<T: Field>(&mut self, max: usize) -> Result<Vec<T>> {
+        let n = self.count(max, T::SIZE)?;
+        self.all(n)
     }
     /// A count of at most `max` items of `size` bytes each, also bounded by what is left.
     fn count(&mut self, max: usize, size: usize) -> Result<usize> {
-        let n = self.u64()?;
+        let n: u64 = self.get()?;
         if n > max as u64 || n.saturating_mul(size as u64) > self.b.len() as u64 {
             return Err(bad(format!(
                 "{} of tile {}: a count of {n} is out of range",
@@ -98,18 +96,6 @@ impl<'a> In<'a> {
             )));
         }
         Ok(n as usize)
-    }
-    fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
-        let b = self.take(n * 4)?;
-        Ok(b.chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-            .collect())
-    }
-    fn u32s(&mut self, n: usize) -> Result<Vec<u32>> {
-        let b = self.take(n * 4)?;
-        Ok(b.chunks_exact(4)
-            .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
-            .collect())
     }
     fn end(self) -> Result<()> {
         if self.b.is_empty() {
@@ -125,8 +111,106 @@ impl<'a> In<'a> {
     }
 }
 
+/// A value of fixed size in the byte forms: a little-endian number, or a tuple or record of
+/// them written field by field.
+trait Field: Sized {
+    /// Its size in bytes.
+    const SIZE: usize;
+    fn put(&self, o: &mut Out);
+    fn get(r: &mut In<'_>) -> Result<Self>;
+}
+
+macro_rules! le_number_field {
+    ($($t:ty),+) => {$(
+        impl Field for $t {
+            const SIZE: usize = size_of::<$t>();
+            fn put(&self, o: &mut Out) {
+                o.0.extend_from_slice(&self.to_le_bytes());
+            }
+            fn get(r: &mut In<'_>) -> Result<Self> {
+                let b = r.take(Self::SIZE)?;
+                Ok(Self::from_le_bytes(b.try_into().expect("the size of the type")))
+            }
+        }
+    )+};
+}
+
+le_number_field!(u8, u32, u64, f32);
+
+macro_rules! tuple_field {
+    ($(($($v:ident: $t:ident),+)),+) => {$(
+        impl<$($t: Field),+> Field for ($($t,)+) {
+            const SIZE: usize = 0 $(+ $t::SIZE)+;
+            fn put(&self, o: &mut Out) {
+                let ($($v,)+) = self;
+                $($v.put(o);)+
+            }
+            fn get(r: &mut In<'_>) -> Result<Self> {
+                // A tuple's fields are evaluated left to right: read in the order written.
+                Ok(($($t::get(r)?,)+))
+            }
+        }
+    )+};
+}
+
+tuple_field!((a: A, b: B), (a: A, b: B, c: C), (a: A, b: B, c: C, d: D));
+
 fn dir_ok(d: u8) -> bool {
     d < 8 || d == NO_FLOW
+}
+
+/// A flat cell: its cell, elevation and a flag byte (0 or 1) for `high`.
+impl Field for FlatCell {
+    const SIZE: usize = <(u32, f32, u8)>::SIZE;
+    fn put(&self, o: &mut Out) {
+        (self.cell, self.z, u8::from(self.high)).put(o);
+    }
+    fn get(r: &mut In<'_>) -> Result<Self> {
+        let (cell, z, high): (u32, f32, u8) = r.get()?;
+        if high > 1 {
+            return Err(bad(format!(
+                "{} of tile {}: a flag is not 0 or 1",
+                r.what, r.t
+            )));
+        }
+        Ok(FlatCell {
+            cell,
+            z,
+            high: high == 1,
+        })
+    }
+}
+
+/// A network entry, field by field.
+impl Field for Entry {
+    const SIZE: usize = <(u32, u32, u8, f32)>::SIZE;
+    fn put(&self, o: &mut Out) {
+        (self.cell, self.target, self.out, self.base).put(o);
+    }
+    fn get(r: &mut In<'_>) -> Result<Self> {
+        Ok(Entry {
+            cell: r.get()?,
+            target: r.get()?,
+            out: r.get()?,
+            base: r.get()?,
+        })
+    }
+}
+
+/// A key cell, field by field (`top` as its two bytes).
+impl Field for Key {
+    const SIZE: usize = <(u32, (u8, u8), u32, u8)>::SIZE;
+    fn put(&self, o: &mut Out) {
+        (self.cell, self.top, self.down, self.out).put(o);
+    }
+    fn get(r: &mut In<'_>) -> Result<Self> {
+        Ok(Key {
+            cell: r.get()?,
+            top: r.get()?,
+            down: r.get()?,
+            out: r.get()?,
+        })
+    }
 }
 
 const FILL: &[u8; 8] = b"RLFTP1FL";
@@ -140,8 +224,8 @@ impl LocalFill {
     /// The byte form of tile `t`'s local fill.
     pub fn to_bytes(&self, t: usize) -> Vec<u8> {
         let mut o = Out::new(FILL, t, self.width, self.height);
-        self.z.iter().for_each(|&v| o.f32(v));
-        self.label.iter().for_each(|&v| o.u32(v));
+        o.all(&self.z);
+        o.all(&self.label);
         o.0
     }
 
@@ -149,8 +233,8 @@ impl LocalFill {
     pub fn from_bytes(b: &[u8], layout: &TileLayout, t: usize) -> Result<Self> {
         let mut r = In::new(b, FILL, "local fill", layout, t)?;
         let [_, _, w, h] = layout.window(t);
-        let z = r.f32s(w * h)?;
-        let label = r.u32s(w * h)?;
+        let z = r.all(w * h)?;
+        let label = r.all(w * h)?;
         r.end()?;
         let f = LocalFill {
             width: w,
@@ -168,14 +252,9 @@ impl FillGraph {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(GRAPH, t, w, h);
-        self.band_z.iter().for_each(|&v| o.f32(v));
-        self.band_label.iter().for_each(|&v| o.u32(v));
-        o.u64(self.edges.len() as u64);
-        for &(a, b, s) in &self.edges {
-            o.u32(a);
-            o.u32(b);
-            o.f32(s);
-        }
+        o.all(&self.band_z);
+        o.all(&self.band_label);
+        o.list(&self.edges);
         o.0
     }
 
@@ -184,13 +263,9 @@ impl FillGraph {
         let mut r = In::new(b, GRAPH, "fill graph", layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let bl = band_len(w, h);
-        let band_z = r.f32s(bl)?;
-        let band_label = r.u32s(bl)?;
-        let ne = r.count(8 * w * h, 12)?;
-        let mut edges = Vec::with_capacity(ne);
-        for _ in 0..ne {
-            edges.push((r.u32()?, r.u32()?, r.f32()?));
-        }
+        let band_z = r.all(bl)?;
+        let band_label = r.all(bl)?;
+        let edges = r.list(8 * w * h)?;
         r.end()?;
         let g = FillGraph {
             band_z,
@@ -207,8 +282,8 @@ impl Levels {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(LEVELS, t, w, h);
-        self.level.iter().for_each(|&v| o.f32(v));
-        self.band.iter().for_each(|&v| o.f32(v));
+        o.all(&self.level);
+        o.all(&self.band);
         o.0
     }
 
@@ -217,8 +292,8 @@ impl Levels {
         let mut r = In::new(b, LEVELS, "levels", layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let bl = band_len(w, h);
-        let level = r.f32s(bl + 1)?;
-        let band = r.f32s(bl)?;
+        let level = r.all(bl + 1)?;
+        let band = r.all(bl)?;
         r.end()?;
         Ok(Levels { level, band })
     }
@@ -229,8 +304,8 @@ impl Routed {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(ROUTED, t, w, h);
-        self.filled.iter().for_each(|&v| o.f32(v));
-        o.0.extend_from_slice(&self.dir);
+        o.all(&self.filled);
+        o.all(&self.dir);
         o.0
     }
 
@@ -238,8 +313,8 @@ impl Routed {
     pub fn from_bytes(b: &[u8], layout: &TileLayout, t: usize) -> Result<Self> {
         let mut r = In::new(b, ROUTED, "routed tile", layout, t)?;
         let [_, _, w, h] = layout.window(t);
-        let filled = r.f32s(w * h)?;
-        let dir = r.take(w * h)?.to_vec();
+        let filled = r.all(w * h)?;
+        let dir: Vec<u8> = r.all(w * h)?;
         r.end()?;
         if !dir.iter().all(|&d| dir_ok(d)) {
             return Err(bad(format!(
@@ -255,28 +330,10 @@ impl PortGraph {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(PORTS, t, w, h);
-        o.u64(self.pending.len() as u64);
-        for p in &self.pending {
-            o.u32(p.cell);
-            o.f32(p.z);
-            o.u8(u8::from(p.high));
-        }
-        o.u64(self.low.len() as u64);
-        for &(c, z) in &self.low {
-            o.u32(c);
-            o.f32(z);
-        }
-        o.u64(self.ports.len() as u64);
-        for &(c, d, n) in &self.ports {
-            o.u32(c);
-            o.u8(d);
-            o.u64(n);
-        }
-        o.u64(self.links.len() as u64);
-        for &(c, p) in &self.links {
-            o.u32(c);
-            o.u32(p);
-        }
+        o.list(&self.pending);
+        o.list(&self.low);
+        o.list(&self.ports);
+        o.list(&self.links);
         o.0
     }
 
@@ -285,34 +342,10 @@ impl PortGraph {
         let mut r = In::new(b, PORTS, "port graph", layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let n = w * h;
-        let np = r.count(n, 9)?;
-        let mut pending = Vec::with_capacity(np);
-        for _ in 0..np {
-            let (cell, z, hi) = (r.u32()?, r.f32()?, r.u8()?);
-            if hi > 1 {
-                return Err(bad(format!("port graph of tile {t}: a flag is not 0 or 1")));
-            }
-            pending.push(FlatCell {
-                cell,
-                z,
-                high: hi == 1,
-            });
-        }
-        let nl = r.count(n, 8)?;
-        let mut low = Vec::with_capacity(nl);
-        for _ in 0..nl {
-            low.push((r.u32()?, r.f32()?));
-        }
-        let nq = r.count(n, 13)?;
-        let mut ports = Vec::with_capacity(nq);
-        for _ in 0..nq {
-            ports.push((r.u32()?, r.u8()?, r.u64()?));
-        }
-        let nk = r.count(n, 8)?;
-        let mut links = Vec::with_capacity(nk);
-        for _ in 0..nk {
-            links.push((r.u32()?, r.u32()?));
-        }
+        let pending: Vec<FlatCell> = r.list(n)?;
+        let low: Vec<(u32, f32)> = r.list(n)?;
+        let ports: Vec<(u32, u8, u64)> = r.list(n)?;
+        let links: Vec<(u32, u32)> = r.list(n)?;
         r.end()?;
         let (n32, cells) = (n as u32, n as u64);
         if pending.iter().any(|p| p.cell >= n32)
@@ -342,16 +375,8 @@ impl Inflow {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(INFLOW, t, w, h);
-        o.u64(self.pending_dir.len() as u64);
-        for &(c, d) in &self.pending_dir {
-            o.u32(c);
-            o.u8(d);
-        }
-        o.u64(self.entries.len() as u64);
-        for &(c, a) in &self.entries {
-            o.u32(c);
-            o.u64(a);
-        }
+        o.list(&self.pending_dir);
+        o.list(&self.entries);
         o.0
     }
 
@@ -360,16 +385,8 @@ impl Inflow {
         let mut r = In::new(b, INFLOW, "inflow", layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let n = w * h;
-        let np = r.count(n, 5)?;
-        let mut pending_dir = Vec::with_capacity(np);
-        for _ in 0..np {
-            pending_dir.push((r.u32()?, r.u8()?));
-        }
-        let ne = r.count(n, 12)?;
-        let mut entries = Vec::with_capacity(ne);
-        for _ in 0..ne {
-            entries.push((r.u32()?, r.u64()?));
-        }
+        let pending_dir: Vec<(u32, u8)> = r.list(n)?;
+        let entries: Vec<(u32, u64)> = r.list(n)?;
         r.end()?;
         let total = (layout.width as u64) * (layout.height as u64);
         if pending_dir
@@ -406,27 +423,9 @@ impl NetSummary {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(SUMMARY, t, w, h);
-        o.u64(self.ends.len() as u64);
-        for &(c, n, z) in &self.ends {
-            o.u32(c);
-            o.u64(n);
-            o.f32(z);
-        }
-        o.u64(self.entries.len() as u64);
-        for e in &self.entries {
-            o.u32(e.cell);
-            o.u32(e.target);
-            o.u8(e.out);
-            o.f32(e.base);
-        }
-        o.u64(self.keys.len() as u64);
-        for k in &self.keys {
-            o.u32(k.cell);
-            o.u8(k.top.0);
-            o.u8(k.top.1);
-            o.u32(k.down);
-            o.u8(k.out);
-        }
+        o.list(&self.ends);
+        o.list(&self.entries);
+        o.list(&self.keys);
         o.0
     }
 
@@ -436,26 +435,11 @@ impl NetSummary {
         let mut r = In::new(b, SUMMARY, what, layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let n = w * h;
-        let mut s = NetSummary::default();
-        for _ in 0..r.count(n, 16)? {
-            s.ends.push((r.u32()?, r.u64()?, r.f32()?));
-        }
-        for _ in 0..r.count(n, 13)? {
-            s.entries.push(Entry {
-                cell: r.u32()?,
-                target: r.u32()?,
-                out: r.u8()?,
-                base: r.f32()?,
-            });
-        }
-        for _ in 0..r.count(n, 11)? {
-            s.keys.push(Key {
-                cell: r.u32()?,
-                top: (r.u8()?, r.u8()?),
-                down: r.u32()?,
-                out: r.u8()?,
-            });
-        }
+        let s = NetSummary {
+            ends: r.list(n)?,
+            entries: r.list(n)?,
+            keys: r.list(n)?,
+        };
         r.end()?;
         let n = n as u32;
         let sorted = s.ends.windows(2).all(|p| p[0].0 < p[1].0)
@@ -479,22 +463,9 @@ impl NetLevels {
     pub fn to_bytes(&self, layout: &TileLayout, t: usize) -> Vec<u8> {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(NETLEVELS, t, w, h);
-        o.u64(self.labels.len() as u64);
-        for &(c, l) in &self.labels {
-            o.u32(c);
-            o.u32(l);
-        }
-        o.u64(self.exits.len() as u64);
-        for &(c, l, b) in &self.exits {
-            o.u32(c);
-            o.u32(l);
-            o.f32(b);
-        }
-        o.u64(self.orders.len() as u64);
-        for &(c, k) in &self.orders {
-            o.u32(c);
-            o.u8(k);
-        }
+        o.list(&self.labels);
+        o.list(&self.exits);
+        o.list(&self.orders);
         o.0
     }
 
@@ -504,16 +475,11 @@ impl NetLevels {
         let mut r = In::new(b, NETLEVELS, what, layout, t)?;
         let [_, _, w, h] = layout.window(t);
         let n = w * h;
-        let mut s = NetLevels::default();
-        for _ in 0..r.count(n, 8)? {
-            s.labels.push((r.u32()?, r.u32()?));
-        }
-        for _ in 0..r.count(n, 12)? {
-            s.exits.push((r.u32()?, r.u32()?, r.f32()?));
-        }
-        for _ in 0..r.count(n, 5)? {
-            s.orders.push((r.u32()?, r.u8()?));
-        }
+        let s = NetLevels {
+            labels: r.list(n)?,
+            exits: r.list(n)?,
+            orders: r.list(n)?,
+        };
         r.end()?;
         let n = n as u32;
         let ok = s.labels.iter().all(|l| l.0 < n)
@@ -530,21 +496,12 @@ impl TileNetwork {
         let [_, _, w, h] = layout.window(t);
         let mut o = Out::new(NETWORK, t, w, h);
         let f = &self.figures;
-        for v in [f.voids, f.raised, f.lowered, f.sinks, f.outlets] {
-            o.u64(v);
-        }
-        o.f32(f.max_fill);
-        o.f32(f.max_cut);
-        f.channel_steps.iter().for_each(|&v| o.u64(v));
-        o.u64(f.largest_basin_cells);
-        o.u8(f.max_order);
-        o.u64(self.channels.len() as u64);
-        for &(c, d, n, k) in &self.channels {
-            o.u32(c);
-            o.u8(d);
-            o.u64(n);
-            o.u8(k);
-        }
+        o.all(&[f.voids, f.raised, f.lowered, f.sinks, f.outlets]);
+        o.all(&[f.max_fill, f.max_cut]);
+        o.all(&f.channel_steps);
+        f.largest_basin_cells.put(&mut o);
+        f.max_order.put(&mut o);
+        o.list(&self.channels);
         o.0
     }
 
@@ -555,24 +512,21 @@ impl TileNetwork {
         let [_, _, w, h] = layout.window(t);
         let n = w * h;
         let mut f = TileFigures {
-            voids: r.u64()?,
-            raised: r.u64()?,
-            lowered: r.u64()?,
-            sinks: r.u64()?,
-            outlets: r.u64()?,
-            max_fill: r.f32()?,
-            max_cut: r.f32()?,
+            voids: r.get()?,
+            raised: r.get()?,
+            lowered: r.get()?,
+            sinks: r.get()?,
+            outlets: r.get()?,
+            max_fill: r.get()?,
+            max_cut: r.get()?,
             ..Default::default()
         };
         for k in 0..8 {
-            f.channel_steps[k] = r.u64()?;
+            f.channel_steps[k] = r.get()?;
         }
-        f.largest_basin_cells = r.u64()?;
-        f.max_order = r.u8()?;
-        let mut channels = Vec::new();
-        for _ in 0..r.count(n, 14)? {
-            channels.push((r.u32()?, r.u8()?, r.u64()?, r.u8()?));
-        }
+        f.largest_basin_cells = r.get()?;
+        f.max_order = r.get()?;
+        let channels: Vec<(u32, u8, u64, u8)> = r.list(n)?;
         r.end()?;
         let counts = [
             f.voids,

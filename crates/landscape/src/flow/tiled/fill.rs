@@ -57,12 +57,7 @@ pub fn phase1(layout: &TileLayout, t: usize, halo: &[f32]) -> Result<(LocalFill,
             halo[(y as isize + dy) as usize * hw + (x as isize + dx) as usize].is_nan()
         })
     };
-    let grid = Grid {
-        width: w,
-        height: h,
-        cell_x: layout.cell_x,
-        cell_y: layout.cell_y,
-    };
+    let grid = layout.grid_of(w, h);
     let mut label = vec![NONE; n];
     let mut closed = vec![false; n];
     let mut open: RadixHeap<u64> = RadixHeap::new();

@@ -155,12 +155,7 @@ impl Local {
         if f.dir.iter().any(|&d| d >= 8 && d != NO_FLOW) {
             return Err(bad(format!("tile {t}: a direction is out of range")));
         }
-        let g = Grid {
-            width: w,
-            height: h,
-            cell_x: layout.cell_x,
-            cell_y: layout.cell_y,
-        };
+        let g = layout.grid_of(w, h);
         let ldir: Vec<u8> = (0..n)
             .map(|c| {
                 if in_tile_receiver(&g, c, f.dir[c]).is_some() {

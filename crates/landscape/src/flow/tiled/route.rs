@@ -122,12 +122,7 @@ pub fn phase3(
     check_fill(fill, w, h, t)?;
     let wz = surface_window(layout, t, fill, levels)?;
     let (ww, wh) = (w + 2 * BAND, h + 2 * BAND);
-    let grid = Grid {
-        width: ww,
-        height: wh,
-        cell_x: layout.cell_x,
-        cell_y: layout.cell_y,
-    };
+    let grid = layout.grid_of(ww, wh);
     let outlet: Vec<bool> = (0..ww * wh)
         .map(|i| !wz[i].is_nan() && is_outlet(&wz, &grid, i))
         .collect();
@@ -199,12 +194,7 @@ pub fn phase3(
         }
     }
     // Local accumulation with the ports as ends (Barnes 2017 section 3.1).
-    let tgrid = Grid {
-        width: w,
-        height: h,
-        cell_x: layout.cell_x,
-        cell_y: layout.cell_y,
-    };
+    let tgrid = layout.grid_of(w, h);
     let (count, port) = local_counts(&tgrid, &filled, &dir, &pending);
     let order = crate::flow::flow_order(&tgrid, &local_dir(&tgrid, &dir, &port), |i| {
         !filled[i].is_nan()

@@ -148,7 +148,7 @@ pub(super) fn phase8(
     m: &Manifest,
     l: &TileLayout,
     t: usize,
-) -> Result<Vec<(String, Option<Vec<u8>>)>> {
+) -> Result<phases::PhaseOutputs> {
     let job = job(m)?;
     let input = phases::read_input(dir, m, l, t)?;
     let f = phases::finished(dir, m, l, t)?;
@@ -163,10 +163,7 @@ pub(super) fn phase8(
             bytes.len()
         );
     }
-    let hand: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
+    let hand = relief_heightfield::bytes::f32_from_le_bytes(&bytes);
     let (masks, splat) = mask_tiles::tile_masks(
         &job.masks,
         l,
@@ -187,12 +184,12 @@ pub(super) fn phase8(
             .zip(masks.into_iter().map(|k| k.values))
             .collect(),
     )?;
-    let mut out: Vec<(String, Option<Vec<u8>>)> = names[..BASE_KINDS.len()]
-        .iter()
-        .map(|n| (n.clone(), None))
-        .collect();
-    out.push((names[BASE_KINDS.len()].clone(), Some(splat_rgba8(&splat))));
-    Ok(out)
+    let n = BASE_KINDS.len();
+    Ok(phases::in_place_then_bytes(
+        &names[..n],
+        &names[n],
+        splat_rgba8(&splat),
+    ))
 }
 
 /// `relief tile mosaic` on a masks plan: `OUT_DIR/{<mask>.tif, splat.png, masks.json}`

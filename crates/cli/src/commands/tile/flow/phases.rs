@@ -78,7 +78,7 @@ pub(in crate::commands::tile) fn run_task(
         ctx.note(format!("phase {phase} task {index} is already done"));
         return Ok(());
     }
-    let outputs: Vec<(String, Option<Vec<u8>>)> = match phase {
+    let outputs: PhaseOutputs = match phase {
         1 => bytes(phase1(dir, m, &layout, index)?),
         2 => bytes(phase2(dir, m, &layout)?),
         3 => bytes(phase3(dir, m, &layout, index)?),
@@ -117,8 +117,12 @@ pub(in crate::commands::tile) fn run_task(
     Ok(())
 }
 
+/// A phase task's outputs by file name: the bytes to write, or `None` for a raster the phase
+/// wrote in place (atomically).
+pub(super) type PhaseOutputs = Vec<(String, Option<Vec<u8>>)>;
+
 /// Outputs to write (none written in place).
-fn bytes(v: Vec<(String, Vec<u8>)>) -> Vec<(String, Option<Vec<u8>>)> {
+fn bytes(v: Vec<(String, Vec<u8>)>) -> PhaseOutputs {
     v.into_iter().map(|(n, b)| (n, Some(b))).collect()
 }
 
@@ -319,12 +323,7 @@ fn channel_area(m: &Manifest) -> Result<f64> {
     Ok(flow.channel_area)
 }
 
-fn phase5(
-    dir: &Path,
-    m: &Manifest,
-    l: &TileLayout,
-    t: usize,
-) -> Result<Vec<(String, Option<Vec<u8>>)>> {
+fn phase5(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<PhaseOutputs> {
     let f = finished(dir, m, l, t)?;
     let summary = tiled::summarize(l, t, &f, channel_area(m)?)?.to_bytes(l, t);
     let names = outputs_of(m, 5, t);
@@ -346,12 +345,16 @@ fn rasters_and_bytes(
     names: &[String],
     rasters: [Vec<f32>; 3],
     bytes: Vec<u8>,
-) -> Result<Vec<(String, Option<Vec<u8>>)>> {
+) -> Result<PhaseOutputs> {
     write_rasters(dir, m, l, t, names.iter().zip(rasters).collect())?;
-    let mut out: Vec<(String, Option<Vec<u8>>)> =
-        names[..3].iter().map(|n| (n.clone(), None)).collect();
-    out.push((names[3].clone(), Some(bytes)));
-    Ok(out)
+    Ok(in_place_then_bytes(&names[..3], &names[3], bytes))
+}
+
+/// The outputs of a task that wrote the rasters `in_place` itself, then `name` with `bytes`.
+pub(super) fn in_place_then_bytes(in_place: &[String], name: &str, bytes: Vec<u8>) -> PhaseOutputs {
+    let mut out: PhaseOutputs = in_place.iter().map(|n| (n.clone(), None)).collect();
+    out.push((name.to_string(), Some(bytes)));
+    out
 }
 
 fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u8>)>> {
@@ -368,12 +371,7 @@ fn phase6(dir: &Path, m: &Manifest, l: &TileLayout) -> Result<Vec<(String, Vec<u
     )
 }
 
-fn phase7(
-    dir: &Path,
-    m: &Manifest,
-    l: &TileLayout,
-    t: usize,
-) -> Result<Vec<(String, Option<Vec<u8>>)>> {
+fn phase7(dir: &Path, m: &Manifest, l: &TileLayout, t: usize) -> Result<PhaseOutputs> {
     let f = finished(dir, m, l, t)?;
     let levels = tiled::NetLevels::from_bytes(&read_product(dir, m, 6, 0, t, t)?, l, t)?;
     let input = read_input(dir, m, l, t)?;
@@ -381,7 +379,7 @@ fn phase7(
     let [_, _, w, _] = l.window(t);
     let names = outputs_of(m, 7, t);
     if is_masks(m) {
-        let hand: Vec<u8> = r.hand.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let hand = relief_heightfield::bytes::f32_to_le_bytes(&r.hand);
         return Ok(vec![(names[0].clone(), Some(hand))]);
     }
     // The same values `relief flow` writes: voids NaN in the order and the watersheds.
