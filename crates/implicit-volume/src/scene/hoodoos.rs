@@ -554,25 +554,9 @@ mod tests {
     /// same count spread evenly over the band would be), the same whatever the thread count.
     #[test]
     fn hoodoos_cluster_on_steep_slopes_below_a_cap_bed() {
-        // 160 x 160 m: flat at 0 m west, a 35 degree slope from x = 60 m to 100 m, flat at
-        // 28 m east.
-        let hf = Heightfield::from_fn(81, 81, 2.0, 2.0, |x, _| {
-            ((x as f32 * 2.0 - 60.0) * 0.7).clamp(0.0, 28.0)
-        });
         let run = |threads| {
             with_threads(threads, || {
-                let mut b =
-                    SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
-                let s = HoodooSettings {
-                    count: 12,
-                    height: 8.0,
-                    radius: 1.5,
-                    spacing: 6.0,
-                    per_cluster: 4,
-                    ..Default::default()
-                };
-                let rep = b.hoodoos(&s, &Region::everywhere()).unwrap();
-                let scene = b.build(true).unwrap();
+                let (rep, scene) = on_band(12, 6.0, 4);
                 (rep, scene.stats())
             })
         };
@@ -588,23 +572,31 @@ mod tests {
         assert!(ce < 0.75, "Clark-Evans ratio {ce}");
     }
 
-    /// A cluster is a field, not a row of pins: some hoodoos have lost their cap (spires well
-    /// under the cap bed), the others stand to it.
-    #[test]
-    fn clusters_hold_spires_and_capped_columns() {
+    /// `count` hoodoos 8 m tall, of radius 1.5 m, `spacing` apart, `per_cluster` a cluster, on
+    /// 160 x 160 m: flat at 0 m west, a 35 degree slope from x = 60 m to 100 m, flat at 28 m
+    /// east, over [`beds`].
+    fn on_band(count: usize, spacing: f32, per_cluster: usize) -> (EffectReport, Scene) {
         let hf = Heightfield::from_fn(81, 81, 2.0, 2.0, |x, _| {
             ((x as f32 * 2.0 - 60.0) * 0.7).clamp(0.0, 28.0)
         });
         let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
         let s = HoodooSettings {
-            count: 24,
+            count,
             height: 8.0,
             radius: 1.5,
-            spacing: 4.8,
-            per_cluster: 12,
+            spacing,
+            per_cluster,
             ..Default::default()
         };
         let rep = b.hoodoos(&s, &Region::everywhere()).unwrap();
+        (rep, b.build(true).unwrap())
+    }
+
+    /// A cluster is a field, not a row of pins: some hoodoos have lost their cap (spires well
+    /// under the cap bed), the others stand to it.
+    #[test]
+    fn clusters_hold_spires_and_capped_columns() {
+        let (rep, _) = on_band(24, 4.8, 12);
         assert!(rep.features >= 12, "{rep:?}");
         // Cap beds here are 2 m thick and their base 4.8-11.2 m up: a capped hoodoo stands
         // at least 6.8 m, a spire at most 0.9 of 11.2 m.
@@ -613,24 +605,37 @@ mod tests {
         assert!(capped >= 4 && spires >= 2, "{:?}", rep.sizes_m);
     }
 
-    /// A fin between two hoodoo sites is a low wall: rock midway between them near the
-    /// ground, air there above 45 % of their height and beside the line joining them.
-    #[test]
-    fn a_fin_is_a_low_wall_between_two_columns() {
-        let hf = Heightfield::from_fn(24, 24, 1.0, 1.0, |_, _| 0.0);
-        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+    /// A builder on `n x n` m of flat ground at 0 m over [`beds`], and hoodoos of radius
+    /// 1.5 m 4.8 m apart.
+    fn flat(n: usize) -> (SceneBuilder, HoodooSettings) {
+        let hf = Heightfield::from_fn(n, n, 1.0, 1.0, |_, _| 0.0);
+        let b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
         let s = HoodooSettings {
             radius: 1.5,
+            spacing: 4.8,
             ..Default::default()
         };
-        let site = |x: f32, idx| Site {
-            p: [x, 12.0, 0.0],
+        (b, s)
+    }
+
+    /// A site on flat ground at 0 m under a hard bed from 10 to 12 m.
+    fn flat_site(x: f32, y: f32, idx: u64) -> Site {
+        Site {
+            p: [x, y, 0.0],
             bed: (10.0, 12.0),
             rho_cap: 0.9,
             slope: 30.0,
             idx,
-        };
-        b.hoodoo_fin(&s, &site(8.0, 1), &site(14.0, 2)).unwrap();
+        }
+    }
+
+    /// A fin between two hoodoo sites is a low wall: rock midway between them near the
+    /// ground, air there above 45 % of their height and beside the line joining them.
+    #[test]
+    fn a_fin_is_a_low_wall_between_two_columns() {
+        let (mut b, s) = flat(24);
+        let (a, c) = (flat_site(8.0, 12.0, 1), flat_site(14.0, 12.0, 2));
+        b.hoodoo_fin(&s, &a, &c).unwrap();
         let scene = b.build(true).unwrap();
         assert!(scene.inside([11.0, 12.0, 1.0]));
         assert!(!scene.inside([11.0, 12.0, 4.6]));
@@ -641,21 +646,8 @@ mod tests {
     /// direction; beyond the rows' ends and far to the side the ground is untouched.
     #[test]
     fn a_gully_runs_between_two_rows() {
-        let hf = Heightfield::from_fn(40, 40, 1.0, 1.0, |_, _| 0.0);
-        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
-        let s = HoodooSettings {
-            radius: 1.5,
-            spacing: 4.8,
-            ..Default::default()
-        };
-        let site = |x: f32, y: f32, idx| Site {
-            p: [x, y, 0.0],
-            bed: (10.0, 12.0),
-            rho_cap: 0.9,
-            slope: 30.0,
-            idx,
-        };
-        let centre = site(20.0, 20.0, 7);
+        let (mut b, s) = flat(40);
+        let centre = flat_site(20.0, 20.0, 7);
         let (u, v) = b.joints(&s, &centre);
         let at = |along: f32, across: f32| {
             [
@@ -665,7 +657,7 @@ mod tests {
         };
         let across = 1.15 * s.spacing;
         let q = at(0.0, across);
-        let members = [(centre, (0, 0)), (site(q[0], q[1], 8), (1, 0))];
+        let members = [(centre, (0, 0)), (flat_site(q[0], q[1], 8), (1, 0))];
         assert_eq!(b.hoodoo_gullies(&s, &centre, &members).unwrap(), 1);
         let scene = b.build(true).unwrap();
         let mid = at(0.0, 0.5 * across);
