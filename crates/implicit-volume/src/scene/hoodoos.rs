@@ -36,8 +36,8 @@
 //!   and the last `0.8 R` under the cap, sheltered by it, widens towards the cap;
 //! * a third of the hoodoos have lost their cap: the column stops at 50-90 % of the capped
 //!   height and rounds to a blunt spire over its top `1.5 R`;
-//! * a noise warp stretched vertically (`0.12 R` deep, `0.5 R` across, `3 R` long) flutes the
-//!   column and its cap with rills.
+//! * a noise warp stretched vertically (`0.22 R` deep, `1.1 R` across, `5 R` long) makes the
+//!   column's sections irregular and runs shallow flutes down it.
 
 use super::*;
 use relief_heightfield::param::in_range;
@@ -439,12 +439,12 @@ impl SceneBuilder {
         Ok((parts.len(), b1))
     }
 
-    /// `node` warped into vertical flutes and rills (`0.12 R` deep, `0.5 R` across, `3 R`
-    /// long) and added to the scene.
+    /// `node` warped by noise stretched vertically (`0.22 R` deep, `1.1 R` across, `5 R`
+    /// long: irregular sections, shallow flutes) and added to the scene.
     fn push_fluted(&mut self, node: NodeId, r: f32, seed: u32) -> Result<()> {
         let w = self
             .tree
-            .streaked_warp(node, 0.12 * r, 1.0 / (0.5 * r), 1.0 / (3.0 * r), seed)?;
+            .streaked_warp(node, 0.22 * r, 1.0 / (1.1 * r), 1.0 / (5.0 * r), seed)?;
         self.positives.push(w);
         Ok(())
     }
