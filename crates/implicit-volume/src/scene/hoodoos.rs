@@ -14,8 +14,8 @@
 //!   row and `1.15 spacing` between rows (jittered by 15 %, anywhere between DEM nodes),
 //!   within an ellipse of 3.2 by 2.2 steps, nearest the seed first, each one a qualifying site
 //!   no closer than `0.8 spacing` to another; up to `per_cluster` of them.
-//! * **fins**: half the neighbours of a row stay joined at their feet by the fin they were cut
-//!   from, a wall up to 15-45 % of the lower one's height, thick where the strata are hard
+//! * **fins**: a third of the neighbours of a row stay joined at their feet by the fin they were cut
+//!   from, a wall up to 10-35 % of the lower one's height, thick where the strata are hard
 //!   and tapering upwards.
 //! * **gullies**: between two neighbouring rows of a cluster the ground is cut down along the
 //!   joint over the rows' length (a capsule carving about `0.45 R` deep and `2.1 R` wide),
@@ -26,7 +26,7 @@
 //!   cones (a union: the profile is exactly the sampled one) whose radius at each height
 //!   follows the rock there, `R (0.45 + 0.75 rho(z))`: soft strata are narrow necks, harder
 //!   beds bulges, so the same hoodoo has another profile on another geology; a foot flares
-//!   over the lowest quarter (talus), each sample is jittered by +-8 % and the axis leans a
+//!   (by up to 30 %) over the lowest 15 % (talus), each sample is jittered by +-8 % and the axis leans a
 //!   little;
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
@@ -323,7 +323,7 @@ impl SceneBuilder {
             for (m, (site, (j, i))) in members.iter().enumerate() {
                 let next = members.iter().find(|(_, l)| *l == (*j, i + 1));
                 if let Some((other, _)) = next
-                    && unit(hash(s.seed, site.idx, 0x6669_6e73, m as u64)) < 0.5
+                    && unit(hash(s.seed, site.idx, 0x6669_6e73, m as u64)) < 0.35
                 {
                     report.primitives += self.hoodoo_fin(s, site, other)?;
                 }
@@ -365,9 +365,9 @@ impl SceneBuilder {
             .map(|m| {
                 let z = z0 + (z1 - z0) * m as f32 / n as f32;
                 let rho = self.geology.resistance(axis(z));
-                let foot = (1.0 - (z - low) / (0.25 * tall)).clamp(0.0, 1.0);
+                let foot = (1.0 - (z - low) / (0.15 * tall)).clamp(0.0, 1.0);
                 let jitter = 0.92 + 0.16 * h(10 + m as u64);
-                let rv = r * (0.45 + 0.75 * rho) * (1.0 + 0.5 * foot * foot) * jitter;
+                let rv = r * (0.45 + 0.75 * rho) * (1.0 + 0.3 * foot * foot) * jitter;
                 // The rock right under the cap is sheltered by it: the column widens
                 // towards the cap over the last `0.8 R`.
                 let rv = if capless {
@@ -450,13 +450,13 @@ impl SceneBuilder {
     }
 
     /// The fin between hoodoos `a` and `b` of a row ([module docs](self)): the rock they
-    /// stood out of, up to a hashed 25-60 % of the lower one's height above the ground, its
+    /// stood out of, up to a hashed 10-35 % of the lower one's height above the ground, its
     /// thickness following the strata (`R (0.35 + 0.5 rho)`) and tapering upwards; stacked
     /// cones parallel to the ground between the two axes, fluted as the columns. Returns
     /// its primitive count.
     fn hoodoo_fin(&mut self, s: &HoodooSettings, a: &Site, b: &Site) -> Result<usize> {
         let r = s.radius;
-        let frac = 0.15 + 0.3 * unit(hash(s.seed, a.idx, b.idx, 0x6669_6e32));
+        let frac = 0.1 + 0.25 * unit(hash(s.seed, a.idx, b.idx, 0x6669_6e32));
         let wall = frac * (a.bed.0 - a.p[2]).min(b.bed.0 - b.p[2]);
         let n = ((wall / (0.4 * r)).ceil() as usize).clamp(2, 32);
         let mut fin: Option<NodeId> = None;
