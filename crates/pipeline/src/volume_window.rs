@@ -23,7 +23,7 @@ pub struct WindowOptions<'a> {
 /// ([`relief_implicit_volume::recipe::FeatureSizes::needed_cell_for`]) and `--raw-dem` is not given, replaces `hf` by a window
 /// of it refined to that cell (issue 42: features at their physical size on amplified terrain,
 /// never kilometre-wide caves on coarse cells): the window is centred (on the shore nearest
-/// the centre for shore features, [`window_centre`]), as wide as 512 of the
+/// the highest shore for shore features, [`window_centre`]), as wide as 512 of the
 /// features' voxels ([`relief_implicit_volume::recipe::FeatureSizes::voxel_for`]) or the whole DEM when smaller, analysed
 /// with a margin of [`MARGIN`] cells and refined by `L` wavelet levels (`2^L` finer, the
 /// smallest `L` that reaches the cell). Returns the note saying what was done (printed and put
@@ -121,9 +121,10 @@ pub fn amplify_window(
 }
 
 /// The node an amplified window is centred on: with shore features and a sea (`--sea-level`,
-/// else the DEM's own, [`relief_implicit_volume::detect_sea`]), the shore node (above the
-/// level, next to one at or below it) nearest the DEM's centre, moved along the edge to where
-/// the coast crosses it; else the centre (fractional node coordinates). Also returns
+/// else the DEM's own, [`relief_implicit_volume::detect_sea`]), the highest shore node (above
+/// the level, next to one at or below it; its height the highest ground within
+/// [`SHORE_REACH_M`]), the nearest the DEM's centre among equals, moved along the edge to
+/// where the coast crosses it; else the centre (fractional node coordinates). Also returns
 /// the DEM's own sea level when it was detected.
 fn window_centre(
     hf: &relief_heightfield::Heightfield,
@@ -145,14 +146,31 @@ fn window_centre(
     };
     let z = |j: usize, i: usize| f64::from(hf.get(j, i));
     let level = f64::from(level);
-    // Where the coast crosses each edge from a dry node to a wet one (linear interpolation).
-    let mut best: Option<(f64, (f64, f64))> = None;
+    // The highest ground within `SHORE_REACH_M` of a node: a shore's height.
+    let (cx, cy) = hf.cell_size();
+    let (rj, ri) = (
+        (SHORE_REACH_M / cx).round().max(1.0) as usize,
+        (SHORE_REACH_M / cy).round().max(1.0) as usize,
+    );
+    let height = |j: usize, i: usize| {
+        let mut m = f64::NEG_INFINITY;
+        for ii in i.saturating_sub(ri)..(i + ri + 1).min(h) {
+            for jj in j.saturating_sub(rj)..(j + rj + 1).min(w) {
+                m = m.max(z(jj, ii));
+            }
+        }
+        m
+    };
+    // Where the coast crosses each edge from a dry node to a wet one (linear interpolation),
+    // the highest shore first, then the nearest the centre.
+    let mut best: Option<(f64, f64, (f64, f64))> = None;
     for i in 0..h {
         for j in 0..w {
             let a = z(j, i);
             if a <= level {
                 continue;
             }
+            let mut shore: Option<f64> = None;
             for (dj, di) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)] {
                 let (jn, in_) = (j as i64 + dj, i as i64 + di);
                 if jn < 0 || in_ < 0 || jn >= w as i64 || in_ >= h as i64 {
@@ -165,14 +183,51 @@ fn window_centre(
                 let t = (a - level) / (a - b);
                 let p = (j as f64 + t * dj as f64, i as f64 + t * di as f64);
                 let d = (p.0 - centre.0).powi(2) + (p.1 - centre.1).powi(2);
-                if best.is_none_or(|(bd, _)| d < bd) {
-                    best = Some((d, p));
+                let hs = *shore.get_or_insert_with(|| height(j, i));
+                if best.is_none_or(|(bh, bd, _)| hs > bh || (hs == bh && d < bd)) {
+                    best = Some((hs, d, p));
                 }
             }
         }
     }
-    best.map_or(centre, |(_, (j, i))| (j, i, detected))
+    best.map_or(centre, |(_, _, (j, i))| (j, i, detected))
 }
+
+/// How far inland (m) a shore's height is taken when the window is put on the coast: sea
+/// cliffs, caves and notches need a shore that rises within a few hundred metres.
+const SHORE_REACH_M: f64 = 250.0;
 
 /// Source cells around an amplified window that the wavelet analysis also sees.
 const MARGIN: usize = 8;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sea west of column 20; the land is 5 m high except a 80 m headland in rows 0-7, far
+    /// from the centre (row 20): the window goes to the headland's shore (a crossing within
+    /// 250 m of it, the nearest the centre), not to the low shore next to the centre; without
+    /// shore features it stays at the centre.
+    #[test]
+    fn the_window_goes_to_the_highest_shore() {
+        let hf = relief_heightfield::Heightfield::from_fn(60, 40, 90.0, 90.0, |x, y| {
+            match (x < 20, y < 8) {
+                (true, _) => -10.0,
+                (false, true) => 80.0,
+                (false, false) => 5.0,
+            }
+        });
+        let mut r = relief_implicit_volume::Recipe {
+            features: vec![Feature::Sea, Feature::Caves],
+            ..Default::default()
+        };
+        let (j, i, _) = window_centre(&hf, &r, Some(0.0));
+        assert!((19.0..20.0).contains(&j), "on the coast: column {j}");
+        assert!(
+            (7.0..=10.0).contains(&i),
+            "at the headland, nearest the centre: row {i}"
+        );
+        r.features = vec![Feature::Karst];
+        assert_eq!(window_centre(&hf, &r, Some(0.0)), (30.0, 20.0, None));
+    }
+}
