@@ -123,8 +123,9 @@ pub fn amplify_window(
 /// The node an amplified window is centred on: with shore features and a sea (`--sea-level`,
 /// else the DEM's own, [`relief_implicit_volume::detect_sea`]), the highest shore node (above
 /// the level, next to one at or below it; its height the highest ground within
-/// [`SHORE_REACH_M`]), the nearest the DEM's centre among equals, moved along the edge to
-/// where the coast crosses it; else the centre (fractional node coordinates). Also returns
+/// [`SHORE_REACH_M`], on cells no coarser than that), the nearest the DEM's centre among
+/// equals, moved along the edge to where the coast crosses it; else the centre (fractional
+/// node coordinates). Also returns
 /// the DEM's own sea level when it was detected.
 fn window_centre(
     hf: &relief_heightfield::Heightfield,
@@ -152,7 +153,13 @@ fn window_centre(
         (SHORE_REACH_M / cx).round().max(1.0) as usize,
         (SHORE_REACH_M / cy).round().max(1.0) as usize,
     );
+    // On cells coarser than the reach a node's neighbours say nothing of the shore's height
+    // there (and the refined coast line may move by more than the window): nearest only.
+    let ranked = cx.max(cy) <= SHORE_REACH_M;
     let height = |j: usize, i: usize| {
+        if !ranked {
+            return 0.0;
+        }
         let mut m = f64::NEG_INFINITY;
         for ii in i.saturating_sub(ri)..(i + ri + 1).min(h) {
             for jj in j.saturating_sub(rj)..(j + rj + 1).min(w) {
@@ -206,8 +213,9 @@ mod tests {
 
     /// Sea west of column 20; the land is 5 m high except a 80 m headland in rows 0-7, far
     /// from the centre (row 20): the window goes to the headland's shore (a crossing within
-    /// 250 m of it, the nearest the centre), not to the low shore next to the centre; without
-    /// shore features it stays at the centre.
+    /// 250 m of it, the nearest the centre), not to the low shore next to the centre; on
+    /// cells coarser than 250 m to the shore nearest the centre; without shore features it
+    /// stays at the centre.
     #[test]
     fn the_window_goes_to_the_highest_shore() {
         let hf = relief_heightfield::Heightfield::from_fn(60, 40, 90.0, 90.0, |x, y| {
@@ -227,6 +235,11 @@ mod tests {
             (7.0..=10.0).contains(&i),
             "at the headland, nearest the centre: row {i}"
         );
+        // On 2 km cells the shore's height is unknown: the coast nearest the centre.
+        let mut coarse = hf.clone();
+        coarse.set_cell_size(2000.0, 2000.0).unwrap();
+        let (j, i, _) = window_centre(&coarse, &r, Some(0.0));
+        assert!((19.0..20.0).contains(&j) && i == 20.0, "({j}, {i})");
         r.features = vec![Feature::Karst];
         assert_eq!(window_centre(&hf, &r, Some(0.0)), (30.0, 20.0, None));
     }
