@@ -70,7 +70,9 @@ pub fn amplify_window(
         ((side * k as f64 / c).ceil() as usize + 1).clamp(17.min((n - 1) * k + 1), (n - 1) * k + 1)
     };
     let (nx, ny) = (want(w, cx), want(h, cy));
-    let (jf, if_, sea) = window_centre(hf, r, args.sea_level);
+    // A window centred this many source nodes from the border is not clamped by it.
+    let room = |n: usize, c: f64| (side / (2.0 * c)).ceil().min(n as f64) as usize;
+    let (jf, if_, sea) = window_centre(hf, r, args.sea_level, (room(w, cx), room(h, cy)));
     let (jc, ic) = (jf.round() as usize, if_.round() as usize);
     // The source nodes under the window, two more each side and a margin for the analysis.
     let span = |c: usize, n: usize, nf: usize| {
@@ -124,13 +126,15 @@ pub fn amplify_window(
 /// else the DEM's own, [`relief_implicit_volume::detect_sea`]), the highest shore node (above
 /// the level, next to one at or below it; its height the highest ground within
 /// [`SHORE_REACH_M`], on cells no coarser than that), the nearest the DEM's centre among
-/// equals, moved along the edge to where the coast crosses it; else the centre (fractional
-/// node coordinates). Also returns
+/// equals, moved along the edge to where the coast crosses it; shore nodes at least `room`
+/// nodes (half the window) from the border, where the window is not cut by it, come first;
+/// else the centre (fractional node coordinates). Also returns
 /// the DEM's own sea level when it was detected.
 fn window_centre(
     hf: &relief_heightfield::Heightfield,
     r: &relief_implicit_volume::Recipe,
     sea_level: Option<f32>,
+    room: (usize, usize),
 ) -> (f64, f64, Option<f32>) {
     let (w, h) = (hf.width(), hf.height());
     let centre = ((w / 2) as f64, (h / 2) as f64, None);
@@ -170,7 +174,9 @@ fn window_centre(
     };
     // Where the coast crosses each edge from a dry node to a wet one (linear interpolation),
     // the highest shore first, then the nearest the centre.
-    let mut best: Option<(f64, f64, (f64, f64))> = None;
+    let inside =
+        |j: usize, i: usize| j >= room.0 && j + room.0 < w && i >= room.1 && i + room.1 < h;
+    let mut best: Option<(bool, f64, f64, (f64, f64))> = None;
     for i in 0..h {
         for j in 0..w {
             let a = z(j, i);
@@ -191,13 +197,17 @@ fn window_centre(
                 let p = (j as f64 + t * dj as f64, i as f64 + t * di as f64);
                 let d = (p.0 - centre.0).powi(2) + (p.1 - centre.1).powi(2);
                 let hs = *shore.get_or_insert_with(|| height(j, i));
-                if best.is_none_or(|(bh, bd, _)| hs > bh || (hs == bh && d < bd)) {
-                    best = Some((hs, d, p));
+                let free = inside(j, i);
+                let better = |(bf, bh, bd, _): (bool, f64, f64, (f64, f64))| {
+                    (free && !bf) || (free == bf && (hs > bh || (hs == bh && d < bd)))
+                };
+                if best.is_none_or(better) {
+                    best = Some((free, hs, d, p));
                 }
             }
         }
     }
-    best.map_or(centre, |(_, _, (j, i))| (j, i, detected))
+    best.map_or(centre, |(_, _, _, (j, i))| (j, i, detected))
 }
 
 /// How far inland (m) a shore's height is taken when the window is put on the coast: sea
@@ -214,8 +224,8 @@ mod tests {
     /// Sea west of column 20; the land is 5 m high except a 80 m headland in rows 0-7, far
     /// from the centre (row 20): the window goes to the headland's shore (a crossing within
     /// 250 m of it, the nearest the centre), not to the low shore next to the centre; on
-    /// cells coarser than 250 m to the shore nearest the centre; without shore features it
-    /// stays at the centre.
+    /// cells coarser than 250 m to the shore nearest the centre; shores where the window
+    /// would be cut by the border come last; without shore features it stays at the centre.
     #[test]
     fn the_window_goes_to_the_highest_shore() {
         let hf = relief_heightfield::Heightfield::from_fn(60, 40, 90.0, 90.0, |x, y| {
@@ -229,18 +239,25 @@ mod tests {
             features: vec![Feature::Sea, Feature::Caves],
             ..Default::default()
         };
-        let (j, i, _) = window_centre(&hf, &r, Some(0.0));
+        let (j, i, _) = window_centre(&hf, &r, Some(0.0), (2, 2));
         assert!((19.0..20.0).contains(&j), "on the coast: column {j}");
         assert!(
             (7.0..=10.0).contains(&i),
             "at the headland, nearest the centre: row {i}"
         );
+        // A window half 12 rows tall would be cut by the northern border there: the free
+        // shores come first, all low, so the one nearest the centre.
+        let (j, i, _) = window_centre(&hf, &r, Some(0.0), (2, 12));
+        assert!((19.0..20.0).contains(&j) && i == 20.0, "({j}, {i})");
         // On 2 km cells the shore's height is unknown: the coast nearest the centre.
         let mut coarse = hf.clone();
         coarse.set_cell_size(2000.0, 2000.0).unwrap();
-        let (j, i, _) = window_centre(&coarse, &r, Some(0.0));
+        let (j, i, _) = window_centre(&coarse, &r, Some(0.0), (2, 2));
         assert!((19.0..20.0).contains(&j) && i == 20.0, "({j}, {i})");
         r.features = vec![Feature::Karst];
-        assert_eq!(window_centre(&hf, &r, Some(0.0)), (30.0, 20.0, None));
+        assert_eq!(
+            window_centre(&hf, &r, Some(0.0), (2, 2)),
+            (30.0, 20.0, None)
+        );
     }
 }

@@ -9,11 +9,13 @@
 //!   becomes the cap, the soft rock the column;
 //! * **clusters**: qualifying DEM nodes in hashed order, the steeper (at least 25 degrees)
 //!   first and, among those, the ones whose cap stands within 20 % of the nominal height
-//!   first, seed clusters `6 spacing` apart. A cluster is a field of rows along a joint
-//!   direction hashed from its seed: members on a staggered lattice `spacing` apart along a
-//!   row and `1.15 spacing` between rows (jittered by 15 %, anywhere between DEM nodes),
-//!   within an ellipse of 3.2 by 2.2 steps, nearest the seed first, each one a qualifying site
-//!   no closer than `0.8 spacing` to another; up to `per_cluster` of them.
+//!   first, seed clusters `6 spacing` apart. A cluster is a field of rows along a joint:
+//!   the region's joints form two orthogonal sets (their direction hashed from the seed), a
+//!   cluster follows one of them (hashed, turned by up to +-10 degrees). Members stand on a
+//!   staggered lattice `spacing` apart along a row and `1.15 spacing` between rows (jittered
+//!   by 15 %, anywhere between DEM nodes), within an ellipse of 3.2 by 2.2 steps, nearest the
+//!   seed first, each one a qualifying site no closer than `0.8 spacing` to another; up to
+//!   `per_cluster` of them.
 //! * **fins**: a third of the neighbours of a row stay joined at their feet by the fin they were cut
 //!   from, a wall up to 10-35 % of the lower one's height, thick where the strata are hard
 //!   and tapering upwards.
@@ -165,9 +167,15 @@ impl SceneBuilder {
             .collect()
     }
 
-    /// The joint direction of the cluster around `centre` (along its rows) and the one across.
+    /// The joint direction of the cluster around `centre` (along its rows) and the one across:
+    /// the joints of a region form two orthogonal sets (one direction hashed from the seed),
+    /// a cluster's rows follow one of the two, turned by up to +-10 degrees.
     fn joints(&self, s: &HoodooSettings, centre: &Site) -> ([f32; 2], [f32; 2]) {
-        let theta = std::f32::consts::TAU * unit(hash(s.seed, centre.idx, 0x6a6f_696e, 0));
+        use std::f32::consts::{FRAC_PI_2, PI};
+        let regional = PI * unit(hash(s.seed, 0, 0x6a6f_696e, 1));
+        let h = |k| unit(hash(s.seed, centre.idx, 0x6a6f_696e, k));
+        let set = if h(0) < 0.5 { 0.0 } else { FRAC_PI_2 };
+        let theta = regional + set + (h(2) - 0.5) * 20f32.to_radians();
         ([theta.cos(), theta.sin()], [-theta.sin(), theta.cos()])
     }
 
@@ -218,7 +226,7 @@ impl SceneBuilder {
     }
 
     /// The members of the cluster around `centre` ([module docs](self)): sites on a
-    /// staggered lattice of rows along a joint direction hashed from the centre, `spacing`
+    /// staggered lattice of rows along the cluster's joint direction ([`Self::joints`]), `spacing`
     /// apart along a row and `1.15 spacing` between rows, jittered by 15 %, within an ellipse
     /// of `3.2` by `2.2` steps, nearest the centre first; none closer than `0.8 spacing` to
     /// a hoodoo already placed. Each member comes with its lattice `(row, column)`.
@@ -640,6 +648,36 @@ mod tests {
         assert!(scene.inside([11.0, 12.0, 1.0]));
         assert!(!scene.inside([11.0, 12.0, 4.6]));
         assert!(!scene.inside([11.0, 14.5, 1.0]) && !scene.inside([11.0, 9.5, 1.0]));
+    }
+
+    /// Clusters follow the region's two orthogonal joint sets: every cluster's row direction
+    /// is within 10 degrees of one of them, both sets are used, and other seeds turn them.
+    #[test]
+    fn cluster_rows_follow_two_orthogonal_joint_sets() {
+        let (b, s) = flat(8);
+        let angle = |s: &HoodooSettings, idx| {
+            let (u, _) = b.joints(s, &flat_site(0.0, 0.0, idx));
+            u[1].atan2(u[0]).to_degrees()
+        };
+        let dev = |a: f32, r: f32| {
+            let d = (a - r).rem_euclid(90.0);
+            d.min(90.0 - d)
+        };
+        let angles: Vec<f32> = (0..200).map(|k| angle(&s, k)).collect();
+        let r = angles[0];
+        assert!(angles.iter().all(|&a| dev(a, r) <= 20.0), "{angles:?}");
+        let set_a = angles
+            .iter()
+            .filter(|&&a| {
+                let d = (a - r).rem_euclid(180.0);
+                d < 25.0 || d > 155.0
+            })
+            .count();
+        assert!(set_a > 50 && set_a < 150, "{set_a} of 200 in the first set");
+        let turned = (4..16u64)
+            .filter(|&seed| dev(angle(&HoodooSettings { seed, ..s }, 0), r) > 20.0)
+            .count();
+        assert!(turned >= 3, "other seeds, other joints: {turned} of 12");
     }
 
     /// Between two rows of a cluster the ground is cut down into a gully along the joint
