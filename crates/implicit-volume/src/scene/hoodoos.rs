@@ -670,7 +670,7 @@ mod tests {
             .iter()
             .filter(|&&a| {
                 let d = (a - r).rem_euclid(180.0);
-                d < 25.0 || d > 155.0
+                !(25.0..=155.0).contains(&d)
             })
             .count();
         assert!(set_a > 50 && set_a < 150, "{set_a} of 200 in the first set");
