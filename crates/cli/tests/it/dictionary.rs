@@ -162,6 +162,11 @@ fn amplify_x16_two_steps() {
     assert!(c > 0.95, "correlation with the input {c}");
 }
 
+/// A 16 x 16 sketch painted by `f` of the coordinates from its centre.
+fn centred_sketch(f: impl Fn(f32, f32) -> f32) -> Heightfield {
+    Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| f(x as f32 - 7.5, y as f32 - 7.5))
+}
+
 /// Figure 12: a painted sketch (a ridge and a basin) becomes a terrain with the exemplar's
 /// elevation range whose large-scale shape follows the sketch.
 /// `--rivers` and `--ridges`: a river painted from the southern edge into a painted range
@@ -171,10 +176,7 @@ fn amplify_x16_two_steps() {
 fn synthesize_follows_ridge_and_river_strokes() {
     let dem = fixture();
     let tmp = tempfile::tempdir().unwrap();
-    let sketch = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
-        let (x, y) = (x as f32 - 7.5, y as f32 - 7.5);
-        255.0 * (-(x * x + y * y) / 40.0).exp()
-    });
+    let sketch = centred_sketch(|x, y| 255.0 * (-(x * x + y * y) / 40.0).exp());
     let river = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
         if x == 11 && y >= 7 { 255.0 } else { 0.0 }
     });
@@ -243,8 +245,7 @@ fn synthesize_follows_ridge_and_river_strokes() {
 fn synthesize_from_painted_sketch() {
     let dem = fixture();
     let tmp = tempfile::tempdir().unwrap();
-    let sketch = Heightfield::from_fn(16, 16, 1.0, 1.0, |x, y| {
-        let (x, y) = (x as f32 - 7.5, y as f32 - 7.5);
+    let sketch = centred_sketch(|x, y| {
         let ridge = (-(x - 0.5 * y).powi(2) / 8.0).exp();
         let basin = (-((x - 5.0).powi(2) + (y + 5.0).powi(2)) / 6.0).exp();
         60_000.0 * (0.3 + 0.6 * ridge - 0.3 * basin)

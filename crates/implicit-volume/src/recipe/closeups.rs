@@ -151,7 +151,7 @@ pub fn closeup_views(
             (_, v) => v,
         };
         let cam = match from {
-            // A hoodoo cluster from 20 degrees above, over the crest of its slope.
+            // A hoodoo cluster from about 20 degrees above the line of sight to it.
             Some(v) if h.feature == Feature::Hoodoos => {
                 Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.36])
             }

@@ -232,37 +232,31 @@ impl SceneBuilder {
                 (u, z, r)
             })
             .collect();
-        let mut parts = Vec::with_capacity(n + 64);
+        let mut parts = Vec::with_capacity(n);
         for w in line.windows(2) {
             let ((u0, z0, r0), (u1, z1, r1)) = (w[0], w[1]);
             let (p, q) = (at(u0, 0.0, z0), at(u1, 0.0, z1));
             parts.push(self.tree.cone(p, q, r0 / VISIBLE, r1 / VISIBLE, 1.0)?);
         }
-        let mut rib = parts[0];
-        for &q in &parts[1..n] {
-            rib = self.tree.union(rib, q)?;
-        }
+        let rib = self.tree.union_all(&parts)?;
         // Cut to the fin: rows of capsules along the ridge, `fin` thick, recessed in soft
         // strata and standing out at hard beds (`0.6 + 0.6 rho`): flat, ledged faces.
         let (len, top) = (a + r_leg, floor + hc + r_crown + r_leg);
         let step = 0.3 * f.fin;
         let rows = (((top - floor + f.fin) / step).ceil() as usize).clamp(2, 256);
-        let mut wall: Option<NodeId> = None;
+        let mut wall_rows = Vec::with_capacity(rows + 1);
         for k in 0..=rows {
             let z = floor - f.fin + k as f32 * step;
             let r = 0.5 * f.fin * (0.6 + 0.6 * rho(0.0, z));
-            let c = self
-                .tree
-                .capsule(at(-len, 0.0, z), at(len, 0.0, z), r / VISIBLE, 1.0)?;
-            parts.push(c);
-            wall = Some(match wall {
-                Some(w) => self.tree.union(w, c)?,
-                None => c,
-            });
+            wall_rows.push(self.tree.capsule(
+                at(-len, 0.0, z),
+                at(len, 0.0, z),
+                r / VISIBLE,
+                1.0,
+            )?);
         }
-        if let Some(w) = wall {
-            rib = self.tree.intersection(rib, w)?;
-        }
+        let wall = self.tree.union_all(&wall_rows)?;
+        let rib = self.tree.intersection(rib, wall)?;
         let s32 = (seed as u32).wrapping_add(idx as u32);
         let rib = self
             .tree
@@ -270,7 +264,7 @@ impl SceneBuilder {
         self.positives.push(rib);
         self.carved
             .push((at(0.0, 0.0, floor + 0.5 * f.rise), 0.5 * f.rise, false));
-        Ok(parts.len())
+        Ok(parts.len() + wall_rows.len())
     }
 
     /// The gap through the ridge around an arch: negative capsules along `d` from beyond

@@ -241,23 +241,23 @@ impl SceneBuilder {
         let (u, v) = self.joints(s, centre);
         let h = |a: u64, b: u64| unit(hash(s.seed, centre.idx, a, b));
         let (a, b) = (s.spacing, 1.15 * s.spacing);
-        let mut cands: Vec<(f32, i32, i32)> = Vec::new();
+        let mut cands: Vec<(f32, i32, i32, u64)> = Vec::new();
         for j in -2i32..=2 {
             for i in -3i32..=3 {
                 let (x, y) = (i as f32 / 3.2, j as f32 / 2.2);
                 if x * x + y * y <= 1.0 {
                     let key = ((i + 8) * 16 + j + 8) as u64;
-                    cands.push((i.abs() as f32 + 1.5 * j.abs() as f32 + h(key, 1), j, i));
+                    let order = i.abs() as f32 + 1.5 * j.abs() as f32 + h(key, 1);
+                    cands.push((order, j, i, key));
                 }
             }
         }
         cands.sort_by(|x, y| x.0.total_cmp(&y.0));
         let mut out: Vec<(Site, (i32, i32))> = Vec::new();
-        for &(_, j, i) in &cands {
+        for &(_, j, i, key) in &cands {
             if out.len() >= room.min(s.per_cluster) {
                 break;
             }
-            let key = ((i + 8) * 16 + j + 8) as u64;
             let site = if (i, j) == (0, 0) {
                 Some(*centre)
             } else {
@@ -395,10 +395,7 @@ impl SceneBuilder {
         }
         let seed = (s.seed as u32).wrapping_add(site.idx as u32);
         if capless {
-            let mut column = parts[0];
-            for &q in &parts[1..] {
-                column = self.tree.union(column, q)?;
-            }
+            let column = self.tree.union_all(&parts)?;
             self.push_fluted(column, r, seed)?;
             return Ok((parts.len(), z1));
         }
@@ -428,10 +425,7 @@ impl SceneBuilder {
         // The column's rounded top is cut at the cap's mid-plane (a very flat ellipsoid's top
         // there), so it never pokes through a thin cap.
         let n_column = parts.len() - 2;
-        let mut column = parts[0];
-        for &q in &parts[1..n_column] {
-            column = self.tree.union(column, q)?;
-        }
+        let column = self.tree.union_all(&parts[..n_column])?;
         let mid = 0.5 * (b0 + b1);
         let (wide, deep) = (20.0 * rc / VISIBLE, 4.0 * (mid - z0) / VISIBLE);
         let below = self.tree.ellipsoid(
@@ -439,10 +433,10 @@ impl SceneBuilder {
             [wide, wide, deep],
             1.0,
         )?;
-        let mut all = self.tree.intersection(column, below)?;
-        for &q in &parts[n_column..] {
-            all = self.tree.union(all, q)?;
-        }
+        let cut = self.tree.intersection(column, below)?;
+        let all = self
+            .tree
+            .union_all(&[&[cut], &parts[n_column..]].concat())?;
         self.push_fluted(all, r, seed)?;
         Ok((parts.len(), b1))
     }
@@ -467,24 +461,19 @@ impl SceneBuilder {
         let frac = 0.1 + 0.25 * unit(hash(s.seed, a.idx, b.idx, 0x6669_6e32));
         let wall = frac * (a.bed.0 - a.p[2]).min(b.bed.0 - b.p[2]);
         let n = ((wall / (0.4 * r)).ceil() as usize).clamp(2, 32);
-        let mut fin: Option<NodeId> = None;
+        let mut rows = Vec::with_capacity(n + 1);
         for k in 0..=n {
             let t = k as f32 / n as f32;
             let dz = -0.3 * r + (wall + 0.3 * r) * t;
             let (pa, pb) = ([a.p[0], a.p[1], a.p[2] + dz], [b.p[0], b.p[1], b.p[2] + dz]);
             let rho = self.geology.resistance(mul(add(pa, pb), 0.5));
             let rv = r * (0.35 + 0.5 * rho) * (1.0 - 0.55 * t) / VISIBLE;
-            let c = self.tree.cone(pa, pb, rv, rv, 1.0)?;
-            fin = Some(match fin {
-                Some(f) => self.tree.union(f, c)?,
-                None => c,
-            });
+            rows.push(self.tree.cone(pa, pb, rv, rv, 1.0)?);
         }
-        if let Some(f) = fin {
-            let seed = (s.seed as u32) ^ (a.idx as u32).wrapping_mul(31) ^ (b.idx as u32);
-            self.push_fluted(f, r, seed)?;
-        }
-        Ok(n + 1)
+        let fin = self.tree.union_all(&rows)?;
+        let seed = (s.seed as u32) ^ (a.idx as u32).wrapping_mul(31) ^ (b.idx as u32);
+        self.push_fluted(fin, r, seed)?;
+        Ok(rows.len())
     }
 }
 

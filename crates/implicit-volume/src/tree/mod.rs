@@ -363,6 +363,14 @@ impl TerrainTree {
         let (a, b) = (self.id(a)?, self.id(b)?);
         Ok(self.push(Node::Union { a, b }))
     }
+    /// CSG union of all `items`, folded in order (`union(union(a, b), c)`, ...); refused when
+    /// empty.
+    pub fn union_all(&mut self, items: &[NodeId]) -> Result<NodeId> {
+        let (&first, rest) = items
+            .split_first()
+            .ok_or_else(|| Error::param("union_all.items", 0, "must not be empty"))?;
+        rest.iter().try_fold(first, |acc, &q| self.union(acc, q))
+    }
     /// CSG intersection `min(a, b)`.
     pub fn intersection(&mut self, a: NodeId, b: NodeId) -> Result<NodeId> {
         let (a, b) = (self.id(a)?, self.id(b)?);
