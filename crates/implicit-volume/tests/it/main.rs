@@ -3,5 +3,6 @@
 
 mod physical_sizes;
 mod real_dem;
+mod render;
 mod settings_proptest;
 mod shapes;

@@ -216,7 +216,7 @@ proptest! {
                            up: [0.0, 0.0, up], fov_deg: fov };
         let rs = RenderSettings { width: w, height: h, light: [up, 0.3, 1.0], max_steps: steps,
                                   shadows: true, ambient_occlusion: true, sea_level: sea,
-                                  cutaway: None };
+                                  cutaway: None, adaptive: sea.is_some() };
         check(render(&scene, &cam, &rs), &["image size", "fov_deg", "camera", "light", "sea_level"])?;
         let ss = SectionSettings { start: [lo, 0.0], end: [hi, 100.0], z_range: Some((z0, z1)),
                                    width: w, height: h };
