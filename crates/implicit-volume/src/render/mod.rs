@@ -8,7 +8,7 @@
 //! in front of it empty; and a primary ray creeping along a surface at the smallest step (the
 //! pixel footprint) skips the interval test of its ball, which fails there, and reuses the
 //! Lipschitz bound while it stays inside the ball the bound was computed over. On top of
-//! that, the image loop ([`frame`]) traces every fourth pixel and fills the others from them
+//! that, the image loop (module `frame`) traces every fourth pixel and fills the others from them
 //! where they lie on one smooth surface ([`RenderSettings::adaptive`]).
 
 use rayon::prelude::*;
