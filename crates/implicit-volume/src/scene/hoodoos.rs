@@ -27,7 +27,10 @@
 //! * the column, from under the lowest ground around it up to the cap bed, is a stack of
 //!   cones (a union: the profile is exactly the sampled one) whose radius at each height
 //!   follows the rock there, `R (0.45 + 0.75 rho(z))`: soft strata are narrow necks, harder
-//!   beds bulges, so the same hoodoo has another profile on another geology; a foot flares
+//!   beds bulges, so the same hoodoo has another profile on another geology; within a
+//!   stratum, thin horizontal beds of 0.5-1.5 m (`+-0.3` in hardness, hashed per bed) make
+//!   ledges and necks at the same heights on every column of a cluster (the totem-pole
+//!   profile), the column never wider than 90 % of its cap; a foot flares
 //!   (by up to 30 %) over the lowest 15 % (talus), each sample is jittered by +-8 % and the axis leans a
 //!   little;
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
@@ -52,6 +55,22 @@ const BADLAND_SLOPE_DEG: f32 = 25.0;
 
 /// Share of the hoodoos that have lost their cap (spires of 50-90 % of the capped height).
 const CAPLESS: f32 = 0.35;
+
+/// Hardness contrast of the thin beds within the strata ([`bed_offset`]).
+const BED_CONTRAST: f32 = 0.3;
+
+/// The thin beds within a formation that columns weather out into ledges and necks (the
+/// bedding of a hoodoo-forming rock such as the Claron Formation: limestone and mudstone beds
+/// of about half a metre to a metre and a half): a hardness offset of up to `+-BED_CONTRAST`
+/// for the bed at height `z` (m). Beds are horizontal, bounded every metre give or take half a
+/// metre (hashed from `seed`), so every column of a cluster has its ledges at the same heights.
+fn bed_offset(seed: u64, z: f32) -> f32 {
+    let k = z.floor();
+    let key = |k: f32| k as i64 as u64;
+    let base = |k: f32| k + 0.5 * unit(hash(seed, key(k), 0, 0x6265_6473));
+    let bed = if z >= base(k) { k } else { k - 1.0 };
+    BED_CONTRAST * (2.0 * unit(hash(seed, key(bed), 1, 0x6265_6473)) - 1.0)
+}
 
 /// A qualifying hoodoo site: the ground node, its cap bed and its slope.
 #[derive(Debug, Clone, Copy)]
@@ -372,7 +391,8 @@ impl SceneBuilder {
         let profile: Vec<(V3, f32)> = (0..=n)
             .map(|m| {
                 let z = z0 + (z1 - z0) * m as f32 / n as f32;
-                let rho = self.geology.resistance(axis(z));
+                let rho =
+                    (self.geology.resistance(axis(z)) + bed_offset(s.seed, z)).clamp(0.0, 1.0);
                 let foot = (1.0 - (z - low) / (0.15 * tall)).clamp(0.0, 1.0);
                 let jitter = 0.92 + 0.16 * h(10 + m as u64);
                 let rv = r * (0.45 + 0.75 * rho) * (1.0 + 0.3 * foot * foot) * jitter;
@@ -383,7 +403,10 @@ impl SceneBuilder {
                     let t = ((z1 - z) / (1.5 * r)).clamp(0.0, 1.0);
                     rv * (0.3 + 0.7 * t.sqrt())
                 } else {
+                    // Never as wide as the cap that shelters it (a hard thin bed may bulge
+                    // out to 90 % of it).
                     let guard = (1.0 - (z1 - z) / (0.8 * r)).clamp(0.0, 1.0);
+                    let rv = rv.min(0.9 * rc);
                     rv + (0.85 * rc - rv).max(0.0) * guard
                 };
                 (axis(z), rv / VISIBLE)
@@ -466,7 +489,8 @@ impl SceneBuilder {
             let t = k as f32 / n as f32;
             let dz = -0.3 * r + (wall + 0.3 * r) * t;
             let (pa, pb) = ([a.p[0], a.p[1], a.p[2] + dz], [b.p[0], b.p[1], b.p[2] + dz]);
-            let rho = self.geology.resistance(mul(add(pa, pb), 0.5));
+            let mid = mul(add(pa, pb), 0.5);
+            let rho = (self.geology.resistance(mid) + bed_offset(s.seed, mid[2])).clamp(0.0, 1.0);
             let rv = r * (0.35 + 0.5 * rho) * (1.0 - 0.55 * t) / VISIBLE;
             rows.push(self.tree.cone(pa, pb, rv, rv, 1.0)?);
         }
@@ -624,6 +648,47 @@ mod tests {
             slope: 30.0,
             idx,
         }
+    }
+
+    /// In rock of one hardness, a column still weathers into ledges and necks at the thin
+    /// beds, and two columns have theirs at the same heights (the beds are horizontal): their
+    /// radius profiles vary by more than 5 % and correlate (without the beds, only each
+    /// column's own jitter and flutes: uncorrelated).
+    #[test]
+    fn columns_share_ledges_at_the_thin_beds() {
+        let s = HoodooSettings {
+            radius: 1.5,
+            ..Default::default()
+        };
+        let capped = (1..64u64)
+            .filter(|&i| unit(hash(s.seed, i, 60, 0x6361_7073)) >= CAPLESS)
+            .take(2);
+        let profiles: Vec<Vec<f32>> = capped
+            .map(|idx| {
+                let hf = Heightfield::from_fn(16, 16, 1.0, 1.0, |_, _| 0.0);
+                let geo = test_beds(0.0, (5.0, 0.3), (5.0, 0.3));
+                let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+                b.hoodoo(&s, &flat_site(8.0, 8.0, idx)).unwrap();
+                let scene = b.build(true).unwrap();
+                (0..26)
+                    .map(|k| radius_at(&scene, [8.0, 8.0, 0.0], 2.0 + 0.25 * k as f32))
+                    .collect()
+            })
+            .collect();
+        let stats = |v: &[f32]| {
+            let m = v.iter().sum::<f32>() / v.len() as f32;
+            let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f32>() / v.len() as f32).sqrt();
+            (m, sd)
+        };
+        let ((ma, sa), (mb, sb)) = (stats(&profiles[0]), stats(&profiles[1]));
+        assert!(sa > 0.05 * ma && sb > 0.05 * mb, "{sa} {ma} {sb} {mb}");
+        let cov = profiles[0]
+            .iter()
+            .zip(&profiles[1])
+            .map(|(a, b)| (a - ma) * (b - mb))
+            .sum::<f32>()
+            / profiles[0].len() as f32;
+        assert!(cov / (sa * sb) > 0.5, "correlation {}", cov / (sa * sb));
     }
 
     /// A fin between two hoodoo sites is a low wall: rock midway between them near the
