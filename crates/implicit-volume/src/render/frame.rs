@@ -259,6 +259,13 @@ impl Frame<'_> {
             None => sky,
             Some(hit) => {
                 let (p, n, t) = (add(self.eye, mul(d, hit.t)), hit.n, hit.t);
+                // Rock (steep faces) rough at the metre scale, soil smoother.
+                let n = if hit.on_cut {
+                    n
+                } else {
+                    let rock = ((1.0 - n[2].clamp(0.0, 1.0)) * 2.5).min(1.0);
+                    material::bumped_normal(n, p, self.cone * t, 0.3 + 0.7 * rock)
+                };
                 let mut lam = dot(n, self.light).max(0.0);
                 if lt.shadowed == Some(true) {
                     lam *= 0.15;
