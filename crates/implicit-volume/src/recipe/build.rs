@@ -680,11 +680,12 @@ fn highlights(b: &SceneBuilder, effects: &[(Feature, EffectReport)]) -> Vec<High
     let mut highlights = Vec::new();
     for (f, e) in effects {
         if *f == Feature::Karst {
-            if let Some(c) = densest_karst(b) {
+            let from = [-0.55, -0.7, 0.35];
+            if let Some(c) = densest_karst(b, from) {
                 highlights.push(Highlight {
                     feature: *f,
                     at: c,
-                    from: Some([-0.55, -0.7, 0.35]),
+                    from: Some(from),
                     cutaway: true,
                     size_m: None,
                 });

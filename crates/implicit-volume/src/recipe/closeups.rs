@@ -3,27 +3,43 @@
 
 use super::*;
 
-/// Centre of the karst spheres in the densest column block (for a close-up camera).
-pub(super) fn densest_karst(b: &SceneBuilder) -> Option<[f32; 3]> {
-    let f = b.frame();
-    let cell = 8.0 * f.cx.max(f.cy);
-    let mut bins: std::collections::BTreeMap<(i64, i64), (usize, [f64; 3])> = Default::default();
-    for (c, _, karst) in b.carvings() {
-        if !karst {
-            continue;
-        }
-        let e = bins
-            .entry(((c[0] / cell) as i64, (c[1] / cell) as i64))
-            .or_insert((0, [0.0; 3]));
-        e.0 += 1;
-        for k in 0..3 {
-            e.1[k] += c[k] as f64;
+/// Where to cut the karst away for its close-up: the centre of the karst passage sphere
+/// whose vertical cut plane (normal `cut`, horizontal) crosses the most other passage spheres
+/// under the ground within `15` of their radii of it along the plane (the close-up's
+/// width), so the cut face shows a network of holes, not one or none.
+pub(super) fn densest_karst(b: &SceneBuilder, cut: [f32; 3]) -> Option<[f32; 3]> {
+    let n = crate::math::normalize([cut[0], cut[1], 0.0]);
+    // Passage spheres wholly under the ground (a mouth at the surface is not a cut hole).
+    let karst: Vec<([f32; 3], f32)> = b
+        .carvings()
+        .iter()
+        .filter(|c| c.2 && c.0[2] + VISIBLE_SHARE * c.1 < b.ground(c.0[0], c.0[1]))
+        .map(|c| (c.0, VISIBLE_SHARE * c.1))
+        .collect();
+    // At most 4096 candidates (a stride over the list) against every sphere.
+    let stride = karst.len().div_ceil(4096).max(1);
+    let mut best: Option<(usize, [f32; 3])> = None;
+    for (c, r) in karst.iter().step_by(stride) {
+        let reach = 15.0 * r;
+        let crossed = karst
+            .iter()
+            .filter(|(q, rq)| {
+                let d = crate::math::sub(*q, *c);
+                let off = crate::math::dot(d, n);
+                let along = (d[0] * d[0] + d[1] * d[1] - off * off).max(0.0).sqrt();
+                off.abs() < *rq && along < reach && d[2].abs() < reach
+            })
+            .count();
+        if best.is_none_or(|b| crossed > b.0) {
+            best = Some((crossed, *c));
         }
     }
-    bins.values()
-        .max_by_key(|v| v.0)
-        .map(|(n, s)| s.map(|v| (v / *n as f64) as f32))
+    best.map(|b| b.1)
 }
+
+/// Visible radius of a carving sphere as a share of its support radius (the falloff's
+/// `(1 - q)^3 = T` at energy 1).
+const VISIBLE_SHARE: f32 = 0.454_4;
 
 /// The west-east line through the DEM row holding the most karst spheres; without karst,
 /// through the first sea cave two radii `cave_radius` inside its mouth (the section then cuts

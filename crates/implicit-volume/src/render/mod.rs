@@ -458,7 +458,9 @@ pub fn render(scene: &Scene, cam: &Camera, s: &RenderSettings) -> Result<Image> 
 }
 
 /// Where a ray from `eye` along `d` starts: with a cut-away plane `(point, normal)`, where it
-/// enters the kept side (`None`: it never does), and whether it starts on the cut face.
+/// enters the kept side (`None`: it never does), and whether it starts on the cut face: in
+/// matter, or under the DEM's closing floor within its footprint (the bedrock goes on below
+/// the modelled slab; a cut-away must not show sky under it).
 fn ray_start(
     scene: &Scene,
     eye: [f32; 3],
@@ -474,7 +476,16 @@ fn ray_start(
         (Some(0.0), false)
     } else if dn < 0.0 {
         let t = side / -dn;
-        (Some(t), scene.inside(add(eye, mul(d, t))))
+        let q = add(eye, mul(d, t));
+        // Under the DEM's closing floor, inside its footprint.
+        let under = match (scene.dem_floor(), scene.dem_frame()) {
+            (Some(z), Some(f)) => {
+                let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+                q[2] < z && (0.0..=xm).contains(&q[0]) && (0.0..=ym).contains(&q[1])
+            }
+            _ => false,
+        };
+        (Some(t), under || scene.inside(q))
     } else {
         (None, false)
     }
