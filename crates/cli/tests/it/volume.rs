@@ -344,7 +344,8 @@ fn volume_reads_a_geology_and_draws_water_only_with_sea() {
 }
 
 /// The limit leaves time to build the scene and time the pilot (about 2 s here), not the
-/// render it estimates (about 30 s): refused before it starts. (A limit shorter than the
+/// render it estimates (7 s in a release build; the adaptive render made 2048 x 1536 fit):
+/// refused before it starts. (A limit shorter than the
 /// scene's build stops the build itself: `limits::meshing_stops_at_the_time_limit`.)
 #[test]
 fn volume_renders_over_the_time_budget_are_refused_before_starting() {
@@ -353,13 +354,13 @@ fn volume_renders_over_the_time_budget_are_refused_before_starting() {
     let mesh = dir.path().join("m.obj");
     let out = relief_line(
         "volume {} --crop 100,100,24,24 --features arches --mesh {} --render {} \
-         --image-size 2048x1536 --max-time 5s",
+         --image-size 4096x3072 --max-time 5s",
         &[&gc(), &mesh, &render],
     );
     fails_with(&out, &["--max-time"], &[&render, &mesh]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("rendering 2048 x 1536 images") && err.contains("estimated at"),
+        err.contains("rendering 4096 x 3072 images") && err.contains("estimated at"),
         "{err}"
     );
     assert!(err.contains("--image-size"), "{err}");
