@@ -855,6 +855,17 @@ fn sea_cliffs_cut_back_the_shore_only() {
     assert!(rep.primitives > 100, "{rep:?}");
     let f = b.frame();
     let scene = b.build(true).unwrap();
+    // The close-up looks from the sea: the site's axis points to lower ground.
+    assert_eq!(rep.axes.len(), rep.sites.len());
+    for (p, a) in rep.sites.iter().zip(&rep.axes) {
+        let out = |t: f32| {
+            let (x, y) = (p[0] + t * a[0], p[1] + t * a[1]);
+            scene
+                .dem_height(x.clamp(0.0, xm), y.clamp(0.0, ym))
+                .unwrap()
+        };
+        assert!(out(60.0) < out(-60.0), "{p:?} {a:?}");
+    }
     let (cx, cy) = (f.cx, f.cy);
     let near_sea = |x: f32, y: f32, d: f32| {
         let r = (d / cx.min(cy)).ceil() as i32 + 1;
