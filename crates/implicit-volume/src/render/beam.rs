@@ -52,14 +52,15 @@ impl Pinhole {
         let (u, v) = self.uv(x, y);
         normalize(add(self.fwd, add(mul(self.right, u), mul(self.up, v))))
     }
-    /// The unit axis of the pixel centres `x0..x1` x `y0..y1` (half-open) and the largest
-    /// angle (radians) between it and any of their rays.
+    /// The unit axis of the pixels `x0..x1` x `y0..y1` (half-open) and the largest angle
+    /// (radians) between it and any ray through them (their whole area, not only their
+    /// centres: the anti-aliasing samples start where the beam stopped too).
     fn cone(&self, x0: usize, x1: usize, y0: usize, y1: usize) -> (V3, f32) {
-        let (xa, xb) = (x0 as f32 + 0.5, x1 as f32 - 0.5);
-        let (ya, yb) = (y0 as f32 + 0.5, y1 as f32 - 0.5);
+        let (xa, xb) = (x0 as f32, x1 as f32);
+        let (ya, yb) = (y0 as f32, y1 as f32);
         let axis = self.dir(0.5 * (xa + xb), 0.5 * (ya + yb));
-        // The pixel centres fill a rectangle of the image plane, so the widest angle is at a
-        // corner; 1 % and a micro-radian of slack for rounding.
+        // The pixels fill a rectangle of the image plane, so the widest angle is at a corner;
+        // 1 % and a micro-radian of slack for rounding.
         let widest = [(xa, ya), (xb, ya), (xa, yb), (xb, yb)]
             .into_iter()
             .map(|(x, y)| dot(axis, self.dir(x, y)).clamp(-1.0, 1.0).acos())

@@ -16,6 +16,13 @@
 //! pixel in full, mean absolute difference 0.009 grey levels, 0.03 % of pixels off by more
 //! than 8. Every pass is a pure function of the pixel and of earlier passes, so the bytes do
 //! not depend on the threads.
+//!
+//! Last, a pixel on a silhouette or an occlusion edge (it hits and its right or lower
+//! neighbour does not, or one is on the cut face, or their depths jump by more than one
+//! surface at its angle would give) is anti-aliased: the mean of its own sample and three
+//! sub-pixel ones (a rotated grid), each traced from the block's beam start with an eighth
+//! of the steps and lit in full unless it lands on the pixel's own surface. The islands
+//! close-up has 0.16 % such pixels; the hoodoo close-ups cost about 10 % more.
 
 use rayon::prelude::*;
 
@@ -97,6 +104,12 @@ impl Frame<'_> {
             Some(&t) => (Some(t), false),
             None => ray_start(self.scene, self.eye, d, self.cut),
         };
+        self.primary_from(d, t0, on_cut, self.s.max_steps)
+    }
+
+    /// The primary ray along `d` traced from `t0` (`None`: it never enters the kept side)
+    /// in at most `steps`, or its start on the cut face.
+    fn primary_from(&self, d: V3, t0: Option<f32>, on_cut: bool, steps: u32) -> Option<Hit> {
         let t = match t0 {
             Some(t0) if on_cut => t0,
             Some(t0) => {
@@ -105,7 +118,7 @@ impl Frame<'_> {
                     add(self.eye, mul(d, t0)),
                     d,
                     1e30,
-                    self.s.max_steps,
+                    steps,
                     self.cone,
                     t0,
                     true,
@@ -188,9 +201,8 @@ impl Frame<'_> {
         Some(self.hit_at(d, b, false))
     }
 
-    /// Shadow ray and ambient occlusion of a hit.
-    fn light_of(&self, x: usize, y: usize, hit: &Hit) -> Light {
-        let d = self.dir(x, y);
+    /// Shadow ray and ambient occlusion of the hit of the ray along `d`.
+    fn light_of(&self, d: V3, hit: &Hit) -> Light {
         let p = add(self.eye, mul(d, hit.t));
         let n = hit.n;
         let shadowed = (self.s.shadows && dot(n, self.light) > 0.0).then(|| {
@@ -248,12 +260,11 @@ impl Frame<'_> {
                 };
             }
         }
-        self.light_of(x, y, hit)
+        self.light_of(self.dir(x, y), hit)
     }
 
-    /// The colour of pixel `(x, y)` from its hit and lighting.
-    fn colour(&self, x: usize, y: usize, hit: Option<&Hit>, lt: &Light) -> V3 {
-        let d = self.dir(x, y);
+    /// The colour of the ray along `d` from its hit and lighting.
+    fn colour(&self, d: V3, hit: Option<&Hit>, lt: &Light) -> V3 {
         let sky = [0.55 + 0.3 * d[2].max(0.0), 0.7 + 0.2 * d[2].max(0.0), 0.95];
         let col = match hit {
             None => sky,
@@ -303,6 +314,61 @@ impl Frame<'_> {
             }
             None => col,
         }
+    }
+}
+
+/// Sub-pixel offsets of an edge pixel's three extra samples (with its centre, a rotated
+/// 2 x 2 grid).
+const SUBSAMPLES: [(f32, f32); 3] = [(0.375, -0.125), (-0.125, -0.375), (-0.375, 0.125)];
+
+impl Frame<'_> {
+    /// The colour of the ray through the point `(dx, dy)` pixels off the centre of pixel
+    /// `(x, y)` (within it), traced from its block's beam start (or the cut-away plane) with
+    /// a quarter of the steps (a sample that runs out of them grazes a surface and is drawn
+    /// on it), and lit in full.
+    fn sample(
+        &self,
+        (x, y): (usize, usize),
+        (dx, dy): (f32, f32),
+        own: (Option<&Hit>, &Light),
+    ) -> V3 {
+        let d = self.pin.dir(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+        let (t0, on_cut) = match self
+            .starts
+            .get((y / beam::FINE) * self.blocks_x + x / beam::FINE)
+        {
+            Some(&t) => (Some(t), false),
+            None => ray_start(self.scene, self.eye, d, self.cut),
+        };
+        let hit = self.primary_from(d, t0, on_cut, self.s.max_steps / 8);
+        // On the pixel's own surface (same face, depth within SMOOTH), its light.
+        let same = |h: &Hit| {
+            own.0
+                .is_some_and(|o| o.on_cut == h.on_cut && (o.t - h.t).abs() <= SMOOTH * o.t.min(h.t))
+        };
+        let lt = match hit {
+            Some(h) if same(&h) => *own.1,
+            Some(h) => self.light_of(d, &h),
+            None => Light::default(),
+        };
+        self.colour(d, hit.as_ref(), &lt)
+    }
+}
+
+/// Whether two neighbouring pixels' hits lie on different surfaces: one hits and the other
+/// not, one is on the cut face and the other not, or their depths differ by more than
+/// [`SMOOTH`] and by more than four times what one surface seen at its angle would give
+/// (`cone`: a pixel's angle; `d`: the view direction), so a grazing slope is not an edge.
+fn edge(a: Option<&Hit>, b: Option<&Hit>, d: V3, cone: f32) -> bool {
+    match (a, b) {
+        (None, None) => false,
+        (Some(a), Some(b)) => {
+            let near = a.t.min(b.t);
+            let facing = dot(d, a.n).abs().max(dot(d, b.n).abs()).max(0.02);
+            let jump = (a.t - b.t).abs();
+            a.on_cut != b.on_cut || (jump > SMOOTH * near && jump > 4.0 * cone * near / facing)
+        }
+        _ => true,
     }
 }
 
@@ -392,7 +458,7 @@ pub(super) fn render_frame(
         }
     }
     let mut lights = vec![Light::default(); w * h];
-    let lit = |x: usize, y: usize| hits[y * w + x].map(|hit| fr.light_of(x, y, &hit));
+    let lit = |x: usize, y: usize| hits[y * w + x].map(|hit| fr.light_of(fr.dir(x, y), &hit));
     let traced = per_pixel((w, h), progress, |x, y| on(x, y, 4), lit)?;
     for (i, v) in traced.into_iter().flatten() {
         lights[i] = v.unwrap_or_default();
@@ -406,17 +472,45 @@ pub(super) fn render_frame(
             lights[i] = v.unwrap_or_default();
         }
     }
+    // A pixel on a silhouette or an occlusion edge (with its right or lower neighbour) is the
+    // mean of its own sample and three sub-pixel ones traced and lit in full (anti-aliasing:
+    // stair-steps and sub-pixel features blend).
+    let at = |x: usize, y: usize| hits[y * w + x].as_ref();
+    let on_edge = |x: usize, y: usize| {
+        let (here, d) = (at(x, y), fr.dir(x, y));
+        (x + 1 < w && edge(here, at(x + 1, y), d, fr.cone))
+            || (y + 1 < h && edge(here, at(x, y + 1), d, fr.cone))
+    };
     let mut rgb = vec![0u8; w * h * 3];
+    let stop = std::sync::atomic::AtomicBool::new(false);
     rgb.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+        use std::sync::atomic::Ordering::Relaxed;
+        if stop.load(Relaxed) || progress.stopped() {
+            stop.store(true, Relaxed);
+            return;
+        }
         for x in 0..w {
             let k = y * w + x;
-            let col = fr.colour(x, y, hits[k].as_ref(), &lights[k]);
+            let own = fr.colour(fr.dir(x, y), hits[k].as_ref(), &lights[k]);
+            let col = if on_edge(x, y) {
+                SUBSAMPLES
+                    .iter()
+                    .fold(own, |acc, &off| {
+                        add(acc, fr.sample((x, y), off, (hits[k].as_ref(), &lights[k])))
+                    })
+                    .map(|c| 0.25 * c)
+            } else {
+                own
+            };
             for c in 0..3 {
                 row[x * 3 + c] = material::to_byte(col[c]);
             }
         }
         progress.advance(1);
     });
+    if stop.into_inner() {
+        return Err(Error::Stopped("rendering"));
+    }
     Ok(super::Image {
         width: w,
         height: h,

@@ -135,3 +135,50 @@ fn a_cut_away_shows_bedrock_under_the_slab() {
     let (r, b) = (img.rgb[k], img.rgb[k + 2]);
     assert!(r > b, "sky under the slab: {:?}", &img.rgb[k..k + 3]);
 }
+
+/// Silhouettes are anti-aliased: the far edge of a plain seen level from 5 m, the camera
+/// rolled so the horizon runs diagonally, steps from ground to sky through blended pixels
+/// (its edge pixels average four samples); with one sample per pixel every column jumps
+/// from ground to sky in one step.
+#[test]
+fn silhouettes_are_anti_aliased() {
+    let hf = relief_heightfield::Heightfield::from_fn(64, 64, 10.0, 10.0, |_, _| 0.0);
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let cam = Camera {
+        eye: [315.0, 20.0, 5.0],
+        target: [315.0, 600.0, 5.0],
+        up: [0.3, 0.0, 1.0],
+        fov_deg: 20.0,
+    };
+    let (w, h) = (64, 48);
+    let s = RenderSettings {
+        width: w,
+        height: h,
+        shadows: false,
+        ambient_occlusion: false,
+        ..Default::default()
+    };
+    let img = render(&scene, &cam, &s).unwrap();
+    let blue = |x: usize, y: usize| i32::from(img.rgb[3 * (y * w + x) + 2]);
+    let (mut blended, mut columns) = (0, 0);
+    for x in 8..w - 8 {
+        let (sky, ground) = (blue(x, 0), blue(x, h - 1));
+        let contrast = sky - ground;
+        if contrast < 40 {
+            continue;
+        }
+        columns += 1;
+        let jump = (1..h)
+            .map(|y| (blue(x, y - 1) - blue(x, y)).abs())
+            .max()
+            .unwrap_or(0);
+        blended += usize::from(jump * 10 < contrast * 8);
+    }
+    assert!(
+        columns > 20 && blended * 2 > columns,
+        "{blended} of {columns} columns blended"
+    );
+}
