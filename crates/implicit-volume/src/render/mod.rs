@@ -205,22 +205,35 @@ impl Camera {
         // Nor behind other matter on the line of sight (a hoodoo or a stack in front of the
         // one aimed at): once out of the target's own rock, the first matter met walking
         // towards the eye stops the eye just before it.
+        // An occluder in the nearer half of the sight is looked over first: the eye is
+        // raised about the target (steeper, keeping its distance) while that clears it.
+        let occluder = |eye: V3| {
+            let sight = sub(eye, start);
+            let mut out_of_target = false;
+            (1..=48).find(|&m| {
+                let solid = scene.inside(add(start, mul(sight, m as f32 / 48.0)));
+                out_of_target |= !solid;
+                solid && out_of_target
+            })
+        };
         let sight = sub(eye, start);
         let len = norm(sight);
         if len > 0.0 && crate::math::finite3(sight) {
-            let mut out_of_target = false;
-            for m in 1..=48 {
-                let t = m as f32 / 48.0;
-                let q = add(start, mul(sight, t));
-                let solid = scene.inside(q);
-                if !solid {
-                    out_of_target = true;
-                } else if out_of_target {
-                    // Just before the occluder, however close (behind it, the eye would
-                    // only be raised out of it and look down from far above).
-                    eye = add(start, mul(sight, (m - 1).max(1) as f32 / 48.0));
-                    break;
+            if occluder(eye).is_some_and(|m| m < 24) {
+                let h = norm([sight[0], sight[1], 0.0]);
+                for lift in [0.3f32, 0.6, 1.0] {
+                    let up = normalize([sight[0], sight[1], sight[2] + lift * h.max(1e-3)]);
+                    let raised = add(start, mul(up, len));
+                    if occluder(raised).is_none() && !scene.inside(raised) {
+                        eye = raised;
+                        break;
+                    }
                 }
+            }
+            if let Some(m) = occluder(eye) {
+                // Just before the occluder, however close (behind it, the eye would only be
+                // raised out of it and look down from far above).
+                eye = add(start, mul(sub(eye, start), (m - 1).max(1) as f32 / 48.0));
             }
         }
         for _ in 0..64 {
