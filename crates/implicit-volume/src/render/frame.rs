@@ -372,11 +372,19 @@ fn edge(a: Option<&Hit>, b: Option<&Hit>, d: V3, cone: f32) -> bool {
     }
 }
 
+/// The passes that report progress: the traced primary rays, the last fill of the hits,
+/// the traced lighting and the colours; each reports the rows `y` with `y % 4` its own tick,
+/// so the image's rows are reported once in all, spread over the work.
+const PASSES_TICKED: usize = 4;
+
+/// No progress ticks (a pass that does not report).
+const SILENT: usize = usize::MAX;
+
 /// `f(x, y)` for every pixel of the rows `y` where `rows(y)`, over the columns where
 /// `cols(x, y)`, in parallel by rows; `None` if the caller asked to stop.
 fn per_pixel<T: Send>(
     (w, h): (usize, usize),
-    progress: &dyn relief_heightfield::Progress,
+    (progress, tick): (&dyn relief_heightfield::Progress, usize),
     pick: impl Fn(usize, usize) -> bool + Sync,
     f: impl Fn(usize, usize) -> T + Sync,
 ) -> Result<Vec<Vec<(usize, T)>>> {
@@ -389,10 +397,14 @@ fn per_pixel<T: Send>(
                 stop.store(true, Relaxed);
                 return Vec::new();
             }
-            (0..w)
+            let row = (0..w)
                 .filter(|&x| pick(x, y))
                 .map(|x| (y * w + x, f(x, y)))
-                .collect()
+                .collect();
+            if y % PASSES_TICKED == tick {
+                progress.advance(1);
+            }
+            row
         })
         .collect();
     if stop.into_inner() {
@@ -438,18 +450,18 @@ pub(super) fn render_frame(
     let mut hits: Vec<Option<Hit>> = vec![None; w * h];
     let traced = per_pixel(
         (w, h),
-        progress,
+        (progress, 0),
         |x, y| on(x, y, 4),
         |x, y| fr.primary(x, y),
     )?;
     for (i, v) in traced.into_iter().flatten() {
         hits[i] = v;
     }
-    for (pick, k) in [(2, 4), (1, 2)] {
+    for (pick, k, tick) in [(2, 4, SILENT), (1, 2, 1)] {
         let between = |x: usize, y: usize| fr.between(&hits, x, y, k);
         let rows = per_pixel(
             (w, h),
-            progress,
+            (progress, tick),
             |x, y| on(x, y, pick) && !on(x, y, k),
             between,
         )?;
@@ -459,7 +471,7 @@ pub(super) fn render_frame(
     }
     let mut lights = vec![Light::default(); w * h];
     let lit = |x: usize, y: usize| hits[y * w + x].map(|hit| fr.light_of(fr.dir(x, y), &hit));
-    let traced = per_pixel((w, h), progress, |x, y| on(x, y, 4), lit)?;
+    let traced = per_pixel((w, h), (progress, 2), |x, y| on(x, y, 4), lit)?;
     for (i, v) in traced.into_iter().flatten() {
         lights[i] = v.unwrap_or_default();
     }
@@ -467,7 +479,12 @@ pub(super) fn render_frame(
         let lit = |x: usize, y: usize| {
             hits[y * w + x].map(|hit| fr.light_between((&hits, &lights), x, y, k, &hit))
         };
-        let rows = per_pixel((w, h), progress, |x, y| on(x, y, pick) && !on(x, y, k), lit)?;
+        let rows = per_pixel(
+            (w, h),
+            (progress, SILENT),
+            |x, y| on(x, y, pick) && !on(x, y, k),
+            lit,
+        )?;
         for (i, v) in rows.into_iter().flatten() {
             lights[i] = v.unwrap_or_default();
         }
@@ -506,7 +523,9 @@ pub(super) fn render_frame(
                 row[x * 3 + c] = material::to_byte(col[c]);
             }
         }
-        progress.advance(1);
+        if y % PASSES_TICKED == 3 {
+            progress.advance(1);
+        }
     });
     if stop.into_inner() {
         return Err(Error::Stopped("rendering"));

@@ -182,3 +182,32 @@ fn silhouettes_are_anti_aliased() {
         "{blended} of {columns} columns blended"
     );
 }
+
+/// A render reports each image row once to its progress, spread over its passes (a quarter of
+/// the rows by the traced primary rays, ...), whatever the height, adaptive or not.
+#[test]
+fn a_render_reports_every_row_once() {
+    struct Count(std::sync::atomic::AtomicU64);
+    impl relief_heightfield::Progress for Count {
+        fn advance(&self, n: u64) {
+            self.0.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+    let hf = relief_heightfield::Heightfield::from_fn(16, 16, 10.0, 10.0, |i, j| (i * j) as f32);
+    let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
+        .unwrap()
+        .build(true)
+        .unwrap();
+    let cam = Camera::overview(&scene.bbox());
+    for (height, adaptive) in [(13, true), (16, true), (7, false), (1, true)] {
+        let s = RenderSettings {
+            width: 11,
+            height,
+            adaptive,
+            ..Default::default()
+        };
+        let count = Count(std::sync::atomic::AtomicU64::new(0));
+        relief_implicit_volume::render::render_with_progress(&scene, &cam, &s, &count).unwrap();
+        assert_eq!(count.0.into_inner(), height as u64, "{height} {adaptive}");
+    }
+}
