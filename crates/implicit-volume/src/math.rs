@@ -300,6 +300,11 @@ pub fn value_noise3(seeds: [u64; 3], p: V3) -> V3 {
     })
 }
 
+/// Visible radius of a primitive of support radius 1 at energy 1: where [`falloff`] meets
+/// the threshold, `(1 - q)^3 = 0.5`, `sqrt(q) = sqrt(1 - 0.5^(1/3))` = 0.4542 (0.4544 is
+/// the value the shapes were sized with; the hoodoo, arch, island and close-up code share it).
+pub const VISIBLE: f32 = 0.454_4;
+
 /// The compact-support cubic falloff of the paper's reference implementation:
 /// `g(d^2) = (1 - d^2 / R^2)^3` for `d < R`, 0 beyond. Takes `q = d^2 / R^2`.
 #[inline]

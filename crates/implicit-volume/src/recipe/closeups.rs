@@ -13,8 +13,8 @@ pub(super) fn densest_karst(b: &SceneBuilder, cut: [f32; 3]) -> Option<[f32; 3]>
     let karst: Vec<([f32; 3], f32)> = b
         .carvings()
         .iter()
-        .filter(|c| c.2 && c.0[2] + VISIBLE_SHARE * c.1 < b.ground(c.0[0], c.0[1]))
-        .map(|c| (c.0, VISIBLE_SHARE * c.1))
+        .filter(|c| c.2 && c.0[2] + crate::math::VISIBLE * c.1 < b.ground(c.0[0], c.0[1]))
+        .map(|c| (c.0, crate::math::VISIBLE * c.1))
         .collect();
     // At most 4096 candidates (a stride over the list) against every sphere.
     let stride = karst.len().div_ceil(4096).max(1);
@@ -36,10 +36,6 @@ pub(super) fn densest_karst(b: &SceneBuilder, cut: [f32; 3]) -> Option<[f32; 3]>
     }
     best.map(|b| b.1)
 }
-
-/// Visible radius of a carving sphere as a share of its support radius (the falloff's
-/// `(1 - q)^3 = T` at energy 1).
-const VISIBLE_SHARE: f32 = 0.454_4;
 
 /// The west-east line through the DEM row holding the most karst spheres; without karst,
 /// through the first sea cave two radii `cave_radius` inside its mouth (the section then cuts

@@ -29,8 +29,7 @@
 
 use super::*;
 
-/// Visible radius of a primitive of support radius 1 at energy 1 (`(1 - q)^3 = T`).
-const VISIBLE: f32 = 0.454_4;
+use crate::math::VISIBLE;
 
 /// Span of arch `k` (m): log-normal around `median` (`sigma` 0.45), within
 /// `[0.35, 3] median` and at most 120 m (the longest natural spans), hashed from `seed`.

@@ -47,8 +47,7 @@
 use super::*;
 use relief_heightfield::param::in_range;
 
-/// Visible radius of a primitive of support radius 1 at energy 1 (`(1 - q)^3 = T`).
-const VISIBLE: f32 = 0.454_4;
+use crate::math::VISIBLE;
 
 /// Slope (degrees) from which a qualifying site counts as steep badland (placed first).
 const BADLAND_SLOPE_DEG: f32 = 25.0;

@@ -330,7 +330,7 @@ impl SceneBuilder {
         let hz = 3.0 * r;
         let cap = self.tree.ellipsoid(
             [c[0], c[1], c[2] + 0.05 * r - hz],
-            [10.0 * r, 10.0 * r, hz / 0.454],
+            [10.0 * r, 10.0 * r, hz / crate::math::VISIBLE],
             1.0,
         )?;
         let b = self.tree.intersection(body, cap)?;
