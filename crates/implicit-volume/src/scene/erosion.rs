@@ -172,9 +172,12 @@ impl SceneBuilder {
             if mouths.iter().any(|m| norm(sub(*m, p)) < s.cave_length) {
                 continue;
             }
-            let Some(mut dir) = inland(p) else {
+            let Some(inward) = inland(p) else {
                 continue;
             };
+            // Sea caves follow joints: the region's two orthogonal joint sets (direction
+            // hashed from the seed), the one nearest the way inland (within 45 degrees).
+            let mut dir = joint_towards(w.seed, inward);
             // The cave opens at the waterline in the softest rock of the lower sea band.
             let (lo, hi) = (s.sea_level, s.sea_level + 0.5 * s.height);
             let level = (0..=8)
@@ -194,19 +197,21 @@ impl SceneBuilder {
             mouths.push(p);
             report.features += 1;
             report.sites.push(mouth);
-            report.axes.push([-dir[0], -dir[1], 0.0]);
-            // A wandering passage: the heading turns by up to +-20 degrees a step and the
-            // floor drifts to the softest rock nearby, within the sea-erosion band. Past its
-            // mouth it keeps a roof (its support radius at most 0.9 of the rock over its
-            // centre) and ends where the roof gets thinner than 0.6 radius or the rock
-            // resistant: an enclosed void in soft rock, not a trench.
+            report.axes.push([-inward[0], -inward[1], 0.0]);
+            // A cleft along the joint: the heading turns by up to +-5 degrees a step and the
+            // floor drifts to the softest rock nearby, within the sea-erosion band; its
+            // section is 2.2 times as tall as wide (waves quarry the joint upwards: an oval,
+            // cleft-like mouth, not a round hole). Past its mouth it keeps a roof (its support
+            // height at most 0.9 of the rock over its centre) and ends where the roof gets
+            // thinner than 0.6 radius or the rock resistant: an enclosed void in soft rock,
+            // not a trench.
             let n = (s.cave_length / (0.5 * r)).ceil() as usize;
             let mut widest = 0.0f32;
             let mut c = mouth;
             for m in 1..=n {
                 let t = m as f32 / n as f32;
                 let h = |q: u64| unit(hash(w.seed, k as u64, m as u64, 90 + q)) - 0.5;
-                let turn = 0.7 * h(0);
+                let turn = 0.17 * h(0);
                 dir = [
                     dir[0] * turn.cos() - dir[1] * turn.sin(),
                     dir[0] * turn.sin() + dir[1] * turn.cos(),
@@ -231,7 +236,16 @@ impl SceneBuilder {
                     break;
                 }
                 widest = widest.max(rr);
-                let id = self.tree.sphere(c, rr, -s.weathering.energy * e.max(0.5))?;
+                let tall = if m > 1 {
+                    (2.2 * rr).min(0.9 * room)
+                } else {
+                    2.2 * rr
+                };
+                let id = self.tree.ellipsoid(
+                    c,
+                    [rr, rr, tall.max(rr)],
+                    -s.weathering.energy * e.max(0.5),
+                )?;
                 self.negatives.push(id);
                 self.carved.push((c, rr, false));
                 report.primitives += 1;
@@ -444,4 +458,44 @@ fn inland(frame: &DemFrame, dist: &[f32], p: V3) -> Option<V3> {
     let gy = dist[i0 * frame.width + j] - dist[i1 * frame.width + j];
     let g = (gx * gx + gy * gy).sqrt();
     (g.is_finite() && g > 0.0).then(|| [gx / g, gy / g, 0.0])
+}
+
+/// The direction of the joint set nearest `inward` (horizontal, unit): the region's joints form
+/// two orthogonal sets at an angle hashed from `seed`; of their four headings, the one closest
+/// to `inward`.
+fn joint_towards(seed: u64, inward: V3) -> V3 {
+    let a0 = std::f32::consts::TAU * unit(hash(seed, 0x6a6f_696e, 0, 0x7365_6163));
+    (0..4)
+        .map(|k| {
+            let a = a0 + k as f32 * std::f32::consts::FRAC_PI_2;
+            [a.cos(), a.sin(), 0.0]
+        })
+        .max_by(|a, b| {
+            let d = |v: &V3| v[0] * inward[0] + v[1] * inward[1];
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(inward)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sea caves follow one of two orthogonal joint sets: whatever the way inland, the heading
+    /// is within 45 degrees of it, and the headings for any two ways inland are parallel or
+    /// perpendicular; another seed turns the sets.
+    #[test]
+    fn sea_caves_head_along_two_orthogonal_joint_sets() {
+        let heading = |seed: u64, a: f32| joint_towards(seed, [a.cos(), a.sin(), 0.0]);
+        let first = heading(7, 0.0);
+        for k in 0..24 {
+            let a = k as f32 * 0.26;
+            let d = heading(7, a);
+            assert!(d[0] * a.cos() + d[1] * a.sin() >= 0.707 - 1e-4, "{a} {d:?}");
+            let c = (d[0] * first[0] + d[1] * first[1]).abs();
+            assert!(c < 1e-4 || (c - 1.0).abs() < 1e-4, "{a} {d:?} {first:?}");
+        }
+        let other = heading(8, 0.0);
+        assert!((other[0] * first[0] + other[1] * first[1]).abs() < 0.9999);
+    }
 }
