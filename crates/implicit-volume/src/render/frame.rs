@@ -413,6 +413,13 @@ fn per_pixel<T: Send>(
     Ok(rows)
 }
 
+/// Writes the values of [`per_pixel`]'s rows into `out` at their pixel indices, through `f`.
+fn scatter<T, U>(rows: Vec<Vec<(usize, T)>>, out: &mut [U], f: impl Fn(T) -> U) {
+    for (i, v) in rows.into_iter().flatten() {
+        out[i] = f(v);
+    }
+}
+
 /// Renders the image (see the module docs); `cut` is the checked cut-away plane.
 pub(super) fn render_frame(
     scene: &Scene,
@@ -448,46 +455,30 @@ pub(super) fn render_frame(
     // Hits on the lattice of stride 4 traced, then between them on the lattice of stride 2,
     // then between those; the lighting likewise.
     let mut hits: Vec<Option<Hit>> = vec![None; w * h];
-    let traced = per_pixel(
-        (w, h),
-        (progress, 0),
-        |x, y| on(x, y, 4),
-        |x, y| fr.primary(x, y),
-    )?;
-    for (i, v) in traced.into_iter().flatten() {
-        hits[i] = v;
-    }
-    for (pick, k, tick) in [(2, 4, SILENT), (1, 2, 1)] {
-        let between = |x: usize, y: usize| fr.between(&hits, x, y, k);
-        let rows = per_pixel(
-            (w, h),
-            (progress, tick),
-            |x, y| on(x, y, pick) && !on(x, y, k),
-            between,
-        )?;
-        for (i, v) in rows.into_iter().flatten() {
-            hits[i] = v;
-        }
+    // The three lattices in order: the pixels each pass computes (stride 4; stride 2 but not
+    // 4; the rest) and the stride of the lattice the filled ones are taken between.
+    let passes = [(4, 4), (2, 4), (1, 2)];
+    let pick =
+        |(p, k): (usize, usize)| move |x: usize, y: usize| on(x, y, p) && (p == k || !on(x, y, k));
+    let (primary_ticks, light_ticks) = ([0, SILENT, 1], [2, SILENT, SILENT]);
+    for (pass, tick) in passes.into_iter().zip(primary_ticks) {
+        let hit = |x: usize, y: usize| match pass {
+            (4, _) => fr.primary(x, y),
+            (_, k) => fr.between(&hits, x, y, k),
+        };
+        let rows = per_pixel((w, h), (progress, tick), pick(pass), hit)?;
+        scatter(rows, &mut hits, |v| v);
     }
     let mut lights = vec![Light::default(); w * h];
-    let lit = |x: usize, y: usize| hits[y * w + x].map(|hit| fr.light_of(fr.dir(x, y), &hit));
-    let traced = per_pixel((w, h), (progress, 2), |x, y| on(x, y, 4), lit)?;
-    for (i, v) in traced.into_iter().flatten() {
-        lights[i] = v.unwrap_or_default();
-    }
-    for (pick, k) in [(2, 4), (1, 2)] {
+    for (pass, tick) in passes.into_iter().zip(light_ticks) {
         let lit = |x: usize, y: usize| {
-            hits[y * w + x].map(|hit| fr.light_between((&hits, &lights), x, y, k, &hit))
+            hits[y * w + x].map(|hit| match pass {
+                (4, _) => fr.light_of(fr.dir(x, y), &hit),
+                (_, k) => fr.light_between((&hits, &lights), x, y, k, &hit),
+            })
         };
-        let rows = per_pixel(
-            (w, h),
-            (progress, SILENT),
-            |x, y| on(x, y, pick) && !on(x, y, k),
-            lit,
-        )?;
-        for (i, v) in rows.into_iter().flatten() {
-            lights[i] = v.unwrap_or_default();
-        }
+        let rows = per_pixel((w, h), (progress, tick), pick(pass), lit)?;
+        scatter(rows, &mut lights, Option::unwrap_or_default);
     }
     // A pixel on a silhouette or an occlusion edge (with its right or lower neighbour) is the
     // mean of its own sample and three sub-pixel ones traced and lit in full (anti-aliasing:

@@ -376,18 +376,11 @@ impl SceneBuilder {
         // Seen from the sea: the direction of the lowest ground around the site, one
         // retreat (at least 50 m) out.
         let reach = s.retreat.max(50.0);
-        for p in report.sites.clone() {
-            let look = (0..8)
-                .map(|m| {
-                    let a = m as f32 * std::f32::consts::FRAC_PI_4;
-                    let d = [a.cos(), a.sin(), 0.0];
-                    let (x, y) = (p[0] + reach * d[0], p[1] + reach * d[1]);
-                    (self.ground(x.clamp(0.0, xm), y.clamp(0.0, ym)), m, d)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-                .map_or([1.0, 0.0, 0.0], |x| x.2);
-            report.axes.push(look);
-        }
+        report.axes = report
+            .sites
+            .iter()
+            .map(|&p| self.lowest_side(p, reach))
+            .collect();
         Ok(report)
     }
 

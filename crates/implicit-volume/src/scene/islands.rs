@@ -111,16 +111,7 @@ impl SceneBuilder {
             report.sites.push(isl.top);
             report.sizes_m.push(isl.r);
             // Seen from the lowest ground around it: the underside against the sky.
-            let look = (0..8)
-                .map(|m| {
-                    let a = m as f32 * std::f32::consts::TAU / 8.0;
-                    let d = [a.cos(), a.sin(), 0.0];
-                    let q = add(isl.top, mul(d, 3.0 * isl.r));
-                    (self.ground_clamped(q[0], q[1]), m, d)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-                .map_or([1.0, 0.0, 0.0], |x| x.2);
-            report.axes.push(look);
+            report.axes.push(self.lowest_side(isl.top, 3.0 * isl.r));
         }
         Ok(report)
     }
@@ -136,6 +127,21 @@ impl SceneBuilder {
             }
         }
         hi - lo
+    }
+
+    /// The horizontal direction (one of eight) in which the ground `reach` metres from `p`
+    /// is lowest (the first on ties; east without a DEM): where a close-up looks from to see
+    /// a feature against open space (an island's underside, a cliff from the sea).
+    pub(super) fn lowest_side(&self, p: V3, reach: f32) -> V3 {
+        (0..8)
+            .map(|m| {
+                let a = m as f32 * std::f32::consts::TAU / 8.0;
+                let d = [a.cos(), a.sin(), 0.0];
+                let q = add(p, mul(d, reach));
+                (self.ground_clamped(q[0], q[1]), m, d)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+            .map_or([1.0, 0.0, 0.0], |x| x.2)
     }
 
     /// Ground height at `(x, y)` clamped into the DEM.
