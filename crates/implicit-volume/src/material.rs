@@ -87,25 +87,45 @@ pub fn bumped_normal(n: V3, p: V3, footprint: f32, strength: f32) -> V3 {
     }
 }
 
-/// Colour of the surface at `p` with outward normal `n`: rock on slopes steeper than about
-/// 25 degrees, elsewhere soil and sparse vegetation (greener low, paler high in the scene's
-/// height range, in patches) faintly tinted by the rock beneath.
+/// Slope (degrees) around which the regolith gives way to bare rock ([`surface_albedo`]),
+/// and the half-width of the transition.
+const OUTCROP_SLOPE_DEG: f32 = 36.0;
+const OUTCROP_SPREAD_DEG: f32 = 7.0;
+
+/// How far (degrees) the outcrop threshold wanders from place to place: soil thickness varies,
+/// so a bed's riser is bare in one spot and grassed over a few tens of metres on.
+const OUTCROP_JITTER_DEG: f32 = 10.0;
+
+/// Wavelength (m) of that wandering.
+const OUTCROP_PATCH_M: f32 = 45.0;
+
+/// Weathered rock mixed over the beds (the mean of [`ROCK`], a little darker) and sparse
+/// vegetation, the two parts of the cover on gentle ground.
+const REGOLITH: V3 = [0.62, 0.52, 0.40];
+const VEGETATION: V3 = [0.34, 0.40, 0.22];
+
+/// Colour of the surface at `p` with outward normal `n`: bare rock where the slope is steeper
+/// than about [`OUTCROP_SLOPE_DEG`] (a threshold that wanders by [`OUTCROP_JITTER_DEG`] over
+/// [`OUTCROP_PATCH_M`], so a bed's riser crops out in patches, not as a contour stripe),
+/// elsewhere regolith ([`REGOLITH`]) with patches of vegetation, sparser high in the scene's
+/// height range, only faintly tinted by the rock beneath: regolith mixes the beds it creeps
+/// over, and a strong tint would draw every bed's outcrop as a stripe across gentle ground.
 pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
     let b = scene.bbox();
     let (zlo, zhi) = (b.min[2], b.max[2]);
     let hgt = ((p[2] - zlo) / (zhi - zlo).max(1e-3)).clamp(0.0, 1.0);
     let rock = rock_albedo(scene.resistance(p), p);
-    let steep = 1.0 - n[2].clamp(0.0, 1.0);
-    let k = (steep * 2.5).min(1.0);
-    // Patchy cover (40 m and 10 m patches), faintly tinted by the rock beneath: a strong tint
-    // would draw every bed's outcrop as a contour stripe across gentle ground.
-    let patch = 0.1 * fbm(0x6a13, mul(p, 1.0 / 40.0), 3);
-    let cover = [
-        0.35 + 0.3 * hgt + patch,
-        0.43 + 0.2 * hgt + patch,
-        0.25 + 0.25 * hgt + 0.5 * patch,
-    ];
-    let soil = add(mul(cover, 0.75), mul(rock, 0.25));
+    let slope = n[2].clamp(-1.0, 1.0).acos().to_degrees();
+    let jitter = OUTCROP_JITTER_DEG * fbm(0x6a14, mul(p, 1.0 / OUTCROP_PATCH_M), 2);
+    let t =
+        ((slope + jitter - OUTCROP_SLOPE_DEG) / (2.0 * OUTCROP_SPREAD_DEG) + 0.5).clamp(0.0, 1.0);
+    let k = t * t * (3.0 - 2.0 * t);
+    // Regolith: the beds' weathered, mixed rock (one colour whatever the bed, faintly
+    // tinted), under vegetation in 40 m patches, sparser high in the scene's height range.
+    let patch = fbm(0x6a13, mul(p, 1.0 / 40.0), 3);
+    let regolith = add(mul(REGOLITH, 0.85), mul(rock, 0.15));
+    let veg = ((0.4 + 0.9 * patch) * (1.0 - 0.5 * hgt)).clamp(0.0, 0.85);
+    let soil = add(mul(regolith, 1.0 - veg), mul(VEGETATION, veg));
     add(mul(soil, 1.0 - k), mul(rock, k))
 }
 
@@ -226,6 +246,42 @@ mod tests {
             "{rock} {soil}"
         );
         assert!(far < 1e-3, "{far}");
+    }
+
+    /// On gentle ground the beds hardly show through the regolith (their mean colours differ
+    /// by less than a sixth of what they differ by as bare rock on a 70 degree face), so
+    /// a hillside is not drawn as contour stripes; with the old cover (a quarter of the rock's
+    /// colour, rock from 25 degrees) the share was 0.28. Steep faces are bare rock.
+    #[test]
+    fn gentle_ground_is_regolith_and_steep_faces_are_bare_rock() {
+        let hf = Heightfield::from_fn(32, 32, 4.0, 4.0, |x, _| x as f32);
+        let g = test_beds(0.0, (6.0, 0.2), (4.0, 0.8));
+        let scene = SceneBuilder::new(&hf, g, &ImplicitizeSettings::default())
+            .unwrap()
+            .build(true)
+            .unwrap();
+        let at = |deg: f32| {
+            let n = [deg.to_radians().sin(), 0.0, deg.to_radians().cos()];
+            let (mut soft, mut hard, mut ns, mut nh) = ([0.0f32; 3], [0.0f32; 3], 0, 0);
+            for i in 0..60 {
+                for k in 0..30 {
+                    let p = [i as f32 * 2.1, 40.0 + i as f32 * 0.7, k as f32];
+                    let c = surface_albedo(&scene, p, n);
+                    if scene.resistance(p) < 0.5 {
+                        soft = add(soft, c);
+                        ns += 1;
+                    } else {
+                        hard = add(hard, c);
+                        nh += 1;
+                    }
+                }
+            }
+            let d = add(mul(soft, 1.0 / ns as f32), mul(hard, -1.0 / nh as f32));
+            norm(d)
+        };
+        let (gentle, steep) = (at(10.0), at(70.0));
+        assert!(steep > 0.1, "bare beds differ by {steep}");
+        assert!(gentle < steep / 6.0, "gentle {gentle}, steep {steep}");
     }
 
     #[test]

@@ -286,8 +286,9 @@ impl Frame<'_> {
                     return mul(base, 0.55 + 0.45 * lam);
                 }
                 // The colours a mesh's vertices carry (rock by stratum, soil on gentle
-                // slopes), so a render and the mesh in Blender agree.
-                let base = material::surface_albedo(self.scene, p, n);
+                // slopes), so a render and the mesh in Blender agree: of the surface's own
+                // normal (the relief texture's would speckle the outcrops).
+                let base = material::surface_albedo(self.scene, p, hit.n);
                 // Sun, plus two unshadowed fills so that faces away from the sun keep their
                 // shape (an island's underside, an overhang's roof): light bounced off the
                 // ground onto downward faces, and sky light from the side opposite the sun,
