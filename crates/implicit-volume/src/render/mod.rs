@@ -346,12 +346,28 @@ fn trace(
     // the ray stays in the ball it was computed over (centre, radius, bound).
     let mut creeping = false;
     let mut cached: Option<(V3, f32, f32)> = None;
-    for _ in 0..max_steps {
+    // A ray still creeping after its steps grazes a surface (the far ground seen from a low
+    // camera, warped hoodoo tops against the sky): it goes on with a step floor four and then
+    // sixteen times the pixel's (half the steps each), so it either meets the surface or
+    // leaves it for the sky instead of stopping in mid-air.
+    let rounds = [
+        (1.0f32, max_steps),
+        (4.0, max_steps / 2),
+        (16.0, max_steps / 2),
+    ];
+    for k in rounds
+        .iter()
+        .flat_map(|&(k, n)| std::iter::repeat_n(k, n as usize))
+    {
         if t > t1 {
-            return None;
+            // A step of the (enlarged) floor may leap past the scene's far side: the ray
+            // may have entered the ground short of it.
+            let end = t_prev + 0.999 * (t1 - t_prev).max(0.0);
+            return (t_prev < t1 && scene.field(add(o, mul(d, end))) > THRESHOLD)
+                .then(|| refine(t_prev, end));
         }
         let p = add(o, mul(d, t));
-        let floor = eps.max(cone * (t + bias));
+        let floor = eps.max(k * cone * (t + bias));
         // A ball proven empty by interval arithmetic: jump across it and try a larger one.
         if !creeping && scene.max_over(&Aabb::sphere(p, r)) <= THRESHOLD {
             t_prev = t;
@@ -750,5 +766,35 @@ mod sea_cave_sections {
                 "{along:?} {across:?}"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod grazing {
+    use super::trace;
+    use crate::geology::test_beds;
+    use crate::scene::{ImplicitizeSettings, SceneBuilder};
+    use relief_heightfield::Heightfield;
+
+    /// A ray leaving flat ground at 0.3 degrees creeps along it at the pixel-footprint step
+    /// and runs out of steps long before the scene's edge; it must come out as sky, not as a
+    /// hit in mid-air (with the steps given up as a hit, it stopped 13 m on, 0.4 m over
+    /// the ground: speckles above a render's skyline). A ray aimed into the ground still hits.
+    #[test]
+    fn a_ray_grazing_the_ground_reaches_the_sky() {
+        let hf = Heightfield::from_fn(64, 16, 4.0, 4.0, |_, _| 0.0);
+        let g = test_beds(-50.0, (6.0, 0.2), (4.0, 0.8));
+        let scene = SceneBuilder::new(&hf, g, &ImplicitizeSettings::default())
+            .unwrap()
+            .build(true)
+            .unwrap();
+        let z0 = scene.dem_height(8.0, 32.0).unwrap();
+        let a = 0.3f32.to_radians();
+        let o = [8.0, 32.0, z0 + 0.3];
+        let up = [a.cos(), 0.0, a.sin()];
+        assert_eq!(trace(&scene, o, up, 1e30, 40, 0.01, 0.0, true), None);
+        let down = [a.cos(), 0.0, -(2.0 * a).sin()];
+        let t = trace(&scene, o, down, 1e30, 40, 0.01, 0.0, true).expect("hits the ground");
+        assert!((t * (2.0 * a).sin() - 0.3).abs() < 0.15, "hit at {t} m");
     }
 }

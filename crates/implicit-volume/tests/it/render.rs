@@ -136,13 +136,18 @@ fn a_cut_away_shows_bedrock_under_the_slab() {
     assert!(r > b, "sky under the slab: {:?}", &img.rgb[k..k + 3]);
 }
 
-/// Silhouettes are anti-aliased: the far edge of a plain seen level from 5 m, the camera
-/// rolled so the horizon runs diagonally, steps from ground to sky through blended pixels
-/// (its edge pixels average four samples); with one sample per pixel every column jumps
-/// from ground to sky in one step.
+/// Silhouettes are anti-aliased: the crest of a ridge 40 m high and 300 m away, seen from
+/// 5 m with the camera rolled so the skyline runs diagonally, steps from ground to sky through
+/// blended pixels in 34 of 46 columns (both pixels of an edge average five samples); with
+/// one sample per pixel every column jumps from ground to sky in one step. (A plain's far
+/// edge seen level, this test's old scene, is no silhouette test: its rays graze the ground
+/// for hundreds of metres, and the blend it showed came from rays that ran out of steps and
+/// were drawn as ground; on this ridge the old anti-aliasing blended none.)
 #[test]
 fn silhouettes_are_anti_aliased() {
-    let hf = relief_heightfield::Heightfield::from_fn(64, 64, 10.0, 10.0, |_, _| 0.0);
+    let hf = relief_heightfield::Heightfield::from_fn(64, 64, 10.0, 10.0, |_, y| {
+        (40.0 - (y as f32 * 10.0 - 320.0).abs() * 0.4).max(0.0)
+    });
     let scene = SceneBuilder::new(&hf, Geology::new(), &ImplicitizeSettings::default())
         .unwrap()
         .build(true)
