@@ -76,8 +76,9 @@ pub(super) fn best_section_line(
     ([0.0, best], [xm, best])
 }
 
-/// Close-up renders of the first landforms a recipe placed (up to four, one per highlight, each
-/// framed by the size of its kind), side by side in one image, with their feature names; a
+/// Close-up renders of the landforms a recipe placed (one per highlight: one per placed kind,
+/// each framed by the size of its kind), on a grid four wide in one image (row-major in the
+/// order of the names returned), with their feature names; a
 /// closer oblique view of the middle of the scene when nothing was placed. `tile` is the size
 /// and shading of one close-up.
 pub fn render_closeups(
@@ -103,7 +104,7 @@ pub fn closeup_views(
 ) -> Vec<(Camera, RenderSettings, String)> {
     let d = &rep.dims;
     let mut views = Vec::new();
-    for h in rep.highlights.iter().take(4) {
+    for h in &rep.highlights {
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
             // A cluster, seen whole (the highlighted member may be a short spire).
@@ -186,22 +187,53 @@ pub fn closeup_views(
     views
 }
 
-/// Images side by side (top-aligned, black below the shorter ones).
+/// Close-ups per row of the image [`render_closeups`] returns.
+const PER_ROW: usize = 4;
+
+/// Images on a grid of [`PER_ROW`] columns (rows of tiles top-aligned in cells of the largest
+/// tile's size, black around smaller ones).
 fn strip(tiles: &[Image]) -> Image {
-    let h = tiles.iter().map(|t| t.height).max().unwrap_or(1);
-    let w: usize = tiles.iter().map(|t| t.width).sum::<usize>().max(1);
+    let th = tiles.iter().map(|t| t.height).max().unwrap_or(1);
+    let tw = tiles.iter().map(|t| t.width).max().unwrap_or(1);
+    let cols = tiles.len().clamp(1, PER_ROW);
+    let rows = tiles.len().div_ceil(PER_ROW).max(1);
+    let (w, h) = (cols * tw, rows * th);
     let mut rgb = vec![0u8; w * h * 3];
-    let mut x0 = 0;
-    for t in tiles {
+    for (k, t) in tiles.iter().enumerate() {
+        let (x0, y0) = ((k % PER_ROW) * tw, (k / PER_ROW) * th);
         for y in 0..t.height {
             let src = &t.rgb[y * t.width * 3..(y + 1) * t.width * 3];
-            rgb[(y * w + x0) * 3..(y * w + x0 + t.width) * 3].copy_from_slice(src);
+            let at = ((y0 + y) * w + x0) * 3;
+            rgb[at..at + t.width * 3].copy_from_slice(src);
         }
-        x0 += t.width;
     }
     Image {
         width: w,
         height: h,
         rgb,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every close-up is kept (the fifth starts a second row of four); each tile sits in
+    /// its grid cell, black fills the rest.
+    #[test]
+    fn close_ups_go_on_a_grid_four_wide() {
+        let tile = |v: u8| Image {
+            width: 3,
+            height: 2,
+            rgb: vec![v; 3 * 2 * 3],
+        };
+        let tiles: Vec<Image> = (1..=5).map(|k| tile(10 * k)).collect();
+        let img = strip(&tiles);
+        assert_eq!((img.width, img.height), (12, 4));
+        let at = |x: usize, y: usize| img.rgb[(y * img.width + x) * 3];
+        assert_eq!([at(0, 0), at(3, 1), at(9, 0), at(2, 3)], [10, 20, 40, 50]);
+        assert_eq!(at(4, 3), 0, "no sixth tile");
+        let one = strip(&tiles[..1]);
+        assert_eq!((one.width, one.height), (3, 2));
     }
 }
