@@ -113,6 +113,9 @@ pub fn closeup_views(
             Feature::Islands => own(d.island_radius_m) * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,
             Feature::Overhangs => d.weathering_radius_m * 10.0,
+            // A sea cave's mouth (its radius reported) at its own scale, a few mouths across
+            // the frame; else the notched cliff.
+            Feature::Sea | Feature::Caves if h.size_m.is_some() => own(0.0) * 12.0,
             _ => d.sea_height_m * 6.0,
         };
         let dist = size.max(4.0 * d.voxel_m);
@@ -171,7 +174,11 @@ pub fn closeup_views(
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),
         };
-        views.push((cam, *tile, h.feature.to_string()));
+        let name = match h.feature {
+            Feature::Sea | Feature::Caves if h.size_m.is_some() => "sea cave".to_string(),
+            f => f.to_string(),
+        };
+        views.push((cam, *tile, name));
     }
     if views.is_empty() {
         let b = scene.bbox();
