@@ -108,7 +108,7 @@ pub fn closeup_views(
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
         let size = match h.feature {
             // A cluster, seen whole (the highlighted member may be a short spire).
-            Feature::Hoodoos => own(d.hoodoo_height_m).max(d.hoodoo_height_m) * 5.0,
+            Feature::Hoodoos => own(d.hoodoo_height_m).max(d.hoodoo_height_m) * 4.0,
             Feature::Arches => own(d.arch_span_m) * 3.0,
             Feature::Islands => own(d.island_radius_m) * 7.0,
             Feature::Karst => d.karst_radius_m * 40.0,
@@ -167,9 +167,10 @@ pub fn closeup_views(
             (_, v) => v,
         };
         let cam = match from {
-            // A hoodoo cluster from about 20 degrees above the line of sight to it.
+            // A hoodoo cluster from about 30 degrees above the line of sight to it, so the
+            // eye sees down into the hollow the columns stand in.
             Some(v) if h.feature == Feature::Hoodoos => {
-                Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.36])
+                Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.6])
             }
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),

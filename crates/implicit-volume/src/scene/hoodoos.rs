@@ -19,6 +19,9 @@
 //! * **fins**: a third of the neighbours of a row stay joined at their feet by the fin they were cut
 //!   from, a wall up to 10-35 % of the lower one's height, thick where the strata are hard
 //!   and tapering upwards.
+//! * **hollows**: the slope has wasted back around a cluster: each member stands on the floor
+//!   of a hollow carved [`BOWL`] of the nominal height under the ground (its cap bed is then
+//!   sought above that floor), 1.1 `spacing` wide, merging into the cluster's amphitheatre;
 //! * **gullies**: between two neighbouring rows of a cluster the ground is cut down along the
 //!   joint over the rows' length (a capsule carving about `0.45 R` deep and `2.1 R` wide),
 //!   so the rows stand on ribs between gullies.
@@ -51,6 +54,11 @@ use crate::math::VISIBLE;
 
 /// Slope (degrees) from which a qualifying site counts as steep badland (placed first).
 const BADLAND_SLOPE_DEG: f32 = 25.0;
+
+/// Depth of the hollow a cluster stands in, as a share of the nominal height: the slope has
+/// wasted back around the columns, which rise from its floor (an amphitheatre, as at Bryce
+/// Canyon), not from the untouched slope.
+const BOWL: f32 = 0.35;
 
 /// Share of the hoodoos that have lost their cap (spires of 50-90 % of the capped height).
 const CAPLESS: f32 = 0.35;
@@ -141,7 +149,8 @@ impl SceneBuilder {
             s.min_slope_deg.to_radians().cos(),
             s.max_slope_deg.to_radians().cos(),
         );
-        let p = [x, y, self.ground(x, y)];
+        // The floor of the hollow the hoodoo stands in ([`BOWL`]).
+        let p = [x, y, self.ground(x, y) - BOWL * s.height];
         if nz > cos_min + 1e-6 || nz < cos_max || region.weight(&f, p) <= 0.0 {
             return None;
         }
@@ -233,7 +242,7 @@ impl SceneBuilder {
                     centre.p[0] + t * a * u[0] + across * v[0],
                     centre.p[1] + t * a * u[1] + across * v[1],
                 );
-                [x, y, self.ground(x, y) - 1.15 * r]
+                [x, y, self.ground(x, y) - BOWL * s.height - 1.15 * r]
             };
             let (e0, e1) = (end(lo), end(hi));
             let g = self.tree.capsule(e0, e1, 1.6 * r / VISIBLE, -1.0)?;
@@ -338,6 +347,7 @@ impl SceneBuilder {
             let members = self.hoodoo_cluster(s, region, &sites[c], &placed, room);
             for (site, _) in &members {
                 placed.push([site.p[0], site.p[1], 0.0]);
+                report.primitives += self.hoodoo_hollow(s, site)?;
                 let (n, top) = self.hoodoo(s, site)?;
                 report.primitives += n;
                 report.features += 1;
@@ -359,17 +369,31 @@ impl SceneBuilder {
         Ok(report)
     }
 
-    /// One hoodoo on `site` ([module docs](self)); returns its primitive count.
+    /// The hollow around the hoodoo on `site` ([`BOWL`]): a carving down to the site's floor
+    /// under its axis, `1.1 spacing` wide at the ground, so the members' hollows merge into
+    /// the amphitheatre the cluster stands in. Returns 1.
+    fn hoodoo_hollow(&mut self, s: &HoodooSettings, site: &Site) -> Result<usize> {
+        let (rh, rz) = (1.1 * s.spacing, 1.5 * BOWL * s.height);
+        let c = [site.p[0], site.p[1], site.p[2] + rz];
+        let id = self
+            .tree
+            .ellipsoid(c, [rh / VISIBLE, rh / VISIBLE, rz / VISIBLE], -1.0)?;
+        self.negatives.push(id);
+        Ok(1)
+    }
+
+    /// One hoodoo on `site` ([module docs](self)), from the floor of its hollow; returns its
+    /// primitive count.
     fn hoodoo(&mut self, s: &HoodooSettings, site: &Site) -> Result<(usize, f32)> {
         let (p, r) = (site.p, s.radius);
         let h = |c: u64| unit(hash(s.seed, site.idx, c, 0x6361_7073));
         // A third have lost their cap: their soft column wastes down to a spire.
         let capless = h(60) < CAPLESS;
-        // The foot: under the lowest ground within a radius (the downslope side).
+        // The foot: under the lowest floor within a radius (the downslope side).
         let low = (0..8)
             .map(|k| {
                 let a = k as f32 * std::f32::consts::FRAC_PI_4;
-                self.ground(p[0] + r * a.cos(), p[1] + r * a.sin())
+                self.ground(p[0] + r * a.cos(), p[1] + r * a.sin()) - BOWL * s.height
             })
             .fold(p[2], f32::min);
         let tall = site.bed.0 - p[2];
@@ -544,13 +568,29 @@ mod tests {
     }
 
     /// The column narrows through soft rock and bulges at hard beds, and the cap (the bed
-    /// nearest 12 m, 10-12 m) is wider than both; on strata shifted by 3 m the same settings
-    /// give another hoodoo (its cap on another bed, its neck at another height).
+    /// nearest 12 m above the floor of its hollow, 4.2 m under the ground: the 10-12 m bed)
+    /// is wider than both; on strata shifted by 3 m the same settings give another hoodoo (its
+    /// cap on another bed, its neck at another height).
     #[test]
     fn hoodoo_profile_follows_the_strata() {
         let (scene, rep) = one(beds(0.0));
         let c = rep.sites[0];
-        assert!((rep.sizes_m[0] - 12.0).abs() < 0.3, "{rep:?}");
+        assert!(
+            (c[2] + 4.2).abs() < 1e-3,
+            "stands on the floor of its hollow: {c:?}"
+        );
+        // The hollow, a dish: air half-way down it 4 m from the axis (outside the column),
+        // the ground within 0.4 m of the slope's 15 m away (its rim: -3.85 m at 3 m from the
+        // axis, -1.85 at 7, -0.75 at 11, -0.15 at 15).
+        assert!(
+            !scene.inside([c[0] - 4.0, c[1], -2.1]),
+            "no hollow around the column"
+        );
+        assert!(
+            scene.inside([c[0] - 15.0, c[1], -0.4]),
+            "the hollow reaches too far"
+        );
+        assert!((rep.sizes_m[0] - 16.2).abs() < 0.3, "{rep:?}");
         let (soft, hard, cap) = (
             radius_at(&scene, c, 8.0),
             radius_at(&scene, c, 5.0),
@@ -562,11 +602,12 @@ mod tests {
         assert!(radius_at(&scene, c, 12.8) < 0.3);
         let (shifted, rep2) = one(beds(3.0));
         let c2 = rep2.sites[0];
-        // Beds at 7-9 and 13-15: the cap is the 13 m bed, the neck now at 10-13 m.
-        assert!((rep2.sizes_m[0] - 15.0).abs() < 0.3, "{rep2:?}");
-        let (neck, bulge) = (radius_at(&shifted, c2, 11.0), radius_at(&shifted, c2, 8.0));
+        // Beds at 1-3, 7-9 and 13-15: the cap is the 7 m bed (11.2 m over the floor), the
+        // neck now at 3-7 m, where the first hoodoo bulges.
+        assert!((rep2.sizes_m[0] - 13.2).abs() < 0.3, "{rep2:?}");
+        let (neck, bulge) = (radius_at(&shifted, c2, 5.0), radius_at(&shifted, c2, 2.0));
         assert!(neck < 0.8 * bulge, "{neck} {bulge}");
-        assert!(radius_at(&shifted, c2, 11.0) < 0.8 * radius_at(&scene, c, 11.0));
+        assert!(radius_at(&shifted, c2, 5.0) < 0.8 * radius_at(&scene, c, 5.0));
     }
 
     /// On a DEM with a steep band under the hard beds and gentle ground elsewhere, hoodoos
@@ -733,8 +774,8 @@ mod tests {
         assert!(turned >= 3, "other seeds, other joints: {turned} of 12");
     }
 
-    /// Between two rows of a cluster the ground is cut down into a gully along the joint
-    /// direction; beyond the rows' ends and far to the side the ground is untouched.
+    /// Between two rows of a cluster the floor of its hollow is cut down into a gully along
+    /// the joint direction; beyond the rows' ends and far to the side it is untouched.
     #[test]
     fn a_gully_runs_between_two_rows() {
         let (mut b, s) = flat(40);
@@ -751,15 +792,17 @@ mod tests {
         let members = [(centre, (0, 0)), (flat_site(q[0], q[1], 8), (1, 0))];
         assert_eq!(b.hoodoo_gullies(&s, &centre, &members).unwrap(), 1);
         let scene = b.build(true).unwrap();
+        // Cut into the floor of the cluster's hollow ([`BOWL`] of the height under the ground).
+        let z = -BOWL * s.height - 0.3;
         let mid = at(0.0, 0.5 * across);
         assert!(
-            !scene.inside([mid[0], mid[1], -0.3]),
+            !scene.inside([mid[0], mid[1], z]),
             "no gully between the rows"
         );
         let side = at(0.0, 0.5 * across + 3.0 * s.radius);
         let beyond = at(3.0 * s.spacing, 0.5 * across);
-        assert!(scene.inside([side[0], side[1], -0.3]));
-        assert!(scene.inside([beyond[0], beyond[1], -0.3]));
+        assert!(scene.inside([side[0], side[1], z]));
+        assert!(scene.inside([beyond[0], beyond[1], z]));
     }
 
     /// Runs `f` on a pool of `threads` threads.

@@ -340,8 +340,9 @@ pub enum KarstStop {
 pub struct HoodooSettings {
     /// Number of hoodoos (fewer if the region has no room).
     pub count: usize,
-    /// Nominal height (m): each stands up to the resistant bed nearest this height above its
-    /// ground, between 0.6 and 1.4 times it.
+    /// Nominal height (m): each stands up to the resistant bed nearest this height above the
+    /// floor of the hollow it stands in (0.35 of it under the slope), between 0.6 and 1.4
+    /// times it.
     pub height: f32,
     /// Column radius (m) in rock of resistance 0.73 (`0.45 + 0.75 rho` times it elsewhere).
     pub radius: f32,
