@@ -183,8 +183,53 @@ impl Camera {
             }
         }
         let mut eye = add(start, mul(dir, reach));
+        let over = |q: V3| {
+            scene.dem_frame().is_none_or(|f| {
+                let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+                (0.0..=xm).contains(&q[0]) && (0.0..=ym).contains(&q[1])
+            })
+        };
+        // Nor behind other matter on the line of sight (a hoodoo or a stack in front of the
+        // one aimed at): once out of the target's own rock, the first matter met walking
+        // towards the eye.
+        let occluder = |eye: V3| {
+            let sight = sub(eye, start);
+            let mut out_of_target = false;
+            (1..=48).find(|&m| {
+                let solid = scene.inside(add(start, mul(sight, m as f32 / 48.0)));
+                out_of_target |= !solid;
+                solid && out_of_target
+            })
+        };
+        // The same distance from other sides: turned about the vertical through the target by
+        // up to 180 degrees, nearest first, each also raised; the first eye over the scene,
+        // in air, with a clear sight.
+        let turned = |eye: V3| {
+            let sight = sub(eye, start);
+            let len = norm(sight);
+            let h = norm([sight[0], sight[1], 0.0]).max(1e-3);
+            [30f32, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0, 180.0]
+                .into_iter()
+                .flat_map(|deg| [0.0f32, 0.3, 0.6].map(move |lift| (deg, lift)))
+                .map(|(deg, lift)| {
+                    let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
+                    let v = [
+                        c * sight[0] - s * sight[1],
+                        s * sight[0] + c * sight[1],
+                        sight[2] + lift * h,
+                    ];
+                    add(start, mul(normalize(v), len))
+                })
+                .find(|&q| over(q) && !scene.inside(q) && occluder(q).is_none())
+        };
         // Over the scene, not beyond its border (from outside, the side of the slab hides
-        // the feature): pulled back along the line of sight into the DEM's footprint.
+        // the feature): another side at full distance when there is one, else pulled back
+        // along the line of sight into the DEM's footprint.
+        if !over(eye)
+            && let Some(q) = turned(eye)
+        {
+            eye = q;
+        }
         if let Some(f) = scene.dem_frame() {
             let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
             let sight = sub(eye, start);
@@ -202,20 +247,9 @@ impl Camera {
                 eye = add(start, mul(sight, keep.max(0.02)));
             }
         }
-        // Nor behind other matter on the line of sight (a hoodoo or a stack in front of the
-        // one aimed at): once out of the target's own rock, the first matter met walking
-        // towards the eye stops the eye just before it.
         // An occluder in the nearer half of the sight is looked over first: the eye is
-        // raised about the target (steeper, keeping its distance) while that clears it.
-        let occluder = |eye: V3| {
-            let sight = sub(eye, start);
-            let mut out_of_target = false;
-            (1..=48).find(|&m| {
-                let solid = scene.inside(add(start, mul(sight, m as f32 / 48.0)));
-                out_of_target |= !solid;
-                solid && out_of_target
-            })
-        };
+        // raised about the target (steeper, keeping its distance) while that clears it;
+        // then other sides are tried; last, the eye stops just before the occluder.
         let sight = sub(eye, start);
         let len = norm(sight);
         if len > 0.0 && crate::math::finite3(sight) {
@@ -229,6 +263,11 @@ impl Camera {
                         break;
                     }
                 }
+            }
+            if occluder(eye).is_some()
+                && let Some(q) = turned(eye)
+            {
+                eye = q;
             }
             if let Some(m) = occluder(eye) {
                 // Just before the occluder, however close (behind it, the eye would only be
