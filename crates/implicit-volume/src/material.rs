@@ -194,6 +194,15 @@ mod tests {
     use crate::scene::{ImplicitizeSettings, SceneBuilder};
     use relief_heightfield::Heightfield;
 
+    /// `hf` over beds of 6 m soft (0.2) under 4 m hard (0.8) rock from 0 m.
+    fn bedded(hf: &Heightfield) -> Scene {
+        let g = test_beds(0.0, (6.0, 0.2), (4.0, 0.8));
+        SceneBuilder::new(hf, g, &ImplicitizeSettings::default())
+            .unwrap()
+            .build(true)
+            .unwrap()
+    }
+
     /// The floor of a V valley with 60 degree walls 40 m deep is occluded; the flat plains on
     /// either side are not.
     #[test]
@@ -206,11 +215,7 @@ mod tests {
                 (d * 3f32.sqrt()).min(40.0)
             }
         });
-        let g = test_beds(0.0, (6.0, 0.2), (4.0, 0.8));
-        let scene = SceneBuilder::new(&hf, g, &ImplicitizeSettings::default())
-            .unwrap()
-            .build(true)
-            .unwrap();
+        let scene = bedded(&hf);
         let ao = |x: f32| {
             let z = scene.dem_height(x, 16.0).unwrap();
             let p = [x, 16.0, z + 0.05];
@@ -251,15 +256,11 @@ mod tests {
     /// On gentle ground the beds hardly show through the regolith (their mean colours differ
     /// by less than a sixth of what they differ by as bare rock on a 70 degree face), so
     /// a hillside is not drawn as contour stripes; with the old cover (a quarter of the rock's
-    /// colour, rock from 25 degrees) the share was 0.28. Steep faces are bare rock.
+    /// colour, rock from 25 degrees) the share was 0.30. Steep faces are bare rock.
     #[test]
     fn gentle_ground_is_regolith_and_steep_faces_are_bare_rock() {
         let hf = Heightfield::from_fn(32, 32, 4.0, 4.0, |x, _| x as f32);
-        let g = test_beds(0.0, (6.0, 0.2), (4.0, 0.8));
-        let scene = SceneBuilder::new(&hf, g, &ImplicitizeSettings::default())
-            .unwrap()
-            .build(true)
-            .unwrap();
+        let scene = bedded(&hf);
         let at = |deg: f32| {
             let n = [deg.to_radians().sin(), 0.0, deg.to_radians().cos()];
             let (mut soft, mut hard, mut ns, mut nh) = ([0.0f32; 3], [0.0f32; 3], 0, 0);
