@@ -176,7 +176,15 @@ impl Stage for VolumeParams {
                 (
                     out.closeups.as_ref(),
                     "volume_closeups.png",
-                    format!("close-ups, left to right: {}", names.join(", ")),
+                    format!(
+                        "close-ups, {}: {}",
+                        if names.len() > 4 {
+                            "rows of four, left to right"
+                        } else {
+                            "left to right"
+                        },
+                        names.join(", ")
+                    ),
                 ),
             ] {
                 if let Some(img) = img {

@@ -57,8 +57,8 @@ pub(crate) struct Args {
     /// Seed of every effect.
     #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
-    /// Write close-up renders on the placed features (.png: a row of tiles of half
-    /// --image-size, one per kind of landform, at most four).
+    /// Write close-up renders on the placed features (.png: tiles of half --image-size in
+    /// rows of four, one per kind of landform).
     #[arg(long)]
     pub(crate) closeups: Option<PathBuf>,
     /// Write the report (tree nodes by kind, sizes in metres, counts, karst length, timings) as

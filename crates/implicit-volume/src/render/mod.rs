@@ -183,45 +183,9 @@ impl Camera {
             }
         }
         let mut eye = add(start, mul(dir, reach));
-        let over = |q: V3| {
-            scene.dem_frame().is_none_or(|f| {
-                let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
-                (0.0..=xm).contains(&q[0]) && (0.0..=ym).contains(&q[1])
-            })
-        };
-        // Nor behind other matter on the line of sight (a hoodoo or a stack in front of the
-        // one aimed at): once out of the target's own rock, the first matter met walking
-        // towards the eye.
-        let occluder = |eye: V3| {
-            let sight = sub(eye, start);
-            let mut out_of_target = false;
-            (1..=48).find(|&m| {
-                let solid = scene.inside(add(start, mul(sight, m as f32 / 48.0)));
-                out_of_target |= !solid;
-                solid && out_of_target
-            })
-        };
-        // The same distance from other sides: turned about the vertical through the target by
-        // up to 180 degrees, nearest first, each also raised; the first eye over the scene,
-        // in air, with a clear sight.
-        let turned = |eye: V3| {
-            let sight = sub(eye, start);
-            let len = norm(sight);
-            let h = norm([sight[0], sight[1], 0.0]).max(1e-3);
-            [30f32, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0, 180.0]
-                .into_iter()
-                .flat_map(|deg| [0.0f32, 0.3, 0.6].map(move |lift| (deg, lift)))
-                .map(|(deg, lift)| {
-                    let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
-                    let v = [
-                        c * sight[0] - s * sight[1],
-                        s * sight[0] + c * sight[1],
-                        sight[2] + lift * h,
-                    ];
-                    add(start, mul(normalize(v), len))
-                })
-                .find(|&q| over(q) && !scene.inside(q) && occluder(q).is_none())
-        };
+        let over = |q: V3| over_dem(scene, q);
+        let occluder = |eye: V3| first_occluder(scene, start, eye);
+        let turned = |eye: V3| other_side(scene, start, eye);
         // Over the scene, not beyond its border (from outside, the side of the slab hides
         // the feature): another side at full distance when there is one, else pulled back
         // along the line of sight into the DEM's footprint.
@@ -288,6 +252,51 @@ impl Camera {
             fov_deg: 40.0,
         }
     }
+}
+
+/// Whether `q` lies over the scene's DEM footprint (always, without a DEM).
+fn over_dem(scene: &Scene, q: V3) -> bool {
+    scene.dem_frame().is_none_or(|f| {
+        let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
+        (0.0..=xm).contains(&q[0]) && (0.0..=ym).contains(&q[1])
+    })
+}
+
+/// Other matter on the line of sight from `start` to `eye` (a hoodoo or a stack in front of
+/// the one aimed at): once out of the target's own rock, the first of 48 steps towards the
+/// eye that is inside matter.
+fn first_occluder(scene: &Scene, start: V3, eye: V3) -> Option<usize> {
+    let sight = sub(eye, start);
+    let mut out_of_target = false;
+    (1..=48).find(|&m| {
+        let solid = scene.inside(add(start, mul(sight, m as f32 / 48.0)));
+        out_of_target |= !solid;
+        solid && out_of_target
+    })
+}
+
+/// The eye at the same distance from `start` as `eye` on another side: turned about the
+/// vertical through it by up to 180 degrees, nearest first, each also raised; the first over
+/// the DEM, in air, with a clear sight ([`first_occluder`]).
+fn other_side(scene: &Scene, start: V3, eye: V3) -> Option<V3> {
+    let sight = sub(eye, start);
+    let len = norm(sight);
+    let h = norm([sight[0], sight[1], 0.0]).max(1e-3);
+    [30f32, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0, 180.0]
+        .into_iter()
+        .flat_map(|deg| [0.0f32, 0.3, 0.6].map(move |lift| (deg, lift)))
+        .map(|(deg, lift)| {
+            let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
+            let v = [
+                c * sight[0] - s * sight[1],
+                s * sight[0] + c * sight[1],
+                sight[2] + lift * h,
+            ];
+            add(start, mul(normalize(v), len))
+        })
+        .find(|&q| {
+            over_dem(scene, q) && !scene.inside(q) && first_occluder(scene, start, q).is_none()
+        })
 }
 
 /// Render settings.
