@@ -142,6 +142,11 @@ pub fn closeup_views(
             Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.5 * own(d.hoodoo_height_m)],
             // Islands are placed by their top: aim below it, at the underside.
             Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
+            // A sea cave's mouth is at the waterline: aim over it, at the cliff it opens in,
+            // so the sea takes the lower third of the frame, not half.
+            Feature::Sea | Feature::Caves if h.size_m.is_some() => {
+                [h.at[0], h.at[1], h.at[2] + 1.5 * own(0.0)]
+            }
             _ => h.at,
         };
         // An arch is seen through its gap from either side: the sunlit one. An undercut face
