@@ -106,6 +106,10 @@ pub fn closeup_views(
     let mut views = Vec::new();
     for h in &rep.highlights {
         let own = |nominal: f32| h.size_m.unwrap_or(nominal);
+        // The sea's highlight is a cave mouth when it reports the cave's radius.
+        let cave = h
+            .size_m
+            .filter(|_| matches!(h.feature, Feature::Sea | Feature::Caves));
         let size = match h.feature {
             // A cluster, seen whole (the highlighted member may be a short spire).
             Feature::Hoodoos => own(d.hoodoo_height_m).max(d.hoodoo_height_m) * 4.0,
@@ -115,7 +119,7 @@ pub fn closeup_views(
             Feature::Overhangs => d.weathering_radius_m * 10.0,
             // A sea cave's mouth (its radius reported) at its own scale, a few mouths across
             // the frame; else the notched cliff.
-            Feature::Sea | Feature::Caves if h.size_m.is_some() => own(0.0) * 12.0,
+            _ if let Some(r) = cave => r * 12.0,
             _ => d.sea_height_m * 6.0,
         };
         let dist = size.max(4.0 * d.voxel_m);
@@ -144,9 +148,7 @@ pub fn closeup_views(
             Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
             // A sea cave's mouth is at the waterline: aim over it, at the cliff it opens in,
             // so the sea takes the lower third of the frame, not half.
-            Feature::Sea | Feature::Caves if h.size_m.is_some() => {
-                [h.at[0], h.at[1], h.at[2] + 1.5 * own(0.0)]
-            }
+            _ if let Some(r) = cave => [h.at[0], h.at[1], h.at[2] + 1.5 * r],
             _ => h.at,
         };
         // An arch is seen through its gap from either side: the sunlit one. An undercut face
@@ -180,9 +182,9 @@ pub fn closeup_views(
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),
         };
-        let name = match h.feature {
-            Feature::Sea | Feature::Caves if h.size_m.is_some() => "sea cave".to_string(),
-            f => f.to_string(),
+        let name = match cave {
+            Some(_) => "sea cave".to_string(),
+            None => h.feature.to_string(),
         };
         views.push((cam, *tile, name));
     }

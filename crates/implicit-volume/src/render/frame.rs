@@ -21,8 +21,9 @@
 //! neighbours does not, or one is on the cut face, or their depths jump by more than one
 //! surface at its angle would give) is anti-aliased: the mean of its own sample and four
 //! sub-pixel ones (a rotated grid), each traced from the block's beam start with an eighth
-//! of the steps and lit in full unless it lands on the pixel's own surface. The islands
-//! close-up has 0.16 % such pixels; the hoodoo close-ups cost about 10 % more.
+//! of the steps and lit in full unless it lands on the pixel's own surface (the grand
+//! canyon hoodoo and arch close-ups at 1600 x 900: 19.9 s before both pixels of an edge were
+//! sampled, with the grazing-ray fix, 23.4 s after).
 
 use rayon::prelude::*;
 
@@ -331,8 +332,7 @@ const SUBSAMPLES: [(f32, f32); 4] = [
 impl Frame<'_> {
     /// The colour of the ray through the point `(dx, dy)` pixels off the centre of pixel
     /// `(x, y)` (within it), traced from its block's beam start (or the cut-away plane) with
-    /// a quarter of the steps (a sample that runs out of them grazes a surface and is drawn
-    /// on it), and lit in full.
+    /// an eighth of the steps (and the tracer's coarser rounds after them), and lit in full.
     fn sample(
         &self,
         (x, y): (usize, usize),
