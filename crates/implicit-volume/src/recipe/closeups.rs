@@ -141,9 +141,9 @@ pub fn closeup_views(
             views.push((cam, s, format!("{} (cut-away)", h.feature)));
             continue;
         }
-        // Hoodoos are placed by their foot: aim at mid-height.
+        // Hoodoos are placed by their foot: aim at 0.6 of the height (the eye looks down).
         let at = match h.feature {
-            Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.5 * own(d.hoodoo_height_m)],
+            Feature::Hoodoos => [h.at[0], h.at[1], h.at[2] + 0.6 * own(d.hoodoo_height_m)],
             // Islands are placed by their top: aim below it, at the underside.
             Feature::Islands => [h.at[0], h.at[1], h.at[2] - 0.6 * d.island_radius_m],
             // A sea cave's mouth is at the waterline: aim over it, at the cliff it opens in,
@@ -174,10 +174,10 @@ pub fn closeup_views(
             (_, v) => v,
         };
         let cam = match from {
-            // A hoodoo cluster from about 30 degrees above the line of sight to it, so the
+            // A hoodoo cluster from about 31 degrees above the line of sight to it, so the
             // eye sees down into the hollow the columns stand in.
             Some(v) if h.feature == Feature::Hoodoos => {
-                Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.6])
+                Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.85])
             }
             Some(v) => Camera::closeup_from(scene, at, dist, [v[0], v[1], 0.08]),
             None => Camera::closeup(scene, at, dist),

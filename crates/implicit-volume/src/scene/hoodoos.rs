@@ -60,6 +60,14 @@ const BADLAND_SLOPE_DEG: f32 = 25.0;
 /// Canyon), not from the untouched slope.
 const BOWL: f32 = 0.35;
 
+/// Radius of a hoodoo hollow's floor, in cluster spacings: neighbours' floors (a spacing
+/// along a row, 1.15 between rows) overlap into one.
+const HOLLOW_FLOOR: f32 = 0.8;
+
+/// Angle (degrees) of a hoodoo hollow's walls: the steep, fluted walls of an amphitheatre cut
+/// back into soft rock under its rim.
+const HOLLOW_WALL_DEG: f32 = 68.0;
+
 /// Share of the hoodoos that have lost their cap (spires of 50-90 % of the capped height).
 const CAPLESS: f32 = 0.35;
 
@@ -369,17 +377,45 @@ impl SceneBuilder {
         Ok(report)
     }
 
-    /// The hollow around the hoodoo on `site` ([`BOWL`]): a carving down to the site's floor
-    /// under its axis, `1.1 spacing` wide at the ground, so the members' hollows merge into
-    /// the amphitheatre the cluster stands in. Returns 1.
+    /// The hollow around the hoodoo on `site` ([`BOWL`]): the slope has wasted back around
+    /// the column, leaving a floor at the site's level, [`HOLLOW_FLOOR`] `spacing` in radius,
+    /// under walls standing at [`HOLLOW_WALL_DEG`] with a crisp rim (a CSG cut, not a blended
+    /// dish), fluted down their height: the members' hollows merge into the steep-walled
+    /// amphitheatre the cluster stands in, and the walls show the strata. Returns the
+    /// primitive count.
     fn hoodoo_hollow(&mut self, s: &HoodooSettings, site: &Site) -> Result<usize> {
-        let (rh, rz) = (1.1 * s.spacing, 1.5 * BOWL * s.height);
-        let c = [site.p[0], site.p[1], site.p[2] + rz];
-        let id = self
-            .tree
-            .ellipsoid(c, [rh / VISIBLE, rh / VISIBLE, rz / VISIBLE], -1.0)?;
-        self.negatives.push(id);
-        Ok(1)
+        let rf = HOLLOW_FLOOR * s.spacing;
+        let floor = site.p[2];
+        // Up to well above the highest ground the walls can meet.
+        let rise = BOWL * s.height + 2.0 * rf + s.height;
+        let cot = 1.0 / HOLLOW_WALL_DEG.to_radians().tan();
+        // Visible radius `rf + (z - floor) cot`, from `rf` under the floor (cut off by it)
+        // up to `rise` over it.
+        let (a, b) = (
+            [site.p[0], site.p[1], floor - rf],
+            [site.p[0], site.p[1], floor + rise],
+        );
+        let walls = self.tree.cone(
+            a,
+            b,
+            rf * (1.0 - cot) / VISIBLE,
+            (rf + rise * cot) / VISIBLE,
+            1.0,
+        )?;
+        // The floor: the underside of a wide ellipsoid, flat to within 1 % over the hollow.
+        let (wide, tall) = (10.0 * (rf + rise * cot), rise + rf);
+        let above = self.tree.ellipsoid(
+            [site.p[0], site.p[1], floor + tall],
+            [wide / VISIBLE, wide / VISIBLE, tall / VISIBLE],
+            1.0,
+        )?;
+        let hollow = self.tree.intersection(walls, above)?;
+        let seed = (s.seed as u32) ^ (site.idx as u32).wrapping_mul(0x9e37);
+        let fluted =
+            self.tree
+                .streaked_warp(hollow, 0.12 * rf, 1.0 / (0.6 * rf), 1.0 / (4.0 * rf), seed)?;
+        self.cuts.push(fluted);
+        Ok(2)
     }
 
     /// One hoodoo on `site` ([module docs](self)), from the floor of its hollow; returns its
@@ -552,6 +588,14 @@ mod tests {
         (b.build(true).unwrap(), rep)
     }
 
+    /// Height of the highest matter over `(x, y)` below 2 m (0.02 m steps).
+    fn surface_z(scene: &Scene, x: f32, y: f32) -> f32 {
+        (0..500)
+            .map(|k| 2.0 - 0.02 * k as f32)
+            .find(|&z| scene.inside([x, y, z]))
+            .unwrap_or(f32::NEG_INFINITY)
+    }
+
     /// Radius of the matter's horizontal section at height `z` around `c` (from its area).
     fn radius_at(scene: &Scene, c: V3, z: f32) -> f32 {
         let step = 0.1;
@@ -579,9 +623,8 @@ mod tests {
             (c[2] + 4.2).abs() < 1e-3,
             "stands on the floor of its hollow: {c:?}"
         );
-        // The hollow, a dish: air half-way down it 4 m from the axis (outside the column),
-        // the ground within 0.4 m of the slope's 15 m away (its rim: -3.85 m at 3 m from the
-        // axis, -1.85 at 7, -0.75 at 11, -0.15 at 15).
+        // The hollow: air half-way down it 4 m from the axis (outside the column), the ground
+        // within 0.4 m of the slope's 15 m away.
         assert!(
             !scene.inside([c[0] - 4.0, c[1], -2.1]),
             "no hollow around the column"
@@ -590,6 +633,16 @@ mod tests {
             scene.inside([c[0] - 15.0, c[1], -0.4]),
             "the hollow reaches too far"
         );
+        // An amphitheatre, not a dish: a flat floor out to 6 m from the axis (6.4 m, fluted),
+        // then a steep wall up to the rim by 9.5 m (the blended dish it replaced: -3.85 m at
+        // 3 m from the axis, -2.3 at 6, -1.2 at 9.5, -0.75 at 11).
+        for d in [[-1.0, 0.0], [0.0, 1.0], [-0.7, 0.7]] {
+            let at = |r: f32| surface_z(&scene, c[0] + r * d[0], c[1] + r * d[1]);
+            let (floor, foot, rim) = (at(4.0), at(6.0), at(9.5));
+            assert!((floor + 4.2).abs() < 0.8, "floor {floor} at 4 m along {d:?}");
+            assert!(foot < -3.0, "the wall starts before 6 m along {d:?}: {foot}");
+            assert!(rim > -0.6, "no rim by 9.5 m along {d:?}: {rim}");
+        }
         assert!((rep.sizes_m[0] - 16.2).abs() < 0.3, "{rep:?}");
         let (soft, hard, cap) = (
             radius_at(&scene, c, 8.0),

@@ -109,6 +109,9 @@ pub struct SceneBuilder {
     geology: Geology,
     dem: Vec<f32>,
     negatives: Vec<NodeId>,
+    /// Carvings with crisp edges (a CSG difference, not blended): walls that stand steep
+    /// with a sharp rim, such as a hoodoo amphitheatre's.
+    cuts: Vec<NodeId>,
     positives: Vec<NodeId>,
     /// Carving spheres' centres and radii, kept for reports and tests.
     carved: Vec<(V3, f32, bool)>,
@@ -206,6 +209,7 @@ impl SceneBuilder {
             geology,
             dem: hf.as_slice().to_vec(),
             negatives: Vec::new(),
+            cuts: Vec::new(),
             positives: Vec::new(),
             carved: Vec::new(),
         })
@@ -544,9 +548,9 @@ impl SceneBuilder {
         d
     }
 
-    /// Assembles the scene: `union(blend(heightfield, carvings), matter)`. With `use_bvh` the
-    /// carvings and the matter are organised in BVHs; without, in flat n-ary blends (every
-    /// primitive is visited by each query: for comparisons only).
+    /// Assembles the scene: `union(difference(blend(heightfield, carvings), cuts), matter)`.
+    /// With `use_bvh` the carvings, the cuts and the matter are organised in BVHs; without, in
+    /// flat n-ary blends (every primitive is visited by each query: for comparisons only).
     pub fn build(mut self, use_bvh: bool) -> Result<Scene> {
         let mut root = self.hf;
         let mut upper = self.hf;
@@ -559,6 +563,14 @@ impl SceneBuilder {
                 all.extend_from_slice(&self.negatives);
                 root = self.tree.blend(&all)?;
             }
+        }
+        if !self.cuts.is_empty() {
+            let c = if use_bvh {
+                self.tree.bvh_blend(&self.cuts)?
+            } else {
+                self.tree.blend(&self.cuts)?
+            };
+            root = self.tree.difference(root, c)?;
         }
         if !self.positives.is_empty() {
             let p = if use_bvh {
