@@ -9,7 +9,8 @@ from a disjoint part of the same DEM (the crops of the amplification protocol), 
 down-sampled xF, rebuilt with the CLI's default flags (`relief amplify` / `relief refine`, plus
 `--extra`), and compared with the truth by `../shared/tools/terrain_quality.py`. Prints one
 block per case and a summary table with the issue's drainage bars: pits/km2 <= 2x truth's,
-fill depth <= 2x truth's + 0.05 m, |beta - truth's| <= 0.06; and the grid measure within 0.1.
+fill depth <= 2x truth's + 0.05 m, |beta - truth's| <= 0.06; and the grid measure within 0.1;
+and scratches (one-cell-wide troughs, `scratches`) per million cells beside the truth's.
 Writes every truth/output as .npy under --out (default target/landform) to look at.
 Needs numpy and scipy (the peers venv: target/peers-venv/bin/python).
 """
@@ -57,6 +58,26 @@ def fill_voids(a):
 def boxdown(a, f):
     h, w = a.shape
     return a[: h // f * f, : w // f * f].reshape(h // f, f, w // f, f).mean((1, 3))
+
+
+def scratches(z):
+    """One-cell-wide troughs or ridges per million cells: runs of at least 6 cells along a row or
+    column that stand more than 3 median steps off the mean of their two neighbours across,
+    which agree with each other (a breach cut or a filled trench one cell wide reads as a
+    scratch in a hillshade). Real DEMs: 0-11; a valley a few cells wide does not count."""
+    z = z.astype(np.float64)
+    med = np.median(np.abs(np.diff(z, axis=0)))
+    thr = 3 * med
+    n = 0
+    for a in (z, z.T):
+        off = a[1:-1, :] - 0.5 * (a[:-2, :] + a[2:, :])
+        m = (np.abs(off) > thr) & (np.abs(a[:-2, :] - a[2:, :]) < thr / 2)
+        for row in m:
+            r = 0
+            for v in row:
+                r = r + 1 if v else 0
+                n += r == 6
+    return n / z.size * 1e6
 
 
 def save(path, a):
@@ -124,9 +145,12 @@ def main():
                 run(cmd)
                 out = run([sys.executable, TQ, tpath, opath, str(f), str(cell)])
                 print(f"## {dem} x{f} {method} ({a.tag})\n{out}", flush=True)
-                rows.append((dem, f, method, parse(out)))
-    print("\n| case | pits/km2 out (truth) | fill m out (truth) | beta out (truth) | grid out (truth) | consist | dslope | bars |")
-    print("|---|---|---|---|---|---|---|---|")
+                nums = parse(out)
+                nums[("output", "scratches")] = scratches(np.load(opath)[:th, :tw])
+                nums[("truth", "scratches")] = scratches(truth)
+                rows.append((dem, f, method, nums))
+    print("\n| case | pits/km2 out (truth) | fill m out (truth) | beta out (truth) | grid out (truth) | consist | dslope | scratches/Mcell out (truth) | bars |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for dem, f, method, n in rows:
         g = lambda w, k: n.get((w, k), float("nan"))
         ok_p = g("output", "pits/km2") <= 2 * g("truth", "pits/km2")
@@ -135,6 +159,7 @@ def main():
         print(f"| {dem} x{f} {method} | {g('output', 'pits/km2'):.2f} ({g('truth', 'pits/km2'):.2f}) | "
               f"{g('output', 'fill'):.3f} ({g('truth', 'fill'):.3f}) | {g('output', 'beta'):.3f} ({g('truth', 'beta'):.3f}) | "
               f"{g('output', 'grid'):.2f} | {100 * g('output', 'consistency'):.2f}% | {g('output', 'dslope'):.2f} | "
+              f"{g('output', 'scratches'):.0f} ({g('truth', 'scratches'):.0f}) | "
               f"{'P' if ok_p else 'p'}{'F' if ok_f else 'f'}{'B' if ok_b else 'b'} |")
 
 
