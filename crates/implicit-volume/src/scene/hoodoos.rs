@@ -39,7 +39,8 @@
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
 //!   the bed (within `[0.15, 1.2] R`) and `R (0.75 + 0.5 rho)` in radius, wider than the
-//!   column above its foot;
+//!   column above its foot, each warped by noise ([`CAP_BREAK`] of its radius) into a broken
+//!   block rather than a disc;
 //! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap),
 //!   and the last `0.8 R` under the cap, sheltered by it, widens towards the cap;
 //! * a third of the hoodoos have lost their cap: the column stops at 50-90 % of the capped
@@ -67,6 +68,9 @@ const HOLLOW_FLOOR: f32 = 0.8;
 /// Angle (degrees) of a hoodoo hollow's walls: the steep, fluted walls of an amphitheatre cut
 /// back into soft rock under its rim.
 const HOLLOW_WALL_DEG: f32 = 68.0;
+
+/// Depth of the noise that breaks a cap slab's outline and faces, as a share of its radius.
+const CAP_BREAK: f32 = 0.22;
 
 /// Share of the hoodoos that have lost their cap (spires of 50-90 % of the capped height).
 const CAPLESS: f32 = 0.35;
@@ -502,7 +506,14 @@ impl SceneBuilder {
             let slab = self
                 .tree
                 .ellipsoid(c, [3.0 * ax / VISIBLE, 3.0 * ay / VISIBLE, th], 1.0)?;
-            parts.push(self.tree.intersection(column, slab)?);
+            // A block of the bed broken along its joints, not a lathe-turned disc: its outline
+            // and faces are warped by [`CAP_BREAK`] of its radius over about its radius.
+            let disc = self.tree.intersection(column, slab)?;
+            let seed = hash(s.seed, site.idx, 0x6361_7062, k) as u32;
+            parts.push(
+                self.tree
+                    .warp(disc, CAP_BREAK * rc, 1.0 / (0.8 * rc), seed)?,
+            );
         }
         // The column's rounded top is cut at the cap's mid-plane (a very flat ellipsoid's top
         // there), so it never pokes through a thin cap.
@@ -588,10 +599,15 @@ mod tests {
         (b.build(true).unwrap(), rep)
     }
 
-    /// Height of the highest matter over `(x, y)` below 2 m (0.02 m steps).
+    /// Height of the highest matter over `(x, y)` below 2 m.
     fn surface_z(scene: &Scene, x: f32, y: f32) -> f32 {
+        top_below(scene, x, y, 2.0)
+    }
+
+    /// Height of the highest matter over `(x, y)` below `z0` (0.02 m steps, 10 m down).
+    fn top_below(scene: &Scene, x: f32, y: f32, z0: f32) -> f32 {
         (0..500)
-            .map(|k| 2.0 - 0.02 * k as f32)
+            .map(|k| z0 - 0.02 * k as f32)
             .find(|&z| scene.inside([x, y, z]))
             .unwrap_or(f32::NEG_INFINITY)
     }
@@ -639,8 +655,14 @@ mod tests {
         for d in [[-1.0, 0.0], [0.0, 1.0], [-0.7, 0.7]] {
             let at = |r: f32| surface_z(&scene, c[0] + r * d[0], c[1] + r * d[1]);
             let (floor, foot, rim) = (at(4.0), at(6.0), at(9.5));
-            assert!((floor + 4.2).abs() < 0.8, "floor {floor} at 4 m along {d:?}");
-            assert!(foot < -3.0, "the wall starts before 6 m along {d:?}: {foot}");
+            assert!(
+                (floor + 4.2).abs() < 0.8,
+                "floor {floor} at 4 m along {d:?}"
+            );
+            assert!(
+                foot < -3.0,
+                "the wall starts before 6 m along {d:?}: {foot}"
+            );
             assert!(rim > -0.6, "no rim by 9.5 m along {d:?}: {rim}");
         }
         assert!((rep.sizes_m[0] - 16.2).abs() < 0.3, "{rep:?}");
@@ -653,6 +675,17 @@ mod tests {
         assert!(soft > 0.5 && cap < 6.0, "{soft} {cap}");
         // Above the cap, air.
         assert!(radius_at(&scene, c, 12.8) < 0.3);
+        // The cap is a broken block of the bed, not a lathe-turned disc: its top (the bed's
+        // top, 12 m, flat to 0.05 m before [`CAP_BREAK`]) rises and falls by over 0.25 m.
+        let tops: Vec<f32> = (0..12)
+            .map(|k| {
+                let a = k as f32 * std::f32::consts::TAU / 12.0;
+                top_below(&scene, c[0] + 1.2 * a.cos(), c[1] + 1.2 * a.sin(), 16.0)
+            })
+            .collect();
+        let lo = tops.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = tops.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        assert!(lo > 10.0 && hi - lo > 0.25, "cap top {lo}..{hi}");
         let (shifted, rep2) = one(beds(3.0));
         let c2 = rep2.sites[0];
         // Beds at 1-3, 7-9 and 13-15: the cap is the 7 m bed (11.2 m over the floor), the
