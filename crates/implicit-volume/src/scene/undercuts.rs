@@ -9,8 +9,9 @@
 //! from soft (`rho < rho_soft`) below to resistant (`rho >= rho_hard`) above, a horizontal
 //! hollow is carved in the soft rock just under the bed's base, along the contour line
 //! (neighbouring hollows under one bed merge into a continuous recess), reaching
-//! `depth (rho_bed - rho_below) / 0.5` (at most `depth`, at least `0.3 depth`) into the face:
-//! a stronger contrast retreats further. Its radius is half the soft run under the bed (at
+//! `depth (rho_bed - rho_below) / 0.5` (at most `depth`, at least `0.2 depth`) into the face:
+//! a stronger contrast retreats further; along the bed, noise over [`ALCOVE_LENGTH`] depths
+//! scales it by 0.35-1, so a recess runs from deep alcoves to shallow notches. Its radius is half the soft run under the bed (at
 //! most the depth), so thin soft partings give slots and thick soft members deep alcoves;
 //! the bed itself is not touched, so it overhangs.
 
@@ -19,6 +20,10 @@ use super::*;
 /// Visible radius of a carving of support radius 1 in saturated rock (field `2T`) at energy
 /// `20 T`: `2T - 20 T (1 - q)^3 = T` at `q = 0.76^2`... (see `carve_gap` in `arches.rs`).
 const HOLE: f32 = 0.76;
+
+/// Length (in depths) over which an undercut's retreat varies along its bed, from an alcove
+/// to a shallow notch and back.
+const ALCOVE_LENGTH: f32 = 4.0;
 
 /// One hollow: centre, contour direction, visible radius, depth into the face and the
 /// horizontal direction out of the face.
@@ -120,7 +125,16 @@ impl SceneBuilder {
             .last()
             .unwrap_or(dz);
         let contrast = rho(base + 0.5 * dz) - rho(base - 0.5 * soft);
-        let depth = (s.depth * contrast / 0.5).clamp(0.3 * s.depth, s.depth);
+        // Along the bed the retreat is uneven: alcoves where seeps and spalling work deepest,
+        // shallow notches between ([`ALCOVE_LENGTH`] depths long).
+        let at = on_face(base);
+        let v = crate::math::fbm3(
+            s.seed ^ 0x616c_636f,
+            mul(at, 1.0 / (ALCOVE_LENGTH * s.depth)),
+            2,
+        )[0];
+        let alcove = 0.35 + 0.65 * (0.5 + 0.8 * v).clamp(0.0, 1.0);
+        let depth = (s.depth * contrast / 0.5 * alcove).clamp(0.2 * s.depth, s.depth);
         let rv = (0.5 * soft).clamp(0.1 * s.depth, depth);
         // Centre one radius under the bed's base, `depth - rv` behind the face at the base:
         // the hollow reaches `depth` under the bed's edge, which overhangs it.
@@ -171,7 +185,11 @@ mod tests {
         let (before, scene, rep) = run(1);
         assert_eq!(run(2).2, rep);
         assert!(rep.features > 10, "{rep:?}");
-        assert!(rep.sizes_m.iter().all(|&d| (0.6..=2.0).contains(&d)));
+        assert!(rep.sizes_m.iter().all(|&d| (0.4..=2.0).contains(&d)));
+        // Uneven along the beds (one contrast everywhere here, so every hollow was 2 m deep):
+        // alcoves and shallow notches.
+        let lo = rep.sizes_m.iter().copied().fold(f32::INFINITY, f32::min);
+        assert!(lo < 0.8 * 2.0, "no shallow notch: depths from {lo} m");
         // Bed bases at 13, 21 and 29 m; the face at height z is at x = 12 + z / sqrt(3). An
         // overhang: behind the face, rock in the bed over air under it, where there was rock.
         let y = 11.5;
