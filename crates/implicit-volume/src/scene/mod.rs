@@ -565,25 +565,26 @@ impl SceneBuilder {
             }
         }
         if !self.cuts.is_empty() {
-            let c = if use_bvh {
-                self.tree.bvh_blend(&self.cuts)?
-            } else {
-                self.tree.blend(&self.cuts)?
-            };
+            let c = group(&mut self.tree, &self.cuts, use_bvh)?;
             root = self.tree.difference(root, c)?;
         }
         if !self.positives.is_empty() {
-            let p = if use_bvh {
-                self.tree.bvh_blend(&self.positives)?
-            } else {
-                self.tree.blend(&self.positives)?
-            };
+            let p = group(&mut self.tree, &self.positives, use_bvh)?;
             root = self.tree.union(root, p)?;
             upper = self.tree.union(self.hf, p)?;
         }
         let mut scene = Scene::new(self.tree, root, self.geology, Some((self.hf, self.frame)))?;
         scene.upper = Some(upper);
         Ok(scene)
+    }
+}
+
+/// `items` summed into one node: a BVH with `use_bvh`, else a flat n-ary blend.
+fn group(tree: &mut TerrainTree, items: &[NodeId], use_bvh: bool) -> Result<NodeId> {
+    if use_bvh {
+        tree.bvh_blend(items)
+    } else {
+        tree.blend(items)
     }
 }
 
