@@ -19,9 +19,10 @@
 //! * **fins**: a third of the neighbours of a row stay joined at their feet by the fin they were cut
 //!   from, a wall up to 10-35 % of the lower one's height, thick where the strata are hard
 //!   and tapering upwards.
-//! * **hollows**: the slope has wasted back around a cluster: each member stands on the floor
-//!   of a hollow carved [`BOWL`] of the nominal height under the ground (its cap bed is then
-//!   sought above that floor), 1.1 `spacing` wide, merging into the cluster's amphitheatre;
+//! * **hollows**: the slope has wasted back around a cluster: each member stands on the flat
+//!   floor of a hollow cut [`BOWL`] of the nominal height under the ground (its cap bed is then
+//!   sought above that floor), [`HOLLOW_FLOOR`] `spacing` in radius, under fluted walls at
+//!   [`HOLLOW_WALL_DEG`] with a crisp rim (a CSG cut), merging into the cluster's amphitheatre;
 //! * **gullies**: between two neighbouring rows of a cluster the ground is cut down along the
 //!   joint over the rows' length (a capsule carving about `0.45 R` deep and `2.1 R` wide),
 //!   so the rows stand on ribs between gullies.
