@@ -101,6 +101,11 @@ pub(crate) struct Args {
     /// Karst budget in carving steps (default: from a passage density of 6 km per km^2).
     #[arg(long)]
     pub(crate) karst_budget: Option<usize>,
+    /// Stepped slopes: the fraction of a resistant bed's outcrop that becomes a bench on its
+    /// top, the rest a cliff (0 keeps the DEM's smooth slopes; default 0.8). Cut on the DEM
+    /// interpolated to the meshing voxel when that resolves the beds, with any feature.
+    #[arg(long)]
+    pub(crate) benches: Option<f32>,
     /// Direction the wind blows towards, `X,Y` (x east, y north).
     #[arg(long, value_parser = super::parse_pair, allow_hyphen_values = true, default_value = "1,0.3")]
     pub(crate) wind: (f32, f32),
@@ -130,6 +135,9 @@ pub(crate) fn job(args: &Args) -> Result<VolumeJob> {
     r.seabed = !args.flat_sea;
     r.scale = args.scale;
     r.karst_budget = args.karst_budget;
+    if let Some(b) = args.benches {
+        r.benches = b;
+    }
     r.wind = [args.wind.0, args.wind.1];
     r.seed = args.seed;
     job.mesh = args.mesh.is_some();

@@ -124,20 +124,32 @@ pub fn build_recipe_with_progress(
         ));
     }
     let hf = floor.as_ref().map_or(hf, |f| &f.0);
+    let level = recipe.sea_level.or(sea.map(|s| s.level));
+    let (dem_w, dem_h) = (hf.width(), hf.height());
+    let stepped = stepped(&basis, &geo, hf, level, &mut dims)?;
+    let hf = stepped.as_ref().map_or(hf, |s| &s.0);
     let b = SceneBuilder::new(
         hf,
         geo,
         &ImplicitizeSettings {
-            // Twice the cell (the default): a shorter transition saturates the rock closer to
-            // the surface but raises the field's Lipschitz bound, which slows sphere tracing.
-            transition: 0.0,
+            // Twice the DEM's own cell (the default on it): a shorter transition saturates the
+            // rock closer to the surface but raises the field's Lipschitz bound, which slows
+            // sphere tracing.
+            transition: 2.0 * basis.l,
             depth: dims.floor_depth_m,
         },
     )?;
     let region = Region {
-        mask: recipe.mask.clone(),
+        mask: match (&recipe.mask, &stepped) {
+            (Some(m), Some((_, k))) => Some(benches::upsample_mask(m, dem_w, dem_h, *k)),
+            (m, _) => m.clone(),
+        },
         bbox: None,
     };
+    let mut b = b;
+    if let Some((_, k)) = &stepped {
+        b.set_site_stride(*k);
+    }
     region.check(&b.frame())?;
     let deviation = b.implicitization_deviation(4096);
     basis.sea_level = recipe.sea_level.or(sea.map(|s| s.level));
@@ -289,6 +301,51 @@ fn sizes<'a>(hf: &Heightfield, recipe: &'a Recipe) -> Result<(Basis<'a>, Dimensi
         sz,
     };
     Ok((basis, dims))
+}
+
+/// The DEM stepped by its resistant beds ([`benches::benches`]) when any feature is asked
+/// for, with a note saying what was done or why not.
+fn stepped(
+    basis: &Basis<'_>,
+    geology: &Geology,
+    hf: &Heightfield,
+    sea_level: Option<f32>,
+    dims: &mut Dimensions,
+) -> Result<Option<(Heightfield, usize)>> {
+    let r = basis.recipe;
+    if r.features.is_empty() || r.benches == 0.0 {
+        return Ok(None);
+    }
+    let inp = benches::BenchInput {
+        geology,
+        rho0: basis.rho0,
+        benches: r.benches,
+        cell_m: basis.voxel,
+        sea_level,
+        lo: basis.lo,
+        hi: basis.hi,
+    };
+    Ok(match benches::benches(hf, &inp)? {
+        Ok((out, rep)) => {
+            dims.notes.push(format!(
+                "benches: resistant beds ({:.1} m thick, median) stepped into cliffs and \
+                 benches ({:.0} % of each outcrop a bench) on the DEM interpolated {}x to \
+                 {:.1} m cells: {} samples raised, at most {:.1} m (benches = 0 keeps the \
+                 smooth slopes)",
+                rep.bed_m,
+                100.0 * r.benches,
+                rep.factor,
+                rep.cell_m,
+                rep.raised,
+                rep.max_rise_m
+            ));
+            Some((out, rep.factor))
+        }
+        Err(why) => {
+            dims.notes.push(why);
+            None
+        }
+    })
 }
 
 /// The recipe's geology (the layered default when it has none), and the median thickness of

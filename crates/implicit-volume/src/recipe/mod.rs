@@ -52,6 +52,7 @@ use crate::scene::{
     WindErosion,
 };
 
+mod benches;
 mod build;
 mod closeups;
 mod sea;
@@ -245,6 +246,11 @@ pub struct Recipe {
     pub wind_strength: f32,
     /// Energy of rain erosion.
     pub rain_strength: f32,
+    /// Stepped slopes (module `benches`): the fraction of a resistant bed's outcrop on a slope
+    /// that becomes a bench on the bed's top, the rest its cliff; in `[0, 1)`, 0 = the DEM's
+    /// smooth slopes. Cut when the meshing voxel resolves the beds (a bed a few metres thick
+    /// on a refined window), with any feature asked for.
+    pub benches: f32,
     /// Seed of every effect (each derives its own stream).
     pub seed: u64,
 }
@@ -271,6 +277,7 @@ impl Default for Recipe {
             wind: [1.0, 0.3],
             wind_strength: 2.0,
             rain_strength: 2.0,
+            benches: 0.8,
             seed: 1,
         }
     }
@@ -410,6 +417,9 @@ impl Recipe {
             && !s.is_finite()
         {
             return Err(Error::param("sea_level", s, "must be finite"));
+        }
+        if !(0.0..1.0).contains(&self.benches) {
+            return Err(Error::param("benches", self.benches, "must be in [0, 1)"));
         }
         for (n, v) in named_fields!(self; wind_strength, rain_strength) {
             if !(v.is_finite() && v > 0.0 && v <= 100.0) {

@@ -323,12 +323,14 @@ impl SceneBuilder {
         let f = self.frame;
         let (xm, ym) = ((f.width - 1) as f32 * f.cx, (f.height - 1) as f32 * f.cy);
         let a = 0.5 * s.span;
-        let step = (0.25 * f.cx.min(f.cy)).min(0.5 * a);
+        let stride = self.site_stride;
+        let step = (0.25 * stride as f32 * f.cx.min(f.cy)).min(0.5 * a);
         let half = 0.5 * s.max_length;
         let margin = a;
         // Candidates: (fin width, node index, direction index, mouths, floor).
         let nodes: Vec<(usize, usize)> = (0..f.height)
-            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .step_by(stride)
+            .flat_map(|i| (0..f.width).step_by(stride).map(move |j| (j, i)))
             .collect();
         let me = self;
         nodes
@@ -393,7 +395,7 @@ impl SceneBuilder {
                         continue;
                     }
                     let len = norm(sub(mouths[0], mouths[1]));
-                    if len < s.span.min(f.cx.min(f.cy)) {
+                    if len < s.span.min(stride as f32 * f.cx.min(f.cy)) {
                         continue;
                     }
                     if best.as_ref().is_none_or(|b| len < b.0) {

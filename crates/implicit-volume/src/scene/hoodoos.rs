@@ -205,8 +205,10 @@ impl SceneBuilder {
     /// Every DEM node where a hoodoo could stand ([module docs](self)).
     fn hoodoo_sites(&self, s: &HoodooSettings, region: &Region) -> Vec<Site> {
         let f = self.frame;
+        let k = self.site_stride;
         let nodes: Vec<(usize, usize)> = (0..f.height)
-            .flat_map(|i| (0..f.width).map(move |j| (j, i)))
+            .step_by(k)
+            .flat_map(|i| (0..f.width).step_by(k).map(move |j| (j, i)))
             .collect();
         nodes
             .par_iter()

@@ -119,6 +119,9 @@ pub struct SceneBuilder {
     /// at 100 km, about 80 f32 ulps; lengths are also at most `1e7 min_len`), so no primitive
     /// degenerates in f32.
     min_len: f32,
+    /// Node stride of the site searches (hoodoos, arches): 1 on a DEM's own cells, the
+    /// interpolation factor on a DEM interpolated finer ([`SceneBuilder::set_site_stride`]).
+    site_stride: usize,
 }
 
 /// Length of a wind or rain weathering groove in support radii (see
@@ -212,7 +215,15 @@ impl SceneBuilder {
             cuts: Vec::new(),
             positives: Vec::new(),
             carved: Vec::new(),
+            site_stride: 1,
         })
+    }
+
+    /// Searches landform sites (hoodoos, arches) on every `k`-th node along each axis (`k >=
+    /// 1`): on a DEM interpolated `k` times finer (stepped by its strata) the searches keep
+    /// the cost and the node spacing of the DEM's own cells, and still see the stepped ground.
+    pub fn set_site_stride(&mut self, k: usize) {
+        self.site_stride = k.max(1);
     }
 
     /// The DEM's frame in scene coordinates.

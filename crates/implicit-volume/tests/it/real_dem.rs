@@ -950,12 +950,14 @@ fn simplified_scene_mesh_stays_watertight() {
 
 /// Small closed pits that a recipe adds to the top surface of the bare DEM, and the mesh look.
 /// Returns the pits added, the eroded look and the bare one (at the eroded scene's voxel).
+/// Benches off on both (they are no weathering, and the bare DEM has none).
 fn added_pits(hf: &Heightfield, features: Vec<Feature>) -> (usize, SurfaceLook, SurfaceLook) {
     let look = |features: Vec<Feature>, voxel: Option<f32>, r: Option<f32>| {
         let recipe = Recipe {
             features,
             seed: 1,
             voxel,
+            benches: 0.0,
             ..Default::default()
         };
         let (scene, rep) = build_recipe(hf, &recipe).unwrap();
