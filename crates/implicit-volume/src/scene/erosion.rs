@@ -288,34 +288,39 @@ impl SceneBuilder {
             (g(j0, i0) * (1.0 - tx) + g(j1, i0) * tx) * (1.0 - ty)
                 + (g(j0, i1) * (1.0 - tx) + g(j1, i1) * tx) * ty
         };
-        // Columns: a jittered grid `spacing` apart over the cells near the shore.
-        let reach_cells = (s.retreat / f.cx.min(f.cy)).ceil() + 1.0;
-        let (nx, ny) = (
-            (f.cx / spacing).ceil().max(1.0) as usize,
-            (f.cy / spacing).ceil().max(1.0) as usize,
-        );
+        // Columns: a jittered grid `spacing` apart over the blocks of cells near the shore (a
+        // block is one cell, or `stride` cells a side where cells are finer than the spacing,
+        // so the columns stay `spacing` apart on a DEM interpolated finer).
+        let cell = f.cx.max(f.cy);
+        let stride = ((spacing / cell).floor() as usize).max(1);
+        let reach_cells = (s.retreat / f.cx.min(f.cy)).ceil() + stride as f32;
         let mut pts: Vec<V3> = Vec::new();
-        for i in 0..f.height - 1 {
-            for j in 0..f.width - 1 {
-                let dmin = [
-                    dist[i * f.width + j],
-                    dist[i * f.width + j + 1],
-                    dist[(i + 1) * f.width + j],
-                    dist[(i + 1) * f.width + j + 1],
-                ]
-                .into_iter()
-                .fold(f32::INFINITY, f32::min);
-                if dmin > reach_cells * f.cx.max(f.cy) {
+        for i in (0..f.height - 1).step_by(stride) {
+            for j in (0..f.width - 1).step_by(stride) {
+                let (i1, j1) = (
+                    (i + stride).min(f.height - 1),
+                    (j + stride).min(f.width - 1),
+                );
+                let dmin = [(j, i), (j1, i), (j, i1), (j1, i1)]
+                    .into_iter()
+                    .map(|(jj, ii)| dist[ii * f.width + jj])
+                    .fold(f32::INFINITY, f32::min);
+                if dmin > reach_cells * cell {
                     continue;
                 }
-                let base = f.node(j, i + 1, 0.0);
+                let base = f.node(j, i1, 0.0);
+                let (bw, bh) = ((j1 - j) as f32 * f.cx, (i1 - i) as f32 * f.cy);
+                let (nx, ny) = (
+                    (bw / spacing).ceil().max(1.0) as usize,
+                    (bh / spacing).ceil().max(1.0) as usize,
+                );
                 for a in 0..nx {
                     for c in 0..ny {
                         let k = (a * ny + c) as u64;
                         let h = |q| unit(hash(s.seed, (i * f.width + j) as u64, k, q));
                         pts.push([
-                            base[0] + (a as f32 + 0.25 + 0.5 * h(0)) / nx as f32 * f.cx,
-                            base[1] + (c as f32 + 0.25 + 0.5 * h(1)) / ny as f32 * f.cy,
+                            base[0] + (a as f32 + 0.25 + 0.5 * h(0)) / nx as f32 * bw,
+                            base[1] + (c as f32 + 0.25 + 0.5 * h(1)) / ny as f32 * bh,
                             0.0,
                         ]);
                     }
