@@ -92,9 +92,17 @@ pub(super) fn benches(
             inp.rho0, inp.lo, inp.hi
         )));
     };
+    if inp.cell_m > bed {
+        return Ok(Err(format!(
+            "benches skipped: resistant beds {bed:.1} m thick (median) are thinner than the \
+             {:.1} m voxel (a finer --voxel or a smaller window resolves them)",
+            inp.cell_m
+        )));
+    }
     let cell = hf.cell_size().0.max(hf.cell_size().1) as f32;
-    let mut k = (cell / inp.cell_m).ceil().max(1.0) as usize;
     let nodes = |k: usize| ((hf.width() - 1) * k + 1) * ((hf.height() - 1) * k + 1);
+    let cap = (MAX_NODES as f64 / ((hf.width() - 1) * (hf.height() - 1)) as f64).sqrt();
+    let mut k = f64::from(cell / inp.cell_m).ceil().clamp(1.0, cap.max(1.0)) as usize;
     while k > 1 && nodes(k) > MAX_NODES {
         k -= 1;
     }
@@ -373,6 +381,12 @@ mod tests {
         assert_eq!(benches(&hf, &inp).unwrap().unwrap_err(), "benches off");
         inp.benches = 0.8;
         let why = benches(&hf, &inp).unwrap().unwrap_err();
+        assert!(why.contains("thinner than the 10.0 m voxel"), "{why}");
+        // A voxel that resolves the beds on a DEM too large to interpolate to it (50 km
+        // cells: at most 2047 times finer, 24 m).
+        let wide = Heightfield::new(3, 3, hf.as_slice().to_vec(), 5e4, 5e4).unwrap();
+        inp.cell_m = 1.0;
+        let why = benches(&wide, &inp).unwrap().unwrap_err();
         assert!(why.contains("need cells of at most"), "{why}");
         inp.benches = 1.0;
         assert!(benches(&hf, &inp).is_err());
