@@ -321,16 +321,17 @@ impl Geology {
         GeologySpec::layered_default(center, period, seed)?.build()
     }
 
-    /// Lengths (m) of the runs of soft rock (`rho < rho0`) met along vertical lines at the
-    /// given `(x, y)` between `z0` and `z1`, sampled every `step` metres; runs cut by either end
-    /// are not counted. Used to size karst passages to the soft strata of any geology.
-    pub fn soft_runs(
+    /// Lengths (m) of the runs where `inside(resistance)` holds (soft rock: `rho < rho0`;
+    /// resistant beds: `rho >= rho0`) met along vertical lines at the given `(x, y)` between
+    /// `z0` and `z1`, sampled every `step` metres; runs cut by either end are not counted. Used
+    /// to size karst passages to the soft strata of any geology, and the benches to its beds.
+    pub fn runs(
         &self,
         columns: &[[f32; 2]],
         z0: f32,
         z1: f32,
-        rho0: f32,
         step: f32,
+        inside: impl Fn(f32) -> bool,
     ) -> Vec<f32> {
         let mut runs = Vec::new();
         if !(step > 0.0 && z1 > z0) {
@@ -342,7 +343,7 @@ impl Geology {
             let mut cut = true; // the run touching z0 is cut
             for k in 0..=n {
                 let z = z0 + k as f32 * step;
-                let soft = self.resistance([c[0], c[1], z]) < rho0;
+                let soft = inside(self.resistance([c[0], c[1], z]));
                 match (soft, start) {
                     (true, None) => start = Some(k),
                     (false, Some(s)) => {
@@ -630,7 +631,7 @@ mod tests {
             assert_eq!(a.resistance(p), b.resistance(p));
         }
         // Soft runs of the two-layer strata are 30 m.
-        let runs = g.soft_runs(&[[0.0, 0.0]], -100.0, 100.0, 0.5, 0.5);
+        let runs = g.runs(&[[0.0, 0.0]], -100.0, 100.0, 0.5, |rho| rho < 0.5);
         assert!(
             !runs.is_empty() && runs.iter().all(|r| (r - 30.0).abs() <= 1.0),
             "{runs:?}"

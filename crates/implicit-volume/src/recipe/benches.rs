@@ -248,34 +248,19 @@ fn hard_run(
 /// Median length of the resistant runs along nine columns between `lo` and `hi` (runs cut by
 /// either end not counted); `None` without one.
 fn median_hard_run(inp: &BenchInput<'_>, ex: f32, ey: f32) -> Option<f32> {
-    let (z0, z1) = (inp.lo, inp.hi);
-    let step = ((z1 - z0) / 4096.0).max(0.05);
-    let n = ((z1 - z0) / step).ceil() as usize;
-    let mut runs = Vec::new();
-    for c in 0..9 {
-        let xy = [
-            ex * (0.2 + 0.3 * (c % 3) as f32),
-            ey * (0.2 + 0.3 * (c / 3) as f32),
-        ];
-        let mut start: Option<usize> = None;
-        let mut cut = true;
-        for k in 0..=n {
-            let z = z0 + k as f32 * step;
-            let hard = inp.geology.resistance([xy[0], xy[1], z]) >= inp.rho0;
-            match (hard, start) {
-                (true, None) => start = Some(k),
-                (false, Some(s)) => {
-                    if !cut {
-                        runs.push((k - s) as f32 * step);
-                    }
-                    start = None;
-                    cut = false;
-                }
-                (false, None) => cut = false,
-                _ => {}
-            }
-        }
-    }
+    let cols: Vec<[f32; 2]> = (0..9)
+        .map(|c| {
+            [
+                ex * (0.2 + 0.3 * (c % 3) as f32),
+                ey * (0.2 + 0.3 * (c / 3) as f32),
+            ]
+        })
+        .collect();
+    let step = ((inp.hi - inp.lo) / 4096.0).max(0.05);
+    let rho0 = inp.rho0;
+    let mut runs = inp
+        .geology
+        .runs(&cols, inp.lo, inp.hi, step, |rho| rho >= rho0);
     runs.sort_by(f32::total_cmp);
     runs.get(runs.len() / 2).copied()
 }

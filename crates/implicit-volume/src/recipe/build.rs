@@ -379,7 +379,8 @@ fn geology(basis: &Basis<'_>, dims: &mut Dimensions) -> Result<(GeologySpec, Geo
         })
         .collect();
     let step = (period / 40.0).min(0.25 * voxel);
-    let mut runs = geo.soft_runs(&cols, lo - dims.floor_depth_m, hi, basis.rho0, step);
+    let rho0 = basis.rho0;
+    let mut runs = geo.runs(&cols, lo - dims.floor_depth_m, hi, step, |rho| rho < rho0);
     runs.sort_by(f32::total_cmp);
     dims.soft_thickness_m = runs.get(runs.len() / 2).copied();
     Ok((geology, geo))
