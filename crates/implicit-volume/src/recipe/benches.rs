@@ -12,7 +12,9 @@
 //! faults). `c` is `1 - Recipe::benches` on steep ground and less where that would leave the
 //! cliff under [`CLIFF_DEG`] (`tan(slope) / tan(70 deg)`, at least [`MIN_CLIFF`]): a
 //! resistant bed stands as a cliff whatever the slope it crops out on, and its bench widens
-//! on gentle ground. Samples in soft rock keep their height, so the map is
+//! on gentle ground. At each cliff's foot a talus apron leans against it: scree at 35 degrees
+//! up to 0.4 of the bed's thickness, spreading down over the soft rock below (the map then
+//! raises those soft samples too, never above the apron). Samples in soft rock keep their height, so the map is
 //! continuous, never lowers the ground, and moves no sample by more than the thickness of the
 //! bed it is in. The DEM is first interpolated (Keys bicubic, through the nodes) to cells of
 //! the meshing voxel, so a bed a few metres thick has cells to step over.
@@ -122,8 +124,13 @@ pub(super) fn benches(
     let (cx, cy) = up.cell_size();
     let step = 0.25 * bed;
     let max_run = (8.0 * bed).min((inp.hi - inp.lo).max(bed));
-    let cliff_max = 1.0 - inp.benches;
-    let steep = CLIFF_DEG.to_radians().tan();
+    let shape = Shape {
+        step,
+        max_run,
+        cliff_max: 1.0 - inp.benches,
+        steep: CLIFF_DEG.to_radians().tan(),
+        bed,
+    };
     let src = up.as_slice();
     // Ground gradient (m/m) by central differences, one-sided at the edges.
     let grad = |j: usize, i: usize| {
@@ -141,14 +148,8 @@ pub(super) fn benches(
             *o = match inp.sea_level {
                 Some(s) if u <= s => u,
                 _ => {
-                    let x = j as f32 * cx as f32;
-                    match hard_run(inp.geology, inp.rho0, [x, y], u, step, max_run) {
-                        Some((h0, h1)) => {
-                            let cliff = (grad(j, i) / steep).clamp(MIN_CLIFF, cliff_max);
-                            h0 + ((u - h0) / cliff).min(h1 - h0).max(u - h0)
-                        }
-                        None => u,
-                    }
+                    let xy = [j as f32 * cx as f32, y];
+                    stepped_height(inp.geology, inp.rho0, xy, u, grad(j, i), &shape)
                 }
             };
         }
@@ -170,6 +171,68 @@ pub(super) fn benches(
             max_rise_m: max_rise,
         },
     )))
+}
+
+/// Slope (degrees) of the talus aprons at the cliffs' feet: scree at its angle of repose.
+const TALUS_DEG: f32 = 35.0;
+
+/// Height of a talus apron against its cliff, as a fraction of the bed's thickness.
+const TALUS_FRACTION: f32 = 0.4;
+
+/// How the steps are cut ([`stepped_height`]).
+struct Shape {
+    /// Search step and longest resistant run (m) of [`hard_run`].
+    step: f32,
+    max_run: f32,
+    /// Largest cliff fraction (`1 - benches`) and the gradient of a [`CLIFF_DEG`] cliff.
+    cliff_max: f32,
+    steep: f32,
+    /// Median bed thickness (m).
+    bed: f32,
+}
+
+/// The stepped height of a sample at `u` on ground of gradient `g` ([module docs](self)),
+/// with a talus apron at the foot of each cliff: scree at [`TALUS_DEG`] leaning against the
+/// cliff up to [`TALUS_FRACTION`] of its height and spreading down over the soft rock below,
+/// as the debris of the bed above collects there.
+fn stepped_height(geo: &Geology, rho0: f32, xy: [f32; 2], u: f32, g: f32, s: &Shape) -> f32 {
+    let g = g.max(1e-4);
+    let cliff = (g / s.steep).clamp(MIN_CLIFF, s.cliff_max);
+    // The cliff's gradient; the apron's surface at horizontal distance `d` from the cliff's
+    // foot (upslope positive), up to where it meets the face (none on a cliff gentler than
+    // the scree could lean on).
+    let rise = g / cliff;
+    let tan = TALUS_DEG.to_radians().tan();
+    let apron = |h0: f32, h1: f32, d: f32| {
+        if rise < 1.5 * tan {
+            return f32::NEG_INFINITY;
+        }
+        let a = TALUS_FRACTION * (h1 - h0);
+        (h0 + a + d * tan).min(h0 + a * rise / (rise - tan))
+    };
+    if let Some((h0, h1)) = hard_run(geo, rho0, xy, u, s.step, s.max_run) {
+        let z = h0 + ((u - h0) / cliff).min(h1 - h0).max(u - h0);
+        return z.max(apron(h0, h1, (u - h0) / g));
+    }
+    // Soft rock: under an apron when a cliff's foot is close above (an apron `a` high
+    // reaches `a g / (g + tan)` below the foot; beds up to twice the median).
+    let reach = TALUS_FRACTION * 2.0 * s.bed * g / (g + tan);
+    let hard = |z: f32| geo.resistance([xy[0], xy[1], z]) >= rho0;
+    let mut below = u;
+    while below - u < reach {
+        let next = (below + s.step).min(u + reach);
+        if hard(next) {
+            if let Some((h0, h1)) = hard_run(geo, rho0, xy, next, s.step, s.max_run) {
+                return u.max(apron(h0, h1, -(h0 - u) / g));
+            }
+            break;
+        }
+        if next <= below {
+            break;
+        }
+        below = next;
+    }
+    u
 }
 
 /// The DEM interpolated `k` times finer through its nodes (Keys bicubic, the same extent; no
@@ -319,6 +382,19 @@ mod tests {
             let d = out.get(j, 2) - u;
             assert!((-1e-4..=4.01).contains(&d), "{j}: {d}");
         }
+        // Talus aprons: soft samples just under a cliff's foot (beds from 10 k + 6) are
+        // raised, by at most the apron's 1.6 m (0.4 of the 4 m bed), and the apron's
+        // surface slopes at the scree's 35 degrees.
+        let aprons = (0..out.width())
+            .filter(|&j| {
+                let u = hf.sample_bicubic(j as f32 / 4.0, 2.0);
+                let under = (u - 5.0).rem_euclid(10.0);
+                under > 0.0 && under < 1.0 && out.get(j, 2) - u > 0.05
+            })
+            .count();
+        assert!(aprons >= 3, "{aprons} apron samples");
+        let scree = slopes.iter().filter(|&&s| (s - 35.0).abs() < 1.5).count();
+        assert!(scree >= 3, "{scree} samples at the scree's angle");
         // Every bench lies on a resistant bed's top: 10 m period, tops at 10 k.
         for (j, s) in slopes.iter().enumerate() {
             if *s < 1.0 {
