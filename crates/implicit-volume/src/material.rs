@@ -99,6 +99,10 @@ const OUTCROP_JITTER_DEG: f32 = 10.0;
 /// Wavelength (m) of that wandering.
 const OUTCROP_PATCH_M: f32 = 45.0;
 
+/// Height (m) above the DEM's ground from which a surface is a landform's added rock, bare
+/// (fully from twice it): more than the implicit surface's own departure from the DEM.
+const BARE_ABOVE_M: f32 = 1.0;
+
 /// Weathered rock mixed over the beds (the mean of [`ROCK`], a little darker) and sparse
 /// vegetation, the two parts of the cover on gentle ground.
 const REGOLITH: V3 = [0.62, 0.52, 0.40];
@@ -110,6 +114,8 @@ const VEGETATION: V3 = [0.34, 0.40, 0.22];
 /// elsewhere regolith ([`REGOLITH`]) with patches of vegetation, sparser high in the scene's
 /// height range, only faintly tinted by the rock beneath: regolith mixes the beds it creeps
 /// over, and a strong tint would draw every bed's outcrop as a stripe across gentle ground.
+/// Surfaces more than [`BARE_ABOVE_M`] above the DEM's ground (the landforms' added rock) are
+/// bare rock at any slope.
 pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
     let b = scene.bbox();
     let (zlo, zhi) = (b.min[2], b.max[2]);
@@ -119,6 +125,13 @@ pub fn surface_albedo(scene: &Scene, p: V3, n: V3) -> V3 {
     let jitter = OUTCROP_JITTER_DEG * fbm(0x6a14, mul(p, 1.0 / OUTCROP_PATCH_M), 2);
     let t =
         ((slope + jitter - OUTCROP_SLOPE_DEG) / (2.0 * OUTCROP_SPREAD_DEG) + 0.5).clamp(0.0, 1.0);
+    // Matter a landform added above the DEM's ground (a hoodoo's cap, an arch's bridge, a
+    // floating island) is bare rock: regolith creeps over hillslopes, it does not collect on
+    // a column's top a few metres across.
+    let above = scene.dem_height(p[0], p[1]).map_or(0.0, |g| {
+        ((p[2] - g - BARE_ABOVE_M) / BARE_ABOVE_M).clamp(0.0, 1.0)
+    });
+    let t = t.max(above);
     let k = t * t * (3.0 - 2.0 * t);
     // Regolith: the beds' weathered, mixed rock (one colour whatever the bed, faintly
     // tinted), under vegetation in 40 m patches, sparser high in the scene's height range.
@@ -266,7 +279,9 @@ mod tests {
             let (mut soft, mut hard, mut ns, mut nh) = ([0.0f32; 3], [0.0f32; 3], 0, 0);
             for i in 0..60 {
                 for k in 0..30 {
-                    let p = [i as f32 * 2.1, 40.0 + i as f32 * 0.7, k as f32];
+                    // On the DEM's ground (its height is x / 4 m), through every bed.
+                    let z = k as f32 + (i as f32 * 0.37) % 1.0;
+                    let p = [4.0 * z, 40.0 + i as f32 * 0.7, z];
                     let c = surface_albedo(&scene, p, n);
                     if scene.resistance(p) < 0.5 {
                         soft = add(soft, c);
@@ -283,6 +298,31 @@ mod tests {
         let (gentle, steep) = (at(10.0), at(70.0));
         assert!(steep > 0.1, "bare beds differ by {steep}");
         assert!(gentle < steep / 6.0, "gentle {gentle}, steep {steep}");
+    }
+
+    /// A flat top standing 12 m over flat ground (a hoodoo's cap) is bare rock; the ground
+    /// at its foot, as flat, is regolith.
+    #[test]
+    fn landforms_above_the_ground_are_bare_rock() {
+        let hf = Heightfield::from_fn(32, 32, 4.0, 4.0, |_, _| 3.0);
+        let scene = bedded(&hf);
+        let up = [0.0, 0.0, 1.0];
+        let (mut top, mut ground) = (0.0f32, 0.0f32);
+        for i in 0..100 {
+            let (x, y) = (20.0 + i as f32 * 0.6, 30.0 + i as f32 * 0.4);
+            let rock = rock_albedo(scene.resistance([x, y, 15.0]), [x, y, 15.0]);
+            top += norm(add(
+                surface_albedo(&scene, [x, y, 15.0], up),
+                mul(rock, -1.0),
+            ));
+            let rock = rock_albedo(scene.resistance([x, y, 3.0]), [x, y, 3.0]);
+            ground += norm(add(
+                surface_albedo(&scene, [x, y, 3.0], up),
+                mul(rock, -1.0),
+            ));
+        }
+        assert!(top < 1e-4, "the cap's top differs from its rock by {top}");
+        assert!(ground > 5.0, "the ground is rock-coloured: {ground}");
     }
 
     #[test]
