@@ -83,7 +83,13 @@ pub(crate) struct Args {
     /// Hillslope diffusivity in m^2/yr (default: the preset's).
     #[arg(long, value_name = "M2_PER_YR", allow_hyphen_values = true)]
     pub(crate) diffusion: Option<f64>,
-    /// Hydraulic erosion iterations (0 skips it; default: the preset's).
+    /// Channel-head drainage area in m^2: cells draining less are hillslopes, shaped by
+    /// diffusion and not incised by stream power; 0 incises every cell (default: the preset's,
+    /// 1 km^2 for mountain, 1000 m^2 for badlands).
+    #[arg(long, value_name = "M2")]
+    pub(crate) channel_area: Option<f64>,
+    /// Hydraulic erosion iterations (0 skips it; default: the preset's on cells up to 10 m,
+    /// fewer in proportion on coarser cells).
     #[arg(long, value_name = "N")]
     pub(crate) hydraulic_iterations: Option<u32>,
     /// Rain per hydraulic iteration in metres of water (default: the preset's).
@@ -138,6 +144,7 @@ pub(crate) fn settings(args: &Args) -> Result<ErodeSettings> {
     s.m = args.m;
     s.n = args.n;
     s.diffusion = args.diffusion;
+    s.channel_area = args.channel_area;
     s.hydraulic_iterations = args.hydraulic_iterations;
     s.rain = args.rain;
     s.capacity = args.capacity;
@@ -159,6 +166,7 @@ fn erode_flag(s: &ErodeSettings, mut e: ParamError) -> ParamError {
     let plan = s.plan();
     e.name = match e.name {
         "rain_m" => "rain",
+        "channel_area_m2" => "channel_area",
         "talus_angle_deg" => "talus_angle",
         "weathering_m" => "weathering",
         "iterations" if plan.hydraulic.is_some_and(|h| h.check().is_err()) => {

@@ -16,14 +16,18 @@ use crate::depression::{FillMode, priority_flood};
 use crate::grid::Grid;
 use crate::{LandscapeError, Result};
 
+/// Cell size (m) up to which the hydraulic model runs a preset's full iterations: about a
+/// gully's width ([`ErodeSettings::plan_for`]).
+pub const RILL_CELL_M: f64 = 10.0;
+
 /// A landscape type to start from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// Soil-mantled rolling hills: weak incision, strong hillslope diffusion, light rain wash.
     Gentle,
-    /// Alpine relief: channel incision over 50 kyr, moderate diffusion, gullies, 35 degree
-    /// scree below cliffs.
+    /// Alpine relief: channel incision over 50 kyr from channel heads of 1 km^2, moderate
+    /// diffusion, gullies, 38 degree scree below cliffs and channel walls.
     #[default]
     Mountain,
     /// Soft rock under heavy storms: dense gullies, fast incision, little diffusion.
@@ -52,11 +56,15 @@ impl Preset {
         // so a preset's geological time costs a handful of routings; the hydraulic model's
         // capacity is the hydraulic defaults' (0.5, full capacity at 2 m of water) scaled
         // per preset.
-        let sp = |k: f64, diffusion: f64, years: f64| StreamPowerStage {
+        // Channel heads: cells draining less than `head` m^2 are hillslopes (diffusion
+        // only), the rest channels (Montgomery and Dietrich 1988; about 1 km^2 in steep
+        // alpine terrain, Stock and Dietrich 2003; tens to hundreds of m^2 in badlands).
+        let sp = |k: f64, diffusion: f64, years: f64, head: f64| StreamPowerStage {
             params: StreamPowerParams {
                 k,
                 diffusion,
                 dt: 10_000.0,
+                channel_area_m2: head,
                 ..StreamPowerParams::default()
             },
             years,
@@ -79,25 +87,25 @@ impl Preset {
         };
         match self {
             Self::Gentle => Plan {
-                stream_power: Some(sp(1e-5, 0.02, 50_000.0)),
+                stream_power: Some(sp(1e-5, 0.02, 50_000.0, 1e6)),
                 hydraulic: Some(hy(50, 0.01, 0.3, 0.03)),
                 thermal: Some(th(30.0, 30, 5.0)),
                 fill_pits: true,
             },
             Self::Mountain => Plan {
-                stream_power: Some(sp(2e-5, 0.01, 50_000.0)),
+                stream_power: Some(sp(2e-5, 0.01, 50_000.0, 1e6)),
                 hydraulic: Some(hy(80, 0.01, 0.5, 0.02)),
-                thermal: Some(th(38.0, 20, 10.0)),
+                thermal: Some(th(38.0, 20, 40.0)),
                 fill_pits: true,
             },
             Self::Badlands => Plan {
-                stream_power: Some(sp(1e-4, 0.002, 20_000.0)),
+                stream_power: Some(sp(1e-4, 0.002, 20_000.0, 1e3)),
                 hydraulic: Some(hy(120, 0.015, 0.8, 0.015)),
                 thermal: Some(th(40.0, 20, 5.0)),
                 fill_pits: true,
             },
             Self::Desert => Plan {
-                stream_power: Some(sp(5e-6, 0.005, 20_000.0)),
+                stream_power: Some(sp(5e-6, 0.005, 20_000.0, 1e5)),
                 hydraulic: Some(hy(100, 0.02, 0.6, 0.04)),
                 thermal: Some(th(33.0, 60, 20.0)),
                 fill_pits: true,
@@ -154,6 +162,9 @@ pub struct ErodeSettings {
     pub n: Option<f64>,
     /// Hillslope diffusivity (m^2/yr).
     pub diffusion: Option<f64>,
+    /// Channel-head drainage area (m^2): cells draining less are hillslopes, not incised by
+    /// stream power (0 incises every cell).
+    pub channel_area: Option<f64>,
     /// Hydraulic iterations; 0 skips hydraulic erosion.
     pub hydraulic_iterations: Option<u32>,
     /// Rain per hydraulic iteration (m of water).
@@ -191,6 +202,7 @@ impl ErodeSettings {
             p.m = self.m.unwrap_or(p.m);
             p.n = self.n.unwrap_or(p.n);
             p.diffusion = self.diffusion.unwrap_or(p.diffusion);
+            p.channel_area_m2 = self.channel_area.unwrap_or(p.channel_area_m2);
             p.dt = self.dt.unwrap_or(p.dt);
             sp.years = self.years.unwrap_or(sp.years);
             sp.uplift = self.uplift.unwrap_or(sp.uplift);
@@ -225,7 +237,12 @@ impl ErodeSettings {
         plan
     }
 
-    /// The plan on a grid of `cell_x` by `cell_y` metres. Unless `years` is set, a preset's
+    /// The plan on a grid of `cell_x` by `cell_y` metres. Unless `hydraulic_iterations` is
+    /// set, the hydraulic model's iterations are the preset's on cells up to [`RILL_CELL_M`]
+    /// and fewer in proportion on coarser ones: its rills are a cell wide, so on a 50 m grid
+    /// each is a 50 m gully, and the preset's full run would cut one down every slope (on
+    /// alpine DEMs that turned smooth glacial slopes into parallel gullies: beta 0.637 ->
+    /// 0.527, docs/LANDSCAPE.md). Unless `years` is set, a preset's
     /// stream-power time is capped so that hillslope diffusion spreads no further than half a
     /// cell, `sqrt(D t) <= min(cell_x, cell_y) / 2`: what the grid can show. An SRTM grid
     /// (30-90 m) gets the preset's tens of millennia, a 2 m lidar grid a century (over 50 kyr
@@ -244,6 +261,14 @@ impl ErodeSettings {
                 sp.years = cap;
                 sp.params.dt = sp.params.dt.min(sp.years);
             }
+        }
+        if let Some(h) = plan
+            .hydraulic
+            .as_mut()
+            .filter(|_| self.hydraulic_iterations.is_none())
+            .filter(|_| cell > RILL_CELL_M)
+        {
+            h.iterations = ((f64::from(h.iterations) * RILL_CELL_M / cell).round() as u32).max(1);
         }
         plan
     }

@@ -474,3 +474,50 @@ fn cells_above_the_channel_head_do_not_incise() {
     assert_eq!(none, 0);
     assert!(some > 0 && 2 * some < all, "{all} {some}");
 }
+
+/// Issue 40's bar on the shared DEMs: the default preset (mountain) leaves no pit the input
+/// did not have and keeps the drainage-area exponent beta within 0.05 of the input's (the
+/// crops of `examples/erode_look`; before channel heads and grid-sized rills alps_dem went
+/// 0.637 -> 0.527).
+#[test]
+#[allow(clippy::print_stderr)]
+fn the_default_preset_keeps_the_drainage_of_the_shared_dems() {
+    use crate::erode::job::ErodeSettings;
+    let crops: [relief_testdata::Crop<'_>; 4] = [
+        ("grandcanyon", 0, 0, 512, 512),
+        ("alps_dem", 1200, 120, 640, 512),
+        ("N47E011", 300, 300, 512, 512),
+        ("carrizo", 0, 200, 505, 512),
+    ];
+    let Some(dems) = relief_testdata::dem_crops(crops) else {
+        return;
+    };
+    for ((id, ..), mut dem) in crops.into_iter().zip(dems) {
+        if dem.has_voids() {
+            relief_heightfield::fill::fill_voids(&mut dem, &Default::default()).unwrap();
+        }
+        let before = crate::stats::drainage(&dem);
+        let r = ErodeSettings::default()
+            .run(&dem, None, &relief_heightfield::NoProgress, &|| false)
+            .unwrap();
+        let after = crate::stats::drainage(&r.terrain);
+        eprintln!(
+            "{id}: beta {:.3} -> {:.3}, pits/km2 {:.2} -> {:.2}",
+            before.beta, after.beta, before.pits_per_km2, after.pits_per_km2
+        );
+        assert!(
+            (after.beta - before.beta).abs() <= 0.05,
+            "{id}: beta {} -> {}",
+            before.beta,
+            after.beta
+        );
+        assert!(
+            after.pits_per_km2 <= before.pits_per_km2 + 1e-9,
+            "{id}: pits {} -> {}",
+            before.pits_per_km2,
+            after.pits_per_km2
+        );
+        // Visibly eroded: the channels are cut metres deep somewhere.
+        assert!(r.figures.max_erosion_m > 1.0, "{id}: {:?}", r.figures);
+    }
+}
