@@ -52,9 +52,10 @@ pub(crate) struct Args {
     /// The eroded terrain (.tif, .exr, .npy, .png, .r16, .r32, ...).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(crate) output: PathBuf,
-    /// The landscape type to start from: gentle (soil-mantled hills), mountain (alpine
-    /// incision, gullies, scree), badlands (soft rock, dense gullies) or desert (flash floods,
-    /// fans, long talus aprons). The flags below override its values.
+    /// The landscape type to start from: gentle (soil-mantled hills), mountain (rivers
+    /// incised from 1 km^2 channel heads, V-shaped valleys, scree), badlands (soft rock, dense
+    /// gullies) or desert (flash floods, fans, long talus aprons). The flags below override
+    /// its values.
     #[arg(long, value_name = "PRESET", default_value_t = LibEnum(ErodeSettings::default().preset))]
     pub(crate) preset: LibEnum<Preset>,
     /// Stream-power duration in years (0 skips stream power; default: the preset's).
