@@ -25,6 +25,9 @@
 //!   [`WEATHERING_MAX_SAMPLES`] surface samples: beyond, the effect is refused with a note
 //!   naming the window that fits;
 //! * the default geology's strata: [`FeatureSizes::strata_period_m`], at fixed elevations;
+//! * the stepped ground under the features ([`Recipe::benches`]): each resistant bed's cliff
+//!   and bench are as tall as the bed is thick in the geology (metres), cut on the DEM
+//!   interpolated to the voxel, and only when the voxel is finer than the beds;
 //! * the closing floor `max(0.3 R, 8 v)` below the lowest sample (`R` the relief);
 //! * counts from densities per km^2 ([`Densities`]) over the DEM's area (at least one).
 //!
