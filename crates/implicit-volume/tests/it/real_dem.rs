@@ -666,6 +666,13 @@ fn check_default_recipe_sizes(name: &str, hf: Heightfield) {
     {
         let recipe = Recipe {
             features: Feature::ALL.to_vec(),
+            // The coast's stepped slopes (most of its build time) are not what is checked;
+            // the canyon keeps the default.
+            benches: if name.starts_with("N57E011") {
+                0.0
+            } else {
+                Recipe::default().benches
+            },
             ..Default::default()
         };
         let (scene, rep) = build_recipe(&hf, &recipe).unwrap();
@@ -1087,6 +1094,9 @@ fn all_features_job() -> VolumeJob {
     VolumeJob {
         recipe: Recipe {
             features: Feature::ALL.to_vec(),
+            // The stepped slopes are not what these tests check (they have their own), and
+            // they are most of the build's time on these windows.
+            benches: 0.0,
             ..Default::default()
         },
         mesh: false,
