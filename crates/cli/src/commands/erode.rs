@@ -89,6 +89,11 @@ pub(crate) struct Args {
     /// 1 km^2 for mountain, 1000 m^2 for badlands).
     #[arg(long, value_name = "M2")]
     pub(crate) channel_area: Option<f64>,
+    /// Gradient in degrees of the alluvial fans laid down below the valleys' mouths from the
+    /// sediment eroded upstream; 0 builds none (default: the preset's: 2 gentle, 4 mountain,
+    /// 5 badlands, 3 desert).
+    #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
+    pub(crate) fan_gradient: Option<f64>,
     /// Hydraulic erosion iterations (0 skips it; default: the preset's on cells up to 10 m,
     /// fewer in proportion on coarser cells).
     #[arg(long, value_name = "N")]
@@ -146,6 +151,7 @@ pub(crate) fn settings(args: &Args) -> Result<ErodeSettings> {
     s.n = args.n;
     s.diffusion = args.diffusion;
     s.channel_area = args.channel_area;
+    s.fan_gradient = args.fan_gradient;
     s.hydraulic_iterations = args.hydraulic_iterations;
     s.rain = args.rain;
     s.capacity = args.capacity;
@@ -168,6 +174,7 @@ fn erode_flag(s: &ErodeSettings, mut e: ParamError) -> ParamError {
     e.name = match e.name {
         "rain_m" => "rain",
         "channel_area_m2" => "channel_area",
+        "gradient_deg" => "fan_gradient",
         "talus_angle_deg" => "talus_angle",
         "weathering_m" => "weathering",
         "iterations" if plan.hydraulic.is_some_and(|h| h.check().is_err()) => {
@@ -300,6 +307,12 @@ fn processes(f: &ErodeFigures) -> String {
     }
     if let Some(h) = f.plan.hydraulic {
         v.push(format!("hydraulic x{}", h.iterations));
+    }
+    if let Some(fans) = f.fans {
+        v.push(format!(
+            "{} fans ({:.3e} m3, up to {:.1} m thick)",
+            fans.fans, fans.volume_m3, fans.max_thickness_m
+        ));
     }
     if let Some(t) = f.plan.thermal {
         v.push(format!("thermal x{}", t.iterations));

@@ -9,6 +9,7 @@ use relief_heightfield::param::{ensure, in_range};
 use relief_heightfield::{Heightfield, ParamError, Progress};
 use serde::{Deserialize, Serialize};
 
+use super::fans::{FanFigures, FanParams, build_fans};
 use super::hydraulic::{HydraulicFigures, HydraulicParams, hydraulic};
 use super::stream_power::{self, RunFigures, StreamPowerParams, Uplift, base_level_mask};
 use super::thermal::{ThermalFigures, ThermalParams, thermal};
@@ -85,28 +86,37 @@ impl Preset {
             weathering_m: Some(weathering_m),
             ..ThermalParams::default()
         };
+        let fan = |gradient_deg: f64, trapped: f64| FanParams {
+            gradient_deg,
+            trapped,
+            ..FanParams::default()
+        };
         match self {
             Self::Gentle => Plan {
                 stream_power: Some(sp(1e-5, 0.02, 50_000.0, 1e6)),
                 hydraulic: Some(hy(50, 0.01, 0.3, 0.03)),
+                fans: Some(fan(2.0, 0.3)),
                 thermal: Some(th(30.0, 30, 5.0)),
                 fill_pits: true,
             },
             Self::Mountain => Plan {
                 stream_power: Some(sp(2e-5, 0.01, 50_000.0, 1e6)),
                 hydraulic: Some(hy(80, 0.01, 0.5, 0.02)),
+                fans: Some(fan(4.0, 0.3)),
                 thermal: Some(th(38.0, 20, 40.0)),
                 fill_pits: true,
             },
             Self::Badlands => Plan {
                 stream_power: Some(sp(1e-4, 0.002, 20_000.0, 1e3)),
                 hydraulic: Some(hy(120, 0.015, 0.8, 0.015)),
+                fans: Some(fan(5.0, 0.5)),
                 thermal: Some(th(40.0, 20, 5.0)),
                 fill_pits: true,
             },
             Self::Desert => Plan {
                 stream_power: Some(sp(5e-6, 0.005, 20_000.0, 1e5)),
                 hydraulic: Some(hy(100, 0.02, 0.6, 0.04)),
+                fans: Some(fan(3.0, 0.6)),
                 thermal: Some(th(33.0, 60, 20.0)),
                 fill_pits: true,
             },
@@ -133,6 +143,8 @@ pub struct Plan {
     pub stream_power: Option<StreamPowerStage>,
     /// Hydraulic erosion, second.
     pub hydraulic: Option<HydraulicParams>,
+    /// Alluvial fans below the valleys' mouths from the sediment eroded upstream, third.
+    pub fans: Option<FanParams>,
     /// Thermal relaxation, last.
     pub thermal: Option<ThermalParams>,
     /// Fill the closed depressions the processes dug or dammed (sediment settling in the
@@ -165,6 +177,8 @@ pub struct ErodeSettings {
     /// Channel-head drainage area (m^2): cells draining less are hillslopes, not incised by
     /// stream power (0 incises every cell).
     pub channel_area: Option<f64>,
+    /// Gradient of the alluvial fans (degrees); 0 builds none.
+    pub fan_gradient: Option<f64>,
     /// Hydraulic iterations; 0 skips hydraulic erosion.
     pub hydraulic_iterations: Option<u32>,
     /// Rain per hydraulic iteration (m of water).
@@ -231,6 +245,15 @@ impl ErodeSettings {
             }
         }
         plan.fill_pits = self.fill_pits.unwrap_or(plan.fill_pits);
+        match self.fan_gradient {
+            Some(0.0) => plan.fans = None,
+            Some(g) => {
+                plan.fans
+                    .get_or_insert_with(FanParams::default)
+                    .gradient_deg = g
+            }
+            None => {}
+        }
         if plan.thermal.is_some_and(|t| t.iterations == 0) {
             plan.thermal = None;
         }
@@ -304,6 +327,9 @@ impl ErodeSettings {
         if let Some(t) = plan.thermal {
             t.check()?;
         }
+        if let Some(f) = plan.fans {
+            f.check()?;
+        }
         Ok(())
     }
 
@@ -334,6 +360,7 @@ impl ErodeSettings {
                 iterations: p.iterations.min(6),
                 ..p
             }),
+            fans: plan.fans,
             fill_pits: plan.fill_pits,
         };
         let t0 = Instant::now();
@@ -461,10 +488,20 @@ fn run_plan(
         let out = hydraulic(&mut z, &grid, &p, progress, stop)?;
         figures.hydraulic = Some(out.figures);
     }
+    let input = dem.as_slice();
+    if let Some(p) = plan.fans {
+        if stop() {
+            return Err(LandscapeError::Stopped("alluvial fans".into()));
+        }
+        progress.begin("alluvial fans", 0);
+        let eroded: Vec<f32> = (0..grid.len())
+            .map(|i| (f64::from(input[i]) + uplifted[i] - f64::from(z[i])) as f32)
+            .collect();
+        figures.fans = Some(build_fans(&mut z, &eroded, &grid, &p));
+    }
     if let Some(p) = plan.thermal {
         figures.thermal = Some(thermal(&mut z, &grid, &p, progress, stop)?);
     }
-    let input = dem.as_slice();
     if plan.fill_pits {
         fill_new_pits(input, &mut z, &grid);
     }
@@ -532,6 +569,8 @@ pub struct ErodeFigures {
     pub hydraulic: Option<HydraulicFigures>,
     /// Thermal relaxation's figures.
     pub thermal: Option<ThermalFigures>,
+    /// The alluvial fans' figures.
+    pub fans: Option<FanFigures>,
     /// Volume lowered (m^3), uplift left out.
     pub eroded_m3: f64,
     /// Volume raised (m^3).
@@ -566,6 +605,17 @@ mod tests {
         assert_eq!(p.stream_power.unwrap().params.diffusion, 0.002);
         assert!(p.hydraulic.is_none());
         assert_eq!(p.thermal.unwrap().talus_angle_deg, 31.0);
+        assert_eq!(p.fans.unwrap().gradient_deg, 5.0);
+        let fans = |g: f64| {
+            ErodeSettings {
+                fan_gradient: Some(g),
+                ..s.clone()
+            }
+            .plan()
+            .fans
+        };
+        assert_eq!(fans(0.0), None);
+        assert_eq!(fans(7.0).unwrap().gradient_deg, 7.0);
         for preset in Preset::ALL {
             ErodeSettings::preset(preset).check().unwrap();
         }
@@ -595,6 +645,13 @@ mod tests {
                     ..Default::default()
                 },
                 "talus_angle_deg",
+            ),
+            (
+                ErodeSettings {
+                    fan_gradient: Some(-3.0),
+                    ..Default::default()
+                },
+                "gradient_deg",
             ),
         ] {
             assert_eq!(s.check().unwrap_err().name, name, "{s:?}");

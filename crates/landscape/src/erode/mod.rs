@@ -2,6 +2,7 @@
 //! 2013) and linear hillslope diffusion ([`diffusion`], the ADI scheme of fastscapelib).
 
 pub mod diffusion;
+pub mod fans;
 pub mod hydraulic;
 pub mod job;
 pub mod stream_power;
