@@ -30,14 +30,13 @@
 //! upstream, so the run conserves mass. Flow on a cone runs radially off it, the divergent
 //! drainage of real fans.
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-
 use relief_heightfield::param::{ParamError, in_range};
 use serde::{Deserialize, Serialize};
 
+use crate::elev::Elev;
 use crate::flow::{Depressions, RouteOptions, receiver, route};
 use crate::grid::Grid;
+use crate::radix::RadixHeap;
 
 /// Parameters of [`build_fans`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -210,13 +209,17 @@ impl<'a> ConeBuilder<'a> {
         self.touched.clear();
         let dist = self.grid.distances();
         let a0 = self.grid.cell_area();
-        let mut heap = BinaryHeap::new();
+        // Dijkstra's order with a radix heap (the distances popped never decrease).
+        let mut heap: RadixHeap<<f64 as Elev>::Entry> = RadixHeap::new();
         self.d[apex] = 0.0;
         self.touched.push(apex);
-        heap.push((Reverse(Key(0.0)), apex));
+        heap.push(0f64.entry(apex as u32));
         let mut volume = 0.0;
-        while let Some((Reverse(Key(di)), i)) = heap.pop() {
-            if di > self.d[i] {
+        while let Some(e) = heap.pop() {
+            let i = f64::cell(e) as usize;
+            let di = self.d[i];
+            if e != di.entry(i as u32) {
+                // A stale entry: the cell was reached by a shorter path since.
                 continue;
             }
             let above = top - s * di - f64::from(z[i]);
@@ -233,7 +236,7 @@ impl<'a> ConeBuilder<'a> {
                     self.touched.push(j);
                 }
                 self.d[j] = dj;
-                heap.push((Reverse(Key(dj)), j));
+                heap.push(dj.entry(j as u32));
             });
         }
         volume
@@ -297,24 +300,6 @@ struct Trunk<'a> {
 impl Trunk<'_> {
     fn is_trunk(&self, i: usize) -> bool {
         self.area[i] > 2.0 * self.area[self.apex]
-    }
-}
-
-/// A distance ordered totally (distances are finite and non-negative).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Key(f64);
-
-impl Eq for Key {}
-
-impl PartialOrd for Key {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Key {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
     }
 }
 
