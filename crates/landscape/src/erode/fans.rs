@@ -18,13 +18,13 @@
 //!    ([`FanParams::gradient_deg`]; fluvial fans 1-5 degrees, debris-flow fans to 10 or more)
 //!    and `d` the distance from the apex over the ground the cone covers (so a fan spreads
 //!    around hills, not through them), within a radius of `sqrt(A)` (Bull's fan areas are
-//!    0.1-2 times `A^0.9`). The apex height is found by bisection so that the cone's volume
-//!    above the ground is [`FanParams::trapped`] times the volume eroded upstream; it rises at
-//!    most `S` times the reach above the mouth (a fan heads at the mouth and backfills the
-//!    valley a little; it does not bury it), and a cone that reaches that height or its
-//!    radius first is kept at that size. A fan pushes the larger stream it meets aside rather
-//!    than damming it: cells draining more than twice its catchment are neither raised nor
-//!    crossed.
+//!    0.1-2 times `A^0.9`; at most 20 km). The apex height is found by bisection so that the
+//!    cone's volume above the ground is [`FanParams::trapped`] times the volume eroded
+//!    upstream; it rises at most `S` times the reach (and 150 m) above the mouth (a fan heads
+//!    at the mouth and backfills the valley a little; it does not bury it), and a cone that
+//!    reaches that height or its radius first is kept at that size. A fan pushes the larger
+//!    stream it meets aside rather than damming it: cells draining more than twice its
+//!    catchment are neither raised nor crossed.
 //!
 //! The cone raises the ground, never lowers it; its volume is bounded by the sediment eroded
 //! upstream, so the run conserves mass. Flow on a cone runs radially off it, the divergent
@@ -37,6 +37,14 @@ use crate::elev::Elev;
 use crate::flow::{Depressions, RouteOptions, receiver, route};
 use crate::grid::Grid;
 use crate::radix::RadixHeap;
+
+/// The largest fan radius (m) whatever the catchment: the largest alluvial fans outside the
+/// megafans of the Himalayan foreland are some tens of kilometres long (Blair and McPherson
+/// 1994); it also bounds the work of one cone.
+const MAX_RADIUS_M: f64 = 20_000.0;
+
+/// The highest a fan's apex rises above its mouth (m).
+const MAX_RISE_M: f64 = 150.0;
 
 /// Parameters of [`build_fans`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -167,7 +175,10 @@ pub fn build_fans(z: &mut [f32], eroded: &[f32], grid: &Grid, p: &FanParams) -> 
         }
         // The apex rises at most the fan's own fall over the reach: a fan heads at its
         // valley's mouth and backfills the valley a little, it does not bury it.
-        let limits = (area[m].sqrt(), s_fan * reach);
+        let limits = (
+            area[m].sqrt().min(MAX_RADIUS_M),
+            (s_fan * reach).min(MAX_RISE_M),
+        );
         let added = builder.build(z, &area, m, s_fan, limits, p.trapped * volume[m]);
         if added.0 > 0.0 {
             figures.fans += 1;
@@ -258,7 +269,8 @@ impl<'a> ConeBuilder<'a> {
         let base = f64::from(z[apex]);
         let (mut lo, mut hi) = (0.0, max_rise);
         if self.flood(z, &trunk, base + hi, s, radius) > volume {
-            for _ in 0..40 {
+            // To a millionth of the rise.
+            for _ in 0..20 {
                 let mid = 0.5 * (lo + hi);
                 if self.flood(z, &trunk, base + mid, s, radius) > volume {
                     hi = mid;
