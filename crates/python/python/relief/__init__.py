@@ -484,7 +484,7 @@ def flow(dem: Any, *, cell_size: Any = None, progress: Any = None, **settings: A
 def erode(dem: Any, *, cell_size: Any = None, uplift: Any = None, progress: Any = None, **settings: Any) -> dict:
     """Erosion: ``relief erode``. Returns a dict of rasters ``terrain``, ``erosion``,
     ``deposition`` (metres). ``settings``: fields of ``ErodeSettings`` (``preset``, ``years``,
-    ``k``, ``m``, ``n``, ``hydraulic_iterations``, ``seed``, ...); ``uplift``: a raster of
+    ``k``, ``m``, ``n``, ``hydraulic_iterations``, ``fan_gradient``, ``seed``, ...); ``uplift``: a raster of
     rates (m/yr) on the DEM's grid."""
     g = _grid(dem, cell_size)
     cell = _need_cell(g, "DEM")
