@@ -100,8 +100,16 @@ pub struct FanFigures {
 }
 
 /// Builds the fans of the module docs on `z` (m, voids `NaN`) in place; `eroded[i]` is the
-/// depth (m) the run has lowered cell `i` by so far (negative or `NaN`: nothing).
-pub fn build_fans(z: &mut [f32], eroded: &[f32], grid: &Grid, p: &FanParams) -> FanFigures {
+/// depth (m) the run has lowered cell `i` by so far (negative or `NaN`: nothing). `stop` is
+/// asked before each fan; when it returns true the step ends with `None` (the fans built so
+/// far stay in `z`).
+pub fn build_fans(
+    z: &mut [f32],
+    eroded: &[f32],
+    grid: &Grid,
+    p: &FanParams,
+    stop: &dyn Fn() -> bool,
+) -> Option<FanFigures> {
     let n = grid.len();
     let r = route(
         z.to_vec(),
@@ -179,6 +187,9 @@ pub fn build_fans(z: &mut [f32], eroded: &[f32], grid: &Grid, p: &FanParams) -> 
             area[m].sqrt().min(MAX_RADIUS_M),
             (s_fan * reach).min(MAX_RISE_M),
         );
+        if stop() {
+            return None;
+        }
         let added = builder.build(z, &area, m, s_fan, limits, p.trapped * volume[m]);
         if added.0 > 0.0 {
             figures.fans += 1;
@@ -186,7 +197,7 @@ pub fn build_fans(z: &mut [f32], eroded: &[f32], grid: &Grid, p: &FanParams) -> 
             figures.max_thickness_m = figures.max_thickness_m.max(added.1);
         }
     }
-    figures
+    Some(figures)
 }
 
 /// The cones of [`build_fans`], with their scratch.
@@ -353,7 +364,7 @@ mod tests {
             trapped: 0.5,
             min_catchment_m2: 1e5,
         };
-        let f = build_fans(&mut z, &eroded, &grid, &p);
+        let f = build_fans(&mut z, &eroded, &grid, &p, &|| false).unwrap();
         assert!(f.fans >= 1, "{f:?}");
         // No more than the trapped share of what was eroded; nothing lowered.
         assert!(
@@ -384,16 +395,21 @@ mod tests {
     }
 
     #[test]
-    fn no_fan_without_erosion_and_the_gradient_is_checked() {
+    fn no_fan_without_erosion_or_when_stopped_and_the_gradient_is_checked() {
         let (grid, mut z) = valley_and_plain();
         let before = z.clone();
         let none = vec![0f32; grid.len()];
-        let f = build_fans(&mut z, &none, &grid, &FanParams::default());
+        let f = build_fans(&mut z, &none, &grid, &FanParams::default(), &|| false).unwrap();
         assert_eq!((f.fans, z == before), (0, true));
         let bad = FanParams {
             gradient_deg: 0.0,
             ..FanParams::default()
         };
         assert_eq!(bad.check().unwrap_err().name, "gradient_deg");
+        // Asked to stop, the step ends before its first fan and changes nothing.
+        let (grid, mut z) = valley_and_plain();
+        let eroded = vec![2f32; grid.len()];
+        assert!(build_fans(&mut z, &eroded, &grid, &FanParams::default(), &|| true).is_none());
+        assert!(z == valley_and_plain().1);
     }
 }

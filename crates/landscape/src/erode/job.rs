@@ -497,7 +497,10 @@ fn run_plan(
         let eroded: Vec<f32> = (0..grid.len())
             .map(|i| (f64::from(input[i]) + uplifted[i] - f64::from(z[i])) as f32)
             .collect();
-        figures.fans = Some(build_fans(&mut z, &eroded, &grid, &p));
+        figures.fans = Some(
+            build_fans(&mut z, &eroded, &grid, &p, stop)
+                .ok_or_else(|| LandscapeError::Stopped("alluvial fans".into()))?,
+        );
     }
     if let Some(p) = plan.thermal {
         figures.thermal = Some(thermal(&mut z, &grid, &p, progress, stop)?);
