@@ -105,13 +105,13 @@ impl Stage for ErodeParams {
         )?;
         self.channels(cx, &out)?;
         if cx.config.previews {
-            let (w, h, rgb) = change_map(&out)?;
+            let (w, h, rgb) = crate::change::change_map(&out)?;
             cx.save_rgb(
                 "erode_change",
                 &format!(
                     "where the `{}` preset lowered (blue) and raised (orange: fans, talus,                      filled hollows) the terrain, over its hillshade; the tint is full at {} m",
                     job.preset.name(),
-                    CHANGE_FULL_M
+                    crate::change::CHANGE_FULL_M
                 ),
                 w,
                 h,
@@ -203,41 +203,6 @@ impl ErodeParams {
     }
 }
 
-/// Net change (m) at which [`change_map`]'s tint is full.
-const CHANGE_FULL_M: f32 = 30.0;
-
-/// The eroded terrain's grey hillshade tinted blue where the run lowered it and orange where
-/// it raised it, the tint growing with the logarithm of the change from 0.5 m to
-/// [`CHANGE_FULL_M`]: `(width, height, rgb)`.
-fn change_map(out: &ErodeOutput) -> Result<(usize, usize, Vec<u8>)> {
-    let t = &out.terrain;
-    let shade = relief_heightfield::terrain::hillshade(t, 315.0, 45.0, 1.0);
-    let (w, h) = (t.width(), t.height());
-    let (lowered, raised) = (out.erosion.as_slice(), out.deposition.as_slice());
-    let tint = |d: f32| {
-        if d.is_nan() || d < 0.5 {
-            0.0
-        } else {
-            ((d / 0.5).ln() / (CHANGE_FULL_M / 0.5).ln()).min(1.0)
-        }
-    };
-    let mut rgb = Vec::with_capacity(w * h * 3);
-    for (i, s) in shade.iter().enumerate() {
-        let g = 0.15 + 0.85 * s;
-        let (a, b) = (tint(lowered[i]), tint(raised[i]));
-        let (colour, k) = if a >= b {
-            ([0.15, 0.45, 1.0], 0.75 * a)
-        } else {
-            ([1.0, 0.55, 0.1], 0.75 * b)
-        };
-        for c in colour {
-            let v = g * (1.0 - k) + k * c * (0.4 + 0.6 * g);
-            rgb.push((v.clamp(0.0, 1.0) * 255.0).round() as u8);
-        }
-    }
-    Ok((w, h, rgb))
-}
-
 /// The eroded terrain of `hf` under the default job (for tests).
 #[cfg(test)]
 fn eroded(hf: &relief_heightfield::Heightfield) -> relief_heightfield::Heightfield {
@@ -294,7 +259,7 @@ mod tests {
         raised[1] = 40.0;
         out.erosion = hf.with_data(lowered).unwrap();
         out.deposition = hf.with_data(raised).unwrap();
-        let (w, h, rgb) = change_map(&out).unwrap();
+        let (w, h, rgb) = crate::change::change_map(&out).unwrap();
         assert_eq!((w, h, rgb.len()), (hf.width(), hf.height(), 3 * n));
         assert!(rgb[2] > rgb[0], "lowered {:?}", &rgb[..3]);
         assert!(rgb[3] > rgb[5], "raised {:?}", &rgb[3..6]);

@@ -26,6 +26,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use relief_heightfield::{Heightfield, Progress};
 
+pub mod change;
 pub mod channels;
 mod convert;
 mod dictionary;

@@ -128,6 +128,11 @@ pub(crate) struct Args {
     /// Also write the net deposition depth in metres (>= 0) as a raster.
     #[arg(long, value_name = "OUT")]
     pub(crate) deposition: Option<PathBuf>,
+    /// Also write a PNG of what the run changed: the eroded terrain's hillshade, blue where it
+    /// was lowered, orange where it was raised (fans, talus, filled hollows), the tint full at
+    /// 30 m of change.
+    #[arg(long, value_name = "OUT.png")]
+    pub(crate) change_map: Option<PathBuf>,
     /// Print the settings and figures as JSON instead of text.
     #[arg(long)]
     pub(crate) json: bool,
@@ -211,6 +216,7 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     let mut outputs = vec![(args.output.as_path(), OutKind::Raster)];
     outputs.extend(args.erosion.as_deref().map(|p| (p, OutKind::Raster)));
     outputs.extend(args.deposition.as_deref().map(|p| (p, OutKind::Raster)));
+    outputs.extend(args.change_map.as_deref().map(|p| (p, OutKind::Png)));
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(uplift_path);
     ctx.check_outputs(&inputs, &outputs)?;
@@ -258,6 +264,10 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
     if let Some(p) = &args.deposition {
         ctx.write_raster(&staged.path(p), &out.deposition)?;
     }
+    if let Some(p) = &args.change_map {
+        let (w, h, rgb) = relief_pipeline::change::change_map(&out)?;
+        staged.write_png(p, w, h, &rgb)?;
+    }
     crate::budget::commit_in_time("erode", progress, || staged.commit())?;
     let report = Report {
         input: super::InputGrid::of(&args.input, &dem),
@@ -287,7 +297,8 @@ pub(crate) fn run(args: Args, ctx: &Ctx) -> Result<()> {
             [
                 Some(&args.output),
                 args.erosion.as_ref(),
-                args.deposition.as_ref()
+                args.deposition.as_ref(),
+                args.change_map.as_ref()
             ]
             .into_iter()
             .flatten()

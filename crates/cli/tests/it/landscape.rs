@@ -393,15 +393,16 @@ const SHORT_ERODE: [&str; 8] = [
 #[test]
 fn erode_writes_the_terrain_and_the_depths_with_the_georeference() {
     let (tmp, input, hf) = tmp_with_crop("crop.tif", (200, 160, 96, 80));
-    let (out, e, d) = (
+    let (out, e, d, png) = (
         tmp.path().join("eroded.tif"),
         tmp.path().join("erosion.tif"),
         tmp.path().join("deposition.tif"),
+        tmp.path().join("change.png"),
     );
     let mut args = words(
-        "erode {} -o {} --erosion {} --deposition {} --preset badlands --json --fill-pits false \
-         --weathering 2",
-        &[&input, &out, &e, &d],
+        "erode {} -o {} --erosion {} --deposition {} --change-map {} --preset badlands --json \
+         --fill-pits false --weathering 2",
+        &[&input, &out, &e, &d, &png],
     );
     args.extend(SHORT_ERODE.iter().map(std::ffi::OsStr::new));
     let report: serde_json::Value = serde_json::from_str(&ok(&relief(&args))).unwrap();
@@ -420,6 +421,11 @@ fn erode_writes_the_terrain_and_the_depths_with_the_georeference() {
         assert_eq!((r.width(), r.height()), (96, 80));
         assert_eq!(r.georef().and_then(|g| g.geotransform), t);
     }
+    // The change map: an RGB PNG of the grid's size.
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let info = decoder.read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (96, 80));
+    assert_eq!(info.color_type, png::ColorType::Rgb);
     assert!(erosion.as_slice().iter().all(|&v| v >= 0.0));
     assert!(deposition.as_slice().iter().all(|&v| v >= 0.0));
     let changed = (eroded.as_slice().iter().zip(hf.as_slice()))
