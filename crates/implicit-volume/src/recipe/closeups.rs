@@ -78,7 +78,8 @@ pub(super) fn best_section_line(
 
 /// Close-up renders of the landforms a recipe placed (one per highlight: one per placed kind,
 /// each framed by the size of its kind), on a grid four wide in one image (row-major in the
-/// order of the names returned), with their feature names; a
+/// order of the names returned), with their feature names; a second row with room to spare
+/// ends with an `overview` of the whole scene; a
 /// closer oblique view of the middle of the scene when nothing was placed. `tile` is the size
 /// and shading of one close-up.
 pub fn render_closeups(
@@ -91,6 +92,12 @@ pub fn render_closeups(
     for (cam, s, name) in closeup_views(scene, rep, tile) {
         tiles.push(render(scene, &cam, &s)?);
         names.push(name);
+    }
+    // A last row with room to spare ends with the whole scene, where the close-ups are taken,
+    // rather than an empty black cell.
+    if tiles.len() > PER_ROW && tiles.len() % PER_ROW != 0 {
+        tiles.push(render(scene, &Camera::landscape(scene), tile)?);
+        names.push("overview".into());
     }
     Ok((strip(&tiles), names))
 }
