@@ -14,6 +14,8 @@
 //!    for 100 km^2; at least two cells), measured along the trunk stream where the valley
 //!    opens onto a larger one's floor (the fans of the Alpine valleys and of the Grand
 //!    Canyon's tributaries). Taken upstream first; a mouth already buried by a fan is skipped.
+//!    The fan's apex is the first cell below the mouth where the channel is no steeper than
+//!    the fan.
 //! 3. **Cones**: from each mouth, the surface `apex - S d`, with `S` the fan gradient
 //!    ([`FanParams::gradient_deg`]; fluvial fans 1-5 degrees, debris-flow fans to 10 or more)
 //!    and `d` the distance from the apex over the ground the cone covers (so a fan spreads
@@ -22,7 +24,9 @@
 //!    cone's volume above the ground is [`FanParams::trapped`] times the volume eroded
 //!    upstream; it rises at most `S` times the reach (and 150 m) above the mouth (a fan heads
 //!    at the mouth and backfills the valley a little; it does not bury it), and a cone that
-//!    reaches that height or its radius first is kept at that size. A fan pushes the larger
+//!    reaches that height or its radius first is kept at that size. It is nowhere thicker
+//!    than at its apex: where the ground falls away faster than the fan (a gorge or a cliff
+//!    below the toe) the fan ends there rather than filling it. A fan pushes the larger
 //!    stream it meets aside rather than damming it: cells draining more than twice its
 //!    catchment are neither raised nor crossed.
 //!
@@ -181,16 +185,29 @@ pub fn build_fans(
         if s_down > s_fan || s_up < 3.0 * s_fan || builder.buried[m] {
             continue;
         }
+        // The apex: the first cell downstream where the channel is no steeper than the fan
+        // (the reach's mean slopes place `m` up to half a reach inside the valley).
+        let mut apex = m;
+        let mut walked = 0.0;
+        while walked < reach {
+            match receiver(grid, apex, r.dir[apex]) {
+                Some(q) if f64::from(z[apex] - z[q]) / dist[r.dir[apex] as usize] > s_fan => {
+                    walked += dist[r.dir[apex] as usize];
+                    apex = q;
+                }
+                _ => break,
+            }
+        }
         // The apex rises at most the fan's own fall over the reach: a fan heads at its
         // valley's mouth and backfills the valley a little, it does not bury it.
         let limits = (
-            area[m].sqrt().min(MAX_RADIUS_M),
+            area[apex].sqrt().min(MAX_RADIUS_M),
             (s_fan * reach).min(MAX_RISE_M),
         );
         if stop() {
             return None;
         }
-        let added = builder.build(z, &area, m, s_fan, limits, p.trapped * volume[m]);
+        let added = builder.build(z, &area, apex, s_fan, limits, p.trapped * volume[m]);
         if added.0 > 0.0 {
             figures.fans += 1;
             figures.volume_m3 += added.0;
@@ -221,10 +238,12 @@ impl<'a> ConeBuilder<'a> {
         }
     }
 
-    /// The cells of the cone `top - s d` over `z` from `apex` within `radius` m, with their
-    /// distances (left in `self.d` until the next flood), and the cone's volume (m^3).
-    fn flood(&mut self, z: &[f32], trunk: &Trunk<'_>, top: f64, s: f64, radius: f64) -> f64 {
+    /// The cells of the cone `z[apex] + rise - s d` over `z` from `apex` within `radius` m and
+    /// no thicker than `rise`, with their distances (left in `self.d` until the next flood),
+    /// and the cone's volume (m^3).
+    fn flood(&mut self, z: &[f32], trunk: &Trunk<'_>, rise: f64, s: f64, radius: f64) -> f64 {
         let apex = trunk.apex;
+        let top = f64::from(z[apex]) + rise;
         for &i in &self.touched {
             self.d[i] = f64::INFINITY;
         }
@@ -245,7 +264,10 @@ impl<'a> ConeBuilder<'a> {
                 continue;
             }
             let above = top - s * di - f64::from(z[i]);
-            if above <= 0.0 {
+            // Nowhere thicker than at the apex: where the ground falls away faster than the
+            // fan (a gorge, a cliff below the toe) the fan ends rather than filling it.
+            // (A micrometre of slack: at the apex `above` is `rise` up to rounding.)
+            if above <= 0.0 || above > rise + 1e-6 {
                 continue;
             }
             volume += above * a0;
@@ -279,11 +301,11 @@ impl<'a> ConeBuilder<'a> {
         let trunk = Trunk { area, apex };
         let base = f64::from(z[apex]);
         let (mut lo, mut hi) = (0.0, max_rise);
-        if self.flood(z, &trunk, base + hi, s, radius) > volume {
+        if self.flood(z, &trunk, hi, s, radius) > volume {
             // To a millionth of the rise.
             for _ in 0..20 {
                 let mid = 0.5 * (lo + hi);
-                if self.flood(z, &trunk, base + mid, s, radius) > volume {
+                if self.flood(z, &trunk, mid, s, radius) > volume {
                     hi = mid;
                 } else {
                     lo = mid;
@@ -292,13 +314,13 @@ impl<'a> ConeBuilder<'a> {
         } else {
             lo = hi;
         }
-        self.flood(z, &trunk, base + lo, s, radius);
+        self.flood(z, &trunk, lo, s, radius);
         let (mut laid, mut thickest) = (0.0, 0.0f64);
         let a0 = self.grid.cell_area();
         for &i in &self.touched {
             let cone = base + lo - s * self.d[i];
             let above = cone - f64::from(z[i]);
-            if above > 0.0 {
+            if above > 0.0 && above <= lo + 1e-6 {
                 // Rounded to f32 the raise may be a little less than `above`: count what lands.
                 let before = z[i];
                 z[i] = (cone as f32).max(before);
@@ -384,10 +406,16 @@ mod tests {
         assert!(plain > 0.5 * f.volume_m3, "{plain} of {f:?}");
         assert!(at(64, 30) > at(75, 30), "{} {}", at(64, 30), at(75, 30));
         assert!(
-            at(64, 25) > 0.0 && at(64, 35) > 0.0,
+            at(62, 27) > 0.0 && at(62, 33) > 0.0,
             "{} {}",
-            at(64, 25),
-            at(64, 35)
+            at(62, 27),
+            at(62, 33)
+        );
+        // Nowhere thicker than at the apex.
+        assert!(
+            f.max_thickness_m <= at(60, 30) + 1e-3,
+            "{f:?} {}",
+            at(60, 30)
         );
         // The fan's surface falls away from the apex at about the fan gradient.
         let s = f64::from(z[30 * 120 + 62] - z[30 * 120 + 66]) / 400.0;
