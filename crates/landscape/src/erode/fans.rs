@@ -151,7 +151,12 @@ pub fn build_fans(
     let mut builder = ConeBuilder::new(grid);
     for &m in &r.order {
         let m = m as usize;
-        if area[m] < p.min_catchment_m2.max(a0) || p.trapped * volume[m] <= a0 * 1e-3 {
+        // The cheap tests first: a cell under a fan already built, or draining too little,
+        // needs no walk along its channel.
+        if builder.buried[m]
+            || area[m] < p.min_catchment_m2.max(a0)
+            || p.trapped * volume[m] <= a0 * 1e-3
+        {
             continue;
         }
         let reach = (0.1 * area[m].sqrt()).max(two_cells);
@@ -182,7 +187,7 @@ pub fn build_fans(
             continue;
         }
         let s_up = f64::from(zs[c] - zs[m]) / u;
-        if s_down > s_fan || s_up < 3.0 * s_fan || builder.buried[m] {
+        if s_down > s_fan || s_up < 3.0 * s_fan {
             continue;
         }
         // The apex: the first cell downstream where the channel is no steeper than the fan
