@@ -76,6 +76,9 @@ enum GeoNode {
 pub struct Geology {
     nodes: Vec<GeoNode>,
     layers: Vec<Layer>,
+    /// Top of each layer of `layers` above its strata node's `z0` (the running sum of the
+    /// node's thicknesses): a binary search finds the layer at a height in a long column.
+    tops: Vec<f32>,
     root: Option<u32>,
 }
 
@@ -119,6 +122,11 @@ impl Geology {
         }
         let first = self.layers.len() as u32;
         self.layers.extend_from_slice(layers);
+        let mut top = 0.0;
+        self.tops.extend(layers.iter().map(|l| {
+            top += l.thickness;
+            top
+        }));
         Ok(self.push(GeoNode::Strata {
             first,
             count: layers.len() as u32,
@@ -244,7 +252,7 @@ impl Geology {
     /// Bytes used by the arena (nodes and layer table).
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<GeoNode>()
-            + self.layers.len() * std::mem::size_of::<Layer>()
+            + self.layers.len() * (std::mem::size_of::<Layer>() + std::mem::size_of::<f32>())
     }
 
     /// Resistance `rho(p)` in `[0, 1]` (0.5 for a tree without root).
@@ -264,15 +272,10 @@ impl Geology {
                 z0,
                 period,
             } => {
-                let mut t = (p[2] - z0).rem_euclid(period);
-                let ls = &self.layers[first as usize..(first + count) as usize];
-                for l in ls {
-                    if t < l.thickness {
-                        return l.hardness;
-                    }
-                    t -= l.thickness;
-                }
-                ls[ls.len() - 1].hardness
+                let t = (p[2] - z0).rem_euclid(period);
+                let range = first as usize..(first + count) as usize;
+                let k = self.tops[range.clone()].partition_point(|&top| top <= t);
+                self.layers[range][k.min(count as usize - 1)].hardness
             }
             GeoNode::Noise {
                 base,
@@ -534,10 +537,12 @@ impl GeologySpec {
         }
     }
 
-    /// The layered default (figure 2's construction): four strata of `period` metres in all
-    /// (soft 35 %, hard 15 %, soft 30 %, hard 20 %) stacked from `center`'s elevation, folded
-    /// (amplitude 0.3 `period`, wavelength 20 `period`), blended 25 % with noise and cut by a
-    /// fault through `center` with a throw of 0.4 `period`.
+    /// The layered default (figure 2's construction, with a natural column): a stratigraphic
+    /// column of [`COLUMN_PERIODS`] `period`s ([`stratigraphic_column`]: cliff-forming beds and
+    /// soft slope-forming units with thin ledges, of irregular thicknesses drawn from `seed`)
+    /// stacked from `center`'s elevation, folded (amplitude 0.3 `period`, wavelength 20
+    /// `period`), blended 25 % with noise and cut by a fault through `center` with a throw of
+    /// 0.4 `period`. `period` is the mean thickness of a formation.
     pub fn layered_default(center: V3, period: f32, seed: u64) -> Result<Self> {
         Error::check_positive("period", period)?;
         if !center.iter().all(|v| v.is_finite()) {
@@ -547,18 +552,9 @@ impl GeologySpec {
                 "must be finite",
             ));
         }
-        let layer = |f: f32, hardness: f32| Layer {
-            thickness: period * f,
-            hardness,
-        };
         let strata = GeologySpec::Strata {
             z0: center[2],
-            layers: vec![
-                layer(0.35, 0.15),
-                layer(0.15, 0.85),
-                layer(0.3, 0.35),
-                layer(0.2, 0.7),
-            ],
+            layers: stratigraphic_column(period, seed),
         };
         let fold = GeologySpec::Fold {
             child: Box::new(strata),
@@ -586,6 +582,76 @@ impl GeologySpec {
     }
 }
 
+/// Height of the default geology's column in `period`s before it repeats: more than the relief
+/// of most DEMs (2 km at the default 20 m), so no sequence of beds is seen twice in a canyon
+/// wall.
+pub const COLUMN_PERIODS: f32 = 100.0;
+
+/// A stratigraphic column [`COLUMN_PERIODS`] `period`s high, drawn from `seed`: formations
+/// alternate between
+/// * **cliff-formers** (sandstone, limestone): one resistant bed (hardness 0.74-0.94),
+///   log-normal in thickness around `period` (`sigma` 0.6, within `[0.4, 4] period`);
+/// * **slope-formers** (shale, mudstone): soft rock (0.10-0.35) log-normal around 1.6 `period`
+///   (within `[0.5, 5] period`), split by about one thin ledge of harder rock (0.60-0.70,
+///   0.05-0.15 `period` thick) per `period` into soft beds of uneven thickness.
+///
+/// The walls cut through it show what canyon walls do (as the Grand Canyon's Kaibab, Coconino,
+/// Hermit and Redwall): thick cliffs and ledgy slopes of every size, not a staircase of equal
+/// steps. The mean hard share is about 40 %.
+pub fn stratigraphic_column(period: f32, seed: u64) -> Vec<Layer> {
+    use relief_heightfield::rng::{hash, unit_f32};
+    const TAG: u64 = 0x636f_6c75_6d6e;
+    let mut draw = {
+        let mut k = 0u64;
+        move || {
+            k += 1;
+            unit_f32(hash(seed, k, TAG, 0))
+        }
+    };
+    let lognormal = |median: f32, lo: f32, hi: f32, u1: f32, u2: f32| {
+        let g = (-2.0 * u1.max(1e-6).ln()).sqrt() * (std::f32::consts::TAU * u2).cos();
+        period * (median * (0.6 * g).exp()).clamp(lo, hi)
+    };
+    let target = COLUMN_PERIODS * period;
+    let mut layers = Vec::new();
+    let mut total = 0.0;
+    let mut cliff = draw() < 0.5;
+    while total < target {
+        let (u1, u2) = (draw(), draw());
+        if cliff {
+            let t = lognormal(1.0, 0.4, 4.0, u1, u2);
+            layers.push(Layer {
+                thickness: t,
+                hardness: 0.74 + 0.2 * draw(),
+            });
+            total += t;
+        } else {
+            let t = lognormal(1.6, 0.5, 5.0, u1, u2);
+            let ledges = (t / period * (0.4 + 1.2 * draw())).floor() as usize;
+            let weights: Vec<f32> = (0..=ledges).map(|_| 0.4 + draw()).collect();
+            let sum: f32 = weights.iter().sum();
+            for (i, w) in weights.iter().enumerate() {
+                if i > 0 {
+                    let lt = period * (0.05 + 0.1 * draw());
+                    layers.push(Layer {
+                        thickness: lt,
+                        hardness: 0.6 + 0.1 * draw(),
+                    });
+                    total += lt;
+                }
+                let st = t * w / sum;
+                layers.push(Layer {
+                    thickness: st,
+                    hardness: 0.10 + 0.25 * draw(),
+                });
+                total += st;
+            }
+        }
+        cliff = !cliff;
+    }
+    layers
+}
+
 /// Test strata: from `z0` up, a soft bed under a resistant one, each `(thickness m,
 /// hardness)`, repeated, as the whole geology (the layered rock the landform tests carve).
 #[cfg(test)]
@@ -603,6 +669,50 @@ pub(crate) fn test_beds(z0: f32, soft: (f32, f32), hard: (f32, f32)) -> Geology 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_column_has_cliffs_and_ledgy_slopes_of_uneven_thickness() {
+        let period = 20.0;
+        let col = stratigraphic_column(period, 7);
+        let total: f32 = col.iter().map(|l| l.thickness).sum();
+        assert!(total >= COLUMN_PERIODS * period, "{total}");
+        let hard: f32 = col
+            .iter()
+            .filter(|l| l.hardness >= 0.6)
+            .map(|l| l.thickness)
+            .sum();
+        let share = hard / total;
+        assert!((0.3..0.55).contains(&share), "hard share {share}");
+        // Cliff beds of every size: the thickest is several times the thinnest.
+        let cliffs: Vec<f32> = col
+            .iter()
+            .filter(|l| l.hardness >= 0.72)
+            .map(|l| l.thickness)
+            .collect();
+        let (lo, hi) = cliffs
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(a, b), &t| (a.min(t), b.max(t)));
+        assert!(hi > 4.0 * lo && lo >= 0.4 * period - 1e-3, "{lo} {hi}");
+        // No repeating unit: consecutive pairs of beds are never the same twice.
+        let pairs: std::collections::HashSet<(u32, u32)> = col
+            .windows(2)
+            .map(|w| (w[0].thickness.to_bits(), w[1].thickness.to_bits()))
+            .collect();
+        assert_eq!(pairs.len(), col.len() - 1);
+        // Another seed, another column; the same seed, the same one.
+        assert_ne!(col, stratigraphic_column(period, 8));
+        assert_eq!(col, stratigraphic_column(period, 7));
+        // The tree finds each bed by its height (binary search over the running tops).
+        let mut g = Geology::new();
+        let id = g.strata(0.0, &col).unwrap();
+        g.set_root(id).unwrap();
+        let mut z = 0.0;
+        for l in &col {
+            assert_eq!(g.resistance([0.0, 0.0, z + 0.5 * l.thickness]), l.hardness);
+            z += l.thickness;
+        }
+        assert_eq!(g.resistance([0.0, 0.0, total + 0.01]), col[0].hardness);
+    }
 
     #[test]
     fn json_geology_round_trips_and_builds() {
