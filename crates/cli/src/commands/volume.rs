@@ -67,7 +67,8 @@ pub(crate) struct Args {
     pub(crate) report: Option<PathBuf>,
     /// Geology tree as JSON, nodes `{"type": "strata", "z0": M, "layers": [{"thickness": M,
     /// "hardness": 0..1}, ...]}`, `fold`, `fault`, `noise`, `warp`, `blend`, `max`, `min`,
-    /// `uniform`; default: layered strata scaled to the DEM's relief.
+    /// `uniform`; default: a stratigraphic column of cliff beds and ledgy slopes (formations
+    /// of about 20 m times `--feature-scale`) at fixed elevations.
     #[arg(long)]
     pub(crate) geology: Option<PathBuf>,
     /// Crop `X,Y,W,H` (columns, rows) applied after reading.
