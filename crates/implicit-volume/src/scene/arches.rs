@@ -256,6 +256,10 @@ impl SceneBuilder {
         }
         let wall = self.tree.union_all(&wall_rows)?;
         let rib = self.tree.intersection(rib, wall)?;
+        let (rib, wings) = match self.fin_wings(f, a, r_crown)? {
+            Some((w, n)) => (self.tree.union(rib, w)?, n),
+            None => (rib, 0),
+        };
         let s32 = (seed as u32).wrapping_add(idx as u32);
         let rib = self
             .tree
@@ -263,7 +267,69 @@ impl SceneBuilder {
         self.positives.push(rib);
         self.carved
             .push((at(0.0, 0.0, floor + 0.5 * f.rise), 0.5 * f.rise, false));
-        Ok(parts.len() + wall_rows.len())
+        Ok(parts.len() + wall_rows.len() + wings)
+    }
+
+    /// The fin the arch was cut from, left standing on the ridge beyond each leg: a wall
+    /// `fin` thick (recessed in soft strata, `0.6 + 0.6 rho`) along the ridge for 1.5 spans
+    /// past the leg (at `a` from the centre), its top falling from the bridge's top at the
+    /// leg to half a bridge over the ridge's ground at the far end (slowly at first), in
+    /// steps (each row of rock stops where the top falls below it), so the arch is a window
+    /// in a rock fin, not a loaf alone on a hill. Returns the wings and their primitive count
+    /// (`None` where no row stands).
+    fn fin_wings(&mut self, f: &ArchFit, a: f32, r_crown: f32) -> Result<Option<(NodeId, usize)>> {
+        let floor = f.centre[2];
+        let crown = floor + f.rise + 2.0 * r_crown;
+        let at = |u: f32, z: f32| {
+            let p = add(f.centre, mul(f.side, u));
+            [p[0], p[1], z]
+        };
+        let len = 1.5 * f.span;
+        let n = 24usize;
+        let step = 0.3 * f.fin;
+        // Rows as (from, to, radius), laid out before the tree is touched.
+        let mut lines: Vec<(V3, V3, f32)> = Vec::new();
+        for sign in [-1.0f32, 1.0] {
+            let u_at = |k: usize| sign * (a + len * k as f32 / n as f32);
+            let ground: Vec<f32> = (0..=n)
+                .map(|k| {
+                    let p = at(u_at(k), 0.0);
+                    self.ground(p[0], p[1])
+                })
+                .collect();
+            // The wing's top: from the bridge's top at the leg down to half a bridge over
+            // the ground at the far end.
+            let tops: Vec<f32> = ground
+                .iter()
+                .enumerate()
+                .map(|(k, &g)| {
+                    let t = (k as f32 / n as f32).powi(2);
+                    (crown + (g + r_crown - crown) * t).max(g + r_crown * (1.0 - t))
+                })
+                .collect();
+            let lowest = ground.iter().fold(floor, |m, &g| m.min(g));
+            let mut z = lowest - f.fin;
+            while z <= crown && lines.len() < 512 {
+                let rho = self.geology.resistance(at(u_at(0), z));
+                let r = 0.5 * f.fin * (0.6 + 0.6 * rho);
+                // The row reaches out to the last sample whose top stands over its rock
+                // (flush tops).
+                let reach = tops.iter().take_while(|&&t| t >= z + r).count();
+                if reach >= 2 {
+                    lines.push((at(u_at(0), z), at(u_at(reach - 1), z), r));
+                }
+                z += step;
+            }
+        }
+        if lines.is_empty() {
+            return Ok(None);
+        }
+        let mut rows = Vec::with_capacity(lines.len());
+        for (p, q, r) in lines {
+            rows.push(self.tree.capsule(p, q, r / VISIBLE, 1.0)?);
+        }
+        let count = rows.len();
+        Ok(Some((self.tree.union_all(&rows)?, count)))
     }
 
     /// The gap through the ridge around an arch: negative capsules along `d` from beyond
