@@ -584,6 +584,51 @@ mod tests {
         assert_eq!(b.arches(&s, &Region::everywhere()).unwrap().features, 0);
     }
 
+    /// The fin beyond the legs, on flat ground at 10 m (an arch whose ridge has worn down
+    /// beside it): a wall on the fin's plane, a fin thick (air 6 m before and behind it),
+    /// standing to the bridge's top next to the leg and falling towards the far end, never
+    /// above the bridge.
+    #[test]
+    fn the_fin_continues_beyond_the_legs() {
+        let hf = Heightfield::from_fn(80, 80, 2.0, 2.0, |_, _| 10.0);
+        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+        let f = ArchFit {
+            centre: [80.0, 80.0, 10.0],
+            side: [0.0, 1.0, 0.0],
+            across: [1.0, 0.0, 0.0],
+            span: 14.0,
+            rise: 8.0,
+            fin: 6.0,
+            half_gap: 18.0,
+        };
+        let (a, r_crown) = (12.0, 1.5);
+        let (wings, n) = b.fin_wings(&f, a, r_crown).unwrap().unwrap();
+        assert!(n > 4, "{n} rows");
+        let crown = 10.0 + 8.0 + 2.0 * r_crown;
+        let rock = |x: f32, y: f32, z: f32| b.tree.eval(wings, [x, y, z]) >= crate::tree::THRESHOLD;
+        // The highest rock on the fin's plane at `u` along it (`None`: none above ground).
+        let top = |u: f32| {
+            (0..300)
+                .map(|k| crown + 3.0 - k as f32 * 0.05)
+                .find(|&z| rock(80.0, 80.0 + u, z))
+                .filter(|&z| z > 10.0)
+        };
+        for sign in [-1.0f32, 1.0] {
+            let near = top(sign * (a + 1.0)).expect("rock next to the leg");
+            let far = top(sign * (a + 1.2 * f.span)).unwrap_or(10.0);
+            assert!(
+                near > crown - 2.0 && near <= crown + 0.5,
+                "{near} vs crown {crown}"
+            );
+            assert!(far < near - 4.0, "the top falls: {near} -> {far}");
+            // A wall: rock on the plane, air a fin's thickness before and behind it.
+            let u = 80.0 + sign * (a + 0.5 * f.span);
+            assert!(rock(80.0, u, 12.0) && !rock(86.0, u, 12.0) && !rock(74.0, u, 12.0));
+        }
+        // Nothing on the opening's side of the legs.
+        assert!(top(0.0).is_none() && top(0.5 * f.span - 1.0).is_none());
+    }
+
     /// The arch stands free of the old crest: over the opening's middle the rock ends a
     /// bridge's thickness over the roof (at most 0.35 span and the warp; the ridge stood to
     /// 40 m), and the rock over the opening is thicker towards the legs than at the crown.
