@@ -25,7 +25,9 @@
 //! by +-10 %; it is cut to the fin (rows of capsules along the ridge `thickness` thick,
 //! recessed in soft strata and standing out at hard beds, `0.6 + 0.6 rho`), so its faces are
 //! flat and ledged, and warped by noise (`0.12` of the leg radius); all hashed from the seed,
-//! the same for the same seed.
+//! the same for the same seed. Beyond each leg the fin goes on along the ridge for 1.5 spans,
+//! its top falling from the bridge's to the ground (`fin_wings`): the arch is a window in a
+//! fin, not a rib alone on the ridge.
 
 use super::*;
 
