@@ -122,7 +122,7 @@ pub fn closeup_views(
             Feature::Hoodoos => own(d.hoodoo_height_m).max(d.hoodoo_height_m) * 4.0,
             Feature::Arches => own(d.arch_span_m) * 3.0,
             Feature::Islands => own(d.island_radius_m) * 7.0,
-            Feature::Karst => d.karst_radius_m * 40.0,
+            Feature::Karst => d.karst_radius_m * 25.0,
             Feature::Overhangs => d.weathering_radius_m * 10.0,
             // A sea cave's mouth (its radius reported) at its own scale, a few mouths across
             // the frame; else the notched cliff.

@@ -290,6 +290,21 @@ impl Frame<'_> {
                 // slopes), so a render and the mesh in Blender agree: of the surface's own
                 // normal (the relief texture's would speckle the outcrops).
                 let base = material::surface_albedo(self.scene, p, hit.n);
+                // Behind a cut-away face, a surface under the DEM's ground is a cave's wall
+                // seen through the cut: lit from the eye (as a section drawing lights a cave)
+                // rather than by a sun it never sees, so passages read as tubes going into
+                // the rock, not as black holes.
+                if self.cut.is_some()
+                    && self
+                        .scene
+                        .dem_height(p[0], p[1])
+                        .is_some_and(|g| p[2] < g - 2.0 * self.h)
+                {
+                    let head = dot(hit.n, mul(d, -1.0)).max(0.0);
+                    let fog = (t / (3.0 * self.diag)).min(0.6);
+                    let shade = 0.2 + 0.6 * head;
+                    return add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog));
+                }
                 // Sun, plus two unshadowed fills so that faces away from the sun keep their
                 // shape (an island's underside, an overhang's roof): light bounced off the
                 // ground onto downward faces, and sky light from the side opposite the sun,
