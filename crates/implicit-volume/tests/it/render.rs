@@ -136,6 +136,53 @@ fn a_cut_away_shows_bedrock_under_the_slab() {
     assert!(r > b, "sky under the slab: {:?}", &img.rgb[k..k + 3]);
 }
 
+/// A tunnel cut open by a cut-away is lit from the eye: under a flat plain, a horizontal
+/// tunnel 6 m across runs away from the cut; looking into it from 40 m in front of the cut,
+/// the tunnel's far walls (behind the cut face, under the ground) are at least half as bright
+/// as the cut face beside it. Lit by the sun they never see, they were near black.
+#[test]
+fn a_cut_away_lights_the_caves_behind_its_face() {
+    let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |_, _| 100.0);
+    let geo = Geology::layered_default([200.0, 200.0, 100.0], 20.0, 1).unwrap();
+    let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+    let z = 70.0;
+    let tunnel = b
+        .tree_mut()
+        .capsule([200.0, 190.0, z], [200.0, 260.0, z], 3.0 / 0.4544, -1.0)
+        .unwrap();
+    b.add_carving(tunnel);
+    let scene = b.build(true).unwrap();
+    let cam = Camera {
+        eye: [205.0, 160.0, z + 4.0],
+        target: [200.0, 200.0, z],
+        up: [0.0, 0.0, 1.0],
+        fov_deg: 30.0,
+    };
+    let s = RenderSettings {
+        width: 64,
+        height: 48,
+        cutaway: Some(([200.0, 200.0, z], [0.0, -1.0, 0.0])),
+        ..Default::default()
+    };
+    let img = render(&scene, &cam, &s).unwrap();
+    let grey = |x: usize, y: usize| {
+        let k = 3 * (y * 64 + x);
+        img.rgb[k..k + 3].iter().map(|&v| f32::from(v)).sum::<f32>() / 3.0
+    };
+    // The view's centre looks down the tunnel; its corners see the cut face.
+    let inside = (28..36)
+        .flat_map(|x| (20..28).map(move |y| (x, y)))
+        .map(|(x, y)| grey(x, y))
+        .sum::<f32>()
+        / 64.0;
+    let face = [(2, 2), (61, 2), (2, 45), (61, 45)]
+        .iter()
+        .map(|&(x, y)| grey(x, y))
+        .sum::<f32>()
+        / 4.0;
+    assert!(inside > 0.5 * face, "tunnel {inside}, cut face {face}");
+}
+
 /// Silhouettes are anti-aliased: the crest of a ridge 40 m high and 300 m away, seen from
 /// 5 m with the camera rolled so the skyline runs diagonally, steps from ground to sky through
 /// blended pixels in 34 of 46 columns (both pixels of an edge average five samples); with
