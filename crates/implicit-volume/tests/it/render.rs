@@ -137,9 +137,9 @@ fn a_cut_away_shows_bedrock_under_the_slab() {
 }
 
 /// A tunnel cut open by a cut-away is lit from the eye: under a flat plain, a horizontal
-/// tunnel 6 m across runs away from the cut; looking into it from 40 m in front of the cut,
-/// the tunnel's far walls (behind the cut face, under the ground) are at least half as bright
-/// as the cut face beside it. Lit by the sun they never see, they were near black.
+/// tunnel 6 m across runs 60 m away from the cut; looking down its axis from 50 m in front
+/// of the cut, its far end (behind the cut face, under the ground) is as bright as the cut
+/// face around it (1.26 times here). Lit by the sun it never sees, it was 0.54 times.
 #[test]
 fn a_cut_away_lights_the_caves_behind_its_face() {
     let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |_, _| 100.0);
@@ -153,10 +153,10 @@ fn a_cut_away_lights_the_caves_behind_its_face() {
     b.add_carving(tunnel);
     let scene = b.build(true).unwrap();
     let cam = Camera {
-        eye: [205.0, 160.0, z + 4.0],
-        target: [200.0, 200.0, z],
+        eye: [200.0, 150.0, z],
+        target: [200.0, 260.0, z],
         up: [0.0, 0.0, 1.0],
-        fov_deg: 30.0,
+        fov_deg: 10.0,
     };
     let s = RenderSettings {
         width: 64,
@@ -180,7 +180,7 @@ fn a_cut_away_lights_the_caves_behind_its_face() {
         .map(|&(x, y)| grey(x, y))
         .sum::<f32>()
         / 4.0;
-    assert!(inside > 0.5 * face, "tunnel {inside}, cut face {face}");
+    assert!(inside > 0.9 * face, "tunnel {inside}, cut face {face}");
 }
 
 /// Silhouettes are anti-aliased: the crest of a ridge 40 m high and 300 m away, seen from
