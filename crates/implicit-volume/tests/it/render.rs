@@ -106,31 +106,45 @@ fn the_karst_cut_away_crosses_passages() {
     );
 }
 
+/// A flat plain at 100 m, 400 m square (10 m cells), on the layered default geology.
+fn plain() -> SceneBuilder {
+    let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |_, _| 100.0);
+    let geo = Geology::layered_default([200.0, 200.0, 100.0], 20.0, 1).unwrap();
+    SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap()
+}
+
+/// Renders `scene` at `w x h` from `eye` towards `target` (`fov` degrees) with the rock on
+/// the eye's side of the plane `y = 200` cut away.
+fn cut_view(scene: &Scene, eye: V3, target: V3, fov: f32, (w, h): (usize, usize)) -> Image {
+    let cam = Camera {
+        eye,
+        target,
+        up: [0.0, 0.0, 1.0],
+        fov_deg: fov,
+    };
+    let s = RenderSettings {
+        width: w,
+        height: h,
+        cutaway: Some(([200.0, 200.0, target[2]], [0.0, -1.0, 0.0])),
+        ..Default::default()
+    };
+    render(scene, &cam, &s).unwrap()
+}
+
 /// A cut-away shows rock, not sky, below the modelled slab's floor within the DEM's
 /// footprint (the bedrock goes on): a camera level with a point 30 m under the floor of a
 /// flat plain's slab, facing the cut, sees rock colours (red over blue) there.
 #[test]
 fn a_cut_away_shows_bedrock_under_the_slab() {
-    let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |_, _| 100.0);
-    let geo = Geology::layered_default([200.0, 200.0, 100.0], 20.0, 1).unwrap();
-    let scene = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default())
-        .unwrap()
-        .build(true)
-        .unwrap();
+    let scene = plain().build(true).unwrap();
     let z = scene.dem_floor().unwrap() - 30.0;
-    let cam = Camera {
-        eye: [200.0, -100.0, z],
-        target: [200.0, 200.0, z],
-        up: [0.0, 0.0, 1.0],
-        fov_deg: 20.0,
-    };
-    let s = RenderSettings {
-        width: 32,
-        height: 24,
-        cutaway: Some(([200.0, 200.0, z], [0.0, -1.0, 0.0])),
-        ..Default::default()
-    };
-    let img = render(&scene, &cam, &s).unwrap();
+    let img = cut_view(
+        &scene,
+        [200.0, -100.0, z],
+        [200.0, 200.0, z],
+        20.0,
+        (32, 24),
+    );
     let k = 3 * (12 * 32 + 16);
     let (r, b) = (img.rgb[k], img.rgb[k + 2]);
     assert!(r > b, "sky under the slab: {:?}", &img.rgb[k..k + 3]);
@@ -142,9 +156,7 @@ fn a_cut_away_shows_bedrock_under_the_slab() {
 /// face around it (1.26 times here). Lit by the sun it never sees, it was 0.54 times.
 #[test]
 fn a_cut_away_lights_the_caves_behind_its_face() {
-    let hf = relief_heightfield::Heightfield::from_fn(41, 41, 10.0, 10.0, |_, _| 100.0);
-    let geo = Geology::layered_default([200.0, 200.0, 100.0], 20.0, 1).unwrap();
-    let mut b = SceneBuilder::new(&hf, geo, &ImplicitizeSettings::default()).unwrap();
+    let mut b = plain();
     let z = 70.0;
     let tunnel = b
         .tree_mut()
@@ -152,19 +164,7 @@ fn a_cut_away_lights_the_caves_behind_its_face() {
         .unwrap();
     b.add_carving(tunnel);
     let scene = b.build(true).unwrap();
-    let cam = Camera {
-        eye: [200.0, 150.0, z],
-        target: [200.0, 260.0, z],
-        up: [0.0, 0.0, 1.0],
-        fov_deg: 10.0,
-    };
-    let s = RenderSettings {
-        width: 64,
-        height: 48,
-        cutaway: Some(([200.0, 200.0, z], [0.0, -1.0, 0.0])),
-        ..Default::default()
-    };
-    let img = render(&scene, &cam, &s).unwrap();
+    let img = cut_view(&scene, [200.0, 150.0, z], [200.0, 260.0, z], 10.0, (64, 48));
     let grey = |x: usize, y: usize| {
         let k = 3 * (y * 64 + x);
         img.rgb[k..k + 3].iter().map(|&v| f32::from(v)).sum::<f32>() / 3.0
