@@ -39,9 +39,9 @@
 //!   little;
 //! * the cap is the resistant bed itself: two offset slabs (each a tall elliptic column
 //!   intersected with a wide flat ellipsoid: flat top and bottom, steep sides) as thick as
-//!   the bed (within `[0.15, 1.2] R`) and `R (0.75 + 0.5 rho)` in radius, wider than the
-//!   column above its foot, each warped by noise ([`CAP_BREAK`] of its radius) into a broken
-//!   block rather than a disc;
+//!   the bed (within `[0.15, 0.6] R`, [`CAP_THICKNESS`]: a thicker bed is worn down to a
+//!   slab) and `R (0.75 + 0.5 rho)` in radius, wider than the column above its foot, each
+//!   warped by noise ([`CAP_BREAK`] of its radius) into a broken block rather than a disc;
 //! * the column's top is cut flat at the cap's mid-plane (it never pokes through a thin cap),
 //!   and the last `0.8 R` under the cap, sheltered by it, widens towards the cap;
 //! * a third of the hoodoos have lost their cap: the column stops at 50-90 % of the capped
@@ -79,6 +79,12 @@ const CUT_VISIBLE: f32 = 0.794_7;
 /// Angle (degrees) of a hoodoo hollow's walls: the steep, fluted walls of an amphitheatre cut
 /// back into soft rock under its rim.
 const HOLLOW_WALL_DEG: f32 = 68.0;
+
+/// The thickest cap, in column radii: a cap is the resistant bed, but where that bed is a
+/// thick cliff-former a cap as thick as it is wide read as a pale ball (1.2 before the
+/// default geology's column had beds of 8-80 m); the caps of Bryce Canyon are slabs a
+/// fraction as thick as they are wide.
+const CAP_THICKNESS: f32 = 0.6;
 
 /// Depth of the noise that breaks a cap slab's outline and faces, as a share of its radius.
 const CAP_BREAK: f32 = 0.22;
@@ -141,12 +147,12 @@ impl SceneBuilder {
         let (_, k0) = best?;
         let mut k1 = k0;
         let mut hard = rho[k0];
-        while k1 < n && rho[k1 + 1] >= cap_rho && (k1 - k0) as f32 * dz < 1.2 * radius {
+        while k1 < n && rho[k1 + 1] >= cap_rho && (k1 - k0) as f32 * dz < CAP_THICKNESS * radius {
             k1 += 1;
             hard = hard.max(rho[k1]);
         }
         let base = p[2] + k0 as f32 * dz;
-        let top = base + ((k1 + 1 - k0) as f32 * dz).clamp(0.15 * radius, 1.2 * radius);
+        let top = base + ((k1 + 1 - k0) as f32 * dz).clamp(0.15 * radius, CAP_THICKNESS * radius);
         Some(((base, top), hard))
     }
 
