@@ -398,9 +398,12 @@ impl SceneBuilder {
             let (pa, pb) = (at(a), at(b));
             let mid = mul(add(pa, pb), 0.5);
             let hard = rho[a..=b].iter().fold(0.0f32, |m, &v| m.max(v));
-            let radius = self.body_radius(body, mid, 2.0 * r) + (0.04 + 0.1 * hard) * r;
+            // Where the warps moved the body off the axis there is nothing to stand out of
+            // (a disc there would float free).
+            let body_r = self.body_radius(body, mid, 2.0 * r);
+            let radius = body_r + (0.04 + 0.1 * hard) * r;
             let half = 0.5 * ((b - a + 1) as f32 * dz);
-            if radius > 0.05 * r {
+            if body_r > 0.05 * r {
                 discs.push(self.tree.ellipsoid(
                     mid,
                     [radius / VISIBLE, radius / VISIBLE, half / VISIBLE],
