@@ -4,9 +4,11 @@
 use super::*;
 
 /// Where to cut the karst away for its close-up: the centre of the karst passage sphere
-/// whose vertical cut plane (normal `cut`, horizontal) crosses the most other passage spheres
-/// under the ground within `15` of their radii of it along the plane (the close-up's
-/// width), so the cut face shows a network of holes, not one or none.
+/// whose vertical cut plane (normal `cut`, horizontal) shows the most separate holes under
+/// the ground within the close-up's frame (9 of the spheres' radii each way along the plane,
+/// 5 up and down: 25 radii away at 40 degrees), ties broken by the most spheres crossed. A
+/// hole is a group of crossed spheres whose sections on the plane overlap; counting spheres
+/// alone chose the densest knot of the maze, which the cut showed as one chamber.
 pub(super) fn densest_karst(b: &SceneBuilder, cut: [f32; 3]) -> Option<[f32; 3]> {
     let n = crate::math::normalize([cut[0], cut[1], 0.0]);
     // Passage spheres wholly under the ground (a mouth at the surface is not a cut hole).
@@ -18,23 +20,50 @@ pub(super) fn densest_karst(b: &SceneBuilder, cut: [f32; 3]) -> Option<[f32; 3]>
         .collect();
     // At most 4096 candidates (a stride over the list) against every sphere.
     let stride = karst.len().div_ceil(4096).max(1);
-    let mut best: Option<(usize, [f32; 3])> = None;
+    let side = [-n[1], n[0], 0.0];
+    let mut best: Option<((usize, usize), [f32; 3])> = None;
     for (c, r) in karst.iter().step_by(stride) {
-        let reach = 15.0 * r;
-        let crossed = karst
+        // The sections on the plane: (along, up, radius).
+        let discs: Vec<(f32, f32, f32)> = karst
             .iter()
-            .filter(|(q, rq)| {
+            .filter_map(|(q, rq)| {
                 let d = crate::math::sub(*q, *c);
                 let off = crate::math::dot(d, n);
-                let along = (d[0] * d[0] + d[1] * d[1] - off * off).max(0.0).sqrt();
-                off.abs() < *rq && along < reach && d[2].abs() < reach
+                let along = crate::math::dot(d, side);
+                (off.abs() < *rq && along.abs() < 9.0 * r && d[2].abs() < 5.0 * r)
+                    .then(|| (along, d[2], (rq * rq - off * off).sqrt()))
             })
-            .count();
-        if best.is_none_or(|b| crossed > b.0) {
-            best = Some((crossed, *c));
+            .collect();
+        let score = (holes(&discs), discs.len());
+        if best.is_none_or(|b| score > b.0) {
+            best = Some((score, *c));
         }
     }
     best.map(|b| b.1)
+}
+
+/// Groups of overlapping discs `(x, y, radius)` (connected components).
+fn holes(discs: &[(f32, f32, f32)]) -> usize {
+    let mut parent: Vec<usize> = (0..discs.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for i in 0..discs.len() {
+        for j in i + 1..discs.len() {
+            let (a, b) = (discs[i], discs[j]);
+            if (a.0 - b.0).hypot(a.1 - b.1) < a.2 + b.2 {
+                let (ra, rb) = (root(&mut parent, i), root(&mut parent, j));
+                parent[ra] = rb;
+            }
+        }
+    }
+    (0..discs.len())
+        .filter(|&i| root(&mut parent, i) == i)
+        .count()
 }
 
 /// The west-east line through the DEM row holding the most karst spheres; without karst,
@@ -257,5 +286,21 @@ mod tests {
         assert_eq!(at(4, 3), 0, "no sixth tile");
         let one = strip(&tiles[..1]);
         assert_eq!((one.width, one.height), (3, 2));
+    }
+
+    #[test]
+    fn holes_count_groups_of_overlapping_sections() {
+        // Two overlapping discs, one apart, and a chain of three touching end to end.
+        let discs = [
+            (0.0, 0.0, 1.0),
+            (1.5, 0.0, 1.0),
+            (10.0, 0.0, 1.0),
+            (20.0, 0.0, 1.0),
+            (21.9, 0.0, 1.0),
+            (23.8, 0.0, 1.0),
+        ];
+        assert_eq!(holes(&discs), 3);
+        assert_eq!(holes(&discs[..3]), 2);
+        assert_eq!(holes(&[]), 0);
     }
 }
