@@ -291,14 +291,7 @@ mod tests {
     #[test]
     fn holes_count_groups_of_overlapping_sections() {
         // Two overlapping discs, one apart, and a chain of three touching end to end.
-        let discs = [
-            (0.0, 0.0, 1.0),
-            (1.5, 0.0, 1.0),
-            (10.0, 0.0, 1.0),
-            (20.0, 0.0, 1.0),
-            (21.9, 0.0, 1.0),
-            (23.8, 0.0, 1.0),
-        ];
+        let discs = [0.0, 1.5, 10.0, 20.0, 21.9, 23.8].map(|x| (x, 0.0, 1.0));
         assert_eq!(holes(&discs), 3);
         assert_eq!(holes(&discs[..3]), 2);
         assert_eq!(holes(&[]), 0);
