@@ -294,25 +294,23 @@ impl Frame<'_> {
                 // seen through the cut: lit from the eye (as a section drawing lights a cave)
                 // rather than by a sun it never sees, so passages read as tubes going into
                 // the rock, not as black holes.
-                if self.cut.is_some()
+                let cave = self.cut.is_some()
                     && self
                         .scene
                         .dem_height(p[0], p[1])
-                        .is_some_and(|g| p[2] < g - 2.0 * self.h)
-                {
-                    let head = dot(hit.n, mul(d, -1.0)).max(0.0);
-                    let fog = (t / (3.0 * self.diag)).min(0.6);
-                    let shade = 0.2 + 0.6 * head;
-                    return add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog));
-                }
-                // Sun, plus two unshadowed fills so that faces away from the sun keep their
-                // shape (an island's underside, an overhang's roof): light bounced off the
-                // ground onto downward faces, and sky light from the side opposite the sun,
-                // both occluded.
-                let fill = normalize([-self.light[0], -self.light[1], 0.3]);
-                let bounce = 0.2 * (-n[2]).max(0.0);
-                let sky_fill = 0.12 * dot(n, fill).max(0.0);
-                let shade = (0.2 + bounce + sky_fill) * (0.35 + 0.65 * lt.ao) + 0.75 * lam;
+                        .is_some_and(|g| p[2] < g - 2.0 * self.h);
+                let shade = if cave {
+                    0.2 + 0.6 * dot(hit.n, mul(d, -1.0)).max(0.0)
+                } else {
+                    // Sun, plus two unshadowed fills so that faces away from the sun keep
+                    // their shape (an island's underside, an overhang's roof): light bounced
+                    // off the ground onto downward faces, and sky light from the side opposite
+                    // the sun, both occluded.
+                    let fill = normalize([-self.light[0], -self.light[1], 0.3]);
+                    let bounce = 0.2 * (-n[2]).max(0.0);
+                    let sky_fill = 0.12 * dot(n, fill).max(0.0);
+                    (0.2 + bounce + sky_fill) * (0.35 + 0.65 * lt.ao) + 0.75 * lam
+                };
                 let fog = (t / (3.0 * self.diag)).min(0.6);
                 add(mul(mul(base, shade), 1.0 - fog), mul(sky, fog))
             }
