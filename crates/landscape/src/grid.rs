@@ -103,8 +103,15 @@ impl Grid {
 
     /// Calls `f(k, n)` for every neighbour `n` (direction `k`) of cell `i` on the map.
     #[inline]
-    pub fn for_neighbours(&self, i: usize, mut f: impl FnMut(usize, usize)) {
-        let (x, y) = (i % self.width, i / self.width);
+    pub fn for_neighbours(&self, i: usize, f: impl FnMut(usize, usize)) {
+        self.for_neighbours_at(i % self.width, i / self.width, i, f);
+    }
+
+    /// [`Grid::for_neighbours`] of cell `i` at column `x`, row `y`, for loops that know them
+    /// (no division per cell).
+    #[inline]
+    pub fn for_neighbours_at(&self, x: usize, y: usize, i: usize, mut f: impl FnMut(usize, usize)) {
+        debug_assert_eq!(i, y * self.width + x);
         if x > 0 && y > 0 && x + 1 < self.width && y + 1 < self.height {
             for (k, (dy, dx)) in D8.iter().enumerate() {
                 f(k, (i as isize + dy * self.width as isize + dx) as usize);

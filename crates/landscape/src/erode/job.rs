@@ -445,68 +445,33 @@ fn run_plan(
     let mut z: Vec<f32> = dem.as_slice().to_vec();
     // The uplift each cell received, so that erosion and deposition are net of it.
     let mut uplifted = vec![0f64; grid.len()];
-    if let Some(sp) = plan.stream_power {
-        let mut zz: Vec<f64> = z.iter().map(|&v| v as f64).collect();
-        let base = base_level_mask(&zz, &grid);
-        let rates: Option<Vec<f64>> = uplift.map(|u| {
-            u.as_slice()
-                .iter()
-                .map(|&v| if v.is_nan() { 0.0 } else { v as f64 })
-                .collect()
-        });
-        let up = match rates.as_deref() {
-            Some(r) => Uplift::Raster(r),
-            None => Uplift::Constant(sp.uplift),
-        };
-        // Equal steps that add up to the run's years (45.5 kyr in steps of at most 10 kyr is
-        // five steps of 9.1 kyr, not five of 10).
-        let steps = (sp.years / sp.params.dt).ceil().max(1.0);
-        let params = StreamPowerParams {
-            dt: sp.years / steps,
-            ..sp.params
-        };
-        let steps = steps as usize;
-        if let Some(s) = figures.plan.stream_power.as_mut() {
-            s.params.dt = params.dt;
+    // The input's own depressions, filled on a worker of the pool while this thread runs the
+    // processes (stream power's routing is serial): the result is the same whenever it is made.
+    let mut input_filled = None;
+    rayon::in_place_scope(|scope| -> Result<()> {
+        if plan.fill_pits {
+            let filled = &mut input_filled;
+            scope.spawn(move |_| {
+                let mut f = dem.as_slice().to_vec();
+                priority_flood(&mut f, &grid, FillMode::Plain, None);
+                *filled = Some(f);
+            });
         }
-        let f = stream_power::run(&mut zz, &grid, &base, &params, up, steps, progress, stop)?;
-        if f.stopped {
-            return Err(LandscapeError::Stopped("stream power".into()));
-        }
-        let years = f.steps as f64 * params.dt;
-        for i in 0..grid.len() {
-            if !base[i] {
-                uplifted[i] = years * rates.as_ref().map_or(sp.uplift, |r| r[i]);
-            }
-        }
-        for (a, b) in z.iter_mut().zip(&zz) {
-            *a = *b as f32;
-        }
-        figures.stream_power = Some(f);
-    }
-    if let Some(p) = plan.hydraulic {
-        let out = hydraulic(&mut z, &grid, &p, progress, stop)?;
-        figures.hydraulic = Some(out.figures);
-    }
+        erode_steps(
+            plan,
+            dem,
+            uplift,
+            progress,
+            stop,
+            &grid,
+            &mut z,
+            &mut uplifted,
+            &mut figures,
+        )
+    })?;
     let input = dem.as_slice();
-    if let Some(p) = plan.fans {
-        if stop() {
-            return Err(LandscapeError::Stopped("alluvial fans".into()));
-        }
-        progress.begin("alluvial fans", 0);
-        let eroded: Vec<f32> = (0..grid.len())
-            .map(|i| (f64::from(input[i]) + uplifted[i] - f64::from(z[i])) as f32)
-            .collect();
-        figures.fans = Some(
-            build_fans(&mut z, &eroded, &grid, &p, stop)
-                .ok_or_else(|| LandscapeError::Stopped("alluvial fans".into()))?,
-        );
-    }
-    if let Some(p) = plan.thermal {
-        figures.thermal = Some(thermal(&mut z, &grid, &p, progress, stop)?);
-    }
-    if plan.fill_pits {
-        fill_new_pits(input, &mut z, &grid);
+    if let Some(before) = input_filled {
+        fill_new_pits(input, &before, &mut z, &grid);
     }
     let mut erosion = vec![f32::NAN; grid.len()];
     let mut deposition = vec![f32::NAN; grid.len()];
@@ -532,12 +497,86 @@ fn run_plan(
     })
 }
 
+/// The processes of `plan` in order on `z` (stream power, hydraulic, fans, thermal), with the
+/// uplift each cell received into `uplifted` and the figures of each.
+fn erode_steps(
+    plan: &Plan,
+    dem: &Heightfield,
+    uplift: Option<&Heightfield>,
+    progress: &dyn Progress,
+    stop: &dyn Fn() -> bool,
+    grid: &Grid,
+    z: &mut [f32],
+    uplifted: &mut [f64],
+    figures: &mut ErodeFigures,
+) -> Result<()> {
+    if let Some(sp) = plan.stream_power {
+        let mut zz: Vec<f64> = z.iter().map(|&v| v as f64).collect();
+        let base = base_level_mask(&zz, grid);
+        let rates: Option<Vec<f64>> = uplift.map(|u| {
+            u.as_slice()
+                .iter()
+                .map(|&v| if v.is_nan() { 0.0 } else { v as f64 })
+                .collect()
+        });
+        let up = match rates.as_deref() {
+            Some(r) => Uplift::Raster(r),
+            None => Uplift::Constant(sp.uplift),
+        };
+        // Equal steps that add up to the run's years (45.5 kyr in steps of at most 10 kyr is
+        // five steps of 9.1 kyr, not five of 10).
+        let steps = (sp.years / sp.params.dt).ceil().max(1.0);
+        let params = StreamPowerParams {
+            dt: sp.years / steps,
+            ..sp.params
+        };
+        let steps = steps as usize;
+        if let Some(s) = figures.plan.stream_power.as_mut() {
+            s.params.dt = params.dt;
+        }
+        let f = stream_power::run(&mut zz, grid, &base, &params, up, steps, progress, stop)?;
+        if f.stopped {
+            return Err(LandscapeError::Stopped("stream power".into()));
+        }
+        let years = f.steps as f64 * params.dt;
+        for i in 0..grid.len() {
+            if !base[i] {
+                uplifted[i] = years * rates.as_ref().map_or(sp.uplift, |r| r[i]);
+            }
+        }
+        for (a, b) in z.iter_mut().zip(&zz) {
+            *a = *b as f32;
+        }
+        figures.stream_power = Some(f);
+    }
+    if let Some(p) = plan.hydraulic {
+        let out = hydraulic(z, grid, &p, progress, stop)?;
+        figures.hydraulic = Some(out.figures);
+    }
+    let input = dem.as_slice();
+    if let Some(p) = plan.fans {
+        if stop() {
+            return Err(LandscapeError::Stopped("alluvial fans".into()));
+        }
+        progress.begin("alluvial fans", 0);
+        let eroded: Vec<f32> = (0..grid.len())
+            .map(|i| (f64::from(input[i]) + uplifted[i] - f64::from(z[i])) as f32)
+            .collect();
+        figures.fans = Some(
+            build_fans(z, &eroded, grid, &p, stop)
+                .ok_or_else(|| LandscapeError::Stopped("alluvial fans".into()))?,
+        );
+    }
+    if let Some(p) = plan.thermal {
+        figures.thermal = Some(thermal(z, grid, &p, progress, stop)?);
+    }
+    Ok(())
+}
+
 /// Raises the cells of `z` that lie in a closed depression to the depression's spill level,
 /// less the depth the input had there: the input's own depressions stay (no deeper), those the
 /// erosion made are filled.
-fn fill_new_pits(input: &[f32], z: &mut [f32], grid: &Grid) {
-    let mut before = input.to_vec();
-    priority_flood(&mut before, grid, FillMode::Plain, None);
+fn fill_new_pits(input: &[f32], before: &[f32], z: &mut [f32], grid: &Grid) {
     let mut after = z.to_vec();
     priority_flood(&mut after, grid, FillMode::Plain, None);
     for i in 0..grid.len() {

@@ -144,43 +144,49 @@ pub fn thermal(
             .into_par_iter()
             .enumerate()
             .for_each(|(b, (so, si))| {
-                for (j, (o, s)) in so.iter_mut().zip(si.iter_mut()).enumerate() {
-                    (*o, *s) = shares(&cur, grid, b * band + j, &talus);
-                }
+                for_cells(grid, b, so.len(), |j, at| {
+                    (so[j], si[j]) = shares(&cur, grid, at, &talus);
+                });
             });
         if let Some(loose) = loose.as_mut() {
             // Each cell gives at most its loose material: the pair transfers out of a cell are
             // scaled by `min(1, loose / loss)` (the giver's factor, seen alike from both cells).
             scale.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
-                for (j, v) in out.iter_mut().enumerate() {
-                    let i = b * band + j;
-                    let loss = relax(&cur, grid, i, &talus, rate, &share_out, &share_in, None).1;
-                    *v = if loss > loose[i] {
+                for_cells(grid, b, out.len(), |j, at| {
+                    let i = at.2;
+                    let loss = loss(&cur, grid, at, &talus, rate, &share_out, &share_in);
+                    out[j] = if loss > loose[i] {
                         loose[i] / loss
                     } else {
                         1.0
                     };
-                }
+                });
             });
             let sc = &scale;
             (next.par_chunks_mut(band), loose.par_chunks_mut(band))
                 .into_par_iter()
                 .enumerate()
                 .for_each(|(b, (out, lo))| {
-                    for (j, (v, l)) in out.iter_mut().zip(lo.iter_mut()).enumerate() {
-                        let i = b * band + j;
-                        let (zi, loss, gain) =
-                            relax(&cur, grid, i, &talus, rate, &share_out, &share_in, Some(sc));
-                        *v = zi;
-                        *l = (*l - loss + gain).max(0.0);
-                    }
+                    for_cells(grid, b, out.len(), |j, at| {
+                        let (zi, loss, gain) = relax(
+                            &cur,
+                            grid,
+                            at,
+                            &talus,
+                            rate,
+                            &share_out,
+                            &share_in,
+                            Some(sc),
+                        );
+                        out[j] = zi;
+                        lo[j] = (lo[j] - loss + gain).max(0.0);
+                    });
                 });
         } else {
             next.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
-                for (j, v) in out.iter_mut().enumerate() {
-                    let i = b * band + j;
-                    *v = relax(&cur, grid, i, &talus, rate, &share_out, &share_in, None).0;
-                }
+                for_cells(grid, b, out.len(), |j, at| {
+                    out[j] = relax(&cur, grid, at, &talus, rate, &share_out, &share_in, None).0;
+                });
             });
         }
         // Settled (no cell changed): the remaining iterations would change nothing either.
@@ -274,16 +280,35 @@ pub(crate) fn check_input(z: &[f32], grid: &Grid) -> Result<(), LandscapeError> 
     Ok(())
 }
 
+/// Calls `f(j, (x, y, i))` for the `len` cells of band `b` (of [`BAND_ROWS`] rows) in order:
+/// `j` the index in the band, `i` on the map (no division per cell).
+#[inline]
+fn for_cells(grid: &Grid, b: usize, len: usize, mut f: impl FnMut(usize, (usize, usize, usize))) {
+    let w = grid.width;
+    let first = b * BAND_ROWS;
+    for r in 0..len / w {
+        let y = first + r;
+        for x in 0..w {
+            f(r * w + x, (x, y, y * w + x));
+        }
+    }
+}
+
 /// `(max_out / sum_out, max_in / sum_in)` of cell `i`: the largest over the sum of its excesses
 /// towards its lower neighbours and from its higher ones (0 without any).
 #[inline]
-fn shares(z: &[f32], grid: &Grid, i: usize, talus: &[f32; 8]) -> (f32, f32) {
+fn shares(
+    z: &[f32],
+    grid: &Grid,
+    (x, y, i): (usize, usize, usize),
+    talus: &[f32; 8],
+) -> (f32, f32) {
     let zi = z[i];
     if zi.is_nan() {
         return (0.0, 0.0);
     }
     let (mut max_out, mut sum_out, mut max_in, mut sum_in) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    grid.for_neighbours(i, |k, m| {
+    grid.for_neighbours_at(x, y, i, |k, m| {
         let zm = z[m];
         // NaN neighbours fail both comparisons.
         let e_out = zi - zm - talus[k];
@@ -308,7 +333,7 @@ fn shares(z: &[f32], grid: &Grid, i: usize, talus: &[f32; 8]) -> (f32, f32) {
 fn relax(
     z: &[f32],
     grid: &Grid,
-    i: usize,
+    (x, y, i): (usize, usize, usize),
     talus: &[f32; 8],
     rate: f32,
     share_out: &[f32],
@@ -324,7 +349,7 @@ fn relax(
     let factor = |c: usize| scale.map_or(1.0, |s| s[c]);
     let mut gain = 0.0f32;
     let mut loss = 0.0f32;
-    grid.for_neighbours(i, |k, m| {
+    grid.for_neighbours_at(x, y, i, |k, m| {
         let zm = z[m];
         // The transfer of a pair is computed with the same operands from both sides (the
         // higher cell's excess, the higher cell's outgoing share, the lower one's incoming
@@ -340,6 +365,32 @@ fn relax(
         }
     });
     (zi - loss + gain, loss, gain)
+}
+
+/// What cell `i` loses in one relaxation step without the givers' factors: the second value
+/// of [`relax`] with `scale` `None`, with the same operations in the same order.
+#[inline]
+fn loss(
+    z: &[f32],
+    grid: &Grid,
+    (x, y, i): (usize, usize, usize),
+    talus: &[f32; 8],
+    rate: f32,
+    share_out: &[f32],
+    share_in: &[f32],
+) -> f32 {
+    let zi = z[i];
+    if zi.is_nan() || share_out[i] == 0.0 {
+        return 0.0;
+    }
+    let mut loss = 0.0f32;
+    grid.for_neighbours_at(x, y, i, |k, m| {
+        let e_out = zi - z[m] - talus[k];
+        if e_out > 0.0 {
+            loss += rate * e_out * share_out[i].min(share_in[m]);
+        }
+    });
+    loss
 }
 
 /// Cells with a neighbour lower by more than `limit[k]`.

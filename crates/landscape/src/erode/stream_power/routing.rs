@@ -53,7 +53,7 @@ impl RadixHeap {
         self.len += 1;
     }
 
-    fn pop(&mut self) -> Option<u32> {
+    fn pop(&mut self) -> Option<(u64, u32)> {
         if self.len == 0 {
             return None;
         }
@@ -73,8 +73,16 @@ impl RadixHeap {
             }
         }
         self.len -= 1;
-        self.buckets[0].pop().map(|e| e.1)
+        self.buckets[0].pop()
     }
+}
+
+/// The height whose [`crate::elev::Elev::key`] is `key` (the key's inverse): a popped entry
+/// gives its level without a load from the (randomly accessed) height raster.
+#[inline]
+fn height_of(key: u64) -> f64 {
+    let sign = 1u64 << 63;
+    f64::from_bits(if key & sign != 0 { key & !sign } else { !key })
 }
 
 /// Flood states of [`route_lakes`]: a cell of a pit's basin not reached yet, a cell reached
@@ -170,27 +178,36 @@ pub(super) fn route_lakes(
     s.parent.resize(n, NO_FLOW);
     s.open.clear();
     s.pit.clear();
-    for i in 0..n {
-        if s.state[i] == OPEN {
-            grid.for_neighbours(i, |_, m| {
-                if s.state[m] == CLOSED && kind[m] != VOID {
-                    s.state[m] = SEED;
-                    s.open.push(z[m].key(), m as u32);
-                }
-            });
+    for y in 0..grid.height {
+        for x in 0..w {
+            let i = y * w + x;
+            if s.state[i] == OPEN {
+                grid.for_neighbours_at(x, y, i, |_, m| {
+                    if s.state[m] == CLOSED && kind[m] != VOID {
+                        s.state[m] = SEED;
+                        s.open.push(z[m].key(), m as u32);
+                    }
+                });
+            }
         }
     }
     // From here on a set `parent` marks the cells of the pits' basins reached by the flood.
     let filled = &mut s.filled;
+    // The level being flooded: a cell popped from `open` sets it (its key is its filled
+    // height); the cells it sends to `pit` are raised to it and flood at it, before the next pop.
+    let mut level = 0.0;
     loop {
         let c = match s.pit.pop_front() {
             Some(c) => c,
             None => match s.open.pop() {
-                Some(c) => c,
+                Some((key, c)) => {
+                    level = height_of(key);
+                    c
+                }
                 None => break,
             },
         } as usize;
-        let level = filled[c];
+        debug_assert_eq!(level.to_bits(), filled[c].to_bits());
         grid.for_neighbours(c, |k, m| {
             if s.state[m] != OPEN {
                 return;
