@@ -376,6 +376,7 @@ impl SceneBuilder {
                 break;
             }
             let members = self.hoodoo_cluster(s, region, &sites[c], &placed, room);
+            let first = self.positives.len();
             for (site, _) in &members {
                 placed.push([site.p[0], site.p[1], 0.0]);
                 report.primitives += self.hoodoo_hollow(s, site)?;
@@ -395,6 +396,7 @@ impl SceneBuilder {
                     report.primitives += self.hoodoo_fin(s, site, other)?;
                 }
             }
+            self.join_positives_since(first)?;
             report.primitives += self.hoodoo_gullies(s, &sites[c], &members)?;
         }
         Ok(report)
@@ -551,6 +553,18 @@ impl SceneBuilder {
             .union_all(&[&[cut], &parts[n_column..]].concat())?;
         self.push_fluted(all, r, seed)?;
         Ok((parts.len(), b1))
+    }
+
+    /// The positive shapes pushed since `first` (a cluster's columns, caps and fins) joined by
+    /// a CSG union into one: the scene sums its positive shapes, and summed fields bridge the
+    /// gap between neighbours (two caps a few metres apart fused into one pale blob).
+    fn join_positives_since(&mut self, first: usize) -> Result<()> {
+        if self.positives.len() > first + 1 {
+            let parts = self.positives.split_off(first);
+            let joined = self.tree.union_all(&parts)?;
+            self.positives.push(joined);
+        }
+        Ok(())
     }
 
     /// `node` warped by noise stretched vertically (`0.22 R` deep, `1.1 R` across, `5 R`

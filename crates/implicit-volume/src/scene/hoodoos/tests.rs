@@ -182,6 +182,40 @@ fn clusters_hold_spires_and_capped_columns() {
     assert!(capped >= 4 && spires >= 2, "{:?}", rep.sizes_m);
 }
 
+/// Neighbouring caps stand apart: two capped hoodoos 6 m apart (columns of 1.5 m, caps of
+/// up to about 2.9 m) keep air between their caps when a cluster's shapes are joined by a
+/// union; summed, as the scene sums its positive shapes, their fields bridge the gap and the
+/// two caps fuse into one slab (pale blobs joined in pairs, seen from above).
+#[test]
+fn neighbouring_caps_stand_apart() {
+    let s = HoodooSettings {
+        radius: 1.5,
+        ..Default::default()
+    };
+    let capped: Vec<u64> = (1..64u64)
+        .filter(|&i| unit(hash(s.seed, i, 60, 0x6361_7073)) >= CAPLESS)
+        .take(2)
+        .collect();
+    let d = 6.0;
+    let joined = |union: bool| {
+        let hf = Heightfield::from_fn(24, 16, 1.0, 1.0, |_, _| 0.0);
+        let mut b = SceneBuilder::new(&hf, beds(0.0), &ImplicitizeSettings::default()).unwrap();
+        b.hoodoo(&s, &flat_site(6.0, 8.0, capped[0])).unwrap();
+        b.hoodoo(&s, &flat_site(6.0 + d, 8.0, capped[1])).unwrap();
+        if union {
+            b.join_positives_since(0).unwrap();
+        }
+        let scene = b.build(true).unwrap();
+        // At some height of the cap bed (10-12 m), rock all along the line between the axes.
+        (0..=20).any(|m| {
+            let z = 10.0 + 0.1 * m as f32;
+            (0..=40).all(|t| scene.inside([6.0 + d * t as f32 / 40.0, 8.0, z]))
+        })
+    };
+    assert!(!joined(true), "caps 6 m apart join");
+    assert!(joined(false), "summed caps 6 m apart stand apart");
+}
+
 /// A builder on `n x n` m of flat ground at 0 m over [`beds`], and hoodoos of radius
 /// 1.5 m 4.8 m apart.
 fn flat(n: usize) -> (SceneBuilder, HoodooSettings) {
