@@ -458,13 +458,13 @@ fn run_plan(
             });
         }
         erode_steps(
+            &mut z,
             plan,
             dem,
             uplift,
             progress,
             stop,
             &grid,
-            &mut z,
             &mut uplifted,
             &mut figures,
         )
@@ -497,16 +497,16 @@ fn run_plan(
     })
 }
 
-/// The processes of `plan` in order on `z` (stream power, hydraulic, fans, thermal), with the
-/// uplift each cell received into `uplifted` and the figures of each.
+/// The processes of `plan` in order on `z`, the DEM's cells (stream power, hydraulic, fans,
+/// thermal), with the uplift each cell received into `uplifted` and the figures of each.
 fn erode_steps(
+    z: &mut [f32],
     plan: &Plan,
     dem: &Heightfield,
     uplift: Option<&Heightfield>,
     progress: &dyn Progress,
     stop: &dyn Fn() -> bool,
     grid: &Grid,
-    z: &mut [f32],
     uplifted: &mut [f64],
     figures: &mut ErodeFigures,
 ) -> Result<()> {

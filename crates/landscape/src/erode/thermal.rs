@@ -154,7 +154,8 @@ pub fn thermal(
             scale.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
                 for_cells(grid, b, out.len(), |j, at| {
                     let i = at.2;
-                    let loss = loss(&cur, grid, at, &talus, rate, &share_out, &share_in);
+                    let loss =
+                        relax::<false>(&cur, grid, at, &talus, rate, &share_out, &share_in, None).1;
                     out[j] = if loss > loose[i] {
                         loose[i] / loss
                     } else {
@@ -168,7 +169,7 @@ pub fn thermal(
                 .enumerate()
                 .for_each(|(b, (out, lo))| {
                     for_cells(grid, b, out.len(), |j, at| {
-                        let (zi, loss, gain) = relax(
+                        let (zi, loss, gain) = relax::<true>(
                             &cur,
                             grid,
                             at,
@@ -185,7 +186,8 @@ pub fn thermal(
         } else {
             next.par_chunks_mut(band).enumerate().for_each(|(b, out)| {
                 for_cells(grid, b, out.len(), |j, at| {
-                    out[j] = relax(&cur, grid, at, &talus, rate, &share_out, &share_in, None).0;
+                    out[j] =
+                        relax::<true>(&cur, grid, at, &talus, rate, &share_out, &share_in, None).0;
                 });
             });
         }
@@ -328,9 +330,11 @@ fn shares(
 
 /// The height of cell `i` after one relaxation step, with what it lost and gained. With
 /// `scale` (the givers' loose-material factors) each transfer is scaled by its giver's.
+/// Without `GAIN` only the loss is computed (the gain is 0), with the same operations in the
+/// same order.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn relax(
+fn relax<const GAIN: bool>(
     z: &[f32],
     grid: &Grid,
     (x, y, i): (usize, usize, usize),
@@ -343,7 +347,7 @@ fn relax(
     let zi = z[i];
     // A cell with no excess towards or from any neighbour neither gives nor takes (most cells:
     // slopes under the angle of repose).
-    if zi.is_nan() || (share_out[i] == 0.0 && share_in[i] == 0.0) {
+    if zi.is_nan() || (share_out[i] == 0.0 && (!GAIN || share_in[i] == 0.0)) {
         return (zi, 0.0, 0.0);
     }
     let factor = |c: usize| scale.map_or(1.0, |s| s[c]);
@@ -360,37 +364,11 @@ fn relax(
             loss += rate * e_out * share_out[i].min(share_in[m]) * factor(i);
         }
         let e_in = zm - zi - talus[k];
-        if e_in > 0.0 {
+        if GAIN && e_in > 0.0 {
             gain += rate * e_in * share_out[m].min(share_in[i]) * factor(m);
         }
     });
     (zi - loss + gain, loss, gain)
-}
-
-/// What cell `i` loses in one relaxation step without the givers' factors: the second value
-/// of [`relax`] with `scale` `None`, with the same operations in the same order.
-#[inline]
-fn loss(
-    z: &[f32],
-    grid: &Grid,
-    (x, y, i): (usize, usize, usize),
-    talus: &[f32; 8],
-    rate: f32,
-    share_out: &[f32],
-    share_in: &[f32],
-) -> f32 {
-    let zi = z[i];
-    if zi.is_nan() || share_out[i] == 0.0 {
-        return 0.0;
-    }
-    let mut loss = 0.0f32;
-    grid.for_neighbours_at(x, y, i, |k, m| {
-        let e_out = zi - z[m] - talus[k];
-        if e_out > 0.0 {
-            loss += rate * e_out * share_out[i].min(share_in[m]);
-        }
-    });
-    loss
 }
 
 /// Cells with a neighbour lower by more than `limit[k]`.
