@@ -1,13 +1,15 @@
 //! Elevation types the routing works on: `f32` rasters as read, `f64` for the erosion models
 //! (whose implicit solvers compare with fastscapelib's double precision).
 
-/// An elevation type: ordered keys for the priority queues, the next representable value
-/// upward (the epsilon of Priority-Flood+epsilon), voids.
+/// An elevation type: ordered keys for the priority queues (and back), the next
+/// representable value upward (the epsilon of Priority-Flood+epsilon), voids.
 pub trait Elev: Copy + PartialOrd + Send + Sync + std::fmt::Debug + 'static {
     /// An integer key whose order is the numeric order of non-NaN values.
     type Key: Ord + Copy + std::fmt::Debug;
     /// The order-preserving key of `self`.
     fn key(self) -> Self::Key;
+    /// The value whose key is `key` (the inverse of [`Elev::key`], bit for bit).
+    fn from_key(key: Self::Key) -> Self;
     /// A priority-queue entry: the key of `self` and a cell index, ordered by key, then index.
     type Entry: crate::radix::RadixKey;
     /// The entry of `self` at cell `i`.
@@ -47,6 +49,11 @@ macro_rules! impl_elev {
                 if b & sign != 0 { !b } else { b | sign }
             }
             #[inline]
+            fn from_key(key: $key) -> $t {
+                let sign = 1 << (<$key>::BITS - 1);
+                <$t>::from_bits(if key & sign != 0 { key & !sign } else { !key })
+            }
+            #[inline]
             fn up(self) -> $t {
                 self.next_up()
             }
@@ -79,6 +86,11 @@ mod tests {
         for w in v.windows(2) {
             assert!(w[0].key() <= w[1].key(), "{w:?}");
             assert!((w[0] as f64).key() <= (w[1] as f64).key());
+        }
+        for v in v {
+            assert_eq!(f32::from_key(v.key()).to_bits(), v.to_bits());
+            let d = v as f64;
+            assert_eq!(f64::from_key(d.key()).to_bits(), d.to_bits());
         }
         assert!(1.0f32.up() > 1.0 && 1.0f64.up() > 1.0);
     }

@@ -77,14 +77,6 @@ impl RadixHeap {
     }
 }
 
-/// The height whose [`crate::elev::Elev::key`] is `key` (the key's inverse): a popped entry
-/// gives its level without a load from the (randomly accessed) height raster.
-#[inline]
-fn height_of(key: u64) -> f64 {
-    let sign = 1u64 << 63;
-    f64::from_bits(if key & sign != 0 { key & !sign } else { !key })
-}
-
 /// Flood states of [`route_lakes`]: a cell of a pit's basin not reached yet, a cell reached
 /// (or outside every pit basin), a cell outside the pit basins queued as a seed of the flood.
 const OPEN: u8 = 0;
@@ -201,7 +193,7 @@ pub(super) fn route_lakes(
             Some(c) => c,
             None => match s.open.pop() {
                 Some((key, c)) => {
-                    level = height_of(key);
+                    level = f64::from_key(key);
                     c
                 }
                 None => break,
